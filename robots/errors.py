@@ -1,0 +1,13 @@
+"""Exceptions of the `robots` package."""
+from __future__ import annotations
+
+
+class RobotError(ValueError):
+    """Base class of the robots package's errors for bad input."""
+
+
+class UnknownRobotError(RobotError, KeyError):
+    """A robot name that `robots.available()` does not list."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
