@@ -1,0 +1,206 @@
+"""Read and write cart logs (LOG_FORMAT.md) and estimate velocities from the pose.
+
+A log is a CSV (or ``.csv.gz``) with ``# key: value`` metadata comments, one
+header line and one row per sample; see ``docs/cart.md`` for the columns.
+Bad input raises :class:`~cart.errors.LogFormatError` naming the file, the
+line and the problem. Headings are unwrapped on reading.
+"""
+from __future__ import annotations
+
+import gzip
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional
+
+import numpy as np
+
+from cart.errors import LogFormatError
+
+REQUIRED_COLUMNS = ("t", "x", "y", "theta", "fx", "fy", "tau")
+VELOCITY_COLUMNS = ("vx", "vy", "omega")
+CONTACT_COLUMNS = ("contact_x", "contact_y")
+
+
+@dataclass(frozen=True)
+class CartLog:
+    """A cart log: times, poses, generalized forces and optional velocities / contact points.
+
+    ``t`` (N,), ``q`` (N, 3) = (x, y, theta unwrapped), ``gamma`` (N, 3) =
+    (fx, fy in {s}, tau about the {b} origin), ``qd`` (N, 3) or None,
+    ``contact_b`` (N, 2) or None, ``metadata`` the ``# key: value`` comments.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    gamma: np.ndarray
+    qd: Optional[np.ndarray] = None
+    contact_b: Optional[np.ndarray] = None
+    metadata: Dict[str, str] = field(default_factory=dict)
+    source: str = "<memory>"
+
+    def __post_init__(self) -> None:
+        n = len(self.t)
+        shapes = {"q": (n, 3), "gamma": (n, 3)}
+        if self.qd is not None:
+            shapes["qd"] = (n, 3)
+        if self.contact_b is not None:
+            shapes["contact_b"] = (n, 2)
+        for name, shape in shapes.items():
+            arr = np.asarray(getattr(self, name), dtype=float)
+            if arr.shape != shape:
+                raise LogFormatError(f"{self.source}: {name} has shape {arr.shape}, expected {shape}")
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "t", np.asarray(self.t, dtype=float).reshape(n))
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def has_velocities(self) -> bool:
+        """Return True when the log carries measured velocities."""
+        return self.qd is not None
+
+    def velocities(self, half_window: float = 0.05) -> np.ndarray:
+        """Return qd (N, 3): the measured velocities, or estimates from the pose when absent."""
+        if self.qd is not None:
+            return self.qd
+        return estimate_velocities(self.t, self.q, half_window)
+
+
+def estimate_velocities(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
+                        degree: int = 2) -> np.ndarray:
+    """Return velocities (N, k) of samples q (N, k) by local polynomial fits (Savitzky-Golay for irregular t).
+
+    Each sample's derivative is the slope at ``t_i`` of a least-squares
+    polynomial of ``degree`` fitted to the neighbours with
+    ``|t_j - t_i| <= half_window`` (at least ``degree + 1`` neighbours on the
+    whole; windows shift inwards at the ends).
+    """
+    t = np.asarray(t, dtype=float)
+    q = np.asarray(q, dtype=float)
+    q2 = q.reshape(len(t), -1)
+    n = len(t)
+    if n < degree + 1:
+        raise LogFormatError(f"need at least {degree + 1} samples to estimate velocities, got {n}")
+    med_dt = float(np.median(np.diff(t)))
+    k = max(degree // 2 + 1, int(round(half_window / med_dt)))
+    width = min(2 * k + 1, n)
+    start = np.clip(np.arange(n) - width // 2, 0, n - width)
+    idx = start[:, None] + np.arange(width)[None, :]
+    tau = t[idx] - t[:, None]  # (n, width)
+    scale = max(float(np.max(np.abs(tau))), 1e-12)
+    tau = tau / scale
+    vander = tau[:, :, None] ** np.arange(degree + 1)[None, None, :]  # (n, width, degree+1)
+    normal = np.einsum("nwi,nwj->nij", vander, vander)
+    rhs = np.einsum("nwi,nwk->nik", vander, q2[idx])  # (n, degree+1, k)
+    coef = np.linalg.solve(normal, rhs)
+    return (coef[:, 1, :] / scale).reshape(q.shape)
+
+
+def _open_text(path: str):
+    if path.endswith(".gz"):
+        return gzip.open(path, "rt", encoding="utf-8", newline="")
+    return open(path, "r", encoding="utf-8", newline="")
+
+
+def _read_lines(path: str) -> List[str]:
+    try:
+        with _open_text(path) as fh:
+            return fh.read().splitlines()
+    except (OSError, EOFError) as exc:  # gzip errors are OSError subclasses
+        if isinstance(exc, (FileNotFoundError, IsADirectoryError, PermissionError)):
+            raise
+        raise LogFormatError(f"{path}: cannot read the file: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise LogFormatError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+
+
+def read_log(path: str | os.PathLike) -> CartLog:
+    """Return the CartLog of a LOG_FORMAT.md file (.csv or .csv.gz); raise LogFormatError on bad input."""
+    path = os.fspath(path)
+    lines = _read_lines(path)
+    metadata: Dict[str, str] = {}
+    i = 0
+    while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
+        text = lines[i][1:].strip() if lines[i].startswith("#") else ""
+        if ":" in text:
+            key, value = text.split(":", 1)
+            metadata[key.strip()] = value.strip()
+        i += 1
+    if i >= len(lines):
+        raise LogFormatError(f"{path}: the file is empty (no header line)")
+    header_line = i + 1
+    header = [h.strip() for h in lines[i].split(",")]
+    missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    if missing:
+        raise LogFormatError(f"{path}: line {header_line}: missing required column(s) {', '.join(missing)} "
+                             f"(header is {lines[i].strip()!r})")
+    dup = sorted({h for h in header if header.count(h) > 1})
+    if dup:
+        raise LogFormatError(f"{path}: line {header_line}: duplicate column(s) {', '.join(dup)}")
+    wanted = [c for c in REQUIRED_COLUMNS + VELOCITY_COLUMNS + CONTACT_COLUMNS if c in header]
+    col = {c: header.index(c) for c in wanted}
+    body = lines[i + 1:]
+    while body and not body[-1].strip():
+        body.pop()  # trailing newlines are not rows
+    rows = np.empty((len(body), len(wanted)))
+    for r, line in enumerate(body):
+        lineno = header_line + 1 + r
+        fields = line.split(",")
+        if len(fields) != len(header):
+            raise LogFormatError(f"{path}: line {lineno}: expected {len(header)} fields, found {len(fields)}")
+        for k, name in enumerate(wanted):
+            text = fields[col[name]].strip()
+            try:
+                value = float(text)
+            except ValueError:
+                raise LogFormatError(f"{path}: line {lineno}: column {name}: non-numeric value {text!r}") from None
+            if not math.isfinite(value):
+                raise LogFormatError(f"{path}: line {lineno}: column {name}: non-finite value {text!r}")
+            rows[r, k] = value
+    if len(body) < 3:
+        raise LogFormatError(f"{path}: only {len(body)} data row(s); a log needs at least 3")
+    data = {name: rows[:, k] for k, name in enumerate(wanted)}
+    t = data["t"]
+    bad = np.nonzero(np.diff(t) <= 0.0)[0]
+    if bad.size:
+        r = int(bad[0]) + 1
+        raise LogFormatError(f"{path}: line {header_line + 1 + r}: time {t[r]!r} is not strictly greater than "
+                             f"the previous time {t[r - 1]!r}")
+    q = np.column_stack([data["x"], data["y"], np.unwrap(data["theta"])])
+    gamma = np.column_stack([data["fx"], data["fy"], data["tau"]])
+    qd = None
+    present = [c for c in VELOCITY_COLUMNS if c in data]
+    if present:
+        estimated = estimate_velocities(t, q) if len(present) < 3 else None
+        qd = np.column_stack([data[c] if c in data else estimated[:, k] for k, c in enumerate(VELOCITY_COLUMNS)])
+    contact = None
+    if all(c in data for c in CONTACT_COLUMNS):
+        contact = np.column_stack([data["contact_x"], data["contact_y"]])
+    return CartLog(t=t, q=q, gamma=gamma, qd=qd, contact_b=contact, metadata=metadata, source=path)
+
+
+def write_log(path: str | os.PathLike, log: CartLog, wrap_theta: bool = False) -> None:
+    """Write ``log`` as LOG_FORMAT.md CSV (gzip-compressed if the name ends in .gz)."""
+    path = os.fspath(path)
+    columns = list(REQUIRED_COLUMNS)
+    theta = np.angle(np.exp(1j * log.q[:, 2])) if wrap_theta else log.q[:, 2]
+    blocks = [log.t[:, None], log.q[:, :2], theta[:, None], log.gamma]
+    if log.qd is not None:
+        columns += list(VELOCITY_COLUMNS)
+        blocks.append(log.qd)
+    if log.contact_b is not None:
+        columns += list(CONTACT_COLUMNS)
+        blocks.append(log.contact_b)
+    table = np.hstack(blocks)
+    out = [f"# {k}: {str(v).replace(chr(10), ' ')}" for k, v in log.metadata.items()]
+    out.append(",".join(columns))
+    out.extend(",".join(repr(float(v)) for v in row) for row in table)
+    text = "\n".join(out) + "\n"
+    if path.endswith(".gz"):
+        with gzip.open(path, "wt", encoding="utf-8", newline="") as fh:
+            fh.write(text)
+    else:
+        with open(path, "w", encoding="utf-8", newline="") as fh:
+            fh.write(text)
