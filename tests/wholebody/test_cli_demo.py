@@ -1,0 +1,30 @@
+"""The CLI dispatcher and `cartpush demo`."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from wholebody.cli import main
+
+
+def test_demo_json_lists_every_robot(capsys):
+    assert main(["demo", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    names = {r["name"]: r for r in out["robots"]}
+    assert set(names) == {"wmra", "ridgeback_iiwa", "shopping_cart"}
+    assert names["shopping_cart"]["mass_kg"] == pytest.approx(15.0)
+    assert names["wmra"]["frame"] == "ee" and names["shopping_cart"]["frame"] == "handle"
+
+
+def test_console_script_help_has_example():
+    out = subprocess.run([sys.executable, "-m", "wholebody.cli", "--help"], capture_output=True, text=True)
+    assert out.returncode == 0 and "Example" in out.stdout
+
+
+def test_unknown_subcommand_exits_2():
+    with pytest.raises(SystemExit) as exc:
+        main(["no-such-command"])
+    assert exc.value.code == 2
