@@ -1,0 +1,575 @@
+"""Meshcat scenes: robots and cart (Pinocchio's visualizer), contacts, wrench arrows, CoM, traces, animations.
+
+A `Scene` records every Meshcat command in-process, so `save_html` writes a
+self-contained static page (viewer JavaScript inlined, works offline) without
+any server. With ``serve=True`` it also starts a local Meshcat server and
+forwards the commands to it (open `Scene.url` in a browser); `close()` (or a
+``with`` block) stops that server.
+
+>>> with Scene(["ridgeback_iiwa", "shopping_cart"]) as scene:
+...     scene.set_robot_pose("shopping_cart", (0.9, 0.0, 0.0))
+...     scene.save_html("scene.html")
+"""
+from __future__ import annotations
+
+import base64
+import contextlib
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Sequence
+
+import meshcat
+import meshcat.geometry as mg
+import meshcat.transformations as tf
+import numpy as np
+import pinocchio as pin
+import umsgpack
+from meshcat.animation import Animation
+from meshcat.commands import SetProperty
+from meshcat.path import Path as PathOf
+from meshcat.servers.tree import SceneTree, find_node, walk
+from pinocchio.visualize import MeshcatVisualizer
+
+import robots
+from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
+from wholebody.errors import WholeBodyError
+
+#: Colours (0xRRGGBB) of the overlays.
+COLORS = {
+    "applied": 0x1565C0,  # blue: wrench the manipulator applies
+    "desired": 0x2E7D32,  # green: wrench the planner/controller asked for
+    "contact": 0x111111,
+    "com_true": 0x1F3FBF,
+    "com_est": 0xE040FB,
+    "trace": 0x7B1FA2,
+}
+#: Height (m above the floor) at which CoM markers are drawn (just above the basket).
+COM_MARKER_Z = 0.95
+#: Default floor grid (xmin, xmax, ymin, ymax), metres.
+FLOOR = (-2.0, 6.0, -3.0, 3.0)
+#: Default arrow scale: metres of arrow per newton (and per newton-metre for torques).
+FORCE_SCALE = 0.01
+_VIEWER_JS = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
+
+
+class SceneError(WholeBodyError):
+    """Bad input to a `Scene` (unknown robot name, malformed pose or points)."""
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A perspective camera looking from `eye` at `target` (world, z up), vertical field of view `fov_deg`.
+
+    This is Meshcat's default camera (three.js PerspectiveCamera, fov 75 deg,
+    orbit controls around `target`); `project` maps world points to pixels.
+    """
+
+    target: tuple[float, float, float] = (0.45, 0.0, 0.55)
+    eye: tuple[float, float, float] = (2.1, -2.3, 1.9)
+    fov_deg: float = 50.0
+
+    def project(self, points: np.ndarray, width: int, height: int) -> np.ndarray:
+        """Return pixel coordinates (u right, v down), shape (N, 2), of world points (N, 3)."""
+        p = np.atleast_2d(np.asarray(points, dtype=float))
+        eye, target = np.asarray(self.eye, float), np.asarray(self.target, float)
+        fwd = (target - eye) / np.linalg.norm(target - eye)
+        right = np.cross(fwd, [0.0, 0.0, 1.0])
+        right /= np.linalg.norm(right)
+        up = np.cross(right, fwd)
+        d = p - eye
+        zc = d @ fwd
+        t = math.tan(math.radians(self.fov_deg) / 2)
+        ndc_x = (d @ right) / (zc * t * width / height)
+        ndc_y = (d @ up) / (zc * t)
+        return np.column_stack(((ndc_x + 1) / 2 * width, (1 - ndc_y) / 2 * height))
+
+
+class _RecordingWindow:
+    """A Meshcat window that keeps the scene tree in-process and optionally forwards to a live server."""
+
+    def __init__(self, live: Any | None = None) -> None:
+        self.tree = SceneTree()
+        self.animation: bytes | None = None
+        self.live = live
+
+    def send(self, command: Any) -> None:
+        """Record a Meshcat command (same tree semantics as meshcat's zmq server) and forward it."""
+        data = command.lower()
+        path = [p for p in data["path"].split("/") if p]
+        packed = umsgpack.packb(data)
+        kind = data["type"]
+        if kind == "set_object":
+            node = find_node(self.tree, path)
+            node.object, node.properties = packed, []
+        elif kind == "set_transform":
+            find_node(self.tree, path).transform = packed
+        elif kind == "set_property":
+            find_node(self.tree, path).properties.append(packed)
+        elif kind == "set_animation":
+            self.animation = packed
+        elif kind == "delete":
+            if path:
+                parent = find_node(self.tree, path[:-1])
+                parent.pop(path[-1], None)
+            else:
+                self.tree, self.animation = SceneTree(), None
+        if self.live is not None:
+            self.live.send(command)
+
+    def commands(self) -> list[bytes]:
+        """Return the recorded scene as msgpack commands, animation last."""
+        out: list[bytes] = []
+        for node in walk(self.tree):
+            if node.object is not None:
+                out.append(node.object)
+            out.extend(node.properties)
+            if node.transform is not None:
+                out.append(node.transform)
+        if self.animation is not None:
+            out.append(self.animation)
+        return out
+
+    def get_image(self):  # pinocchio checks that the viewer can capture images
+        raise SceneError("image capture needs a browser; use Scene.save_html and a headless browser")
+
+
+def _camera_js(camera: Camera) -> str:
+    """Return JavaScript that points the viewer's camera from `camera.eye` at `camera.target`.
+
+    Meshcat's three.js scene is rotated -90 deg about x (z up) and the camera
+    hangs under a node rotated +90 deg, so camera and orbit-control coordinates
+    are three.js world coordinates: meshcat (x, y, z) -> (x, z, -y).
+    """
+    (ex, ey, ez), (tx, ty, tz) = camera.eye, camera.target
+    e, t = (", ".join(f"{float(v):.6g}" for v in vec) for vec in ((ex, ez, -ey), (tx, tz, -ty)))
+    return f"""(function () {{
+  const cam = viewer.camera;
+  cam.fov = {float(camera.fov_deg):.6g};
+  cam.updateProjectionMatrix();
+  cam.position.set({e});
+  viewer.controls.target.set({t});
+  viewer.controls.update();
+  viewer.set_dirty();
+}})();
+"""
+
+
+def _static_html(commands: Sequence[bytes], controls: bool = True, camera: Camera | None = None) -> str:
+    """Return a self-contained HTML page (viewer JavaScript inlined) replaying `commands`, then setting `camera`."""
+    js = _VIEWER_JS.read_text(encoding="utf-8")
+    calls = "".join(
+        f'viewer.handle_command_bytearray(b64("{base64.b64encode(c).decode("ascii")}"));\n' for c in commands
+    )
+    hide = "" if controls else ".dg.main, .dg.ac {display: none !important;}"
+    return f"""<!DOCTYPE html>
+<html>
+<head><meta charset="utf-8"><title>cartpush scene</title>
+<style>body {{margin: 0;}} #meshcat-pane {{width: 100vw; height: 100vh; overflow: hidden;}} {hide}</style>
+</head>
+<body>
+<div id="meshcat-pane"></div>
+<script>
+{js}
+</script>
+<script>
+function b64(s) {{ const b = atob(s); const a = new Uint8Array(b.length);
+  for (let i = 0; i < b.length; i++) a[i] = b.charCodeAt(i); return a; }}
+var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+{calls}{_camera_js(camera) if camera is not None else ""}
+</script>
+</body>
+</html>
+"""
+
+
+def _start_server() -> tuple[Any, Any]:
+    """Return (meshcat ViewerWindow connected to a new local server, server process)."""
+    with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL on stdout
+        window = meshcat.visualizer.ViewerWindow(zmq_url=None, start_server=True, server_args=[])
+    return window, window.server_proc
+
+
+def _planar_q(model: pin.Model, planar_pose: Sequence[float], q_joints: Any) -> np.ndarray:
+    """Return a full configuration: planar root (x, y, theta) + the other joints (array or name -> angle)."""
+    pose = np.asarray(planar_pose, dtype=float).ravel()
+    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+        raise SceneError(f"planar pose must be 3 finite numbers (x, y, theta), got {planar_pose!r}")
+    q = pin.neutral(model)
+    q[:4] = pose[0], pose[1], math.cos(pose[2]), math.sin(pose[2])
+    if q_joints is None:
+        return q
+    if isinstance(q_joints, Mapping):
+        for name, angle in q_joints.items():
+            if not model.existJointName(name):
+                raise SceneError(f"model has no joint {name!r}")
+            j = model.joints[model.getJointId(name)]
+            if j.nq != 1:
+                raise SceneError(f"joint {name!r} has nq={j.nq}; give it in the array form of q_joints")
+            q[j.idx_q] = float(angle)
+        return q
+    rest = np.asarray(q_joints, dtype=float).ravel()
+    if rest.shape != (model.nq - 4,) or not np.all(np.isfinite(rest)):
+        raise SceneError(f"q_joints must have {model.nq - 4} finite entries (nq - 4), got shape {rest.shape}")
+    q[4:] = rest
+    return q
+
+
+def _points3(points: Any, z: float) -> np.ndarray:
+    """Return points as (N, 3); 2-D points get height `z`."""
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    if p.ndim != 2 or p.shape[1] not in (2, 3) or not np.all(np.isfinite(p)):
+        raise SceneError(f"points must be finite (N, 2) or (N, 3), got shape {np.shape(points)}")
+    if p.shape[1] == 2:
+        p = np.column_stack((p, np.full(len(p), z)))
+    return p
+
+
+def _rotation_x_to(direction: np.ndarray) -> np.ndarray:
+    """Return a rotation matrix whose x axis is the unit vector `direction`."""
+    x = direction / np.linalg.norm(direction)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(x[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    y = np.cross(helper, x)
+    y /= np.linalg.norm(y)
+    return np.column_stack((x, y, np.cross(x, y)))
+
+
+def _arrow_parts(origin: np.ndarray, vector: np.ndarray, head: float) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """Return [(part, rigid transform, scale)] for the group, shaft and head of an arrow from `origin` along `vector`.
+
+    The group carries position and direction; the unit shaft (along x) is
+    stretched to length |vector| - head; the head sits at the tip. A zero
+    vector collapses the group (scale 1e-6), i.e. the arrow is invisible.
+    """
+    length = float(np.linalg.norm(vector))
+    group = np.eye(4)
+    group[:3, 3] = origin
+    if length < 1e-9:
+        return [("", group, np.full(3, 1e-6)), ("shaft", np.eye(4), np.ones(3)), ("head", np.eye(4), np.ones(3))]
+    group[:3, :3] = _rotation_x_to(vector)
+    h = min(head, 0.5 * length)
+    shaft, tip = tf.translation_matrix([(length - h) / 2, 0, 0]), tf.translation_matrix([length - h / 2, 0, 0])
+    return [("", group, np.ones(3)), ("shaft", shaft, np.array([length - h, 1.0, 1.0])), ("head", tip, np.full(3, h / head))]
+
+
+def _set_arrow(node: Any, parts: list[tuple[str, np.ndarray, np.ndarray]], animated: bool = False) -> None:
+    """Set the arrow transforms on `node` (a Visualizer or an animation frame)."""
+    for part, T, scale in parts:
+        target = node[part] if part else node
+        if animated:
+            target.set_transform(T)
+            target.set_property("scale", "vector3", [float(v) for v in scale])
+        else:
+            S = T.copy()
+            S[:3, :3] = T[:3, :3] * scale
+            target.set_transform(S)
+
+
+class Scene:
+    """A Meshcat scene of robots (by `robots.load` name) with contacts, wrenches, CoM markers, traces and animations."""
+
+    def __init__(self, robot_names: Sequence[str] = ("ridgeback_iiwa", "shopping_cart"), serve: bool = False,
+                 camera: Camera | None = None, floor: tuple[float, float, float, float] = FLOOR) -> None:
+        """Load the robots (each under its own node `/meshcat/<name>`) at the origin; optionally start a server.
+
+        `floor` (xmin, xmax, ymin, ymax) is drawn as a 0.5 m grid of short
+        segments instead of Meshcat's 20 m grid (whose long lines software
+        renderers drop when they pass behind the camera).
+        """
+        names = list(robot_names)
+        if len(set(names)) != len(names):
+            raise SceneError(f"robot names must be unique, got {names}")
+        self._server = None
+        live = None
+        if serve:
+            live, self._server = _start_server()
+        self.window = _RecordingWindow(live)
+        self.viewer = meshcat.Visualizer(window=self.window)
+        self.url: str | None = live.web_url if live is not None else None
+        self.robots: dict[str, robots.LoadedRobot] = {}
+        self._viz: dict[str, MeshcatVisualizer] = {}
+        self._q: dict[str, np.ndarray] = {}
+        try:
+            for name in names:
+                robot = robots.load(name)  # raises UnknownRobotError for bad names
+                viz = MeshcatVisualizer(robot.model, None, robot.visual_model, data=robot.data,
+                                        visual_data=robot.visual_data)
+                viz.initViewer(viewer=self.viewer)
+                viz.loadViewerModel(rootNodeName=name)
+                self.robots[name], self._viz[name] = robot, viz
+                self.set_robot_pose(name, (0.0, 0.0, 0.0))
+            self.camera = camera or Camera()
+            self.set_camera(self.camera)
+            self.set_floor(floor)
+        except BaseException:
+            self.close()
+            raise
+
+    # -- lifecycle -----------------------------------------------------------------
+    def close(self) -> None:
+        """Stop the Meshcat server started by ``serve=True`` (no-op otherwise)."""
+        if self._server is not None:
+            self._server.kill()
+            self._server.wait()
+            for stream in (self._server.stdout, self._server.stderr):
+                if stream is not None:
+                    stream.close()
+            self.window.live.zmq_socket.close(linger=0)
+            self._server = None
+
+    def __enter__(self) -> "Scene":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    # -- robots ----------------------------------------------------------------------
+    def _robot(self, name: str) -> robots.LoadedRobot:
+        if name not in self.robots:
+            raise SceneError(f"scene has no robot {name!r}; robots: {', '.join(self.robots)}")
+        return self.robots[name]
+
+    def set_robot_pose(self, name: str, planar_pose: Sequence[float], q_joints: Any = None) -> np.ndarray:
+        """Place robot `name` at planar pose (x, y, theta) with joints `q_joints`; return its full configuration.
+
+        `q_joints` is either the nq - 4 entries after the planar root (Pinocchio
+        order) or a mapping joint name -> angle for 1-dof joints (others neutral).
+        """
+        robot = self._robot(name)
+        q = _planar_q(robot.model, planar_pose, q_joints)
+        self._viz[name].display(q)
+        self._q[name] = q
+        return q.copy()
+
+    def set_robot_q(self, name: str, q: np.ndarray) -> None:
+        """Display robot `name` at full Pinocchio configuration `q` (nq entries)."""
+        robot = self._robot(name)
+        q = np.asarray(q, dtype=float).ravel()
+        if q.shape != (robot.model.nq,) or not np.all(np.isfinite(q)):
+            raise SceneError(f"q of {name!r} must have {robot.model.nq} finite entries, got shape {q.shape}")
+        self._viz[name].display(q)
+        self._q[name] = q.copy()
+
+    def robot_q(self, name: str) -> np.ndarray:
+        """Return the configuration robot `name` is displayed at."""
+        self._robot(name)
+        return self._q[name].copy()
+
+    def frame_position(self, name: str, role: str) -> np.ndarray:
+        """Return the world position of frame `role` (or frame name) of robot `name` as displayed."""
+        robot = self._robot(name)
+        pin.framesForwardKinematics(robot.model, robot.data, self._q[name])
+        return robot.data.oMf[robot.frame_id(role)].translation.copy()
+
+    def cart_to_world(self, points_b: Any, cart: str = "shopping_cart") -> np.ndarray:
+        """Return world positions (N, 3) of points given in the cart frame {b} (2-D points lie at the handle height)."""
+        q = self._q[self._robot(cart).name]
+        p = _points3(points_b, CART_HANDLE_Z_B)
+        c, s = q[2], q[3]
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return p @ rot.T + np.array([q[0], q[1], CART_WHEEL_RADIUS])
+
+    # -- overlays --------------------------------------------------------------------
+    def show_contact(self, name: str, points: Any, frame: str = "world", radius: float = 0.025,
+                     color: int = COLORS["contact"]) -> np.ndarray:
+        """Draw contact points as spheres under `/meshcat/contacts/<name>`; return their world positions.
+
+        `frame` is ``"world"`` (2-D points lie on the floor) or ``"b"`` (cart
+        frame; 2-D points lie at the handle height, like LOG_FORMAT's contact_x/y).
+        """
+        world = self._to_world(points, frame)
+        node = self.viewer["contacts"][name]
+        node.delete()
+        for i, p in enumerate(world):
+            node[str(i)].set_object(mg.Sphere(radius), mg.MeshLambertMaterial(color=color))
+            node[str(i)].set_transform(tf.translation_matrix(p))
+        return world
+
+    def _to_world(self, points: Any, frame: str) -> np.ndarray:
+        if frame == "world":
+            return _points3(points, 0.0)
+        if frame == "b":
+            return self.cart_to_world(points)
+        raise SceneError(f"frame must be 'world' or 'b', got {frame!r}")
+
+    def _arrow_node(self, name: str, kind: str, radius: float, head: float) -> Any:
+        if kind not in ("applied", "desired"):
+            raise SceneError(f"wrench kind must be 'applied' or 'desired', got {kind!r}")
+        node = self.viewer["wrenches"][kind][name]
+        material = mg.MeshLambertMaterial(color=COLORS[kind])
+        shaft_rot = tf.rotation_matrix(-math.pi / 2, [0, 0, 1])  # meshcat cylinders lie along y
+        node["shaft"]["geom"].set_object(mg.Cylinder(1.0, radius), material)
+        node["shaft"]["geom"].set_transform(shaft_rot)
+        node["head"]["geom"].set_object(mg.Cylinder(head, radiusTop=0.0, radiusBottom=2.2 * radius), material)
+        node["head"]["geom"].set_transform(shaft_rot)
+        return node
+
+    def show_wrench(self, name: str, origin: Any, force: Any, kind: str = "applied", torque: float | None = None,
+                    frame: str = "world", scale: float = FORCE_SCALE) -> float:
+        """Draw a force arrow (length `scale` * |force| m) at `origin`; return the arrow length.
+
+        `kind` ``"applied"`` (blue) or ``"desired"`` (green). `force` is (fx, fy)
+        or (fx, fy, fz) in world axes. A vertical torque `torque` (N m) is drawn
+        as a thinner vertical arrow (right-hand rule) at the same origin.
+        `frame` says where `origin` is given (``"world"`` or cart ``"b"``).
+        """
+        o = self._to_world(origin, frame)[0]
+        f = np.asarray(force, dtype=float).ravel()
+        if f.shape not in ((2,), (3,)) or not np.all(np.isfinite(f)):
+            raise SceneError(f"force must be 2 or 3 finite numbers, got {force!r}")
+        f = np.append(f, 0.0) if f.size == 2 else f
+        node = self._arrow_node(name, kind, 0.012, 0.06)
+        _set_arrow(node, _arrow_parts(o, scale * f, 0.06))
+        if torque is not None:
+            tnode = self._arrow_node(f"{name}_torque", kind, 0.006, 0.04)
+            _set_arrow(tnode, _arrow_parts(o, np.array([0.0, 0.0, scale * float(torque)]), 0.04))
+        return float(scale * np.linalg.norm(f))
+
+    def show_com(self, true_b: Any, est_b: Any, radius: float = 0.04) -> np.ndarray:
+        """Draw the cart's true and estimated CoM (dx, dy) in {b} as two spheres; return their world positions (2, 3)."""
+        pts = np.vstack((_points3(true_b, 0.0), _points3(est_b, 0.0)))[:, :2]
+        world = self.cart_to_world(np.column_stack((pts, np.full(2, COM_MARKER_Z - CART_WHEEL_RADIUS))))
+        for key, p in zip(("com_true", "com_est"), world):
+            self.viewer["com"][key].set_object(mg.Sphere(radius), mg.MeshLambertMaterial(color=COLORS[key]))
+            self.viewer["com"][key].set_transform(tf.translation_matrix(p))
+        return world
+
+    def show_trace(self, name: str, points: Any, color: int = COLORS["trace"], z: float = 0.005) -> np.ndarray:
+        """Draw a polyline through `points` ((N, 2) on the floor at height `z`, or (N, 3)); return them as (N, 3)."""
+        p = _points3(points, z)
+        if len(p) < 2:
+            raise SceneError("a trace needs at least 2 points")
+        geom = mg.PointsGeometry(p.T.astype(np.float32))
+        self.viewer["traces"][name].set_object(mg.Line(geom, mg.LineBasicMaterial(color=color, linewidth=3)))
+        return p
+
+    def set_floor(self, floor: tuple[float, float, float, float], step: float = 0.5) -> int:
+        """Draw a floor grid over (xmin, xmax, ymin, ymax) at `step` spacing, hiding Meshcat's grid; return #segments."""
+        x0, x1, y0, y1 = (float(v) for v in floor)
+        if not (x1 > x0 and y1 > y0):
+            raise SceneError(f"floor must be (xmin, xmax, ymin, ymax) with xmin < xmax, ymin < ymax, got {floor!r}")
+        xs, ys = np.arange(x0, x1 + 1e-9, step), np.arange(y0, y1 + 1e-9, step)
+        segs = [((a, y), (b, y)) for y in ys for a, b in zip(xs[:-1], xs[1:])]
+        segs += [((x, a), (x, b)) for x in xs for a, b in zip(ys[:-1], ys[1:])]
+        pts = np.array([p for seg in segs for p in seg])
+        pts = np.column_stack((pts, np.zeros(len(pts)))).T.astype(np.float32)
+        self.viewer["/Grid"].set_property("visible", False)
+        self.viewer["floor"].set_object(mg.LineSegments(mg.PointsGeometry(pts), mg.LineBasicMaterial(color=0x9AA4B0)))
+        return len(segs)
+
+    def set_camera(self, camera: Camera) -> None:
+        """Use `camera` for the static page (exact) and, approximately, for a live viewer.
+
+        Meshcat 0.3 has no command for the orbit target, so the static page sets
+        it with a script (`_camera_js`); a live viewer only gets the camera
+        position and orbits around the world origin.
+        """
+        self.camera = camera
+        if self.window.live is not None:
+            d = np.asarray(camera.eye, float)  # the camera node is rotated +90 deg about x: (x, y, z) -> (x, z, -y)
+            self.window.live.send(SetProperty("position", [d[0], d[2], -d[1]], PathOf("/Cameras/default/rotated/<object>")))
+
+    # -- animation -------------------------------------------------------------------
+    def animate(self, t: Sequence[float], poses: Mapping[str, Any], q_joints: Mapping[str, Any] | None = None,
+                wrenches: Mapping[str, tuple[Any, Any]] | None = None, kind: str = "applied",
+                scale: float = FORCE_SCALE, fps: int = 30, play: bool = True, repetitions: int = 1) -> int:
+        """Animate robots and force arrows over times `t`; return the number of animation frames.
+
+        poses: robot name -> (N, 3) planar poses. q_joints: robot name -> (N, nq-4).
+        wrenches: arrow name -> ((N, 3) world origins, (N, 2|3) forces). Samples
+        are resampled at `fps` (nearest earlier sample) so playback runs in real time.
+        """
+        t = np.asarray(t, dtype=float).ravel()
+        if len(t) < 2 or not np.all(np.diff(t) > 0):
+            raise SceneError("animation times must be strictly increasing, at least 2 samples")
+        n_frames = int(math.floor((t[-1] - t[0]) * fps)) + 1
+        idx = np.searchsorted(t, t[0] + np.arange(n_frames) / fps, side="right") - 1
+        anim = Animation(default_framerate=fps)
+        q_joints = q_joints or {}
+        for name, traj in poses.items():
+            traj = np.asarray(traj, dtype=float)
+            if traj.shape != (len(t), 3):
+                raise SceneError(f"poses[{name!r}] must have shape ({len(t)}, 3), got {traj.shape}")
+            joints = q_joints.get(name)
+            viz, saved = self._viz[self._robot(name).name], self.viewer
+            try:
+                for k, i in enumerate(idx):
+                    with anim.at_frame(self.viewer, k) as frame_vis:
+                        viz.viewer = frame_vis
+                        viz.display(_planar_q(viz.model, traj[i], None if joints is None else np.asarray(joints)[i]))
+            finally:
+                viz.viewer = saved
+            self.set_robot_pose(name, traj[idx[-1]], None if joints is None else np.asarray(joints)[idx[-1]])
+        for name, (origins, forces) in (wrenches or {}).items():
+            origins, forces = _points3(origins, 0.0), np.asarray(forces, dtype=float)
+            if len(origins) != len(t) or len(forces) != len(t):
+                raise SceneError(f"wrenches[{name!r}] must have {len(t)} origins and forces")
+            forces = forces if forces.shape[1] == 3 else np.column_stack((forces, np.zeros(len(t))))
+            node = self._arrow_node(name, kind, 0.012, 0.06)
+            for k, i in enumerate(idx):
+                with anim.at_frame(node, k) as fv:
+                    _set_arrow(fv, _arrow_parts(origins[i], scale * forces[i], 0.06), animated=True)
+            _set_arrow(node, _arrow_parts(origins[idx[-1]], scale * forces[idx[-1]], 0.06))
+        self.viewer.set_animation(anim, play=play, repetitions=repetitions)
+        return n_frames
+
+    def animate_cart_log(self, log: Any, cart: str = "shopping_cart", fps: int = 30, play: bool = True) -> int:
+        """Animate a cart log (`cart.logs.CartLog`: t, q, gamma, optional contact_b); return the number of frames.
+
+        The cart follows `q`; the applied force (fx, fy) is an arrow at the
+        contact point (`contact_b`, else the handle midpoint); the path is a trace.
+        """
+        self._robot(cart)
+        t, q, gamma = np.asarray(log.t, float), np.asarray(log.q, float), np.asarray(log.gamma, float)
+        contact_b = getattr(log, "contact_b", None)
+        if contact_b is None:
+            contact_b = np.tile([CART_HANDLE_X, 0.0], (len(t), 1))
+        contact_b = np.asarray(contact_b, dtype=float)
+        c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
+        origins = np.column_stack((q[:, 0] + c * contact_b[:, 0] - s * contact_b[:, 1],
+                                   q[:, 1] + s * contact_b[:, 0] + c * contact_b[:, 1],
+                                   np.full(len(t), CART_HANDLE_Z_B + CART_WHEEL_RADIUS)))
+        self.show_trace(f"{cart}_path", q[:, :2])
+        return self.animate(t, {cart: q}, wrenches={f"{cart}_force": (origins, gamma[:, :2])}, fps=fps, play=play)
+
+    # -- output ----------------------------------------------------------------------
+    def static_html(self, controls: bool = True) -> str:
+        """Return the scene as a self-contained HTML page (works offline; `controls=False` hides the GUI panel)."""
+        return _static_html(self.window.commands(), controls=controls, camera=self.camera)
+
+    def save_html(self, path: str | Path, controls: bool = True) -> Path:
+        """Write the static page to `path`; return the path."""
+        path = Path(path)
+        path.write_text(self.static_html(controls=controls), encoding="utf-8")
+        return path
+
+
+def pushing_configuration(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), standoff: float = 0.75,
+                          iterations: int = 200) -> tuple[np.ndarray, np.ndarray]:
+    """Return (Ridgeback planar pose, full q) with the gripper at the middle of the cart's handle, tool axis forward.
+
+    The base stands `standoff` m behind the handle, facing the cart's heading;
+    the arm comes from a small damped least-squares IK (position + tool axis).
+    """
+    robot = robots.load("ridgeback_iiwa")
+    x, y, th = (float(v) for v in cart_pose)
+    c, s = math.cos(th), math.sin(th)
+    handle = np.array([x + c * CART_HANDLE_X, y + s * CART_HANDLE_X, CART_HANDLE_Z_B + CART_WHEEL_RADIUS])
+    base = (handle[0] - c * standoff, handle[1] - s * standoff, th)
+    arm = {f"iiwa_joint_{i}": a for i, a in zip(range(1, 8), (0.0, 0.6, 0.0, -1.4, 0.0, -0.8, 0.0))}
+    q = _planar_q(robot.model, base, arm)
+    fid, model, data = robot.frame_id("ee"), robot.model, robot.data
+    cols = [model.joints[model.getJointId(f"iiwa_joint_{i}")].idx_v for i in range(1, 8)]
+    qidx = [model.joints[model.getJointId(f"iiwa_joint_{i}")].idx_q for i in range(1, 8)]
+    axis = np.array([c, s, 0.0])
+    for _ in range(iterations):
+        pin.framesForwardKinematics(model, data, q)
+        M = data.oMf[fid]
+        err = np.concatenate((handle - M.translation, np.cross(M.rotation[:, 2], axis)))
+        if np.linalg.norm(err) < 1e-6:
+            break
+        J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)[:, cols]
+        dq = J.T @ np.linalg.solve(J @ J.T + 1e-4 * np.eye(6), err)
+        q[qidx] = np.clip(q[qidx] + dq, model.lowerPositionLimit[qidx], model.upperPositionLimit[qidx])
+    return np.array(base), q
