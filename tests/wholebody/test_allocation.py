@@ -1,0 +1,175 @@
+"""Wrench allocation QP: equality within 1e-8, optimality, limits, infeasibility diagnosis."""
+import numpy as np
+import pinocchio as pin
+import pytest
+from scipy.optimize import minimize
+
+import robots
+from wholebody.allocation import ArmLimits, EffortWeights, GraspModel, WrenchAllocator, allocate
+from wholebody.contact import HandleSegment, cart_wrench, grasp_map
+from wholebody.errors import InfeasibleWrenchError, WholeBodyError
+
+HANDLE = HandleSegment.default()
+SOLVERS = ["proxqp", "osqp", "daqp"]
+
+
+def _contacts(n):
+    return [HANDLE.point(s) for s in np.linspace(0.05, 0.45, n)]
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("n_arms", [1, 2, 3])
+@pytest.mark.parametrize("fast_path", [True, False])
+def test_mapped_wrenches_sum_to_request(solver, n_arms, fast_path):
+    rng = np.random.default_rng(10 + n_arms)
+    lim = ArmLimits(max_force=500.0, max_torque=100.0, grasp=None)
+    alloc = WrenchAllocator(_contacts(n_arms), lim, solver=solver, fast_path=fast_path)
+    for _ in range(10):
+        gamma = rng.uniform([-60, -30, -20], [200, 30, 20])
+        res = alloc.solve(gamma)
+        pts = [c.point_b for c in alloc.contacts]
+        assert np.max(np.abs(cart_wrench(pts, res.wrenches_ee) - gamma)) < 1e-8
+        assert res.residual < 1e-8
+
+
+def _scipy_reference(gamma, points, lim: ArmLimits, weights=EffortWeights()):
+    """Independent solve with SLSQP on the planar variables (fx, fy, tau_z) per arm."""
+    n = len(points)
+    g = lim.grasp
+    Wd = np.tile([weights.force, weights.force, weights.torque], n)
+    Gp = np.hstack([grasp_map(p)[:, [0, 1, 5]] for p in points])
+
+    def ineq(x):
+        out = []
+        for i in range(n):
+            fx, fy, tz = x[3 * i : 3 * i + 3]
+            nrm = 2 * g.grip_force + fx
+            out += [lim.max_force - abs(fx), lim.max_force - abs(fy), lim.max_torque - abs(tz),
+                    g.pull_capacity + fx, g.friction * nrm - abs(fy), g.torque_arm * nrm - abs(tz)]
+        return np.array(out)
+
+    x0 = np.linalg.lstsq(Gp, gamma, rcond=None)[0]
+    r = minimize(lambda x: x @ (Wd * x), x0, jac=lambda x: 2 * Wd * x, method="SLSQP",
+                 constraints=[{"type": "eq", "fun": lambda x: Gp @ x - gamma}, {"type": "ineq", "fun": ineq}],
+                 options={"ftol": 1e-12, "maxiter": 500})
+    return r.fun
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_optimum_matches_independent_nlp_with_active_limits(solver):
+    rng = np.random.default_rng(5)
+    lim = ArmLimits(max_force=60.0, max_torque=3.0, grasp=GraspModel(grip_force=40.0, friction=0.4, torque_arm=0.03))
+    active = 0
+    for _ in range(12):
+        pts = [HANDLE.point(s) for s in np.sort(rng.uniform(0, 0.5, 2))]
+        gamma = rng.uniform([0, -20, -8], [90, 20, 8])
+        try:
+            res = allocate(gamma, pts, lim, solver=solver)
+        except InfeasibleWrenchError:
+            continue
+        ref = _scipy_reference(gamma, pts, lim)
+        assert res.effort == pytest.approx(ref, rel=1e-5, abs=1e-6)
+        alloc = WrenchAllocator(pts, lim, solver=solver)
+        x = res.wrenches_ee.reshape(-1)[alloc.free]
+        active += int(np.any(alloc.Gin @ x > alloc.hin - 1e-6))
+    assert active >= 3  # the comparison covered cases where limits bind
+
+
+def test_symmetric_two_arm_push_splits_evenly():
+    pts = [HANDLE.point(0.1), HANDLE.point(0.4)]  # y = -0.15, +0.15
+    for solver in SOLVERS:
+        res = allocate([50.0, 0.0, 0.0], pts, solver=solver)
+        w = res.wrenches_ee
+        assert np.allclose(w[0], w[1], atol=1e-9)
+        assert np.allclose(w[0], [25.0, 0, 0, 0, 0, 0], atol=1e-9)
+
+
+def test_only_motion_directions_leaves_lateral_free_and_costs_less():
+    pts = [HANDLE.point(0.3)]
+    gamma = [30.0, 0.0, 2.0]
+    full = allocate(gamma, pts)
+    motion = allocate(gamma, pts, only_motion_directions=True)
+    assert np.allclose(full.gamma_achieved, gamma, atol=1e-9)
+    assert np.allclose(motion.gamma_achieved[[0, 2]], [30.0, 2.0], atol=1e-9)
+    assert abs(motion.gamma_achieved[1]) > 1e-3  # uses a lateral force for the torque
+    assert motion.effort < full.effort
+    # closed form: min fy^2 + tz^2 s.t. px fy + tz = c, with c = tau + py fx
+    px, py = pts[0][0], pts[0][1]
+    c = 2.0 + py * 30.0
+    assert motion.effort == pytest.approx(30.0**2 + c**2 / (px**2 + 1.0), rel=1e-10)
+
+
+def test_pull_beyond_grip_is_infeasible_and_names_the_grip():
+    with pytest.raises(InfeasibleWrenchError) as err:
+        allocate([-250.0, 0.0, 0.0], [HANDLE.point(0.25)], ArmLimits(grasp=GraspModel(grip_force=100.0, friction=0.5)))
+    assert "grip pull limit" in err.value.binding
+    assert np.allclose(err.value.closest, (-100.0, 0.0, 0.0), atol=1e-4)
+
+
+def test_force_bound_and_torque_limit_are_named():
+    with pytest.raises(InfeasibleWrenchError) as err:
+        allocate([400.0, 0.0, 0.0], [HANDLE.point(0.25)], ArmLimits(max_force=150.0))
+    assert "force bound (fx <= 150 N)" in err.value.binding
+    assert err.value.closest[0] == pytest.approx(150.0, abs=1e-4)
+    with pytest.raises(InfeasibleWrenchError) as err:
+        allocate([20.0, 0.0, 15.0], [HANDLE.point(0.25)])
+    assert "grip torque limit (tau_z)" in err.value.binding or "grip friction cone" in err.value.binding
+    # the closest wrench is achievable: allocating it succeeds
+    res = allocate(err.value.closest, [HANDLE.point(0.25)])
+    assert res.residual < 1e-6
+
+
+def test_best_effort_returns_closest_instead_of_raising():
+    res = allocate([400.0, 0.0, 0.0], [HANDLE.point(0.25)], raise_on_infeasible=False)
+    assert res.residual == pytest.approx(250.0, abs=1e-3)
+
+
+def _iiwa_jacobian():
+    r = robots.load("ridgeback_iiwa")
+    q = pin.neutral(r.model)
+    arm = [r.model.joints[r.model.getJointId(f"iiwa_joint_{k}")] for k in range(1, 8)]
+    for jnt, val in zip(arm, [0.0, 0.7, 0.0, -1.4, 0.0, 0.9, 0.0]):
+        q[jnt.idx_q] = val
+    fid = r.model.getFrameId("ee")
+    pin.computeJointJacobians(r.model, r.data, q)
+    pin.updateFramePlacements(r.model, r.data)
+    J = pin.getFrameJacobian(r.model, r.data, fid, pin.LOCAL_WORLD_ALIGNED)
+    cols = [jnt.idx_v for jnt in arm]
+    limits = np.array([r.model.effortLimit[c] for c in cols])
+    return J[:, cols], limits
+
+
+def test_joint_torque_effort_uses_jacobian_transpose():
+    J, tl = _iiwa_jacobian()
+    pts = [HANDLE.point(0.25)]
+    gamma = [40.0, 0.0, 1.0]
+    res = allocate(gamma, pts, ArmLimits(planar=False), jacobians=[J], torque_limits=[tl])
+    tau = res.joint_torques[0]
+    assert np.allclose(tau, J.T @ res.wrenches_ee[0])
+    assert res.effort == pytest.approx(tau @ tau, rel=1e-8)
+    assert np.allclose(res.gamma_achieved, gamma, atol=1e-8)
+    # it is no worse in joint torque than the wrench-effort optimum
+    wr = allocate(gamma, pts, ArmLimits(planar=False))
+    tau_wr = J.T @ wr.wrenches_ee[0]
+    assert tau @ tau <= tau_wr @ tau_wr + 1e-9
+
+
+def test_joint_torque_limit_binds_and_is_named():
+    J, _ = _iiwa_jacobian()
+    tl = np.full(7, 2.0)  # a weak arm
+    with pytest.raises(InfeasibleWrenchError) as err:
+        allocate([60.0, 0.0, 0.0], [HANDLE.point(0.25)], jacobians=[J], torque_limits=[tl])
+    assert "joint" in err.value.binding and "torque limit" in err.value.binding
+    closest = np.asarray(err.value.closest)
+    assert 0.0 < closest[0] < 60.0
+
+
+def test_bad_input_raises_project_errors():
+    with pytest.raises(WholeBodyError):
+        allocate([1.0, 2.0], [HANDLE.point(0.2)])
+    with pytest.raises(WholeBodyError):
+        allocate([1.0, 0.0, 0.0], [HANDLE.point(0.2)], solver="nope")
+    with pytest.raises(WholeBodyError):
+        GraspModel(grip_force=500.0)
+    with pytest.raises(WholeBodyError):
+        allocate([1.0, 0.0, 0.0], [HANDLE.point(0.2)], torque_limits=[np.ones(7)])
