@@ -260,21 +260,20 @@ class WrenchAllocator:
             return dict(eps_abs=1e-9, eps_rel=1e-9, polish=True, max_iter=20000, verbose=False)
         return {}
 
-    def _polish(self, x: np.ndarray, b: np.ndarray | None) -> np.ndarray:
-        """Return the exact KKT solution on the active set of x (or x if that fails)."""
-        active = self.Gin @ x >= self.hin - 1e-7 * np.maximum(1.0, np.abs(self.hin))
-        if b is None:  # relaxed problem: no equality rows
+    def _polish(self, x: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Return the exact KKT solution on the active set of x when x misses the equality by > 1e-11."""
+        scale = max(1.0, float(np.max(np.abs(b))))
+        if float(np.max(np.abs(self.A @ x - b))) <= 1e-11 * scale:
             return x
+        active = self.Gin @ x >= self.hin - 1e-7 * np.maximum(1.0, np.abs(self.hin))
         Aeq = np.vstack([self.A, self.Gin[active]])
         beq = np.r_[b, self.hin[active]]
         nx, m = self.P.shape[0], Aeq.shape[0]
         K = np.zeros((nx + m, nx + m))
         K[:nx, :nx], K[:nx, nx:], K[nx:, :nx] = self.P, Aeq.T, Aeq
-        try:
-            sol = np.linalg.lstsq(K, np.r_[-self.q, beq], rcond=None)[0][:nx]
-        except np.linalg.LinAlgError:
-            return x
-        if np.all(self.Gin @ sol <= self.hin + 1e-9 * np.maximum(1.0, np.abs(self.hin))) and np.allclose(self.A @ sol, b, atol=1e-9):
+        sol = np.linalg.lstsq(K, np.r_[-self.q, beq], rcond=None)[0][:nx]
+        ok_in = np.all(self.Gin @ sol <= self.hin + 1e-9 * np.maximum(1.0, np.abs(self.hin)))
+        if ok_in and float(np.max(np.abs(self.A @ sol - b))) <= 1e-11 * scale:
             return sol
         return x
 
