@@ -26,7 +26,7 @@ import meshcat.transformations as tf
 import numpy as np
 import pinocchio as pin
 import umsgpack
-from meshcat.animation import Animation
+from meshcat.animation import Animation, AnimationClip
 from meshcat.commands import SetProperty
 from meshcat.path import Path as PathOf
 from meshcat.servers.tree import SceneTree, find_node, walk
@@ -69,6 +69,18 @@ class Camera:
     target: tuple[float, float, float] = (0.45, 0.0, 0.55)
     eye: tuple[float, float, float] = (2.1, -2.3, 1.9)
     fov_deg: float = 50.0
+
+    @staticmethod
+    def framing(points: Any, elevation: float = 0.65) -> "Camera":
+        """Return a camera that sees the world points (N, 3) from the -y side, looking down by about `elevation` rad."""
+        p = np.atleast_2d(np.asarray(points, dtype=float))
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        centre = (lo + hi) / 2
+        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1.0)
+        dist = 0.95 * radius / math.tan(math.radians(25.0))
+        d = np.array([0.55, -0.85 * math.cos(elevation), math.sin(elevation)])
+        d /= np.linalg.norm(d)
+        return Camera(target=tuple(centre), eye=tuple(centre + dist * d), fov_deg=50.0)
 
     def project(self, points: np.ndarray, width: int, height: int) -> np.ndarray:
         """Return pixel coordinates (u right, v down), shape (N, 2), of world points (N, 3)."""
@@ -216,6 +228,31 @@ def _planar_q(model: pin.Model, planar_pose: Sequence[float], q_joints: Any) -> 
     return q
 
 
+def _planar_matrix(x: float, y: float, theta: float) -> np.ndarray:
+    """Return the 4x4 transform of a planar pose (x, y, theta) on the floor."""
+    T = tf.rotation_matrix(theta, [0.0, 0.0, 1.0])
+    T[:2, 3] = x, y
+    return T
+
+
+def _js_pose(T: np.ndarray) -> tuple[list[float], list[float]]:
+    """Return (position, quaternion x y z w) of a rigid 4x4 transform, as three.js animation keys want them."""
+    quat = pin.Quaternion(np.ascontiguousarray(T[:3, :3])).coeffs()  # (x, y, z, w)
+    return [float(v) for v in T[:3, 3]], [float(v) for v in quat]
+
+
+def _set_key(anim: Animation, path: Any, frame: int, T: np.ndarray, scale: np.ndarray | None = None) -> None:
+    """Add position/quaternion (and scale) keys of the node at `path` to `anim` at `frame`."""
+    if path not in anim.clips:
+        anim.clips[path] = AnimationClip(fps=anim.default_framerate)
+    clip = anim.clips[path]
+    pos, quat = _js_pose(T)
+    clip.set_property(frame, "position", "vector3", pos)
+    clip.set_property(frame, "quaternion", "quaternion", quat)
+    if scale is not None:
+        clip.set_property(frame, "scale", "vector3", [float(v) for v in scale])
+
+
 def _points3(points: Any, z: float) -> np.ndarray:
     """Return points as (N, 3); 2-D points get height `z`."""
     p = np.atleast_2d(np.asarray(points, dtype=float))
@@ -253,17 +290,12 @@ def _arrow_parts(origin: np.ndarray, vector: np.ndarray, head: float) -> list[tu
     return [("", group, np.ones(3)), ("shaft", shaft, np.array([length - h, 1.0, 1.0])), ("head", tip, np.full(3, h / head))]
 
 
-def _set_arrow(node: Any, parts: list[tuple[str, np.ndarray, np.ndarray]], animated: bool = False) -> None:
-    """Set the arrow transforms on `node` (a Visualizer or an animation frame)."""
+def _set_arrow(node: Any, parts: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
+    """Set the (scaled) arrow transforms on the Visualizer `node`."""
     for part, T, scale in parts:
-        target = node[part] if part else node
-        if animated:
-            target.set_transform(T)
-            target.set_property("scale", "vector3", [float(v) for v in scale])
-        else:
-            S = T.copy()
-            S[:3, :3] = T[:3, :3] * scale
-            target.set_transform(S)
+        S = T.copy()
+        S[:3, :3] = T[:3, :3] * scale
+        (node[part] if part else node).set_transform(S)
 
 
 class Scene:
@@ -337,18 +369,23 @@ class Scene:
         order) or a mapping joint name -> angle for 1-dof joints (others neutral).
         """
         robot = self._robot(name)
-        q = _planar_q(robot.model, planar_pose, q_joints)
-        self._viz[name].display(q)
-        self._q[name] = q
-        return q.copy()
+        self.set_robot_q(name, _planar_q(robot.model, planar_pose, q_joints))
+        return self._q[name].copy()
 
     def set_robot_q(self, name: str, q: np.ndarray) -> None:
-        """Display robot `name` at full Pinocchio configuration `q` (nq entries)."""
+        """Display robot `name` at full Pinocchio configuration `q` (nq entries).
+
+        The planar root goes to the transform of node `/meshcat/<name>`; the
+        geometry below it is placed by Pinocchio with the root at the origin.
+        """
         robot = self._robot(name)
         q = np.asarray(q, dtype=float).ravel()
         if q.shape != (robot.model.nq,) or not np.all(np.isfinite(q)):
             raise SceneError(f"q of {name!r} must have {robot.model.nq} finite entries, got shape {q.shape}")
-        self._viz[name].display(q)
+        q_local = q.copy()
+        q_local[:4] = 0.0, 0.0, 1.0, 0.0
+        self._viz[name].display(q_local)
+        self.viewer[name].set_transform(_planar_matrix(q[0], q[1], math.atan2(q[3], q[2])))
         self._q[name] = q.copy()
 
     def robot_q(self, name: str) -> np.ndarray:
@@ -473,12 +510,16 @@ class Scene:
     # -- animation -------------------------------------------------------------------
     def animate(self, t: Sequence[float], poses: Mapping[str, Any], q_joints: Mapping[str, Any] | None = None,
                 wrenches: Mapping[str, tuple[Any, Any]] | None = None, kind: str = "applied",
-                scale: float = FORCE_SCALE, fps: int = 30, play: bool = True, repetitions: int = 1) -> int:
-        """Animate robots and force arrows over times `t`; return the number of animation frames.
+                markers: Mapping[str, Any] | None = None, scale: float = FORCE_SCALE, fps: int = 30,
+                play: bool = True, repetitions: int = 1) -> int:
+        """Animate robots, force arrows and markers over times `t`; return the number of animation frames.
 
         poses: robot name -> (N, 3) planar poses. q_joints: robot name -> (N, nq-4).
-        wrenches: arrow name -> ((N, 3) world origins, (N, 2|3) forces). Samples
-        are resampled at `fps` (nearest earlier sample) so playback runs in real time.
+        wrenches: arrow name -> ((N, 3) world origins, (N, 2|3) forces).
+        markers: node path under /meshcat (e.g. ``"com/com_est"``, made by
+        `show_com` / `show_contact`) -> (N, 3) world positions. Samples are
+        resampled at `fps` (latest sample at or before each frame time) so
+        playback runs in real time.
         """
         t = np.asarray(t, dtype=float).ravel()
         if len(t) < 2 or not np.all(np.diff(t) > 0):
@@ -491,16 +532,19 @@ class Scene:
             traj = np.asarray(traj, dtype=float)
             if traj.shape != (len(t), 3):
                 raise SceneError(f"poses[{name!r}] must have shape ({len(t)}, 3), got {traj.shape}")
+            robot = self._robot(name)
             joints = q_joints.get(name)
-            viz, saved = self._viz[self._robot(name).name], self.viewer
-            try:
-                for k, i in enumerate(idx):
-                    with anim.at_frame(self.viewer, k) as frame_vis:
-                        viz.viewer = frame_vis
-                        viz.display(_planar_q(viz.model, traj[i], None if joints is None else np.asarray(joints)[i]))
-            finally:
-                viz.viewer = saved
-            self.set_robot_pose(name, traj[idx[-1]], None if joints is None else np.asarray(joints)[idx[-1]])
+            if joints is not None:
+                joints = np.asarray(joints, dtype=float)
+                if joints.shape != (len(t), robot.model.nq - 4):
+                    raise SceneError(f"q_joints[{name!r}] must have shape ({len(t)}, {robot.model.nq - 4})")
+            moving = joints is not None and np.ptp(joints, axis=0).max() > 0
+            root = self.viewer[name]
+            for k, i in enumerate(idx):
+                _set_key(anim, root.path, k, _planar_matrix(*traj[i]))
+                if moving:
+                    self._animate_geometry(anim, name, k, _planar_q(robot.model, (0.0, 0.0, 0.0), joints[i]))
+            self.set_robot_pose(name, traj[idx[-1]], None if joints is None else joints[idx[-1]])
         for name, (origins, forces) in (wrenches or {}).items():
             origins, forces = _points3(origins, 0.0), np.asarray(forces, dtype=float)
             if len(origins) != len(t) or len(forces) != len(t):
@@ -508,11 +552,28 @@ class Scene:
             forces = forces if forces.shape[1] == 3 else np.column_stack((forces, np.zeros(len(t))))
             node = self._arrow_node(name, kind, 0.012, 0.06)
             for k, i in enumerate(idx):
-                with anim.at_frame(node, k) as fv:
-                    _set_arrow(fv, _arrow_parts(origins[i], scale * forces[i], 0.06), animated=True)
+                for part, T, sc in _arrow_parts(origins[i], scale * forces[i], 0.06):
+                    _set_key(anim, (node[part] if part else node).path, k, T, sc)
             _set_arrow(node, _arrow_parts(origins[idx[-1]], scale * forces[idx[-1]], 0.06))
+        for path, pts in (markers or {}).items():
+            pts = _points3(pts, 0.0)
+            if len(pts) != len(t):
+                raise SceneError(f"markers[{path!r}] must have {len(t)} positions")
+            node = self.viewer[path]
+            for k, i in enumerate(idx):
+                _set_key(anim, node.path, k, tf.translation_matrix(pts[i]))
+            node.set_transform(tf.translation_matrix(pts[idx[-1]]))
         self.viewer.set_animation(anim, play=play, repetitions=repetitions)
         return n_frames
+
+    def _animate_geometry(self, anim: Animation, name: str, frame: int, q: np.ndarray) -> None:
+        """Add keys at `frame` placing every visual geometry of robot `name` at configuration `q`."""
+        viz = self._viz[name]
+        pin.forwardKinematics(viz.model, viz.data, q)
+        pin.updateGeometryPlacements(viz.model, viz.data, viz.visual_model, viz.visual_data)
+        for gid, geom in enumerate(viz.visual_model.geometryObjects):
+            node = self.viewer[viz.getViewerNodeName(geom, pin.GeometryType.VISUAL)]
+            _set_key(anim, node.path, frame, viz.visual_data.oMg[gid].homogeneous)
 
     def animate_cart_log(self, log: Any, cart: str = "shopping_cart", fps: int = 30, play: bool = True) -> int:
         """Animate a cart log (`cart.logs.CartLog`: t, q, gamma, optional contact_b); return the number of frames.
@@ -526,12 +587,11 @@ class Scene:
         if contact_b is None:
             contact_b = np.tile([CART_HANDLE_X, 0.0], (len(t), 1))
         contact_b = np.asarray(contact_b, dtype=float)
-        c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
-        origins = np.column_stack((q[:, 0] + c * contact_b[:, 0] - s * contact_b[:, 1],
-                                   q[:, 1] + s * contact_b[:, 0] + c * contact_b[:, 1],
-                                   np.full(len(t), CART_HANDLE_Z_B + CART_WHEEL_RADIUS)))
+        origins = _cart_to_world_traj(q, contact_b, CART_HANDLE_Z_B + CART_WHEEL_RADIUS)
         self.show_trace(f"{cart}_path", q[:, :2])
-        return self.animate(t, {cart: q}, wrenches={f"{cart}_force": (origins, gamma[:, :2])}, fps=fps, play=play)
+        self.show_contact(cart, origins[:1])
+        return self.animate(t, {cart: q}, wrenches={f"{cart}_force": (origins, gamma[:, :2])},
+                            markers={f"contacts/{cart}/0": origins}, fps=fps, play=play)
 
     # -- output ----------------------------------------------------------------------
     def static_html(self, controls: bool = True) -> str:
@@ -573,3 +633,95 @@ def pushing_configuration(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), standoff
         dq = J.T @ np.linalg.solve(J @ J.T + 1e-4 * np.eye(6), err)
         q[qidx] = np.clip(q[qidx] + dq, model.lowerPositionLimit[qidx], model.upperPositionLimit[qidx])
     return np.array(base), q
+
+
+def _bounds_camera(points: np.ndarray, scene: Scene) -> None:
+    """Frame `points` (N, 3) with the camera and cover them with the floor grid."""
+    scene.set_camera(Camera.framing(points))
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    scene.set_floor((math.floor(lo[0]) - 2.0, math.ceil(hi[0]) + 2.0, math.floor(lo[1]) - 2.0, math.ceil(hi[1]) + 2.0))
+
+
+def robot_scene(name: str, serve: bool = False) -> Scene:
+    """Return a scene of one robot at the origin (neutral joints; the iiwa with a bent elbow)."""
+    scene = Scene([name], serve=serve)
+    if name == "ridgeback_iiwa":
+        scene.set_robot_pose(name, (0.0, 0.0, 0.0), {"iiwa_joint_2": 0.6, "iiwa_joint_4": -1.4, "iiwa_joint_6": -0.8})
+    robot = scene.robots[name]
+    pin.framesForwardKinematics(robot.model, robot.data, scene.robot_q(name))
+    pts = np.array([f.translation for f in robot.data.oMf])
+    scene.set_camera(Camera.framing(np.vstack((pts, pts.min(axis=0) - 0.4, pts.max(axis=0) + 0.4))))
+    return scene
+
+
+def pushing_scene(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), serve: bool = False) -> Scene:
+    """Return the Ridgeback + iiwa holding the middle of the cart's handle, the cart at planar pose `cart_pose`."""
+    scene = Scene(["ridgeback_iiwa", "shopping_cart"], serve=serve)
+    _, q = pushing_configuration(cart_pose)
+    scene.set_robot_q("ridgeback_iiwa", q)
+    scene.set_robot_pose("shopping_cart", cart_pose)
+    return scene
+
+
+def log_scene(log: Any, serve: bool = False, fps: int = 30) -> Scene:
+    """Return a scene animating a cart log (`cart.logs.CartLog`, or a path read with `cart.logs.read_log`)."""
+    from cart.logs import read_log
+
+    if isinstance(log, (str, Path)):
+        if not Path(log).is_file():
+            raise SceneError(f"log file {str(log)!r} not found")
+        log = read_log(log)
+    scene = Scene(["shopping_cart"], serve=serve)
+    scene.animate_cart_log(log, fps=fps)
+    q = np.asarray(log.q, float)
+    _bounds_camera(np.column_stack((q[:, :2], np.zeros(len(q)))), scene)
+    return scene
+
+
+def _cart_to_world_traj(q: np.ndarray, points_b: np.ndarray, z: float) -> np.ndarray:
+    """Return world points (N, 3) of per-sample points (N, 2) in {b} of the cart poses q (N, 3), at height z."""
+    c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
+    return np.column_stack((q[:, 0] + c * points_b[:, 0] - s * points_b[:, 1],
+                            q[:, 1] + s * points_b[:, 0] + c * points_b[:, 1], np.full(len(q), z)))
+
+
+def scenario_scene(test: int, duration: float = 30.0, serve: bool = False, fps: int = 30) -> Scene:
+    """Return an animated scene of Table I test `test` (1..11): simulated cart, robot, force, contact, CoM estimate.
+
+    Runs `cart.table1.run_test` (with estimation). The robot keeps the arm
+    pose of `pushing_configuration` and its base rigidly behind the cart (a
+    display convention: the simulation has the cart alone); the force arrow
+    sits at the simulation's contact point; the estimated CoM (magenta)
+    converges towards the true one (blue); the traces are the desired (grey)
+    and the actual (purple) paths.
+    """
+    from cart.table1 import TESTS, contact_point, run_test
+
+    numbers = [spec.test for spec in TESTS]
+    if test not in numbers:
+        raise SceneError(f"unknown Table I test {test}; valid: {numbers[0]}..{numbers[-1]}")
+    spec = TESTS[numbers.index(test)]
+    run = run_test(spec, duration=duration)
+    base0, q_robot = pushing_configuration((0.0, 0.0, 0.0))
+    q = np.asarray(run.q, float)
+    base = _cart_to_world_traj(q, np.tile(base0[:2], (len(q), 1)), 0.0)
+    base[:, 2] = q[:, 2]
+    contact_fn = contact_point(spec)
+    contact_b = np.array([contact_fn(t) for t in run.t])
+    handle_z = CART_HANDLE_Z_B + CART_WHEEL_RADIUS
+    contact = _cart_to_world_traj(q, contact_b, handle_z)
+    com_z = COM_MARKER_Z
+    com_true = _cart_to_world_traj(q, np.asarray(run.params_true)[:, 1:3], com_z)
+    com_est = _cart_to_world_traj(q, np.asarray(run.params_hat)[:, 1:3], com_z)
+
+    scene = Scene(["ridgeback_iiwa", "shopping_cart"], serve=serve)
+    scene.show_trace("desired", np.asarray(run.q_desired)[:, :2], color=0x8A8F98)
+    scene.show_trace("actual", q[:, :2])
+    scene.show_contact("arm0", contact_b[:1], frame="b")
+    scene.show_com(np.asarray(run.params_true)[0, 1:3], np.asarray(run.params_hat)[0, 1:3])
+    scene.animate(run.t, {"ridgeback_iiwa": base, "shopping_cart": q},
+                  q_joints={"ridgeback_iiwa": np.tile(q_robot[4:], (len(q), 1))},
+                  wrenches={"arm0": (contact, np.asarray(run.gamma)[:, :2])},
+                  markers={"contacts/arm0/0": contact, "com/com_true": com_true, "com/com_est": com_est}, fps=fps)
+    _bounds_camera(np.vstack((np.column_stack((q[:, :2], np.zeros(len(q)))), base)), scene)
+    return scene
