@@ -11,7 +11,7 @@ import gzip
 import math
 import os
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -68,14 +68,13 @@ class CartLog:
         return estimate_velocities(self.t, self.q, half_window)
 
 
-def estimate_velocities(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
-                        degree: int = 2) -> np.ndarray:
-    """Return velocities (N, k) of samples q (N, k) by local polynomial fits (Savitzky-Golay for irregular t).
+def local_polyfit(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
+                  degree: int = 2) -> Tuple[np.ndarray, np.ndarray, int]:
+    """Return (smoothed q, dq/dt, window size) of local least-squares polynomials (irregular Savitzky-Golay).
 
-    Each sample's derivative is the slope at ``t_i`` of a least-squares
-    polynomial of ``degree`` fitted to the neighbours with
-    ``|t_j - t_i| <= half_window`` (at least ``degree + 1`` neighbours on the
-    whole; windows shift inwards at the ends).
+    Each sample's value and slope come from a polynomial of ``degree`` fitted
+    to the ``2k+1`` neighbours around it, ``k = round(half_window / median dt)``
+    (at least ``degree + 1`` points; windows shift inwards at the ends).
     """
     t = np.asarray(t, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -95,7 +94,13 @@ def estimate_velocities(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
     normal = np.einsum("nwi,nwj->nij", vander, vander)
     rhs = np.einsum("nwi,nwk->nik", vander, q2[idx])  # (n, degree+1, k)
     coef = np.linalg.solve(normal, rhs)
-    return (coef[:, 1, :] / scale).reshape(q.shape)
+    return coef[:, 0, :].reshape(q.shape), (coef[:, 1, :] / scale).reshape(q.shape), width
+
+
+def estimate_velocities(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
+                        degree: int = 2) -> np.ndarray:
+    """Return velocities (N, k) of samples q (N, k) by local polynomial fits (Savitzky-Golay for irregular t)."""
+    return local_polyfit(t, q, half_window, degree)[1]
 
 
 def _open_text(path: str):

@@ -83,7 +83,7 @@ def projection(q: np.ndarray, params: ParamsLike) -> np.ndarray:
     mm = mass_matrix(q, params)
     lam = constraint_matrix(q)
     minv_lt = np.linalg.solve(mm, lam.T)
-    return np.eye(3) - lam.T @ (lam @ np.linalg.solve(mm, np.eye(3))) / float(lam @ minv_lt)
+    return np.eye(3) - lam.T @ (lam @ np.linalg.solve(mm, np.eye(3))) / (lam @ minv_lt).item()
 
 
 def contact_wrench_to_generalized(q: np.ndarray, point_b: np.ndarray, force_b: np.ndarray,
@@ -120,8 +120,8 @@ def constraint_force(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: P
     lam = constraint_matrix(q)
     minv_rhs = np.linalg.solve(mm, rhs)
     minv_lt = np.linalg.solve(mm, lam.T)
-    drift = float(constraint_matrix_dot(q, qd) @ qd) if exact else 0.0
-    return float((lam @ minv_rhs + drift) / (lam @ minv_lt))
+    drift = (constraint_matrix_dot(q, qd) @ qd).item() if exact else 0.0
+    return ((lam @ minv_rhs).item() + drift) / (lam @ minv_lt).item()
 
 
 def forward_dynamics(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: ParamsLike,

@@ -49,10 +49,15 @@ class MeasurementNoise:
 
 @dataclass(frozen=True)
 class ParameterChange:
-    """A discrete change of the cart parameters at time ``t`` (e.g. a payload put in the cart)."""
+    """A discrete change of the cart parameters at time ``t`` (e.g. a payload put in the cart).
+
+    With ``conserve_momentum`` the payload is picked up at rest: the velocity is
+    scaled by m_old / m_new (linear momentum kept), otherwise it is unchanged.
+    """
 
     t: float
     params: CartParams
+    conserve_momentum: bool = True
 
 
 @dataclass(frozen=True)
@@ -116,7 +121,7 @@ def simulate(params: CartParams, controller: Controller, duration: float, dt: fl
              noise: MeasurementNoise = MeasurementNoise(), rng: Optional[np.random.Generator] = None,
              changes: Sequence[ParameterChange] = (), contact_point: Optional[ContactPoint] = None,
              extra_force: Optional[ExtraForce] = None, substeps: int = 4, exact: bool = True,
-             metadata: Optional[dict] = None) -> SimResult:
+             metadata: Optional[dict] = None, allocate: bool = True) -> SimResult:
     """Return the true and measured logs of the cart driven by ``controller`` for ``duration`` seconds.
 
     At each sample t_k = k dt the measurement (q, qd plus noise drawn from
@@ -124,7 +129,8 @@ def simulate(params: CartParams, controller: Controller, duration: float, dt: fl
     the least-effort lateral null-space force of :func:`min_effort_gamma`) is
     applied until t_{k+1}. Parameter ``changes`` take effect at the first sample
     with t_k >= change.t. The logs hold the applied gamma (measured: plus
-    force/torque noise).
+    force/torque noise). With ``allocate=False`` the contact point is only logged
+    (the controller then does its own allocation).
     """
     if rng is None:
         rng = np.random.default_rng(0)
@@ -146,7 +152,10 @@ def simulate(params: CartParams, controller: Controller, duration: float, dt: fl
     for k in range(n):
         t = t_arr[k]
         while pending and pending[0].t <= t + 1e-12:
-            p = pending.pop(0).params
+            change = pending.pop(0)
+            if change.conserve_momentum:
+                qd = qd * (p.m / change.params.m)
+            p = change.params
         q_true[k] = q
         qd_true[k] = qd
         params_t[k] = (p.m, p.dx, p.dy, p.I, p.sigma)
@@ -154,7 +163,8 @@ def simulate(params: CartParams, controller: Controller, duration: float, dt: fl
         if contact_point is not None:
             point = contact_point(t)
             contact[k] = point
-            gamma = min_effort_gamma(q, gamma, point)
+            if allocate:
+                gamma = min_effort_gamma(q, gamma, point)
         g_log[k] = gamma
         if k == n - 1:
             break

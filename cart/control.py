@@ -1,0 +1,140 @@
+"""Tracking controllers for the cart, using the (estimated) model parameters.
+
+- :class:`FeedbackLinearizationLQR`: the paper's feedback linearization with an
+  LQR on the error system (paper eq. 26-28). It treats the three coordinates as
+  actuated; the lateral part of its gamma is absorbed by the wheels, so it
+  cannot remove a lateral error directly.
+- :class:`KanayamaTracker`: the kinematic tracking law of Kanayama, Kimura,
+  Miyazaki and Noguchi, "A stable tracking control method for an autonomous
+  mobile robot", ICRA 1990 (lateral error corrected through the heading),
+  extended to forces by computed torque on the cart's reduced dynamics
+  (backstepping as in Fierro and Lewis, "Control of a nonholonomic mobile
+  robot: backstepping kinematics into dynamics", J. Robotic Systems 1997).
+
+Both implement ``gamma(t, q, qd, params) -> (fx, fy, tau)`` and are selected by
+name with :func:`make_controller` (``"fl_lqr"`` or ``"kanayama"``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+import scipy.linalg
+
+from cart import model
+from cart.errors import CartError
+from cart.params import CartParams
+from cart.trajectories import UnicycleTrajectory
+
+CONTROLLERS = ("fl_lqr", "kanayama")
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def lqr_gain(mass: np.ndarray, coriolis: np.ndarray, alpha: np.ndarray, q_weight: np.ndarray,
+             r_weight: np.ndarray) -> np.ndarray:
+    """Return K (3x6) of the LQR on the error system z = [e, r] of paper eq. (28), u = -K z."""
+    minv = np.linalg.inv(mass)
+    a = np.zeros((6, 6))
+    a[:3, :3] = -alpha
+    a[:3, 3:] = np.eye(3)
+    a[3:, 3:] = -minv @ coriolis
+    b = np.zeros((6, 3))
+    b[3:, :] = minv
+    p = scipy.linalg.solve_continuous_are(a, b, q_weight, r_weight)
+    return np.linalg.solve(r_weight, b.T @ p)
+
+
+@dataclass
+class FeedbackLinearizationLQR:
+    """Paper eq. (26-28): gamma = M(qdd_d + alpha edot) + C(qd_d + alpha e) + N - u, u = -K [e; r].
+
+    K is recomputed every ``gain_period`` seconds from the current M, C (estimated parameters).
+    """
+
+    trajectory: UnicycleTrajectory
+    alpha: float = 2.0
+    q_e: float = 400.0
+    q_r: float = 20.0
+    r_u: float = 0.01
+    gain_period: float = 0.5
+
+    def __post_init__(self) -> None:
+        self._k: Optional[np.ndarray] = None
+        self._k_time = -math.inf
+
+    def gamma(self, t: float, q: np.ndarray, qd: np.ndarray, params: CartParams) -> np.ndarray:
+        """Return the generalized force (fx, fy, tau) of paper eq. (26)."""
+        q_d, qd_d, qdd_d = self.trajectory.sample(t)
+        e = q_d - q
+        e[2] = _wrap(e[2])
+        edot = qd_d - qd
+        r = edot + self.alpha * e
+        mm = model.mass_matrix(q, params)
+        cc = model.coriolis_matrix(q, qd, params)
+        if self._k is None or t - self._k_time >= self.gain_period - 1e-9:
+            eye = np.eye(3)
+            qw = np.diag([self.q_e] * 3 + [self.q_r] * 3)
+            self._k = lqr_gain(mm, cc, self.alpha * eye, qw, self.r_u * eye)
+            self._k_time = t
+        u = -self._k @ np.concatenate([e, r])
+        return (mm @ (qdd_d + self.alpha * edot) + cc @ (qd_d + self.alpha * e)
+                + model.damping_force(qd, params.sigma) - u)  # paper eq. (26)
+
+
+@dataclass
+class KanayamaTracker:
+    """Kanayama et al. (1990) velocity law + computed-torque dynamic extension (Fierro & Lewis 1997).
+
+    v_c = v_r cos e_th + k_x e_x, w_c = w_r + v_r (k_y e_y + k_th sin e_th) with
+    the errors in the cart frame; forces from the reduced dynamics so that
+    vdot = vdot_r + k_v (v_c - v), wdot = wdot_r + k_w (w_c - w).
+    """
+
+    trajectory: UnicycleTrajectory
+    k_x: float = 3.0
+    k_y: float = 12.0
+    k_th: float = 5.0
+    k_v: float = 6.0
+    k_w: float = 10.0
+
+    def gamma(self, t: float, q: np.ndarray, qd: np.ndarray, params: CartParams) -> np.ndarray:
+        """Return the generalized force (fx, fy, tau) realising the commanded accelerations."""
+        q_d, qd_d, qdd_d = self.trajectory.sample(t)
+        th = q[2]
+        c, s = math.cos(th), math.sin(th)
+        dxw, dyw = q_d[0] - q[0], q_d[1] - q[1]
+        e_x = c * dxw + s * dyw
+        e_y = -s * dxw + c * dyw
+        e_th = _wrap(q_d[2] - th)
+        cd, sd = math.cos(q_d[2]), math.sin(q_d[2])
+        v_r = cd * qd_d[0] + sd * qd_d[1]
+        w_r = qd_d[2]
+        vdot_r = cd * qdd_d[0] + sd * qdd_d[1]
+        wdot_r = qdd_d[2]
+        v_c = v_r * math.cos(e_th) + self.k_x * e_x
+        w_c = w_r + v_r * (self.k_y * e_y + self.k_th * math.sin(e_th))
+        v = c * qd[0] + s * qd[1]
+        w_lat = -s * qd[0] + c * qd[1]
+        om = qd[2]
+        vdot = vdot_r + self.k_v * (v_c - v)
+        odot = wdot_r + self.k_w * (w_c - om)
+        m, a, b, j = params.phi
+        sg = params.sigma
+        # reduced dynamics (cart.model.forward_dynamics_fast) solved for (Fu, tau)
+        fu = m * vdot - b * odot + sg * v - a * om * om - m * om * w_lat
+        tau = -b * vdot + j * odot + sg * om + a * om * v + b * om * w_lat
+        return np.array([c * fu, s * fu, tau])
+
+
+def make_controller(name: str, trajectory: UnicycleTrajectory, **gains) -> object:
+    """Return the controller called ``name`` ("fl_lqr" or "kanayama") for ``trajectory``."""
+    if name == "fl_lqr":
+        return FeedbackLinearizationLQR(trajectory, **gains)
+    if name == "kanayama":
+        return KanayamaTracker(trajectory, **gains)
+    raise CartError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLERS)}")

@@ -1,0 +1,365 @@
+"""Continuous-discrete EKF with the augmented state [q, qd, phi] (paper §II.B, eq. 8-20).
+
+State ``x = [x, y, theta, vx, vy, omega, m, m dx, m dy, J]`` (+ ``sigma`` when
+``estimate_sigma``), measurement ``z = [x, y, theta, vx, vy, omega]`` (eq. 10,
+``H = [I_6 0]``). The process model is the *exact* constrained dynamics
+(:func:`cart.model.forward_dynamics_fast`), with its analytic Jacobian F
+(eq. 11). Prediction: Euler step of the state (eq. 16) and
+``P <- Phi P Phi^T + Q dt`` with ``Phi = I + F dt`` (the first-order
+discretisation of eq. 13/17 that keeps P positive semi-definite). Update:
+Kalman gain (eq. 18-19) with the heading innovation wrapped to (-pi, pi],
+Joseph-form covariance (instead of eq. 20) and symmetrisation; phi is then
+projected to m >= min_mass, I >= min_inertia. Each update returns the
+normalized innovation squared (NIS, chi-square with 6 dof when consistent).
+
+The hot path uses plain floats and preallocated arrays.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional, Sequence, Tuple
+
+import numpy as np
+
+from cart.errors import ParameterError
+from cart.params import CartParams
+
+N_MEAS = 6
+
+
+@dataclass(frozen=True)
+class EKFConfig:
+    """Noise model of the EKF: measurement std (R), process noise densities (Q), limits.
+
+    ``meas_std``: std of (x, y, theta, vx, vy, omega). ``q_pos`` (m^2/s),
+    ``q_vel`` (m^2/s^3), ``q_omega`` (rad^2/s^3): white noise on the kinematics
+    (unmodelled forces). ``q_phi``: random-walk densities of
+    (m, m dx, m dy, J) per second, ``q_sigma`` the same for sigma.
+    """
+
+    meas_std: Tuple[float, ...] = (0.005, 0.005, 0.005, 0.005, 0.005, 0.005)
+    q_pos: float = 1e-8
+    q_vel: float = 1e-5
+    q_omega: float = 1e-5
+    q_phi: Tuple[float, float, float, float] = (0.005, 0.005, 0.005, 0.005)
+    q_sigma: float = 0.01
+    estimate_params: bool = True
+    estimate_sigma: bool = False
+    min_mass: float = 0.1
+    min_inertia: float = 1e-3
+
+    @classmethod
+    def from_noise(cls, meas_std: Sequence[float], **kwargs) -> "EKFConfig":
+        """Return a config whose R comes from the measurement std (floored at 1e-6)."""
+        return cls(meas_std=tuple(max(float(s), 1e-6) for s in meas_std), **kwargs)
+
+
+def initial_covariance(phi0: np.ndarray, meas_std: Sequence[float], sigma0: float = 0.0,
+                       estimate_sigma: bool = False, mass_rel_std: float = 0.5,
+                       com_std: float = 0.2) -> np.ndarray:
+    """Return a diagonal P0: the measurement variances for q, qd; a prior on phi from a guess.
+
+    mass std = mass_rel_std * m0; first moments std = m0 * com_std; J std = 0.5 J0 + m0 com_std^2.
+    """
+    m0 = float(phi0[0])
+    diag = [s * s for s in meas_std]
+    diag += [(mass_rel_std * m0) ** 2, (m0 * com_std) ** 2, (m0 * com_std) ** 2,
+             (0.5 * float(phi0[3]) + m0 * com_std ** 2) ** 2]
+    if estimate_sigma:
+        diag.append(max(0.5 * sigma0, 1.0) ** 2)
+    return np.diag(diag)
+
+
+def dynamics_jacobian(x: np.ndarray, gamma: Sequence[float], sigma: float, out_f: np.ndarray,
+                      with_sigma: bool) -> Tuple[float, float, float]:
+    """Return (xdd, ydd, thetadd) at state x and write rows 3..5 of F = df/dx into ``out_f``.
+
+    Exact constrained dynamics in the body frame (see cart.model.forward_dynamics_fast);
+    columns are the state order [x, y, theta, vx, vy, omega, m, a, b, J, (sigma)].
+    """
+    th, vx, vy, om = x[2], x[3], x[4], x[5]
+    m, a, b, j = x[6], x[7], x[8], x[9]
+    sg = x[10] if with_sigma else sigma
+    fx, fy, tau = gamma[0], gamma[1], gamma[2]
+    c, s = math.cos(th), math.sin(th)
+    v = c * vx + s * vy
+    w = -s * vx + c * vy
+    fu = c * fx + s * fy
+    fl = -s * fx + c * fy
+    r1 = fu - sg * v + a * om * om + m * om * w
+    r2 = tau - sg * om - a * om * v - b * om * w
+    i_d = 1.0 / (m * j - b * b)
+    vd = (j * r1 + b * r2) * i_d
+    od = (b * r1 + m * r2) * i_d
+    u1 = vd - om * w
+    u2 = om * v
+    xdd = c * u1 - s * u2
+    ydd = s * u1 + c * u2
+    # theta
+    dr1 = fl - sg * w - m * om * v
+    dr2 = -a * om * w + b * om * v
+    dvd = (j * dr1 + b * dr2) * i_d
+    d1 = dvd + om * v
+    d2 = om * w
+    out_f[3, 2] = c * d1 - s * d2 - ydd
+    out_f[4, 2] = s * d1 + c * d2 + xdd
+    out_f[5, 2] = (b * dr1 + m * dr2) * i_d
+    # vx
+    dr1 = -sg * c - m * om * s
+    dr2 = -a * om * c + b * om * s
+    dvd = (j * dr1 + b * dr2) * i_d
+    d1 = dvd + om * s
+    d2 = om * c
+    out_f[3, 3] = c * d1 - s * d2
+    out_f[4, 3] = s * d1 + c * d2
+    out_f[5, 3] = (b * dr1 + m * dr2) * i_d
+    # vy
+    dr1 = -sg * s + m * om * c
+    dr2 = -a * om * s - b * om * c
+    dvd = (j * dr1 + b * dr2) * i_d
+    d1 = dvd - om * c
+    d2 = om * s
+    out_f[3, 4] = c * d1 - s * d2
+    out_f[4, 4] = s * d1 + c * d2
+    out_f[5, 4] = (b * dr1 + m * dr2) * i_d
+    # omega
+    dr1 = 2.0 * a * om + m * w
+    dr2 = -sg - a * v - b * w
+    dvd = (j * dr1 + b * dr2) * i_d
+    d1 = dvd - w
+    d2 = v
+    out_f[3, 5] = c * d1 - s * d2
+    out_f[4, 5] = s * d1 + c * d2
+    out_f[5, 5] = (b * dr1 + m * dr2) * i_d
+    # m
+    dr1 = om * w
+    dvd = (j * dr1 - vd * j) * i_d
+    out_f[3, 6] = c * dvd
+    out_f[4, 6] = s * dvd
+    out_f[5, 6] = (b * dr1 + r2 - od * j) * i_d
+    # a = m dx
+    dr1 = om * om
+    dr2 = -om * v
+    dvd = (j * dr1 + b * dr2) * i_d
+    out_f[3, 7] = c * dvd
+    out_f[4, 7] = s * dvd
+    out_f[5, 7] = (b * dr1 + m * dr2) * i_d
+    # b = m dy
+    dr2 = -om * w
+    dvd = (r2 + b * dr2 + 2.0 * b * vd) * i_d
+    out_f[3, 8] = c * dvd
+    out_f[4, 8] = s * dvd
+    out_f[5, 8] = (r1 + m * dr2 + 2.0 * b * od) * i_d
+    # J
+    dvd = (r1 - vd * m) * i_d
+    out_f[3, 9] = c * dvd
+    out_f[4, 9] = s * dvd
+    out_f[5, 9] = -od * m * i_d
+    if with_sigma:
+        dr1 = -v
+        dr2 = -om
+        dvd = (j * dr1 + b * dr2) * i_d
+        out_f[3, 10] = c * dvd
+        out_f[4, 10] = s * dvd
+        out_f[5, 10] = (b * dr1 + m * dr2) * i_d
+    return xdd, ydd, od
+
+
+class CartEKF:
+    """The augmented-state EKF of paper eq. (8-20); see the module docstring."""
+
+    def __init__(self, q0: Sequence[float], qd0: Sequence[float], phi0: Sequence[float], sigma: float,
+                 config: EKFConfig = EKFConfig(), P0: Optional[np.ndarray] = None) -> None:
+        self.config = config
+        self.with_sigma = bool(config.estimate_sigma)
+        self.n = 11 if self.with_sigma else 10
+        n = self.n
+        phi0 = np.asarray(phi0, dtype=float)
+        if phi0.shape != (4,) or phi0[0] <= 0.0:
+            raise ParameterError(f"initial phi must be [m>0, m dx, m dy, J], got {phi0!r}")
+        self.x = np.zeros(n)
+        self.x[0:3] = q0
+        self.x[3:6] = qd0
+        self.x[6:10] = phi0
+        self.sigma = float(sigma)
+        if self.with_sigma:
+            self.x[10] = sigma
+        if P0 is None:
+            P0 = initial_covariance(phi0, config.meas_std, sigma, self.with_sigma)
+        self.P = np.array(P0, dtype=float)
+        if self.P.shape != (n, n):
+            raise ParameterError(f"P0 must be {n}x{n}, got {self.P.shape}")
+        qdiag = [config.q_pos, config.q_pos, config.q_pos, config.q_vel, config.q_vel, config.q_omega]
+        if config.estimate_params:
+            qdiag += list(config.q_phi)
+        else:
+            qdiag += [0.0] * 4
+            self.P[6:, :] = 0.0
+            self.P[:, 6:] = 0.0
+        if self.with_sigma:
+            qdiag.append(config.q_sigma if config.estimate_params else 0.0)
+        self.Qc = np.diag(qdiag)
+        self.R = np.diag(np.square(np.asarray(config.meas_std, dtype=float)))
+        self._F = np.zeros((n, n))
+        self._F[0, 3] = self._F[1, 4] = self._F[2, 5] = 1.0
+        self._phi = np.eye(n)
+        self._eye = np.eye(n)
+        self._a = np.eye(n)
+        self.nis = float("nan")
+
+    # -- accessors ---------------------------------------------------------------------------
+    @property
+    def q(self) -> np.ndarray:
+        """Return the estimated pose (x, y, theta)."""
+        return self.x[0:3].copy()
+
+    @property
+    def qd(self) -> np.ndarray:
+        """Return the estimated velocity (vx, vy, omega)."""
+        return self.x[3:6].copy()
+
+    @property
+    def phi(self) -> np.ndarray:
+        """Return the estimated phi = [m, m dx, m dy, J]."""
+        return self.x[6:10].copy()
+
+    @property
+    def sigma_hat(self) -> float:
+        """Return the estimated (or fixed) viscous coefficient."""
+        return float(self.x[10]) if self.with_sigma else self.sigma
+
+    def params(self) -> CartParams:
+        """Return the physical parameters of the current estimate."""
+        return CartParams.from_phi(self.x[6:10], self.sigma_hat)
+
+    def params_std(self) -> dict:
+        """Return the 1-sigma std of m, dx, dy, I (about the CoM) and sigma by linearising the phi map."""
+        m, a, b, j = self.x[6:10]
+        jac = np.array([[1.0, 0.0, 0.0, 0.0],
+                        [-a / m ** 2, 1.0 / m, 0.0, 0.0],
+                        [-b / m ** 2, 0.0, 1.0 / m, 0.0],
+                        [(a * a + b * b) / m ** 2, -2.0 * a / m, -2.0 * b / m, 1.0]])
+        cov = jac @ self.P[6:10, 6:10] @ jac.T
+        std = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        sig = math.sqrt(max(self.P[10, 10], 0.0)) if self.with_sigma else 0.0
+        return {"mass": float(std[0]), "com": [float(std[1]), float(std[2])], "inertia": float(std[3]),
+                "sigma": sig}
+
+    # -- filter ------------------------------------------------------------------------------
+    def predict(self, gamma: Sequence[float], dt: float) -> None:
+        """Propagate state (Euler, eq. 16) and covariance (Phi P Phi^T + Q dt, eq. 13/17) over dt."""
+        x = self.x
+        acc = dynamics_jacobian(x, gamma, self.sigma, self._F, self.with_sigma)
+        x[0] += x[3] * dt
+        x[1] += x[4] * dt
+        x[2] += x[5] * dt
+        x[3] += acc[0] * dt
+        x[4] += acc[1] * dt
+        x[5] += acc[2] * dt
+        phi = self._phi
+        np.multiply(self._F, dt, out=phi)
+        phi += self._eye
+        self.P = phi @ self.P @ phi.T + self.Qc * dt
+
+    def update(self, z: Sequence[float]) -> float:
+        """Fuse a measurement z = (x, y, theta, vx, vy, omega); return its NIS."""
+        x = self.x
+        P = self.P
+        y = np.subtract(z, x[:N_MEAS])
+        y[2] = (y[2] + math.pi) % (2.0 * math.pi) - math.pi
+        S = P[:N_MEAS, :N_MEAS] + self.R
+        S_inv = np.linalg.inv(S)
+        PHt = P[:, :N_MEAS]
+        K = PHt @ S_inv  # eq. (18)
+        x += K @ y  # eq. (19)
+        a = self._a
+        a[:, :] = self._eye
+        a[:, :N_MEAS] -= K
+        P = a @ P @ a.T + K @ self.R @ K.T  # Joseph form
+        self.P = 0.5 * (P + P.T)
+        self._project()
+        self.nis = float(y @ S_inv @ y)
+        return self.nis
+
+    def _project(self) -> None:
+        x = self.x
+        cfg = self.config
+        if x[6] < cfg.min_mass:
+            x[6] = cfg.min_mass
+        j_min = cfg.min_inertia + (x[7] * x[7] + x[8] * x[8]) / x[6]
+        if x[9] < j_min:
+            x[9] = j_min
+        if self.with_sigma and x[10] < 0.0:
+            x[10] = 0.0
+
+    def step(self, gamma: Sequence[float], dt: float, z: Sequence[float]) -> float:
+        """Predict over dt under gamma, then update with z; return the NIS."""
+        self.predict(gamma, dt)
+        return self.update(z)
+
+
+def run_ekf(t: np.ndarray, gamma: np.ndarray, z: np.ndarray, phi0: Sequence[float], sigma: float,
+            config: EKFConfig = EKFConfig()) -> Tuple[CartEKF, np.ndarray, np.ndarray]:
+    """Return (ekf, x_history (N, n), nis (N,)) of the EKF run on a whole log.
+
+    ``gamma[k]`` is held between t_k and t_{k+1}; the first sample initialises q, qd.
+    """
+    ekf = CartEKF(z[0, :3], z[0, 3:], phi0, sigma, config)
+    hist = np.empty((len(t), ekf.n))
+    nis = np.full(len(t), np.nan)
+    hist[0] = ekf.x
+    for k in range(1, len(t)):
+        nis[k] = ekf.step(gamma[k - 1], t[k] - t[k - 1], z[k])
+        hist[k] = ekf.x
+    return ekf, hist, nis
+
+
+@dataclass(frozen=True)
+class LogEstimate:
+    """Parameters estimated from a log, with their 1-sigma std, the noise used and the NIS."""
+
+    params: CartParams
+    std: dict
+    meas_std: Tuple[float, ...]
+    mean_nis: float
+    velocities_estimated: bool
+    history: np.ndarray = field(repr=False)
+
+
+def measurement_std_from_log(t: np.ndarray, q: np.ndarray, qd: Optional[np.ndarray],
+                             half_window: float = 0.05) -> Tuple[float, ...]:
+    """Return the std of (x, y, theta, vx, vy, omega) estimated from the residuals about local quadratic fits.
+
+    When the velocities are absent (estimated by the same fits), their std is
+    the position std propagated through the slope of a least-squares line over
+    the window, times 2 for the correlation between neighbouring estimates.
+    """
+    from cart.logs import local_polyfit
+
+    smooth, _, width = local_polyfit(t, q, half_window)
+    dof = max(width - 3, 1)
+    pose_std = np.std(q - smooth, axis=0) * math.sqrt(width / dof)
+    pose_std = np.maximum(pose_std, [1e-4, 1e-4, 1e-4])
+    if qd is not None:
+        vsmooth, _, _ = local_polyfit(t, qd, half_window)
+        vel_std = np.maximum(np.std(qd - vsmooth, axis=0) * math.sqrt(width / dof), [1e-3, 1e-3, 1e-3])
+    else:
+        span = float(np.median(np.diff(t))) * (width - 1)
+        vel_std = 2.0 * pose_std * math.sqrt(12.0 / width) / max(span, 1e-9)
+    pos = 0.5 * (pose_std[0] + pose_std[1])
+    vel = 0.5 * (vel_std[0] + vel_std[1])
+    return (float(pos), float(pos), float(pose_std[2]), float(vel), float(vel), float(vel_std[2]))
+
+
+def estimate_from_log(log, guess: CartParams, estimate_sigma: bool = True,
+                      meas_std: Optional[Sequence[float]] = None, **config) -> LogEstimate:
+    """Return the EKF's parameter estimate on a CartLog (velocities estimated from the pose when absent)."""
+    qd = log.velocities()
+    if meas_std is None:
+        meas_std = measurement_std_from_log(log.t, log.q, log.qd)
+    cfg = EKFConfig.from_noise(meas_std, estimate_sigma=estimate_sigma, **config)
+    z = np.hstack([log.q, qd])
+    ekf, hist, nis = run_ekf(log.t, log.gamma, z, guess.phi, guess.sigma, cfg)
+    return LogEstimate(params=ekf.params(), std=ekf.params_std(), meas_std=tuple(cfg.meas_std),
+                       mean_nis=float(np.nanmean(nis)), velocities_estimated=not log.has_velocities, history=hist)

@@ -1,0 +1,101 @@
+"""Desired cart trajectories of the paper (Fig. 3), feasible for a nonholonomic cart.
+
+Both are unicycle motions of the {b} origin, so the desired velocity always
+satisfies the no-lateral-slip constraint. The speed has a step acceleration
+to cruise speed and a step stop (paper §III); Traj. 2 adds three large turns
+whose yaw rate is a raised-cosine bump (continuous, so the desired torque is
+bounded) starting at t = 7, 16 and 23 s.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence, Tuple
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Turn:
+    """A yaw-rate bump: heading changes by ``angle`` between ``start`` and ``start + length``."""
+
+    start: float
+    length: float
+    angle: float
+
+
+@dataclass(frozen=True)
+class UnicycleTrajectory:
+    """Speed profile (step acceleration, cruise, step stop) plus turns, sampled by :meth:`sample`."""
+
+    duration: float = 30.0
+    accel_start: float = 1.0
+    accel: float = 0.4
+    cruise_speed: float = 0.8
+    stop_start: float = 27.0
+    turns: Tuple[Turn, ...] = ()
+    grid_dt: float = 1e-3
+
+    def speed(self, t: float) -> Tuple[float, float]:
+        """Return (v, vdot): forward speed and its derivative at t."""
+        t_ramp = self.cruise_speed / self.accel
+        if t < self.accel_start:
+            return 0.0, 0.0
+        if t < self.accel_start + t_ramp:
+            return self.accel * (t - self.accel_start), self.accel
+        if t < self.stop_start:
+            return self.cruise_speed, 0.0
+        if t < self.stop_start + t_ramp:
+            return self.cruise_speed - self.accel * (t - self.stop_start), -self.accel
+        return 0.0, 0.0
+
+    def yaw(self, t: float) -> Tuple[float, float, float]:
+        """Return (theta, omega, omegadot) at t."""
+        th = om = od = 0.0
+        for turn in self.turns:
+            u = (t - turn.start) / turn.length
+            if u <= 0.0:
+                continue
+            if u >= 1.0:
+                th += turn.angle
+                continue
+            peak = 2.0 * turn.angle / turn.length  # omega = peak * (1 - cos 2 pi u) / 2
+            om += 0.5 * peak * (1.0 - math.cos(2.0 * math.pi * u))
+            od += 0.5 * peak * 2.0 * math.pi / turn.length * math.sin(2.0 * math.pi * u)
+            th += turn.angle * (u - math.sin(2.0 * math.pi * u) / (2.0 * math.pi))
+        return th, om, od
+
+    def _grid(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        cache = self.__dict__.get("_cache")
+        if cache is None:
+            tg = np.arange(0.0, self.duration + 2 * self.grid_dt, self.grid_dt)
+            vel = np.array([self.speed(t)[0] * np.array([math.cos(self.yaw(t)[0]), math.sin(self.yaw(t)[0])])
+                            for t in tg])
+            pos = np.zeros_like(vel)
+            pos[1:] = np.cumsum(0.5 * (vel[1:] + vel[:-1]) * self.grid_dt, axis=0)
+            cache = (tg, pos[:, 0], pos[:, 1])
+            object.__setattr__(self, "_cache", cache)
+        return cache
+
+    def sample(self, t: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return (q_d, qd_d, qdd_d) at time t (held at the end after ``duration``)."""
+        tg, xg, yg = self._grid()
+        v, vdot = self.speed(t)
+        th, om, od = self.yaw(t)
+        c, s = math.cos(th), math.sin(th)
+        q = np.array([np.interp(t, tg, xg), np.interp(t, tg, yg), th])
+        qd = np.array([v * c, v * s, om])
+        qdd = np.array([vdot * c - v * om * s, vdot * s + v * om * c, od])
+        return q, qd, qdd
+
+
+def trajectory_1(duration: float = 30.0) -> UnicycleTrajectory:
+    """Return the paper's Traj. 1: a straight line with step acceleration to cruise and a step stop."""
+    return UnicycleTrajectory(duration=duration, stop_start=duration - 3.0)
+
+
+def trajectory_2(duration: float = 30.0, turns: Sequence[Turn] | None = None) -> UnicycleTrajectory:
+    """Return the paper's Traj. 2: the same speed profile with three large turns (Fig. 3)."""
+    if turns is None:
+        turns = (Turn(7.0, 3.0, math.pi / 2), Turn(16.0, 3.0, -math.pi / 2), Turn(23.0, 3.0, math.pi / 2))
+    return UnicycleTrajectory(duration=duration, stop_start=duration - 3.0, turns=tuple(turns))
