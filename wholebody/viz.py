@@ -143,6 +143,17 @@ class _RecordingWindow:
             out.append(self.animation)
         return out
 
+    def local_transform(self, path: Sequence[str]) -> np.ndarray:
+        """Return the recorded transform (4x4) of the node at `path` (identity when none was set)."""
+        node = self.tree
+        for part in path:
+            if part not in node:
+                raise SceneError(f"scene has no node /{'/'.join(path)}")
+            node = node[part]
+        if node.transform is None:
+            return np.eye(4)
+        return np.array(umsgpack.unpackb(node.transform)["matrix"], dtype=float).reshape(4, 4).T
+
     def get_image(self):  # pinocchio checks that the viewer can capture images
         raise SceneError("image capture needs a browser; use Scene.save_html and a headless browser")
 
@@ -592,6 +603,25 @@ class Scene:
         self.show_contact(cart, origins[:1])
         return self.animate(t, {cart: q}, wrenches={f"{cart}_force": (origins, gamma[:, :2])},
                             markers={f"contacts/{cart}/0": origins}, fps=fps, play=play)
+
+    def world_transform(self, path: str) -> np.ndarray:
+        """Return the recorded world transform (4x4) of a node, e.g. ``"/meshcat/shopping_cart/visuals/handle_0"``."""
+        parts = [p for p in path.split("/") if p]
+        T = np.eye(4)
+        for k in range(1, len(parts) + 1):
+            T = T @ self.window.local_transform(parts[:k])
+        return T
+
+    def animation_keys(self) -> dict[str, dict[str, np.ndarray]]:
+        """Return the recorded animation: node path -> track name (``"position"`` ...) -> (frames, k) values."""
+        if self.window.animation is None:
+            return {}
+        out: dict[str, dict[str, np.ndarray]] = {}
+        for item in umsgpack.unpackb(self.window.animation)["animations"]:
+            tracks = out.setdefault(item["path"], {})
+            for track in item["clip"]["tracks"]:
+                tracks[track["name"].lstrip(".")] = np.array([key["value"] for key in track["keys"]], dtype=float)
+        return out
 
     # -- output ----------------------------------------------------------------------
     def static_html(self, controls: bool = True) -> str:
