@@ -198,3 +198,20 @@ def run_demo(out_dir: Path, duration: float = 30.0, html: bool = True, verbose: 
         print(table)
         print(f"report: {Path(out_dir).resolve()}  ({seconds:.1f} s)")
     return DemoResult(runs=runs, table=table, out_dir=Path(out_dir), seconds=seconds)
+
+
+def study_configs(duration: float = 30.0) -> Dict[str, PushConfig]:
+    """Return the comparison study of docs/push.md: estimation on/off x fixed/optimal contact, two arms, Traj. 1."""
+    base = PushConfig(trajectory=2, duration=duration)
+    fixed = replace(base, contact="fixed", fixed_contact_y=(-0.2,))
+    two = replace(base, n_arms=2, fixed_contact_y=(-0.2, 0.2))
+    t1 = replace(base, trajectory=1)
+    runs = [base, replace(base, estimation=False), fixed, replace(fixed, estimation=False),
+            replace(fixed, fixed_contact_y=(0.15,)), two, replace(two, estimation=False),
+            replace(two, contact="fixed"), t1, replace(t1, estimation=False),
+            replace(t1, contact="fixed", fixed_contact_y=(-0.25,)), replace(t1, contact="fixed", fixed_contact_y=(0.15,))]
+    return {describe(c): c for c in runs}
+
+
+if __name__ == "__main__":  # python -m wholebody.push_report: the table of docs/push.md
+    print(comparison_table({label: run_push(cfg) for label, cfg in study_configs().items()}, markdown=True))

@@ -121,3 +121,24 @@ def test_bad_configuration_raises_project_error():
         PushConfig(n_arms=3)
     with pytest.raises(WholeBodyError):
         PushConfig(contact="best")
+
+
+def test_cli_push_json_log_and_bad_input(tmp_path, capsys):
+    import json
+
+    from cart.logs import read_log
+    from wholebody.cli import main
+
+    rc = main(["push", "--trajectory", "1", "--duration", "8", "--contact", "fixed", "--json", "--out", str(tmp_path)])
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("tracking_rms_m", "tracking_max_m", "arm_torque_rms_nm", "arm_torque_peak_nm",
+                "mass_error_final_kg", "com_error_final_m"):
+        assert np.isfinite(out[key])
+    assert out["tracking_max_m"] >= out["tracking_rms_m"] > 0
+    log = read_log(tmp_path / "push_log.csv")
+    assert len(log) == 801 and log.has_velocities
+    assert (tmp_path / "tracking_estimation.png").stat().st_size > 0
+    assert main(["push", "--contact", "best"]) == 2
+    assert main(["push", "--arms", "3"]) == 2
+    assert "error" in capsys.readouterr().err
