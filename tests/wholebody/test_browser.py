@@ -1,0 +1,115 @@
+"""Browser test: headless Chromium renders the static page of the Ridgeback + iiwa pushing the cart.
+
+The screenshot must differ clearly from the screenshot of an empty scene (same
+camera) where the robot and the cart stand — positions projected with the
+camera the page sets — and show their colours there: the Ridgeback yellow,
+the iiwa orange, the cart's handle red and its basket grey. Needs the Debian
+package `chromium` (installed by .ci/run); without it the test fails.
+"""
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
+from wholebody.viz import Scene, pushing_scene
+
+WIDTH, HEIGHT = 1024, 768
+CART_POSE = (0.9, 0.0, 0.0)
+
+
+def chromium() -> str:
+    """Return the path of a Chromium executable, or fail with what to install."""
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        path = shutil.which(name)
+        if path:
+            return path
+    pytest.fail("headless Chromium not found: install the Debian package `chromium` "
+                "(apt-get install -y chromium; .ci/run does this)")
+
+
+def render(html: Path, png: Path, profile: Path) -> np.ndarray:
+    """Return the RGB screenshot (H, W, 3) of a local page rendered by headless Chromium."""
+    cmd = [chromium(), "--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--disable-gpu",
+           "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run",
+           "--hide-scrollbars", f"--user-data-dir={profile}", f"--window-size={WIDTH},{HEIGHT}",
+           "--virtual-time-budget=4000", f"--screenshot={png}", html.resolve().as_uri()]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert png.is_file(), f"chromium wrote no screenshot (exit {proc.returncode}): {proc.stderr[-2000:]}"
+    return np.asarray(Image.open(png).convert("RGB"), dtype=float)
+
+
+def window(img: np.ndarray, uv: np.ndarray, r: int) -> np.ndarray:
+    """Return the pixels (k, 3) of the (2r+1)^2 window around pixel uv."""
+    u, v = int(round(uv[0])), int(round(uv[1]))
+    assert r <= u < WIDTH - r and r <= v < HEIGHT - r, f"projected point {uv} is off screen"
+    return img[v - r:v + r + 1, u - r:u + r + 1].reshape(-1, 3)
+
+
+def is_yellow(p):
+    return (p[:, 0] > 150) & (p[:, 1] > 120) & (p[:, 2] < 90)
+
+
+def is_orange(p):
+    return (p[:, 0] > 150) & (p[:, 1] > 50) & (p[:, 1] < 150) & (p[:, 2] < 70)
+
+
+def is_red(p):
+    return (p[:, 0] > 100) & (p[:, 1] < 60) & (p[:, 2] < 60)
+
+
+def is_grey(p):
+    return (p[:, 0] > 140) & (np.abs(p[:, 2] - p[:, 0]) < 40) & (np.abs(p[:, 1] - p[:, 0]) < 40)
+
+
+@pytest.fixture(scope="module")
+def shots(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("browser")
+    with pushing_scene(CART_POSE) as scene:
+        camera = scene.camera
+        arm_elbow = scene.frame_position("ridgeback_iiwa", "iiwa_link_4")
+        scene.save_html(tmp / "scene.html", controls=False)
+    with Scene([]) as empty:
+        assert empty.camera == camera
+        empty.save_html(tmp / "empty.html", controls=False)
+    img = render(tmp / "scene.html", tmp / "scene.png", tmp / "profile")
+    ref = render(tmp / "empty.html", tmp / "empty.png", tmp / "profile")
+    x, y, _ = CART_POSE
+    points = {
+        "ridgeback": (np.array([0.0, -0.39, 0.12]), is_yellow, 6),  # -y face of the chassis (base at the origin)
+        "iiwa": (arm_elbow, is_orange, 5),
+        "handle": (np.array([x + CART_HANDLE_X, y - 0.2, CART_WHEEL_RADIUS + CART_HANDLE_Z_B]), is_red, 2),
+        "basket": (np.array([x + 0.4, y - 0.26, CART_WHEEL_RADIUS + 0.62]), is_grey, 6),  # its -y face
+    }
+    uv = {k: camera.project(p, WIDTH, HEIGHT)[0] for k, (p, _, _) in points.items()}
+    return img, ref, points, uv
+
+
+def test_screenshot_differs_from_empty_scene_where_objects_stand(shots):
+    img, ref, points, uv = shots
+    assert img.shape == (HEIGHT, WIDTH, 3)
+    for name, (_, _, r) in points.items():
+        diff = np.abs(window(img, uv[name], r) - window(ref, uv[name], r)).mean()
+        assert diff > 40, f"{name}: mean |scene - empty| = {diff:.1f} at pixel {uv[name].round()}"
+    # Far from every object the two screenshots agree (same camera, same background).
+    corner = np.abs(img[:60, :200] - ref[:60, :200]).mean()
+    assert corner < 2.0, f"background differs by {corner:.1f}: the camera or the page differ"
+
+
+def test_screenshot_shows_object_colours(shots):
+    img, ref, points, uv = shots
+    for name, (_, colour, r) in points.items():
+        here, empty = colour(window(img, uv[name], r)).mean(), colour(window(ref, uv[name], r)).mean()
+        assert here > 0.3, f"{name}: only {here:.0%} of the pixels around {uv[name].round()} have its colour"
+        assert empty < 0.05, f"{name}: the empty scene already has its colour there ({empty:.0%})"
+
+
+def test_objects_cover_a_large_part_of_the_image(shots):
+    img, ref, _, _ = shots
+    changed = (np.abs(img - ref).sum(axis=2) > 60).mean()
+    assert 0.05 < changed < 0.6, f"{changed:.0%} of the pixels changed"
