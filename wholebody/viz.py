@@ -43,7 +43,7 @@ COLORS = {
     "contact": 0x111111,
     "com_true": 0x1F3FBF,
     "com_est": 0xE040FB,
-    "trace": 0x7B1FA2,
+    "trace": 0x00E5FF,
 }
 #: Height (m above the floor) at which CoM markers are drawn (just above the basket).
 COM_MARKER_Z = 0.95

@@ -1,0 +1,49 @@
+"""Write docs/img/scene.png, the README's screenshot: the static page of a scene rendered by headless Chromium.
+
+Run from the repository root: .venv/bin/python docs/img/make_scene.py
+"""
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from robots.shopping_cart import CART_HANDLE_X
+from wholebody.viz import Camera, pushing_scene
+
+OUT = Path(__file__).resolve().parent
+
+
+def main() -> int:
+    """Build the scene, save the page and the screenshot; return the exit code."""
+    tmp = Path(tempfile.mkdtemp())
+    with pushing_scene((0.9, 0.0, 0.0)) as scene:
+        scene.set_camera(Camera(target=(0.55, 0.0, 0.55), eye=(2.3, -2.4, 1.9), fov_deg=50.0))
+        scene.show_contact("arm0", [(CART_HANDLE_X, 0.0)], frame="b")
+        scene.show_wrench("arm0", [(CART_HANDLE_X, 0.0)], (40.0, 6.0), torque=4.0, frame="b")
+        scene.show_wrench("arm0", [(CART_HANDLE_X, 0.0)], (34.0, -4.0), kind="desired", frame="b")
+        scene.show_com((0.35, 0.12), (0.30, 0.0))
+        s = np.linspace(0.0, 1.0, 60)
+        scene.show_trace("plan", np.column_stack((0.9 + 4.0 * s, 0.8 * np.sin(np.pi * s) ** 2)))
+        html = scene.save_html(tmp / "scene.html", controls=False)
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    if browser is None:
+        print("chromium not found; wrote only", html, file=sys.stderr)
+        return 1
+    with tempfile.TemporaryDirectory() as profile:  # a fresh browser profile
+        subprocess.run([browser, "--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--disable-gpu",
+                        "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                        "--no-first-run", "--hide-scrollbars", f"--user-data-dir={profile}", "--window-size=1024,640",
+                        "--virtual-time-budget=4000", f"--screenshot={OUT / 'scene.png'}", html.as_uri()],
+                       check=True, capture_output=True, timeout=120)
+    shutil.rmtree(tmp)
+    print("wrote", OUT / "scene.png")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
