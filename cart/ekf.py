@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Optional, Sequence, Tuple
 
 import numpy as np
+from scipy.linalg.lapack import dposv as _dposv, dpotrs as _dpotrs
 
 from cart.errors import ParameterError
 from cart.params import CartParams
@@ -78,10 +79,10 @@ def dynamics_jacobian(x: np.ndarray, gamma: Sequence[float], sigma: float, out_f
     Exact constrained dynamics in the body frame (see cart.model.forward_dynamics_fast);
     columns are the state order [x, y, theta, vx, vy, omega, m, a, b, J, (sigma)].
     """
-    th, vx, vy, om = x[2], x[3], x[4], x[5]
-    m, a, b, j = x[6], x[7], x[8], x[9]
-    sg = x[10] if with_sigma else sigma
-    fx, fy, tau = gamma[0], gamma[1], gamma[2]
+    xs = x.tolist()
+    th, vx, vy, om, m, a, b, j = xs[2:10]
+    sg = xs[10] if with_sigma else sigma
+    fx, fy, tau = (gamma.tolist() if isinstance(gamma, np.ndarray) else gamma)[:3]
     c, s = math.cos(th), math.sin(th)
     v = c * vx + s * vy
     w = -s * vx + c * vy
@@ -102,67 +103,74 @@ def dynamics_jacobian(x: np.ndarray, gamma: Sequence[float], sigma: float, out_f
     dvd = (j * dr1 + b * dr2) * i_d
     d1 = dvd + om * v
     d2 = om * w
-    out_f[3, 2] = c * d1 - s * d2 - ydd
-    out_f[4, 2] = s * d1 + c * d2 + xdd
-    out_f[5, 2] = (b * dr1 + m * dr2) * i_d
+    f3_2 = c * d1 - s * d2 - ydd
+    f4_2 = s * d1 + c * d2 + xdd
+    f5_2 = (b * dr1 + m * dr2) * i_d
     # vx
     dr1 = -sg * c - m * om * s
     dr2 = -a * om * c + b * om * s
     dvd = (j * dr1 + b * dr2) * i_d
     d1 = dvd + om * s
     d2 = om * c
-    out_f[3, 3] = c * d1 - s * d2
-    out_f[4, 3] = s * d1 + c * d2
-    out_f[5, 3] = (b * dr1 + m * dr2) * i_d
+    f3_3 = c * d1 - s * d2
+    f4_3 = s * d1 + c * d2
+    f5_3 = (b * dr1 + m * dr2) * i_d
     # vy
     dr1 = -sg * s + m * om * c
     dr2 = -a * om * s - b * om * c
     dvd = (j * dr1 + b * dr2) * i_d
     d1 = dvd - om * c
     d2 = om * s
-    out_f[3, 4] = c * d1 - s * d2
-    out_f[4, 4] = s * d1 + c * d2
-    out_f[5, 4] = (b * dr1 + m * dr2) * i_d
+    f3_4 = c * d1 - s * d2
+    f4_4 = s * d1 + c * d2
+    f5_4 = (b * dr1 + m * dr2) * i_d
     # omega
     dr1 = 2.0 * a * om + m * w
     dr2 = -sg - a * v - b * w
     dvd = (j * dr1 + b * dr2) * i_d
     d1 = dvd - w
     d2 = v
-    out_f[3, 5] = c * d1 - s * d2
-    out_f[4, 5] = s * d1 + c * d2
-    out_f[5, 5] = (b * dr1 + m * dr2) * i_d
+    f3_5 = c * d1 - s * d2
+    f4_5 = s * d1 + c * d2
+    f5_5 = (b * dr1 + m * dr2) * i_d
     # m
     dr1 = om * w
     dvd = (j * dr1 - vd * j) * i_d
-    out_f[3, 6] = c * dvd
-    out_f[4, 6] = s * dvd
-    out_f[5, 6] = (b * dr1 + r2 - od * j) * i_d
+    f3_6 = c * dvd
+    f4_6 = s * dvd
+    f5_6 = (b * dr1 + r2 - od * j) * i_d
     # a = m dx
     dr1 = om * om
     dr2 = -om * v
     dvd = (j * dr1 + b * dr2) * i_d
-    out_f[3, 7] = c * dvd
-    out_f[4, 7] = s * dvd
-    out_f[5, 7] = (b * dr1 + m * dr2) * i_d
+    f3_7 = c * dvd
+    f4_7 = s * dvd
+    f5_7 = (b * dr1 + m * dr2) * i_d
     # b = m dy
     dr2 = -om * w
     dvd = (r2 + b * dr2 + 2.0 * b * vd) * i_d
-    out_f[3, 8] = c * dvd
-    out_f[4, 8] = s * dvd
-    out_f[5, 8] = (r1 + m * dr2 + 2.0 * b * od) * i_d
+    f3_8 = c * dvd
+    f4_8 = s * dvd
+    f5_8 = (r1 + m * dr2 + 2.0 * b * od) * i_d
     # J
     dvd = (r1 - vd * m) * i_d
-    out_f[3, 9] = c * dvd
-    out_f[4, 9] = s * dvd
-    out_f[5, 9] = -od * m * i_d
+    f3_9 = c * dvd
+    f4_9 = s * dvd
+    f5_9 = -od * m * i_d
     if with_sigma:
         dr1 = -v
         dr2 = -om
         dvd = (j * dr1 + b * dr2) * i_d
-        out_f[3, 10] = c * dvd
-        out_f[4, 10] = s * dvd
-        out_f[5, 10] = (b * dr1 + m * dr2) * i_d
+        f3_10 = c * dvd
+        f4_10 = s * dvd
+        f5_10 = (b * dr1 + m * dr2) * i_d
+        out_f[3:6, 2:11] = [[f3_2, f3_3, f3_4, f3_5, f3_6, f3_7, f3_8, f3_9, f3_10],
+                            [f4_2, f4_3, f4_4, f4_5, f4_6, f4_7, f4_8, f4_9, f4_10],
+                            [f5_2, f5_3, f5_4, f5_5, f5_6, f5_7, f5_8, f5_9, f5_10]]
+    else:
+        out_f[3:6, 2:10] = [[f3_2, f3_3, f3_4, f3_5, f3_6, f3_7, f3_8, f3_9],
+                            [f4_2, f4_3, f4_4, f4_5, f4_6, f4_7, f4_8, f4_9],
+                            [f5_2, f5_3, f5_4, f5_5, f5_6, f5_7, f5_8, f5_9]]
     return xdd, ydd, od
 
 
@@ -251,16 +259,15 @@ class CartEKF:
         """Propagate state (Euler, eq. 16) and covariance (Phi P Phi^T + Q dt, eq. 13/17) over dt."""
         x = self.x
         acc = dynamics_jacobian(x, gamma, self.sigma, self._F, self.with_sigma)
-        x[0] += x[3] * dt
-        x[1] += x[4] * dt
-        x[2] += x[5] * dt
-        x[3] += acc[0] * dt
-        x[4] += acc[1] * dt
-        x[5] += acc[2] * dt
+        vx, vy, om = x[3:6].tolist()
+        x[:6] += (vx * dt, vy * dt, om * dt, acc[0] * dt, acc[1] * dt, acc[2] * dt)
         phi = self._phi
         np.multiply(self._F, dt, out=phi)
         phi += self._eye
-        self.P = phi @ self.P @ phi.T + self.Qc * dt
+        p = phi @ self.P
+        p = p @ phi.T
+        p += self.Qc * dt
+        self.P = p
 
     def update(self, z: Sequence[float]) -> float:
         """Fuse a measurement z = (x, y, theta, vx, vy, omega); return its NIS."""
@@ -269,26 +276,30 @@ class CartEKF:
         y = np.subtract(z, x[:N_MEAS])
         y[2] = (y[2] + math.pi) % (2.0 * math.pi) - math.pi
         S = P[:N_MEAS, :N_MEAS] + self.R
-        S_inv = np.linalg.inv(S)
         PHt = P[:, :N_MEAS]
-        K = PHt @ S_inv  # eq. (18)
+        c_s, kt, info = _dposv(S, PHt.T.copy(), lower=1)  # S K^T = (P H^T)^T, Cholesky solve
+        if info != 0:
+            raise np.linalg.LinAlgError(f"innovation covariance not positive definite (dposv info {info})")
+        K = kt.T  # eq. (18)
+        s_inv_y = _dpotrs(c_s, y, lower=1)[0]
         x += K @ y  # eq. (19)
-        a = self._a
-        a[:, :] = self._eye
-        a[:, :N_MEAS] -= K
-        P = a @ P @ a.T + K @ self.R @ K.T  # Joseph form
-        self.P = 0.5 * (P + P.T)
+        kpt = K @ PHt.T
+        P = P - kpt - kpt.T + K @ (S @ K.T)  # Joseph form (I-KH)P(I-KH)^T + KRK^T, expanded with H = [I 0]
+        P += P.T
+        P *= 0.5
+        self.P = P
         self._project()
-        self.nis = float(y @ S_inv @ y)
+        self.nis = float(y @ s_inv_y)
         return self.nis
 
     def _project(self) -> None:
         x = self.x
         cfg = self.config
-        if x[6] < cfg.min_mass:
-            x[6] = cfg.min_mass
-        j_min = cfg.min_inertia + (x[7] * x[7] + x[8] * x[8]) / x[6]
-        if x[9] < j_min:
+        m, a, b, j = x[6:10].tolist()
+        if m < cfg.min_mass:
+            m = x[6] = cfg.min_mass
+        j_min = cfg.min_inertia + (a * a + b * b) / m
+        if j < j_min:
             x[9] = j_min
         if self.with_sigma and x[10] < 0.0:
             x[10] = 0.0

@@ -1,0 +1,119 @@
+"""EKF Jacobian/covariance/projection, log reading rules, velocity estimation, a short Table I run."""
+import gzip
+
+import numpy as np
+import pytest
+
+from cart import table1
+from cart.ekf import CartEKF, EKFConfig, dynamics_jacobian, estimate_from_log
+from cart.errors import LogFormatError
+from cart.logs import CartLog, estimate_velocities, read_log, write_log
+from cart.params import CartParams
+
+
+@pytest.mark.parametrize("with_sigma", [False, True])
+def test_analytic_jacobian_matches_finite_differences(with_sigma):
+    rng = np.random.default_rng(4)
+    n = 11 if with_sigma else 10
+    for _ in range(5):
+        x = np.r_[rng.normal(size=6), rng.uniform(10, 30), rng.normal(3, 1), rng.normal(1, 1), 8.0, 3.0][:n]
+        g = rng.normal(size=3) * 10
+        f = np.zeros((n, n))
+        dynamics_jacobian(x, g, 3.0, f, with_sigma)
+        num = np.zeros((3, n))
+        for i in range(n):
+            h = 1e-6 * max(1.0, abs(x[i]))
+            xp, xm = x.copy(), x.copy()
+            xp[i] += h
+            xm[i] -= h
+            num[:, i] = (np.array(dynamics_jacobian(xp, g, 3.0, np.zeros((n, n)), with_sigma))
+                         - np.array(dynamics_jacobian(xm, g, 3.0, np.zeros((n, n)), with_sigma))) / (2 * h)
+        np.testing.assert_allclose(f[3:6], num, rtol=1e-6, atol=1e-6 * np.abs(num).max())
+
+
+def test_covariance_stays_symmetric_positive_definite_and_phi_physical():
+    ekf = CartEKF([0, 0, 0], [0, 0, 0], [20.0, 6.0, 0.0, 4.0], 4.0, EKFConfig(estimate_sigma=True))
+    rng = np.random.default_rng(5)
+    for k in range(500):
+        z = rng.normal(size=6) * 0.5  # nonsense data drives phi towards unphysical values
+        ekf.step(rng.normal(size=3) * 50, 0.01, z)
+        assert np.array_equal(ekf.P, ekf.P.T)
+        assert np.linalg.eigvalsh(ekf.P).min() > 0
+        p = ekf.params()
+        assert p.m > 0 and p.I > 0 and p.sigma >= 0
+        assert np.isfinite(ekf.nis)
+
+
+def test_table1_test5_converges_and_tracks():
+    """Paper claims on one test (the full table is measured by `cartpush reproduce`)."""
+    r = table1.evaluate(table1.TESTS[4])
+    assert r.mass_converged_s is not None and r.mass_converged_s < 10.0
+    assert r.mass_error_final_kg < 0.5
+    assert r.com_error_final_m < 0.03
+    assert r.tracking_max_after_5s_m < 0.03
+    assert r.tracking_rms_no_estimation_m > 3 * r.tracking_rms_m
+    assert 3.0 < np.nanmean(r.run.nis) < 9.0  # chi-square with 6 dof has mean 6
+
+
+def test_estimate_from_log_without_velocities(tmp_path):
+    run = table1.run_test(table1.TESTS[4], True, duration=30.0)
+    truth = table1.true_params(table1.TESTS[4])
+    rng = np.random.default_rng(9)
+    log = CartLog(t=run.t, q=run.q + rng.normal(size=run.q.shape) * 1e-3, gamma=run.gamma)
+    path = tmp_path / "push.csv.gz"
+    write_log(path, log, wrap_theta=True)
+    est = estimate_from_log(read_log(path), CartParams(15.0, 0.0, 0.0, 1.5, 1.0),
+                            meas_std=(1e-3, 1e-3, 1e-3, 0.02, 0.02, 0.02))
+    assert est.velocities_estimated
+    assert abs(est.params.m - truth.m) < 1.0
+    assert abs(est.params.sigma - truth.sigma) < 1.0
+
+
+def test_log_roundtrip_and_unwrap(tmp_path):
+    t = np.linspace(0, 2, 50)
+    q = np.column_stack([t, 0.5 * t, 4.0 * t])  # heading passes pi: written wrapped, read unwrapped
+    log = CartLog(t=t, q=q, gamma=np.ones((50, 3)), qd=np.zeros((50, 3)), contact_b=np.zeros((50, 2)),
+                  metadata={"robot": "test"})
+    for name in ("a.csv", "a.csv.gz"):
+        write_log(tmp_path / name, log, wrap_theta=True)
+        back = read_log(tmp_path / name)
+        np.testing.assert_allclose(back.q, q, atol=1e-12)
+        assert back.metadata["robot"] == "test" and back.contact_b is not None
+
+
+def test_velocity_estimation_is_exact_for_quadratics_on_irregular_time():
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.005, 0.02, 300))
+    q = np.column_stack([1 + 2 * t - 0.3 * t ** 2, np.sin(t), -t])
+    v = estimate_velocities(t, q)
+    np.testing.assert_allclose(v[:, 0], 2 - 0.6 * t, atol=1e-8)
+    np.testing.assert_allclose(v[:, 2], -1.0, atol=1e-8)
+    np.testing.assert_allclose(v[:, 1], np.cos(t), atol=2e-3)
+
+
+HEADER = "t,x,y,theta,fx,fy,tau"
+
+
+@pytest.mark.parametrize("body, fragment", [
+    ("", "empty"),
+    ("# only: comment\n", "empty"),
+    ("t,x,y,theta,fx,fy\n0,0,0,0,0,0\n", "missing required column(s) tau"),
+    (HEADER + "\n0,0,0,0,0,0,0\n0.1,0,0,0,a,0,0\n0.2,0,0,0,0,0,0\n", "line 3: column fx: non-numeric"),
+    (HEADER + "\n0,0,0,0,0,0,0\n0.1,0,nan,0,0,0,0\n0.2,0,0,0,0,0,0\n", "line 3: column y: non-finite"),
+    (HEADER + "\n0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0\n", "only 2 data row"),
+    (HEADER + "\n0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0\n0.1,0,0,0,0,0,0\n", "line 4: time"),
+    (HEADER + "\n0,0,0,0,0,0,0\n0.1,0,0,0,0,0\n0.2,0,0,0,0,0,0\n", "line 3: expected 7 fields"),
+])
+def test_bad_logs_name_file_line_and_problem(tmp_path, body, fragment):
+    path = tmp_path / "bad.csv"
+    path.write_text(body)
+    with pytest.raises(LogFormatError) as err:
+        read_log(path)
+    assert str(path) in str(err.value) and fragment in str(err.value)
+
+
+def test_corrupt_gzip_is_a_log_format_error(tmp_path):
+    path = tmp_path / "bad.csv.gz"
+    path.write_bytes(b"not gzip at all")
+    with pytest.raises(LogFormatError):
+        read_log(path)
