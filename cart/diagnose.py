@@ -1,0 +1,417 @@
+"""Model-discrepancy workflow: fit the nominal cart model, find where it fails, name and add missing effects.
+
+``diagnose(log) -> DiagnosisReport``:
+
+a. Nominal fit. The paper's model (eq. 4 projected on the forward and yaw
+   directions, eq. 5-7) is linear in x = [m, m dx, m dy, J, sigma] given the
+   motion. Velocities/accelerations come from local quadratic fits of the
+   pose; every row is integrated over consecutive windows of ~0.3 s (so the
+   accelerations enter as velocity differences and the residuals are close to
+   independent), and solved by weighted least squares with one noise variance
+   per row (forward force, yaw torque, lateral displacement of {b}).
+b. Replay. The fitted model is integrated over 1 s horizons from the smoothed
+   measured state with the measured wrench; the end errors, normalised by the
+   noise-predicted std, give chi-square statistics; significant starts
+   (Benjamini-Hochberg FDR 1 %) are merged into windows labelled with what the
+   cart was doing.
+c. Selection. Every candidate effect (``cart.effects``) is refitted with the
+   model (nonlinear parameters by grid + 1-D refinement) and scored by
+   Delta BIC = -2 Delta log-likelihood - k log(n) (profiled Gaussian
+   likelihood, n = number of window rows); the best one with Delta BIC >
+   ``threshold`` is added and the search repeats.
+d. Report: gap before/after (same replay metric), named effects with
+   parameters, stds (Gauss-Newton covariance / profile curvature), evidence,
+   windows.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+from scipy import optimize
+
+from cart.effects import Effect, measured_rows, nominal_columns, nominal_loadings, registered_effects, speed_scales
+from cart.errors import CartError
+from cart.log_signals import Signals, lateral_displacements, velocity_change_noise, signals_from_log, window_edges, window_integrals
+from cart.logs import CartLog
+from cart.params import CartParams
+from cart.diagnose_replay import Replay, flag_starts, merge_windows, replay
+
+GAP_METRIC = ("RMS position error (m) of the {b} origin between the model and the measured pose, over 1.0 s "
+              "replays started every 0.25 s from the smoothed measured state with the measured wrench; "
+              "averaged over the starts the nominal replay flags as significant (all starts when none)")
+NOMINAL_NAMES = ("m", "m_dx", "m_dy", "J", "sigma")
+ROW_NAMES = ("forward force", "yaw torque", "lateral displacement")
+
+
+class DiagnoseError(CartError):
+    """The log cannot be diagnosed (too short, no motion, degenerate fit)."""
+
+
+@dataclass
+class Fit:
+    """One least-squares fit of the nominal model plus effects (internal)."""
+
+    effects: List[Tuple[Effect, Tuple[float, ...]]]
+    x: np.ndarray
+    thetas: List[np.ndarray]
+    rss: np.ndarray
+    n_win: int
+    cov: np.ndarray
+    m2ll: float
+    sig: Signals
+    design: np.ndarray = field(repr=False, default=None)
+
+    @property
+    def phi(self) -> np.ndarray:
+        """Return the fitted phi = [m, m dx, m dy, J]."""
+        return self.x[:4]
+
+    @property
+    def n_params(self) -> int:
+        """Return the number of fitted parameters (5 nominal + effects)."""
+        return 5 + sum(e.n_params for e, _ in self.effects)
+
+
+def _solve(d: np.ndarray, y: np.ndarray, lv: np.ndarray, lw: np.ndarray, s2v: float, s2w: float,
+           n_iter: int = 5) -> Tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Return (x, equation-noise variance per row, covariance, -2 log-likelihood) of y ~ d x with noisy regressors.
+
+    y (n, 3), d (n, 3, p). The regressors carry the noise of the differentiated
+    pose: column noise = lv * e_v + lw * e_w with var(e_v) = s2v, var(e_w) = s2w
+    (velocity changes over a window). The fit is the bias-corrected
+    (errors-in-variables) weighted least squares: minimise
+    sum w (r^2 - x' S x) with w = 1 / (V_r + x' S_k x); the likelihood uses
+    the variance V_r + x' S_k x of each window row.
+    """
+    n, r, p = d.shape
+    var_eq = np.array([max(np.var(y[:, k]), 1e-24) for k in range(r)])
+    x = np.zeros(p)
+    s_k = np.zeros((n, r))
+    for _ in range(n_iter):
+        w = 1.0 / (var_eq[None, :] + s_k)  # (n, r)
+        a = d * np.sqrt(w)[:, :, None]
+        b = y * np.sqrt(w)
+        a2 = a.reshape(n * r, p)
+        normal = a2.T @ a2
+        bv = (lv * np.sqrt(w)[:, :, None]).reshape(n * r, p)
+        bw = (lw * np.sqrt(w)[:, :, None]).reshape(n * r, p)
+        corr = s2v * (bv.T @ bv) + s2w * (bw.T @ bw)
+        rhs = a2.T @ b.reshape(n * r)
+        col = np.sqrt(np.maximum(np.diag(normal), 1e-300))
+        nn = normal / np.outer(col, col) + 1e-10 * np.eye(p)
+        cc = corr / np.outer(col, col)
+        chol = np.linalg.cholesky(nn)
+        linv = np.linalg.inv(chol)
+        mu, u = np.linalg.eigh(linv @ cc @ linv.T)
+        # bounded bias correction: remove at most 70 % of the normal matrix in any direction
+        mat = chol @ (u * np.maximum(1.0 - mu, 0.3)) @ u.T @ chol.T
+        x = np.linalg.solve(mat, rhs / col) / col
+        res = y - np.einsum("nrp,p->nr", d, x)
+        s_k = s2v * np.einsum("nrp,p->nr", lv, x) ** 2 + s2w * np.einsum("nrp,p->nr", lw, x) ** 2
+        var_eq = np.maximum(np.mean(res * res - s_k, axis=0), 0.05 * np.mean(res * res, axis=0) + 1e-24)
+    var = var_eq[None, :] + s_k
+    a = d / np.sqrt(var)[:, :, None]
+    a2 = a.reshape(n * r, p)
+    cov = np.linalg.pinv(a2.T @ a2)
+    m2ll = float(np.sum(np.log(var) + res * res / var))
+    return x, var_eq, cov, m2ll
+
+
+def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, Tuple[float, ...]]],
+              phi_ref: Optional[np.ndarray] = None) -> Fit:
+    """Return the weighted least-squares fit of the nominal model plus ``effects`` (with their nl parameters)."""
+    sig = sig0
+    for e, nl in effects:
+        sig = e.transform(sig, nl)
+    base = sig.extras.get("base")
+    if base is None:
+        a_s = nominal_columns(sig)
+        y_w = window_integrals(sig.t, measured_rows(sig), edges)
+        y_w[:, 2] = lateral_displacements(sig, edges)
+        base = (a_s, window_integrals(sig.t, a_s, edges), y_w)
+        sig.extras["base"] = base
+    a_s, a_w, y_w = base
+    lv_b, lw_b = nominal_loadings(a_w.shape[0])
+    s2v, s2w = sig0.extras["noise_dv"]
+    phi = np.asarray(phi_ref, float) if phi_ref is not None else None
+    n_iter = 12 if any(e.uses_phi for e, _ in effects) else 1
+    if phi is None and n_iter > 1:
+        phi = _solve(a_w, y_w, lv_b, lw_b, s2v, s2w)[0][:4]
+    for _ in range(n_iter):  # fixed-point iteration on phi for effects whose columns depend on it
+        g_w, lv, lw = [a_w], [lv_b], [lw_b]
+        for e, nl in effects:
+            g = window_integrals(sig.t, e.columns(sig, nl, phi, a_s), edges)
+            g_w.append(g)
+            lo = e.noise_loadings(sig, nl, edges, lv_b, lw_b)
+            lv.append(lo[0] if lo is not None else np.zeros_like(g))
+            lw.append(lo[1] if lo is not None else np.zeros_like(g))
+        d = np.concatenate(g_w, axis=2)
+        x, rss, cov, m2ll = _solve(d, y_w, np.concatenate(lv, axis=2), np.concatenate(lw, axis=2), s2v, s2w)
+        done = phi is not None and np.all(np.abs(x[:4] - phi) <= 1e-4 * (np.abs(phi) + 1e-3))
+        phi = x[:4]
+        if done:
+            break
+    n = y_w.shape[0]
+    thetas, k = [], 5
+    for e, _ in effects:
+        thetas.append(x[k:k + len(e.param_names)])
+        k += len(e.param_names)
+    return Fit(effects=list(effects), x=x[:5], thetas=thetas, rss=rss, n_win=n, cov=cov, m2ll=m2ll, sig=sig)
+
+
+def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect) -> Tuple[Fit, List[float]]:
+    """Return the best fit of current effects + ``effect`` (nl parameters searched) and the nl stds."""
+    base_effects = current.effects
+    phi = current.phi
+    grid = effect.nl_grid(sig)
+    fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi) for nl in grid]
+    scores = np.array([f.m2ll if effect.is_physical(f.thetas[-1], f.effects[-1][1], f.x) else np.inf
+                       for f in fits])
+    i = int(np.argmin(scores))
+    best = fits[i]
+    nl_std: List[float] = []
+    if len(effect.nl_names) == 1 and len(grid) > 1:
+        lo_b, hi_b = effect.nl_bounds(sig)[0]
+        vals = np.array([g[0] for g in grid])
+        log_scale = effect.name == "caster_swivel"
+        lo = vals[max(i - 1, 0)]
+        hi = vals[min(i + 1, len(vals) - 1)]
+        if i == 0:
+            lo = max(lo_b, vals[0] - (vals[1] - vals[0])) if not log_scale else max(lo_b, vals[0] ** 2 / vals[1])
+        if i == len(vals) - 1:
+            hi = min(hi_b, vals[-1] + (vals[-1] - vals[-2])) if not log_scale else min(hi_b, vals[-1] ** 2 / vals[-2])
+        tr = (np.log if log_scale else (lambda z: z))
+        itr = (np.exp if log_scale else (lambda z: z))
+
+        def obj(u: float) -> float:
+            f = fit_model(sig, edges, base_effects + [(effect, (float(itr(u)),))], phi)
+            return f.m2ll if effect.is_physical(f.thetas[-1], f.effects[-1][1], f.x) else 1e300
+
+        if hi > lo:
+            res = optimize.minimize_scalar(obj, bounds=(float(tr(lo)), float(tr(hi))), method="bounded",
+                                           options={"xatol": 1e-3 * max(abs(float(tr(hi)) - float(tr(lo))), 1e-6)})
+            if res.fun < best.m2ll:
+                best = fit_model(sig, edges, base_effects + [(effect, (float(itr(res.x)),))], phi)
+        u0 = float(tr(best.effects[-1][1][0]))
+        du = 0.02 * max(abs(float(tr(hi)) - float(tr(lo))), 1e-3)
+        f0, fp, fm = best.m2ll, obj(u0 + du), obj(u0 - du)
+        curv = (fp + fm - 2.0 * f0) / du ** 2
+        s_u = math.sqrt(2.0 / curv) if curv > 0 else float("inf")
+        s = s_u * float(itr(u0)) if log_scale else s_u
+        nl_std.append(float(s) if math.isfinite(s) else -1.0)
+    return best, nl_std
+
+
+@dataclass(frozen=True)
+class NamedEffect:
+    """An effect the workflow named: contract name, fitted parameters and stds, Delta BIC, windows [(t0, t1)]."""
+
+    name: str
+    parameters: Dict[str, float]
+    uncertainties: Dict[str, float]
+    evidence: float
+    windows: Tuple[Tuple[float, float], ...]
+
+    def to_dict(self) -> dict:
+        """Return the JSON form: name, parameters, uncertainties, evidence, windows."""
+        return {"name": self.name, "parameters": _clean(self.parameters), "uncertainties": _clean(self.uncertainties),
+                "evidence": round(float(self.evidence), 3),
+                "windows": [[round(a, 3), round(b, 3)] for a, b in self.windows]}
+
+
+@dataclass(frozen=True)
+class DiscrepancyWindow:
+    """A time window where the nominal replay disagrees significantly: [t0, t1], activity, max chi2."""
+
+    t0: float
+    t1: float
+    activity: str
+    chi2: float
+
+
+@dataclass(frozen=True)
+class DiagnosisReport:
+    """Result of :func:`diagnose`: named effects (most significant first), gaps, windows, fitted models."""
+
+    effects: Tuple[NamedEffect, ...]
+    gap_before: float
+    gap_after: float
+    gap_metric: str
+    windows: Tuple[DiscrepancyWindow, ...]
+    nominal: Dict[str, float]
+    final_model: Dict[str, float]
+    candidates: Tuple[Tuple[str, float], ...]
+    threshold: float
+    source: str = "<memory>"
+    replay_before: Optional[Replay] = field(default=None, repr=False, compare=False)
+    replay_after: Optional[Replay] = field(default=None, repr=False, compare=False)
+    flagged: Optional[np.ndarray] = field(default=None, repr=False, compare=False)
+
+    @property
+    def names(self) -> List[str]:
+        """Return the named effects' names, most significant first (empty: the nominal model explains the log)."""
+        return [e.name for e in self.effects]
+
+    def to_dict(self) -> dict:
+        """Return the JSON form of ``cartpush diagnose --json``."""
+        return {"effects": [e.to_dict() for e in self.effects], "gap_before": round(self.gap_before, 6),
+                "gap_after": round(self.gap_after, 6), "gap_metric": self.gap_metric,
+                "windows": [{"t0": round(w.t0, 3), "t1": round(w.t1, 3), "activity": w.activity,
+                             "chi2": round(w.chi2, 2)} for w in self.windows],
+                "nominal": _clean(self.nominal), "final_model": _clean(self.final_model),
+                "candidates": [{"name": n, "delta_bic": round(s, 3)} for n, s in self.candidates],
+                "threshold": self.threshold}
+
+    def summary(self) -> str:
+        """Return a readable multi-line summary."""
+        lines = [f"diagnosis of {self.source}"]
+        nm = self.nominal
+        lines.append(f"nominal fit: m = {nm['m']:.2f} kg, CoM = ({nm['dx']:.3f}, {nm['dy']:.3f}) m, "
+                     f"I = {nm['I']:.2f} kg m^2, sigma = {nm['sigma']:.2f} N s/m")
+        lines.append(f"significant discrepancy windows: {len(self.windows)}")
+        for w in self.windows[:12]:
+            lines.append(f"  [{w.t0:7.2f}, {w.t1:7.2f}] s  {w.activity:<28} chi2 max {w.chi2:8.1f}")
+        if len(self.windows) > 12:
+            lines.append(f"  ... {len(self.windows) - 12} more")
+        if not self.effects:
+            lines.append("named effects: none (the nominal model explains the log)")
+        for i, e in enumerate(self.effects, 1):
+            ps = ", ".join(f"{k} = {v:.4g} ± {self.effects[i - 1].uncertainties.get(k, float('nan')):.2g}"
+                           for k, v in e.parameters.items())
+            lines.append(f"{i}. {e.name}: {ps}  (Delta BIC {e.evidence:.1f}, {len(e.windows)} windows)")
+        lines.append("first-round Delta BIC: " + ", ".join(f"{n} {s:.1f}" for n, s in self.candidates))
+        lines.append(f"gap before {self.gap_before * 1000:.1f} mm -> after {self.gap_after * 1000:.1f} mm "
+                     f"({self.gap_metric.split(' (')[0]})")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+
+def _clean(d: Dict[str, float]) -> Dict[str, float]:
+    """Return d with non-finite values replaced by None (valid JSON)."""
+    return {k: (float(v) if v is not None and math.isfinite(float(v)) else None) for k, v in d.items()}
+
+
+def _physical(x: np.ndarray, cov: Optional[np.ndarray] = None) -> Dict[str, float]:
+    """Return m, dx, dy, I (about the CoM), sigma of x (NaN where phi is not physical) with stds of m, sigma."""
+    m, a, b, j, s = (float(v) for v in x[:5])
+    out = {"m": m, "dx": a / m if m > 0 else float("nan"), "dy": b / m if m > 0 else float("nan"),
+           "I": j - (a * a + b * b) / m if m > 0 else float("nan"), "sigma": s}
+    if cov is not None:
+        out.update({"m_std": math.sqrt(max(cov[0, 0], 0)), "sigma_std": math.sqrt(max(cov[4, 4], 0))})
+    return out
+
+
+def _replay_terms(fit: Fit) -> Tuple[np.ndarray, Optional[np.ndarray]]:
+    """Return the effects' (forward force, yaw torque, lateral speed) (N, 3) and phi change (N, 4) for replay."""
+    sig = fit.sig
+    extra = np.zeros((sig.n, 3))
+    dphi = None
+    a_s = sig.extras["base"][0]
+    for (e, nl), th in zip(fit.effects, fit.thetas):
+        ch = e.replay_phi_change(sig, nl, th)
+        if ch is not None:
+            dphi = ch if dphi is None else dphi + ch
+            continue
+        if len(th) == 0:
+            continue
+        g = e.columns(sig, nl, fit.phi, a_s) @ th
+        extra[:, 0] -= g[:, 0]
+        extra[:, 1] -= g[:, 1]
+        extra[:, 2] += g[:, 2]
+    return extra, dphi
+
+
+def _activity(sig: Signals, t0: float, t1: float) -> str:
+    """Return what the cart was doing in [t0, t1]: reversing, turning, accelerating, cruising, stationary."""
+    sel = (sig.t >= t0) & (sig.t <= t1)
+    if not np.any(sel):
+        return "unknown"
+    v, om, vd = sig.v[sel], sig.omega[sel], sig.vdot[sel]
+    v_th = max(0.03, 3.0 * sig.sigma_v)
+    labels = []
+    if np.any(v > v_th) and np.any(v < -v_th):
+        labels.append("reversing")
+    if np.mean(np.abs(om)) > 0.15:
+        labels.append("turning")
+    if np.mean(np.abs(vd)) > 0.15 and "reversing" not in labels:
+        labels.append("accelerating" if np.mean(vd * np.sign(v)) >= 0 else "braking")
+    if not labels:
+        labels.append("stationary" if np.max(np.abs(v)) < v_th and np.max(np.abs(om)) < 0.05 else "cruising")
+    return "+".join(labels)
+
+
+def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, threshold: float = 10.0,
+             max_effects: int = 3, horizon: float = 1.0, window: Optional[float] = None) -> DiagnosisReport:
+    """Return the DiagnosisReport of ``log``: nominal fit, discrepancy windows, named effects, gap before/after.
+
+    ``candidates`` defaults to every registered effect; an effect is named when
+    its Delta BIC exceeds ``threshold`` (10 = "very strong" evidence).
+    """
+    sig = signals_from_log(log)
+    if np.max(np.abs(sig.v)) < 0.02 and np.max(np.abs(sig.omega)) < 0.02:
+        raise DiagnoseError(f"{log.source}: the cart does not move; nothing to diagnose")
+    edges = window_edges(sig.t, window if window is not None else 2.0 * sig.half_window)
+    sig.extras["noise_dv"] = velocity_change_noise(sig, edges)
+    if len(edges) < 12:
+        raise DiagnoseError(f"{log.source}: too short for a fit ({len(edges) - 1} windows)")
+    cands = list(candidates) if candidates is not None else registered_effects()
+    n_obs = 3 * (len(edges) - 1)
+    nominal = fit_model(sig, edges, [])
+    if nominal.x[0] <= 0:
+        raise DiagnoseError(f"{log.source}: the nominal fit gives a non-positive mass ({nominal.x[0]:.3g} kg); "
+                            "the log lacks excitation or force and motion do not match")
+    rep0 = replay(sig, nominal.x, horizon=horizon)
+    flagged = flag_starts(rep0)
+    current = nominal
+    named: List[Tuple[Effect, Fit, float, List[float]]] = []
+    first_scores: List[Tuple[str, float]] = []
+    for round_ in range(max_effects):
+        results = []
+        for e in cands:
+            if any(e.name == n.name for n, _, _, _ in named):
+                continue
+            fit, nl_std = _fit_candidate(sig, edges, current, e)
+            dbic = (current.m2ll - fit.m2ll) - e.n_params * math.log(n_obs)
+            results.append((dbic, e, fit, nl_std))
+        if not results:
+            break
+        results.sort(key=lambda r: -r[0])
+        if round_ == 0:
+            first_scores = [(r[1].name, float(r[0])) for r in results]
+        dbic, e, fit, nl_std = results[0]
+        if dbic <= threshold or fit.x[0] <= 0 or not np.isfinite(dbic):
+            break
+        named.append((e, fit, dbic, nl_std))
+        current = fit
+    # replays and per-effect windows
+    reps = [rep0]
+    for _, fit, _, _ in named:
+        extra, dphi = _replay_terms(fit)
+        reps.append(replay(fit.sig, fit.x, extra, dphi, horizon=horizon))
+    effects_out: List[NamedEffect] = []
+    for i, (e, fit, dbic, nl_std) in enumerate(named):
+        th = fit.thetas[-1]
+        k0 = 5 + sum(len(ee.param_names) for ee, _ in fit.effects[:-1])
+        cov = fit.cov[k0:k0 + len(th), k0:k0 + len(th)] if len(th) else np.zeros((0, 0))
+        params, std = e.describe(th, fit.effects[-1][1], cov, nl_std, fit.phi)
+        better = flagged & (reps[i + 1].chi2 < 0.5 * reps[i].chi2)
+        wins = merge_windows(reps[0].starts, better, horizon)
+        effects_out.append(NamedEffect(name=e.name, parameters=params, uncertainties=std, evidence=float(dbic),
+                                       windows=tuple(wins)))
+    windows = []
+    for t0, t1 in merge_windows(rep0.starts, flagged, horizon):
+        sel = flagged & (rep0.starts >= t0 - 1e-9) & (rep0.starts <= t1)
+        windows.append(DiscrepancyWindow(t0=t0, t1=t1, activity=_activity(sig, t0, t1),
+                                         chi2=float(np.max(rep0.chi2[sel]))))
+    mask = flagged if np.any(flagged) else None
+    final_model = _physical(current.x, current.cov)
+    return DiagnosisReport(effects=tuple(effects_out), gap_before=rep0.gap(mask), gap_after=reps[-1].gap(mask),
+                           gap_metric=GAP_METRIC, windows=tuple(windows), nominal=_physical(nominal.x, nominal.cov),
+                           final_model=final_model, candidates=tuple(first_scores), threshold=float(threshold),
+                           source=log.source, replay_before=rep0, replay_after=reps[-1], flagged=flagged)

@@ -1,0 +1,153 @@
+"""Short-horizon replay of a (nominal or augmented) cart model against a log, and the discrepancy test.
+
+From every start time (every ``stride`` s) the model is integrated for
+``horizon`` s from the smoothed measured state with the measured wrench
+(vectorised RK4 over all starts) and compared with the measured pose. The
+end-of-horizon error (forward, lateral, heading, in {b} of the start) is
+normalised by its standard deviation predicted from the estimated noise
+levels, giving a chi-square (3 dof) per start; starts whose error is
+significant after Benjamini-Hochberg control of the false discovery rate are
+flagged and merged into windows.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import List, Optional, Tuple
+
+import numpy as np
+from scipy import stats
+
+from cart.log_signals import Signals
+
+
+@dataclass(frozen=True)
+class Replay:
+    """Replay output: start times (K,), horizon grid (J,), simulated/measured poses (K, J, 3), chi2 (K,)."""
+
+    starts: np.ndarray
+    tau: np.ndarray
+    sim: np.ndarray
+    meas: np.ndarray
+    rms: np.ndarray
+    chi2: np.ndarray
+
+    def gap(self, mask: Optional[np.ndarray] = None) -> float:
+        """Return the RMS position error (m) over the starts in ``mask`` (all when None)."""
+        r = self.rms if mask is None or not np.any(mask) else self.rms[mask]
+        return float(np.sqrt(np.mean(r ** 2)))
+
+
+def _interp_cols(times: np.ndarray, t: np.ndarray, cols: np.ndarray) -> List[np.ndarray]:
+    return [np.interp(times, t, cols[:, k]) for k in range(cols.shape[1])]
+
+
+def replay(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = None, dphi: Optional[np.ndarray] = None,
+           horizon: float = 1.0, stride: float = 0.25, h: float = 0.02) -> Replay:
+    """Return the replay of the model x = [m, m dx, m dy, J, sigma] plus effect terms over short horizons.
+
+    ``extra`` (N, 3): effect generalized force (forward, yaw) and lateral speed
+    of {b}, evaluated along the measured motion; ``dphi`` (N, 4): change of phi
+    over time. The wrench is read from the (possibly time-shifted) signals.
+    """
+    t = sig.t
+    starts_all = np.arange(t[0], t[-1] - horizon + 1e-9, stride)
+    if len(starts_all) == 0:
+        starts_all = np.array([t[0]])
+        horizon = float(t[-1] - t[0])
+    k_steps = max(1, int(round(horizon / h)))
+    h = horizon / k_steps
+    tau = np.arange(k_steps + 1) * h
+    extra = np.zeros((sig.n, 3)) if extra is None else extra
+    phi_t = np.tile(np.asarray(x[:4], float), (sig.n, 1)) + (0.0 if dphi is None else dphi)
+    sigma = float(x[4])
+    vals = np.column_stack([sig.gamma_raw, extra, phi_t])  # (N, 10)
+    shift = sig.shift
+    # initial state from the smoothed signals
+    i0 = [np.interp(starts_all, t, col) for col in (sig.q[:, 0], sig.q[:, 1], sig.q[:, 2], sig.v, sig.omega)]
+    state = np.array(i0)  # (5, K)
+    sim = np.empty((len(starts_all), k_steps + 1, 3))
+
+    def f(tt: np.ndarray, s: np.ndarray) -> np.ndarray:
+        g = [np.interp(tt + shift, t, vals[:, k]) for k in range(3)]
+        e = [np.interp(tt, t, vals[:, k]) for k in range(3, 6)]
+        m, a, b, j = (np.interp(tt, t, vals[:, k]) for k in range(6, 10))
+        th, v, om = s[2], s[3], s[4]
+        c, sn = np.cos(th), np.sin(th)
+        fu = c * g[0] + sn * g[1]
+        r1 = fu + e[0] - sigma * v + a * om * om
+        r2 = g[2] + e[1] - sigma * om - a * om * v
+        det = m * j - b * b
+        det = np.where(np.abs(det) < 1e-9, 1e-9, det)
+        vdot = (j * r1 + b * r2) / det
+        odot = (b * r1 + m * r2) / det
+        w = e[2]
+        return np.array([c * v - sn * w, sn * v + c * w, om, vdot, odot])
+
+    for j in range(k_steps + 1):
+        sim[:, j, :] = state[:3].T
+        if j == k_steps:
+            break
+        tt = starts_all + j * h
+        k1 = f(tt, state)
+        k2 = f(tt + 0.5 * h, state + 0.5 * h * k1)
+        k3 = f(tt + 0.5 * h, state + 0.5 * h * k2)
+        k4 = f(tt + h, state + h * k3)
+        state = state + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    times = starts_all[:, None] + tau[None, :]
+    meas = np.stack([np.interp(times, t, sig.q_raw[:, k]) for k in range(3)], axis=-1)
+    err = sim - meas
+    rms = np.sqrt(np.mean(err[:, :, 0] ** 2 + err[:, :, 1] ** 2, axis=1))
+    chi2 = _end_chi2(sig, x, starts_all, err[:, -1, :], horizon)
+    return Replay(starts=starts_all, tau=tau, sim=sim, meas=meas, rms=rms, chi2=chi2)
+
+
+def _end_chi2(sig: Signals, x: np.ndarray, starts: np.ndarray, err_end: np.ndarray, horizon: float) -> np.ndarray:
+    """Return chi2 (3 dof) of the end errors normalised by the std predicted from the noise levels."""
+    th0 = np.interp(starts, sig.t, sig.q[:, 2])
+    c, s = np.cos(th0), np.sin(th0)
+    e_f = c * err_end[:, 0] + s * err_end[:, 1]
+    e_l = -s * err_end[:, 0] + c * err_end[:, 1]
+    e_h = err_end[:, 2]
+    H = horizon
+    dt = float(np.median(np.diff(sig.t)))
+    m = max(float(x[0]), 1.0)
+    j = max(float(x[3]), 0.1)
+    vbar = np.abs(np.interp(starts + 0.5 * H, sig.t, sig.v)) + 0.05
+    sp, sp0, sv0 = sig.sigma_pos, sig.sigma_pos * sig.gain_value, sig.sigma_v
+    st, st0, sw0 = sig.sigma_theta, sig.sigma_theta * sig.gain_value, sig.sigma_omega
+    force_term = sig.sigma_force ** 2 * dt * H ** 3 / (3.0 * m * m)
+    torque_term = sig.sigma_torque ** 2 * dt * H ** 3 / (3.0 * j * j)
+    var_f = sp ** 2 + sp0 ** 2 + (sv0 * H) ** 2 + force_term
+    var_h = st ** 2 + st0 ** 2 + (sw0 * H) ** 2 + torque_term
+    var_l = sp ** 2 + sp0 ** 2 + vbar ** 2 * (st0 ** 2 * H ** 2 + sw0 ** 2 * H ** 4 / 4.0
+                                              + sig.sigma_torque ** 2 * dt * H ** 5 / (20.0 * j * j))
+    # a relative model-error floor: 2 cm/s^2 and 0.02 rad/s^2 of unexplained acceleration
+    var_f = var_f + (0.5 * 0.02 * H ** 2) ** 2
+    var_h = var_h + (0.5 * 0.02 * H ** 2) ** 2
+    var_l = var_l + (0.5 * 0.02 * H ** 2) ** 2
+    return e_f ** 2 / var_f + e_l ** 2 / var_l + e_h ** 2 / var_h
+
+
+def flag_starts(rep: Replay, fdr: float = 0.01) -> np.ndarray:
+    """Return a boolean mask of starts whose chi2 is significant (Benjamini-Hochberg at ``fdr``)."""
+    p = stats.chi2.sf(rep.chi2, 3)
+    k = len(p)
+    order = np.argsort(p)
+    thresh = fdr * (np.arange(1, k + 1) / k)
+    below = p[order] <= thresh
+    mask = np.zeros(k, bool)
+    if np.any(below):
+        last = int(np.nonzero(below)[0][-1])
+        mask[order[: last + 1]] = True
+    return mask
+
+
+def merge_windows(starts: np.ndarray, mask: np.ndarray, horizon: float) -> List[Tuple[float, float]]:
+    """Return the union of [start, start + horizon] over the masked starts, as sorted disjoint intervals."""
+    out: List[Tuple[float, float]] = []
+    for s in starts[mask]:
+        if out and s <= out[-1][1] + 1e-9:
+            out[-1] = (out[-1][0], float(s + horizon))
+        else:
+            out.append((float(s), float(s + horizon)))
+    return out

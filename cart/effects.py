@@ -1,0 +1,361 @@
+"""Candidate physical effects the nominal cart model lacks, each fittable from a log (diagnose workflow).
+
+The nominal model (paper eq. 4, projected on the two allowed directions) is,
+per sample, with forward speed v, yaw rate omega, x = [m, m dx, m dy, J, sigma]:
+
+    f_fwd = m vdot - (m dx) omega^2 - (m dy) omegadot + sigma v          (forward row)
+    tau   = J omegadot - (m dy) vdot + (m dx) omega v + sigma omega      (yaw row)
+    w_lat = 0                                                            (no lateral slip, eq. 3)
+
+An :class:`Effect` adds ``columns`` G (N, 3, k) to these rows so that
+``[f_fwd, tau, w_lat] = A x + G theta`` with ``theta`` its ``k`` linear
+parameters; a physical generalized force E on the cart enters as ``G theta = -E``.
+Parameters that enter nonlinearly (a distance, a time, a delay) are searched
+on ``nl_grid`` and refined by a 1-D search. An effect may instead change the
+data (``transform``, e.g. a time shift of the wrench).
+
+To add an effect, subclass :class:`Effect`, set ``name`` and ``param_names``,
+implement ``columns`` (and optionally ``nl_names``/``nl_grid``/``transform``/
+``describe``), and call :func:`register_effect`.
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable, Dict, List, Optional, Sequence, Tuple, Type
+
+import numpy as np
+
+from cart.log_signals import Signals
+
+GRAVITY = 9.81
+NONLINEAR_FREE = ()
+
+#: Effect names of the project contract (DESIGN.md), in the order they are tried.
+CONTRACT_NAMES = ("coulomb_friction", "caster_swivel", "wrench_bias", "payload_change", "floor_slope",
+                  "time_delay", "lateral_slip")
+
+
+def nominal_columns(sig: Signals) -> np.ndarray:
+    """Return the nominal design A (N, 3, 5) for x = [m, m dx, m dy, J, sigma] (paper eq. 4, body rows)."""
+    n = sig.n
+    a = np.zeros((n, 3, 5))
+    v, om, vd, od = sig.v, sig.omega, sig.vdot, sig.omegadot
+    a[:, 0, 0] = vd
+    a[:, 0, 1] = -om * om
+    a[:, 0, 2] = -od
+    a[:, 0, 4] = v
+    a[:, 1, 1] = om * v
+    a[:, 1, 2] = -vd
+    a[:, 1, 3] = od
+    a[:, 1, 4] = om
+    return a
+
+
+def nominal_loadings(n_win: int) -> Tuple[np.ndarray, np.ndarray]:
+    """Return (Lv, Lw) (n_win, 3, 5): how the noise of the window velocity changes enters the nominal columns.
+
+    The forward row's m column is the change of v, its m dy column minus the
+    change of omega; the yaw row's m dy column is minus the change of v and its
+    J column the change of omega.
+    """
+    lv = np.zeros((n_win, 3, 5))
+    lw = np.zeros((n_win, 3, 5))
+    lv[:, 0, 0] = 1.0
+    lw[:, 0, 2] = -1.0
+    lv[:, 1, 2] = -1.0
+    lw[:, 1, 3] = 1.0
+    return lv, lw
+
+
+def measured_rows(sig: Signals) -> np.ndarray:
+    """Return the measured left-hand sides (N, 3): forward force, yaw torque, lateral speed of {b}."""
+    return np.column_stack([sig.f_fwd, sig.tau, sig.w_lat])
+
+
+def speed_scales(sig: Signals) -> Tuple[float, float]:
+    """Return (v0, omega0): the speeds below which friction signs are smoothed (tanh), above the noise."""
+    return max(0.02, 2.0 * sig.sigma_v), max(0.03, 2.0 * sig.sigma_omega)
+
+
+def distance_since_reversal(sig: Signals) -> np.ndarray:
+    """Return the distance (m) travelled since the forward speed last changed sign (inf before the first).
+
+    A reversal is registered when v passes the opposite threshold (hysteresis
+    at the noise level); the distance counts from its last zero crossing.
+    """
+    cached = sig.extras.get("dist_rev")
+    if cached is not None:
+        return cached
+    v, t = sig.v, sig.t
+    v_th = max(0.03, 3.0 * sig.sigma_v)
+    n = len(t)
+    out = np.full(n, np.inf)
+    path = np.concatenate([[0.0], np.cumsum(0.5 * (np.abs(v[1:]) + np.abs(v[:-1])) * np.diff(t))])
+    direction = 0
+    origin = -1  # zero crossing that started the current direction after a reversal
+    last_cross = 0
+    for i in range(n):
+        if i > 0 and v[i] * v[i - 1] <= 0.0:
+            last_cross = i
+        new_dir = 1 if v[i] > v_th else (-1 if v[i] < -v_th else direction)
+        if new_dir != direction:
+            if direction != 0:  # a reversal (not the first start)
+                origin = last_cross
+                out[origin:i] = path[origin:i] - path[origin]
+            direction = new_dir
+        if origin >= 0:
+            out[i] = path[i] - path[origin]
+    sig.extras["dist_rev"] = out
+    return out
+
+
+class Effect:
+    """A candidate effect: name, linear parameters, optional nonlinear parameters searched on a grid."""
+
+    name: str = "effect"
+    param_names: Tuple[str, ...] = ()
+    nl_names: Tuple[str, ...] = ()
+    #: True when the columns use the current estimate of phi (refit iterates).
+    uses_phi: bool = False
+
+    def nl_grid(self, sig: Signals) -> List[Tuple[float, ...]]:
+        """Return the grid of nonlinear-parameter tuples to search (one empty tuple when there are none)."""
+        return [()]
+
+    def nl_bounds(self, sig: Signals) -> List[Tuple[float, float]]:
+        """Return (low, high) bounds of each nonlinear parameter for the refinement search."""
+        return []
+
+    def transform(self, sig: Signals, nl: Tuple[float, ...]) -> Signals:
+        """Return the signals corrected for this effect (default: unchanged)."""
+        return sig
+
+    def columns(self, sig: Signals, nl: Tuple[float, ...], phi: np.ndarray, base: np.ndarray) -> np.ndarray:
+        """Return G (N, 3, len(param_names)): rows (forward force, yaw torque, lateral speed) per unit parameter."""
+        return np.zeros((sig.n, 3, 0))
+
+    def noise_loadings(self, sig: Signals, nl: Tuple[float, ...], edges: np.ndarray, lv: np.ndarray,
+                       lw: np.ndarray) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+        """Return the window noise loadings (like :func:`nominal_loadings`) of the columns, or None (noise-free)."""
+        return None
+
+    def is_physical(self, theta: np.ndarray, nl: Tuple[float, ...], x: np.ndarray) -> bool:
+        """Return False when the fitted parameters are physically impossible (the fit is then rejected)."""
+        return True
+
+    def replay_phi_change(self, sig: Signals, nl: Tuple[float, ...], theta: np.ndarray) -> Optional[np.ndarray]:
+        """Return the change of phi (N, 4) over time the replay must apply, or None (default)."""
+        return None
+
+    def describe(self, theta: np.ndarray, nl: Tuple[float, ...], cov: np.ndarray, nl_std: Sequence[float],
+                 phi: np.ndarray) -> Tuple[Dict[str, float], Dict[str, float]]:
+        """Return (parameters, standard deviations) as plain dicts for the report."""
+        params = {k: float(v) for k, v in zip(self.param_names, theta)}
+        std = {k: float(math.sqrt(max(cov[i, i], 0.0))) for i, k in enumerate(self.param_names)}
+        for k, v, s in zip(self.nl_names, nl, nl_std):
+            params[k] = float(v)
+            std[k] = float(s)
+        return params, std
+
+    @property
+    def n_params(self) -> int:
+        """Return the number of fitted parameters (linear + nonlinear)."""
+        return len(self.param_names) + len(self.nl_names)
+
+
+class CoulombFriction(Effect):
+    """Constant-magnitude friction opposing the forward speed (force) and the yaw rate (torque)."""
+
+    name = "coulomb_friction"
+    param_names = ("force", "torque")
+
+    def columns(self, sig, nl, phi, base):
+        """Return G: tanh(v/v0) in the forward row, tanh(omega/omega0) in the yaw row (E = -G theta)."""
+        v0, w0 = speed_scales(sig)
+        g = np.zeros((sig.n, 3, 2))
+        g[:, 0, 0] = np.tanh(sig.v / v0)
+        g[:, 1, 1] = np.tanh(sig.omega / w0)
+        return g
+
+
+class CasterSwivel(Effect):
+    """After the travel direction reverses, a resisting force decaying with the distance travelled."""
+
+    name = "caster_swivel"
+    param_names = ("force",)
+    nl_names = ("distance",)
+
+    def nl_grid(self, sig):
+        """Return decay distances from 2 cm to 1.5 m (log-spaced)."""
+        return [(d,) for d in np.geomspace(0.02, 1.5, 12)]
+
+    def nl_bounds(self, sig):
+        """Return the distance bounds in metres."""
+        return [(0.01, 3.0)]
+
+    def columns(self, sig, nl, phi, base):
+        """Return G: sign(v) exp(-s / distance) in the forward row, s = distance since the last reversal."""
+        v0, _ = speed_scales(sig)
+        s = distance_since_reversal(sig)
+        g = np.zeros((sig.n, 3, 1))
+        g[:, 0, 0] = np.tanh(sig.v / v0) * np.exp(-s / nl[0])
+        return g
+
+
+class WrenchBias(Effect):
+    """A constant offset of the measured wrench fixed in {b}: forward force and torque (lateral is unobservable)."""
+
+    name = "wrench_bias"
+    param_names = ("fx", "tau")
+
+    def columns(self, sig, nl, phi, base):
+        """Return G: 1 in the forward and yaw rows (measured = true + bias)."""
+        g = np.zeros((sig.n, 3, 2))
+        g[:, 0, 0] = 1.0
+        g[:, 1, 1] = 1.0
+        return g
+
+
+class FloorSlope(Effect):
+    """An inclined floor: the constant world force m (gx, gy) at the CoM, gx, gy = g sin(alpha) (cos, sin) beta."""
+
+    name = "floor_slope"
+    param_names = ("gx", "gy")
+    uses_phi = True
+
+    def columns(self, sig, nl, phi, base):
+        """Return G = -dE/d(gx, gy) with E the force and its torque about {b} (CoM from phi)."""
+        m, a, b = phi[0], phi[1], phi[2]
+        c, s = np.cos(sig.q[:, 2]), np.sin(sig.q[:, 2])
+        g = np.zeros((sig.n, 3, 2))
+        g[:, 0, 0] = -m * c
+        g[:, 0, 1] = -m * s
+        g[:, 1, 0] = a * s + b * c
+        g[:, 1, 1] = -(a * c - b * s)
+        return g
+
+    def describe(self, theta, nl, cov, nl_std, phi):
+        """Return angle alpha (rad), downhill direction beta in {s} (rad), gx, gy (m/s^2), with stds."""
+        gx, gy = float(theta[0]), float(theta[1])
+        r = math.hypot(gx, gy)
+        alpha = math.asin(min(1.0, r / GRAVITY))
+        beta = math.atan2(gy, gx)
+        jr = np.array([gx, gy]) / max(r, 1e-12)
+        jb = np.array([-gy, gx]) / max(r * r, 1e-12)
+        cov2 = cov[:2, :2]
+        s_alpha = math.sqrt(max(float(jr @ cov2 @ jr), 0.0)) / GRAVITY / max(math.cos(alpha), 1e-6)
+        s_beta = math.sqrt(max(float(jb @ cov2 @ jb), 0.0))
+        params = {"angle": alpha, "direction": beta, "gx": gx, "gy": gy}
+        std = {"angle": s_alpha, "direction": s_beta, "gx": math.sqrt(max(cov[0, 0], 0)),
+               "gy": math.sqrt(max(cov[1, 1], 0))}
+        return params, std
+
+
+class PayloadChange(Effect):
+    """A step of phi = [m, m dx, m dy, J] at an unknown time (a payload put in or taken out)."""
+
+    name = "payload_change"
+    param_names = ("delta_m", "delta_m_dx", "delta_m_dy", "delta_J")
+    nl_names = ("time",)
+
+    def nl_grid(self, sig):
+        """Return change times every 0.25 s, 1.5 s away from both ends."""
+        t0, t1 = sig.t[0] + 1.5, sig.t[-1] - 1.5
+        return [(float(x),) for x in np.arange(t0, t1, 0.25)] or [(0.5 * (sig.t[0] + sig.t[-1]),)]
+
+    def nl_bounds(self, sig):
+        """Return the change-time bounds."""
+        return [(sig.t[0] + 0.5, sig.t[-1] - 0.5)]
+
+    def columns(self, sig, nl, phi, base):
+        """Return G = the nominal phi columns after the change time (the step of phi)."""
+        step = (sig.t >= nl[0]).astype(float)
+        return base[:, :, :4] * step[:, None, None]
+
+    def noise_loadings(self, sig, nl, edges, lv, lw):
+        """Return the nominal phi loadings in the windows after the change time."""
+        step = (sig.t[edges[:-1]] >= nl[0]).astype(float)[:, None, None]
+        return lv[:, :, :4] * step, lw[:, :, :4] * step
+
+    def is_physical(self, theta, nl, x):
+        """Return True when phi before and after the change both have m > 0 and I > 0."""
+        for ph in (np.asarray(x[:4], float), np.asarray(x[:4], float) + np.asarray(theta[:4], float)):
+            if ph[0] <= 0.5 or ph[3] - (ph[1] ** 2 + ph[2] ** 2) / ph[0] <= 0.0:
+                return False
+        return True
+
+    def replay_phi_change(self, sig, nl, theta):
+        """Return the step of phi over time."""
+        step = (sig.t >= nl[0]).astype(float)
+        return step[:, None] * np.asarray(theta, float)[None, :4]
+
+    def describe(self, theta, nl, cov, nl_std, phi):
+        """Return time, mass before/after, mass change, CoM after the change (with stds)."""
+        params, std = Effect.describe(self, theta, nl, cov, nl_std, phi)
+        after = np.asarray(phi[:4], float) + np.asarray(theta[:4], float)
+        params.update({"mass_before": float(phi[0]), "mass_after": float(after[0]),
+                       "com_x_after": float(after[1] / after[0]) if after[0] > 0 else float("nan"),
+                       "com_y_after": float(after[2] / after[0]) if after[0] > 0 else float("nan")})
+        std.update({"mass_after": std["delta_m"]})
+        return params, std
+
+
+class TimeDelay(Effect):
+    """The wrench stream lags the motion by a constant delay: gamma_true(t) = gamma_logged(t + delay)."""
+
+    name = "time_delay"
+    param_names = ()
+    nl_names = ("delay",)
+
+    def nl_grid(self, sig):
+        """Return delays from -0.5 s to 0.5 s every 20 ms (0 excluded: that is the nominal model)."""
+        return [(float(d),) for d in np.arange(-0.5, 0.5001, 0.02) if abs(d) > 1e-9]
+
+    def nl_bounds(self, sig):
+        """Return the delay bounds in seconds."""
+        return [(-0.6, 0.6)]
+
+    def transform(self, sig, nl):
+        """Return the signals with the wrench shifted by the delay."""
+        return sig.shifted(nl[0])
+
+
+class LateralSlip(Effect):
+    """The {b} origin slides sideways at compliance * (lateral force the wheels must hold) (violates eq. 3)."""
+
+    name = "lateral_slip"
+    param_names = ("compliance",)
+    uses_phi = True
+
+    def columns(self, sig, nl, phi, base):
+        """Return G: lateral force the wheels carry, f_lat - (m v omega + m dx omegadot - m dy omega^2)."""
+        m, a, b = phi[0], phi[1], phi[2]
+        f_need = sig.f_lat - (m * sig.v * sig.omega + a * sig.omegadot - b * sig.omega ** 2)
+        g = np.zeros((sig.n, 3, 1))
+        g[:, 2, 0] = f_need
+        return g
+
+
+_REGISTRY: Dict[str, Type[Effect]] = {}
+
+
+def register_effect(cls: Type[Effect]) -> Type[Effect]:
+    """Register an Effect subclass under ``cls.name`` (usable as a class decorator); return it."""
+    if not (isinstance(cls, type) and issubclass(cls, Effect)):
+        raise TypeError("register_effect expects a subclass of cart.effects.Effect")
+    _REGISTRY[cls.name] = cls
+    return cls
+
+
+def unregister_effect(name: str) -> None:
+    """Remove a registered effect (no error if absent)."""
+    _REGISTRY.pop(name, None)
+
+
+def registered_effects() -> List[Effect]:
+    """Return one instance of every registered effect, in registration order."""
+    return [cls() for cls in _REGISTRY.values()]
+
+
+for _cls in (CoulombFriction, CasterSwivel, WrenchBias, PayloadChange, FloorSlope, TimeDelay, LateralSlip):
+    register_effect(_cls)
