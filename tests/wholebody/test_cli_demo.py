@@ -11,7 +11,7 @@ from wholebody.cli import main
 
 
 def test_demo_json_lists_every_robot(capsys):
-    assert main(["demo", "--json"]) == 0
+    assert main(["demo", "--robots-only", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     names = {r["name"]: r for r in out["robots"]}
     assert set(names) == {"wmra", "ridgeback_iiwa", "shopping_cart"}
@@ -28,3 +28,8 @@ def test_unknown_subcommand_exits_2():
     with pytest.raises(SystemExit) as exc:
         main(["no-such-command"])
     assert exc.value.code == 2
+
+
+def test_demo_rejects_short_duration(capsys):
+    assert main(["demo", "--duration", "2"]) == 2
+    assert "at least 8 s" in capsys.readouterr().err
