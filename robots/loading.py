@@ -1,6 +1,7 @@
 """Load the shipped URDFs into Pinocchio with a planar root joint (x, y, yaw)."""
 from __future__ import annotations
 
+import hashlib
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -77,16 +78,16 @@ def load(name: str, urdf_text: str | None = None) -> LoadedRobot:
     path = urdf_path(name)
     roles = dict(_ROBOTS[name][1])
     if urdf_text is not None:
-        tmp = tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False)
-        tmp.write(urdf_text)
-        tmp.close()
-        path = Path(tmp.name)
+        # Keep the text in a content-addressed file so `LoadedRobot.urdf` stays valid (placo reads it).
+        digest = hashlib.sha256(urdf_text.encode()).hexdigest()[:16]
+        path = Path(tempfile.gettempdir()) / "cartpush_urdf" / f"{name}_{digest}.urdf"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.exists():
+            path.write_text(urdf_text)
     root = pin.JointModelPlanar()
     model = pin.buildModelFromUrdf(str(path), root)
     visual = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.VISUAL, package_dirs=[str(DATA_DIR)])
     collision = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.COLLISION, package_dirs=[str(DATA_DIR)])
-    if urdf_text is not None:
-        path.unlink(missing_ok=True)
     return LoadedRobot(
         name=name,
         urdf=path,

@@ -145,9 +145,13 @@ class WholeBody:
 def wholebody_for(robot: LoadedRobot, base_input: str = "wheels") -> WholeBody:
     """Return the `WholeBody` of a shipped robot ("wmra" or "ridgeback_iiwa") with its base."""
     if robot.name == "wmra":
-        from robots.wmra import WMRA_TRACK, WMRA_WHEEL_RADIUS
-
-        return WholeBody(robot, DifferentialDrive(WMRA_TRACK, WMRA_WHEEL_RADIUS), WMRA_ARM_JOINTS,
+        # Read L1 and L5 off the model, so that any build of `robots.wmra_urdf(...)` gets its own base.
+        model = robot.model
+        left, right = (model.jointPlacements[model.getJointId(j)].translation for j in WMRA_WHEEL_JOINTS)
+        track = float(np.linalg.norm(left - right))
+        pin.framesForwardKinematics(model, robot.data, pin.neutral(model))
+        wheel_radius = float(robot.data.oMf[model.getFrameId("base_link")].translation[2])
+        return WholeBody(robot, DifferentialDrive(track, wheel_radius), WMRA_ARM_JOINTS,
                          WMRA_WHEEL_JOINTS, base_input=base_input)
     if robot.name == "ridgeback_iiwa":
         from robots.ridgeback_iiwa import RIDGEBACK_WHEEL_RADIUS, RIDGEBACK_WHEEL_X, RIDGEBACK_WHEEL_Y

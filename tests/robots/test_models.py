@@ -174,3 +174,13 @@ def test_load_exposes_models_and_frames():
     assert r.model.existFrame("ft_sensor") and r.model.existFrame("ee")
     with pytest.raises(UnknownRobotError, match="no frame"):
         r.frame_id("nonexistent")
+
+
+def test_custom_build_keeps_a_readable_urdf_and_its_base_dimensions():
+    from wholebody.kinematics import wholebody_for
+
+    text = robots.wmra_urdf(track=0.56, wheel_radius=0.168)
+    r = robots.load("wmra", urdf_text=text)
+    assert r.urdf.read_text() == text
+    wb = wholebody_for(r)
+    assert wb.base.track == pytest.approx(0.56) and wb.base.wheel_radius == pytest.approx(0.168)
