@@ -122,7 +122,7 @@ def _solve(d: np.ndarray, y: np.ndarray, lv: np.ndarray, lw: np.ndarray, s2v: fl
 
 
 def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, Tuple[float, ...]]],
-              phi_ref: Optional[np.ndarray] = None) -> Fit:
+              phi_ref: Optional[np.ndarray] = None, max_iter: int = 12) -> Fit:
     """Return the weighted least-squares fit of the nominal model plus ``effects`` (with their nl parameters)."""
     sig = sig0
     for e, nl in effects:
@@ -138,7 +138,7 @@ def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, 
     lv_b, lw_b = nominal_loadings(a_w.shape[0])
     s2v, s2w = sig0.extras["noise_dv"]
     phi = np.asarray(phi_ref, float) if phi_ref is not None else None
-    n_iter = 12 if any(e.uses_phi for e, _ in effects) else 1
+    n_iter = max_iter if any(e.uses_phi for e, _ in effects) else 1
     if phi is None and n_iter > 1:
         phi = _solve(a_w, y_w, lv_b, lw_b, s2v, s2w)[0][:4]
     for _ in range(n_iter):  # fixed-point iteration on phi for effects whose columns depend on it
@@ -168,11 +168,11 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
     base_effects = current.effects
     phi = current.phi
     grid = effect.nl_grid(sig)
-    fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi) for nl in grid]
+    fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi, max_iter=3) for nl in grid]
     scores = np.array([f.m2ll if effect.is_physical(f.thetas[-1], f.effects[-1][1], f.x) else np.inf
                        for f in fits])
     i = int(np.argmin(scores))
-    best = fits[i]
+    best = fit_model(sig, edges, base_effects + [(effect, grid[i])], phi)
     nl_std: List[float] = []
     if len(effect.nl_names) == 1 and len(grid) > 1:
         lo_b, hi_b = effect.nl_bounds(sig)[0]
@@ -188,14 +188,16 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
         itr = (np.exp if log_scale else (lambda z: z))
 
         def obj(u: float) -> float:
-            f = fit_model(sig, edges, base_effects + [(effect, (float(itr(u)),))], phi)
+            f = fit_model(sig, edges, base_effects + [(effect, (float(itr(u)),))], phi, max_iter=3)
             return f.m2ll if effect.is_physical(f.thetas[-1], f.effects[-1][1], f.x) else 1e300
 
         if hi > lo:
             res = optimize.minimize_scalar(obj, bounds=(float(tr(lo)), float(tr(hi))), method="bounded",
                                            options={"xatol": 1e-3 * max(abs(float(tr(hi)) - float(tr(lo))), 1e-6)})
             if res.fun < best.m2ll:
-                best = fit_model(sig, edges, base_effects + [(effect, (float(itr(res.x)),))], phi)
+                cand = fit_model(sig, edges, base_effects + [(effect, (float(itr(res.x)),))], phi)
+                if effect.is_physical(cand.thetas[-1], cand.effects[-1][1], cand.x):
+                    best = cand
         u0 = float(tr(best.effects[-1][1][0]))
         du = 0.02 * max(abs(float(tr(hi)) - float(tr(lo))), 1e-3)
         f0, fp, fm = best.m2ll, obj(u0 + du), obj(u0 - du)
@@ -415,3 +417,54 @@ def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, thresh
                            gap_metric=GAP_METRIC, windows=tuple(windows), nominal=_physical(nominal.x, nominal.cov),
                            final_model=final_model, candidates=tuple(first_scores), threshold=float(threshold),
                            source=log.source, replay_before=rep0, replay_after=reps[-1], flagged=flagged)
+
+
+def plot_diagnosis(report: DiagnosisReport, out_dir: str) -> List[str]:
+    """Write PNG plots of ``report`` into ``out_dir`` and return their paths.
+
+    ``replay.png``: measured path vs the 1 s replays of the nominal model
+    (before) and of the model with the named effects (after);
+    ``residuals.png``: replay error and chi-square over time, flagged windows shaded.
+    """
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    os.makedirs(out_dir, exist_ok=True)
+    rb, ra = report.replay_before, report.replay_after
+    if rb is None or ra is None:
+        raise DiagnoseError("the report carries no replay data to plot")
+    paths = []
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5))
+    for ax, rep, title in ((axes[0], rb, "nominal model (before)"), (axes[1], ra, "with named effects (after)")):
+        ax.plot(rep.meas[:, :, 0].ravel(), rep.meas[:, :, 1].ravel(), ",", color="0.6")
+        for k in range(0, len(rep.starts), 4):
+            ax.plot(rep.meas[k, :, 0], rep.meas[k, :, 1], "k-", lw=1.0)
+            ax.plot(rep.sim[k, :, 0], rep.sim[k, :, 1], "-", color="tab:red" if rep is rb else "tab:blue", lw=1.0)
+        ax.set_title(f"{title}: gap {rep.gap(report.flagged if np.any(report.flagged) else None) * 1000:.1f} mm")
+        ax.set_xlabel("x [m]")
+        ax.axis("equal")
+    axes[0].set_ylabel("y [m]")
+    fig.suptitle("measured (black) vs simulated 1 s replays")
+    p = os.path.join(out_dir, "replay.png")
+    fig.savefig(p, dpi=100)
+    plt.close(fig)
+    paths.append(p)
+    fig, axes = plt.subplots(2, 1, figsize=(12, 6), sharex=True)
+    axes[0].plot(rb.starts, rb.rms * 1000, "r-", label="before")
+    axes[0].plot(ra.starts, ra.rms * 1000, "b-", label="after")
+    axes[0].set_ylabel("replay error [mm]")
+    axes[0].legend()
+    axes[1].semilogy(rb.starts, np.maximum(rb.chi2, 1e-3), "r-", label="before")
+    axes[1].semilogy(ra.starts, np.maximum(ra.chi2, 1e-3), "b-", label="after")
+    axes[1].set_ylabel("chi2 (3 dof)")
+    axes[1].set_xlabel("replay start t [s]")
+    for ax in axes:
+        for w in report.windows:
+            ax.axvspan(w.t0, w.t1, color="orange", alpha=0.25)
+    axes[0].set_title("residuals over time; shaded: windows where the nominal model disagrees significantly")
+    p = os.path.join(out_dir, "residuals.png")
+    fig.savefig(p, dpi=100)
+    plt.close(fig)
+    paths.append(p)
+    return paths

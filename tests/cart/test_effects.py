@@ -1,0 +1,163 @@
+"""Effect library and test bed: columns against independent computations (cart.model / cart.simulate)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cart import model
+from cart.diagnose import diagnose, fit_model
+from cart.effects import (CONTRACT_NAMES, Effect, FloorSlope, distance_since_reversal, measured_rows,
+                          nominal_columns, register_effect, registered_effects, unregister_effect)
+from cart.hidden import HiddenEffect, payload_params, random_cart, simulate_hidden
+from cart.log_signals import local_poly, signals_from_log, velocity_change_noise, window_edges
+from cart.params import CartParams
+from cart.simulate import simulate
+
+
+def test_registry_holds_the_contract_names():
+    assert [e.name for e in registered_effects()][:7] == list(CONTRACT_NAMES)
+
+
+def test_local_poly_recovers_derivatives_of_a_quadratic_on_irregular_times():
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(0.005, 0.015, 400))
+    y = 1.0 + 2.0 * t - 0.7 * t ** 2
+    val, d1, d2, _ = local_poly(t, y, 0.1)
+    np.testing.assert_allclose(val[:, 0], y, atol=1e-9)
+    np.testing.assert_allclose(d1[:, 0], 2.0 - 1.4 * t, atol=1e-7)
+    np.testing.assert_allclose(d2[:, 0], -1.4, atol=1e-6)
+
+
+def _controller(t, q, qd):
+    """Push forward, pull back, turn: a generalized force in {s} from body-frame components."""
+    f_fwd = 30.0 * math.sin(0.6 * t) + 5.0
+    tau = 6.0 * math.sin(1.1 * t)
+    return np.array([math.cos(q[2]) * f_fwd, math.sin(q[2]) * f_fwd, tau])
+
+
+def test_nominal_rows_hold_on_the_exact_simulator():
+    # cart.simulate (exact constrained dynamics, another implementation) must satisfy A x = y
+    p = CartParams(m=30.0, dx=0.3, dy=-0.1, I=2.5, sigma=1.5)
+    res = simulate(p, _controller, duration=12.0, dt=0.005)
+    sig = signals_from_log(res.true, half_window=0.05)
+    a = nominal_columns(sig)
+    x = np.r_[p.phi, p.sigma]
+    pred = np.einsum("nrp,p->nr", a, x)
+    y = measured_rows(sig)
+    inner = slice(50, -50)
+    scale = np.std(y[inner, :2], axis=0)
+    err = np.std(pred[inner, :2] - y[inner, :2], axis=0)
+    assert np.all(err < 0.02 * scale), (err, scale)
+    assert np.max(np.abs(y[inner, 2])) < 1e-3  # no lateral slip of {b}
+
+
+def test_floor_slope_fit_recovers_the_slope_of_the_exact_simulator():
+    p = CartParams(m=25.0, dx=0.25, dy=0.08, I=2.0, sigma=1.0)
+    gx, gy = 0.3, -0.2  # m/s^2 along the floor
+
+    def slope(t, q, qd, params):
+        # force m g at the CoM: generalized force through the planar grasp map (cart.model)
+        c, s = math.cos(q[2]), math.sin(q[2])
+        f_b = np.array([c * gx + s * gy, -s * gx + c * gy]) * params.m
+        return model.contact_wrench_to_generalized(q, params.com, f_b)
+
+    res = simulate(p, _controller, duration=20.0, dt=0.005, extra_force=slope)
+    sig = signals_from_log(res.true, half_window=0.05)
+    edges = window_edges(sig.t, 0.1)
+    sig.extras["noise_dv"] = (0.0, 0.0)
+    fit = fit_model(sig, edges, [(FloorSlope(), ())])
+    np.testing.assert_allclose(fit.thetas[0], [gx, gy], atol=0.02)
+    np.testing.assert_allclose(fit.x[:4], p.phi, rtol=0.05, atol=0.05)
+
+
+def test_distance_since_reversal_counts_from_the_zero_crossing():
+    t = np.linspace(0.0, 10.0, 1001)
+    v = np.where(t < 5.0, 0.5, -0.5)  # reversal at t = 5
+    q = np.column_stack([np.cumsum(v) * 0.01, np.zeros_like(t), np.zeros_like(t)])
+    from cart.logs import CartLog
+    sig = signals_from_log(CartLog(t=t, q=q, gamma=np.zeros((len(t), 3))), half_window=0.02)
+    d = distance_since_reversal(sig)
+    assert np.all(np.isinf(d[t < 4.9]))
+    k = np.searchsorted(t, 7.0)
+    assert d[k] == pytest.approx(1.0, abs=0.02)  # 2 s at 0.5 m/s after the crossing
+
+
+def test_payload_params_add_phi_linearly():
+    p = CartParams(m=20.0, dx=0.3, dy=0.05, I=1.5)
+    q = payload_params(p, 10.0, 0.4, -0.1, inertia=0.2)
+    expected = p.phi + np.array([10.0, 4.0, -1.0, 0.2 + 10.0 * (0.16 + 0.01)])
+    np.testing.assert_allclose(q.phi, expected, rtol=1e-12)
+
+
+def test_hidden_time_delay_and_bias_are_in_the_log_only():
+    rng = np.random.default_rng(3)
+    p = random_cart(rng)
+    kw = dict(duration=8.0, rate=100.0, jitter=0.0, position_noise=0.0, theta_noise=0.0, force_noise=0.0,
+              torque_noise=0.0)
+    base = simulate_hidden(p, (), rng=np.random.default_rng(1), **kw)
+    delayed = simulate_hidden(p, (HiddenEffect("time_delay", {"delay": 0.2}),), rng=np.random.default_rng(1), **kw)
+    np.testing.assert_allclose(delayed.true.q, base.true.q, atol=1e-12)  # motion unchanged
+    # the log at t shows what was applied at t - 0.2 (2 s of samples at 100 Hz = 20 samples back)
+    diff = {k: np.abs(delayed.measured.gamma[k:] - base.true.gamma[:-k]) for k in (19, 20, 21)}
+    assert np.median(diff[20]) < 1e-9
+    assert np.mean(diff[20] < 1e-9) > 0.9
+    assert np.median(diff[19]) > 1e-4 and np.median(diff[21]) > 1e-4
+    biased = simulate_hidden(p, (HiddenEffect("wrench_bias", {"fx": 5.0, "fy": 0.0, "tau": 2.0}),),
+                             rng=np.random.default_rng(1), **kw)
+    body = np.array([model.generalized_to_body(q, g) for q, g in zip(biased.true.q, biased.measured.gamma
+                                                                      - base.true.gamma)])
+    np.testing.assert_allclose(body, np.tile([5.0, 0.0, 2.0], (len(body), 1)), atol=1e-9)
+
+
+def test_unknown_hidden_effect_is_rejected():
+    from cart.errors import ParameterError
+    with pytest.raises(ParameterError):
+        HiddenEffect("gremlins", {})
+
+
+def test_a_user_effect_can_be_registered_and_named():
+    class HandleSpring(Effect):
+        """A yaw spring towards heading 0: torque -k theta."""
+
+        name = "yaw_spring"
+        param_names = ("stiffness",)
+
+        def columns(self, sig, nl, phi, base):
+            g = np.zeros((sig.n, 3, 1))
+            g[:, 1, 0] = sig.q[:, 2]  # E = -k theta  ->  G = +theta
+            return g
+
+    register_effect(HandleSpring)
+    try:
+        rng = np.random.default_rng(5)
+        p = random_cart(rng)
+        h = simulate_hidden(p, (), duration=25.0, rng=rng)
+        # hide a yaw spring by adding its torque to the logged wrench (measured = applied + k theta)
+        g = h.measured.gamma.copy()
+        g[:, 2] += 8.0 * h.true.q[:, 2]
+        from dataclasses import replace
+        rep = diagnose(replace(h.measured, gamma=g))
+        assert rep.names and rep.names[0] == "yaw_spring"
+        assert rep.effects[0].parameters["stiffness"] == pytest.approx(8.0, rel=0.2)
+    finally:
+        unregister_effect("yaw_spring")
+    assert "yaw_spring" not in [e.name for e in registered_effects()]
+
+
+def test_velocity_change_noise_matches_the_full_pipeline_on_pure_noise():
+    from cart.logs import CartLog
+    from cart.log_signals import window_integrals
+    rng = np.random.default_rng(2)
+    t = np.cumsum(rng.uniform(0.007, 0.013, 1500))
+    vals = []
+    for k in range(6):
+        q = rng.standard_normal((len(t), 3)) * np.array([0.003, 0.003, 0.005])
+        sig = signals_from_log(CartLog(t=t, q=q, gamma=np.zeros((len(t), 3))))
+        edges = window_edges(sig.t, 0.3)
+        vals.append(window_integrals(sig.t, sig.vdot, edges))
+    s2v, _ = velocity_change_noise(sig, edges, replicates=8)
+    empirical = float(np.mean(np.concatenate(vals) ** 2))
+    assert s2v == pytest.approx(empirical, rel=0.25)
+    assert sig.sigma_pos == pytest.approx(0.003, rel=0.15)  # noise level recovered from the residuals
