@@ -13,7 +13,8 @@ NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.i
 
 def test_there_are_notebooks():
     names = {p.stem for p in NOTEBOOKS}
-    assert {"01_contact_planning", "02_cart_ekf", "03_wmra_tracking"} <= names
+    assert {"01_contact_planning", "02_cart_ekf", "03_wmra_tracking", "04_diagnose_model",
+            "05_multi_arm_allocation", "06_push_cart"} <= names
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
