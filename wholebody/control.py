@@ -3,6 +3,7 @@
 Each step solves, over the input ``u = [arm rates, base input]``::
 
     min  ||J u - (v_d + K e)||_W^2 + damping ||u||^2 + secondary(u)
+         [+ base_weight ||M u_b - (vb_d + K_b e_b)||^2  when a base target is given]
     s.t. joint position limits (as rate bounds over dt), joint and wheel speed limits,
          optional safety band: the base origin stays inside a disc (inscribed polygon).
 
@@ -89,6 +90,10 @@ class ControllerConfig:
             rates by ~1e-4 rad/s); other solvers use their defaults.
         fallback_solver: solver tried when `solver` returns nothing (proxqp can fail on degenerate
             active sets, e.g. a safety band pinning the base's forward speed to 0 from both sides), or None.
+        base_weight: weight of the optional base regularisation ||M u_b - t*||^2 (M: base input ->
+            body twist, t*: body twist steering the base to the `base_target` passed to `step`);
+            0 (default) or no `base_target` = off.
+        base_gain: rate (1/s) of the pull of the base to its target pose.
     """
 
     gain: float = 20.0
@@ -107,8 +112,12 @@ class ControllerConfig:
     solver: str = "proxqp"
     fallback_solver: str | None = "daqp"
     solver_tolerance: float = 1e-9
+    base_weight: float = 0.0
+    base_gain: float = 2.0
 
     def __post_init__(self) -> None:
+        if not (self.base_weight >= 0 and self.base_gain >= 0):
+            raise WholeBodyError("base_weight and base_gain must be >= 0")
         if self.secondary not in ("posture", "manipulability", "none"):
             raise WholeBodyError(f"secondary must be posture, manipulability or none, got {self.secondary!r}")
         if self.solver not in qpsolvers.available_solvers:
@@ -237,10 +246,33 @@ class ResolvedRateController:
             g[:wb.n_arm] = -cfg.secondary_weight * manipulability_gradient(wb, x)
         return g
 
+    def _base_term(self, x: np.ndarray, base_target: Sequence[float],
+                   base_target_velocity: Sequence[float] | None) -> tuple[np.ndarray, np.ndarray]:
+        """Return (Hessian block, linear term) over the base input of base_weight ||M u_b - t*||^2.
+
+        t* is the body twist of world rates vb_d + base_gain (pose_d - pose) (heading error wrapped).
+        """
+        cfg = self.config
+        pose_d = np.asarray(base_target, dtype=float)
+        rates = np.zeros(3) if base_target_velocity is None else np.asarray(base_target_velocity, dtype=float)
+        th = x[2]
+        e = np.array([pose_d[0] - x[0], pose_d[1] - x[1], (pose_d[2] - th + np.pi) % (2 * np.pi) - np.pi])
+        w = rates + cfg.base_gain * e
+        c, s = np.cos(th), np.sin(th)
+        twist = np.array([c * w[0] + s * w[1], -s * w[0] + c * w[1], w[2]])  # world rates -> body twist
+        M = self.wb._wheel_map
+        return cfg.base_weight * M.T @ M, -cfg.base_weight * M.T @ twist
+
     def step(self, x: Sequence[float], T_des: pin.SE3, v_des: Sequence[float] | None, dt: float,
              band_center: Sequence[float] | None = None,
-             band_center_velocity: Sequence[float] | None = None) -> StepResult:
-        """Return the input tracking pose `T_des` with feed-forward twist `v_des` (world-aligned) over dt."""
+             band_center_velocity: Sequence[float] | None = None,
+             base_target: Sequence[float] | None = None,
+             base_target_velocity: Sequence[float] | None = None) -> StepResult:
+        """Return the input tracking pose `T_des` with feed-forward twist `v_des` (world-aligned) over dt.
+
+        `base_target` (x, y, theta) and its world rates `base_target_velocity` feed the optional base
+        regularisation (active when `config.base_weight > 0`).
+        """
         if not dt > 0:
             raise WholeBodyError(f"dt must be positive, got {dt}")
         wb, cfg = self.wb, self.config
@@ -257,6 +289,10 @@ class ResolvedRateController:
         if cfg.secondary == "posture" and self.posture is not None:
             P[:wb.n_arm, :wb.n_arm] += cfg.secondary_weight * np.eye(wb.n_arm)
         qv = -JW @ v_ref + self._secondary(x)
+        if base_target is not None and cfg.base_weight > 0:
+            Pb, qb = self._base_term(x, base_target, base_target_velocity)
+            P[wb.n_arm:, wb.n_arm:] += Pb
+            qv[wb.n_arm:] += qb
         lb, ub = self.bounds(x, dt)
         solver_ok, fallback_used = True, False
         u = None

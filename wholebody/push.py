@@ -11,8 +11,9 @@ One control period ``dt`` (100 Hz by default):
 3. arm joint torques ``tau = rnea(q, v, a) + J^T w`` (Pinocchio; the arm's own
    gravity and dynamics plus the push), checked against the iiwa's effortLimit;
 4. each mobile manipulator's base + arm follow the grasp point on the moving
-   handle with a resolved-rate QP (:class:`ResolvedRateTracker`, velocity and
-   joint limits);
+   handle with the project's whole-body QP (``wholebody.control``, through the
+   :class:`WholeBodyQPTracker` adapter: joint, wheel-speed and twist limits,
+   base pulled to its nominal place behind the handle);
 5. cart dynamics: exact constrained model (``cart.simulate.rk4_step``) under
    the wrenches the hands apply;
 6. measurements: cart pose and velocity as from motion capture, the F/T
@@ -26,12 +27,11 @@ The pieces meet through small interfaces (:class:`CartController`,
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 from typing import List, Optional, Protocol, Sequence, Tuple
 
 import numpy as np
 import pinocchio as pin
-import qpsolvers
 
 import robots
 from cart import model as cart_model
@@ -42,6 +42,7 @@ from cart.simulate import rk4_step
 from cart.trajectories import UnicycleTrajectory, trajectory_1, trajectory_2
 from wholebody.allocation import ArmLimits, WrenchAllocator
 from wholebody.contact import HandleSegment
+from wholebody.control import ControllerConfig, ResolvedRateController, StepResult
 from wholebody.errors import WholeBodyError
 from wholebody.kinematics import WholeBody, wholebody_for
 
@@ -178,6 +179,7 @@ class PushMetrics:
     mass_final_kg: float
     grasp_error_max_m: float
     base_twist_limit_ratio: float
+    base_wheel_limit_ratio: float
     saturated_steps: int
 
     def as_dict(self) -> dict:
@@ -252,61 +254,35 @@ def base_target(q_cart: np.ndarray, qd_cart: np.ndarray, offset_b: np.ndarray) -
     return pose, np.array([qd_cart[0] - om * py, qd_cart[1] + om * px, om])
 
 
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
+#: Whole-body QP settings of the push (task weight 1; the posture and base pulls are 1e-4 and 1e-3 of it).
+PUSH_CONTROLLER = ControllerConfig(gain=20.0, damping=1e-7, secondary="posture", secondary_weight=1e-4,
+                                   posture_gain=1.0, max_linear_speed=3.0, max_angular_speed=3.0,
+                                   limit_margin=0.05, solver="daqp", fallback_solver="proxqp",
+                                   base_weight=1e-3, base_gain=2.0)
 
 
-class ResolvedRateTracker:
-    """Resolved-rate QP of one mobile manipulator (minimal stand-in for the whole-body QP of issue 3).
+class WholeBodyQPTracker:
+    """`BodyTracker` of the project's whole-body QP (`wholebody.control.ResolvedRateController`).
 
-    u = [arm rates (7), base body twist (3)] minimises
-    ``w_task |J u - (V_ff + k_task e)|^2 + w_base |u_b - u_b*|^2 + w_post |u_a - k_post (q_nom - q_a)|^2 + eps |u|^2``
-    with joint position and velocity limits and the Ridgeback's twist limits as bounds.
-    ``u_b*`` steers the base to its nominal offset behind the handle.
+    The grasp frame follows the handle (feed-forward + `gain` feedback), the arm is pulled to its
+    grasp posture, and the base to its nominal place behind its contact point (the controller's
+    base regularisation). Bounds: joint positions/rates, and the Ridgeback's wheel speeds (which
+    imply its twist limits 1.1 m/s, 1.1 m/s, 2 rad/s).
     """
 
-    def __init__(self, wb: WholeBody, q_nominal: np.ndarray, k_task: float = 20.0, k_base: float = 2.0,
-                 k_post: float = 1.0, w_task: float = 1e3, w_base: float = 1.0, w_post: float = 0.1,
-                 eps: float = 1e-4, margin: float = 0.05) -> None:
-        self.wb = wb
-        self.q_nominal = np.asarray(q_nominal, dtype=float)
-        self.k_task, self.k_base, self.k_post = k_task, k_base, k_post
-        self.w_task, self.w_base, self.w_post, self.eps = w_task, w_base, w_post, eps
-        self.margin = margin
-        self.solver = "daqp" if "daqp" in qpsolvers.available_solvers else "proxqp"
+    def __init__(self, wb: WholeBody, q_nominal: np.ndarray, config: ControllerConfig = PUSH_CONTROLLER) -> None:
+        self.controller = ResolvedRateController(wb, config, posture=q_nominal)
+        self.last: Optional[StepResult] = None
 
     def step(self, x: np.ndarray, target: pin.SE3, target_velocity: np.ndarray, base_target: np.ndarray,
              base_velocity: np.ndarray, dt: float) -> np.ndarray:
-        """Return u for one period (see the class docstring)."""
-        wb = self.wb
-        T, J = wb.ee_and_jacobian(x)
-        err_local = pin.log6(T.actInv(target)).vector
-        R = T.rotation
-        err = np.concatenate([R @ err_local[:3], R @ err_local[3:]])
-        v_task = target_velocity + self.k_task * err
-        th = x[2]
-        c, s = math.cos(th), math.sin(th)
-        e_pose = np.array([base_target[0] - x[0], base_target[1] - x[1], _wrap(base_target[2] - th)])
-        rates = base_velocity + self.k_base * e_pose
-        ub_des = np.array([c * rates[0] + s * rates[1], -s * rates[0] + c * rates[1], rates[2]])
-        na = wb.n_arm
-        qa = x[3:3 + na]
-        ua_des = self.k_post * (self.q_nominal - qa)
-        n = wb.n_u
-        P = self.w_task * J.T @ J + self.eps * np.eye(n)
-        g = -self.w_task * J.T @ v_task
-        P[na:, na:] += self.w_base * np.eye(3)
-        g[na:] -= self.w_base * ub_des
-        P[:na, :na] += self.w_post * np.eye(na)
-        g[:na] -= self.w_post * ua_des
-        lim = wb.arm_velocity_limit
-        lb = np.r_[np.maximum(-lim, (wb.arm_lower + self.margin - qa) / dt), -BASE_TWIST_LIMIT]
-        ub = np.r_[np.minimum(lim, (wb.arm_upper - self.margin - qa) / dt), BASE_TWIST_LIMIT]
-        lb = np.minimum(lb, ub)
-        u = qpsolvers.solve_qp(P, g, lb=lb, ub=ub, solver=self.solver)
-        if u is None:
+        """Return u = [arm rates (7), base body twist (3)] for one period."""
+        res = self.controller.step(x, target, target_velocity, dt, base_target=base_target,
+                                   base_target_velocity=base_velocity)
+        if not res.solver_ok:
             raise WholeBodyError("the whole-body velocity QP has no solution")
-        return u
+        self.last = res
+        return res.u
 
 
 def solve_grasp_ik(wb: WholeBody, base_pose: np.ndarray, target: pin.SE3, seed: Sequence[float]) -> np.ndarray:
@@ -344,7 +320,7 @@ class MobileManipulator:
         target, _ = grasp_target(q_cart, np.zeros(3), contact_y, 0.0, R_b_ee)
         qa = solve_grasp_ik(self.wb, pose, target, ARM_SEED)
         self.x = np.r_[pose, qa]
-        self.tracker = tracker if tracker is not None else ResolvedRateTracker(self.wb, qa)
+        self.tracker = tracker if tracker is not None else WholeBodyQPTracker(self.wb, qa)
         self.u = np.zeros(self.wb.n_u)
         self.effort_limit = self.model.effortLimit[self.wb.arm_idx_v].copy()
 
@@ -484,7 +460,7 @@ def run_push(config: PushConfig = PushConfig(), controller: Optional[CartControl
         q_true=(n, 3), qd_true=(n, 3), q_desired=(n, 3), z_meas=(n, 6), gamma_desired=(n, 3),
         gamma_applied=(n, 3), gamma_measured=(n, 3), phi_hat=(n, 4), contact_y=(n, na), wrenches=(n, na, 6),
         arm_torque=(n, na, 7), push_torque=(n, na, 7), robot_x=(n, na, 10), grasp_error=(n, na),
-        base_ratio=(n, na)).items()}
+        base_ratio=(n, na), wheel_ratio=(n, na)).items()}
     saturated = 0
     std = config.noise.mocap_std()
     z = np.r_[q, qd] + rng.normal(0.0, 1.0, 6) * std
@@ -521,6 +497,7 @@ def run_push(config: PushConfig = PushConfig(), controller: Optional[CartControl
             H["robot_x"][k, i] = mm.x
             H["grasp_error"][k, i] = np.linalg.norm(oMee.translation - target.translation)
             H["base_ratio"][k, i] = np.max(np.abs(u[mm.wb.n_arm:]) / BASE_TWIST_LIMIT)
+            H["wheel_ratio"][k, i] = np.max(np.abs(mm.wb.wheel_rates(u)) / mm.wb.wheel_velocity_limit)
             H["wrenches"][k, i] = W[i]
             mm.x = mm.wb.integrate(mm.x, u, dt)
             mm.u = u
@@ -567,5 +544,6 @@ def _metrics(config: PushConfig, H: dict, effort_limit: np.ndarray, final: CartP
         mass_final_kg=float(final.m),
         grasp_error_max_m=float(H["grasp_error"].max()),
         base_twist_limit_ratio=float(H["base_ratio"].max()),
+        base_wheel_limit_ratio=float(H["wheel_ratio"].max()),
         saturated_steps=int(saturated),
     )

@@ -9,12 +9,15 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Dict, List, Sequence, Tuple
+from typing import TYPE_CHECKING, Dict, List, Sequence, Tuple
 
 import numpy as np
 
 from cart.logs import CartLog, write_log
 from wholebody.push import PushConfig, PushResult, run_push
+
+if TYPE_CHECKING:
+    from wholebody.viz import Scene
 
 #: Columns of the comparison table: (metrics key, header, format).
 TABLE_COLUMNS = (
@@ -128,35 +131,40 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
-def save_scene(result: PushResult, path: Path, fps: int = 10) -> Path:
-    """Write a self-contained Meshcat page animating the run (robot 1, the cart, the hand force, the CoM)."""
-    from wholebody.viz import Scene
-    from wholebody.push import cart_se3, handle_point
-
+def build_scene(result: PushResult, fps: int = 10) -> "Scene":
+    """Return a Meshcat scene animating the run: robot 1, the cart, the hand force, the true and estimated CoM."""
     import robots
-
-    rob = robots.load("ridgeback_iiwa")
+    from robots.shopping_cart import CART_WHEEL_RADIUS
     from wholebody.kinematics import wholebody_for
+    from wholebody.push import cart_se3, handle_point
+    from wholebody.viz import COM_MARKER_Z, Scene
 
-    wb = wholebody_for(rob, base_input="twist")
+    wb = wholebody_for(robots.load("ridgeback_iiwa"), base_input="twist")
     step = max(1, int(round(1.0 / (fps * result.config.dt))))
     idx = np.arange(0, len(result.t), step)
     qj = np.array([wb.to_pinocchio_q(result.robot_x[i, 0])[4:] for i in idx])
-    origins = np.array([cart_se3(result.q_true[i]).act(handle_point(result.contact_y[i, 0])) for i in idx])
-    forces = np.array([cart_se3(result.q_true[i]).rotation @ result.wrenches[i, 0, :3] for i in idx])
-    com_est = []
-    for i in idx:
-        phi = result.phi_hat[i]
-        com_est.append(cart_se3(result.q_true[i]).act(np.array([phi[1] / phi[0], phi[2] / phi[0], 0.9])))
+    poses = [cart_se3(result.q_true[i]) for i in idx]
+    origins = np.array([T.act(handle_point(result.contact_y[i, 0])) for T, i in zip(poses, idx)])
+    forces = np.array([T.rotation @ result.wrenches[i, 0, :3] for T, i in zip(poses, idx)])
+    z = COM_MARKER_Z - CART_WHEEL_RADIUS  # markers at COM_MARKER_Z above the floor, as Scene.show_com draws them
+    p = result.config.true_params
+    phi = result.phi_hat[idx]
+    com_true = np.array([T.act(np.array([p.dx, p.dy, z])) for T in poses])
+    com_est = np.array([T.act(np.array([f[1] / f[0], f[2] / f[0], z])) for T, f in zip(poses, phi)])
     x0, x1 = result.q_true[:, 0].min() - 2, result.q_true[:, 0].max() + 2
     y0, y1 = result.q_true[:, 1].min() - 2, result.q_true[:, 1].max() + 2
-    with Scene(["ridgeback_iiwa", "shopping_cart"], floor=(x0, x1, y0, y1)) as scene:
-        p = result.config.true_params
-        scene.show_com((p.dx, p.dy), (result.phi_hat[0, 1] / result.phi_hat[0, 0], result.phi_hat[0, 2] / result.phi_hat[0, 0]))
-        scene.show_trace("desired", result.q_desired[:, :2])
-        scene.animate(result.t[idx], {"ridgeback_iiwa": result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},
-                      q_joints={"ridgeback_iiwa": qj}, wrenches={"hand": (origins, forces)},
-                      markers={"com/com_est": np.array(com_est)}, scale=0.02, fps=fps)
+    scene = Scene(["ridgeback_iiwa", "shopping_cart"], floor=(x0, x1, y0, y1))
+    scene.show_com((p.dx, p.dy), (phi[0, 1] / phi[0, 0], phi[0, 2] / phi[0, 0]))
+    scene.show_trace("desired", result.q_desired[:, :2])
+    scene.animate(result.t[idx], {"ridgeback_iiwa": result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},
+                  q_joints={"ridgeback_iiwa": qj}, wrenches={"hand": (origins, forces)},
+                  markers={"com/com_true": com_true, "com/com_est": com_est}, scale=0.02, fps=fps)
+    return scene
+
+
+def save_scene(result: PushResult, path: Path, fps: int = 10) -> Path:
+    """Write a self-contained Meshcat page animating the run (see `build_scene`); return its path."""
+    with build_scene(result, fps) as scene:
         return scene.save_html(path)
 
 

@@ -8,14 +8,20 @@ import pytest
 import robots
 from cart import model as cart_model
 from wholebody.errors import WholeBodyError
+from wholebody.control import ResolvedRateController
 from wholebody.push import (
+    BASE_OFFSET_X,
+    PUSH_CONTROLLER,
     PushConfig,
     SensorNoise,
     MobileManipulator,
+    WholeBodyQPTracker,
+    base_target,
     ft_measurement,
     ft_to_cart_gamma,
     grasp_rotation,
     grasp_target,
+    handle_point,
     run_push,
 )
 
@@ -142,3 +148,74 @@ def test_cli_push_json_log_and_bad_input(tmp_path, capsys):
     assert main(["push", "--contact", "best"]) == 2
     assert main(["push", "--arms", "3"]) == 2
     assert "error" in capsys.readouterr().err
+
+
+def test_default_tracker_is_the_wholebody_qp_within_base_limits_and_near_the_nominal_base(runs):
+    on, _ = runs
+    assert isinstance(MobileManipulator(robots.load("ridgeback_iiwa"), np.zeros(3), 0.0, 0.0,
+                                        grasp_rotation()).tracker, WholeBodyQPTracker)
+    m = on.metrics
+    assert m.base_wheel_limit_ratio <= 1.0 + 1e-9 and m.base_twist_limit_ratio <= 1.0 + 1e-9
+    # the base stays near its nominal place 0.65 m behind its contact point (recomputed from the cart's pose)
+    nominal = np.array([base_target(q, np.zeros(3), np.array([handle_point(y)[0] + BASE_OFFSET_X, y]))[0]
+                        for q, y in zip(on.q_true, on.contact_y[:, 0])])
+    dist = np.hypot(*(on.robot_x[:, 0, :2] - nominal[:, :2]).T)
+    assert dist.max() < 0.05
+    assert np.abs(on.robot_x[:, 0, 2] - nominal[:, 2]).max() < 0.05
+
+
+def test_base_regularisation_term_matches_stacked_least_squares():
+    """The controller's optional base pull equals the unconstrained least-squares optimum (no bound active)."""
+    r = robots.load("ridgeback_iiwa")
+    mm = MobileManipulator(r, np.array([0.5, 0.2, 0.3]), 0.05, 0.05, grasp_rotation())
+    wb, cfg = mm.wb, PUSH_CONTROLLER
+    x = mm.x + np.r_[0.01, -0.02, 0.01, 0.02 * np.ones(7)]  # perturbed: base and arm off target
+    ctrl = ResolvedRateController(wb, cfg, posture=mm.x[3:])
+    T_des = wb.ee_placement(mm.x)
+    v_des = np.array([0.3, 0.1, 0.0, 0.0, 0.0, 0.2])
+    b_des, b_vel = np.array([0.1, 0.15, 0.32]), np.array([0.25, -0.1, 0.2])
+    res = ctrl.step(x, T_des, v_des, 0.01, base_target=b_des, base_target_velocity=b_vel)
+    # independent: stack sqrt(weight) * (A u - b) rows and solve with numpy
+    T, J = wb.ee_and_jacobian(x)
+    e = np.r_[T_des.translation - T.translation, pin.log3(T_des.rotation @ T.rotation.T)]
+    c, s_ = np.cos(x[2]), np.sin(x[2])
+    w = b_vel + cfg.base_gain * (b_des - x[:3])
+    twist = np.array([c * w[0] + s_ * w[1], -s_ * w[0] + c * w[1], w[2]])
+    A = np.vstack([J, np.sqrt(cfg.damping) * np.eye(10), np.sqrt(cfg.secondary_weight) * np.eye(10)[:7],
+                   np.sqrt(cfg.base_weight) * np.eye(10)[7:]])
+    b = np.r_[v_des + cfg.gain * e, np.zeros(10), np.sqrt(cfg.secondary_weight) * cfg.posture_gain * (mm.x[3:] - x[3:]),
+              np.sqrt(cfg.base_weight) * twist]
+    u_ls = np.linalg.lstsq(A, b, rcond=None)[0]
+    np.testing.assert_allclose(res.u, u_ls, atol=1e-6)
+    # without a base target (or with weight 0) the term is off: a different input
+    free = ResolvedRateController(wb, cfg, posture=mm.x[3:]).step(x, T_des, v_des, 0.01)
+    assert np.linalg.norm(free.u[7:] - res.u[7:]) > 1e-3
+
+
+def test_scene_animates_true_and_estimated_com_with_the_cart(runs):
+    from wholebody.push_report import build_scene
+    from wholebody.viz import COM_MARKER_Z
+
+    on, _ = runs
+    fps = 5
+    keys = build_scene(on, fps=fps).animation_keys()
+    assert "/meshcat/com/com_true" in keys and "/meshcat/com/com_est" in keys
+    true_pos = keys["/meshcat/com/com_true"]["position"]
+    est_pos = keys["/meshcat/com/com_est"]["position"]
+    # the page samples the run every 1/fps s; each frame shows the latest sample at or before its time
+    sampled = np.arange(0, len(on.t), int(round(1.0 / (fps * on.config.dt))))
+    ts = on.t[sampled]
+    frames = sampled[np.searchsorted(ts, ts[0] + np.arange(len(true_pos)) / fps, side="right") - 1]
+    q = on.q_true[frames]
+    p = on.config.true_params
+    # true CoM = cart pose applied to (dx, dy), recomputed here; it moves with the cart (> 3 m)
+    expected = np.column_stack([q[:, 0] + np.cos(q[:, 2]) * p.dx - np.sin(q[:, 2]) * p.dy,
+                                q[:, 1] + np.sin(q[:, 2]) * p.dx + np.cos(q[:, 2]) * p.dy])
+    np.testing.assert_allclose(true_pos[:, :2], expected, atol=1e-9)
+    np.testing.assert_allclose(true_pos[:, 2], COM_MARKER_Z, atol=1e-12)
+    assert np.hypot(*(true_pos[-1, :2] - true_pos[0, :2])) > 3.0
+    phi = on.phi_hat[frames]
+    est_b = np.column_stack([phi[:, 1] / phi[:, 0], phi[:, 2] / phi[:, 0]])
+    est_expected = np.column_stack([q[:, 0] + np.cos(q[:, 2]) * est_b[:, 0] - np.sin(q[:, 2]) * est_b[:, 1],
+                                    q[:, 1] + np.sin(q[:, 2]) * est_b[:, 0] + np.cos(q[:, 2]) * est_b[:, 1]])
+    np.testing.assert_allclose(est_pos[:, :2], est_expected, atol=1e-9)
