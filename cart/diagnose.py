@@ -40,9 +40,11 @@ from cart.logs import CartLog
 from cart.params import CartParams
 from cart.diagnose_replay import Replay, flag_starts, merge_windows, replay
 
-GAP_METRIC = ("RMS position error (m) of the {b} origin between the model and the measured pose, over 1.0 s "
-              "replays started every 0.25 s from the smoothed measured state with the measured wrench; "
-              "averaged over the starts the nominal replay flags as significant (all starts when none)")
+GAP_METRIC = ("RMS excess position error (m) of the {b} origin over the noise floor: sqrt(max(mean(e^2 - f^2), 0)), "
+              "e = RMS error between the model and the measured pose over a 1.0 s replay (started every 0.25 s from "
+              "the smoothed measured state with the measured wrench), f = the RMS error the estimated pose, force "
+              "and torque noise alone predict for that replay; mean over the starts the nominal replay flags as "
+              "significant (all starts when none). 0 = the replay error is at the noise level")
 NOMINAL_NAMES = ("m", "m_dx", "m_dy", "J", "sigma")
 ROW_NAMES = ("forward force", "yaw torque", "lateral displacement")
 
@@ -249,6 +251,9 @@ class DiagnosisReport:
     candidates: Tuple[Tuple[str, float], ...]
     threshold: float
     source: str = "<memory>"
+    rms_before: float = float("nan")
+    rms_after: float = float("nan")
+    noise_floor: float = float("nan")
     replay_before: Optional[Replay] = field(default=None, repr=False, compare=False)
     replay_after: Optional[Replay] = field(default=None, repr=False, compare=False)
     flagged: Optional[np.ndarray] = field(default=None, repr=False, compare=False)
@@ -262,6 +267,8 @@ class DiagnosisReport:
         """Return the JSON form of ``cartpush diagnose --json``."""
         return {"effects": [e.to_dict() for e in self.effects], "gap_before": round(self.gap_before, 6),
                 "gap_after": round(self.gap_after, 6), "gap_metric": self.gap_metric,
+                "rms_before": round(self.rms_before, 6), "rms_after": round(self.rms_after, 6),
+                "noise_floor": round(self.noise_floor, 6),
                 "windows": [{"t0": round(w.t0, 3), "t1": round(w.t1, 3), "activity": w.activity,
                              "chi2": round(w.chi2, 2)} for w in self.windows],
                 "nominal": _clean(self.nominal), "final_model": _clean(self.final_model),
@@ -287,7 +294,8 @@ class DiagnosisReport:
             lines.append(f"{i}. {e.name}: {ps}  (Delta BIC {e.evidence:.1f}, {len(e.windows)} windows)")
         lines.append("first-round Delta BIC: " + ", ".join(f"{n} {s:.1f}" for n, s in self.candidates))
         lines.append(f"gap before {self.gap_before * 1000:.1f} mm -> after {self.gap_after * 1000:.1f} mm "
-                     f"({self.gap_metric.split(' (')[0]})")
+                     f"(RMS replay error over the noise floor; raw RMS {self.rms_before * 1000:.1f} -> "
+                     f"{self.rms_after * 1000:.1f} mm, noise floor {self.noise_floor * 1000:.1f} mm)")
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -316,7 +324,7 @@ def _replay_terms(fit: Fit) -> Tuple[np.ndarray, Optional[np.ndarray]]:
     dphi = None
     a_s = sig.extras["base"][0]
     for (e, nl), th in zip(fit.effects, fit.thetas):
-        ch = e.replay_phi_change(sig, nl, th)
+        ch = e.replay_phi_change(sig, nl, th, fit.phi)
         if ch is not None:
             dphi = ch if dphi is None else dphi + ch
             continue
@@ -378,9 +386,13 @@ def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, thresh
         for e in cands:
             if any(e.name == n.name for n, _, _, _ in named):
                 continue
-            fit, nl_std = _fit_candidate(sig, edges, current, e)
-            dbic = (current.m2ll - fit.m2ll) - e.n_params * math.log(n_obs)
-            results.append((dbic, e, fit, nl_std))
+            best = None
+            for ev in e.variants():  # nested parameterisations of one effect: keep the best Delta BIC
+                fit, nl_std = _fit_candidate(sig, edges, current, ev)
+                dbic = (current.m2ll - fit.m2ll) - ev.n_params * math.log(n_obs)
+                if best is None or dbic > best[0]:
+                    best = (dbic, ev, fit, nl_std)
+            results.append(best)
         if not results:
             break
         results.sort(key=lambda r: -r[0])
@@ -416,7 +428,9 @@ def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, thresh
     return DiagnosisReport(effects=tuple(effects_out), gap_before=rep0.gap(mask), gap_after=reps[-1].gap(mask),
                            gap_metric=GAP_METRIC, windows=tuple(windows), nominal=_physical(nominal.x, nominal.cov),
                            final_model=final_model, candidates=tuple(first_scores), threshold=float(threshold),
-                           source=log.source, replay_before=rep0, replay_after=reps[-1], flagged=flagged)
+                           source=log.source, rms_before=rep0.rms_error(mask), rms_after=reps[-1].rms_error(mask),
+                           noise_floor=rep0.noise_floor(mask), replay_before=rep0, replay_after=reps[-1],
+                           flagged=flagged)
 
 
 def plot_diagnosis(report: DiagnosisReport, out_dir: str) -> List[str]:
@@ -441,7 +455,7 @@ def plot_diagnosis(report: DiagnosisReport, out_dir: str) -> List[str]:
         for k in range(0, len(rep.starts), 4):
             ax.plot(rep.meas[k, :, 0], rep.meas[k, :, 1], "k-", lw=1.0)
             ax.plot(rep.sim[k, :, 0], rep.sim[k, :, 1], "-", color="tab:red" if rep is rb else "tab:blue", lw=1.0)
-        ax.set_title(f"{title}: gap {rep.gap(report.flagged if np.any(report.flagged) else None) * 1000:.1f} mm")
+        ax.set_title(f"{title}: RMS error {rep.rms_error(report.flagged if np.any(report.flagged) else None) * 1000:.1f} mm")
         ax.set_xlabel("x [m]")
         ax.axis("equal")
     axes[0].set_ylabel("y [m]")
@@ -453,6 +467,7 @@ def plot_diagnosis(report: DiagnosisReport, out_dir: str) -> List[str]:
     fig, axes = plt.subplots(2, 1, figsize=(12, 6), sharex=True)
     axes[0].plot(rb.starts, rb.rms * 1000, "r-", label="before")
     axes[0].plot(ra.starts, ra.rms * 1000, "b-", label="after")
+    axes[0].plot(rb.starts, rb.floor * 1000, "k:", label="noise floor")
     axes[0].set_ylabel("replay error [mm]")
     axes[0].legend()
     axes[1].semilogy(rb.starts, np.maximum(rb.chi2, 1e-3), "r-", label="before")

@@ -143,9 +143,18 @@ class Effect:
         """Return False when the fitted parameters are physically impossible (the fit is then rejected)."""
         return True
 
-    def replay_phi_change(self, sig: Signals, nl: Tuple[float, ...], theta: np.ndarray) -> Optional[np.ndarray]:
+    def replay_phi_change(self, sig: Signals, nl: Tuple[float, ...], theta: np.ndarray,
+                          phi: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
         """Return the change of phi (N, 4) over time the replay must apply, or None (default)."""
         return None
+
+    def variants(self) -> List["Effect"]:
+        """Return the parameterisations of this effect to try (default: itself); the best Delta BIC is kept.
+
+        An effect may offer a reduced (nested) form with fewer parameters: it
+        has more power when the data cannot resolve the full one.
+        """
+        return [self]
 
     def describe(self, theta: np.ndarray, nl: Tuple[float, ...], cov: np.ndarray, nl_std: Sequence[float],
                  phi: np.ndarray) -> Tuple[Dict[str, float], Dict[str, float]]:
@@ -259,13 +268,25 @@ class PayloadChange(Effect):
     nl_names = ("time",)
 
     def nl_grid(self, sig):
-        """Return change times every 0.25 s, 1.5 s away from both ends."""
-        t0, t1 = sig.t[0] + 1.5, sig.t[-1] - 1.5
-        return [(float(x),) for x in np.arange(t0, t1, 0.25)] or [(0.5 * (sig.t[0] + sig.t[-1]),)]
+        """Return change times every 0.25 s within :meth:`nl_bounds`."""
+        t0, t1 = self.nl_bounds(sig)[0]
+        return [(float(x),) for x in np.arange(t0, t1, 0.25)] or [(0.5 * (t0 + t1),)]
 
     def nl_bounds(self, sig):
-        """Return the change-time bounds."""
-        return [(sig.t[0] + 0.5, sig.t[-1] - 0.5)]
+        """Return the change-time bounds: at least 1.5 s and 5 % of the acceleration content on each side.
+
+        phi is identifiable on a side only from its excitation; a change time
+        with (almost) none on one side would fit noise there.
+        """
+        e = sig.vdot ** 2 + (0.3 * sig.omegadot) ** 2
+        cum = np.concatenate([[0.0], np.cumsum(0.5 * (e[1:] + e[:-1]) * np.diff(sig.t))])
+        cum = cum / max(cum[-1], 1e-12)
+        lo = max(sig.t[0] + 1.5, float(np.interp(0.05, cum, sig.t)))
+        hi = min(sig.t[-1] - 1.5, float(np.interp(0.95, cum, sig.t)))
+        if hi <= lo:
+            mid = 0.5 * (sig.t[0] + sig.t[-1])
+            return [(mid - 1e-3, mid + 1e-3)]
+        return [(lo, hi)]
 
     def columns(self, sig, nl, phi, base):
         """Return G = the nominal phi columns after the change time (the step of phi)."""
@@ -284,10 +305,14 @@ class PayloadChange(Effect):
                 return False
         return True
 
-    def replay_phi_change(self, sig, nl, theta):
+    def replay_phi_change(self, sig, nl, theta, phi=None):
         """Return the step of phi over time."""
         step = (sig.t >= nl[0]).astype(float)
         return step[:, None] * np.asarray(theta, float)[None, :4]
+
+    def variants(self):
+        """Return the full step of phi and the reduced step of the mass alone (CoM and radius of gyration kept)."""
+        return [self, PayloadMassStep()]
 
     def describe(self, theta, nl, cov, nl_std, phi):
         """Return time, mass before/after, mass change, CoM after the change (with stds)."""
@@ -296,6 +321,64 @@ class PayloadChange(Effect):
         params.update({"mass_before": float(phi[0]), "mass_after": float(after[0]),
                        "com_x_after": float(after[1] / after[0]) if after[0] > 0 else float("nan"),
                        "com_y_after": float(after[2] / after[0]) if after[0] > 0 else float("nan")})
+        std.update({"mass_after": std["delta_m"]})
+        return params, std
+
+
+class PayloadMassStep(PayloadChange):
+    """Reduced ``payload_change``: phi scales by (1 + delta_m / m) at an unknown time (CoM, gyration radius kept).
+
+    Two parameters (delta_m, time) instead of five: the leading-order effect
+    of a payload near the cart's CoM, detectable from less excitation.
+    Reported with the same parameter names as the full form.
+    """
+
+    param_names = ("delta_m",)
+    uses_phi = True
+
+    def variants(self):
+        """Return itself."""
+        return [self]
+
+    def columns(self, sig, nl, phi, base):
+        """Return G = (nominal phi columns . phi / m) after the change time."""
+        sig.extras["phi_mass_step"] = np.asarray(phi[:4], float)
+        step = (sig.t >= nl[0]).astype(float)
+        u = np.asarray(phi[:4], float) / float(phi[0])
+        return (base[:, :, :4] @ u)[:, :, None] * step[:, None, None]
+
+    def noise_loadings(self, sig, nl, edges, lv, lw):
+        """Return the nominal phi loadings along phi / m in the windows after the change time."""
+        phi = sig.extras.get("phi_mass_step")
+        if phi is None:
+            return None
+        u = np.asarray(phi[:4], float) / float(phi[0])
+        step = (sig.t[edges[:-1]] >= nl[0]).astype(float)[:, None, None]
+        return (lv[:, :, :4] @ u)[:, :, None] * step, (lw[:, :, :4] @ u)[:, :, None] * step
+
+    def is_physical(self, theta, nl, x):
+        """Return True when the mass stays above 0.5 kg after the change."""
+        return float(x[0]) > 0.5 and float(x[0]) + float(theta[0]) > 0.5
+
+    def replay_phi_change(self, sig, nl, theta, phi=None):
+        """Return the step of phi over time (phi scaled by the mass ratio)."""
+        step = (sig.t >= nl[0]).astype(float)
+        u = np.asarray(phi[:4], float) / float(phi[0])
+        return step[:, None] * (float(theta[0]) * u)[None, :]
+
+    def describe(self, theta, nl, cov, nl_std, phi):
+        """Return the same parameters as the full form (delta_m_dx, delta_m_dy, delta_J from the scaling)."""
+        u = np.asarray(phi[:4], float) / float(phi[0])
+        full = float(theta[0]) * u
+        s_m = math.sqrt(max(cov[0, 0], 0.0))
+        std4 = np.abs(u) * s_m
+        params = {k: float(v) for k, v in zip(PayloadChange.param_names, full)}
+        std = {k: float(v) for k, v in zip(PayloadChange.param_names, std4)}
+        for k, v, sd in zip(self.nl_names, nl, nl_std):
+            params[k], std[k] = float(v), float(sd)
+        after = np.asarray(phi[:4], float) + full
+        params.update({"mass_before": float(phi[0]), "mass_after": float(after[0]),
+                       "com_x_after": float(after[1] / after[0]), "com_y_after": float(after[2] / after[0])})
         std.update({"mass_after": std["delta_m"]})
         return params, std
 

@@ -95,3 +95,32 @@ def test_a_cart_that_does_not_move_is_an_error():
     log = CartLog(t=t, q=np.zeros((len(t), 3)), gamma=np.zeros((len(t), 3)))
     with pytest.raises(DiagnoseError):
         diagnose(log)
+
+
+def test_replay_noise_floor_matches_the_error_of_the_true_model():
+    # the true cart replayed against its noisy log: its RMS error is noise only, so it must match the
+    # predicted floor (Monte Carlo of the smoother + closed-form force noise), and the gap (excess) is ~0
+    from cart.diagnose_replay import replay
+    from cart.log_signals import signals_from_log
+
+    ratios = []
+    for k in range(3):
+        h = random_case(None, np.random.default_rng(1000 + k))
+        p = h.params
+        rep = replay(signals_from_log(h.measured), np.array([p.m, p.m * p.dx, p.m * p.dy, p.inertia_b, p.sigma]))
+        ratios.append(rep.rms_error() / rep.noise_floor())
+        assert rep.gap() < 0.5 * rep.noise_floor()
+        # excess is the RMS of rms^2 - floor^2, computed independently
+        assert rep.gap() == pytest.approx(math.sqrt(max(np.mean(rep.rms ** 2 - rep.floor ** 2), 0.0)))
+    assert np.all(np.abs(np.array(ratios) - 1.0) < 0.15) and abs(np.mean(ratios) - 1.0) < 0.08, ratios
+
+
+def test_payload_mass_step_is_reported_with_the_full_parameter_names():
+    from cart.effects import PayloadChange, PayloadMassStep
+
+    phi = np.array([30.0, 9.0, 1.5, 6.0])
+    params, std = PayloadMassStep().describe(np.array([15.0]), (12.0,), np.array([[4.0]]), [0.1], phi)
+    full, _ = PayloadChange().describe(0.5 * phi, (12.0,), np.eye(4), [0.1], phi)
+    for k in ("delta_m", "delta_m_dx", "delta_m_dy", "delta_J", "time", "mass_after", "com_x_after", "com_y_after"):
+        assert params[k] == pytest.approx(full[k])
+    assert params["com_x_after"] == pytest.approx(0.3) and std["delta_m_dx"] == pytest.approx(2.0 * 0.3)

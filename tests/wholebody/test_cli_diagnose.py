@@ -21,7 +21,7 @@ def test_diagnose_json_and_plots(tmp_path, capsys):
     assert [e["name"] for e in d["effects"]][:1] == ["time_delay"]
     assert abs(d["effects"][0]["parameters"]["delay"] - h.effects[0].params["delay"]) < 0.03
     assert d["gap_after"] <= 0.5 * d["gap_before"]
-    assert "RMS position error" in d["gap_metric"]
+    assert "RMS excess position error" in d["gap_metric"] and d["rms_before"] >= d["gap_before"]
     for name in ("replay.png", "residuals.png"):
         assert os.path.getsize(os.path.join(out_dir, name)) > 10_000
 
