@@ -5,14 +5,17 @@ State ``x = [x, y, theta, vx, vy, omega, m, m dx, m dy, J]`` (+ ``sigma`` when
 ``H = [I_6 0]``). The process model is the *exact* constrained dynamics
 (:func:`cart.model.forward_dynamics_fast`), with its analytic Jacobian F
 (eq. 11). Prediction: Euler step of the state (eq. 16) and
-``P <- Phi P Phi^T + Q dt`` with ``Phi = I + F dt`` (the first-order
-discretisation of eq. 13/17 that keeps P positive semi-definite). Update:
-Kalman gain (eq. 18-19) with the heading innovation wrapped to (-pi, pi],
-Joseph-form covariance (instead of eq. 20) and symmetrisation; phi is then
+``P <- Phi (P + Q dt) Phi^T`` with ``Phi = I + F dt`` (the first-order
+discretisation of eq. 13/17 that keeps P positive semi-definite; the plain
+Euler step of the Riccati equation does not when the parameter variance is
+large). Update: Kalman gain (eq. 18-19) with the heading innovation wrapped to
+(-pi, pi], ``P <- P - K H P`` (eq. 20) and symmetrisation; phi is then
 projected to m >= min_mass, I >= min_inertia. Each update returns the
 normalized innovation squared (NIS, chi-square with 6 dof when consistent).
 
-The hot path uses plain floats and preallocated arrays.
+The hot path (:meth:`CartEKF.step`) uses plain floats for f and F, the
+sparsity of F (rows 0-2 are a selector, rows 6.. zero) and of H, one LAPACK
+``dposv`` for gain and NIS, and preallocated arrays updated in place.
 """
 from __future__ import annotations
 
@@ -79,6 +82,19 @@ def dynamics_jacobian(x: np.ndarray, gamma: Sequence[float], sigma: float, out_f
     Exact constrained dynamics in the body frame (see cart.model.forward_dynamics_fast);
     columns are the state order [x, y, theta, vx, vy, omega, m, a, b, J, (sigma)].
     """
+    xdd, ydd, od, rows = _dynamics_rows(x, gamma, sigma, with_sigma)
+    n = len(rows) // 3
+    out_f[3:6, :n] = (rows[:n], rows[n:2 * n], rows[2 * n:])
+    return xdd, ydd, od
+
+
+def _dynamics_rows(x: np.ndarray, gamma: Sequence[float], sigma: float, with_sigma: bool,
+                   scale: float = 1.0, add_eye: bool = False) -> Tuple[float, float, float, list]:
+    """Return (xdd, ydd, thetadd, rows): rows 3..5 of ``scale * F (+ I)`` as one flat list of floats.
+
+    F is the analytic Jacobian of paper eq. (11); with ``scale = dt`` and
+    ``add_eye`` the rows are those of Phi = I + F dt.
+    """
     xs = x.tolist()
     th, vx, vy, om, m, a, b, j = xs[2:10]
     sg = xs[10] if with_sigma else sigma
@@ -97,81 +113,85 @@ def dynamics_jacobian(x: np.ndarray, gamma: Sequence[float], sigma: float, out_f
     u2 = om * v
     xdd = c * u1 - s * u2
     ydd = s * u1 + c * u2
+    cs, ss, i_s = c * scale, s * scale, i_d * scale
+    xdd_s, ydd_s = xdd * scale, ydd * scale
     # theta
     dr1 = fl - sg * w - m * om * v
     dr2 = -a * om * w + b * om * v
     dvd = (j * dr1 + b * dr2) * i_d
     d1 = dvd + om * v
     d2 = om * w
-    f3_2 = c * d1 - s * d2 - ydd
-    f4_2 = s * d1 + c * d2 + xdd
-    f5_2 = (b * dr1 + m * dr2) * i_d
+    f3_2 = cs * d1 - ss * d2 - ydd_s
+    f4_2 = ss * d1 + cs * d2 + xdd_s
+    f5_2 = (b * dr1 + m * dr2) * i_s
     # vx
     dr1 = -sg * c - m * om * s
     dr2 = -a * om * c + b * om * s
     dvd = (j * dr1 + b * dr2) * i_d
     d1 = dvd + om * s
     d2 = om * c
-    f3_3 = c * d1 - s * d2
-    f4_3 = s * d1 + c * d2
-    f5_3 = (b * dr1 + m * dr2) * i_d
+    f3_3 = cs * d1 - ss * d2
+    f4_3 = ss * d1 + cs * d2
+    f5_3 = (b * dr1 + m * dr2) * i_s
     # vy
     dr1 = -sg * s + m * om * c
     dr2 = -a * om * s - b * om * c
     dvd = (j * dr1 + b * dr2) * i_d
     d1 = dvd - om * c
     d2 = om * s
-    f3_4 = c * d1 - s * d2
-    f4_4 = s * d1 + c * d2
-    f5_4 = (b * dr1 + m * dr2) * i_d
+    f3_4 = cs * d1 - ss * d2
+    f4_4 = ss * d1 + cs * d2
+    f5_4 = (b * dr1 + m * dr2) * i_s
     # omega
     dr1 = 2.0 * a * om + m * w
     dr2 = -sg - a * v - b * w
     dvd = (j * dr1 + b * dr2) * i_d
     d1 = dvd - w
     d2 = v
-    f3_5 = c * d1 - s * d2
-    f4_5 = s * d1 + c * d2
-    f5_5 = (b * dr1 + m * dr2) * i_d
+    f3_5 = cs * d1 - ss * d2
+    f4_5 = ss * d1 + cs * d2
+    f5_5 = (b * dr1 + m * dr2) * i_s
     # m
     dr1 = om * w
     dvd = (j * dr1 - vd * j) * i_d
-    f3_6 = c * dvd
-    f4_6 = s * dvd
-    f5_6 = (b * dr1 + r2 - od * j) * i_d
+    f3_6 = cs * dvd
+    f4_6 = ss * dvd
+    f5_6 = (b * dr1 + r2 - od * j) * i_s
     # a = m dx
     dr1 = om * om
     dr2 = -om * v
     dvd = (j * dr1 + b * dr2) * i_d
-    f3_7 = c * dvd
-    f4_7 = s * dvd
-    f5_7 = (b * dr1 + m * dr2) * i_d
+    f3_7 = cs * dvd
+    f4_7 = ss * dvd
+    f5_7 = (b * dr1 + m * dr2) * i_s
     # b = m dy
     dr2 = -om * w
     dvd = (r2 + b * dr2 + 2.0 * b * vd) * i_d
-    f3_8 = c * dvd
-    f4_8 = s * dvd
-    f5_8 = (r1 + m * dr2 + 2.0 * b * od) * i_d
+    f3_8 = cs * dvd
+    f4_8 = ss * dvd
+    f5_8 = (r1 + m * dr2 + 2.0 * b * od) * i_s
     # J
     dvd = (r1 - vd * m) * i_d
-    f3_9 = c * dvd
-    f4_9 = s * dvd
-    f5_9 = -od * m * i_d
+    f3_9 = cs * dvd
+    f4_9 = ss * dvd
+    f5_9 = -od * m * i_s
+    if add_eye:  # Phi = I + F dt
+        f3_3 += 1.0
+        f4_4 += 1.0
+        f5_5 += 1.0
     if with_sigma:
         dr1 = -v
         dr2 = -om
         dvd = (j * dr1 + b * dr2) * i_d
-        f3_10 = c * dvd
-        f4_10 = s * dvd
-        f5_10 = (b * dr1 + m * dr2) * i_d
-        out_f[3:6, 2:11] = [[f3_2, f3_3, f3_4, f3_5, f3_6, f3_7, f3_8, f3_9, f3_10],
-                            [f4_2, f4_3, f4_4, f4_5, f4_6, f4_7, f4_8, f4_9, f4_10],
-                            [f5_2, f5_3, f5_4, f5_5, f5_6, f5_7, f5_8, f5_9, f5_10]]
-    else:
-        out_f[3:6, 2:10] = [[f3_2, f3_3, f3_4, f3_5, f3_6, f3_7, f3_8, f3_9],
-                            [f4_2, f4_3, f4_4, f4_5, f4_6, f4_7, f4_8, f4_9],
-                            [f5_2, f5_3, f5_4, f5_5, f5_6, f5_7, f5_8, f5_9]]
-    return xdd, ydd, od
+        f3_10 = cs * dvd
+        f4_10 = ss * dvd
+        f5_10 = (b * dr1 + m * dr2) * i_s
+        return xdd, ydd, od, [0.0, 0.0, f3_2, f3_3, f3_4, f3_5, f3_6, f3_7, f3_8, f3_9, f3_10,
+                              0.0, 0.0, f4_2, f4_3, f4_4, f4_5, f4_6, f4_7, f4_8, f4_9, f4_10,
+                              0.0, 0.0, f5_2, f5_3, f5_4, f5_5, f5_6, f5_7, f5_8, f5_9, f5_10]
+    return xdd, ydd, od, [0.0, 0.0, f3_2, f3_3, f3_4, f3_5, f3_6, f3_7, f3_8, f3_9,
+                          0.0, 0.0, f4_2, f4_3, f4_4, f4_5, f4_6, f4_7, f4_8, f4_9,
+                          0.0, 0.0, f5_2, f5_3, f5_4, f5_5, f5_6, f5_7, f5_8, f5_9]
 
 
 class CartEKF:
@@ -195,9 +215,10 @@ class CartEKF:
             self.x[10] = sigma
         if P0 is None:
             P0 = initial_covariance(phi0, config.meas_std, sigma, self.with_sigma)
-        self.P = np.array(P0, dtype=float)
-        if self.P.shape != (n, n):
-            raise ParameterError(f"P0 must be {n}x{n}, got {self.P.shape}")
+        P0 = np.array(P0, dtype=float)
+        if P0.shape != (n, n):
+            raise ParameterError(f"P0 must be {n}x{n}, got {P0.shape}")
+        self._P = P0  # updated in place: the work arrays below hold views of it
         qdiag = [config.q_pos, config.q_pos, config.q_pos, config.q_vel, config.q_vel, config.q_omega]
         if config.estimate_params:
             qdiag += list(config.q_phi)
@@ -208,15 +229,41 @@ class CartEKF:
         if self.with_sigma:
             qdiag.append(config.q_sigma if config.estimate_params else 0.0)
         self.Qc = np.diag(qdiag)
+        self._qdiag = np.array(qdiag)
         self.R = np.diag(np.square(np.asarray(config.meas_std, dtype=float)))
         self._F = np.zeros((n, n))
         self._F[0, 3] = self._F[1, 4] = self._F[2, 5] = 1.0
-        self._phi = np.eye(n)
-        self._eye = np.eye(n)
-        self._a = np.eye(n)
+        # preallocated work arrays of the hot path (views of P stay valid: P is updated in place)
+        self._pdiag = np.einsum("ii->i", self._P)  # writable view of P's diagonal
+        self._p6 = self._P[:N_MEAS]  # rows 0-5 of P
+        self._phi6 = np.eye(N_MEAS, n)  # rows 0-5 of Phi = I + F dt
+        self._phi6_rows = self._phi6[3:6].reshape(-1)  # its rows 3-5, flat view
+        self._dt = 0.0
+        self._qdt = np.zeros(n)  # diag(Q) dt
+        self._tf = np.zeros((N_MEAS, n + 1), order="F")  # [T | y], solved in place to [X | S^-1 y]
+        self._tt = self._tf.T[:n]  # T^T (n x 6), C-contiguous
+        self._tt6 = self._tt[:N_MEAS]  # its 6 x 6 block
+        self._w = self._tf.T[n]  # y, then S^-1 y
+        self._sf = np.zeros((N_MEAS, N_MEAS), order="F")  # S, then its Cholesky factor
+        self._kp = np.empty((n, n))
+        self._sym = np.empty((n, n))
+        self._work = (self._P, self._phi6, self._phi6_rows, self._tt, self._tt6, self._p6, self._w, self._sf,
+                      self._kp, self._sym, self._pdiag)
         self.nis = float("nan")
 
     # -- accessors ---------------------------------------------------------------------------
+    @property
+    def P(self) -> np.ndarray:
+        """Return the state covariance (the filter's own array, updated in place by each step)."""
+        return self._P
+
+    @P.setter
+    def P(self, value: np.ndarray) -> None:
+        value = np.asarray(value, dtype=float)
+        if value.shape != self._P.shape:
+            raise ParameterError(f"P must be {self._P.shape}, got {value.shape}")
+        self._P[...] = value
+
     @property
     def q(self) -> np.ndarray:
         """Return the estimated pose (x, y, theta)."""
@@ -255,41 +302,63 @@ class CartEKF:
                 "sigma": sig}
 
     # -- filter ------------------------------------------------------------------------------
+    def _set_dt(self, dt: float) -> None:
+        self._dt = dt
+        self._phi6[0, 3] = self._phi6[1, 4] = self._phi6[2, 5] = dt
+        np.multiply(self._qdiag, dt, out=self._qdt)
+
     def predict(self, gamma: Sequence[float], dt: float) -> None:
-        """Propagate state (Euler, eq. 16) and covariance (Phi P Phi^T + Q dt, eq. 13/17) over dt."""
+        """Propagate state (Euler, eq. 16) and covariance (Phi (P + Q dt) Phi^T, Phi = I + F dt, eq. 13/17) over dt.
+
+        F's first three rows are the selector [0 I 0] and its rows 6.. are zero,
+        so only the first six rows Phi6 of Phi differ from the identity: with
+        T = Phi6 P (one 6 x n product), Phi P Phi^T has the blocks
+        [[T Phi6^T, T[:, 6:]], [T[:, 6:]^T, P[6:, 6:]]]. Q dt is added before
+        the propagation (first-order equivalent to adding it after). (The plain Euler step of
+        the Riccati equation, P + (F P + P F^T) dt, drops F P F^T dt^2 and loses
+        positive-definiteness when the parameter variance is large.)
+        """
         x = self.x
-        acc = dynamics_jacobian(x, gamma, self.sigma, self._F, self.with_sigma)
+        P = self._P
+        if dt != self._dt:
+            self._set_dt(dt)
+        xdd, ydd, od, rows = _dynamics_rows(x, gamma, self.sigma, self.with_sigma, dt, True)
+        self._phi6_rows[:] = rows
         vx, vy, om = x[3:6].tolist()
-        x[:6] += (vx * dt, vy * dt, om * dt, acc[0] * dt, acc[1] * dt, acc[2] * dt)
-        phi = self._phi
-        np.multiply(self._F, dt, out=phi)
-        phi += self._eye
-        p = phi @ self.P
-        p = p @ phi.T
-        p += self.Qc * dt
-        self.P = p
+        x[:6] += (vx * dt, vy * dt, om * dt, xdd * dt, ydd * dt, od * dt)  # eq. (16)
+        self._pdiag += self._qdt  # P + Q dt
+        t_t = self._tt
+        np.dot(P, self._phi6.T, out=t_t)  # (Phi6 P)^T
+        np.dot(self._phi6, t_t, out=self._tt6)  # Phi6 P Phi6^T
+        P[:N_MEAS] = t_t.T
+        P[N_MEAS:, :N_MEAS] = t_t[N_MEAS:]
 
     def update(self, z: Sequence[float]) -> float:
-        """Fuse a measurement z = (x, y, theta, vx, vy, omega); return its NIS."""
+        """Fuse a measurement z = (x, y, theta, vx, vy, omega); return its NIS.
+
+        With H = [I_6 0]: S = P[:6, :6] + R, one Cholesky solve (LAPACK dposv) of
+        S [X | w] = [P[:6, :] | y] gives the gain K = X^T (eq. 18) and
+        w = S^-1 y for the NIS y^T S^-1 y; x += K y (eq. 19),
+        P -= K P[:6, :] (eq. 20), then P is symmetrised.
+        """
         x = self.x
-        P = self.P
-        y = np.subtract(z, x[:N_MEAS])
+        P, _, _, t_t, _, p6, w, sf, kp, sym, _ = self._work
+        zl = z.tolist() if isinstance(z, np.ndarray) else list(z)
+        xl = x[:N_MEAS].tolist()
+        y = [zi - xi for zi, xi in zip(zl, xl)]
         y[2] = (y[2] + math.pi) % (2.0 * math.pi) - math.pi
-        S = P[:N_MEAS, :N_MEAS] + self.R
-        PHt = P[:, :N_MEAS]
-        c_s, kt, info = _dposv(S, PHt.T.copy(), lower=1)  # S K^T = (P H^T)^T, Cholesky solve
+        t_t[...] = p6.T
+        w[:] = y
+        np.add(p6[:, :N_MEAS], self.R, out=sf)
+        _, _, info = _dposv(sf, self._tf, lower=1, overwrite_a=1, overwrite_b=1)
         if info != 0:
             raise np.linalg.LinAlgError(f"innovation covariance not positive definite (dposv info {info})")
-        K = kt.T  # eq. (18)
-        s_inv_y = _dpotrs(c_s, y, lower=1)[0]
-        x += K @ y  # eq. (19)
-        kpt = K @ PHt.T
-        P = P - kpt - kpt.T + K @ (S @ K.T)  # Joseph form (I-KH)P(I-KH)^T + KRK^T, expanded with H = [I 0]
-        P += P.T
-        P *= 0.5
-        self.P = P
+        self.nis = float(np.dot(y, w))
+        x += np.dot(w, p6)  # K y = P[:6, :]^T S^-1 y, eq. (19)
+        P -= np.dot(t_t, p6, out=kp)  # K H P, eq. (20)
+        np.add(P, P.T, out=sym)
+        np.multiply(sym, 0.5, out=P)
         self._project()
-        self.nis = float(y @ s_inv_y)
         return self.nis
 
     def _project(self) -> None:
@@ -305,9 +374,47 @@ class CartEKF:
             x[10] = 0.0
 
     def step(self, gamma: Sequence[float], dt: float, z: Sequence[float]) -> float:
-        """Predict over dt under gamma, then update with z; return the NIS."""
-        self.predict(gamma, dt)
-        return self.update(z)
+        """Predict over dt under gamma, then update with z; return the NIS.
+
+        The same arithmetic as :meth:`predict` then :meth:`update`, fused: the
+        predicted covariance's first six rows T = (Phi (P + Q dt) Phi^T)[:6] are
+        computed once (as T^T = (P + Q dt) Phi6^T, in a Fortran-ordered buffer
+        that LAPACK then uses in place); S = T[:, :6] + R; one dposv solves
+        S [X | w] = [T | y], so K = X^T (eq. 18) and w = S^-1 y gives the NIS and
+        K y = T^T w (eq. 19); P <- P_pred - K T (eq. 20), symmetrised.
+        """
+        x = self.x
+        P, phi6, phi6_rows, t_t, t_t6, p6, w, sf, kp, sym, pdiag = self._work
+        if dt != self._dt:
+            self._set_dt(dt)
+        xdd, ydd, od, rows = _dynamics_rows(x, gamma, self.sigma, self.with_sigma, dt, True)
+        phi6_rows[:] = rows
+        px, py, pth, vx, vy, om = x[:N_MEAS].tolist()
+        xp = (px + vx * dt, py + vy * dt, pth + om * dt, vx + xdd * dt, vy + ydd * dt, om + od * dt)  # eq. (16)
+        x[:N_MEAS] = xp
+        zl = z.tolist() if isinstance(z, np.ndarray) else z
+        y = [zl[0] - xp[0], zl[1] - xp[1], (zl[2] - xp[2] + math.pi) % (2.0 * math.pi) - math.pi,
+             zl[3] - xp[3], zl[4] - xp[4], zl[5] - xp[5]]
+        # -- covariance prediction, eq. (13)/(17): P_pred = Phi (P + Q dt) Phi^T; only rows/columns 0-5 change
+        pdiag += self._qdt
+        np.dot(P, phi6.T, out=t_t)  # (Phi6 P)^T, P symmetric
+        np.dot(phi6, t_t, out=t_t6)  # rows 0-5 of T^T: Phi6 P Phi6^T (numpy buffers the overlap)
+        P[:N_MEAS] = t_t.T
+        P[N_MEAS:, :N_MEAS] = t_t[N_MEAS:]
+        # -- update, eq. (18)-(20), H = [I_6 0]
+        w[:] = y
+        np.add(t_t6, self.R, out=sf)
+        _, _, info = _dposv(sf, self._tf, lower=1, overwrite_a=1, overwrite_b=1)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"innovation covariance not positive definite (dposv info {info})")
+        wl = w.tolist()  # S^-1 y
+        self.nis = y[0] * wl[0] + y[1] * wl[1] + y[2] * wl[2] + y[3] * wl[3] + y[4] * wl[4] + y[5] * wl[5]
+        x += np.dot(w, p6)  # K y = T^T S^-1 y, eq. (19)
+        P -= np.dot(t_t, p6, out=kp)  # K T = K H P_pred, eq. (20)
+        np.add(P, P.T, out=sym)
+        np.multiply(sym, 0.5, out=P)
+        self._project()
+        return self.nis
 
 
 def run_ekf(t: np.ndarray, gamma: np.ndarray, z: np.ndarray, phi0: Sequence[float], sigma: float,

@@ -31,6 +31,45 @@ def test_analytic_jacobian_matches_finite_differences(with_sigma):
         np.testing.assert_allclose(f[3:6], num, rtol=1e-6, atol=1e-6 * np.abs(num).max())
 
 
+@pytest.mark.parametrize("with_sigma", [False, True])
+def test_fused_step_matches_dense_textbook_ekf(with_sigma):
+    """step() (sparse, fused, in place) equals the dense EKF written out with numpy.linalg, and predict()+update()."""
+    rng = np.random.default_rng(11)
+    cfg = EKFConfig(estimate_sigma=with_sigma)
+    ekf = CartEKF([0.1, -0.2, 0.3], [0.4, 0.1, 0.2], [20.0, 6.0, 1.0, 4.0], 4.0, cfg)
+    twin = CartEKF([0.1, -0.2, 0.3], [0.4, 0.1, 0.2], [20.0, 6.0, 1.0, 4.0], 4.0, cfg)
+    n = ekf.n
+    x, P = ekf.x.copy(), ekf.P.copy()
+    H = np.hstack([np.eye(6), np.zeros((6, n - 6))])
+    for k in range(40):
+        g = rng.normal(size=3) * 10
+        dt = 0.01 if k % 4 else 0.017  # irregular sampling
+        z = x[:6] + rng.normal(size=6) * 0.01
+        nis = ekf.step(g, dt, z)
+        twin.predict(g, dt)
+        nis_twin = twin.update(z)
+        # dense reference: Euler state step, Phi (P + Q dt) Phi^T, textbook gain and covariance
+        F = np.zeros((n, n))
+        acc = dynamics_jacobian(x, g, 4.0, F, with_sigma)
+        F[0, 3] = F[1, 4] = F[2, 5] = 1.0
+        x = x + dt * np.r_[x[3:6], acc, np.zeros(n - 6)]
+        Phi = np.eye(n) + F * dt
+        P = Phi @ (P + ekf.Qc * dt) @ Phi.T
+        y = z - H @ x
+        S = H @ P @ H.T + ekf.R
+        K = P @ H.T @ np.linalg.inv(S)
+        x = x + K @ y
+        P = P - K @ H @ P
+        P = 0.5 * (P + P.T)
+        np.testing.assert_allclose(ekf.x, x, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(ekf.P, P, rtol=1e-8, atol=1e-13 * np.abs(P).max())
+        assert nis == pytest.approx(float(y @ np.linalg.solve(S, y)), rel=1e-8)
+        np.testing.assert_allclose(twin.x, ekf.x, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(twin.P, ekf.P, rtol=1e-8, atol=1e-13 * np.abs(P).max())
+        assert nis_twin == pytest.approx(nis, rel=1e-8)
+        x, P = ekf.x.copy(), ekf.P.copy()  # follow the filter (phi projection is not in the reference)
+
+
 def test_covariance_stays_symmetric_positive_definite_and_phi_physical():
     ekf = CartEKF([0, 0, 0], [0, 0, 0], [20.0, 6.0, 0.0, 4.0], 4.0, EKFConfig(estimate_sigma=True))
     rng = np.random.default_rng(5)
