@@ -11,7 +11,7 @@ is the median over blocks of (filterpy median / ours median). Both filters'
 final mass estimates are printed as a check that they are the same filter.
 Then the wall time of `cartpush reproduce` (11 tests x 2 runs). Never asserts a time.
 
-Run: .venv/bin/python benchmarks/bench_ekf.py [--skip-reproduce] [--jobs N]
+Run: .venv/bin/python benchmarks/bench_ekf.py [--skip-reproduce]
 """
 from __future__ import annotations
 
@@ -117,7 +117,6 @@ def bench_step(t, gamma, z, cfg: EKFConfig, phi0, sigma, block: int = 100, round
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--skip-reproduce", action="store_true", help="skip timing `cartpush reproduce`")
-    parser.add_argument("--jobs", type=int, default=None, help="`cartpush reproduce --jobs` (default: its own)")
     args = parser.parse_args()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     t, gamma, z = make_log()
@@ -135,7 +134,7 @@ def main() -> None:
     if not args.skip_reproduce:
         from wholebody.cli import main as cli_main
 
-        argv = ["reproduce", "--json"] + ([] if args.jobs is None else ["--jobs", str(args.jobs)])
+        argv = ["reproduce", "--json"]
         t0 = time.perf_counter()
         with contextlib.redirect_stdout(io.StringIO()):
             cli_main(argv)

