@@ -27,9 +27,11 @@ SIGMA = 4.0
 COM_GUESS = (0.3, 0.0)
 #: Initial guess of the CoM inertia per kg of guessed mass (radius of gyration ~0.32 m).
 INERTIA_GUESS_PER_KG = 0.1
-#: Contact point on the handle (in {b}); "vary CP" slides it along the handle.
-HANDLE_X = -0.3
-HANDLE_HALF_WIDTH = 0.2
+#: Contact point on the handle (in {b}); "vary CP" slides it along the handle. The handle is the
+#: shipped cart's: x = -0.15 m, 0.50 m wide (matches CART_HANDLE_X / CART_HANDLE_WIDTH of
+#: robots/shopping_cart.py and wholebody/contact.py; `cart` may not import `robots`).
+HANDLE_X = -0.15
+HANDLE_HALF_WIDTH = 0.2  # the contact slides over +-0.2 m of the +-0.25 m handle
 #: Process noise shared by every test (not tuned per test).
 PROCESS_NOISE = dict(q_pos=1e-8, q_vel=1e-5, q_omega=1e-5, q_phi=(0.005, 0.005, 0.005, 0.005))
 #: The discrete payload changes of test 11 (time s, new mass kg).

@@ -1,0 +1,51 @@
+"""LQR gain (Hamiltonian eigenvector CARE vs scipy), the fl_lqr/kanayama controllers, Table I data."""
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from cart import control, model, table1
+from cart.params import CartParams
+
+
+def _error_system(rng):
+    p = CartParams(rng.uniform(8, 40), rng.uniform(-0.3, 0.5), rng.uniform(-0.2, 0.2), rng.uniform(0.5, 4.0),
+                   rng.uniform(0, 8))
+    q = np.r_[rng.normal(size=2), rng.uniform(-math.pi, math.pi)]
+    qd = rng.normal(size=3)
+    return model.mass_matrix(q, p), model.coriolis_matrix(q, qd, p)
+
+
+def test_hamiltonian_care_matches_scipy_and_solves_the_riccati_equation():
+    rng = np.random.default_rng(7)
+    eye = np.eye(3)
+    qw = np.diag([400.0] * 3 + [20.0] * 3)
+    rw = 0.01 * eye
+    for _ in range(20):
+        mm, cc = _error_system(rng)
+        minv = np.linalg.inv(mm)
+        a = np.block([[-2.0 * eye, eye], [np.zeros((3, 3)), -minv @ cc]])
+        b = np.vstack([np.zeros((3, 3)), minv])
+        x = control.care_hamiltonian(a, b, qw, rw)
+        ref = scipy.linalg.solve_continuous_are(a, b, qw, rw)
+        np.testing.assert_allclose(x, ref, rtol=1e-8, atol=1e-8 * np.abs(ref).max())
+        residual = a.T @ x + x @ a - x @ b @ np.linalg.solve(rw, b.T) @ x + qw
+        assert np.abs(residual).max() < 1e-7 * np.abs(qw).max()
+        k = control.lqr_gain(mm, cc, 2.0 * eye, qw, rw)
+        assert np.linalg.eigvals(a - b @ k).real.max() < 0  # closed loop stable
+
+
+def test_care_falls_back_to_scipy_when_the_hamiltonian_has_imaginary_axis_eigenvalues():
+    # uncontrollable, undamped mode: no stabilising solution -> scipy's own error
+    a = np.array([[0.0, 1.0], [-1.0, 0.0]])
+    b = np.zeros((2, 1))
+    with pytest.raises((np.linalg.LinAlgError, ValueError)):
+        control.care_hamiltonian(a, b, np.eye(2), np.eye(1))
+
+
+def test_handle_matches_the_shipped_cart():
+    # robots/shopping_cart.py CART_HANDLE_X (cart may not import robots: compared here in the test)
+    from robots import shopping_cart
+
+    assert table1.HANDLE_X == pytest.approx(shopping_cart.CART_HANDLE_X)
