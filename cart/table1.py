@@ -124,10 +124,10 @@ def contact_point(test: Table1Test) -> Callable[[float], Tuple[float, float]]:
     return lambda t: (HANDLE_X, 0.0)
 
 
-def ekf_config(noise_level: float, estimate: bool = True) -> EKFConfig:
-    """Return the EKF config of a noise level: R from the noise, the shared Q."""
+def ekf_config(noise_level: float, estimate: bool = True, change_detection: bool = False) -> EKFConfig:
+    """Return the EKF config of a noise level: R from the noise, the shared Q (optionally change detection)."""
     std = MeasurementNoise.from_level(noise_level).measurement_std()
-    return EKFConfig.from_noise(std, estimate_params=estimate, **PROCESS_NOISE)
+    return EKFConfig.from_noise(std, estimate_params=estimate, change_detection=change_detection, **PROCESS_NOISE)
 
 
 class EstimatingLoop:
@@ -165,7 +165,8 @@ class EstimatingLoop:
 
 
 def run_test(test: Table1Test, estimate: bool = True, controller: str = "fl_lqr", duration: float = 30.0,
-             dt: float = 0.01, seed: int = 0, trajectory: Optional[UnicycleTrajectory] = None) -> TestRun:
+             dt: float = 0.01, seed: int = 0, trajectory: Optional[UnicycleTrajectory] = None,
+             change_detection: bool = False) -> TestRun:
     """Return the time series of one test, with or without parameter estimation."""
     traj = trajectory or (trajectory_1(duration) if test.traj == 1 else trajectory_2(duration))
     ctrl = make_controller(controller, traj)
@@ -173,7 +174,8 @@ def run_test(test: Table1Test, estimate: bool = True, controller: str = "fl_lqr"
     changes = [ParameterChange(tc, truth.with_mass(mc), conserve_momentum=False)
                for tc, mc in test.mass_changes if tc < duration]
     n = int(round(duration / dt)) + 1
-    loop = EstimatingLoop(ctrl, guess_params(test), ekf_config(test.noise, estimate), contact_point(test), n)
+    loop = EstimatingLoop(ctrl, guess_params(test), ekf_config(test.noise, estimate, change_detection),
+                         contact_point(test), n)
     rng = np.random.default_rng(seed * 1000 + test.test)
     q0, _, _ = traj.sample(0.0)
     sim = simulate(truth, loop, duration, dt, q0=q0, noise=MeasurementNoise.from_level(test.noise), rng=rng,
@@ -198,9 +200,9 @@ def _rms_after(run: TestRun, t0: float) -> Tuple[float, float]:
 
 
 def evaluate(test: Table1Test, controller: str = "fl_lqr", duration: float = 30.0, dt: float = 0.01,
-             seed: int = 0) -> TestResult:
+             seed: int = 0, change_detection: bool = False) -> TestResult:
     """Return the Table I metrics of one test (runs it with and without estimation)."""
-    run = run_test(test, True, controller, duration, dt, seed)
+    run = run_test(test, True, controller, duration, dt, seed, change_detection=change_detection)
     run0 = run_test(test, False, controller, duration, dt, seed)
     m_true = run.params_true[:, 0]
     com_err = float(np.hypot(*(run.params_hat[-1, 1:3] - run.params_true[-1, 1:3])))
@@ -215,11 +217,12 @@ def evaluate(test: Table1Test, controller: str = "fl_lqr", duration: float = 30.
 
 def run_table1(tests: Sequence[Table1Test] = TESTS, controller: str = "fl_lqr", duration: float = 30.0,
                dt: float = 0.01, seed: int = 0,
-               progress: Optional[Callable[[int], None]] = None) -> List[TestResult]:
+               progress: Optional[Callable[[int], None]] = None,
+               change_detection: bool = False) -> List[TestResult]:
     """Return the TestResult of every test (``progress(test)`` is called after each)."""
     out = []
     for test in tests:
-        out.append(evaluate(test, controller, duration, dt, seed))
+        out.append(evaluate(test, controller, duration, dt, seed, change_detection))
         if progress is not None:
             progress(test.test)
     return out

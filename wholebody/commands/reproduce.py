@@ -35,6 +35,8 @@ def register(subparsers) -> None:
     parser.add_argument("--tests", metavar="LIST", default=None, help="comma-separated subset, e.g. 1,5,11")
     parser.add_argument("--duration", type=float, default=30.0, help="seconds per test (default 30)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the measurement noise (default 0)")
+    parser.add_argument("--change-detection", action="store_true",
+                        help="EKF parameter-change detection (innovation mean test, resets the mass variance)")
     parser.set_defaults(func=run)
 
 
@@ -128,7 +130,8 @@ def run(args: argparse.Namespace) -> int:
         bar = tqdm(total=len(tests), desc="Table I", file=sys.stderr)
     t0 = time.perf_counter()
     results = run_table1(tests, controller=args.controller, duration=args.duration, seed=args.seed,
-                         progress=(lambda _: bar.update(1)) if bar else None)
+                         progress=(lambda _: bar.update(1)) if bar else None,
+                         change_detection=args.change_detection)
     wall = time.perf_counter() - t0
     if bar:
         bar.close()
