@@ -156,3 +156,40 @@ def test_corrupt_gzip_is_a_log_format_error(tmp_path):
     path.write_bytes(b"not gzip at all")
     with pytest.raises(LogFormatError):
         read_log(path)
+
+
+def _log_without_velocities(params, rates, seed, duration=12.0, pos_noise=1e-3):
+    """Return {rate: CartLog} without velocity columns, irregularly sampled (gaps 0.6-1.4 / rate) from a 1 kHz run."""
+    import math
+
+    from cart.simulate import simulate
+
+    rng = np.random.default_rng(seed)
+    push = lambda t: 5.0 + 10.0 * math.sin(1.1 * t)  # forward force with accelerations and decelerations
+    ctrl = lambda t, q, qd: np.array([push(t) * math.cos(q[2]), push(t) * math.sin(q[2]), 3.0 * math.sin(0.7 * t)])
+    tr = simulate(params, ctrl, duration, dt=0.001, substeps=1, rng=rng).true
+    logs = {}
+    for rate in rates:
+        idx, k = [0], 0
+        while True:
+            k += max(1, int(round(rng.uniform(0.6, 1.4) / rate / 0.001)))
+            if k >= len(tr.t):
+                break
+            idx.append(k)
+        idx = np.array(idx)
+        q = tr.q[idx] + rng.normal(size=(len(idx), 3)) * pos_noise
+        logs[rate] = CartLog(t=tr.t[idx], q=q, gamma=tr.gamma[idx])
+    return logs
+
+
+@pytest.mark.parametrize("cart", [CartParams(12.0, 0.2, 0.05, 1.0, 3.0), CartParams(20.0, 0.35, -0.1, 2.3, 4.0),
+                                  CartParams(35.0, 0.4, 0.0, 4.0, 6.0)])
+def test_estimate_with_automatic_noise_on_irregular_logs_without_velocities(cart):
+    """`cartpush estimate`'s path (noise estimated from the log, velocities from the pose) at 50 and 200 Hz."""
+    logs = _log_without_velocities(cart, (50.0, 200.0), seed=int(cart.m))
+    for rate, log in logs.items():
+        assert not log.has_velocities and np.ptp(np.diff(log.t)) > 0.5 / rate  # irregular
+        est = estimate_from_log(log, CartParams(0.8 * cart.m, 0.0, 0.0, 0.08 * cart.m, 1.0))
+        assert abs(est.params.m - cart.m) < 1.0, (rate, est.params.m)
+        assert 1.0 < est.mean_nis < 12.0  # a consistent filter has mean NIS ~6 (derived velocities are correlated)
+        assert est.meas_std[0] == pytest.approx(1e-3, rel=0.3)  # the position noise is recovered from the log
