@@ -193,3 +193,30 @@ def test_estimate_with_automatic_noise_on_irregular_logs_without_velocities(cart
         assert abs(est.params.m - cart.m) < 1.0, (rate, est.params.m)
         assert 1.0 < est.mean_nis < 12.0  # a consistent filter has mean NIS ~6 (derived velocities are correlated)
         assert est.meas_std[0] == pytest.approx(1e-3, rel=0.3)  # the position noise is recovered from the log
+
+
+def test_change_detection_relearns_a_payload_and_stays_quiet_without_one():
+    import math
+
+    from cart.ekf import run_ekf
+    from cart.simulate import MeasurementNoise, ParameterChange, simulate
+
+    p = CartParams(20.0, 0.3, 0.05, 2.3, 4.0)
+    push = lambda t: 6.0 + 12.0 * math.sin(1.3 * t)
+    ctrl = lambda t, q, qd: np.array([push(t) * math.cos(q[2]), push(t) * math.sin(q[2]), 2.0 * math.sin(0.9 * t)])
+    guess = CartParams(16.0, 0.3, 0.0, 1.6, 4.0).phi
+    final = {}
+    for change in (False, True):
+        changes = [ParameterChange(10.0, p.with_mass(30.0), conserve_momentum=False)] if change else []
+        sim = simulate(p, ctrl, 20.0, noise=MeasurementNoise.from_level(0.005), rng=np.random.default_rng(1),
+                       changes=changes)
+        z = np.hstack([sim.measured.q, sim.measured.qd])
+        for detect in (False, True):
+            cfg = EKFConfig.from_noise([0.005] * 6, change_detection=detect)
+            ekf, _, _ = run_ekf(sim.measured.t, sim.measured.gamma, z, guess, 4.0, cfg)
+            final[change, detect] = (ekf.x[6], ekf.changes_detected)
+    assert final[False, True][1] == 0  # no false alarm over 40 windows of a consistent filter
+    assert final[False, True][0] == final[False, False][0]
+    assert final[True, True][1] >= 1
+    assert abs(final[True, True][0] - 30.0) < 0.3  # re-learnt within the 10 s after the payload
+    assert abs(final[True, False][0] - 30.0) > 2 * abs(final[True, True][0] - 30.0)  # the random walk alone lags
