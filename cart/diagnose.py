@@ -381,6 +381,7 @@ def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, thresh
     current = nominal
     named: List[Tuple[Effect, Fit, float, List[float]]] = []
     first_scores: List[Tuple[str, float]] = []
+    reps = [rep0]  # replays of the nominal model and after each named effect
     for round_ in range(max_effects):
         results = []
         for e in cands:
@@ -398,16 +399,22 @@ def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, thresh
         results.sort(key=lambda r: -r[0])
         if round_ == 0:
             first_scores = [(r[1].name, float(r[0])) for r in results]
-        dbic, e, fit, nl_std = results[0]
-        if dbic <= threshold or fit.x[0] <= 0 or not np.isfinite(dbic):
+        chosen = None
+        for dbic, e, fit, nl_std in results:  # best significant candidate whose replay stays finite
+            if dbic <= threshold or not np.isfinite(dbic):
+                break
+            if fit.x[0] <= 0 or not np.all(np.isfinite(fit.x)):
+                continue
+            extra, dphi = _replay_terms(fit)
+            rep = replay(fit.sig, fit.x, extra, dphi, horizon=horizon)
+            if rep.finite:  # a blown-up replay = a failed candidate (infinite error)
+                chosen = (e, fit, dbic, nl_std, rep)
+                break
+        if chosen is None:
             break
-        named.append((e, fit, dbic, nl_std))
-        current = fit
-    # replays and per-effect windows
-    reps = [rep0]
-    for _, fit, _, _ in named:
-        extra, dphi = _replay_terms(fit)
-        reps.append(replay(fit.sig, fit.x, extra, dphi, horizon=horizon))
+        named.append(chosen[:4])
+        reps.append(chosen[4])
+        current = chosen[1]
     effects_out: List[NamedEffect] = []
     for i, (e, fit, dbic, nl_std) in enumerate(named):
         th = fit.thetas[-1]

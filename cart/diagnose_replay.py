@@ -32,6 +32,11 @@ class Replay:
     chi2: np.ndarray
     floor: np.ndarray
 
+    @property
+    def finite(self) -> bool:
+        """Return True when every replay stayed finite (a blown-up replay means a non-physical model)."""
+        return bool(np.all(np.isfinite(self.sim)))
+
     def rms_error(self, mask: Optional[np.ndarray] = None) -> float:
         """Return the RMS position error (m) over the starts in ``mask`` (all when None)."""
         r = self.rms if mask is None or not np.any(mask) else self.rms[mask]
@@ -98,21 +103,27 @@ def replay(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = None, dphi
         w = e[2]
         return np.array([c * v - sn * w, sn * v + c * w, om, vdot, odot])
 
-    for j in range(k_steps + 1):
-        sim[:, j, :] = state[:3].T
-        if j == k_steps:
-            break
-        tt = starts_all + j * h
-        k1 = f(tt, state)
-        k2 = f(tt + 0.5 * h, state + 0.5 * h * k1)
-        k3 = f(tt + 0.5 * h, state + 0.5 * h * k2)
-        k4 = f(tt + h, state + h * k3)
-        state = state + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-    times = starts_all[:, None] + tau[None, :]
-    meas = np.stack([np.interp(times, t, sig.q_raw[:, k]) for k in range(3)], axis=-1)
-    err = sim - meas
-    rms = np.sqrt(np.mean(err[:, :, 0] ** 2 + err[:, :, 1] ** 2, axis=1))
-    chi2 = _end_chi2(sig, x, starts_all, err[:, -1, :], horizon)
+    # a non-physical model (tiny or negative mass/inertia) may blow up: no warnings, non-finite starts get an
+    # infinite error (callers reject such models, see Replay.finite)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for j in range(k_steps + 1):
+            sim[:, j, :] = state[:3].T
+            if j == k_steps:
+                break
+            tt = starts_all + j * h
+            k1 = f(tt, state)
+            k2 = f(tt + 0.5 * h, state + 0.5 * h * k1)
+            k3 = f(tt + 0.5 * h, state + 0.5 * h * k2)
+            k4 = f(tt + h, state + h * k3)
+            state = state + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+        times = starts_all[:, None] + tau[None, :]
+        meas = np.stack([np.interp(times, t, sig.q_raw[:, k]) for k in range(3)], axis=-1)
+        err = sim - meas
+        rms = np.sqrt(np.mean(err[:, :, 0] ** 2 + err[:, :, 1] ** 2, axis=1))
+        chi2 = _end_chi2(sig, x, starts_all, err[:, -1, :], horizon)
+    bad = ~np.all(np.isfinite(sim), axis=(1, 2))
+    rms[bad] = np.inf
+    chi2[bad] = np.inf
     floor = _noise_floor(sig, x, starts_all, tau)
     return Replay(starts=starts_all, tau=tau, sim=sim, meas=meas, rms=rms, chi2=chi2, floor=floor)
 

@@ -188,11 +188,33 @@ class CoulombFriction(Effect):
 
 
 class CasterSwivel(Effect):
-    """After the travel direction reverses, a resisting force decaying with the distance travelled."""
+    """After the travel direction reverses, a resisting force fading with the distance travelled.
+
+    E_fwd = -F sign(v) g(s / d), s = distance since the last reversal, with the
+    shape g(u) = exp(-u^p): p = 1 an exponential decay, p = 2, 4 increasingly
+    compact (raised-cosine-like, then step-like) resistance over a finite
+    distance. p is chosen on the grid {1, 2, 4} through :meth:`variants`
+    (one variant per p, the best Delta BIC is kept) and counted as a parameter.
+    """
 
     name = "caster_swivel"
     param_names = ("force",)
     nl_names = ("distance",)
+    #: shape exponent p of g(u) = exp(-u^p)
+    shape: float = 1.0
+    SHAPES: Tuple[float, ...] = (1.0, 2.0, 4.0)
+
+    def __init__(self, shape: float = 1.0) -> None:
+        self.shape = float(shape)
+
+    def variants(self):
+        """Return one variant per shape exponent p in {1, 2, 4}."""
+        return [self] + [CasterSwivel(p) for p in self.SHAPES if p != self.shape]
+
+    @property
+    def n_params(self) -> int:
+        """Return 3: force, distance and the grid-chosen shape exponent."""
+        return 3
 
     def nl_grid(self, sig):
         """Return decay distances from 2 cm to 1.5 m (log-spaced)."""
@@ -203,12 +225,21 @@ class CasterSwivel(Effect):
         return [(0.01, 3.0)]
 
     def columns(self, sig, nl, phi, base):
-        """Return G: sign(v) exp(-s / distance) in the forward row, s = distance since the last reversal."""
+        """Return G: sign(v) exp(-(s / distance)^p) in the forward row, s = distance since the last reversal."""
         v0, _ = speed_scales(sig)
         s = distance_since_reversal(sig)
         g = np.zeros((sig.n, 3, 1))
-        g[:, 0, 0] = np.tanh(sig.v / v0) * np.exp(-s / nl[0])
+        with np.errstate(over="ignore", invalid="ignore"):
+            shape = np.exp(-np.power(s / nl[0], self.shape))
+        g[:, 0, 0] = np.tanh(sig.v / v0) * np.where(np.isfinite(s), shape, 0.0)
         return g
+
+    def describe(self, theta, nl, cov, nl_std, phi):
+        """Return force (N), distance d (m) and the shape exponent p (grid-chosen: std reported as 0)."""
+        params, std = Effect.describe(self, theta, nl, cov, nl_std, phi)
+        params["shape"] = float(self.shape)
+        std["shape"] = 0.0
+        return params, std
 
 
 class WrenchBias(Effect):
@@ -299,7 +330,9 @@ class PayloadChange(Effect):
         return lv[:, :, :4] * step, lw[:, :, :4] * step
 
     def is_physical(self, theta, nl, x):
-        """Return True when phi before and after the change both have m > 0 and I > 0."""
+        """Return True when phi before and after the change both have m > 0.5 kg and I (about the CoM) > 0."""
+        if not (np.all(np.isfinite(np.asarray(x[:4], float))) and np.all(np.isfinite(np.asarray(theta[:4], float)))):
+            return False
         for ph in (np.asarray(x[:4], float), np.asarray(x[:4], float) + np.asarray(theta[:4], float)):
             if ph[0] <= 0.5 or ph[3] - (ph[1] ** 2 + ph[2] ** 2) / ph[0] <= 0.0:
                 return False
@@ -357,8 +390,11 @@ class PayloadMassStep(PayloadChange):
         return (lv[:, :, :4] @ u)[:, :, None] * step, (lw[:, :, :4] @ u)[:, :, None] * step
 
     def is_physical(self, theta, nl, x):
-        """Return True when the mass stays above 0.5 kg after the change."""
-        return float(x[0]) > 0.5 and float(x[0]) + float(theta[0]) > 0.5
+        """Return True when the mass is above 0.5 kg and the inertia about the CoM positive, before and after."""
+        x4 = np.asarray(x[:4], float)
+        if not np.all(np.isfinite(x4)) or not np.isfinite(float(theta[0])) or x4[0] <= 0.5:
+            return False
+        return PayloadChange.is_physical(self, np.asarray(theta[0], float) * x4 / x4[0], nl, x4)
 
     def replay_phi_change(self, sig, nl, theta, phi=None):
         """Return the step of phi over time (phi scaled by the mass ratio)."""

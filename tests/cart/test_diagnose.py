@@ -124,3 +124,56 @@ def test_payload_mass_step_is_reported_with_the_full_parameter_names():
     for k in ("delta_m", "delta_m_dx", "delta_m_dy", "delta_J", "time", "mass_after", "com_x_after", "com_y_after"):
         assert params[k] == pytest.approx(full[k])
     assert params["com_x_after"] == pytest.approx(0.3) and std["delta_m_dx"] == pytest.approx(2.0 * 0.3)
+
+
+def test_payload_forms_reject_small_mass_and_non_positive_inertia():
+    from cart.effects import PayloadChange, PayloadMassStep
+
+    x = np.array([30.0, 9.0, 1.5, 6.0, 5.0])  # I about the CoM = 6 - (81 + 2.25) / 30 = 3.225 > 0
+    ms, full = PayloadMassStep(), PayloadChange()
+    assert ms.is_physical(np.array([10.0]), (5.0,), x)
+    assert not ms.is_physical(np.array([-29.6]), (5.0,), x)            # 0.4 kg after the step
+    bad = np.array([30.0, 9.0, 1.5, 2.0, 5.0])                         # 2 - 2.775 < 0: inertia not positive
+    assert not ms.is_physical(np.array([10.0]), (5.0,), bad)
+    assert not ms.is_physical(np.array([np.nan]), (5.0,), x)
+    assert full.is_physical(np.array([10.0, 3.0, 0.5, 2.0]), (5.0,), x)
+    # after: m = 40, a = 12, J = 4.5 -> I = 4.5 - (144 + 4) / 40 = 0.8 > 0 ; J = 3.5 -> -0.2 < 0
+    assert full.is_physical(np.array([10.0, 3.0, 0.5, -1.5]), (5.0,), x)
+    assert not full.is_physical(np.array([10.0, 3.0, 0.5, -2.5]), (5.0,), x)
+    assert not full.is_physical(np.array([-29.6, 0.0, 0.0, 0.0]), (5.0,), x)
+
+
+def test_a_blown_up_replay_is_infinite_not_nan_and_silent():
+    import warnings
+
+    from cart.diagnose_replay import replay
+    from cart.log_signals import signals_from_log
+
+    h = random_case(None, np.random.default_rng(1000))
+    sig = signals_from_log(h.measured)
+    p = h.params
+    good = replay(sig, np.array([p.m, p.m * p.dx, p.m * p.dy, p.inertia_b, p.sigma]))
+    assert good.finite and np.all(np.isfinite(good.rms))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow warnings
+        bad = replay(sig, np.array([1e-7, 0.0, 0.0, 1e-7, -50.0]))  # tiny mass, negative damping: diverges
+    assert not bad.finite
+    assert np.all(~np.isnan(bad.rms)) and np.all(~np.isnan(bad.chi2))
+    assert np.any(np.isinf(bad.rms)) and np.isinf(bad.gap())
+
+
+def test_caster_shape_variants_and_their_columns():
+    from cart.effects import CasterSwivel, distance_since_reversal
+    from cart.log_signals import signals_from_log
+
+    vs = CasterSwivel().variants()
+    assert sorted(v.shape for v in vs) == [1.0, 2.0, 4.0] and all(v.n_params == 3 for v in vs)
+    h = random_case("caster_swivel", np.random.default_rng(7))
+    sig = signals_from_log(h.measured)
+    s = distance_since_reversal(sig)
+    v0 = max(0.02, 2.0 * sig.sigma_v)
+    for v in vs:
+        g = v.columns(sig, (0.3,), None, None)[:, 0, 0]
+        fin = np.isfinite(s)
+        assert np.allclose(g[fin], np.tanh(sig.v[fin] / v0) * np.exp(-(s[fin] / 0.3) ** v.shape))
+        assert np.all(g[~fin] == 0.0)
