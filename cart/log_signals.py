@@ -14,7 +14,7 @@ from typing import Optional, Tuple
 import numpy as np
 
 from cart.errors import LogFormatError
-from cart.logs import CartLog
+from cart.logs import CartLog, local_fit
 
 
 def local_poly(t: np.ndarray, y: np.ndarray, half_window: float, degree: int = 2
@@ -25,28 +25,14 @@ def local_poly(t: np.ndarray, y: np.ndarray, half_window: float, degree: int = 2
     inwards at the ends); ``leverage`` is the weight of sample i on its own
     fitted value (used to unbias residual variances).
     """
-    t = np.asarray(t, float)
-    y2 = np.asarray(y, float).reshape(len(t), -1)
     n = len(t)
     if n < degree + 2:
         raise LogFormatError(f"need at least {degree + 2} samples to differentiate the pose, got {n}")
-    med_dt = float(np.median(np.diff(t)))
-    k = max(degree // 2 + 1, int(round(half_window / med_dt)))
-    width = min(2 * k + 1, n)
-    start = np.clip(np.arange(n) - width // 2, 0, n - width)
-    idx = start[:, None] + np.arange(width)[None, :]
-    tau = t[idx] - t[:, None]
-    scale = max(float(np.max(np.abs(tau))), 1e-12)
-    tau = tau / scale
-    vander = tau[:, :, None] ** np.arange(degree + 1)[None, None, :]
-    normal = np.einsum("nwi,nwj->nij", vander, vander)
-    pinv = np.linalg.solve(normal, np.transpose(vander, (0, 2, 1)))  # (n, deg+1, width)
-    coef = np.einsum("niw,nwk->nik", pinv, y2[idx])
+    coef, scale, pinv, start, _ = local_fit(t, y, half_window, degree)
     value = coef[:, 0, :]
     d1 = coef[:, 1, :] / scale
     d2 = 2.0 * coef[:, 2, :] / scale ** 2 if degree >= 2 else np.zeros_like(d1)
-    self_pos = np.arange(n) - start
-    leverage = pinv[np.arange(n), 0, self_pos]
+    leverage = pinv[np.arange(n), 0, np.arange(n) - start]
     return value, d1, d2, leverage
 
 

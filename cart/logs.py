@@ -68,20 +68,19 @@ class CartLog:
         return estimate_velocities(self.t, self.q, half_window)
 
 
-def local_polyfit(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
-                  degree: int = 2) -> Tuple[np.ndarray, np.ndarray, int]:
-    """Return (smoothed q, dq/dt, window size) of local least-squares polynomials (irregular Savitzky-Golay).
+def local_fit(t: np.ndarray, y: np.ndarray, half_window: float = 0.05, degree: int = 2
+              ) -> Tuple[np.ndarray, float, np.ndarray, np.ndarray, int]:
+    """Return (coef, scale, pinv, start, width) of local least-squares polynomials at every t_i.
 
-    Each sample's value and slope come from a polynomial of ``degree`` fitted
+    Each sample gets a polynomial of ``degree`` in ``(t - t_i) / scale`` fitted
     to the ``2k+1`` neighbours around it, ``k = round(half_window / median dt)``
-    (at least ``degree + 1`` points; windows shift inwards at the ends).
+    (at least ``degree // 2 + 1``; windows shift inwards at the ends): ``coef``
+    (n, degree+1, k) for ``y`` (n, k), ``pinv`` (n, degree+1, width) the fit's
+    linear map from the window's samples (``y[start_i : start_i + width]``).
     """
     t = np.asarray(t, dtype=float)
-    q = np.asarray(q, dtype=float)
-    q2 = q.reshape(len(t), -1)
+    y2 = np.asarray(y, dtype=float).reshape(len(t), -1)
     n = len(t)
-    if n < degree + 1:
-        raise LogFormatError(f"need at least {degree + 1} samples to estimate velocities, got {n}")
     med_dt = float(np.median(np.diff(t)))
     k = max(degree // 2 + 1, int(round(half_window / med_dt)))
     width = min(2 * k + 1, n)
@@ -89,11 +88,23 @@ def local_polyfit(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
     idx = start[:, None] + np.arange(width)[None, :]
     tau = t[idx] - t[:, None]  # (n, width)
     scale = max(float(np.max(np.abs(tau))), 1e-12)
-    tau = tau / scale
-    vander = tau[:, :, None] ** np.arange(degree + 1)[None, None, :]  # (n, width, degree+1)
+    vander = (tau / scale)[:, :, None] ** np.arange(degree + 1)[None, None, :]  # (n, width, degree+1)
     normal = np.einsum("nwi,nwj->nij", vander, vander)
-    rhs = np.einsum("nwi,nwk->nik", vander, q2[idx])  # (n, degree+1, k)
-    coef = np.linalg.solve(normal, rhs)
+    pinv = np.linalg.solve(normal, np.transpose(vander, (0, 2, 1)))  # (n, degree+1, width)
+    coef = np.einsum("niw,nwk->nik", pinv, y2[idx])
+    return coef, scale, pinv, start, width
+
+
+def local_polyfit(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
+                  degree: int = 2) -> Tuple[np.ndarray, np.ndarray, int]:
+    """Return (smoothed q, dq/dt, window size) of local least-squares polynomials (irregular Savitzky-Golay).
+
+    See `local_fit` for the windows.
+    """
+    q = np.asarray(q, dtype=float)
+    if len(t) < degree + 1:
+        raise LogFormatError(f"need at least {degree + 1} samples to estimate velocities, got {len(t)}")
+    coef, scale, _, _, width = local_fit(t, q, half_window, degree)
     return coef[:, 0, :].reshape(q.shape), (coef[:, 1, :] / scale).reshape(q.shape), width
 
 
