@@ -38,7 +38,7 @@ from cart import model as cart_model
 from cart.control import make_controller
 from cart.ekf import CartEKF, EKFConfig
 from cart.params import CartParams
-from cart.simulate import rk4_step
+from cart.simulate import MeasurementNoise, rk4_step
 from cart.trajectories import UnicycleTrajectory, trajectory_1, trajectory_2
 from wholebody.allocation import ArmLimits, WrenchAllocator
 from wholebody.contact import HandleSegment
@@ -91,20 +91,9 @@ class BodyTracker(Protocol):
         """Return the input u = [arm joint rates (7), base body twist (3)] for the next period."""
 
 
-@dataclass(frozen=True)
-class SensorNoise:
-    """Measurement noise std: motion capture (pose, velocity) and the F/T sensor (sensor frame)."""
-
-    position: float = 0.003
-    theta: float = 0.003
-    velocity: float = 0.01
-    omega: float = 0.01
-    force: float = 3.0
-    torque: float = 0.3
-
-    def mocap_std(self) -> np.ndarray:
-        """Return the std of (x, y, theta, vx, vy, omega)."""
-        return np.array([self.position, self.position, self.theta, self.velocity, self.velocity, self.omega])
+#: Sensor noise of the loop: motion capture (3 mm, 3 mrad, 1 cm/s, 0.01 rad/s) and the F/T sensor
+#: (3 N, 0.3 N m, in the sensor frame), as the cart paper's hardware.
+PUSH_SENSOR_NOISE = MeasurementNoise(position=0.003, theta=0.003, velocity=0.01, omega=0.01, force=3.0, torque=0.3)
 
 
 @dataclass(frozen=True)
@@ -123,7 +112,7 @@ class PushConfig:
     initial_mass: float = 16.0
     initial_com: Tuple[float, float] = (0.3, 0.0)
     controller: str = "kanayama"
-    noise: SensorNoise = SensorNoise()
+    noise: MeasurementNoise = PUSH_SENSOR_NOISE
     seed: int = 0
     replan_period: float = 0.5
     replan_horizon: float = 3.0
@@ -350,7 +339,7 @@ class MobileManipulator:
 
 
 def ft_measurement(wrench_world: np.ndarray, oMee: pin.SE3, oMft: pin.SE3, rng: np.random.Generator,
-                   noise: SensorNoise) -> pin.Force:
+                   noise: MeasurementNoise) -> pin.Force:
     """Return the F/T sensor reading (sensor frame, at its origin) of a hand wrench, plus white noise."""
     at_origin = pin.SE3(np.eye(3), oMee.translation).act(pin.Force(wrench_world[:3], wrench_world[3:]))
     local = oMft.actInv(at_origin)
@@ -425,7 +414,7 @@ class ContactScheduler:
 def make_estimator(config: PushConfig, q0: np.ndarray) -> CartEKF:
     """Return the EKF (parameters frozen at the initial guess when estimation is off)."""
     p0 = config.initial_params()
-    ekf_config = EKFConfig.from_noise(config.noise.mocap_std(), estimate_params=config.estimation)
+    ekf_config = EKFConfig.from_noise(config.noise.measurement_std(), estimate_params=config.estimation)
     return CartEKF(q0, np.zeros(3), p0.phi, p0.sigma, ekf_config)
 
 
@@ -462,7 +451,7 @@ def run_push(config: PushConfig = PushConfig(), controller: Optional[CartControl
         arm_torque=(n, na, 7), push_torque=(n, na, 7), robot_x=(n, na, 10), grasp_error=(n, na),
         base_ratio=(n, na), wheel_ratio=(n, na)).items()}
     saturated = 0
-    std = config.noise.mocap_std()
+    std = config.noise.measurement_std()
     z = np.r_[q, qd] + rng.normal(0.0, 1.0, 6) * std
     iterator = range(n)
     if progress:

@@ -1,6 +1,8 @@
 """Closed-loop push (wholebody.push): end to end, torque limits, estimation on/off, sensing and torque models."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -13,7 +15,7 @@ from wholebody.push import (
     BASE_OFFSET_X,
     PUSH_CONTROLLER,
     PushConfig,
-    SensorNoise,
+    PUSH_SENSOR_NOISE,
     MobileManipulator,
     WholeBodyQPTracker,
     base_target,
@@ -81,7 +83,7 @@ def test_ft_round_trip_matches_planar_grasp_map():
     R = np.array([[np.cos(0.7), -np.sin(0.7), 0], [np.sin(0.7), np.cos(0.7), 0], [0, 0, 1.0]])
     w_world = np.r_[R @ f_b, 0.0, 0.0, tz]
     _, _, oMee, oMft = mm.torques(np.zeros(10), np.zeros(10), 0.01, w_world)
-    reading = ft_measurement(w_world, oMee, oMft, np.random.default_rng(0), SensorNoise(force=0.0, torque=0.0))
+    reading = ft_measurement(w_world, oMee, oMft, np.random.default_rng(0), replace(PUSH_SENSOR_NOISE, force=0.0, torque=0.0))
     gamma = ft_to_cart_gamma(reading, oMft, q_cart)
     target, _ = grasp_target(q_cart, np.zeros(3), 0.1, 0.0, grasp_rotation())
     p_b = np.array([-0.15, 0.1])
