@@ -206,6 +206,31 @@ def _dynamics_rows(x: np.ndarray, gamma: Sequence[float], sigma: float, with_sig
                           0.0, 0.0, f5_2, f5_3, f5_4, f5_5, f5_6, f5_7, f5_8, f5_9]
 
 
+def wrench_input_matrix(x: np.ndarray) -> np.ndarray:
+    """Return B = d(xdd, ydd, thetadd) / d(fx, fy, tau) of the exact constrained dynamics at state x.
+
+    From the body-frame form (see :func:`_dynamics_rows`): vdot = (J r1 + b r2) / D,
+    omegadot = (b r1 + m r2) / D, D = m J - b^2, with r1 = c fx + s fy and r2 = tau
+    (+ terms free of gamma); the lateral force is absorbed by the wheels.
+    """
+    th = float(x[2])
+    m, b, j = float(x[6]), float(x[8]), float(x[9])
+    c, s = math.cos(th), math.sin(th)
+    i_d = 1.0 / (m * j - b * b)
+    dv = np.array([j * c, j * s, b]) * i_d
+    do = np.array([b * c, b * s, m]) * i_d
+    return np.array([c * dv, s * dv, do])
+
+
+def input_noise_covariance(x: np.ndarray, gamma_cov: np.ndarray, dt: float) -> np.ndarray:
+    """Return B gamma_cov B^T dt: the velocity covariance added over dt by white wrench noise (3 x 3)."""
+    gamma_cov = np.asarray(gamma_cov, dtype=float)
+    if gamma_cov.shape != (3, 3):
+        raise ParameterError(f"gamma_cov must be the 3x3 covariance of (fx, fy, tau), got shape {gamma_cov.shape}")
+    B = wrench_input_matrix(x)
+    return (B @ gamma_cov @ B.T) * dt
+
+
 class CartEKF:
     """The augmented-state EKF of paper eq. (8-20); see the module docstring."""
 
@@ -428,8 +453,16 @@ class CartEKF:
         if self.with_sigma and x[10] < 0.0:
             x[10] = 0.0
 
-    def step(self, gamma: Sequence[float], dt: float, z: Sequence[float]) -> float:
+    def step(self, gamma: Sequence[float], dt: float, z: Sequence[float],
+             gamma_cov: Optional[np.ndarray] = None) -> float:
         """Predict over dt under gamma, then update with z; return the NIS.
+
+        ``gamma_cov`` (optional, 3 x 3): covariance of the white noise on the
+        measured wrench gamma = (fx, fy, tau) ({s} axes, torque about the {b}
+        origin), e.g. the F/T sensor noise mapped through the grasp map of the
+        current contact (eq. 23-24). It enters as process noise on the
+        velocities, ``B gamma_cov B^T dt`` with ``B = d qdd / d gamma`` of the
+        constrained dynamics, added to Q dt for this step only.
 
         The same arithmetic as :meth:`predict` then :meth:`update`, fused: the
         predicted covariance's first six rows T = (Phi (P + Q dt) Phi^T)[:6] are
@@ -442,6 +475,7 @@ class CartEKF:
         P, phi6, phi6_rows, t_t, t_t6, p6, w, sf, kp, sym, pdiag = self._work
         if dt != self._dt:
             self._set_dt(dt)
+        q_in = None if gamma_cov is None else input_noise_covariance(x, gamma_cov, dt)  # at the prior state, like F
         xdd, ydd, od, rows = _dynamics_rows(x, gamma, self.sigma, self.with_sigma, dt, True)
         phi6_rows[:] = rows
         px, py, pth, vx, vy, om = x[:N_MEAS].tolist()
@@ -452,6 +486,8 @@ class CartEKF:
              zl[3] - xp[3], zl[4] - xp[4], zl[5] - xp[5]]
         # -- covariance prediction, eq. (13)/(17): P_pred = Phi (P + Q dt) Phi^T; only rows/columns 0-5 change
         pdiag += self._qdt
+        if q_in is not None:
+            P[3:6, 3:6] += q_in
         np.dot(P, phi6.T, out=t_t)  # (Phi6 P)^T, P symmetric
         np.dot(phi6, t_t, out=t_t6)  # rows 0-5 of T^T: Phi6 P Phi6^T (numpy buffers the overlap)
         P[:N_MEAS] = t_t.T

@@ -6,7 +6,7 @@ import pytest
 
 from cart import table1
 from cart.ekf import CartEKF, EKFConfig, dynamics_jacobian, estimate_from_log
-from cart.errors import LogFormatError
+from cart.errors import LogFormatError, ParameterError
 from cart.logs import CartLog, estimate_velocities, read_log, write_log
 from cart.params import CartParams
 
@@ -220,3 +220,37 @@ def test_change_detection_relearns_a_payload_and_stays_quiet_without_one():
     assert final[True, True][1] >= 1
     assert abs(final[True, True][0] - 30.0) < 0.3  # re-learnt within the 10 s after the payload
     assert abs(final[True, False][0] - 30.0) > 2 * abs(final[True, True][0] - 30.0)  # the random walk alone lags
+
+
+def test_wrench_input_matrix_matches_finite_differences_and_gamma_cov_adds_process_noise():
+    """B = d qdd / d gamma vs central differences of the dynamics; gamma_cov enters P as B Sigma B^T dt."""
+    from cart.ekf import input_noise_covariance, wrench_input_matrix
+
+    rng = np.random.default_rng(3)
+    x = np.r_[0.2, -0.1, 0.7, 0.5, 0.3, 0.4, 20.0, 6.0, 1.5, 4.0]
+    B = wrench_input_matrix(x)
+    g = rng.normal(size=3) * 10
+    h = 1e-5
+    num = np.empty((3, 3))
+    for i in range(3):
+        gp, gm = g.copy(), g.copy()
+        gp[i] += h
+        gm[i] -= h
+        num[:, i] = (np.array(dynamics_jacobian(x, gp, 3.0, np.zeros((10, 10)), False))
+                     - np.array(dynamics_jacobian(x, gm, 3.0, np.zeros((10, 10)), False))) / (2 * h)
+    np.testing.assert_allclose(B, num, rtol=1e-7, atol=1e-9)
+    cov = np.diag([9.0, 9.0, 0.5])
+    a = CartEKF(x[:3], x[3:6], x[6:], 3.0)
+    b = CartEKF(x[:3], x[3:6], x[6:], 3.0)
+    a.predict(g, 0.01)
+    b.P[3:6, 3:6] += input_noise_covariance(x, cov, 0.01)
+    b.predict(g, 0.01)
+    c = CartEKF(x[:3], x[3:6], x[6:], 3.0)
+    z = x[:6] + 0.01
+    nis_c = c.step(g, 0.01, z, gamma_cov=cov)
+    nis_b = b.update(z)
+    np.testing.assert_allclose(c.P, b.P, rtol=1e-10, atol=1e-14)
+    assert nis_c == pytest.approx(nis_b, rel=1e-10)
+    assert not np.allclose(a.P, b.P)
+    with pytest.raises(ParameterError):
+        input_noise_covariance(x, np.eye(2), 0.01)
