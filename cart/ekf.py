@@ -21,16 +21,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional, Sequence, Tuple
+from typing import Optional, Sequence, Tuple, Union
 
 import numpy as np
-from scipy.linalg.lapack import dposv as _dposv, dpotrs as _dpotrs, dtrtrs as _dtrtrs
+from scipy.linalg import cho_factor as _cho_factor, cho_solve as _cho_solve
+from scipy.linalg.lapack import dposv as _dposv, dtrtrs as _dtrtrs
 from scipy.stats import chi2
 
 from cart.errors import ParameterError
 from cart.params import CartParams
 
 N_MEAS = 6
+#: The fused step symmetrises P every this many updates (and whenever P is read through
+#: ``CartEKF.P``): between two, P carries only the rounding asymmetry of the updates
+#: (~1e-16 relative), which the Cholesky solve does not see (it reads one triangle of S).
+SYMMETRIZE_EVERY = 8
 
 
 @dataclass(frozen=True)
@@ -100,14 +105,14 @@ def dynamics_jacobian(x: np.ndarray, gamma: Sequence[float], sigma: float, out_f
     return xdd, ydd, od
 
 
-def _dynamics_rows(x: np.ndarray, gamma: Sequence[float], sigma: float, with_sigma: bool,
+def _dynamics_rows(x: Union[np.ndarray, list], gamma: Sequence[float], sigma: float, with_sigma: bool,
                    scale: float = 1.0, add_eye: bool = False) -> Tuple[float, float, float, list]:
     """Return (xdd, ydd, thetadd, rows): rows 3..5 of ``scale * F (+ I)`` as one flat list of floats.
 
     F is the analytic Jacobian of paper eq. (11); with ``scale = dt`` and
     ``add_eye`` the rows are those of Phi = I + F dt.
     """
-    xs = x.tolist()
+    xs = x if isinstance(x, list) else x.tolist()
     th, vx, vy, om, m, a, b, j = xs[2:10]
     sg = xs[10] if with_sigma else sigma
     fx, fy, tau = (gamma.tolist() if isinstance(gamma, np.ndarray) else gamma)[:3]
@@ -243,51 +248,65 @@ class CartEKF:
         phi0 = np.asarray(phi0, dtype=float)
         if phi0.shape != (4,) or phi0[0] <= 0.0:
             raise ParameterError(f"initial phi must be [m>0, m dx, m dy, J], got {phi0!r}")
-        self.x = np.zeros(n)
-        self.x[0:3] = q0
-        self.x[3:6] = qd0
-        self.x[6:10] = phi0
         self.sigma = float(sigma)
-        if self.with_sigma:
-            self.x[10] = sigma
         if P0 is None:
             P0 = initial_covariance(phi0, config.meas_std, sigma, self.with_sigma)
         P0 = np.array(P0, dtype=float)
         if P0.shape != (n, n):
             raise ParameterError(f"P0 must be {n}x{n}, got {P0.shape}")
-        self._P = P0  # updated in place: the work arrays below hold views of it
+        # State and covariance share one C-ordered n x (n+1) array A = [x | P], so that the
+        # measurement update of both is one product and one subtraction (see step()).
+        self._A = np.zeros((n, n + 1))
+        self._x = self._A[:, 0]
+        self._P = self._A[:, 1:]
+        self._x[0:3] = q0
+        self._x[3:6] = qd0
+        self._x[6:10] = phi0
+        if self.with_sigma:
+            self._x[10] = sigma
+        self._P[...] = P0
         qdiag = [config.q_pos, config.q_pos, config.q_pos, config.q_vel, config.q_vel, config.q_omega]
         if config.estimate_params:
             qdiag += list(config.q_phi)
         else:
             qdiag += [0.0] * 4
-            self.P[6:, :] = 0.0
-            self.P[:, 6:] = 0.0
+            self._P[6:, :] = 0.0
+            self._P[:, 6:] = 0.0
         if self.with_sigma:
             qdiag.append(config.q_sigma if config.estimate_params else 0.0)
         self.Qc = np.diag(qdiag)
         self._qdiag = np.array(qdiag)
         self.R = np.diag(np.square(np.asarray(config.meas_std, dtype=float)))
-        self._F = np.zeros((n, n))
-        self._F[0, 3] = self._F[1, 4] = self._F[2, 5] = 1.0
-        # preallocated work arrays of the hot path (views of P stay valid: P is updated in place)
-        self._pdiag = np.einsum("ii->i", self._P)  # writable view of P's diagonal
+        # Work buffers of the hot path, all views that stay valid (everything is updated in place).
+        # One flat buffer holds, in this order: Phi6 (rows 0-5 of Phi = I + F dt, C order), the
+        # state increment of the prediction (6), and [w | T] (6 x (n+1), Fortran order: w = -y, then
+        # S^-1 (-y); T = rows 0-5 of the predicted P, then S^-1 T). Rows 3-5 of Phi6, the increment
+        # and w are contiguous, so one assignment writes all three.
+        self._buf = np.zeros(6 * n + 6 + N_MEAS * (n + 1))
+        self._phi6 = self._buf[:6 * n].reshape(N_MEAS, n)
+        self._phi6[:] = np.eye(N_MEAS, n)
+        self._phi6_t = self._phi6.T
+        self._fill = self._buf[3 * n:6 * n + 12]  # rows 3-5 of Phi6, increment, w
+        self._inc = self._buf[6 * n:6 * n + 6]
+        self._tf = self._buf[6 * n + 6:].reshape((N_MEAS, n + 1), order="F")  # [w | T]
+        self._w = self._tf[:, 0]
+        self._tt = self._tf.T[1:]  # T^T (n x 6), C-contiguous
+        self._tt6 = self._tt[:N_MEAS]  # Phi6 P Phi6^T block
+        self._tt_lo = self._tt[N_MEAS:]
+        self._sf = np.zeros((N_MEAS, N_MEAS), order="F")  # S, then its Cholesky factor
+        self._x6 = self._x[:N_MEAS]
         self._p6 = self._P[:N_MEAS]  # rows 0-5 of P
-        self._phi6 = np.eye(N_MEAS, n)  # rows 0-5 of Phi = I + F dt
-        self._phi6_rows = self._phi6[3:6].reshape(-1)  # its rows 3-5, flat view
+        self._p6_t = self._p6.T
+        self._p_lo = self._P[N_MEAS:, :N_MEAS]
+        self._pdiag = self._A.reshape(-1)[1::n + 2]  # writable view of P's diagonal
+        self._kb = np.empty((n, n + 1))  # [-K y | K T]
         self._dt = 0.0
         self._qdt = np.zeros(n)  # diag(Q) dt
-        self._tf = np.zeros((N_MEAS, n + 1), order="F")  # [T | y], solved in place to [X | S^-1 y]
-        self._tt = self._tf.T[:n]  # T^T (n x 6), C-contiguous
-        self._tt6 = self._tt[:N_MEAS]  # its 6 x 6 block
-        self._w = self._tf.T[n]  # y, then S^-1 y
-        self._sf = np.zeros((N_MEAS, N_MEAS), order="F")  # S, then its Cholesky factor
-        self._kp = np.empty((n, n))
-        self._sym = np.empty((n, n))
-        self._work = (self._P, self._phi6, self._phi6_rows, self._tt, self._tt6, self._p6, self._w, self._sf,
-                      self._kp, self._sym, self._pdiag)
+        self._unsym = 0  # updates since P was last symmetrised
+        self._min_mass = float(config.min_mass)
+        self._min_inertia = float(config.min_inertia)
         self.nis = float("nan")
-        self.innovation = [0.0] * N_MEAS
+        self._ny = [0.0] * N_MEAS  # minus the last innovation (see step)
         # change detection: innovation sum over the current window, the threshold, the prior variances
         self._ysum = [0.0] * N_MEAS
         self._ycount = 0
@@ -298,9 +317,35 @@ class CartEKF:
 
     # -- accessors ---------------------------------------------------------------------------
     @property
+    def x(self) -> np.ndarray:
+        """Return the state estimate (the filter's own array, updated in place by each step)."""
+        return self._x
+
+    @x.setter
+    def x(self, value: Sequence[float]) -> None:
+        value = np.asarray(value, dtype=float)
+        if value.shape != self._x.shape:
+            raise ParameterError(f"x must have shape {self._x.shape}, got {value.shape}")
+        self._x[...] = value
+
+    @property
+    def innovation(self) -> list:
+        """Return the last innovation y = z - h(x_pred) (heading wrapped to (-pi, pi])."""
+        return [-v for v in self._ny]
+
+    @property
     def P(self) -> np.ndarray:
-        """Return the state covariance (the filter's own array, updated in place by each step)."""
+        """Return the state covariance, exactly symmetric (the filter's own array, updated in place by each step)."""
+        if self._unsym:
+            self._symmetrize()
         return self._P
+
+    def _symmetrize(self) -> None:
+        """P <- (P + P^T) / 2: remove the rounding asymmetry of the last updates (see SYMMETRIZE_EVERY)."""
+        P = self._P
+        P += P.T
+        P *= 0.5
+        self._unsym = 0
 
     @P.setter
     def P(self, value: np.ndarray) -> None:
@@ -312,30 +357,30 @@ class CartEKF:
     @property
     def q(self) -> np.ndarray:
         """Return the estimated pose (x, y, theta)."""
-        return self.x[0:3].copy()
+        return self._x[0:3].copy()
 
     @property
     def qd(self) -> np.ndarray:
         """Return the estimated velocity (vx, vy, omega)."""
-        return self.x[3:6].copy()
+        return self._x[3:6].copy()
 
     @property
     def phi(self) -> np.ndarray:
         """Return the estimated phi = [m, m dx, m dy, J]."""
-        return self.x[6:10].copy()
+        return self._x[6:10].copy()
 
     @property
     def sigma_hat(self) -> float:
         """Return the estimated (or fixed) viscous coefficient."""
-        return float(self.x[10]) if self.with_sigma else self.sigma
+        return float(self._x[10]) if self.with_sigma else self.sigma
 
     def params(self) -> CartParams:
         """Return the physical parameters of the current estimate."""
-        return CartParams.from_phi(self.x[6:10], self.sigma_hat)
+        return CartParams.from_phi(self._x[6:10], self.sigma_hat)
 
     def params_std(self) -> dict:
         """Return the 1-sigma std of m, dx, dy, I (about the CoM) and sigma by linearising the phi map."""
-        m, a, b, j = self.x[6:10]
+        m, a, b, j = self._x[6:10]
         jac = np.array([[1.0, 0.0, 0.0, 0.0],
                         [-a / m ** 2, 1.0 / m, 0.0, 0.0],
                         [-b / m ** 2, 0.0, 1.0 / m, 0.0],
@@ -352,7 +397,7 @@ class CartEKF:
         self._phi6[0, 3] = self._phi6[1, 4] = self._phi6[2, 5] = dt
         np.multiply(self._qdiag, dt, out=self._qdt)
 
-    def predict(self, gamma: Sequence[float], dt: float) -> None:
+    def predict(self, gamma: Sequence[float], dt: float, gamma_cov: Optional[np.ndarray] = None) -> None:
         """Propagate state (Euler, eq. 16) and covariance (Phi (P + Q dt) Phi^T, Phi = I + F dt, eq. 13/17) over dt.
 
         F's first three rows are the selector [0 I 0] and its rows 6.. are zero,
@@ -361,50 +406,48 @@ class CartEKF:
         [[T Phi6^T, T[:, 6:]], [T[:, 6:]^T, P[6:, 6:]]]. Q dt is added before
         the propagation (first-order equivalent to adding it after). (The plain Euler step of
         the Riccati equation, P + (F P + P F^T) dt, drops F P F^T dt^2 and loses
-        positive-definiteness when the parameter variance is large.)
+        positive-definiteness when the parameter variance is large.) ``gamma_cov``: see :meth:`step`.
         """
-        x = self.x
-        P = self._P
+        x, P = self._x, self._P
         if dt != self._dt:
             self._set_dt(dt)
+        q_in = None if gamma_cov is None else input_noise_covariance(x, gamma_cov, dt)
         xdd, ydd, od, rows = _dynamics_rows(x, gamma, self.sigma, self.with_sigma, dt, True)
-        self._phi6_rows[:] = rows
+        self._phi6[3:6] = np.reshape(rows, (3, self.n))
         vx, vy, om = x[3:6].tolist()
         x[:6] += (vx * dt, vy * dt, om * dt, xdd * dt, ydd * dt, od * dt)  # eq. (16)
         self._pdiag += self._qdt  # P + Q dt
-        t_t = self._tt
-        np.dot(P, self._phi6.T, out=t_t)  # (Phi6 P)^T
-        np.dot(self._phi6, t_t, out=self._tt6)  # Phi6 P Phi6^T
-        P[:N_MEAS] = t_t.T
-        P[N_MEAS:, :N_MEAS] = t_t[N_MEAS:]
+        if q_in is not None:
+            P[3:6, 3:6] += q_in
+        P[...] = self._phi6_full() @ P @ self._phi6_full().T
+
+    def _phi6_full(self) -> np.ndarray:
+        phi = np.eye(self.n)
+        phi[:N_MEAS] = self._phi6
+        return phi
 
     def update(self, z: Sequence[float]) -> float:
         """Fuse a measurement z = (x, y, theta, vx, vy, omega); return its NIS.
 
-        With H = [I_6 0]: S = P[:6, :6] + R, one Cholesky solve (LAPACK dposv) of
-        S [X | w] = [P[:6, :] | y] gives the gain K = X^T (eq. 18) and
-        w = S^-1 y for the NIS y^T S^-1 y; x += K y (eq. 19),
-        P -= K P[:6, :] (eq. 20), then P is symmetrised.
+        With H = [I_6 0]: S = P[:6, :6] + R, K = P[:6, :]^T S^-1 (eq. 18),
+        x += K y (eq. 19), P -= K P[:6, :] (eq. 20), then P is symmetrised.
         """
-        x = self.x
-        P, _, _, t_t, _, p6, w, sf, kp, sym, _ = self._work
+        x, P = self._x, self._P
         zl = z.tolist() if isinstance(z, np.ndarray) else list(z)
-        xl = x[:N_MEAS].tolist()
-        y = [zi - xi for zi, xi in zip(zl, xl)]
+        y = [zi - xi for zi, xi in zip(zl, x[:N_MEAS].tolist())]
         y[2] = (y[2] + math.pi) % (2.0 * math.pi) - math.pi
-        t_t[...] = p6.T
-        w[:] = y
-        np.add(p6[:, :N_MEAS], self.R, out=sf)
-        _, _, info = _dposv(sf, self._tf, lower=1, overwrite_a=1, overwrite_b=1)
-        if info != 0:
-            raise np.linalg.LinAlgError(f"innovation covariance not positive definite (dposv info {info})")
-        self.nis = float(np.dot(y, w))
-        x += np.dot(w, p6)  # K y = P[:6, :]^T S^-1 y, eq. (19)
-        P -= np.dot(t_t, p6, out=kp)  # K H P, eq. (20)
-        np.add(P, P.T, out=sym)
-        np.multiply(sym, 0.5, out=P)
+        S = P[:N_MEAS, :N_MEAS] + self.R
+        c, low = _cho_factor(S)
+        k_t = _cho_solve((c, low), P[:N_MEAS])  # K^T = S^-1 P[:6, :]
+        self._sf[...] = c
+        yv = np.array(y)
+        self.nis = float(yv @ _cho_solve((c, low), yv))
+        x += k_t.T @ yv
+        P -= P[:N_MEAS].T @ k_t
+        P[...] = 0.5 * (P + P.T)
+        self._unsym = 0
         self._project()
-        self.innovation = y
+        self._ny = [-v for v in y]
         if self._prior_var is not None and self.config.change_detection:
             self._detect_change(y)
         return self.nis
@@ -442,7 +485,7 @@ class CartEKF:
             self.changes_detected += 1
 
     def _project(self) -> None:
-        x = self.x
+        x = self._x
         cfg = self.config
         m, a, b, j = x[6:10].tolist()
         if m < cfg.min_mass:
@@ -457,57 +500,67 @@ class CartEKF:
              gamma_cov: Optional[np.ndarray] = None) -> float:
         """Predict over dt under gamma, then update with z; return the NIS.
 
+        The same arithmetic as :meth:`predict` then :meth:`update`, fused and in
+        place: the predicted covariance's first six rows T = (Phi (P + Q dt) Phi^T)[:6]
+        are computed once (as T^T = (P + Q dt) Phi6^T, in a Fortran-ordered buffer
+        [w | T] that LAPACK then uses in place); S = T[:, :6] + R; one dposv solves
+        S [w' | X] = [-y | T], so K = X^T (eq. 18) and -w' = S^-1 y gives the NIS.
+        With A = [x | P] one product T^T [w' | X] = [-K y | K T] and one
+        subtraction give x + K y (eq. 19) and P_pred - K T (eq. 20); P is then
+        symmetrised.
+
         ``gamma_cov`` (optional, 3 x 3): covariance of the white noise on the
         measured wrench gamma = (fx, fy, tau) ({s} axes, torque about the {b}
         origin), e.g. the F/T sensor noise mapped through the grasp map of the
         current contact (eq. 23-24). It enters as process noise on the
         velocities, ``B gamma_cov B^T dt`` with ``B = d qdd / d gamma`` of the
         constrained dynamics, added to Q dt for this step only.
-
-        The same arithmetic as :meth:`predict` then :meth:`update`, fused: the
-        predicted covariance's first six rows T = (Phi (P + Q dt) Phi^T)[:6] are
-        computed once (as T^T = (P + Q dt) Phi6^T, in a Fortran-ordered buffer
-        that LAPACK then uses in place); S = T[:, :6] + R; one dposv solves
-        S [X | w] = [T | y], so K = X^T (eq. 18) and w = S^-1 y gives the NIS and
-        K y = T^T w (eq. 19); P <- P_pred - K T (eq. 20), symmetrised.
         """
-        x = self.x
-        P, phi6, phi6_rows, t_t, t_t6, p6, w, sf, kp, sym, pdiag = self._work
-        if dt != self._dt:
+        x = self._x
+        P = self._P
+        if abs(dt - self._dt) > 1e-12 * dt:  # a sampling period of the log, up to rounding
             self._set_dt(dt)
         q_in = None if gamma_cov is None else input_noise_covariance(x, gamma_cov, dt)  # at the prior state, like F
-        xdd, ydd, od, rows = _dynamics_rows(x, gamma, self.sigma, self.with_sigma, dt, True)
-        phi6_rows[:] = rows
-        px, py, pth, vx, vy, om = x[:N_MEAS].tolist()
-        xp = (px + vx * dt, py + vy * dt, pth + om * dt, vx + xdd * dt, vy + ydd * dt, om + od * dt)  # eq. (16)
-        x[:N_MEAS] = xp
+        xs = x.tolist()
+        xdd, ydd, od, rows = _dynamics_rows(xs, gamma, self.sigma, self.with_sigma, dt, True)
+        px, py, pth, vx, vy, om = xs[:6]
+        ix, iy, ith, ivx, ivy, iom = vx * dt, vy * dt, om * dt, xdd * dt, ydd * dt, od * dt  # eq. (16)
         zl = z.tolist() if isinstance(z, np.ndarray) else z
-        y = [zl[0] - xp[0], zl[1] - xp[1], (zl[2] - xp[2] + math.pi) % (2.0 * math.pi) - math.pi,
-             zl[3] - xp[3], zl[4] - xp[4], zl[5] - xp[5]]
+        # minus the innovation: predicted - measured (heading wrapped)
+        ny = [px + ix - zl[0], py + iy - zl[1], -((zl[2] - pth - ith + math.pi) % (2.0 * math.pi) - math.pi),
+              vx + ivx - zl[3], vy + ivy - zl[4], om + iom - zl[5]]
+        rows += (ix, iy, ith, ivx, ivy, iom)
+        rows += ny
+        self._fill[:] = rows  # Phi6 rows 3-5, the increment, w = -y
+        self._x6 += self._inc
         # -- covariance prediction, eq. (13)/(17): P_pred = Phi (P + Q dt) Phi^T; only rows/columns 0-5 change
-        pdiag += self._qdt
+        self._pdiag += self._qdt
         if q_in is not None:
             P[3:6, 3:6] += q_in
-        np.dot(P, phi6.T, out=t_t)  # (Phi6 P)^T, P symmetric
-        np.dot(phi6, t_t, out=t_t6)  # rows 0-5 of T^T: Phi6 P Phi6^T (numpy buffers the overlap)
-        P[:N_MEAS] = t_t.T
-        P[N_MEAS:, :N_MEAS] = t_t[N_MEAS:]
+        t_t = self._tt
+        np.dot(P, self._phi6_t, out=t_t)  # (Phi6 P)^T, P symmetric
+        np.dot(self._phi6, t_t, out=self._tt6)  # Phi6 P Phi6^T (numpy buffers the overlap)
+        self._p6[...] = t_t.T
+        self._p_lo[...] = self._tt_lo
         # -- update, eq. (18)-(20), H = [I_6 0]
-        w[:] = y
-        np.add(t_t6, self.R, out=sf)
+        sf = self._sf
+        np.add(self._tt6, self.R, out=sf)
         _, _, info = _dposv(sf, self._tf, lower=1, overwrite_a=1, overwrite_b=1)
         if info != 0:
             raise np.linalg.LinAlgError(f"innovation covariance not positive definite (dposv info {info})")
-        wl = w.tolist()  # S^-1 y
-        self.innovation = y
-        self.nis = y[0] * wl[0] + y[1] * wl[1] + y[2] * wl[2] + y[3] * wl[3] + y[4] * wl[4] + y[5] * wl[5]
-        x += np.dot(w, p6)  # K y = T^T S^-1 y, eq. (19)
-        P -= np.dot(t_t, p6, out=kp)  # K T = K H P_pred, eq. (20)
-        np.add(P, P.T, out=sym)
-        np.multiply(sym, 0.5, out=P)
-        self._project()
+        wl = self._w.tolist()  # S^-1 (-y)
+        self.nis = ny[0] * wl[0] + ny[1] * wl[1] + ny[2] * wl[2] + ny[3] * wl[3] + ny[4] * wl[4] + ny[5] * wl[5]
+        np.dot(self._p6_t, self._tf, out=self._kb)  # T^T [S^-1 (-y) | S^-1 T] = [-K y | K T]
+        self._A -= self._kb  # x + K y (eq. 19), P_pred - K T (eq. 20)
+        self._unsym += 1
+        if self._unsym >= SYMMETRIZE_EVERY:
+            self._symmetrize()
+        m, a, b, j = x[6:10].tolist()  # keep phi physical (inline _project)
+        if m < self._min_mass or j < self._min_inertia + (a * a + b * b) / m or (self.with_sigma and x[10] < 0.0):
+            self._project()
+        self._ny = ny
         if self._prior_var is not None and self.config.change_detection:
-            self._detect_change(y)
+            self._detect_change(ny)  # the test is on |sum y|^2: the sign does not matter
         return self.nis
 
 
