@@ -32,8 +32,12 @@ INERTIA_GUESS_PER_KG = 0.1
 #: robots/shopping_cart.py and wholebody/contact.py; `cart` may not import `robots`).
 HANDLE_X = -0.15
 HANDLE_HALF_WIDTH = 0.2  # the contact slides over +-0.2 m of the +-0.25 m handle
-#: Process noise shared by every test (not tuned per test).
-PROCESS_NOISE = dict(q_pos=1e-8, q_vel=1e-5, q_omega=1e-5, q_phi=(0.005, 0.005, 0.005, 0.005))
+#: Process noise shared by every test (not tuned per test). The mass random walk (0.01 kg^2/s)
+#: lets the variance of m grow during cruise, where m is unobservable (no acceleration), so that a
+#: payload change made at cruise (test 11) is learned at the next acceleration or stop; at 0.005 the
+#: final stop of test 11 corrects only 88 % of the change (0.62 kg left), from 0.05 up the estimate
+#: wanders by > 1 kg during the 20 s of cruise (sweep in docs/cart.md).
+PROCESS_NOISE = dict(q_pos=1e-8, q_vel=1e-5, q_omega=1e-5, q_phi=(0.01, 0.005, 0.005, 0.005))
 #: The discrete payload changes of test 11 (time s, new mass kg).
 MASS_CHANGES_TEST11 = ((10.0, 30.0), (20.0, 25.0))
 

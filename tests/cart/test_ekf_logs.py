@@ -254,3 +254,11 @@ def test_wrench_input_matrix_matches_finite_differences_and_gamma_cov_adds_proce
     assert not np.allclose(a.P, b.P)
     with pytest.raises(ParameterError):
         input_noise_covariance(x, np.eye(2), 0.01)
+
+
+def test_table1_test11_payload_changes_at_cruise_final_mass_within_half_kg():
+    """Paper's claim on test 11 (20 -> 30 -> 25 kg at cruise): the final stop brings the estimate within 0.5 kg."""
+    run = table1.run_test(table1.TESTS[10], True)
+    assert run.params_true[-1, 0] == pytest.approx(25.0)
+    assert abs(run.params_hat[-1, 0] - 25.0) < 0.5
+    assert abs(run.params_hat[int(19.5 / 0.01), 0] - 30.0) > 5.0  # unobservable at cruise: not learned before the stop
