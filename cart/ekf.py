@@ -391,6 +391,10 @@ class CartEKF:
         return {"mass": float(std[0]), "com": [float(std[1]), float(std[2])], "inertia": float(std[3]),
                 "sigma": sig}
 
+    def log_det_innovation_covariance(self) -> float:
+        """Return ln det S of the last update (from its Cholesky factor)."""
+        return 2.0 * float(np.log(np.diagonal(self._sf)).sum())
+
     # -- filter ------------------------------------------------------------------------------
     def _set_dt(self, dt: float) -> None:
         self._dt = dt
@@ -565,18 +569,27 @@ class CartEKF:
 
 
 def run_ekf(t: np.ndarray, gamma: np.ndarray, z: np.ndarray, phi0: Sequence[float], sigma: float,
-            config: EKFConfig = EKFConfig()) -> Tuple[CartEKF, np.ndarray, np.ndarray]:
+            config: EKFConfig = EKFConfig(), nll: Optional[list] = None
+            ) -> Tuple[CartEKF, np.ndarray, np.ndarray]:
     """Return (ekf, x_history (N, n), nis (N,)) of the EKF run on a whole log.
 
     ``gamma[k]`` is held between t_k and t_{k+1}; the first sample initialises q, qd.
+    If ``nll`` is a list, the negative log-likelihood of the innovations,
+    0.5 sum_k (y_k^T S_k^-1 y_k + ln det S_k) (constant dropped), is appended to it.
     """
     ekf = CartEKF(z[0, :3], z[0, 3:], phi0, sigma, config)
     hist = np.empty((len(t), ekf.n))
     nis = np.full(len(t), np.nan)
     hist[0] = ekf.x
+    log_det = 0.0
+    want_nll = nll is not None
     for k in range(1, len(t)):
         nis[k] = ekf.step(gamma[k - 1], t[k] - t[k - 1], z[k])
         hist[k] = ekf.x
+        if want_nll:
+            log_det += ekf.log_det_innovation_covariance()
+    if want_nll:
+        nll.append(0.5 * (float(np.nansum(nis)) + log_det))
     return ekf, hist, nis
 
 
@@ -622,14 +635,47 @@ def measurement_std_from_log(t: np.ndarray, q: np.ndarray, qd: Optional[np.ndarr
     return (float(pos), float(pos), float(pose_std[2]), float(vel), float(vel), float(vel_std[2]))
 
 
+def default_starts(guess: CartParams) -> Tuple[CartParams, ...]:
+    """Return the initial guesses :func:`estimate_from_log` tries: the guess, and its mass x0.6 and x1.6.
+
+    The EKF on a weakly exciting log can lock into a wrong basin from a poor
+    mass guess (e.g. 31 kg with an inertia of 700 kg m^2, mean NIS 177, from
+    15 kg on a 20 kg cart, while a 20 kg start gives 20.0 kg, NIS 3); starting
+    from several masses and keeping the most likely run removes that failure.
+    """
+    return (guess, guess.with_mass(0.6 * guess.m), guess.with_mass(1.6 * guess.m))
+
+
 def estimate_from_log(log, guess: CartParams, estimate_sigma: bool = True,
-                      meas_std: Optional[Sequence[float]] = None, **config) -> LogEstimate:
-    """Return the EKF's parameter estimate on a CartLog (velocities estimated from the pose when absent)."""
+                      meas_std: Optional[Sequence[float]] = None,
+                      starts: Optional[Sequence[CartParams]] = None, refine: bool = True,
+                      **config) -> LogEstimate:
+    """Return the EKF's parameter estimate on a CartLog (velocities estimated from the pose when absent).
+
+    The EKF runs from each of ``starts`` (default :func:`default_starts` of the
+    guess; ``starts=[guess]`` for a single run) and, with ``refine``, once more
+    from the best run's final parameters (prior covariance as for a guess); the
+    run with the smallest negative log-likelihood of its innovations
+    (:func:`run_ekf`) is returned (maximum likelihood over the starts).
+    """
     qd = log.velocities()
     if meas_std is None:
         meas_std = measurement_std_from_log(log.t, log.q, log.qd)
     cfg = EKFConfig.from_noise(meas_std, estimate_sigma=estimate_sigma, **config)
     z = np.hstack([log.q, qd])
-    ekf, hist, nis = run_ekf(log.t, log.gamma, z, guess.phi, guess.sigma, cfg)
+    starts = tuple(default_starts(guess) if starts is None else starts)
+    if not starts:
+        raise ParameterError("estimate_from_log needs at least one start")
+    best = None
+    for k, start in enumerate(starts + (None,) if refine else starts):
+        if start is None:  # refinement: restart from the best run's estimate
+            start = best[1].params()
+        nll: list = []
+        ekf, hist, nis = run_ekf(log.t, log.gamma, z, start.phi, start.sigma, cfg, nll)
+        if np.isfinite(nll[0]) and (best is None or nll[0] < best[0]):
+            best = (nll[0], ekf, hist, nis)
+    if best is None:
+        raise FloatingPointError("the EKF diverged from every start")
+    _, ekf, hist, nis = best
     return LogEstimate(params=ekf.params(), std=ekf.params_std(), meas_std=tuple(cfg.meas_std),
                        mean_nis=float(np.nanmean(nis)), velocities_estimated=not log.has_velocities, history=hist)

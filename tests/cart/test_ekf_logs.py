@@ -262,3 +262,20 @@ def test_table1_test11_payload_changes_at_cruise_final_mass_within_half_kg():
     assert run.params_true[-1, 0] == pytest.approx(25.0)
     assert abs(run.params_hat[-1, 0] - 25.0) < 0.5
     assert abs(run.params_hat[int(19.5 / 0.01), 0] - 30.0) > 5.0  # unobservable at cruise: not learned before the stop
+
+
+def test_estimate_from_log_multi_start_escapes_the_wrong_basin():
+    """A weakly exciting closed-loop log where one EKF run from 15 kg locks onto ~31 kg (NIS ~177):
+    the maximum-likelihood choice over starts (default) recovers the 20 kg cart."""
+    run = table1.run_test(table1.TESTS[4], True, seed=0)
+    rng = np.random.default_rng(100)
+    log = CartLog(t=run.t, q=run.q + rng.normal(size=run.q.shape) * 0.001, gamma=run.gamma, qd=None)
+    guess = CartParams(15.0, 0.0, 0.0, 1.5, 1.0)
+    single = estimate_from_log(log, guess, starts=[guess], refine=False)
+    assert abs(single.params.m - 20.0) > 5.0 and single.mean_nis > 50  # the failure this guards against
+    est = estimate_from_log(log, guess)
+    assert abs(est.params.m - 20.0) < 0.5
+    assert np.hypot(est.params.dx - 0.3, est.params.dy - 0.15) < 0.02
+    assert est.mean_nis < 10
+    with pytest.raises(ParameterError):
+        estimate_from_log(log, guess, starts=[])
