@@ -124,8 +124,14 @@ def _solve(d: np.ndarray, y: np.ndarray, lv: np.ndarray, lw: np.ndarray, s2v: fl
 
 
 def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, Tuple[float, ...]]],
-              phi_ref: Optional[np.ndarray] = None, max_iter: int = 12) -> Fit:
-    """Return the weighted least-squares fit of the nominal model plus ``effects`` (with their nl parameters)."""
+              phi_ref: Optional[np.ndarray] = None, max_iter: int = 12,
+              theta_ref: Optional[Sequence[Optional[np.ndarray]]] = None) -> Fit:
+    """Return the weighted least-squares fit of the nominal model plus ``effects`` (with their nl parameters).
+
+    Effects whose columns use phi, or that add a set-valued term
+    (``Effect.offset``), are fitted by fixed-point iteration from ``phi_ref``
+    and ``theta_ref`` (previous estimates, one per effect; None: start afresh).
+    """
     sig = sig0
     for e, nl in effects:
         sig = e.transform(sig, nl)
@@ -140,28 +146,38 @@ def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, 
     lv_b, lw_b = nominal_loadings(a_w.shape[0])
     s2v, s2w = sig0.extras["noise_dv"]
     phi = np.asarray(phi_ref, float) if phi_ref is not None else None
-    n_iter = max_iter if any(e.uses_phi for e, _ in effects) else 1
+    thetas_prev: List[Optional[np.ndarray]] = list(theta_ref) if theta_ref is not None else []
+    thetas_prev = (thetas_prev + [None] * len(effects))[:len(effects)]
+    iterate = any(e.uses_phi or e.set_valued for e, _ in effects)
+    n_iter = max_iter if iterate else 1
     if phi is None and n_iter > 1:
         phi = _solve(a_w, y_w, lv_b, lw_b, s2v, s2w)[0][:4]
-    for _ in range(n_iter):  # fixed-point iteration on phi for effects whose columns depend on it
+    for it in range(n_iter):  # fixed-point iteration on phi (and set-valued terms) for effects that use them
         g_w, lv, lw = [a_w], [lv_b], [lw_b]
-        for e, nl in effects:
+        y_fit = y_w
+        for (e, nl), th_prev in zip(effects, thetas_prev):
             g = window_integrals(sig.t, e.columns(sig, nl, phi, a_s), edges)
             g_w.append(g)
             lo = e.noise_loadings(sig, nl, edges, lv_b, lw_b)
             lv.append(lo[0] if lo is not None else np.zeros_like(g))
             lw.append(lo[1] if lo is not None else np.zeros_like(g))
+            off = e.offset(sig, nl, phi, a_s, th_prev) if e.set_valued else None
+            if off is not None:
+                y_fit = y_fit - window_integrals(sig.t, off, edges)
         d = np.concatenate(g_w, axis=2)
-        x, rss, cov, m2ll = _solve(d, y_w, np.concatenate(lv, axis=2), np.concatenate(lw, axis=2), s2v, s2w)
-        done = phi is not None and np.all(np.abs(x[:4] - phi) <= 1e-4 * (np.abs(phi) + 1e-3))
+        x, rss, cov, m2ll = _solve(d, y_fit, np.concatenate(lv, axis=2), np.concatenate(lw, axis=2), s2v, s2w)
+        thetas, k = [], 5
+        for e, _ in effects:
+            thetas.append(x[k:k + len(e.param_names)])
+            k += len(e.param_names)
+        done = phi is not None and np.all(np.abs(x[:4] - phi) <= 1e-4 * (np.abs(phi) + 1e-3)) and all(
+            tp is not None and np.all(np.abs(th - tp) <= 1e-3 * (np.abs(tp) + 1e-3))
+            for (e, _), th, tp in zip(effects, thetas, thetas_prev) if e.set_valued)
         phi = x[:4]
-        if done:
+        thetas_prev = thetas
+        if done or (it == 0 and not iterate):
             break
     n = y_w.shape[0]
-    thetas, k = [], 5
-    for e, _ in effects:
-        thetas.append(x[k:k + len(e.param_names)])
-        k += len(e.param_names)
     return Fit(effects=list(effects), x=x[:5], thetas=thetas, rss=rss, n_win=n, cov=cov, m2ll=m2ll, sig=sig)
 
 
@@ -170,11 +186,12 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
     base_effects = current.effects
     phi = current.phi
     grid = effect.nl_grid(sig)
-    fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi, max_iter=3) for nl in grid]
+    th0 = list(current.thetas) + [None]
+    fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi, max_iter=3, theta_ref=th0) for nl in grid]
     scores = np.array([f.m2ll if effect.is_physical(f.thetas[-1], f.effects[-1][1], f.x) else np.inf
                        for f in fits])
     i = int(np.argmin(scores))
-    best = fit_model(sig, edges, base_effects + [(effect, grid[i])], phi)
+    best = fit_model(sig, edges, base_effects + [(effect, grid[i])], phi, theta_ref=fits[i].thetas)
     nl_std: List[float] = []
     if len(effect.nl_names) == 1 and len(grid) > 1:
         lo_b, hi_b = effect.nl_bounds(sig)[0]
@@ -190,14 +207,16 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
         itr = (np.exp if log_scale else (lambda z: z))
 
         def obj(u: float) -> float:
-            f = fit_model(sig, edges, base_effects + [(effect, (float(itr(u)),))], phi, max_iter=3)
+            f = fit_model(sig, edges, base_effects + [(effect, (float(itr(u)),))], phi, max_iter=3,
+                          theta_ref=best.thetas)
             return f.m2ll if effect.is_physical(f.thetas[-1], f.effects[-1][1], f.x) else 1e300
 
         if hi > lo:
             res = optimize.minimize_scalar(obj, bounds=(float(tr(lo)), float(tr(hi))), method="bounded",
                                            options={"xatol": 1e-3 * max(abs(float(tr(hi)) - float(tr(lo))), 1e-6)})
             if res.fun < best.m2ll:
-                cand = fit_model(sig, edges, base_effects + [(effect, (float(itr(res.x)),))], phi)
+                cand = fit_model(sig, edges, base_effects + [(effect, (float(itr(res.x)),))], phi,
+                                 theta_ref=best.thetas)
                 if effect.is_physical(cand.thetas[-1], cand.effects[-1][1], cand.x):
                     best = cand
         u0 = float(tr(best.effects[-1][1][0]))
@@ -328,6 +347,11 @@ def _replay_terms(fit: Fit) -> Tuple[np.ndarray, Optional[np.ndarray]]:
         if ch is not None:
             dphi = ch if dphi is None else dphi + ch
             continue
+        off = e.offset(sig, nl, fit.phi, a_s, th) if e.set_valued else None
+        if off is not None:
+            extra[:, 0] -= off[:, 0]
+            extra[:, 1] -= off[:, 1]
+            extra[:, 2] += off[:, 2]
         if len(th) == 0:
             continue
         g = e.columns(sig, nl, fit.phi, a_s) @ th

@@ -77,34 +77,77 @@ def speed_scales(sig: Signals) -> Tuple[float, float]:
     return max(0.02, 2.0 * sig.sigma_v), max(0.03, 2.0 * sig.sigma_omega)
 
 
-def distance_since_reversal(sig: Signals) -> np.ndarray:
-    """Return the distance (m) travelled since the forward speed last changed sign (inf before the first).
+def stop_threshold(sig: Signals) -> float:
+    """Return the forward speed (m/s) below which the cart counts as (nearly) at rest: 3 x its noise, >= 3 cm/s."""
+    return max(0.03, 3.0 * sig.sigma_v)
 
-    A reversal is registered when v passes the opposite threshold (hysteresis
-    at the noise level); the distance counts from its last zero crossing.
+
+def forward_displacement(sig: Signals) -> np.ndarray:
+    """Return X(t) = integral of the forward speed v dt (m): signed travel along the body x axis."""
+    cached = sig.extras.get("x_fwd")
+    if cached is None:
+        v, t = sig.v, sig.t
+        cached = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+        sig.extras["x_fwd"] = cached
+    return cached
+
+
+def travel_direction(sig: Signals, min_rest: float = 0.3) -> np.ndarray:
+    """Return the direction the cart moves or is pushed to move, per sample: +1, -1 or 0 (undecided).
+
+    Moving (|v| above :func:`stop_threshold`): sign(v). At rest for at least
+    ``min_rest`` s: the sign of the mean forward force over the rest when it is
+    significant (3 standard errors and 2 N) -- a cart held still against a
+    push (stiction, a caster that has not swung round yet) is trying to move
+    that way; a cart at rest without a push is undecided (0). Shorter rests: 0.
+    """
+    v, t = sig.v, sig.t
+    v_th = stop_threshold(sig)
+    out = np.where(v > v_th, 1, np.where(v < -v_th, -1, 0)).astype(int)
+    rest = out == 0
+    if not np.any(rest):
+        return out
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], rest.astype(int), [0]])))
+    med_dt = float(np.median(np.diff(t)))
+    for i0, i1 in zip(edges[::2], edges[1::2]):  # rest runs [i0, i1)
+        if t[i1 - 1] - t[i0] < min_rest:
+            continue
+        f = sig.f_fwd[i0:i1]
+        mean = float(np.mean(f))
+        se = sig.sigma_force / math.sqrt(max(i1 - i0, 1))
+        if abs(mean) > max(3.0 * se, 2.0):
+            out[i0:i1] = 1 if mean > 0 else -1
+    return out
+
+
+def distance_since_reversal(sig: Signals) -> np.ndarray:
+    """Return the distance (m) travelled since the travel direction last reversed (inf before the first).
+
+    Directions come from :func:`travel_direction` (a push against a cart held
+    at rest counts as an attempted move). A reversal from direction a to b
+    starts at the extreme forward displacement X reached in direction a before
+    b began (the zero crossing of v for a plain reversal, the stop for a held
+    cart); the distance is then b (X - X_origin), clipped at 0. Signed
+    displacement rather than path length: noise and creeping back and forth
+    do not add up.
     """
     cached = sig.extras.get("dist_rev")
     if cached is not None:
         return cached
-    v, t = sig.v, sig.t
-    v_th = max(0.03, 3.0 * sig.sigma_v)
-    n = len(t)
+    x = forward_displacement(sig)
+    d = travel_direction(sig)
+    n = sig.n
     out = np.full(n, np.inf)
-    path = np.concatenate([[0.0], np.cumsum(0.5 * (np.abs(v[1:]) + np.abs(v[:-1])) * np.diff(t))])
-    direction = 0
-    origin = -1  # zero crossing that started the current direction after a reversal
-    last_cross = 0
-    for i in range(n):
-        if i > 0 and v[i] * v[i - 1] <= 0.0:
-            last_cross = i
-        new_dir = 1 if v[i] > v_th else (-1 if v[i] < -v_th else direction)
-        if new_dir != direction:
-            if direction != 0:  # a reversal (not the first start)
-                origin = last_cross
-                out[origin:i] = path[origin:i] - path[origin]
-            direction = new_dir
-        if origin >= 0:
-            out[i] = path[i] - path[origin]
+    nz = np.flatnonzero(d != 0)
+    if len(nz) > 1:
+        changes = nz[1:][d[nz[1:]] != d[nz[:-1]]]  # first sample of each new direction
+        prev_last = nz[:-1][d[nz[1:]] != d[nz[:-1]]]  # last sample of the old direction
+        for ia, ib in zip(prev_last, changes):
+            a, b = d[ia], d[ib]
+            seg = slice(ia, ib + 1)
+            origin = ia + int(np.argmax(a * x[seg]))
+            # from the origin to the next reversal's origin (overwritten by the next reversal)
+            out[origin:n] = np.maximum(b * (x[origin:n] - x[origin]), 0.0)
     sig.extras["dist_rev"] = out
     return out
 
@@ -117,6 +160,8 @@ class Effect:
     nl_names: Tuple[str, ...] = ()
     #: True when the columns use the current estimate of phi (refit iterates).
     uses_phi: bool = False
+    #: True when the effect adds a set-valued (parameter-free given the previous estimate) term, see :meth:`offset`.
+    set_valued: bool = False
 
     def nl_grid(self, sig: Signals) -> List[Tuple[float, ...]]:
         """Return the grid of nonlinear-parameter tuples to search (one empty tuple when there are none)."""
@@ -133,6 +178,16 @@ class Effect:
     def columns(self, sig: Signals, nl: Tuple[float, ...], phi: np.ndarray, base: np.ndarray) -> np.ndarray:
         """Return G (N, 3, len(param_names)): rows (forward force, yaw torque, lateral speed) per unit parameter."""
         return np.zeros((sig.n, 3, 0))
+
+    def offset(self, sig: Signals, nl: Tuple[float, ...], phi: np.ndarray, base: np.ndarray,
+               theta: Optional[np.ndarray]) -> Optional[np.ndarray]:
+        """Return a term (N, 3) added to the rows besides ``G theta`` (a set-valued force), or None (default).
+
+        Called with the previous estimate of phi and of this effect's
+        ``theta`` (None on the first pass); the fit iterates to a fixed point
+        (``set_valued = True``). Like ``G theta``, it is minus the generalized force.
+        """
+        return None
 
     def noise_loadings(self, sig: Signals, nl: Tuple[float, ...], edges: np.ndarray, lv: np.ndarray,
                        lw: np.ndarray) -> Optional[Tuple[np.ndarray, np.ndarray]]:
@@ -173,33 +228,62 @@ class Effect:
 
 
 class CoulombFriction(Effect):
-    """Constant-magnitude friction opposing the forward speed (force) and the yaw rate (torque)."""
+    """Constant-magnitude friction opposing the forward speed (force) and the yaw rate (torque).
+
+    Moving: E_fwd = -F tanh(v / v0), E_yaw = -T tanh(omega / omega0). At rest
+    (|v| below :func:`stop_threshold`) the forward friction is static: it holds
+    the cart against any push up to F, E_fwd = -clip(r, -F, F) with r the
+    forward force the nominal model leaves unexplained (:meth:`offset`).
+    """
 
     name = "coulomb_friction"
     param_names = ("force", "torque")
+    set_valued = True
 
     def columns(self, sig, nl, phi, base):
-        """Return G: tanh(v/v0) in the forward row, tanh(omega/omega0) in the yaw row (E = -G theta)."""
+        """Return G: tanh(v/v0) in the forward row while moving (0 at rest), tanh(omega/omega0) in the yaw row."""
         v0, w0 = speed_scales(sig)
+        moving = np.abs(sig.v) >= stop_threshold(sig)
         g = np.zeros((sig.n, 3, 2))
-        g[:, 0, 0] = np.tanh(sig.v / v0)
+        g[:, 0, 0] = np.where(moving, np.tanh(sig.v / v0), 0.0)
         g[:, 1, 1] = np.tanh(sig.omega / w0)
         return g
 
+    def offset(self, sig, nl, phi, base, theta):
+        """Return the static friction at rest: clip(r, -F, F) in the forward row (r: nominal residual)."""
+        if theta is None or phi is None or len(theta) == 0 or float(theta[0]) <= 0.0:
+            return None
+        rest = np.abs(sig.v) < stop_threshold(sig)
+        if not np.any(rest):
+            return None
+        r = sig.f_fwd - base[:, 0, :4] @ np.asarray(phi[:4], float)
+        out = np.zeros((sig.n, 3))
+        out[:, 0] = np.where(rest, np.clip(r, -float(theta[0]), float(theta[0])), 0.0)
+        return out
+
 
 class CasterSwivel(Effect):
-    """After the travel direction reverses, a resisting force fading with the distance travelled.
+    """After the travel direction reverses, the casters swing round: a resisting force that can hold the cart.
 
-    E_fwd = -F sign(v) g(s / d), s = distance since the last reversal, with the
-    shape g(u) = exp(-u^p): p = 1 an exponential decay, p = 2, 4 increasingly
-    compact (raised-cosine-like, then step-like) resistance over a finite
-    distance. p is chosen on the grid {1, 2, 4} through :meth:`variants`
-    (one variant per p, the best Delta BIC is kept) and counted as a parameter.
+    While the cart moves (|v| above :func:`stop_threshold`):
+    E_fwd = -F tanh(v / v0) g(s / d); s = distance since the last reversal
+    (:func:`distance_since_reversal`), shape g(u) = exp(-u^p): p = 1 an
+    exponential decay, p = 2, 4 increasingly compact (raised-cosine-like, then
+    step-like) resistance over a finite distance. p is chosen on the grid
+    {1, 2, 4} through :meth:`variants` and counted as a parameter.
+
+    At rest (stick): the casters hold the cart against any push up to the
+    breakaway force F g(s) -- the set-valued force
+    E_fwd = -clip(r, -F g(s), F g(s)), r = the forward force the nominal model
+    leaves unexplained (:meth:`offset`). A cart that stays put after a
+    push-to-pull reversal until the pull exceeds the breakaway force is thus
+    explained, and the replay holds it too.
     """
 
     name = "caster_swivel"
     param_names = ("force",)
     nl_names = ("distance",)
+    set_valued = True
     #: shape exponent p of g(u) = exp(-u^p)
     shape: float = 1.0
     SHAPES: Tuple[float, ...] = (1.0, 2.0, 4.0)
@@ -224,15 +308,33 @@ class CasterSwivel(Effect):
         """Return the distance bounds in metres."""
         return [(0.01, 3.0)]
 
-    def columns(self, sig, nl, phi, base):
-        """Return G: sign(v) exp(-(s / distance)^p) in the forward row, s = distance since the last reversal."""
-        v0, _ = speed_scales(sig)
+    def profile(self, sig: Signals, nl: Tuple[float, ...]) -> np.ndarray:
+        """Return g(s / d) per sample (0 before the first reversal)."""
         s = distance_since_reversal(sig)
-        g = np.zeros((sig.n, 3, 1))
         with np.errstate(over="ignore", invalid="ignore"):
             shape = np.exp(-np.power(s / nl[0], self.shape))
-        g[:, 0, 0] = np.tanh(sig.v / v0) * np.where(np.isfinite(s), shape, 0.0)
+        return np.where(np.isfinite(s), shape, 0.0)
+
+    def columns(self, sig, nl, phi, base):
+        """Return G: tanh(v / v0) g(s / d) in the forward row while moving, 0 at rest (see :meth:`offset`)."""
+        v0, _ = speed_scales(sig)
+        moving = np.abs(sig.v) >= stop_threshold(sig)
+        g = np.zeros((sig.n, 3, 1))
+        g[:, 0, 0] = np.where(moving, np.tanh(sig.v / v0) * self.profile(sig, nl), 0.0)
         return g
+
+    def offset(self, sig, nl, phi, base, theta):
+        """Return the holding force at rest: clip(r, -F g, F g) in the forward row (r: nominal residual)."""
+        if theta is None or phi is None or len(theta) == 0:
+            return None
+        rest = np.abs(sig.v) < stop_threshold(sig)
+        cap = max(float(theta[0]), 0.0) * self.profile(sig, nl)
+        if not np.any(rest & (cap > 0)):
+            return None
+        r = sig.f_fwd - base[:, 0, :4] @ np.asarray(phi[:4], float)
+        out = np.zeros((sig.n, 3))
+        out[:, 0] = np.where(rest, np.clip(r, -cap, cap), 0.0)
+        return out
 
     def describe(self, theta, nl, cov, nl_std, phi):
         """Return force (N), distance d (m) and the shape exponent p (grid-chosen: std reported as 0)."""

@@ -163,7 +163,7 @@ def test_a_blown_up_replay_is_infinite_not_nan_and_silent():
 
 
 def test_caster_shape_variants_and_their_columns():
-    from cart.effects import CasterSwivel, distance_since_reversal
+    from cart.effects import CasterSwivel, distance_since_reversal, stop_threshold
     from cart.log_signals import signals_from_log
 
     vs = CasterSwivel().variants()
@@ -172,8 +172,9 @@ def test_caster_shape_variants_and_their_columns():
     sig = signals_from_log(h.measured)
     s = distance_since_reversal(sig)
     v0 = max(0.02, 2.0 * sig.sigma_v)
+    moving = np.abs(sig.v) >= stop_threshold(sig)
     for v in vs:
         g = v.columns(sig, (0.3,), None, None)[:, 0, 0]
-        fin = np.isfinite(s)
+        fin = np.isfinite(s) & moving
         assert np.allclose(g[fin], np.tanh(sig.v[fin] / v0) * np.exp(-(s[fin] / 0.3) ** v.shape))
         assert np.all(g[~fin] == 0.0)
