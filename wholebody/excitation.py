@@ -10,25 +10,47 @@ linear in ``phi = [m, m dx, m dy, I + m (dx^2 + dy^2)]`` (paper §II.B)::
 i.e. ``Y(v, vdot, omega, omegadot) phi + sigma [v, omega] = [f_forward, tau_b]``;
 the lateral force is absorbed by the wheels and carries no information.
 
-The wrench is measured by the force/torque sensor at the end effector, whose
-noise is white in the contact frame {a} (std ``force`` on each force axis,
-``torque`` on the yaw torque). Through the grasp map (eqs. 23–24) the noise of
-``(f_forward, tau_b)`` depends on where the hand holds the handle:
-``tau_b = tau_z + px fy - py fx``. The contact schedule therefore changes the
-Fisher information of phi::
+The wrench the estimator uses is uncertain by a noise that is white in the
+contact frame {a} (std ``force`` on each force axis, ``torque`` on the yaw
+torque): the F/T sensor's noise, the arm's wrench-tracking error, or what is
+left of both after fusing them (:func:`input_model`). Through the grasp map
+(eqs. 23–24) the noise of ``(f_forward, tau_b)`` depends on where the hand
+holds the handle: ``tau_b = tau_z + px fy - py fx``. The contact schedule
+therefore changes the Fisher information of phi::
 
     I = sum_t Y_t^T R(p_t)^{-1} Y_t,   R(p) = S G(p) Sigma_ee G(p)^T S^T.
 
-The score of a push is the smallest eigenvalue of ``D I D`` with ``D`` the
-parameter scales (so that m, m dx, m dy, J are compared in like units). The
-planner picks a piecewise-constant contact schedule (``n_segments`` pieces)
-maximizing it under an effort budget (the allocation effort of
+With the default handle (px fixed, py the lateral offset) R(p)^{-1} is a
+quadratic in py with a positive semi-definite py^2 term: the precisely measured
+combination is ``tau_b + py f_forward = tau_z + px fy``, so an off-centre hand
+weights the forward-force row into the precise row (and the handle's ends
+dominate any interior point).
+
+Scores of a push (larger is better, :func:`objective_value`):
+
+* ``"min_eig"``: smallest eigenvalue of ``D I D``, ``D`` the parameter scales;
+* ``"com_a"``: minus the trace of the CoM block of the Cramér–Rao bound
+  ``J_c (I + P0^{-1})^{-1} J_c^T`` (A-optimality on (dx, dy); ``P0`` the
+  estimator's prior, ``J_c = d(dx, dy)/d phi``), what the EKF's CoM error is
+  bounded by;
+* ``"com_d"``: minus the log-determinant of the same 2x2 block;
+* ``"com_a_path"`` (schedules only): minus the mean of that trace at the end of
+  each segment, i.e. the CoM bound along the push, which rewards converging early.
+
+The planner picks a piecewise-constant contact schedule (``n_segments`` pieces)
+maximizing a score under an effort budget (the allocation effort of
 `wholebody.allocation`, integrated over the push).
+
+The closed-loop study :func:`com_convergence_traj2` runs Traj. 2 with the
+paper's EKF fed the wrench and its contact-dependent covariance
+(``CartEKF.step(..., gamma_cov=...)``); :func:`contact_study` compares
+schedules over seeds. See docs/contacts.md for the numbers.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable, Sequence
+import itertools
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -36,13 +58,81 @@ from wholebody.allocation import ArmLimits, WrenchAllocator
 from wholebody.contact import HandleSegment, grasp_map
 from wholebody.errors import WholeBodyError
 
+#: Scores the planner can maximize (see the module docstring).
+OBJECTIVES = ("min_eig", "com_a", "com_d", "com_a_path")
+#: Wrenches the EKF can be fed (see :func:`input_model`).
+EKF_INPUTS = ("measured", "fused", "commanded")
+
 
 @dataclass(frozen=True)
 class WrenchNoise:
-    """Std of the end-effector force/torque sensor in {a}: force (N, each axis), yaw torque (N m)."""
+    """Std of a white end-effector wrench noise in {a}: force (N, each axis), yaw torque (N m)."""
 
     force: float = 3.0
     torque: float = 0.3
+
+    def __post_init__(self) -> None:
+        if not (self.force >= 0.0 and self.torque >= 0.0):
+            raise WholeBodyError(f"wrench noise std must be >= 0, got force={self.force}, torque={self.torque}")
+
+    def covariance_ee(self) -> np.ndarray:
+        """Return the 6x6 covariance of [f; tau] in {a} (fz, tau_x, tau_y noise-free: planar contact)."""
+        return np.diag([self.force**2, self.force**2, 0.0, 0.0, 0.0, self.torque**2])
+
+
+@dataclass(frozen=True)
+class InputModel:
+    """The wrench fed to the EKF: ``commanded + gain * (measured - commanded)`` per {a} axis, and its error std.
+
+    ``gain_force`` applies to fx, fy, ``gain_torque`` to tau_z; ``noise`` is the
+    std of the applied wrench minus the EKF's input.
+    """
+
+    gain_force: float
+    gain_torque: float
+    noise: WrenchNoise
+
+    def gains_ee(self) -> np.ndarray:
+        """Return the per-component gains (6,) of [f; tau] in {a}."""
+        return np.array([self.gain_force, self.gain_force, 0.0, 0.0, 0.0, self.gain_torque])
+
+
+def _fuse(actuation: float, sensor: float) -> tuple[float, float]:
+    """Return (gain, error std) of the conditional mean of the applied value given command and measurement."""
+    ve, vn = actuation**2, sensor**2
+    if ve == 0.0:
+        return 0.0, 0.0
+    if vn == 0.0:
+        return 1.0, 0.0
+    return ve / (ve + vn), float(np.sqrt(ve * vn / (ve + vn)))
+
+
+def input_model(mode: str, sensor: WrenchNoise = WrenchNoise(), actuation: WrenchNoise = WrenchNoise()) -> InputModel:
+    """Return how the EKF's wrench input is formed and the std of its error.
+
+    The arm applies ``commanded + e`` (``e`` white in {a}, std ``actuation``:
+    its wrench-tracking error); the F/T sensor reads ``applied + n`` (std
+    ``sensor``). Modes:
+
+    * ``"measured"``: the F/T reading; error ``-n`` (std ``sensor``). The
+      error is correlated with the input itself (errors in variables), which
+      biases the EKF's parameters whenever ``sensor`` is not small against the
+      applied wrench's own variation;
+    * ``"commanded"``: the command; error ``e`` (std ``actuation``);
+    * ``"fused"``: the conditional mean ``E[applied | commanded, measured]``,
+      gain ``actuation^2 / (actuation^2 + sensor^2)`` per axis; its error is
+      uncorrelated with the input (orthogonality of the conditional mean), std
+      ``(actuation^-2 + sensor^-2)^-1/2``.
+    """
+    if mode == "measured":
+        return InputModel(1.0, 1.0, sensor)
+    if mode == "commanded":
+        return InputModel(0.0, 0.0, actuation)
+    if mode == "fused":
+        gf, sf = _fuse(actuation.force, sensor.force)
+        gt, st = _fuse(actuation.torque, sensor.torque)
+        return InputModel(gf, gt, WrenchNoise(sf, st))
+    raise WholeBodyError(f"unknown EKF input {mode!r}; choose one of {', '.join(EKF_INPUTS)}")
 
 
 @dataclass(frozen=True)
@@ -73,10 +163,19 @@ class ContactSchedule:
         k = int(np.clip(np.searchsorted(self.boundaries, t, side="right") - 1, 0, len(self.s) - 1))
         return float(self.s[k])
 
+    def __call__(self, t: float) -> float:
+        """Return the handle coordinate held at time t (same as :meth:`at`)."""
+        return self.at(t)
+
 
 @dataclass(frozen=True)
 class SchedulePlan:
-    """The planned schedule, its score and effort, and the best fixed contact for comparison."""
+    """The planned schedule, its score and effort, and the best fixed contact (by the same score).
+
+    ``com_std`` / ``fixed_com_std``: sqrt of the diagonal of the CoM Cramér–Rao
+    bound (dx, dy) in m of the plan / of the best fixed contact, under the
+    planning model.
+    """
 
     schedule: ContactSchedule
     score: float
@@ -85,6 +184,9 @@ class SchedulePlan:
     fixed_score: float
     fixed_effort: float
     budget: float
+    objective: str = "min_eig"
+    com_std: tuple[float, float] = (float("nan"), float("nan"))
+    fixed_com_std: tuple[float, float] = (float("nan"), float("nan"))
 
 
 def sample_push(trajectory, dt: float = 0.05, duration: float | None = None) -> PushSamples:
@@ -115,18 +217,37 @@ def reduced_wrench(samples: PushSamples, phi: Sequence[float], sigma: float = 0.
     return Y @ np.asarray(phi, dtype=float) + sigma * np.stack([samples.v, samples.omega], axis=1)
 
 
+def cart_wrench_covariance(point_b: Sequence[float], cov_ee: np.ndarray, theta: float = 0.0) -> np.ndarray:
+    """Return the 3x3 covariance of gamma = (fx, fy, tau) in {s} axes of a wrench noise cov_ee (6x6) in {a}.
+
+    ``R_z(theta) G(p) Sigma_ee G(p)^T R_z(theta)^T`` with G the planar grasp map
+    (eqs. 23–24, torque about the {b} origin) and theta the cart heading.
+    """
+    G = grasp_map(point_b)
+    c, s = np.cos(theta), np.sin(theta)
+    Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    M = Rz @ G
+    return M @ np.asarray(cov_ee, dtype=float) @ M.T
+
+
 def measurement_covariance(point_b: Sequence[float], noise: WrenchNoise = WrenchNoise()) -> np.ndarray:
-    """Return R(p) (2x2): covariance of (f_forward, tau_b) from sensor noise at contact p."""
+    """Return R(p) (2x2): covariance of (f_forward, tau_b) from a wrench noise in {a} at contact p."""
     G = grasp_map(point_b)[[0, 2]][:, [0, 1, 5]]  # rows fx_b, tau_b; columns fx, fy, tau_z at {a}
     return G @ np.diag([noise.force**2, noise.force**2, noise.torque**2]) @ G.T
 
 
-def fisher_information(samples: PushSamples, points_b: np.ndarray, noise: WrenchNoise = WrenchNoise()) -> np.ndarray:
-    """Return the 4x4 Fisher information of phi for samples held at points_b (N x 3, one per sample)."""
+def fisher_information(samples: PushSamples, points_b: np.ndarray, noise: WrenchNoise = WrenchNoise(),
+                       sensor_dt: float | None = None) -> np.ndarray:
+    """Return the 4x4 Fisher information of phi for samples held at points_b (N x 3, one per sample).
+
+    One wrench reading per sample, or, with ``sensor_dt``, one every
+    ``sensor_dt`` seconds (the sum is scaled by ``samples.dt / sensor_dt``).
+    """
     Y = reduced_regressor(samples.v, samples.vdot, samples.omega, samples.omegadot)
     pts = np.asarray(points_b, dtype=float).reshape(len(samples.t), 3)
     Rinv = np.array([np.linalg.inv(measurement_covariance(p, noise)) for p in pts])
-    return np.einsum("nji,njk,nkl->il", Y, Rinv, Y)
+    scale = 1.0 if sensor_dt is None else samples.dt / float(sensor_dt)
+    return scale * np.einsum("nji,njk,nkl->il", Y, Rinv, Y)
 
 
 def parameter_scale(phi: Sequence[float], length: float = 0.3) -> np.ndarray:
@@ -141,7 +262,56 @@ def excitation_score(info: np.ndarray, phi: Sequence[float]) -> float:
     return float(np.linalg.eigvalsh(D @ info @ D)[0])
 
 
-def _segment_tables(samples, phi, sigma, handle, candidates, n_segments, noise, limits):
+def default_prior(phi: Sequence[float]) -> np.ndarray:
+    """Return the 4x4 prior covariance of phi that `cart.ekf.CartEKF` starts from for the guess phi."""
+    from cart.ekf import initial_covariance
+
+    return initial_covariance(np.asarray(phi, dtype=float), [1.0] * 6)[6:, 6:]
+
+
+def com_jacobian(phi: Sequence[float]) -> np.ndarray:
+    """Return d(dx, dy)/d phi (2x4) at phi, with dx = phi[1]/phi[0], dy = phi[2]/phi[0]."""
+    m, a, b, _ = (float(v) for v in phi)
+    if m <= 0.0:
+        raise WholeBodyError(f"the planning model needs a positive mass, got phi = {list(phi)}")
+    return np.array([[-a / m**2, 1.0 / m, 0.0, 0.0], [-b / m**2, 0.0, 1.0 / m, 0.0]])
+
+
+def com_covariance(info: np.ndarray, phi: Sequence[float], prior_cov: np.ndarray | None = None) -> np.ndarray:
+    """Return the 2x2 Cramér–Rao bound of the CoM (dx, dy): J_c (I + P0^-1)^-1 J_c^T.
+
+    ``prior_cov`` is P0 (default: the EKF's prior for phi, :func:`default_prior`);
+    the bound is the posterior covariance of the linearized problem.
+    """
+    P0 = default_prior(phi) if prior_cov is None else np.asarray(prior_cov, dtype=float)
+    C = np.linalg.inv(np.asarray(info, dtype=float) + np.linalg.inv(P0))
+    J = com_jacobian(phi)
+    return J @ C @ J.T
+
+
+def objective_value(info: np.ndarray, phi: Sequence[float], objective: str = "min_eig",
+                    prior_cov: np.ndarray | None = None) -> float:
+    """Return the score of a push with Fisher information ``info`` (larger is better; see the module docstring).
+
+    ``info`` is the 4x4 information of the whole push, or for ``"com_a_path"``
+    the (K, 4, 4) stack of the information gathered in each of K consecutive
+    segments.
+    """
+    info = np.asarray(info, dtype=float)
+    if objective == "com_a_path":
+        cum = np.cumsum(info.reshape(-1, 4, 4), axis=0)
+        return float(np.mean([objective_value(c, phi, "com_a", prior_cov) for c in cum]))
+    if info.ndim == 3:
+        info = info.sum(axis=0)
+    if objective == "min_eig":
+        return excitation_score(info, phi)
+    if objective in ("com_a", "com_d"):
+        C = com_covariance(info, phi, prior_cov)
+        return -float(np.trace(C)) if objective == "com_a" else -float(np.linalg.slogdet(C)[1])
+    raise WholeBodyError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}")
+
+
+def _segment_tables(samples, phi, sigma, handle, candidates, n_segments, noise, limits, sensor_dt=None):
     """Return boundaries, info[k, j] (4x4) and effort[k, j] for segment k held at candidate j."""
     T = samples.t[-1]
     bounds = np.linspace(0.0, T, n_segments + 1)
@@ -150,13 +320,14 @@ def _segment_tables(samples, phi, sigma, handle, candidates, n_segments, noise, 
     need = reduced_wrench(samples, phi, sigma)  # (N, 2): f_forward, tau_b
     gam = np.stack([need[:, 0], np.zeros(len(need)), need[:, 1]], axis=1)
     alloc = WrenchAllocator([handle.point(0.0)], limits, only_motion_directions=True)
+    scale = 1.0 if sensor_dt is None else samples.dt / float(sensor_dt)
     J = len(candidates)
     info = np.zeros((n_segments, J, 4, 4))
     effort = np.zeros((n_segments, J))
     for j, s in enumerate(candidates):
         p = handle.point(float(s))
         Rinv = np.linalg.inv(measurement_covariance(p, noise))
-        per = np.einsum("nji,jk,nkl->nil", Y, Rinv, Y)
+        per = scale * np.einsum("nji,jk,nkl->nil", Y, Rinv, Y)
         alloc.set_points([p])
         e = np.empty(len(gam))
         for n, g in enumerate(gam):
@@ -167,6 +338,67 @@ def _segment_tables(samples, phi, sigma, handle, candidates, n_segments, noise, 
             info[k, j] = per[mask].sum(axis=0)
             effort[k, j] = e[mask].sum() * samples.dt
     return bounds, info, effort
+
+
+def _best_schedule(info: np.ndarray, effort: np.ndarray, budget: float, score: Callable[[np.ndarray], float],
+                   sweeps: int, exhaustive_limit: int) -> tuple[list[int], float]:
+    """Return (candidate index per segment, score) maximizing score(per-segment infos) within the effort budget.
+
+    Exhaustive when J^K <= exhaustive_limit; else coordinate ascent (one segment
+    at a time, every candidate) started from every feasible fixed contact.
+    """
+    K, J = effort.shape
+    total = lambda idx: info[np.arange(K), idx]  # noqa: E731  (K, 4, 4): the chosen segments' information
+    cost = lambda idx: effort[np.arange(K), idx].sum()  # noqa: E731
+    best_idx, best = None, -np.inf
+    if J**K <= exhaustive_limit:
+        for idx in itertools.product(range(J), repeat=K):
+            idx = np.array(idx)
+            if cost(idx) <= budget:
+                sc = score(total(idx))
+                if sc > best:
+                    best_idx, best = idx, sc
+        return _cheapest_ties(best_idx, best, effort, budget, lambda idx: score(total(idx))), float(best)
+    for j0 in range(J):
+        idx = np.full(K, j0)
+        if not cost(idx) <= budget:
+            continue
+        cur = score(total(idx))
+        for _ in range(sweeps):
+            improved = False
+            for k in range(K):
+                for j in range(J):
+                    if j == idx[k]:
+                        continue
+                    trial = idx.copy()
+                    trial[k] = j
+                    if not cost(trial) <= budget:
+                        continue
+                    sc = score(total(trial))
+                    if sc > cur + 1e-12 * abs(cur):
+                        idx, cur, improved = trial, sc, True
+            if not improved:
+                break
+        if cur > best:
+            best_idx, best = idx, cur
+    return _cheapest_ties(best_idx, best, effort, budget, lambda idx: score(total(idx))), float(best)
+
+
+def _cheapest_ties(idx: np.ndarray, best: float, effort: np.ndarray, budget: float,
+                   score_of: Callable[[np.ndarray], float], rtol: float = 1e-9) -> list[int]:
+    """Return idx with each segment moved to its least-effort candidate that keeps the score (ties, e.g. no motion)."""
+    idx = np.array(idx)
+    K = len(idx)
+    for k in range(K):
+        for j in np.argsort(effort[k], kind="stable"):
+            if j == idx[k] or effort[k, j] >= effort[k, idx[k]]:
+                break
+            trial = idx.copy()
+            trial[k] = j
+            if effort[np.arange(K), trial].sum() <= budget and score_of(trial) >= best - rtol * abs(best):
+                idx = trial
+                break
+    return [int(j) for j in idx]
 
 
 def plan_contact_schedule(
@@ -181,87 +413,180 @@ def plan_contact_schedule(
     noise: WrenchNoise = WrenchNoise(),
     limits: ArmLimits = ArmLimits(),
     sweeps: int = 10,
+    objective: str = "min_eig",
+    prior_cov: np.ndarray | None = None,
+    sensor_dt: float | None = None,
+    exhaustive_limit: int = 20_000,
 ) -> SchedulePlan:
-    """Return the piecewise-constant contact schedule maximizing the excitation score within an effort budget.
+    """Return the piecewise-constant contact schedule maximizing a score within an effort budget.
 
-    ``phi`` (and ``sigma``) are the planning model (the current estimate). The
-    budget defaults to ``budget_ratio`` times the effort of the least-effort
-    fixed contact. Search: the best feasible fixed contact, then coordinate
-    ascent over segments on a grid of ``n_candidates`` handle points.
+    ``phi`` (and ``sigma``) are the planning model (the current estimate);
+    ``objective`` one of :data:`OBJECTIVES`; ``prior_cov`` the estimator's
+    prior (default :func:`default_prior`) and ``sensor_dt`` the wrench sampling
+    period, both only used by the CoM objectives. The budget defaults to
+    ``budget_ratio`` times the effort of the least-effort fixed contact.
+    Search on a grid of ``n_candidates`` handle points: exhaustive when
+    ``n_candidates ** n_segments <= exhaustive_limit``, else coordinate ascent
+    from every feasible fixed contact.
     """
     handle = HandleSegment.default() if handle is None else handle
     if n_segments < 1 or n_candidates < 2:
         raise WholeBodyError("need n_segments >= 1 and n_candidates >= 2")
+    if objective not in OBJECTIVES:
+        raise WholeBodyError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}")
     cand = np.linspace(0.0, handle.length, n_candidates)
-    bounds, info, effort = _segment_tables(samples, phi, sigma, handle, cand, n_segments, noise, limits)
+    bounds, info, effort = _segment_tables(samples, phi, sigma, handle, cand, n_segments, noise, limits, sensor_dt)
     fixed_effort = effort.sum(axis=0)  # (J,)
     if not np.any(np.isfinite(fixed_effort)):
         raise WholeBodyError("no fixed contact on the handle can produce the planned push within the arm limits")
     budget = float(effort_budget) if effort_budget is not None else budget_ratio * float(np.min(fixed_effort))
-    score = lambda idx: excitation_score(sum(info[k, j] for k, j in enumerate(idx)), phi)  # noqa: E731
-    fixed_scores = np.array([score([j] * n_segments) if fixed_effort[j] <= budget else -np.inf for j in range(len(cand))])
+    P0 = default_prior(phi) if prior_cov is None else np.asarray(prior_cov, dtype=float)
+    score = lambda I: objective_value(I, phi, objective, P0)  # noqa: E731
+    fixed_scores = np.array([score(info[:, j]) if fixed_effort[j] <= budget else -np.inf
+                             for j in range(len(cand))])
     if not np.any(np.isfinite(fixed_scores)):
         raise WholeBodyError(f"effort budget {budget:.4g} is below the cheapest fixed contact ({np.min(fixed_effort):.4g})")
     j0 = int(np.argmax(fixed_scores))
-    idx = [j0] * n_segments
-    best = fixed_scores[j0]
-    for _ in range(sweeps):
-        improved = False
-        for k in range(n_segments):
-            for j in range(len(cand)):
-                if j == idx[k]:
-                    continue
-                trial = list(idx)
-                trial[k] = j
-                e = sum(effort[kk, jj] for kk, jj in enumerate(trial))
-                if e > budget:
-                    continue
-                sc = score(trial)
-                if sc > best * (1 + 1e-12):
-                    best, idx, improved = sc, trial, True
-        if not improved:
-            break
+    idx, best = _best_schedule(info, effort, budget, score, sweeps, exhaustive_limit)
+    if best < fixed_scores[j0]:  # cannot happen: every fixed contact is a start; kept as a guard
+        idx, best = [j0] * n_segments, float(fixed_scores[j0])
     sched = ContactSchedule(bounds, cand[idx])
     total = float(sum(effort[k, j] for k, j in enumerate(idx)))
-    return SchedulePlan(sched, float(best), total, float(cand[j0]), float(fixed_scores[j0]), float(fixed_effort[j0]), budget)
+    std = lambda I: tuple(float(v) for v in np.sqrt(np.diag(com_covariance(I, phi, P0))))  # noqa: E731
+    return SchedulePlan(sched, float(best), total, float(cand[j0]), float(fixed_scores[j0]), float(fixed_effort[j0]),
+                        budget, objective, std(sum(info[k, j] for k, j in enumerate(idx))), std(info[:, j0].sum(axis=0)))
+
+
+def schedule_points(samples: PushSamples, schedule: Callable[[float], float] | ContactSchedule,
+                    handle: HandleSegment | None = None) -> np.ndarray:
+    """Return the contact points (N x 3 in {b}) a schedule s(t) holds at the sample times."""
+    handle = HandleSegment.default() if handle is None else handle
+    at = schedule.at if isinstance(schedule, ContactSchedule) else schedule
+    return np.array([handle.point(at(t)) for t in samples.t])
 
 
 def schedule_score(samples: PushSamples, schedule: Callable[[float], float] | ContactSchedule, phi: Sequence[float],
-                   handle: HandleSegment | None = None, noise: WrenchNoise = WrenchNoise()) -> float:
-    """Return the excitation score of a push whose contact follows ``schedule`` (s(t) on the handle)."""
-    handle = HandleSegment.default() if handle is None else handle
-    at = schedule.at if isinstance(schedule, ContactSchedule) else schedule
-    pts = np.array([handle.point(at(t)) for t in samples.t])
-    return excitation_score(fisher_information(samples, pts, noise), phi)
+                   handle: HandleSegment | None = None, noise: WrenchNoise = WrenchNoise(),
+                   objective: str = "min_eig", prior_cov: np.ndarray | None = None,
+                   sensor_dt: float | None = None, boundaries: Sequence[float] | None = None) -> float:
+    """Return the score (``objective``) of a push whose contact follows ``schedule`` (s(t) on the handle).
+
+    ``"com_a_path"`` evaluates the bound at the ends of the segments
+    [boundaries[k], boundaries[k+1]) (default: the schedule's own boundaries).
+    """
+    pts = schedule_points(samples, schedule, handle)
+    if objective != "com_a_path":
+        return objective_value(fisher_information(samples, pts, noise, sensor_dt), phi, objective, prior_cov)
+    if boundaries is None:
+        if not isinstance(schedule, ContactSchedule):
+            raise WholeBodyError("objective 'com_a_path' needs segment boundaries for a schedule given as a function")
+        boundaries = schedule.boundaries
+    b = np.asarray(boundaries, dtype=float)
+    seg = np.clip(np.searchsorted(b, samples.t, side="right") - 1, 0, len(b) - 2)
+    Y = reduced_regressor(samples.v, samples.vdot, samples.omega, samples.omegadot)
+    Rinv = np.array([np.linalg.inv(measurement_covariance(p, noise)) for p in pts])
+    per = np.einsum("nji,njk,nkl->nil", Y, Rinv, Y) * (1.0 if sensor_dt is None else samples.dt / float(sensor_dt))
+    stack = np.array([per[seg == k].sum(axis=0) for k in range(len(b) - 1)])
+    return objective_value(stack, phi, objective, prior_cov)
+
+
+def schedule_com_std(samples: PushSamples, schedule: Callable[[float], float] | ContactSchedule,
+                     phi: Sequence[float], handle: HandleSegment | None = None, noise: WrenchNoise = WrenchNoise(),
+                     prior_cov: np.ndarray | None = None, sensor_dt: float | None = None) -> np.ndarray:
+    """Return sqrt(diag) of the CoM Cramér–Rao bound (dx, dy) in m of a push following ``schedule``."""
+    info = fisher_information(samples, schedule_points(samples, schedule, handle), noise, sensor_dt)
+    return np.sqrt(np.diag(com_covariance(info, phi, prior_cov)))
 
 
 # ---------------------------------------------------------------------------- EKF study on Traj. 2
+#: Table I test-5 cart (truth) and the EKF's initial guess used by the study.
+STUDY_TRUE_COM = (0.3, 0.15)
+STUDY_GUESS = (16.0, 0.3, 0.0, 1.6, 4.0)  # m, dx, dy, I, sigma
+
+
 @dataclass(frozen=True)
 class ConvergenceResult:
-    """CoM-estimate convergence of one run: time to stay below `tol` (None if never), final error."""
+    """CoM-estimate convergence of one closed-loop run (histories at the control rate).
+
+    ``com_error``: |(dx, dy) estimate - truth| (m); ``com_std``: the EKF's
+    posterior std of (dx, dy); ``com``: the estimate; ``mass_error``: estimate
+    minus truth (kg); ``mean_nis``: mean normalized innovation squared (6 when
+    consistent).
+    """
 
     label: str
     seed: int
-    time_to_tol: float | None
-    final_com_error: float
-    final_mass_error: float
+    t: np.ndarray = field(repr=False)
+    com: np.ndarray = field(repr=False)
+    com_error: np.ndarray = field(repr=False)
+    com_std: np.ndarray = field(repr=False)
+    mass_error: np.ndarray = field(repr=False)
+    mean_nis: float
+    tol: float = 0.03
+
+    def _index(self, t: float) -> int:
+        return int(min(np.searchsorted(self.t, t - 1e-9), len(self.t) - 1))
+
+    def error_at(self, t: float) -> float:
+        """Return the CoM error (m) at time t."""
+        return float(self.com_error[self._index(t)])
+
+    def time_below(self, tol: float | None = None) -> float | None:
+        """Return the time from which the CoM error stays below tol (None if it ends above)."""
+        tol = self.tol if tol is None else tol
+        ok = self.com_error < tol
+        if not ok[-1]:
+            return None
+        bad = np.nonzero(~ok)[0]
+        return float(self.t[0]) if bad.size == 0 else float(self.t[bad[-1] + 1])
+
+    @property
+    def time_to_tol(self) -> float | None:
+        """Return the time from which the CoM error stays below ``tol`` (None if never)."""
+        return self.time_below()
+
+    @property
+    def final_com_error(self) -> float:
+        """Return the CoM error at the end (m)."""
+        return float(self.com_error[-1])
+
+    @property
+    def final_mass_error(self) -> float:
+        """Return |mass error| at the end (kg)."""
+        return float(abs(self.mass_error[-1]))
 
 
 class _SensorLoop:
-    """Controller callback for cart.simulate: EKF on the *measured* wrench, tracking control, allocation."""
+    """Controller callback for cart.simulate: EKF on the chosen wrench input, tracking control, allocation.
 
-    def __init__(self, controller, guess, config, contact: Callable[[float], float], handle, noise, rng, n) -> None:
-        from cart.ekf import CartEKF  # noqa: F401  (imported here: cart is only needed for the study)
+    Each period the arm applies ``w + e`` (``w`` the allocation of the tracking
+    wrench at the scheduled contact, ``e`` the actuation error), the F/T sensor
+    reads ``w + e + n``; the EKF's next step is fed
+    ``w + K (reading - w)`` (:func:`input_model`) and the covariance of its
+    error mapped through the grasp map to {s} (``gamma_cov``, as a density:
+    per-period covariance times dt, since the wrench is held over dt).
+    """
 
+    def __init__(self, controller, guess, config, contact: Callable[[float], float], handle: HandleSegment,
+                 model: InputModel, sensor: WrenchNoise, actuation: WrenchNoise, rng, n: int,
+                 substeps: int = 1) -> None:
         self.ctrl, self.guess, self.config = controller, guess, config
-        self.contact, self.handle, self.noise, self.rng = contact, handle, noise, rng
+        self.substeps = int(substeps)
+        self.contact, self.handle, self.rng = contact, handle, rng
+        self.gain = model.gains_ee()
+        self.cov_in = model.noise.covariance_ee()
+        self.std_e = np.sqrt(np.diag(actuation.covariance_ee()))
+        self.std_n = np.sqrt(np.diag(sensor.covariance_ee()))
         self.alloc = WrenchAllocator([handle.point(0.0)], ArmLimits(), only_motion_directions=True)
         self.ekf = None
-        self.gamma_meas = np.zeros(3)
+        self.gamma_in = np.zeros(3)
+        self.gamma_cov = np.zeros((3, 3))
         self.t_prev = 0.0
         self.k = 0
         self.com_hat = np.zeros((n, 2))
+        self.com_std = np.zeros((n, 2))
         self.mass_hat = np.zeros(n)
+        self.nis = np.full(n, np.nan)
 
     def __call__(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray) -> np.ndarray:
         from cart.ekf import CartEKF
@@ -270,9 +595,17 @@ class _SensorLoop:
         if self.ekf is None:
             self.ekf = CartEKF(q_meas, qd_meas, self.guess.phi, self.guess.sigma, self.config)
         else:
-            self.ekf.step(self.gamma_meas, t - self.t_prev, z)
+            dt = t - self.t_prev
+            if self.substeps == 1:
+                self.nis[self.k] = self.ekf.step(self.gamma_in, dt, z, gamma_cov=self.gamma_cov * dt)
+            else:  # finer Euler prediction (same input held), one update
+                h = dt / self.substeps
+                for _ in range(self.substeps):
+                    self.ekf.predict(self.gamma_in, h, gamma_cov=self.gamma_cov * dt)
+                self.nis[self.k] = self.ekf.update(z)
         params = self.ekf.params()
         self.com_hat[self.k] = (params.dx, params.dy)
+        self.com_std[self.k] = self.ekf.params_std()["com"]
         self.mass_hat[self.k] = params.m
         th = float(self.ekf.x[2])
         c, s = np.cos(th), np.sin(th)
@@ -281,65 +614,232 @@ class _SensorLoop:
         p = self.handle.point(self.contact(t))
         self.alloc.set_points([p])
         w = self.alloc.solve(gamma_b, raise_on_infeasible=False).wrenches_ee[0]
+        draw = self.rng.standard_normal(12)  # always 12 draws: runs differing only in mode/contact share noise
+        e = self.std_e * draw[:6]
+        n = self.std_n * draw[6:]
         G = grasp_map(p)
-        applied_b = G @ w
-        w_meas = w.copy()
-        w_meas[[0, 1]] += self.noise.force * self.rng.standard_normal(2)
-        w_meas[5] += self.noise.torque * self.rng.standard_normal()
-        meas_b = G @ w_meas
-        to_world = lambda g: np.array([c * g[0] - s * g[1], s * g[0] + c * g[1], g[2]])  # noqa: E731
-        self.gamma_meas = to_world(meas_b)
+        Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        self.gamma_in = Rz @ (G @ (w + self.gain * (e + n)))
+        self.gamma_cov = cart_wrench_covariance(p, self.cov_in, th)
         self.t_prev = t
         self.k += 1
-        return to_world(applied_b)
+        return Rz @ (G @ (w + e))
+
+
+def study_config(dt: float = 0.01, q_floor: float = 1e-5, q_phi: float = 0.0):
+    """Return the EKFConfig of the study: measurement noise of Table I level 0.005, process-noise floor q_floor.
+
+    ``q_floor`` (m^2/s^3, rad^2/s^3) is the model-error floor on the velocities
+    (Euler vs RK4 discretisation: it gives mean NIS ~6 with an exact wrench);
+    the wrench noise itself enters per step through ``gamma_cov``. ``q_phi``:
+    random walk of phi (0: the parameters are constant).
+    """
+    from cart.ekf import EKFConfig
+    from cart.simulate import MeasurementNoise
+
+    meas = MeasurementNoise.from_level(0.005)
+    return EKFConfig.from_noise(meas.measurement_std(), q_pos=1e-8, q_vel=q_floor, q_omega=q_floor,
+                                q_phi=(q_phi,) * 4)
 
 
 def com_convergence_traj2(
     contact: Callable[[float], float] | ContactSchedule,
     label: str = "",
     seed: int = 0,
-    true_com: tuple[float, float] = (0.3, 0.15),
+    true_com: tuple[float, float] = STUDY_TRUE_COM,
     tol: float = 0.03,
     duration: float = 30.0,
     dt: float = 0.01,
     noise: WrenchNoise = WrenchNoise(),
     handle: HandleSegment | None = None,
+    ekf_input: str = "fused",
+    actuation: WrenchNoise = WrenchNoise(),
+    q_floor: float = 1e-5,
+    q_phi: float = 0.0,
+    ekf_substeps: int = 4,
 ) -> ConvergenceResult:
     """Return the CoM convergence of the EKF on Traj. 2 (Table I test 5 cart) with the given contact schedule.
 
-    The robot tracks Traj. 2 with the paper's feedback-linearization/LQR law on the
-    EKF estimate, realizes each wrench with one arm at the scheduled contact
-    (allocation QP), and the EKF is fed the wrench measured by the end-effector
-    F/T sensor (``noise`` in {a}) mapped through the grasp map.
+    The robot tracks Traj. 2 with the paper's feedback-linearization/LQR law on
+    the EKF estimate and realizes each wrench with one arm at the scheduled
+    contact (allocation QP). The arm's wrench has a white error ``actuation``
+    in {a}; the F/T sensor at the contact reads it with white noise ``noise``
+    in {a}. The EKF is fed the wrench chosen by ``ekf_input``
+    (:func:`input_model`) together with the covariance of its error mapped
+    through the grasp map (``CartEKF.step(..., gamma_cov=...)``).
     """
     from cart.control import make_controller
-    from cart.ekf import EKFConfig
     from cart.params import CartParams
     from cart.simulate import MeasurementNoise, simulate
     from cart.trajectories import trajectory_2
 
     handle = HandleSegment.default() if handle is None else handle
     at = contact.at if isinstance(contact, ContactSchedule) else contact
+    model = input_model(ekf_input, noise, actuation)
     traj = trajectory_2(duration)
     truth = CartParams(20.0, true_com[0], true_com[1], 20.0 * (1.0 + 0.36) / 12.0, 4.0)
-    guess = CartParams(16.0, 0.3, 0.0, 1.6, 4.0)
+    guess = CartParams(*STUDY_GUESS)
     meas = MeasurementNoise.from_level(0.005)
-    q_vel = (noise.force / guess.m) ** 2 * dt
-    q_om = (float(np.sqrt(measurement_covariance(handle.point(handle.length / 2), noise)[1, 1])) / guess.inertia_b) ** 2 * dt
-    config = EKFConfig.from_noise(meas.measurement_std(), q_pos=1e-8, q_vel=q_vel, q_omega=q_om,
-                                  q_phi=(0.005, 0.005, 0.005, 0.005))
+    config = study_config(dt, q_floor, q_phi)
     n = int(round(duration / dt)) + 1
-    rng = np.random.default_rng(seed)
-    loop = _SensorLoop(make_controller("fl_lqr", traj), guess, config, at, handle, noise,
-                       np.random.default_rng(seed + 10_000), n)
+    loop = _SensorLoop(make_controller("fl_lqr", traj), guess, config, at, handle, model, noise, actuation,
+                       np.random.default_rng(seed + 10_000), n, ekf_substeps)
     q0, _, _ = traj.sample(0.0)
-    sim = simulate(truth, loop, duration, dt, q0=q0, noise=meas, rng=rng)
+    sim = simulate(truth, loop, duration, dt, q0=q0, noise=meas, rng=np.random.default_rng(seed))
     err = np.hypot(loop.com_hat[:, 0] - truth.dx, loop.com_hat[:, 1] - truth.dy)
-    ok = err < tol
-    t = sim.true.t
-    if not ok[-1]:
-        t_tol = None
-    else:
-        bad = np.nonzero(~ok)[0]
-        t_tol = float(t[0]) if bad.size == 0 else float(t[bad[-1] + 1])
-    return ConvergenceResult(label, seed, t_tol, float(err[-1]), float(abs(loop.mass_hat[-1] - truth.m)))
+    return ConvergenceResult(label, seed, sim.true.t, loop.com_hat, err, loop.com_std, loop.mass_hat - truth.m,
+                             float(np.nanmean(loop.nis)), tol)
+
+
+@dataclass(frozen=True)
+class StudyRow:
+    """Summary over seeds of one contact schedule (means ± standard errors over seeds).
+
+    ``error_at``: {t: (mean, se)} of the CoM error |(dx, dy) - truth| (m);
+    ``rms_at``: {t: (rms, se)} of the same over seeds (se by the delta method);
+    ``crlb_at``: {t: sqrt(trace)} of the CoM Cramér–Rao bound (true
+    parameters, the input model's noise, the EKF's prior), what ``rms_at``
+    should match for an efficient, unbiased EKF; ``time_below``: {tol: ((mean,
+    se), never)} of the time from which the error stays < tol, a run that ends
+    above tol counting as the push's duration (``never`` such runs);
+    ``post_std``: mean EKF posterior std of (dx, dy) at the end; ``spread``:
+    std over seeds of the final (dx, dy) estimate; ``bias``: mean final (dx, dy)
+    error; ``crlb``: per-axis CRLB std at the end (m); ``mass``: (mean, se) of
+    the final mass error (kg); ``nis``: mean NIS; ``errors``: the final CoM
+    error of each seed (for paired comparisons).
+    """
+
+    label: str
+    n: int
+    error_at: dict
+    rms_at: dict
+    crlb_at: dict
+    time_below: dict
+    post_std: tuple[float, float]
+    spread: tuple[float, float]
+    bias: tuple[float, float]
+    crlb: tuple[float, float]
+    mass: tuple[float, float]
+    nis: float
+    errors: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+
+
+def _mean_se(x: Sequence[float]) -> tuple[float, float]:
+    x = np.asarray(x, dtype=float)
+    se = float(np.std(x, ddof=1) / np.sqrt(len(x))) if len(x) > 1 else float("nan")  # ddof=1 needs 2 seeds
+    return float(np.mean(x)), se
+
+
+def _rms_se(x: Sequence[float]) -> tuple[float, float]:
+    """Return the RMS of x and its standard error (delta method on the mean square)."""
+    ms, se = _mean_se(np.square(np.asarray(x, dtype=float)))
+    rms = float(np.sqrt(ms))
+    return rms, (se / (2.0 * rms) if rms > 0.0 else float("nan"))
+
+
+def com_crlb_course(samples: PushSamples, schedule: Callable[[float], float] | ContactSchedule,
+                    phi: Sequence[float], times: Sequence[float], noise: WrenchNoise = WrenchNoise(),
+                    prior_cov: np.ndarray | None = None, sensor_dt: float | None = None,
+                    handle: HandleSegment | None = None) -> np.ndarray:
+    """Return (len(times), 2, 2): the CoM Cramér–Rao bound from the information gathered up to each time."""
+    pts = schedule_points(samples, schedule, handle)
+    Y = reduced_regressor(samples.v, samples.vdot, samples.omega, samples.omegadot)
+    Rinv = np.array([np.linalg.inv(measurement_covariance(p, noise)) for p in pts])
+    scale = 1.0 if sensor_dt is None else samples.dt / float(sensor_dt)
+    cum = np.cumsum(scale * np.einsum("nji,njk,nkl->nil", Y, Rinv, Y), axis=0)
+    out = []
+    for t in times:
+        k = int(min(np.searchsorted(samples.t, t - 1e-9), len(samples.t) - 1))
+        out.append(com_covariance(cum[k], phi, prior_cov))
+    return np.array(out)
+
+
+def summarize(label: str, results: Sequence[ConvergenceResult], crlb_cov: np.ndarray,
+              times: Sequence[float] = (10.0, 20.0, 30.0), tols: Sequence[float] = (0.03, 0.01),
+              true_com=STUDY_TRUE_COM) -> StudyRow:
+    """Return the StudyRow of the runs of one schedule; ``crlb_cov`` is com_crlb_course at ``times``."""
+    dur = float(results[0].t[-1])
+    final = np.array([r.com[-1] for r in results]) - np.asarray(true_com)
+    tb = {}
+    for tol in tols:
+        x = [r.time_below(tol) for r in results]
+        tb[float(tol)] = (_mean_se([dur if v is None else v for v in x]), sum(v is None for v in x))
+    return StudyRow(
+        label, len(results),
+        {float(t): _mean_se([r.error_at(t) for r in results]) for t in times},
+        {float(t): _rms_se([r.error_at(t) for r in results]) for t in times},
+        {float(t): float(np.sqrt(np.trace(c))) for t, c in zip(times, crlb_cov)},
+        tb,
+        tuple(float(v) for v in np.mean([r.com_std[-1] for r in results], axis=0)),
+        tuple(float(v) for v in (np.std(final, axis=0, ddof=1) if len(final) > 1 else [np.nan, np.nan])),
+        tuple(float(v) for v in np.mean(final, axis=0)),
+        tuple(float(v) for v in np.sqrt(np.diag(crlb_cov[-1]))),
+        _mean_se([r.mass_error[-1] for r in results]), float(np.mean([r.mean_nis for r in results])),
+        np.array([r.final_com_error for r in results]))
+
+
+def contact_study(schedules: Mapping[str, Callable[[float], float] | ContactSchedule], seeds: Sequence[int],
+                  ekf_input: str = "fused", noise: WrenchNoise = WrenchNoise(),
+                  actuation: WrenchNoise = WrenchNoise(), duration: float = 30.0, dt: float = 0.01,
+                  times: Sequence[float] = (10.0, 20.0, 30.0), tols: Sequence[float] = (0.03, 0.01),
+                  **kwargs) -> tuple[list[StudyRow], dict]:
+    """Return (rows, runs): each schedule on Traj. 2 over the seeds, summarized, and the raw results.
+
+    Every schedule sees the same seeds (common random numbers: the same noise
+    draws in {a}), so differences between rows are paired. The CRLB columns use
+    the input model's error std, one wrench per ``dt``, the true parameters and
+    the EKF's prior. ``kwargs`` go to :func:`com_convergence_traj2`.
+    """
+    from cart.params import CartParams
+    from cart.trajectories import trajectory_2
+
+    truth = CartParams(20.0, STUDY_TRUE_COM[0], STUDY_TRUE_COM[1], 20.0 * 1.36 / 12.0, 4.0)
+    guess = CartParams(*STUDY_GUESS)
+    model = input_model(ekf_input, noise, actuation)
+    samples = sample_push(trajectory_2(duration), dt=dt, duration=duration)
+    rows, runs = [], {}
+    for label, sched in schedules.items():
+        res = [com_convergence_traj2(sched, label, s, duration=duration, dt=dt, noise=noise,
+                                     ekf_input=ekf_input, actuation=actuation, **kwargs) for s in seeds]
+        crlb = com_crlb_course(samples, sched, truth.phi, times, model.noise, default_prior(guess.phi))
+        runs[label] = res
+        rows.append(summarize(label, res, crlb, times, tols))
+    return rows, runs
+
+
+def format_table(rows: Sequence[StudyRow], scores: Mapping[str, str] | None = None) -> str:
+    """Return a markdown table of study rows: CoM errors in mm, times in s, mean ± SE over seeds."""
+    times = sorted(rows[0].error_at)
+    tols = sorted(rows[0].time_below, reverse=True)
+    head = ["contact"] + (["score"] if scores is not None else [])
+    head += [f"CoM err {t:g} s [mm]" for t in times] + [f"RMS / CRLB {t:g} s [mm]" for t in times]
+    head += [f"t(err<{100 * tol:g} cm) [s]" for tol in tols]
+    head += ["spread / EKF std / CRLB at end, dx; dy [mm]", "bias dx; dy [mm]", "mass err [kg]", "NIS"]
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    mm = lambda v: f"{1000 * v:.1f}"  # noqa: E731
+    for r in rows:
+        cells = [r.label] + ([scores.get(r.label, "—")] if scores is not None else [])
+        cells += [f"{mm(r.error_at[t][0])} ± {mm(r.error_at[t][1])}" for t in times]
+        cells += [f"{mm(r.rms_at[t][0])} ± {mm(r.rms_at[t][1])} / {mm(r.crlb_at[t])}" for t in times]
+        for tol in tols:
+            (m, se), never = r.time_below[tol]
+            cells.append(f"{m:.1f} ± {se:.1f}" + (f" ({never}/{r.n} never)" if never else ""))
+        cells.append(f"{mm(r.spread[0])} / {mm(r.post_std[0])} / {mm(r.crlb[0])}; "
+                     f"{mm(r.spread[1])} / {mm(r.post_std[1])} / {mm(r.crlb[1])}")
+        cells.append(f"{mm(r.bias[0])}; {mm(r.bias[1])}")
+        cells += [f"{r.mass[0]:+.2f} ± {r.mass[1]:.2f}", f"{r.nis:.2f}"]
+        out.append("| " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
+def format_paired(rows: Sequence[StudyRow], reference: str) -> str:
+    """Return a markdown table of the paired difference of the final CoM error (row - reference), mm."""
+    ref = next(r for r in rows if r.label == reference)
+    out = [f"| contact | final CoM err minus {reference} [mm] | seeds where {reference} is better |", "|---|---|---|"]
+    for r in rows:
+        if r.label == reference:
+            continue
+        d = r.errors - ref.errors
+        m, se = _mean_se(d)
+        out.append(f"| {r.label} | {1000 * m:+.2f} ± {1000 * se:.2f} | {int(np.sum(d > 0))}/{len(d)} |")
+    return "\n".join(out)

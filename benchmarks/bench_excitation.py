@@ -1,0 +1,70 @@
+"""Benchmark + study: contact-schedule planning time, and the EKF's CoM convergence on Traj. 2 per schedule.
+
+Run: .venv/bin/python benchmarks/bench_excitation.py [--seeds N] [--inputs fused,measured] [--segments K]
+Reproduces the tables of docs/contacts.md ("Persistence of excitation") with
+--seeds 40 (fused) / --seeds 20 --inputs measured; the default (3 seeds) is the
+quick `make bench` run. Prints times (never asserts one) and markdown tables.
+Schedules: planned by each objective on the planning model (the EKF's initial
+guess, 16 kg, CoM (0.3, 0)), fixed at the centre and at both ends of the handle.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from cart.params import CartParams
+from cart.trajectories import trajectory_2
+import wholebody.excitation as ex
+
+
+def plans(noise: ex.WrenchNoise, segments: int) -> tuple[dict, dict, dict]:
+    """Return (schedules, planning times [s], score strings) for the planned and fixed contacts."""
+    guess = CartParams(*ex.STUDY_GUESS)
+    samples = ex.sample_push(trajectory_2(), dt=0.05)
+    scheds, times = {}, {}
+    for obj in ("com_a", "com_a_path", "min_eig"):
+        t0 = time.perf_counter()
+        plan = ex.plan_contact_schedule(samples, guess.phi, guess.sigma, n_segments=segments, n_candidates=11,
+                                        noise=noise, objective=obj, sensor_dt=0.01)
+        times[obj] = time.perf_counter() - t0
+        scheds[f"planned {obj}"] = plan.schedule
+        print(f"planned {obj}: s = {[round(float(v), 3) for v in plan.schedule.s]} on "
+              f"{[round(float(b), 1) for b in plan.schedule.boundaries]} s; effort {plan.effort:.0f} "
+              f"(budget {plan.budget:.0f}); best fixed by this score: s = {plan.fixed_s:g}")
+    scheds["fixed centre s=0.25 (y=0)"] = lambda t: 0.25
+    scheds["fixed end s=0 (y=-0.25)"] = lambda t: 0.0
+    scheds["fixed end s=0.5 (y=+0.25)"] = lambda t: 0.5
+    P0 = ex.default_prior(guess.phi)
+    scores = {}
+    for label, sc in scheds.items():
+        me = ex.schedule_score(samples, sc, guess.phi, noise=noise, sensor_dt=0.01)
+        ca = ex.schedule_score(samples, sc, guess.phi, noise=noise, objective="com_a", prior_cov=P0, sensor_dt=0.01)
+        scores[label] = f"{me:.3g} / {1000 * np.sqrt(-ca):.2f}"
+    return scheds, times, scores
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--inputs", default="fused")
+    ap.add_argument("--segments", type=int, default=6)
+    args = ap.parse_args()
+    for mode in args.inputs.split(","):
+        model = ex.input_model(mode)
+        scheds, times, scores = plans(model.noise, args.segments)
+        print(f"\n## EKF input: {mode} (input error std {model.noise.force:.3g} N, {model.noise.torque:.3g} N m "
+              f"in {{a}}), {args.seeds} seeds")
+        print("planning time [s]: " + ", ".join(f"{k} {v:.2f}" for k, v in times.items()))
+        t0 = time.perf_counter()
+        rows, _ = ex.contact_study(scheds, range(args.seeds), ekf_input=mode)
+        print(f"study time: {time.perf_counter() - t0:.0f} s ({len(scheds) * args.seeds} closed-loop runs of 30 s)")
+        print("score column: min-eig score / CoM CRLB sqrt(trace) [mm], planning model\n")
+        print(ex.format_table(rows, scores))
+        print()
+        print(ex.format_paired(rows, rows[0].label))
+
+
+if __name__ == "__main__":
+    main()
