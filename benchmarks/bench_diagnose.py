@@ -1,72 +1,172 @@
 """Benchmark and confusion-matrix study of `cart.diagnose` on logs from the hidden-effect test bed.
 
 Usage:
-  .venv/bin/python benchmarks/bench_diagnose.py            # timing of a 60 s, 100 Hz log
-  .venv/bin/python benchmarks/bench_diagnose.py --study 20 # + confusion matrix, 20 random cases per class
+  .venv/bin/python benchmarks/bench_diagnose.py                 # timing of 60 s, 100 Hz logs
+  .venv/bin/python benchmarks/bench_diagnose.py --study 20      # + confusion matrix, 20 random cases per class
+  .venv/bin/python benchmarks/bench_diagnose.py --robust 4      # + robustness conditions, 4 cases per class each
+  options: --seed S (first seed), --no-timing, --json FILE (all per-case results)
 
 The study draws random carts (15-60 kg, CoM 0.1-0.5 m forward, +-0.15 m sideways),
 random push/pull motions with turns and >= 1 reversal, rates 50-200 Hz with jitter,
 position noise 1-4 mm, force noise 2-4 N, velocity columns present or not,
-and random effect sizes (cart.hidden.random_case). Never asserts a time.
+and random effect sizes (cart.hidden.random_case); caster_swivel cases are half
+the resistance-profile form, half swivelling casters (cart.hidden.SwivelCasters).
+The robustness conditions override one thing each (rate, velocity columns, noise,
+effect size). Case k of class c uses seed S + 1000 c + k, so every condition
+replays the same carts and motions. Never asserts a time.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
+from typing import Dict, List, Optional
 
 import numpy as np
 
 from cart.diagnose import diagnose
-from cart.hidden import HIDDEN_NAMES, random_case, random_cart, simulate_hidden
+from cart.hidden import HIDDEN_NAMES, random_case, random_cart, random_effect, simulate_hidden
 
 CLASSES = ("none",) + HIDDEN_NAMES
 
+#: robustness conditions: name -> (random_case overrides, effect scale)
+CONDITIONS: Dict[str, tuple] = {
+    "50 Hz, 30 % jitter": ({"rate": 50.0, "jitter": 0.3}, 1.0),
+    "200 Hz, 30 % jitter": ({"rate": 200.0, "jitter": 0.3}, 1.0),
+    "no velocity columns": ({"with_velocities": False}, 1.0),
+    "noise 1 mm / 1 N": ({"position_noise": 0.001, "theta_noise": 0.002, "force_noise": 1.0,
+                          "torque_noise": 0.3}, 1.0),
+    "noise 8 mm / 5 N": ({"position_noise": 0.008, "theta_noise": 0.012, "force_noise": 5.0,
+                          "torque_noise": 2.5}, 1.0),
+    "effects x 0.5": ({}, 0.5),
+    "effects x 1.6": ({}, 1.6),
+}
+
 
 def timing(repeats: int = 3) -> None:
-    """Print the median diagnose time of a 60 s log at 100 Hz."""
-    rng = np.random.default_rng(0)
-    h = simulate_hidden(random_cart(rng), (), duration=60.0, rate=100.0, jitter=0.1, rng=rng)
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        diagnose(h.measured)
-        times.append(time.perf_counter() - t0)
-    print(f"| case | samples | median time [s] | budget [s] | ratio |\n|---|---|---|---|---|\n"
-          f"| 60 s log, 100 Hz | {len(h.measured)} | {np.median(times):.2f} | 30 | {np.median(times) / 30:.3f} |")
+    """Print the median diagnose time of 60 s logs at 100 Hz: no effect, swivelling casters, caster profile."""
+    rows = []
+    for label, name, form in (("no effect", None, None), ("swivelling casters", "caster_swivel", "swivel"),
+                              ("caster profile", "caster_swivel", "profile")):
+        rng = np.random.default_rng(0)
+        p = random_cart(rng)
+        eff = (random_effect(name, rng, p, 60.0, form),) if name else ()
+        h = simulate_hidden(p, eff, duration=60.0, rate=100.0, jitter=0.1, rng=rng)
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            diagnose(h.measured)
+            times.append(time.perf_counter() - t0)
+        rows.append(f"| 60 s log, 100 Hz, {label} | {len(h.measured)} | {np.median(times):.2f} | 30 | "
+                    f"{np.median(times) / 30:.3f} |")
+    print("| case | samples | median time [s] | budget [s] | ratio |\n|---|---|---|---|---|\n" + "\n".join(rows))
 
 
-def study(n: int, seed0: int = 1000, duration: float = 30.0) -> None:
-    """Print the confusion matrix (hidden x first named) and the gap ratios over n cases per class."""
-    conf = {c: {d: 0 for d in CLASSES} for c in CLASSES}
-    ratios = {c: [] for c in HIDDEN_NAMES}
+def run_cases(n: int, seed0: int = 1000, duration: float = 30.0, overrides: Optional[dict] = None,
+              scale: float = 1.0, label: str = "") -> List[dict]:
+    """Return one result dict per case: class, seed, first named, gap ratio, caster form, time."""
+    out = []
     for ci, c in enumerate(CLASSES):
         for k in range(n):
-            rng = np.random.default_rng(seed0 + 1000 * ci + k)
-            h = random_case(None if c == "none" else c, rng, duration=duration)
+            seed = seed0 + 1000 * ci + k
+            h = random_case(None if c == "none" else c, np.random.default_rng(seed), duration=duration, scale=scale,
+                            **(overrides or {}))
+            t0 = time.perf_counter()
             r = diagnose(h.measured)
+            dt = time.perf_counter() - t0
             first = r.names[0] if r.names else "none"
-            conf[c][first] += 1
-            if c != "none" and first == c:
-                ratios[c].append(r.gap_after / max(r.gap_before, 1e-12))
-        print(f"{c}: done", file=sys.stderr)
+            form = ("swivel" if "trail" in h.effects[0].params else "profile") if c == "caster_swivel" else ""
+            res = {"condition": label, "class": c, "seed": seed, "first": first, "names": r.names,
+                   "gap_before": r.gap_before, "gap_after": r.gap_after,
+                   "ratio": r.gap_after / r.gap_before if r.gap_before > 0 else 0.0, "form": form, "time": dt}
+            out.append(res)
+            print(f"{label} {c} {seed} {r.names} ratio {res['ratio']:.2f} gap {1000 * r.gap_before:.1f} mm "
+                  f"{form} {dt:.1f} s", file=sys.stderr, flush=True)
+    return out
+
+
+def confusion_table(results: List[dict]) -> str:
+    """Return the markdown confusion matrix (rows: hidden class, columns: first named effect or none)."""
     short = {c: c.replace("_", " ")[:10] for c in CLASSES}
-    print("| hidden \\ first named | " + " | ".join(short[c] for c in CLASSES) + " | correct |")
-    print("|---" * (len(CLASSES) + 2) + "|")
+    lines = ["| hidden \\ first named | " + " | ".join(short[c] for c in CLASSES) + " | n |",
+             "|---" * (len(CLASSES) + 2) + "|"]
     for c in CLASSES:
-        row = conf[c]
-        print(f"| {c} | " + " | ".join(str(row[d]) for d in CLASSES) + f" | {row[c] / n:.0%} |")
-    print("\n| effect | median gap_after/gap_before | max | share <= 0.5 |\n|---|---|---|---|")
-    for c in HIDDEN_NAMES:
-        r = np.array(ratios[c]) if ratios[c] else np.array([np.nan])
-        print(f"| {c} | {np.median(r):.2f} | {np.max(r):.2f} | {np.mean(r <= 0.5):.0%} |")
+        rows = [r for r in results if r["class"] == c]
+        counts = [sum(r["first"] == d for r in rows) for d in CLASSES]
+        lines.append(f"| {c} | " + " | ".join(str(x) for x in counts) + f" | {len(rows)} |")
+    return "\n".join(lines)
+
+
+def rates_table(results: List[dict]) -> str:
+    """Return per class: first named correct, gap halved (among all cases and among the correctly named)."""
+    lines = ["| hidden | first named correct | gap_after <= 0.5 gap_before (all cases) | "
+             "... (correctly named) | median gap_after/gap_before | median gap_before [mm] |",
+             "|---|---|---|---|---|---|"]
+    for c in CLASSES:
+        rows = [r for r in results if r["class"] == c]
+        if not rows:
+            continue
+        ok = [r for r in rows if r["first"] == c]
+        if c == "none":
+            lines.append(f"| none | {len(ok)}/{len(rows)} = {len(ok) / len(rows):.0%} (empty list) | - | - | - | "
+                         f"{1000 * np.median([r['gap_before'] for r in rows]):.1f} |")
+            continue
+        halved = [r["ratio"] <= 0.5 for r in rows]
+        halved_ok = [r["ratio"] <= 0.5 for r in ok]
+        lines.append(f"| {c} | {len(ok)}/{len(rows)} = {len(ok) / len(rows):.0%} | "
+                     f"{sum(halved)}/{len(rows)} = {np.mean(halved):.0%} | "
+                     f"{sum(halved_ok)}/{len(ok)} = {np.mean(halved_ok) if ok else float('nan'):.0%} | "
+                     f"{np.median([r['ratio'] for r in rows]):.2f} | "
+                     f"{1000 * np.median([r['gap_before'] for r in rows]):.1f} |")
+        if c == "caster_swivel":
+            for form in ("profile", "swivel"):
+                sub = [r for r in rows if r["form"] == form]
+                if sub:
+                    lines.append(f"| - {form} form | {sum(r['first'] == c for r in sub)}/{len(sub)} | "
+                                 f"{sum(r['ratio'] <= 0.5 for r in sub)}/{len(sub)} | | "
+                                 f"{np.median([r['ratio'] for r in sub]):.2f} | "
+                                 f"{1000 * np.median([r['gap_before'] for r in sub]):.1f} |")
+    return "\n".join(lines)
+
+
+def robust_table(results: List[dict]) -> str:
+    """Return per condition: naming rate, empty-list rate on nominal logs, gap-halved rate (effects)."""
+    lines = ["| condition | cases | first named correct (effects) | empty on nominal logs | gap halved (effects) | "
+             "worst class (correct) |", "|---|---|---|---|---|---|"]
+    for cond in dict.fromkeys(r["condition"] for r in results):
+        rows = [r for r in results if r["condition"] == cond]
+        eff = [r for r in rows if r["class"] != "none"]
+        nom = [r for r in rows if r["class"] == "none"]
+        per = {c: np.mean([r["first"] == c for r in rows if r["class"] == c]) for c in HIDDEN_NAMES}
+        worst = min(per, key=per.get)
+        lines.append(f"| {cond} | {len(rows)} | {sum(r['first'] == r['class'] for r in eff)}/{len(eff)} | "
+                     f"{sum(r['first'] == 'none' for r in nom)}/{len(nom)} | "
+                     f"{sum(r['ratio'] <= 0.5 for r in eff)}/{len(eff)} | {worst} {per[worst]:.0%} |")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--study", type=int, default=0, help="cases per class for the confusion matrix (0: timing only)")
+    ap.add_argument("--study", type=int, default=0, help="cases per class for the confusion matrix (0: none)")
+    ap.add_argument("--robust", type=int, default=0, help="cases per class for each robustness condition (0: none)")
     ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--no-timing", action="store_true")
+    ap.add_argument("--json", default="", help="write all per-case results to this file")
     a = ap.parse_args()
-    timing()
+    if not a.no_timing:
+        timing()
+    everything: List[dict] = []
     if a.study:
-        study(a.study, a.seed)
+        res = run_cases(a.study, a.seed, label="default")
+        everything += res
+        print("\n" + confusion_table(res) + "\n\n" + rates_table(res))
+    if a.robust:
+        rob: List[dict] = []
+        for cond, (over, scale) in CONDITIONS.items():
+            rob += run_cases(a.robust, a.seed, overrides=over, scale=scale, label=cond)
+        everything += rob
+        print("\n" + robust_table(rob))
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(everything, f, indent=1)

@@ -156,14 +156,21 @@ def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, 
         g_w, lv, lw = [a_w], [lv_b], [lw_b]
         y_fit = y_w
         for (e, nl), th_prev in zip(effects, thetas_prev):
-            g = window_integrals(sig.t, e.columns(sig, nl, phi, a_s), edges)
+            # the set-valued term first: it may update state the columns use (active set, swing choice)
+            off = e.offset(sig, nl, phi, a_s, th_prev) if e.set_valued else None
+            if off is not None:
+                y_fit = y_fit - window_integrals(sig.t, off, edges)
+            ck = e.column_key(sig, nl)
+            ck = ("cols", ck, len(edges), int(edges[-1])) if ck is not None else None
+            g = sig.extras.get(ck) if ck is not None else None
+            if g is None:
+                g = window_integrals(sig.t, e.columns(sig, nl, phi, a_s), edges)
+                if ck is not None:
+                    sig.extras[ck] = g
             g_w.append(g)
             lo = e.noise_loadings(sig, nl, edges, lv_b, lw_b)
             lv.append(lo[0] if lo is not None else np.zeros_like(g))
             lw.append(lo[1] if lo is not None else np.zeros_like(g))
-            off = e.offset(sig, nl, phi, a_s, th_prev) if e.set_valued else None
-            if off is not None:
-                y_fit = y_fit - window_integrals(sig.t, off, edges)
         d = np.concatenate(g_w, axis=2)
         x, rss, cov, m2ll = _solve(d, y_fit, np.concatenate(lv, axis=2), np.concatenate(lw, axis=2), s2v, s2w)
         thetas, k = [], 5
@@ -187,27 +194,45 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
     phi = current.phi
     grid = effect.nl_grid(sig)
     th0 = list(current.thetas) + [None]
-    fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi, max_iter=3, theta_ref=th0) for nl in grid]
+    # grid fits iterate only for a candidate that needs it; the named effects' set-valued terms stay at their
+    # current estimate (the chosen fit below iterates everything)
+    it_grid = 3 if (effect.uses_phi or effect.set_valued) else 1
+    fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi, max_iter=it_grid, theta_ref=th0) for nl in grid]
     scores = np.array([f.m2ll if effect.is_physical(f.thetas[-1], f.effects[-1][1], f.x) else np.inf
                        for f in fits])
     i = int(np.argmin(scores))
     best = fit_model(sig, edges, base_effects + [(effect, grid[i])], phi, theta_ref=fits[i].thetas)
+    if not np.isfinite(scores[i]) or not effect.is_physical(best.thetas[-1], best.effects[-1][1], best.x):
+        best.m2ll = float("inf")  # no physically valid fit: a failed candidate
+        return best, [-1.0] * len(effect.nl_names)
     nl_std: List[float] = []
-    if len(effect.nl_names) == 1 and len(grid) > 1:
+    log_scale = effect.log_scale
+    tr = (np.log if log_scale else (lambda z: z))
+    itr = (np.exp if log_scale else (lambda z: z))
+    if len(effect.nl_names) == 1 and len(grid) > 1 and not effect.refine:
+        # grid only: std from the parabola through the profile at the best grid point and its neighbours
+        j = min(max(i, 1), len(grid) - 2)
+        u = np.array([float(tr(grid[k][0])) for k in (j - 1, j, j + 1)])
+        f = scores[j - 1:j + 2]
+        s = -1.0
+        if np.all(np.isfinite(f)):
+            c2 = np.polyfit(u - u[1], f, 2)[0]
+            if c2 > 0:
+                s_u = math.sqrt(1.0 / c2)  # m2ll = -2 log L: curvature 2 c2 = 2 / var
+                s = s_u * float(itr(u[1])) if log_scale else s_u
+        nl_std.append(float(s))
+    elif len(effect.nl_names) == 1 and len(grid) > 1:
         lo_b, hi_b = effect.nl_bounds(sig)[0]
         vals = np.array([g[0] for g in grid])
-        log_scale = effect.name == "caster_swivel"
         lo = vals[max(i - 1, 0)]
         hi = vals[min(i + 1, len(vals) - 1)]
         if i == 0:
             lo = max(lo_b, vals[0] - (vals[1] - vals[0])) if not log_scale else max(lo_b, vals[0] ** 2 / vals[1])
         if i == len(vals) - 1:
             hi = min(hi_b, vals[-1] + (vals[-1] - vals[-2])) if not log_scale else min(hi_b, vals[-1] ** 2 / vals[-2])
-        tr = (np.log if log_scale else (lambda z: z))
-        itr = (np.exp if log_scale else (lambda z: z))
 
         def obj(u: float) -> float:
-            f = fit_model(sig, edges, base_effects + [(effect, (float(itr(u)),))], phi, max_iter=3,
+            f = fit_model(sig, edges, base_effects + [(effect, (float(itr(u)),))], phi, max_iter=it_grid,
                           theta_ref=best.thetas)
             return f.m2ll if effect.is_physical(f.thetas[-1], f.effects[-1][1], f.x) else 1e300
 

@@ -82,13 +82,21 @@ def stop_threshold(sig: Signals) -> float:
     return max(0.03, 3.0 * sig.sigma_v)
 
 
+def local_mean(t: np.ndarray, y: np.ndarray, half_window: float) -> np.ndarray:
+    """Return the mean of y over the samples within +-``half_window`` s of each sample (irregular times)."""
+    cum = np.concatenate([[0.0], np.cumsum(y)])
+    lo = np.searchsorted(t, t - half_window, side="left")
+    hi = np.searchsorted(t, t + half_window, side="right")
+    return (cum[hi] - cum[lo]) / np.maximum(hi - lo, 1)
+
+
 def forward_displacement(sig: Signals) -> np.ndarray:
     """Return X(t) = integral of the forward speed v dt (m): signed travel along the body x axis."""
-    cached = sig.extras.get("x_fwd")
+    cached = sig.extras.get(("motion", "x_fwd"))
     if cached is None:
         v, t = sig.v, sig.t
         cached = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
-        sig.extras["x_fwd"] = cached
+        sig.extras[("motion", "x_fwd")] = cached
     return cached
 
 
@@ -162,6 +170,10 @@ class Effect:
     uses_phi: bool = False
     #: True when the effect adds a set-valued (parameter-free given the previous estimate) term, see :meth:`offset`.
     set_valued: bool = False
+    #: False: the nonlinear parameter is only searched on its grid (no continuous refinement).
+    refine: bool = True
+    #: True: the nonlinear parameter is searched (and its std computed) on a log scale.
+    log_scale: bool = False
 
     def nl_grid(self, sig: Signals) -> List[Tuple[float, ...]]:
         """Return the grid of nonlinear-parameter tuples to search (one empty tuple when there are none)."""
@@ -188,6 +200,16 @@ class Effect:
         (``set_valued = True``). Like ``G theta``, it is minus the generalized force.
         """
         return None
+
+    def column_key(self, sig: Signals, nl: Tuple[float, ...]) -> Optional[tuple]:
+        """Return a hashable key that fixes :meth:`columns` for these signals (fits cache them), or None (no cache).
+
+        Default: the class, its attributes and ``nl`` -- valid unless the
+        columns use phi (``uses_phi``) or other state.
+        """
+        if self.uses_phi:
+            return None
+        return (type(self).__name__, tuple(sorted(vars(self).items())), tuple(float(u) for u in nl))
 
     def noise_loadings(self, sig: Signals, nl: Tuple[float, ...], edges: np.ndarray, lv: np.ndarray,
                        lw: np.ndarray) -> Optional[Tuple[np.ndarray, np.ndarray]]:
@@ -284,16 +306,20 @@ class CasterSwivel(Effect):
     param_names = ("force",)
     nl_names = ("distance",)
     set_valued = True
+    log_scale = True
     #: shape exponent p of g(u) = exp(-u^p)
     shape: float = 1.0
     SHAPES: Tuple[float, ...] = (1.0, 2.0, 4.0)
+    #: holds (smoothed) above this fraction of the breakaway force count as at the limit (see :meth:`columns`)
+    HOLD_LIMIT = 0.8
 
     def __init__(self, shape: float = 1.0) -> None:
         self.shape = float(shape)
 
     def variants(self):
-        """Return one variant per shape exponent p in {1, 2, 4}."""
-        return [self] + [CasterSwivel(p) for p in self.SHAPES if p != self.shape]
+        """Return one variant per shape exponent p in {1, 2, 4}, and the swivelling-caster model per axle position."""
+        return ([self] + [CasterSwivel(p) for p in self.SHAPES if p != self.shape]
+                + [SwivelCasterModel(x) for x in SwivelCasterModel.AXLES])
 
     @property
     def n_params(self) -> int:
@@ -315,25 +341,51 @@ class CasterSwivel(Effect):
             shape = np.exp(-np.power(s / nl[0], self.shape))
         return np.where(np.isfinite(s), shape, 0.0)
 
+    def column_key(self, sig, nl):
+        """Return None: the columns at rest depend on phi and on the current force estimate (no caching)."""
+        return None
+
+    def _held(self, sig: Signals, phi: np.ndarray, base: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """Return (r, r smoothed over +-0.1 s): the forward force the nominal model leaves unexplained."""
+        r = sig.f_fwd - base[:, 0, :4] @ np.asarray(phi[:4], float)
+        return r, local_mean(sig.t, r, 0.1)
+
     def columns(self, sig, nl, phi, base):
-        """Return G: tanh(v / v0) g(s / d) in the forward row while moving, 0 at rest (see :meth:`offset`)."""
+        """Return G: tanh(v / v0) g(s / d) while moving; at rest, g sign(r) where the hold exceeds F g (active set).
+
+        At rest the force is set-valued (:meth:`offset` holds the cart up to
+        F g); where the unexplained force r (smoothed) exceeds the current
+        estimate of the breakaway force F g, the hold is at its limit,
+        E_fwd = -F g sign(r), which is linear in F: so the holds inform F.
+        Holds above HOLD_LIMIT F g count as at the limit, so the largest
+        holds keep pinning F when no motion after the reversal does.
+        """
         v0, _ = speed_scales(sig)
         moving = np.abs(sig.v) >= stop_threshold(sig)
+        prof = self.profile(sig, nl)
         g = np.zeros((sig.n, 3, 1))
-        g[:, 0, 0] = np.where(moving, np.tanh(sig.v / v0) * self.profile(sig, nl), 0.0)
+        g[:, 0, 0] = np.where(moving, np.tanh(sig.v / v0) * prof, 0.0)
+        rest = ~moving & (prof > 1e-6)
+        if phi is not None and base is not None and np.any(rest):
+            f_ref = float(sig.extras.get(("caster_force_ref", self.shape, float(nl[0])), 0.0))
+            _, rs = self._held(sig, phi, base)
+            over = rest & (np.abs(rs) > self.HOLD_LIMIT * f_ref * prof)
+            g[:, 0, 0] = np.where(over, np.sign(rs) * prof, g[:, 0, 0])
         return g
 
     def offset(self, sig, nl, phi, base, theta):
-        """Return the holding force at rest: clip(r, -F g, F g) in the forward row (r: nominal residual)."""
-        if theta is None or phi is None or len(theta) == 0:
+        """Return the hold at rest: r where |r| (smoothed) is within the breakaway force F g(s) (r: nominal residual)."""
+        f_ref = 0.0 if theta is None or len(theta) == 0 else max(float(theta[0]), 0.0)
+        sig.extras[("caster_force_ref", self.shape, float(nl[0]))] = f_ref
+        if f_ref <= 0.0 or phi is None:
             return None
         rest = np.abs(sig.v) < stop_threshold(sig)
-        cap = max(float(theta[0]), 0.0) * self.profile(sig, nl)
+        cap = f_ref * self.profile(sig, nl)
         if not np.any(rest & (cap > 0)):
             return None
-        r = sig.f_fwd - base[:, 0, :4] @ np.asarray(phi[:4], float)
+        r, rs = self._held(sig, phi, base)
         out = np.zeros((sig.n, 3))
-        out[:, 0] = np.where(rest, np.clip(r, -cap, cap), 0.0)
+        out[:, 0] = np.where(rest & (cap > 0) & (np.abs(rs) <= self.HOLD_LIMIT * cap), r, 0.0)
         return out
 
     def describe(self, theta, nl, cov, nl_std, phi):
@@ -341,6 +393,256 @@ class CasterSwivel(Effect):
         params, std = Effect.describe(self, theta, nl, cov, nl_std, phi)
         params["shape"] = float(self.shape)
         std["shape"] = 0.0
+        return params, std
+
+
+CASTER_HALF_TRACK = 0.25  # m: lateral offset of the two modelled casters (their exact value matters little)
+#: swing modes of a caster that reaches its leading (unstable) equilibrium: (side, least misalignment);
+#: side 0 = natural (from the motion), +-1 = forced to that side, misalignment = how far from leading it starts
+SWING_MODES: Tuple[Tuple[int, float], ...] = ((0, 1e-4), (1, 0.1), (-1, 0.1), (1, 0.01), (-1, 0.01), (1, 1e-3),
+                                              (-1, 1e-3))
+
+
+def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[float]) -> Tuple[np.ndarray, np.ndarray]:
+    """Return swivel angles alpha and rates alpha', (N, len(axles), len(trails), 2 casters, len(SWING_MODES)).
+
+    Casters at (x, +-CASTER_HALF_TRACK) in {b} with trail e; the wheel rolls
+    along alpha and does not slide sideways:
+    alpha' = -(R / e) sin(alpha - psi) - omega, with R, psi the speed and
+    direction of the swivel axis, (R cos psi, R sin psi) = (v - omega y, omega x).
+    Stepped exactly for the rolling part (tan((alpha - psi)/2) decays as
+    exp(-R dt / e)), so any sampling rate is stable. The casters start
+    trailing (alpha = 0). Which way, and after how much travel, a caster
+    leaves its leading equilibrium after a reversal depends on a misalignment
+    too small to measure (noise in omega decides it in the data), so each
+    :data:`SWING_MODES` lane keeps the caster at least ``misalignment`` away
+    from leading, on the natural side (0) or forced to one side (+-1); the
+    fit picks a mode per swing (:class:`SwivelCasterModel`). Cached.
+    """
+    key = ("motion", "caster_kin", tuple(axles), tuple(trails))
+    cached = sig.extras.get(key)
+    if cached is not None:
+        return cached
+    nx, nt, nm = len(axles), len(trails), len(SWING_MODES)
+    xs = np.asarray(axles, float)[:, None, None, None]
+    ys = np.array([CASTER_HALF_TRACK, -CASTER_HALF_TRACK])[None, None, :, None]
+    es = np.asarray(trails, float)[None, :, None, None]
+    side = np.array([m[0] for m in SWING_MODES], float)[None, None, None, :]
+    lim = math.pi - np.array([m[1] for m in SWING_MODES])[None, None, None, :]
+    v, om, t = sig.v, sig.omega, sig.t
+    vm = np.concatenate([[v[0]], 0.5 * (v[1:] + v[:-1])])
+    omm = np.concatenate([[om[0]], 0.5 * (om[1:] + om[:-1])])
+    dt = np.concatenate([[0.0], np.diff(t)])
+    n = sig.n
+    alpha = np.empty((n, nx, nt, 2, nm))
+    al = np.zeros((nx, nt, 2, nm))
+    for i in range(n):
+        px = vm[i] - omm[i] * ys
+        py = omm[i] * xs
+        psi = np.arctan2(py, px)
+        decay = np.exp(-np.hypot(px, py) * dt[i] / es)
+        b = np.mod(al - psi + math.pi, 2.0 * math.pi) - math.pi
+        far = np.abs(b) > lim
+        b = np.where(far, np.where(side == 0, np.sign(b), side) * lim, b)
+        b = 2.0 * np.arctan2(np.sin(0.5 * b) * decay, np.cos(0.5 * b))
+        al = b + psi - omm[i] * dt[i]
+        alpha[i] = al
+    qx = v[:, None, None, None, None] - om[:, None, None, None, None] * ys[None]
+    qy = om[:, None, None, None, None] * xs[None]
+    rate = (-qx * np.sin(alpha) + qy * np.cos(alpha)) / es[None] - om[:, None, None, None, None]
+    out = (alpha, rate)
+    sig.extras[key] = out
+    return out
+
+
+class SwivelCasterModel(CasterSwivel):
+    """``caster_swivel`` as two swivelling casters: the force of their swivel friction along the log.
+
+    Casters at (x, +-0.25 m) in {b} with trail e (:func:`caster_kinematics`);
+    the swivel bearing resists with T = torque tanh(alpha' / eps) + damping alpha'
+    (Coulomb + viscous). Torque balance of each (light) fork makes the floor
+    push its wheel sideways with T / e, which the cart feels at the swivel axis,
+    plus the bearing torque T:
+    E_fwd = sum (T / e) sin alpha, E_yaw = sum T (1 - (x cos alpha + y sin alpha) / e).
+    After a reversal the casters swing round (resisting the cart, with a yaw
+    torque whose sign follows the swing); in turns they resist realigning.
+    Linear parameters torque [N m] and damping [N m s/rad]; the trail e is
+    searched on a grid (log-spaced 1.5-8 cm), the axle position x in
+    {0.5, 0.8, 1.1} m through the variants (4 parameters counted). Each swing
+    that starts from (nearly) leading gets the swing mode (side of each caster,
+    initial misalignment: :data:`SWING_MODES`) that fits it best, re-chosen with
+    every refit (:meth:`offset`) -- a latent choice among 13, not counted as a
+    parameter. At rest the casters hold the cart up to sum torque |sin alpha| / e
+    (set-valued, as the profile form).
+    """
+
+    param_names = ("torque", "damping")
+    nl_names = ("trail",)
+    refine = False
+    log_scale = True
+    AXLES: Tuple[float, ...] = (0.5, 0.8, 1.1)
+    TRAILS: Tuple[float, ...] = tuple(float(e) for e in np.geomspace(0.015, 0.08, 14))
+    EPS = 0.5  # rad/s: regularisation of the Coulomb swivel friction
+    #: swing-mode combinations (caster 1, caster 2) tried per swing: both natural, then sides x misalignments
+    COMBOS: Tuple[Tuple[int, int], ...] = ((0, 0),) + tuple(
+        (a, b) for d in (1, 3, 5) for a, b in ((d, d), (d + 1, d + 1), (d, d + 1), (d + 1, d)))
+
+    def __init__(self, axle_x: float = 0.8) -> None:
+        super().__init__(1.0)
+        self.axle_x = float(axle_x)
+
+    def variants(self):
+        """Return itself (the axle positions are variants of :class:`CasterSwivel`)."""
+        return [self]
+
+    @property
+    def n_params(self) -> int:
+        """Return 4: torque, damping, trail and the grid-chosen axle position."""
+        return 4
+
+    def nl_grid(self, sig):
+        """Return the trails 1.5-8 cm."""
+        return [(e,) for e in self.TRAILS]
+
+    def nl_bounds(self, sig):
+        """Return the trail bounds in metres."""
+        return [(self.TRAILS[0], self.TRAILS[-1])]
+
+    def _lanes(self, sig: Signals, trail: float) -> Tuple[np.ndarray, np.ndarray]:
+        """Return alpha, alpha' (N, 2, modes) for this axle position and ``trail`` (grid values: one shared pass)."""
+        if trail in self.TRAILS and self.axle_x in self.AXLES:
+            alpha, rate = caster_kinematics(sig, self.AXLES, self.TRAILS)
+            i, j = self.AXLES.index(self.axle_x), self.TRAILS.index(trail)
+            return alpha[:, i, j], rate[:, i, j]
+        alpha, rate = caster_kinematics(sig, (self.axle_x,), (trail,))
+        return alpha[:, 0, 0], rate[:, 0, 0]
+
+    def _swings(self, sig: Signals, trail: float) -> List[Tuple[int, int]]:
+        """Return sample ranges [i0, i1) where the swing modes disagree (swings from a leading caster)."""
+        key = ("motion", "caster_swings", self.axle_x, trail)
+        cached = sig.extras.get(key)
+        if cached is not None:
+            return cached
+        alpha, _ = self._lanes(sig, trail)
+        diff = np.abs(np.sin(0.5 * (alpha - alpha[:, :, :1])))
+        on = np.max(diff, axis=(1, 2)) > 0.02
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(int), [0]])))
+        out = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
+        sig.extras[key] = out
+        return out
+
+    def _unit_rows(self, alpha: np.ndarray, rate: np.ndarray, trail: float) -> np.ndarray:
+        """Return -dE/d(torque, damping) (..., 2 rows: forward, yaw; 2 params) summed over the casters (last axis)."""
+        ys = np.array([CASTER_HALF_TRACK, -CASTER_HALF_TRACK])
+        lever = 1.0 - (self.axle_x * np.cos(alpha) + ys * np.sin(alpha)) / trail
+        out = np.empty(alpha.shape[:-1] + (2, 2))
+        for k, unit in enumerate((np.tanh(rate / self.EPS), rate)):  # T per unit torque, per unit damping
+            out[..., 0, k] = -np.sum(unit * np.sin(alpha), axis=-1) / trail
+            out[..., 1, k] = -np.sum(unit * lever, axis=-1)
+        return out
+
+    def _selected(self, sig: Signals, trail: float) -> Tuple[np.ndarray, np.ndarray]:
+        """Return alpha, alpha' (N, 2) with each swing in its chosen mode (natural where none was chosen)."""
+        alpha, rate = self._lanes(sig, trail)
+        choice = sig.extras.get(("caster_choice", self.axle_x, trail), {})
+        key = ("caster_selected", self.axle_x, trail, tuple(sorted(choice.items())))
+        cached = sig.extras.get(key)
+        if cached is not None:
+            return cached
+        a, r = alpha[:, :, 0].copy(), rate[:, :, 0].copy()
+        for (i0, i1), c in choice.items():
+            m1, m2 = self.COMBOS[c]
+            a[i0:i1, 0], a[i0:i1, 1] = alpha[i0:i1, 0, m1], alpha[i0:i1, 1, m2]
+            r[i0:i1, 0], r[i0:i1, 1] = rate[i0:i1, 0, m1], rate[i0:i1, 1, m2]
+        sig.extras[key] = (a, r)
+        return a, r
+
+    def _swing_stats(self, sig: Signals, trail: float, base: np.ndarray) -> List[Tuple[Tuple[int, int], np.ndarray,
+                                                                                    np.ndarray, np.ndarray]]:
+        """Return per swing ((i0, i1), Q, P, R): weighted normal equations of every mode combination.
+
+        With U_c the unit rows of combination c and W = diag(1/sigma_force^2,
+        1/sigma_torque^2): Q_c = sum U_c' W U_c, P_c = sum U_c' W y,
+        R_c = sum U_c' W B (y: measured forward force and torque, B: their
+        nominal phi columns), so that the misfit of c for (phi, theta) is
+        theta' Q_c theta - 2 theta' (P_c - R_c phi) + const.
+        """
+        key = ("caster_swing_stats", self.axle_x, trail)
+        cached = sig.extras.get(key)
+        if cached is not None:
+            return cached
+        alpha, rate = self._lanes(sig, trail)
+        w = np.array([1.0 / sig.sigma_force ** 2, 1.0 / sig.sigma_torque ** 2])
+        c1 = np.array([c[0] for c in self.COMBOS])
+        c2 = np.array([c[1] for c in self.COMBOS])
+        out = []
+        for i0, i1 in self._swings(sig, trail):
+            al = np.stack([alpha[i0:i1, 0, c1], alpha[i0:i1, 1, c2]], axis=-1)  # (L, combos, 2 casters)
+            ra = np.stack([rate[i0:i1, 0, c1], rate[i0:i1, 1, c2]], axis=-1)
+            u = self._unit_rows(al, ra, trail)  # (L, combos, 2 rows, 2 params)
+            uw = u * w[None, None, :, None]
+            y = np.column_stack([sig.f_fwd[i0:i1], sig.tau[i0:i1]])  # (L, 2)
+            bb = base[i0:i1, :2, :4]  # (L, 2, 4)
+            q = np.einsum("lcrk,lcrj->ckj", uw, u)
+            pp = np.einsum("lcrk,lr->ck", uw, y)
+            rr = np.einsum("lcrk,lrj->ckj", uw, bb)
+            out.append(((i0, i1), q, pp, rr))
+        sig.extras[key] = out
+        return out
+
+    def _choose(self, sig: Signals, trail: float, phi: np.ndarray, base: np.ndarray, theta: np.ndarray) -> None:
+        """Pick per swing the mode combination whose forces best explain the nominal residual (given theta)."""
+        ph = np.asarray(phi[:4], float)
+        th = np.asarray(theta[:2], float)
+        choice = {}
+        for rng_, q, pp, rr in self._swing_stats(sig, trail, base):
+            score = np.einsum("k,ckj,j->c", th, q, th) - 2.0 * ((pp - rr @ ph) @ th)
+            choice[rng_] = int(np.argmin(score))
+        sig.extras[("caster_choice", self.axle_x, trail)] = choice
+
+    def column_key(self, sig, nl):
+        """Return the default key plus the current swing-mode choice (the columns depend on it)."""
+        choice = sig.extras.get(("caster_choice", self.axle_x, float(nl[0])), {})
+        return Effect.column_key(self, sig, nl) + (tuple(sorted(choice.items())),)
+
+    def columns(self, sig, nl, phi, base):
+        """Return G = -dE/d(torque, damping) in the forward and yaw rows (swings in their chosen modes)."""
+        alpha, rate = self._selected(sig, float(nl[0]))
+        g = np.zeros((sig.n, 3, 2))
+        g[:, :2, :] = self._unit_rows(alpha, rate, float(nl[0]))
+        return g
+
+    def offset(self, sig, nl, phi, base, theta):
+        """Re-choose the swing modes for this estimate; return the holding force at rest, cap = torque sum |sin alpha| / e."""
+        e = float(nl[0])
+        if theta is None or phi is None or len(theta) == 0:
+            sig.extras[("caster_choice", self.axle_x, e)] = {}  # a fresh fit starts from the natural swings
+            return None
+        if float(theta[0]) > 0.0 or float(theta[1]) > 0.0:
+            self._choose(sig, e, phi, base, theta)
+        if float(theta[0]) <= 0.0:
+            return None
+        rest = np.abs(sig.v) < stop_threshold(sig)
+        if not np.any(rest):
+            return None
+        alpha, _ = self._selected(sig, e)
+        cap = float(theta[0]) * np.sum(np.abs(np.sin(alpha)), axis=1) / e
+        r = sig.f_fwd - base[:, 0, :4] @ np.asarray(phi[:4], float)
+        out = np.zeros((sig.n, 3))
+        out[:, 0] = np.where(rest, np.clip(r, -cap, cap), 0.0)
+        return out
+
+    def is_physical(self, theta, nl, x):
+        """Return True for a positive Coulomb torque and a non-negative damping (within 5 % of torque / eps)."""
+        tq, damp = float(theta[0]), float(theta[1])
+        return bool(np.isfinite(tq) and np.isfinite(damp) and tq > 0.0 and damp >= -0.05 * tq / self.EPS)
+
+    def describe(self, theta, nl, cov, nl_std, phi):
+        """Return torque, damping, trail, axle_x, and force = 2 torque / trail (peak resistance, casters side-on)."""
+        params, std = Effect.describe(self, theta, nl, cov, nl_std, phi)
+        e = float(nl[0])
+        params.update({"axle_x": self.axle_x, "force": 2.0 * float(theta[0]) / e})
+        std.update({"axle_x": 0.0, "force": 2.0 * math.sqrt(max(cov[0, 0], 0.0)) / e})
         return params, std
 
 

@@ -31,7 +31,10 @@ class HiddenEffect:
     """An effect hidden in a simulated log: contract ``name`` and its known ``params``.
 
     Parameters by name: coulomb_friction {force [N], torque [N m]};
-    caster_swivel {force [N], distance [m]}; wrench_bias {fx, fy [N], tau [N m]} in {b};
+    caster_swivel, two forms: the resistance profile {force [N], distance [m]} (after a reversal,
+    -force tanh(v / 5 mm/s) times a raised cosine fading over ``distance``), or swivelling casters
+    {trail [m], torque [N m], damping [N m s/rad], x [m], half_track [m], roughness [rad/sqrt(m)]}
+    (selected by the key ``trail``; see :class:`SwivelCasters`); wrench_bias {fx, fy [N], tau [N m]} in {b};
     payload_change {time [s], mass [kg], x, y [m] in {b}, inertia [kg m^2]};
     floor_slope {angle [rad], direction [rad], downhill in {s}}; time_delay {delay [s]};
     lateral_slip {compliance [m/(s N)]}.
@@ -71,6 +74,8 @@ class HiddenLog:
     effects: Tuple[HiddenEffect, ...]
     rate: float
     noise: Dict[str, float]
+    #: the hidden effects' generalized force on the cart at the sample times: (forward, lateral, yaw) in {b}
+    effect_force: Optional[np.ndarray] = None
 
 
 def _smooth_step(u: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
@@ -132,6 +137,54 @@ def payload_params(p: CartParams, mass: float, x: float, y: float, inertia: floa
     return CartParams(m=m2, dx=dx2, dy=dy2, I=i2, sigma=p.sigma)
 
 
+class SwivelCasters:
+    """Two massless swivelling casters at (x, +-half_track) in {b}, with trail, swivel friction and damping.
+
+    Each caster's wheel rolls along the direction ``alpha`` (in {b}) and
+    touches the floor ``trail`` behind its swivel axis P. The wheel does not
+    slide sideways, so alpha follows the velocity of P (kinematics):
+    trail (alpha' + omega) = n . v_P, n = (-sin alpha, cos alpha): stable when
+    the wheel trails, unstable when it leads -- after a reversal each caster
+    swings round by ~180 deg over a few trails of travel. The swivel bearing
+    resists with T = torque tanh(alpha' / 0.5 rad/s) + damping alpha'; torque
+    balance of the massless fork makes the floor push the wheel sideways with
+    -T / trail along n, which acts on the cart at P, and the bearing returns T
+    to the cart: E_fwd = sum -(T / trail) n_x, E_yaw = sum (P x F) + T. So the
+    cart is resisted during the swing (and when the casters realign in turns),
+    and gets a yaw torque whose sign depends on which way each caster swings.
+    ``roughness``: the floor kicks each caster angle by a random walk of that
+    std per sqrt(metre) of travel, so a caster never stays exactly on its
+    unstable equilibrium.
+    """
+
+    EPS = 0.5  # rad/s: regularisation of the Coulomb swivel friction
+
+    def __init__(self, p: Dict[str, float], params: CartParams) -> None:
+        self.trail = float(p["trail"])
+        self.torque = float(p.get("torque", 0.0))
+        self.damping = float(p.get("damping", 0.0))
+        x = float(p.get("x", params.dx + 0.4))
+        yc = float(p.get("half_track", 0.25))
+        self.pos = ((x, yc), (x, -yc))
+        self.roughness = float(p.get("roughness", 0.01))
+
+    def terms(self, v: float, om: float, alphas: np.ndarray) -> Tuple[float, float, float, np.ndarray]:
+        """Return (E_fwd, E_lat, E_yaw) on the cart and the swivel rates alpha' at speed v, yaw rate om."""
+        e_f = e_l = e_t = 0.0
+        rates = np.empty(len(self.pos))
+        for k, ((cx, cy), al) in enumerate(zip(self.pos, alphas)):
+            sa, ca = math.sin(al), math.cos(al)
+            rate = (-(v - om * cy) * sa + om * cx * ca) / self.trail - om
+            tq = self.torque * math.tanh(rate / self.EPS) + self.damping * rate
+            fn = -tq / self.trail  # floor force on the wheel along n, passed to the cart at P
+            fx, fy = -fn * sa, fn * ca
+            e_f += fx
+            e_l += fy
+            e_t += cx * fy - cy * fx + tq
+            rates[k] = rate
+        return e_f, e_l, e_t, rates
+
+
 def simulate_hidden(params: CartParams, effects: Sequence[HiddenEffect] = (), duration: float = 30.0,
                     rate: float = 100.0, jitter: float = 0.2, position_noise: float = 0.003,
                     theta_noise: float = 0.004, force_noise: float = 3.0, torque_noise: float = 1.5,
@@ -156,30 +209,39 @@ def simulate_hidden(params: CartParams, effects: Sequence[HiddenEffect] = (), du
     # the controller's guess of the cart
     guess = [v * (1.0 + model_error * rng.uniform(-1.0, 1.0)) for v in (p.m, p.m * p.dx, p.m * p.dy, p.inertia_b)]
     guess[3] = max(guess[3], 0.2 * p.inertia_b)
+    sw = eff.get("caster_swivel")
+    casters = SwivelCasters(sw, p) if sw and "trail" in sw else None
+    if casters is not None:
+        sw = None
+        h = min(h, 0.001)  # the swivel friction is stiff
+    alphas = rng.normal(0.0, 0.05, 2) if casters is not None else np.zeros(2)
     kv, kw = 2.5, 3.0
     px, py = contact
     n = int(round(duration / h)) + 1
     ts = np.arange(n) * h
     state = np.zeros((n, 5))  # x, y, theta, v, omega
     lat = np.zeros(n)
+    eff_force = np.zeros((n, 3))  # E_fwd, E_lat, E_yaw of the hidden forces (for tests and oracles)
     gam_w = np.zeros((n, 3))  # applied (fx, fy, tau) in {s}
     x = np.zeros(5)
     control_every = max(1, int(round(1.0 / (control_rate * h))))
     fu = fl = tq = 0.0
     dist = math.inf
     direction = 0
-    sw = eff.get("caster_swivel")
     cf = eff.get("coulomb_friction")
     sl = eff.get("floor_slope")
     slip = eff.get("lateral_slip")
     g_slope = (GRAVITY * math.sin(sl["angle"]) * math.cos(sl["direction"]),
                GRAVITY * math.sin(sl["angle"]) * math.sin(sl["direction"])) if sl else (0.0, 0.0)
 
-    def deriv(xs: np.ndarray, ph: CartParams, fu: float, fl: float, tq: float, dist: float):
+    def deriv(xs: np.ndarray, al: np.ndarray, ph: CartParams, fu: float, fl: float, tq: float, dist: float):
         m, a, b, j, sig = ph.m, ph.m * ph.dx, ph.m * ph.dy, ph.inertia_b, ph.sigma
         th, v, om = xs[2], xs[3], xs[4]
         c, s = math.cos(th), math.sin(th)
         e_f = e_t = e_l = 0.0
+        rates = None
+        if casters is not None:
+            e_f, e_l, e_t, rates = casters.terms(v, om, al)
         if cf:
             e_f -= cf["force"] * math.tanh(v / 0.005)
             e_t -= cf.get("torque", 0.0) * math.tanh(om / 0.01)
@@ -198,7 +260,7 @@ def simulate_hidden(params: CartParams, effects: Sequence[HiddenEffect] = (), du
         w = 0.0
         if slip:
             w = slip["compliance"] * (fl + e_l - (m * v * om + a * odot - b * om * om))
-        return np.array([c * v - s * w, s * v + c * w, om, vdot, odot]), w
+        return np.array([c * v - s * w, s * v + c * w, om, vdot, odot]), w, rates, (e_f, e_l, e_t)
 
     for k in range(n):
         t = ts[k]
@@ -217,11 +279,15 @@ def simulate_hidden(params: CartParams, effects: Sequence[HiddenEffect] = (), du
         gam_w[k] = (c * fu - s * fl, s * fu + c * fl, tq)
         if k == n - 1:
             break
-        k1, w1 = deriv(x, ph, fu, fl, tq, dist)
-        k2, _ = deriv(x + 0.5 * h * k1, ph, fu, fl, tq, dist)
+        k1, w1, ra1, eff_force[k] = deriv(x, alphas, ph, fu, fl, tq, dist)
+        k2, _, ra2, _ = deriv(x + 0.5 * h * k1, alphas + 0.5 * h * ra1 if casters is not None else alphas, ph, fu, fl,
+                           tq, dist)
         lat[k] = w1
         v_old = x[3]
         x = x + h * k2
+        if casters is not None:  # swivel (midpoint rule) + the floor's random kicks
+            kick = casters.roughness * math.sqrt(abs(x[3]) * h + 1e-12) * rng.standard_normal(2)
+            alphas = alphas + h * ra2 + kick
         # caster state: distance travelled since the last reversal of the forward speed
         new_dir = 1 if x[3] > 0.01 else (-1 if x[3] < -0.01 else direction)
         if new_dir != direction and direction != 0:
@@ -243,6 +309,7 @@ def simulate_hidden(params: CartParams, effects: Sequence[HiddenEffect] = (), du
         bx, by, bt = (eff["wrench_bias"].get(k, 0.0) for k in ("fx", "fy", "tau"))
         g_log = g_log + np.column_stack([c * bx - s * by, s * bx + c * by, np.full_like(th, bt)])
     lat_i = np.interp(ti, ts, lat)
+    eff_i = np.column_stack([np.interp(ti, ts, eff_force[:, i]) for i in range(3)])
     qd_true = np.column_stack([c * st[:, 3] - s * lat_i, s * st[:, 3] + c * lat_i, st[:, 4]])
     q_true = st[:, :3]
     nn = len(ti)
@@ -254,7 +321,8 @@ def simulate_hidden(params: CartParams, effects: Sequence[HiddenEffect] = (), du
     measured = CartLog(t=ti, q=q_meas, gamma=g_meas, qd=qd_meas, metadata=meta)
     true = CartLog(t=ti, q=q_true, gamma=g_true, qd=qd_true, metadata=dict(meta))
     noise = {"position": position_noise, "theta": theta_noise, "force": force_noise, "torque": torque_noise}
-    return HiddenLog(measured=measured, true=true, params=params, effects=tuple(effects), rate=rate, noise=noise)
+    return HiddenLog(measured=measured, true=true, params=params, effects=tuple(effects), rate=rate, noise=noise,
+                     effect_force=eff_i)
 
 
 def random_cart(rng: np.random.Generator) -> CartParams:
@@ -267,39 +335,86 @@ def random_cart(rng: np.random.Generator) -> CartParams:
     return CartParams(m=m, dx=dx, dy=dy, I=inertia, sigma=rng.uniform(0.5, 3.0))
 
 
-def random_effect(name: str, rng: np.random.Generator, params: CartParams, duration: float) -> HiddenEffect:
-    """Return a contract effect with random, physically plausible size (see HiddenEffect for the units)."""
+CASTER_FORMS = ("profile", "swivel")
+
+
+def random_casters(rng: np.random.Generator, params: CartParams) -> Dict[str, float]:
+    """Return random swivelling-caster parameters (:class:`SwivelCasters`): trail 3-5 cm, in front of the CoM.
+
+    The swivel friction is sized by the peak forward resistance of the two
+    casters side-on, 2 torque / trail = 0.3-0.8 N per kg of cart; half of the
+    casters also get viscous swivel damping (0.1-0.5 of that peak at 0.4 m/s).
+    """
+    trail = rng.uniform(0.03, 0.05)
+    peak = rng.uniform(0.3, 0.8) * params.m
+    damping = rng.uniform(0.1, 0.5) * peak * trail ** 2 / (2.0 * 0.4) if rng.uniform() < 0.5 else 0.0
+    return {"trail": trail, "torque": 0.5 * peak * trail, "damping": damping,
+            "x": min(params.dx + rng.uniform(0.3, 0.6), 1.1), "half_track": rng.uniform(0.2, 0.3),
+            "roughness": 0.01}
+
+
+def random_effect(name: str, rng: np.random.Generator, params: CartParams, duration: float,
+                  caster_form: Optional[str] = None, scale: float = 1.0) -> HiddenEffect:
+    """Return a contract effect with random, physically plausible size (see HiddenEffect for the units).
+
+    ``caster_form``: "profile" (the resistance profile) or "swivel" (swivelling
+    casters); None draws one of the two with equal odds. ``scale`` multiplies
+    the effect's size (forces, torques, mass, angle, delay, compliance; not
+    distances or times) to go outside the default ranges.
+    """
     sgn = lambda: float(rng.choice([-1.0, 1.0]))  # noqa: E731
+    k = float(scale)
     if name == "coulomb_friction":
-        return HiddenEffect(name, {"force": rng.uniform(0.015, 0.05) * params.m * GRAVITY,
-                                   "torque": rng.uniform(0.0, 2.0)})
+        return HiddenEffect(name, {"force": k * rng.uniform(0.015, 0.05) * params.m * GRAVITY,
+                                   "torque": k * rng.uniform(0.0, 2.0)})
     if name == "caster_swivel":
-        return HiddenEffect(name, {"force": rng.uniform(0.4, 1.0) * params.m, "distance": rng.uniform(0.1, 0.4)})
+        form = caster_form if caster_form is not None else CASTER_FORMS[int(rng.uniform() < 0.5)]
+        if form == "swivel":
+            c = random_casters(rng, params)
+            c["torque"] *= k
+            c["damping"] *= k
+            return HiddenEffect(name, c)
+        if form != "profile":
+            raise ParameterError(f"unknown caster form {form!r}; known: {', '.join(CASTER_FORMS)}")
+        return HiddenEffect(name, {"force": k * rng.uniform(0.4, 1.0) * params.m, "distance": rng.uniform(0.1, 0.4)})
     if name == "wrench_bias":
-        return HiddenEffect(name, {"fx": sgn() * rng.uniform(3.0, 10.0), "fy": rng.uniform(-5.0, 5.0),
-                                   "tau": sgn() * rng.uniform(1.0, 4.0)})
+        return HiddenEffect(name, {"fx": k * sgn() * rng.uniform(3.0, 10.0), "fy": k * rng.uniform(-5.0, 5.0),
+                                   "tau": k * sgn() * rng.uniform(1.0, 4.0)})
     if name == "payload_change":
         return HiddenEffect(name, {"time": rng.uniform(0.35, 0.65) * duration,
-                                   "mass": rng.uniform(0.3, 1.0) * params.m,
+                                   "mass": k * rng.uniform(0.3, 1.0) * params.m,
                                    "x": rng.uniform(0.1, 0.5), "y": rng.uniform(-0.15, 0.15),
-                                   "inertia": rng.uniform(0.0, 0.5)})
+                                   "inertia": k * rng.uniform(0.0, 0.5)})
     if name == "floor_slope":
-        return HiddenEffect(name, {"angle": math.radians(rng.uniform(1.0, 3.0)),
+        return HiddenEffect(name, {"angle": k * math.radians(rng.uniform(1.0, 3.0)),
                                    "direction": rng.uniform(-math.pi, math.pi)})
     if name == "time_delay":
-        return HiddenEffect(name, {"delay": sgn() * rng.uniform(0.05, 0.25) if rng.uniform() < 0.25
-                                   else rng.uniform(0.05, 0.25)})
+        return HiddenEffect(name, {"delay": k * (sgn() * rng.uniform(0.05, 0.25) if rng.uniform() < 0.25
+                                                 else rng.uniform(0.05, 0.25))})
     if name == "lateral_slip":
-        return HiddenEffect(name, {"compliance": rng.uniform(2e-3, 6e-3)})
+        return HiddenEffect(name, {"compliance": k * rng.uniform(2e-3, 6e-3)})
     raise ParameterError(f"unknown hidden effect {name!r}; known: {', '.join(HIDDEN_NAMES)}")
 
 
-def random_case(effect: Optional[str], rng: np.random.Generator, duration: float = 30.0) -> HiddenLog:
-    """Return a random test case with ``effect`` hidden (None: nominal cart) and randomized rate, noise, columns."""
+def random_case(effect: Optional[str], rng: np.random.Generator, duration: float = 30.0,
+                caster_form: Optional[str] = None, scale: float = 1.0, **overrides) -> HiddenLog:
+    """Return a random test case with ``effect`` hidden (None: nominal cart) and randomized rate, noise, columns.
+
+    Defaults: 50-200 Hz with up to 30 % jitter, position noise 1-4 mm, heading
+    2-8 mrad, force 2-4 N, torque 0.5-2 N m, velocity columns in half the logs.
+    ``caster_form`` and ``scale`` go to :func:`random_effect`; ``overrides``
+    replace any :func:`simulate_hidden` keyword (e.g. ``rate=50.0``,
+    ``position_noise=0.008``, ``with_velocities=False``) after the random draws,
+    so a case differs from its default twin only in what is overridden.
+    """
     params = random_cart(rng)
-    effects = (random_effect(effect, rng, params, duration),) if effect else ()
-    return simulate_hidden(params, effects, duration=duration, rate=float(rng.uniform(50.0, 200.0)),
-                           jitter=float(rng.uniform(0.0, 0.3)), position_noise=float(rng.uniform(0.001, 0.004)),
-                           theta_noise=float(rng.uniform(0.002, 0.008)), force_noise=float(rng.uniform(2.0, 4.0)),
-                           torque_noise=float(rng.uniform(0.5, 2.0)), with_velocities=bool(rng.uniform() < 0.5),
-                           contact=(-0.8, float(rng.uniform(-0.15, 0.15))), rng=rng)
+    effects = (random_effect(effect, rng, params, duration, caster_form, scale),) if effect else ()
+    kw = dict(rate=float(rng.uniform(50.0, 200.0)), jitter=float(rng.uniform(0.0, 0.3)),
+              position_noise=float(rng.uniform(0.001, 0.004)), theta_noise=float(rng.uniform(0.002, 0.008)),
+              force_noise=float(rng.uniform(2.0, 4.0)), torque_noise=float(rng.uniform(0.5, 2.0)),
+              with_velocities=bool(rng.uniform() < 0.5), contact=(-0.8, float(rng.uniform(-0.15, 0.15))))
+    unknown = set(overrides) - set(kw) - {"velocity_noise", "control_rate", "model_error", "h", "motion"}
+    if unknown:
+        raise ParameterError(f"unknown simulate_hidden keyword(s) {sorted(unknown)}")
+    kw.update(overrides)
+    return simulate_hidden(params, effects, duration=duration, rng=rng, **kw)

@@ -58,6 +58,8 @@ class Signals:
     ``v``, ``w_lat``: forward and lateral speed of the {b} origin; ``omega``;
     ``vdot``, ``omegadot``; ``f_fwd``, ``f_lat``, ``tau``: the measured wrench in
     {b} axes (shifted by ``shift`` seconds, see :meth:`shifted`); noise stds.
+    ``extras``: a cache for derived arrays; entries whose key is a tuple
+    starting with ``"motion"`` depend on the motion only and survive :meth:`shifted`.
     """
 
     t: np.ndarray
@@ -98,7 +100,8 @@ class Signals:
         g = np.column_stack([np.interp(self.t + delay, self.t, self.gamma_raw[:, k]) for k in range(3)])
         c, s = np.cos(self.q[:, 2]), np.sin(self.q[:, 2])
         return replace(self, f_fwd=c * g[:, 0] + s * g[:, 1], f_lat=-s * g[:, 0] + c * g[:, 1], tau=g[:, 2],
-                       shift=self.shift + delay, extras={})
+                       shift=self.shift + delay,
+                       extras={k: v for k, v in self.extras.items() if isinstance(k, tuple) and k[0] == "motion"})
 
 
 def signals_from_log(log: CartLog, half_window: Optional[float] = None) -> Signals:
