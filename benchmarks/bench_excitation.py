@@ -1,11 +1,12 @@
 """Benchmark + study: contact-schedule planning time, and the EKF's CoM convergence on Traj. 2 per schedule.
 
-Run: .venv/bin/python benchmarks/bench_excitation.py [--seeds N] [--inputs fused,measured] [--segments K]
-Reproduces the tables of docs/contacts.md ("Persistence of excitation") with
---seeds 40 (fused) / --seeds 20 --inputs measured; the default (3 seeds) is the
-quick `make bench` run. Prints times (never asserts one) and markdown tables.
-Schedules: planned by each objective on the planning model (the EKF's initial
-guess, 16 kg, CoM (0.3, 0)), fixed at the centre and at both ends of the handle.
+Run: .venv/bin/python benchmarks/bench_excitation.py [--seeds N] [--inputs fused,measured]
+                                                     [--plans com_a_path:30,com_a_path:12,com_a:6,min_eig:6]
+Reproduces the tables of docs/contacts.md ("Persistence of excitation"); the
+default (3 seeds) is the quick `make bench` run. Prints times (never asserts
+one) and markdown tables. Schedules: planned by each objective:segments on the
+planning model (the EKF's initial guess, 16 kg, CoM (0.3, 0)) with 5 candidate
+points on the handle, and fixed at the centre and at both ends of the handle.
 """
 from __future__ import annotations
 
@@ -18,24 +19,27 @@ from cart.params import CartParams
 from cart.trajectories import trajectory_2
 import wholebody.excitation as ex
 
+LETTERS = {0.0: "L", 0.125: "l", 0.25: "C", 0.375: "r", 0.5: "R"}  # handle points s: y = s - 0.25
 
-def plans(noise: ex.WrenchNoise, segments: int) -> tuple[dict, dict, dict]:
+
+def plans(noise: ex.WrenchNoise, specs: list[tuple[str, int]]) -> tuple[dict, dict, dict]:
     """Return (schedules, planning times [s], score strings) for the planned and fixed contacts."""
     guess = CartParams(*ex.STUDY_GUESS)
     samples = ex.sample_push(trajectory_2(), dt=0.05)
     scheds, times = {}, {}
-    for obj in ("com_a", "com_a_path", "min_eig"):
+    for obj, segs in specs:
         t0 = time.perf_counter()
-        plan = ex.plan_contact_schedule(samples, guess.phi, guess.sigma, n_segments=segments, n_candidates=11,
+        plan = ex.plan_contact_schedule(samples, guess.phi, guess.sigma, n_segments=segs, n_candidates=5,
                                         noise=noise, objective=obj, sensor_dt=0.01)
-        times[obj] = time.perf_counter() - t0
-        scheds[f"planned {obj}"] = plan.schedule
-        print(f"planned {obj}: s = {[round(float(v), 3) for v in plan.schedule.s]} on "
-              f"{[round(float(b), 1) for b in plan.schedule.boundaries]} s; effort {plan.effort:.0f} "
-              f"(budget {plan.budget:.0f}); best fixed by this score: s = {plan.fixed_s:g}")
-    scheds["fixed centre s=0.25 (y=0)"] = lambda t: 0.25
-    scheds["fixed end s=0 (y=-0.25)"] = lambda t: 0.0
-    scheds["fixed end s=0.5 (y=+0.25)"] = lambda t: 0.5
+        label = f"planned {obj}, {segs} x {30 / segs:g} s"
+        times[label] = time.perf_counter() - t0
+        scheds[label] = plan.schedule
+        print(f"{label}: {''.join(LETTERS.get(round(float(v), 3), '?') for v in plan.schedule.s)} "
+              f"(L: y = -0.25, C: y = 0, R: y = +0.25); effort {plan.effort:.0f} (budget {plan.budget:.0f}); "
+              f"best fixed by this score: s = {plan.fixed_s:g}")
+    scheds["fixed centre (y = 0)"] = lambda t: 0.25
+    scheds["fixed end y = -0.25"] = lambda t: 0.0
+    scheds["fixed end y = +0.25"] = lambda t: 0.5
     P0 = ex.default_prior(guess.phi)
     scores = {}
     for label, sc in scheds.items():
@@ -49,18 +53,19 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--inputs", default="fused")
-    ap.add_argument("--segments", type=int, default=6)
+    ap.add_argument("--plans", default="com_a_path:30,com_a_path:12,com_a:6,min_eig:6")
     args = ap.parse_args()
+    specs = [(p.split(":")[0], int(p.split(":")[1])) for p in args.plans.split(",") if p]
     for mode in args.inputs.split(","):
         model = ex.input_model(mode)
-        scheds, times, scores = plans(model.noise, args.segments)
         print(f"\n## EKF input: {mode} (input error std {model.noise.force:.3g} N, {model.noise.torque:.3g} N m "
               f"in {{a}}), {args.seeds} seeds")
+        scheds, times, scores = plans(model.noise, specs)
         print("planning time [s]: " + ", ".join(f"{k} {v:.2f}" for k, v in times.items()))
         t0 = time.perf_counter()
         rows, _ = ex.contact_study(scheds, range(args.seeds), ekf_input=mode)
         print(f"study time: {time.perf_counter() - t0:.0f} s ({len(scheds) * args.seeds} closed-loop runs of 30 s)")
-        print("score column: min-eig score / CoM CRLB sqrt(trace) [mm], planning model\n")
+        print("score column: min-eig score / CoM CRLB sqrt(trace) [mm], both on the planning model\n")
         print(ex.format_table(rows, scores))
         print()
         print(ex.format_paired(rows, rows[0].label))

@@ -445,16 +445,16 @@ def plan_contact_schedule(
     fixed_scores = np.array([score(info[:, j]) if fixed_effort[j] <= budget else -np.inf
                              for j in range(len(cand))])
     if not np.any(np.isfinite(fixed_scores)):
-        raise WholeBodyError(f"effort budget {budget:.4g} is below the cheapest fixed contact ({np.min(fixed_effort):.4g})")
+        raise WholeBodyError(f"effort budget {budget:.4g} is below the cheapest fixed contact "
+                             f"({np.min(fixed_effort):.4g})")
     j0 = int(np.argmax(fixed_scores))
-    idx, best = _best_schedule(info, effort, budget, score, sweeps, exhaustive_limit)
-    if best < fixed_scores[j0]:  # cannot happen: every fixed contact is a start; kept as a guard
-        idx, best = [j0] * n_segments, float(fixed_scores[j0])
+    idx, best = _best_schedule(info, effort, budget, score, sweeps, exhaustive_limit)  # >= every fixed contact
     sched = ContactSchedule(bounds, cand[idx])
     total = float(sum(effort[k, j] for k, j in enumerate(idx)))
     std = lambda I: tuple(float(v) for v in np.sqrt(np.diag(com_covariance(I, phi, P0))))  # noqa: E731
     return SchedulePlan(sched, float(best), total, float(cand[j0]), float(fixed_scores[j0]), float(fixed_effort[j0]),
-                        budget, objective, std(sum(info[k, j] for k, j in enumerate(idx))), std(info[:, j0].sum(axis=0)))
+                        budget, objective, std(sum(info[k, j] for k, j in enumerate(idx))),
+                        std(info[:, j0].sum(axis=0)))
 
 
 def schedule_points(samples: PushSamples, schedule: Callable[[float], float] | ContactSchedule,
