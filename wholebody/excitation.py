@@ -705,8 +705,9 @@ class StudyRow:
     ``post_std``: mean EKF posterior std of (dx, dy) at the end; ``spread``:
     std over seeds of the final (dx, dy) estimate; ``bias``: mean final (dx, dy)
     error; ``crlb``: per-axis CRLB std at the end (m); ``mass``: (mean, se) of
-    the final mass error (kg); ``nis``: mean NIS; ``errors``: the final CoM
-    error of each seed (for paired comparisons).
+    the final mass error (kg); ``nis``: mean NIS; ``per_seed``: {name: per-seed
+    values} of the CoM errors at ``times`` (mm) and of the times below each tol
+    (s), for paired comparisons between schedules run on the same seeds.
     """
 
     label: str
@@ -721,7 +722,7 @@ class StudyRow:
     crlb: tuple[float, float]
     mass: tuple[float, float]
     nis: float
-    errors: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    per_seed: dict = field(repr=False, default_factory=dict)
 
 
 def _mean_se(x: Sequence[float]) -> tuple[float, float]:
@@ -760,10 +761,13 @@ def summarize(label: str, results: Sequence[ConvergenceResult], crlb_cov: np.nda
     """Return the StudyRow of the runs of one schedule; ``crlb_cov`` is com_crlb_course at ``times``."""
     dur = float(results[0].t[-1])
     final = np.array([r.com[-1] for r in results]) - np.asarray(true_com)
-    tb = {}
+    tb, per_seed = {}, {}
+    for t in times:
+        per_seed[f"CoM err {t:g} s [mm]"] = 1000.0 * np.array([r.error_at(t) for r in results])
     for tol in tols:
         x = [r.time_below(tol) for r in results]
         tb[float(tol)] = (_mean_se([dur if v is None else v for v in x]), sum(v is None for v in x))
+        per_seed[f"t(err<{100 * tol:g} cm) [s]"] = np.array([dur if v is None else v for v in x])
     return StudyRow(
         label, len(results),
         {float(t): _mean_se([r.error_at(t) for r in results]) for t in times},
@@ -774,8 +778,7 @@ def summarize(label: str, results: Sequence[ConvergenceResult], crlb_cov: np.nda
         tuple(float(v) for v in (np.std(final, axis=0, ddof=1) if len(final) > 1 else [np.nan, np.nan])),
         tuple(float(v) for v in np.mean(final, axis=0)),
         tuple(float(v) for v in np.sqrt(np.diag(crlb_cov[-1]))),
-        _mean_se([r.mass_error[-1] for r in results]), float(np.mean([r.mean_nis for r in results])),
-        np.array([r.final_com_error for r in results]))
+        _mean_se([r.mass_error[-1] for r in results]), float(np.mean([r.mean_nis for r in results])), per_seed)
 
 
 def contact_study(schedules: Mapping[str, Callable[[float], float] | ContactSchedule], seeds: Sequence[int],
@@ -833,13 +836,17 @@ def format_table(rows: Sequence[StudyRow], scores: Mapping[str, str] | None = No
 
 
 def format_paired(rows: Sequence[StudyRow], reference: str) -> str:
-    """Return a markdown table of the paired difference of the final CoM error (row - reference), mm."""
+    """Return a markdown table of paired differences (row minus reference, mean ± SE over the common seeds)."""
     ref = next(r for r in rows if r.label == reference)
-    out = [f"| contact | final CoM err minus {reference} [mm] | seeds where {reference} is better |", "|---|---|---|"]
+    keys = list(ref.per_seed)
+    out = ["| contact minus " + reference + " | " + " | ".join(keys) + " |", "|" + "---|" * (len(keys) + 1)]
     for r in rows:
         if r.label == reference:
             continue
-        d = r.errors - ref.errors
-        m, se = _mean_se(d)
-        out.append(f"| {r.label} | {1000 * m:+.2f} ± {1000 * se:.2f} | {int(np.sum(d > 0))}/{len(d)} |")
+        cells = []
+        for k in keys:
+            d = r.per_seed[k] - ref.per_seed[k]
+            m, se = _mean_se(d)
+            cells.append(f"{m:+.2f} ± {se:.2f} ({int(np.sum(d > 0))}/{len(d)} > 0)")
+        out.append(f"| {r.label} | " + " | ".join(cells) + " |")
     return "\n".join(out)
