@@ -188,6 +188,19 @@ def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, 
     return Fit(effects=list(effects), x=x[:5], thetas=thetas, rss=rss, n_win=n, cov=cov, m2ll=m2ll, sig=sig)
 
 
+def _valid(effect: Effect, fit: Fit) -> bool:
+    """Return True when the fit is physical: the effect's parameters (``Effect.is_physical``) and the cart's.
+
+    The cart needs m > 0.5 kg and a positive inertia about its CoM,
+    J - ((m dx)^2 + (m dy)^2) / m > 0; an effect whose columns trade off
+    against the nominal ones must not buy its fit with an impossible cart.
+    """
+    m, a, b, j = (float(u) for u in fit.x[:4])
+    if not (np.all(np.isfinite(fit.x)) and m > 0.5 and j - (a * a + b * b) / m > 0.0):
+        return False
+    return bool(effect.is_physical(fit.thetas[-1], fit.effects[-1][1], fit.x))
+
+
 def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect) -> Tuple[Fit, List[float]]:
     """Return the best fit of current effects + ``effect`` (nl parameters searched) and the nl stds."""
     base_effects = current.effects
@@ -198,11 +211,10 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
     # current estimate (the chosen fit below iterates everything)
     it_grid = 3 if (effect.uses_phi or effect.set_valued) else 1
     fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi, max_iter=it_grid, theta_ref=th0) for nl in grid]
-    scores = np.array([f.m2ll if effect.is_physical(f.thetas[-1], f.effects[-1][1], f.x) else np.inf
-                       for f in fits])
+    scores = np.array([f.m2ll if _valid(effect, f) else np.inf for f in fits])
     i = int(np.argmin(scores))
     best = fit_model(sig, edges, base_effects + [(effect, grid[i])], phi, theta_ref=fits[i].thetas)
-    if not np.isfinite(scores[i]) or not effect.is_physical(best.thetas[-1], best.effects[-1][1], best.x):
+    if not np.isfinite(scores[i]) or not _valid(effect, best):
         best.m2ll = float("inf")  # no physically valid fit: a failed candidate
         return best, [-1.0] * len(effect.nl_names)
     nl_std: List[float] = []
@@ -234,7 +246,7 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
         def obj(u: float) -> float:
             f = fit_model(sig, edges, base_effects + [(effect, (float(itr(u)),))], phi, max_iter=it_grid,
                           theta_ref=best.thetas)
-            return f.m2ll if effect.is_physical(f.thetas[-1], f.effects[-1][1], f.x) else 1e300
+            return f.m2ll if _valid(effect, f) else 1e300
 
         if hi > lo:
             res = optimize.minimize_scalar(obj, bounds=(float(tr(lo)), float(tr(hi))), method="bounded",
@@ -242,7 +254,7 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
             if res.fun < best.m2ll:
                 cand = fit_model(sig, edges, base_effects + [(effect, (float(itr(res.x)),))], phi,
                                  theta_ref=best.thetas)
-                if effect.is_physical(cand.thetas[-1], cand.effects[-1][1], cand.x):
+                if _valid(effect, cand):
                     best = cand
         u0 = float(tr(best.effects[-1][1][0]))
         du = 0.02 * max(abs(float(tr(hi)) - float(tr(lo))), 1e-3)
@@ -456,9 +468,13 @@ def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, thresh
                 continue
             extra, dphi = _replay_terms(fit)
             rep = replay(fit.sig, fit.x, extra, dphi, horizon=horizon)
-            if rep.finite:  # a blown-up replay = a failed candidate (infinite error)
-                chosen = (e, fit, dbic, nl_std, rep)
-                break
+            if not rep.finite:  # a blown-up replay = a failed candidate (infinite error)
+                continue
+            mask = flagged if np.any(flagged) else None
+            if named and rep.gap(mask) > 1.02 * reps[-1].gap(mask):
+                continue  # a further effect must not widen the gap the named ones left
+            chosen = (e, fit, dbic, nl_std, rep)
+            break
         if chosen is None:
             break
         named.append(chosen[:4])

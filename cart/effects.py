@@ -25,7 +25,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple, Type
 
 import numpy as np
 
-from cart.log_signals import Signals
+from cart.log_signals import Signals, derivative_gain, local_poly
 
 GRAVITY = 9.81
 NONLINEAR_FREE = ()
@@ -83,11 +83,13 @@ def stop_threshold(sig: Signals) -> float:
 
 
 def local_mean(t: np.ndarray, y: np.ndarray, half_window: float) -> np.ndarray:
-    """Return the mean of y over the samples within +-``half_window`` s of each sample (irregular times)."""
-    cum = np.concatenate([[0.0], np.cumsum(y)])
+    """Return the mean of y (N, ...) over the samples within +-``half_window`` s of each sample (irregular times)."""
+    y = np.asarray(y, float)
+    cum = np.concatenate([np.zeros((1,) + y.shape[1:]), np.cumsum(y, axis=0)], axis=0)
     lo = np.searchsorted(t, t - half_window, side="left")
     hi = np.searchsorted(t, t + half_window, side="right")
-    return (cum[hi] - cum[lo]) / np.maximum(hi - lo, 1)
+    cnt = np.maximum(hi - lo, 1).reshape((-1,) + (1,) * (y.ndim - 1))
+    return (cum[hi] - cum[lo]) / cnt
 
 
 def forward_displacement(sig: Signals) -> np.ndarray:
@@ -399,8 +401,32 @@ class CasterSwivel(Effect):
 CASTER_HALF_TRACK = 0.25  # m: lateral offset of the two modelled casters (their exact value matters little)
 #: swing modes of a caster that reaches its leading (unstable) equilibrium: (side, least misalignment);
 #: side 0 = natural (from the motion), +-1 = forced to that side, misalignment = how far from leading it starts
-SWING_MODES: Tuple[Tuple[int, float], ...] = ((0, 1e-4), (1, 0.1), (-1, 0.1), (1, 0.01), (-1, 0.01), (1, 1e-3),
-                                              (-1, 1e-3))
+SWING_MODES: Tuple[Tuple[int, float], ...] = ((0, 1e-5),) + tuple((side, d) for d in (0.1, 0.01, 1e-3, 1e-4, 1e-5)
+                                                                  for side in (1, -1))
+
+
+#: half window (s) of the local quadratic that gives the yaw rate driving the caster kinematics
+CASTER_OMEGA_WINDOW = 0.25
+
+
+def kinematic_yaw_rate(sig: Signals) -> np.ndarray:
+    """Return the yaw rate for the caster kinematics: the heading differentiated over +-CASTER_OMEGA_WINDOW s.
+
+    The casters amplify yaw-rate noise by (axle x) / trail ~ 20 in their swivel
+    rate, so a smoother yaw rate than the fit's (+-0.15 s) pays off (turns last
+    seconds, so the longer window costs little), and it is soft-thresholded at
+    twice its noise std (a cart at rest does not rock its casters). Cached.
+    """
+    key = ("motion", "kin_omega", CASTER_OMEGA_WINDOW)
+    cached = sig.extras.get(key)
+    if cached is None:
+        hw = max(CASTER_OMEGA_WINDOW, sig.half_window)
+        _, d1, _, _ = local_poly(sig.t, sig.q_raw[:, 2:3], hw, 2)
+        # soft threshold at twice the noise of this derivative: a cart at rest must not rock its casters
+        noise = sig.sigma_theta * derivative_gain(sig.t, hw, 2)[1]
+        cached = np.sign(d1[:, 0]) * np.maximum(np.abs(d1[:, 0]) - 2.0 * noise, 0.0)
+        sig.extras[key] = cached
+    return cached
 
 
 def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[float]) -> Tuple[np.ndarray, np.ndarray]:
@@ -429,7 +455,8 @@ def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[flo
     es = np.asarray(trails, float)[None, :, None, None]
     side = np.array([m[0] for m in SWING_MODES], float)[None, None, None, :]
     lim = math.pi - np.array([m[1] for m in SWING_MODES])[None, None, None, :]
-    v, om, t = sig.v, sig.omega, sig.t
+    v, t = sig.v, sig.t
+    om = kinematic_yaw_rate(sig)
     vm = np.concatenate([[v[0]], 0.5 * (v[1:] + v[:-1])])
     omm = np.concatenate([[om[0]], 0.5 * (om[1:] + om[:-1])])
     dt = np.concatenate([[0.0], np.diff(t)])
@@ -459,33 +486,38 @@ class SwivelCasterModel(CasterSwivel):
     """``caster_swivel`` as two swivelling casters: the force of their swivel friction along the log.
 
     Casters at (x, +-0.25 m) in {b} with trail e (:func:`caster_kinematics`);
-    the swivel bearing resists with T = torque tanh(alpha' / eps) + damping alpha'
-    (Coulomb + viscous). Torque balance of each (light) fork makes the floor
-    push its wheel sideways with T / e, which the cart feels at the swivel axis,
-    plus the bearing torque T:
+    the swivel bearing resists with
+    T = c1 tanh(alpha' / 0.2) + c2 tanh(alpha' / 0.8) + damping alpha'
+    (Coulomb friction -- two regularisations, so that their mix fits a sharp or a
+    soft one -- and viscous). Torque balance of each (light) fork makes the
+    floor push its wheel sideways with T / e, which the cart feels at the
+    swivel axis, and the bearing returns T:
     E_fwd = sum (T / e) sin alpha, E_yaw = sum T (1 - (x cos alpha + y sin alpha) / e).
     After a reversal the casters swing round (resisting the cart, with a yaw
     torque whose sign follows the swing); in turns they resist realigning.
-    Linear parameters torque [N m] and damping [N m s/rad]; the trail e is
-    searched on a grid (log-spaced 1.5-8 cm), the axle position x in
-    {0.5, 0.8, 1.1} m through the variants (4 parameters counted). Each swing
-    that starts from (nearly) leading gets the swing mode (side of each caster,
-    initial misalignment: :data:`SWING_MODES`) that fits it best, re-chosen with
-    every refit (:meth:`offset`) -- a latent choice among 13, not counted as a
-    parameter. At rest the casters hold the cart up to sum torque |sin alpha| / e
-    (set-valued, as the profile form).
+    Linear parameters c1, c2 [N m], damping [N m s/rad]; the trail e is searched
+    on a grid (log-spaced 1.5-8 cm), the axle position x in {0.5, 0.8, 1.1} m
+    through the variants (5 parameters counted). Each swing that starts from
+    (nearly) leading gets weights over the swing modes (side of each caster,
+    initial misalignment: :data:`SWING_MODES`) by how well each fits,
+    re-weighed with every refit (:meth:`offset`) -- a latent choice, not counted
+    as a parameter. At rest the casters hold the cart up to
+    (c1 + c2) sum |sin alpha| / e (set-valued, as the profile form).
+    The fork's own inertia is not modelled: a column in its swivel
+    acceleration (the second derivative of a noise-driven angle) traded off
+    against the cart's yaw inertia and made the fits worse, not better.
     """
 
-    param_names = ("torque", "damping")
+    param_names = ("torque_sharp", "torque_soft", "damping")
     nl_names = ("trail",)
     refine = False
     log_scale = True
     AXLES: Tuple[float, ...] = (0.5, 0.8, 1.1)
     TRAILS: Tuple[float, ...] = tuple(float(e) for e in np.geomspace(0.015, 0.08, 14))
-    EPS = 0.5  # rad/s: regularisation of the Coulomb swivel friction
+    EPS = (0.2, 0.8)  # rad/s: regularisations of the two Coulomb swivel-friction columns
     #: swing-mode combinations (caster 1, caster 2) tried per swing: both natural, then sides x misalignments
     COMBOS: Tuple[Tuple[int, int], ...] = ((0, 0),) + tuple(
-        (a, b) for d in (1, 3, 5) for a, b in ((d, d), (d + 1, d + 1), (d, d + 1), (d + 1, d)))
+        (a, b) for d in range(1, len(SWING_MODES), 2) for a, b in ((d, d), (d + 1, d + 1), (d, d + 1), (d + 1, d)))
 
     def __init__(self, axle_x: float = 0.8) -> None:
         super().__init__(1.0)
@@ -497,8 +529,8 @@ class SwivelCasterModel(CasterSwivel):
 
     @property
     def n_params(self) -> int:
-        """Return 4: torque, damping, trail and the grid-chosen axle position."""
-        return 4
+        """Return 5: two Coulomb torques, damping, trail and the grid-chosen axle position."""
+        return 5
 
     def nl_grid(self, sig):
         """Return the trails 1.5-8 cm."""
@@ -523,7 +555,7 @@ class SwivelCasterModel(CasterSwivel):
         cached = sig.extras.get(key)
         if cached is not None:
             return cached
-        alpha, _ = self._lanes(sig, trail)
+        alpha = self._lanes(sig, trail)[0]
         diff = np.abs(np.sin(0.5 * (alpha - alpha[:, :, :1])))
         on = np.max(diff, axis=(1, 2)) > 0.02
         edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(int), [0]])))
@@ -532,40 +564,29 @@ class SwivelCasterModel(CasterSwivel):
         return out
 
     def _unit_rows(self, alpha: np.ndarray, rate: np.ndarray, trail: float) -> np.ndarray:
-        """Return -dE/d(torque, damping) (..., 2 rows: forward, yaw; 2 params) summed over the casters (last axis)."""
+        """Return -dE/d(c1, c2, damping) (..., 2 rows: forward, yaw; 3 params) summed over the casters (last axis)."""
         ys = np.array([CASTER_HALF_TRACK, -CASTER_HALF_TRACK])
         lever = 1.0 - (self.axle_x * np.cos(alpha) + ys * np.sin(alpha)) / trail
-        out = np.empty(alpha.shape[:-1] + (2, 2))
-        for k, unit in enumerate((np.tanh(rate / self.EPS), rate)):  # T per unit torque, per unit damping
-            out[..., 0, k] = -np.sum(unit * np.sin(alpha), axis=-1) / trail
+        sa = np.sin(alpha) / trail
+        out = np.empty(alpha.shape[:-1] + (2, 3))
+        for k, unit in enumerate((np.tanh(rate / self.EPS[0]), np.tanh(rate / self.EPS[1]), rate)):
+            out[..., 0, k] = -np.sum(unit * sa, axis=-1)  # torque per unit parameter
             out[..., 1, k] = -np.sum(unit * lever, axis=-1)
         return out
 
-    def _selected(self, sig: Signals, trail: float) -> Tuple[np.ndarray, np.ndarray]:
-        """Return alpha, alpha' (N, 2) with each swing in its chosen mode (natural where none was chosen)."""
-        alpha, rate = self._lanes(sig, trail)
-        choice = sig.extras.get(("caster_choice", self.axle_x, trail), {})
-        key = ("caster_selected", self.axle_x, trail, tuple(sorted(choice.items())))
-        cached = sig.extras.get(key)
-        if cached is not None:
-            return cached
-        a, r = alpha[:, :, 0].copy(), rate[:, :, 0].copy()
-        for (i0, i1), c in choice.items():
-            m1, m2 = self.COMBOS[c]
-            a[i0:i1, 0], a[i0:i1, 1] = alpha[i0:i1, 0, m1], alpha[i0:i1, 1, m2]
-            r[i0:i1, 0], r[i0:i1, 1] = rate[i0:i1, 0, m1], rate[i0:i1, 1, m2]
-        sig.extras[key] = (a, r)
-        return a, r
+    def _choice(self, sig: Signals, trail: float) -> Dict[Tuple[int, int], np.ndarray]:
+        """Return the current weights of the mode combinations per swing ({(i0, i1): (combos,)}; empty: natural)."""
+        return sig.extras.get(("caster_choice", self.axle_x, trail), {})
 
-    def _swing_stats(self, sig: Signals, trail: float, base: np.ndarray) -> List[Tuple[Tuple[int, int], np.ndarray,
-                                                                                    np.ndarray, np.ndarray]]:
-        """Return per swing ((i0, i1), Q, P, R): weighted normal equations of every mode combination.
+    def _swing_stats(self, sig: Signals, trail: float, base: np.ndarray) -> List[tuple]:
+        """Return per swing ((i0, i1), U, Q, P, R, c0, b, S): unit rows and weighted normal equations of the combos.
 
-        With U_c the unit rows of combination c and W = diag(1/sigma_force^2,
-        1/sigma_torque^2): Q_c = sum U_c' W U_c, P_c = sum U_c' W y,
-        R_c = sum U_c' W B (y: measured forward force and torque, B: their
-        nominal phi columns), so that the misfit of c for (phi, theta) is
-        theta' Q_c theta - 2 theta' (P_c - R_c phi) + const.
+        U_c (L, combos, 2 rows, 2 params) are the unit rows of combination c;
+        with W = diag(1/sigma_force^2, 1/sigma_torque^2), y the measured forward
+        force and torque and B their nominal phi columns: Q_c = sum U_c' W U_c,
+        P_c = sum U_c' W y, R_c = sum U_c' W B, c0 = sum y' W y, b = sum B' W y,
+        S = sum B' W B, so that the weighted misfit of c for (phi, theta) is
+        theta' Q_c theta - 2 theta' (P_c - R_c phi) + c0 - 2 phi' b + phi' S phi.
         """
         key = ("caster_swing_stats", self.axle_x, trail)
         cached = sig.extras.get(key)
@@ -579,70 +600,110 @@ class SwivelCasterModel(CasterSwivel):
         for i0, i1 in self._swings(sig, trail):
             al = np.stack([alpha[i0:i1, 0, c1], alpha[i0:i1, 1, c2]], axis=-1)  # (L, combos, 2 casters)
             ra = np.stack([rate[i0:i1, 0, c1], rate[i0:i1, 1, c2]], axis=-1)
-            u = self._unit_rows(al, ra, trail)  # (L, combos, 2 rows, 2 params)
+            u = self._unit_rows(al, ra, trail)  # (L, combos, 2 rows, 3 params)
             uw = u * w[None, None, :, None]
             y = np.column_stack([sig.f_fwd[i0:i1], sig.tau[i0:i1]])  # (L, 2)
             bb = base[i0:i1, :2, :4]  # (L, 2, 4)
-            q = np.einsum("lcrk,lcrj->ckj", uw, u)
-            pp = np.einsum("lcrk,lr->ck", uw, y)
-            rr = np.einsum("lcrk,lrj->ckj", uw, bb)
-            out.append(((i0, i1), q, pp, rr))
+            bw = bb * w[None, :, None]
+            out.append(((i0, i1), u, np.einsum("lcrk,lcrj->ckj", uw, u), np.einsum("lcrk,lr->ck", uw, y),
+                        np.einsum("lcrk,lrj->ckj", uw, bb), float(np.sum(y * y * w)), np.einsum("lrj,lr->j", bw, y),
+                        np.einsum("lrj,lrk->jk", bw, bb)))
         sig.extras[key] = out
         return out
 
     def _choose(self, sig: Signals, trail: float, phi: np.ndarray, base: np.ndarray, theta: np.ndarray) -> None:
-        """Pick per swing the mode combination whose forces best explain the nominal residual (given theta)."""
+        """Weigh the mode combinations of every swing by how well their forces explain the residual (given theta).
+
+        A soft choice (posterior weights) rather than the best combination: the
+        misfit ratio to the best one, times the number of roughly independent
+        samples (one per 0.3 s), is read as a chi-square difference; a swing the
+        data cannot decide keeps a mixture (e.g. both swing directions: their
+        yaw torques cancel) instead of a confident wrong guess.
+        """
         ph = np.asarray(phi[:4], float)
-        th = np.asarray(theta[:2], float)
+        th = np.asarray(theta[:3], float)
+        dt = float(np.median(np.diff(sig.t)))
         choice = {}
-        for rng_, q, pp, rr in self._swing_stats(sig, trail, base):
-            score = np.einsum("k,ckj,j->c", th, q, th) - 2.0 * ((pp - rr @ ph) @ th)
-            choice[rng_] = int(np.argmin(score))
+        for rng_, _, q, pp, rr, c0, b, ss in self._swing_stats(sig, trail, base):
+            score = (np.einsum("k,ckj,j->c", th, q, th) - 2.0 * ((pp - rr @ ph) @ th)
+                     + c0 - 2.0 * ph @ b + ph @ ss @ ph)
+            best = max(float(np.min(score)), 1e-12)
+            n_ind = max((rng_[1] - rng_[0]) * dt / 0.3, 1.0)
+            dchi = 2.0 * n_ind * (score / best - 1.0)
+            wts = np.exp(-0.5 * (dchi - np.min(dchi)))
+            choice[rng_] = wts / np.sum(wts)
         sig.extras[("caster_choice", self.axle_x, trail)] = choice
 
     def column_key(self, sig, nl):
-        """Return the default key plus the current swing-mode choice (the columns depend on it)."""
-        choice = sig.extras.get(("caster_choice", self.axle_x, float(nl[0])), {})
-        return Effect.column_key(self, sig, nl) + (tuple(sorted(choice.items())),)
+        """Return the default key plus the current swing-mode weights (the columns depend on them)."""
+        choice = self._choice(sig, float(nl[0]))
+        return Effect.column_key(self, sig, nl) + (tuple((k, tuple(np.round(w, 4))) for k, w in sorted(
+            choice.items())),)
+
+    def _rows(self, sig: Signals, trail: float) -> np.ndarray:
+        """Return the unit rows (N, 2, 2): natural swings, each chosen swing as its weighted mixture of combos."""
+        alpha, rate = self._lanes(sig, trail)
+        rows = self._unit_rows(alpha[:, :, 0], rate[:, :, 0], trail)
+        choice = self._choice(sig, trail)
+        if choice:
+            for st in sig.extras.get(("caster_swing_stats", self.axle_x, trail), []):
+                wts = choice.get(st[0])
+                if wts is not None:
+                    rows[st[0][0]:st[0][1]] = np.einsum("c,lcrk->lrk", wts, st[1])
+        return rows
+
+    def _hold_capacity(self, sig: Signals, trail: float) -> np.ndarray:
+        """Return sum |sin alpha| / e (N,) per unit torque: the casters' most likely swing per chosen swing."""
+        alpha = self._lanes(sig, trail)[0]
+        a = alpha[:, :, 0].copy()
+        c1 = np.array([c[0] for c in self.COMBOS])
+        c2 = np.array([c[1] for c in self.COMBOS])
+        for (i0, i1), wts in self._choice(sig, trail).items():
+            c = int(np.argmax(wts))
+            a[i0:i1, 0], a[i0:i1, 1] = alpha[i0:i1, 0, c1[c]], alpha[i0:i1, 1, c2[c]]
+        return np.sum(np.abs(np.sin(a)), axis=1) / trail
 
     def columns(self, sig, nl, phi, base):
-        """Return G = -dE/d(torque, damping) in the forward and yaw rows (swings in their chosen modes)."""
-        alpha, rate = self._selected(sig, float(nl[0]))
-        g = np.zeros((sig.n, 3, 2))
-        g[:, :2, :] = self._unit_rows(alpha, rate, float(nl[0]))
+        """Return G = -dE/d(torque, damping) in the forward and yaw rows (swings as their chosen mixtures)."""
+        g = np.zeros((sig.n, 3, 3))
+        g[:, :2, :] = self._rows(sig, float(nl[0]))
         return g
 
     def offset(self, sig, nl, phi, base, theta):
-        """Re-choose the swing modes for this estimate; return the holding force at rest, cap = torque sum |sin alpha| / e."""
+        """Re-weigh the swing modes for this estimate; return the hold at rest, cap = (c1 + c2) sum |sin alpha| / e."""
         e = float(nl[0])
         if theta is None or phi is None or len(theta) == 0:
             sig.extras[("caster_choice", self.axle_x, e)] = {}  # a fresh fit starts from the natural swings
             return None
-        if float(theta[0]) > 0.0 or float(theta[1]) > 0.0:
+        if np.any(np.asarray(theta, float) != 0.0):
             self._choose(sig, e, phi, base, theta)
-        if float(theta[0]) <= 0.0:
+        coulomb = float(theta[0]) + float(theta[1])
+        if coulomb <= 0.0:
             return None
         rest = np.abs(sig.v) < stop_threshold(sig)
         if not np.any(rest):
             return None
-        alpha, _ = self._selected(sig, e)
-        cap = float(theta[0]) * np.sum(np.abs(np.sin(alpha)), axis=1) / e
+        cap = coulomb * self._hold_capacity(sig, e)
         r = sig.f_fwd - base[:, 0, :4] @ np.asarray(phi[:4], float)
         out = np.zeros((sig.n, 3))
         out[:, 0] = np.where(rest, np.clip(r, -cap, cap), 0.0)
         return out
 
     def is_physical(self, theta, nl, x):
-        """Return True for a positive Coulomb torque and a non-negative damping (within 5 % of torque / eps)."""
-        tq, damp = float(theta[0]), float(theta[1])
-        return bool(np.isfinite(tq) and np.isfinite(damp) and tq > 0.0 and damp >= -0.05 * tq / self.EPS)
+        """Return True when the swivel resists: c1 + c2 > 0 and a non-negative friction slope at rest."""
+        c1, c2, damp = (float(u) for u in theta[:3])
+        if not np.all(np.isfinite([c1, c2, damp])):
+            return False
+        return bool(c1 + c2 > 0.0 and c1 / self.EPS[0] + c2 / self.EPS[1] + damp >= 0.0)
 
     def describe(self, theta, nl, cov, nl_std, phi):
-        """Return torque, damping, trail, axle_x, and force = 2 torque / trail (peak resistance, casters side-on)."""
+        """Return c1, c2, damping, trail, axle_x, torque = c1 + c2 and force = 2 torque / trail (casters side-on)."""
         params, std = Effect.describe(self, theta, nl, cov, nl_std, phi)
         e = float(nl[0])
-        params.update({"axle_x": self.axle_x, "force": 2.0 * float(theta[0]) / e})
-        std.update({"axle_x": 0.0, "force": 2.0 * math.sqrt(max(cov[0, 0], 0.0)) / e})
+        s_t = math.sqrt(max(cov[0, 0] + cov[1, 1] + 2.0 * cov[0, 1], 0.0))
+        tq = float(theta[0]) + float(theta[1])
+        params.update({"axle_x": self.axle_x, "torque": tq, "force": 2.0 * tq / e})
+        std.update({"axle_x": 0.0, "torque": s_t, "force": 2.0 * s_t / e})
         return params, std
 
 

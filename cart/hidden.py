@@ -33,7 +33,8 @@ class HiddenEffect:
     Parameters by name: coulomb_friction {force [N], torque [N m]};
     caster_swivel, two forms: the resistance profile {force [N], distance [m]} (after a reversal,
     -force tanh(v / 5 mm/s) times a raised cosine fading over ``distance``), or swivelling casters
-    {trail [m], torque [N m], damping [N m s/rad], x [m], half_track [m], roughness [rad/sqrt(m)]}
+    {trail [m], torque [N m], damping [N m s/rad], eps [rad/s], inertia [kg m^2], x [m], half_track [m],
+    roughness [rad/sqrt(m)]}
     (selected by the key ``trail``; see :class:`SwivelCasters`); wrench_bias {fx, fy [N], tau [N m]} in {b};
     payload_change {time [s], mass [kg], x, y [m] in {b}, inertia [kg m^2]};
     floor_slope {angle [rad], direction [rad], downhill in {s}}; time_delay {delay [s]};
@@ -138,7 +139,7 @@ def payload_params(p: CartParams, mass: float, x: float, y: float, inertia: floa
 
 
 class SwivelCasters:
-    """Two massless swivelling casters at (x, +-half_track) in {b}, with trail, swivel friction and damping.
+    """Two swivelling casters at (x, +-half_track) in {b}, with trail, swivel friction, damping and inertia.
 
     Each caster's wheel rolls along the direction ``alpha`` (in {b}) and
     touches the floor ``trail`` behind its swivel axis P. The wheel does not
@@ -146,42 +147,49 @@ class SwivelCasters:
     trail (alpha' + omega) = n . v_P, n = (-sin alpha, cos alpha): stable when
     the wheel trails, unstable when it leads -- after a reversal each caster
     swings round by ~180 deg over a few trails of travel. The swivel bearing
-    resists with T = torque tanh(alpha' / 0.5 rad/s) + damping alpha'; torque
-    balance of the massless fork makes the floor push the wheel sideways with
-    -T / trail along n, which acts on the cart at P, and the bearing returns T
-    to the cart: E_fwd = sum -(T / trail) n_x, E_yaw = sum (P x F) + T. So the
-    cart is resisted during the swing (and when the casters realign in turns),
-    and gets a yaw torque whose sign depends on which way each caster swings.
-    ``roughness``: the floor kicks each caster angle by a random walk of that
-    std per sqrt(metre) of travel, so a caster never stays exactly on its
-    unstable equilibrium.
+    resists with T = torque tanh(alpha' / eps) + damping alpha' (``eps``: the
+    Coulomb friction's regularisation, rad/s); the fork's torque balance about
+    the swivel axis, with its ``inertia`` (kg m^2) about that axis, makes the
+    floor push the wheel sideways with -(T + inertia (alpha' + omega)') / trail
+    along n, which acts on the cart at P, and the bearing returns T to the
+    cart: E_fwd = sum F . x, E_yaw = sum (P x F) + T. So the cart is resisted
+    during the swing (and when the casters realign in turns), and gets a yaw
+    torque whose sign depends on which way each caster swings. ``roughness``:
+    the floor kicks each caster angle by a random walk of that std per
+    sqrt(metre) of travel, so a caster never stays exactly on its unstable
+    equilibrium. The swivel acceleration is taken from the previous step
+    (the fork's inertia is small against the cart's).
     """
-
-    EPS = 0.5  # rad/s: regularisation of the Coulomb swivel friction
 
     def __init__(self, p: Dict[str, float], params: CartParams) -> None:
         self.trail = float(p["trail"])
         self.torque = float(p.get("torque", 0.0))
         self.damping = float(p.get("damping", 0.0))
+        self.eps = float(p.get("eps", 0.5))
+        self.inertia = float(p.get("inertia", 0.0))
         x = float(p.get("x", params.dx + 0.4))
         yc = float(p.get("half_track", 0.25))
         self.pos = ((x, yc), (x, -yc))
         self.roughness = float(p.get("roughness", 0.01))
+        self.acc = np.zeros(2)  # absolute swivel acceleration (alpha' + omega)' of the last step
+
+    def rates(self, v: float, om: float, alphas: np.ndarray) -> np.ndarray:
+        """Return the swivel rates alpha' (relative to the cart) at speed v, yaw rate om."""
+        return np.array([(-(v - om * cy) * math.sin(al) + om * cx * math.cos(al)) / self.trail - om
+                         for (cx, cy), al in zip(self.pos, alphas)])
 
     def terms(self, v: float, om: float, alphas: np.ndarray) -> Tuple[float, float, float, np.ndarray]:
         """Return (E_fwd, E_lat, E_yaw) on the cart and the swivel rates alpha' at speed v, yaw rate om."""
         e_f = e_l = e_t = 0.0
-        rates = np.empty(len(self.pos))
+        rates = self.rates(v, om, alphas)
         for k, ((cx, cy), al) in enumerate(zip(self.pos, alphas)):
             sa, ca = math.sin(al), math.cos(al)
-            rate = (-(v - om * cy) * sa + om * cx * ca) / self.trail - om
-            tq = self.torque * math.tanh(rate / self.EPS) + self.damping * rate
-            fn = -tq / self.trail  # floor force on the wheel along n, passed to the cart at P
+            tq = self.torque * math.tanh(rates[k] / self.eps) + self.damping * rates[k]
+            fn = -(tq + self.inertia * self.acc[k]) / self.trail  # floor force on the wheel along n, at P
             fx, fy = -fn * sa, fn * ca
             e_f += fx
             e_l += fy
             e_t += cx * fy - cy * fx + tq
-            rates[k] = rate
         return e_f, e_l, e_t, rates
 
 
@@ -213,7 +221,7 @@ def simulate_hidden(params: CartParams, effects: Sequence[HiddenEffect] = (), du
     casters = SwivelCasters(sw, p) if sw and "trail" in sw else None
     if casters is not None:
         sw = None
-        h = min(h, 0.001)  # the swivel friction is stiff
+        h = min(h, 0.001 if casters.eps >= 0.3 else 0.0005)  # the swivel friction is stiff
     alphas = rng.normal(0.0, 0.05, 2) if casters is not None else np.zeros(2)
     kv, kw = 2.5, 3.0
     px, py = contact
@@ -284,10 +292,13 @@ def simulate_hidden(params: CartParams, effects: Sequence[HiddenEffect] = (), du
                            tq, dist)
         lat[k] = w1
         v_old = x[3]
+        x_om_old = x[4]
         x = x + h * k2
         if casters is not None:  # swivel (midpoint rule) + the floor's random kicks
             kick = casters.roughness * math.sqrt(abs(x[3]) * h + 1e-12) * rng.standard_normal(2)
             alphas = alphas + h * ra2 + kick
+            if casters.inertia > 0.0:
+                casters.acc = (casters.rates(x[3], x[4], alphas) + x[4] - ra1 - x_om_old) / h
         # caster state: distance travelled since the last reversal of the forward speed
         new_dir = 1 if x[3] > 0.01 else (-1 if x[3] < -0.01 else direction)
         if new_dir != direction and direction != 0:
@@ -342,15 +353,20 @@ def random_casters(rng: np.random.Generator, params: CartParams) -> Dict[str, fl
     """Return random swivelling-caster parameters (:class:`SwivelCasters`): trail 3-5 cm, in front of the CoM.
 
     The swivel friction is sized by the peak forward resistance of the two
-    casters side-on, 2 torque / trail = 0.3-0.8 N per kg of cart; half of the
-    casters also get viscous swivel damping (0.1-0.5 of that peak at 0.4 m/s).
+    casters side-on, 2 torque / trail = 0.3-0.8 N per kg of cart, its
+    regularisation eps 0.2-0.8 rad/s (log-uniform); half of the casters also
+    get viscous swivel damping (0.1-0.5 of that peak at 0.4 m/s), half a fork
+    inertia of 0.5-4 g m^2 about the swivel axis.
     """
     trail = rng.uniform(0.03, 0.05)
     peak = rng.uniform(0.3, 0.8) * params.m
     damping = rng.uniform(0.1, 0.5) * peak * trail ** 2 / (2.0 * 0.4) if rng.uniform() < 0.5 else 0.0
-    return {"trail": trail, "torque": 0.5 * peak * trail, "damping": damping,
-            "x": min(params.dx + rng.uniform(0.3, 0.6), 1.1), "half_track": rng.uniform(0.2, 0.3),
-            "roughness": 0.01}
+    out = {"trail": trail, "torque": 0.5 * peak * trail, "damping": damping,
+           "x": min(params.dx + rng.uniform(0.3, 0.6), 1.1), "half_track": rng.uniform(0.2, 0.3),
+           "roughness": 0.01}
+    out["eps"] = float(math.exp(rng.uniform(math.log(0.2), math.log(0.8))))
+    out["inertia"] = rng.uniform(0.0005, 0.004) if rng.uniform() < 0.5 else 0.0
+    return out
 
 
 def random_effect(name: str, rng: np.random.Generator, params: CartParams, duration: float,

@@ -161,3 +161,81 @@ def test_velocity_change_noise_matches_the_full_pipeline_on_pure_noise():
     empirical = float(np.mean(np.concatenate(vals) ** 2))
     assert s2v == pytest.approx(empirical, rel=0.25)
     assert sig.sigma_pos == pytest.approx(0.003, rel=0.15)  # noise level recovered from the residuals
+
+
+def _log_of(t, x, y, th):
+    from cart.logs import CartLog
+    return CartLog(t=t, q=np.column_stack([x, y, th]), gamma=np.zeros((len(t), 3)))
+
+
+def test_caster_kinematics_match_the_test_bed_casters_and_the_columns_their_forces():
+    # cart.effects steps the swivel exactly (half-angle form) along the log; cart.hidden.SwivelCasters integrates
+    # the same ODE with small Euler steps: the natural lane must agree, and the columns per unit torque must be
+    # the generalized force the test bed computes for those angles
+    import cart.effects as fx
+    from cart.hidden import SwivelCasters
+
+    t = np.arange(0.0, 14.0, 0.01)
+    v = 0.5 * np.sin(2 * np.pi * t / 14.0)            # forward, then backward: one reversal at t = 7
+    om = 0.3 * np.sin(2 * np.pi * t / 5.0)            # turning throughout
+    th = np.concatenate([[0.0], np.cumsum(0.5 * (om[1:] + om[:-1]) * np.diff(t))])
+    xy = np.zeros((len(t), 2))
+    for k in range(1, len(t)):
+        a = 0.5 * (th[k] + th[k - 1])
+        xy[k] = xy[k - 1] + 0.5 * (v[k] + v[k - 1]) * 0.01 * np.array([np.cos(a), np.sin(a)])
+    sig = signals_from_log(_log_of(t, xy[:, 0], xy[:, 1], th), half_window=0.05)
+    model = fx.SwivelCasterModel(0.8)
+    e = model.TRAILS[8]
+    alpha, rate = model._lanes(sig, e)
+    # independent: fine Euler steps of SwivelCasters with the same speeds (the kinematic yaw rate of the model)
+    omk = fx.kinematic_yaw_rate(sig)
+    cas = SwivelCasters({"trail": e, "torque": 1.0, "damping": 0.0, "eps": model.EPS[0], "x": 0.8,
+                         "half_track": fx.CASTER_HALF_TRACK}, CartParams(m=30.0, dx=0.3, dy=0.0, I=2.0))
+    al = np.zeros(2)
+    ref = np.empty((len(t), 2))
+    for k in range(len(t)):
+        ref[k] = al
+        if k + 1 < len(t):
+            for j in range(20):
+                u = (j + 0.5) / 20
+                vv = (1 - u) * sig.v[k] + u * sig.v[k + 1]
+                ww = (1 - u) * omk[k] + u * omk[k + 1]
+                al = al + 0.01 / 20 * cas.rates(vv, ww, al)
+    d = np.angle(np.exp(1j * (alpha[:, :, 0] - ref)))
+    assert np.percentile(np.abs(d), 95) < 0.05, np.percentile(np.abs(d), 95)
+    assert np.max(np.abs(np.angle(np.exp(1j * alpha[t > 12, :, 0])))) > 2.5  # swung round: trailing backwards
+    # columns per unit sharp torque = -(generalized force of the test bed's casters with torque 1, eps 0.2)
+    g = model.columns(sig, (e,), None, None)
+    for k in range(0, len(t), 37):
+        e_f, _, e_t, _ = cas.terms(sig.v[k], omk[k], alpha[k, :, 0])
+        assert g[k, 0, 0] == pytest.approx(-e_f, abs=1e-6 + 1e-6 * abs(e_f))
+        assert g[k, 1, 0] == pytest.approx(-e_t, abs=1e-6 + 1e-6 * abs(e_t))
+
+
+def test_a_push_against_a_held_cart_counts_as_a_reversal():
+    from cart.effects import distance_since_reversal, travel_direction
+    from cart.logs import CartLog
+
+    t = np.arange(0.0, 12.0, 0.01)
+    v = np.where(t < 4.0, 0.4, 0.0) * np.clip(4.0 - t, 0.0, 1.0)  # forward, stop at t = 4, then held still
+    x = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * 0.01)])
+    f = np.where((t > 6.0) & (t < 9.0), -30.0, 0.0)  # a 30 N pull from 6 s to 9 s that does not move it
+    log = CartLog(t=t, q=np.column_stack([x, np.zeros_like(t), np.zeros_like(t)]),
+                  gamma=np.column_stack([f, np.zeros_like(t), np.zeros_like(t)]))
+    sig = signals_from_log(log, half_window=0.05)
+    d = travel_direction(sig)
+    assert np.all(d[(t > 1.0) & (t < 2.5)] == 1) and np.all(d[(t > 4.5)] == -1)  # the rest run carries the pull
+    s = distance_since_reversal(sig)
+    assert np.all(np.isinf(s[t < 2.5])) and np.all(s[t > 4.5] < 1e-3)  # armed, no travel since
+
+
+def test_local_mean_matches_a_loop():
+    from cart.effects import local_mean
+
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.005, 0.02, 300))
+    y = rng.standard_normal((300, 2))
+    got = local_mean(t, y, 0.05)
+    for i in range(0, 300, 17):
+        sel = np.abs(t - t[i]) <= 0.05 + 1e-12
+        np.testing.assert_allclose(got[i], y[sel].mean(axis=0), rtol=1e-10)
