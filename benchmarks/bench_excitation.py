@@ -2,6 +2,7 @@
 
 Run: .venv/bin/python benchmarks/bench_excitation.py [--seeds N] [--inputs fused,measured]
                                                      [--plans com_a_path:30,com_a_path:12,com_a:6,min_eig:6]
+                                                     [--fixed 0.25,0,0.5]
 Reproduces the tables of docs/contacts.md ("Persistence of excitation"); the
 default (3 seeds) is the quick `make bench` run. Prints times (never asserts
 one) and markdown tables. Schedules: planned by each objective:segments on the
@@ -22,7 +23,7 @@ import wholebody.excitation as ex
 LETTERS = {0.0: "L", 0.125: "l", 0.25: "C", 0.375: "r", 0.5: "R"}  # handle points s: y = s - 0.25
 
 
-def plans(noise: ex.WrenchNoise, specs: list[tuple[str, int]]) -> tuple[dict, dict, dict]:
+def plans(noise: ex.WrenchNoise, specs: list[tuple[str, int]], fixed: list[float]) -> tuple[dict, dict, dict]:
     """Return (schedules, planning times [s], score strings) for the planned and fixed contacts."""
     guess = CartParams(*ex.STUDY_GUESS)
     samples = ex.sample_push(trajectory_2(), dt=0.05)
@@ -37,9 +38,9 @@ def plans(noise: ex.WrenchNoise, specs: list[tuple[str, int]]) -> tuple[dict, di
         print(f"{label}: {''.join(LETTERS.get(round(float(v), 3), '?') for v in plan.schedule.s)} "
               f"(L: y = -0.25, C: y = 0, R: y = +0.25); effort {plan.effort:.0f} (budget {plan.budget:.0f}); "
               f"best fixed by this score: s = {plan.fixed_s:g}")
-    scheds["fixed centre (y = 0)"] = lambda t: 0.25
-    scheds["fixed end y = -0.25"] = lambda t: 0.0
-    scheds["fixed end y = +0.25"] = lambda t: 0.5
+    names = {0.25: "fixed centre (y = 0)", 0.0: "fixed end y = -0.25", 0.5: "fixed end y = +0.25"}
+    for c in fixed:
+        scheds[names.get(c, f"fixed s = {c:g}")] = lambda t, c=c: c
     P0 = ex.default_prior(guess.phi)
     scores = {}
     for label, sc in scheds.items():
@@ -54,13 +55,14 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--inputs", default="fused")
     ap.add_argument("--plans", default="com_a_path:30,com_a_path:12,com_a:6,min_eig:6")
+    ap.add_argument("--fixed", default="0.25,0,0.5", help="fixed contacts, handle coordinate s in [0, 0.5] m")
     args = ap.parse_args()
     specs = [(p.split(":")[0], int(p.split(":")[1])) for p in args.plans.split(",") if p]
     for mode in args.inputs.split(","):
         model = ex.input_model(mode)
         print(f"\n## EKF input: {mode} (input error std {model.noise.force:.3g} N, {model.noise.torque:.3g} N m "
               f"in {{a}}), {args.seeds} seeds")
-        scheds, times, scores = plans(model.noise, specs)
+        scheds, times, scores = plans(model.noise, specs, [float(c) for c in args.fixed.split(",") if c])
         print("planning time [s]: " + ", ".join(f"{k} {v:.2f}" for k, v in times.items()))
         t0 = time.perf_counter()
         rows, _ = ex.contact_study(scheds, range(args.seeds), ekf_input=mode)

@@ -657,6 +657,7 @@ def com_convergence_traj2(
     q_floor: float = 1e-5,
     q_phi: float = 0.0,
     ekf_substeps: int = 4,
+    guess: Sequence[float] = STUDY_GUESS,
 ) -> ConvergenceResult:
     """Return the CoM convergence of the EKF on Traj. 2 (Table I test 5 cart) with the given contact schedule.
 
@@ -666,7 +667,11 @@ def com_convergence_traj2(
     in {a}; the F/T sensor at the contact reads it with white noise ``noise``
     in {a}. The EKF is fed the wrench chosen by ``ekf_input``
     (:func:`input_model`) together with the covariance of its error mapped
-    through the grasp map (``CartEKF.step(..., gamma_cov=...)``).
+    through the grasp map (``gamma_cov``). ``ekf_substeps`` Euler predictions
+    (``CartEKF.predict``) per control period precede each update: with one
+    (``CartEKF.step``) the O(dt) discretisation error biases the parameters
+    under wrench noise (docs/contacts.md). ``guess``: the EKF's initial (m, dx,
+    dy, I, sigma); its sigma is used as known.
     """
     from cart.control import make_controller
     from cart.params import CartParams
@@ -678,7 +683,7 @@ def com_convergence_traj2(
     model = input_model(ekf_input, noise, actuation)
     traj = trajectory_2(duration)
     truth = CartParams(20.0, true_com[0], true_com[1], 20.0 * (1.0 + 0.36) / 12.0, 4.0)
-    guess = CartParams(*STUDY_GUESS)
+    guess = CartParams(*guess)
     meas = MeasurementNoise.from_level(0.005)
     config = study_config(dt, q_floor, q_phi)
     n = int(round(duration / dt)) + 1
