@@ -4,7 +4,8 @@ Usage:
   .venv/bin/python benchmarks/bench_diagnose.py                 # timing of 60 s, 100 Hz logs
   .venv/bin/python benchmarks/bench_diagnose.py --study 20      # + confusion matrix, 20 random cases per class
   .venv/bin/python benchmarks/bench_diagnose.py --robust 4      # + robustness conditions, 4 cases per class each
-  options: --seed S (first seed), --no-timing, --json FILE (all per-case results)
+  options: --seed S (first seed), --no-timing, --json FILE (all per-case results),
+           --classes c1,c2 (only these classes; seeds as in the full study), --caster-form profile|swivel
 
 The study draws random carts (15-60 kg, CoM 0.1-0.5 m forward, +-0.15 m sideways),
 random push/pull motions with turns and >= 1 reversal, rates 50-200 Hz with jitter,
@@ -64,14 +65,17 @@ def timing(repeats: int = 3) -> None:
 
 
 def run_cases(n: int, seed0: int = 1000, duration: float = 30.0, overrides: Optional[dict] = None,
-              scale: float = 1.0, label: str = "") -> List[dict]:
+              scale: float = 1.0, label: str = "", classes: Optional[List[str]] = None,
+              caster_form: Optional[str] = None) -> List[dict]:
     """Return one result dict per case: class, seed, first named, gap ratio, caster form, time."""
     out = []
     for ci, c in enumerate(CLASSES):
+        if classes and c not in classes:
+            continue
         for k in range(n):
             seed = seed0 + 1000 * ci + k
             h = random_case(None if c == "none" else c, np.random.default_rng(seed), duration=duration, scale=scale,
-                            **(overrides or {}))
+                            caster_form=caster_form, **(overrides or {}))
             t0 = time.perf_counter()
             r = diagnose(h.measured)
             dt = time.perf_counter() - t0
@@ -153,18 +157,22 @@ if __name__ == "__main__":
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--no-timing", action="store_true")
     ap.add_argument("--json", default="", help="write all per-case results to this file")
+    ap.add_argument("--classes", default="", help="comma-separated classes to run (default: all)")
+    ap.add_argument("--caster-form", default=None, choices=("profile", "swivel"))
     a = ap.parse_args()
+    cls = [c for c in a.classes.split(",") if c] or None
     if not a.no_timing:
         timing()
     everything: List[dict] = []
     if a.study:
-        res = run_cases(a.study, a.seed, label="default")
+        res = run_cases(a.study, a.seed, label="default", classes=cls, caster_form=a.caster_form)
         everything += res
         print("\n" + confusion_table(res) + "\n\n" + rates_table(res))
     if a.robust:
         rob: List[dict] = []
         for cond, (over, scale) in CONDITIONS.items():
-            rob += run_cases(a.robust, a.seed, overrides=over, scale=scale, label=cond)
+            rob += run_cases(a.robust, a.seed, overrides=over, scale=scale, label=cond, classes=cls,
+                             caster_form=a.caster_form)
         everything += rob
         print("\n" + robust_table(rob))
     if a.json:

@@ -15,10 +15,13 @@ b. Replay. The fitted model is integrated over 1 s horizons from the smoothed
    (Benjamini-Hochberg FDR 1 %) are merged into windows labelled with what the
    cart was doing.
 c. Selection. Every candidate effect (``cart.effects``) is refitted with the
-   model (nonlinear parameters by grid + 1-D refinement) and scored by
+   model (nonlinear parameters by grid + 1-D refinement; set-valued terms such
+   as friction holding the cart at rest by fixed-point iteration) and scored by
    Delta BIC = -2 Delta log-likelihood - k log(n) (profiled Gaussian
    likelihood, n = number of window rows); the best one with Delta BIC >
-   ``threshold`` is added and the search repeats.
+   ``threshold`` whose fit is physical (effect and cart: m > 0.5 kg, positive
+   inertia about the CoM) and whose replay stays finite is added -- a further
+   one only if it does not widen the gap -- and the search repeats.
 d. Report: gap before/after (same replay metric), named effects with
    parameters, stds (Gauss-Newton covariance / profile curvature), evidence,
    windows.
