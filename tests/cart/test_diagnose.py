@@ -166,8 +166,12 @@ def test_caster_shape_variants_and_their_columns():
     from cart.effects import CasterSwivel, distance_since_reversal, stop_threshold
     from cart.log_signals import signals_from_log
 
-    vs = CasterSwivel().variants()
+    from cart.effects import SwivelCasterModel
+
+    vs = [v for v in CasterSwivel().variants() if type(v) is CasterSwivel]
     assert sorted(v.shape for v in vs) == [1.0, 2.0, 4.0] and all(v.n_params == 3 for v in vs)
+    sw = [v for v in CasterSwivel().variants() if isinstance(v, SwivelCasterModel)]
+    assert sorted(v.axle_x for v in sw) == list(SwivelCasterModel.AXLES) and all(v.n_params == 5 for v in sw)
     h = random_case("caster_swivel", np.random.default_rng(7))
     sig = signals_from_log(h.measured)
     s = distance_since_reversal(sig)
@@ -221,7 +225,7 @@ def test_a_caster_that_holds_the_cart_after_a_reversal_is_named_and_its_hold_rep
 def test_both_caster_forms_are_named_and_the_gap_shrinks(form):
     hits, halved = 0, 0
     for k in range(3):
-        h = random_case("caster_swivel", np.random.default_rng(70_000 + 31 * k), caster_form=form)
+        h = random_case("caster_swivel", np.random.default_rng(70_000 + 31 * k), duration=20.0, caster_form=form)
         rep = diagnose(h.measured)
         hits += bool(rep.names) and rep.names[0] == "caster_swivel"
         halved += rep.gap_after <= 0.5 * rep.gap_before
