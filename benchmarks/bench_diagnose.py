@@ -83,7 +83,8 @@ def run_cases(n: int, seed0: int = 1000, duration: float = 30.0, overrides: Opti
             form = ("swivel" if "trail" in h.effects[0].params else "profile") if c == "caster_swivel" else ""
             res = {"condition": label, "class": c, "seed": seed, "first": first, "names": r.names,
                    "gap_before": r.gap_before, "gap_after": r.gap_after,
-                   "ratio": r.gap_after / r.gap_before if r.gap_before > 0 else 0.0, "form": form, "time": dt}
+                   "ratio": r.gap_after / r.gap_before if r.gap_before > 0 else float("nan"), "form": form,
+                   "time": dt}
             out.append(res)
             print(f"{label} {c} {seed} {r.names} ratio {res['ratio']:.2f} gap {1000 * r.gap_before:.1f} mm "
                   f"{form} {dt:.1f} s", file=sys.stderr, flush=True)
@@ -116,37 +117,42 @@ def rates_table(results: List[dict]) -> str:
             lines.append(f"| none | {len(ok)}/{len(rows)} = {len(ok) / len(rows):.0%} (empty list) | - | - | - | "
                          f"{1000 * np.median([r['gap_before'] for r in rows]):.1f} |")
             continue
-        halved = [r["ratio"] <= 0.5 for r in rows]
-        halved_ok = [r["ratio"] <= 0.5 for r in ok]
+        gapped = [r for r in rows if r["gap_before"] > 0]  # a log without any gap has nothing to halve
+        halved = [r["ratio"] <= 0.5 for r in gapped]
+        halved_ok = [r["ratio"] <= 0.5 for r in ok if r["gap_before"] > 0]
+        zero = f" ({len(rows) - len(gapped)} with gap_before = 0)" if len(gapped) < len(rows) else ""
         lines.append(f"| {c} | {len(ok)}/{len(rows)} = {len(ok) / len(rows):.0%} | "
-                     f"{sum(halved)}/{len(rows)} = {np.mean(halved):.0%} | "
-                     f"{sum(halved_ok)}/{len(ok)} = {np.mean(halved_ok) if ok else float('nan'):.0%} | "
-                     f"{np.median([r['ratio'] for r in rows]):.2f} | "
+                     f"{sum(halved)}/{len(gapped)} = {np.mean(halved) if gapped else float('nan'):.0%}{zero} | "
+                     f"{sum(halved_ok)}/{len(halved_ok)} = {np.mean(halved_ok) if halved_ok else float('nan'):.0%} | "
+                     f"{np.median([r['ratio'] for r in gapped]) if gapped else float('nan'):.2f} | "
                      f"{1000 * np.median([r['gap_before'] for r in rows]):.1f} |")
         if c == "caster_swivel":
             for form in ("profile", "swivel"):
                 sub = [r for r in rows if r["form"] == form]
+                gs = [r for r in sub if r["gap_before"] > 0]
                 if sub:
                     lines.append(f"| - {form} form | {sum(r['first'] == c for r in sub)}/{len(sub)} | "
-                                 f"{sum(r['ratio'] <= 0.5 for r in sub)}/{len(sub)} | | "
-                                 f"{np.median([r['ratio'] for r in sub]):.2f} | "
+                                 f"{sum(r['ratio'] <= 0.5 for r in gs)}/{len(gs)} | | "
+                                 f"{np.median([r['ratio'] for r in gs]) if gs else float('nan'):.2f} | "
                                  f"{1000 * np.median([r['gap_before'] for r in sub]):.1f} |")
     return "\n".join(lines)
 
 
 def robust_table(results: List[dict]) -> str:
-    """Return per condition: naming rate, empty-list rate on nominal logs, gap-halved rate (effects)."""
+    """Return per condition: naming rate, empty-list rate on nominal logs, gap-halved rate (effects, gap > 0)."""
     lines = ["| condition | cases | first named correct (effects) | empty on nominal logs | gap halved (effects) | "
              "worst class (correct) |", "|---|---|---|---|---|---|"]
     for cond in dict.fromkeys(r["condition"] for r in results):
         rows = [r for r in results if r["condition"] == cond]
         eff = [r for r in rows if r["class"] != "none"]
         nom = [r for r in rows if r["class"] == "none"]
-        per = {c: np.mean([r["first"] == c for r in rows if r["class"] == c]) for c in HIDDEN_NAMES}
+        per = {c: np.mean([r["first"] == c for r in rows if r["class"] == c]) for c in HIDDEN_NAMES
+               if any(r["class"] == c for r in rows)}
         worst = min(per, key=per.get)
+        eg = [r for r in eff if r["gap_before"] > 0]
         lines.append(f"| {cond} | {len(rows)} | {sum(r['first'] == r['class'] for r in eff)}/{len(eff)} | "
                      f"{sum(r['first'] == 'none' for r in nom)}/{len(nom)} | "
-                     f"{sum(r['ratio'] <= 0.5 for r in eff)}/{len(eff)} | {worst} {per[worst]:.0%} |")
+                     f"{sum(r['ratio'] <= 0.5 for r in eg)}/{len(eg)} | {worst} {per[worst]:.0%} |")
     return "\n".join(lines)
 
 

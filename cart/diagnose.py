@@ -191,15 +191,24 @@ def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, 
     return Fit(effects=list(effects), x=x[:5], thetas=thetas, rss=rss, n_win=n, cov=cov, m2ll=m2ll, sig=sig)
 
 
-def _valid(effect: Effect, fit: Fit) -> bool:
+def _cart_ok(x: np.ndarray) -> bool:
+    """Return True for a possible cart: finite, m > 0.5 kg, J - ((m dx)^2 + (m dy)^2) / m > 0."""
+    m, a, b, j = (float(u) for u in x[:4])
+    return bool(np.all(np.isfinite(x)) and m > 0.5 and j - (a * a + b * b) / m > 0.0)
+
+
+def _valid(effect: Effect, fit: Fit, check_cart: bool = True) -> bool:
     """Return True when the fit is physical: the effect's parameters (``Effect.is_physical``) and the cart's.
 
-    The cart needs m > 0.5 kg and a positive inertia about its CoM,
-    J - ((m dx)^2 + (m dy)^2) / m > 0; an effect whose columns trade off
-    against the nominal ones must not buy its fit with an impossible cart.
+    With ``check_cart`` the cart needs m > 0.5 kg and a positive inertia about
+    its CoM: an effect whose columns trade off against the nominal ones must
+    not buy its fit with an impossible cart. (A missing effect can distort the
+    nominal fit itself; when the current cart is impossible and no fit of a
+    candidate repairs it, the candidate is judged without this check.)
     """
-    m, a, b, j = (float(u) for u in fit.x[:4])
-    if not (np.all(np.isfinite(fit.x)) and m > 0.5 and j - (a * a + b * b) / m > 0.0):
+    if check_cart and not _cart_ok(fit.x):
+        return False
+    if not np.all(np.isfinite(fit.x)):
         return False
     return bool(effect.is_physical(fit.thetas[-1], fit.effects[-1][1], fit.x))
 
@@ -210,14 +219,18 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
     phi = current.phi
     grid = effect.nl_grid(sig)
     th0 = list(current.thetas) + [None]
+    check = True
     # grid fits iterate only for a candidate that needs it; the named effects' set-valued terms stay at their
     # current estimate (the chosen fit below iterates everything)
     it_grid = 3 if (effect.uses_phi or effect.set_valued) else 1
     fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi, max_iter=it_grid, theta_ref=th0) for nl in grid]
-    scores = np.array([f.m2ll if _valid(effect, f) else np.inf for f in fits])
+    scores = np.array([f.m2ll if _valid(effect, f, check) else np.inf for f in fits])
+    if not np.any(np.isfinite(scores)) and not _cart_ok(current.x):
+        check = False  # the current cart is impossible already: judge the effect alone
+        scores = np.array([f.m2ll if _valid(effect, f, check) else np.inf for f in fits])
     i = int(np.argmin(scores))
     best = fit_model(sig, edges, base_effects + [(effect, grid[i])], phi, theta_ref=fits[i].thetas)
-    if not np.isfinite(scores[i]) or not _valid(effect, best):
+    if not np.isfinite(scores[i]) or not _valid(effect, best, check):
         best.m2ll = float("inf")  # no physically valid fit: a failed candidate
         return best, [-1.0] * len(effect.nl_names)
     nl_std: List[float] = []
@@ -249,7 +262,7 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
         def obj(u: float) -> float:
             f = fit_model(sig, edges, base_effects + [(effect, (float(itr(u)),))], phi, max_iter=it_grid,
                           theta_ref=best.thetas)
-            return f.m2ll if _valid(effect, f) else 1e300
+            return f.m2ll if _valid(effect, f, check) else 1e300
 
         if hi > lo:
             res = optimize.minimize_scalar(obj, bounds=(float(tr(lo)), float(tr(hi))), method="bounded",
@@ -257,7 +270,7 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
             if res.fun < best.m2ll:
                 cand = fit_model(sig, edges, base_effects + [(effect, (float(itr(res.x)),))], phi,
                                  theta_ref=best.thetas)
-                if _valid(effect, cand):
+                if _valid(effect, cand, check):
                     best = cand
         u0 = float(tr(best.effects[-1][1][0]))
         du = 0.02 * max(abs(float(tr(hi)) - float(tr(lo))), 1e-3)
