@@ -423,7 +423,8 @@ class CartEKF:
         self._pdiag += self._qdt  # P + Q dt
         if q_in is not None:
             P[3:6, 3:6] += q_in
-        P[...] = self._phi6_full() @ P @ self._phi6_full().T
+        phi = self._phi6_full()
+        P[...] = phi @ P @ phi.T
 
     def _phi6_full(self) -> np.ndarray:
         phi = np.eye(self.n)
