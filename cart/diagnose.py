@@ -128,12 +128,14 @@ def _solve(d: np.ndarray, y: np.ndarray, lv: np.ndarray, lw: np.ndarray, s2v: fl
 
 def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, Tuple[float, ...]]],
               phi_ref: Optional[np.ndarray] = None, max_iter: int = 12,
-              theta_ref: Optional[Sequence[Optional[np.ndarray]]] = None) -> Fit:
+              theta_ref: Optional[Sequence[Optional[np.ndarray]]] = None, freeze: int = 0) -> Fit:
     """Return the weighted least-squares fit of the nominal model plus ``effects`` (with their nl parameters).
 
     Effects whose columns use phi, or that add a set-valued term
     (``Effect.offset``), are fitted by fixed-point iteration from ``phi_ref``
     and ``theta_ref`` (previous estimates, one per effect; None: start afresh).
+    The set-valued terms of the first ``freeze`` effects stay at ``theta_ref``
+    (a quick refit of one more candidate on top of named effects).
     """
     sig = sig0
     for e, nl in effects:
@@ -182,9 +184,9 @@ def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, 
             k += len(e.param_names)
         done = phi is not None and np.all(np.abs(x[:4] - phi) <= 1e-4 * (np.abs(phi) + 1e-3)) and all(
             tp is not None and np.all(np.abs(th - tp) <= 1e-3 * (np.abs(tp) + 1e-3))
-            for (e, _), th, tp in zip(effects, thetas, thetas_prev) if e.set_valued)
+            for i, ((e, _), th, tp) in enumerate(zip(effects, thetas, thetas_prev)) if e.set_valued and i >= freeze)
         phi = x[:4]
-        thetas_prev = thetas
+        thetas_prev = [tp if i < freeze else th for i, (tp, th) in enumerate(zip(thetas_prev, thetas))]
         if done or (it == 0 and not iterate):
             break
     n = y_w.shape[0]
@@ -223,7 +225,9 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
     # grid fits iterate only for a candidate that needs it; the named effects' set-valued terms stay at their
     # current estimate (the chosen fit below iterates everything)
     it_grid = 3 if (effect.uses_phi or effect.set_valued) else 1
-    fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi, max_iter=it_grid, theta_ref=th0) for nl in grid]
+    nb = len(base_effects)
+    fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi, max_iter=it_grid, theta_ref=th0, freeze=nb)
+            for nl in grid]
     scores = np.array([f.m2ll if _valid(effect, f, check) else np.inf for f in fits])
     if not np.any(np.isfinite(scores)) and not _cart_ok(current.x):
         check = False  # the current cart is impossible already: judge the effect alone
@@ -261,7 +265,7 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
 
         def obj(u: float) -> float:
             f = fit_model(sig, edges, base_effects + [(effect, (float(itr(u)),))], phi, max_iter=it_grid,
-                          theta_ref=best.thetas)
+                          theta_ref=th0[:nb] + best.thetas[nb:], freeze=nb)
             return f.m2ll if _valid(effect, f, check) else 1e300
 
         if hi > lo:

@@ -463,15 +463,20 @@ def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[flo
     n = sig.n
     alpha = np.empty((n, nx, nt, 2, nm))
     al = np.zeros((nx, nt, 2, nm))
+    px = vm[:, None, None, None, None] - omm[:, None, None, None, None] * ys[None]  # (n, 1, 1, 2, 1)
+    py = omm[:, None, None, None, None] * xs[None]                                # (n, nx, 1, 1, 1)
+    psi_all = np.arctan2(py, px)                                                   # (n, nx, 1, 2, 1)
+    speed = np.hypot(px, py)
+    forced = side != 0
     for i in range(n):
-        px = vm[i] - omm[i] * ys
-        py = omm[i] * xs
-        psi = np.arctan2(py, px)
-        decay = np.exp(-np.hypot(px, py) * dt[i] / es)
+        psi = psi_all[i]
+        decay = np.exp(-speed[i] * dt[i] / es)
         b = np.mod(al - psi + math.pi, 2.0 * math.pi) - math.pi
         far = np.abs(b) > lim
-        b = np.where(far, np.where(side == 0, np.sign(b), side) * lim, b)
-        b = 2.0 * np.arctan2(np.sin(0.5 * b) * decay, np.cos(0.5 * b))
+        if far.any():
+            b = np.where(far, np.where(forced, side, np.sign(b)) * lim, b)
+        hb = 0.5 * b
+        b = 2.0 * np.arctan2(np.sin(hb) * decay, np.cos(hb))
         al = b + psi - omm[i] * dt[i]
         alpha[i] = al
     qx = v[:, None, None, None, None] - om[:, None, None, None, None] * ys[None]
@@ -581,33 +586,42 @@ class SwivelCasterModel(CasterSwivel):
     def _swing_stats(self, sig: Signals, trail: float, base: np.ndarray) -> List[tuple]:
         """Return per swing ((i0, i1), U, Q, P, R, c0, b, S): unit rows and weighted normal equations of the combos.
 
-        U_c (L, combos, 2 rows, 2 params) are the unit rows of combination c;
+        U_c (L, combos, 2 rows, 3 params) are the unit rows of combination c;
         with W = diag(1/sigma_force^2, 1/sigma_torque^2), y the measured forward
         force and torque and B their nominal phi columns: Q_c = sum U_c' W U_c,
         P_c = sum U_c' W y, R_c = sum U_c' W B, c0 = sum y' W y, b = sum B' W y,
         S = sum B' W B, so that the weighted misfit of c for (phi, theta) is
         theta' Q_c theta - 2 theta' (P_c - R_c phi) + c0 - 2 phi' b + phi' S phi.
+        The parts without y depend on the motion only and survive a time
+        shift of the wrench (``Signals.shifted``).
         """
         key = ("caster_swing_stats", self.axle_x, trail)
         cached = sig.extras.get(key)
         if cached is not None:
             return cached
-        alpha, rate = self._lanes(sig, trail)
         w = np.array([1.0 / sig.sigma_force ** 2, 1.0 / sig.sigma_torque ** 2])
-        c1 = np.array([c[0] for c in self.COMBOS])
-        c2 = np.array([c[1] for c in self.COMBOS])
+        mkey = ("motion", "caster_swing_units", self.axle_x, trail)
+        motion = sig.extras.get(mkey)
+        if motion is None:
+            alpha, rate = self._lanes(sig, trail)
+            c1 = np.array([c[0] for c in self.COMBOS])
+            c2 = np.array([c[1] for c in self.COMBOS])
+            motion = []
+            for i0, i1 in self._swings(sig, trail):
+                al = np.stack([alpha[i0:i1, 0, c1], alpha[i0:i1, 1, c2]], axis=-1)  # (L, combos, 2 casters)
+                ra = np.stack([rate[i0:i1, 0, c1], rate[i0:i1, 1, c2]], axis=-1)
+                u = self._unit_rows(al, ra, trail)  # (L, combos, 2 rows, 3 params)
+                uw = u * w[None, None, :, None]
+                bb = base[i0:i1, :2, :4]  # (L, 2, 4)
+                motion.append(((i0, i1), u, uw, np.einsum("lcrk,lcrj->ckj", uw, u), np.einsum("lcrk,lrj->ckj", uw, bb),
+                               np.einsum("lrj,lrk->jk", bb * w[None, :, None], bb)))
+            sig.extras[mkey] = motion
         out = []
-        for i0, i1 in self._swings(sig, trail):
-            al = np.stack([alpha[i0:i1, 0, c1], alpha[i0:i1, 1, c2]], axis=-1)  # (L, combos, 2 casters)
-            ra = np.stack([rate[i0:i1, 0, c1], rate[i0:i1, 1, c2]], axis=-1)
-            u = self._unit_rows(al, ra, trail)  # (L, combos, 2 rows, 3 params)
-            uw = u * w[None, None, :, None]
+        for (i0, i1), u, uw, q, rr, ss in motion:
             y = np.column_stack([sig.f_fwd[i0:i1], sig.tau[i0:i1]])  # (L, 2)
-            bb = base[i0:i1, :2, :4]  # (L, 2, 4)
-            bw = bb * w[None, :, None]
-            out.append(((i0, i1), u, np.einsum("lcrk,lcrj->ckj", uw, u), np.einsum("lcrk,lr->ck", uw, y),
-                        np.einsum("lcrk,lrj->ckj", uw, bb), float(np.sum(y * y * w)), np.einsum("lrj,lr->j", bw, y),
-                        np.einsum("lrj,lrk->jk", bw, bb)))
+            bw = base[i0:i1, :2, :4] * w[None, :, None]
+            out.append(((i0, i1), u, q, np.einsum("lcrk,lr->ck", uw, y), rr, float(np.sum(y * y * w)),
+                        np.einsum("lrj,lr->j", bw, y), ss))
         sig.extras[key] = out
         return out
 
@@ -641,9 +655,14 @@ class SwivelCasterModel(CasterSwivel):
             choice.items())),)
 
     def _rows(self, sig: Signals, trail: float) -> np.ndarray:
-        """Return the unit rows (N, 2, 2): natural swings, each chosen swing as its weighted mixture of combos."""
-        alpha, rate = self._lanes(sig, trail)
-        rows = self._unit_rows(alpha[:, :, 0], rate[:, :, 0], trail)
+        """Return the unit rows (N, 2, 3): natural swings, each chosen swing as its weighted mixture of combos."""
+        nkey = ("motion", "caster_rows", self.axle_x, trail)
+        rows = sig.extras.get(nkey)
+        if rows is None:
+            alpha, rate = self._lanes(sig, trail)
+            rows = self._unit_rows(alpha[:, :, 0], rate[:, :, 0], trail)
+            sig.extras[nkey] = rows
+        rows = rows.copy()
         choice = self._choice(sig, trail)
         if choice:
             for st in sig.extras.get(("caster_swing_stats", self.axle_x, trail), []):
