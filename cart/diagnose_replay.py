@@ -61,13 +61,18 @@ def _interp_cols(times: np.ndarray, t: np.ndarray, cols: np.ndarray) -> List[np.
     return [np.interp(times, t, cols[:, k]) for k in range(cols.shape[1])]
 
 
-def replay(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = None, dphi: Optional[np.ndarray] = None,
-           horizon: float = 1.0, stride: float = 0.25, h: float = 0.02) -> Replay:
-    """Return the replay of the model x = [m, m dx, m dy, J, sigma] plus effect terms over short horizons.
+def simulate_replays(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = None,
+                     dphi: Optional[np.ndarray] = None, horizon: float = 1.0, stride: float = 0.25,
+                     h: float = 0.02) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return (starts (K,), tau (J,), simulated poses (K, J, 3), measured poses (K, J, 3)) of the short replays.
 
-    ``extra`` (N, 3): effect generalized force (forward, yaw) and lateral speed
-    of {b}, evaluated along the measured motion; ``dphi`` (N, 4): change of phi
-    over time. The wrench is read from the (possibly time-shifted) signals.
+    The model x = [m, m dx, m dy, J, sigma] (eq. 4-7) plus ``extra`` (N, 3):
+    effect generalized force (forward, yaw) and lateral speed of {b} along the
+    measured motion, and ``dphi`` (N, 4): change of phi over time; integrated
+    by RK4 (step ``h``) from the smoothed measured state at every start, all
+    starts at once, with the measured (possibly time-shifted) wrench. The
+    inputs are interpolated once on the RK4 time grid. Non-finite replays
+    (a non-physical model) are returned as they are.
     """
     t = sig.t
     starts_all = np.arange(t[0], t[-1] - horizon + 1e-9, stride)
@@ -80,44 +85,56 @@ def replay(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = None, dphi
     extra = np.zeros((sig.n, 3)) if extra is None else extra
     phi_t = np.tile(np.asarray(x[:4], float), (sig.n, 1)) + (0.0 if dphi is None else dphi)
     sigma = float(x[4])
-    vals = np.column_stack([sig.gamma_raw, extra, phi_t])  # (N, 10)
-    shift = sig.shift
-    # initial state from the smoothed signals
+    grid = starts_all[:, None] + 0.5 * h * np.arange(2 * k_steps + 1)[None, :]  # (K, 2 k + 1): RK4 stages
+    g = [np.interp(grid + sig.shift, t, sig.gamma_raw[:, k]) for k in range(3)]
+    e = [np.interp(grid, t, extra[:, k]) for k in range(3)]
+    m, a, b, j = (np.interp(grid, t, phi_t[:, k]) for k in range(4))
+    det = m * j - b * b
+    det = np.where(np.abs(det) < 1e-9, 1e-9, det)
     i0 = [np.interp(starts_all, t, col) for col in (sig.q[:, 0], sig.q[:, 1], sig.q[:, 2], sig.v, sig.omega)]
     state = np.array(i0)  # (5, K)
     sim = np.empty((len(starts_all), k_steps + 1, 3))
 
-    def f(tt: np.ndarray, s: np.ndarray) -> np.ndarray:
-        g = [np.interp(tt + shift, t, vals[:, k]) for k in range(3)]
-        e = [np.interp(tt, t, vals[:, k]) for k in range(3, 6)]
-        m, a, b, j = (np.interp(tt, t, vals[:, k]) for k in range(6, 10))
+    def f(i: int, s: np.ndarray) -> np.ndarray:
         th, v, om = s[2], s[3], s[4]
         c, sn = np.cos(th), np.sin(th)
-        fu = c * g[0] + sn * g[1]
-        r1 = fu + e[0] - sigma * v + a * om * om
-        r2 = g[2] + e[1] - sigma * om - a * om * v
-        det = m * j - b * b
-        det = np.where(np.abs(det) < 1e-9, 1e-9, det)
-        vdot = (j * r1 + b * r2) / det
-        odot = (b * r1 + m * r2) / det
-        w = e[2]
+        fu = c * g[0][:, i] + sn * g[1][:, i]
+        r1 = fu + e[0][:, i] - sigma * v + a[:, i] * om * om
+        r2 = g[2][:, i] + e[1][:, i] - sigma * om - a[:, i] * om * v
+        vdot = (j[:, i] * r1 + b[:, i] * r2) / det[:, i]
+        odot = (b[:, i] * r1 + m[:, i] * r2) / det[:, i]
+        w = e[2][:, i]
         return np.array([c * v - sn * w, sn * v + c * w, om, vdot, odot])
 
-    # a non-physical model (tiny or negative mass/inertia) may blow up: no warnings, non-finite starts get an
-    # infinite error (callers reject such models, see Replay.finite)
+    # a non-physical model (tiny or negative mass/inertia) may blow up: no warnings
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        for j in range(k_steps + 1):
-            sim[:, j, :] = state[:3].T
-            if j == k_steps:
+        for jj in range(k_steps + 1):
+            sim[:, jj, :] = state[:3].T
+            if jj == k_steps:
                 break
-            tt = starts_all + j * h
-            k1 = f(tt, state)
-            k2 = f(tt + 0.5 * h, state + 0.5 * h * k1)
-            k3 = f(tt + 0.5 * h, state + 0.5 * h * k2)
-            k4 = f(tt + h, state + h * k3)
+            k1 = f(2 * jj, state)
+            k2 = f(2 * jj + 1, state + 0.5 * h * k1)
+            k3 = f(2 * jj + 1, state + 0.5 * h * k2)
+            k4 = f(2 * jj + 2, state + h * k3)
             state = state + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-        times = starts_all[:, None] + tau[None, :]
-        meas = np.stack([np.interp(times, t, sig.q_raw[:, k]) for k in range(3)], axis=-1)
+    times = starts_all[:, None] + tau[None, :]
+    meas = np.stack([np.interp(times, t, sig.q_raw[:, k]) for k in range(3)], axis=-1)
+    return starts_all, tau, sim, meas
+
+
+def replay(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = None, dphi: Optional[np.ndarray] = None,
+           horizon: float = 1.0, stride: float = 0.25, h: float = 0.02) -> Replay:
+    """Return the replay of the model x = [m, m dx, m dy, J, sigma] plus effect terms over short horizons.
+
+    ``extra`` (N, 3): effect generalized force (forward, yaw) and lateral speed
+    of {b}, evaluated along the measured motion; ``dphi`` (N, 4): change of phi
+    over time. The wrench is read from the (possibly time-shifted) signals.
+    Non-finite starts get an infinite error (callers reject such models, see
+    :attr:`Replay.finite`).
+    """
+    starts_all, tau, sim, meas = simulate_replays(sig, x, extra, dphi, horizon, stride, h)
+    horizon = float(tau[-1])
+    with np.errstate(over="ignore", invalid="ignore"):
         err = sim - meas
         rms = np.sqrt(np.mean(err[:, :, 0] ** 2 + err[:, :, 1] ** 2, axis=1))
         chi2 = _end_chi2(sig, x, starts_all, err[:, -1, :], horizon)
@@ -139,28 +156,33 @@ def _noise_floor(sig: Signals, x: np.ndarray, starts: np.ndarray, tau: np.ndarra
     force and torque noise, integrated twice, is added in closed form.
     Averaged over the horizon like the RMS error.
     """
-    rng = np.random.default_rng(seed)
     t = sig.t
     dt = float(np.median(np.diff(t)))
     m = max(float(x[0]), 1.0)
     j = max(float(x[3]), 0.1)
     H = float(tau[-1]) if len(tau) > 1 else 1.0
-    th0 = np.interp(starts, t, sig.q[:, 2])[:, None]
-    c, s = np.cos(th0), np.sin(th0)
     vbar = np.interp(starts + 0.5 * H, t, sig.v)[:, None]
     tt = tau[None, :]
-    times = starts[:, None] + tt
-    acc = np.zeros((len(starts), len(tau)))
-    for _ in range(replicates):
-        e = rng.standard_normal((sig.n, 3)) * np.array([sig.sigma_pos, sig.sigma_pos, sig.sigma_theta])
-        val, d1, _, _ = local_poly(t, e, sig.half_window, degree=2)
-        p0 = [np.interp(starts, t, val[:, k])[:, None] for k in range(3)]
-        v0 = [np.interp(starts, t, d1[:, k])[:, None] for k in range(3)]
-        dv = c * v0[0] + s * v0[1]
-        lat = vbar * (p0[2] * tt + v0[2] * tt ** 2 / 2.0)
-        ex = p0[0] + dv * tt * c - lat * s - np.interp(times, t, e[:, 0])
-        ey = p0[1] + dv * tt * s + lat * c - np.interp(times, t, e[:, 1])
-        acc += ex ** 2 + ey ** 2
+    # the Monte Carlo part depends on the motion and noise levels only: cached on the signals
+    key = ("motion", "replay_floor_mc", len(starts), float(starts[0]), float(H), len(tau), replicates, seed)
+    acc = sig.extras.get(key)
+    if acc is None:
+        rng = np.random.default_rng(seed)
+        th0 = np.interp(starts, t, sig.q[:, 2])[:, None]
+        c, s = np.cos(th0), np.sin(th0)
+        times = starts[:, None] + tt
+        acc = np.zeros((len(starts), len(tau)))
+        for _ in range(replicates):
+            e = rng.standard_normal((sig.n, 3)) * np.array([sig.sigma_pos, sig.sigma_pos, sig.sigma_theta])
+            val, d1, _, _ = local_poly(t, e, sig.half_window, degree=2)
+            p0 = [np.interp(starts, t, val[:, k])[:, None] for k in range(3)]
+            v0 = [np.interp(starts, t, d1[:, k])[:, None] for k in range(3)]
+            dv = c * v0[0] + s * v0[1]
+            lat = vbar * (p0[2] * tt + v0[2] * tt ** 2 / 2.0)
+            ex = p0[0] + dv * tt * c - lat * s - np.interp(times, t, e[:, 0])
+            ey = p0[1] + dv * tt * s + lat * c - np.interp(times, t, e[:, 1])
+            acc += ex ** 2 + ey ** 2
+        sig.extras[key] = acc
     var_f = sig.sigma_force ** 2 * dt * tt ** 3 / (3.0 * m * m)
     var_l = vbar ** 2 * sig.sigma_torque ** 2 * dt * tt ** 5 / (20.0 * j * j)
     return np.sqrt(np.mean(acc / replicates + var_f + var_l, axis=1))
