@@ -52,6 +52,10 @@ NOMINAL_NAMES = ("m", "m_dx", "m_dy", "J", "sigma")
 ROW_NAMES = ("forward force", "yaw torque", "lateral displacement")
 
 
+#: runners-up of a grid-only nonlinear parameter fitted in full and replayed before an effect is named
+GRID_ALTERNATIVES = 3
+
+
 class DiagnoseError(CartError):
     """The log cannot be diagnosed (too short, no motion, degenerate fit)."""
 
@@ -69,6 +73,8 @@ class Fit:
     m2ll: float
     sig: Signals
     design: np.ndarray = field(repr=False, default=None)
+    #: fits at the next-best grid points of a grid-only nonlinear parameter (replay-checked by ``diagnose``)
+    alternatives: List["Fit"] = field(repr=False, default_factory=list)
 
     @property
     def phi(self) -> np.ndarray:
@@ -238,6 +244,13 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
         best.m2ll = float("inf")  # no physically valid fit: a failed candidate
         return best, [-1.0] * len(effect.nl_names)
     nl_std: List[float] = []
+    if not effect.refine and len(grid) > 1:
+        # grid-only parameter: the runners-up (full fits) go along, diagnose keeps the one that replays best
+        for k in np.argsort(scores)[1:1 + GRID_ALTERNATIVES]:
+            if np.isfinite(scores[k]):
+                alt = fit_model(sig, edges, base_effects + [(effect, grid[k])], phi, theta_ref=fits[k].thetas)
+                if _valid(effect, alt, check):
+                    best.alternatives.append(alt)
     log_scale = effect.log_scale
     tr = (np.log if log_scale else (lambda z: z))
     itr = (np.exp if log_scale else (lambda z: z))
@@ -468,28 +481,39 @@ def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, thresh
         for e in cands:
             if any(e.name == n.name for n, _, _, _ in named):
                 continue
-            best = None
-            for ev in e.variants():  # nested parameterisations of one effect: keep the best Delta BIC
+            tried = []
+            for ev in e.variants():  # nested parameterisations of one effect: ranked by their best Delta BIC
                 fit, nl_std = _fit_candidate(sig, edges, current, ev)
-                dbic = (current.m2ll - fit.m2ll) - ev.n_params * math.log(n_obs)
-                if best is None or dbic > best[0]:
-                    best = (dbic, ev, fit, nl_std)
-            results.append(best)
+                for f in [fit] + fit.alternatives:
+                    dbic = (current.m2ll - f.m2ll) - ev.n_params * math.log(n_obs)
+                    tried.append((dbic, ev, f, nl_std))
+            tried.sort(key=lambda r: -r[0] if np.isfinite(r[0]) else np.inf)
+            results.append(tried[0] + (tried,))
         if not results:
             break
         results.sort(key=lambda r: -r[0])
         if round_ == 0:
             first_scores = [(r[1].name, float(r[0])) for r in results]
         chosen = None
-        for dbic, e, fit, nl_std in results:  # best significant candidate whose replay stays finite
-            if dbic <= threshold or not np.isfinite(dbic):
+        for dbic0, _, _, _, tried in results:  # best significant candidate whose replay stays finite
+            if dbic0 <= threshold or not np.isfinite(dbic0):
                 break
-            if fit.x[0] <= 0 or not np.all(np.isfinite(fit.x)):
+            # among the effect's significant variants, the one whose replay follows the whole log best
+            best_var = None
+            for dbic, e, fit, nl_std in tried:
+                if dbic <= threshold or not np.isfinite(dbic):
+                    break
+                if fit.x[0] <= 0 or not np.all(np.isfinite(fit.x)):
+                    continue
+                extra, dphi = _replay_terms(fit)
+                rep = replay(fit.sig, fit.x, extra, dphi, horizon=horizon)
+                if not rep.finite:  # a blown-up replay = a failed candidate (infinite error)
+                    continue
+                if best_var is None or rep.rms_error() < best_var[-1].rms_error():
+                    best_var = (dbic, e, fit, nl_std, rep)
+            if best_var is None:
                 continue
-            extra, dphi = _replay_terms(fit)
-            rep = replay(fit.sig, fit.x, extra, dphi, horizon=horizon)
-            if not rep.finite:  # a blown-up replay = a failed candidate (infinite error)
-                continue
+            dbic, e, fit, nl_std, rep = best_var
             mask = flagged if np.any(flagged) else None
             if named and rep.gap(mask) > 1.02 * reps[-1].gap(mask):
                 continue  # a further effect must not widen the gap the named ones left
