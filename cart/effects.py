@@ -82,6 +82,21 @@ def stop_threshold(sig: Signals) -> float:
     return max(0.03, 3.0 * sig.sigma_v)
 
 
+def forward_residual(sig: Signals, phi: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """Return r (N,): the forward force the nominal model (phi, its rows ``base``) leaves unexplained."""
+    return sig.f_fwd - base[:, 0, :4] @ np.asarray(phi[:4], float)
+
+
+def static_hold(sig: Signals, r: np.ndarray, cap) -> Optional[np.ndarray]:
+    """Return the set-valued hold (N, 3): clip(r, -cap, cap) in the forward row at rest, 0 moving (None: never at rest)."""
+    rest = np.abs(sig.v) < stop_threshold(sig)
+    if not np.any(rest):
+        return None
+    out = np.zeros((sig.n, 3))
+    out[:, 0] = np.where(rest, np.clip(r, -cap, cap), 0.0)
+    return out
+
+
 def local_mean(t: np.ndarray, y: np.ndarray, half_window: float) -> np.ndarray:
     """Return the mean of y (N, ...) over the samples within +-``half_window`` s of each sample (irregular times)."""
     y = np.asarray(y, float)
@@ -277,13 +292,7 @@ class CoulombFriction(Effect):
         """Return the static friction at rest: clip(r, -F, F) in the forward row (r: nominal residual)."""
         if theta is None or phi is None or len(theta) == 0 or float(theta[0]) <= 0.0:
             return None
-        rest = np.abs(sig.v) < stop_threshold(sig)
-        if not np.any(rest):
-            return None
-        r = sig.f_fwd - base[:, 0, :4] @ np.asarray(phi[:4], float)
-        out = np.zeros((sig.n, 3))
-        out[:, 0] = np.where(rest, np.clip(r, -float(theta[0]), float(theta[0])), 0.0)
-        return out
+        return static_hold(sig, forward_residual(sig, phi, base), float(theta[0]))
 
 
 class CasterSwivel(Effect):
@@ -349,7 +358,7 @@ class CasterSwivel(Effect):
 
     def _held(self, sig: Signals, phi: np.ndarray, base: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Return (r, r smoothed over +-0.1 s): the forward force the nominal model leaves unexplained."""
-        r = sig.f_fwd - base[:, 0, :4] @ np.asarray(phi[:4], float)
+        r = forward_residual(sig, phi, base)
         return r, local_mean(sig.t, r, 0.1)
 
     def columns(self, sig, nl, phi, base):
@@ -524,6 +533,9 @@ class SwivelCasterModel(CasterSwivel):
     COMBOS: Tuple[Tuple[int, int], ...] = ((0, 0),) + tuple(
         (a, b) for d in range(1, len(SWING_MODES), 2) for a, b in ((d, d), (d + 1, d + 1), (d, d + 1), (d + 1, d)))
 
+    #: swing-mode lane of caster 1 and of caster 2 in each combination
+    COMBO_LANES: Tuple[np.ndarray, np.ndarray] = (np.array([c[0] for c in COMBOS]), np.array([c[1] for c in COMBOS]))
+
     def __init__(self, axle_x: float = 0.8) -> None:
         super().__init__(1.0)
         self.axle_x = float(axle_x)
@@ -604,8 +616,7 @@ class SwivelCasterModel(CasterSwivel):
         motion = sig.extras.get(mkey)
         if motion is None:
             alpha, rate = self._lanes(sig, trail)
-            c1 = np.array([c[0] for c in self.COMBOS])
-            c2 = np.array([c[1] for c in self.COMBOS])
+            c1, c2 = self.COMBO_LANES
             motion = []
             for i0, i1 in self._swings(sig, trail):
                 al = np.stack([alpha[i0:i1, 0, c1], alpha[i0:i1, 1, c2]], axis=-1)  # (L, combos, 2 casters)
@@ -675,8 +686,7 @@ class SwivelCasterModel(CasterSwivel):
         """Return sum |sin alpha| / e (N,) per unit torque: the casters' most likely swing per chosen swing."""
         alpha = self._lanes(sig, trail)[0]
         a = alpha[:, :, 0].copy()
-        c1 = np.array([c[0] for c in self.COMBOS])
-        c2 = np.array([c[1] for c in self.COMBOS])
+        c1, c2 = self.COMBO_LANES
         for (i0, i1), wts in self._choice(sig, trail).items():
             c = int(np.argmax(wts))
             a[i0:i1, 0], a[i0:i1, 1] = alpha[i0:i1, 0, c1[c]], alpha[i0:i1, 1, c2[c]]
@@ -697,16 +707,9 @@ class SwivelCasterModel(CasterSwivel):
         if np.any(np.asarray(theta, float) != 0.0):
             self._choose(sig, e, phi, base, theta)
         coulomb = float(theta[0]) + float(theta[1])
-        if coulomb <= 0.0:
+        if coulomb <= 0.0 or not np.any(np.abs(sig.v) < stop_threshold(sig)):
             return None
-        rest = np.abs(sig.v) < stop_threshold(sig)
-        if not np.any(rest):
-            return None
-        cap = coulomb * self._hold_capacity(sig, e)
-        r = sig.f_fwd - base[:, 0, :4] @ np.asarray(phi[:4], float)
-        out = np.zeros((sig.n, 3))
-        out[:, 0] = np.where(rest, np.clip(r, -cap, cap), 0.0)
-        return out
+        return static_hold(sig, forward_residual(sig, phi, base), coulomb * self._hold_capacity(sig, e))
 
     def is_physical(self, theta, nl, x):
         """Return True when the swivel resists: c1 + c2 > 0 and a non-negative friction slope at rest."""
