@@ -24,6 +24,7 @@ import numpy as np
 import scipy.linalg
 
 from cart import model
+from cart.dynamics import inverse_dynamics
 from cart.errors import CartError
 from cart.params import CartParams
 from cart.trajectories import UnicycleTrajectory
@@ -117,7 +118,7 @@ class FeedbackLinearizationLQR:
             self._k_time = t
         u = -self._k @ np.concatenate([e, r])
         return (mm @ (qdd_d + self.alpha * edot) + cc @ (qd_d + self.alpha * e)
-                + model.damping_force(qd, params.sigma) - u)  # paper eq. (26)
+                + model.damping_force(qd, params.damping) - u)  # paper eq. (26)
 
 
 @dataclass
@@ -157,11 +158,7 @@ class KanayamaTracker:
         om = qd[2]
         vdot = vdot_r + self.k_v * (v_c - v)
         odot = wdot_r + self.k_w * (w_c - om)
-        m, a, b, j = params.phi
-        sg = params.sigma
-        # reduced dynamics (cart.model.forward_dynamics_fast) solved for (Fu, tau)
-        fu = m * vdot - b * odot + sg * v - a * om * om - m * om * w_lat
-        tau = -b * vdot + j * odot + sg * om + a * om * v + b * om * w_lat
+        fu, tau = inverse_dynamics(v, om, vdot, odot, *params.phi, *params.damping, w_lat=w_lat)
         return np.array([c * fu, s * fu, tau])
 
 

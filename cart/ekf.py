@@ -1,9 +1,9 @@
 """Continuous-discrete EKF with the augmented state [q, qd, phi] (paper §II.B, eq. 8-20).
 
-State ``x = [x, y, theta, vx, vy, omega, m, m dx, m dy, J]`` (+ ``sigma`` when
+State ``x = [x, y, theta, vx, vy, omega, m, m dx, m dy, J]`` (+ ``[sigma, sigma_yaw]`` when
 ``estimate_sigma``), measurement ``z = [x, y, theta, vx, vy, omega]`` (eq. 10,
 ``H = [I_6 0]``). The process model is the *exact* constrained dynamics
-(:func:`cart.model.forward_dynamics_fast`), with its analytic Jacobian F
+(:func:`cart.dynamics.forward_dynamics`), with its analytic Jacobian F
 (eq. 11). Prediction: Euler step of the state (eq. 16) and
 ``P <- Phi (P + Q dt) Phi^T`` with ``Phi = I + F dt`` (the first-order
 discretisation of eq. 13/17 that keeps P positive semi-definite; the plain
@@ -28,6 +28,7 @@ from scipy.linalg import cho_factor as _cho_factor, cho_solve as _cho_solve
 from scipy.linalg.lapack import dposv as _dposv, dtrtrs as _dtrtrs
 from scipy.stats import chi2
 
+from cart.dynamics import dynamics_jacobian_rows, wrench_input_matrix as _wrench_input_matrix
 from cart.errors import ParameterError
 from cart.params import CartParams
 
@@ -88,143 +89,27 @@ def initial_covariance(phi0: np.ndarray, meas_std: Sequence[float], sigma0: floa
     diag += [(mass_rel_std * m0) ** 2, (m0 * com_std) ** 2, (m0 * com_std) ** 2,
              (0.5 * float(phi0[3]) + m0 * com_std ** 2) ** 2]
     if estimate_sigma:
-        diag.append(max(0.5 * sigma0, 1.0) ** 2)
+        diag += [max(0.5 * sigma0, 1.0) ** 2, max(0.5 * sigma0, 1.0) ** 2]
     return np.diag(diag)
 
 
 def dynamics_jacobian(x: np.ndarray, gamma: Sequence[float], sigma: float, out_f: np.ndarray,
-                      with_sigma: bool) -> Tuple[float, float, float]:
+                      with_sigma: bool, sigma_yaw: Optional[float] = None) -> Tuple[float, float, float]:
     """Return (xdd, ydd, thetadd) at state x and write rows 3..5 of F = df/dx into ``out_f``.
 
-    Exact constrained dynamics in the body frame (see cart.model.forward_dynamics_fast);
-    columns are the state order [x, y, theta, vx, vy, omega, m, a, b, J, (sigma)].
+    Exact constrained dynamics (:func:`cart.dynamics.dynamics_jacobian_rows`); columns are the
+    state order [x, y, theta, vx, vy, omega, m, a, b, J, (sigma, sigma_yaw)].
     """
-    xdd, ydd, od, rows = _dynamics_rows(x, gamma, sigma, with_sigma)
+    sw = sigma if sigma_yaw is None else sigma_yaw
+    xdd, ydd, od, rows = dynamics_jacobian_rows(x, gamma, sigma, sw, with_sigma)
     n = len(rows) // 3
     out_f[3:6, :n] = (rows[:n], rows[n:2 * n], rows[2 * n:])
     return xdd, ydd, od
 
 
-def _dynamics_rows(x: Union[np.ndarray, list], gamma: Sequence[float], sigma: float, with_sigma: bool,
-                   scale: float = 1.0, add_eye: bool = False) -> Tuple[float, float, float, list]:
-    """Return (xdd, ydd, thetadd, rows): rows 3..5 of ``scale * F (+ I)`` as one flat list of floats.
-
-    F is the analytic Jacobian of paper eq. (11); with ``scale = dt`` and
-    ``add_eye`` the rows are those of Phi = I + F dt.
-    """
-    xs = x if isinstance(x, list) else x.tolist()
-    th, vx, vy, om, m, a, b, j = xs[2:10]
-    sg = xs[10] if with_sigma else sigma
-    fx, fy, tau = (gamma.tolist() if isinstance(gamma, np.ndarray) else gamma)[:3]
-    c, s = math.cos(th), math.sin(th)
-    v = c * vx + s * vy
-    w = -s * vx + c * vy
-    fu = c * fx + s * fy
-    fl = -s * fx + c * fy
-    r1 = fu - sg * v + a * om * om + m * om * w
-    r2 = tau - sg * om - a * om * v - b * om * w
-    i_d = 1.0 / (m * j - b * b)
-    vd = (j * r1 + b * r2) * i_d
-    od = (b * r1 + m * r2) * i_d
-    u1 = vd - om * w
-    u2 = om * v
-    xdd = c * u1 - s * u2
-    ydd = s * u1 + c * u2
-    cs, ss, i_s = c * scale, s * scale, i_d * scale
-    xdd_s, ydd_s = xdd * scale, ydd * scale
-    # theta
-    dr1 = fl - sg * w - m * om * v
-    dr2 = -a * om * w + b * om * v
-    dvd = (j * dr1 + b * dr2) * i_d
-    d1 = dvd + om * v
-    d2 = om * w
-    f3_2 = cs * d1 - ss * d2 - ydd_s
-    f4_2 = ss * d1 + cs * d2 + xdd_s
-    f5_2 = (b * dr1 + m * dr2) * i_s
-    # vx
-    dr1 = -sg * c - m * om * s
-    dr2 = -a * om * c + b * om * s
-    dvd = (j * dr1 + b * dr2) * i_d
-    d1 = dvd + om * s
-    d2 = om * c
-    f3_3 = cs * d1 - ss * d2
-    f4_3 = ss * d1 + cs * d2
-    f5_3 = (b * dr1 + m * dr2) * i_s
-    # vy
-    dr1 = -sg * s + m * om * c
-    dr2 = -a * om * s - b * om * c
-    dvd = (j * dr1 + b * dr2) * i_d
-    d1 = dvd - om * c
-    d2 = om * s
-    f3_4 = cs * d1 - ss * d2
-    f4_4 = ss * d1 + cs * d2
-    f5_4 = (b * dr1 + m * dr2) * i_s
-    # omega
-    dr1 = 2.0 * a * om + m * w
-    dr2 = -sg - a * v - b * w
-    dvd = (j * dr1 + b * dr2) * i_d
-    d1 = dvd - w
-    d2 = v
-    f3_5 = cs * d1 - ss * d2
-    f4_5 = ss * d1 + cs * d2
-    f5_5 = (b * dr1 + m * dr2) * i_s
-    # m
-    dr1 = om * w
-    dvd = (j * dr1 - vd * j) * i_d
-    f3_6 = cs * dvd
-    f4_6 = ss * dvd
-    f5_6 = (b * dr1 + r2 - od * j) * i_s
-    # a = m dx
-    dr1 = om * om
-    dr2 = -om * v
-    dvd = (j * dr1 + b * dr2) * i_d
-    f3_7 = cs * dvd
-    f4_7 = ss * dvd
-    f5_7 = (b * dr1 + m * dr2) * i_s
-    # b = m dy
-    dr2 = -om * w
-    dvd = (r2 + b * dr2 + 2.0 * b * vd) * i_d
-    f3_8 = cs * dvd
-    f4_8 = ss * dvd
-    f5_8 = (r1 + m * dr2 + 2.0 * b * od) * i_s
-    # J
-    dvd = (r1 - vd * m) * i_d
-    f3_9 = cs * dvd
-    f4_9 = ss * dvd
-    f5_9 = -od * m * i_s
-    if add_eye:  # Phi = I + F dt
-        f3_3 += 1.0
-        f4_4 += 1.0
-        f5_5 += 1.0
-    if with_sigma:
-        dr1 = -v
-        dr2 = -om
-        dvd = (j * dr1 + b * dr2) * i_d
-        f3_10 = cs * dvd
-        f4_10 = ss * dvd
-        f5_10 = (b * dr1 + m * dr2) * i_s
-        return xdd, ydd, od, [0.0, 0.0, f3_2, f3_3, f3_4, f3_5, f3_6, f3_7, f3_8, f3_9, f3_10,
-                              0.0, 0.0, f4_2, f4_3, f4_4, f4_5, f4_6, f4_7, f4_8, f4_9, f4_10,
-                              0.0, 0.0, f5_2, f5_3, f5_4, f5_5, f5_6, f5_7, f5_8, f5_9, f5_10]
-    return xdd, ydd, od, [0.0, 0.0, f3_2, f3_3, f3_4, f3_5, f3_6, f3_7, f3_8, f3_9,
-                          0.0, 0.0, f4_2, f4_3, f4_4, f4_5, f4_6, f4_7, f4_8, f4_9,
-                          0.0, 0.0, f5_2, f5_3, f5_4, f5_5, f5_6, f5_7, f5_8, f5_9]
-
-
 def wrench_input_matrix(x: np.ndarray) -> np.ndarray:
-    """Return B = d(xdd, ydd, thetadd) / d(fx, fy, tau) of the exact constrained dynamics at state x.
-
-    From the body-frame form (see :func:`_dynamics_rows`): vdot = (J r1 + b r2) / D,
-    omegadot = (b r1 + m r2) / D, D = m J - b^2, with r1 = c fx + s fy and r2 = tau
-    (+ terms free of gamma); the lateral force is absorbed by the wheels.
-    """
-    th = float(x[2])
-    m, b, j = float(x[6]), float(x[8]), float(x[9])
-    c, s = math.cos(th), math.sin(th)
-    i_d = 1.0 / (m * j - b * b)
-    dv = np.array([j * c, j * s, b]) * i_d
-    do = np.array([b * c, b * s, m]) * i_d
-    return np.array([c * dv, s * dv, do])
+    """Return B = d(xdd, ydd, thetadd) / d(fx, fy, tau) at state x (:func:`cart.dynamics.wrench_input_matrix`)."""
+    return _wrench_input_matrix(float(x[2]), float(x[6]), float(x[8]), float(x[9]))
 
 
 def input_noise_covariance(x: np.ndarray, gamma_cov: np.ndarray, dt: float) -> np.ndarray:
@@ -240,15 +125,17 @@ class CartEKF:
     """The augmented-state EKF of paper eq. (8-20); see the module docstring."""
 
     def __init__(self, q0: Sequence[float], qd0: Sequence[float], phi0: Sequence[float], sigma: float,
-                 config: EKFConfig = EKFConfig(), P0: Optional[np.ndarray] = None) -> None:
+                 config: EKFConfig = EKFConfig(), P0: Optional[np.ndarray] = None,
+                 sigma_yaw: Optional[float] = None) -> None:
         self.config = config
         self.with_sigma = bool(config.estimate_sigma)
-        self.n = 11 if self.with_sigma else 10
+        self.n = 12 if self.with_sigma else 10
         n = self.n
         phi0 = np.asarray(phi0, dtype=float)
         if phi0.shape != (4,) or phi0[0] <= 0.0:
             raise ParameterError(f"initial phi must be [m>0, m dx, m dy, J], got {phi0!r}")
         self.sigma = float(sigma)
+        self.sigma_yaw = float(sigma if sigma_yaw is None else sigma_yaw)
         if P0 is None:
             P0 = initial_covariance(phi0, config.meas_std, sigma, self.with_sigma)
         P0 = np.array(P0, dtype=float)
@@ -263,7 +150,7 @@ class CartEKF:
         self._x[3:6] = qd0
         self._x[6:10] = phi0
         if self.with_sigma:
-            self._x[10] = sigma
+            self._x[10:12] = (self.sigma, self.sigma_yaw)
         self._P[...] = P0
         qdiag = [config.q_pos, config.q_pos, config.q_pos, config.q_vel, config.q_vel, config.q_omega]
         if config.estimate_params:
@@ -273,7 +160,7 @@ class CartEKF:
             self._P[6:, :] = 0.0
             self._P[:, 6:] = 0.0
         if self.with_sigma:
-            qdiag.append(config.q_sigma if config.estimate_params else 0.0)
+            qdiag += [config.q_sigma if config.estimate_params else 0.0] * 2
         self.Qc = np.diag(qdiag)
         self._qdiag = np.array(qdiag)
         self.R = np.diag(np.square(np.asarray(config.meas_std, dtype=float)))
@@ -371,12 +258,17 @@ class CartEKF:
 
     @property
     def sigma_hat(self) -> float:
-        """Return the estimated (or fixed) viscous coefficient."""
+        """Return the estimated (or fixed) forward/lateral viscous coefficient (N s/m)."""
         return float(self._x[10]) if self.with_sigma else self.sigma
+
+    @property
+    def sigma_yaw_hat(self) -> float:
+        """Return the estimated (or fixed) yaw viscous coefficient (N m s/rad)."""
+        return float(self._x[11]) if self.with_sigma else self.sigma_yaw
 
     def params(self) -> CartParams:
         """Return the physical parameters of the current estimate."""
-        return CartParams.from_phi(self._x[6:10], self.sigma_hat)
+        return CartParams.from_phi(self._x[6:10], self.sigma_hat, self.sigma_yaw_hat)
 
     def params_std(self) -> dict:
         """Return the 1-sigma std of m, dx, dy, I (about the CoM) and sigma by linearising the phi map."""
@@ -388,8 +280,9 @@ class CartEKF:
         cov = jac @ self.P[6:10, 6:10] @ jac.T
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
         sig = math.sqrt(max(self.P[10, 10], 0.0)) if self.with_sigma else 0.0
+        sig_yaw = math.sqrt(max(self.P[11, 11], 0.0)) if self.with_sigma else 0.0
         return {"mass": float(std[0]), "com": [float(std[1]), float(std[2])], "inertia": float(std[3]),
-                "sigma": sig}
+                "sigma": sig, "sigma_yaw": sig_yaw}
 
     def log_det_innovation_covariance(self) -> float:
         """Return ln det S of the last update (from its Cholesky factor)."""
@@ -416,7 +309,7 @@ class CartEKF:
         if dt != self._dt:
             self._set_dt(dt)
         q_in = None if gamma_cov is None else input_noise_covariance(x, gamma_cov, dt)
-        xdd, ydd, od, rows = _dynamics_rows(x, gamma, self.sigma, self.with_sigma, dt, True)
+        xdd, ydd, od, rows = dynamics_jacobian_rows(x, gamma, self.sigma, self.sigma_yaw, self.with_sigma, dt, True)
         self._phi6[3:6] = np.reshape(rows, (3, self.n))
         vx, vy, om = x[3:6].tolist()
         x[:6] += (vx * dt, vy * dt, om * dt, xdd * dt, ydd * dt, od * dt)  # eq. (16)
@@ -498,8 +391,9 @@ class CartEKF:
         j_min = cfg.min_inertia + (a * a + b * b) / m
         if j < j_min:
             x[9] = j_min
-        if self.with_sigma and x[10] < 0.0:
-            x[10] = 0.0
+        if self.with_sigma:
+            x[10] = max(x[10], 0.0)
+            x[11] = max(x[11], 0.0)
 
     def step(self, gamma: Sequence[float], dt: float, z: Sequence[float],
              gamma_cov: Optional[np.ndarray] = None) -> float:
@@ -527,7 +421,8 @@ class CartEKF:
             self._set_dt(dt)
         q_in = None if gamma_cov is None else input_noise_covariance(x, gamma_cov, dt)  # at the prior state, like F
         xs = x.tolist()
-        xdd, ydd, od, rows = _dynamics_rows(xs, gamma, self.sigma, self.with_sigma, dt, True)
+        xdd, ydd, od, rows = dynamics_jacobian_rows(xs, gamma, self.sigma, self.sigma_yaw, self.with_sigma, dt,
+                                                    True)
         px, py, pth, vx, vy, om = xs[:6]
         ix, iy, ith, ivx, ivy, iom = vx * dt, vy * dt, om * dt, xdd * dt, ydd * dt, od * dt  # eq. (16)
         zl = z.tolist() if isinstance(z, np.ndarray) else z
@@ -561,7 +456,8 @@ class CartEKF:
         if self._unsym >= SYMMETRIZE_EVERY:
             self._symmetrize()
         m, a, b, j = x[6:10].tolist()  # keep phi physical (inline _project)
-        if m < self._min_mass or j < self._min_inertia + (a * a + b * b) / m or (self.with_sigma and x[10] < 0.0):
+        if (m < self._min_mass or j < self._min_inertia + (a * a + b * b) / m
+                or (self.with_sigma and min(x[10], x[11]) < 0.0)):
             self._project()
         self._ny = ny
         if self._prior_var is not None and self.config.change_detection:
@@ -570,7 +466,7 @@ class CartEKF:
 
 
 def run_ekf(t: np.ndarray, gamma: np.ndarray, z: np.ndarray, phi0: Sequence[float], sigma: float,
-            config: EKFConfig = EKFConfig(), nll: Optional[list] = None
+            config: EKFConfig = EKFConfig(), nll: Optional[list] = None, sigma_yaw: Optional[float] = None
             ) -> Tuple[CartEKF, np.ndarray, np.ndarray]:
     """Return (ekf, x_history (N, n), nis (N,)) of the EKF run on a whole log.
 
@@ -578,7 +474,7 @@ def run_ekf(t: np.ndarray, gamma: np.ndarray, z: np.ndarray, phi0: Sequence[floa
     If ``nll`` is a list, the negative log-likelihood of the innovations,
     0.5 sum_k (y_k^T S_k^-1 y_k + ln det S_k) (constant dropped), is appended to it.
     """
-    ekf = CartEKF(z[0, :3], z[0, 3:], phi0, sigma, config)
+    ekf = CartEKF(z[0, :3], z[0, 3:], phi0, sigma, config, sigma_yaw=sigma_yaw)
     hist = np.empty((len(t), ekf.n))
     nis = np.full(len(t), np.nan)
     hist[0] = ekf.x
@@ -701,7 +597,7 @@ def estimate_from_log(log, guess: CartParams, estimate_sigma: bool = True,
                     q_omega=max(EKFConfig.q_omega, (torque_std / start.inertia_b) ** 2 * dt_med))
         cfg = EKFConfig.from_noise(meas_std, estimate_sigma=estimate_sigma, **{**q_in, **config})
         nll: list = []
-        ekf, hist, nis = run_ekf(log.t, log.gamma, z, start.phi, start.sigma, cfg, nll)
+        ekf, hist, nis = run_ekf(log.t, log.gamma, z, start.phi, start.sigma, cfg, nll, start.sigma_yaw)
         if np.isfinite(nll[0]) and (best is None or nll[0] < best[0]):
             best = (nll[0], ekf, hist, nis)
     if best is None:

@@ -6,7 +6,11 @@ force of the manipulator, force in {s}, torque about the {b} origin.
 
 Every function taking ``params`` accepts a :class:`~cart.params.CartParams` or a
 ``phi`` array ``[m, m dx, m dy, J]`` (``J`` about the {b} origin; ``sigma`` is
-then passed separately where it matters).
+then passed separately where it matters: a scalar for both viscous coefficients,
+or the pair ``(sigma, sigma_yaw)``).
+
+The fast body-frame form lives in :mod:`cart.dynamics` (the one cart-dynamics
+core); the matrix form here is its cross-check and the paper's notation.
 
 ``forward_dynamics(..., exact=True)`` solves eq. (4) with the constraint kept at
 acceleration level, ``Lambda qdd + Lambdadot qd = 0``; ``exact=False`` is the
@@ -19,10 +23,11 @@ is the hook for effects the nominal model lacks (friction, slope, ...).
 from __future__ import annotations
 
 import math
-from typing import Tuple, Union
+from typing import Optional, Tuple, Union
 
 import numpy as np
 
+from cart import dynamics
 from cart.params import CartParams
 
 ParamsLike = Union[CartParams, np.ndarray]
@@ -34,10 +39,16 @@ def _phi(params: ParamsLike) -> np.ndarray:
     return np.asarray(params, dtype=float).reshape(4)
 
 
-def _sigma(params: ParamsLike, sigma: float | None) -> float:
+SigmaLike = Union[float, Tuple[float, float], None]
+
+
+def damping_pair(params: ParamsLike, sigma: SigmaLike = None) -> Tuple[float, float]:
+    """Return (sigma, sigma_yaw): from ``sigma`` (scalar or pair) if given, else from ``params``."""
     if sigma is not None:
-        return float(sigma)
-    return params.sigma if isinstance(params, CartParams) else 0.0
+        if isinstance(sigma, (tuple, list, np.ndarray)):
+            return float(sigma[0]), float(sigma[1])
+        return float(sigma), float(sigma)
+    return params.damping if isinstance(params, CartParams) else (0.0, 0.0)
 
 
 def mass_matrix(q: np.ndarray, params: ParamsLike) -> np.ndarray:
@@ -57,9 +68,11 @@ def coriolis_matrix(q: np.ndarray, qd: np.ndarray, params: ParamsLike) -> np.nda
     return np.array([[0.0, 0.0, w * (b * s - a * c)], [0.0, 0.0, -w * (b * c + a * s)], [0.0, 0.0, 0.0]])
 
 
-def damping_force(qd: np.ndarray, sigma: float) -> np.ndarray:
-    """Return the viscous generalized force N = sigma * qd of paper eq. (4)."""
-    return float(sigma) * np.asarray(qd, dtype=float)
+def damping_force(qd: np.ndarray, sigma: SigmaLike) -> np.ndarray:
+    """Return the viscous generalized force N = diag(sigma, sigma, sigma_yaw) qd of paper eq. (4)."""
+    sv, sw = damping_pair(np.zeros(4), sigma if sigma is not None else 0.0)
+    qd = np.asarray(qd, dtype=float)
+    return np.array([sv * qd[0], sv * qd[1], sw * qd[2]])
 
 
 def constraint_matrix(q: np.ndarray) -> np.ndarray:
@@ -107,14 +120,14 @@ def generalized_to_body(q: np.ndarray, gamma: np.ndarray) -> np.ndarray:
 
 
 def constraint_force(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: ParamsLike,
-                     sigma: float | None = None, exact: bool = True,
+                     sigma: SigmaLike = None, exact: bool = True,
                      extra_force: np.ndarray | None = None) -> float:
     """Return the Lagrange multiplier lambda of eq. (4); the constraint force is -Lambda^T lambda.
 
     exact=True solves Lambda qdd + Lambdadot qd = 0; exact=False Lambda qdd = 0 (paper eq. 5-7).
     """
     mm = mass_matrix(q, params)
-    rhs = np.asarray(gamma, float) - coriolis_matrix(q, qd, params) @ qd - damping_force(qd, _sigma(params, sigma))
+    rhs = np.asarray(gamma, float) - coriolis_matrix(q, qd, params) @ qd - damping_force(qd, damping_pair(params, sigma))
     if extra_force is not None:
         rhs = rhs + np.asarray(extra_force, float)
     lam = constraint_matrix(q)
@@ -125,7 +138,7 @@ def constraint_force(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: P
 
 
 def forward_dynamics(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: ParamsLike,
-                     sigma: float | None = None, exact: bool = True,
+                     sigma: SigmaLike = None, exact: bool = True,
                      extra_force: np.ndarray | None = None) -> np.ndarray:
     """Return qdd of the constrained cart, paper eq. (4) (exact) or eq. (5-7) (exact=False).
 
@@ -135,7 +148,7 @@ def forward_dynamics(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: P
     q = np.asarray(q, float)
     qd = np.asarray(qd, float)
     mm = mass_matrix(q, params)
-    rhs = np.asarray(gamma, float) - coriolis_matrix(q, qd, params) @ qd - damping_force(qd, _sigma(params, sigma))
+    rhs = np.asarray(gamma, float) - coriolis_matrix(q, qd, params) @ qd - damping_force(qd, damping_pair(params, sigma))
     if extra_force is not None:
         rhs = rhs + np.asarray(extra_force, float)
     if not exact:
@@ -146,23 +159,12 @@ def forward_dynamics(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: P
 
 def forward_dynamics_fast(theta: float, vx: float, vy: float, omega: float,
                           fx: float, fy: float, tau: float,
-                          m: float, a: float, b: float, j: float, sigma: float) -> Tuple[float, float, float]:
+                          m: float, a: float, b: float, j: float, sigma: float,
+                          sigma_yaw: Optional[float] = None) -> Tuple[float, float, float]:
     """Return (xdd, ydd, thetadd) of the exact constrained dynamics, in plain floats.
 
-    Same result as ``forward_dynamics(..., exact=True)``, written in the body
-    frame: with v = forward and w = lateral speed of the {b} origin,
-    [m, -b; -b, J] [vdot, omegadot] = [Fu - sigma v + a w^2 + m w w_lat,
-    tau - sigma w - a w v - b w w_lat] and wdot_lat = 0 (a = m dx, b = m dy).
+    Same result as ``forward_dynamics(..., exact=True)``; :func:`cart.dynamics.forward_dynamics`
+    with ``sigma_yaw = sigma`` unless given.
     """
-    c, s = math.cos(theta), math.sin(theta)
-    v = c * vx + s * vy
-    w = -s * vx + c * vy
-    fu = c * fx + s * fy
-    r1 = fu - sigma * v + a * omega * omega + m * omega * w
-    r2 = tau - sigma * omega - a * omega * v - b * omega * w
-    inv_d = 1.0 / (m * j - b * b)
-    vdot = (j * r1 + b * r2) * inv_d
-    odot = (b * r1 + m * r2) * inv_d
-    u1 = vdot - omega * w
-    u2 = omega * v
-    return c * u1 - s * u2, s * u1 + c * u2, odot
+    return dynamics.forward_dynamics(theta, vx, vy, omega, fx, fy, tau, m, a, b, j, sigma,
+                                     sigma if sigma_yaw is None else sigma_yaw)

@@ -3,14 +3,17 @@
 The paper estimates ``phi = [m, m*dx, m*dy, I + m*(dx^2 + dy^2)]`` (paper §II.B),
 i.e. the mass, the first mass moments and the inertia about the {b} origin.
 :class:`CartParams` stores the physical values ``(m, dx, dy, I)`` with ``I``
-about the centre of mass, plus the viscous coefficient ``sigma`` of
-``N = sigma * qdot``. :meth:`CartParams.phi` and :meth:`CartParams.from_phi`
+about the centre of mass, plus the viscous coefficients of
+``N = diag(sigma, sigma, sigma_yaw) qdot``: ``sigma`` forward/lateral (N s/m) and
+``sigma_yaw`` (N m s/rad; ``None`` means equal to ``sigma``, the paper's scalar case).
+:meth:`CartParams.phi` and :meth:`CartParams.from_phi`
 are the only place in the project where the two are converted.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Optional, Tuple
 
 import numpy as np
 
@@ -23,16 +26,23 @@ MIN_INERTIA = 1e-9
 
 @dataclass(frozen=True)
 class CartParams:
-    """Physical cart parameters: mass, CoM (dx, dy) in {b}, inertia about the CoM, viscous coefficient."""
+    """Physical cart parameters: mass, CoM (dx, dy) in {b}, inertia about the CoM, viscous coefficients.
+
+    ``sigma`` damps the velocity of the {b} origin (N s/m), ``sigma_yaw`` the yaw
+    rate (N m s/rad); ``sigma_yaw=None`` takes the paper's scalar sigma for both.
+    """
 
     m: float
     dx: float
     dy: float
     I: float
     sigma: float = 0.0
+    sigma_yaw: Optional[float] = None
 
     def __post_init__(self) -> None:
-        for name in ("m", "dx", "dy", "I", "sigma"):
+        if self.sigma_yaw is None:
+            object.__setattr__(self, "sigma_yaw", self.sigma)
+        for name in ("m", "dx", "dy", "I", "sigma", "sigma_yaw"):
             value = getattr(self, name)
             if not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(float(value)):
                 raise ParameterError(f"cart parameter {name} must be a finite number, got {value!r}")
@@ -41,8 +51,9 @@ class CartParams:
             raise ParameterError(f"cart mass must be positive, got m={self.m}")
         if self.I <= MIN_INERTIA:
             raise ParameterError(f"cart inertia about the CoM must be positive, got I={self.I}")
-        if self.sigma < 0.0:
-            raise ParameterError(f"viscous coefficient sigma must be >= 0, got sigma={self.sigma}")
+        if self.sigma < 0.0 or self.sigma_yaw < 0.0:
+            raise ParameterError(f"viscous coefficients must be >= 0, got sigma={self.sigma}, "
+                                 f"sigma_yaw={self.sigma_yaw}")
 
     @property
     def com(self) -> np.ndarray:
@@ -59,8 +70,13 @@ class CartParams:
         """Return the paper's parameter vector [m, m dx, m dy, I + m(dx^2+dy^2)] (paper §II.B)."""
         return np.array([self.m, self.m * self.dx, self.m * self.dy, self.inertia_b])
 
+    @property
+    def damping(self) -> Tuple[float, float]:
+        """Return the viscous coefficients (forward/lateral N s/m, yaw N m s/rad)."""
+        return self.sigma, float(self.sigma_yaw)
+
     @classmethod
-    def from_phi(cls, phi: np.ndarray, sigma: float = 0.0) -> "CartParams":
+    def from_phi(cls, phi: np.ndarray, sigma: float = 0.0, sigma_yaw: Optional[float] = None) -> "CartParams":
         """Return the physical parameters of a phi vector; raise ParameterError if m <= 0 or I <= 0."""
         phi = np.asarray(phi, dtype=float).reshape(-1)
         if phi.shape != (4,) or not np.all(np.isfinite(phi)):
@@ -70,7 +86,7 @@ class CartParams:
             raise ParameterError(f"phi has non-positive mass m={m}")
         dx, dy = a / m, b / m
         inertia = j - (a * a + b * b) / m
-        return cls(m=m, dx=dx, dy=dy, I=inertia, sigma=sigma)
+        return cls(m=m, dx=dx, dy=dy, I=inertia, sigma=sigma, sigma_yaw=sigma_yaw)
 
     def with_mass(self, m: float, keep_com: bool = True) -> "CartParams":
         """Return a copy with another mass; the CoM and the radius of gyration are kept."""

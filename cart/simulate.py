@@ -17,7 +17,7 @@ from typing import Callable, Optional, Sequence, Tuple
 
 import numpy as np
 
-from cart import model
+from cart import dynamics, model
 from cart.logs import CartLog
 from cart.params import CartParams
 
@@ -96,9 +96,9 @@ def _accel(t: float, q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, p: CartPa
     if extra_force is not None:
         g = gamma + np.asarray(extra_force(t, q, qd, p), dtype=float)
     if not exact:
-        return model.forward_dynamics(q, qd, g, phi, p.sigma, exact=False)
-    return np.array(model.forward_dynamics_fast(q[2], qd[0], qd[1], qd[2], g[0], g[1], g[2],
-                                                phi[0], phi[1], phi[2], phi[3], p.sigma))
+        return model.forward_dynamics(q, qd, g, phi, p.damping, exact=False)
+    return np.array(dynamics.forward_dynamics(q[2], qd[0], qd[1], qd[2], g[0], g[1], g[2],
+                                              phi[0], phi[1], phi[2], phi[3], p.sigma, p.sigma_yaw))
 
 
 def rk4_step(t: float, q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: CartParams, h: float,

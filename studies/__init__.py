@@ -1,0 +1,1 @@
+"""Studies, reproductions and test beds: not library API."""
