@@ -1,66 +1,122 @@
-"""`cartpush estimate LOG`: the cart EKF on a measured log; prints mass, CoM, inertia, sigma and their std."""
+"""`cartpush estimate LOG`: the cart's mass, CoM, inertia and viscous coefficients from a measured log."""
 from __future__ import annotations
 
 import argparse
-import json
 import math
-
-from cart.ekf import estimate_from_log
-from cart.errors import CartError, LogFormatError
-from cart.logs import read_log
-from cart.params import CartParams
+from typing import Any, Dict
 
 DESCRIPTION = """\
-Estimate the cart's inertial parameters (mass, CoM, inertia about the CoM,
-viscous coefficient) from a log in the project's cart log format (CSV or
-.csv.gz; velocity columns optional, estimated from the pose when absent) with
-the augmented-state EKF. The measurement noise is estimated from the log.
+Estimate the cart's inertial parameters (mass, CoM, inertia about the CoM) and its
+two viscous coefficients (forward/lateral N s/m, yaw N m s/rad) from a log in the
+project's cart log format (CSV or .csv.gz; velocity columns optional).
+
+--method ls (default): filtered-regressor least squares over the whole log; the
+  noisy logged wrench is the regression's output, so wrench noise does not bias
+  the estimate; noise levels, filter band and uncertainty come from the log itself.
+--method ekf: the paper's augmented-state EKF (eq. 8-20) with a multi-start; the
+  wrench is its input, so wrench noise biases the mass upwards.
+
+The output says whether the model fits the log (`model_fits`, `nis_mean`: the
+EKF's mean normalized innovation with these parameters, ~6 when it fits) and
+lists warnings (weak excitation, misfit: then run `cartpush diagnose`).
 
 Example:
-  cartpush estimate push.csv --mass-guess 25 --com-guess 0.3 0 --json
+  cartpush estimate push.csv --json
+  cartpush estimate push.csv --method ekf --mass-guess 25 --com-guess 0.3 0
 """
 
 
 def register(subparsers) -> None:
     """Add the `estimate` subcommand."""
-    parser = subparsers.add_parser("estimate", help="estimate cart mass/CoM/inertia from a log (EKF)",
+    parser = subparsers.add_parser("estimate", help="estimate cart mass/CoM/inertia/damping from a log",
                                    description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", metavar="LOG", help="cart log (.csv or .csv.gz)")
-    parser.add_argument("--mass-guess", type=float, default=20.0, metavar="KG", help="initial mass (default 20)")
+    parser.add_argument("--method", choices=("ls", "ekf"), default="ls",
+                        help="ls: whole-log least squares (default); ekf: the paper's EKF")
+    parser.add_argument("--mass-guess", type=float, default=20.0, metavar="KG",
+                        help="EKF only: initial mass (default 20)")
     parser.add_argument("--com-guess", type=float, nargs=2, default=(0.0, 0.0), metavar=("DX", "DY"),
-                        help="initial CoM in the cart frame {b} (default 0 0)")
+                        help="EKF only: initial CoM in the cart frame {b} (default 0 0)")
     parser.add_argument("--sigma-guess", type=float, default=1.0, metavar="NS_PER_M",
-                        help="initial viscous coefficient (default 1)")
+                        help="EKF only: initial viscous coefficients (default 1)")
     parser.add_argument("--json", action="store_true", help="print only JSON")
     parser.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the EKF over the log and print the estimate; return 0."""
+def _check_guesses(args: argparse.Namespace) -> None:
+    from cart.errors import CartError
+
     if not (math.isfinite(args.mass_guess) and args.mass_guess > 0):
         raise CartError(f"--mass-guess must be a positive number of kg, got {args.mass_guess}")
-    log = read_log(args.log)
+    if not all(math.isfinite(v) for v in args.com_guess):
+        raise CartError(f"--com-guess must be two finite numbers of metres, got {args.com_guess}")
+    if not (math.isfinite(args.sigma_guess) and args.sigma_guess >= 0):
+        raise CartError(f"--sigma-guess must be a non-negative number, got {args.sigma_guess}")
+
+
+def _run_ls(log) -> Dict[str, Any]:
+    from cart.identify import identify, innovation_check
+
+    res = identify(log)
+    p = res.params
+    nis = innovation_check(log, p)
+    warnings = list(res.warnings)
+    fits = res.model_fits
+    if math.isfinite(nis) and nis > 18.0 and fits:
+        fits = False
+        warnings.append(f"the EKF's innovations do not fit (mean NIS {nis:.1f}, ~6 expected); run `cartpush diagnose`")
+    return {"method": "ls", "mass": p.m, "com": [p.dx, p.dy], "inertia": p.I, "sigma": p.sigma,
+            "sigma_yaw": p.sigma_yaw, "std": res.std, "nis_mean": nis, "model_fits": fits,
+            "residual_ratio": list(res.residual_ratio), "cutoff_hz": res.cutoff_hz,
+            "coulomb_resistance": {"force": res.coulomb["force"], "torque": res.coulomb["torque"]},
+            "noise_std": res.noise, "samples_used": res.samples_used, "gaps": res.gaps,
+            "rejected_samples": 0, "warnings": warnings}
+
+
+def _run_ekf(log, args: argparse.Namespace) -> Dict[str, Any]:
+    from cart.ekf import estimate_from_log
+    from cart.errors import LogFormatError
+    from cart.params import CartParams
+
     guess = CartParams(args.mass_guess, args.com_guess[0], args.com_guess[1], 0.1 * args.mass_guess,
-                       max(args.sigma_guess, 0.0))
+                       args.sigma_guess)
     try:
         est = estimate_from_log(log, guess, estimate_sigma=True)
-    except FloatingPointError as exc:  # pragma: no cover - numerical breakdown on absurd data
+    except (FloatingPointError, TypeError) as exc:
         raise LogFormatError(f"{args.log}: the EKF diverged on this log ({exc})") from None
     p = est.params
-    values = [p.m, p.dx, p.dy, p.I, p.sigma]
-    if not all(math.isfinite(v) for v in values):
+    if not all(math.isfinite(v) for v in (p.m, p.dx, p.dy, p.I, p.sigma, p.sigma_yaw)):
         raise LogFormatError(f"{args.log}: the EKF diverged on this log (non-finite estimate)")
-    out = {"mass": p.m, "com": [p.dx, p.dy], "inertia": p.I, "sigma": p.sigma, "std": est.std}
+    fits = bool(math.isfinite(est.mean_nis) and est.mean_nis < 18.0)
+    warnings = [] if fits else [f"the EKF's innovations do not fit (mean NIS {est.mean_nis:.1f}, ~6 expected): "
+                                "the std understates the error; run `cartpush diagnose`"]
+    return {"method": "ekf", "mass": p.m, "com": [p.dx, p.dy], "inertia": p.I, "sigma": p.sigma,
+            "sigma_yaw": p.sigma_yaw, "std": est.std, "nis_mean": est.mean_nis, "model_fits": fits,
+            "velocities_estimated": est.velocities_estimated,
+            "rejected_samples": int(getattr(est, "rejected_samples", 0)), "gaps": int(getattr(est, "gaps", 0)),
+            "warnings": warnings}
+
+
+def run(args: argparse.Namespace) -> int:
+    """Estimate the parameters of the log and print them; return 0."""
+    from cart.jsonout import dumps_strict
+    from cart.logs import read_log
+
+    _check_guesses(args)
+    log = read_log(args.log)
+    out = _run_ls(log) if args.method == "ls" else _run_ekf(log, args)
     if args.json:
-        print(json.dumps(out))
+        print(dumps_strict(out))
         return 0
-    s = est.std
-    print(f"log        {args.log} ({len(log)} samples, {log.t[-1] - log.t[0]:.2f} s"
-          f"{', velocities estimated from the pose' if est.velocities_estimated else ''})")
-    print(f"mass       {p.m:9.3f} +- {s['mass']:.3f} kg")
-    print(f"CoM dx     {p.dx:9.4f} +- {s['com'][0]:.4f} m")
-    print(f"CoM dy     {p.dy:9.4f} +- {s['com'][1]:.4f} m")
-    print(f"inertia    {p.I:9.4f} +- {s['inertia']:.4f} kg m^2 (about the CoM)")
-    print(f"sigma      {p.sigma:9.4f} +- {s['sigma']:.4f} N s/m")
-    print(f"mean NIS   {est.mean_nis:9.3f} (6 expected for a consistent filter)")
+    s = out["std"]
+    print(f"log        {args.log} ({len(log)} samples, {log.t[-1] - log.t[0]:.2f} s; method {out['method']})")
+    print(f"mass       {out['mass']:9.3f} +- {s['mass']:.3f} kg")
+    print(f"CoM dx     {out['com'][0]:9.4f} +- {s['com'][0]:.4f} m   (in the cart frame {{b}})")
+    print(f"CoM dy     {out['com'][1]:9.4f} +- {s['com'][1]:.4f} m")
+    print(f"inertia    {out['inertia']:9.4f} +- {s['inertia']:.4f} kg m^2 (about the CoM)")
+    print(f"sigma      {out['sigma']:9.4f} +- {s['sigma']:.4f} N s/m (forward/lateral)")
+    print(f"sigma_yaw  {out['sigma_yaw']:9.4f} +- {s['sigma_yaw']:.4f} N m s/rad (yaw)")
+    print(f"model fits {'yes' if out['model_fits'] else 'NO'} (mean NIS {out['nis_mean']:.2f}, ~6 when it fits)")
+    for w in out["warnings"]:
+        print(f"warning: {w}")
     return 0
