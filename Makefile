@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench install clean
+.PHONY: demo test lint bench browser install clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -19,8 +19,16 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/cartpush demo
 
-test: $(STAMP)
+# Headless Chromium for tests/wholebody/test_browser.py: installed with apt-get when missing and
+# possible (root or passwordless sudo); otherwise those tests skip with one line saying what to install.
+browser:
+	@sh .ci/install-chromium
+
+test: $(STAMP) browser
 	$(BIN)/python -m pytest -n 2 tests
+
+lint: $(STAMP)
+	$(BIN)/python -m ruff check .
 
 bench: $(STAMP)
 	@for f in benchmarks/bench_*.py; do echo "== $$f"; $(BIN)/python $$f || exit 1; done

@@ -3,7 +3,7 @@
 ``diagnose(log) -> DiagnosisReport``:
 
 a. Nominal fit. The paper's model (eq. 4 projected on the forward and yaw
-   directions, eq. 5-7) is linear in x = [m, m dx, m dy, J, sigma] given the
+   directions, eq. 5-7) is linear in x = [m, m dx, m dy, J, sigma, sigma_yaw] given the
    motion. Velocities/accelerations come from local quadratic fits of the
    pose; every row is integrated over consecutive windows of ~0.3 s (so the
    accelerations enter as velocity differences and the residuals are close to
@@ -36,7 +36,8 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 from scipy import optimize
 
-from cart.effects import Effect, measured_rows, nominal_columns, nominal_loadings, registered_effects, speed_scales
+from cart.effects import (N_NOMINAL, Effect, measured_rows, nominal_columns, nominal_loadings, registered_effects,
+                          speed_scales)
 from cart.errors import CartError
 from cart.log_signals import Signals, lateral_displacements, velocity_change_noise, signals_from_log, window_edges, window_integrals
 from cart.logs import CartLog
@@ -48,7 +49,7 @@ GAP_METRIC = ("RMS excess position error (m) of the {b} origin over the noise fl
               "the smoothed measured state with the measured wrench), f = the RMS error the estimated pose, force "
               "and torque noise alone predict for that replay; mean over the starts the nominal replay flags as "
               "significant (all starts when none). 0 = the replay error is at the noise level")
-NOMINAL_NAMES = ("m", "m_dx", "m_dy", "J", "sigma")
+NOMINAL_NAMES = ("m", "m_dx", "m_dy", "J", "sigma", "sigma_yaw")
 ROW_NAMES = ("forward force", "yaw torque", "lateral displacement")
 
 
@@ -83,8 +84,8 @@ class Fit:
 
     @property
     def n_params(self) -> int:
-        """Return the number of fitted parameters (5 nominal + effects)."""
-        return 5 + sum(e.n_params for e, _ in self.effects)
+        """Return the number of fitted parameters (6 nominal + effects)."""
+        return N_NOMINAL + sum(e.n_params for e, _ in self.effects)
 
 
 def _solve(d: np.ndarray, y: np.ndarray, lv: np.ndarray, lw: np.ndarray, s2v: float, s2w: float,
@@ -184,7 +185,7 @@ def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, 
             lw.append(lo[1] if lo is not None else np.zeros_like(g))
         d = np.concatenate(g_w, axis=2)
         x, rss, cov, m2ll = _solve(d, y_fit, np.concatenate(lv, axis=2), np.concatenate(lw, axis=2), s2v, s2w)
-        thetas, k = [], 5
+        thetas, k = [], N_NOMINAL
         for e, _ in effects:
             thetas.append(x[k:k + len(e.param_names)])
             k += len(e.param_names)
@@ -196,7 +197,7 @@ def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, 
         if done or (it == 0 and not iterate):
             break
     n = y_w.shape[0]
-    return Fit(effects=list(effects), x=x[:5], thetas=thetas, rss=rss, n_win=n, cov=cov, m2ll=m2ll, sig=sig)
+    return Fit(effects=list(effects), x=x[:N_NOMINAL], thetas=thetas, rss=rss, n_win=n, cov=cov, m2ll=m2ll, sig=sig)
 
 
 def _cart_ok(x: np.ndarray) -> bool:
@@ -369,7 +370,8 @@ class DiagnosisReport:
         lines = [f"diagnosis of {self.source}"]
         nm = self.nominal
         lines.append(f"nominal fit: m = {nm['m']:.2f} kg, CoM = ({nm['dx']:.3f}, {nm['dy']:.3f}) m, "
-                     f"I = {nm['I']:.2f} kg m^2, sigma = {nm['sigma']:.2f} N s/m")
+                     f"I = {nm['I']:.2f} kg m^2, sigma = {nm['sigma']:.2f} N s/m, "
+                     f"sigma_yaw = {nm['sigma_yaw']:.2f} N m s/rad")
         lines.append(f"significant discrepancy windows: {len(self.windows)}")
         for w in self.windows[:12]:
             lines.append(f"  [{w.t0:7.2f}, {w.t1:7.2f}] s  {w.activity:<28} chi2 max {w.chi2:8.1f}")
@@ -397,12 +399,13 @@ def _clean(d: Dict[str, float]) -> Dict[str, float]:
 
 
 def _physical(x: np.ndarray, cov: Optional[np.ndarray] = None) -> Dict[str, float]:
-    """Return m, dx, dy, I (about the CoM), sigma of x (NaN where phi is not physical) with stds of m, sigma."""
-    m, a, b, j, s = (float(v) for v in x[:5])
+    """Return m, dx, dy, I (about the CoM), sigma, sigma_yaw of x (NaN where phi is not physical) with stds."""
+    m, a, b, j, s, s_yaw = (float(v) for v in x[:N_NOMINAL])
     out = {"m": m, "dx": a / m if m > 0 else float("nan"), "dy": b / m if m > 0 else float("nan"),
-           "I": j - (a * a + b * b) / m if m > 0 else float("nan"), "sigma": s}
+           "I": j - (a * a + b * b) / m if m > 0 else float("nan"), "sigma": s, "sigma_yaw": s_yaw}
     if cov is not None:
-        out.update({"m_std": math.sqrt(max(cov[0, 0], 0)), "sigma_std": math.sqrt(max(cov[4, 4], 0))})
+        out.update({"m_std": math.sqrt(max(cov[0, 0], 0)), "sigma_std": math.sqrt(max(cov[4, 4], 0)),
+                    "sigma_yaw_std": math.sqrt(max(cov[5, 5], 0))})
     return out
 
 
@@ -527,7 +530,7 @@ def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, thresh
     effects_out: List[NamedEffect] = []
     for i, (e, fit, dbic, nl_std) in enumerate(named):
         th = fit.thetas[-1]
-        k0 = 5 + sum(len(ee.param_names) for ee, _ in fit.effects[:-1])
+        k0 = N_NOMINAL + sum(len(ee.param_names) for ee, _ in fit.effects[:-1])
         cov = fit.cov[k0:k0 + len(th), k0:k0 + len(th)] if len(th) else np.zeros((0, 0))
         params, std = e.describe(th, fit.effects[-1][1], cov, nl_std, fit.phi)
         better = flagged & (reps[i + 1].chi2 < 0.5 * reps[i].chi2)

@@ -66,7 +66,7 @@ def simulate_replays(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = 
                      h: float = 0.02) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (starts (K,), tau (J,), simulated poses (K, J, 3), measured poses (K, J, 3)) of the short replays.
 
-    The model x = [m, m dx, m dy, J, sigma] (eq. 4-7) plus ``extra`` (N, 3):
+    The model x = [m, m dx, m dy, J, sigma, sigma_yaw] (eq. 4-7) plus ``extra`` (N, 3):
     effect generalized force (forward, yaw) and lateral speed of {b} along the
     measured motion, and ``dphi`` (N, 4): change of phi over time; integrated
     by RK4 (step ``h``) from the smoothed measured state at every start, all
@@ -84,7 +84,7 @@ def simulate_replays(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = 
     tau = np.arange(k_steps + 1) * h
     extra = np.zeros((sig.n, 3)) if extra is None else extra
     phi_t = np.tile(np.asarray(x[:4], float), (sig.n, 1)) + (0.0 if dphi is None else dphi)
-    sigma = float(x[4])
+    sigma, sigma_yaw = float(x[4]), float(x[5])
     grid = starts_all[:, None] + 0.5 * h * np.arange(2 * k_steps + 1)[None, :]  # (K, 2 k + 1): RK4 stages
     g = [np.interp(grid + sig.shift, t, sig.gamma_raw[:, k]) for k in range(3)]
     e = [np.interp(grid, t, extra[:, k]) for k in range(3)]
@@ -100,7 +100,7 @@ def simulate_replays(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = 
         c, sn = np.cos(th), np.sin(th)
         fu = c * g[0][:, i] + sn * g[1][:, i]
         r1 = fu + e[0][:, i] - sigma * v + a[:, i] * om * om
-        r2 = g[2][:, i] + e[1][:, i] - sigma * om - a[:, i] * om * v
+        r2 = g[2][:, i] + e[1][:, i] - sigma_yaw * om - a[:, i] * om * v
         vdot = (j[:, i] * r1 + b[:, i] * r2) / det[:, i]
         odot = (b[:, i] * r1 + m[:, i] * r2) / det[:, i]
         w = e[2][:, i]
@@ -124,7 +124,7 @@ def simulate_replays(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = 
 
 def replay(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = None, dphi: Optional[np.ndarray] = None,
            horizon: float = 1.0, stride: float = 0.25, h: float = 0.02) -> Replay:
-    """Return the replay of the model x = [m, m dx, m dy, J, sigma] plus effect terms over short horizons.
+    """Return the replay of the model x = [m, m dx, m dy, J, sigma, sigma_yaw] plus effect terms over short horizons.
 
     ``extra`` (N, 3): effect generalized force (forward, yaw) and lateral speed
     of {b}, evaluated along the measured motion; ``dphi`` (N, 4): change of phi

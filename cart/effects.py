@@ -25,7 +25,11 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple, Type
 
 import numpy as np
 
+from cart.dynamics import regressor
 from cart.log_signals import Signals, derivative_gain, local_poly
+
+#: Nominal parameters x = [m, m dx, m dy, J, sigma, sigma_yaw] (two viscous coefficients).
+N_NOMINAL = 6
 
 GRAVITY = 9.81
 NONLINEAR_FREE = ()
@@ -36,30 +40,25 @@ CONTRACT_NAMES = ("coulomb_friction", "caster_swivel", "wrench_bias", "payload_c
 
 
 def nominal_columns(sig: Signals) -> np.ndarray:
-    """Return the nominal design A (N, 3, 5) for x = [m, m dx, m dy, J, sigma] (paper eq. 4, body rows)."""
+    """Return the nominal design A (N, 3, 6) for x = [m, m dx, m dy, J, sigma, sigma_yaw] (paper eq. 4, body rows).
+
+    The forward and yaw rows are :func:`cart.dynamics.regressor`; the lateral row is empty.
+    """
     n = sig.n
-    a = np.zeros((n, 3, 5))
-    v, om, vd, od = sig.v, sig.omega, sig.vdot, sig.omegadot
-    a[:, 0, 0] = vd
-    a[:, 0, 1] = -om * om
-    a[:, 0, 2] = -od
-    a[:, 0, 4] = v
-    a[:, 1, 1] = om * v
-    a[:, 1, 2] = -vd
-    a[:, 1, 3] = od
-    a[:, 1, 4] = om
+    a = np.zeros((n, 3, N_NOMINAL))
+    a[:, :2, :] = regressor(sig.v, sig.omega, sig.vdot, sig.omegadot)
     return a
 
 
 def nominal_loadings(n_win: int) -> Tuple[np.ndarray, np.ndarray]:
-    """Return (Lv, Lw) (n_win, 3, 5): how the noise of the window velocity changes enters the nominal columns.
+    """Return (Lv, Lw) (n_win, 3, 6): how the noise of the window velocity changes enters the nominal columns.
 
     The forward row's m column is the change of v, its m dy column minus the
     change of omega; the yaw row's m dy column is minus the change of v and its
     J column the change of omega.
     """
-    lv = np.zeros((n_win, 3, 5))
-    lw = np.zeros((n_win, 3, 5))
+    lv = np.zeros((n_win, 3, N_NOMINAL))
+    lw = np.zeros((n_win, 3, N_NOMINAL))
     lv[:, 0, 0] = 1.0
     lw[:, 0, 2] = -1.0
     lv[:, 1, 2] = -1.0

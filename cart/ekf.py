@@ -26,10 +26,9 @@ from typing import Optional, Sequence, Tuple, Union
 import numpy as np
 from scipy.linalg import cho_factor as _cho_factor, cho_solve as _cho_solve
 from scipy.linalg.lapack import dposv as _dposv, dtrtrs as _dtrtrs
-from scipy.stats import chi2
 
 from cart.dynamics import dynamics_jacobian_rows, wrench_input_matrix as _wrench_input_matrix
-from cart.errors import ParameterError
+from cart.errors import NumericalError, ParameterError
 from cart.params import CartParams
 
 N_MEAS = 6
@@ -37,6 +36,44 @@ N_MEAS = 6
 #: ``CartEKF.P``): between two, P carries only the rounding asymmetry of the updates
 #: (~1e-16 relative), which the Cholesky solve does not see (it reads one triangle of S).
 SYMMETRIZE_EVERY = 8
+#: Most sub-steps one long interval of a log is split into by :func:`run_ekf` (bounds the work of a huge gap).
+MAX_GAP_SUBSTEPS = 10_000
+
+
+def chi2_isf(alpha: float, dof: int) -> float:
+    """Return the chi-square quantile x with P(X > x) = alpha for ``dof`` degrees of freedom.
+
+    Even ``dof`` (the EKF's 6) in closed form, Q(x) = exp(-x/2) sum_{i < dof/2} (x/2)^i / i!,
+    solved by bisection on ln Q (no scipy.stats import: it costs ~1 s of start-up); odd ``dof`` via scipy.
+    """
+    if not 0.0 < alpha < 1.0:
+        raise ParameterError(f"chi-square tail probability must be in (0, 1), got {alpha}")
+    if dof % 2:
+        from scipy.stats import chi2
+
+        return float(chi2.isf(alpha, dof))
+
+    def log_q(x: float) -> float:
+        h = 0.5 * x
+        term, total = 1.0, 1.0
+        for i in range(1, dof // 2):
+            term *= h / i
+            total += term
+        return -h + math.log(total)
+
+    target = math.log(alpha)
+    lo, hi = 0.0, 1.0
+    while log_q(hi) > target:
+        hi *= 2.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if log_q(mid) > target:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-12 * hi:
+            break
+    return 0.5 * (lo + hi)
 
 
 @dataclass(frozen=True)
@@ -70,6 +107,9 @@ class EKFConfig:
     change_window: int = 50
     change_alpha: float = 1e-6
     change_converged: float = 0.1
+    gate_alpha: float = 1e-6
+    gate_max_consecutive: int = 5
+    gap_factor: float = 5.0
 
     @classmethod
     def from_noise(cls, meas_std: Sequence[float], **kwargs) -> "EKFConfig":
@@ -197,10 +237,22 @@ class CartEKF:
         # change detection: innovation sum over the current window, the threshold, the prior variances
         self._ysum = [0.0] * N_MEAS
         self._ycount = 0
-        self._change_threshold = float(chi2.isf(config.change_alpha, N_MEAS))
+        self._change_threshold = chi2_isf(config.change_alpha, N_MEAS)
         self._prior_var = np.diag(self._P)[N_MEAS:].copy() if config.estimate_params else None
         self.changes_detected = 0
         self.change_statistic = float("nan")
+        # robustness counters (see EKFConfig): measurements skipped as non-finite, rejected by the gate,
+        # accepted after a run of rejections (with P inflated), P repairs (jitter), long intervals split
+        self.nonfinite_samples = 0
+        self.rejected_samples = 0
+        self.forced_accepts = 0
+        self.covariance_repairs = 0
+        self.gaps = 0
+        self.accepted = True  # whether the last step's measurement was used
+        alpha = float(config.gate_alpha)
+        self._gate = chi2_isf(alpha, N_MEAS) if alpha > 0.0 else math.inf
+        self._gate_streak = 0
+        self._gate_max = max(int(config.gate_max_consecutive), 0)
 
     # -- accessors ---------------------------------------------------------------------------
     @property
@@ -324,28 +376,92 @@ class CartEKF:
         phi[:N_MEAS] = self._phi6
         return phi
 
+    @property
+    def gate_threshold(self) -> float:
+        """Return the NIS above which a measurement is rejected (inf when the gate is off)."""
+        return self._gate
+
     def update(self, z: Sequence[float]) -> float:
         """Fuse a measurement z = (x, y, theta, vx, vy, omega); return its NIS.
 
         With H = [I_6 0]: S = P[:6, :6] + R, K = P[:6, :]^T S^-1 (eq. 18),
         x += K y (eq. 19), P -= K P[:6, :] (eq. 20), then P is symmetrised.
+        A non-finite z is skipped (NaN returned, counted in ``nonfinite_samples``);
+        a z beyond the chi-square gate is rejected (counted in ``rejected_samples``,
+        see :class:`EKFConfig`).
         """
-        x, P = self._x, self._P
         zl = z.tolist() if isinstance(z, np.ndarray) else list(z)
+        if not all(math.isfinite(v) for v in zl):
+            self.nonfinite_samples += 1
+            self.accepted = False
+            self.nis = float("nan")
+            return self.nis
+        return self._update(zl)
+
+    def _cholesky_s(self):
+        """Return (Cholesky factor of S = P[:6, :6] + R, lower); repair P (symmetrise, jitter) if S is not PD."""
+        P = self._P
+        for attempt in range(4):
+            S = P[:N_MEAS, :N_MEAS] + self.R
+            if np.all(np.isfinite(S)):
+                try:
+                    return _cho_factor(S, lower=True, check_finite=False)
+                except np.linalg.LinAlgError:
+                    pass
+            else:
+                raise NumericalError("the EKF diverged: its covariance became non-finite (the log's values or "
+                                     "time steps are out of any plausible range?)")
+            self._repair_covariance(attempt)
+        raise NumericalError("the EKF's innovation covariance stayed non-positive-definite after repairs")
+
+    def _repair_covariance(self, attempt: int = 0) -> None:
+        """Make P symmetric positive definite again: symmetrise, clip its eigenvalues, add diagonal jitter."""
+        P = self._P
+        if not np.all(np.isfinite(P)):
+            raise NumericalError("the EKF diverged: its covariance became non-finite")
+        self._symmetrize()
+        w, V = np.linalg.eigh(P)
+        scale = max(float(np.max(np.abs(w))), 1e-300)
+        floor = scale * 1e-12 * (100.0 ** attempt)
+        P[...] = (V * np.maximum(w, floor)) @ V.T
+        P += P.T
+        P *= 0.5
+        self._pdiag += floor
+        self.covariance_repairs += 1
+
+    def _update(self, zl: list, inflated: bool = False) -> float:
+        """The measurement update of :meth:`update` on a finite z (list), with the gate."""
+        x, P = self._x, self._P
         y = [zi - xi for zi, xi in zip(zl, x[:N_MEAS].tolist())]
         y[2] = (y[2] + math.pi) % (2.0 * math.pi) - math.pi
-        S = P[:N_MEAS, :N_MEAS] + self.R
-        c, low = _cho_factor(S)
-        k_t = _cho_solve((c, low), P[:N_MEAS])  # K^T = S^-1 P[:6, :]
-        self._sf[...] = c
+        c, low = self._cholesky_s()
         yv = np.array(y)
-        self.nis = float(yv @ _cho_solve((c, low), yv))
+        nis = float(yv @ _cho_solve((c, low), yv))
+        if nis != nis:
+            raise NumericalError("the EKF diverged: its state became non-finite")
+        self._ny = [-v for v in y]
+        if nis > self._gate and not inflated:
+            if self._gate_streak < self._gate_max:
+                self._gate_streak += 1
+                self.rejected_samples += 1
+                self.accepted = False
+                self._sf[...] = c
+                self.nis = nis
+                return nis
+            # a run of rejections: a real jump, not a glitch; accept it with the kinematic variances inflated
+            self.forced_accepts += 1
+            self._pdiag[:N_MEAS] += np.square(yv)
+            return self._update(zl, inflated=True)
+        self._gate_streak = 0
+        self.accepted = True
+        k_t = _cho_solve((c, low), P[:N_MEAS])  # K^T = S^-1 P[:6, :]
+        self._sf[...] = np.tril(c)
+        self.nis = nis
         x += k_t.T @ yv
         P -= P[:N_MEAS].T @ k_t
         P[...] = 0.5 * (P + P.T)
         self._unsym = 0
         self._project()
-        self._ny = [-v for v in y]
         if self._prior_var is not None and self.config.change_detection:
             self._detect_change(y)
         return self.nis
@@ -417,7 +533,13 @@ class CartEKF:
         """
         x = self._x
         P = self._P
-        if abs(dt - self._dt) > 1e-12 * dt:  # a sampling period of the log, up to rounding
+        zl = z.tolist() if isinstance(z, np.ndarray) else z
+        zsum = zl[0] + zl[1] + zl[2] + zl[3] + zl[4] + zl[5]
+        if zsum - zsum != 0.0:  # a NaN or an infinity in z: predict only
+            return self._skip_measurement(gamma, dt, gamma_cov)
+        if not abs(dt - self._dt) <= 1e-12 * dt:  # a new sampling period (up to rounding), or a NaN dt
+            if not 0.0 < dt < math.inf:
+                raise ParameterError(f"EKF time step must be positive and finite, got {dt}")
             self._set_dt(dt)
         q_in = None if gamma_cov is None else input_noise_covariance(x, gamma_cov, dt)  # at the prior state, like F
         xs = x.tolist()
@@ -425,7 +547,6 @@ class CartEKF:
                                                     True)
         px, py, pth, vx, vy, om = xs[:6]
         ix, iy, ith, ivx, ivy, iom = vx * dt, vy * dt, om * dt, xdd * dt, ydd * dt, od * dt  # eq. (16)
-        zl = z.tolist() if isinstance(z, np.ndarray) else z
         # minus the innovation: predicted - measured (heading wrapped)
         ny = [px + ix - zl[0], py + iy - zl[1], -((zl[2] - pth - ith + math.pi) % (2.0 * math.pi) - math.pi),
               vx + ivx - zl[3], vy + ivy - zl[4], om + iom - zl[5]]
@@ -446,10 +567,16 @@ class CartEKF:
         sf = self._sf
         np.add(self._tt6, self.R, out=sf)
         _, _, info = _dposv(sf, self._tf, lower=1, overwrite_a=1, overwrite_b=1)
-        if info != 0:
-            raise np.linalg.LinAlgError(f"innovation covariance not positive definite (dposv info {info})")
+        if info != 0:  # S not positive definite: repair P (predicted already), then the plain update
+            self._repair_covariance()
+            return self._update(list(zl))
         wl = self._w.tolist()  # S^-1 (-y)
-        self.nis = ny[0] * wl[0] + ny[1] * wl[1] + ny[2] * wl[2] + ny[3] * wl[3] + ny[4] * wl[4] + ny[5] * wl[5]
+        nis = ny[0] * wl[0] + ny[1] * wl[1] + ny[2] * wl[2] + ny[3] * wl[3] + ny[4] * wl[4] + ny[5] * wl[5]
+        if nis > self._gate or nis != nis:  # outlier (chi-square gate) or a non-finite state
+            return self._gated(nis, ny, list(zl))
+        self._gate_streak = 0
+        self.accepted = True
+        self.nis = nis
         np.dot(self._p6_t, self._tf, out=self._kb)  # T^T [S^-1 (-y) | S^-1 T] = [-K y | K T]
         self._A -= self._kb  # x + K y (eq. 19), P_pred - K T (eq. 20)
         self._unsym += 1
@@ -464,29 +591,101 @@ class CartEKF:
             self._detect_change(ny)  # the test is on |sum y|^2: the sign does not matter
         return self.nis
 
+    def _skip_measurement(self, gamma: Sequence[float], dt: float, gamma_cov: Optional[np.ndarray]) -> float:
+        """Predict only (a measurement with a NaN or an infinity); count it; return NaN."""
+        if not 0.0 < dt < math.inf:
+            raise ParameterError(f"EKF time step must be positive and finite, got {dt}")
+        self.predict(gamma, dt, gamma_cov)
+        self.nonfinite_samples += 1
+        self.accepted = False
+        self.nis = float("nan")
+        return self.nis
+
+    def _gated(self, nis: float, ny: list, zl: list) -> float:
+        """The cold path of :meth:`step` after the prediction: reject an outlier or accept after a run of them."""
+        if nis != nis:
+            if not (np.all(np.isfinite(self._x)) and np.all(np.isfinite(self._P))):
+                raise NumericalError("the EKF diverged: its state became non-finite (the log's values or time "
+                                     "steps are out of any plausible range?)")
+            self._repair_covariance()
+            return self._update(zl)
+        self._ny = ny
+        self.nis = nis
+        if self._gate_streak < self._gate_max:
+            self._gate_streak += 1
+            self.rejected_samples += 1
+            self.accepted = False
+            self._unsym += 1
+            return nis
+        self.forced_accepts += 1
+        self._gate_streak = 0
+        self._symmetrize()
+        self._pdiag[:N_MEAS] += np.square(ny)
+        return self._update(zl, inflated=True)
+
 
 def run_ekf(t: np.ndarray, gamma: np.ndarray, z: np.ndarray, phi0: Sequence[float], sigma: float,
             config: EKFConfig = EKFConfig(), nll: Optional[list] = None, sigma_yaw: Optional[float] = None
             ) -> Tuple[CartEKF, np.ndarray, np.ndarray]:
     """Return (ekf, x_history (N, n), nis (N,)) of the EKF run on a whole log.
 
-    ``gamma[k]`` is held between t_k and t_{k+1}; the first sample initialises q, qd.
-    If ``nll`` is a list, the negative log-likelihood of the innovations,
-    0.5 sum_k (y_k^T S_k^-1 y_k + ln det S_k) (constant dropped), is appended to it.
+    ``gamma[k]`` is held between t_k and t_{k+1}; the first sample with a
+    finite measurement initialises q, qd. If ``nll`` is a list, the negative
+    log-likelihood of the innovations, 0.5 sum_k (y_k^T S_k^-1 y_k + ln det S_k)
+    (constant dropped), is appended to it; a measurement rejected by the gate
+    counts with the gate's NIS (a capped, robust likelihood), a skipped
+    non-finite one not at all.
+
+    Robustness: non-finite measurements are skipped, outliers gated (see
+    :class:`EKFConfig`; counters ``ekf.nonfinite_samples``, ``ekf.rejected_samples``);
+    an interval longer than ``config.gap_factor`` times the median is split
+    into sub-steps of about the median under the held wrench (``ekf.gaps``
+    counts them; at most MAX_GAP_SUBSTEPS sub-steps per interval).
     """
-    ekf = CartEKF(z[0, :3], z[0, 3:], phi0, sigma, config, sigma_yaw=sigma_yaw)
-    hist = np.empty((len(t), ekf.n))
-    nis = np.full(len(t), np.nan)
-    hist[0] = ekf.x
+    t = np.asarray(t, dtype=float)
+    z = np.asarray(z, dtype=float)
+    gamma = np.asarray(gamma, dtype=float)
+    n = len(t)
+    if n < 1 or z.shape != (n, N_MEAS) or gamma.shape[0] != n:
+        raise ParameterError(f"run_ekf needs t (N,), gamma (N, 3), z (N, 6); got {t.shape}, {gamma.shape}, {z.shape}")
+    dts = np.diff(t)
+    if not np.all(np.isfinite(t)) or np.any(dts <= 0.0):
+        raise ParameterError("run_ekf needs finite, strictly increasing times")
+    if not np.all(np.isfinite(gamma)):
+        raise ParameterError("run_ekf needs a finite wrench gamma at every sample")
+    finite_rows = np.nonzero(np.all(np.isfinite(z), axis=1))[0]
+    if finite_rows.size == 0:
+        raise ParameterError("run_ekf: no sample has a finite measurement")
+    k0 = int(finite_rows[0])
+    ekf = CartEKF(z[k0, :3], z[k0, 3:], phi0, sigma, config, sigma_yaw=sigma_yaw)
+    ekf.nonfinite_samples = k0
+    hist = np.empty((n, ekf.n))
+    nis = np.full(n, np.nan)
+    hist[:k0 + 1] = ekf.x
+    rejected = np.zeros(n, dtype=bool)
     log_det = 0.0
     want_nll = nll is not None
-    for k in range(1, len(t)):
-        nis[k] = ekf.step(gamma[k - 1], t[k] - t[k - 1], z[k])
+    dt_med = float(np.median(dts)) if n > 1 else 0.0
+    gap_limit = config.gap_factor * dt_med if config.gap_factor > 0 else math.inf
+    for k in range(k0 + 1, n):
+        dt = t[k] - t[k - 1]
+        if dt > gap_limit:  # a gap in the log: sub-steps of about the median under the held wrench
+            n_sub = min(int(math.ceil(dt / dt_med)), MAX_GAP_SUBSTEPS)
+            dt = dt / n_sub
+            for _ in range(n_sub - 1):
+                ekf.predict(gamma[k - 1], dt)
+            ekf.gaps += 1
+        nis[k] = ekf.step(gamma[k - 1], dt, z[k])
         hist[k] = ekf.x
+        if not ekf.accepted:
+            if nis[k] != nis[k]:  # skipped (non-finite measurement)
+                continue
+            rejected[k] = True
         if want_nll:
             log_det += ekf.log_det_innovation_covariance()
     if want_nll:
-        nll.append(0.5 * (float(np.nansum(nis)) + log_det))
+        robust = np.where(rejected, ekf.gate_threshold, nis)
+        nll.append(0.5 * (float(np.nansum(robust)) + log_det))
     return ekf, hist, nis
 
 
@@ -500,6 +699,9 @@ class LogEstimate:
     mean_nis: float
     velocities_estimated: bool
     history: np.ndarray = field(repr=False)
+    rejected_samples: int = 0
+    nonfinite_samples: int = 0
+    gaps: int = 0
 
 
 def measurement_std_from_log(t: np.ndarray, q: np.ndarray, qd: Optional[np.ndarray],
@@ -591,17 +793,23 @@ def estimate_from_log(log, guess: CartParams, estimate_sigma: bool = True,
     best = None
     for k, start in enumerate(starts + (None,) if refine else starts):
         if start is None:  # refinement: restart from the best run's estimate
+            if best is None:
+                break
             start = best[1].params()
         # white wrench noise (F/T sensor) drives the velocities: its density at this start's inertia
         q_in = dict(q_vel=max(EKFConfig.q_vel, (force_std / start.m) ** 2 * dt_med),
                     q_omega=max(EKFConfig.q_omega, (torque_std / start.inertia_b) ** 2 * dt_med))
         cfg = EKFConfig.from_noise(meas_std, estimate_sigma=estimate_sigma, **{**q_in, **config})
         nll: list = []
-        ekf, hist, nis = run_ekf(log.t, log.gamma, z, start.phi, start.sigma, cfg, nll, start.sigma_yaw)
+        try:
+            ekf, hist, nis = run_ekf(log.t, log.gamma, z, start.phi, start.sigma, cfg, nll, start.sigma_yaw)
+        except NumericalError:  # this start diverged; the others may not
+            continue
         if np.isfinite(nll[0]) and (best is None or nll[0] < best[0]):
             best = (nll[0], ekf, hist, nis)
     if best is None:
-        raise FloatingPointError("the EKF diverged from every start")
+        raise NumericalError("the EKF diverged from every start (non-finite likelihood)")
     _, ekf, hist, nis = best
     return LogEstimate(params=ekf.params(), std=ekf.params_std(), meas_std=tuple(cfg.meas_std),
-                       mean_nis=float(np.nanmean(nis)), velocities_estimated=not log.has_velocities, history=hist)
+                       mean_nis=float(np.nanmean(nis)), velocities_estimated=not log.has_velocities, history=hist,
+                       rejected_samples=ekf.rejected_samples, nonfinite_samples=ekf.nonfinite_samples, gaps=ekf.gaps)

@@ -1,8 +1,17 @@
-"""Exceptions of the `cart` package; every one carries a message a user can act on."""
+"""Exceptions of the `cart` package, and the project's root exception `CartpushError`.
+
+Every error the project raises for bad input derives from :class:`CartpushError`
+(a ``ValueError``): `cart` is the dependency root, so `robots` and `wholebody`
+import it from here. The CLI maps it to one line on stderr and exit code 2.
+"""
 from __future__ import annotations
 
 
-class CartError(ValueError):
+class CartpushError(ValueError):
+    """Root of every cartpush error for bad input (one line a user can act on)."""
+
+
+class CartError(CartpushError):
     """Base class of every error the cart package raises for bad input."""
 
 
@@ -12,3 +21,7 @@ class LogFormatError(CartError):
 
 class ParameterError(CartError):
     """Physically inconsistent cart parameters (non-positive mass or inertia, ...)."""
+
+
+class NumericalError(CartError):
+    """A computation broke down numerically on the given data (e.g. a covariance no longer positive definite)."""

@@ -42,7 +42,6 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
-from scipy.stats import t as student_t
 
 from cart.dynamics import regressor
 from cart.errors import CartError
@@ -122,9 +121,14 @@ def white_noise_std(y: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(d3 - np.median(d3))) / math.sqrt(20.0))
 
 
+def _filtfilt(sos: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Return the zero-phase filtered y (along axis 0), edge padding shortened for short signals."""
+    return sosfiltfilt(sos, y, axis=0, padlen=min(15, len(y) - 1))
+
+
 def _kinematics(q: np.ndarray, dt: float, sos: np.ndarray) -> Tuple[np.ndarray, ...]:
     """Return (theta, v, omega, vdot, omegadot) of the filtered pose (body frame, constraint w = 0)."""
-    qs = sosfiltfilt(sos, q, axis=0)
+    qs = _filtfilt(sos, q)
     qd = np.gradient(qs, dt, axis=0)
     th = qs[:, 2]
     c, s = np.cos(th), np.sin(th)
@@ -137,7 +141,7 @@ def _noise_gains(n: int, dt: float, sos: np.ndarray, seed: int = 0) -> Tuple[flo
     """Return (acceleration std per unit pose noise, filtered-output std per unit input noise) of the pipeline."""
     m = min(n, 20000)
     e = np.random.default_rng(seed).standard_normal(m)
-    ef = sosfiltfilt(sos, e)
+    ef = _filtfilt(sos, e)
     acc = np.gradient(np.gradient(ef, dt), dt)
     k = m // 10
     core = slice(k, m - k) if m > 50 else slice(None)
@@ -178,7 +182,7 @@ def _design(grid: _Grid, sos: np.ndarray, coulomb_eps: Optional[Tuple[float, flo
     th, v, om, vd, od = _kinematics(grid.q, grid.dt, sos)
     c, s = np.cos(th), np.sin(th)
     fu = c * grid.gamma[:, 0] + s * grid.gamma[:, 1]
-    y = np.column_stack([sosfiltfilt(sos, fu), sosfiltfilt(sos, grid.gamma[:, 2])])
+    y = np.column_stack([_filtfilt(sos, fu), _filtfilt(sos, grid.gamma[:, 2])])
     x = regressor(v, om, vd, od)
     if coulomb_eps is not None:
         z = np.zeros_like(v)
@@ -255,6 +259,8 @@ def _jackknife_cov(x: np.ndarray, y: np.ndarray, wts: np.ndarray, noise: np.ndar
                      for a_i, b_i in zip(a_blocks, b_blocks)])
     d = ests - ests.mean(axis=0)
     # blocks - 1 degrees of freedom: scale to the Student-t 95 % quantile so that 2 std cover ~95 %
+    from scipy.stats import t as student_t  # lazy: scipy.stats costs start-up time
+
     t_scale = (float(student_t.ppf(0.975, blocks - 1)) / 1.959964) ** 2
     return t_scale * (blocks - 1) / blocks * d.T @ d
 
@@ -361,6 +367,9 @@ def identify(log: CartLog, attenuation: float = ATTENUATION) -> Identification:
                         "(torque) what the sensor noise explains; the std covers the misfit seen along the log "
                         "(jackknife); run `cartpush diagnose`")
     m, a, b, j, c_v, c_w = p
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(np.diag(cov)))):
+        raise IdentifiabilityError(f"{log.source}: the least-squares problem is singular: the log does not excite "
+                                   "the parameters (no acceleration or turning above the noise)")
     if not (m > 0):
         raise IdentifiabilityError(f"{log.source}: the fit gives a non-positive mass ({m:.3g} kg): the log does "
                                    "not excite the mass (no forward acceleration above the noise)")

@@ -3,13 +3,20 @@
 A log is a CSV (or ``.csv.gz``) with ``# key: value`` metadata comments, one
 header line and one row per sample; see ``docs/cart.md`` for the columns.
 Bad input raises :class:`~cart.errors.LogFormatError` naming the file, the
-line and the problem. Headings are unwrapped on reading.
+line and the problem. Headings are unwrapped on reading. A UTF-8 byte-order
+mark is accepted. Values beyond ``MAX_ABS_VALUE`` (e.g. 1e300) are rejected:
+no quantity of a pushed cart comes near them and they overflow the models.
+Data that is valid but implausible for a cart (heading apparently in
+degrees, positions in millimetres, time in milliseconds, motion-capture
+glitches) is read, with plain-language notes in ``CartLog.warnings``
+(:func:`plausibility_warnings`).
 """
 from __future__ import annotations
 
 import gzip
 import math
 import os
+import zlib
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
@@ -20,6 +27,15 @@ from cart.errors import LogFormatError
 REQUIRED_COLUMNS = ("t", "x", "y", "theta", "fx", "fy", "tau")
 VELOCITY_COLUMNS = ("vx", "vy", "omega")
 CONTACT_COLUMNS = ("contact_x", "contact_y")
+#: Largest magnitude a value may have (any unit of the format); beyond it the reader refuses the log.
+MAX_ABS_VALUE = 1e12
+#: Plausibility limits (warnings, never a rejection): no pushed cart exceeds them.
+PLAUSIBLE_SPEED = 20.0  # m/s
+PLAUSIBLE_ACCELERATION = 100.0  # m/s^2 (about 10 g), over 0.1 s windows
+PLAUSIBLE_YAW_STEP = 0.5  # rad per sample, together with
+PLAUSIBLE_YAW_RATE = 15.0  # rad/s
+PLAUSIBLE_HEADING = 6 * math.pi  # |theta| of a wrapped or slowly unwrapped heading (3 turns)
+PLAUSIBLE_MEDIAN_DT = 0.5  # s
 
 
 @dataclass(frozen=True)
@@ -28,7 +44,8 @@ class CartLog:
 
     ``t`` (N,), ``q`` (N, 3) = (x, y, theta unwrapped), ``gamma`` (N, 3) =
     (fx, fy in {s}, tau about the {b} origin), ``qd`` (N, 3) or None,
-    ``contact_b`` (N, 2) or None, ``metadata`` the ``# key: value`` comments.
+    ``contact_b`` (N, 2) or None, ``metadata`` the ``# key: value`` comments,
+    ``warnings`` the reader's plausibility notes (:func:`plausibility_warnings`).
     """
 
     t: np.ndarray
@@ -38,6 +55,7 @@ class CartLog:
     contact_b: Optional[np.ndarray] = None
     metadata: Dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
+    warnings: Tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.t)
@@ -52,6 +70,7 @@ class CartLog:
                 raise LogFormatError(f"{self.source}: {name} has shape {arr.shape}, expected {shape}")
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "t", np.asarray(self.t, dtype=float).reshape(n))
+        object.__setattr__(self, "warnings", tuple(self.warnings))
 
     def __len__(self) -> int:
         return len(self.t)
@@ -115,16 +134,17 @@ def estimate_velocities(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
 
 
 def _open_text(path: str):
+    # utf-8-sig: a byte-order mark (Excel and some Windows tools write one) is not part of the header
     if path.endswith(".gz"):
-        return gzip.open(path, "rt", encoding="utf-8", newline="")
-    return open(path, "r", encoding="utf-8", newline="")
+        return gzip.open(path, "rt", encoding="utf-8-sig", newline="")
+    return open(path, "r", encoding="utf-8-sig", newline="")
 
 
 def _read_lines(path: str) -> List[str]:
     try:
         with _open_text(path) as fh:
             return fh.read().splitlines()
-    except (OSError, EOFError) as exc:  # gzip errors are OSError subclasses
+    except (OSError, EOFError, zlib.error) as exc:  # gzip's BadGzipFile is an OSError; corrupt data a zlib.error
         if isinstance(exc, (FileNotFoundError, IsADirectoryError, PermissionError)):
             raise
         raise LogFormatError(f"{path}: cannot read the file: {exc}") from None
@@ -155,6 +175,11 @@ def read_log(path: str | os.PathLike) -> CartLog:
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
         raise LogFormatError(f"{path}: line {header_line}: duplicate column(s) {', '.join(dup)}")
+    lone = [c for c in CONTACT_COLUMNS if c in header]
+    if len(lone) == 1:
+        other = [c for c in CONTACT_COLUMNS if c not in header][0]
+        raise LogFormatError(f"{path}: line {header_line}: column {lone[0]} without {other}; the contact point "
+                             f"needs both (or neither)")
     wanted = [c for c in REQUIRED_COLUMNS + VELOCITY_COLUMNS + CONTACT_COLUMNS if c in header]
     col = {c: header.index(c) for c in wanted}
     body = lines[i + 1:]
@@ -172,8 +197,11 @@ def read_log(path: str | os.PathLike) -> CartLog:
                 value = float(text)
             except ValueError:
                 raise LogFormatError(f"{path}: line {lineno}: column {name}: non-numeric value {text!r}") from None
-            if not math.isfinite(value):
-                raise LogFormatError(f"{path}: line {lineno}: column {name}: non-finite value {text!r}")
+            if not -MAX_ABS_VALUE <= value <= MAX_ABS_VALUE:
+                if not math.isfinite(value):
+                    raise LogFormatError(f"{path}: line {lineno}: column {name}: non-finite value {text!r}")
+                raise LogFormatError(f"{path}: line {lineno}: column {name}: value {text} is out of range "
+                                     f"(|value| > {MAX_ABS_VALUE:g} in SI units)")
             rows[r, k] = value
     if len(body) < 3:
         raise LogFormatError(f"{path}: only {len(body)} data row(s); a log needs at least 3")
@@ -194,7 +222,80 @@ def read_log(path: str | os.PathLike) -> CartLog:
     contact = None
     if all(c in data for c in CONTACT_COLUMNS):
         contact = np.column_stack([data["contact_x"], data["contact_y"]])
-    return CartLog(t=t, q=q, gamma=gamma, qd=qd, contact_b=contact, metadata=metadata, source=path)
+    log = CartLog(t=t, q=q, gamma=gamma, qd=qd, contact_b=contact, metadata=metadata, source=path)
+    notes = plausibility_warnings(log, raw_theta=data["theta"], first_line=header_line + 1)
+    if notes:
+        object.__setattr__(log, "warnings", tuple(notes))
+    return log
+
+
+def plausibility_warnings(log: CartLog, raw_theta: Optional[np.ndarray] = None,
+                          first_line: Optional[int] = None) -> List[str]:
+    """Return plain-language notes on what looks implausible for a pushed cart (empty when nothing does).
+
+    Flags what usually means a unit mistake or a glitch: heading steps beyond
+    ``PLAUSIBLE_YAW_STEP`` per sample at more than ``PLAUSIBLE_YAW_RATE`` or a
+    heading beyond three turns (degrees?), speeds beyond ``PLAUSIBLE_SPEED`` or
+    accelerations beyond ``PLAUSIBLE_ACCELERATION`` (millimetres? a
+    motion-capture glitch?), a median sample interval beyond
+    ``PLAUSIBLE_MEDIAN_DT`` (milliseconds?), a wrench that is zero throughout.
+    Never rejects: a 1 kg block at 1 cm/s and a 150 kg bed are valid carts.
+    ``raw_theta``: the heading as logged (before unwrapping); ``first_line``:
+    the file line of sample 0, to name lines instead of sample indices.
+    """
+    notes: List[str] = []
+    t = log.t
+    n = len(t)
+    if n < 2:
+        return notes
+
+    def where(i: int) -> str:
+        return f"line {first_line + i}" if first_line is not None else f"sample {i}"
+
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    if med > PLAUSIBLE_MEDIAN_DT:
+        notes.append(f"median sample interval {med:g} s is long for a cart log (motion capture runs at 10 Hz or "
+                     f"more); if t is in milliseconds, convert it to seconds")
+    theta = log.q[:, 2]
+    step = np.abs(np.diff(theta))
+    rate = step / dt
+    bad = np.nonzero((step > PLAUSIBLE_YAW_STEP) & (rate > PLAUSIBLE_YAW_RATE))[0]
+    if bad.size:
+        i = int(bad[np.argmax(step[bad])])
+        notes.append(f"heading changes by {step[i]:.3g} rad in one sample ({rate[i]:.3g} rad/s) at {where(i + 1)}, "
+                     f"{bad.size} such step(s); if theta is in degrees, convert it to radians")
+    raw = theta if raw_theta is None else np.asarray(raw_theta, dtype=float)
+    if float(np.max(np.abs(raw))) > PLAUSIBLE_HEADING and not bad.size:
+        notes.append(f"heading reaches {float(np.max(np.abs(raw))):.4g} rad (more than three turns); if theta is in "
+                     f"degrees, convert it to radians")
+    # speeds and accelerations over windows of ~0.05 s / 0.1 s (single-sample noise averages out)
+    w = max(1, int(math.ceil(0.05 / med))) if med > 0 else 1
+    if n > w:
+        span = t[w:] - t[:-w]
+        vel = (log.q[w:, :2] - log.q[:-w, :2]) / span[:, None]
+        speed = np.hypot(vel[:, 0], vel[:, 1])
+        i = int(np.argmax(speed))
+        if speed[i] > PLAUSIBLE_SPEED:
+            notes.append(f"the pose moves at {speed[i]:.3g} m/s around {where(i + w)} (a cart moves at a few m/s): "
+                         f"a motion-capture glitch, or positions in millimetres?")
+        elif len(speed) > w:
+            tv = 0.5 * (t[w:] + t[:-w])
+            acc = np.hypot(*((vel[w:] - vel[:-w]) / (tv[w:] - tv[:-w])[:, None]).T)
+            j = int(np.argmax(acc))
+            if acc[j] > PLAUSIBLE_ACCELERATION:
+                notes.append(f"the pose accelerates at {acc[j]:.3g} m/s^2 around {where(j + w)} (no pushed cart "
+                             f"exceeds ~10 m/s^2): a motion-capture glitch, or positions in millimetres?")
+    if log.qd is not None:
+        vspeed = np.hypot(log.qd[:, 0], log.qd[:, 1])
+        i = int(np.argmax(vspeed))
+        if vspeed[i] > PLAUSIBLE_SPEED:
+            notes.append(f"the logged velocity reaches {vspeed[i]:.3g} m/s at {where(i)}: a glitch, or vx, vy not "
+                         f"in m/s?")
+    if not np.any(log.gamma):
+        notes.append("the wrench (fx, fy, tau) is zero throughout: the log carries no information on the "
+                     "cart's inertia")
+    return notes
 
 
 def write_log(path: str | os.PathLike, log: CartLog, wrap_theta: bool = False) -> None:

@@ -1,8 +1,10 @@
 """Exceptions of the `robots` package."""
 from __future__ import annotations
 
+from cart.errors import CartpushError
 
-class RobotError(ValueError):
+
+class RobotError(CartpushError):
     """Base class of the robots package's errors for bad input."""
 
 

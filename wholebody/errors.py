@@ -1,8 +1,10 @@
 """Exceptions of the `wholebody` package."""
 from __future__ import annotations
 
+from cart.errors import CartpushError
 
-class WholeBodyError(ValueError):
+
+class WholeBodyError(CartpushError):
     """Base class of the wholebody package's errors for bad input."""
 
 

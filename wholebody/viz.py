@@ -49,6 +49,10 @@ COLORS = {
 COM_MARKER_Z = 0.95
 #: Default floor grid (xmin, xmax, ymin, ymax), metres.
 FLOOR = (-2.0, 6.0, -3.0, 3.0)
+#: Most grid lines per axis of the floor (the spacing grows from 0.5 m to 1-2-5 steps to respect it).
+MAX_FLOOR_LINES = 120
+#: Most keyframes of one animation (longer runs are decimated; playback stays in real time).
+MAX_FRAMES = 3000
 #: Default arrow scale: metres of arrow per newton (and per newton-metre for torques).
 FORCE_SCALE = 0.01
 _VIEWER_JS = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
@@ -156,6 +160,18 @@ class _RecordingWindow:
 
     def get_image(self):  # pinocchio checks that the viewer can capture images
         raise SceneError("image capture needs a browser; use Scene.save_html and a headless browser")
+
+
+def _grid_step(span: float, step: float) -> float:
+    """Return `step`, or the smallest 1-2-5 x 10^k spacing above it that keeps a grid over `span` within MAX_FLOOR_LINES."""
+    if span / step <= MAX_FLOOR_LINES - 1:
+        return step
+    raw = span / (MAX_FLOOR_LINES - 1)
+    base = 10.0 ** math.floor(math.log10(raw))
+    for m in (1.0, 2.0, 5.0, 10.0):
+        if m * base >= raw:
+            return m * base
+    return 10.0 * base
 
 
 def _camera_js(camera: Camera) -> str:
@@ -495,8 +511,10 @@ class Scene:
     def set_floor(self, floor: tuple[float, float, float, float], step: float = 0.5) -> int:
         """Draw a floor grid over (xmin, xmax, ymin, ymax) at `step` spacing, hiding Meshcat's grid; return #segments."""
         x0, x1, y0, y1 = (float(v) for v in floor)
-        if not (x1 > x0 and y1 > y0):
+        if not (x1 > x0 and y1 > y0 and all(math.isfinite(v) for v in (x0, x1, y0, y1))):
             raise SceneError(f"floor must be (xmin, xmax, ymin, ymax) with xmin < xmax, ymin < ymax, got {floor!r}")
+        step = _grid_step(max(x1 - x0, y1 - y0), float(step))
+        x0, y0 = math.floor(x0 / step) * step, math.floor(y0 / step) * step
         xs, ys = np.arange(x0, x1 + 1e-9, step), np.arange(y0, y1 + 1e-9, step)
         segs = [((a, y), (b, y)) for y in ys for a, b in zip(xs[:-1], xs[1:])]
         segs += [((x, a), (x, b)) for x in xs for a, b in zip(ys[:-1], ys[1:])]
@@ -530,13 +548,20 @@ class Scene:
         markers: node path under /meshcat (e.g. ``"com/com_est"``, made by
         `show_com` / `show_contact`) -> (N, 3) world positions. Samples are
         resampled at `fps` (latest sample at or before each frame time) so
-        playback runs in real time.
+        playback runs in real time; beyond MAX_FRAMES frames only every k-th
+        frame gets keys (three.js interpolates between them), so the page stays small.
         """
         t = np.asarray(t, dtype=float).ravel()
-        if len(t) < 2 or not np.all(np.diff(t) > 0):
-            raise SceneError("animation times must be strictly increasing, at least 2 samples")
-        n_frames = int(math.floor((t[-1] - t[0]) * fps)) + 1
-        idx = np.searchsorted(t, t[0] + np.arange(n_frames) / fps, side="right") - 1
+        if len(t) < 2 or not np.all(np.diff(t) > 0) or not np.all(np.isfinite(t)):
+            raise SceneError("animation times must be finite and strictly increasing, at least 2 samples")
+        span_frames = (t[-1] - t[0]) * fps
+        if not span_frames < 1e12:
+            raise SceneError(f"animation spans {t[-1] - t[0]:.3g} s: too long to animate")
+        total = int(math.floor(span_frames)) + 1
+        stride = max(1, int(math.ceil(total / MAX_FRAMES)))
+        frame_numbers = np.arange(0, total, stride)
+        n_frames = len(frame_numbers)
+        idx = np.searchsorted(t, t[0] + frame_numbers / fps, side="right") - 1
         anim = Animation(default_framerate=fps)
         q_joints = q_joints or {}
         for name, traj in poses.items():
@@ -551,7 +576,7 @@ class Scene:
                     raise SceneError(f"q_joints[{name!r}] must have shape ({len(t)}, {robot.model.nq - 4})")
             moving = joints is not None and np.ptp(joints, axis=0).max() > 0
             root = self.viewer[name]
-            for k, i in enumerate(idx):
+            for k, i in zip(frame_numbers.tolist(), idx):
                 _set_key(anim, root.path, k, _planar_matrix(*traj[i]))
                 if moving:
                     self._animate_geometry(anim, name, k, _planar_q(robot.model, (0.0, 0.0, 0.0), joints[i]))
@@ -562,7 +587,7 @@ class Scene:
                 raise SceneError(f"wrenches[{name!r}] must have {len(t)} origins and forces")
             forces = forces if forces.shape[1] == 3 else np.column_stack((forces, np.zeros(len(t))))
             node = self._arrow_node(name, kind, 0.012, 0.06)
-            for k, i in enumerate(idx):
+            for k, i in zip(frame_numbers.tolist(), idx):
                 for part, T, sc in _arrow_parts(origins[i], scale * forces[i], 0.06):
                     _set_key(anim, (node[part] if part else node).path, k, T, sc)
             _set_arrow(node, _arrow_parts(origins[idx[-1]], scale * forces[idx[-1]], 0.06))
@@ -571,7 +596,7 @@ class Scene:
             if len(pts) != len(t):
                 raise SceneError(f"markers[{path!r}] must have {len(t)} positions")
             node = self.viewer[path]
-            for k, i in enumerate(idx):
+            for k, i in zip(frame_numbers.tolist(), idx):
                 _set_key(anim, node.path, k, tf.translation_matrix(pts[i]))
             node.set_transform(tf.translation_matrix(pts[idx[-1]]))
         self.viewer.set_animation(anim, play=play, repetitions=repetitions)

@@ -107,7 +107,7 @@ def test_replay_noise_floor_matches_the_error_of_the_true_model():
     for k in range(3):
         h = random_case(None, np.random.default_rng(1000 + k))
         p = h.params
-        rep = replay(signals_from_log(h.measured), np.array([p.m, p.m * p.dx, p.m * p.dy, p.inertia_b, p.sigma]))
+        rep = replay(signals_from_log(h.measured), np.r_[p.phi, p.damping])
         ratios.append(rep.rms_error() / rep.noise_floor())
         assert rep.gap() < 0.5 * rep.noise_floor()
         # excess is the RMS of rms^2 - floor^2, computed independently
@@ -152,11 +152,11 @@ def test_a_blown_up_replay_is_infinite_not_nan_and_silent():
     h = random_case(None, np.random.default_rng(1000))
     sig = signals_from_log(h.measured)
     p = h.params
-    good = replay(sig, np.array([p.m, p.m * p.dx, p.m * p.dy, p.inertia_b, p.sigma]))
+    good = replay(sig, np.r_[p.phi, p.damping])
     assert good.finite and np.all(np.isfinite(good.rms))
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no overflow warnings
-        bad = replay(sig, np.array([1e-7, 0.0, 0.0, 1e-7, -50.0]))  # tiny mass, negative damping: diverges
+        bad = replay(sig, np.array([1e-7, 0.0, 0.0, 1e-7, -50.0, -50.0]))  # tiny mass, negative damping: diverges
     assert not bad.finite
     assert np.all(~np.isnan(bad.rms)) and np.all(~np.isnan(bad.chi2))
     assert np.any(np.isinf(bad.rms)) and np.isinf(bad.gap())

@@ -43,7 +43,7 @@ def test_nominal_rows_hold_on_the_exact_simulator():
     res = simulate(p, _controller, duration=12.0, dt=0.005)
     sig = signals_from_log(res.true, half_window=0.05)
     a = nominal_columns(sig)
-    x = np.r_[p.phi, p.sigma]
+    x = np.r_[p.phi, p.damping]
     pred = np.einsum("nrp,p->nr", a, x)
     y = measured_rows(sig)
     inner = slice(50, -50)

@@ -4,10 +4,13 @@ The screenshot must differ clearly from the screenshot of an empty scene (same
 camera) where the robot and the cart stand — positions projected with the
 camera the page sets — and show their colours there: the Ridgeback yellow,
 the iiwa orange, the cart's handle red and its basket grey. Needs the Debian
-package `chromium` (installed by .ci/run); without it the test fails.
+package `chromium` (`make test` and .ci/run install it when they can); without it the
+module is skipped with one line saying what to install, unless CARTPUSH_REQUIRE_BROWSER=1
+(set by .ci/run), where a missing browser is an error.
 """
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -23,14 +26,32 @@ WIDTH, HEIGHT = 1024, 768
 CART_POSE = (0.9, 0.0, 0.0)
 
 
-def chromium() -> str:
-    """Return the path of a Chromium executable, or fail with what to install."""
-    for name in ("chromium", "chromium-browser", "google-chrome"):
+CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome")
+MISSING_BROWSER = ("browser tests need headless Chromium: install it with "
+                   "`sudo apt-get install -y --no-install-recommends chromium fonts-dejavu-core` "
+                   "(`make test` does this itself when run as root or with passwordless sudo)")
+
+
+def find_chromium() -> str | None:
+    """Return the path of a Chromium executable on PATH, or None."""
+    for name in CHROMIUM_NAMES:
         path = shutil.which(name)
         if path:
             return path
-    pytest.fail("headless Chromium not found: install the Debian package `chromium` "
-                "(apt-get install -y chromium; .ci/run does this)")
+    return None
+
+
+CHROMIUM = find_chromium()
+if CHROMIUM is None:
+    if os.environ.get("CARTPUSH_REQUIRE_BROWSER") == "1":
+        raise RuntimeError(MISSING_BROWSER + " [CARTPUSH_REQUIRE_BROWSER=1]")
+    pytest.skip(MISSING_BROWSER, allow_module_level=True)
+
+
+def chromium() -> str:
+    """Return the path of the Chromium executable found at import."""
+    assert CHROMIUM is not None
+    return CHROMIUM
 
 
 def render(html: Path, png: Path, profile: Path) -> np.ndarray:

@@ -2,12 +2,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-import pinocchio as pin
-
-import robots
+from wholebody.commands import options
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -33,6 +30,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def robot_summary() -> list[dict]:
     """Return one dict per available robot: name, nq, nv, mass_kg, frame."""
+    import pinocchio as pin
+
+    import robots
+
     rows = []
     for name in robots.available():
         r = robots.load(name)
@@ -51,10 +52,11 @@ def robot_summary() -> list[dict]:
 
 def run(args: argparse.Namespace) -> int:
     """Print the robot table, run the push comparison and write the report (or JSON)."""
-    from wholebody.errors import WholeBodyError
+    from cart.jsonout import dumps_strict
 
-    if not (args.duration >= 8.0):
-        raise WholeBodyError(f"--duration must be at least 8 s (Traj. 2 needs it), got {args.duration}")
+    options.duration(args.duration, minimum=8.0, why="Traj. 2 needs it", rate=1000.0)
+    if not args.robots_only:
+        options.writable_dir(args.out)
     rows = robot_summary()
     if not args.json:
         print(f"{'robot':<16}{'nq':>4}{'nv':>4}{'mass [kg]':>11}  frame")
@@ -63,12 +65,12 @@ def run(args: argparse.Namespace) -> int:
         print()
     if args.robots_only:
         if args.json:
-            print(json.dumps({"robots": rows}))
+            print(dumps_strict({"robots": rows}))
         return 0
     from wholebody.push_report import run_demo
 
     demo = run_demo(args.out, duration=args.duration, verbose=not args.json)
     if args.json:
         runs = {label: run.metrics.as_dict() for label, run in demo.runs.items()}
-        print(json.dumps({"robots": rows, "runs": runs, "report_dir": str(demo.out_dir.resolve())}))
+        print(dumps_strict({"robots": rows, "runs": runs, "report_dir": str(demo.out_dir.resolve())}))
     return 0

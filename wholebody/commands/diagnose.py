@@ -2,10 +2,8 @@
 from __future__ import annotations
 
 import argparse
-import json
 
-from cart.diagnose import diagnose, plot_diagnosis
-from cart.logs import read_log
+from wholebody.commands import options
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -23,21 +21,41 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("log", help="cart log (LOG_FORMAT.md CSV, .csv or .csv.gz)")
     p.add_argument("--json", action="store_true", help="print JSON only")
     p.add_argument("--out", metavar="DIR", help="write replay.png and residuals.png into DIR")
-    p.add_argument("--threshold", type=float, default=10.0, help="Delta BIC needed to name an effect (default 10)")
+    p.add_argument("--threshold", type=float, default=10.0,
+                   help="Delta BIC needed to name an effect, a finite number >= 0 (default 10)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Diagnose the log; print a summary (or JSON); write plots with --out."""
+    options.finite("--threshold", args.threshold, nonnegative=True, maximum=1e6,
+                   why="a Delta BIC: negative or NaN would name effects with negative evidence")
+    if args.out:
+        options.writable_dir(args.out)
+    import numpy as np
+
+    from cart.diagnose import DiagnoseError, diagnose, plot_diagnosis
+    from cart.jsonout import dumps_strict
+    from cart.logs import read_log
+
     log = read_log(args.log)
-    report = diagnose(log, threshold=args.threshold)
+    try:
+        report = diagnose(log, threshold=args.threshold)
+    except (np.linalg.LinAlgError, FloatingPointError) as exc:
+        # degenerate data (no motion, no excitation, implausible units) breaks the fits' linear algebra
+        notes = f"; the reader noted: {log.warnings[0]}" if log.warnings else ""
+        raise DiagnoseError(f"{args.log}: the model fit broke down numerically on this log ({exc}): it is "
+                            f"degenerate for diagnosis (no motion or excitation, or implausible units){notes}") from None
     paths = plot_diagnosis(report, args.out) if args.out else []
     if args.json:
         out = report.to_dict()
         if paths:
             out["plots"] = paths
-        print(json.dumps(out))
+        out["warnings"] = list(out.get("warnings", [])) + list(log.warnings)
+        print(dumps_strict(out))
         return 0
+    for w in log.warnings:
+        print(f"warning: {w}")
     print(report.summary())
     for p in paths:
         print(f"wrote {p}")

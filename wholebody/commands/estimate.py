@@ -54,13 +54,26 @@ def _check_guesses(args: argparse.Namespace) -> None:
         raise CartError(f"--sigma-guess must be a non-negative number, got {args.sigma_guess}")
 
 
+def np_linalg_error() -> type:
+    """Return numpy's LinAlgError class (imported lazily)."""
+    import numpy as np
+
+    return np.linalg.LinAlgError
+
+
 def _run_ls(log) -> Dict[str, Any]:
     from cart.identify import identify, innovation_check
 
+    from cart.errors import CartError
+
     res = identify(log)
     p = res.params
-    nis = innovation_check(log, p)
     warnings = list(res.warnings)
+    try:
+        nis = innovation_check(log, p)
+    except (CartError, FloatingPointError, np_linalg_error()) as exc:
+        nis = float("nan")
+        warnings.append(f"the EKF innovation check could not run on this log ({exc})")
     fits = res.model_fits
     if math.isfinite(nis) and nis > 18.0 and fits:
         fits = False

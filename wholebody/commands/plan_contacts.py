@@ -2,11 +2,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 
-from wholebody.allocation import ArmLimits, GraspModel
-from wholebody.contact import HANDLE_WIDTH, HandleSegment
-from wholebody.contact_points import optimal_contact_points
+from wholebody.commands import options
+
+#: The default handle length (m), as `wholebody.contact.HANDLE_WIDTH` (kept here so --help imports nothing heavy).
+HANDLE_WIDTH = 0.5
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -18,7 +18,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "Find the globally minimum-effort contact points on the handle for a cart wrench\n"
             "Gamma_MM = (fx, fy, tau) in the cart frame {b} (tau about the fixed-axle midpoint),\n"
             "and each end effector's wrench [fx, fy, fz, tx, ty, tz] in its contact frame.\n\n"
-            "Example:\n  cartpush plan-contacts --wrench 40 0 -2 --arms 2 --json"
+            "Example:\n  cartpush plan-contacts --wrench 40 0 -2 --arms 2 --json\n"
+            "  cartpush plan-contacts --wrench -1e3 0 0   (negative numbers are values, also in e-notation)"
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -39,6 +40,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Plan the contacts and print them (table or JSON)."""
+    for k, v in zip(("FX", "FY", "TAU"), args.wrench):
+        options.finite(f"--wrench {k}", v, maximum=1e6, minimum=-1e6)
+    options.finite("--handle-width", args.handle_width, positive=True, maximum=100.0)
+    options.finite("--min-spacing", args.min_spacing, nonnegative=True, maximum=100.0)
+    options.finite("--grip-force", args.grip_force, positive=True, maximum=1e6)
+    options.finite("--max-force", args.max_force, positive=True, maximum=1e7)
+    options.finite("--max-torque", args.max_torque, positive=True, maximum=1e7)
+    if not 1 <= args.arms <= 8:
+        raise options.OptionError(f"--arms must be between 1 and 8, got {args.arms}")
+    from cart.jsonout import dumps_strict
+    from wholebody.allocation import ArmLimits, GraspModel
+    from wholebody.contact import HandleSegment
+    from wholebody.contact_points import optimal_contact_points
+
     handle = HandleSegment.default(width=args.handle_width)
     limits = ArmLimits(max_force=args.max_force, max_torque=args.max_torque, grasp=GraspModel(grip_force=args.grip_force))
     plan = optimal_contact_points(args.wrench, handle, n_arms=args.arms, min_spacing=args.min_spacing, limits=limits,
@@ -49,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         for i in range(args.arms)
     ]
     if args.json:
-        print(json.dumps({"contacts": contacts, "residual": plan.allocation.residual, "effort": plan.effort,
+        print(dumps_strict({"contacts": contacts, "residual": plan.allocation.residual, "effort": plan.effort,
                           "gamma_achieved": [float(v) for v in plan.allocation.gamma_achieved]}))
         return 0
     print(f"{'arm':>3}  {'x_b':>7} {'y_b':>7} {'z_b':>7}   {'fx':>8} {'fy':>8} {'fz':>8} {'tx':>7} {'ty':>7} {'tz':>7}")

@@ -2,13 +2,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
+from wholebody.commands import options
 from wholebody.errors import WholeBodyError
-from wholebody.push import PushConfig, run_push
-from wholebody.push_report import comparison_table, describe, push_log, save_figures, save_scene
 
 JSON_FIELDS = ("tracking_rms_m", "tracking_max_m", "arm_torque_rms_nm", "arm_torque_peak_nm",
                "mass_error_final_kg", "com_error_final_m")
@@ -46,12 +44,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def config_from_args(args: argparse.Namespace) -> PushConfig:
+def config_from_args(args: argparse.Namespace):
     """Return the PushConfig of the parsed arguments (bad values raise WholeBodyError)."""
+    from wholebody.push import PushConfig
+
     if args.contact not in ("fixed", "optimal"):
         raise WholeBodyError(f"--contact must be 'fixed' or 'optimal', got {args.contact!r}")
-    if args.duration < 8.0:
-        raise WholeBodyError(f"--duration must be at least 8 s (ramp up, cruise, stop), got {args.duration}")
+    if args.trajectory not in (1, 2):
+        raise WholeBodyError(f"--trajectory must be 1 or 2, got {args.trajectory}")
+    if args.arms not in (1, 2):
+        raise WholeBodyError(f"--arms must be 1 or 2, got {args.arms}")
+    options.duration(args.duration, minimum=8.0, why="ramp up, cruise, stop", rate=1000.0)
+    options.finite("--initial-mass", args.initial_mass, positive=True, maximum=1e4, why="kg")
+    options.seed(args.seed)
+    for v in args.contact_y or ():
+        options.finite("--contact-y", v)
     kwargs = {}
     if args.contact_y is not None:
         ys = tuple(args.contact_y)
@@ -70,6 +77,14 @@ def config_from_args(args: argparse.Namespace) -> PushConfig:
 def run(args: argparse.Namespace) -> int:
     """Run the loop; print the metrics (table or JSON) and write the requested files."""
     config = config_from_args(args)
+    if args.out is not None:
+        options.writable_dir(args.out)
+    if args.html is not None:
+        options.writable_file(args.html, "--html")
+    from cart.jsonout import dumps_strict
+    from wholebody.push import run_push
+    from wholebody.push_report import comparison_table, describe, push_log, save_figures, save_scene
+
     result = run_push(config, progress=sys.stderr.isatty())
     written = []
     if args.out is not None:
@@ -87,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         out = {k: metrics[k] for k in JSON_FIELDS}
         out.update({k: v for k, v in metrics.items() if k not in out})
         out["files"] = [str(p) for p in written]
-        print(json.dumps(out))
+        print(dumps_strict(out))
         return 0
     print(describe(config))
     print(comparison_table({"this run": result}))

@@ -2,13 +2,15 @@
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
 
 from cart.errors import CartError
-from cart.table1 import TESTS, TestResult, run_table1
+from wholebody.commands import options
+
+#: Table I's metrics are taken after t = 5 s; a run must reach past that.
+MIN_DURATION = 6.0
 
 DESCRIPTION = """\
 Run the 11 tests of Table I of the cart paper (20 kg cart, Traj. 1/2, 30 s at
@@ -33,7 +35,8 @@ def register(subparsers) -> None:
     parser.add_argument("--controller", choices=("fl_lqr", "kanayama"), default="fl_lqr",
                         help="tracking controller: the paper's eq. 26-28 (default) or Kanayama et al. 1990")
     parser.add_argument("--tests", metavar="LIST", default=None, help="comma-separated subset, e.g. 1,5,11")
-    parser.add_argument("--duration", type=float, default=30.0, help="seconds per test (default 30)")
+    parser.add_argument("--duration", type=float, default=30.0,
+                        help=f"seconds per test, {MIN_DURATION:g} to {options.MAX_SIM_DURATION:g} (default 30)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the measurement noise (default 0)")
     parser.add_argument("--change-detection", action="store_true",
                         help="EKF parameter-change detection (innovation mean test, resets the mass variance)")
@@ -41,6 +44,8 @@ def register(subparsers) -> None:
 
 
 def _select(spec: str | None):
+    from cart.table1 import TESTS
+
     if spec is None:
         return TESTS
     try:
@@ -61,14 +66,14 @@ def _fmt(value) -> str:
     return str(value)
 
 
-def table_rows(results: list[TestResult]) -> list[list[str]]:
+def table_rows(results: list) -> list[list[str]]:
     """Return the table rows (strings) of the results, in COLUMNS order plus the max errors after 5 s."""
     return [[_fmt(r.as_json()[c]) for c in COLUMNS] + [_fmt(r.tracking_max_after_5s_m),
                                                        _fmt(r.tracking_max_after_5s_no_estimation_m)]
             for r in results]
 
 
-def _write_outputs(out: str, results: list[TestResult]) -> None:
+def _write_outputs(out: str, results: list) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -120,9 +125,15 @@ def _write_outputs(out: str, results: list[TestResult]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the selected tests and print a table (or JSON); return 0."""
+    options.duration(args.duration, minimum=MIN_DURATION, rate=100.0,
+                     why="the Table I metrics are taken after t = 5 s")
+    options.seed(args.seed)
     tests = _select(args.tests)
-    if not args.duration > 0:
-        raise CartError(f"--duration must be positive, got {args.duration}")
+    if args.out:
+        options.writable_dir(args.out)
+    from cart.jsonout import dumps_strict
+    from cart.table1 import run_table1
+
     bar = None
     if sys.stderr.isatty():
         from tqdm import tqdm
@@ -138,7 +149,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         _write_outputs(args.out, results)
     if args.json:
-        print(json.dumps([r.as_json() for r in results]))
+        print(dumps_strict([r.as_json() for r in results]))
         return 0
     header = list(COLUMNS) + ["max_err_after_5s_m", "max_err_after_5s_no_est_m"]
     rows = table_rows(results)

@@ -3,13 +3,16 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import sys
 from pathlib import Path
 
-from wholebody.errors import WholeBodyError
-from wholebody.experiments import PATHS, TrackingResult, run_tracking
+from wholebody.commands import options
+
+#: The paths of `wholebody.experiments.PATHS` (kept here so --help imports nothing heavy).
+PATHS = ("line", "sine")
+#: Tolerance on the band radius before a run is reported as leaving the band (m).
+BAND_TOLERANCE = 1e-3
 
 EXAMPLE = """Examples:
   cartpush track line
@@ -42,7 +45,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def write_csv(result: TrackingResult, path: Path) -> None:
+def write_csv(result, path: Path) -> None:
     """Write one row per sample: time, base pose, arm joints, wheel rates, EE desired/actual position."""
     n_arm = result.x.shape[1] - 3
     n_w = result.wheel_rates.shape[1]
@@ -61,10 +64,17 @@ def write_csv(result: TrackingResult, path: Path) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the experiment; print a table or JSON; optionally write the CSV."""
-    if args.band is not None and not (args.band > 0 and math.isfinite(args.band)):
-        raise WholeBodyError(f"--band must be a positive radius in metres, got {args.band}")
-    if not (args.duration > 0 and args.rate > 0 and math.isfinite(args.duration) and math.isfinite(args.rate)):
-        raise WholeBodyError("--duration and --rate must be positive")
+    if args.band is not None:
+        options.finite("--band", args.band, positive=True, maximum=1e3, why="a radius in metres")
+    rate = options.finite("--rate", args.rate, positive=True, maximum=10_000.0, why="control rate in Hz")
+    options.duration(args.duration, rate=rate)
+    if args.duration * rate < 1.0:
+        raise options.OptionError(f"--duration x --rate must give at least one step, got {args.duration * rate:g}")
+    if args.out is not None:
+        options.writable_file(args.out)
+    from cart.jsonout import dumps_strict
+    from wholebody.experiments import run_tracking
+
     bar = None
     if sys.stderr.isatty():
         from tqdm import tqdm
@@ -79,8 +89,19 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         write_csv(result, args.out)
     m = result.metrics()
+    warnings = []
+    if args.band is not None and m["max_band_distance_m"] is not None:
+        excess = m["max_band_distance_m"] - args.band
+        m["band_respected"] = bool(excess <= BAND_TOLERANCE)
+        if excess > BAND_TOLERANCE:
+            warnings.append(f"the base left the safety band: {m['max_band_distance_m']:.4f} m from the band "
+                            f"centre for a radius of {args.band:g} m ({excess:.4f} m outside); the path cannot be "
+                            f"followed within this band")
+    m["warnings"] = warnings
+    for w in warnings:
+        print(f"cartpush track: warning: {w}", file=sys.stderr)
     if args.json:
-        print(json.dumps(m))
+        print(dumps_strict(m))
         return 0
     band = "free" if args.band is None else f"band R = {args.band:g} m"
     print(f"{m['robot']} {m['path']} ({band}), {m['steps']} steps at {1 / m['dt']:g} Hz")
@@ -90,7 +111,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"  min joint-limit margin {m['min_joint_limit_margin_rad']:10.4f} rad")
     print(f"  max |rate|/limit       joints {m['max_joint_speed_ratio']:.3f}, wheels {m['max_wheel_speed_ratio']:.3f}")
     if m["max_band_distance_m"] is not None:
-        print(f"  max base distance from band centre {m['max_band_distance_m']:.4f} m")
+        print(f"  max base distance from band centre {m['max_band_distance_m']:.4f} m"
+              + ("" if m.get("band_respected", True) else f"  ** OUTSIDE the {args.band:g} m band **"))
     print(f"  flagged steps: singular {m['singular_steps']}, saturated {m['saturated_steps']}, "
           f"solver failures {m['solver_failures']}")
     if args.out is not None:

@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from wholebody.viz import Scene, SceneError, log_scene, pushing_scene, robot_scene, scenario_scene
+from wholebody.commands import options
 
 HELP = "show a cart log, a Table I test or a robot in Meshcat"
 DESCRIPTION = """\
@@ -41,25 +41,40 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def build_scene(args: argparse.Namespace, serve: bool) -> Scene:
-    """Return the scene the arguments ask for."""
+def validate(args: argparse.Namespace) -> None:
+    """Check the options before any work (raise OptionError)."""
     if args.scenario is not None:
-        if not args.duration > 0:
-            raise SceneError(f"--duration must be positive, got {args.duration}")
+        if not 1 <= args.scenario <= 11:
+            raise options.OptionError(f"--scenario must be a Table I test between 1 and 11, got {args.scenario}")
+        options.duration(args.duration, rate=100.0)
+    if args.html:
+        options.writable_file(args.html, "--html", create=False)
+
+
+def build_scene(args: argparse.Namespace, serve: bool):
+    """Return the scene the arguments ask for (a `wholebody.viz.Scene`)."""
+    from wholebody.viz import log_scene, pushing_scene, robot_scene, scenario_scene
+
+    if args.scenario is not None:
+        options.duration(args.duration, rate=100.0)
         return scenario_scene(args.scenario, duration=args.duration, serve=serve)
     if args.robot is not None:
         if args.robot == "pushing":
             return pushing_scene(serve=serve)
         return robot_scene(args.robot, serve=serve)
-    return log_scene(args.log, serve=serve)
+    from cart.logs import read_log
+
+    log = read_log(args.log)
+    for w in log.warnings:  # the reader's plausibility notes (units, glitches), one line each
+        print(f"cartpush view: warning: {w}", file=sys.stderr)
+    return log_scene(log, serve=serve)
 
 
 def run(args: argparse.Namespace) -> int:
     """Write the page (--html) or serve the scene until Ctrl-C; return the exit code."""
+    validate(args)
     if args.html:
         out = Path(args.html)
-        if not out.parent.is_dir():
-            raise SceneError(f"directory of --html {str(out)!r} does not exist")
         with build_scene(args, serve=False) as scene:
             scene.save_html(out)
         print(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB); open it in a browser (works offline)")
