@@ -23,11 +23,15 @@ def test_estimate_json_on_simulated_log(tmp_path, capsys):
     run = table1.run_test(table1.TESTS[5], True, duration=30.0)
     path = tmp_path / "push.csv"
     write_log(path, CartLog(t=run.t, q=run.q, gamma=run.gamma))
-    assert main(["estimate", str(path), "--mass-guess", "15", "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
-    assert set(out) == {"mass", "com", "inertia", "sigma", "std"}
-    assert set(out["std"]) == {"mass", "com", "inertia", "sigma"}
-    assert abs(out["mass"] - 20.0) < 1.0
+    for method in ("ls", "ekf"):
+        assert main(["estimate", str(path), "--method", method, "--mass-guess", "15", "--json"]) == 0
+        out = json.loads(capsys.readouterr().out)
+        # the contract's fields (DESIGN.md), whatever the method
+        assert {"mass", "com", "inertia", "sigma", "sigma_yaw", "std", "nis_mean", "model_fits",
+                "warnings"} <= set(out)
+        assert set(out["std"]) == {"mass", "com", "inertia", "sigma", "sigma_yaw"}
+        assert out["method"] == method
+        assert abs(out["mass"] - 20.0) < 1.0
 
 
 def test_estimate_bad_log_exits_2_with_one_line(tmp_path, capsys):
