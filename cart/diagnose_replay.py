@@ -17,6 +17,7 @@ from typing import List, Optional, Tuple
 import numpy as np
 from scipy import stats
 
+from cart.dynamics import body_accelerations
 from cart.log_signals import Signals, local_poly
 
 
@@ -89,8 +90,6 @@ def simulate_replays(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = 
     g = [np.interp(grid + sig.shift, t, sig.gamma_raw[:, k]) for k in range(3)]
     e = [np.interp(grid, t, extra[:, k]) for k in range(3)]
     m, a, b, j = (np.interp(grid, t, phi_t[:, k]) for k in range(4))
-    det = m * j - b * b
-    det = np.where(np.abs(det) < 1e-9, 1e-9, det)
     i0 = [np.interp(starts_all, t, col) for col in (sig.q[:, 0], sig.q[:, 1], sig.q[:, 2], sig.v, sig.omega)]
     state = np.array(i0)  # (5, K)
     sim = np.empty((len(starts_all), k_steps + 1, 3))
@@ -99,10 +98,8 @@ def simulate_replays(sig: Signals, x: np.ndarray, extra: Optional[np.ndarray] = 
         th, v, om = s[2], s[3], s[4]
         c, sn = np.cos(th), np.sin(th)
         fu = c * g[0][:, i] + sn * g[1][:, i]
-        r1 = fu + e[0][:, i] - sigma * v + a[:, i] * om * om
-        r2 = g[2][:, i] + e[1][:, i] - sigma_yaw * om - a[:, i] * om * v
-        vdot = (j[:, i] * r1 + b[:, i] * r2) / det[:, i]
-        odot = (b[:, i] * r1 + m[:, i] * r2) / det[:, i]
+        vdot, odot = body_accelerations(v, om, fu + e[0][:, i], g[2][:, i] + e[1][:, i], m[:, i], a[:, i],
+                                        b[:, i], j[:, i], sigma, sigma_yaw, min_det=1e-9)
         w = e[2][:, i]
         return np.array([c * v - sn * w, sn * v + c * w, om, vdot, odot])
 

@@ -36,6 +36,21 @@ import numpy as np
 PARAMETER_NAMES = ("m", "m_dx", "m_dy", "J", "c_v", "c_w")
 
 
+def body_accelerations(v, omega, f_forward, tau, m, a, b, j, c_v, c_w, w_lat=0.0, min_det: float = 0.0):
+    """Return (vdot, omegadot) of the body-frame form of paper eq. (4) (floats or numpy arrays, broadcast).
+
+    ``f_forward`` and ``tau`` include every applied force (wrench, effects); ``w_lat`` is the
+    lateral speed of the {b} origin (zero on the constraint). ``min_det > 0`` replaces a
+    determinant m J - b^2 smaller in magnitude by ``min_det`` (for arrays of non-physical models).
+    """
+    r1 = f_forward - c_v * v + a * omega * omega + m * omega * w_lat
+    r2 = tau - c_w * omega - a * omega * v - b * omega * w_lat
+    det = m * j - b * b
+    if min_det > 0.0:
+        det = np.where(np.abs(det) < min_det, min_det, det)
+    return (j * r1 + b * r2) / det, (b * r1 + m * r2) / det
+
+
 def forward_dynamics(theta: float, vx: float, vy: float, omega: float, fx: float, fy: float, tau: float,
                      m: float, a: float, b: float, j: float, c_v: float, c_w: float
                      ) -> Tuple[float, float, float]:
@@ -46,12 +61,7 @@ def forward_dynamics(theta: float, vx: float, vy: float, omega: float, fx: float
     c, s = math.cos(theta), math.sin(theta)
     v = c * vx + s * vy
     w = -s * vx + c * vy
-    fu = c * fx + s * fy
-    r1 = fu - c_v * v + a * omega * omega + m * omega * w
-    r2 = tau - c_w * omega - a * omega * v - b * omega * w
-    inv_d = 1.0 / (m * j - b * b)
-    vdot = (j * r1 + b * r2) * inv_d
-    odot = (b * r1 + m * r2) * inv_d
+    vdot, odot = body_accelerations(v, omega, c * fx + s * fy, tau, m, a, b, j, c_v, c_w, w)
     u1 = vdot - omega * w
     u2 = omega * v
     return c * u1 - s * u2, s * u1 + c * u2, odot
@@ -67,6 +77,15 @@ def inverse_dynamics(v: float, omega: float, vdot: float, omegadot: float, m: fl
     fu = m * vdot - b * omegadot + c_v * v - a * omega * omega - m * omega * w_lat
     tau = -b * vdot + j * omegadot + c_w * omega + a * omega * v + b * omega * w_lat
     return fu, tau
+
+
+def lateral_inertial_force(v, omega, omegadot, m, a, b):
+    """Return m v omega + a omegadot - b omega^2: the lateral force (in {b}) the cart's motion needs on the constraint.
+
+    The third row of the body-frame form of paper eq. (4); the wheels supply what the applied
+    lateral force does not (the constraint force, -Lambda^T lambda).
+    """
+    return m * v * omega + a * omegadot - b * omega * omega
 
 
 def regressor(v: np.ndarray, omega: np.ndarray, vdot: np.ndarray, omegadot: np.ndarray) -> np.ndarray:

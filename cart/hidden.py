@@ -17,6 +17,7 @@ from typing import Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
+from cart.dynamics import body_accelerations, lateral_inertial_force
 from cart.errors import ParameterError
 from cart.logs import CartLog
 from cart.params import CartParams
@@ -243,7 +244,7 @@ def simulate_hidden(params: CartParams, effects: Sequence[HiddenEffect] = (), du
                GRAVITY * math.sin(sl["angle"]) * math.sin(sl["direction"])) if sl else (0.0, 0.0)
 
     def deriv(xs: np.ndarray, al: np.ndarray, ph: CartParams, fu: float, fl: float, tq: float, dist: float):
-        m, a, b, j, sig = ph.m, ph.m * ph.dx, ph.m * ph.dy, ph.inertia_b, ph.sigma
+        m, a, b, j = ph.phi.tolist()
         th, v, om = xs[2], xs[3], xs[4]
         c, s = math.cos(th), math.sin(th)
         e_f = e_t = e_l = 0.0
@@ -260,14 +261,10 @@ def simulate_hidden(params: CartParams, effects: Sequence[HiddenEffect] = (), du
             e_f += m * (c * gx + s * gy)
             e_l += m * (-s * gx + c * gy)
             e_t += a * (c * gy - s * gx) - b * (s * gy + c * gx)
-        r1 = fu + e_f - sig * v + a * om * om
-        r2 = tq + e_t - sig * om - a * om * v
-        det = m * j - b * b
-        vdot = (j * r1 + b * r2) / det
-        odot = (b * r1 + m * r2) / det
+        vdot, odot = body_accelerations(v, om, fu + e_f, tq + e_t, m, a, b, j, ph.sigma, ph.sigma_yaw)
         w = 0.0
         if slip:
-            w = slip["compliance"] * (fl + e_l - (m * v * om + a * odot - b * om * om))
+            w = slip["compliance"] * (fl + e_l - lateral_inertial_force(v, om, odot, m, a, b))
         return np.array([c * v - s * w, s * v + c * w, om, vdot, odot]), w, rates, (e_f, e_l, e_t)
 
     for k in range(n):

@@ -56,6 +56,8 @@ FIT_RATIO = 1.6
 #: Significance of the Coulomb-resistance check (Wald test, two dof).
 COULOMB_ALPHA = 1e-3
 JACKKNIFE_BLOCKS = 10
+#: Smallest residual (share of the filtered wrench RMS) that counts as misfit on a noise-free log.
+FIT_FLOOR = 0.02
 
 
 class IdentifiabilityError(CartError):
@@ -326,22 +328,33 @@ def identify(log: CartLog, attenuation: float = ATTENUATION) -> Identification:
         raise IdentifiabilityError(f"{log.source}: the log is too short for its own bandwidth "
                                    f"({grid.t[-1] - grid.t[0]:.3g} s at a {fc:.3g} Hz cut-off)")
     x, y = x[keep], y[keep]
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        raise IdentifiabilityError(f"{log.source}: the filtered log is not finite (values out of range)")
     lag = int(math.ceil(2.0 * fs / fc))
     acc_gain, out_gain = _noise_gains(len(grid.t), grid.dt, sos)
     sv, so = pos_std * acc_gain, th_std * acc_gain  # acceleration noise of the regressor
     # white parts of the regressor entries: vdot in (row 1, m) and (row 2, m dy), omegadot in (1, m dy), (2, J)
     noise = np.array([[sv * sv, 0.0, so * so, 0.0, 0.0, 0.0], [0.0, 0.0, sv * sv, so * so, 0.0, 0.0]])
-    p, cov, scale, r = _fit(x, y, noise, lag)
+    try:
+        p, cov, scale, r = _fit(x, y, noise, lag)
+    except np.linalg.LinAlgError as exc:
+        raise IdentifiabilityError(f"{log.source}: the least-squares problem is singular ({exc}): the log does not "
+                                   "excite the parameters") from None
     m_, _, b_, j_ = p[:4]
     expected = np.sqrt([(f_std * out_gain) ** 2 + (m_ * sv) ** 2 + (b_ * so) ** 2,
                         (tau_std * out_gain) ** 2 + (j_ * so) ** 2 + (b_ * sv) ** 2]) + 1e-300
     rms = np.sqrt(np.mean(r ** 2, axis=0))
+    # a model "fits" to within FIT_FLOOR of the wrench even when the log is noise-free
+    expected = np.maximum(expected, FIT_FLOOR * np.sqrt(np.mean(y ** 2, axis=0)))
     ratio = rms / expected
     # Coulomb-like resistance (rolling resistance, dry friction) as a nuisance term: model uncertainty
     _, v, om, _, _ = _kinematics(grid.q, grid.dt, sos)
     eps = (0.05 * float(np.std(v[keep])) + 1e-12, 0.05 * float(np.std(om[keep])) + 1e-12)
     xc, _ = _design(grid, sos, eps)
-    pc, covc, _, _ = _fit(xc[keep], y, noise, lag)
+    try:
+        pc, covc, _, _ = _fit(xc[keep], y, noise, lag)
+    except np.linalg.LinAlgError:
+        pc, covc = np.r_[p, 0.0, 0.0], np.full((8, 8), np.nan)
     cc = covc[6:, 6:]
     wald = float(pc[6:] @ np.linalg.pinv(cc) @ pc[6:]) if np.all(np.isfinite(cc)) else 0.0
     coulomb = {"force": float(pc[6]), "torque": float(pc[7]), "wald": wald}
@@ -401,11 +414,12 @@ def _excitation_warnings(p: np.ndarray, std: Dict[str, object], inertia: float) 
     return out
 
 
-def innovation_check(log: CartLog, params: CartParams) -> float:
-    """Return the mean NIS of the paper's EKF (eq. 8-20) run over the log with ``params`` held fixed.
+def innovation_check(log: CartLog, params: CartParams) -> Tuple[float, int]:
+    """Return (mean NIS, rejected samples) of the paper's EKF (eq. 8-20) over the log with ``params`` held.
 
-    About 6 (the measurement dimension) when the model with these parameters
-    explains the log at its own noise level; much larger when it does not.
+    The mean NIS is about 6 (the measurement dimension) when the model with
+    these parameters explains the log at its own noise level, much larger when
+    it does not; samples the EKF's outlier gate rejects are counted, not averaged.
     """
     from cart.ekf import EKFConfig, measurement_std_from_log, run_ekf
 
@@ -417,7 +431,8 @@ def innovation_check(log: CartLog, params: CartParams) -> float:
                                q_vel=max(EKFConfig.q_vel, (f_std / params.m) ** 2 * dt),
                                q_omega=max(EKFConfig.q_omega, (tau_std / params.inertia_b) ** 2 * dt))
     z = np.hstack([log.q, log.velocities()])
-    _, _, nis = run_ekf(log.t, log.gamma, z, phi0=params.phi, sigma=params.sigma, config=cfg,
-                        sigma_yaw=params.sigma_yaw)
+    ekf, _, nis = run_ekf(log.t, log.gamma, z, phi0=params.phi, sigma=params.sigma, config=cfg,
+                          sigma_yaw=params.sigma_yaw)
     nis = nis[np.isfinite(nis)]
-    return float(np.mean(nis)) if len(nis) else float("nan")
+    kept = nis[nis <= ekf.gate_threshold]
+    return (float(np.mean(kept)) if len(kept) else float("nan")), int(len(nis) - len(kept))

@@ -50,10 +50,11 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
+from cart.dynamics import regressor
 from wholebody.allocation import ArmLimits, WrenchAllocator
 from wholebody.contact import HandleSegment, grasp_map
 from wholebody.errors import WholeBodyError
@@ -199,22 +200,15 @@ def sample_push(trajectory, dt: float = 0.05, duration: float | None = None) -> 
 
 
 def reduced_regressor(v, vdot, omega, omegadot) -> np.ndarray:
-    """Return Y (..., 2, 4): rows (f_forward, tau_b) per unit of phi (reduced 2-DoF dynamics)."""
-    v, vdot, omega, omegadot = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (v, vdot, omega, omegadot)))
-    Y = np.zeros(v.shape + (2, 4))
-    Y[..., 0, 0] = vdot
-    Y[..., 0, 1] = -omega * omega
-    Y[..., 0, 2] = -omegadot
-    Y[..., 1, 1] = v * omega
-    Y[..., 1, 2] = -vdot
-    Y[..., 1, 3] = omegadot
-    return Y
+    """Return Y (..., 2, 4): rows (f_forward, tau_b) per unit of phi (the phi columns of cart.dynamics.regressor)."""
+    return regressor(v, omega, vdot, omegadot)[..., :4]
 
 
-def reduced_wrench(samples: PushSamples, phi: Sequence[float], sigma: float = 0.0) -> np.ndarray:
-    """Return (N, 2) [f_forward, tau_b] the planned motion needs for parameters phi."""
-    Y = reduced_regressor(samples.v, samples.vdot, samples.omega, samples.omegadot)
-    return Y @ np.asarray(phi, dtype=float) + sigma * np.stack([samples.v, samples.omega], axis=1)
+def reduced_wrench(samples: PushSamples, phi: Sequence[float], sigma: float = 0.0,
+                   sigma_yaw: Optional[float] = None) -> np.ndarray:
+    """Return (N, 2) [f_forward, tau_b] the planned motion needs for parameters phi and the viscous coefficients."""
+    p = np.r_[np.asarray(phi, dtype=float), sigma, sigma if sigma_yaw is None else sigma_yaw]
+    return regressor(samples.v, samples.omega, samples.vdot, samples.omegadot) @ p
 
 
 def cart_wrench_covariance(point_b: Sequence[float], cov_ee: np.ndarray, theta: float = 0.0) -> np.ndarray:

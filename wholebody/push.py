@@ -35,6 +35,7 @@ import pinocchio as pin
 
 import robots
 from cart import model as cart_model
+from cart.dynamics import inverse_dynamics
 from cart.control import make_controller
 from cart.ekf import CartEKF, EKFConfig
 from cart.params import CartParams
@@ -383,8 +384,7 @@ class ContactScheduler:
             v = c * qd_d[0] + s * qd_d[1]
             vdot = c * qdd_d[0] + s * qdd_d[1]
             om, odot = qd_d[2], qdd_d[2]
-            fu = m * vdot - b * odot + params.sigma * v - a * om * om
-            tau = -b * vdot + j * odot + params.sigma * om + a * om * v
+            fu, tau = inverse_dynamics(v, om, vdot, odot, m, a, b, j, *params.damping)
             out.append(np.array([fu, 0.0, tau]))
         return out
 

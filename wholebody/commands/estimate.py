@@ -68,11 +68,11 @@ def _run_ls(log) -> Dict[str, Any]:
 
     res = identify(log)
     p = res.params
-    warnings = list(res.warnings)
+    warnings = list(getattr(log, "warnings", ())) + list(res.warnings)
     try:
-        nis = innovation_check(log, p)
+        nis, rejected = innovation_check(log, p)
     except (CartError, FloatingPointError, np_linalg_error()) as exc:
-        nis = float("nan")
+        nis, rejected = float("nan"), 0
         warnings.append(f"the EKF innovation check could not run on this log ({exc})")
     fits = res.model_fits
     if math.isfinite(nis) and nis > 18.0 and fits:
@@ -83,7 +83,7 @@ def _run_ls(log) -> Dict[str, Any]:
             "residual_ratio": list(res.residual_ratio), "cutoff_hz": res.cutoff_hz,
             "coulomb_resistance": {"force": res.coulomb["force"], "torque": res.coulomb["torque"]},
             "noise_std": res.noise, "samples_used": res.samples_used, "gaps": res.gaps,
-            "rejected_samples": 0, "warnings": warnings}
+            "rejected_samples": rejected, "warnings": warnings}
 
 
 def _run_ekf(log, args: argparse.Namespace) -> Dict[str, Any]:
@@ -101,7 +101,8 @@ def _run_ekf(log, args: argparse.Namespace) -> Dict[str, Any]:
     if not all(math.isfinite(v) for v in (p.m, p.dx, p.dy, p.I, p.sigma, p.sigma_yaw)):
         raise LogFormatError(f"{args.log}: the EKF diverged on this log (non-finite estimate)")
     fits = bool(math.isfinite(est.mean_nis) and est.mean_nis < 18.0)
-    warnings = [] if fits else [f"the EKF's innovations do not fit (mean NIS {est.mean_nis:.1f}, ~6 expected): "
+    warnings = list(getattr(log, "warnings", ()))
+    warnings += [] if fits else [f"the EKF's innovations do not fit (mean NIS {est.mean_nis:.1f}, ~6 expected): "
                                 "the std understates the error; run `cartpush diagnose`"]
     return {"method": "ekf", "mass": p.m, "com": [p.dx, p.dy], "inertia": p.I, "sigma": p.sigma,
             "sigma_yaw": p.sigma_yaw, "std": est.std, "nis_mean": est.mean_nis, "model_fits": fits,
