@@ -14,9 +14,9 @@ import warnings
 import numpy as np
 import qpsolvers
 
-from wholebody.allocation import WrenchAllocator
-from wholebody.contact import HandleSegment
-from wholebody.contact_points import optimal_contact_points
+from wholebody.contacts.allocation import WrenchAllocator
+from wholebody.contacts.handle import HandleSegment
+from wholebody.contacts.placement import optimal_contact_points
 
 warnings.filterwarnings("ignore")
 

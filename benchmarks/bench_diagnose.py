@@ -10,8 +10,8 @@ Usage:
 The study draws random carts (15-60 kg, CoM 0.1-0.5 m forward, +-0.15 m sideways),
 random push/pull motions with turns and >= 1 reversal, rates 50-200 Hz with jitter,
 position noise 1-4 mm, force noise 2-4 N, velocity columns present or not,
-and random effect sizes (cart.hidden.random_case); caster_swivel cases are half
-the resistance-profile form, half swivelling casters (cart.hidden.SwivelCasters).
+and random effect sizes (studies.testbeds.hidden_effects.random_case); caster_swivel cases are half
+the resistance-profile form, half swivelling casters (studies.testbeds.hidden_effects.SwivelCasters).
 The robustness conditions override one thing each (rate, velocity columns, noise,
 effect size). Case k of class c uses seed S + 1000 c + k, so every condition
 replays the same carts and motions. Never asserts a time.
@@ -27,7 +27,7 @@ from typing import Dict, List, Optional
 import numpy as np
 
 from cart.diagnose import diagnose
-from cart.hidden import HIDDEN_NAMES, random_case, random_cart, random_effect, simulate_hidden
+from studies.testbeds.hidden_effects import HIDDEN_NAMES, random_case, random_cart, random_effect, simulate_hidden
 
 CLASSES = ("none",) + HIDDEN_NAMES
 

@@ -26,7 +26,7 @@ import time
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
-from cart import table1
+from studies import table1
 from cart.ekf import CartEKF, EKFConfig, dynamics_jacobian
 from cart.simulate import MeasurementNoise, simulate
 

@@ -18,14 +18,15 @@ import numpy as np
 
 from cart.params import CartParams
 from cart.trajectories import trajectory_2
-import wholebody.excitation as ex
+import studies.excitation_study as study
+import wholebody.contacts.excitation as ex
 
 LETTERS = {0.0: "L", 0.125: "l", 0.25: "C", 0.375: "r", 0.5: "R"}  # handle points s: y = s - 0.25
 
 
 def plans(noise: ex.WrenchNoise, specs: list[tuple[str, int]], fixed: list[float]) -> tuple[dict, dict, dict]:
     """Return (schedules, planning times [s], score strings) for the planned and fixed contacts."""
-    guess = CartParams(*ex.STUDY_GUESS)
+    guess = CartParams(*study.STUDY_GUESS)
     samples = ex.sample_push(trajectory_2(), dt=0.05)
     scheds, times = {}, {}
     for obj, segs in specs:
@@ -65,12 +66,12 @@ def main() -> None:
         scheds, times, scores = plans(model.noise, specs, [float(c) for c in args.fixed.split(",") if c])
         print("planning time [s]: " + ", ".join(f"{k} {v:.2f}" for k, v in times.items()))
         t0 = time.perf_counter()
-        rows, _ = ex.contact_study(scheds, range(args.seeds), ekf_input=mode)
+        rows, _ = study.contact_study(scheds, range(args.seeds), ekf_input=mode)
         print(f"study time: {time.perf_counter() - t0:.0f} s ({len(scheds) * args.seeds} closed-loop runs of 30 s)")
         print("score column: min-eig score / CoM CRLB sqrt(trace) [mm], both on the planning model\n")
-        print(ex.format_table(rows, scores))
+        print(study.format_table(rows, scores))
         print()
-        print(ex.format_paired(rows, rows[0].label))
+        print(study.format_paired(rows, rows[0].label))
 
 
 if __name__ == "__main__":

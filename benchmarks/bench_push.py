@@ -1,7 +1,7 @@
 """Per-step cost of the closed push loop (`wholebody.push.run_push`): where the 100 Hz period goes.
 
 Times one 30 s Traj. 2 run (1 arm, EKF, optimal contact) and, inside it, the median cost of each
-stage: the whole-body QP tracker (`WholeBodyQPTracker.step`, the QP of `wholebody.control`), the arm
+stage: the whole-body QP tracker (`WholeBodyQPTracker.step`, the QP of `wholebody.motion.control`), the arm
 torques (Pinocchio RNEA + Jacobian), the wrench allocation QP, the EKF step and the contact re-plan.
 Prints a table of medians and the share of the wall time. Never asserts a time.
 
@@ -18,7 +18,7 @@ import numpy as np
 
 import wholebody.push as push
 from cart.ekf import CartEKF
-from wholebody.allocation import WrenchAllocator
+from wholebody.contacts.allocation import WrenchAllocator
 
 
 def _timed(cls: type, name: str, store: Dict[str, List[float]], label: str) -> Callable[[], None]:

@@ -10,11 +10,11 @@ import numpy as np
 import pinocchio as pin
 
 import robots
-from wholebody.control import ControllerConfig, ResolvedRateController
-from wholebody.experiments import initial_state
-from wholebody.kinematics import wholebody_for
-from wholebody.placo_compare import PlacoTracker
-from wholebody import wmra_closed_form as cf
+from wholebody.motion.control import ControllerConfig, ResolvedRateController
+from studies.wmra_experiments import initial_state
+from wholebody.motion.kinematics import wholebody_for
+from studies.placo_compare import PlacoTracker
+from studies import wmra_closed_form as cf
 
 
 def median_us(fn, repeat: int = 2000) -> float:

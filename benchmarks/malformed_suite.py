@@ -59,7 +59,7 @@ class Case:
 # -- logs ---------------------------------------------------------------------------------------
 def _push_arrays(n: int = 600, dt: float = 0.01, seed: int = 0):
     """(t, q, gamma) of a simulated push of the Table I test-5 cart (consistent dynamics, 1 mm noise)."""
-    from cart import table1
+    from studies import table1
     from cart.simulate import MeasurementNoise, simulate
 
     truth = table1.true_params(table1.TESTS[4])

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import Literal, Optional, Sequence
 
 import numpy as np
 import scipy.linalg
@@ -29,7 +29,9 @@ from cart.errors import CartError
 from cart.params import CartParams
 from cart.trajectories import UnicycleTrajectory
 
-CONTROLLERS = ("fl_lqr", "kanayama")
+#: Names of the cart tracking laws of :func:`make_controller`.
+ControllerName = Literal["fl_lqr", "kanayama"]
+CONTROLLERS: tuple[ControllerName, ...] = ("fl_lqr", "kanayama")
 
 
 def _wrap(angle: float) -> float:
@@ -162,7 +164,7 @@ class KanayamaTracker:
         return np.array([c * fu, s * fu, tau])
 
 
-def make_controller(name: str, trajectory: UnicycleTrajectory, **gains) -> object:
+def make_controller(name: ControllerName, trajectory: UnicycleTrajectory, **gains) -> object:
     """Return the controller called ``name`` ("fl_lqr" or "kanayama") for ``trajectory``."""
     if name == "fl_lqr":
         return FeedbackLinearizationLQR(trajectory, **gains)

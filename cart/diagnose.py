@@ -454,15 +454,18 @@ def _activity(sig: Signals, t0: float, t1: float) -> str:
 
 
 def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, threshold: float = 10.0,
-             max_effects: int = 3, horizon: float = 1.0, window: Optional[float] = None) -> DiagnosisReport:
+             max_effects: int = 3, horizon: Optional[float] = None, window: Optional[float] = None) -> DiagnosisReport:
     """Return the DiagnosisReport of ``log``: nominal fit, discrepancy windows, named effects, gap before/after.
 
     ``candidates`` defaults to every registered effect; an effect is named when
     its Delta BIC exceeds ``threshold`` (10 = "very strong" evidence).
     """
     sig = signals_from_log(log)
-    if np.max(np.abs(sig.v)) < 0.02 and np.max(np.abs(sig.omega)) < 0.02:
-        raise DiagnoseError(f"{log.source}: the cart does not move; nothing to diagnose")
+    if np.max(np.abs(sig.v)) < 5.0 * sig.sigma_v and np.max(np.abs(sig.omega)) < 5.0 * sig.sigma_omega:
+        raise DiagnoseError(f"{log.source}: the cart does not move beyond the noise of its pose "
+                            f"(speed noise {sig.sigma_v:.2g} m/s); nothing to diagnose")
+    if horizon is None:  # 1 s replays for a cart log, shorter for a short log
+        horizon = min(1.0, (sig.t[-1] - sig.t[0]) / 6.0)
     edges = window_edges(sig.t, window if window is not None else 2.0 * sig.half_window)
     sig.extras["noise_dv"] = velocity_change_noise(sig, edges)
     if len(edges) < 12:

@@ -72,8 +72,15 @@ def measured_rows(sig: Signals) -> np.ndarray:
 
 
 def speed_scales(sig: Signals) -> Tuple[float, float]:
-    """Return (v0, omega0): the speeds below which friction signs are smoothed (tanh), above the noise."""
-    return max(0.02, 2.0 * sig.sigma_v), max(0.03, 2.0 * sig.sigma_omega)
+    """Return (v0, omega0): the speeds below which friction signs are smoothed (tanh), above the noise.
+
+    2 cm/s and 0.03 rad/s for a cart, scaled down for slow motions (5 % of the peak speed), never below
+    twice the speed noise.
+    """
+    v_peak = float(np.max(np.abs(sig.v))) if sig.n else 0.0
+    om_peak = float(np.max(np.abs(sig.omega))) if sig.n else 0.0
+    return (max(min(0.02, 0.05 * v_peak), 2.0 * sig.sigma_v),
+            max(min(0.03, 0.05 * om_peak), 2.0 * sig.sigma_omega))
 
 
 def stop_threshold(sig: Signals) -> float:

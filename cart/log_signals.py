@@ -110,11 +110,13 @@ def signals_from_log(log: CartLog, half_window: Optional[float] = None) -> Signa
     if len(t) < 20:
         raise LogFormatError(f"{log.source}: {len(t)} samples are too few to diagnose (need at least 20)")
     dur = float(t[-1] - t[0])
-    if dur < 3.0:
-        raise LogFormatError(f"{log.source}: the log lasts {dur:.2f} s; diagnosing needs at least 3 s")
     q = np.asarray(log.q, float)
-    hw = 0.15 if half_window is None else float(half_window)
     med_dt = float(np.median(np.diff(t)))
+    # 0.15 s for a cart log; a short log (a quick push of a small object) gets windows in proportion
+    hw = min(0.15, dur / 30.0) if half_window is None else float(half_window)
+    if dur < 60.0 * med_dt:
+        raise LogFormatError(f"{log.source}: the log has {len(t)} samples over {dur:.3g} s; diagnosing needs at "
+                             "least 60 sample periods")
     hw = max(hw, 3.0 * med_dt)
     val, d1, d2, lev = local_poly(t, q, hw, degree=2)
     # noise levels from the residuals of a shorter cubic fit (little bias), unbiased by the leverage

@@ -1,7 +1,7 @@
 """Independent rigid-body cart simulator: synthetic logs with known truth for validating estimators.
 
 This test bed is written from the physics, deliberately *not* from the
-project's simulator (``cart.hidden``, ``cart.model``, ``cart.simulate``): it
+project's simulator (``studies.testbeds.hidden_effects``, ``cart.model``, ``cart.simulate``): it
 only borrows the log container and writer from ``cart.logs`` (I/O). It models
 the planar cart of the paper (*cart inertial estimation*, constrained
 Euler–Lagrange dynamics, eq. 1–7) with

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from cart import table1
+from studies import table1
 from cart.ekf import CartEKF, EKFConfig, chi2_isf, run_ekf
 from cart.errors import CartpushError, NumericalError
 from cart.simulate import MeasurementNoise, simulate

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from cart import control, model, table1
+from cart import control, model
+from studies import table1
 from cart.params import CartParams
 
 

@@ -1,4 +1,4 @@
-"""The diagnose workflow on logs with hidden effects (cart.hidden): naming, gap reduction, parameters.
+"""The diagnose workflow on logs with hidden effects (studies.testbeds.hidden_effects): naming, gap reduction, parameters.
 
 Random carts (15-60 kg, CoM 0.1-0.5 m forward, +-0.15 m sideways), random
 push/pull motions with turns and >= 1 reversal, 50-200 Hz irregular sampling,
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from cart.diagnose import DiagnoseError, diagnose
-from cart.hidden import HIDDEN_NAMES, random_case
+from studies.testbeds.hidden_effects import HIDDEN_NAMES, random_case
 from cart.logs import CartLog
 
 CASES = 4  # per effect here; 20+ in the benchmark study
@@ -186,7 +186,7 @@ def test_caster_shape_variants_and_their_columns():
 
 def _piecewise_motion(t, knots, turn=0.0):
     """Return a Motion reaching each (time, speed) knot by a raised-cosine ramp over the second before it."""
-    from cart.hidden import Motion
+    from studies.testbeds.hidden_effects import Motion
 
     v = np.full_like(t, knots[0][1])
     for (_, v0), (t1, v1) in zip(knots[:-1], knots[1:]):
@@ -199,7 +199,7 @@ def _piecewise_motion(t, knots, turn=0.0):
 def test_a_caster_that_holds_the_cart_after_a_reversal_is_named_and_its_hold_replayed():
     # push, reverse with a pull weaker than the casters' breakaway force (the cart stays put for seconds),
     # then pull harder until it breaks away: the profile form with its set-valued hold must explain this
-    from cart.hidden import HiddenEffect, simulate_hidden
+    from studies.testbeds.hidden_effects import HiddenEffect, simulate_hidden
     from cart.params import CartParams
 
     p = CartParams(m=30.0, dx=0.3, dy=0.05, I=2.6, sigma=1.5)

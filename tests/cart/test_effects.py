@@ -10,7 +10,7 @@ from cart import model
 from cart.diagnose import diagnose, fit_model
 from cart.effects import (CONTRACT_NAMES, Effect, FloorSlope, distance_since_reversal, measured_rows,
                           nominal_columns, register_effect, registered_effects, unregister_effect)
-from cart.hidden import HiddenEffect, payload_params, random_cart, simulate_hidden
+from studies.testbeds.hidden_effects import HiddenEffect, payload_params, random_cart, simulate_hidden
 from cart.log_signals import local_poly, signals_from_log, velocity_change_noise, window_edges
 from cart.params import CartParams
 from cart.simulate import simulate
@@ -169,11 +169,11 @@ def _log_of(t, x, y, th):
 
 
 def test_caster_kinematics_match_the_test_bed_casters_and_the_columns_their_forces():
-    # cart.effects steps the swivel exactly (half-angle form) along the log; cart.hidden.SwivelCasters integrates
+    # cart.effects steps the swivel exactly (half-angle form) along the log; studies.testbeds.hidden_effects.SwivelCasters integrates
     # the same ODE with small Euler steps: the natural lane must agree, and the columns per unit torque must be
     # the generalized force the test bed computes for those angles
     import cart.effects as fx
-    from cart.hidden import SwivelCasters
+    from studies.testbeds.hidden_effects import SwivelCasters
 
     t = np.arange(0.0, 14.0, 0.01)
     v = 0.5 * np.sin(2 * np.pi * t / 14.0)            # forward, then backward: one reversal at t = 7

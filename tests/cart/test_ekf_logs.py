@@ -4,7 +4,7 @@ import gzip
 import numpy as np
 import pytest
 
-from cart import table1
+from studies import table1
 from cart.ekf import CartEKF, EKFConfig, dynamics_jacobian, estimate_from_log
 from cart.errors import LogFormatError, ParameterError
 from cart.logs import CartLog, estimate_velocities, read_log, write_log

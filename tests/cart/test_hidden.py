@@ -1,4 +1,4 @@
-"""Test bed (cart.hidden): the swivelling casters against closed-form kinematics and force balances."""
+"""Test bed (studies.testbeds.hidden_effects): the swivelling casters against closed-form kinematics and force balances."""
 from __future__ import annotations
 
 import math
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from cart.errors import ParameterError
-from cart.hidden import HiddenEffect, Motion, SwivelCasters, random_case, random_cart, simulate_hidden
+from studies.testbeds.hidden_effects import HiddenEffect, Motion, SwivelCasters, random_case, random_cart, simulate_hidden
 from cart.params import CartParams
 
 

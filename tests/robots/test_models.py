@@ -177,7 +177,7 @@ def test_load_exposes_models_and_frames():
 
 
 def test_custom_build_keeps_a_readable_urdf_and_its_base_dimensions():
-    from wholebody.kinematics import wholebody_for
+    from wholebody.motion.kinematics import wholebody_for
 
     text = robots.wmra_urdf(track=0.56, wheel_radius=0.168)
     r = robots.load("wmra", urdf_text=text)

@@ -5,8 +5,8 @@ import pytest
 from scipy.optimize import minimize
 
 import robots
-from wholebody.allocation import ArmLimits, EffortWeights, GraspModel, WrenchAllocator, allocate
-from wholebody.contact import HandleSegment, cart_wrench, grasp_map
+from wholebody.contacts.allocation import ArmLimits, EffortWeights, GraspModel, WrenchAllocator, allocate
+from wholebody.contacts.handle import HandleSegment, cart_wrench, grasp_map
 from wholebody.errors import InfeasibleWrenchError, WholeBodyError
 
 HANDLE = HandleSegment.default()

@@ -1,11 +1,11 @@
-"""Tests of wholebody.bases: wheel maps, constraints, exact odometry (paper eq. 4-12)."""
+"""Tests of wholebody.motion.bases: wheel maps, constraints, exact odometry (paper eq. 4-12)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from wholebody import wmra_closed_form as cf
-from wholebody.bases import DifferentialDrive, Omnidirectional, integrate_body_displacement
+from studies import wmra_closed_form as cf
+from wholebody.motion.bases import DifferentialDrive, Omnidirectional, integrate_body_displacement
 from wholebody.errors import WholeBodyError
 
 L1, L2, L3, L5 = 0.5, 0.4, 0.23, 0.17

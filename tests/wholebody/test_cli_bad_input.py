@@ -42,7 +42,7 @@ def test_every_package_error_derives_from_the_root():
 
 # -- the mapping in main --------------------------------------------------------------------------
 def test_internal_error_is_one_line_exit_1_and_debug_reraises(monkeypatch, capsys):
-    import wholebody.commands.plan_contacts as mod
+    import wholebody.cli.plan_contacts as mod
 
     def boom(args):
         raise ZeroDivisionError("division by zero\nsecond line")

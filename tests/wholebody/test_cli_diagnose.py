@@ -6,7 +6,7 @@ import os
 
 import numpy as np
 
-from cart.hidden import random_case
+from studies.testbeds.hidden_effects import random_case
 from cart.logs import write_log
 from wholebody.cli import main
 

@@ -3,7 +3,7 @@ import json
 
 import numpy as np
 
-from cart import table1
+from studies import table1
 from cart.logs import CartLog, write_log
 from wholebody.cli import main
 

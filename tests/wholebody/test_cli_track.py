@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from wholebody.cli import main
-from wholebody.experiments import run_tracking
+from studies.wmra_experiments import run_tracking
 
 
 def test_track_json_matches_library(capsys):

@@ -3,7 +3,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from wholebody.contact import (
+from wholebody.contacts.handle import (
     ContactSpec,
     HandleSegment,
     adjoint,

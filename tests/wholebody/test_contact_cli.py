@@ -4,7 +4,7 @@ import json
 import numpy as np
 
 from wholebody.cli import main
-from wholebody.contact import cart_wrench
+from wholebody.contacts.handle import cart_wrench
 
 
 def test_plan_contacts_json(capsys):

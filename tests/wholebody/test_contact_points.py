@@ -4,9 +4,9 @@ import pytest
 
 from cart.model import mass_matrix, generalized_to_body
 from cart.params import CartParams
-from wholebody.allocation import ArmLimits, GraspModel, allocate
-from wholebody.contact import HandleSegment
-from wholebody.contact_points import effort_profile, optimal_contact_points
+from wholebody.contacts.allocation import ArmLimits, GraspModel, allocate
+from wholebody.contacts.handle import HandleSegment
+from wholebody.contacts.placement import effort_profile, optimal_contact_points
 from wholebody.errors import InfeasibleWrenchError, WholeBodyError
 
 HANDLE = HandleSegment.default()
@@ -59,7 +59,7 @@ def test_single_arm_matches_fine_brute_force_on_random_requests():
 def _brute_two_arms(gamma, lim, spacing, n=101):
     grid = np.linspace(0.0, 0.5, n)
     best = np.inf
-    from wholebody.allocation import WrenchAllocator
+    from wholebody.contacts.allocation import WrenchAllocator
 
     alloc = WrenchAllocator([HANDLE.point(0.0)] * 2, lim)
     for i in range(n):

@@ -1,4 +1,4 @@
-"""Tests of wholebody.control: the resolved-rate QP, its limits, the safety band, degenerate targets."""
+"""Tests of wholebody.motion.control: the resolved-rate QP, its limits, the safety band, degenerate targets."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,11 +6,11 @@ import pinocchio as pin
 import pytest
 
 import robots
-from wholebody.control import (ControllerConfig, ResolvedRateController, SafetyBand, manipulability,
+from wholebody.motion.control import (ControllerConfig, ResolvedRateController, SafetyBand, manipulability,
                                manipulability_gradient, pose_error)
 from wholebody.errors import WholeBodyError
-from wholebody.experiments import initial_state
-from wholebody.kinematics import wholebody_for
+from studies.wmra_experiments import initial_state
+from wholebody.motion.kinematics import wholebody_for
 
 DT = 0.01
 

@@ -3,7 +3,7 @@
 TIAGo (PAL Robotics) is a differential-drive mobile manipulator with a prismatic torso and a
 7-DoF arm. Its URDF is read from the files the `example-robot-data` distribution installs
 (no copy in this repository), loaded by Pinocchio with a planar root joint, and wrapped in
-`wholebody.kinematics.WholeBody` with a `DifferentialDrive` whose track and wheel radius are
+`wholebody.motion.kinematics.WholeBody` with a `DifferentialDrive` whose track and wheel radius are
 read off the model. Checked against computations that do not use our Jacobian code:
 
 - the combined Jacobian (torso + arm + wheel columns) against central finite differences of
@@ -23,8 +23,8 @@ import pinocchio as pin
 import pytest
 
 from robots.loading import LoadedRobot
-from wholebody.bases import DifferentialDrive
-from wholebody.kinematics import WholeBody
+from wholebody.motion.bases import DifferentialDrive
+from wholebody.motion.kinematics import WholeBody
 
 URDF = "tiago_no_hand.urdf"
 ARM_JOINTS = ("torso_lift_joint",) + tuple(f"arm_{i}_joint" for i in range(1, 8))

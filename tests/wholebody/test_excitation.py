@@ -15,14 +15,14 @@ from cart.model import (
 )
 from cart.params import CartParams
 from cart.trajectories import trajectory_2
-from wholebody.allocation import ArmLimits
-from wholebody.contact import HandleSegment, grasp_map
-from wholebody.excitation import (
+from wholebody.contacts.allocation import ArmLimits
+from wholebody.contacts.handle import HandleSegment, grasp_map
+from studies.excitation_study import com_convergence_traj2
+from wholebody.contacts.excitation import (
     OBJECTIVES,
     WrenchNoise,
     _segment_tables,
     cart_wrench_covariance,
-    com_convergence_traj2,
     com_covariance,
     com_crlb_course,
     default_prior,

@@ -6,8 +6,8 @@ import pinocchio as pin
 import pytest
 
 import robots
-from wholebody.experiments import run_tracking
-from wholebody.kinematics import wholebody_for
+from studies.wmra_experiments import run_tracking
+from wholebody.motion.kinematics import wholebody_for
 
 TOL = 1e-9
 

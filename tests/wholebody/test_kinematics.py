@@ -1,4 +1,4 @@
-"""Tests of wholebody.kinematics: WMRA closed forms (paper eq. 1-21) and finite differences of the FK."""
+"""Tests of wholebody.motion.kinematics: WMRA closed forms (paper eq. 1-21) and finite differences of the FK."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,8 +7,8 @@ import pytest
 
 import robots
 from robots.wmra import WMRA_D, WMRA_MOUNT, WMRA_TRACK, WMRA_WHEEL_RADIUS
-from wholebody import wmra_closed_form as cf
-from wholebody.kinematics import wholebody_for
+from studies import wmra_closed_form as cf
+from wholebody.motion.kinematics import wholebody_for
 
 
 @pytest.fixture(scope="module")

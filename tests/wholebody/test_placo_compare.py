@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from wholebody.placo_compare import compare
+from studies.placo_compare import compare
 
 
 @pytest.mark.parametrize("robot", ["wmra", "ridgeback_iiwa"])

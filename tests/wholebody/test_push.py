@@ -10,7 +10,7 @@ import pytest
 import robots
 from cart import model as cart_model
 from wholebody.errors import WholeBodyError
-from wholebody.control import ResolvedRateController
+from wholebody.motion.control import ResolvedRateController
 from wholebody.push import (
     BASE_OFFSET_X,
     PUSH_CONTROLLER,
@@ -195,7 +195,7 @@ def test_base_regularisation_term_matches_stacked_least_squares():
 
 
 def test_scene_animates_true_and_estimated_com_with_the_cart(runs):
-    from wholebody.push_report import build_scene
+    from wholebody.push.report import build_scene
     from wholebody.viz import COM_MARKER_Z
 
     on, _ = runs

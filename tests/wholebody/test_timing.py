@@ -1,4 +1,4 @@
-"""Tests of wholebody.timing: toppra limits, optimality vs uniform scaling, EE path through the IK."""
+"""Tests of wholebody.motion.timing: toppra limits, optimality vs uniform scaling, EE path through the IK."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,9 +8,9 @@ from scipy.interpolate import CubicSpline
 
 import robots
 from wholebody.errors import TrajectoryInfeasibleError, WholeBodyError
-from wholebody.experiments import initial_state
-from wholebody.kinematics import wholebody_for
-from wholebody.timing import ee_path_time_optimal, time_optimal
+from studies.wmra_experiments import initial_state
+from wholebody.motion.kinematics import wholebody_for
+from wholebody.motion.timing import ee_path_time_optimal, time_optimal
 
 V = np.full(9, 0.9)
 A = np.full(9, 2.0)

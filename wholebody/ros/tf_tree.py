@@ -234,6 +234,11 @@ class TransformBuffer:
         """Return True when ``frame`` appears in some link."""
         return normalize_frame(frame) in self._adjacency
 
+    def has_parent(self, frame: str) -> bool:
+        """Return True when some link has ``frame`` as its child (False for roots and unknown frames)."""
+        frame = normalize_frame(frame)
+        return any(c == frame for (_, c) in self._edges)
+
     def edges(self) -> List[EdgeInfo]:
         """Return every link, sorted by (parent, child)."""
         out = []

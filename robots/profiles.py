@@ -1,0 +1,83 @@
+"""What generic code needs to know about each shipped robot, looked up by name.
+
+A :class:`RobotProfile` names the arm and wheel joints (in the order of the
+whole-body vectors), the base type with its geometry, the frames of the grasp
+and the F/T sensor, and the arm posture that seeds the grasp IK when the robot
+pushes the cart. `wholebody` builds its models from these; it never switches on
+a robot's name.
+
+>>> from robots.profiles import profile
+>>> profile("ridgeback_iiwa").base
+'omnidirectional'
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal, Optional, Tuple
+
+from robots.errors import UnknownRobotError
+from robots.ridgeback_iiwa import RIDGEBACK_WHEEL_RADIUS, RIDGEBACK_WHEEL_X, RIDGEBACK_WHEEL_Y
+
+#: Base kinematics: a differential drive (track and wheel radius read off the model) or a
+#: holonomic base with mecanum wheels (radius and wheel positions given here).
+BaseType = Literal["differential", "omnidirectional", "none"]
+
+
+@dataclass(frozen=True)
+class RobotProfile:
+    """One robot's joints, base, frames and pushing posture (every number sourced in robots/README.md)."""
+
+    name: str
+    arm_joints: Tuple[str, ...] = ()
+    wheel_joints: Tuple[str, ...] = ()
+    base: BaseType = "none"
+    #: Omnidirectional bases: wheel radius (m) and wheel (x, y) in the base frame, in `wheel_joints` order.
+    wheel_radius: Optional[float] = None
+    wheel_positions: Tuple[Tuple[float, float], ...] = ()
+    #: Frame roles of `robots.load(name)`: the grasp (end effector) and the F/T sensor (None: no sensor).
+    ee_frame: str = "ee"
+    ft_frame: Optional[str] = None
+    #: Arm posture holding the cart's handle with the base behind it (the grasp IK's seed), None if it never pushes.
+    push_arm_seed: Optional[Tuple[float, ...]] = None
+
+    @property
+    def is_mobile_manipulator(self) -> bool:
+        """Return True when the robot has an arm on a wheeled base (a `wholebody.WholeBody` can be built)."""
+        return bool(self.arm_joints) and self.base != "none"
+
+
+WMRA = RobotProfile(
+    name="wmra",
+    arm_joints=tuple(f"arm_joint{i}" for i in range(1, 8)),
+    wheel_joints=("wheel_left_joint", "wheel_right_joint"),
+    base="differential",
+)
+
+RIDGEBACK_IIWA = RobotProfile(
+    name="ridgeback_iiwa",
+    arm_joints=tuple(f"iiwa_joint_{i}" for i in range(1, 8)),
+    wheel_joints=tuple(f"{a}_{b}_wheel_joint" for a in ("front", "rear") for b in ("left", "right")),
+    base="omnidirectional",
+    wheel_radius=RIDGEBACK_WHEEL_RADIUS,
+    wheel_positions=tuple((sx * RIDGEBACK_WHEEL_X, sy * RIDGEBACK_WHEEL_Y) for sx in (1, -1) for sy in (1, -1)),
+    ft_frame="ft_sensor",
+    # found by IK with the base 0.65 m behind the handle point; joint-limit margin 1.1 rad
+    push_arm_seed=(-1.70, -0.94, 0.28, 1.00, -0.43, -0.47, 0.25),
+)
+
+SHOPPING_CART = RobotProfile(name="shopping_cart")
+
+PROFILES = {p.name: p for p in (RIDGEBACK_IIWA, SHOPPING_CART, WMRA)}
+
+
+def profile(name: str) -> RobotProfile:
+    """Return the profile of a shipped robot; raise `UnknownRobotError` naming the known ones."""
+    try:
+        return PROFILES[name]
+    except KeyError:
+        raise UnknownRobotError(f"no profile for robot {name!r}; known: {', '.join(sorted(PROFILES))}") from None
+
+
+def mobile_manipulators() -> Tuple[str, ...]:
+    """Return the names of the robots with an arm on a wheeled base."""
+    return tuple(sorted(n for n, p in PROFILES.items() if p.is_mobile_manipulator))

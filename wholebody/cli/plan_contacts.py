@@ -1,0 +1,75 @@
+"""`cartpush plan-contacts`: where each arm should hold the handle, and with which wrench."""
+from __future__ import annotations
+
+import argparse
+
+from wholebody.cli import options
+
+#: The default handle length (m), as `wholebody.contacts.handle.HANDLE_WIDTH` (kept here so --help imports nothing heavy).
+HANDLE_WIDTH = 0.5
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `plan-contacts` subcommand."""
+    p = subparsers.add_parser(
+        "plan-contacts",
+        help="choose contact points on the cart handle and allocate the end-effector wrenches (QP)",
+        description=(
+            "Find the globally minimum-effort contact points on the handle for a cart wrench\n"
+            "Gamma_MM = (fx, fy, tau) in the cart frame {b} (tau about the fixed-axle midpoint),\n"
+            "and each end effector's wrench [fx, fy, fz, tx, ty, tz] in its contact frame.\n\n"
+            "Example:\n  cartpush plan-contacts --wrench 40 0 -2 --arms 2 --json\n"
+            "  cartpush plan-contacts --wrench -1e3 0 0   (negative numbers are values, also in e-notation)"
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--wrench", nargs=3, type=float, required=True, metavar=("FX", "FY", "TAU"),
+                   help="cart wrench in {b}: forces in N, torque in N m")
+    p.add_argument("--arms", type=int, default=1, help="number of arms (default 1)")
+    p.add_argument("--handle-width", type=float, default=HANDLE_WIDTH, help=f"handle length in m (default {HANDLE_WIDTH})")
+    p.add_argument("--min-spacing", type=float, default=0.2, help="minimum distance between arms in m (default 0.2)")
+    p.add_argument("--grip-force", type=float, default=100.0, help="gripper force in N, 20..235 (default 100)")
+    p.add_argument("--max-force", type=float, default=150.0, help="per-arm force bound per axis in N (default 150)")
+    p.add_argument("--max-torque", type=float, default=20.0, help="per-arm torque bound per axis in N m (default 20)")
+    p.add_argument("--motion-only", action="store_true",
+                   help="match only fx and tau: the wheels absorb the lateral force")
+    p.add_argument("--solver", default="proxqp", help="qpsolvers backend (default proxqp)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Plan the contacts and print them (table or JSON)."""
+    for k, v in zip(("FX", "FY", "TAU"), args.wrench):
+        options.finite(f"--wrench {k}", v, maximum=1e6, minimum=-1e6)
+    options.finite("--handle-width", args.handle_width, positive=True, maximum=100.0)
+    options.finite("--min-spacing", args.min_spacing, nonnegative=True, maximum=100.0)
+    options.finite("--grip-force", args.grip_force, positive=True, maximum=1e6)
+    options.finite("--max-force", args.max_force, positive=True, maximum=1e7)
+    options.finite("--max-torque", args.max_torque, positive=True, maximum=1e7)
+    if not 1 <= args.arms <= 8:
+        raise options.OptionError(f"--arms must be between 1 and 8, got {args.arms}")
+    from cart.jsonout import dumps_strict
+    from wholebody.contacts.allocation import ArmLimits, GraspModel
+    from wholebody.contacts.handle import HandleSegment
+    from wholebody.contacts.placement import optimal_contact_points
+
+    handle = HandleSegment.default(width=args.handle_width)
+    limits = ArmLimits(max_force=args.max_force, max_torque=args.max_torque, grasp=GraspModel(grip_force=args.grip_force))
+    plan = optimal_contact_points(args.wrench, handle, n_arms=args.arms, min_spacing=args.min_spacing, limits=limits,
+                                  only_motion_directions=args.motion_only, solver=args.solver)
+    contacts = [
+        {"arm": i, "point_b": [round(float(v), 6) for v in plan.points_b[i]],
+         "wrench_ee": [round(float(v), 6) for v in plan.allocation.wrenches_ee[i]]}
+        for i in range(args.arms)
+    ]
+    if args.json:
+        print(dumps_strict({"contacts": contacts, "residual": plan.allocation.residual, "effort": plan.effort,
+                          "gamma_achieved": [float(v) for v in plan.allocation.gamma_achieved]}))
+        return 0
+    print(f"{'arm':>3}  {'x_b':>7} {'y_b':>7} {'z_b':>7}   {'fx':>8} {'fy':>8} {'fz':>8} {'tx':>7} {'ty':>7} {'tz':>7}")
+    for c in contacts:
+        print(f"{c['arm']:>3}  " + " ".join(f"{v:7.3f}" for v in c["point_b"]) + "   "
+              + " ".join(f"{v:8.2f}" for v in c["wrench_ee"][:3]) + " " + " ".join(f"{v:7.3f}" for v in c["wrench_ee"][3:]))
+    print(f"effort {plan.effort:.4g}   residual {plan.allocation.residual:.2e}")
+    return 0

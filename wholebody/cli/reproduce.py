@@ -1,0 +1,162 @@
+"""`cartpush reproduce`: the 11 simulation tests of the cart paper's Table I, with and without estimation."""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+from cart.errors import CartError
+from wholebody.cli import options
+
+#: Table I's metrics are taken after t = 5 s; a run must reach past that.
+MIN_DURATION = 6.0
+
+DESCRIPTION = """\
+Run the 11 tests of Table I of the cart paper (20 kg cart, Traj. 1/2, 30 s at
+100 Hz), each with the EKF estimating the parameters and with the parameters
+frozen at the initial guess, and print the metrics.
+
+Example:
+  cartpush reproduce --json
+  cartpush reproduce --out results/   # also writes Fig. 4-6 PNGs and table.csv / table.md
+"""
+
+COLUMNS = ("test", "mass_error_final_kg", "mass_converged_s", "com_error_final_m", "tracking_rms_m",
+           "tracking_rms_no_estimation_m")
+
+
+def register(subparsers) -> None:
+    """Add the `reproduce` subcommand."""
+    parser = subparsers.add_parser("reproduce", help="reproduce Table I of the cart paper (EKF + tracking)",
+                                   description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--json", action="store_true", help="print only a JSON list, one object per test")
+    parser.add_argument("--out", metavar="DIR", help="write figures (PNG) and the table (CSV, Markdown) to DIR")
+    parser.add_argument("--controller", choices=("fl_lqr", "kanayama"), default="fl_lqr",
+                        help="tracking controller: the paper's eq. 26-28 (default) or Kanayama et al. 1990")
+    parser.add_argument("--tests", metavar="LIST", default=None, help="comma-separated subset, e.g. 1,5,11")
+    parser.add_argument("--duration", type=float, default=30.0,
+                        help=f"seconds per test, {MIN_DURATION:g} to {options.MAX_SIM_DURATION:g} (default 30)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the measurement noise (default 0)")
+    parser.add_argument("--change-detection", action="store_true",
+                        help="EKF parameter-change detection (innovation mean test, resets the mass variance)")
+    parser.set_defaults(func=run)
+
+
+def _select(spec: str | None):
+    from studies.table1 import TESTS
+
+    if spec is None:
+        return TESTS
+    try:
+        wanted = [int(s) for s in spec.split(",") if s.strip()]
+    except ValueError:
+        raise CartError(f"--tests must be comma-separated integers 1..11, got {spec!r}") from None
+    bad = [w for w in wanted if not 1 <= w <= len(TESTS)]
+    if bad or not wanted:
+        raise CartError(f"--tests must list tests between 1 and {len(TESTS)}, got {spec!r}")
+    return tuple(TESTS[w - 1] for w in wanted)
+
+
+def _fmt(value) -> str:
+    if value is None:
+        return "never"
+    if isinstance(value, float):
+        return f"{value:.4f}"
+    return str(value)
+
+
+def table_rows(results: list) -> list[list[str]]:
+    """Return the table rows (strings) of the results, in COLUMNS order plus the max errors after 5 s."""
+    return [[_fmt(r.as_json()[c]) for c in COLUMNS] + [_fmt(r.tracking_max_after_5s_m),
+                                                       _fmt(r.tracking_max_after_5s_no_estimation_m)]
+            for r in results]
+
+
+def _write_outputs(out: str, results: list) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    os.makedirs(out, exist_ok=True)
+    header = list(COLUMNS) + ["tracking_max_after_5s_m", "tracking_max_after_5s_no_estimation_m"]
+    rows = table_rows(results)
+    with open(os.path.join(out, "table.csv"), "w", encoding="utf-8") as fh:
+        fh.write(",".join(header) + "\n")
+        fh.writelines(",".join(r) + "\n" for r in rows)
+    with open(os.path.join(out, "table.md"), "w", encoding="utf-8") as fh:
+        fh.write("| " + " | ".join(header) + " |\n|" + "---|" * len(header) + "\n")
+        fh.writelines("| " + " | ".join(r) + " |\n" for r in rows)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
+    for r in results:
+        axes[0].plot(r.run.t, r.run.position_error, label=f"test {r.test}")
+        axes[1].plot(r.run_no_estimation.t, r.run_no_estimation.position_error, label=f"test {r.test}")
+    axes[0].set_title("tracking error, with estimation")
+    axes[1].set_title("tracking error, without estimation")
+    for ax in axes:
+        ax.set_xlabel("t [s]")
+        ax.set_yscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("|p_d - p| [m]")
+    axes[1].legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "fig4_tracking_error.png"), dpi=120)
+    plt.close(fig)
+    for name, subset, title in (("fig5_mass.png", [r for r in results if r.test <= 8],
+                                 "mass estimate, noise 5 mm (tests 1-8)"),
+                                ("fig6_mass_noise_changes.png", [r for r in results if r.test >= 9],
+                                 "mass estimate: noise 5 cm (9), 20 cm (10), discrete changes (11)")):
+        if not subset:
+            continue
+        fig, ax = plt.subplots(figsize=(8, 4.5))
+        for r in subset:
+            line, = ax.plot(r.run.t, r.run.params_hat[:, 0], label=f"test {r.test}")
+            ax.plot(r.run.t, r.run.params_true[:, 0], "--", color=line.get_color(), lw=0.8)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("mass [kg] (dashed: true)")
+        ax.set_title(title)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(os.path.join(out, name), dpi=120)
+        plt.close(fig)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the selected tests and print a table (or JSON); return 0."""
+    options.duration(args.duration, minimum=MIN_DURATION, rate=100.0,
+                     why="the Table I metrics are taken after t = 5 s")
+    options.seed(args.seed)
+    tests = _select(args.tests)
+    if args.out:
+        options.writable_dir(args.out)
+    from cart.jsonout import dumps_strict
+    from studies.table1 import run_table1
+
+    bar = None
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(tests), desc="Table I", file=sys.stderr)
+    t0 = time.perf_counter()
+    results = run_table1(tests, controller=args.controller, duration=args.duration, seed=args.seed,
+                         progress=(lambda _: bar.update(1)) if bar else None,
+                         change_detection=args.change_detection)
+    wall = time.perf_counter() - t0
+    if bar:
+        bar.close()
+    if args.out:
+        _write_outputs(args.out, results)
+    if args.json:
+        print(dumps_strict([r.as_json() for r in results]))
+        return 0
+    header = list(COLUMNS) + ["max_err_after_5s_m", "max_err_after_5s_no_est_m"]
+    rows = table_rows(results)
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
+    print("  ".join(h.rjust(w) for h, w in zip(header, widths)))
+    for r in rows:
+        print("  ".join(c.rjust(w) for c, w in zip(r, widths)))
+    print(f"controller {args.controller}, {len(tests)} tests x 2 runs in {wall:.1f} s"
+          + (f"; figures and table in {args.out}" if args.out else ""))
+    return 0

@@ -1,0 +1,120 @@
+"""`cartpush track`: the WMRA paper's end-effector tracking experiments (§IV) in kinematic simulation."""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+from pathlib import Path
+
+from wholebody.cli import options
+
+#: The paths of `studies.wmra_experiments.PATHS` (kept here so --help imports nothing heavy).
+PATHS = ("line", "sine")
+#: Tolerance on the band radius before a run is reported as leaving the band (m).
+BAND_TOLERANCE = 1e-3
+
+EXAMPLE = """Examples:
+  cartpush track line
+  cartpush track sine --robot ridgeback_iiwa --band 0.7 --json
+  cartpush track sine --out sine_run.csv
+
+The end effector follows X = 90 t mm (line) or X = 90 t, Y = 1000 sin(0.1 t) mm (sine)
+from its initial pose, orientation held, 100 Hz for 60 s (wmra_kinematics.md §IV).
+--band R keeps the base origin within R metres of a centre sliding along world X at
+90 mm/s (paper §VI safety band)."""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `track` subcommand."""
+    p = subparsers.add_parser(
+        "track",
+        help="track the paper's straight-line or sinusoidal end-effector path (WMRA or Ridgeback+iiwa)",
+        description="Resolved-rate QP tracking of an end-effector path by a mobile manipulator; prints "
+        "position/orientation errors and joint-limit margins.\n\n" + EXAMPLE,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("path", choices=PATHS, help="line: 90 mm/s along X; sine: plus 1 m sin(0.1 t) along Y")
+    p.add_argument("--robot", default="wmra", choices=("wmra", "ridgeback_iiwa"), help="robot (default wmra)")
+    p.add_argument("--band", type=float, default=None, metavar="RADIUS",
+                   help="safety band radius in metres (base origin within RADIUS of the sliding centre)")
+    p.add_argument("--duration", type=float, default=60.0, help="seconds (default 60)")
+    p.add_argument("--rate", type=float, default=100.0, help="control rate in Hz (default 100)")
+    p.add_argument("--out", type=Path, default=None, metavar="LOG.csv", help="write the run as CSV")
+    p.add_argument("--json", action="store_true", help="print only a JSON object of the metrics")
+    p.set_defaults(func=run)
+
+
+def write_csv(result, path: Path) -> None:
+    """Write one row per sample: time, base pose, arm joints, wheel rates, EE desired/actual position."""
+    n_arm = result.x.shape[1] - 3
+    n_w = result.wheel_rates.shape[1]
+    header = (["time_s", "base_x_m", "base_y_m", "base_theta_rad"] + [f"arm_q{i + 1}_rad" for i in range(n_arm)]
+              + [f"wheel_rate{i + 1}_rad_s" for i in range(n_w)]
+              + ["ee_desired_x_m", "ee_desired_y_m", "ee_desired_z_m", "ee_actual_x_m", "ee_actual_y_m",
+                 "ee_actual_z_m"])
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for k in range(result.x.shape[0]):
+            rates = result.wheel_rates[k] if k < result.steps else [math.nan] * n_w  # no input after the last sample
+            w.writerow([f"{result.t[k]:.4f}", *(f"{v:.9g}" for v in result.x[k]), *(f"{v:.9g}" for v in rates),
+                        *(f"{v:.9g}" for v in result.ee_desired[k]), *(f"{v:.9g}" for v in result.ee_actual[k])])
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the experiment; print a table or JSON; optionally write the CSV."""
+    if args.band is not None:
+        options.finite("--band", args.band, positive=True, maximum=1e3, why="a radius in metres")
+    rate = options.finite("--rate", args.rate, positive=True, maximum=10_000.0, why="control rate in Hz")
+    options.duration(args.duration, rate=rate)
+    if args.duration * rate < 1.0:
+        raise options.OptionError(f"--duration x --rate must give at least one step, got {args.duration * rate:g}")
+    if args.out is not None:
+        options.writable_file(args.out)
+    from cart.jsonout import dumps_strict
+    from studies.wmra_experiments import run_tracking
+
+    bar = None
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=int(round(args.duration * args.rate)), file=sys.stderr, desc=f"track {args.path}")
+    try:
+        result = run_tracking(args.robot, args.path, args.band, duration=args.duration, rate=args.rate,
+                              progress=(lambda k: bar.update(1)) if bar is not None else None)
+    finally:
+        if bar is not None:
+            bar.close()
+    if args.out is not None:
+        write_csv(result, args.out)
+    m = result.metrics()
+    warnings = []
+    if args.band is not None and m["max_band_distance_m"] is not None:
+        excess = m["max_band_distance_m"] - args.band
+        m["band_respected"] = bool(excess <= BAND_TOLERANCE)
+        if excess > BAND_TOLERANCE:
+            warnings.append(f"the base left the safety band: {m['max_band_distance_m']:.4f} m from the band "
+                            f"centre for a radius of {args.band:g} m ({excess:.4f} m outside); the path cannot be "
+                            f"followed within this band")
+    m["warnings"] = warnings
+    for w in warnings:
+        print(f"cartpush track: warning: {w}", file=sys.stderr)
+    if args.json:
+        print(dumps_strict(m))
+        return 0
+    band = "free" if args.band is None else f"band R = {args.band:g} m"
+    print(f"{m['robot']} {m['path']} ({band}), {m['steps']} steps at {1 / m['dt']:g} Hz")
+    print(f"  max position error     {m['max_position_error_m'] * 1e3:10.4f} mm")
+    print(f"  RMS position error     {m['rms_position_error_m'] * 1e3:10.4f} mm")
+    print(f"  max orientation error  {m['max_orientation_error_rad']:10.2e} rad")
+    print(f"  min joint-limit margin {m['min_joint_limit_margin_rad']:10.4f} rad")
+    print(f"  max |rate|/limit       joints {m['max_joint_speed_ratio']:.3f}, wheels {m['max_wheel_speed_ratio']:.3f}")
+    if m["max_band_distance_m"] is not None:
+        print(f"  max base distance from band centre {m['max_band_distance_m']:.4f} m"
+              + ("" if m.get("band_respected", True) else f"  ** OUTSIDE the {args.band:g} m band **"))
+    print(f"  flagged steps: singular {m['singular_steps']}, saturated {m['saturated_steps']}, "
+          f"solver failures {m['solver_failures']}")
+    if args.out is not None:
+        print(f"  wrote {args.out}")
+    return 0

@@ -1,0 +1,99 @@
+"""`cartpush view`: show a cart log, a Table I test or a robot in Meshcat (live, or as an offline HTML page)."""
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import time
+from pathlib import Path
+
+from wholebody.cli import options
+
+HELP = "show a cart log, a Table I test or a robot in Meshcat"
+DESCRIPTION = """\
+Show a scene in Meshcat: a cart log (animated cart, force arrow, path), a
+Table I simulation test 1..11 (robot pushing the cart, force, contact point,
+true vs estimated CoM), or one robot (`--robot`; `--robot pushing` shows the
+Ridgeback + iiwa holding the cart's handle).
+
+Without --html it serves the scene on localhost, prints the URL and keeps
+serving until Ctrl-C. With --html it writes a self-contained page (opens
+offline in any browser) and exits.
+
+Examples:
+  cartpush view --robot ridgeback_iiwa
+  cartpush view --scenario 6 --html test6.html
+  cartpush view run.csv --html run.html
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `view` subcommand."""
+    parser = subparsers.add_parser("view", help=HELP, description=DESCRIPTION,
+                                   formatter_class=argparse.RawDescriptionHelpFormatter)
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("log", nargs="?", help="cart log (.csv or .csv.gz, LOG_FORMAT.md)")
+    source.add_argument("--scenario", type=int, metavar="N", help="Table I simulation test N (1..11)")
+    source.add_argument("--robot", metavar="NAME", help="a robot of `robots.available()`, or 'pushing'")
+    parser.add_argument("--html", metavar="OUT.html", help="write a static page instead of serving")
+    parser.add_argument("--duration", type=float, default=30.0, metavar="S",
+                        help="simulated seconds for --scenario (default 30)")
+    parser.set_defaults(func=run)
+
+
+def validate(args: argparse.Namespace) -> None:
+    """Check the options before any work (raise OptionError)."""
+    if args.scenario is not None:
+        if not 1 <= args.scenario <= 11:
+            raise options.OptionError(f"--scenario must be a Table I test between 1 and 11, got {args.scenario}")
+        options.duration(args.duration, rate=100.0)
+    if args.html:
+        options.writable_file(args.html, "--html", create=False)
+
+
+def build_scene(args: argparse.Namespace, serve: bool):
+    """Return the scene the arguments ask for (a `wholebody.viz.Scene`)."""
+    from wholebody.viz import log_scene, pushing_scene, robot_scene
+
+    if args.scenario is not None:
+        options.duration(args.duration, rate=100.0)
+        from studies.table1_scene import scenario_scene
+
+        return scenario_scene(args.scenario, duration=args.duration, serve=serve)
+    if args.robot is not None:
+        if args.robot == "pushing":
+            return pushing_scene(serve=serve)
+        return robot_scene(args.robot, serve=serve)
+    from cart.logs import read_log
+
+    log = read_log(args.log)
+    for w in log.warnings:  # the reader's plausibility notes (units, glitches), one line each
+        print(f"cartpush view: warning: {w}", file=sys.stderr)
+    return log_scene(log, serve=serve)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Write the page (--html) or serve the scene until Ctrl-C; return the exit code."""
+    validate(args)
+    if args.html:
+        out = Path(args.html)
+        with build_scene(args, serve=False) as scene:
+            scene.save_html(out)
+        print(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB); open it in a browser (works offline)")
+        return 0
+    previous = signal.signal(signal.SIGTERM, _interrupt)  # stop the server on SIGTERM too
+    try:
+        with build_scene(args, serve=True) as scene:
+            print(f"Meshcat scene at {scene.url} (Ctrl-C to stop)", flush=True)
+            try:
+                while True:
+                    time.sleep(1.0)
+            except KeyboardInterrupt:
+                print("stopped", file=sys.stderr)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    return 0
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt

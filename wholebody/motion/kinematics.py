@@ -1,0 +1,164 @@
+"""Whole-body kinematics of a wheeled mobile manipulator: FK and the combined Jacobian (paper eq. 11-21).
+
+Reduced coordinates ``x = [x, y, theta, q_arm...]`` (base pose on the floor + arm
+joints). Velocity input ``u = [q_arm_dot..., base input...]`` where the base input is
+the wheel rates (paper eq. 20 ordering: 7 arm joints then the wheels) or, for a
+holonomic base with ``base_input="twist"``, the body twist (vx, vy, wz).
+"""
+from __future__ import annotations
+
+from typing import Literal, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from robots.loading import LoadedRobot
+from robots.profiles import PROFILES, RobotProfile, mobile_manipulators
+from wholebody.motion.bases import DifferentialDrive, MobileBase, Omnidirectional, integrate_body_displacement
+from wholebody.errors import WholeBodyError
+
+#: The base part of the input vector u: wheel rates, or the body twist (vx, vy, wz) of a holonomic base.
+BaseInput = Literal["wheels", "twist"]
+
+
+class WholeBody:
+    """A mobile manipulator seen as [planar base pose, arm joints] driven by [arm rates, base input].
+
+    Args:
+        robot: a `robots.load(...)` result (planar root joint `root_joint`).
+        base: the base model mapping wheel rates to body twists.
+        arm_joints: names of the arm joints, in the order of the reduced vectors.
+        wheel_joints: names of the driven wheel joints, in the base's wheel order.
+        ee_frame: role or frame name of the end effector.
+        base_input: "wheels" (wheel rates) or "twist" (body twist; holonomic bases only).
+    """
+
+    def __init__(
+        self,
+        robot: LoadedRobot,
+        base: MobileBase,
+        arm_joints: Sequence[str],
+        wheel_joints: Sequence[str],
+        ee_frame: str = "ee",
+        base_input: BaseInput = "wheels",
+    ) -> None:
+        self.robot = robot
+        self.model: pin.Model = robot.model
+        self.data: pin.Data = robot.model.createData()
+        self.base = base
+        self.arm_joints = tuple(arm_joints)
+        self.wheel_joints = tuple(wheel_joints)
+        if base_input not in ("wheels", "twist"):
+            raise WholeBodyError(f"base_input must be 'wheels' or 'twist', got {base_input!r}")
+        if base_input == "twist" and not base.holonomic:
+            raise WholeBodyError("base_input='twist' needs a holonomic base; a differential drive takes wheel rates")
+        self.base_input = base_input
+        if len(self.wheel_joints) != base.n_wheels:
+            raise WholeBodyError(f"{len(self.wheel_joints)} wheel joints for a base with {base.n_wheels} wheels")
+        self.ee_frame_id = robot.frame_id(ee_frame)
+        root = self.model.getJointId("root_joint")
+        if root >= self.model.njoints or self.model.joints[root].shortname() != "JointModelPlanar":
+            raise WholeBodyError("the robot must have a planar root joint named 'root_joint'")
+        self._root_v = self.model.joints[root].idx_v
+        self._root_q = self.model.joints[root].idx_q
+        self.arm_idx_q = np.array([self._joint(n).idx_q for n in self.arm_joints])
+        self.arm_idx_v = np.array([self._joint(n).idx_v for n in self.arm_joints])
+        self.wheel_idx_q = np.array([self._joint(n).idx_q for n in self.wheel_joints])
+        self.wheel_idx_v = np.array([self._joint(n).idx_v for n in self.wheel_joints])
+        self.n_arm = len(self.arm_joints)
+        self.n_base_input = 3 if base_input == "twist" else base.n_wheels
+        self.n_u = self.n_arm + self.n_base_input
+        self.arm_lower = self.model.lowerPositionLimit[self.arm_idx_q].copy()
+        self.arm_upper = self.model.upperPositionLimit[self.arm_idx_q].copy()
+        self.arm_velocity_limit = self.model.velocityLimit[self.arm_idx_v].copy()
+        self.wheel_velocity_limit = self.model.velocityLimit[self.wheel_idx_v].copy()
+        self._q_neutral = pin.neutral(self.model)
+        self._wheel_map = self.wheel_map()
+
+    def _joint(self, name: str) -> pin.JointModel:
+        if not self.model.existJointName(name):
+            raise WholeBodyError(f"robot {self.robot.name!r} has no joint {name!r}")
+        return self.model.joints[self.model.getJointId(name)]
+
+    # ------------------------------------------------------------------ configuration
+    def to_pinocchio_q(self, x: Sequence[float], wheel_angles: Sequence[float] | None = None) -> np.ndarray:
+        """Return the Pinocchio configuration of reduced coordinates x (other joints neutral)."""
+        x = np.asarray(x, dtype=float)
+        q = self._q_neutral.copy()
+        i = self._root_q
+        q[i:i + 4] = (x[0], x[1], np.cos(x[2]), np.sin(x[2]))
+        q[self.arm_idx_q] = x[3:3 + self.n_arm]
+        if wheel_angles is not None:
+            a = np.asarray(wheel_angles, dtype=float)
+            q[self.wheel_idx_q] = np.cos(a)
+            q[self.wheel_idx_q + 1] = np.sin(a)
+        return q
+
+    def wheel_map(self) -> np.ndarray:
+        """Return the 3 x n_base_input map from the base input to the body twist (vx, vy, wz)."""
+        return np.eye(3) if self.base_input == "twist" else self.base.wheel_to_body_twist()
+
+    def wheel_rates(self, u: Sequence[float]) -> np.ndarray:
+        """Return the wheel rates (rad/s) implied by an input vector u."""
+        ub = np.asarray(u, dtype=float)[self.n_arm:]
+        return self.base.body_twist_to_wheels(ub) if self.base_input == "twist" else ub
+
+    def integrate(self, x: Sequence[float], u: Sequence[float], dt: float) -> np.ndarray:
+        """Return x after applying input u for dt: arm joints linearly, the base by exact odometry (eq. 4-10)."""
+        x = np.asarray(x, dtype=float)
+        u = np.asarray(u, dtype=float)
+        out = x.copy()
+        out[3:] = x[3:] + dt * u[:self.n_arm]
+        twist_step = self._wheel_map @ u[self.n_arm:] * dt
+        out[:3] = integrate_body_displacement(x[:3], twist_step)
+        return out
+
+    # ------------------------------------------------------------------ kinematics
+    def frame_placement(self, x: Sequence[float], frame: str | int | None = None) -> pin.SE3:
+        """Return the world placement of a frame (default: the end effector), paper eq. (13)."""
+        fid = self.ee_frame_id if frame is None else (frame if isinstance(frame, int) else self.robot.frame_id(frame))
+        q = self.to_pinocchio_q(x)
+        pin.framesForwardKinematics(self.model, self.data, q)
+        return pin.SE3(self.data.oMf[fid])
+
+    def ee_placement(self, x: Sequence[float]) -> pin.SE3:
+        """Return the world placement of the end effector, paper eq. (13)."""
+        return self.frame_placement(x)
+
+    def ee_and_jacobian(self, x: Sequence[float]) -> tuple[pin.SE3, np.ndarray]:
+        """Return (end-effector placement, combined Jacobian) with one kinematics pass."""
+        q = self.to_pinocchio_q(x)
+        J = pin.computeFrameJacobian(self.model, self.data, q, self.ee_frame_id, pin.LOCAL_WORLD_ALIGNED)
+        oMf = pin.updateFramePlacement(self.model, self.data, self.ee_frame_id)
+        out = np.empty((6, self.n_u))
+        out[:, :self.n_arm] = J[:, self.arm_idx_v]
+        # planar joint velocity is the body twist (vx, vy, wz): chain with the base's wheel map (eq. 19-20)
+        out[:, self.n_arm:] = J[:, self._root_v:self._root_v + 3] @ self._wheel_map
+        return pin.SE3(oMf), out
+
+    def combined_jacobian(self, x: Sequence[float]) -> np.ndarray:
+        """Return the 6 x n_u Jacobian u -> end-effector (v, omega), world-aligned at the EE (paper eq. 21)."""
+        return self.ee_and_jacobian(x)[1]
+
+
+def wholebody_for(robot: LoadedRobot, base_input: BaseInput = "wheels") -> WholeBody:
+    """Return the `WholeBody` of a shipped robot, built from its profile (`robots.profiles`)."""
+    prof = PROFILES.get(robot.name)
+    if prof is None or not prof.is_mobile_manipulator:
+        raise WholeBodyError(f"no whole-body model for robot {robot.name!r}; use "
+                             f"{' or '.join(repr(n) for n in mobile_manipulators())}")
+    return WholeBody(robot, base_for(robot, prof), prof.arm_joints, prof.wheel_joints, ee_frame=prof.ee_frame,
+                     base_input=base_input)
+
+
+def base_for(robot: LoadedRobot, prof: RobotProfile) -> MobileBase:
+    """Return the base model of a profile: a differential drive measured on the model, or mecanum wheels."""
+    if prof.base == "omnidirectional":
+        return Omnidirectional(prof.wheel_radius, prof.wheel_positions)
+    # Read the track and the wheel radius off the model, so that any build of `robots.wmra_urdf(...)` gets its own.
+    model = robot.model
+    left, right = (model.jointPlacements[model.getJointId(j)].translation for j in prof.wheel_joints)
+    track = float(np.linalg.norm(left - right))
+    pin.framesForwardKinematics(model, robot.data, pin.neutral(model))
+    wheel_radius = float(robot.data.oMf[model.getFrameId("base_link")].translation[2])
+    return DifferentialDrive(track, wheel_radius)

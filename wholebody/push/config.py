@@ -1,0 +1,161 @@
+"""Settings, results and swap-in interfaces of the closed push loop (`wholebody.push.loop.run_push`)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal, Protocol, Sequence, Tuple
+
+import numpy as np
+import pinocchio as pin
+
+from cart.control import ControllerName as CartControllerName
+from cart.params import CartParams
+from cart.simulate import MeasurementNoise
+from cart.trajectories import UnicycleTrajectory, trajectory_1, trajectory_2
+from wholebody.contacts.allocation import ArmLimits
+from wholebody.errors import WholeBodyError
+
+#: How the contact points are chosen: held at `fixed_contact_y`, or re-planned from the estimate.
+ContactMode = Literal["fixed", "optimal"]
+
+#: The simulated cart of the default scenario (paper Table I test 5: 20 kg, CoM (0.3, 0.15)); I scaled
+#: from the shopping cart of `robots` (1.7355 kg m^2 at 15 kg); viscous coefficient 4 N s/m.
+TRUE_CART = CartParams(m=20.0, dx=0.3, dy=0.15, I=1.7355 * 20.0 / 15.0, sigma=4.0)
+
+
+class CartController(Protocol):
+    """Cart tracking law: desired Gamma_MM = (fx, fy in {s}, tau about the {b} origin)."""
+
+    def gamma(self, t: float, q: np.ndarray, qd: np.ndarray, params: CartParams) -> np.ndarray:
+        """Return the desired generalized force."""
+
+
+class ParameterEstimator(Protocol):
+    """State + parameter estimator fed with the applied wrench and the motion-capture measurement."""
+
+    x: np.ndarray
+
+    def step(self, gamma: Sequence[float], dt: float, z: Sequence[float]) -> float:
+        """Predict over dt under gamma, then update with z = (x, y, theta, vx, vy, omega)."""
+
+    def params(self) -> CartParams:
+        """Return the current parameter estimate."""
+
+
+class BodyTracker(Protocol):
+    """Whole-body velocity controller of one mobile manipulator."""
+
+    def step(self, x: np.ndarray, target: pin.SE3, target_velocity: np.ndarray, base_target: np.ndarray,
+             base_velocity: np.ndarray, dt: float) -> np.ndarray:
+        """Return the input u = [arm joint rates (7), base body twist (3)] for the next period."""
+
+
+
+#: Sensor noise of the loop: motion capture (3 mm, 3 mrad, 1 cm/s, 0.01 rad/s) and the F/T sensor
+#: (3 N, 0.3 N m, in the sensor frame), as the cart paper's hardware.
+PUSH_SENSOR_NOISE = MeasurementNoise(position=0.003, theta=0.003, velocity=0.01, omega=0.01, force=3.0, torque=0.3)
+
+
+@dataclass(frozen=True)
+class PushConfig:
+    """One closed-loop run: trajectory, robots, contact mode, estimator, truth, noise, seed."""
+
+    trajectory: int = 2
+    duration: float = 30.0
+    dt: float = 0.01
+    substeps: int = 2
+    n_arms: int = 1
+    estimation: bool = True
+    contact: ContactMode = "optimal"
+    fixed_contact_y: Tuple[float, ...] = (-0.2,)
+    true_params: CartParams = TRUE_CART
+    initial_mass: float = 16.0
+    initial_com: Tuple[float, float] = (0.3, 0.0)
+    controller: CartControllerName = "kanayama"
+    noise: MeasurementNoise = PUSH_SENSOR_NOISE
+    seed: int = 0
+    replan_period: float = 0.5
+    replan_horizon: float = 3.0
+    slide_speed: float = 0.05
+    arm_limits: ArmLimits = ArmLimits()
+    #: the pushing robot, a `robots.profiles` entry with an F/T sensor and a push posture
+    robot: str = "ridgeback_iiwa"
+
+    def __post_init__(self) -> None:
+        if self.trajectory not in (1, 2):
+            raise WholeBodyError(f"trajectory must be 1 or 2, got {self.trajectory}")
+        if self.n_arms not in (1, 2):
+            raise WholeBodyError(f"arms must be 1 or 2, got {self.n_arms}")
+        if self.contact not in ("fixed", "optimal"):
+            raise WholeBodyError(f"contact must be 'fixed' or 'optimal', got {self.contact!r}")
+        if not (self.dt > 0 and self.duration > 0 and self.initial_mass > 0):
+            raise WholeBodyError("dt, duration and initial_mass must be positive")
+        if len(self.fixed_contact_y) not in (1, 2):
+            raise WholeBodyError("fixed_contact_y needs one value per arm")
+
+    def contact_y0(self) -> np.ndarray:
+        """Return the initial contact y per arm (fixed mode: the fixed points)."""
+        ys = np.asarray(self.fixed_contact_y, dtype=float)
+        if self.n_arms == 2 and ys.size == 1:
+            ys = np.array([-0.2, 0.2])
+        if self.n_arms == 1:
+            ys = ys[:1]
+        return np.sort(ys)
+
+    def initial_params(self) -> CartParams:
+        """Return the controller's/estimator's initial guess (mass, CoM given; inertia scaled with the mass)."""
+        return CartParams(self.initial_mass, self.initial_com[0], self.initial_com[1],
+                          self.true_params.I * self.initial_mass / self.true_params.m, self.true_params.sigma)
+
+    def make_trajectory(self) -> UnicycleTrajectory:
+        """Return Traj. 1 or 2 of the paper with this run's duration."""
+        return trajectory_1(self.duration) if self.trajectory == 1 else trajectory_2(self.duration)
+
+
+@dataclass(frozen=True)
+class PushMetrics:
+    """Scalar results of one run (the CLI's JSON fields)."""
+
+    tracking_rms_m: float
+    tracking_max_m: float
+    arm_torque_rms_nm: float
+    arm_torque_peak_nm: float
+    arm_push_torque_rms_nm: float
+    arm_torque_limit_ratio: float
+    ee_force_rms_n: float
+    ee_force_peak_n: float
+    ee_torque_rms_nm: float
+    mass_error_final_kg: float
+    com_error_final_m: float
+    mass_final_kg: float
+    grasp_error_max_m: float
+    base_twist_limit_ratio: float
+    base_wheel_limit_ratio: float
+    saturated_steps: int
+
+    def as_dict(self) -> dict:
+        """Return the metrics as a JSON-ready dict."""
+        return {k: (int(v) if isinstance(v, (int, np.integer)) else float(v)) for k, v in self.__dict__.items()}
+
+
+@dataclass(frozen=True)
+class PushResult:
+    """Time histories of one run (N samples at t_k = k dt) and its metrics."""
+
+    config: PushConfig
+    t: np.ndarray
+    q_true: np.ndarray  # (N, 3) cart pose
+    qd_true: np.ndarray
+    q_desired: np.ndarray
+    z_meas: np.ndarray  # (N, 6) motion capture
+    gamma_desired: np.ndarray  # (N, 3) controller output
+    gamma_applied: np.ndarray  # (N, 3) produced by the hands (true)
+    gamma_measured: np.ndarray  # (N, 3) from the F/T sensors through the grasp map
+    phi_hat: np.ndarray  # (N, 4) estimate used by the controller at t_k
+    contact_y: np.ndarray  # (N, n_arms)
+    wrenches: np.ndarray  # (N, n_arms, 6) hand wrenches in {a}
+    arm_torque: np.ndarray  # (N, n_arms, 7)
+    push_torque: np.ndarray  # (N, n_arms, 7) the J^T w part
+    robot_x: np.ndarray  # (N, n_arms, 10) base pose + arm joints
+    grasp_error: np.ndarray  # (N, n_arms) ee position error w.r.t. the handle point
+    effort_limit: np.ndarray  # (7,)
+    metrics: PushMetrics

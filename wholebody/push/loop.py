@@ -1,0 +1,229 @@
+"""The closed loop: mobile manipulator(s) push the cart, the EKF closes the loop (cart paper §II–III).
+
+One control period ``dt`` (100 Hz by default):
+
+1. cart controller (``cart.control``, using the current parameter estimate)
+   -> desired cart wrench Gamma_MM (paper eq. 26);
+2. contact points on the handle (fixed, or re-planned every ``replan_period``
+   from the estimated model and slid towards the plan at ``slide_speed``) and
+   the wrench allocation QP (``wholebody.contacts.allocation``, paper eq. 25) ->
+   end-effector wrenches;
+3. arm joint torques ``tau = rnea(q, v, a) + J^T w`` (Pinocchio; the arm's own
+   gravity and dynamics plus the push), checked against the iiwa's effortLimit;
+4. each mobile manipulator's base + arm follow the grasp point on the moving
+   handle with the project's whole-body QP (``wholebody.motion.control``, through the
+   :class:`WholeBodyQPTracker` adapter: joint, wheel-speed and twist limits,
+   base pulled to its nominal place behind the handle);
+5. cart dynamics: exact constrained model (``cart.simulate.rk4_step``) under
+   the wrenches the hands apply;
+6. measurements: cart pose and velocity as from motion capture, the F/T
+   sensor's wrench (noise in the sensor frame) mapped to the cart through the
+   robot's kinematics and the grasp map (paper eq. 23–24);
+7. EKF (``cart.ekf.CartEKF``, paper eq. 8–20) -> state and parameter estimate.
+
+The pieces meet through small interfaces (:class:`CartController`,
+:class:`ParameterEstimator`, :class:`BodyTracker`) so any of them can be swapped.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import List, Optional, Sequence, Tuple
+
+import numpy as np
+
+import robots
+from cart import model as cart_model
+from cart.control import make_controller
+from cart.ekf import CartEKF, EKFConfig
+from cart.params import CartParams
+from cart.simulate import rk4_step
+from wholebody.contacts.allocation import WrenchAllocator
+from wholebody.push.config import CartController, ParameterEstimator, PushConfig, PushMetrics, PushResult
+from wholebody.push.robot import (BASE_TWIST_LIMIT, TWO_ARM_BASE_SPREAD, MobileManipulator, base_target, cart_se3,
+                                  ft_measurement, ft_to_cart_gamma, grasp_rotation, grasp_target, handle_point)
+from wholebody.push.scheduler import ContactScheduler
+
+
+def make_estimator(config: PushConfig, q0: np.ndarray) -> CartEKF:
+    """Return the EKF (parameters frozen at the initial guess when estimation is off)."""
+    p0 = config.initial_params()
+    ekf_config = EKFConfig.from_noise(config.noise.measurement_std(), estimate_params=config.estimation)
+    return CartEKF(q0, np.zeros(3), p0.phi, p0.sigma, ekf_config)
+
+
+@dataclass
+class PushHistory:
+    """The run's time histories, filled one period at a time (N samples, n_arms robots)."""
+
+    q_true: np.ndarray
+    qd_true: np.ndarray
+    q_desired: np.ndarray
+    z_meas: np.ndarray
+    gamma_desired: np.ndarray
+    gamma_applied: np.ndarray
+    gamma_measured: np.ndarray
+    phi_hat: np.ndarray
+    contact_y: np.ndarray
+    wrenches: np.ndarray
+    arm_torque: np.ndarray
+    push_torque: np.ndarray
+    robot_x: np.ndarray
+    grasp_error: np.ndarray
+    base_ratio: np.ndarray
+    wheel_ratio: np.ndarray
+    saturated: int = 0
+
+    @classmethod
+    def empty(cls, n: int, n_arms: int) -> "PushHistory":
+        """Return zero histories for n samples."""
+        na = n_arms
+        shapes = dict(q_true=(n, 3), qd_true=(n, 3), q_desired=(n, 3), z_meas=(n, 6), gamma_desired=(n, 3),
+                      gamma_applied=(n, 3), gamma_measured=(n, 3), phi_hat=(n, 4), contact_y=(n, na),
+                      wrenches=(n, na, 6), arm_torque=(n, na, 7), push_torque=(n, na, 7), robot_x=(n, na, 10),
+                      grasp_error=(n, na), base_ratio=(n, na), wheel_ratio=(n, na))
+        return cls(**{k: np.zeros(shape) for k, shape in shapes.items()})
+
+
+@dataclass
+class ControlStep:
+    """What the cart side decides in one period: the desired wrench, the contacts and the hand wrenches."""
+
+    params_hat: CartParams
+    gamma_desired: np.ndarray
+    contact_y: np.ndarray
+    contact_rates: np.ndarray
+    wrenches_ee: np.ndarray  # (n_arms, 6) in {a}
+
+
+def make_robots(config: PushConfig, q_cart: np.ndarray, contact_y: np.ndarray) -> List[MobileManipulator]:
+    """Return the mobile manipulators holding the handle at `contact_y` (two: bases spread apart)."""
+    robot = robots.load(config.robot)
+    ys = contact_y
+    base_ys = [ys[0]] if config.n_arms == 1 else [ys[0] - TWO_ARM_BASE_SPREAD, ys[1] + TWO_ARM_BASE_SPREAD]
+    R_b_ee = grasp_rotation()
+    return [MobileManipulator(robot, q_cart, y, by, R_b_ee) for y, by in zip(ys, base_ys)]
+
+
+def control_step(t: float, dt: float, q: np.ndarray, controller: CartController, estimator: ParameterEstimator,
+                 scheduler: ContactScheduler, allocator: WrenchAllocator) -> Tuple[ControlStep, bool]:
+    """Return (the period's decisions, whether the allocation saturated): controller eq. (26), allocation eq. (25)."""
+    params_hat = estimator.params()
+    q_hat, qd_hat = estimator.x[0:3].copy(), estimator.x[3:6].copy()
+    gamma_d = np.asarray(controller.gamma(t, q_hat, qd_hat, params_hat), dtype=float)  # paper eq. (26)
+    ys, ydots = scheduler.update(t, params_hat, dt)
+    allocator.set_points([handle_point(v) for v in ys])
+    alloc = allocator.solve(cart_model.generalized_to_body(q, gamma_d), raise_on_infeasible=False)  # eq. (25)
+    saturated = alloc.residual > 1e-6 * max(1.0, float(np.abs(gamma_d).max()))
+    return ControlStep(params_hat, gamma_d, ys, ydots, alloc.wrenches_ee), saturated
+
+
+def robots_step(k: int, dt: float, q: np.ndarray, qd: np.ndarray, z: np.ndarray, step: ControlStep,
+                mms: Sequence[MobileManipulator], hist: PushHistory, config: PushConfig,
+                rng: np.random.Generator) -> Tuple[np.ndarray, np.ndarray]:
+    """Move each robot one period, record it; return (the wrench the hands apply, the F/T-measured one) as Gamma_MM."""
+    T_sb = cart_se3(q)
+    W = step.wrenches_ee
+    gamma_true = np.zeros(3)
+    gamma_meas = np.zeros(3)
+    for i, mm in enumerate(mms):
+        target, vel = grasp_target(q, qd, step.contact_y[i], step.contact_rates[i], mm.R_b_ee)
+        bpose, brates = base_target(q, qd, mm.base_offset_b)
+        u = mm.tracker.step(mm.x, target, vel, bpose, brates, dt)
+        w_world = np.concatenate([T_sb.rotation @ W[i, :3], T_sb.rotation @ W[i, 3:]])
+        tau, push, oMee, oMft = mm.torques(u, mm.u, dt, w_world)
+        gamma_true += cart_model.contact_wrench_to_generalized(q, handle_point(step.contact_y[i]), W[i, :2], W[i, 5])
+        reading = ft_measurement(w_world, oMee, oMft, rng, config.noise)
+        gamma_meas += ft_to_cart_gamma(reading, oMft, z[:3])
+        hist.arm_torque[k, i] = tau
+        hist.push_torque[k, i] = push
+        hist.robot_x[k, i] = mm.x
+        hist.grasp_error[k, i] = np.linalg.norm(oMee.translation - target.translation)
+        hist.base_ratio[k, i] = np.max(np.abs(u[mm.wb.n_arm:]) / BASE_TWIST_LIMIT)
+        hist.wheel_ratio[k, i] = np.max(np.abs(mm.wb.wheel_rates(u)) / mm.wb.wheel_velocity_limit)
+        hist.wrenches[k, i] = W[i]
+        mm.x = mm.wb.integrate(mm.x, u, dt)
+        mm.u = u
+    return gamma_true, gamma_meas
+
+
+def _iterations(n: int, progress: bool):
+    if not progress:
+        return range(n)
+    from tqdm import tqdm
+
+    return tqdm(range(n), desc="push", leave=False)
+
+
+def run_push(config: PushConfig = PushConfig(), controller: Optional[CartController] = None,
+             estimator: Optional[ParameterEstimator] = None, progress: bool = False) -> PushResult:
+    """Return the time histories and metrics of one closed-loop push (see the module docstring)."""
+    rng = np.random.default_rng(config.seed)
+    traj = config.make_trajectory()
+    controller = controller if controller is not None else make_controller(config.controller, traj)
+    q, qd, _ = traj.sample(0.0)
+    qd = qd.copy()
+    estimator = estimator if estimator is not None else make_estimator(config, q)
+    scheduler = ContactScheduler(config, traj)
+    mms = make_robots(config, q, scheduler.y)
+    allocator = WrenchAllocator([handle_point(v) for v in scheduler.y], config.arm_limits,
+                                only_motion_directions=True)
+    n = int(round(config.duration / config.dt)) + 1
+    dt, h = config.dt, config.dt / config.substeps
+    hist = PushHistory.empty(n, config.n_arms)
+    std = config.noise.measurement_std()
+    z = np.r_[q, qd] + rng.normal(0.0, 1.0, 6) * std
+    for k in _iterations(n, progress):
+        t = k * dt
+        step, saturated = control_step(t, dt, q, controller, estimator, scheduler, allocator)
+        hist.saturated += int(saturated)
+        gamma_true, gamma_meas = robots_step(k, dt, q, qd, z, step, mms, hist, config, rng)
+        q_d, _, _ = traj.sample(t)
+        for key, val in (("q_true", q), ("qd_true", qd), ("q_desired", q_d), ("z_meas", z),
+                         ("gamma_desired", step.gamma_desired), ("gamma_applied", gamma_true),
+                         ("gamma_measured", gamma_meas), ("phi_hat", step.params_hat.phi),
+                         ("contact_y", step.contact_y)):
+            getattr(hist, key)[k] = val
+        if k == n - 1:
+            break
+        for j in range(config.substeps):  # the true cart under the hands' wrench
+            q, qd = rk4_step(t + j * h, q, qd, gamma_true, config.true_params, h)
+        z = np.r_[q, qd] + rng.normal(0.0, 1.0, 6) * std  # motion capture
+        estimator.step(gamma_meas, dt, z)  # paper eq. (8-20)
+    return _result(config, hist, mms[0].effort_limit, estimator.params())
+
+
+_RESULT_FIELDS = ("q_true", "qd_true", "q_desired", "z_meas", "gamma_desired", "gamma_applied", "gamma_measured",
+                  "phi_hat", "contact_y", "wrenches", "arm_torque", "push_torque", "robot_x", "grasp_error")
+
+
+def _result(config: PushConfig, hist: PushHistory, effort_limit: np.ndarray, final: CartParams) -> PushResult:
+    n = hist.q_true.shape[0]
+    return PushResult(config=config, t=np.arange(n) * config.dt, effort_limit=effort_limit,
+                      metrics=_metrics(config, hist, effort_limit, final),
+                      **{key: getattr(hist, key) for key in _RESULT_FIELDS})
+
+
+def _metrics(config: PushConfig, H: PushHistory, effort_limit: np.ndarray, final: CartParams) -> PushMetrics:
+    err = np.hypot(H.q_true[:, 0] - H.q_desired[:, 0], H.q_true[:, 1] - H.q_desired[:, 1])
+    tau = H.arm_torque
+    f = np.linalg.norm(H.wrenches[:, :, :3], axis=2)
+    tz = np.linalg.norm(H.wrenches[:, :, 3:], axis=2)
+    truth = config.true_params
+    return PushMetrics(
+        tracking_rms_m=float(np.sqrt(np.mean(err ** 2))),
+        tracking_max_m=float(err.max()),
+        arm_torque_rms_nm=float(np.sqrt(np.mean(tau ** 2))),
+        arm_torque_peak_nm=float(np.abs(tau).max()),
+        arm_push_torque_rms_nm=float(np.sqrt(np.mean(H.push_torque ** 2))),
+        arm_torque_limit_ratio=float(np.max(np.abs(tau) / effort_limit)),
+        ee_force_rms_n=float(np.sqrt(np.mean(f ** 2))),
+        ee_force_peak_n=float(f.max()),
+        ee_torque_rms_nm=float(np.sqrt(np.mean(tz ** 2))),
+        mass_error_final_kg=float(abs(final.m - truth.m)),
+        com_error_final_m=float(np.hypot(final.dx - truth.dx, final.dy - truth.dy)),
+        mass_final_kg=float(final.m),
+        grasp_error_max_m=float(H.grasp_error.max()),
+        base_twist_limit_ratio=float(H.base_ratio.max()),
+        base_wheel_limit_ratio=float(H.wheel_ratio.max()),
+        saturated_steps=int(H.saturated),
+    )

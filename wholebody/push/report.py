@@ -1,0 +1,209 @@
+"""Reports of the closed-loop push: comparison table, figures, Meshcat page, log, and the demo.
+
+`run_demo(out_dir)` is what `cartpush demo` runs: Traj. 2 with estimation and an
+optimized contact point, the same without estimation (wrong initial mass), the
+comparison table, and a report directory (figures, ``scene.html``, ``push_log.csv``).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Dict, List
+
+import numpy as np
+
+from cart.logs import CartLog, write_log
+from wholebody.push.config import PushConfig, PushResult
+from wholebody.push.loop import run_push
+
+if TYPE_CHECKING:
+    from wholebody.viz import Scene
+
+#: Columns of the comparison table: (metrics key, header, format).
+TABLE_COLUMNS = (
+    ("tracking_rms_m", "track RMS [m]", "{:.4f}"),
+    ("tracking_max_m", "track max [m]", "{:.4f}"),
+    ("arm_torque_rms_nm", "tau RMS [Nm]", "{:.2f}"),
+    ("arm_torque_peak_nm", "tau peak [Nm]", "{:.1f}"),
+    ("arm_push_torque_rms_nm", "J^T w RMS [Nm]", "{:.2f}"),
+    ("ee_force_rms_n", "|f| RMS [N]", "{:.2f}"),
+    ("ee_force_peak_n", "|f| peak [N]", "{:.1f}"),
+    ("ee_torque_rms_nm", "|n| RMS [Nm]", "{:.2f}"),
+    ("mass_error_final_kg", "m err [kg]", "{:.3f}"),
+    ("com_error_final_m", "CoM err [m]", "{:.3f}"),
+)
+
+
+@dataclass(frozen=True)
+class DemoResult:
+    """The demo's runs (label -> result), its table (text), report directory and wall time."""
+
+    runs: Dict[str, PushResult]
+    table: str
+    out_dir: Path
+    seconds: float
+
+
+def describe(config: PushConfig) -> str:
+    """Return a short label of a run configuration."""
+    est = "EKF" if config.estimation else f"no EKF (m={config.initial_mass:g})"
+    contact = "optimal CP" if config.contact == "optimal" else f"fixed CP y={','.join(f'{v:g}' for v in config.contact_y0())}"
+    return f"Traj.{config.trajectory} {config.n_arms} arm{'s' if config.n_arms > 1 else ''}, {est}, {contact}"
+
+
+def comparison_table(runs: Dict[str, PushResult], markdown: bool = False) -> str:
+    """Return the metrics of several runs as a text (or Markdown) table, one row per run."""
+    heads = ["run"] + [h for _, h, _ in TABLE_COLUMNS]
+    rows = [[label] + [fmt.format(r.metrics.as_dict()[k]) for k, _, fmt in TABLE_COLUMNS] for label, r in runs.items()]
+    if markdown:
+        lines = ["| " + " | ".join(heads) + " |", "|" + "|".join("---" for _ in heads) + "|"]
+        lines += ["| " + " | ".join(row) + " |" for row in rows]
+        return "\n".join(lines)
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(heads)]
+    fmt_row = lambda row: "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(row, widths)))
+    return "\n".join([fmt_row(heads)] + [fmt_row(r) for r in rows])
+
+
+def push_log(result: PushResult) -> CartLog:
+    """Return the run's measured log (LOG_FORMAT): motion-capture pose/velocity, F/T wrench, contact of arm 0."""
+    c = result.config
+    p = c.true_params
+    contact = np.column_stack([np.full(len(result.t), -0.15), result.contact_y[:, 0]])
+    meta = {"source": "wholebody.push", "trajectory": str(c.trajectory), "arms": str(c.n_arms),
+            "estimation": str(c.estimation), "contact": c.contact, "dt": repr(c.dt), "seed": str(c.seed),
+            "true_params": f"m={p.m} dx={p.dx} dy={p.dy} I={p.I:.4f} sigma={p.sigma}",
+            "initial_mass": repr(c.initial_mass)}
+    return CartLog(t=result.t, q=result.z_meas[:, :3], gamma=result.gamma_measured, qd=result.z_meas[:, 3:],
+                   contact_b=contact, metadata=meta)
+
+
+def save_figures(runs: Dict[str, PushResult], out_dir: Path) -> List[Path]:
+    """Write PNG figures comparing the runs (path, tracking error, mass/CoM estimate, torques, forces)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    first = next(iter(runs.values()))
+    fig, ax = plt.subplots(figsize=(6, 5))
+    ax.plot(first.q_desired[:, 0], first.q_desired[:, 1], "k--", label="desired")
+    for label, r in runs.items():
+        ax.plot(r.q_true[:, 0], r.q_true[:, 1], label=label)
+        ax.plot(r.robot_x[:, 0, 0], r.robot_x[:, 0, 1], ":", alpha=0.6)
+    ax.set_xlabel("x [m]"), ax.set_ylabel("y [m]"), ax.axis("equal"), ax.legend(fontsize=7)
+    ax.set_title("cart path (dotted: base of robot 1)")
+    paths.append(_save(fig, out_dir / "path.png"))
+    fig, axes = plt.subplots(4, 1, figsize=(7, 10), sharex=True)
+    for label, r in runs.items():
+        err = np.hypot(*(r.q_true[:, :2] - r.q_desired[:, :2]).T)
+        axes[0].plot(r.t, 100 * err, label=label)
+        axes[1].plot(r.t, r.phi_hat[:, 0], label=label)
+        axes[2].plot(r.t, r.phi_hat[:, 1] / r.phi_hat[:, 0], label=f"dx {label}")
+        axes[2].plot(r.t, r.phi_hat[:, 2] / r.phi_hat[:, 0], "--", label=f"dy {label}")
+        axes[3].plot(r.t, np.linalg.norm(r.wrenches[:, 0, :3], axis=1), label=label)
+    p = first.config.true_params
+    axes[1].axhline(p.m, color="k", lw=0.8)
+    axes[2].axhline(p.dx, color="k", lw=0.8), axes[2].axhline(p.dy, color="k", lw=0.8, ls="--")
+    for a, lab in zip(axes, ("tracking error [cm]", "mass estimate [kg]", "CoM estimate [m]", "hand force |f| [N]")):
+        a.set_ylabel(lab), a.grid(alpha=0.3)
+    axes[0].legend(fontsize=7), axes[2].legend(fontsize=6, ncol=2)
+    axes[-1].set_xlabel("t [s]")
+    paths.append(_save(fig, out_dir / "tracking_estimation.png"))
+    fig, axes = plt.subplots(len(runs), 1, figsize=(7, 3 * len(runs)), sharex=True, squeeze=False)
+    for a, (label, r) in zip(axes[:, 0], runs.items()):
+        for j in range(7):
+            a.plot(r.t, r.arm_torque[:, 0, j], lw=0.8, label=f"joint {j + 1}")
+        a.set_title(label, fontsize=8), a.set_ylabel("tau [N m]"), a.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=6, ncol=4)
+    axes[-1, 0].set_xlabel("t [s]")
+    paths.append(_save(fig, out_dir / "arm_torques.png"))
+    return paths
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return path
+
+
+def build_scene(result: PushResult, fps: int = 10) -> "Scene":
+    """Return a Meshcat scene animating the run: robot 1, the cart, the hand force, the true and estimated CoM."""
+    import robots
+    from robots.shopping_cart import CART_WHEEL_RADIUS
+    from wholebody.motion.kinematics import wholebody_for
+    from wholebody.push.robot import cart_se3, handle_point
+    from wholebody.viz import COM_MARKER_Z, Scene
+
+    wb = wholebody_for(robots.load("ridgeback_iiwa"), base_input="twist")
+    step = max(1, int(round(1.0 / (fps * result.config.dt))))
+    idx = np.arange(0, len(result.t), step)
+    qj = np.array([wb.to_pinocchio_q(result.robot_x[i, 0])[4:] for i in idx])
+    poses = [cart_se3(result.q_true[i]) for i in idx]
+    origins = np.array([T.act(handle_point(result.contact_y[i, 0])) for T, i in zip(poses, idx)])
+    forces = np.array([T.rotation @ result.wrenches[i, 0, :3] for T, i in zip(poses, idx)])
+    z = COM_MARKER_Z - CART_WHEEL_RADIUS  # markers at COM_MARKER_Z above the floor, as Scene.show_com draws them
+    p = result.config.true_params
+    phi = result.phi_hat[idx]
+    com_true = np.array([T.act(np.array([p.dx, p.dy, z])) for T in poses])
+    com_est = np.array([T.act(np.array([f[1] / f[0], f[2] / f[0], z])) for T, f in zip(poses, phi)])
+    x0, x1 = result.q_true[:, 0].min() - 2, result.q_true[:, 0].max() + 2
+    y0, y1 = result.q_true[:, 1].min() - 2, result.q_true[:, 1].max() + 2
+    scene = Scene(["ridgeback_iiwa", "shopping_cart"], floor=(x0, x1, y0, y1))
+    scene.show_com((p.dx, p.dy), (phi[0, 1] / phi[0, 0], phi[0, 2] / phi[0, 0]))
+    scene.show_trace("desired", result.q_desired[:, :2])
+    scene.animate(result.t[idx], {"ridgeback_iiwa": result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},
+                  q_joints={"ridgeback_iiwa": qj}, wrenches={"hand": (origins, forces)},
+                  markers={"com/com_true": com_true, "com/com_est": com_est}, scale=0.02, fps=fps)
+    return scene
+
+
+def save_scene(result: PushResult, path: Path, fps: int = 10) -> Path:
+    """Write a self-contained Meshcat page animating the run (see `build_scene`); return its path."""
+    with build_scene(result, fps) as scene:
+        return scene.save_html(path)
+
+
+def write_report(runs: Dict[str, PushResult], out_dir: Path, scene_run: str | None = None,
+                 html: bool = True) -> List[Path]:
+    """Write figures, the first (or `scene_run`) run's log and Meshcat page, and the tables; return the paths."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    main = runs[scene_run] if scene_run else next(iter(runs.values()))
+    paths = save_figures(runs, out_dir)
+    log_path = out_dir / "push_log.csv"
+    write_log(log_path, push_log(main))
+    paths.append(log_path)
+    table = out_dir / "comparison.md"
+    table.write_text(comparison_table(runs, markdown=True) + "\n")
+    paths.append(table)
+    if html:
+        paths.append(save_scene(main, out_dir / "scene.html"))
+    return paths
+
+
+def demo_configs(duration: float = 30.0) -> Dict[str, PushConfig]:
+    """Return the demo's runs: Traj. 2, optimized contact, with and without estimation (initial mass 16 kg)."""
+    base = PushConfig(trajectory=2, duration=duration, contact="optimal", estimation=True)
+    return {"with estimation": base, "without estimation": replace(base, estimation=False)}
+
+
+def run_demo(out_dir: Path, duration: float = 30.0, html: bool = True, verbose: bool = True) -> DemoResult:
+    """Run the demo's two pushes, print the comparison table and write the report directory."""
+    t0 = time.perf_counter()
+    runs = {label: run_push(cfg) for label, cfg in demo_configs(duration).items()}
+    table = comparison_table(runs)
+    write_report(runs, Path(out_dir), html=html)
+    seconds = time.perf_counter() - t0
+    if verbose:
+        print(f"Push loop, {describe(runs['with estimation'].config)} vs without estimation "
+              f"(true cart m={runs['with estimation'].config.true_params.m:g} kg, CoM "
+              f"({runs['with estimation'].config.true_params.dx:g}, {runs['with estimation'].config.true_params.dy:g}) m):")
+        print(table)
+        print(f"report: {Path(out_dir).resolve()}  ({seconds:.1f} s)")
+    return DemoResult(runs=runs, table=table, out_dir=Path(out_dir), seconds=seconds)

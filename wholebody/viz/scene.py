@@ -1,0 +1,734 @@
+"""Meshcat scenes: robots and cart (Pinocchio's visualizer), contacts, wrench arrows, CoM, traces, animations.
+
+A `Scene` records every Meshcat command in-process, so `save_html` writes a
+self-contained static page (viewer JavaScript inlined, works offline) without
+any server. With ``serve=True`` it also starts a local Meshcat server and
+forwards the commands to it (open `Scene.url` in a browser); `close()` (or a
+``with`` block) stops that server.
+
+>>> with Scene(["ridgeback_iiwa", "shopping_cart"]) as scene:
+...     scene.set_robot_pose("shopping_cart", (0.9, 0.0, 0.0))
+...     scene.save_html("scene.html")
+"""
+from __future__ import annotations
+
+import base64
+import contextlib
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import meshcat
+import meshcat.geometry as mg
+import meshcat.transformations as tf
+import numpy as np
+import pinocchio as pin
+import umsgpack
+from meshcat.animation import Animation, AnimationClip
+from meshcat.commands import SetProperty
+from meshcat.path import Path as PathOf
+from meshcat.servers.tree import SceneTree, find_node, walk
+from pinocchio.visualize import MeshcatVisualizer
+
+import robots
+from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
+from wholebody.errors import WholeBodyError
+from wholebody.motion.bases import planar_pose_matrix
+
+#: Colours (0xRRGGBB) of the overlays.
+COLORS = {
+    "applied": 0x1565C0,  # blue: wrench the manipulator applies
+    "desired": 0x2E7D32,  # green: wrench the planner/controller asked for
+    "contact": 0x111111,
+    "com_true": 0x1F3FBF,
+    "com_est": 0xE040FB,
+    "trace": 0x00E5FF,
+}
+#: Height (m above the floor) at which CoM markers are drawn (just above the basket).
+COM_MARKER_Z = 0.95
+#: Default floor grid (xmin, xmax, ymin, ymax), metres.
+FLOOR = (-2.0, 6.0, -3.0, 3.0)
+#: Most grid lines per axis of the floor (the spacing grows from 0.5 m to 1-2-5 steps to respect it).
+MAX_FLOOR_LINES = 120
+#: Most keyframes of one animation (longer runs are decimated; playback stays in real time).
+MAX_FRAMES = 3000
+#: Default arrow scale: metres of arrow per newton (and per newton-metre for torques).
+FORCE_SCALE = 0.01
+_VIEWER_JS = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
+
+
+class SceneError(WholeBodyError):
+    """Bad input to a `Scene` (unknown robot name, malformed pose or points)."""
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A perspective camera looking from `eye` at `target` (world, z up), vertical field of view `fov_deg`.
+
+    This is Meshcat's default camera (three.js PerspectiveCamera, fov 75 deg,
+    orbit controls around `target`); `project` maps world points to pixels.
+    """
+
+    target: tuple[float, float, float] = (0.45, 0.0, 0.55)
+    eye: tuple[float, float, float] = (2.1, -2.3, 1.9)
+    fov_deg: float = 50.0
+
+    @staticmethod
+    def framing(points: Any, elevation: float = 0.65) -> "Camera":
+        """Return a camera that sees the world points (N, 3) from the -y side, looking down by about `elevation` rad."""
+        p = np.atleast_2d(np.asarray(points, dtype=float))
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        centre = (lo + hi) / 2
+        radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1.0)
+        dist = 0.95 * radius / math.tan(math.radians(25.0))
+        d = np.array([0.55, -0.85 * math.cos(elevation), math.sin(elevation)])
+        d /= np.linalg.norm(d)
+        return Camera(target=tuple(centre), eye=tuple(centre + dist * d), fov_deg=50.0)
+
+    def project(self, points: np.ndarray, width: int, height: int) -> np.ndarray:
+        """Return pixel coordinates (u right, v down), shape (N, 2), of world points (N, 3)."""
+        p = np.atleast_2d(np.asarray(points, dtype=float))
+        eye, target = np.asarray(self.eye, float), np.asarray(self.target, float)
+        fwd = (target - eye) / np.linalg.norm(target - eye)
+        right = np.cross(fwd, [0.0, 0.0, 1.0])
+        right /= np.linalg.norm(right)
+        up = np.cross(right, fwd)
+        d = p - eye
+        zc = d @ fwd
+        t = math.tan(math.radians(self.fov_deg) / 2)
+        ndc_x = (d @ right) / (zc * t * width / height)
+        ndc_y = (d @ up) / (zc * t)
+        return np.column_stack(((ndc_x + 1) / 2 * width, (1 - ndc_y) / 2 * height))
+
+
+class _RecordingWindow:
+    """A Meshcat window that keeps the scene tree in-process and optionally forwards to a live server."""
+
+    def __init__(self, live: Any | None = None) -> None:
+        self.tree = SceneTree()
+        self.animation: bytes | None = None
+        self.live = live
+
+    def send(self, command: Any) -> None:
+        """Record a Meshcat command (same tree semantics as meshcat's zmq server) and forward it."""
+        data = command.lower()
+        path = [p for p in data["path"].split("/") if p]
+        packed = umsgpack.packb(data)
+        kind = data["type"]
+        if kind == "set_object":
+            node = find_node(self.tree, path)
+            node.object, node.properties = packed, []
+        elif kind == "set_transform":
+            find_node(self.tree, path).transform = packed
+        elif kind == "set_property":
+            find_node(self.tree, path).properties.append(packed)
+        elif kind == "set_animation":
+            self.animation = packed
+        elif kind == "delete":
+            if path:
+                parent = find_node(self.tree, path[:-1])
+                parent.pop(path[-1], None)
+            else:
+                self.tree, self.animation = SceneTree(), None
+        if self.live is not None:
+            self.live.send(command)
+
+    def commands(self) -> list[bytes]:
+        """Return the recorded scene as msgpack commands, animation last."""
+        out: list[bytes] = []
+        for node in walk(self.tree):
+            if node.object is not None:
+                out.append(node.object)
+            out.extend(node.properties)
+            if node.transform is not None:
+                out.append(node.transform)
+        if self.animation is not None:
+            out.append(self.animation)
+        return out
+
+    def local_transform(self, path: Sequence[str]) -> np.ndarray:
+        """Return the recorded transform (4x4) of the node at `path` (identity when none was set)."""
+        node = self.tree
+        for part in path:
+            if part not in node:
+                raise SceneError(f"scene has no node /{'/'.join(path)}")
+            node = node[part]
+        if node.transform is None:
+            return np.eye(4)
+        return np.array(umsgpack.unpackb(node.transform)["matrix"], dtype=float).reshape(4, 4).T
+
+    def get_image(self):  # pinocchio checks that the viewer can capture images
+        raise SceneError("image capture needs a browser; use Scene.save_html and a headless browser")
+
+
+def _grid_step(span: float, step: float) -> float:
+    """Return `step`, or the smallest 1-2-5 x 10^k spacing above it that keeps a grid over `span` within MAX_FLOOR_LINES."""
+    if span / step <= MAX_FLOOR_LINES - 1:
+        return step
+    raw = span / (MAX_FLOOR_LINES - 1)
+    base = 10.0 ** math.floor(math.log10(raw))
+    for m in (1.0, 2.0, 5.0, 10.0):
+        if m * base >= raw:
+            return m * base
+    return 10.0 * base
+
+
+def _camera_js(camera: Camera) -> str:
+    """Return JavaScript that points the viewer's camera from `camera.eye` at `camera.target`.
+
+    Meshcat's three.js scene is rotated -90 deg about x (z up) and the camera
+    hangs under a node rotated +90 deg, so camera and orbit-control coordinates
+    are three.js world coordinates: meshcat (x, y, z) -> (x, z, -y).
+    """
+    (ex, ey, ez), (tx, ty, tz) = camera.eye, camera.target
+    e, t = (", ".join(f"{float(v):.6g}" for v in vec) for vec in ((ex, ez, -ey), (tx, tz, -ty)))
+    return f"""(function () {{
+  const cam = viewer.camera;
+  cam.fov = {float(camera.fov_deg):.6g};
+  cam.updateProjectionMatrix();
+  cam.position.set({e});
+  viewer.controls.target.set({t});
+  viewer.controls.update();
+  viewer.set_dirty();
+}})();
+"""
+
+
+def _static_html(commands: Sequence[bytes], controls: bool = True, camera: Camera | None = None) -> str:
+    """Return a self-contained HTML page (viewer JavaScript inlined) replaying `commands`, then setting `camera`."""
+    js = _VIEWER_JS.read_text(encoding="utf-8")
+    calls = "".join(
+        f'viewer.handle_command_bytearray(b64("{base64.b64encode(c).decode("ascii")}"));\n' for c in commands
+    )
+    hide = "" if controls else ".dg.main, .dg.ac {display: none !important;}"
+    return f"""<!DOCTYPE html>
+<html>
+<head><meta charset="utf-8"><title>cartpush scene</title>
+<style>body {{margin: 0;}} #meshcat-pane {{width: 100vw; height: 100vh; overflow: hidden;}} {hide}</style>
+</head>
+<body>
+<div id="meshcat-pane"></div>
+<script>
+{js}
+</script>
+<script>
+function b64(s) {{ const b = atob(s); const a = new Uint8Array(b.length);
+  for (let i = 0; i < b.length; i++) a[i] = b.charCodeAt(i); return a; }}
+var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+{calls}{_camera_js(camera) if camera is not None else ""}
+</script>
+</body>
+</html>
+"""
+
+
+def _start_server() -> tuple[Any, Any]:
+    """Return (meshcat ViewerWindow connected to a new local server, server process)."""
+    with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL on stdout
+        window = meshcat.visualizer.ViewerWindow(zmq_url=None, start_server=True, server_args=[])
+    return window, window.server_proc
+
+
+def _planar_q(model: pin.Model, planar_pose: Sequence[float], q_joints: Any) -> np.ndarray:
+    """Return a full configuration: planar root (x, y, theta) + the other joints (array or name -> angle)."""
+    pose = np.asarray(planar_pose, dtype=float).ravel()
+    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+        raise SceneError(f"planar pose must be 3 finite numbers (x, y, theta), got {planar_pose!r}")
+    q = pin.neutral(model)
+    q[:4] = pose[0], pose[1], math.cos(pose[2]), math.sin(pose[2])
+    if q_joints is None:
+        return q
+    if isinstance(q_joints, Mapping):
+        for name, angle in q_joints.items():
+            if not model.existJointName(name):
+                raise SceneError(f"model has no joint {name!r}")
+            j = model.joints[model.getJointId(name)]
+            if j.nq != 1:
+                raise SceneError(f"joint {name!r} has nq={j.nq}; give it in the array form of q_joints")
+            q[j.idx_q] = float(angle)
+        return q
+    rest = np.asarray(q_joints, dtype=float).ravel()
+    if rest.shape != (model.nq - 4,) or not np.all(np.isfinite(rest)):
+        raise SceneError(f"q_joints must have {model.nq - 4} finite entries (nq - 4), got shape {rest.shape}")
+    q[4:] = rest
+    return q
+
+
+def _js_pose(T: np.ndarray) -> tuple[list[float], list[float]]:
+    """Return (position, quaternion x y z w) of a rigid 4x4 transform, as three.js animation keys want them."""
+    quat = pin.Quaternion(np.ascontiguousarray(T[:3, :3])).coeffs()  # (x, y, z, w)
+    return [float(v) for v in T[:3, 3]], [float(v) for v in quat]
+
+
+def _set_key(anim: Animation, path: Any, frame: int, T: np.ndarray, scale: np.ndarray | None = None) -> None:
+    """Add position/quaternion (and scale) keys of the node at `path` to `anim` at `frame`."""
+    if path not in anim.clips:
+        anim.clips[path] = AnimationClip(fps=anim.default_framerate)
+    clip = anim.clips[path]
+    pos, quat = _js_pose(T)
+    clip.set_property(frame, "position", "vector3", pos)
+    clip.set_property(frame, "quaternion", "quaternion", quat)
+    if scale is not None:
+        clip.set_property(frame, "scale", "vector3", [float(v) for v in scale])
+
+
+def _points3(points: Any, z: float) -> np.ndarray:
+    """Return points as (N, 3); 2-D points get height `z`."""
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    if p.ndim != 2 or p.shape[1] not in (2, 3) or not np.all(np.isfinite(p)):
+        raise SceneError(f"points must be finite (N, 2) or (N, 3), got shape {np.shape(points)}")
+    if p.shape[1] == 2:
+        p = np.column_stack((p, np.full(len(p), z)))
+    return p
+
+
+def _rotation_x_to(direction: np.ndarray) -> np.ndarray:
+    """Return a rotation matrix whose x axis is the unit vector `direction`."""
+    x = direction / np.linalg.norm(direction)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(x[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    y = np.cross(helper, x)
+    y /= np.linalg.norm(y)
+    return np.column_stack((x, y, np.cross(x, y)))
+
+
+def _arrow_parts(origin: np.ndarray, vector: np.ndarray, head: float) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """Return [(part, rigid transform, scale)] for the group, shaft and head of an arrow from `origin` along `vector`.
+
+    The group carries position and direction; the unit shaft (along x) is
+    stretched to length |vector| - head; the head sits at the tip. A zero
+    vector collapses the group (scale 1e-6), i.e. the arrow is invisible.
+    """
+    length = float(np.linalg.norm(vector))
+    group = np.eye(4)
+    group[:3, 3] = origin
+    if length < 1e-9:
+        return [("", group, np.full(3, 1e-6)), ("shaft", np.eye(4), np.ones(3)), ("head", np.eye(4), np.ones(3))]
+    group[:3, :3] = _rotation_x_to(vector)
+    h = min(head, 0.5 * length)
+    shaft, tip = tf.translation_matrix([(length - h) / 2, 0, 0]), tf.translation_matrix([length - h / 2, 0, 0])
+    return [("", group, np.ones(3)), ("shaft", shaft, np.array([length - h, 1.0, 1.0])), ("head", tip, np.full(3, h / head))]
+
+
+def _set_arrow(node: Any, parts: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
+    """Set the (scaled) arrow transforms on the Visualizer `node`."""
+    for part, T, scale in parts:
+        S = T.copy()
+        S[:3, :3] = T[:3, :3] * scale
+        (node[part] if part else node).set_transform(S)
+
+
+class Scene:
+    """A Meshcat scene of robots (by `robots.load` name) with contacts, wrenches, CoM markers, traces and animations."""
+
+    def __init__(self, robot_names: Sequence[str] = ("ridgeback_iiwa", "shopping_cart"), serve: bool = False,
+                 camera: Camera | None = None, floor: tuple[float, float, float, float] = FLOOR) -> None:
+        """Load the robots (each under its own node `/meshcat/<name>`) at the origin; optionally start a server.
+
+        `floor` (xmin, xmax, ymin, ymax) is drawn as a 0.5 m grid of short
+        segments instead of Meshcat's 20 m grid (whose long lines software
+        renderers drop when they pass behind the camera).
+        """
+        names = list(robot_names)
+        if len(set(names)) != len(names):
+            raise SceneError(f"robot names must be unique, got {names}")
+        self._server = None
+        live = None
+        if serve:
+            live, self._server = _start_server()
+        self.window = _RecordingWindow(live)
+        self.viewer = meshcat.Visualizer(window=self.window)
+        self.url: str | None = live.web_url if live is not None else None
+        self.robots: dict[str, robots.LoadedRobot] = {}
+        self._viz: dict[str, MeshcatVisualizer] = {}
+        self._q: dict[str, np.ndarray] = {}
+        try:
+            for name in names:
+                robot = robots.load(name)  # raises UnknownRobotError for bad names
+                viz = MeshcatVisualizer(robot.model, None, robot.visual_model, data=robot.data,
+                                        visual_data=robot.visual_data)
+                viz.initViewer(viewer=self.viewer)
+                viz.loadViewerModel(rootNodeName=name)
+                self.robots[name], self._viz[name] = robot, viz
+                self.set_robot_pose(name, (0.0, 0.0, 0.0))
+            self.camera = camera or Camera()
+            self.set_camera(self.camera)
+            self.set_floor(floor)
+        except BaseException:
+            self.close()
+            raise
+
+    # -- lifecycle -----------------------------------------------------------------
+    def close(self) -> None:
+        """Stop the Meshcat server started by ``serve=True`` (no-op otherwise)."""
+        if self._server is not None:
+            self._server.kill()
+            self._server.wait()
+            for stream in (self._server.stdout, self._server.stderr):
+                if stream is not None:
+                    stream.close()
+            self.window.live.zmq_socket.close(linger=0)
+            self._server = None
+
+    def __enter__(self) -> "Scene":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    # -- robots ----------------------------------------------------------------------
+    def _robot(self, name: str) -> robots.LoadedRobot:
+        if name not in self.robots:
+            raise SceneError(f"scene has no robot {name!r}; robots: {', '.join(self.robots)}")
+        return self.robots[name]
+
+    def set_robot_pose(self, name: str, planar_pose: Sequence[float], q_joints: Any = None) -> np.ndarray:
+        """Place robot `name` at planar pose (x, y, theta) with joints `q_joints`; return its full configuration.
+
+        `q_joints` is either the nq - 4 entries after the planar root (Pinocchio
+        order) or a mapping joint name -> angle for 1-dof joints (others neutral).
+        """
+        robot = self._robot(name)
+        self.set_robot_q(name, _planar_q(robot.model, planar_pose, q_joints))
+        return self._q[name].copy()
+
+    def set_robot_q(self, name: str, q: np.ndarray) -> None:
+        """Display robot `name` at full Pinocchio configuration `q` (nq entries).
+
+        The planar root goes to the transform of node `/meshcat/<name>`; the
+        geometry below it is placed by Pinocchio with the root at the origin.
+        """
+        robot = self._robot(name)
+        q = np.asarray(q, dtype=float).ravel()
+        if q.shape != (robot.model.nq,) or not np.all(np.isfinite(q)):
+            raise SceneError(f"q of {name!r} must have {robot.model.nq} finite entries, got shape {q.shape}")
+        q_local = q.copy()
+        q_local[:4] = 0.0, 0.0, 1.0, 0.0
+        self._viz[name].display(q_local)
+        self.viewer[name].set_transform(planar_pose_matrix(q[0], q[1], math.atan2(q[3], q[2])))
+        self._q[name] = q.copy()
+
+    def robot_q(self, name: str) -> np.ndarray:
+        """Return the configuration robot `name` is displayed at."""
+        self._robot(name)
+        return self._q[name].copy()
+
+    def frame_position(self, name: str, role: str) -> np.ndarray:
+        """Return the world position of frame `role` (or frame name) of robot `name` as displayed."""
+        robot = self._robot(name)
+        pin.framesForwardKinematics(robot.model, robot.data, self._q[name])
+        return robot.data.oMf[robot.frame_id(role)].translation.copy()
+
+    def cart_to_world(self, points_b: Any, cart: str = "shopping_cart") -> np.ndarray:
+        """Return world positions (N, 3) of points given in the cart frame {b} (2-D points lie at the handle height)."""
+        q = self._q[self._robot(cart).name]
+        p = _points3(points_b, CART_HANDLE_Z_B)
+        c, s = q[2], q[3]
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return p @ rot.T + np.array([q[0], q[1], CART_WHEEL_RADIUS])
+
+    # -- overlays --------------------------------------------------------------------
+    def show_contact(self, name: str, points: Any, frame: str = "world", radius: float = 0.025,
+                     color: int = COLORS["contact"]) -> np.ndarray:
+        """Draw contact points as spheres under `/meshcat/contacts/<name>`; return their world positions.
+
+        `frame` is ``"world"`` (2-D points lie on the floor) or ``"b"`` (cart
+        frame; 2-D points lie at the handle height, like LOG_FORMAT's contact_x/y).
+        """
+        world = self._to_world(points, frame)
+        node = self.viewer["contacts"][name]
+        node.delete()
+        for i, p in enumerate(world):
+            node[str(i)].set_object(mg.Sphere(radius), mg.MeshLambertMaterial(color=color))
+            node[str(i)].set_transform(tf.translation_matrix(p))
+        return world
+
+    def _to_world(self, points: Any, frame: str) -> np.ndarray:
+        if frame == "world":
+            return _points3(points, 0.0)
+        if frame == "b":
+            return self.cart_to_world(points)
+        raise SceneError(f"frame must be 'world' or 'b', got {frame!r}")
+
+    def _arrow_node(self, name: str, kind: str, radius: float, head: float) -> Any:
+        if kind not in ("applied", "desired"):
+            raise SceneError(f"wrench kind must be 'applied' or 'desired', got {kind!r}")
+        node = self.viewer["wrenches"][kind][name]
+        material = mg.MeshLambertMaterial(color=COLORS[kind])
+        shaft_rot = tf.rotation_matrix(-math.pi / 2, [0, 0, 1])  # meshcat cylinders lie along y
+        node["shaft"]["geom"].set_object(mg.Cylinder(1.0, radius), material)
+        node["shaft"]["geom"].set_transform(shaft_rot)
+        node["head"]["geom"].set_object(mg.Cylinder(head, radiusTop=0.0, radiusBottom=2.2 * radius), material)
+        node["head"]["geom"].set_transform(shaft_rot)
+        return node
+
+    def show_wrench(self, name: str, origin: Any, force: Any, kind: str = "applied", torque: float | None = None,
+                    frame: str = "world", scale: float = FORCE_SCALE) -> float:
+        """Draw a force arrow (length `scale` * |force| m) at `origin`; return the arrow length.
+
+        `kind` ``"applied"`` (blue) or ``"desired"`` (green). `force` is (fx, fy)
+        or (fx, fy, fz) in world axes. A vertical torque `torque` (N m) is drawn
+        as a thinner vertical arrow (right-hand rule) at the same origin.
+        `frame` says where `origin` is given (``"world"`` or cart ``"b"``).
+        """
+        o = self._to_world(origin, frame)[0]
+        f = np.asarray(force, dtype=float).ravel()
+        if f.shape not in ((2,), (3,)) or not np.all(np.isfinite(f)):
+            raise SceneError(f"force must be 2 or 3 finite numbers, got {force!r}")
+        f = np.append(f, 0.0) if f.size == 2 else f
+        node = self._arrow_node(name, kind, 0.012, 0.06)
+        _set_arrow(node, _arrow_parts(o, scale * f, 0.06))
+        if torque is not None:
+            tnode = self._arrow_node(f"{name}_torque", kind, 0.006, 0.04)
+            _set_arrow(tnode, _arrow_parts(o, np.array([0.0, 0.0, scale * float(torque)]), 0.04))
+        return float(scale * np.linalg.norm(f))
+
+    def show_com(self, true_b: Any, est_b: Any, radius: float = 0.04) -> np.ndarray:
+        """Draw the cart's true and estimated CoM (dx, dy) in {b} as two spheres; return their world positions (2, 3)."""
+        pts = np.vstack((_points3(true_b, 0.0), _points3(est_b, 0.0)))[:, :2]
+        world = self.cart_to_world(np.column_stack((pts, np.full(2, COM_MARKER_Z - CART_WHEEL_RADIUS))))
+        for key, p in zip(("com_true", "com_est"), world):
+            self.viewer["com"][key].set_object(mg.Sphere(radius), mg.MeshLambertMaterial(color=COLORS[key]))
+            self.viewer["com"][key].set_transform(tf.translation_matrix(p))
+        return world
+
+    def show_trace(self, name: str, points: Any, color: int = COLORS["trace"], z: float = 0.005) -> np.ndarray:
+        """Draw a polyline through `points` ((N, 2) on the floor at height `z`, or (N, 3)); return them as (N, 3)."""
+        p = _points3(points, z)
+        if len(p) < 2:
+            raise SceneError("a trace needs at least 2 points")
+        geom = mg.PointsGeometry(p.T.astype(np.float32))
+        self.viewer["traces"][name].set_object(mg.Line(geom, mg.LineBasicMaterial(color=color, linewidth=3)))
+        return p
+
+    def set_floor(self, floor: tuple[float, float, float, float], step: float = 0.5) -> int:
+        """Draw a floor grid over (xmin, xmax, ymin, ymax) at `step` spacing, hiding Meshcat's grid; return #segments."""
+        x0, x1, y0, y1 = (float(v) for v in floor)
+        if not (x1 > x0 and y1 > y0 and all(math.isfinite(v) for v in (x0, x1, y0, y1))):
+            raise SceneError(f"floor must be (xmin, xmax, ymin, ymax) with xmin < xmax, ymin < ymax, got {floor!r}")
+        step = _grid_step(max(x1 - x0, y1 - y0), float(step))
+        x0, y0 = math.floor(x0 / step) * step, math.floor(y0 / step) * step
+        xs, ys = np.arange(x0, x1 + 1e-9, step), np.arange(y0, y1 + 1e-9, step)
+        segs = [((a, y), (b, y)) for y in ys for a, b in zip(xs[:-1], xs[1:])]
+        segs += [((x, a), (x, b)) for x in xs for a, b in zip(ys[:-1], ys[1:])]
+        pts = np.array([p for seg in segs for p in seg])
+        pts = np.column_stack((pts, np.zeros(len(pts)))).T.astype(np.float32)
+        self.viewer["/Grid"].set_property("visible", False)
+        self.viewer["floor"].set_object(mg.LineSegments(mg.PointsGeometry(pts), mg.LineBasicMaterial(color=0x9AA4B0)))
+        return len(segs)
+
+    def set_camera(self, camera: Camera) -> None:
+        """Use `camera` for the static page (exact) and, approximately, for a live viewer.
+
+        Meshcat 0.3 has no command for the orbit target, so the static page sets
+        it with a script (`_camera_js`); a live viewer only gets the camera
+        position and orbits around the world origin.
+        """
+        self.camera = camera
+        if self.window.live is not None:
+            d = np.asarray(camera.eye, float)  # the camera node is rotated +90 deg about x: (x, y, z) -> (x, z, -y)
+            self.window.live.send(SetProperty("position", [d[0], d[2], -d[1]], PathOf("/Cameras/default/rotated/<object>")))
+
+    # -- animation -------------------------------------------------------------------
+    def animate(self, t: Sequence[float], poses: Mapping[str, Any], q_joints: Mapping[str, Any] | None = None,
+                wrenches: Mapping[str, tuple[Any, Any]] | None = None, kind: str = "applied",
+                markers: Mapping[str, Any] | None = None, scale: float = FORCE_SCALE, fps: int = 30,
+                play: bool = True, repetitions: int = 1) -> int:
+        """Animate robots, force arrows and markers over times `t`; return the number of animation frames.
+
+        poses: robot name -> (N, 3) planar poses. q_joints: robot name -> (N, nq-4).
+        wrenches: arrow name -> ((N, 3) world origins, (N, 2|3) forces).
+        markers: node path under /meshcat (e.g. ``"com/com_est"``, made by
+        `show_com` / `show_contact`) -> (N, 3) world positions. Samples are
+        resampled at `fps` (latest sample at or before each frame time) so
+        playback runs in real time; beyond MAX_FRAMES frames only every k-th
+        frame gets keys (three.js interpolates between them), so the page stays small.
+        """
+        t = np.asarray(t, dtype=float).ravel()
+        if len(t) < 2 or not np.all(np.diff(t) > 0) or not np.all(np.isfinite(t)):
+            raise SceneError("animation times must be finite and strictly increasing, at least 2 samples")
+        span_frames = (t[-1] - t[0]) * fps
+        if not span_frames < 1e12:
+            raise SceneError(f"animation spans {t[-1] - t[0]:.3g} s: too long to animate")
+        total = int(math.floor(span_frames)) + 1
+        stride = max(1, int(math.ceil(total / MAX_FRAMES)))
+        frame_numbers = np.arange(0, total, stride)
+        n_frames = len(frame_numbers)
+        idx = np.searchsorted(t, t[0] + frame_numbers / fps, side="right") - 1
+        anim = Animation(default_framerate=fps)
+        q_joints = q_joints or {}
+        for name, traj in poses.items():
+            traj = np.asarray(traj, dtype=float)
+            if traj.shape != (len(t), 3):
+                raise SceneError(f"poses[{name!r}] must have shape ({len(t)}, 3), got {traj.shape}")
+            robot = self._robot(name)
+            joints = q_joints.get(name)
+            if joints is not None:
+                joints = np.asarray(joints, dtype=float)
+                if joints.shape != (len(t), robot.model.nq - 4):
+                    raise SceneError(f"q_joints[{name!r}] must have shape ({len(t)}, {robot.model.nq - 4})")
+            moving = joints is not None and np.ptp(joints, axis=0).max() > 0
+            root = self.viewer[name]
+            for k, i in zip(frame_numbers.tolist(), idx):
+                _set_key(anim, root.path, k, planar_pose_matrix(*traj[i]))
+                if moving:
+                    self._animate_geometry(anim, name, k, _planar_q(robot.model, (0.0, 0.0, 0.0), joints[i]))
+            self.set_robot_pose(name, traj[idx[-1]], None if joints is None else joints[idx[-1]])
+        for name, (origins, forces) in (wrenches or {}).items():
+            origins, forces = _points3(origins, 0.0), np.asarray(forces, dtype=float)
+            if len(origins) != len(t) or len(forces) != len(t):
+                raise SceneError(f"wrenches[{name!r}] must have {len(t)} origins and forces")
+            forces = forces if forces.shape[1] == 3 else np.column_stack((forces, np.zeros(len(t))))
+            node = self._arrow_node(name, kind, 0.012, 0.06)
+            for k, i in zip(frame_numbers.tolist(), idx):
+                for part, T, sc in _arrow_parts(origins[i], scale * forces[i], 0.06):
+                    _set_key(anim, (node[part] if part else node).path, k, T, sc)
+            _set_arrow(node, _arrow_parts(origins[idx[-1]], scale * forces[idx[-1]], 0.06))
+        for path, pts in (markers or {}).items():
+            pts = _points3(pts, 0.0)
+            if len(pts) != len(t):
+                raise SceneError(f"markers[{path!r}] must have {len(t)} positions")
+            node = self.viewer[path]
+            for k, i in zip(frame_numbers.tolist(), idx):
+                _set_key(anim, node.path, k, tf.translation_matrix(pts[i]))
+            node.set_transform(tf.translation_matrix(pts[idx[-1]]))
+        self.viewer.set_animation(anim, play=play, repetitions=repetitions)
+        return n_frames
+
+    def _animate_geometry(self, anim: Animation, name: str, frame: int, q: np.ndarray) -> None:
+        """Add keys at `frame` placing every visual geometry of robot `name` at configuration `q`."""
+        viz = self._viz[name]
+        pin.forwardKinematics(viz.model, viz.data, q)
+        pin.updateGeometryPlacements(viz.model, viz.data, viz.visual_model, viz.visual_data)
+        for gid, geom in enumerate(viz.visual_model.geometryObjects):
+            node = self.viewer[viz.getViewerNodeName(geom, pin.GeometryType.VISUAL)]
+            _set_key(anim, node.path, frame, viz.visual_data.oMg[gid].homogeneous)
+
+    def animate_cart_log(self, log: Any, cart: str = "shopping_cart", fps: int = 30, play: bool = True) -> int:
+        """Animate a cart log (`cart.logs.CartLog`: t, q, gamma, optional contact_b); return the number of frames.
+
+        The cart follows `q`; the applied force (fx, fy) is an arrow at the
+        contact point (`contact_b`, else the handle midpoint); the path is a trace.
+        """
+        self._robot(cart)
+        t, q, gamma = np.asarray(log.t, float), np.asarray(log.q, float), np.asarray(log.gamma, float)
+        contact_b = getattr(log, "contact_b", None)
+        if contact_b is None:
+            contact_b = np.tile([CART_HANDLE_X, 0.0], (len(t), 1))
+        contact_b = np.asarray(contact_b, dtype=float)
+        origins = cart_to_world_traj(q, contact_b, CART_HANDLE_Z_B + CART_WHEEL_RADIUS)
+        self.show_trace(f"{cart}_path", q[:, :2])
+        self.show_contact(cart, origins[:1])
+        return self.animate(t, {cart: q}, wrenches={f"{cart}_force": (origins, gamma[:, :2])},
+                            markers={f"contacts/{cart}/0": origins}, fps=fps, play=play)
+
+    def world_transform(self, path: str) -> np.ndarray:
+        """Return the recorded world transform (4x4) of a node, e.g. ``"/meshcat/shopping_cart/visuals/handle_0"``."""
+        parts = [p for p in path.split("/") if p]
+        T = np.eye(4)
+        for k in range(1, len(parts) + 1):
+            T = T @ self.window.local_transform(parts[:k])
+        return T
+
+    def animation_keys(self) -> dict[str, dict[str, np.ndarray]]:
+        """Return the recorded animation: node path -> track name (``"position"`` ...) -> (frames, k) values."""
+        if self.window.animation is None:
+            return {}
+        out: dict[str, dict[str, np.ndarray]] = {}
+        for item in umsgpack.unpackb(self.window.animation)["animations"]:
+            tracks = out.setdefault(item["path"], {})
+            for track in item["clip"]["tracks"]:
+                tracks[track["name"].lstrip(".")] = np.array([key["value"] for key in track["keys"]], dtype=float)
+        return out
+
+    # -- output ----------------------------------------------------------------------
+    def static_html(self, controls: bool = True) -> str:
+        """Return the scene as a self-contained HTML page (works offline; `controls=False` hides the GUI panel)."""
+        return _static_html(self.window.commands(), controls=controls, camera=self.camera)
+
+    def save_html(self, path: str | Path, controls: bool = True) -> Path:
+        """Write the static page to `path`; return the path."""
+        path = Path(path)
+        path.write_text(self.static_html(controls=controls), encoding="utf-8")
+        return path
+
+
+def pushing_configuration(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), standoff: float = 0.75,
+                          iterations: int = 200) -> tuple[np.ndarray, np.ndarray]:
+    """Return (Ridgeback planar pose, full q) with the gripper at the middle of the cart's handle, tool axis forward.
+
+    The base stands `standoff` m behind the handle, facing the cart's heading;
+    the arm comes from a small damped least-squares IK (position + tool axis).
+    """
+    robot = robots.load("ridgeback_iiwa")
+    x, y, th = (float(v) for v in cart_pose)
+    c, s = math.cos(th), math.sin(th)
+    handle = np.array([x + c * CART_HANDLE_X, y + s * CART_HANDLE_X, CART_HANDLE_Z_B + CART_WHEEL_RADIUS])
+    base = (handle[0] - c * standoff, handle[1] - s * standoff, th)
+    arm = {f"iiwa_joint_{i}": a for i, a in zip(range(1, 8), (0.0, 0.6, 0.0, -1.4, 0.0, -0.8, 0.0))}
+    q = _planar_q(robot.model, base, arm)
+    fid, model, data = robot.frame_id("ee"), robot.model, robot.data
+    cols = [model.joints[model.getJointId(f"iiwa_joint_{i}")].idx_v for i in range(1, 8)]
+    qidx = [model.joints[model.getJointId(f"iiwa_joint_{i}")].idx_q for i in range(1, 8)]
+    axis = np.array([c, s, 0.0])
+    for _ in range(iterations):
+        pin.framesForwardKinematics(model, data, q)
+        M = data.oMf[fid]
+        err = np.concatenate((handle - M.translation, np.cross(M.rotation[:, 2], axis)))
+        if np.linalg.norm(err) < 1e-6:
+            break
+        J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)[:, cols]
+        dq = J.T @ np.linalg.solve(J @ J.T + 1e-4 * np.eye(6), err)
+        q[qidx] = np.clip(q[qidx] + dq, model.lowerPositionLimit[qidx], model.upperPositionLimit[qidx])
+    return np.array(base), q
+
+
+def frame_points(points: np.ndarray, scene: Scene) -> None:
+    """Frame `points` (N, 3) with the camera and cover them with the floor grid."""
+    scene.set_camera(Camera.framing(points))
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    scene.set_floor((math.floor(lo[0]) - 2.0, math.ceil(hi[0]) + 2.0, math.floor(lo[1]) - 2.0, math.ceil(hi[1]) + 2.0))
+
+
+def robot_scene(name: str, serve: bool = False) -> Scene:
+    """Return a scene of one robot at the origin (neutral joints; the iiwa with a bent elbow)."""
+    scene = Scene([name], serve=serve)
+    if name == "ridgeback_iiwa":
+        scene.set_robot_pose(name, (0.0, 0.0, 0.0), {"iiwa_joint_2": 0.6, "iiwa_joint_4": -1.4, "iiwa_joint_6": -0.8})
+    robot = scene.robots[name]
+    pin.framesForwardKinematics(robot.model, robot.data, scene.robot_q(name))
+    pts = np.array([f.translation for f in robot.data.oMf])
+    scene.set_camera(Camera.framing(np.vstack((pts, pts.min(axis=0) - 0.4, pts.max(axis=0) + 0.4))))
+    return scene
+
+
+def pushing_scene(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), serve: bool = False) -> Scene:
+    """Return the Ridgeback + iiwa holding the middle of the cart's handle, the cart at planar pose `cart_pose`."""
+    scene = Scene(["ridgeback_iiwa", "shopping_cart"], serve=serve)
+    _, q = pushing_configuration(cart_pose)
+    scene.set_robot_q("ridgeback_iiwa", q)
+    scene.set_robot_pose("shopping_cart", cart_pose)
+    return scene
+
+
+def log_scene(log: Any, serve: bool = False, fps: int = 30) -> Scene:
+    """Return a scene animating a cart log (`cart.logs.CartLog`, or a path read with `cart.logs.read_log`)."""
+    from cart.logs import read_log
+
+    if isinstance(log, (str, Path)):
+        if not Path(log).is_file():
+            raise SceneError(f"log file {str(log)!r} not found")
+        log = read_log(log)
+    scene = Scene(["shopping_cart"], serve=serve)
+    scene.animate_cart_log(log, fps=fps)
+    q = np.asarray(log.q, float)
+    frame_points(np.column_stack((q[:, :2], np.zeros(len(q)))), scene)
+    return scene
+
+
+def cart_to_world_traj(q: np.ndarray, points_b: np.ndarray, z: float) -> np.ndarray:
+    """Return world points (N, 3) of per-sample points (N, 2) in {b} of the cart poses q (N, 3), at height z."""
+    c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
+    return np.column_stack((q[:, 0] + c * points_b[:, 0] - s * points_b[:, 1],
+                            q[:, 1] + s * points_b[:, 0] + c * points_b[:, 1], np.full(len(q), z)))
