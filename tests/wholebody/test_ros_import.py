@@ -585,11 +585,14 @@ def test_cartpush_import_list_and_convert_then_estimate_as_on_the_csv(push, bags
     original = tmp_path / "sim.csv"
     write_log(original, CartLog(t=log.t, q=log.q, gamma=log.gamma))
     estimates = []
-    for path in (csv, original):
-        code, out, err = _cli(capsys, ["estimate", path, "--json"])
+    topics = ["--pose-topic", "/mocap/cart", "--wrench-topic", "/ft_sensor/wrench"]
+    for argv in ([csv], [original], [bags["ros1"]] + topics):  # the bag directly: converted in memory
+        code, out, err = _cli(capsys, ["estimate", *argv, "--json"])
         assert code == 0, err
         estimates.append(json.loads(out))
-    a, b = estimates
+    a, b, c = estimates
+    for key in ("mass", "inertia", "sigma"):
+        assert c[key] == pytest.approx(a[key], rel=1e-9), key
     for key in ("mass", "inertia", "sigma"):
         assert a[key] == pytest.approx(b[key], rel=1e-6), key
     assert abs(a["mass"] - truth["m"]) < 3 * a["std"]["mass"]

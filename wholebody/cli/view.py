@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from wholebody.cli import options
+from wholebody.cli.import_bag import add_topic_options, topic_options
 
 HELP = "show a cart log, a Table I test or a robot in Meshcat"
 DESCRIPTION = """\
@@ -32,12 +33,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("view", help=HELP, description=DESCRIPTION,
                                    formatter_class=argparse.RawDescriptionHelpFormatter)
     source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument("log", nargs="?", help="cart log (.csv or .csv.gz, LOG_FORMAT.md)")
+    source.add_argument("log", nargs="?", help="cart log (.csv or .csv.gz, LOG_FORMAT.md) or a ROS bag")
     source.add_argument("--scenario", type=int, metavar="N", help="Table I simulation test N (1..11)")
     source.add_argument("--robot", metavar="NAME", help="a robot of `robots.available()`, or 'pushing'")
     parser.add_argument("--html", metavar="OUT.html", help="write a static page instead of serving")
     parser.add_argument("--duration", type=float, default=30.0, metavar="S",
                         help="simulated seconds for --scenario (default 30)")
+    add_topic_options(parser)
     parser.set_defaults(func=run)
 
 
@@ -64,9 +66,9 @@ def build_scene(args: argparse.Namespace, serve: bool):
         if args.robot == "pushing":
             return pushing_scene(serve=serve)
         return robot_scene(args.robot, serve=serve)
-    from cart.logs import read_log
+    from wholebody.ros import load_any
 
-    log = read_log(args.log)
+    log = load_any(args.log, **topic_options(args))
     for w in log.warnings:  # the reader's plausibility notes (units, glitches), one line each
         print(f"cartpush view: warning: {w}", file=sys.stderr)
     return log_scene(log, serve=serve)
