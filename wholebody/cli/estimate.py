@@ -5,6 +5,8 @@ import argparse
 import math
 from typing import Any, Dict
 
+from wholebody.cli.import_bag import add_topic_options, topic_options
+
 DESCRIPTION = """\
 Estimate the cart's inertial parameters (mass, CoM, inertia about the CoM) and its
 two viscous coefficients (forward/lateral N s/m, yaw N m s/rad) from a log in the
@@ -20,8 +22,12 @@ The output says whether the model fits the log (`model_fits`, `nis_mean`: the
 EKF's mean normalized innovation with these parameters, ~6 when it fits) and
 lists warnings (weak excitation, misfit: then run `cartpush diagnose`).
 
+A ROS bag (ROS 1 .bag, ROS 2 folder, .mcap) is converted in memory with the same
+options as `cartpush import` (--pose-topic, --wrench-topic, ...).
+
 Example:
   cartpush estimate push.csv --json
+  cartpush estimate run.bag --pose-topic /mocap/cart --wrench-topic /ft_sensor/wrench
   cartpush estimate push.csv --method ekf --mass-guess 25 --com-guess 0.3 0
 """
 
@@ -30,7 +36,7 @@ def register(subparsers) -> None:
     """Add the `estimate` subcommand."""
     parser = subparsers.add_parser("estimate", help="estimate cart mass/CoM/inertia/damping from a log",
                                    description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("log", metavar="LOG", help="cart log (.csv or .csv.gz)")
+    parser.add_argument("log", metavar="LOG", help="cart log (.csv or .csv.gz) or a ROS bag (with the topic options)")
     parser.add_argument("--method", choices=("ls", "ekf"), default="ls",
                         help="ls: whole-log least squares (default); ekf: the paper's EKF")
     parser.add_argument("--mass-guess", type=float, default=20.0, metavar="KG",
@@ -40,6 +46,7 @@ def register(subparsers) -> None:
     parser.add_argument("--sigma-guess", type=float, default=1.0, metavar="NS_PER_M",
                         help="EKF only: initial viscous coefficients (default 1)")
     parser.add_argument("--json", action="store_true", help="print only JSON")
+    add_topic_options(parser)
     parser.set_defaults(func=run)
 
 
@@ -111,14 +118,24 @@ def _run_ekf(log, args: argparse.Namespace) -> Dict[str, Any]:
             "warnings": warnings}
 
 
+def check_args(args: argparse.Namespace) -> None:
+    """Raise a CartpushError for options the command cannot use (before reading any log)."""
+    _check_guesses(args)
+
+
+def result_for(log, args: argparse.Namespace) -> Dict[str, Any]:
+    """Return the JSON dict `cartpush estimate --json` prints for ``log`` (also each result of `cartpush batch`)."""
+    return _run_ls(log) if args.method == "ls" else _run_ekf(log, args)
+
+
 def run(args: argparse.Namespace) -> int:
     """Estimate the parameters of the log and print them; return 0."""
     from cart.jsonout import dumps_strict
-    from cart.logs import read_log
+    from wholebody.ros import load_any
 
     _check_guesses(args)
-    log = read_log(args.log)
-    out = _run_ls(log) if args.method == "ls" else _run_ekf(log, args)
+    log = load_any(args.log, **topic_options(args))
+    out = result_for(log, args)
     if args.json:
         print(dumps_strict(out))
         return 0
