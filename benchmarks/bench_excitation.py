@@ -12,6 +12,8 @@ points on the handle, and fixed at the centre and at both ends of the handle.
 from __future__ import annotations
 
 import argparse
+import builtins
+import json
 import time
 
 import numpy as np
@@ -51,13 +53,18 @@ def plans(noise: ex.WrenchNoise, specs: list[tuple[str, int]], fixed: list[float
     return scheds, times, scores
 
 
-def main() -> None:
+def main(argv=None) -> None:
+    """Print the study tables (or, with --json, one JSON object of planning/study times and the table rows)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--inputs", default="fused")
     ap.add_argument("--plans", default="com_a_path:30,com_a_path:12,com_a:6,min_eig:6")
     ap.add_argument("--fixed", default="0.25,0,0.5", help="fixed contacts, handle coordinate s in [0, 0.5] m")
-    args = ap.parse_args()
+    ap.add_argument("--json", action="store_true", help="print one JSON object instead of the tables")
+    args = ap.parse_args(argv)
+    report = {}
+    _print = builtins.print
+    print = (lambda *a, **k: None) if args.json else _print  # noqa: A001 - tables only without --json
     specs = [(p.split(":")[0], int(p.split(":")[1])) for p in args.plans.split(",") if p]
     for mode in args.inputs.split(","):
         model = ex.input_model(mode)
@@ -72,6 +79,19 @@ def main() -> None:
         print(study.format_table(rows, scores))
         print()
         print(study.format_paired(rows, rows[0].label))
+        report[mode] = {"planning_s": times, "study_s": time.perf_counter() - t0, "scores": scores,
+                        "rows": [_row(r) for r in rows]}
+    if args.json:
+        _print(json.dumps(report, default=float))
+
+
+def _row(row) -> dict:
+    """A study row as a JSON-able dict (dataclass fields; numpy arrays as lists)."""
+    import dataclasses
+
+    if dataclasses.is_dataclass(row):
+        return {k: (v.tolist() if hasattr(v, "tolist") else v) for k, v in dataclasses.asdict(row).items()}
+    return {"row": str(row)}
 
 
 if __name__ == "__main__":

@@ -5,11 +5,12 @@ stage: the whole-body QP tracker (`WholeBodyQPTracker.step`, the QP of `wholebod
 torques (Pinocchio RNEA + Jacobian), the wrench allocation QP, the EKF step and the contact re-plan.
 Prints a table of medians and the share of the wall time. Never asserts a time.
 
-    .venv/bin/python benchmarks/bench_push.py [--duration 30] [--arms 1]
+    .venv/bin/python benchmarks/bench_push.py [--duration 30] [--arms 1] [--json]
 """
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from collections import defaultdict
 from typing import Callable, Dict, List
@@ -35,11 +36,13 @@ def _timed(cls: type, name: str, store: Dict[str, List[float]], label: str) -> C
     return lambda: setattr(cls, name, original)
 
 
-def main() -> None:
+def main(argv=None) -> None:
+    """Print the table (or, with --json, one JSON object of the medians and shares)."""
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--duration", type=float, default=30.0)
     parser.add_argument("--arms", type=int, default=1)
-    args = parser.parse_args()
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    args = parser.parse_args(argv)
     store: Dict[str, List[float]] = defaultdict(list)
     restore = [_timed(push.WholeBodyQPTracker, "step", store, "whole-body QP (tracker.step)"),
                _timed(push.MobileManipulator, "torques", store, "arm torques (rnea + J^T w)"),
@@ -53,6 +56,14 @@ def main() -> None:
     for r in restore:
         r()
     n = len(res.t)
+    if args.json:
+        stages = {label: {"calls": len(ts), "median_us": 1e6 * float(np.median(ts)), "total_s": float(np.sum(ts)),
+                          "share": float(np.sum(ts)) / wall} for label, ts in store.items()}
+        print(json.dumps({"trajectory": config.trajectory, "arms": config.n_arms, "duration_s": args.duration,
+                          "periods": n, "wall_s": wall, "ms_per_period": 1e3 * wall / n, "stages": stages,
+                          "grasp_error_max_mm": 1e3 * res.metrics.grasp_error_max_m,
+                          "wheel_limit_ratio": res.metrics.base_wheel_limit_ratio}))
+        return
     print(f"run_push: Traj.{config.trajectory}, {config.n_arms} arm(s), {args.duration:g} s = {n} periods: "
           f"{wall:.2f} s wall, {1e3 * wall / n:.3f} ms per period")
     print(f"{'stage':<38}{'calls':>7}{'median [us]':>13}{'total [s]':>11}{'share':>8}")

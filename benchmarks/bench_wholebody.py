@@ -1,9 +1,11 @@
 """Benchmark: combined Jacobian, one QP IK step, and placo's solver step on the same robot (median us).
 
-Run: .venv/bin/python benchmarks/bench_wholebody.py
+Run: .venv/bin/python benchmarks/bench_wholebody.py [--json]
 """
 from __future__ import annotations
 
+import argparse
+import json
 import time
 
 import numpy as np
@@ -29,8 +31,11 @@ def median_us(fn, repeat: int = 2000) -> float:
     return float(np.median(times) * 1e6)
 
 
-def main() -> None:
-    """Print the table."""
+def main(argv=None) -> None:
+    """Print the table (or, with --json, one JSON object of the medians and ratios)."""
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    args = ap.parse_args(argv)
     rows = []
     for name in ("wmra", "ridgeback_iiwa"):
         wb = wholebody_for(robots.load(name))
@@ -56,6 +61,11 @@ def main() -> None:
 
             cfj = median_us(lambda: cf.combined_jacobian(x[:3], x[3:], WMRA_D, WMRA_TRACK, WMRA_MOUNT,
                                                          WMRA_WHEEL_RADIUS))
+    if args.json:
+        print(json.dumps({"robots": {name: {"jacobian_us": jac, "qp_step_us": qp, "placo_step_us": pl,
+                                            "ratio_qp_vs_placo": qp / pl} for name, jac, qp, pl in rows},
+                          "wmra_closed_form_jacobian_us": cfj}))
+        return
     print(f"{'robot':<16}{'jacobian [us]':>15}{'QP IK step [us]':>17}{'placo step [us]':>17}{'ours/placo':>12}")
     for name, jac, qp, pl in rows:
         print(f"{name:<16}{jac:>15.1f}{qp:>17.1f}{pl:>17.1f}{qp / pl:>12.1f}")

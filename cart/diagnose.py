@@ -466,6 +466,11 @@ def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, thresh
                             f"(speed noise {sig.sigma_v:.2g} m/s); nothing to diagnose")
     if horizon is None:  # 1 s replays for a cart log, shorter for a short log
         horizon = min(1.0, (sig.t[-1] - sig.t[0]) / 6.0)
+    med_dt = float(np.median(np.diff(sig.t)))
+    if horizon < 3.0 * med_dt:
+        raise DiagnoseError(f"{log.source}: samples are {med_dt:.3g} s apart, too far apart to replay the model over "
+                            f"{horizon:.3g} s (need at least 3 samples per replay); if t is in milliseconds, "
+                            "convert it to seconds")
     edges = window_edges(sig.t, window if window is not None else 2.0 * sig.half_window)
     sig.extras["noise_dv"] = velocity_change_noise(sig, edges)
     if len(edges) < 12:
@@ -555,53 +560,88 @@ def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, thresh
                            flagged=flagged)
 
 
-def plot_diagnosis(report: DiagnosisReport, out_dir: str) -> List[str]:
-    """Write PNG plots of ``report`` into ``out_dir`` and return their paths.
+def diagnosis_figures(report: DiagnosisReport, max_zooms: int = 3) -> dict:
+    """Return the figures of ``report`` as ``{"replay": Figure, "residuals": Figure}`` (no backend is touched).
 
-    ``replay.png``: measured path vs the 1 s replays of the nominal model
-    (before) and of the model with the named effects (after);
-    ``residuals.png``: replay error and chi-square over time, flagged windows shaded.
+    ``replay``: top, the position error of the 1 s replays along time (one
+    replay every second, so the curve restarts at 0 each second), nominal model
+    (before, red) and with the named effects (after, blue), the noise floor
+    dotted, flagged windows shaded; below, up to ``max_zooms`` zooms on the
+    flagged windows with the largest chi-square: the measured path (black) and
+    the replays, in cart-path coordinates (mm-scale errors are visible there).
+    ``residuals``: per-replay RMS error and chi-square over time.
+    Display them in a notebook with ``display(fig)``; save with ``fig.savefig``.
     """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
-    os.makedirs(out_dir, exist_ok=True)
     rb, ra = report.replay_before, report.replay_after
     if rb is None or ra is None:
         raise DiagnoseError("the report carries no replay data to plot")
-    paths = []
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5))
-    for ax, rep, title in ((axes[0], rb, "nominal model (before)"), (axes[1], ra, "with named effects (after)")):
-        ax.plot(rep.meas[:, :, 0].ravel(), rep.meas[:, :, 1].ravel(), ",", color="0.6")
-        for k in range(0, len(rep.starts), 4):
-            ax.plot(rep.meas[k, :, 0], rep.meas[k, :, 1], "k-", lw=1.0)
-            ax.plot(rep.sim[k, :, 0], rep.sim[k, :, 1], "-", color="tab:red" if rep is rb else "tab:blue", lw=1.0)
-        ax.set_title(f"{title}: RMS error {rep.rms_error(report.flagged if np.any(report.flagged) else None) * 1000:.1f} mm")
-        ax.set_xlabel("x [m]")
-        ax.axis("equal")
-    axes[0].set_ylabel("y [m]")
-    fig.suptitle("measured (black) vs simulated 1 s replays")
-    p = os.path.join(out_dir, "replay.png")
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    paths.append(p)
-    fig, axes = plt.subplots(2, 1, figsize=(12, 6), sharex=True)
+    windows = sorted(report.windows, key=lambda w: -w.chi2)[:max_zooms]
+    mask = report.flagged if report.flagged is not None and np.any(report.flagged) else None
+    fig = Figure(figsize=(12, 7.5 if windows else 4.5), layout="constrained")
+    grid = fig.add_gridspec(2 if windows else 1, max(1, len(windows)), height_ratios=[1, 1.3] if windows else [1])
+    ax = fig.add_subplot(grid[0, :])
+    horizon = float(rb.tau[-1] - rb.tau[0]) if len(rb.tau) > 1 else 1.0
+    for rep, colour, label in ((rb, "tab:red", "nominal model (before)"), (ra, "tab:blue", "with named effects (after)")):
+        picked, last = [], -np.inf
+        for k, t0 in enumerate(rep.starts):  # non-overlapping replays, one per horizon
+            if t0 >= last + horizon - 1e-9:
+                picked.append(k)
+                last = t0
+        for n, k in enumerate(picked):
+            err = np.hypot(*(rep.sim[k, :, :2] - rep.meas[k, :, :2]).T) * 1000
+            ax.plot(rep.starts[k] + rep.tau, err, "-", color=colour, lw=0.9,
+                    label=f"{label}: RMS {rep.rms_error(mask) * 1000:.1f} mm" if n == 0 else None)
+    ax.plot(rb.starts, rb.floor * 1000, "k:", lw=1.0, label="noise floor (RMS of a replay)")
+    for i, w in enumerate(report.windows):
+        ax.axvspan(w.t0, w.t1, color="orange", alpha=0.25, label="flagged windows" if i == 0 else None)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("replay position error [mm]")
+    ax.set_title(f"position error of {horizon:.3g} s replays of the fitted model against the log")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left")
+    for j, w in enumerate(windows):
+        zx = fig.add_subplot(grid[1, j])
+        sel = np.flatnonzero((rb.starts >= w.t0 - 1e-9) & (rb.starts <= w.t1))
+        k = int(sel[np.argmax(rb.chi2[sel])]) if len(sel) else int(np.argmin(np.abs(rb.starts - w.t0)))
+        meas = rb.meas[k, :, :2]
+        zx.plot(meas[:, 0], meas[:, 1], "k.-", ms=2, lw=1.2, label="measured")
+        zx.plot(rb.sim[k, :, 0], rb.sim[k, :, 1], "-", color="tab:red", lw=1.2, label="before")
+        ka = int(np.argmin(np.abs(ra.starts - rb.starts[k])))
+        zx.plot(ra.sim[ka, :, 0], ra.sim[ka, :, 1], "--", color="tab:blue", lw=1.2, label="after")
+        zx.plot(*meas[0], "ko", ms=4)
+        zx.set_aspect("equal", adjustable="datalim")
+        zx.set_xlabel("x [m]")
+        zx.set_ylabel("y [m]") if j == 0 else None
+        zx.set_title(f"replay from t = {rb.starts[k]:.2f} s (window {w.t0:.1f}-{w.t1:.1f} s)", fontsize=9)
+        zx.grid(alpha=0.3)
+        if j == 0:
+            zx.legend(fontsize=7)
+    res = Figure(figsize=(12, 6), layout="constrained")
+    axes = res.subplots(2, 1, sharex=True)
     axes[0].plot(rb.starts, rb.rms * 1000, "r-", label="before")
     axes[0].plot(ra.starts, ra.rms * 1000, "b-", label="after")
     axes[0].plot(rb.starts, rb.floor * 1000, "k:", label="noise floor")
-    axes[0].set_ylabel("replay error [mm]")
+    axes[0].set_ylabel("replay RMS error [mm]")
     axes[0].legend()
     axes[1].semilogy(rb.starts, np.maximum(rb.chi2, 1e-3), "r-", label="before")
     axes[1].semilogy(ra.starts, np.maximum(ra.chi2, 1e-3), "b-", label="after")
     axes[1].set_ylabel("chi2 (3 dof)")
     axes[1].set_xlabel("replay start t [s]")
-    for ax in axes:
+    for a in axes:
         for w in report.windows:
-            ax.axvspan(w.t0, w.t1, color="orange", alpha=0.25)
+            a.axvspan(w.t0, w.t1, color="orange", alpha=0.25)
     axes[0].set_title("residuals over time; shaded: windows where the nominal model disagrees significantly")
-    p = os.path.join(out_dir, "residuals.png")
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    paths.append(p)
+    return {"replay": fig, "residuals": res}
+
+
+def plot_diagnosis(report: DiagnosisReport, out_dir: str) -> List[str]:
+    """Write ``replay.png`` and ``residuals.png`` of ``report`` (see `diagnosis_figures`) into ``out_dir``; return the paths."""
+    os.makedirs(out_dir, exist_ok=True)
+    paths = []
+    for name, fig in diagnosis_figures(report).items():
+        path = os.path.join(out_dir, f"{name}.png")
+        fig.savefig(path, dpi=100)
+        paths.append(path)
     return paths

@@ -196,7 +196,7 @@ def _design(grid: _Grid, sos: np.ndarray, coulomb_eps: Optional[Tuple[float, flo
 
 def _keep_mask(grid: _Grid, fc: float) -> np.ndarray:
     """Return the grid samples away from the ends and from gaps by about one filter settling time."""
-    margin = int(math.ceil(1.0 / (fc * grid.dt)))
+    margin = int(math.ceil(2.0 / (fc * grid.dt)))
     bad = ~grid.valid
     bad[:margin] = True
     bad[-margin:] = True

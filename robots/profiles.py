@@ -17,6 +17,7 @@ from typing import Literal, Optional, Tuple
 
 from robots.errors import UnknownRobotError
 from robots.ridgeback_iiwa import RIDGEBACK_WHEEL_RADIUS, RIDGEBACK_WHEEL_X, RIDGEBACK_WHEEL_Y
+from robots.wmra import WMRA_TRACK, WMRA_WHEEL_ACCELERATION, WMRA_WHEEL_RADIUS, WMRA_WHEEL_VELOCITY
 
 #: Base kinematics: a differential drive (track and wheel radius read off the model) or a
 #: holonomic base with mecanum wheels (radius and wheel positions given here).
@@ -39,6 +40,20 @@ class RobotProfile:
     ft_frame: Optional[str] = None
     #: Arm posture holding the cart's handle with the base behind it (the grasp IK's seed), None if it never pushes.
     push_arm_seed: Optional[Tuple[float, ...]] = None
+    #: Grasp pitch (rad about y_b): the tool points forward and this much down onto the handle bar.
+    grasp_pitch: float = 0.8
+    #: Where the base stands while pushing, in the cart frame {b}: x relative to the handle (m, negative =
+    #: behind it) and y (m; None = behind the contact point, which only a holonomic base can follow sideways).
+    push_base_x: float = -0.65
+    push_base_y: Optional[float] = None
+    #: Contact point y (m) on the handle when the contact is fixed and none is given.
+    push_contact_y: float = -0.2
+    #: Base body-twist limits (vx m/s, vy m/s, wz rad/s); vy = 0 for a nonholonomic base.
+    base_twist_limit: Tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: Wheel angular acceleration limit (rad/s^2), None = not enforced.
+    wheel_acceleration_limit: Optional[float] = None
+    #: Look-ahead distance (m) of the base tracker of a nonholonomic base (paper 2 section VI); 0 = pose tracking.
+    base_lookahead: float = 0.0
 
     @property
     def is_mobile_manipulator(self) -> bool:
@@ -51,6 +66,19 @@ WMRA = RobotProfile(
     arm_joints=tuple(f"arm_joint{i}" for i in range(1, 8)),
     wheel_joints=("wheel_left_joint", "wheel_right_joint"),
     base="differential",
+    # F/T sensing at the wrist: the sensor frame is the end effector (D-H frame 7)
+    ft_frame="ee",
+    # found by IK (continuation along the handle) with the base axle 1.0 m behind the handle, centred;
+    # joint-limit margin 0.4 rad at y = 0
+    push_arm_seed=(1.08, 1.54, 1.08, 1.55, 0.53, 0.86, -0.67),
+    grasp_pitch=0.2,
+    push_base_x=-0.9,
+    push_base_y=0.0,
+    push_contact_y=0.1,
+    base_twist_limit=(WMRA_WHEEL_RADIUS * WMRA_WHEEL_VELOCITY, 0.0,
+                      2.0 * WMRA_WHEEL_RADIUS * WMRA_WHEEL_VELOCITY / WMRA_TRACK),
+    wheel_acceleration_limit=WMRA_WHEEL_ACCELERATION,
+    base_lookahead=0.3,
 )
 
 RIDGEBACK_IIWA = RobotProfile(
@@ -63,6 +91,7 @@ RIDGEBACK_IIWA = RobotProfile(
     ft_frame="ft_sensor",
     # found by IK with the base 0.65 m behind the handle point; joint-limit margin 1.1 rad
     push_arm_seed=(-1.70, -0.94, 0.28, 1.00, -0.43, -0.47, 0.25),
+    base_twist_limit=(1.1, 1.1, 2.0),
 )
 
 SHOPPING_CART = RobotProfile(name="shopping_cart")

@@ -31,6 +31,8 @@ WMRA_JOINT_VELOCITY = 0.9
 WMRA_JOINT_EFFORT = (60.0, 60.0, 30.0, 30.0, 15.0, 10.0, 10.0)
 WMRA_WHEEL_VELOCITY = 8.8
 WMRA_WHEEL_EFFORT = 60.0
+#: Estimate: drive-wheel angular acceleration limit, rad/s^2 (about 1 m/s^2 at the rim).
+WMRA_WHEEL_ACCELERATION = 6.0
 #: Estimates: link masses kg (arm about 12 kg), wheelchair chassis mass, wheel and caster sizes.
 WMRA_LINK_MASS = (2.0, 2.0, 2.5, 1.5, 1.5, 1.0, 1.0)
 WMRA_CHASSIS_MASS = 100.0

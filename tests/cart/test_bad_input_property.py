@@ -203,25 +203,23 @@ def test_read_log_on_odd_valid_logs(log):
         _assert_reader_contract(path)
 
 
-@settings(max_examples=25, **SETTINGS)
-@given(st.one_of(malformed_log(), odd_valid_log()))
-def test_estimate_cli_contract(case):
+def _check_command(command, case):
     with tempfile.TemporaryDirectory() as d:
         if isinstance(case, CartLog):
             path = os.path.join(d, "odd.csv")
             write_log(path, case)
         else:
             path = _write_bytes(d, *case)
-        _assert_cli_contract("estimate", path)
+        _assert_cli_contract(command, path)
+
+
+@settings(max_examples=25, **SETTINGS)
+@given(st.one_of(malformed_log(), odd_valid_log()))
+def test_estimate_cli_contract(case):
+    _check_command("estimate", case)
 
 
 @settings(max_examples=8, **SETTINGS)
 @given(st.one_of(malformed_log(), odd_valid_log()))
 def test_diagnose_cli_contract(case):
-    with tempfile.TemporaryDirectory() as d:
-        if isinstance(case, CartLog):
-            path = os.path.join(d, "odd.csv")
-            write_log(path, case)
-        else:
-            path = _write_bytes(d, *case)
-        _assert_cli_contract("diagnose", path)
+    _check_command("diagnose", case)

@@ -1,5 +1,11 @@
 """Browser test: headless Chromium renders the static page of the Ridgeback + iiwa pushing the cart.
 
+The second half renders the animated page that `cartpush demo` and `push --html`
+write (`wholebody.push.report.build_scene`, here from a short run) at the start,
+the middle and the end of its animation (``#t=<s>`` seeks), and checks the robot
+and the cart are on screen at each time, where the page's following camera
+(`Scene.camera_at`) puts them, against the same page with both hidden.
+
 The screenshot must differ clearly from the screenshot of an empty scene (same
 camera) where the robot and the cart stand — positions projected with the
 camera the page sets — and show their colours there: the Ridgeback yellow,
@@ -54,12 +60,12 @@ def chromium() -> str:
     return CHROMIUM
 
 
-def render(html: Path, png: Path, profile: Path) -> np.ndarray:
-    """Return the RGB screenshot (H, W, 3) of a local page rendered by headless Chromium."""
+def render(html: Path, png: Path, profile: Path, fragment: str = "") -> np.ndarray:
+    """Return the RGB screenshot (H, W, 3) of a local page (URL fragment `fragment`) rendered by headless Chromium."""
     cmd = [chromium(), "--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--disable-gpu",
            "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run",
            "--hide-scrollbars", f"--user-data-dir={profile}", f"--window-size={WIDTH},{HEIGHT}",
-           "--virtual-time-budget=4000", f"--screenshot={png}", html.resolve().as_uri()]
+           "--virtual-time-budget=4000", f"--screenshot={png}", html.resolve().as_uri() + fragment]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert png.is_file(), f"chromium wrote no screenshot (exit {proc.returncode}): {proc.stderr[-2000:]}"
     return np.asarray(Image.open(png).convert("RGB"), dtype=float)
@@ -134,3 +140,71 @@ def test_objects_cover_a_large_part_of_the_image(shots):
     img, ref, _, _ = shots
     changed = (np.abs(img - ref).sum(axis=2) > 60).mean()
     assert 0.05 < changed < 0.6, f"{changed:.0%} of the pixels changed"
+
+
+# -- the animated page of `cartpush demo` / `push --html` -------------------------------------------------------
+DEMO_DURATION = 8.0  # the shortest run `push` accepts
+DEMO_SHOTS = ("start", "middle", "end")
+
+
+def _root_pose(keys: dict, path: str, frame_times: np.ndarray, t: float) -> tuple[np.ndarray, float]:
+    """Return (position, yaw) of an animated root node at time t (keys interpolated as three.js does)."""
+    pos = np.array([np.interp(t, frame_times, keys[path]["position"][:, j]) for j in range(3)])
+    quat = keys[path]["quaternion"]
+    yaw = np.unwrap(2 * np.arctan2(quat[:, 2], quat[:, 3]))
+    return pos, float(np.interp(t, frame_times, yaw))
+
+
+@pytest.fixture(scope="module")
+def demo_shots(tmp_path_factory):
+    """Screenshots of the demo page and of the same page without robot and cart, at start, middle and end."""
+    from wholebody.push import PushConfig, build_scene, run_push
+
+    tmp = tmp_path_factory.mktemp("demo")
+    result = run_push(PushConfig(trajectory=2, duration=DEMO_DURATION, contact="optimal", estimation=True))
+    with build_scene(result) as scene:
+        duration = scene.animation_duration()
+        times = dict(zip(DEMO_SHOTS, (0.0, duration / 2, duration)))
+        cameras = {k: scene.camera_at(t) for k, t in times.items()}
+        keys = scene.animation_keys()
+        n = len(keys["/meshcat/ridgeback_iiwa"]["position"])
+        frame_times = np.linspace(0.0, duration, n)
+        scene.save_html(tmp / "demo.html", controls=False)
+        for name in ("ridgeback_iiwa", "shopping_cart"):
+            scene.viewer[name].set_property("visible", False)
+        scene.save_html(tmp / "hidden.html", controls=False)
+    shots = {}
+    for k, t in times.items():
+        img = render(tmp / "demo.html", tmp / f"demo_{k}.png", tmp / "profile", f"#t={t:.3f}")
+        ref = render(tmp / "hidden.html", tmp / f"hidden_{k}.png", tmp / "profile", f"#t={t:.3f}")
+        base, base_yaw = _root_pose(keys, "/meshcat/ridgeback_iiwa", frame_times, t)
+        cart, cart_yaw = _root_pose(keys, "/meshcat/shopping_cart", frame_times, t)
+        c, s = np.cos(cart_yaw), np.sin(cart_yaw)
+        points = {
+            "ridgeback": base + np.array([0.0, 0.0, 0.2]),  # inside the chassis
+            "cart basket": cart + np.array([0.4 * c, 0.4 * s, CART_WHEEL_RADIUS + 0.6]),
+        }
+        uv = {name: cameras[k].project(p, WIDTH, HEIGHT)[0] for name, p in points.items()}
+        shots[k] = (img, ref, uv, tmp / f"demo_{k}.png")
+    return shots
+
+
+@pytest.mark.parametrize("when", DEMO_SHOTS)
+def test_demo_page_shows_robot_and_cart_at_start_middle_and_end(demo_shots, when):
+    img, ref, uv, _ = demo_shots[when]
+    assert img.shape == (HEIGHT, WIDTH, 3)
+    for name, p in uv.items():
+        assert 80 <= p[0] < WIDTH - 80 and 80 <= p[1] < HEIGHT - 80, f"{when}: {name} projects off screen to {p.round()}"
+        diff = np.abs(window(img, p, 6) - window(ref, p, 6)).mean()
+        assert diff > 40, f"{when}: {name}: mean |page - page without robots| = {diff:.1f} at pixel {p.round()}"
+    changed = (np.abs(img - ref).sum(axis=2) > 60).mean()
+    assert 0.05 < changed < 0.6, f"{when}: robot and cart cover {changed:.0%} of the page"
+    assert is_yellow(img.reshape(-1, 3)).mean() > 0.004, f"{when}: no Ridgeback yellow on the page"
+    assert is_orange(img.reshape(-1, 3)).mean() > 0.002, f"{when}: no iiwa orange on the page"
+
+
+def test_demo_page_opens_paused_at_the_first_frame(demo_shots):
+    """Without a URL fragment the page shows the first frame (after the browser's 4 s of virtual time)."""
+    img, _, _, start = demo_shots["start"]
+    plain = render(start.parent / "demo.html", start.parent / "plain.png", start.parent / "profile")
+    assert np.abs(plain - img).mean() < 1.0

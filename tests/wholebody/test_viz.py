@@ -3,10 +3,12 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
+import umsgpack
 
 import robots
 from cart.logs import CartLog, write_log
@@ -232,3 +234,30 @@ def test_cli_view_scenario_writes_page(tmp_path):
     out = tmp_path / "s3.html"
     assert main(["view", "--scenario", "3", "--duration", "2", "--html", str(out)]) == 0
     assert out.stat().st_size > 500_000
+
+
+def test_library_code_never_selects_a_matplotlib_backend():
+    """Only command-line entry points may call matplotlib.use (it turns off a notebook's inline figures)."""
+    root = Path(__file__).resolve().parents[2]
+    offenders = [str(p.relative_to(root)) for pkg in ("cart", "wholebody", "studies", "robots")
+                 for p in (root / pkg).rglob("*.py")
+                 if "matplotlib.use(" in p.read_text(encoding="utf-8") and "wholebody/cli/" not in p.as_posix()]
+    assert not offenders, f"library modules select a Matplotlib backend: {offenders}"
+
+
+def test_animated_page_opens_paused_at_first_frame_and_follows():
+    """The static state is the first frame, the page does not autoplay, and the camera follows the named robots."""
+    with Scene(["shopping_cart"]) as sc:
+        sc.animate([0.0, 1.0, 2.0], {"shopping_cart": [(0.0, 0, 0), (1.0, 0, 0), (3.0, 1.0, 0)]}, fps=10,
+                   follow=("shopping_cart",))
+        np.testing.assert_allclose(sc.world_transform("/meshcat/shopping_cart")[:3, 3], 0.0, atol=1e-12)
+        html = sc.static_html()
+        cam0, cam = sc.camera_at(0.0), sc.camera_at(2.0)
+        assert sc.animation_duration() == pytest.approx(2.0)
+        with pytest.raises(SceneError):
+            sc.animate([0.0, 1.0], {"shopping_cart": np.zeros((2, 3))}, follow=("ridgeback_iiwa",))
+    anim = umsgpack.unpackb(sc.window.animation)
+    assert anim["options"]["play"] is False
+    assert '[["meshcat", "shopping_cart"]]' in html and "anim.seek = seek" in html
+    np.testing.assert_allclose(np.subtract(cam.eye, cam0.eye), [3.0, 1.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(np.subtract(cam.target, cam0.target), [3.0, 1.0, 0.0], atol=1e-9)

@@ -33,6 +33,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "diagnose": ("diagnose", "fit the cart model to a log, find significant discrepancies, name the missing effects"),
     "push": ("push", "simulate the mobile manipulator(s) pushing the cart with the EKF in the loop"),
     "view": ("view", "show a cart log, a Table I test or a robot in Meshcat"),
+    "batch": ("batch", "run estimate or diagnose over many logs, locally or on a Ray cluster"),
 }
 
 #: Kept for callers of the previous API: the command modules, in help order.

@@ -78,7 +78,7 @@ def _run_ls(log) -> Dict[str, Any]:
     warnings = list(getattr(log, "warnings", ())) + list(res.warnings)
     try:
         nis, rejected = innovation_check(log, p)
-    except (CartError, FloatingPointError, np_linalg_error()) as exc:
+    except (CartError, ArithmeticError, np_linalg_error()) as exc:
         nis, rejected = float("nan"), 0
         warnings.append(f"the EKF innovation check could not run on this log ({exc})")
     fits = res.model_fits

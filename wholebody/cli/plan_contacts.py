@@ -67,9 +67,24 @@ def run(args: argparse.Namespace) -> int:
         print(dumps_strict({"contacts": contacts, "residual": plan.allocation.residual, "effort": plan.effort,
                           "gamma_achieved": [float(v) for v in plan.allocation.gamma_achieved]}))
         return 0
-    print(f"{'arm':>3}  {'x_b':>7} {'y_b':>7} {'z_b':>7}   {'fx':>8} {'fy':>8} {'fz':>8} {'tx':>7} {'ty':>7} {'tz':>7}")
-    for c in contacts:
-        print(f"{c['arm']:>3}  " + " ".join(f"{v:7.3f}" for v in c["point_b"]) + "   "
-              + " ".join(f"{v:8.2f}" for v in c["wrench_ee"][:3]) + " " + " ".join(f"{v:7.3f}" for v in c["wrench_ee"][3:]))
-    print(f"effort {plan.effort:.4g}   residual {plan.allocation.residual:.2e}")
+    print("contact points in the cart frame {b} (origin: fixed-axle midpoint, x forward, y left, z up);")
+    print("each hand's wrench in its contact frame {a} (axes of {b}, origin at the contact point)")
+    heads = ("arm", "x [m]", "y [m]", "z [m]", "fx [N]", "fy [N]", "fz [N]", "tx [N m]", "ty [N m]", "tz [N m]")
+    rows = [[str(c["arm"])] + [_num(v, 3) for v in c["point_b"]] + [_num(v, 2) for v in c["wrench_ee"]]
+            for c in contacts]
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(heads)]
+    print("  ".join(h.rjust(w) for h, w in zip(heads, widths)))
+    for r in rows:
+        print("  ".join(v.rjust(w) for v, w in zip(r, widths)))
+    fx, fy, tau = (float(v) for v in plan.allocation.gamma_achieved)
+    print(f"cart wrench in {{b}}: achieved fx {_num(fx, 2)} N, fy {_num(fy, 2)} N, tau {_num(tau, 2)} N m "
+          f"(requested {_num(args.wrench[0], 2)} N, {_num(args.wrench[1], 2)} N, {_num(args.wrench[2], 2)} N m; "
+          f"residual {plan.allocation.residual:.1e})")
+    print(f"effort {plan.effort:.4g} (sum over arms of |f|^2 [N^2] + |tau|^2 [(N m)^2], unit weights)")
     return 0
+
+
+def _num(value: float, decimals: int) -> str:
+    """Return `value` with `decimals` decimals, printing 0 for values that round to zero (never -0.00)."""
+    text = f"{float(value):.{decimals}f}"
+    return f"{0.0:.{decimals}f}" if float(text) == 0.0 else text

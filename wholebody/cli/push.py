@@ -1,4 +1,4 @@
-"""`cartpush push`: the closed loop — Ridgeback + iiwa push the cart, the EKF closes the loop."""
+"""`cartpush push`: the closed loop — a mobile manipulator (Ridgeback + iiwa, or the WMRA) pushes the cart, the EKF closes it."""
 from __future__ import annotations
 
 import argparse
@@ -18,16 +18,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "push",
         help="simulate the mobile manipulator(s) pushing the cart with the EKF in the loop",
         description=(
-            "Simulate the Ridgeback + iiwa 14 pushing the shopping cart along Traj. 1 or 2 of the cart\n"
+            "Simulate a mobile manipulator (default the Ridgeback + iiwa 14) pushing the shopping cart along Traj. 1 or 2 of the cart\n"
             "paper: cart controller (with the EKF's estimate) -> wrench allocation QP -> arm torques\n"
             "(Pinocchio, checked against the iiwa's limits) -> whole-body tracking of the handle ->\n"
             "exact cart dynamics -> noisy motion capture and F/T sensing -> EKF. True cart 20 kg,\n"
             "CoM (0.3, 0.15) m; the estimator starts at 16 kg, CoM (0.3, 0).\n\n"
+            "With --robot wmra the wheelchair-mounted arm pushes: its differential-drive base never slides\n"
+            "sideways (wheel-rate input), follows the cart with a look-ahead point, and the contact is\n"
+            "chosen only where the arm holds it with margin from the wheelchair's place behind the cart.\n\n"
             "Example:\n  cartpush push --trajectory 2 --contact optimal --json\n"
+            "  cartpush push --robot wmra --trajectory 2 --json\n"
             "  cartpush push --no-estimation --out report/ --html report/push.html"
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    p.add_argument("--robot", default="ridgeback_iiwa",
+                   help="the pushing robot: ridgeback_iiwa (holonomic base, default) or wmra (differential drive)")
     p.add_argument("--trajectory", type=int, default=2, help="paper trajectory: 1 (straight) or 2 (turns); default 2")
     p.add_argument("--arms", type=int, default=1, help="1 or 2 mobile manipulators (default 1)")
     p.add_argument("--no-estimation", action="store_true",
@@ -47,7 +53,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def config_from_args(args: argparse.Namespace):
     """Return the PushConfig of the parsed arguments (bad values raise WholeBodyError)."""
     from wholebody.push import PushConfig
+    from robots.profiles import mobile_manipulators
 
+    if args.robot not in mobile_manipulators():
+        raise WholeBodyError(f"--robot must be one of {', '.join(mobile_manipulators())}, got {args.robot!r}")
     if args.contact not in ("fixed", "optimal"):
         raise WholeBodyError(f"--contact must be 'fixed' or 'optimal', got {args.contact!r}")
     if args.trajectory not in (1, 2):
@@ -71,7 +80,7 @@ def config_from_args(args: argparse.Namespace):
         kwargs["fixed_contact_y"] = (-0.2, 0.2)
     return PushConfig(trajectory=args.trajectory, n_arms=args.arms, estimation=not args.no_estimation,
                       contact=args.contact, duration=args.duration, initial_mass=args.initial_mass,
-                      seed=args.seed, **kwargs)
+                      seed=args.seed, robot=args.robot, **kwargs)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -74,10 +74,8 @@ def table_rows(results: list) -> list[list[str]]:
 
 
 def _write_outputs(out: str, results: list) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
 
     os.makedirs(out, exist_ok=True)
     header = list(COLUMNS) + ["tracking_max_after_5s_m", "tracking_max_after_5s_no_estimation_m"]
@@ -88,10 +86,13 @@ def _write_outputs(out: str, results: list) -> None:
     with open(os.path.join(out, "table.md"), "w", encoding="utf-8") as fh:
         fh.write("| " + " | ".join(header) + " |\n|" + "---|" * len(header) + "\n")
         fh.writelines("| " + " | ".join(r) + " |\n" for r in rows)
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
-    for r in results:
-        axes[0].plot(r.run.t, r.run.position_error, label=f"test {r.test}")
-        axes[1].plot(r.run_no_estimation.t, r.run_no_estimation.position_error, label=f"test {r.test}")
+    colours = colormaps["tab20"].colors  # 20 distinct colours: no repeats for the 11 tests
+    fig = Figure(figsize=(13, 4.5), layout="constrained")
+    axes = fig.subplots(1, 2, sharey=True)
+    for i, r in enumerate(results):
+        c = colours[(2 * i) % 20 if i < 10 else (2 * (i - 10) + 1) % 20]
+        axes[0].plot(r.run.t, r.run.position_error, color=c, lw=1.0, label=f"test {r.test}")
+        axes[1].plot(r.run_no_estimation.t, r.run_no_estimation.position_error, color=c, lw=1.0)
     axes[0].set_title("tracking error, with estimation")
     axes[1].set_title("tracking error, without estimation")
     for ax in axes:
@@ -99,17 +100,16 @@ def _write_outputs(out: str, results: list) -> None:
         ax.set_yscale("log")
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("|p_d - p| [m]")
-    axes[1].legend(fontsize=7, ncol=2)
-    fig.tight_layout()
+    fig.legend(loc="outside right center", fontsize=8, title="same colour,\nsame test")
     fig.savefig(os.path.join(out, "fig4_tracking_error.png"), dpi=120)
-    plt.close(fig)
     for name, subset, title in (("fig5_mass.png", [r for r in results if r.test <= 8],
                                  "mass estimate, noise 5 mm (tests 1-8)"),
                                 ("fig6_mass_noise_changes.png", [r for r in results if r.test >= 9],
                                  "mass estimate: noise 5 cm (9), 20 cm (10), discrete changes (11)")):
         if not subset:
             continue
-        fig, ax = plt.subplots(figsize=(8, 4.5))
+        fig = Figure(figsize=(8, 4.5), layout="constrained")
+        ax = fig.subplots()
         for r in subset:
             line, = ax.plot(r.run.t, r.run.params_hat[:, 0], label=f"test {r.test}")
             ax.plot(r.run.t, r.run.params_true[:, 0], "--", color=line.get_color(), lw=0.8)
@@ -118,9 +118,7 @@ def _write_outputs(out: str, results: list) -> None:
         ax.set_title(title)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
-        fig.tight_layout()
         fig.savefig(os.path.join(out, name), dpi=120)
-        plt.close(fig)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -135,10 +133,10 @@ def run(args: argparse.Namespace) -> int:
     from studies.table1 import run_table1
 
     bar = None
-    if sys.stderr.isatty():
+    if sys.stderr.isatty() and not args.json:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(tests), desc="Table I", file=sys.stderr)
+        bar = tqdm(total=len(tests), desc="Table I tests", unit="test", file=sys.stderr)
     t0 = time.perf_counter()
     results = run_table1(tests, controller=args.controller, duration=args.duration, seed=args.seed,
                          progress=(lambda _: bar.update(1)) if bar else None,

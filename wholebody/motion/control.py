@@ -94,6 +94,11 @@ class ControllerConfig:
             body twist, t*: body twist steering the base to the `base_target` passed to `step`);
             0 (default) or no `base_target` = off.
         base_gain: rate (1/s) of the pull of the base to its target pose.
+        base_lookahead: > 0 (m): the base term tracks a look-ahead point at body offset (base_lookahead, 0)
+            towards the same point of the target pose instead of the pose (paper 2 section VI; the point's
+            velocity is fully actuated on a differential drive, so the base follows without sliding sideways).
+        wheel_acceleration_limit: wheel-rate change per second (rad/s^2) allowed between steps of a base driven
+            by wheel rates; None = no limit.
     """
 
     gain: float = 20.0
@@ -114,10 +119,14 @@ class ControllerConfig:
     solver_tolerance: float = 1e-9
     base_weight: float = 0.0
     base_gain: float = 2.0
+    base_lookahead: float = 0.0
+    wheel_acceleration_limit: float | None = None
 
     def __post_init__(self) -> None:
-        if not (self.base_weight >= 0 and self.base_gain >= 0):
-            raise WholeBodyError("base_weight and base_gain must be >= 0")
+        if not (self.base_weight >= 0 and self.base_gain >= 0 and self.base_lookahead >= 0):
+            raise WholeBodyError("base_weight, base_gain and base_lookahead must be >= 0")
+        if self.wheel_acceleration_limit is not None and not self.wheel_acceleration_limit > 0:
+            raise WholeBodyError(f"wheel_acceleration_limit must be positive, got {self.wheel_acceleration_limit}")
         if self.secondary not in ("posture", "manipulability", "none"):
             raise WholeBodyError(f"secondary must be posture, manipulability or none, got {self.secondary!r}")
         if self.solver not in qpsolvers.available_solvers:
@@ -171,6 +180,7 @@ class ResolvedRateController:
         self.config = config
         self.band = band
         p = posture if posture is not None else config.posture
+        self.u_prev = np.zeros(wb.n_u)
         self.posture = None if p is None else np.asarray(p, dtype=float)
         n = wb.n_u
         w = np.r_[np.full(3, config.position_weight), np.full(3, config.orientation_weight)]
@@ -201,7 +211,13 @@ class ResolvedRateController:
         else:
             lb[wb.n_arm:] = -np.inf
             ub[wb.n_arm:] = np.inf
-        return np.minimum(lb, 0.0), np.maximum(ub, 0.0)
+        lb, ub = np.minimum(lb, 0.0), np.maximum(ub, 0.0)
+        a = self.config.wheel_acceleration_limit
+        if a is not None and wb.base_input == "wheels":  # contains the previous wheel rates, hence feasible
+            w = slice(wb.n_arm, wb.n_u)
+            lb[w] = np.maximum(lb[w], self.u_prev[w] - a * dt)
+            ub[w] = np.minimum(ub[w], self.u_prev[w] + a * dt)
+        return lb, ub
 
     def inequalities(self, x: np.ndarray, dt: float, band_center: Sequence[float] | None,
                      band_center_velocity: Sequence[float] | None,
@@ -256,6 +272,16 @@ class ResolvedRateController:
         pose_d = np.asarray(base_target, dtype=float)
         rates = np.zeros(3) if base_target_velocity is None else np.asarray(base_target_velocity, dtype=float)
         th = x[2]
+        ell = cfg.base_lookahead
+        if ell > 0:  # look-ahead point P = base + ell (cos th, sin th) towards the target's P*
+            c, s = np.cos(th), np.sin(th)
+            cd, sd = np.cos(pose_d[2]), np.sin(pose_d[2])
+            p = x[:2] + ell * np.array([c, s])
+            p_d = pose_d[:2] + ell * np.array([cd, sd])
+            pdot_d = rates[:2] + ell * rates[2] * np.array([-sd, cd])
+            ref = pdot_d + cfg.base_gain * (p_d - p)
+            M = np.array([[c, -s, -ell * s], [s, c, ell * c]]) @ self.wb._wheel_map  # paper 2 eq. (12), (ell, 0)
+            return cfg.base_weight * M.T @ M, -cfg.base_weight * M.T @ ref
         e = np.array([pose_d[0] - x[0], pose_d[1] - x[1], (pose_d[2] - th + np.pi) % (2 * np.pi) - np.pi])
         w = rates + cfg.base_gain * e
         c, s = np.cos(th), np.sin(th)
@@ -312,6 +338,7 @@ class ResolvedRateController:
             ratio = np.max(np.abs(wb.base.twist_to_wheels() @ u[wb.n_arm:]) / wb.wheel_velocity_limit)
             if ratio > 1.0:
                 u[wb.n_arm:] /= ratio
+        self.u_prev = u.copy()
         s = np.linalg.svd(J, compute_uv=False)
         residual = float(np.linalg.norm(J @ u - v_ref))
         return StepResult(u=u, position_error=float(np.linalg.norm(e[:3])), orientation_error=float(np.linalg.norm(e[3:])),

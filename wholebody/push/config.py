@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, Protocol, Sequence, Tuple
+from typing import Literal, Optional, Protocol, Sequence, Tuple
 
 import numpy as np
 import pinocchio as pin
@@ -66,7 +66,8 @@ class PushConfig:
     n_arms: int = 1
     estimation: bool = True
     contact: ContactMode = "optimal"
-    fixed_contact_y: Tuple[float, ...] = (-0.2,)
+    #: fixed contact point(s) y (m); None = the robot's `push_contact_y` (two arms: -0.2, 0.2)
+    fixed_contact_y: Optional[Tuple[float, ...]] = None
     true_params: CartParams = TRUE_CART
     initial_mass: float = 16.0
     initial_com: Tuple[float, float] = (0.3, 0.0)
@@ -76,6 +77,8 @@ class PushConfig:
     replan_period: float = 0.5
     replan_horizon: float = 3.0
     slide_speed: float = 0.05
+    #: contact slide acceleration (m/s^2): the hand's speed along the handle changes smoothly
+    slide_acceleration: float = 0.1
     arm_limits: ArmLimits = ArmLimits()
     #: the pushing robot, a `robots.profiles` entry with an F/T sensor and a push posture
     robot: str = "ridgeback_iiwa"
@@ -89,12 +92,20 @@ class PushConfig:
             raise WholeBodyError(f"contact must be 'fixed' or 'optimal', got {self.contact!r}")
         if not (self.dt > 0 and self.duration > 0 and self.initial_mass > 0):
             raise WholeBodyError("dt, duration and initial_mass must be positive")
-        if len(self.fixed_contact_y) not in (1, 2):
+        from robots.profiles import profile
+
+        prof = profile(self.robot)  # raises naming the known robots
+        if not (prof.is_mobile_manipulator and prof.ft_frame and prof.push_arm_seed):
+            raise WholeBodyError(f"robot {self.robot!r} cannot push the cart (no arm, F/T sensor or push posture)")
+        if self.fixed_contact_y is not None and len(self.fixed_contact_y) not in (1, 2):
             raise WholeBodyError("fixed_contact_y needs one value per arm")
 
     def contact_y0(self) -> np.ndarray:
         """Return the initial contact y per arm (fixed mode: the fixed points)."""
-        ys = np.asarray(self.fixed_contact_y, dtype=float)
+        from robots.profiles import profile
+
+        given = self.fixed_contact_y if self.fixed_contact_y is not None else (profile(self.robot).push_contact_y,)
+        ys = np.asarray(given, dtype=float)
         if self.n_arms == 2 and ys.size == 1:
             ys = np.array([-0.2, 0.2])
         if self.n_arms == 1:
@@ -131,6 +142,18 @@ class PushMetrics:
     base_twist_limit_ratio: float
     base_wheel_limit_ratio: float
     saturated_steps: int
+    base_wheel_speed_rms_rad_s: float = 0.0
+    base_wheel_speed_max_rad_s: float = 0.0
+    base_wheel_acceleration_max_rad_s2: float = 0.0
+    base_lateral_speed_max_m_s: float = 0.0
+    #: largest change of one arm joint torque between two samples (N m)
+    arm_torque_step_max_nm: float = 0.0
+    mass_error_rms_kg: float = 0.0
+    mass_error_max_after_5s_kg: float = 0.0
+    com_error_rms_m: float = 0.0
+    com_error_max_after_5s_m: float = 0.0
+    time_mass_within_1kg_s: float = 0.0
+    time_com_within_1cm_s: float = 0.0
 
     def as_dict(self) -> dict:
         """Return the metrics as a JSON-ready dict."""
@@ -159,3 +182,6 @@ class PushResult:
     grasp_error: np.ndarray  # (N, n_arms) ee position error w.r.t. the handle point
     effort_limit: np.ndarray  # (7,)
     metrics: PushMetrics
+    base_twist: Optional[np.ndarray] = None  # (N, n_arms, 3) base body twist (vx, vy, wz)
+    wheel_rates: Optional[np.ndarray] = None  # (N, n_arms, n_wheels) rad/s
+    wheel_velocity_limit: Optional[np.ndarray] = None  # (n_wheels,) rad/s

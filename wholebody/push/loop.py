@@ -39,7 +39,9 @@ from cart.params import CartParams
 from cart.simulate import rk4_step
 from wholebody.contacts.allocation import WrenchAllocator
 from wholebody.push.config import CartController, ParameterEstimator, PushConfig, PushMetrics, PushResult
-from wholebody.push.robot import (BASE_TWIST_LIMIT, TWO_ARM_BASE_SPREAD, MobileManipulator, base_target, cart_se3,
+from robots.profiles import profile
+from wholebody.errors import WholeBodyError
+from wholebody.push.robot import (TWO_ARM_BASE_SPREAD, MobileManipulator, base_target, cart_se3,
                                   ft_measurement, ft_to_cart_gamma, grasp_rotation, grasp_target, handle_point)
 from wholebody.push.scheduler import ContactScheduler
 
@@ -71,16 +73,19 @@ class PushHistory:
     grasp_error: np.ndarray
     base_ratio: np.ndarray
     wheel_ratio: np.ndarray
+    base_twist: np.ndarray
+    wheel_rates: np.ndarray
     saturated: int = 0
 
     @classmethod
-    def empty(cls, n: int, n_arms: int) -> "PushHistory":
+    def empty(cls, n: int, n_arms: int, n_wheels: int = 4) -> "PushHistory":
         """Return zero histories for n samples."""
         na = n_arms
         shapes = dict(q_true=(n, 3), qd_true=(n, 3), q_desired=(n, 3), z_meas=(n, 6), gamma_desired=(n, 3),
                       gamma_applied=(n, 3), gamma_measured=(n, 3), phi_hat=(n, 4), contact_y=(n, na),
                       wrenches=(n, na, 6), arm_torque=(n, na, 7), push_torque=(n, na, 7), robot_x=(n, na, 10),
-                      grasp_error=(n, na), base_ratio=(n, na), wheel_ratio=(n, na))
+                      grasp_error=(n, na), base_ratio=(n, na), wheel_ratio=(n, na), base_twist=(n, na, 3),
+                      wheel_rates=(n, na, n_wheels))
         return cls(**{k: np.zeros(shape) for k, shape in shapes.items()})
 
 
@@ -95,13 +100,42 @@ class ControlStep:
     wrenches_ee: np.ndarray  # (n_arms, 6) in {a}
 
 
-def make_robots(config: PushConfig, q_cart: np.ndarray, contact_y: np.ndarray) -> List[MobileManipulator]:
-    """Return the mobile manipulators holding the handle at `contact_y` (two: bases spread apart)."""
+def make_robots(config: PushConfig, q_cart: np.ndarray, contact_y: np.ndarray,
+                seeds: Optional[Sequence[Optional[np.ndarray]]] = None) -> List[MobileManipulator]:
+    """Return the mobile manipulators holding the handle at `contact_y` (two: bases spread apart).
+
+    Everything robot-specific (joints, grasp pitch, base place, seeds) comes from `robots.profiles`.
+    """
     robot = robots.load(config.robot)
+    prof = profile(config.robot)
     ys = contact_y
-    base_ys = [ys[0]] if config.n_arms == 1 else [ys[0] - TWO_ARM_BASE_SPREAD, ys[1] + TWO_ARM_BASE_SPREAD]
-    R_b_ee = grasp_rotation()
-    return [MobileManipulator(robot, q_cart, y, by, R_b_ee) for y, by in zip(ys, base_ys)]
+    if prof.push_base_y is not None:  # the base stands at a fixed place behind the cart
+        if config.n_arms != 1:
+            raise WholeBodyError(f"robot {config.robot!r} pushes alone (its base stands at a fixed place); use 1 arm")
+        base_ys = [prof.push_base_y]
+    else:
+        base_ys = [ys[0]] if config.n_arms == 1 else [ys[0] - TWO_ARM_BASE_SPREAD, ys[1] + TWO_ARM_BASE_SPREAD]
+    R_b_ee = grasp_rotation(prof.grasp_pitch)
+    seeds = seeds if seeds is not None else [None] * len(ys)
+    return [MobileManipulator(robot, q_cart, y, by, R_b_ee, arm_seed=sd) for y, by, sd in zip(ys, base_ys, seeds)]
+
+
+def make_reach_map(config: PushConfig):
+    """Return the `ReachMap` of a robot whose base stands at a fixed place behind the cart (None otherwise)."""
+    from wholebody.contacts.placement import reach_map
+    from wholebody.motion.kinematics import wholebody_for
+
+    prof = profile(config.robot)
+    if prof.push_base_y is None:  # the base follows the contact sideways: every handle point is held alike
+        return None
+    robot = robots.load(config.robot)
+    wb = wholebody_for(robot, base_input="twist" if prof.base == "omnidirectional" else "wheels")
+    R = grasp_rotation(prof.grasp_pitch)
+    zero = np.zeros(3)
+    offset = np.array([handle_point(0.0)[0] + prof.push_base_x, prof.push_base_y])
+    return reach_map(wb, lambda y: base_target(zero, zero, offset)[0],
+                     lambda y: grasp_target(zero, zero, float(y), 0.0, R)[0],
+                     np.round(np.arange(-0.25, 0.2501, 0.025), 6), prof.push_arm_seed, 0.0)
 
 
 def control_step(t: float, dt: float, q: np.ndarray, controller: CartController, estimator: ParameterEstimator,
@@ -138,8 +172,13 @@ def robots_step(k: int, dt: float, q: np.ndarray, qd: np.ndarray, z: np.ndarray,
         hist.push_torque[k, i] = push
         hist.robot_x[k, i] = mm.x
         hist.grasp_error[k, i] = np.linalg.norm(oMee.translation - target.translation)
-        hist.base_ratio[k, i] = np.max(np.abs(u[mm.wb.n_arm:]) / BASE_TWIST_LIMIT)
-        hist.wheel_ratio[k, i] = np.max(np.abs(mm.wb.wheel_rates(u)) / mm.wb.wheel_velocity_limit)
+        twist = mm.body_twist(u)
+        lim = np.asarray(mm.profile.base_twist_limit)
+        hist.base_ratio[k, i] = np.max(np.abs(twist)[lim > 0] / lim[lim > 0])
+        hist.base_twist[k, i] = twist
+        wheels = mm.wb.wheel_rates(u)
+        hist.wheel_rates[k, i, :wheels.size] = wheels
+        hist.wheel_ratio[k, i] = np.max(np.abs(wheels) / mm.wb.wheel_velocity_limit)
         hist.wrenches[k, i] = W[i]
         mm.x = mm.wb.integrate(mm.x, u, dt)
         mm.u = u
@@ -163,13 +202,15 @@ def run_push(config: PushConfig = PushConfig(), controller: Optional[CartControl
     q, qd, _ = traj.sample(0.0)
     qd = qd.copy()
     estimator = estimator if estimator is not None else make_estimator(config, q)
-    scheduler = ContactScheduler(config, traj)
-    mms = make_robots(config, q, scheduler.y)
+    reach = make_reach_map(config)
+    scheduler = ContactScheduler(config, traj, reach)
+    seeds = None if reach is None else [reach.postures[reach.index(scheduler.y[0])]]
+    mms = make_robots(config, q, scheduler.y, seeds)
     allocator = WrenchAllocator([handle_point(v) for v in scheduler.y], config.arm_limits,
                                 only_motion_directions=True)
     n = int(round(config.duration / config.dt)) + 1
     dt, h = config.dt, config.dt / config.substeps
-    hist = PushHistory.empty(n, config.n_arms)
+    hist = PushHistory.empty(n, config.n_arms, mms[0].wb.wheel_velocity_limit.size)
     std = config.noise.measurement_std()
     z = np.r_[q, qd] + rng.normal(0.0, 1.0, 6) * std
     for k in _iterations(n, progress):
@@ -189,16 +230,19 @@ def run_push(config: PushConfig = PushConfig(), controller: Optional[CartControl
             q, qd = rk4_step(t + j * h, q, qd, gamma_true, config.true_params, h)
         z = np.r_[q, qd] + rng.normal(0.0, 1.0, 6) * std  # motion capture
         estimator.step(gamma_meas, dt, z)  # paper eq. (8-20)
-    return _result(config, hist, mms[0].effort_limit, estimator.params())
+    return _result(config, hist, mms[0].effort_limit, estimator.params(), mms[0].wb.wheel_velocity_limit)
 
 
 _RESULT_FIELDS = ("q_true", "qd_true", "q_desired", "z_meas", "gamma_desired", "gamma_applied", "gamma_measured",
-                  "phi_hat", "contact_y", "wrenches", "arm_torque", "push_torque", "robot_x", "grasp_error")
+                  "phi_hat", "contact_y", "wrenches", "arm_torque", "push_torque", "robot_x", "grasp_error",
+                  "base_twist", "wheel_rates")
 
 
-def _result(config: PushConfig, hist: PushHistory, effort_limit: np.ndarray, final: CartParams) -> PushResult:
+def _result(config: PushConfig, hist: PushHistory, effort_limit: np.ndarray, final: CartParams,
+            wheel_limit: np.ndarray) -> PushResult:
     n = hist.q_true.shape[0]
     return PushResult(config=config, t=np.arange(n) * config.dt, effort_limit=effort_limit,
+                      wheel_velocity_limit=wheel_limit,
                       metrics=_metrics(config, hist, effort_limit, final),
                       **{key: getattr(hist, key) for key in _RESULT_FIELDS})
 
@@ -209,6 +253,10 @@ def _metrics(config: PushConfig, H: PushHistory, effort_limit: np.ndarray, final
     f = np.linalg.norm(H.wrenches[:, :, :3], axis=2)
     tz = np.linalg.norm(H.wrenches[:, :, 3:], axis=2)
     truth = config.true_params
+    wheels = H.wheel_rates
+    wheel_acc = np.diff(wheels, axis=0) / config.dt if wheels.shape[0] > 1 else np.zeros(1)
+    dtau = np.diff(tau, axis=0) if tau.shape[0] > 1 else np.zeros(1)
+    est = _estimation_metrics(config, H)
     return PushMetrics(
         tracking_rms_m=float(np.sqrt(np.mean(err ** 2))),
         tracking_max_m=float(err.max()),
@@ -226,4 +274,30 @@ def _metrics(config: PushConfig, H: PushHistory, effort_limit: np.ndarray, final
         base_twist_limit_ratio=float(H.base_ratio.max()),
         base_wheel_limit_ratio=float(H.wheel_ratio.max()),
         saturated_steps=int(H.saturated),
+        base_wheel_speed_rms_rad_s=float(np.sqrt(np.mean(wheels ** 2))),
+        base_wheel_speed_max_rad_s=float(np.abs(wheels).max()),
+        base_wheel_acceleration_max_rad_s2=float(np.abs(wheel_acc).max()),
+        base_lateral_speed_max_m_s=float(np.abs(H.base_twist[:, :, 1]).max()),
+        arm_torque_step_max_nm=float(np.abs(dtau).max()),
+        **est,
+    )
+
+
+def _estimation_metrics(config: PushConfig, H: PushHistory, after: float = 5.0) -> dict:
+    """Return time-resolved estimation errors: RMS over the run, max after `after` s, time within 1 kg / 1 cm."""
+    truth = config.true_params
+    t = np.arange(H.phi_hat.shape[0]) * config.dt
+    m = H.phi_hat[:, 0]
+    m_safe = np.where(np.abs(m) > 1e-9, m, np.nan)
+    e_m = np.abs(m - truth.m)
+    e_c = np.hypot(H.phi_hat[:, 1] / m_safe - truth.dx, H.phi_hat[:, 2] / m_safe - truth.dy)
+    late = t >= after
+    late = late if late.any() else np.ones_like(late)
+    return dict(
+        mass_error_rms_kg=float(np.sqrt(np.mean(e_m ** 2))),
+        mass_error_max_after_5s_kg=float(e_m[late].max()),
+        com_error_rms_m=float(np.sqrt(np.nanmean(e_c ** 2))),
+        com_error_max_after_5s_m=float(np.nanmax(e_c[late])),
+        time_mass_within_1kg_s=float(np.sum(e_m <= 1.0) * config.dt),
+        time_com_within_1cm_s=float(np.sum(e_c <= 0.01) * config.dt),
     )

@@ -18,6 +18,8 @@ from wholebody.push.config import PushConfig, PushResult
 from wholebody.push.loop import run_push
 
 if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
     from wholebody.viz import Scene
 
 #: Columns of the comparison table: (metrics key, header, format).
@@ -32,6 +34,9 @@ TABLE_COLUMNS = (
     ("ee_torque_rms_nm", "|n| RMS [Nm]", "{:.2f}"),
     ("mass_error_final_kg", "m err [kg]", "{:.3f}"),
     ("com_error_final_m", "CoM err [m]", "{:.3f}"),
+    ("mass_error_max_after_5s_kg", "m err max >5s [kg]", "{:.2f}"),
+    ("time_mass_within_1kg_s", "t m within 1 kg [s]", "{:.1f}"),
+    ("com_error_max_after_5s_m", "CoM err max >5s [m]", "{:.3f}"),
 )
 
 
@@ -49,7 +54,8 @@ def describe(config: PushConfig) -> str:
     """Return a short label of a run configuration."""
     est = "EKF" if config.estimation else f"no EKF (m={config.initial_mass:g})"
     contact = "optimal CP" if config.contact == "optimal" else f"fixed CP y={','.join(f'{v:g}' for v in config.contact_y0())}"
-    return f"Traj.{config.trajectory} {config.n_arms} arm{'s' if config.n_arms > 1 else ''}, {est}, {contact}"
+    robot = "" if config.robot == "ridgeback_iiwa" else f"{config.robot}, "
+    return f"{robot}Traj.{config.trajectory} {config.n_arms} arm{'s' if config.n_arms > 1 else ''}, {est}, {contact}"
 
 
 def comparison_table(runs: Dict[str, PushResult], markdown: bool = False) -> str:
@@ -78,62 +84,82 @@ def push_log(result: PushResult) -> CartLog:
                    contact_b=contact, metadata=meta)
 
 
-def save_figures(runs: Dict[str, PushResult], out_dir: Path) -> List[Path]:
-    """Write PNG figures comparing the runs (path, tracking error, mass/CoM estimate, torques, forces)."""
-    import matplotlib
+def push_figures(runs: Dict[str, PushResult]) -> Dict[str, "Figure"]:
+    """Return the figures comparing the runs, name -> matplotlib Figure (no backend is selected or touched).
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    ``path``: the cart's path of each run (later runs dashed, so none hides
+    another) and the base of robot 1 (dotted, same colour); ``tracking_estimation``:
+    tracking error, mass and CoM estimates, hand force; ``arm_torques``: the
+    arm's joint torques of each run, legend outside the axes.
+    """
+    from matplotlib.figure import Figure
 
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
+    figs: Dict[str, Figure] = {}
     first = next(iter(runs.values()))
-    fig, ax = plt.subplots(figsize=(6, 5))
-    ax.plot(first.q_desired[:, 0], first.q_desired[:, 1], "k--", label="desired")
-    for label, r in runs.items():
-        ax.plot(r.q_true[:, 0], r.q_true[:, 1], label=label)
-        ax.plot(r.robot_x[:, 0, 0], r.robot_x[:, 0, 1], ":", alpha=0.6)
-    ax.set_xlabel("x [m]"), ax.set_ylabel("y [m]"), ax.axis("equal"), ax.legend(fontsize=7)
-    ax.set_title("cart path (dotted: base of robot 1)")
-    paths.append(_save(fig, out_dir / "path.png"))
-    fig, axes = plt.subplots(4, 1, figsize=(7, 10), sharex=True)
-    for label, r in runs.items():
+    colours = [f"C{i}" for i in range(10)]
+    fig = Figure(figsize=(7, 5.5), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(first.q_desired[:, 0], first.q_desired[:, 1], "k-", lw=3, alpha=0.25, label="desired cart path")
+    for i, (label, r) in enumerate(runs.items()):
+        c = colours[i % 10]
+        ax.plot(r.q_true[:, 0], r.q_true[:, 1], "-" if i == 0 else "--", color=c, lw=1.6 if i == 0 else 1.2,
+                label=f"cart, {label}")
+        ax.plot(r.robot_x[:, 0, 0], r.robot_x[:, 0, 1], ":", color=c, lw=1.2, label=f"robot 1 base, {label}")
+    ax.set_xlabel("x [m]"), ax.set_ylabel("y [m]"), ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
+    ax.set_title("paths (world frame)")
+    figs["path"] = fig
+    fig = Figure(figsize=(7, 10), layout="constrained")
+    axes = fig.subplots(4, 1, sharex=True)
+    for i, (label, r) in enumerate(runs.items()):
+        c, ls = colours[i % 10], "-" if i == 0 else "--"
         err = np.hypot(*(r.q_true[:, :2] - r.q_desired[:, :2]).T)
-        axes[0].plot(r.t, 100 * err, label=label)
-        axes[1].plot(r.t, r.phi_hat[:, 0], label=label)
-        axes[2].plot(r.t, r.phi_hat[:, 1] / r.phi_hat[:, 0], label=f"dx {label}")
-        axes[2].plot(r.t, r.phi_hat[:, 2] / r.phi_hat[:, 0], "--", label=f"dy {label}")
-        axes[3].plot(r.t, np.linalg.norm(r.wrenches[:, 0, :3], axis=1), label=label)
+        axes[0].plot(r.t, 100 * err, ls, color=c, label=label)
+        axes[1].plot(r.t, r.phi_hat[:, 0], ls, color=c, label=label)
+        axes[2].plot(r.t, r.phi_hat[:, 1] / r.phi_hat[:, 0], ls, color=c, label=f"dx, {label}")
+        axes[2].plot(r.t, r.phi_hat[:, 2] / r.phi_hat[:, 0], ls, color=c, alpha=0.55, label=f"dy, {label}")
+        axes[3].plot(r.t, np.linalg.norm(r.wrenches[:, 0, :3], axis=1), ls, color=c, label=label)
     p = first.config.true_params
-    axes[1].axhline(p.m, color="k", lw=0.8)
-    axes[2].axhline(p.dx, color="k", lw=0.8), axes[2].axhline(p.dy, color="k", lw=0.8, ls="--")
-    for a, lab in zip(axes, ("tracking error [cm]", "mass estimate [kg]", "CoM estimate [m]", "hand force |f| [N]")):
+    axes[1].axhline(p.m, color="k", lw=0.8, label="true")
+    axes[2].axhline(p.dx, color="k", lw=0.8, label="true dx, dy")
+    axes[2].axhline(p.dy, color="k", lw=0.8)
+    for a, lab in zip(axes, ("tracking error [cm]", "mass estimate [kg]", "CoM estimate in {b} [m]",
+                             "hand force |f| [N]")):
         a.set_ylabel(lab), a.grid(alpha=0.3)
-    axes[0].legend(fontsize=7), axes[2].legend(fontsize=6, ncol=2)
+    axes[0].legend(fontsize=7), axes[1].legend(fontsize=7), axes[2].legend(fontsize=6, ncol=2)
     axes[-1].set_xlabel("t [s]")
-    paths.append(_save(fig, out_dir / "tracking_estimation.png"))
-    fig, axes = plt.subplots(len(runs), 1, figsize=(7, 3 * len(runs)), sharex=True, squeeze=False)
+    figs["tracking_estimation"] = fig
+    fig = Figure(figsize=(8.5, 3 * len(runs)), layout="constrained")
+    axes = fig.subplots(len(runs), 1, sharex=True, squeeze=False)
     for a, (label, r) in zip(axes[:, 0], runs.items()):
-        for j in range(7):
+        for j in range(r.arm_torque.shape[2]):
             a.plot(r.t, r.arm_torque[:, 0, j], lw=0.8, label=f"joint {j + 1}")
         a.set_title(label, fontsize=8), a.set_ylabel("tau [N m]"), a.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=6, ncol=4)
+    axes[0, 0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("t [s]")
-    paths.append(_save(fig, out_dir / "arm_torques.png"))
+    figs["arm_torques"] = fig
+    return figs
+
+
+def save_figures(runs: Dict[str, PushResult], out_dir: Path) -> List[Path]:
+    """Write the `push_figures` as PNG (path.png, tracking_estimation.png, arm_torques.png); return the paths."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, fig in push_figures(runs).items():
+        path = out_dir / f"{name}.png"
+        fig.savefig(path, dpi=90)
+        paths.append(path)
     return paths
 
 
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
-    return path
-
-
 def build_scene(result: PushResult, fps: int = 10) -> "Scene":
-    """Return a Meshcat scene animating the run: robot 1, the cart, the hand force, the true and estimated CoM."""
+    """Return a Meshcat scene animating the run: robot 1, the cart, the hand force, the true and estimated CoM.
+
+    The page opens paused at the first frame (the robot holding the cart) and
+    its camera follows the robot and the cart (`wholebody.viz.Scene.animate`).
+    """
     import robots
     from robots.shopping_cart import CART_WHEEL_RADIUS
     from wholebody.motion.kinematics import wholebody_for
@@ -159,7 +185,9 @@ def build_scene(result: PushResult, fps: int = 10) -> "Scene":
     scene.show_trace("desired", result.q_desired[:, :2])
     scene.animate(result.t[idx], {"ridgeback_iiwa": result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},
                   q_joints={"ridgeback_iiwa": qj}, wrenches={"hand": (origins, forces)},
-                  markers={"com/com_true": com_true, "com/com_est": com_est}, scale=0.02, fps=fps)
+                  markers={"com/com_true": com_true, "com/com_est": com_est}, scale=0.02, fps=fps,
+                  follow=("ridgeback_iiwa", "shopping_cart"))
+    scene.frame_robots(margin=0.6)  # the first frame: the robot holding the cart; the camera then follows them
     return scene
 
 

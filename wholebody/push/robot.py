@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Optional, Sequence, Tuple
 
 import numpy as np
@@ -86,7 +87,11 @@ class WholeBodyQPTracker:
     imply its twist limits 1.1 m/s, 1.1 m/s, 2 rad/s).
     """
 
-    def __init__(self, wb: WholeBody, q_nominal: np.ndarray, config: ControllerConfig = PUSH_CONTROLLER) -> None:
+    def __init__(self, wb: WholeBody, q_nominal: np.ndarray, config: Optional[ControllerConfig] = None) -> None:
+        if config is None:  # the robot's own base tracker and wheel limits (robots.profiles)
+            prof = profile(wb.robot.name)
+            config = replace(PUSH_CONTROLLER, base_lookahead=prof.base_lookahead,
+                             wheel_acceleration_limit=prof.wheel_acceleration_limit)
         self.controller = ResolvedRateController(wb, config, posture=q_nominal)
         self.last: Optional[StepResult] = None
 
@@ -127,30 +132,38 @@ class MobileManipulator:
     """
 
     def __init__(self, robot: robots.LoadedRobot, q_cart: np.ndarray, contact_y: float, base_y: float,
-                 R_b_ee: np.ndarray, tracker: Optional[BodyTracker] = None) -> None:
+                 R_b_ee: np.ndarray, tracker: Optional[BodyTracker] = None,
+                 arm_seed: Optional[Sequence[float]] = None) -> None:
         prof = profile(robot.name)
         if prof.ft_frame is None or prof.push_arm_seed is None:
             raise WholeBodyError(f"robot {robot.name!r} has no F/T sensor or push posture in robots.profiles")
-        self.wb = wholebody_for(robot, base_input="twist")
+        self.profile = prof
+        # a holonomic base takes a body twist; a differential drive takes wheel rates, so that its lateral
+        # velocity is zero by construction (combined Jacobian of paper 2, eq. 11-21)
+        self.wb = wholebody_for(robot, base_input="twist" if prof.base == "omnidirectional" else "wheels")
         self.model = self.wb.model
         self.data = self.model.createData()
         self.R_b_ee = R_b_ee
         self.ee_id = self.wb.ee_frame_id
         self.ft_id = robot.frame_id(prof.ft_frame)
-        self.base_offset_b = np.array([handle_point(contact_y)[0] + BASE_OFFSET_X, base_y])
+        self.base_offset_b = np.array([handle_point(contact_y)[0] + prof.push_base_x, base_y])
         pose, _ = base_target(q_cart, np.zeros(3), self.base_offset_b)
         target, _ = grasp_target(q_cart, np.zeros(3), contact_y, 0.0, R_b_ee)
-        qa = solve_grasp_ik(self.wb, pose, target, prof.push_arm_seed)
+        qa = solve_grasp_ik(self.wb, pose, target, prof.push_arm_seed if arm_seed is None else arm_seed)
         self.x = np.r_[pose, qa]
         self.tracker = tracker if tracker is not None else WholeBodyQPTracker(self.wb, qa)
         self.u = np.zeros(self.wb.n_u)
         self.effort_limit = self.model.effortLimit[self.wb.arm_idx_v].copy()
 
+    def body_twist(self, u: np.ndarray) -> np.ndarray:
+        """Return the base body twist (vx, vy, wz) of an input u (vy = 0 exactly for a differential drive)."""
+        return self.wb._wheel_map @ np.asarray(u, dtype=float)[self.wb.n_arm:]
+
     def pin_state(self, u: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Return Pinocchio (q, v) for the current x and input u (wheel joints left at rest)."""
         q = self.wb.to_pinocchio_q(self.x)
         v = np.zeros(self.model.nv)
-        v[0:3] = u[self.wb.n_arm:]  # planar root joint: body twist
+        v[0:3] = self.body_twist(u)  # planar root joint: body twist
         v[self.wb.arm_idx_v] = u[:self.wb.n_arm]
         return q, v
 

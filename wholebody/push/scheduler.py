@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from typing import List, Tuple
+from typing import List, Optional, Tuple
 
 import numpy as np
 
@@ -11,18 +11,40 @@ from cart.params import CartParams
 from cart.trajectories import UnicycleTrajectory
 from wholebody.contacts.allocation import WrenchAllocator
 from wholebody.contacts.handle import HandleSegment
+from wholebody.contacts.placement import ReachMap
+from wholebody.errors import InfeasibleWrenchError
 from wholebody.push.config import PushConfig
 from wholebody.push.robot import handle_point
 
+#: A planned contact keeps its static joint torques (gravity + J^T w) below this fraction of the effortLimit,
+#: leaving the rest for the arm's own dynamics.
+STATIC_TORQUE_FRACTION = 0.8
+
 
 class ContactScheduler:
-    """Contact points on the handle: fixed, or re-planned from the estimate and slid towards the plan."""
+    """Contact points on the handle: fixed, or re-planned from the estimate and slid towards the plan.
 
-    def __init__(self, config: PushConfig, trajectory: UnicycleTrajectory) -> None:
+    With a `ReachMap` (a robot whose base stands at a fixed place behind the cart), only points the arm
+    holds with margin are candidates, and a plan whose static joint torques exceed the effortLimit is avoided.
+    """
+
+    def __init__(self, config: PushConfig, trajectory: UnicycleTrajectory, reach: Optional[ReachMap] = None) -> None:
         self.config = config
         self.trajectory = trajectory
+        self.reach = reach
         self.y = config.contact_y0().copy()
+        if reach is not None:
+            if config.contact == "fixed" and not all(reach.is_reachable(v) for v in self.y):
+                i = reach.index(float(self.y[0]))
+                ok = reach.y[reach.reachable]
+                span = f"[{ok.min():.3f}, {ok.max():.3f}] m" if ok.size else "nowhere"
+                raise InfeasibleWrenchError(
+                    f"robot {config.robot!r} cannot hold the handle at y = {self.y[0]:.3f} m with margin "
+                    f"({reach.reason[i] or 'outside the reachable span'}); it reaches {span}", binding="reach")
+            self.y = np.array([reach.nearest_reachable(float(v)) if not reach.is_reachable(v) else float(v)
+                               for v in self.y])
         self.plan = self.y.copy()
+        self.ydot = np.zeros_like(self.y)
         self.next_replan = 0.0
         self.alloc = WrenchAllocator([handle_point(v) for v in self.y], config.arm_limits,
                                      only_motion_directions=True)
@@ -31,6 +53,10 @@ class ContactScheduler:
         grid = np.round(np.arange(-0.25, 0.2501, 0.025 if n == 1 else 0.05), 6)
         self.candidates = [np.array([g]) for g in grid] if n == 1 else [
             np.array([a, b]) for a in grid for b in grid if b - a >= 0.2 - 1e-9]
+        if reach is not None:
+            self.candidates = [c for c in self.candidates if all(reach.is_reachable(v) for v in c)]
+        self.y_lo = min(float(c.min()) for c in self.candidates) if self.candidates else float(grid[0])
+        self.y_hi = max(float(c.max()) for c in self.candidates) if self.candidates else float(grid[-1])
 
     def _planned_wrenches(self, t: float, params: CartParams) -> List[np.ndarray]:
         """Return the feed-forward body wrenches (fx_b, 0, tau_b) along the next replan_horizon seconds."""
@@ -62,9 +88,23 @@ class ContactScheduler:
                 for g in gammas:
                     res = self.alloc.solve(g, raise_on_infeasible=False)
                     total += res.effort + 1e6 * res.residual ** 2
+                    if self.reach is not None:  # static joint torques beyond the effortLimit: heavily penalised
+                        over = self.reach.torque_ratio(float(cand[0]), res.wrenches_ee[0]) - STATIC_TORQUE_FRACTION
+                        total += 1e6 * max(0.0, over) ** 2
                 if total < best_v - 1e-9:
                     best, best_v = cand, total
             self.plan = best.copy()
-        step = np.clip(self.plan - self.y, -self.config.slide_speed * dt, self.config.slide_speed * dt)
-        self.y = self.y + step
-        return self.y, step / dt
+        # slide towards the plan with bounded speed and acceleration (a trapezoidal profile that stops on the
+        # plan): the hand's velocity never jumps, so the arm's joint torques stay continuous at a re-plan
+        a, vmax = self.config.slide_acceleration, self.config.slide_speed
+        e = self.plan - self.y
+        # discrete braking curve: from speed n a dt, decelerating a dt per step covers n (n + 1) / 2 a dt^2
+        n_stop = np.sqrt(0.25 + 2.0 * np.abs(e) / (a * dt * dt)) - 0.5
+        v_stop = np.sign(e) * np.minimum(vmax, n_stop * a * dt)
+        v = self.ydot + np.clip(v_stop - self.ydot, -a * dt, a * dt)
+        step = v * dt
+        land = (np.abs(step) >= np.abs(e)) & (np.abs(v) <= a * dt + 1e-12)  # slow enough: stop on the plan
+        step = np.where(land, e, step)
+        self.ydot = np.where(land, 0.0, v)
+        self.y = np.clip(self.y + step, self.y_lo, self.y_hi)  # never past the handle's (reachable) ends
+        return self.y, self.ydot.copy()

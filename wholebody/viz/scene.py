@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import base64
 import contextlib
+import html as _html
 import io
 import math
 from dataclasses import dataclass
@@ -196,8 +197,71 @@ def _camera_js(camera: Camera) -> str:
 """
 
 
-def _static_html(commands: Sequence[bytes], controls: bool = True, camera: Camera | None = None) -> str:
-    """Return a self-contained HTML page (viewer JavaScript inlined) replaying `commands`, then setting `camera`."""
+def _animation_js(follow: Sequence[str]) -> str:
+    """Return JavaScript for an animated page: seek by URL hash, a scrubber that works while paused, camera follow.
+
+    * ``page.html#t=12.5`` opens the animation at 12.5 s (paused); ``#play`` (or
+      ``#t=3&play``) starts playing. The page opens paused at the first frame.
+    * The GUI's time scrubber seeks even before the first "play".
+    * When `follow` names nodes (``"/meshcat/<robot>"``), the camera and its
+      orbit target move with the mean world position of those nodes, keeping
+      the offset the viewer had (orbiting by mouse still works).
+    """
+    paths = "[" + ", ".join("[" + ", ".join(f'"{part}"' for part in p.split("/") if part) + "]" for p in follow) + "]"
+    return f"""(function () {{
+  const anim = viewer.animator;
+  function seek(t) {{
+    if (!anim.actions.length) return;
+    anim.pause();
+    for (const a of anim.actions) {{
+      a.play(); a.paused = false; a.time = Math.max(0, Math.min(a._clip.duration, t));
+    }}
+    anim.mixer.update(0);
+    anim.display_progress(Math.max(0, Math.min(anim.duration, t)));
+    viewer.set_dirty();
+  }}
+  anim.seek = seek;
+  const nodes = {paths}.map(function (p) {{ return viewer.scene_tree.find(p).object; }});
+  const last = viewer.camera.position.clone(), now = last.clone(), tmp = last.clone();
+  function centre(out) {{
+    out.set(0, 0, 0);
+    for (const n of nodes) {{ n.getWorldPosition(tmp); out.add(tmp); }}
+    return out.multiplyScalar(1 / Math.max(1, nodes.length));
+  }}
+  if (nodes.length) {{
+    centre(last);
+    const update = anim.update.bind(anim);
+    anim.update = function () {{
+      update();
+      centre(now);
+      if (now.distanceToSquared(last) > 1e-12) {{
+        tmp.copy(now).sub(last);
+        viewer.camera.position.add(tmp);
+        viewer.controls.target.add(tmp);
+        viewer.controls.update();
+        last.copy(now);
+        viewer.set_dirty();
+      }}
+    }};
+  }}
+  function fromHash() {{
+    const h = window.location.hash;
+    const m = /(?:^#|&)t=([-+0-9.eE]+)/.exec(h);
+    if (m) seek(parseFloat(m[1]));
+    if (/(?:^#|&)play(?:&|$)/.test(h)) anim.play();
+  }}
+  window.addEventListener("hashchange", fromHash);
+  fromHash();
+}})();
+"""
+
+
+def _static_html(commands: Sequence[bytes], controls: bool = True, camera: Camera | None = None,
+                 follow: Sequence[str] | None = None, animated: bool = False) -> str:
+    """Return a self-contained HTML page (viewer JavaScript inlined) replaying `commands`, then setting `camera`.
+
+    An `animated` page gets `_animation_js` (seek by ``#t=<s>``, camera following the nodes `follow`).
+    """
     js = _VIEWER_JS.read_text(encoding="utf-8")
     calls = "".join(
         f'viewer.handle_command_bytearray(b64("{base64.b64encode(c).decode("ascii")}"));\n' for c in commands
@@ -217,7 +281,7 @@ def _static_html(commands: Sequence[bytes], controls: bool = True, camera: Camer
 function b64(s) {{ const b = atob(s); const a = new Uint8Array(b.length);
   for (let i = 0; i < b.length; i++) a[i] = b.charCodeAt(i); return a; }}
 var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
-{calls}{_camera_js(camera) if camera is not None else ""}
+{calls}{_camera_js(camera) if camera is not None else ""}{_animation_js(follow or ()) if animated else ""}
 </script>
 </body>
 </html>
@@ -343,6 +407,7 @@ class Scene:
         self.robots: dict[str, robots.LoadedRobot] = {}
         self._viz: dict[str, MeshcatVisualizer] = {}
         self._q: dict[str, np.ndarray] = {}
+        self.follow: tuple[str, ...] = ()
         try:
             for name in names:
                 robot = robots.load(name)  # raises UnknownRobotError for bad names
@@ -484,6 +549,26 @@ class Scene:
             _set_arrow(tnode, _arrow_parts(o, np.array([0.0, 0.0, scale * float(torque)]), 0.04))
         return float(scale * np.linalg.norm(f))
 
+    def show_allocation(self, points_b: Any, wrenches_ee: Any, name: str = "arm", scale: float = FORCE_SCALE,
+                        cart: str = "shopping_cart") -> np.ndarray:
+        """Draw planned contact points (N, 2|3) in the cart frame {b} and each hand's wrench (N, 6) as arrows.
+
+        The wrenches are the allocation's end-effector wrenches ``[f; tau]`` in
+        the contact frames {a} (orientation of {b}, `wholebody.contacts.handle`):
+        force arrows (blue, `scale` m per N) at the points, the vertical torque
+        as a thinner arrow. Return the points' world positions (N, 3).
+        """
+        pts = np.atleast_2d(np.asarray(points_b, dtype=float))
+        w = np.atleast_2d(np.asarray(wrenches_ee, dtype=float))
+        if w.shape != (len(pts), 6) or not np.all(np.isfinite(w)):
+            raise SceneError(f"wrenches_ee must be finite, shape ({len(pts)}, 6), got {w.shape}")
+        q = self._q[self._robot(cart).name]
+        rot = np.array([[q[2], -q[3], 0.0], [q[3], q[2], 0.0], [0.0, 0.0, 1.0]])
+        world = self.show_contact(name, pts, frame="b")
+        for i, (p, wi) in enumerate(zip(world, w)):
+            self.show_wrench(f"{name}{i}", [p], rot @ wi[:3], torque=float(wi[5]), scale=scale)
+        return world
+
     def show_com(self, true_b: Any, est_b: Any, radius: float = 0.04) -> np.ndarray:
         """Draw the cart's true and estimated CoM (dx, dy) in {b} as two spheres; return their world positions (2, 3)."""
         pts = np.vstack((_points3(true_b, 0.0), _points3(est_b, 0.0)))[:, :2]
@@ -534,8 +619,12 @@ class Scene:
     def animate(self, t: Sequence[float], poses: Mapping[str, Any], q_joints: Mapping[str, Any] | None = None,
                 wrenches: Mapping[str, tuple[Any, Any]] | None = None, kind: str = "applied",
                 markers: Mapping[str, Any] | None = None, scale: float = FORCE_SCALE, fps: int = 30,
-                play: bool = True, repetitions: int = 1) -> int:
+                play: bool = False, repetitions: int = 1, follow: Sequence[str] = ()) -> int:
         """Animate robots, force arrows and markers over times `t`; return the number of animation frames.
+
+        The scene's static state is the first frame, and the page opens paused
+        there (``play=True`` starts playing on load). `follow`: robot names whose
+        mean root position the page's camera follows (see `camera_at`).
 
         poses: robot name -> (N, 3) planar poses. q_joints: robot name -> (N, nq-4).
         wrenches: arrow name -> ((N, 3) world origins, (N, 2|3) forces).
@@ -558,6 +647,9 @@ class Scene:
         idx = np.searchsorted(t, t[0] + frame_numbers / fps, side="right") - 1
         anim = Animation(default_framerate=fps)
         q_joints = q_joints or {}
+        for name in follow:
+            if name not in poses:
+                raise SceneError(f"follow: robot {name!r} is not animated; animated: {', '.join(poses)}")
         for name, traj in poses.items():
             traj = np.asarray(traj, dtype=float)
             if traj.shape != (len(t), 3):
@@ -574,7 +666,7 @@ class Scene:
                 _set_key(anim, root.path, k, planar_pose_matrix(*traj[i]))
                 if moving:
                     self._animate_geometry(anim, name, k, _planar_q(robot.model, (0.0, 0.0, 0.0), joints[i]))
-            self.set_robot_pose(name, traj[idx[-1]], None if joints is None else joints[idx[-1]])
+            self.set_robot_pose(name, traj[idx[0]], None if joints is None else joints[idx[0]])
         for name, (origins, forces) in (wrenches or {}).items():
             origins, forces = _points3(origins, 0.0), np.asarray(forces, dtype=float)
             if len(origins) != len(t) or len(forces) != len(t):
@@ -584,7 +676,7 @@ class Scene:
             for k, i in zip(frame_numbers.tolist(), idx):
                 for part, T, sc in _arrow_parts(origins[i], scale * forces[i], 0.06):
                     _set_key(anim, (node[part] if part else node).path, k, T, sc)
-            _set_arrow(node, _arrow_parts(origins[idx[-1]], scale * forces[idx[-1]], 0.06))
+            _set_arrow(node, _arrow_parts(origins[idx[0]], scale * forces[idx[0]], 0.06))
         for path, pts in (markers or {}).items():
             pts = _points3(pts, 0.0)
             if len(pts) != len(t):
@@ -592,8 +684,10 @@ class Scene:
             node = self.viewer[path]
             for k, i in zip(frame_numbers.tolist(), idx):
                 _set_key(anim, node.path, k, tf.translation_matrix(pts[i]))
-            node.set_transform(tf.translation_matrix(pts[idx[-1]]))
+            node.set_transform(tf.translation_matrix(pts[idx[0]]))
         self.viewer.set_animation(anim, play=play, repetitions=repetitions)
+        self.follow = tuple(follow)
+        self._fps = fps
         return n_frames
 
     def _animate_geometry(self, anim: Animation, name: str, frame: int, q: np.ndarray) -> None:
@@ -605,7 +699,7 @@ class Scene:
             node = self.viewer[viz.getViewerNodeName(geom, pin.GeometryType.VISUAL)]
             _set_key(anim, node.path, frame, viz.visual_data.oMg[gid].homogeneous)
 
-    def animate_cart_log(self, log: Any, cart: str = "shopping_cart", fps: int = 30, play: bool = True) -> int:
+    def animate_cart_log(self, log: Any, cart: str = "shopping_cart", fps: int = 30, play: bool = False) -> int:
         """Animate a cart log (`cart.logs.CartLog`: t, q, gamma, optional contact_b); return the number of frames.
 
         The cart follows `q`; the applied force (fx, fy) is an arrow at the
@@ -642,10 +736,70 @@ class Scene:
                 tracks[track["name"].lstrip(".")] = np.array([key["value"] for key in track["keys"]], dtype=float)
         return out
 
+    def animation_duration(self) -> float:
+        """Return the animation's length in s (0 without animation)."""
+        if self.window.animation is None:
+            return 0.0
+        clips = [item["clip"] for item in umsgpack.unpackb(self.window.animation)["animations"]]
+        return max((float(k["time"]) / clip["fps"] for clip in clips for tr in clip["tracks"] for k in tr["keys"]),
+                   default=0.0)
+
+    def camera_at(self, time: float) -> Camera:
+        """Return the page's camera at animation time `time` (s): `self.camera` moved with the followed robots.
+
+        Without `follow` (see `animate`) the camera does not move. The page keeps
+        the camera's offset to the mean root position of the followed robots;
+        three.js interpolates keys linearly, as done here.
+        """
+        if not self.follow:
+            return self.camera
+        keys = self.animation_keys()
+        anims = {item["path"]: item["clip"] for item in umsgpack.unpackb(self.window.animation)["animations"]}
+        shift = np.zeros(3)
+        for name in self.follow:
+            path = self.viewer[name].path.lower()
+            clip = anims[path]
+            frames = np.array([k["time"] for tr in clip["tracks"] if tr["name"].lstrip(".") == "position"
+                               for k in tr["keys"]], dtype=float) / clip["fps"]
+            pos = keys[path]["position"]
+            at = np.array([np.interp(time, frames, pos[:, j]) for j in range(3)])
+            shift += (at - pos[0]) / len(self.follow)
+        eye, target = np.asarray(self.camera.eye) + shift, np.asarray(self.camera.target) + shift
+        return Camera(target=tuple(target), eye=tuple(eye), fov_deg=self.camera.fov_deg)
+
+    def frame_robots(self, names: Sequence[str] | None = None, margin: float = 0.3) -> Camera:
+        """Point the camera at the robots `names` (default: all) as displayed now; return the camera."""
+        pts = []
+        for name in names or list(self.robots):
+            robot = self._robot(name)
+            pin.framesForwardKinematics(robot.model, robot.data, self._q[name])
+            pts.extend(f.translation for f in robot.data.oMf)
+        p = np.array(pts)
+        camera = Camera.framing(np.vstack((p, p.min(axis=0) - margin, p.max(axis=0) + margin)))
+        self.set_camera(camera)
+        return camera
+
     # -- output ----------------------------------------------------------------------
     def static_html(self, controls: bool = True) -> str:
-        """Return the scene as a self-contained HTML page (works offline; `controls=False` hides the GUI panel)."""
-        return _static_html(self.window.commands(), controls=controls, camera=self.camera)
+        """Return the scene as a self-contained HTML page (works offline; `controls=False` hides the GUI panel).
+
+        An animated page opens paused at the first frame; ``#t=<seconds>`` in
+        its URL opens it at that time, ``#play`` plays it; its camera follows
+        the robots named by `animate`'s `follow`.
+        """
+        follow = [self.viewer[name].path.lower() for name in self.follow]
+        return _static_html(self.window.commands(), controls=controls, camera=self.camera, follow=follow,
+                            animated=self.window.animation is not None)
+
+    def iframe(self, height: int = 420, controls: bool = True) -> str:
+        """Return an ``<iframe>`` holding the static page, for a notebook's output (``IPython.display.HTML``)."""
+        page = _html.escape(self.static_html(controls=controls), quote=True)
+        return (f'<iframe srcdoc="{page}" style="width: 100%; height: {int(height)}px; border: none" '
+                f'title="Meshcat scene"></iframe>')
+
+    def _repr_html_(self) -> str:
+        """Show the scene inline in Jupyter (the static page in an iframe)."""
+        return self.iframe()
 
     def save_html(self, path: str | Path, controls: bool = True) -> Path:
         """Write the static page to `path`; return the path."""
