@@ -380,8 +380,7 @@ class DiagnosisReport:
         if not self.effects:
             lines.append("named effects: none (the nominal model explains the log)")
         for i, e in enumerate(self.effects, 1):
-            ps = ", ".join(f"{k} = {v:.4g} ± {self.effects[i - 1].uncertainties.get(k, float('nan')):.2g}"
-                           for k, v in e.parameters.items())
+            ps = ", ".join(_format_parameter(k, v, e.uncertainties.get(k)) for k, v in e.parameters.items())
             lines.append(f"{i}. {e.name}: {ps}  (Delta BIC {e.evidence:.1f}, {len(e.windows)} windows)")
         lines.append("first-round Delta BIC: " + ", ".join(f"{n} {s:.1f}" for n, s in self.candidates))
         lines.append(f"gap before {self.gap_before * 1000:.1f} mm -> after {self.gap_after * 1000:.1f} mm "
@@ -391,6 +390,33 @@ class DiagnosisReport:
 
     def __str__(self) -> str:
         return self.summary()
+
+
+#: Units of the effects' parameters in :meth:`DiagnosisReport.summary` (names of cart.effects' ``describe``).
+PARAMETER_UNITS: Dict[str, str] = {
+    "force": "N", "torque": "N m", "distance": "m", "shape": "1", "torque_sharp": "N m", "torque_soft": "N m",
+    "damping": "N m s/rad", "trail": "m", "fx": "N", "tau": "N m", "angle": "rad", "direction": "rad",
+    "gx": "m/s^2", "gy": "m/s^2", "delta_m": "kg", "delta_m_dx": "kg m", "delta_m_dy": "kg m",
+    "delta_J": "kg m^2", "time": "s", "mass_before": "kg", "mass_after": "kg", "com_x_after": "m",
+    "com_y_after": "m", "delay": "s", "compliance": "m/(s N)",
+}
+
+
+def _format_parameter(name: str, value: float, std: Optional[float]) -> str:
+    """Return 'name = value ± std [unit]', the value rounded where its std's 2nd significant digit falls.
+
+    Without a std (or a grid-chosen one, std 0) the value has 3 significant digits.
+    """
+    unit = PARAMETER_UNITS.get(name, "?")
+    if value is None or not math.isfinite(value):
+        return f"{name} = n/a [{unit}]"
+    has_std = std is not None and math.isfinite(std) and std > 0.0
+    ref, digits = (std, 2) if has_std else (abs(value), 3)
+    decimals = min(8, max(0, digits - 1 - int(math.floor(math.log10(ref))))) if ref > 0 else 2
+    v = f"{value:.{decimals}f}"
+    if float(v) == 0.0:
+        v = f"{0.0:.{decimals}f}"  # no "-0.00"
+    return f"{name} = {v} ± {std:.{decimals}f} [{unit}]" if has_std else f"{name} = {v} [{unit}]"
 
 
 def _clean(d: Dict[str, float]) -> Dict[str, float]:

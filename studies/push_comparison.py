@@ -1,13 +1,23 @@
 """The push comparison of docs/push.md: estimation on/off x fixed/optimal contact, two arms, Traj. 1.
 
-Run: ``python -m studies.push_comparison`` (about a dozen 30 s closed-loop runs).
+Run: ``python -m studies.push_comparison`` (about a dozen 30 s closed-loop runs), or
+``python -m studies.push_comparison --figures docs/img`` for the holonomic (Ridgeback + iiwa) vs
+nonholonomic (WMRA) comparison: its table and the figures ``wmra_vs_ridgeback_*.png`` (`robot_figures`).
 """
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Dict
+from pathlib import Path
+from typing import TYPE_CHECKING, Dict, List
+
+import numpy as np
 
 from wholebody.push import PushConfig, comparison_table, describe, run_push
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from wholebody.push import PushResult
 
 
 def study_configs(duration: float = 30.0) -> Dict[str, PushConfig]:
@@ -21,10 +31,6 @@ def study_configs(duration: float = 30.0) -> Dict[str, PushConfig]:
             replace(two, contact="fixed"), t1, replace(t1, estimation=False),
             replace(t1, contact="fixed", fixed_contact_y=(-0.25,)), replace(t1, contact="fixed", fixed_contact_y=(0.15,))]
     return {describe(c): c for c in runs}
-
-
-if __name__ == "__main__":  # python -m studies.push_comparison: the table of docs/push.md
-    print(comparison_table({label: run_push(cfg) for label, cfg in study_configs().items()}, markdown=True))
 
 
 #: Columns of the holonomic vs nonholonomic table (docs/push.md, README "The whole loop").
@@ -66,11 +72,117 @@ def robot_table(results: Dict[str, object]) -> str:
     return "\n".join(rows)
 
 
-def run_robot_comparison(duration: float = 30.0, workers: int = 4) -> str:
-    """Run `robot_configs` (in parallel processes) and return its table."""
+def robot_results(duration: float = 30.0, workers: int = 4) -> Dict[str, "PushResult"]:
+    """Run `robot_configs` (in parallel processes) and return label -> result (with its time histories)."""
     from concurrent.futures import ProcessPoolExecutor
 
     cfgs = robot_configs(duration)
     with ProcessPoolExecutor(workers) as pool:
-        results = dict(zip(cfgs, pool.map(run_push, cfgs.values())))
-    return robot_table(results)
+        return dict(zip(cfgs, pool.map(run_push, cfgs.values())))
+
+
+def run_robot_comparison(duration: float = 30.0, workers: int = 4) -> str:
+    """Run `robot_configs` (in parallel processes) and return its table."""
+    return robot_table(robot_results(duration, workers))
+
+
+#: Line style of each robot (colour) and estimation (solid = EKF, dashed = no estimation) in `robot_figures`.
+ROBOT_STYLE = {"ridgeback_iiwa": ("C0", "Ridgeback + iiwa (holonomic)"), "wmra": ("C3", "WMRA (differential drive)")}
+
+
+def _traj_axes(fig: "Figure", results: Dict[str, "PushResult"], ylabel: str, signal, limit=None) -> None:
+    """Draw `signal(result)` over time, one panel per trajectory, every robot x estimation run in it.
+
+    `limit(result)`: an optional horizontal line per robot (its limit, dotted, in the robot's colour).
+    """
+    trajs = sorted({r.config.trajectory for r in results.values()})
+    axes = fig.subplots(len(trajs), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, traj in zip(axes, trajs):
+        drawn = set()
+        for label, r in results.items():
+            c = r.config
+            if c.trajectory != traj:
+                continue
+            colour, name = ROBOT_STYLE.get(c.robot, ("C7", c.robot))
+            ax.plot(r.t, signal(r), "-" if c.estimation else "--", color=colour, lw=1.1 if c.estimation else 0.9,
+                    label=f"{name}, {'EKF' if c.estimation else 'no estimation'}")
+            if limit is not None and c.robot not in drawn:
+                ax.axhline(limit(r), color=colour, ls=":", lw=1.0, label=f"{name} limit")
+                drawn.add(c.robot)
+        ax.set_title(f"Traj. {traj}", fontsize=9)
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes[-1].set_xlabel("t [s]")
+
+
+def robot_figures(results: Dict[str, "PushResult"]) -> Dict[str, "Figure"]:
+    """Return the holonomic vs nonholonomic figures of `robot_results`, name -> Matplotlib Figure.
+
+    One panel per trajectory, Ridgeback + iiwa blue and WMRA red, with estimation solid and without dashed:
+    ``tracking`` the cart's tracking error, ``force`` the hand force |f|, ``torque`` the largest
+    |tau_j| / effortLimit_j over the 7 arm joints, ``wheels`` the largest |wheel rate| with each robot's
+    wheel-speed limit (dotted). No backend is selected: the caller saves or shows them.
+    """
+    from matplotlib.figure import Figure
+
+    def tracking(r):
+        return 1e3 * np.hypot(*(r.q_true[:, :2] - r.q_desired[:, :2]).T)
+
+    def force(r):
+        return np.linalg.norm(r.wrenches[:, 0, :3], axis=1)
+
+    def torque_ratio(r):
+        return np.max(np.abs(r.arm_torque[:, 0, :]) / r.effort_limit, axis=1)
+
+    def wheels(r):
+        return np.max(np.abs(r.wheel_rates[:, 0, :]), axis=1)
+
+    panels = (("tracking", "cart tracking error [mm]", tracking, None),
+              ("force", "hand force |f| [N]", force, None),
+              ("torque", "max_j |tau_j| / limit_j", torque_ratio, lambda r: 1.0),
+              ("wheels", "max |wheel speed| [rad/s]", wheels, lambda r: float(np.min(r.wheel_velocity_limit))))
+    figs = {}
+    for name, ylabel, signal, limit in panels:
+        fig = Figure(figsize=(9, 5.5), layout="constrained")
+        _traj_axes(fig, results, ylabel, signal, limit)
+        figs[name] = fig
+    return figs
+
+
+def save_robot_figures(results: Dict[str, "PushResult"], out_dir: Path, prefix: str = "wmra_vs_ridgeback_") -> List[Path]:
+    """Write `robot_figures` as ``<prefix><name>.png`` in `out_dir`; return the paths."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, fig in robot_figures(results).items():
+        path = out_dir / f"{prefix}{name}.png"
+        fig.savefig(path, dpi=90)
+        paths.append(path)
+    return paths
+
+
+def main(argv: List[str] | None = None) -> int:
+    """CLI: the push study table, or with ``--figures DIR`` the robot comparison's table and figures."""
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m studies.push_comparison", description=__doc__.splitlines()[0])
+    p.add_argument("--figures", type=Path, metavar="DIR",
+                   help="run the holonomic vs nonholonomic comparison (8 runs), print its table and write "
+                        "DIR/wmra_vs_ridgeback_{tracking,force,torque,wheels}.png")
+    p.add_argument("--duration", type=float, default=30.0, help="seconds per run (default 30)")
+    p.add_argument("--workers", type=int, default=4, help="parallel processes for --figures (default 4)")
+    args = p.parse_args(argv)
+    if args.figures is None:
+        print(comparison_table({label: run_push(cfg) for label, cfg in study_configs(args.duration).items()},
+                               markdown=True))
+        return 0
+    results = robot_results(args.duration, args.workers)
+    print(robot_table(results))
+    for path in save_robot_figures(results, args.figures):
+        print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":  # python -m studies.push_comparison [--figures DIR]
+    raise SystemExit(main())

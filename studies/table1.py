@@ -102,13 +102,24 @@ class TestResult:
     tracking_max_after_5s_no_estimation_m: float
     run: TestRun = field(repr=False)
     run_no_estimation: TestRun = field(repr=False)
+    #: time-resolved estimation errors of the run with estimation (:func:`estimation_error_metrics`)
+    estimation: dict = field(default_factory=dict)
 
     def as_json(self) -> dict:
         """Return the JSON object of `cartpush reproduce --json` for this test."""
         return {"test": self.test, "mass_error_final_kg": self.mass_error_final_kg,
                 "mass_converged_s": self.mass_converged_s, "com_error_final_m": self.com_error_final_m,
                 "tracking_rms_m": self.tracking_rms_m,
-                "tracking_rms_no_estimation_m": self.tracking_rms_no_estimation_m}
+                "tracking_rms_no_estimation_m": self.tracking_rms_no_estimation_m, **self.estimation}
+
+
+def describe_test(test: Table1Test) -> str:
+    """Return a one-line description of a test from its definition (trajectory, guess, CoM, noise, CP, changes)."""
+    parts = [f"Traj. {test.traj}", f"m guess {test.mass_guess:g} kg", f"true CoM ({test.com[0]:g}, {test.com[1]:g}) m",
+             f"noise {test.noise * 1000:g} mm", "sliding CP" if test.vary_cp else "fixed CP"]
+    if test.mass_changes:
+        parts.append("mass " + ", ".join(f"{m:g} kg at {t:g} s" for t, m in test.mass_changes))
+    return ", ".join(parts)
 
 
 def true_params(test: Table1Test) -> CartParams:
@@ -198,6 +209,27 @@ def mass_converged_time(t: np.ndarray, m_hat: np.ndarray, m_true: np.ndarray, to
     return float(t[0]) if bad.size == 0 else float(t[bad[-1] + 1])
 
 
+def estimation_error_metrics(run: TestRun, after: float = 5.0) -> dict:
+    """Return the time-resolved estimation errors of a run against the (possibly changing) true parameters.
+
+    RMS of |m_hat - m| and of the CoM error over the whole run, their maxima
+    after `after` s, and the time (s, summed over samples) within 1 kg / 1 cm.
+    The same fields as the push loop's metrics (``wholebody.push.loop``),
+    computed here because Table I's truth may change during the run (test 11).
+    """
+    dt = float(np.median(np.diff(run.t))) if len(run.t) > 1 else 0.0
+    e_m = np.abs(run.params_hat[:, 0] - run.params_true[:, 0])
+    e_c = np.hypot(*(run.params_hat[:, 1:3] - run.params_true[:, 1:3]).T)
+    late = run.t >= after
+    late = late if late.any() else np.ones_like(late)
+    return {"mass_error_rms_kg": float(np.sqrt(np.mean(e_m ** 2))),
+            "mass_error_max_after_5s_kg": float(e_m[late].max()),
+            "com_error_rms_m": float(np.sqrt(np.mean(e_c ** 2))),
+            "com_error_max_after_5s_m": float(e_c[late].max()),
+            "time_mass_within_1kg_s": float(np.sum(e_m <= 1.0) * dt),
+            "time_com_within_1cm_s": float(np.sum(e_c <= 0.01) * dt)}
+
+
 def _rms_after(run: TestRun, t0: float) -> Tuple[float, float]:
     err = run.position_error[run.t >= t0]
     return float(np.sqrt(np.mean(err ** 2))), float(np.max(err))
@@ -216,7 +248,7 @@ def evaluate(test: Table1Test, controller: str = "fl_lqr", duration: float = 30.
                       mass_converged_s=mass_converged_time(run.t, run.params_hat[:, 0], m_true),
                       com_error_final_m=com_err, tracking_rms_m=rms, tracking_rms_no_estimation_m=rms0,
                       tracking_max_after_5s_m=mx, tracking_max_after_5s_no_estimation_m=mx0,
-                      run=run, run_no_estimation=run0)
+                      run=run, run_no_estimation=run0, estimation=estimation_error_metrics(run))
 
 
 def run_table1(tests: Sequence[Table1Test] = TESTS, controller: str = "fl_lqr", duration: float = 30.0,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -88,6 +89,25 @@ def test_report_json_and_summary_are_complete():
     assert d["gap_after"] < d["gap_before"]
     assert "coulomb_friction" in str(rep) and "gap before" in rep.summary()
     assert all(w.activity for w in rep.windows)
+    line = next(ln for ln in rep.summary().splitlines() if "coulomb_friction:" in ln)
+    assert re.search(r"force = -?\d+\.?\d* ± \d+\.?\d* \[N\]", line), line
+    assert re.search(r"torque = -?\d+\.?\d* ± \d+\.?\d* \[N m\]", line), line
+
+
+def test_summary_parameter_units_and_precision():
+    from cart.diagnose import PARAMETER_UNITS, _format_parameter
+    from cart.effects import registered_effects
+
+    # every parameter name a registered effect (and its variants) can report has a unit
+    for effect in registered_effects():
+        for variant in effect.variants():
+            assert set(variant.param_names) | set(variant.nl_names) <= set(PARAMETER_UNITS), variant
+    for name in ("angle", "direction", "shape", "mass_after", "com_x_after"):  # added by describe()
+        assert name in PARAMETER_UNITS
+    assert _format_parameter("force", 12.345, 0.56) == "force = 12.35 ± 0.56 [N]"
+    assert _format_parameter("delay", 0.06, None) == "delay = 0.0600 [s]"
+    assert _format_parameter("compliance", 1.23e-4, 1e-5) == "compliance = 0.000123 ± 0.000010 [m/(s N)]"
+    assert _format_parameter("torque", -1e-4, 0.02) == "torque = 0.000 ± 0.020 [N m]"  # no "-0.000"
 
 
 def test_a_cart_that_does_not_move_is_an_error():

@@ -12,11 +12,35 @@ def test_reproduce_json_fields_and_outputs(tmp_path, capsys):
     assert main(["reproduce", "--json", "--tests", "4", "--duration", "12", "--out", str(tmp_path)]) == 0
     rows = json.loads(capsys.readouterr().out)
     assert [set(r) for r in rows] == [{"test", "mass_error_final_kg", "mass_converged_s", "com_error_final_m",
-                                       "tracking_rms_m", "tracking_rms_no_estimation_m"}]
-    assert rows[0]["test"] == 4 and rows[0]["mass_error_final_kg"] < 0.5
-    assert rows[0]["tracking_rms_no_estimation_m"] > rows[0]["tracking_rms_m"]
+                                       "tracking_rms_m", "tracking_rms_no_estimation_m",
+                                       "mass_error_rms_kg", "mass_error_max_after_5s_kg", "com_error_rms_m",
+                                       "com_error_max_after_5s_m", "time_mass_within_1kg_s",
+                                       "time_com_within_1cm_s"}]
+    r = rows[0]
+    assert r["test"] == 4 and r["mass_error_final_kg"] < 0.5
+    assert r["tracking_rms_no_estimation_m"] > r["tracking_rms_m"]
+    # time-resolved: the max after 5 s bounds the final error, the time within 1 kg fits in the run
+    assert r["mass_error_final_kg"] <= r["mass_error_max_after_5s_kg"] < 1.0
+    assert r["com_error_final_m"] <= r["com_error_max_after_5s_m"]
+    assert 0.0 < r["time_mass_within_1kg_s"] <= 12.0 + 1e-9
     for name in ("fig4_tracking_error.png", "table.csv", "table.md"):
         assert (tmp_path / name).stat().st_size > 0
+    md = (tmp_path / "table.md").read_text()
+    assert "m err max >5 s [kg]" in md and "mass_error_final_kg" not in md
+    assert "test 4: Traj. 2, m guess 16 kg" in md
+
+
+def test_reproduce_table_headers_match_table_md_and_flag_unobservable_stretches(tmp_path, capsys):
+    from wholebody.cli.reproduce import table_header
+
+    assert main(["reproduce", "--tests", "11", "--duration", "15", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    header = table_header()
+    assert all("[" in h for h in header[1:])  # units on every metric
+    assert out.splitlines()[0].split() == "  ".join(header).split()
+    assert (tmp_path / "table.md").read_text().splitlines()[0] == "| " + " | ".join(header) + " |"
+    # test 11: the payload change at 10 s leaves the mass estimate > 1 kg off for a stretch
+    assert "test 11: Traj. 2" in out and "note: test 11: mass estimate off by > 1 kg" in out
 
 
 def test_estimate_json_on_simulated_log(tmp_path, capsys):

@@ -22,8 +22,24 @@ Example:
   cartpush reproduce --out results/   # also writes Fig. 4-6 PNGs and table.csv / table.md
 """
 
+#: JSON fields of `--json` (one object per test; names kept stable).
 COLUMNS = ("test", "mass_error_final_kg", "mass_converged_s", "com_error_final_m", "tracking_rms_m",
            "tracking_rms_no_estimation_m")
+
+#: Columns of the printed table and table.md/table.csv: (TestResult JSON key or attribute, header, format).
+#: Lengths in m, masses in kg, times in s, as in the JSON fields.
+TABLE_COLUMNS = (
+    ("test", "test", "{}"),
+    ("mass_error_final_kg", "m err final [kg]", "{:.3f}"),
+    ("mass_error_max_after_5s_kg", "m err max >5 s [kg]", "{:.2f}"),
+    ("time_mass_within_1kg_s", "t m within 1 kg [s]", "{:.1f}"),
+    ("mass_converged_s", "m conv. [s]", "{:.2f}"),
+    ("com_error_final_m", "CoM err final [m]", "{:.3f}"),
+    ("tracking_rms_m", "track RMS [m]", "{:.4f}"),
+    ("tracking_rms_no_estimation_m", "track RMS no est. [m]", "{:.4f}"),
+    ("tracking_max_after_5s_m", "track max >5 s [m]", "{:.4f}"),
+    ("tracking_max_after_5s_no_estimation_m", "track max >5 s no est. [m]", "{:.4f}"),
+)
 
 
 def register(subparsers) -> None:
@@ -58,19 +74,49 @@ def _select(spec: str | None):
     return tuple(TESTS[w - 1] for w in wanted)
 
 
-def _fmt(value) -> str:
+def _value(result, key: str):
+    data = result.as_json()
+    return data[key] if key in data else getattr(result, key)
+
+
+def _fmt(value, fmt: str = "{:.4f}") -> str:
     if value is None:
         return "never"
-    if isinstance(value, float):
-        return f"{value:.4f}"
-    return str(value)
+    return fmt.format(value)
+
+
+def table_header() -> list[str]:
+    """Return the human-readable headers (with units) of the table, the same in stdout, table.md and table.csv."""
+    return [h for _, h, _ in TABLE_COLUMNS]
 
 
 def table_rows(results: list) -> list[list[str]]:
-    """Return the table rows (strings) of the results, in COLUMNS order plus the max errors after 5 s."""
-    return [[_fmt(r.as_json()[c]) for c in COLUMNS] + [_fmt(r.tracking_max_after_5s_m),
-                                                       _fmt(r.tracking_max_after_5s_no_estimation_m)]
-            for r in results]
+    """Return the table rows (strings) of the results, in TABLE_COLUMNS order."""
+    return [[_fmt(_value(r, k), f) for k, _, f in TABLE_COLUMNS] for r in results]
+
+
+def describe_lines(results: list) -> list[str]:
+    """Return one line per test run: what the test is (from its definition in studies.table1)."""
+    from studies.table1 import TESTS, describe_test
+
+    return [f"test {r.test}: {describe_test(TESTS[r.test - 1])}" for r in results]
+
+
+def unobservable_notes(results: list, after: float = 5.0, tol_kg: float = 1.0) -> list[str]:
+    """Return a note per test whose mass estimate was off by more than tol_kg for a stretch after `after` s."""
+    notes = []
+    for r in results:
+        run = r.run
+        late = run.t >= after
+        off = late & (abs(run.params_hat[:, 0] - run.params_true[:, 0]) > tol_kg)
+        if off.any():
+            dt = float(run.t[1] - run.t[0]) if len(run.t) > 1 else 0.0
+            t_off = run.t[off]
+            notes.append(f"test {r.test}: mass estimate off by > {tol_kg:g} kg for {off.sum() * dt:.1f} s after "
+                         f"t = {after:g} s (between {t_off[0]:.1f} and {t_off[-1]:.1f} s, max "
+                         f"{_value(r, 'mass_error_max_after_5s_kg'):.2f} kg): not observable or not yet "
+                         f"re-learned there, which the final error does not show")
+    return notes
 
 
 def _write_outputs(out: str, results: list) -> None:
@@ -78,7 +124,7 @@ def _write_outputs(out: str, results: list) -> None:
     from matplotlib.figure import Figure
 
     os.makedirs(out, exist_ok=True)
-    header = list(COLUMNS) + ["tracking_max_after_5s_m", "tracking_max_after_5s_no_estimation_m"]
+    header = table_header()
     rows = table_rows(results)
     with open(os.path.join(out, "table.csv"), "w", encoding="utf-8") as fh:
         fh.write(",".join(header) + "\n")
@@ -86,6 +132,10 @@ def _write_outputs(out: str, results: list) -> None:
     with open(os.path.join(out, "table.md"), "w", encoding="utf-8") as fh:
         fh.write("| " + " | ".join(header) + " |\n|" + "---|" * len(header) + "\n")
         fh.writelines("| " + " | ".join(r) + " |\n" for r in rows)
+        fh.write("\n" + "".join(f"- {line}\n" for line in describe_lines(results)))
+        notes = unobservable_notes(results)
+        if notes:
+            fh.write("\n" + "".join(f"- note: {line}\n" for line in notes))
     colours = colormaps["tab20"].colors  # 20 distinct colours: no repeats for the 11 tests
     fig = Figure(figsize=(13, 4.5), layout="constrained")
     axes = fig.subplots(1, 2, sharey=True)
@@ -137,9 +187,18 @@ def run(args: argparse.Namespace) -> int:
         from tqdm import tqdm
 
         bar = tqdm(total=len(tests), desc="Table I tests", unit="test", file=sys.stderr)
+    done = []
+
+    def progress(test: int) -> None:
+        if bar:
+            bar.update(1)
+        elif not args.json:  # not a terminal: one line per finished test on stderr
+            done.append(test)
+            print(f"Table I: test {test} done ({len(done)}/{len(tests)})", file=sys.stderr, flush=True)
+
     t0 = time.perf_counter()
     results = run_table1(tests, controller=args.controller, duration=args.duration, seed=args.seed,
-                         progress=(lambda _: bar.update(1)) if bar else None,
+                         progress=progress,
                          change_detection=args.change_detection)
     wall = time.perf_counter() - t0
     if bar:
@@ -149,12 +208,17 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(dumps_strict([r.as_json() for r in results]))
         return 0
-    header = list(COLUMNS) + ["max_err_after_5s_m", "max_err_after_5s_no_est_m"]
+    header = table_header()
     rows = table_rows(results)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
     print("  ".join(h.rjust(w) for h, w in zip(header, widths)))
     for r in rows:
         print("  ".join(c.rjust(w) for c, w in zip(r, widths)))
+    print("tests (true cart 20 kg; CP: contact point on the handle):")
+    for line in describe_lines(results):
+        print("  " + line)
+    for line in unobservable_notes(results):
+        print("note: " + line)
     print(f"controller {args.controller}, {len(tests)} tests x 2 runs in {wall:.1f} s"
           + (f"; figures and table in {args.out}" if args.out else ""))
     return 0

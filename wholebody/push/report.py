@@ -166,7 +166,8 @@ def build_scene(result: PushResult, fps: int = 10) -> "Scene":
     from wholebody.push.robot import cart_se3, handle_point
     from wholebody.viz import COM_MARKER_Z, Scene
 
-    wb = wholebody_for(robots.load("ridgeback_iiwa"), base_input="twist")
+    name = result.config.robot  # the robot that ran (Ridgeback + iiwa or WMRA); to_pinocchio_q ignores base_input
+    wb = wholebody_for(robots.load(name))
     step = max(1, int(round(1.0 / (fps * result.config.dt))))
     idx = np.arange(0, len(result.t), step)
     qj = np.array([wb.to_pinocchio_q(result.robot_x[i, 0])[4:] for i in idx])
@@ -180,13 +181,13 @@ def build_scene(result: PushResult, fps: int = 10) -> "Scene":
     com_est = np.array([T.act(np.array([f[1] / f[0], f[2] / f[0], z])) for T, f in zip(poses, phi)])
     x0, x1 = result.q_true[:, 0].min() - 2, result.q_true[:, 0].max() + 2
     y0, y1 = result.q_true[:, 1].min() - 2, result.q_true[:, 1].max() + 2
-    scene = Scene(["ridgeback_iiwa", "shopping_cart"], floor=(x0, x1, y0, y1))
+    scene = Scene([name, "shopping_cart"], floor=(x0, x1, y0, y1))
     scene.show_com((p.dx, p.dy), (phi[0, 1] / phi[0, 0], phi[0, 2] / phi[0, 0]))
     scene.show_trace("desired", result.q_desired[:, :2])
-    scene.animate(result.t[idx], {"ridgeback_iiwa": result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},
-                  q_joints={"ridgeback_iiwa": qj}, wrenches={"hand": (origins, forces)},
+    scene.animate(result.t[idx], {name: result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},
+                  q_joints={name: qj}, wrenches={"hand": (origins, forces)},
                   markers={"com/com_true": com_true, "com/com_est": com_est}, scale=0.02, fps=fps,
-                  follow=("ridgeback_iiwa", "shopping_cart"))
+                  follow=(name, "shopping_cart"))
     scene.frame_robots(margin=0.6)  # the first frame: the robot holding the cart; the camera then follows them
     return scene
 
