@@ -178,20 +178,20 @@ def _choose_cutoff(grid: _Grid, pos_std: float, th_std: float, attenuation: floa
     return float(best), warnings
 
 
-def _design(grid: _Grid, sos: np.ndarray, coulomb_eps: Optional[Tuple[float, float]] = None
-            ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return (X (k, 2, n_p), y (k, 2), keep mask) of the filtered regression on the grid."""
+def _design(grid: _Grid, sos: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return (X (k, 2, 6), y (k, 2), v, omega) of the filtered regression on the grid."""
     th, v, om, vd, od = _kinematics(grid.q, grid.dt, sos)
     c, s = np.cos(th), np.sin(th)
     fu = c * grid.gamma[:, 0] + s * grid.gamma[:, 1]
     y = np.column_stack([_filtfilt(sos, fu), _filtfilt(sos, grid.gamma[:, 2])])
-    x = regressor(v, om, vd, od)
-    if coulomb_eps is not None:
-        z = np.zeros_like(v)
-        extra = np.stack([np.stack([np.tanh(v / coulomb_eps[0]), z], -1),
-                          np.stack([z, np.tanh(om / coulomb_eps[1])], -1)], -2)
-        x = np.concatenate([x, extra], axis=-1)
-    return x, y
+    return regressor(v, om, vd, od), y, v, om
+
+
+def _with_coulomb_columns(x: np.ndarray, v: np.ndarray, om: np.ndarray, eps: Tuple[float, float]) -> np.ndarray:
+    """Return X with two more columns: Coulomb-like forward force tanh(v / eps_v) and yaw torque tanh(omega / eps_w)."""
+    z = np.zeros_like(v)
+    extra = np.stack([np.stack([np.tanh(v / eps[0]), z], -1), np.stack([z, np.tanh(om / eps[1])], -1)], -2)
+    return np.concatenate([x, extra], axis=-1)
 
 
 def _keep_mask(grid: _Grid, fc: float) -> np.ndarray:
@@ -322,7 +322,7 @@ def identify(log: CartLog, attenuation: float = ATTENUATION) -> Identification:
     fc, warnings = _choose_cutoff(grid, pos_std, th_std, attenuation)
     fs = 1.0 / grid.dt
     sos = butter(4, fc / (fs / 2.0), output="sos")
-    x, y = _design(grid, sos)
+    x, y, v, om = _design(grid, sos)
     keep = _keep_mask(grid, fc)
     if keep.sum() < 8:
         raise IdentifiabilityError(f"{log.source}: the log is too short for its own bandwidth "
@@ -348,11 +348,9 @@ def identify(log: CartLog, attenuation: float = ATTENUATION) -> Identification:
     expected = np.maximum(expected, FIT_FLOOR * np.sqrt(np.mean(y ** 2, axis=0)))
     ratio = rms / expected
     # Coulomb-like resistance (rolling resistance, dry friction) as a nuisance term: model uncertainty
-    _, v, om, _, _ = _kinematics(grid.q, grid.dt, sos)
     eps = (0.05 * float(np.std(v[keep])) + 1e-12, 0.05 * float(np.std(om[keep])) + 1e-12)
-    xc, _ = _design(grid, sos, eps)
     try:
-        pc, covc, _, _ = _fit(xc[keep], y, noise, lag)
+        pc, covc, _, _ = _fit(_with_coulomb_columns(x, v[keep], om[keep], eps), y, noise, lag)
     except np.linalg.LinAlgError:
         pc, covc = np.r_[p, 0.0, 0.0], np.full((8, 8), np.nan)
     cc = covc[6:, 6:]
@@ -414,18 +412,22 @@ def _excitation_warnings(p: np.ndarray, std: Dict[str, object], inertia: float) 
     return out
 
 
-def innovation_check(log: CartLog, params: CartParams) -> Tuple[float, int]:
+def innovation_check(log: CartLog, params: CartParams, noise: Optional[Dict[str, float]] = None
+                     ) -> Tuple[float, int]:
     """Return (mean NIS, rejected samples) of the paper's EKF (eq. 8-20) over the log with ``params`` held.
 
     The mean NIS is about 6 (the measurement dimension) when the model with
     these parameters explains the log at its own noise level, much larger when
-    it does not; samples the EKF's outlier gate rejects are counted, not averaged.
+    it does not; samples the EKF's outlier gate rejects are counted, not averaged. ``noise``:
+    the wrench noise already measured (``Identification.noise``), else measured here.
     """
     from cart.ekf import EKFConfig, measurement_std_from_log, run_ekf
 
     meas_std = measurement_std_from_log(log.t, log.q, log.qd)
-    f_std = max(white_noise_std(log.gamma[:, 0]), white_noise_std(log.gamma[:, 1]))
-    tau_std = white_noise_std(log.gamma[:, 2])
+    if noise is None:
+        noise = {"force": max(white_noise_std(log.gamma[:, 0]), white_noise_std(log.gamma[:, 1])),
+                 "torque": white_noise_std(log.gamma[:, 2])}
+    f_std, tau_std = noise["force"], noise["torque"]
     dt = float(np.median(np.diff(log.t)))
     cfg = EKFConfig.from_noise(meas_std, estimate_params=False,
                                q_vel=max(EKFConfig.q_vel, (f_std / params.m) ** 2 * dt),

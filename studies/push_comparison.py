@@ -152,14 +152,9 @@ def robot_figures(results: Dict[str, "PushResult"]) -> Dict[str, "Figure"]:
 
 def save_robot_figures(results: Dict[str, "PushResult"], out_dir: Path, prefix: str = "wmra_vs_ridgeback_") -> List[Path]:
     """Write `robot_figures` as ``<prefix><name>.png`` in `out_dir`; return the paths."""
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for name, fig in robot_figures(results).items():
-        path = out_dir / f"{prefix}{name}.png"
-        fig.savefig(path, dpi=90)
-        paths.append(path)
-    return paths
+    from wholebody.push.report import save_figure_dict
+
+    return save_figure_dict(robot_figures(results), out_dir, prefix)
 
 
 def main(argv: List[str] | None = None) -> int:

@@ -77,7 +77,7 @@ def _run_ls(log) -> Dict[str, Any]:
     p = res.params
     warnings = list(getattr(log, "warnings", ())) + list(res.warnings)
     try:
-        nis, rejected = innovation_check(log, p)
+        nis, rejected = innovation_check(log, p, res.noise)
     except (CartError, ArithmeticError, np_linalg_error()) as exc:
         nis, rejected = float("nan"), 0
         warnings.append(f"the EKF innovation check could not run on this log ({exc})")

@@ -142,16 +142,21 @@ def push_figures(runs: Dict[str, PushResult]) -> Dict[str, "Figure"]:
     return figs
 
 
-def save_figures(runs: Dict[str, PushResult], out_dir: Path) -> List[Path]:
-    """Write the `push_figures` as PNG (path.png, tracking_estimation.png, arm_torques.png); return the paths."""
+def save_figure_dict(figs: Dict[str, "Figure"], out_dir: Path, prefix: str = "") -> List[Path]:
+    """Write each figure of ``figs`` as ``<prefix><name>.png`` in ``out_dir`` (created); return the paths."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fig in push_figures(runs).items():
-        path = out_dir / f"{name}.png"
+    for name, fig in figs.items():
+        path = out_dir / f"{prefix}{name}.png"
         fig.savefig(path, dpi=90)
         paths.append(path)
     return paths
+
+
+def save_figures(runs: Dict[str, PushResult], out_dir: Path) -> List[Path]:
+    """Write the `push_figures` as PNG (path.png, tracking_estimation.png, arm_torques.png); return the paths."""
+    return save_figure_dict(push_figures(runs), out_dir)
 
 
 def build_scene(result: PushResult, fps: int = 10) -> "Scene":
