@@ -66,6 +66,83 @@ def _check(d: Sequence[float], track: float, mount: Sequence[float], wheel_radiu
         raise RobotError("wmra_urdf: a dimension exceeds 10 m; pass metres, not millimetres")
 
 
+#: Wheel joint orientation: local z = +y, so a positive rate rolls forward.
+_WHEEL_RPY = (-math.pi / 2, 0.0, 0.0)
+
+
+def _chassis(r: float) -> list[str]:
+    """Return the floor link `base_footprint` and the wheelchair frame `base_link` (W) at axle height r."""
+    chassis = box_inertial(WMRA_CHASSIS_MASS, (0.9, 0.6, 0.5), com=(0.25, 0.0, 0.15))
+    shapes = (
+        Shape("box", (0.9, 0.6, 0.08), (0.25, 0.0, 0.05), material="dark"),
+        Shape("box", (0.45, 0.5, 0.08), (0.15, 0.0, 0.35), material="blue"),
+        Shape("box", (0.08, 0.5, 0.55), (-0.1, 0.0, 0.6), material="blue"),
+    )
+    return [link("base_footprint"), link("base_link", chassis, shapes),
+            joint("base_joint", "fixed", "base_footprint", "base_link", xyz=(0, 0, r))]
+
+
+def _drive_wheels(track: float, r: float) -> list[str]:
+    """Return the two driven wheels (radius r) on the axle through W, `track` apart (paper eq. 7-10)."""
+    parts: list[str] = []
+    for side, sy in (("left", 1.0), ("right", -1.0)):
+        parts.append(link(f"wheel_{side}", cylinder_inertial(WMRA_WHEEL_MASS, r, 0.06),
+                          (Shape("cylinder", (r, 0.06), material="dark"),)))
+        parts.append(joint(f"wheel_{side}_joint", "continuous", "base_link", f"wheel_{side}",
+                           xyz=(0.0, sy * track / 2, 0.0), rpy=_WHEEL_RPY,
+                           limit=(0, 0, WMRA_WHEEL_EFFORT, WMRA_WHEEL_VELOCITY), damping=0.0))
+    return parts
+
+
+def _casters(r: float) -> list[str]:
+    """Return the two front casters (swivel fork + wheel), their wheels on the floor under a base at axle height r."""
+    rc = WMRA_CASTER_RADIUS
+    parts: list[str] = []
+    for side, sy in (("left", 1.0), ("right", -1.0)):
+        parts.append(link(f"caster_{side}_fork", box_inertial(0.3, (0.05, 0.05, 0.1)),
+                          (Shape("box", (0.05, 0.05, 0.1), (0, 0, 0.02), material="grey"),)))
+        parts.append(joint(f"caster_{side}_swivel", "continuous", "base_link", f"caster_{side}_fork",
+                           xyz=(WMRA_CASTER_X, sy * WMRA_CASTER_HALF_TRACK, rc - r + 0.06),
+                           limit=(0, 0, 0.0, 20.0)))
+        parts.append(link(f"caster_{side}_wheel", cylinder_inertial(0.5, rc, 0.04),
+                          (Shape("cylinder", (rc, 0.04), material="dark"),)))
+        parts.append(joint(f"caster_{side}_wheel_joint", "continuous", f"caster_{side}_fork",
+                           f"caster_{side}_wheel", xyz=(-0.04, 0.0, -0.06), rpy=_WHEEL_RPY,
+                           limit=(0, 0, 0.0, 30.0)))
+    return parts
+
+
+def _arm_link(i: int, parent: str, di: float) -> list[str]:
+    """Return D-H link i+1 (offset di, twist WMRA_ALPHA[i]) and its revolute joint to `parent` (paper eq. 1)."""
+    alpha = WMRA_ALPHA[i]
+    # Modified D-H (paper eq. 1): Rotx(alpha) Tx(a=0) Rotz(q) Tz(d) = [Rotx(alpha) Tz(d)] Rotz(q).
+    xyz = (0.0, -math.sin(alpha) * di, math.cos(alpha) * di)
+    shapes = [Shape("sphere", (0.045,), (0, 0, 0), material="silver")]
+    if abs(di) > 1e-6:
+        shapes.append(Shape("cylinder", (0.035, abs(di)), (0, 0, -di / 2), material="silver"))
+    mass = WMRA_LINK_MASS[i]
+    inertial = combine([cylinder_inertial(mass * 0.8, 0.035, max(abs(di), 0.05), com=(0, 0, -di / 2)),
+                        cylinder_inertial(mass * 0.2, 0.045, 0.09)])
+    limit = (math.radians(WMRA_Q_MIN_DEG[i]), math.radians(WMRA_Q_MAX_DEG[i]), WMRA_JOINT_EFFORT[i],
+             WMRA_JOINT_VELOCITY)
+    return [link(f"arm_link{i + 1}", inertial, tuple(shapes)),
+            joint(f"arm_joint{i + 1}", "revolute", parent, f"arm_link{i + 1}", xyz=xyz, rpy=(alpha, 0.0, 0.0),
+                  limit=limit)]
+
+
+def _arm(d: Sequence[float], mount: Sequence[float]) -> list[str]:
+    """Return the arm mount (frame A at `mount` in W), the 7 D-H links and the end effector `ee` (= frame 7)."""
+    parts = [link("arm_mount", None, (Shape("box", (0.12, 0.12, 0.04), (0, 0, -0.02), material="grey"),)),
+             joint("arm_mount_joint", "fixed", "base_link", "arm_mount", xyz=tuple(mount))]
+    parent = "arm_mount"
+    for i in range(7):
+        parts.extend(_arm_link(i, parent, d[i]))
+        parent = f"arm_link{i + 1}"
+    parts.append(link("ee", None, (Shape("box", (0.03, 0.08, 0.02), (0, 0, 0.01), material="orange"),)))
+    parts.append(joint("ee_joint", "fixed", "arm_link7", "ee"))
+    return parts
+
+
 def wmra_urdf(
     d: Sequence[float] = WMRA_D,
     track: float = WMRA_TRACK,
@@ -86,74 +163,7 @@ def wmra_urdf(
     (frame A), `arm_link1..7` (D-H frames 1..7), `ee` (= D-H frame 7).
     """
     _check(d, track, mount, wheel_radius)
-    d = tuple(float(x) for x in d)
-    L1, r = float(track), float(wheel_radius)
-    L2, L3, L4 = (float(x) for x in mount)
-    parts: list[str] = []
-    parts.append(link("base_footprint"))
-    chassis = box_inertial(WMRA_CHASSIS_MASS, (0.9, 0.6, 0.5), com=(0.25, 0.0, 0.15))
-    parts.append(
-        link(
-            "base_link",
-            chassis,
-            (
-                Shape("box", (0.9, 0.6, 0.08), (0.25, 0.0, 0.05), material="dark"),
-                Shape("box", (0.45, 0.5, 0.08), (0.15, 0.0, 0.35), material="blue"),
-                Shape("box", (0.08, 0.5, 0.55), (-0.1, 0.0, 0.6), material="blue"),
-            ),
-        )
-    )
-    parts.append(joint("base_joint", "fixed", "base_footprint", "base_link", xyz=(0, 0, r)))
-    wheel_rpy = (-math.pi / 2, 0.0, 0.0)  # local z = +y: a positive rate rolls forward
-    for side, sy in (("left", 1.0), ("right", -1.0)):
-        parts.append(
-            link(
-                f"wheel_{side}",
-                cylinder_inertial(WMRA_WHEEL_MASS, r, 0.06),
-                (Shape("cylinder", (r, 0.06), material="dark"),),
-            )
-        )
-        parts.append(
-            joint(
-                f"wheel_{side}_joint", "continuous", "base_link", f"wheel_{side}",
-                xyz=(0.0, sy * L1 / 2, 0.0), rpy=wheel_rpy,
-                limit=(0, 0, WMRA_WHEEL_EFFORT, WMRA_WHEEL_VELOCITY), damping=0.0,
-            )
-        )
-    rc = WMRA_CASTER_RADIUS
-    for side, sy in (("left", 1.0), ("right", -1.0)):
-        parts.append(link(f"caster_{side}_fork", box_inertial(0.3, (0.05, 0.05, 0.1)),
-                          (Shape("box", (0.05, 0.05, 0.1), (0, 0, 0.02), material="grey"),)))
-        parts.append(joint(f"caster_{side}_swivel", "continuous", "base_link", f"caster_{side}_fork",
-                           xyz=(WMRA_CASTER_X, sy * WMRA_CASTER_HALF_TRACK, rc - r + 0.06),
-                           limit=(0, 0, 0.0, 20.0)))
-        parts.append(link(f"caster_{side}_wheel", cylinder_inertial(0.5, rc, 0.04),
-                          (Shape("cylinder", (rc, 0.04), material="dark"),)))
-        parts.append(joint(f"caster_{side}_wheel_joint", "continuous", f"caster_{side}_fork",
-                           f"caster_{side}_wheel", xyz=(-0.04, 0.0, -0.06), rpy=wheel_rpy,
-                           limit=(0, 0, 0.0, 30.0)))
-    parts.append(link("arm_mount", None, (Shape("box", (0.12, 0.12, 0.04), (0, 0, -0.02), material="grey"),)))
-    parts.append(joint("arm_mount_joint", "fixed", "base_link", "arm_mount", xyz=(L2, L3, L4)))
-    parent = "arm_mount"
-    for i in range(7):
-        alpha, di = WMRA_ALPHA[i], d[i]
-        # Modified D-H (paper eq. 1): Rotx(alpha) Tx(a=0) Rotz(q) Tz(d) = [Rotx(alpha) Tz(d)] Rotz(q).
-        xyz = (0.0, -math.sin(alpha) * di, math.cos(alpha) * di)
-        shapes = [Shape("sphere", (0.045,), (0, 0, 0), material="silver")]
-        if abs(di) > 1e-6:
-            shapes.append(Shape("cylinder", (0.035, abs(di)), (0, 0, -di / 2), material="silver"))
-        mass = WMRA_LINK_MASS[i]
-        inertial = combine([cylinder_inertial(mass * 0.8, 0.035, max(abs(di), 0.05), com=(0, 0, -di / 2)),
-                            cylinder_inertial(mass * 0.2, 0.045, 0.09)])
-        parts.append(link(f"arm_link{i + 1}", inertial, tuple(shapes)))
-        parts.append(
-            joint(
-                f"arm_joint{i + 1}", "revolute", parent, f"arm_link{i + 1}", xyz=xyz, rpy=(alpha, 0.0, 0.0),
-                limit=(math.radians(WMRA_Q_MIN_DEG[i]), math.radians(WMRA_Q_MAX_DEG[i]),
-                       WMRA_JOINT_EFFORT[i], WMRA_JOINT_VELOCITY),
-            )
-        )
-        parent = f"arm_link{i + 1}"
-    parts.append(link("ee", None, (Shape("box", (0.03, 0.08, 0.02), (0, 0, 0.01), material="orange"),)))
-    parts.append(joint("ee_joint", "fixed", "arm_link7", "ee"))
+    r = float(wheel_radius)
+    parts = _chassis(r) + _drive_wheels(float(track), r) + _casters(r)
+    parts += _arm(tuple(float(x) for x in d), tuple(float(x) for x in mount))
     return robot("wmra", "".join(parts))

@@ -17,7 +17,8 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from wholebody.errors import (InfeasibleWrenchError, SingularConfigurationError, TrajectoryInfeasibleError,
+from wholebody.errors import (BatchError, InfeasibleWrenchError, OptionError, SceneError,
+                              SingularConfigurationError, TrajectoryInfeasibleError,
                               WholeBodyError)
 
 #: public name -> subpackage that defines it
@@ -30,12 +31,12 @@ _LAZY = {
         "WrenchAllocator", "allocate", "cart_wrench", "grasp_map", "optimal_contact_points",
         "plan_contact_schedule")},
     **{n: "wholebody.push" for n in ("PushConfig", "PushMetrics", "PushResult", "run_demo", "run_push")},
-    **{n: "wholebody.viz" for n in ("Scene", "SceneError")},
+    **{n: "wholebody.viz" for n in ("Scene",)},
 }
 
 __all__ = [
-    "AllocationResult", "ArmLimits", "ContactPlan", "ControllerConfig", "DifferentialDrive", "EffortWeights",
-    "GraspModel", "HandleSegment", "InfeasibleWrenchError", "MobileBase", "Omnidirectional", "PushConfig",
+    "AllocationResult", "ArmLimits", "BatchError", "ContactPlan", "ControllerConfig", "DifferentialDrive", "EffortWeights",
+    "GraspModel", "HandleSegment", "InfeasibleWrenchError", "MobileBase", "Omnidirectional", "OptionError", "PushConfig",
     "PushMetrics", "PushResult", "ResolvedRateController", "SafetyBand", "Scene", "SceneError",
     "SingularConfigurationError", "StepResult", "TrajectoryInfeasibleError", "WholeBody", "WholeBodyError",
     "WrenchAllocator", "allocate", "cart_wrench", "ee_path_time_optimal", "grasp_map", "optimal_contact_points",

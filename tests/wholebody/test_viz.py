@@ -149,19 +149,38 @@ def test_camera_projection_closed_form():
     np.testing.assert_allclose(uv, [[400, 300], [400 + f / 4, 300], [400, 300 - f / 4]], atol=1e-9)
 
 
-def test_pushing_configuration_reaches_handle():
-    cart = (0.9, 0.3, 0.4)
-    base, q = pushing_configuration(cart)
-    robot = robots.load("ridgeback_iiwa")
+@pytest.mark.parametrize("name, cart, contact_y", [("ridgeback_iiwa", (0.9, 0.3, 0.4), 0.0),
+                                                    ("ridgeback_iiwa", (0.2, -0.5, -1.1), 0.15),
+                                                    ("wmra", (0.0, 0.0, 0.3), 0.1)])
+def test_pushing_configuration_holds_handle_with_push_grasp(name, cart, contact_y):
+    """The hand sits on the handle point, tool axis forward and `grasp_pitch` down, base where the profile says."""
+    from robots.profiles import profile
+
+    prof = profile(name)
+    base, q = pushing_configuration(cart, contact_y, robot=name)
+    robot = robots.load(name)
     pin.framesForwardKinematics(robot.model, robot.data, q)
     M = robot.data.oMf[robot.frame_id("ee")]
-    handle = [cart[0] + math.cos(cart[2]) * CART_HANDLE_X, cart[1] + math.sin(cart[2]) * CART_HANDLE_X,
+    c, s = math.cos(cart[2]), math.sin(cart[2])
+    handle = [cart[0] + c * CART_HANDLE_X - s * contact_y, cart[1] + s * CART_HANDLE_X + c * contact_y,
               CART_WHEEL_RADIUS + CART_HANDLE_Z_B]
-    np.testing.assert_allclose(M.translation, handle, atol=1e-4)
-    np.testing.assert_allclose(M.rotation[:, 2], [math.cos(cart[2]), math.sin(cart[2]), 0.0], atol=1e-4)
-    np.testing.assert_allclose(base[2], cart[2])
-    lo, hi = robot.model.lowerPositionLimit[7:], robot.model.upperPositionLimit[7:]
-    assert np.all(q[7:] >= lo - 1e-12) and np.all(q[7:] <= hi + 1e-12)
+    np.testing.assert_allclose(M.translation, handle, atol=1e-5)
+    cp, sp = math.cos(prof.grasp_pitch), math.sin(prof.grasp_pitch)
+    np.testing.assert_allclose(M.rotation[:, 2], [cp * c, cp * s, -sp], atol=1e-5)  # tool axis
+    np.testing.assert_allclose(M.rotation[:, 0], [sp * c, sp * s, cp], atol=1e-5)  # fingers
+    bx = CART_HANDLE_X + prof.push_base_x
+    by = contact_y if prof.push_base_y is None else prof.push_base_y
+    np.testing.assert_allclose(base, [cart[0] + c * bx - s * by, cart[1] + s * bx + c * by, cart[2]], atol=1e-12)
+    np.testing.assert_allclose(q[:4], [base[0], base[1], math.cos(base[2]), math.sin(base[2])], atol=1e-12)
+    lo, hi = robot.model.lowerPositionLimit[4:], robot.model.upperPositionLimit[4:]
+    assert np.all(q[4:] >= lo - 1e-12) and np.all(q[4:] <= hi + 1e-12)
+
+
+def test_pushing_configuration_refuses_a_robot_that_does_not_push():
+    with pytest.raises(SceneError, match="push posture"):
+        pushing_configuration(robot="shopping_cart")
+    with pytest.raises(SceneError, match="3 finite numbers"):
+        pushing_configuration((0.0, math.nan, 0.0))
 
 
 def test_bad_input_raises_project_errors():

@@ -28,15 +28,13 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple
 
 from cart.errors import CartpushError
+from wholebody.errors import BatchError
 
 #: File names a directory input contributes (sorted), in that directory only.
 LOG_PATTERNS = ("*.csv", "*.csv.gz")
 #: Python warning categories that are about library versions, not about a log: not recorded.
 _QUIET = (DeprecationWarning, PendingDeprecationWarning, FutureWarning, ImportWarning, ResourceWarning)
 
-
-class BatchError(CartpushError):
-    """Bad batch input: no logs, an unusable output file, an unknown job, Ray missing or unreachable."""
 
 
 def _one_line(text: Any) -> str:
@@ -294,6 +292,73 @@ def _ray_results(job, paths: Sequence[str], workers: int) -> Iterator[Dict[str, 
                                                           f"{_one_line(exc)[:300]}"}
 
 
+def _check_workers(workers: Optional[int], ray_address: Optional[str]) -> Optional[int]:
+    """Return the worker count to use: ``workers`` checked, 1 by default locally, the cluster's CPUs on Ray."""
+    if workers is not None and workers < 1:
+        raise BatchError(f"--workers must be at least 1, got {workers}")
+    if ray_address is None and workers is None:
+        workers = 1
+    if ray_address is not None:
+        workers = _ray_connect(ray_address, workers)
+    return workers
+
+
+def _progress_bar(progress: Optional[bool], total: int) -> Any:
+    """Return a tqdm bar on stderr over ``total`` logs, or None (``progress`` None: only on a terminal)."""
+    if progress is None:
+        progress = bool(getattr(sys.stderr, "isatty", lambda: False)())
+    if not (progress and total):
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, file=sys.stderr, unit="log", dynamic_ncols=True)
+
+
+def _results(job: Callable[[str], Dict[str, Any]], todo: Sequence[str], workers: Optional[int],
+             ray_address: Optional[str]) -> Iterable[Dict[str, Any]]:
+    """Return the result lines of ``todo`` as they finish, on Ray or locally."""
+    if not todo:
+        return ()
+    if ray_address is not None:
+        return _ray_results(job, todo, int(workers or 1))
+    return _local_results(job, todo, int(workers or 1))
+
+
+@dataclass
+class _Tally:
+    """Counts of the result lines written: succeeded, failed, and the jobs' own seconds."""
+
+    ok: int = 0
+    failed: int = 0
+    job_seconds: float = 0.0
+
+    def add(self, rec: Dict[str, Any]) -> None:
+        if rec.get("ok"):
+            self.ok += 1
+        else:
+            self.failed += 1
+        self.job_seconds += float(rec.get("seconds", 0.0))
+
+
+def _write_results(results: Iterable[Dict[str, Any]], fh: Any, bar: Any,
+                   on_result: Optional[Callable[[Dict[str, Any]], None]]) -> _Tally:
+    """Append each result line to ``fh`` (flushed at once), update the bar, call ``on_result``; return the counts."""
+    from cart.jsonout import dumps_strict
+
+    tally = _Tally()
+    for rec in results:
+        fh.write(dumps_strict(rec) + "\n")
+        fh.flush()
+        tally.add(rec)
+        if on_result is not None:
+            on_result(rec)
+        if bar is not None:
+            bar.update(1)
+            if tally.failed:
+                bar.set_postfix(failed=tally.failed, refresh=False)
+    return tally
+
+
 def run_batch(job: Callable[[str], Dict[str, Any]], paths: Sequence[str], out: str | os.PathLike,
               workers: Optional[int] = 1, ray_address: Optional[str] = None, progress: Optional[bool] = None,
               on_result: Optional[Callable[[Dict[str, Any]], None]] = None) -> Dict[str, Any]:
@@ -304,56 +369,24 @@ def run_batch(job: Callable[[str], Dict[str, Any]], paths: Sequence[str], out: s
     the most Ray tasks in flight (None: the cluster's CPUs). ``progress``: a tqdm bar on stderr
     (None: only when stderr is a terminal). Returns the summary: counts, wall time, logs per minute.
     """
-    from cart.jsonout import dumps_strict
-
     paths = [os.path.abspath(os.fspath(p)) for p in paths]
-    if workers is not None and workers < 1:
-        raise BatchError(f"--workers must be at least 1, got {workers}")
-    if ray_address is None and workers is None:
-        workers = 1
-    if ray_address is not None:
-        workers = _ray_connect(ray_address, workers)
+    workers = _check_workers(workers, ray_address)
     done = done_paths(out)
     todo = [p for p in paths if p not in done]
     fh = _open_results(out)
-    if progress is None:
-        progress = bool(getattr(sys.stderr, "isatty", lambda: False)())
-    bar = None
-    if progress and todo:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(todo), file=sys.stderr, unit="log", dynamic_ncols=True)
-    n_ok = n_failed = 0
-    job_seconds = 0.0
+    bar = _progress_bar(progress, len(todo))
     t0 = time.perf_counter()
     try:
-        if not todo:
-            results: Iterable[Dict[str, Any]] = ()
-        elif ray_address is not None:
-            results = _ray_results(job, todo, workers)
-        else:
-            results = _local_results(job, todo, int(workers))
-        for rec in results:
-            fh.write(dumps_strict(rec) + "\n")
-            fh.flush()
-            if rec.get("ok"):
-                n_ok += 1
-            else:
-                n_failed += 1
-            job_seconds += float(rec.get("seconds", 0.0))
-            if on_result is not None:
-                on_result(rec)
-            if bar is not None:
-                bar.update(1)
-                if n_failed:
-                    bar.set_postfix(failed=n_failed, refresh=False)
+        tally = _write_results(_results(job, todo, workers, ray_address), fh, bar, on_result)
     finally:
         fh.close()
         if bar is not None:
             bar.close()
     wall = time.perf_counter() - t0
-    ran = n_ok + n_failed
+    ran = tally.ok + tally.failed
     return {"backend": "ray" if ray_address is not None else "joblib", "workers": workers,
-            "inputs": len(paths), "skipped": len(paths) - len(todo), "ran": ran, "ok": n_ok, "failed": n_failed,
-            "seconds": round(wall, 3), "logs_per_min": round(60.0 * ran / wall, 2) if ran and wall > 0 else None,
-            "job_seconds_mean": round(job_seconds / ran, 4) if ran else None, "out": os.path.abspath(os.fspath(out))}
+            "inputs": len(paths), "skipped": len(paths) - len(todo), "ran": ran, "ok": tally.ok,
+            "failed": tally.failed, "seconds": round(wall, 3),
+            "logs_per_min": round(60.0 * ran / wall, 2) if ran and wall > 0 else None,
+            "job_seconds_mean": round(tally.job_seconds / ran, 4) if ran else None,
+            "out": os.path.abspath(os.fspath(out))}

@@ -11,7 +11,7 @@ import tempfile
 from pathlib import Path
 from typing import Optional
 
-from cart.errors import CartpushError
+from wholebody.errors import OptionError
 
 #: Longest simulated time any command accepts (s): the memory budget of the simulations
 #: (a few arrays of one row per control step; 3600 s at 100 Hz is 360,000 rows).
@@ -21,9 +21,6 @@ MAX_SIM_STEPS = 2_000_000
 #: Largest seed accepted (numpy's SeedSequence takes any non-negative integer; keep it sane).
 MAX_SEED = 2 ** 63 - 1
 
-
-class OptionError(CartpushError):
-    """A command-line option has a value the command cannot use."""
 
 
 def finite(name: str, value: float, *, positive: bool = False, nonnegative: bool = False,
@@ -68,43 +65,32 @@ def seed(value: int) -> int:
     return value
 
 
-def _test_write(directory: Path, option: str) -> None:
-    try:
-        fd, probe = tempfile.mkstemp(prefix=".cartpush_write_test_", dir=directory)
-    except OSError as exc:
-        raise OptionError(f"{option}: cannot write into {str(directory)!r} ({exc.strerror or exc})") from None
-    os.close(fd)
-    os.unlink(probe)
-
-
-def writable_dir(path: os.PathLike | str, option: str = "--out") -> Path:
-    """Return ``path`` after creating it (with parents) and checking a file can be written into it."""
+def writable_dir(path: os.PathLike | str, option: str = "--out", create: bool = True) -> Path:
+    """Return ``path`` after creating it with its parents (``create``) and checking a file can be written into it."""
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise OptionError(f"{option}: {str(p)!r} exists and is not a directory")
+    if not create and not p.is_dir():
+        raise OptionError(f"{option}: the directory {str(p)!r} does not exist")
     try:
         p.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OptionError(f"{option}: cannot create the directory {str(p)!r} ({exc.strerror or exc})") from None
-    _test_write(p, option)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".cartpush_write_test_", dir=p)
+    except OSError as exc:
+        raise OptionError(f"{option}: cannot write into {str(p)!r} ({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(probe)
     return p
 
 
 def writable_file(path: os.PathLike | str, option: str = "--out", create: bool = True) -> Path:
-    """Return ``path`` after creating its directory (``create``) and checking a file can be written there."""
+    """Return ``path`` after checking it names a writable file in a writable directory (`writable_dir`)."""
     p = Path(path)
     if str(path) == "" or p.is_dir():
         raise OptionError(f"{option}: {str(p)!r} is a directory, expected a file name")
     if p.exists() and not os.access(p, os.W_OK):
         raise OptionError(f"{option}: {str(p)!r} is not writable")
-    parent = p.parent if str(p.parent) else Path(".")
-    if parent.exists() and not parent.is_dir():
-        raise OptionError(f"{option}: {str(parent)!r} is not a directory")
-    if not create and not parent.is_dir():
-        raise OptionError(f"{option}: the directory {str(parent)!r} does not exist")
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OptionError(f"{option}: cannot create the directory {str(parent)!r} ({exc.strerror or exc})") from None
-    _test_write(parent, option)
+    writable_dir(p.parent if str(p.parent) else Path("."), option, create=create)
     return p

@@ -9,7 +9,7 @@ import numpy as np
 import pinocchio as pin
 
 import robots
-from robots.profiles import profile
+from robots.profiles import RobotProfile, profile
 from cart.simulate import MeasurementNoise
 from wholebody.contacts.handle import HandleSegment
 from wholebody.errors import WholeBodyError
@@ -124,6 +124,27 @@ def solve_grasp_ik(wb: WholeBody, base_pose: np.ndarray, target: pin.SE3, seed: 
     return sol.x
 
 
+def base_input_for(prof: RobotProfile) -> str:
+    """Return the whole-body base input of a robot profile: a body twist for a holonomic base, wheel rates
+    for a differential drive (its lateral velocity is then zero by construction, paper 2 eq. 11-21)."""
+    return "twist" if prof.base == "omnidirectional" else "wheels"
+
+
+def grasp_configuration(wb: WholeBody, prof: RobotProfile, q_cart: np.ndarray, contact_y: float, base_y: float,
+                        R_b_ee: np.ndarray, seed: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Return (base pose, arm joints) of the robot holding the handle at `contact_y` (m, in {b}).
+
+    The base stands at ``(handle x + prof.push_base_x, base_y)`` in the cart frame {b}; the hand holds the bar
+    with orientation ``R_b_ee``; the arm comes from `solve_grasp_ik` seeded with `seed` (default: the
+    profile's push posture).
+    """
+    offset = np.array([handle_point(contact_y)[0] + prof.push_base_x, base_y])
+    pose, _ = base_target(q_cart, np.zeros(3), offset)
+    target, _ = grasp_target(q_cart, np.zeros(3), contact_y, 0.0, R_b_ee)
+    qa = solve_grasp_ik(wb, pose, target, prof.push_arm_seed if seed is None else seed)
+    return pose, qa
+
+
 class MobileManipulator:
     """One mobile manipulator (a `robots.profiles` entry with an F/T sensor and a push posture) holding the handle.
 
@@ -140,16 +161,14 @@ class MobileManipulator:
         self.profile = prof
         # a holonomic base takes a body twist; a differential drive takes wheel rates, so that its lateral
         # velocity is zero by construction (combined Jacobian of paper 2, eq. 11-21)
-        self.wb = wholebody_for(robot, base_input="twist" if prof.base == "omnidirectional" else "wheels")
+        self.wb = wholebody_for(robot, base_input=base_input_for(prof))
         self.model = self.wb.model
         self.data = self.model.createData()
         self.R_b_ee = R_b_ee
         self.ee_id = self.wb.ee_frame_id
         self.ft_id = robot.frame_id(prof.ft_frame)
         self.base_offset_b = np.array([handle_point(contact_y)[0] + prof.push_base_x, base_y])
-        pose, _ = base_target(q_cart, np.zeros(3), self.base_offset_b)
-        target, _ = grasp_target(q_cart, np.zeros(3), contact_y, 0.0, R_b_ee)
-        qa = solve_grasp_ik(self.wb, pose, target, prof.push_arm_seed if arm_seed is None else arm_seed)
+        pose, qa = grasp_configuration(self.wb, prof, q_cart, contact_y, base_y, R_b_ee, arm_seed)
         self.x = np.r_[pose, qa]
         self.tracker = tracker if tracker is not None else WholeBodyQPTracker(self.wb, qa)
         self.u = np.zeros(self.wb.n_u)

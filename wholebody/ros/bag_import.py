@@ -742,6 +742,121 @@ def _aligned(t: np.ndarray, valid: np.ndarray, tw: np.ndarray, dropped: Dict[str
     return use
 
 
+class _Recording(NamedTuple):
+    """What `import_bag` reads off the bag: resolved topic names, decoded streams, TF samples, start and storage."""
+
+    pose_name: Optional[str]
+    wrench_name: str
+    pose: Optional[_Stream]
+    wrench: _Stream
+    tf: List[_TFSample]
+    start_ns: int
+    storage: str
+
+
+def _check_request(path: Any, pose_topic: Optional[str], pose_frame: Optional[str], wrench_topic: Optional[str],
+                   start: Optional[float], end: Optional[float]) -> None:
+    """Raise BagImportError unless exactly one pose source, a wrench topic and a valid window are given."""
+    if (pose_topic is None) == (pose_frame is None):
+        raise BagImportError(f"{path}: give the cart's pose as exactly one of a pose topic or a TF frame "
+                             f"(--pose-topic / --pose-frame), got {'both' if pose_topic else 'neither'}")
+    if not wrench_topic:
+        raise BagImportError(f"{path}: give the wrench topic (--wrench-topic, a geometry_msgs/WrenchStamped topic)")
+    _check_window(start, end)
+
+
+def _read_recording(bag: _Bag, pose_topic: Optional[str], wrench_topic: str) -> _Recording:
+    """Return the pose (None with a TF pose frame) and wrench streams and the TF samples; close the bag."""
+    with bag:
+        pose_name = bag.find_topic(pose_topic, "pose") if pose_topic else None
+        wrench_name = bag.find_topic(wrench_topic, "wrench")
+        for name in (pose_name, wrench_name):
+            if name and bag.topics[name].msgcount == 0:
+                raise BagImportError(f"{bag.path}: topic {name} has no messages")
+        pose, wrench, tf = _read_streams(bag, pose_name, wrench_name)
+        return _Recording(pose_name, wrench_name, pose, wrench, tf, bag.start_ns, bag.storage)
+
+
+def _clock(rec: _Recording, use_record_time: bool, notes: List[str]) -> Tuple[np.ndarray, np.ndarray, int]:
+    """Return (pose times, wrench times (ns), t0_ns): t = 0 at the start of the recording, or at the first pose
+    stamp when the header stamps use another clock."""
+    if not use_record_time:
+        for name, stream in ((rec.pose_name, rec.pose), (rec.wrench_name, rec.wrench)):
+            if stream is not None and 2 * stream.stamp_ns.count(0) > len(stream.stamp_ns):
+                raise BagImportError(f"{name}: the header stamps are zero (its publisher does not stamp the "
+                                     f"messages): use the record time (--record-time)")
+    wrench_t_ns = np.array(rec.wrench.record_ns if use_record_time else rec.wrench.stamp_ns, dtype=np.int64)
+    pose_t_ns = np.zeros(0, dtype=np.int64)
+    if rec.pose is not None:
+        pose_t_ns = np.array(rec.pose.record_ns if use_record_time else rec.pose.stamp_ns, dtype=np.int64)
+        first_ns = int(pose_t_ns.min())
+    else:
+        first_ns = min([s.record_ns if use_record_time else s.stamp_ns for s in rec.tf if s.kind != "static"]
+                       or [rec.start_ns])
+    t0_ns = rec.start_ns
+    if not use_record_time and abs(first_ns - rec.start_ns) > SAME_CLOCK_S * _NS:
+        t0_ns = first_ns
+        notes.append("the header stamps are on another clock than the recorder's (simulated time?): t = 0 at the "
+                     "first pose stamp; use the record time to window by the recorder's clock")
+    return pose_t_ns, wrench_t_ns, t0_ns
+
+
+def _tracked_poses(rec: _Recording, pose_frame: Optional[str], world: str, pose_t_ns: np.ndarray, t0_ns: int,
+                   tf_buf: TransformBuffer, dropped: Dict[str, int], notes: List[str]) -> Tuple[_Poses, str]:
+    """Return (pose samples of the tracked frame, the world frame) from the pose topic or the TF frame."""
+    if rec.pose is not None:
+        poses = _poses_from_topic(rec.pose, rec.pose_name, pose_t_ns, t0_ns, world, tf_buf,  # type: ignore[arg-type]
+                                  dropped, notes)
+        return poses, world or poses.header_frame
+    poses = _poses_from_tf(pose_frame, world, tf_buf)  # type: ignore[arg-type]
+    return poses, poses.header_frame
+
+
+def _planar_pose(t: np.ndarray, R_wb: np.ndarray, warns: List[str]) -> Tuple[np.ndarray, float]:
+    """Return (unwrapped yaw of {b}, largest tilt in degrees); warn beyond TILT_WARNING_DEG."""
+    theta = np.unwrap(np.arctan2(R_wb[:, 1, 0], R_wb[:, 0, 0]))
+    tilt = np.degrees(np.arccos(np.clip(R_wb[:, 2, 2], -1.0, 1.0)))
+    tilt_max = float(np.max(tilt))
+    if tilt_max > TILT_WARNING_DEG:
+        warns.append(f"the cart frame tilts up to {tilt_max:.1f} deg from the vertical (at t = "
+                     f"{t[int(np.argmax(tilt))]:.2f} s): a planar cart stays within a few degrees; check the world "
+                     f"frame and the pose source")
+    return theta, tilt_max
+
+
+def _odometry_velocities(poses: _Poses, use: np.ndarray, world: str, tf_buf: TransformBuffer, R_wc: np.ndarray,
+                         p_wc: np.ndarray, p_wb: np.ndarray, notes: List[str]) -> Optional[np.ndarray]:
+    """Return the cart rates (vx, vy, wz of {b} in {s}) of an odometry pose, None without a usable twist."""
+    if poses.twist is None:
+        return None
+    if not (poses.header_frame == world or tf_buf.is_static(world, poses.header_frame)):
+        notes.append(f"velocities omitted: the odometry frame '{poses.header_frame}' moves relative to the world "
+                     f"frame '{world}'")
+        return None
+    # nav_msgs/Odometry: the twist is in the child frame C; R_wc includes the (static) R_wh
+    twist = poses.twist[use]
+    v_w = np.einsum("nij,nj->ni", R_wc, twist[:, :3])
+    w_w = np.einsum("nij,nj->ni", R_wc, twist[:, 3:])
+    v_b = v_w + np.cross(w_w, p_wb - p_wc)
+    return np.column_stack([v_b[:, 0], v_b[:, 1], w_w[:, 2]])
+
+
+def _cart_wrench(t: np.ndarray, tw: np.ndarray, f_w: np.ndarray, m_o: np.ndarray, p_wb: np.ndarray) -> np.ndarray:
+    """Return (fx, fy, tau) at the pose times: the wrench interpolated, its torque about the {b} origin."""
+    F = np.column_stack([np.interp(t, tw, f_w[:, k]) for k in range(3)])
+    M = np.column_stack([np.interp(t, tw, m_o[:, k]) for k in range(3)])
+    tau = M[:, 2] - (p_wb[:, 0] * F[:, 1] - p_wb[:, 1] * F[:, 0])  # torque about the {b} origin, z component
+    return np.column_stack([F[:, 0], F[:, 1], tau])
+
+
+def _report_drops(dropped: Dict[str, int], warns: List[str], notes: List[str]) -> None:
+    """Add a warning per reason samples were dropped, and a note on poses outside the wrench's span."""
+    warns.extend(f"dropped {n} {_DROP_REASONS[key]}" for key, n in dropped.items() if n and key in _DROP_REASONS)
+    if dropped.get("pose_outside_wrench"):
+        notes.append(f"{dropped['pose_outside_wrench']} pose sample(s) before the first or after the last wrench "
+                     f"sample were left out")
+
+
 def import_bag(path: str | os.PathLike, pose_topic: Optional[str] = None, wrench_topic: Optional[str] = None,
                pose_frame: Optional[str] = None, world_frame: Optional[str] = None, negate_wrench: bool = False,
                start: Optional[float] = None, end: Optional[float] = None, use_record_time: bool = False,
@@ -757,106 +872,45 @@ def import_bag(path: str | os.PathLike, pose_topic: Optional[str] = None, wrench
     Raises BagImportError (TransformLookupError for TF) on bad input, FileNotFoundError for a missing path.
     """
     bag = _Bag(path)  # a bag at all? (before the options, which only make sense for one)
-    if (pose_topic is None) == (pose_frame is None):
-        raise BagImportError(f"{path}: give the cart's pose as exactly one of a pose topic or a TF frame "
-                             f"(--pose-topic / --pose-frame), got {'both' if pose_topic else 'neither'}")
-    if not wrench_topic:
-        raise BagImportError(f"{path}: give the wrench topic (--wrench-topic, a geometry_msgs/WrenchStamped topic)")
-    _check_window(start, end)
+    _check_request(path, pose_topic, pose_frame, wrench_topic, start, end)
     clock = "record" if use_record_time else "header"
     notes: List[str] = []
     warns: List[str] = []
     dropped: Dict[str, int] = {}
-    with bag:
-        pose_name = bag.find_topic(pose_topic, "pose") if pose_topic else None
-        wrench_name = bag.find_topic(wrench_topic, "wrench")
-        for name in (pose_name, wrench_name):
-            if name and bag.topics[name].msgcount == 0:
-                raise BagImportError(f"{bag.path}: topic {name} has no messages")
-        pose, wrench, tf = _read_streams(bag, pose_name, wrench_name)
-        bag_start, storage = bag.start_ns, bag.storage
-
-    if not use_record_time:
-        for name, stream in ((pose_name, pose), (wrench_name, wrench)):
-            if stream is not None and 2 * stream.stamp_ns.count(0) > len(stream.stamp_ns):
-                raise BagImportError(f"{name}: the header stamps are zero (its publisher does not stamp the "
-                                     f"messages): use the record time (--record-time)")
-    # the clock: t = 0 at the start of the recording (or at the first pose stamp when the stamps use another clock)
-    wrench_t_ns = np.array(wrench.record_ns if use_record_time else wrench.stamp_ns, dtype=np.int64)
-    pose_t_ns = np.zeros(0, dtype=np.int64)
-    if pose is not None:
-        pose_t_ns = np.array(pose.record_ns if use_record_time else pose.stamp_ns, dtype=np.int64)
-        first_ns = int(pose_t_ns.min())
-    else:
-        first_ns = min([s.record_ns if use_record_time else s.stamp_ns for s in tf if s.kind != "static"]
-                       or [bag_start])
-    t0_ns = bag_start
-    if not use_record_time and abs(first_ns - bag_start) > SAME_CLOCK_S * _NS:
-        t0_ns = first_ns
-        notes.append("the header stamps are on another clock than the recorder's (simulated time?): t = 0 at the "
-                     "first pose stamp; use the record time to window by the recorder's clock")
-    tf_buf, extra_links = _build_tf(tf, t0_ns, use_record_time)
+    rec = _read_recording(bag, pose_topic, wrench_topic)  # type: ignore[arg-type]
+    pose_t_ns, wrench_t_ns, t0_ns = _clock(rec, use_record_time, notes)
+    tf_buf, extra_links = _build_tf(rec.tf, t0_ns, use_record_time)
     if extra_links:
         notes.append(f"TF links taken from TransformStamped topics: {'; '.join(extra_links)}")
     world = normalize_frame(world_frame) if world_frame else ""
-
-    if pose is not None:
-        poses = _poses_from_topic(pose, pose_name, pose_t_ns, t0_ns, world, tf_buf, dropped, notes)  # type: ignore[arg-type]
-        world = world or poses.header_frame
-    else:
-        poses = _poses_from_tf(pose_frame, world, tf_buf)  # type: ignore[arg-type]
-        world = poses.header_frame
+    poses, world = _tracked_poses(rec, pose_frame, world, pose_t_ns, t0_ns, tf_buf, dropped, notes)
     poses = _window(poses, start, end, path)
     cart = normalize_frame(cart_frame) if cart_frame else poses.child
     R_wc, p_wc, R_wb, p_wb, valid = _cart_in_world(poses, world, cart, tf_buf)
     dropped["pose_outside_tf"] = int(np.count_nonzero(~valid))
-    tw, f_w, m_o, chains = _wrench_in_world(wrench, wrench_name, wrench_t_ns, t0_ns, world, wrench_frame, tf_buf,
-                                            dropped)
+    tw, f_w, m_o, chains = _wrench_in_world(rec.wrench, rec.wrench_name, wrench_t_ns, t0_ns, world, wrench_frame,
+                                            tf_buf, dropped)
     if negate_wrench:
         f_w, m_o = -f_w, -m_o
     use = _aligned(poses.t, valid, tw, dropped, path)
     t, R_wb, p_wb, R_wc, p_wc = poses.t[use], R_wb[use], p_wb[use], R_wc[use], p_wc[use]
-    F = np.column_stack([np.interp(t, tw, f_w[:, k]) for k in range(3)])
-    M = np.column_stack([np.interp(t, tw, m_o[:, k]) for k in range(3)])
-    tau = M[:, 2] - (p_wb[:, 0] * F[:, 1] - p_wb[:, 1] * F[:, 0])  # torque about the {b} origin, z component
-
-    # planar pose, tilt, velocities
-    theta = np.unwrap(np.arctan2(R_wb[:, 1, 0], R_wb[:, 0, 0]))
-    tilt = np.degrees(np.arccos(np.clip(R_wb[:, 2, 2], -1.0, 1.0)))
-    tilt_max = float(np.max(tilt))
-    if tilt_max > TILT_WARNING_DEG:
-        warns.append(f"the cart frame tilts up to {tilt_max:.1f} deg from the vertical (at t = "
-                     f"{t[int(np.argmax(tilt))]:.2f} s): a planar cart stays within a few degrees; check the world "
-                     f"frame and the pose source")
-    qd = None
-    if poses.twist is not None:
-        if poses.header_frame == world or tf_buf.is_static(world, poses.header_frame):
-            # nav_msgs/Odometry: the twist is in the child frame C; R_wc includes the (static) R_wh
-            twist = poses.twist[use]
-            v_w = np.einsum("nij,nj->ni", R_wc, twist[:, :3])
-            w_w = np.einsum("nij,nj->ni", R_wc, twist[:, 3:])
-            v_b = v_w + np.cross(w_w, p_wb - p_wc)
-            qd = np.column_stack([v_b[:, 0], v_b[:, 1], w_w[:, 2]])
-        else:
-            notes.append(f"velocities omitted: the odometry frame '{poses.header_frame}' moves relative to the world "
-                         f"frame '{world}'")
-    warns.extend(f"dropped {n} {_DROP_REASONS[key]}" for key, n in dropped.items() if n and key in _DROP_REASONS)
-    if dropped.get("pose_outside_wrench"):
-        notes.append(f"{dropped['pose_outside_wrench']} pose sample(s) before the first or after the last wrench "
-                     f"sample were left out")
-    metadata = {"source": "ROS bag", "bag": str(path), "pose": poses.source, "wrench": wrench_name,
+    gamma = _cart_wrench(t, tw, f_w, m_o, p_wb)
+    theta, tilt_max = _planar_pose(t, R_wb, warns)
+    qd = _odometry_velocities(poses, use, world, tf_buf, R_wc, p_wc, p_wb, notes)
+    _report_drops(dropped, warns, notes)
+    metadata = {"source": "ROS bag", "bag": str(path), "pose": poses.source, "wrench": rec.wrench_name,
                 "world_frame": world, "cart_frame": cart or "-", "clock": clock, "t0_unix_ns": str(t0_ns),
                 "negate_wrench": str(bool(negate_wrench)).lower()}
-    log = CartLog(t=t, q=np.column_stack([p_wb[:, 0], p_wb[:, 1], theta]),
-                  gamma=np.column_stack([F[:, 0], F[:, 1], tau]), qd=qd, metadata=metadata, source=str(path))
+    log = CartLog(t=t, q=np.column_stack([p_wb[:, 0], p_wb[:, 1], theta]), gamma=gamma, qd=qd, metadata=metadata,
+                  source=str(path))
     warns.extend(plausibility_warnings(log))
     object.__setattr__(log, "warnings", tuple(warns))
     report = ImportReport(
-        bag=str(path), storage=storage, samples=len(t), duration=float(t[-1] - t[0]), t0_ns=int(t0_ns), clock=clock,
-        pose_source=poses.source, pose_type=poses.msgtype, wrench_topic=wrench_name, wrench_type=wrench.msgtype,
-        world_frame=world, cart_frame=cart, wrench_frames=tuple(chains), tf_chains=chains,
-        negate_wrench=bool(negate_wrench), window=(start, end), dropped=dropped, tilt_max_deg=tilt_max,
-        has_velocities=qd is not None, warnings=tuple(warns), notes=tuple(notes))
+        bag=str(path), storage=rec.storage, samples=len(t), duration=float(t[-1] - t[0]), t0_ns=int(t0_ns),
+        clock=clock, pose_source=poses.source, pose_type=poses.msgtype, wrench_topic=rec.wrench_name,
+        wrench_type=rec.wrench.msgtype, world_frame=world, cart_frame=cart, wrench_frames=tuple(chains),
+        tf_chains=chains, negate_wrench=bool(negate_wrench), window=(start, end), dropped=dropped,
+        tilt_max_deg=tilt_max, has_velocities=qd is not None, warnings=tuple(warns), notes=tuple(notes))
     return log, report
 
 

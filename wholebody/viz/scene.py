@@ -35,7 +35,7 @@ from pinocchio.visualize import MeshcatVisualizer
 
 import robots
 from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
-from wholebody.errors import WholeBodyError
+from wholebody.errors import SceneError
 from wholebody.motion.bases import planar_pose_matrix
 
 #: Colours (0xRRGGBB) of the overlays.
@@ -58,10 +58,6 @@ MAX_FRAMES = 3000
 #: Default arrow scale: metres of arrow per newton (and per newton-metre for torques).
 FORCE_SCALE = 0.01
 _VIEWER_JS = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
-
-
-class SceneError(WholeBodyError):
-    """Bad input to a `Scene` (unknown robot name, malformed pose or points)."""
 
 
 @dataclass(frozen=True)
@@ -383,6 +379,24 @@ def _set_arrow(node: Any, parts: list[tuple[str, np.ndarray, np.ndarray]]) -> No
         (node[part] if part else node).set_transform(S)
 
 
+def _frame_schedule(t: np.ndarray, fps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return (keyed frame numbers, index of the sample shown at each) for sample times `t` played at `fps`.
+
+    Each frame shows the latest sample at or before its time; beyond MAX_FRAMES
+    frames only every k-th frame is keyed (three.js interpolates between them).
+    """
+    if len(t) < 2 or not np.all(np.diff(t) > 0) or not np.all(np.isfinite(t)):
+        raise SceneError("animation times must be finite and strictly increasing, at least 2 samples")
+    span_frames = (t[-1] - t[0]) * fps
+    if not span_frames < 1e12:
+        raise SceneError(f"animation spans {t[-1] - t[0]:.3g} s: too long to animate")
+    total = int(math.floor(span_frames)) + 1
+    stride = max(1, int(math.ceil(total / MAX_FRAMES)))
+    frame_numbers = np.arange(0, total, stride)
+    idx = np.searchsorted(t, t[0] + frame_numbers / fps, side="right") - 1
+    return frame_numbers, idx
+
+
 class Scene:
     """A Meshcat scene of robots (by `robots.load` name) with contacts, wrenches, CoM markers, traces and animations."""
 
@@ -635,60 +649,66 @@ class Scene:
         frame gets keys (three.js interpolates between them), so the page stays small.
         """
         t = np.asarray(t, dtype=float).ravel()
-        if len(t) < 2 or not np.all(np.diff(t) > 0) or not np.all(np.isfinite(t)):
-            raise SceneError("animation times must be finite and strictly increasing, at least 2 samples")
-        span_frames = (t[-1] - t[0]) * fps
-        if not span_frames < 1e12:
-            raise SceneError(f"animation spans {t[-1] - t[0]:.3g} s: too long to animate")
-        total = int(math.floor(span_frames)) + 1
-        stride = max(1, int(math.ceil(total / MAX_FRAMES)))
-        frame_numbers = np.arange(0, total, stride)
-        n_frames = len(frame_numbers)
-        idx = np.searchsorted(t, t[0] + frame_numbers / fps, side="right") - 1
+        frame_numbers, idx = _frame_schedule(t, fps)
+        keys = list(zip(frame_numbers.tolist(), idx))
         anim = Animation(default_framerate=fps)
-        q_joints = q_joints or {}
         for name in follow:
             if name not in poses:
                 raise SceneError(f"follow: robot {name!r} is not animated; animated: {', '.join(poses)}")
         for name, traj in poses.items():
-            traj = np.asarray(traj, dtype=float)
-            if traj.shape != (len(t), 3):
-                raise SceneError(f"poses[{name!r}] must have shape ({len(t)}, 3), got {traj.shape}")
-            robot = self._robot(name)
-            joints = q_joints.get(name)
-            if joints is not None:
-                joints = np.asarray(joints, dtype=float)
-                if joints.shape != (len(t), robot.model.nq - 4):
-                    raise SceneError(f"q_joints[{name!r}] must have shape ({len(t)}, {robot.model.nq - 4})")
-            moving = joints is not None and np.ptp(joints, axis=0).max() > 0
-            root = self.viewer[name]
-            for k, i in zip(frame_numbers.tolist(), idx):
-                _set_key(anim, root.path, k, planar_pose_matrix(*traj[i]))
-                if moving:
-                    self._animate_geometry(anim, name, k, _planar_q(robot.model, (0.0, 0.0, 0.0), joints[i]))
-            self.set_robot_pose(name, traj[idx[0]], None if joints is None else joints[idx[0]])
+            self._animate_robot(anim, keys, name, traj, (q_joints or {}).get(name), len(t))
         for name, (origins, forces) in (wrenches or {}).items():
-            origins, forces = _points3(origins, 0.0), np.asarray(forces, dtype=float)
-            if len(origins) != len(t) or len(forces) != len(t):
-                raise SceneError(f"wrenches[{name!r}] must have {len(t)} origins and forces")
-            forces = forces if forces.shape[1] == 3 else np.column_stack((forces, np.zeros(len(t))))
-            node = self._arrow_node(name, kind, 0.012, 0.06)
-            for k, i in zip(frame_numbers.tolist(), idx):
-                for part, T, sc in _arrow_parts(origins[i], scale * forces[i], 0.06):
-                    _set_key(anim, (node[part] if part else node).path, k, T, sc)
-            _set_arrow(node, _arrow_parts(origins[idx[0]], scale * forces[idx[0]], 0.06))
+            self._animate_arrow(anim, keys, name, origins, forces, kind, scale, len(t))
         for path, pts in (markers or {}).items():
-            pts = _points3(pts, 0.0)
-            if len(pts) != len(t):
-                raise SceneError(f"markers[{path!r}] must have {len(t)} positions")
-            node = self.viewer[path]
-            for k, i in zip(frame_numbers.tolist(), idx):
-                _set_key(anim, node.path, k, tf.translation_matrix(pts[i]))
-            node.set_transform(tf.translation_matrix(pts[idx[0]]))
+            self._animate_marker(anim, keys, path, pts, len(t))
         self.viewer.set_animation(anim, play=play, repetitions=repetitions)
         self.follow = tuple(follow)
         self._fps = fps
-        return n_frames
+        return len(frame_numbers)
+
+    def _animate_robot(self, anim: Animation, keys: list[tuple[int, int]], name: str, traj: Any,
+                       joints: Any, n: int) -> None:
+        """Add the root keys (and geometry keys when joints move) of robot `name`; show its first frame."""
+        traj = np.asarray(traj, dtype=float)
+        if traj.shape != (n, 3):
+            raise SceneError(f"poses[{name!r}] must have shape ({n}, 3), got {traj.shape}")
+        robot = self._robot(name)
+        if joints is not None:
+            joints = np.asarray(joints, dtype=float)
+            if joints.shape != (n, robot.model.nq - 4):
+                raise SceneError(f"q_joints[{name!r}] must have shape ({n}, {robot.model.nq - 4})")
+        moving = joints is not None and np.ptp(joints, axis=0).max() > 0
+        root = self.viewer[name]
+        for k, i in keys:
+            _set_key(anim, root.path, k, planar_pose_matrix(*traj[i]))
+            if moving:
+                self._animate_geometry(anim, name, k, _planar_q(robot.model, (0.0, 0.0, 0.0), joints[i]))
+        first = keys[0][1]
+        self.set_robot_pose(name, traj[first], None if joints is None else joints[first])
+
+    def _animate_arrow(self, anim: Animation, keys: list[tuple[int, int]], name: str, origins: Any, forces: Any,
+                       kind: str, scale: float, n: int) -> None:
+        """Add the keys of force arrow `name` (world origins (n, 3), forces (n, 2|3)); show its first frame."""
+        origins, forces = _points3(origins, 0.0), np.asarray(forces, dtype=float)
+        if len(origins) != n or len(forces) != n:
+            raise SceneError(f"wrenches[{name!r}] must have {n} origins and forces")
+        forces = forces if forces.shape[1] == 3 else np.column_stack((forces, np.zeros(n)))
+        node = self._arrow_node(name, kind, 0.012, 0.06)
+        for k, i in keys:
+            for part, T, sc in _arrow_parts(origins[i], scale * forces[i], 0.06):
+                _set_key(anim, (node[part] if part else node).path, k, T, sc)
+        first = keys[0][1]
+        _set_arrow(node, _arrow_parts(origins[first], scale * forces[first], 0.06))
+
+    def _animate_marker(self, anim: Animation, keys: list[tuple[int, int]], path: str, pts: Any, n: int) -> None:
+        """Add the position keys of the marker node `path` (world positions (n, 3)); show its first frame."""
+        pts = _points3(pts, 0.0)
+        if len(pts) != n:
+            raise SceneError(f"markers[{path!r}] must have {n} positions")
+        node = self.viewer[path]
+        for k, i in keys:
+            _set_key(anim, node.path, k, tf.translation_matrix(pts[i]))
+        node.set_transform(tf.translation_matrix(pts[keys[0][1]]))
 
     def _animate_geometry(self, anim: Animation, name: str, frame: int, q: np.ndarray) -> None:
         """Add keys at `frame` placing every visual geometry of robot `name` at configuration `q`."""
@@ -808,34 +828,29 @@ class Scene:
         return path
 
 
-def pushing_configuration(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), standoff: float = 0.75,
-                          iterations: int = 200) -> tuple[np.ndarray, np.ndarray]:
-    """Return (Ridgeback planar pose, full q) with the gripper at the middle of the cart's handle, tool axis forward.
+def pushing_configuration(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), contact_y: float = 0.0,
+                          robot: str = "ridgeback_iiwa") -> tuple[np.ndarray, np.ndarray]:
+    """Return (base planar pose, full q) of `robot` holding the cart's handle at `contact_y` (m, in {b}).
 
-    The base stands `standoff` m behind the handle, facing the cart's heading;
-    the arm comes from a small damped least-squares IK (position + tool axis).
+    The grasp of the push loop (`wholebody.push.robot`): the base stands where the
+    robot's profile puts it behind the handle (`push_base_x`, `push_base_y`, else
+    behind the contact), the hand holds the bar at the profile's grasp pitch, and
+    the arm comes from `solve_grasp_ik` seeded with the profile's push posture.
     """
-    robot = robots.load("ridgeback_iiwa")
-    x, y, th = (float(v) for v in cart_pose)
-    c, s = math.cos(th), math.sin(th)
-    handle = np.array([x + c * CART_HANDLE_X, y + s * CART_HANDLE_X, CART_HANDLE_Z_B + CART_WHEEL_RADIUS])
-    base = (handle[0] - c * standoff, handle[1] - s * standoff, th)
-    arm = {f"iiwa_joint_{i}": a for i, a in zip(range(1, 8), (0.0, 0.6, 0.0, -1.4, 0.0, -0.8, 0.0))}
-    q = _planar_q(robot.model, base, arm)
-    fid, model, data = robot.frame_id("ee"), robot.model, robot.data
-    cols = [model.joints[model.getJointId(f"iiwa_joint_{i}")].idx_v for i in range(1, 8)]
-    qidx = [model.joints[model.getJointId(f"iiwa_joint_{i}")].idx_q for i in range(1, 8)]
-    axis = np.array([c, s, 0.0])
-    for _ in range(iterations):
-        pin.framesForwardKinematics(model, data, q)
-        M = data.oMf[fid]
-        err = np.concatenate((handle - M.translation, np.cross(M.rotation[:, 2], axis)))
-        if np.linalg.norm(err) < 1e-6:
-            break
-        J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)[:, cols]
-        dq = J.T @ np.linalg.solve(J @ J.T + 1e-4 * np.eye(6), err)
-        q[qidx] = np.clip(q[qidx] + dq, model.lowerPositionLimit[qidx], model.upperPositionLimit[qidx])
-    return np.array(base), q
+    from robots.profiles import profile
+    from wholebody.motion.kinematics import wholebody_for
+    from wholebody.push.robot import base_input_for, grasp_configuration, grasp_rotation
+
+    prof = profile(robot)
+    if prof.push_arm_seed is None:
+        raise SceneError(f"robot {robot!r} has no push posture in robots.profiles; it does not push the cart")
+    q_cart = np.asarray(cart_pose, dtype=float).ravel()
+    if q_cart.shape != (3,) or not np.all(np.isfinite(q_cart)):
+        raise SceneError(f"cart pose must be 3 finite numbers (x, y, theta), got {cart_pose!r}")
+    wb = wholebody_for(robots.load(robot), base_input=base_input_for(prof))
+    base_y = contact_y if prof.push_base_y is None else prof.push_base_y
+    base, arm = grasp_configuration(wb, prof, q_cart, contact_y, base_y, grasp_rotation(prof.grasp_pitch))
+    return base, wb.to_pinocchio_q(np.r_[base, arm])
 
 
 def frame_points(points: np.ndarray, scene: Scene) -> None:
