@@ -7,6 +7,7 @@ Each DIR holds LOG_FORMAT logs and a ``truth.json`` whose entries may carry ``hi
 effects, gap before and after) and, per directory, the share of logs answered right and the
 number of false alarms (effects named on effect-free logs).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,28 +30,42 @@ def _truth_names(entry: Dict[str, object]) -> List[str]:
     return names
 
 
-def study_dir(path: str, limit: int = 0) -> Dict[str, object]:
-    """Return rows and a summary of `diagnose` over one directory of labelled logs."""
+def study_dir(path: str, limit: int = 0, progress: bool = False) -> Dict[str, object]:
+    """Return rows and a summary of `diagnose` over one directory of labelled logs (``progress``: a bar on stderr)."""
+    from wholebody.cli.progress import progress_bar
+
     truth = json.load(open(os.path.join(path, "truth.json")))
     files = sorted(glob.glob(os.path.join(path, "*.csv*")))
     files = [f for f in files if os.path.basename(f).split(".")[0] in truth]
     if limit:
         files = files[:limit]
     rows = []
-    for f in files:
+    for f in progress_bar(files, desc=f"diagnose {os.path.basename(path)}", unit="log", enabled=progress):
         name = os.path.basename(f).split(".")[0]
         want = _truth_names(truth[name])
         try:
             res = diagnose(read_log(f))
             named = [e.name for e in res.effects]
-            rows.append({"log": name, "truth": want, "named": named, "right": sorted(named[:1]) == sorted(want[:1]),
-                         "gap_before": res.gap_before, "gap_after": res.gap_after})
+            rows.append(
+                {
+                    "log": name,
+                    "truth": want,
+                    "named": named,
+                    "right": sorted(named[:1]) == sorted(want[:1]),
+                    "gap_before": res.gap_before,
+                    "gap_after": res.gap_after,
+                }
+            )
         except CartError as exc:
             rows.append({"log": name, "truth": want, "error": str(exc), "right": False})
     free = [r for r in rows if not r["truth"]]
-    summary = {"logs": len(rows), "right_share": sum(r["right"] for r in rows) / max(len(rows), 1),
-               "effect_free_logs": len(free), "false_alarms": sum(1 for r in free if r.get("named")),
-               "refused": sum(1 for r in rows if "error" in r)}
+    summary = {
+        "logs": len(rows),
+        "right_share": sum(r["right"] for r in rows) / max(len(rows), 1),
+        "effect_free_logs": len(free),
+        "false_alarms": sum(1 for r in free if r.get("named")),
+        "refused": sum(1 for r in rows if "error" in r),
+    }
     return {"dir": path, "rows": rows, "summary": summary}
 
 
@@ -61,14 +76,18 @@ def main(argv=None) -> int:
     ap.add_argument("--limit", type=int, default=0, help="at most this many logs per directory")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    results = [study_dir(d, args.limit) for d in args.dirs]
+    from wholebody.cli.progress import show_progress
+
+    results = [study_dir(d, args.limit, progress=show_progress(args.json)) for d in args.dirs]
     if args.json:
         print(dumps_strict(results))
         return 0
     for res in results:
         print(f"== {res['dir']}")
         for r in res["rows"]:
-            what = r.get("error") or f"named {r['named'] or ['none']}, gap {r['gap_before']:.4f} -> {r['gap_after']:.4f} m"
+            what = (
+                r.get("error") or f"named {r['named'] or ['none']}, gap {r['gap_before']:.4f} -> {r['gap_after']:.4f} m"
+            )
             print(f"{r['log']:12s} truth {r['truth'] or ['none']}: {what}")
         print(json.dumps(res["summary"]))
     return 0

@@ -4,6 +4,7 @@ Run: ``python -m studies.push_comparison`` (about a dozen 30 s closed-loop runs)
 ``python -m studies.push_comparison --figures docs/img`` for the holonomic (Ridgeback + iiwa) vs
 nonholonomic (WMRA) comparison: its table and the figures ``wmra_vs_ridgeback_*.png`` (`robot_figures`).
 """
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -13,6 +14,7 @@ from typing import TYPE_CHECKING, Dict, List
 import numpy as np
 
 from wholebody.push import PushConfig, comparison_table, describe, run_push
+from wholebody.push.report import unobservable_note
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -26,25 +28,41 @@ def study_configs(duration: float = 30.0) -> Dict[str, PushConfig]:
     fixed = replace(base, contact="fixed", fixed_contact_y=(-0.2,))
     two = replace(base, n_arms=2, fixed_contact_y=(-0.2, 0.2))
     t1 = replace(base, trajectory=1)
-    runs = [base, replace(base, estimation=False), fixed, replace(fixed, estimation=False),
-            replace(fixed, fixed_contact_y=(0.15,)), two, replace(two, estimation=False),
-            replace(two, contact="fixed"), t1, replace(t1, estimation=False),
-            replace(t1, contact="fixed", fixed_contact_y=(-0.25,)), replace(t1, contact="fixed", fixed_contact_y=(0.15,))]
+    runs = [
+        base,
+        replace(base, estimation=False),
+        fixed,
+        replace(fixed, estimation=False),
+        replace(fixed, fixed_contact_y=(0.15,)),
+        two,
+        replace(two, estimation=False),
+        replace(two, contact="fixed"),
+        t1,
+        replace(t1, estimation=False),
+        replace(t1, contact="fixed", fixed_contact_y=(-0.25,)),
+        replace(t1, contact="fixed", fixed_contact_y=(0.15,)),
+    ]
     return {describe(c): c for c in runs}
 
 
 #: Columns of the holonomic vs nonholonomic table (docs/push.md, README "The whole loop").
-ROBOT_COLUMNS = (("tracking_rms_m", "track RMS [mm]", 1e3), ("tracking_max_m", "track max [mm]", 1e3),
-                 ("ee_force_rms_n", "hand F RMS [N]", 1.0), ("arm_torque_rms_nm", "tau RMS [N m]", 1.0),
-                 ("arm_torque_peak_nm", "tau peak [N m]", 1.0), ("arm_torque_limit_ratio", "tau/limit peak", 1.0),
-                 ("arm_torque_step_max_nm", "max dtau/sample [N m]", 1.0),
-                 ("base_wheel_speed_rms_rad_s", "wheel RMS [rad/s]", 1.0),
-                 ("base_wheel_speed_max_rad_s", "wheel max [rad/s]", 1.0),
-                 ("base_lateral_speed_max_m_s", "base lateral max [m/s]", 1.0),
-                 ("mass_error_final_kg", "m err final [kg]", 1.0), ("mass_error_rms_kg", "m err RMS [kg]", 1.0),
-                 ("mass_error_max_after_5s_kg", "m err max >5 s [kg]", 1.0),
-                 ("time_mass_within_1kg_s", "t within 1 kg [s]", 1.0),
-                 ("com_error_max_after_5s_m", "CoM err max >5 s [cm]", 100.0))
+ROBOT_COLUMNS = (
+    ("tracking_rms_mm", "track RMS [mm]", 1.0),
+    ("tracking_max_mm", "track max [mm]", 1.0),
+    ("ee_force_rms_n", "hand F RMS [N]", 1.0),
+    ("arm_torque_rms_nm", "tau RMS [N m]", 1.0),
+    ("arm_torque_peak_nm", "tau peak [N m]", 1.0),
+    ("arm_torque_limit_ratio", "tau/limit peak", 1.0),
+    ("arm_torque_step_max_nm", "max dtau/sample [N m]", 1.0),
+    ("base_wheel_speed_rms_rad_s", "wheel RMS [rad/s]", 1.0),
+    ("base_wheel_speed_max_rad_s", "wheel max [rad/s]", 1.0),
+    ("base_lateral_speed_max_m_s", "base lateral max [m/s]", 1.0),
+    ("mass_error_final_kg", "m err final [kg]", 1.0),
+    ("mass_error_rms_kg", "m err RMS [kg]", 1.0),
+    ("mass_error_max_after_5s_kg", "m err max >5 s [kg]", 1.0),
+    ("time_mass_within_1kg_s", "t within 1 kg [s]", 1.0),
+    ("com_error_max_after_5s_m", "CoM err max >5 s [cm]", 100.0),
+)
 
 
 def robot_configs(duration: float = 30.0) -> Dict[str, PushConfig]:
@@ -72,13 +90,21 @@ def robot_table(results: Dict[str, object]) -> str:
     return "\n".join(rows)
 
 
-def robot_results(duration: float = 30.0, workers: int = 4) -> Dict[str, "PushResult"]:
-    """Run `robot_configs` (in parallel processes) and return label -> result (with its time histories)."""
+def robot_results(duration: float = 30.0, workers: int = 4, progress: bool = False) -> Dict[str, "PushResult"]:
+    """Run `robot_configs` (in parallel processes) and return label -> result (with its time histories).
+
+    ``progress``: a bar of finished runs on stderr (`wholebody.cli.progress`).
+    """
     from concurrent.futures import ProcessPoolExecutor
+
+    from wholebody.cli.progress import progress_bar
 
     cfgs = robot_configs(duration)
     with ProcessPoolExecutor(workers) as pool:
-        return dict(zip(cfgs, pool.map(run_push, cfgs.values())))
+        done = progress_bar(
+            pool.map(run_push, cfgs.values()), desc="push runs", total=len(cfgs), unit="run", enabled=progress
+        )
+        return dict(zip(cfgs, done))
 
 
 def run_robot_comparison(duration: float = 30.0, workers: int = 4) -> str:
@@ -104,8 +130,14 @@ def _traj_axes(fig: "Figure", results: Dict[str, "PushResult"], ylabel: str, sig
             if c.trajectory != traj:
                 continue
             colour, name = ROBOT_STYLE.get(c.robot, ("C7", c.robot))
-            ax.plot(r.t, signal(r), "-" if c.estimation else "--", color=colour, lw=1.1 if c.estimation else 0.9,
-                    label=f"{name}, {'EKF' if c.estimation else 'no estimation'}")
+            ax.plot(
+                r.t,
+                signal(r),
+                "-" if c.estimation else "--",
+                color=colour,
+                lw=1.1 if c.estimation else 0.9,
+                label=f"{name}, {'EKF' if c.estimation else 'no estimation'}",
+            )
             if limit is not None and c.robot not in drawn:
                 ax.axhline(limit(r), color=colour, ls=":", lw=1.0, label=f"{name} limit")
                 drawn.add(c.robot)
@@ -138,10 +170,12 @@ def robot_figures(results: Dict[str, "PushResult"]) -> Dict[str, "Figure"]:
     def wheels(r):
         return np.max(np.abs(r.wheel_rates[:, 0, :]), axis=1)
 
-    panels = (("tracking", "cart tracking error [mm]", tracking, None),
-              ("force", "hand force |f| [N]", force, None),
-              ("torque", "max_j |tau_j| / limit_j", torque_ratio, lambda r: 1.0),
-              ("wheels", "max |wheel speed| [rad/s]", wheels, lambda r: float(np.min(r.wheel_velocity_limit))))
+    panels = (
+        ("tracking", "cart tracking error [mm]", tracking, None),
+        ("force", "hand force |f| [N]", force, None),
+        ("torque", "max_j |tau_j| / limit_j", torque_ratio, lambda r: 1.0),
+        ("wheels", "max |wheel speed| [rad/s]", wheels, lambda r: float(np.min(r.wheel_velocity_limit))),
+    )
     figs = {}
     for name, ylabel, signal, limit in panels:
         fig = Figure(figsize=(9, 5.5), layout="constrained")
@@ -150,7 +184,9 @@ def robot_figures(results: Dict[str, "PushResult"]) -> Dict[str, "Figure"]:
     return figs
 
 
-def save_robot_figures(results: Dict[str, "PushResult"], out_dir: Path, prefix: str = "wmra_vs_ridgeback_") -> List[Path]:
+def save_robot_figures(
+    results: Dict[str, "PushResult"], out_dir: Path, prefix: str = "wmra_vs_ridgeback_"
+) -> List[Path]:
     """Write `robot_figures` as ``<prefix><name>.png`` in `out_dir`; return the paths."""
     from wholebody.push.report import save_figure_dict
 
@@ -162,17 +198,25 @@ def main(argv: List[str] | None = None) -> int:
     import argparse
 
     p = argparse.ArgumentParser(prog="python -m studies.push_comparison", description=__doc__.splitlines()[0])
-    p.add_argument("--figures", type=Path, metavar="DIR",
-                   help="run the holonomic vs nonholonomic comparison (8 runs), print its table and write "
-                        "DIR/wmra_vs_ridgeback_{tracking,force,torque,wheels}.png")
+    p.add_argument(
+        "--figures",
+        type=Path,
+        metavar="DIR",
+        help="run the holonomic vs nonholonomic comparison (8 runs), print its table and write "
+        "DIR/wmra_vs_ridgeback_{tracking,force,torque,wheels}.png",
+    )
     p.add_argument("--duration", type=float, default=30.0, help="seconds per run (default 30)")
     p.add_argument("--workers", type=int, default=4, help="parallel processes for --figures (default 4)")
     args = p.parse_args(argv)
+    from wholebody.cli.progress import progress_bar, show_progress
+
     if args.figures is None:
-        print(comparison_table({label: run_push(cfg) for label, cfg in study_configs(args.duration).items()},
-                               markdown=True))
+        cfgs = study_configs(args.duration)
+        runs = {label: run_push(cfgs[label]) for label in progress_bar(cfgs, desc="push runs", unit="run")}
+        print(comparison_table(runs, markdown=True))
+        print(unobservable_note(runs))
         return 0
-    results = robot_results(args.duration, args.workers)
+    results = robot_results(args.duration, args.workers, progress=show_progress())
     print(robot_table(results))
     for path in save_robot_figures(results, args.figures):
         print(f"wrote {path}")

@@ -10,6 +10,7 @@ under the drive-axle centre) must stay inside while the EE follows its own path;
 the sinusoid (+-1 m sideways) the arm has to supply the lateral reach the band
 denies the base.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -93,20 +94,41 @@ class TrackingResult:
 
     def metrics(self) -> dict:
         """Return the scalar metrics as a JSON-ready dict."""
-        keys = ("robot", "path", "band_radius", "dt", "steps", "max_position_error_m", "rms_position_error_m",
-                "max_orientation_error_rad", "min_joint_limit_margin_rad", "max_joint_speed_ratio",
-                "max_wheel_speed_ratio", "max_band_distance_m", "singular_steps", "saturated_steps",
-                "solver_failures", "fallback_steps")
+        keys = (
+            "robot",
+            "path",
+            "band_radius",
+            "dt",
+            "steps",
+            "max_position_error_m",
+            "rms_position_error_m",
+            "max_orientation_error_rad",
+            "min_joint_limit_margin_rad",
+            "max_joint_speed_ratio",
+            "max_wheel_speed_ratio",
+            "max_band_distance_m",
+            "singular_steps",
+            "saturated_steps",
+            "solver_failures",
+            "fallback_steps",
+        )
         out = {k: getattr(self, k) for k in keys}
         if not np.isfinite(out["max_band_distance_m"]):
             out["max_band_distance_m"] = None
         return out
 
 
-def run_tracking(robot: str = "wmra", path: str = "line", band_radius: float | None = None,
-                 duration: float = 60.0, rate: float = 100.0, config: ControllerConfig | None = None,
-                 wb: WholeBody | None = None, x0: np.ndarray | None = None,
-                 progress: Callable[[int], None] | None = None) -> TrackingResult:
+def run_tracking(
+    robot: str = "wmra",
+    path: str = "line",
+    band_radius: float | None = None,
+    duration: float = 60.0,
+    rate: float = 100.0,
+    config: ControllerConfig | None = None,
+    wb: WholeBody | None = None,
+    x0: np.ndarray | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> TrackingResult:
     """Return the result of tracking the paper's `path` for `duration` s at `rate` Hz (paper §IV).
 
     Args:
@@ -153,8 +175,9 @@ def run_tracking(robot: str = "wmra", path: str = "line", band_radius: float | N
         centers[k] = base0 + np.array([BAND_SPEED * t, 0.0])
         if k == n:
             break
-        res = ctrl.step(x, T_des, np.r_[vel, 0.0, 0.0, 0.0], dt, band_center=centers[k],
-                        band_center_velocity=(BAND_SPEED, 0.0))
+        res = ctrl.step(
+            x, T_des, np.r_[vel, 0.0, 0.0, 0.0], dt, band_center=centers[k], band_center_velocity=(BAND_SPEED, 0.0)
+        )
         flags += (res.singular, res.saturated, not res.solver_ok, res.fallback_used)
         us[k] = res.u
         wheels[k] = wb.wheel_rates(res.u)
@@ -165,12 +188,27 @@ def run_tracking(robot: str = "wmra", path: str = "line", band_radius: float | N
     margin = np.minimum(q - wb.arm_lower, wb.arm_upper - q)
     band_dist = np.linalg.norm(xs[:, :2] - centers, axis=1).max() if band is not None else float("nan")
     return TrackingResult(
-        robot=wb.robot.name, path=path, band_radius=band_radius, dt=dt, steps=n,
-        max_position_error_m=float(pos_err.max()), rms_position_error_m=float(np.sqrt(np.mean(pos_err ** 2))),
-        max_orientation_error_rad=float(rot_err.max()), min_joint_limit_margin_rad=float(margin.min()),
-        max_joint_speed_ratio=float(np.max(np.abs(us[:, :wb.n_arm]) / wb.arm_velocity_limit)),
+        robot=wb.robot.name,
+        path=path,
+        band_radius=band_radius,
+        dt=dt,
+        steps=n,
+        max_position_error_m=float(pos_err.max()),
+        rms_position_error_m=float(np.sqrt(np.mean(pos_err**2))),
+        max_orientation_error_rad=float(rot_err.max()),
+        min_joint_limit_margin_rad=float(margin.min()),
+        max_joint_speed_ratio=float(np.max(np.abs(us[:, : wb.n_arm]) / wb.arm_velocity_limit)),
         max_wheel_speed_ratio=float(np.max(np.abs(wheels) / wb.wheel_velocity_limit)),
-        max_band_distance_m=float(band_dist), singular_steps=int(flags[0]), saturated_steps=int(flags[1]),
-        solver_failures=int(flags[2]), fallback_steps=int(flags[3]), t=np.arange(n + 1) * dt, x=xs, u=us, wheel_rates=wheels,
-        ee_desired=p_des, ee_actual=p_act, band_center=centers,
+        max_band_distance_m=float(band_dist),
+        singular_steps=int(flags[0]),
+        saturated_steps=int(flags[1]),
+        solver_failures=int(flags[2]),
+        fallback_steps=int(flags[3]),
+        t=np.arange(n + 1) * dt,
+        x=xs,
+        u=us,
+        wheel_rates=wheels,
+        ee_desired=p_des,
+        ee_actual=p_act,
+        band_center=centers,
     )

@@ -4,8 +4,9 @@ Executing a notebook leaves the checkout as it was (`git status --porcelain`
 unchanged: notebooks write only to temporary folders), every code cell that
 plots has an image output (Matplotlib's inline backend, the kernel's default:
 no `matplotlib.use` in library code may turn it off), and the contact-planning,
-allocation and push notebooks show the Meshcat scene inline.
+allocation and push notebooks (the Ridgeback's and the WMRA's) show the Meshcat scene inline.
 """
+
 from __future__ import annotations
 
 import re
@@ -22,13 +23,20 @@ NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 #: A code cell "plots" when it calls pyplot or a plotting function of the project.
 PLOTS = re.compile(r"\bplt\.|\bplot_\w*\(|\w+_figures\(|\.plot\(")
 #: Notebooks that show a Meshcat scene inline.
-WITH_SCENE = {"01_contact_planning", "05_multi_arm_allocation", "06_push_cart"}
+WITH_SCENE = {"01_contact_planning", "05_multi_arm_allocation", "06_push_cart", "07_wmra_push"}
 
 
 def test_there_are_notebooks():
     names = {p.stem for p in NOTEBOOKS}
-    assert {"01_contact_planning", "02_cart_ekf", "03_wmra_tracking", "04_diagnose_model",
-            "05_multi_arm_allocation", "06_push_cart"} <= names
+    assert {
+        "01_contact_planning",
+        "02_cart_ekf",
+        "03_wmra_tracking",
+        "04_diagnose_model",
+        "05_multi_arm_allocation",
+        "06_push_cart",
+        "07_wmra_push",
+    } <= names
 
 
 def git_status() -> set[str] | None:
@@ -42,8 +50,10 @@ def git_status() -> set[str] | None:
     """
     if shutil.which("git") is None or not (ROOT / ".git").exists():
         return None
-    out = subprocess.run(["git", "status", "--porcelain", "--untracked-files=all"], cwd=ROOT, capture_output=True,
-                         text=True, check=True)
+    out = subprocess.run(
+        ["git", "status", "--porcelain", "--untracked-files=all"], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+
     def counts(line: str) -> bool:
         code, path = line[:2], line[3:]
         if path.startswith("notebooks/"):
@@ -72,11 +82,20 @@ def test_notebook_runs(path: Path, monkeypatch):
     for i, cell in enumerate(nb.cells):
         if cell.cell_type != "code" or not PLOTS.search(cell.source):
             continue
-        images = [o for o in cell.outputs if o.output_type in ("display_data", "execute_result")
-                  and "image/png" in o.get("data", {})]
+        images = [
+            o
+            for o in cell.outputs
+            if o.output_type in ("display_data", "execute_result") and "image/png" in o.get("data", {})
+        ]
         assert images, f"{path.name} cell {i} plots but shows no figure:\n{cell.source[:300]}"
     if path.stem in WITH_SCENE:
-        html = [o["data"]["text/html"] for c in nb.cells if c.cell_type == "code" for o in c.outputs
-                if o.output_type in ("display_data", "execute_result") and "text/html" in o.get("data", {})]
-        assert any("<iframe srcdoc=" in h and "MeshCat.Viewer" in h for h in html), \
+        html = [
+            o["data"]["text/html"]
+            for c in nb.cells
+            if c.cell_type == "code"
+            for o in c.outputs
+            if o.output_type in ("display_data", "execute_result") and "text/html" in o.get("data", {})
+        ]
+        assert any("<iframe srcdoc=" in h and "MeshCat.Viewer" in h for h in html), (
             f"{path.name} shows no Meshcat scene inline"
+        )

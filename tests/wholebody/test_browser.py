@@ -108,7 +108,7 @@ def shots(tmp_path_factory):
     ref = render(tmp / "empty.html", tmp / "empty.png", tmp / "profile")
     x, y, _ = CART_POSE
     points = {
-        "ridgeback": (np.array([0.0, -0.39, 0.12]), is_yellow, 6),  # -y face of the chassis (base at the origin)
+        "ridgeback": (np.array([0.0, -0.39, 0.12]), is_yellow, 6),  # -y face of the chassis (base 0.1 m ahead of the origin)
         "iiwa": (arm_elbow, is_orange, 5),
         "handle": (np.array([x + CART_HANDLE_X, y - 0.2, CART_WHEEL_RADIUS + CART_HANDLE_Z_B]), is_red, 2),
         "basket": (np.array([x + 0.4, y - 0.26, CART_WHEEL_RADIUS + 0.62]), is_grey, 6),  # its -y face

@@ -1,4 +1,5 @@
 """Re-planned contacts move the hand smoothly: no single-sample joint-torque spikes (issue 20.2)."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,5 @@
 """`cartpush demo`: the main job — the mobile manipulator pushes the cart with and without estimation."""
+
 from __future__ import annotations
 
 import argparse
@@ -16,12 +17,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "List the robot models, then run the whole loop: the Ridgeback + iiwa 14 pushes the shopping\n"
             "cart along Traj. 2 of the cart paper with the EKF and an optimized contact point, and again\n"
             "without estimation (16 kg guess for a 20 kg cart). Prints the comparison table and writes a\n"
-            "report directory (figures, Meshcat page scene.html, the run's log push_log.csv).\n\n"
+            "report directory (figures, Meshcat page scene.html, the run's log push_log.csv). A progress\n"
+            "bar shows on a terminal (never with --json or when stderr is not a terminal).\n\n"
             "Example:\n  cartpush demo\n  cartpush demo --out my_report --duration 20\n  cartpush demo --robots-only --json"
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--out", type=Path, default=Path("cartpush_report"), help="report directory (default: ./cartpush_report)")
+    p.add_argument(
+        "--out", type=Path, default=Path("cartpush_report"), help="report directory (default: ./cartpush_report)"
+    )
     p.add_argument("--duration", type=float, default=30.0, help="seconds of Traj. 2 to simulate (default 30)")
     p.add_argument("--robots-only", action="store_true", help="only list the robot models")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
@@ -67,9 +71,10 @@ def run(args: argparse.Namespace) -> int:
         if args.json:
             print(dumps_strict({"robots": rows}))
         return 0
+    from wholebody.cli.progress import show_progress
     from wholebody.push.report import run_demo
 
-    demo = run_demo(args.out, duration=args.duration, verbose=not args.json)
+    demo = run_demo(args.out, duration=args.duration, verbose=not args.json, progress=show_progress(args.json))
     if args.json:
         runs = {label: run.metrics.as_dict() for label, run in demo.runs.items()}
         print(dumps_strict({"robots": rows, "runs": runs, "report_dir": str(demo.out_dir.resolve())}))

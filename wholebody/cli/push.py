@@ -1,15 +1,21 @@
 """`cartpush push`: the closed loop — a mobile manipulator (Ridgeback + iiwa, or the WMRA) pushes the cart, the EKF closes it."""
+
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from wholebody.cli import options
 from wholebody.errors import WholeBodyError
 
-JSON_FIELDS = ("tracking_rms_m", "tracking_max_m", "arm_torque_rms_nm", "arm_torque_peak_nm",
-               "mass_error_final_kg", "com_error_final_m")
+JSON_FIELDS = (
+    "tracking_rms_mm",
+    "tracking_max_mm",
+    "arm_torque_rms_nm",
+    "arm_torque_peak_nm",
+    "mass_error_final_kg",
+    "com_error_final_m",
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -26,21 +32,36 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "With --robot wmra the wheelchair-mounted arm pushes: its differential-drive base never slides\n"
             "sideways (wheel-rate input), follows the cart with a look-ahead point, and the contact is\n"
             "chosen only where the arm holds it with margin from the wheelchair's place behind the cart.\n\n"
+            "Tracking errors are in mm; under the table (and as mass_unobservable_s / com_unobservable_s in\n"
+            "--json) the stretches where the EKF's 1-sigma of the mass or CoM grew: unobservable there.\n"
+            "A progress bar shows on a terminal (never with --json or when stderr is not a terminal).\n\n"
             "Example:\n  cartpush push --trajectory 2 --contact optimal --json\n"
             "  cartpush push --robot wmra --trajectory 2 --json\n"
             "  cartpush push --no-estimation --out report/ --html report/push.html"
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--robot", default="ridgeback_iiwa",
-                   help="the pushing robot: ridgeback_iiwa (holonomic base, default) or wmra (differential drive)")
+    p.add_argument(
+        "--robot",
+        default="ridgeback_iiwa",
+        help="the pushing robot: ridgeback_iiwa (holonomic base, default) or wmra (differential drive)",
+    )
     p.add_argument("--trajectory", type=int, default=2, help="paper trajectory: 1 (straight) or 2 (turns); default 2")
     p.add_argument("--arms", type=int, default=1, help="1 or 2 mobile manipulators (default 1)")
-    p.add_argument("--no-estimation", action="store_true",
-                   help="freeze the parameters at the initial guess (wrong mass) instead of estimating them")
+    p.add_argument(
+        "--no-estimation",
+        action="store_true",
+        help="freeze the parameters at the initial guess (wrong mass) instead of estimating them",
+    )
     p.add_argument("--contact", default="optimal", help="fixed (y=-0.2 m, or -0.2/+0.2 for 2 arms) or optimal")
-    p.add_argument("--contact-y", type=float, nargs="+", default=None, metavar="Y",
-                   help="fixed contact point(s) y on the handle in m, within [-0.25, 0.25]")
+    p.add_argument(
+        "--contact-y",
+        type=float,
+        nargs="+",
+        default=None,
+        metavar="Y",
+        help="fixed contact point(s) y on the handle in m, within [-0.25, 0.25]",
+    )
     p.add_argument("--duration", type=float, default=30.0, help="trajectory duration in s (default 30)")
     p.add_argument("--initial-mass", type=float, default=16.0, help="initial mass estimate in kg (default 16)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
@@ -78,9 +99,17 @@ def config_from_args(args: argparse.Namespace):
         kwargs["fixed_contact_y"] = ys
     elif args.arms == 2:
         kwargs["fixed_contact_y"] = (-0.2, 0.2)
-    return PushConfig(trajectory=args.trajectory, n_arms=args.arms, estimation=not args.no_estimation,
-                      contact=args.contact, duration=args.duration, initial_mass=args.initial_mass,
-                      seed=args.seed, robot=args.robot, **kwargs)
+    return PushConfig(
+        trajectory=args.trajectory,
+        n_arms=args.arms,
+        estimation=not args.no_estimation,
+        contact=args.contact,
+        duration=args.duration,
+        initial_mass=args.initial_mass,
+        seed=args.seed,
+        robot=args.robot,
+        **kwargs,
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,9 +121,10 @@ def run(args: argparse.Namespace) -> int:
         options.writable_file(args.html, "--html")
     from cart.jsonout import dumps_strict
     from wholebody.push import run_push
-    from wholebody.push.report import comparison_table, describe, push_log, save_figures, save_scene
+    from wholebody.cli.progress import show_progress
+    from wholebody.push.report import comparison_table, describe, push_log, save_figures, save_scene, unobservable_note
 
-    result = run_push(config, progress=sys.stderr.isatty())
+    result = run_push(config, progress=show_progress(args.json))
     written = []
     if args.out is not None:
         from cart.logs import write_log
@@ -115,8 +145,12 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(describe(config))
     print(comparison_table({"this run": result}))
-    print(f"arm torque / effortLimit peak {metrics['arm_torque_limit_ratio']:.2f}, grasp error max "
-          f"{1000 * metrics['grasp_error_max_m']:.2f} mm, final mass {metrics['mass_final_kg']:.2f} kg")
+    if config.estimation:
+        print(unobservable_note({"this run": result}))
+    print(
+        f"arm torque / effortLimit peak {metrics['arm_torque_limit_ratio']:.2f}, grasp error max "
+        f"{1000 * metrics['grasp_error_max_m']:.2f} mm, final mass {metrics['mass_final_kg']:.2f} kg"
+    )
     for p in written:
         print(f"wrote {p}")
     return 0

@@ -2,29 +2,95 @@
 
 >>> from wholebody.push import PushConfig, run_push
 >>> result = run_push(PushConfig(duration=5.0))          # doctest: +SKIP
->>> result.metrics.tracking_rms_m                         # doctest: +SKIP
+>>> result.metrics.tracking_rms_mm                        # doctest: +SKIP
 
 Modules: `config` (settings, results, interfaces), `robot` (one mobile manipulator:
 grasp, tracker, torques, F/T), `scheduler` (contact points on the handle), `loop`
 (`run_push`), `report` (table, figures, scene, log, the demo).
 """
+
 from __future__ import annotations
 
-from wholebody.push.config import (PUSH_SENSOR_NOISE, TRUE_CART, BodyTracker, CartController, CartControllerName,
-                                   ContactMode, ParameterEstimator, PushConfig, PushMetrics, PushResult)
-from wholebody.push.loop import make_estimator, run_push
-from wholebody.push.report import (DemoResult, build_scene, comparison_table, demo_configs, describe, push_log,
-                                   run_demo, save_figures, save_scene, write_report)
-from wholebody.push.robot import (BASE_OFFSET_X, GRASP_PITCH, PUSH_CONTROLLER, MobileManipulator,
-                                  WholeBodyQPTracker, base_target, cart_se3, ft_measurement, ft_to_cart_gamma,
-                                  grasp_rotation, grasp_target, handle_point, solve_grasp_ik)
+from wholebody.push.config import (
+    PUSH_SENSOR_NOISE,
+    TRUE_CART,
+    BodyTracker,
+    CartController,
+    CartControllerName,
+    ContactMode,
+    ParameterEstimator,
+    PushConfig,
+    PushMetrics,
+    PushResult,
+)
+from wholebody.push.loop import make_estimator, run_push, unobservable_intervals
+from wholebody.push.report import (
+    DemoResult,
+    build_scene,
+    comparison_table,
+    demo_configs,
+    describe,
+    push_log,
+    run_demo,
+    save_figures,
+    save_scene,
+    unobservable_note,
+    write_report,
+)
+from wholebody.push.robot import (
+    BASE_OFFSET_X,
+    GRASP_PITCH,
+    PUSH_CONTROLLER,
+    MobileManipulator,
+    WholeBodyQPTracker,
+    base_target,
+    cart_se3,
+    ft_measurement,
+    ft_to_cart_gamma,
+    grasp_rotation,
+    grasp_target,
+    handle_point,
+    solve_grasp_ik,
+)
 from wholebody.push.scheduler import ContactScheduler
 
 __all__ = [
-    "BASE_OFFSET_X", "GRASP_PITCH", "PUSH_CONTROLLER", "PUSH_SENSOR_NOISE", "TRUE_CART",
-    "BodyTracker", "CartController", "CartControllerName", "ContactMode", "ContactScheduler", "DemoResult",
-    "MobileManipulator", "ParameterEstimator", "PushConfig", "PushMetrics", "PushResult", "WholeBodyQPTracker",
-    "base_target", "build_scene", "cart_se3", "comparison_table", "demo_configs", "describe", "ft_measurement",
-    "ft_to_cart_gamma", "grasp_rotation", "grasp_target", "handle_point", "make_estimator", "push_log",
-    "run_demo", "run_push", "save_figures", "save_scene", "solve_grasp_ik", "write_report",
+    "BASE_OFFSET_X",
+    "GRASP_PITCH",
+    "PUSH_CONTROLLER",
+    "PUSH_SENSOR_NOISE",
+    "TRUE_CART",
+    "BodyTracker",
+    "CartController",
+    "CartControllerName",
+    "ContactMode",
+    "ContactScheduler",
+    "DemoResult",
+    "MobileManipulator",
+    "ParameterEstimator",
+    "PushConfig",
+    "PushMetrics",
+    "PushResult",
+    "WholeBodyQPTracker",
+    "base_target",
+    "build_scene",
+    "cart_se3",
+    "comparison_table",
+    "demo_configs",
+    "describe",
+    "ft_measurement",
+    "ft_to_cart_gamma",
+    "grasp_rotation",
+    "grasp_target",
+    "handle_point",
+    "make_estimator",
+    "push_log",
+    "run_demo",
+    "run_push",
+    "save_figures",
+    "save_scene",
+    "solve_grasp_ik",
+    "unobservable_intervals",
+    "unobservable_note",
+    "write_report",
 ]

@@ -1,4 +1,5 @@
 """Settings, results and swap-in interfaces of the closed push loop (`wholebody.push.loop.run_push`)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -44,10 +45,16 @@ class ParameterEstimator(Protocol):
 class BodyTracker(Protocol):
     """Whole-body velocity controller of one mobile manipulator."""
 
-    def step(self, x: np.ndarray, target: pin.SE3, target_velocity: np.ndarray, base_target: np.ndarray,
-             base_velocity: np.ndarray, dt: float) -> np.ndarray:
+    def step(
+        self,
+        x: np.ndarray,
+        target: pin.SE3,
+        target_velocity: np.ndarray,
+        base_target: np.ndarray,
+        base_velocity: np.ndarray,
+        dt: float,
+    ) -> np.ndarray:
         """Return the input u = [arm joint rates (7), base body twist (3)] for the next period."""
-
 
 
 #: Sensor noise of the loop: motion capture (3 mm, 3 mrad, 1 cm/s, 0.01 rad/s) and the F/T sensor
@@ -114,8 +121,13 @@ class PushConfig:
 
     def initial_params(self) -> CartParams:
         """Return the controller's/estimator's initial guess (mass, CoM given; inertia scaled with the mass)."""
-        return CartParams(self.initial_mass, self.initial_com[0], self.initial_com[1],
-                          self.true_params.I * self.initial_mass / self.true_params.m, self.true_params.sigma)
+        return CartParams(
+            self.initial_mass,
+            self.initial_com[0],
+            self.initial_com[1],
+            self.true_params.I * self.initial_mass / self.true_params.m,
+            self.true_params.sigma,
+        )
 
     def make_trajectory(self) -> UnicycleTrajectory:
         """Return Traj. 1 or 2 of the paper with this run's duration."""
@@ -126,8 +138,9 @@ class PushConfig:
 class PushMetrics:
     """Scalar results of one run (the CLI's JSON fields)."""
 
-    tracking_rms_m: float
-    tracking_max_m: float
+    #: cart tracking error of the {b} origin vs the desired one (mm)
+    tracking_rms_mm: float
+    tracking_max_mm: float
     arm_torque_rms_nm: float
     arm_torque_peak_nm: float
     arm_push_torque_rms_nm: float
@@ -154,10 +167,21 @@ class PushMetrics:
     com_error_max_after_5s_m: float = 0.0
     time_mass_within_1kg_s: float = 0.0
     time_com_within_1cm_s: float = 0.0
+    #: stretches [t0, t1] (s) over which the EKF's 1-sigma of the mass / CoM grew for >= 1 s: the pushes
+    #: carried less information about it than the filter's random walk adds (`unobservable_intervals`)
+    mass_unobservable_s: Tuple[Tuple[float, float], ...] = ()
+    com_unobservable_s: Tuple[Tuple[float, float], ...] = ()
 
     def as_dict(self) -> dict:
-        """Return the metrics as a JSON-ready dict."""
-        return {k: (int(v) if isinstance(v, (int, np.integer)) else float(v)) for k, v in self.__dict__.items()}
+        """Return the metrics as a JSON-ready dict (intervals as lists of [t0, t1])."""
+        return {k: _json_value(v) for k, v in self.__dict__.items()}
+
+
+def _json_value(v: object) -> object:
+    """Return a metric as int, float or a list of [t0, t1] lists."""
+    if isinstance(v, tuple):
+        return [[float(a), float(b)] for a, b in v]
+    return int(v) if isinstance(v, (int, np.integer)) else float(v)
 
 
 @dataclass(frozen=True)
@@ -185,3 +209,6 @@ class PushResult:
     base_twist: Optional[np.ndarray] = None  # (N, n_arms, 3) base body twist (vx, vy, wz)
     wheel_rates: Optional[np.ndarray] = None  # (N, n_arms, n_wheels) rad/s
     wheel_velocity_limit: Optional[np.ndarray] = None  # (n_wheels,) rad/s
+    #: (N, 2) the EKF's 1-sigma of the mass (kg) and of the CoM (m, norm over dx, dy) at t_k; NaN when the
+    #: estimator gives no covariance
+    param_std: Optional[np.ndarray] = None

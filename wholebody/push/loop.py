@@ -24,6 +24,7 @@ One control period ``dt`` (100 Hz by default):
 The pieces meet through small interfaces (:class:`CartController`,
 :class:`ParameterEstimator`, :class:`BodyTracker`) so any of them can be swapped.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -41,8 +42,17 @@ from wholebody.contacts.allocation import WrenchAllocator
 from wholebody.push.config import CartController, ParameterEstimator, PushConfig, PushMetrics, PushResult
 from robots.profiles import profile
 from wholebody.errors import WholeBodyError
-from wholebody.push.robot import (TWO_ARM_BASE_SPREAD, MobileManipulator, base_target, cart_se3,
-                                  ft_measurement, ft_to_cart_gamma, grasp_rotation, grasp_target, handle_point)
+from wholebody.push.robot import (
+    TWO_ARM_BASE_SPREAD,
+    MobileManipulator,
+    base_target,
+    cart_se3,
+    ft_measurement,
+    ft_to_cart_gamma,
+    grasp_rotation,
+    grasp_target,
+    handle_point,
+)
 from wholebody.push.scheduler import ContactScheduler
 
 
@@ -75,17 +85,34 @@ class PushHistory:
     wheel_ratio: np.ndarray
     base_twist: np.ndarray
     wheel_rates: np.ndarray
+    param_std: np.ndarray
     saturated: int = 0
 
     @classmethod
     def empty(cls, n: int, n_arms: int, n_wheels: int = 4) -> "PushHistory":
         """Return zero histories for n samples."""
         na = n_arms
-        shapes = dict(q_true=(n, 3), qd_true=(n, 3), q_desired=(n, 3), z_meas=(n, 6), gamma_desired=(n, 3),
-                      gamma_applied=(n, 3), gamma_measured=(n, 3), phi_hat=(n, 4), contact_y=(n, na),
-                      wrenches=(n, na, 6), arm_torque=(n, na, 7), push_torque=(n, na, 7), robot_x=(n, na, 10),
-                      grasp_error=(n, na), base_ratio=(n, na), wheel_ratio=(n, na), base_twist=(n, na, 3),
-                      wheel_rates=(n, na, n_wheels))
+        shapes = dict(
+            q_true=(n, 3),
+            qd_true=(n, 3),
+            q_desired=(n, 3),
+            z_meas=(n, 6),
+            gamma_desired=(n, 3),
+            gamma_applied=(n, 3),
+            gamma_measured=(n, 3),
+            phi_hat=(n, 4),
+            contact_y=(n, na),
+            wrenches=(n, na, 6),
+            arm_torque=(n, na, 7),
+            push_torque=(n, na, 7),
+            robot_x=(n, na, 10),
+            grasp_error=(n, na),
+            base_ratio=(n, na),
+            wheel_ratio=(n, na),
+            base_twist=(n, na, 3),
+            wheel_rates=(n, na, n_wheels),
+            param_std=(n, 2),
+        )
         return cls(**{k: np.zeros(shape) for k, shape in shapes.items()})
 
 
@@ -100,8 +127,12 @@ class ControlStep:
     wrenches_ee: np.ndarray  # (n_arms, 6) in {a}
 
 
-def make_robots(config: PushConfig, q_cart: np.ndarray, contact_y: np.ndarray,
-                seeds: Optional[Sequence[Optional[np.ndarray]]] = None) -> List[MobileManipulator]:
+def make_robots(
+    config: PushConfig,
+    q_cart: np.ndarray,
+    contact_y: np.ndarray,
+    seeds: Optional[Sequence[Optional[np.ndarray]]] = None,
+) -> List[MobileManipulator]:
     """Return the mobile manipulators holding the handle at `contact_y` (two: bases spread apart).
 
     Everything robot-specific (joints, grasp pitch, base place, seeds) comes from `robots.profiles`.
@@ -133,13 +164,25 @@ def make_reach_map(config: PushConfig):
     R = grasp_rotation(prof.grasp_pitch)
     zero = np.zeros(3)
     offset = np.array([handle_point(0.0)[0] + prof.push_base_x, prof.push_base_y])
-    return reach_map(wb, lambda y: base_target(zero, zero, offset)[0],
-                     lambda y: grasp_target(zero, zero, float(y), 0.0, R)[0],
-                     np.round(np.arange(-0.25, 0.2501, 0.025), 6), prof.push_arm_seed, 0.0)
+    return reach_map(
+        wb,
+        lambda y: base_target(zero, zero, offset)[0],
+        lambda y: grasp_target(zero, zero, float(y), 0.0, R)[0],
+        np.round(np.arange(-0.25, 0.2501, 0.025), 6),
+        prof.push_arm_seed,
+        0.0,
+    )
 
 
-def control_step(t: float, dt: float, q: np.ndarray, controller: CartController, estimator: ParameterEstimator,
-                 scheduler: ContactScheduler, allocator: WrenchAllocator) -> Tuple[ControlStep, bool]:
+def control_step(
+    t: float,
+    dt: float,
+    q: np.ndarray,
+    controller: CartController,
+    estimator: ParameterEstimator,
+    scheduler: ContactScheduler,
+    allocator: WrenchAllocator,
+) -> Tuple[ControlStep, bool]:
     """Return (the period's decisions, whether the allocation saturated): controller eq. (26), allocation eq. (25)."""
     params_hat = estimator.params()
     q_hat, qd_hat = estimator.x[0:3].copy(), estimator.x[3:6].copy()
@@ -151,9 +194,18 @@ def control_step(t: float, dt: float, q: np.ndarray, controller: CartController,
     return ControlStep(params_hat, gamma_d, ys, ydots, alloc.wrenches_ee), saturated
 
 
-def robots_step(k: int, dt: float, q: np.ndarray, qd: np.ndarray, z: np.ndarray, step: ControlStep,
-                mms: Sequence[MobileManipulator], hist: PushHistory, config: PushConfig,
-                rng: np.random.Generator) -> Tuple[np.ndarray, np.ndarray]:
+def robots_step(
+    k: int,
+    dt: float,
+    q: np.ndarray,
+    qd: np.ndarray,
+    z: np.ndarray,
+    step: ControlStep,
+    mms: Sequence[MobileManipulator],
+    hist: PushHistory,
+    config: PushConfig,
+    rng: np.random.Generator,
+) -> Tuple[np.ndarray, np.ndarray]:
     """Move each robot one period, record it; return (the wrench the hands apply, the F/T-measured one) as Gamma_MM."""
     T_sb = cart_se3(q)
     W = step.wrenches_ee
@@ -177,7 +229,7 @@ def robots_step(k: int, dt: float, q: np.ndarray, qd: np.ndarray, z: np.ndarray,
         hist.base_ratio[k, i] = np.max(np.abs(twist)[lim > 0] / lim[lim > 0])
         hist.base_twist[k, i] = twist
         wheels = mm.wb.wheel_rates(u)
-        hist.wheel_rates[k, i, :wheels.size] = wheels
+        hist.wheel_rates[k, i, : wheels.size] = wheels
         hist.wheel_ratio[k, i] = np.max(np.abs(wheels) / mm.wb.wheel_velocity_limit)
         hist.wrenches[k, i] = W[i]
         mm.x = mm.wb.integrate(mm.x, u, dt)
@@ -185,17 +237,35 @@ def robots_step(k: int, dt: float, q: np.ndarray, qd: np.ndarray, z: np.ndarray,
     return gamma_true, gamma_meas
 
 
-def _iterations(n: int, progress: bool):
+def _iterations(n: int, progress: bool, label: str):
+    """Return range(n), wrapped in a terminal progress bar when `progress` (`wholebody.cli.progress`)."""
     if not progress:
         return range(n)
-    from tqdm import tqdm
+    from wholebody.cli.progress import progress_bar
 
-    return tqdm(range(n), desc="push", leave=False)
+    return progress_bar(range(n), desc=label, unit="step", enabled=True)
 
 
-def run_push(config: PushConfig = PushConfig(), controller: Optional[CartController] = None,
-             estimator: Optional[ParameterEstimator] = None, progress: bool = False) -> PushResult:
-    """Return the time histories and metrics of one closed-loop push (see the module docstring)."""
+def param_std(estimator: ParameterEstimator) -> np.ndarray:
+    """Return the estimator's 1-sigma of (mass [kg], CoM [m]); NaN when it gives no covariance (`CartEKF.params_std`)."""
+    std = getattr(estimator, "params_std", None)
+    if std is None:
+        return np.full(2, np.nan)
+    s = std()
+    return np.array([s["mass"], float(np.hypot(*s["com"]))])
+
+
+def run_push(
+    config: PushConfig = PushConfig(),
+    controller: Optional[CartController] = None,
+    estimator: Optional[ParameterEstimator] = None,
+    progress: bool = False,
+    progress_label: str = "push",
+) -> PushResult:
+    """Return the time histories and metrics of one closed-loop push (see the module docstring).
+
+    ``progress``: show a progress bar on stderr (the CLI passes True only on a terminal without --json).
+    """
     rng = np.random.default_rng(config.seed)
     traj = config.make_trajectory()
     controller = controller if controller is not None else make_controller(config.controller, traj)
@@ -206,23 +276,30 @@ def run_push(config: PushConfig = PushConfig(), controller: Optional[CartControl
     scheduler = ContactScheduler(config, traj, reach)
     seeds = None if reach is None else [reach.postures[reach.index(scheduler.y[0])]]
     mms = make_robots(config, q, scheduler.y, seeds)
-    allocator = WrenchAllocator([handle_point(v) for v in scheduler.y], config.arm_limits,
-                                only_motion_directions=True)
+    allocator = WrenchAllocator([handle_point(v) for v in scheduler.y], config.arm_limits, only_motion_directions=True)
     n = int(round(config.duration / config.dt)) + 1
     dt, h = config.dt, config.dt / config.substeps
     hist = PushHistory.empty(n, config.n_arms, mms[0].wb.wheel_velocity_limit.size)
     std = config.noise.measurement_std()
     z = np.r_[q, qd] + rng.normal(0.0, 1.0, 6) * std
-    for k in _iterations(n, progress):
+    for k in _iterations(n, progress, progress_label):
         t = k * dt
         step, saturated = control_step(t, dt, q, controller, estimator, scheduler, allocator)
         hist.saturated += int(saturated)
         gamma_true, gamma_meas = robots_step(k, dt, q, qd, z, step, mms, hist, config, rng)
         q_d, _, _ = traj.sample(t)
-        for key, val in (("q_true", q), ("qd_true", qd), ("q_desired", q_d), ("z_meas", z),
-                         ("gamma_desired", step.gamma_desired), ("gamma_applied", gamma_true),
-                         ("gamma_measured", gamma_meas), ("phi_hat", step.params_hat.phi),
-                         ("contact_y", step.contact_y)):
+        for key, val in (
+            ("q_true", q),
+            ("qd_true", qd),
+            ("q_desired", q_d),
+            ("z_meas", z),
+            ("gamma_desired", step.gamma_desired),
+            ("gamma_applied", gamma_true),
+            ("gamma_measured", gamma_meas),
+            ("phi_hat", step.params_hat.phi),
+            ("contact_y", step.contact_y),
+            ("param_std", param_std(estimator)),
+        ):
             getattr(hist, key)[k] = val
         if k == n - 1:
             break
@@ -233,18 +310,39 @@ def run_push(config: PushConfig = PushConfig(), controller: Optional[CartControl
     return _result(config, hist, mms[0].effort_limit, estimator.params(), mms[0].wb.wheel_velocity_limit)
 
 
-_RESULT_FIELDS = ("q_true", "qd_true", "q_desired", "z_meas", "gamma_desired", "gamma_applied", "gamma_measured",
-                  "phi_hat", "contact_y", "wrenches", "arm_torque", "push_torque", "robot_x", "grasp_error",
-                  "base_twist", "wheel_rates")
+_RESULT_FIELDS = (
+    "q_true",
+    "qd_true",
+    "q_desired",
+    "z_meas",
+    "gamma_desired",
+    "gamma_applied",
+    "gamma_measured",
+    "phi_hat",
+    "contact_y",
+    "wrenches",
+    "arm_torque",
+    "push_torque",
+    "robot_x",
+    "grasp_error",
+    "base_twist",
+    "wheel_rates",
+    "param_std",
+)
 
 
-def _result(config: PushConfig, hist: PushHistory, effort_limit: np.ndarray, final: CartParams,
-            wheel_limit: np.ndarray) -> PushResult:
+def _result(
+    config: PushConfig, hist: PushHistory, effort_limit: np.ndarray, final: CartParams, wheel_limit: np.ndarray
+) -> PushResult:
     n = hist.q_true.shape[0]
-    return PushResult(config=config, t=np.arange(n) * config.dt, effort_limit=effort_limit,
-                      wheel_velocity_limit=wheel_limit,
-                      metrics=_metrics(config, hist, effort_limit, final),
-                      **{key: getattr(hist, key) for key in _RESULT_FIELDS})
+    return PushResult(
+        config=config,
+        t=np.arange(n) * config.dt,
+        effort_limit=effort_limit,
+        wheel_velocity_limit=wheel_limit,
+        metrics=_metrics(config, hist, effort_limit, final),
+        **{key: getattr(hist, key) for key in _RESULT_FIELDS},
+    )
 
 
 def _metrics(config: PushConfig, H: PushHistory, effort_limit: np.ndarray, final: CartParams) -> PushMetrics:
@@ -258,15 +356,15 @@ def _metrics(config: PushConfig, H: PushHistory, effort_limit: np.ndarray, final
     dtau = np.diff(tau, axis=0) if tau.shape[0] > 1 else np.zeros(1)
     est = _estimation_metrics(config, H)
     return PushMetrics(
-        tracking_rms_m=float(np.sqrt(np.mean(err ** 2))),
-        tracking_max_m=float(err.max()),
-        arm_torque_rms_nm=float(np.sqrt(np.mean(tau ** 2))),
+        tracking_rms_mm=float(1e3 * np.sqrt(np.mean(err**2))),
+        tracking_max_mm=float(1e3 * err.max()),
+        arm_torque_rms_nm=float(np.sqrt(np.mean(tau**2))),
         arm_torque_peak_nm=float(np.abs(tau).max()),
-        arm_push_torque_rms_nm=float(np.sqrt(np.mean(H.push_torque ** 2))),
+        arm_push_torque_rms_nm=float(np.sqrt(np.mean(H.push_torque**2))),
         arm_torque_limit_ratio=float(np.max(np.abs(tau) / effort_limit)),
-        ee_force_rms_n=float(np.sqrt(np.mean(f ** 2))),
+        ee_force_rms_n=float(np.sqrt(np.mean(f**2))),
         ee_force_peak_n=float(f.max()),
-        ee_torque_rms_nm=float(np.sqrt(np.mean(tz ** 2))),
+        ee_torque_rms_nm=float(np.sqrt(np.mean(tz**2))),
         mass_error_final_kg=float(abs(final.m - truth.m)),
         com_error_final_m=float(np.hypot(final.dx - truth.dx, final.dy - truth.dy)),
         mass_final_kg=float(final.m),
@@ -274,7 +372,7 @@ def _metrics(config: PushConfig, H: PushHistory, effort_limit: np.ndarray, final
         base_twist_limit_ratio=float(H.base_ratio.max()),
         base_wheel_limit_ratio=float(H.wheel_ratio.max()),
         saturated_steps=int(H.saturated),
-        base_wheel_speed_rms_rad_s=float(np.sqrt(np.mean(wheels ** 2))),
+        base_wheel_speed_rms_rad_s=float(np.sqrt(np.mean(wheels**2))),
         base_wheel_speed_max_rad_s=float(np.abs(wheels).max()),
         base_wheel_acceleration_max_rad_s2=float(np.abs(wheel_acc).max()),
         base_lateral_speed_max_m_s=float(np.abs(H.base_twist[:, :, 1]).max()),
@@ -294,10 +392,40 @@ def _estimation_metrics(config: PushConfig, H: PushHistory, after: float = 5.0) 
     late = t >= after
     late = late if late.any() else np.ones_like(late)
     return dict(
-        mass_error_rms_kg=float(np.sqrt(np.mean(e_m ** 2))),
+        mass_error_rms_kg=float(np.sqrt(np.mean(e_m**2))),
         mass_error_max_after_5s_kg=float(e_m[late].max()),
-        com_error_rms_m=float(np.sqrt(np.nanmean(e_c ** 2))),
+        com_error_rms_m=float(np.sqrt(np.nanmean(e_c**2))),
         com_error_max_after_5s_m=float(np.nanmax(e_c[late])),
         time_mass_within_1kg_s=float(np.sum(e_m <= 1.0) * config.dt),
         time_com_within_1cm_s=float(np.sum(e_c <= 0.01) * config.dt),
+        mass_unobservable_s=unobservable_intervals(t, H.param_std[:, 0]) if config.estimation else (),
+        com_unobservable_s=unobservable_intervals(t, H.param_std[:, 1]) if config.estimation else (),
+    )
+
+
+def unobservable_intervals(
+    t: np.ndarray, std: np.ndarray, window: float = 0.5, min_length: float = 1.0
+) -> Tuple[Tuple[float, float], ...]:
+    """Return the stretches [t0, t1] (s, >= `min_length` long) over which the EKF's 1-sigma `std` of a parameter grew.
+
+    The time t_k - window/2 is flagged when std(t_k) > std(t_k - window): around it
+    the measurements brought less information about the parameter than the EKF's
+    random-walk process noise (``EKFConfig.q_phi``) took away, i.e. the parameter was
+    not observable from the pushes (no acceleration for the mass, no turning for the
+    CoM). Consecutive flagged times form a stretch; NaN std gives none.
+    """
+    dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
+    w = max(1, int(round(window / dt)))
+    if len(t) <= w or not np.all(np.isfinite(std)):
+        return ()
+    flagged = np.flatnonzero(std[w:] > std[:-w])
+    if flagged.size == 0:
+        return ()
+    centre = t[flagged + w] - 0.5 * w * dt
+    breaks = np.flatnonzero(np.diff(flagged) > 1)
+    starts, ends = np.r_[0, breaks + 1], np.r_[breaks, flagged.size - 1]
+    return tuple(
+        (round(float(centre[a]), 2), round(float(centre[b]), 2))
+        for a, b in zip(starts, ends)
+        if centre[b] - centre[a] >= min_length - 1e-9
     )

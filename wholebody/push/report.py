@@ -4,12 +4,13 @@
 optimized contact point, the same without estimation (wrong initial mass), the
 comparison table, and a report directory (figures, ``scene.html``, ``push_log.csv``).
 """
+
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Dict, List
+from typing import TYPE_CHECKING, Dict, List, Sequence
 
 import numpy as np
 
@@ -24,8 +25,8 @@ if TYPE_CHECKING:
 
 #: Columns of the comparison table: (metrics key, header, format).
 TABLE_COLUMNS = (
-    ("tracking_rms_m", "track RMS [m]", "{:.4f}"),
-    ("tracking_max_m", "track max [m]", "{:.4f}"),
+    ("tracking_rms_mm", "track RMS [mm]", "{:.2f}"),
+    ("tracking_max_mm", "track max [mm]", "{:.2f}"),
     ("arm_torque_rms_nm", "tau RMS [Nm]", "{:.2f}"),
     ("arm_torque_peak_nm", "tau peak [Nm]", "{:.1f}"),
     ("arm_push_torque_rms_nm", "J^T w RMS [Nm]", "{:.2f}"),
@@ -53,7 +54,9 @@ class DemoResult:
 def describe(config: PushConfig) -> str:
     """Return a short label of a run configuration."""
     est = "EKF" if config.estimation else f"no EKF (m={config.initial_mass:g})"
-    contact = "optimal CP" if config.contact == "optimal" else f"fixed CP y={','.join(f'{v:g}' for v in config.contact_y0())}"
+    contact = (
+        "optimal CP" if config.contact == "optimal" else f"fixed CP y={','.join(f'{v:g}' for v in config.contact_y0())}"
+    )
     robot = "" if config.robot == "ridgeback_iiwa" else f"{config.robot}, "
     return f"{robot}Traj.{config.trajectory} {config.n_arms} arm{'s' if config.n_arms > 1 else ''}, {est}, {contact}"
 
@@ -71,65 +74,146 @@ def comparison_table(runs: Dict[str, PushResult], markdown: bool = False) -> str
     return "\n".join([fmt_row(heads)] + [fmt_row(r) for r in rows])
 
 
+def _spans(spans: Sequence[Sequence[float]]) -> str:
+    """Return intervals as '3.0-27.3 s, ...' ('none' when empty)."""
+    return ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in spans) if spans else "none"
+
+
+def unobservable_note(runs: Dict[str, PushResult]) -> str:
+    """Return one line per estimating run naming the stretches where the mass / CoM were unobservable.
+
+    A stretch is where the EKF's 1-sigma of the parameter grew for >= 1 s
+    (`wholebody.push.loop.unobservable_intervals`): the estimate there is held
+    by the filter's memory, not by the data, and may drift.
+    """
+    lines = []
+    for label, r in runs.items():
+        if not r.config.estimation:
+            continue
+        m = r.metrics
+        lines.append(
+            f"{label}: unobservable (EKF 1-sigma growing >= 1 s): mass {_spans(m.mass_unobservable_s)}; "
+            f"CoM {_spans(m.com_unobservable_s)}"
+        )
+    return "\n".join(lines)
+
+
 def push_log(result: PushResult) -> CartLog:
     """Return the run's measured log (LOG_FORMAT): motion-capture pose/velocity, F/T wrench, contact of arm 0."""
     c = result.config
     p = c.true_params
     contact = np.column_stack([np.full(len(result.t), -0.15), result.contact_y[:, 0]])
-    meta = {"source": "wholebody.push", "trajectory": str(c.trajectory), "arms": str(c.n_arms),
-            "estimation": str(c.estimation), "contact": c.contact, "dt": repr(c.dt), "seed": str(c.seed),
-            "true_params": f"m={p.m} dx={p.dx} dy={p.dy} I={p.I:.4f} sigma={p.sigma}",
-            "initial_mass": repr(c.initial_mass)}
-    return CartLog(t=result.t, q=result.z_meas[:, :3], gamma=result.gamma_measured, qd=result.z_meas[:, 3:],
-                   contact_b=contact, metadata=meta)
+    meta = {
+        "source": "wholebody.push",
+        "trajectory": str(c.trajectory),
+        "arms": str(c.n_arms),
+        "estimation": str(c.estimation),
+        "contact": c.contact,
+        "dt": repr(c.dt),
+        "seed": str(c.seed),
+        "true_params": f"m={p.m} dx={p.dx} dy={p.dy} I={p.I:.4f} sigma={p.sigma}",
+        "initial_mass": repr(c.initial_mass),
+    }
+    return CartLog(
+        t=result.t,
+        q=result.z_meas[:, :3],
+        gamma=result.gamma_measured,
+        qd=result.z_meas[:, 3:],
+        contact_b=contact,
+        metadata=meta,
+    )
 
 
 def push_figures(runs: Dict[str, PushResult]) -> Dict[str, "Figure"]:
     """Return the figures comparing the runs, name -> matplotlib Figure (no backend is selected or touched).
 
-    ``path``: the cart's path of each run (later runs dashed, so none hides
-    another) and the base of robot 1 (dotted, same colour); ``tracking_estimation``:
-    tracking error, mass and CoM estimates, hand force; ``arm_torques``: the
-    arm's joint torques of each run, legend outside the axes.
+    ``path``: the cart's path of each run and the base of robot 1 (dotted, same
+    colour), the first run drawn on top; ``tracking_estimation``: tracking error
+    (mm), mass and CoM errors over time with the 1 kg / 1 cm bands and the
+    stretches where the EKF found them unobservable, hand force; ``arm_torques``:
+    the arm's joint torques of each run, legend outside the axes.
     """
+    return {
+        "path": _path_figure(runs),
+        "tracking_estimation": _estimation_figure(runs),
+        "arm_torques": _torque_figure(runs),
+    }
+
+
+def _style(i: int) -> tuple[str, str]:
+    """Return (colour, line style) of run i: the first solid, the others dashed."""
+    return f"C{i % 10}", "-" if i == 0 else "--"
+
+
+def _path_figure(runs: Dict[str, PushResult]) -> "Figure":
+    """Return the cart and base paths; the first run is drawn last (on top), thinner, so none hides another."""
     from matplotlib.figure import Figure
 
-    figs: Dict[str, Figure] = {}
     first = next(iter(runs.values()))
-    colours = [f"C{i}" for i in range(10)]
     fig = Figure(figsize=(7, 5.5), layout="constrained")
     ax = fig.subplots()
-    ax.plot(first.q_desired[:, 0], first.q_desired[:, 1], "k-", lw=3, alpha=0.25, label="desired cart path")
-    for i, (label, r) in enumerate(runs.items()):
-        c = colours[i % 10]
-        ax.plot(r.q_true[:, 0], r.q_true[:, 1], "-" if i == 0 else "--", color=c, lw=1.6 if i == 0 else 1.2,
-                label=f"cart, {label}")
-        ax.plot(r.robot_x[:, 0, 0], r.robot_x[:, 0, 1], ":", color=c, lw=1.2, label=f"robot 1 base, {label}")
+    ax.plot(first.q_desired[:, 0], first.q_desired[:, 1], "k-", lw=4, alpha=0.2, label="desired cart path")
+    for i, (label, r) in reversed(list(enumerate(runs.items()))):
+        c, ls = _style(i)
+        lw, z = (1.2, 4) if i == 0 else (2.4, 3)
+        ax.plot(r.q_true[:, 0], r.q_true[:, 1], ls, color=c, lw=lw, zorder=z, label=f"cart, {label}")
+        ax.plot(r.robot_x[:, 0, 0], r.robot_x[:, 0, 1], ":", color=c, lw=lw, zorder=z, label=f"robot 1 base, {label}")
+    handles, labels = ax.get_legend_handles_labels()
+    pairs = (len(labels) - 1) // 2  # (cart, base) per run, last run first: list the first run first
+    order = [0] + [k for j in reversed(range(pairs)) for k in (1 + 2 * j, 2 + 2 * j)]
+    ax.legend([handles[k] for k in order], [labels[k] for k in order], fontsize=7, loc="best")
     ax.set_xlabel("x [m]"), ax.set_ylabel("y [m]"), ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="best")
-    ax.set_title("paths (world frame)")
-    figs["path"] = fig
-    fig = Figure(figsize=(7, 10), layout="constrained")
+    ax.set_title("paths (world frame); the carts differ by mm: see tracking_estimation.png", fontsize=9)
+    return fig
+
+
+def _shade(ax, spans: Sequence[Sequence[float]], colour: str, label: str) -> None:
+    """Shade the stretches [t0, t1] of a run (one legend entry)."""
+    for j, (a, b) in enumerate(spans):
+        ax.axvspan(a, b, color=colour, alpha=0.12, lw=0, label=label if j == 0 else None)
+
+
+def _estimation_figure(runs: Dict[str, PushResult]) -> "Figure":
+    """Return tracking error [mm], mass error [kg], CoM error [cm] and hand force over time."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.5, 10), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)
     for i, (label, r) in enumerate(runs.items()):
-        c, ls = colours[i % 10], "-" if i == 0 else "--"
-        err = np.hypot(*(r.q_true[:, :2] - r.q_desired[:, :2]).T)
-        axes[0].plot(r.t, 100 * err, ls, color=c, label=label)
-        axes[1].plot(r.t, r.phi_hat[:, 0], ls, color=c, label=label)
-        axes[2].plot(r.t, r.phi_hat[:, 1] / r.phi_hat[:, 0], ls, color=c, label=f"dx, {label}")
-        axes[2].plot(r.t, r.phi_hat[:, 2] / r.phi_hat[:, 0], ls, color=c, alpha=0.55, label=f"dy, {label}")
+        c, ls = _style(i)
+        p = r.config.true_params
+        m = r.phi_hat[:, 0]
+        axes[0].plot(r.t, 1e3 * np.hypot(*(r.q_true[:, :2] - r.q_desired[:, :2]).T), ls, color=c, label=label)
+        axes[1].plot(r.t, np.abs(m - p.m), ls, color=c, label=label)
+        axes[2].plot(
+            r.t, 100 * np.hypot(r.phi_hat[:, 1] / m - p.dx, r.phi_hat[:, 2] / m - p.dy), ls, color=c, label=label
+        )
         axes[3].plot(r.t, np.linalg.norm(r.wrenches[:, 0, :3], axis=1), ls, color=c, label=label)
-    p = first.config.true_params
-    axes[1].axhline(p.m, color="k", lw=0.8, label="true")
-    axes[2].axhline(p.dx, color="k", lw=0.8, label="true dx, dy")
-    axes[2].axhline(p.dy, color="k", lw=0.8)
-    for a, lab in zip(axes, ("tracking error [cm]", "mass estimate [kg]", "CoM estimate in {b} [m]",
-                             "hand force |f| [N]")):
-        a.set_ylabel(lab), a.grid(alpha=0.3)
-    axes[0].legend(fontsize=7), axes[1].legend(fontsize=7), axes[2].legend(fontsize=6, ncol=2)
+        if r.config.estimation:
+            _shade(axes[1], r.metrics.mass_unobservable_s, c, f"mass unobservable, {label}")
+            _shade(axes[2], r.metrics.com_unobservable_s, c, f"CoM unobservable, {label}")
+    for a, band, unit in ((axes[1], 1.0, "1 kg"), (axes[2], 1.0, "1 cm")):
+        a.axhspan(0.0, band, color="g", alpha=0.12, lw=0, label=f"within {unit}")
+    metrics = [r.metrics for r in runs.values()]  # y range: the errors after 5 s (the start transient is clipped)
+    axes[1].set_ylim(0.0, max(3.0, 1.3 * max(m.mass_error_max_after_5s_kg for m in metrics)))
+    axes[2].set_ylim(0.0, max(5.0, 130.0 * max(m.com_error_max_after_5s_m for m in metrics)))
+    labels = ("tracking error [mm]", "mass error |m_hat - m| [kg]", "CoM error [cm]", "hand force |f| [N]")
+    for a, lab in zip(axes, labels):
+        a.set_ylabel(lab), a.grid(alpha=0.3), a.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.suptitle(
+        "errors over time (start transient clipped)\nshaded: the EKF's 1-sigma grew for >= 1 s "
+        "(no information from the pushes)",
+        fontsize=8,
+    )
     axes[-1].set_xlabel("t [s]")
-    figs["tracking_estimation"] = fig
+    return fig
+
+
+def _torque_figure(runs: Dict[str, PushResult]) -> "Figure":
+    """Return the arm's joint torques of each run (one panel per run, legend outside the axes)."""
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(8.5, 3 * len(runs)), layout="constrained")
     axes = fig.subplots(len(runs), 1, sharex=True, squeeze=False)
     for a, (label, r) in zip(axes[:, 0], runs.items()):
@@ -138,8 +222,7 @@ def push_figures(runs: Dict[str, PushResult]) -> Dict[str, "Figure"]:
         a.set_title(label, fontsize=8), a.set_ylabel("tau [N m]"), a.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("t [s]")
-    figs["arm_torques"] = fig
-    return figs
+    return fig
 
 
 def save_figure_dict(figs: Dict[str, "Figure"], out_dir: Path, prefix: str = "") -> List[Path]:
@@ -189,10 +272,16 @@ def build_scene(result: PushResult, fps: int = 10) -> "Scene":
     scene = Scene([name, "shopping_cart"], floor=(x0, x1, y0, y1))
     scene.show_com((p.dx, p.dy), (phi[0, 1] / phi[0, 0], phi[0, 2] / phi[0, 0]))
     scene.show_trace("desired", result.q_desired[:, :2])
-    scene.animate(result.t[idx], {name: result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},
-                  q_joints={name: qj}, wrenches={"hand": (origins, forces)},
-                  markers={"com/com_true": com_true, "com/com_est": com_est}, scale=0.02, fps=fps,
-                  follow=(name, "shopping_cart"))
+    scene.animate(
+        result.t[idx],
+        {name: result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},
+        q_joints={name: qj},
+        wrenches={"hand": (origins, forces)},
+        markers={"com/com_true": com_true, "com/com_est": com_est},
+        scale=0.02,
+        fps=fps,
+        follow=(name, "shopping_cart"),
+    )
     scene.frame_robots(margin=0.6)  # the first frame: the robot holding the cart; the camera then follows them
     return scene
 
@@ -203,8 +292,9 @@ def save_scene(result: PushResult, path: Path, fps: int = 10) -> Path:
         return scene.save_html(path)
 
 
-def write_report(runs: Dict[str, PushResult], out_dir: Path, scene_run: str | None = None,
-                 html: bool = True) -> List[Path]:
+def write_report(
+    runs: Dict[str, PushResult], out_dir: Path, scene_run: str | None = None, html: bool = True
+) -> List[Path]:
     """Write figures, the first (or `scene_run`) run's log and Meshcat page, and the tables; return the paths."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -214,7 +304,8 @@ def write_report(runs: Dict[str, PushResult], out_dir: Path, scene_run: str | No
     write_log(log_path, push_log(main))
     paths.append(log_path)
     table = out_dir / "comparison.md"
-    table.write_text(comparison_table(runs, markdown=True) + "\n")
+    note = unobservable_note(runs)
+    table.write_text(comparison_table(runs, markdown=True) + "\n" + (f"\n{note}\n" if note else ""))
     paths.append(table)
     if html:
         paths.append(save_scene(main, out_dir / "scene.html"))
@@ -227,17 +318,28 @@ def demo_configs(duration: float = 30.0) -> Dict[str, PushConfig]:
     return {"with estimation": base, "without estimation": replace(base, estimation=False)}
 
 
-def run_demo(out_dir: Path, duration: float = 30.0, html: bool = True, verbose: bool = True) -> DemoResult:
-    """Run the demo's two pushes, print the comparison table and write the report directory."""
+def run_demo(
+    out_dir: Path, duration: float = 30.0, html: bool = True, verbose: bool = True, progress: bool = False
+) -> DemoResult:
+    """Run the demo's two pushes, print the comparison table and write the report directory.
+
+    ``progress``: a bar per run on stderr (the CLI passes True only on a terminal without --json).
+    """
     t0 = time.perf_counter()
-    runs = {label: run_push(cfg) for label, cfg in demo_configs(duration).items()}
+    runs = {
+        label: run_push(cfg, progress=progress, progress_label=f"demo: {label}")
+        for label, cfg in demo_configs(duration).items()
+    }
     table = comparison_table(runs)
     write_report(runs, Path(out_dir), html=html)
     seconds = time.perf_counter() - t0
     if verbose:
-        print(f"Push loop, {describe(runs['with estimation'].config)} vs without estimation "
-              f"(true cart m={runs['with estimation'].config.true_params.m:g} kg, CoM "
-              f"({runs['with estimation'].config.true_params.dx:g}, {runs['with estimation'].config.true_params.dy:g}) m):")
+        print(
+            f"Push loop, {describe(runs['with estimation'].config)} vs without estimation "
+            f"(true cart m={runs['with estimation'].config.true_params.m:g} kg, CoM "
+            f"({runs['with estimation'].config.true_params.dx:g}, {runs['with estimation'].config.true_params.dy:g}) m):"
+        )
         print(table)
+        print(unobservable_note(runs))
         print(f"report: {Path(out_dir).resolve()}  ({seconds:.1f} s)")
     return DemoResult(runs=runs, table=table, out_dir=Path(out_dir), seconds=seconds)
