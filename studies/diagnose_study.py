@@ -32,7 +32,7 @@ def _truth_names(entry: Dict[str, object]) -> List[str]:
 
 def study_dir(path: str, limit: int = 0, progress: bool = False) -> Dict[str, object]:
     """Return rows and a summary of `diagnose` over one directory of labelled logs (``progress``: a bar on stderr)."""
-    from wholebody.cli.progress import progress_bar
+    from wholebody.progress import progress_bar
 
     truth = json.load(open(os.path.join(path, "truth.json")))
     files = sorted(glob.glob(os.path.join(path, "*.csv*")))
@@ -76,7 +76,7 @@ def main(argv=None) -> int:
     ap.add_argument("--limit", type=int, default=0, help="at most this many logs per directory")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    from wholebody.cli.progress import show_progress
+    from wholebody.progress import show_progress
 
     results = [study_dir(d, args.limit, progress=show_progress(args.json)) for d in args.dirs]
     if args.json:

@@ -27,7 +27,7 @@ from cart.jsonout import dumps_strict
 
 def study_dir(path: str, progress: bool = False) -> Dict[str, object]:
     """Return the rows and the coverage summary of one directory of labelled logs (``progress``: a bar on stderr)."""
-    from wholebody.cli.progress import progress_bar
+    from wholebody.progress import progress_bar
 
     truth = json.load(open(os.path.join(path, "truth.json")))
     rows: List[Dict[str, object]] = []
@@ -86,7 +86,7 @@ def main(argv=None) -> int:
     ap.add_argument("dirs", nargs="+")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    from wholebody.cli.progress import show_progress
+    from wholebody.progress import show_progress
 
     results = [study_dir(d, progress=show_progress(args.json)) for d in args.dirs]
     if args.json:

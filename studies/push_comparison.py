@@ -93,11 +93,11 @@ def robot_table(results: Dict[str, object]) -> str:
 def robot_results(duration: float = 30.0, workers: int = 4, progress: bool = False) -> Dict[str, "PushResult"]:
     """Run `robot_configs` (in parallel processes) and return label -> result (with its time histories).
 
-    ``progress``: a bar of finished runs on stderr (`wholebody.cli.progress`).
+    ``progress``: a bar of finished runs on stderr (`wholebody.progress`).
     """
     from concurrent.futures import ProcessPoolExecutor
 
-    from wholebody.cli.progress import progress_bar
+    from wholebody.progress import progress_bar
 
     cfgs = robot_configs(duration)
     with ProcessPoolExecutor(workers) as pool:
@@ -208,7 +208,7 @@ def main(argv: List[str] | None = None) -> int:
     p.add_argument("--duration", type=float, default=30.0, help="seconds per run (default 30)")
     p.add_argument("--workers", type=int, default=4, help="parallel processes for --figures (default 4)")
     args = p.parse_args(argv)
-    from wholebody.cli.progress import progress_bar, show_progress
+    from wholebody.progress import progress_bar, show_progress
 
     if args.figures is None:
         cfgs = study_configs(args.duration)

@@ -1,4 +1,4 @@
-"""Progress bars (`wholebody.cli.progress`): on a terminal only, never with --json (issue 16 item 7)."""
+"""Progress bars (`wholebody.progress`): on a terminal only, never with --json (issue 16 item 7)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from wholebody.cli.progress import progress_bar, show_progress
+from wholebody.progress import progress_bar, show_progress
 
 
 class FakeTerminal(io.StringIO):

@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         if args.json:
             print(dumps_strict({"robots": rows}))
         return 0
-    from wholebody.cli.progress import show_progress
+    from wholebody.progress import show_progress
     from wholebody.push.report import run_demo
 
     demo = run_demo(args.out, duration=args.duration, verbose=not args.json, progress=show_progress(args.json))

@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         options.writable_file(args.html, "--html")
     from cart.jsonout import dumps_strict
     from wholebody.push import run_push
-    from wholebody.cli.progress import show_progress
+    from wholebody.progress import show_progress
     from wholebody.push.report import comparison_table, describe, push_log, save_figures, save_scene, unobservable_note
 
     result = run_push(config, progress=show_progress(args.json))

@@ -238,10 +238,10 @@ def robots_step(
 
 
 def _iterations(n: int, progress: bool, label: str):
-    """Return range(n), wrapped in a terminal progress bar when `progress` (`wholebody.cli.progress`)."""
+    """Return range(n), wrapped in a terminal progress bar when `progress` (`wholebody.progress`)."""
     if not progress:
         return range(n)
-    from wholebody.cli.progress import progress_bar
+    from wholebody.progress import progress_bar
 
     return progress_bar(range(n), desc=label, unit="step", enabled=True)
 

@@ -1,6 +1,6 @@
 """One progress bar for the long commands and studies: tqdm on stderr, only on a terminal and never with --json.
 
->>> from wholebody.cli.progress import progress_bar, show_progress
+>>> from wholebody.progress import progress_bar, show_progress
 >>> for k in progress_bar(range(3), desc="push", enabled=False):  # a plain iterator when disabled
 ...     pass
 """
