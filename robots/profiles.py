@@ -60,6 +60,12 @@ class RobotProfile:
         """Return True when the robot has an arm on a wheeled base (a `wholebody.WholeBody` can be built)."""
         return bool(self.arm_joints) and self.base != "none"
 
+    @property
+    def base_input(self) -> str:
+        """Return the whole-body base input: a body twist for a holonomic base, wheel rates for a differential
+        drive (its lateral velocity is then zero by construction, paper 2 eq. 11-21)."""
+        return "twist" if self.base == "omnidirectional" else "wheels"
+
 
 WMRA = RobotProfile(
     name="wmra",

@@ -20,6 +20,7 @@ import numpy as np
 import pinocchio as pin
 
 import robots
+from robots import profiles
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, SafetyBand
 from wholebody.errors import WholeBodyError
 from wholebody.motion.kinematics import WholeBody, wholebody_for
@@ -145,7 +146,7 @@ def run_tracking(
         raise WholeBodyError("duration and rate must be positive")
     f = path_function(path)
     if wb is None:
-        wb = wholebody_for(robots.load(robot), "twist" if robot == "ridgeback_iiwa" else "wheels")
+        wb = wholebody_for(robots.load(robot), profiles.profile(robot).base_input)
     x = initial_state(wb) if x0 is None else np.asarray(x0, dtype=float)
     band = SafetyBand(band_radius) if band_radius is not None else None
     ctrl = ResolvedRateController(wb, config or ControllerConfig(), band=band)

@@ -160,7 +160,7 @@ def make_reach_map(config: PushConfig):
     if prof.push_base_y is None:  # the base follows the contact sideways: every handle point is held alike
         return None
     robot = robots.load(config.robot)
-    wb = wholebody_for(robot, base_input="twist" if prof.base == "omnidirectional" else "wheels")
+    wb = wholebody_for(robot, base_input=prof.base_input)
     R = grasp_rotation(prof.grasp_pitch)
     zero = np.zeros(3)
     offset = np.array([handle_point(0.0)[0] + prof.push_base_x, prof.push_base_y])

@@ -124,12 +124,6 @@ def solve_grasp_ik(wb: WholeBody, base_pose: np.ndarray, target: pin.SE3, seed: 
     return sol.x
 
 
-def base_input_for(prof: RobotProfile) -> str:
-    """Return the whole-body base input of a robot profile: a body twist for a holonomic base, wheel rates
-    for a differential drive (its lateral velocity is then zero by construction, paper 2 eq. 11-21)."""
-    return "twist" if prof.base == "omnidirectional" else "wheels"
-
-
 def grasp_configuration(wb: WholeBody, prof: RobotProfile, q_cart: np.ndarray, contact_y: float, base_y: float,
                         R_b_ee: np.ndarray, seed: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Return (base pose, arm joints) of the robot holding the handle at `contact_y` (m, in {b}).
@@ -161,7 +155,7 @@ class MobileManipulator:
         self.profile = prof
         # a holonomic base takes a body twist; a differential drive takes wheel rates, so that its lateral
         # velocity is zero by construction (combined Jacobian of paper 2, eq. 11-21)
-        self.wb = wholebody_for(robot, base_input=base_input_for(prof))
+        self.wb = wholebody_for(robot, base_input=prof.base_input)
         self.model = self.wb.model
         self.data = self.model.createData()
         self.R_b_ee = R_b_ee

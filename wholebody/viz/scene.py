@@ -839,7 +839,7 @@ def pushing_configuration(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), contact_
     """
     from robots.profiles import profile
     from wholebody.motion.kinematics import wholebody_for
-    from wholebody.push.robot import base_input_for, grasp_configuration, grasp_rotation
+    from wholebody.push.robot import grasp_configuration, grasp_rotation
 
     prof = profile(robot)
     if prof.push_arm_seed is None:
@@ -847,7 +847,7 @@ def pushing_configuration(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), contact_
     q_cart = np.asarray(cart_pose, dtype=float).ravel()
     if q_cart.shape != (3,) or not np.all(np.isfinite(q_cart)):
         raise SceneError(f"cart pose must be 3 finite numbers (x, y, theta), got {cart_pose!r}")
-    wb = wholebody_for(robots.load(robot), base_input=base_input_for(prof))
+    wb = wholebody_for(robots.load(robot), base_input=prof.base_input)
     base_y = contact_y if prof.push_base_y is None else prof.push_base_y
     base, arm = grasp_configuration(wb, prof, q_cart, contact_y, base_y, grasp_rotation(prof.grasp_pitch))
     return base, wb.to_pinocchio_q(np.r_[base, arm])
