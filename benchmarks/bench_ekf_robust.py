@@ -11,6 +11,7 @@ the gate. Prints a table; never asserts a time.
 
 Run: .venv/bin/python benchmarks/bench_ekf_robust.py [--steps 1000000] [--json]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,8 +34,9 @@ def make_log(steps: int, seed: int = 0):
         f = 15.0 + 10.0 * math.sin(0.7 * t)
         return np.array([f * math.cos(q[2]), f * math.sin(q[2]), 3.0 * math.sin(0.5 * t)])
 
-    sim = simulate(truth, ctrl, steps * 0.01, noise=MeasurementNoise.from_level(0.005),
-                   rng=np.random.default_rng(seed), substeps=1)
+    sim = simulate(
+        truth, ctrl, steps * 0.01, noise=MeasurementNoise.from_level(0.005), rng=np.random.default_rng(seed), substeps=1
+    )
     m = sim.measured
     return truth, m.t, m.gamma, np.hstack([m.q, m.qd])
 
@@ -71,14 +73,22 @@ def main() -> None:
         eig = float(np.linalg.eigvalsh(P).min())
         est, std = ekf.params(), ekf.params_std()
         rows[label] = {
-            "steps": len(t) - 1, "us_per_step": 1e6 * wall / (len(t) - 1),
+            "steps": len(t) - 1,
+            "us_per_step": 1e6 * wall / (len(t) - 1),
             "outliers_injected": 0 if label == "clean" else len(out),
             "nan_injected": 0 if label == "clean" else len(nan_rows),
-            "rejected_samples": ekf.rejected_samples, "nonfinite_samples": ekf.nonfinite_samples,
-            "forced_accepts": ekf.forced_accepts, "covariance_repairs": ekf.covariance_repairs,
-            "P_symmetric": bool(np.array_equal(P, P.T)), "P_min_eig": eig, "P_finite": bool(np.all(np.isfinite(P))),
-            "mass": est.m, "mass_true": truth.m, "mass_err_std": (est.m - truth.m) / std["mass"],
-            "dx_err_std": (est.dx - truth.dx) / std["com"][0], "dy_err_std": (est.dy - truth.dy) / std["com"][1],
+            "rejected_samples": ekf.rejected_samples,
+            "nonfinite_samples": ekf.nonfinite_samples,
+            "forced_accepts": ekf.forced_accepts,
+            "covariance_repairs": ekf.covariance_repairs,
+            "P_symmetric": bool(np.array_equal(P, P.T)),
+            "P_min_eig": eig,
+            "P_finite": bool(np.all(np.isfinite(P))),
+            "mass": est.m,
+            "mass_true": truth.m,
+            "mass_err_std": (est.m - truth.m) / std["mass"],
+            "dx_err_std": (est.dx - truth.dx) / std["com"][0],
+            "dy_err_std": (est.dy - truth.dy) / std["com"][1],
         }
     if args.json:
         print(json.dumps({"simulation_s": sim_s, **rows}))

@@ -14,11 +14,12 @@
 Both implement ``gamma(t, q, qd, params) -> (fx, fy, tau)`` and are selected by
 name with :func:`make_controller` (``"fl_lqr"`` or ``"kanayama"``).
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal, Optional, Sequence
+from typing import Literal, Optional
 
 import numpy as np
 import scipy.linalg
@@ -72,8 +73,9 @@ def care_hamiltonian(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: np.ndarray)
     return scipy.linalg.solve_continuous_are(a, b, q, r)
 
 
-def lqr_gain(mass: np.ndarray, coriolis: np.ndarray, alpha: np.ndarray, q_weight: np.ndarray,
-             r_weight: np.ndarray) -> np.ndarray:
+def lqr_gain(
+    mass: np.ndarray, coriolis: np.ndarray, alpha: np.ndarray, q_weight: np.ndarray, r_weight: np.ndarray
+) -> np.ndarray:
     """Return K (3x6) of the LQR on the error system z = [e, r] of paper eq. (28), u = -K z."""
     minv = np.linalg.inv(mass)
     a = np.zeros((6, 6))
@@ -111,16 +113,21 @@ class FeedbackLinearizationLQR:
         e[2] = _wrap(e[2])
         edot = qd_d - qd
         r = edot + self.alpha * e
-        mm = model.mass_matrix(q, params)
-        cc = model.coriolis_matrix(q, qd, params)
+        phi = params.phi  # once per step (mass and Coriolis matrices)
+        mm = model.mass_matrix(q, phi)
+        cc = model.coriolis_matrix(q, qd, phi)
         if self._k is None or t - self._k_time >= self.gain_period - 1e-9:
             eye = np.eye(3)
             qw = np.diag([self.q_e] * 3 + [self.q_r] * 3)
             self._k = lqr_gain(mm, cc, self.alpha * eye, qw, self.r_u * eye)
             self._k_time = t
         u = -self._k @ np.concatenate([e, r])
-        return (mm @ (qdd_d + self.alpha * edot) + cc @ (qd_d + self.alpha * e)
-                + model.damping_force(qd, params.damping) - u)  # paper eq. (26)
+        return (
+            mm @ (qdd_d + self.alpha * edot)
+            + cc @ (qd_d + self.alpha * e)
+            + model.damping_force(qd, params.damping)
+            - u
+        )  # paper eq. (26)
 
 
 @dataclass

@@ -25,6 +25,7 @@ parameter vector ``p = [m, a, b, J, c_v, c_w]``::
 
 which :func:`regressor` returns (the basis of least-squares identification).
 """
+
 from __future__ import annotations
 
 import math
@@ -51,9 +52,21 @@ def body_accelerations(v, omega, f_forward, tau, m, a, b, j, c_v, c_w, w_lat=0.0
     return (j * r1 + b * r2) / det, (b * r1 + m * r2) / det
 
 
-def forward_dynamics(theta: float, vx: float, vy: float, omega: float, fx: float, fy: float, tau: float,
-                     m: float, a: float, b: float, j: float, c_v: float, c_w: float
-                     ) -> Tuple[float, float, float]:
+def forward_dynamics(
+    theta: float,
+    vx: float,
+    vy: float,
+    omega: float,
+    fx: float,
+    fy: float,
+    tau: float,
+    m: float,
+    a: float,
+    b: float,
+    j: float,
+    c_v: float,
+    c_w: float,
+) -> Tuple[float, float, float]:
     """Return (xdd, ydd, thetadd) of the exact constrained dynamics (paper eq. 4), in plain floats.
 
     Velocities in {s}; (fx, fy) in {s}, tau about the {b} origin.
@@ -67,8 +80,19 @@ def forward_dynamics(theta: float, vx: float, vy: float, omega: float, fx: float
     return c * u1 - s * u2, s * u1 + c * u2, odot
 
 
-def inverse_dynamics(v: float, omega: float, vdot: float, omegadot: float, m: float, a: float, b: float,
-                     j: float, c_v: float, c_w: float, w_lat: float = 0.0) -> Tuple[float, float]:
+def inverse_dynamics(
+    v: float,
+    omega: float,
+    vdot: float,
+    omegadot: float,
+    m: float,
+    a: float,
+    b: float,
+    j: float,
+    c_v: float,
+    c_w: float,
+    w_lat: float = 0.0,
+) -> Tuple[float, float]:
     """Return (F_u, tau): the forward force in {b} and torque about {b} that produce (vdot, omegadot).
 
     The first two rows of the body-frame form of paper eq. (4), solved for the
@@ -110,9 +134,15 @@ def wrench_input_matrix(theta: float, m: float, b: float, j: float) -> np.ndarra
     return np.array([c * dv, s * dv, do])
 
 
-def dynamics_jacobian_rows(x: Union[np.ndarray, list], gamma: Sequence[float], c_v: float, c_w: float,
-                           with_damping: bool, scale: float = 1.0, add_eye: bool = False
-                           ) -> Tuple[float, float, float, List[float]]:
+def dynamics_jacobian_rows(
+    x: Union[np.ndarray, list],
+    gamma: Sequence[float],
+    c_v: float,
+    c_w: float,
+    with_damping: bool,
+    scale: float = 1.0,
+    add_eye: bool = False,
+) -> Tuple[float, float, float, List[float]]:
     """Return (xdd, ydd, thetadd, rows): rows 3..5 of ``scale * F (+ I)`` as one flat list of floats.
 
     ``x = [x, y, theta, vx, vy, omega, m, a, b, J]`` (+ ``[c_v, c_w]`` when
@@ -212,9 +242,83 @@ def dynamics_jacobian_rows(x: Union[np.ndarray, list], gamma: Sequence[float], c
         f3_10, f4_10, f5_10 = cs * dvd, ss * dvd, -b * v * i_s
         dvd = -b * om * i_d
         f3_11, f4_11, f5_11 = cs * dvd, ss * dvd, -m * om * i_s
-        return xdd, ydd, od, [0.0, 0.0, f3_2, f3_3, f3_4, f3_5, f3_6, f3_7, f3_8, f3_9, f3_10, f3_11,
-                              0.0, 0.0, f4_2, f4_3, f4_4, f4_5, f4_6, f4_7, f4_8, f4_9, f4_10, f4_11,
-                              0.0, 0.0, f5_2, f5_3, f5_4, f5_5, f5_6, f5_7, f5_8, f5_9, f5_10, f5_11]
-    return xdd, ydd, od, [0.0, 0.0, f3_2, f3_3, f3_4, f3_5, f3_6, f3_7, f3_8, f3_9,
-                          0.0, 0.0, f4_2, f4_3, f4_4, f4_5, f4_6, f4_7, f4_8, f4_9,
-                          0.0, 0.0, f5_2, f5_3, f5_4, f5_5, f5_6, f5_7, f5_8, f5_9]
+        return (
+            xdd,
+            ydd,
+            od,
+            [
+                0.0,
+                0.0,
+                f3_2,
+                f3_3,
+                f3_4,
+                f3_5,
+                f3_6,
+                f3_7,
+                f3_8,
+                f3_9,
+                f3_10,
+                f3_11,
+                0.0,
+                0.0,
+                f4_2,
+                f4_3,
+                f4_4,
+                f4_5,
+                f4_6,
+                f4_7,
+                f4_8,
+                f4_9,
+                f4_10,
+                f4_11,
+                0.0,
+                0.0,
+                f5_2,
+                f5_3,
+                f5_4,
+                f5_5,
+                f5_6,
+                f5_7,
+                f5_8,
+                f5_9,
+                f5_10,
+                f5_11,
+            ],
+        )
+    return (
+        xdd,
+        ydd,
+        od,
+        [
+            0.0,
+            0.0,
+            f3_2,
+            f3_3,
+            f3_4,
+            f3_5,
+            f3_6,
+            f3_7,
+            f3_8,
+            f3_9,
+            0.0,
+            0.0,
+            f4_2,
+            f4_3,
+            f4_4,
+            f4_5,
+            f4_6,
+            f4_7,
+            f4_8,
+            f4_9,
+            0.0,
+            0.0,
+            f5_2,
+            f5_3,
+            f5_4,
+            f5_5,
+            f5_6,
+            f5_7,
+            f5_8,
+            f5_9,
+        ],
+    )

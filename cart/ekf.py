@@ -17,11 +17,12 @@ The hot path (:meth:`CartEKF.step`) uses plain floats for f and F, the
 sparsity of F (rows 0-2 are a selector, rows 6.. zero) and of H, one LAPACK
 ``dposv`` for gain and NIS, and preallocated arrays updated in place.
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional, Sequence, Tuple, Union
+from typing import Optional, Sequence, Tuple
 
 import numpy as np
 from scipy.linalg import cho_factor as _cho_factor, cho_solve as _cho_solve
@@ -117,24 +118,39 @@ class EKFConfig:
         return cls(meas_std=tuple(max(float(s), 1e-6) for s in meas_std), **kwargs)
 
 
-def initial_covariance(phi0: np.ndarray, meas_std: Sequence[float], sigma0: float = 0.0,
-                       estimate_sigma: bool = False, mass_rel_std: float = 0.5,
-                       com_std: float = 0.2) -> np.ndarray:
+def initial_covariance(
+    phi0: np.ndarray,
+    meas_std: Sequence[float],
+    sigma0: float = 0.0,
+    estimate_sigma: bool = False,
+    mass_rel_std: float = 0.5,
+    com_std: float = 0.2,
+) -> np.ndarray:
     """Return a diagonal P0: the measurement variances for q, qd; a prior on phi from a guess.
 
     mass std = mass_rel_std * m0; first moments std = m0 * com_std; J std = 0.5 J0 + m0 com_std^2.
     """
     m0 = float(phi0[0])
     diag = [s * s for s in meas_std]
-    diag += [(mass_rel_std * m0) ** 2, (m0 * com_std) ** 2, (m0 * com_std) ** 2,
-             (0.5 * float(phi0[3]) + m0 * com_std ** 2) ** 2]
+    diag += [
+        (mass_rel_std * m0) ** 2,
+        (m0 * com_std) ** 2,
+        (m0 * com_std) ** 2,
+        (0.5 * float(phi0[3]) + m0 * com_std**2) ** 2,
+    ]
     if estimate_sigma:
         diag += [max(0.5 * sigma0, 1.0) ** 2, max(0.5 * sigma0, 1.0) ** 2]
     return np.diag(diag)
 
 
-def dynamics_jacobian(x: np.ndarray, gamma: Sequence[float], sigma: float, out_f: np.ndarray,
-                      with_sigma: bool, sigma_yaw: Optional[float] = None) -> Tuple[float, float, float]:
+def dynamics_jacobian(
+    x: np.ndarray,
+    gamma: Sequence[float],
+    sigma: float,
+    out_f: np.ndarray,
+    with_sigma: bool,
+    sigma_yaw: Optional[float] = None,
+) -> Tuple[float, float, float]:
     """Return (xdd, ydd, thetadd) at state x and write rows 3..5 of F = df/dx into ``out_f``.
 
     Exact constrained dynamics (:func:`cart.dynamics.dynamics_jacobian_rows`); columns are the
@@ -143,7 +159,7 @@ def dynamics_jacobian(x: np.ndarray, gamma: Sequence[float], sigma: float, out_f
     sw = sigma if sigma_yaw is None else sigma_yaw
     xdd, ydd, od, rows = dynamics_jacobian_rows(x, gamma, sigma, sw, with_sigma)
     n = len(rows) // 3
-    out_f[3:6, :n] = (rows[:n], rows[n:2 * n], rows[2 * n:])
+    out_f[3:6, :n] = (rows[:n], rows[n : 2 * n], rows[2 * n :])
     return xdd, ydd, od
 
 
@@ -164,13 +180,19 @@ def input_noise_covariance(x: np.ndarray, gamma_cov: np.ndarray, dt: float) -> n
 class CartEKF:
     """The augmented-state EKF of paper eq. (8-20); see the module docstring."""
 
-    def __init__(self, q0: Sequence[float], qd0: Sequence[float], phi0: Sequence[float], sigma: float,
-                 config: EKFConfig = EKFConfig(), P0: Optional[np.ndarray] = None,
-                 sigma_yaw: Optional[float] = None) -> None:
+    def __init__(
+        self,
+        q0: Sequence[float],
+        qd0: Sequence[float],
+        phi0: Sequence[float],
+        sigma: float,
+        config: EKFConfig = EKFConfig(),
+        P0: Optional[np.ndarray] = None,
+        sigma_yaw: Optional[float] = None,
+    ) -> None:
         self.config = config
         self.with_sigma = bool(config.estimate_sigma)
         self.n = 12 if self.with_sigma else 10
-        n = self.n
         phi0 = np.asarray(phi0, dtype=float)
         if phi0.shape != (4,) or phi0[0] <= 0.0:
             raise ParameterError(f"initial phi must be [m>0, m dx, m dy, J], got {phi0!r}")
@@ -179,10 +201,20 @@ class CartEKF:
         if P0 is None:
             P0 = initial_covariance(phi0, config.meas_std, sigma, self.with_sigma)
         P0 = np.array(P0, dtype=float)
-        if P0.shape != (n, n):
-            raise ParameterError(f"P0 must be {n}x{n}, got {P0.shape}")
-        # State and covariance share one C-ordered n x (n+1) array A = [x | P], so that the
-        # measurement update of both is one product and one subtraction (see step()).
+        if P0.shape != (self.n, self.n):
+            raise ParameterError(f"P0 must be {self.n}x{self.n}, got {P0.shape}")
+        self._init_state(q0, qd0, phi0, P0)
+        self._init_noise(config)
+        self._init_buffers()
+        self._init_monitors(config)
+
+    def _init_state(self, q0: Sequence[float], qd0: Sequence[float], phi0: np.ndarray, P0: np.ndarray) -> None:
+        """Allocate A = [x | P] and set x0 = [q0, qd0, phi0 (, sigma, sigma_yaw)] and P0 (eq. 8-9).
+
+        State and covariance share one C-ordered n x (n+1) array A = [x | P], so that the
+        measurement update of both is one product and one subtraction (see :meth:`step`).
+        """
+        n = self.n
         self._A = np.zeros((n, n + 1))
         self._x = self._A[:, 0]
         self._P = self._A[:, 1:]
@@ -192,6 +224,9 @@ class CartEKF:
         if self.with_sigma:
             self._x[10:12] = (self.sigma, self.sigma_yaw)
         self._P[...] = P0
+
+    def _init_noise(self, config: EKFConfig) -> None:
+        """Set the process-noise density Qc (eq. 13; zero on phi when it is frozen, whose P rows are zeroed) and R."""
         qdiag = [config.q_pos, config.q_pos, config.q_pos, config.q_vel, config.q_vel, config.q_omega]
         if config.estimate_params:
             qdiag += list(config.q_phi)
@@ -204,18 +239,23 @@ class CartEKF:
         self.Qc = np.diag(qdiag)
         self._qdiag = np.array(qdiag)
         self.R = np.diag(np.square(np.asarray(config.meas_std, dtype=float)))
-        # Work buffers of the hot path, all views that stay valid (everything is updated in place).
-        # One flat buffer holds, in this order: Phi6 (rows 0-5 of Phi = I + F dt, C order), the
-        # state increment of the prediction (6), and [w | T] (6 x (n+1), Fortran order: w = -y, then
-        # S^-1 (-y); T = rows 0-5 of the predicted P, then S^-1 T). Rows 3-5 of Phi6, the increment
-        # and w are contiguous, so one assignment writes all three.
+
+    def _init_buffers(self) -> None:
+        """Allocate the work buffers of the hot path: views that stay valid (everything is updated in place).
+
+        One flat buffer holds, in this order: Phi6 (rows 0-5 of Phi = I + F dt, C order), the
+        state increment of the prediction (6), and [w | T] (6 x (n+1), Fortran order: w = -y, then
+        S^-1 (-y); T = rows 0-5 of the predicted P, then S^-1 T). Rows 3-5 of Phi6, the increment
+        and w are contiguous, so one assignment writes all three.
+        """
+        n = self.n
         self._buf = np.zeros(6 * n + 6 + N_MEAS * (n + 1))
-        self._phi6 = self._buf[:6 * n].reshape(N_MEAS, n)
+        self._phi6 = self._buf[: 6 * n].reshape(N_MEAS, n)
         self._phi6[:] = np.eye(N_MEAS, n)
         self._phi6_t = self._phi6.T
-        self._fill = self._buf[3 * n:6 * n + 12]  # rows 3-5 of Phi6, increment, w
-        self._inc = self._buf[6 * n:6 * n + 6]
-        self._tf = self._buf[6 * n + 6:].reshape((N_MEAS, n + 1), order="F")  # [w | T]
+        self._fill = self._buf[3 * n : 6 * n + 12]  # rows 3-5 of Phi6, increment, w
+        self._inc = self._buf[6 * n : 6 * n + 6]
+        self._tf = self._buf[6 * n + 6 :].reshape((N_MEAS, n + 1), order="F")  # [w | T]
         self._w = self._tf[:, 0]
         self._tt = self._tf.T[1:]  # T^T (n x 6), C-contiguous
         self._tt6 = self._tt[:N_MEAS]  # Phi6 P Phi6^T block
@@ -225,11 +265,16 @@ class CartEKF:
         self._p6 = self._P[:N_MEAS]  # rows 0-5 of P
         self._p6_t = self._p6.T
         self._p_lo = self._P[N_MEAS:, :N_MEAS]
-        self._pdiag = self._A.reshape(-1)[1::n + 2]  # writable view of P's diagonal
+        self._pdiag = self._A.reshape(-1)[1 :: n + 2]  # writable view of P's diagonal
         self._kb = np.empty((n, n + 1))  # [-K y | K T]
         self._dt = 0.0
         self._qdt = np.zeros(n)  # diag(Q) dt
         self._unsym = 0  # updates since P was last symmetrised
+
+    def _init_monitors(self, config: EKFConfig) -> None:
+        """Set the projection limits, the NIS gate, the change detection and the robustness counters."""
+        self._params_key: Optional[list] = None  # phi (and sigma) of the CartParams cached by params()
+        self._params: Optional[CartParams] = None
         self._min_mass = float(config.min_mass)
         self._min_inertia = float(config.min_inertia)
         self.nis = float("nan")
@@ -319,22 +364,35 @@ class CartEKF:
         return float(self._x[11]) if self.with_sigma else self.sigma_yaw
 
     def params(self) -> CartParams:
-        """Return the physical parameters of the current estimate."""
-        return CartParams.from_phi(self._x[6:10], self.sigma_hat, self.sigma_yaw_hat)
+        """Return the physical parameters of the current estimate (the same object while phi and sigma stay put)."""
+        key = self._x[6:].tolist()
+        if key != self._params_key:  # a frozen phi (no estimation) keeps its CartParams: no re-validation
+            self._params = CartParams.from_phi(self._x[6:10], self.sigma_hat, self.sigma_yaw_hat)
+            self._params_key = key
+        return self._params
 
     def params_std(self) -> dict:
         """Return the 1-sigma std of m, dx, dy, I (about the CoM) and sigma by linearising the phi map."""
         m, a, b, j = self._x[6:10]
-        jac = np.array([[1.0, 0.0, 0.0, 0.0],
-                        [-a / m ** 2, 1.0 / m, 0.0, 0.0],
-                        [-b / m ** 2, 0.0, 1.0 / m, 0.0],
-                        [(a * a + b * b) / m ** 2, -2.0 * a / m, -2.0 * b / m, 1.0]])
+        jac = np.array(
+            [
+                [1.0, 0.0, 0.0, 0.0],
+                [-a / m**2, 1.0 / m, 0.0, 0.0],
+                [-b / m**2, 0.0, 1.0 / m, 0.0],
+                [(a * a + b * b) / m**2, -2.0 * a / m, -2.0 * b / m, 1.0],
+            ]
+        )
         cov = jac @ self.P[6:10, 6:10] @ jac.T
         std = np.sqrt(np.maximum(np.diag(cov), 0.0))
         sig = math.sqrt(max(self.P[10, 10], 0.0)) if self.with_sigma else 0.0
         sig_yaw = math.sqrt(max(self.P[11, 11], 0.0)) if self.with_sigma else 0.0
-        return {"mass": float(std[0]), "com": [float(std[1]), float(std[2])], "inertia": float(std[3]),
-                "sigma": sig, "sigma_yaw": sig_yaw}
+        return {
+            "mass": float(std[0]),
+            "com": [float(std[1]), float(std[2])],
+            "inertia": float(std[3]),
+            "sigma": sig,
+            "sigma_yaw": sig_yaw,
+        }
 
     def log_det_innovation_covariance(self) -> float:
         """Return ln det S of the last update (from its Cholesky factor)."""
@@ -409,8 +467,10 @@ class CartEKF:
                 except np.linalg.LinAlgError:
                     pass
             else:
-                raise NumericalError("the EKF diverged: its covariance became non-finite (the log's values or "
-                                     "time steps are out of any plausible range?)")
+                raise NumericalError(
+                    "the EKF diverged: its covariance became non-finite (the log's values or "
+                    "time steps are out of any plausible range?)"
+                )
             self._repair_covariance(attempt)
         raise NumericalError("the EKF's innovation covariance stayed non-positive-definite after repairs")
 
@@ -422,7 +482,7 @@ class CartEKF:
         self._symmetrize()
         w, V = np.linalg.eigh(P)
         scale = max(float(np.max(np.abs(w))), 1e-300)
-        floor = scale * 1e-12 * (100.0 ** attempt)
+        floor = scale * 1e-12 * (100.0**attempt)
         P[...] = (V * np.maximum(w, floor)) @ V.T
         P += P.T
         P *= 0.5
@@ -511,8 +571,9 @@ class CartEKF:
             x[10] = max(x[10], 0.0)
             x[11] = max(x[11], 0.0)
 
-    def step(self, gamma: Sequence[float], dt: float, z: Sequence[float],
-             gamma_cov: Optional[np.ndarray] = None) -> float:
+    def step(
+        self, gamma: Sequence[float], dt: float, z: Sequence[float], gamma_cov: Optional[np.ndarray] = None
+    ) -> float:
         """Predict over dt under gamma, then update with z; return the NIS.
 
         The same arithmetic as :meth:`predict` then :meth:`update`, fused and in
@@ -531,8 +592,6 @@ class CartEKF:
         velocities, ``B gamma_cov B^T dt`` with ``B = d qdd / d gamma`` of the
         constrained dynamics, added to Q dt for this step only.
         """
-        x = self._x
-        P = self._P
         zl = z.tolist() if isinstance(z, np.ndarray) else z
         zsum = zl[0] + zl[1] + zl[2] + zl[3] + zl[4] + zl[5]
         if zsum - zsum != 0.0:  # a NaN or an infinity in z: predict only
@@ -541,15 +600,29 @@ class CartEKF:
             if not 0.0 < dt < math.inf:
                 raise ParameterError(f"EKF time step must be positive and finite, got {dt}")
             self._set_dt(dt)
+        return self._fused_update(self._fused_predict(gamma, dt, zl, gamma_cov), zl)
+
+    def _fused_predict(self, gamma: Sequence[float], dt: float, zl: list, gamma_cov: Optional[np.ndarray]) -> list:
+        """The prediction of :meth:`step` (eq. 13/16/17): x and rows/columns 0-5 of P; return minus the innovation.
+
+        Also writes w = -y into the [w | T] buffer for the update's dposv.
+        """
+        x = self._x
+        P = self._P
         q_in = None if gamma_cov is None else input_noise_covariance(x, gamma_cov, dt)  # at the prior state, like F
         xs = x.tolist()
-        xdd, ydd, od, rows = dynamics_jacobian_rows(xs, gamma, self.sigma, self.sigma_yaw, self.with_sigma, dt,
-                                                    True)
+        xdd, ydd, od, rows = dynamics_jacobian_rows(xs, gamma, self.sigma, self.sigma_yaw, self.with_sigma, dt, True)
         px, py, pth, vx, vy, om = xs[:6]
         ix, iy, ith, ivx, ivy, iom = vx * dt, vy * dt, om * dt, xdd * dt, ydd * dt, od * dt  # eq. (16)
         # minus the innovation: predicted - measured (heading wrapped)
-        ny = [px + ix - zl[0], py + iy - zl[1], -((zl[2] - pth - ith + math.pi) % (2.0 * math.pi) - math.pi),
-              vx + ivx - zl[3], vy + ivy - zl[4], om + iom - zl[5]]
+        ny = [
+            px + ix - zl[0],
+            py + iy - zl[1],
+            -((zl[2] - pth - ith + math.pi) % (2.0 * math.pi) - math.pi),
+            vx + ivx - zl[3],
+            vy + ivy - zl[4],
+            om + iom - zl[5],
+        ]
         rows += (ix, iy, ith, ivx, ivy, iom)
         rows += ny
         self._fill[:] = rows  # Phi6 rows 3-5, the increment, w = -y
@@ -563,7 +636,11 @@ class CartEKF:
         np.dot(self._phi6, t_t, out=self._tt6)  # Phi6 P Phi6^T (numpy buffers the overlap)
         self._p6[...] = t_t.T
         self._p_lo[...] = self._tt_lo
-        # -- update, eq. (18)-(20), H = [I_6 0]
+        return ny
+
+    def _fused_update(self, ny: list, zl: list) -> float:
+        """The update of :meth:`step` (eq. 18-20, H = [I_6 0]) after :meth:`_fused_predict`; return the NIS."""
+        x = self._x
         sf = self._sf
         np.add(self._tt6, self.R, out=sf)
         _, _, info = _dposv(sf, self._tf, lower=1, overwrite_a=1, overwrite_b=1)
@@ -583,8 +660,11 @@ class CartEKF:
         if self._unsym >= SYMMETRIZE_EVERY:
             self._symmetrize()
         m, a, b, j = x[6:10].tolist()  # keep phi physical (inline _project)
-        if (m < self._min_mass or j < self._min_inertia + (a * a + b * b) / m
-                or (self.with_sigma and min(x[10], x[11]) < 0.0)):
+        if (
+            m < self._min_mass
+            or j < self._min_inertia + (a * a + b * b) / m
+            or (self.with_sigma and min(x[10], x[11]) < 0.0)
+        ):
             self._project()
         self._ny = ny
         if self._prior_var is not None and self.config.change_detection:
@@ -605,8 +685,10 @@ class CartEKF:
         """The cold path of :meth:`step` after the prediction: reject an outlier or accept after a run of them."""
         if nis != nis:
             if not (np.all(np.isfinite(self._x)) and np.all(np.isfinite(self._P))):
-                raise NumericalError("the EKF diverged: its state became non-finite (the log's values or time "
-                                     "steps are out of any plausible range?)")
+                raise NumericalError(
+                    "the EKF diverged: its state became non-finite (the log's values or time "
+                    "steps are out of any plausible range?)"
+                )
             self._repair_covariance()
             return self._update(zl)
         self._ny = ny
@@ -624,9 +706,34 @@ class CartEKF:
         return self._update(zl, inflated=True)
 
 
-def run_ekf(t: np.ndarray, gamma: np.ndarray, z: np.ndarray, phi0: Sequence[float], sigma: float,
-            config: EKFConfig = EKFConfig(), nll: Optional[list] = None, sigma_yaw: Optional[float] = None
-            ) -> Tuple[CartEKF, np.ndarray, np.ndarray]:
+def _log_arrays(t: np.ndarray, gamma: np.ndarray, z: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Return (t, gamma, z, k0) of :func:`run_ekf` as float arrays, checked; k0 the first finite measurement."""
+    t = np.asarray(t, dtype=float)
+    z = np.asarray(z, dtype=float)
+    gamma = np.asarray(gamma, dtype=float)
+    n = len(t)
+    if n < 1 or z.shape != (n, N_MEAS) or gamma.shape[0] != n:
+        raise ParameterError(f"run_ekf needs t (N,), gamma (N, 3), z (N, 6); got {t.shape}, {gamma.shape}, {z.shape}")
+    if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0.0):
+        raise ParameterError("run_ekf needs finite, strictly increasing times")
+    if not np.all(np.isfinite(gamma)):
+        raise ParameterError("run_ekf needs a finite wrench gamma at every sample")
+    finite_rows = np.nonzero(np.all(np.isfinite(z), axis=1))[0]
+    if finite_rows.size == 0:
+        raise ParameterError("run_ekf: no sample has a finite measurement")
+    return t, gamma, z, int(finite_rows[0])
+
+
+def run_ekf(
+    t: np.ndarray,
+    gamma: np.ndarray,
+    z: np.ndarray,
+    phi0: Sequence[float],
+    sigma: float,
+    config: EKFConfig = EKFConfig(),
+    nll: Optional[list] = None,
+    sigma_yaw: Optional[float] = None,
+) -> Tuple[CartEKF, np.ndarray, np.ndarray]:
     """Return (ekf, x_history (N, n), nis (N,)) of the EKF run on a whole log.
 
     ``gamma[k]`` is held between t_k and t_{k+1}; the first sample with a
@@ -642,26 +749,14 @@ def run_ekf(t: np.ndarray, gamma: np.ndarray, z: np.ndarray, phi0: Sequence[floa
     into sub-steps of about the median under the held wrench (``ekf.gaps``
     counts them; at most MAX_GAP_SUBSTEPS sub-steps per interval).
     """
-    t = np.asarray(t, dtype=float)
-    z = np.asarray(z, dtype=float)
-    gamma = np.asarray(gamma, dtype=float)
+    t, gamma, z, k0 = _log_arrays(t, gamma, z)
     n = len(t)
-    if n < 1 or z.shape != (n, N_MEAS) or gamma.shape[0] != n:
-        raise ParameterError(f"run_ekf needs t (N,), gamma (N, 3), z (N, 6); got {t.shape}, {gamma.shape}, {z.shape}")
     dts = np.diff(t)
-    if not np.all(np.isfinite(t)) or np.any(dts <= 0.0):
-        raise ParameterError("run_ekf needs finite, strictly increasing times")
-    if not np.all(np.isfinite(gamma)):
-        raise ParameterError("run_ekf needs a finite wrench gamma at every sample")
-    finite_rows = np.nonzero(np.all(np.isfinite(z), axis=1))[0]
-    if finite_rows.size == 0:
-        raise ParameterError("run_ekf: no sample has a finite measurement")
-    k0 = int(finite_rows[0])
     ekf = CartEKF(z[k0, :3], z[k0, 3:], phi0, sigma, config, sigma_yaw=sigma_yaw)
     ekf.nonfinite_samples = k0
     hist = np.empty((n, ekf.n))
     nis = np.full(n, np.nan)
-    hist[:k0 + 1] = ekf.x
+    hist[: k0 + 1] = ekf.x
     rejected = np.zeros(n, dtype=bool)
     log_det = 0.0
     want_nll = nll is not None
@@ -704,8 +799,9 @@ class LogEstimate:
     gaps: int = 0
 
 
-def measurement_std_from_log(t: np.ndarray, q: np.ndarray, qd: Optional[np.ndarray],
-                             half_window: float = 0.05) -> Tuple[float, ...]:
+def measurement_std_from_log(
+    t: np.ndarray, q: np.ndarray, qd: Optional[np.ndarray], half_window: float = 0.05
+) -> Tuple[float, ...]:
     """Return the std of (x, y, theta, vx, vy, omega) estimated from the residuals about local quadratic fits.
 
     When the velocities are absent (estimated by the same fits), their std is
@@ -761,10 +857,35 @@ def default_starts(guess: CartParams) -> Tuple[CartParams, ...]:
     return (guess, guess.with_mass(0.6 * guess.m), guess.with_mass(1.6 * guess.m))
 
 
-def estimate_from_log(log, guess: CartParams, estimate_sigma: bool = True,
-                      meas_std: Optional[Sequence[float]] = None,
-                      starts: Optional[Sequence[CartParams]] = None, refine: bool = True,
-                      **config) -> LogEstimate:
+def _start_config(
+    start: CartParams,
+    meas_std: Sequence[float],
+    wrench_std: Tuple[float, float],
+    dt: float,
+    estimate_sigma: bool,
+    config: dict,
+) -> EKFConfig:
+    """Return the EKFConfig of one start of :func:`estimate_from_log` (``config`` overrides the noise it sets).
+
+    White wrench noise (F/T sensor, std ``wrench_std`` = (force N, torque N m)) drives the velocities: its
+    density (std / m)^2 dt and (torque std / J)^2 dt at this start's m and J about {b}, floored at the defaults.
+    """
+    q_in = dict(
+        q_vel=max(EKFConfig.q_vel, (wrench_std[0] / start.m) ** 2 * dt),
+        q_omega=max(EKFConfig.q_omega, (wrench_std[1] / start.inertia_b) ** 2 * dt),
+    )
+    return EKFConfig.from_noise(meas_std, estimate_sigma=estimate_sigma, **{**q_in, **config})
+
+
+def estimate_from_log(
+    log,
+    guess: CartParams,
+    estimate_sigma: bool = True,
+    meas_std: Optional[Sequence[float]] = None,
+    starts: Optional[Sequence[CartParams]] = None,
+    refine: bool = True,
+    **config,
+) -> LogEstimate:
     """Return the EKF's parameter estimate on a CartLog (velocities estimated from the pose when absent).
 
     The EKF runs from each of ``starts`` (default :func:`default_starts` of the
@@ -781,25 +902,20 @@ def estimate_from_log(log, guess: CartParams, estimate_sigma: bool = True,
     on a 20 kg cart; with it, by ~0.6 kg (errors in the input still bias the
     EKF slightly, see docs/cart.md).
     """
-    qd = log.velocities()
-    if meas_std is None:
-        meas_std = measurement_std_from_log(log.t, log.q, log.qd)
-    force_std, torque_std = wrench_noise_std_from_log(log)
+    meas_std = measurement_std_from_log(log.t, log.q, log.qd) if meas_std is None else meas_std
+    wrench_std = wrench_noise_std_from_log(log)
     dt_med = float(np.median(np.diff(log.t)))
-    z = np.hstack([log.q, qd])
+    z = np.hstack([log.q, log.velocities()])
     starts = tuple(default_starts(guess) if starts is None else starts)
     if not starts:
         raise ParameterError("estimate_from_log needs at least one start")
     best = None
-    for k, start in enumerate(starts + (None,) if refine else starts):
+    for start in starts + (None,) if refine else starts:
         if start is None:  # refinement: restart from the best run's estimate
             if best is None:
                 break
             start = best[1].params()
-        # white wrench noise (F/T sensor) drives the velocities: its density at this start's inertia
-        q_in = dict(q_vel=max(EKFConfig.q_vel, (force_std / start.m) ** 2 * dt_med),
-                    q_omega=max(EKFConfig.q_omega, (torque_std / start.inertia_b) ** 2 * dt_med))
-        cfg = EKFConfig.from_noise(meas_std, estimate_sigma=estimate_sigma, **{**q_in, **config})
+        cfg = _start_config(start, meas_std, wrench_std, dt_med, estimate_sigma, config)
         nll: list = []
         try:
             ekf, hist, nis = run_ekf(log.t, log.gamma, z, start.phi, start.sigma, cfg, nll, start.sigma_yaw)
@@ -810,6 +926,14 @@ def estimate_from_log(log, guess: CartParams, estimate_sigma: bool = True,
     if best is None:
         raise NumericalError("the EKF diverged from every start (non-finite likelihood)")
     _, ekf, hist, nis = best
-    return LogEstimate(params=ekf.params(), std=ekf.params_std(), meas_std=tuple(cfg.meas_std),
-                       mean_nis=float(np.nanmean(nis)), velocities_estimated=not log.has_velocities, history=hist,
-                       rejected_samples=ekf.rejected_samples, nonfinite_samples=ekf.nonfinite_samples, gaps=ekf.gaps)
+    return LogEstimate(
+        params=ekf.params(),
+        std=ekf.params_std(),
+        meas_std=tuple(cfg.meas_std),
+        mean_nis=float(np.nanmean(nis)),
+        velocities_estimated=not log.has_velocities,
+        history=hist,
+        rejected_samples=ekf.rejected_samples,
+        nonfinite_samples=ekf.nonfinite_samples,
+        gaps=ekf.gaps,
+    )

@@ -20,6 +20,7 @@ and lets the lateral speed of the {b} origin drift while the cart turns.
 ``extra_force`` (an additive generalized force, same convention as ``gamma``)
 is the hook for effects the nominal model lacks (friction, slope, ...).
 """
+
 from __future__ import annotations
 
 import math
@@ -53,7 +54,7 @@ def damping_pair(params: ParamsLike, sigma: SigmaLike = None) -> Tuple[float, fl
 
 def mass_matrix(q: np.ndarray, params: ParamsLike) -> np.ndarray:
     """Return the 3x3 mass matrix M(q) of paper eq. (4)."""
-    m, a, b, j = _phi(params)
+    m, a, b, j = _phi(params).tolist()  # floats: the same IEEE arithmetic as numpy scalars, faster
     s, c = math.sin(q[2]), math.cos(q[2])
     m13 = -(a * s + b * c)
     m23 = a * c - b * s
@@ -62,9 +63,9 @@ def mass_matrix(q: np.ndarray, params: ParamsLike) -> np.ndarray:
 
 def coriolis_matrix(q: np.ndarray, qd: np.ndarray, params: ParamsLike) -> np.ndarray:
     """Return the 3x3 Coriolis matrix C(q, qd) of paper eq. (4)."""
-    _, a, b, _ = _phi(params)
+    _, a, b, _ = _phi(params).tolist()
     s, c = math.sin(q[2]), math.cos(q[2])
-    w = qd[2]
+    w = float(qd[2])
     return np.array([[0.0, 0.0, w * (b * s - a * c)], [0.0, 0.0, -w * (b * c + a * s)], [0.0, 0.0, 0.0]])
 
 
@@ -99,8 +100,9 @@ def projection(q: np.ndarray, params: ParamsLike) -> np.ndarray:
     return np.eye(3) - lam.T @ (lam @ np.linalg.solve(mm, np.eye(3))) / (lam @ minv_lt).item()
 
 
-def contact_wrench_to_generalized(q: np.ndarray, point_b: np.ndarray, force_b: np.ndarray,
-                                  torque: float = 0.0) -> np.ndarray:
+def contact_wrench_to_generalized(
+    q: np.ndarray, point_b: np.ndarray, force_b: np.ndarray, torque: float = 0.0
+) -> np.ndarray:
     """Return gamma = (fx, fy, tau) in {s} of a planar wrench applied at ``point_b`` (in {b}).
 
     ``force_b`` is the force in {b} axes, ``torque`` the moment about z at the
@@ -119,15 +121,23 @@ def generalized_to_body(q: np.ndarray, gamma: np.ndarray) -> np.ndarray:
     return np.array([c * gamma[0] + s * gamma[1], -s * gamma[0] + c * gamma[1], gamma[2]])
 
 
-def constraint_force(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: ParamsLike,
-                     sigma: SigmaLike = None, exact: bool = True,
-                     extra_force: np.ndarray | None = None) -> float:
+def constraint_force(
+    q: np.ndarray,
+    qd: np.ndarray,
+    gamma: np.ndarray,
+    params: ParamsLike,
+    sigma: SigmaLike = None,
+    exact: bool = True,
+    extra_force: np.ndarray | None = None,
+) -> float:
     """Return the Lagrange multiplier lambda of eq. (4); the constraint force is -Lambda^T lambda.
 
     exact=True solves Lambda qdd + Lambdadot qd = 0; exact=False Lambda qdd = 0 (paper eq. 5-7).
     """
     mm = mass_matrix(q, params)
-    rhs = np.asarray(gamma, float) - coriolis_matrix(q, qd, params) @ qd - damping_force(qd, damping_pair(params, sigma))
+    rhs = (
+        np.asarray(gamma, float) - coriolis_matrix(q, qd, params) @ qd - damping_force(qd, damping_pair(params, sigma))
+    )
     if extra_force is not None:
         rhs = rhs + np.asarray(extra_force, float)
     lam = constraint_matrix(q)
@@ -137,9 +147,15 @@ def constraint_force(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: P
     return ((lam @ minv_rhs).item() + drift) / (lam @ minv_lt).item()
 
 
-def forward_dynamics(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: ParamsLike,
-                     sigma: SigmaLike = None, exact: bool = True,
-                     extra_force: np.ndarray | None = None) -> np.ndarray:
+def forward_dynamics(
+    q: np.ndarray,
+    qd: np.ndarray,
+    gamma: np.ndarray,
+    params: ParamsLike,
+    sigma: SigmaLike = None,
+    exact: bool = True,
+    extra_force: np.ndarray | None = None,
+) -> np.ndarray:
     """Return qdd of the constrained cart, paper eq. (4) (exact) or eq. (5-7) (exact=False).
 
     M qdd + C qd = gamma + extra_force - N - Lambda^T lambda with lambda from
@@ -148,7 +164,9 @@ def forward_dynamics(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: P
     q = np.asarray(q, float)
     qd = np.asarray(qd, float)
     mm = mass_matrix(q, params)
-    rhs = np.asarray(gamma, float) - coriolis_matrix(q, qd, params) @ qd - damping_force(qd, damping_pair(params, sigma))
+    rhs = (
+        np.asarray(gamma, float) - coriolis_matrix(q, qd, params) @ qd - damping_force(qd, damping_pair(params, sigma))
+    )
     if extra_force is not None:
         rhs = rhs + np.asarray(extra_force, float)
     if not exact:
@@ -157,14 +175,26 @@ def forward_dynamics(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: P
     return np.linalg.solve(mm, rhs - constraint_matrix(q)[0] * lam)
 
 
-def forward_dynamics_fast(theta: float, vx: float, vy: float, omega: float,
-                          fx: float, fy: float, tau: float,
-                          m: float, a: float, b: float, j: float, sigma: float,
-                          sigma_yaw: Optional[float] = None) -> Tuple[float, float, float]:
+def forward_dynamics_fast(
+    theta: float,
+    vx: float,
+    vy: float,
+    omega: float,
+    fx: float,
+    fy: float,
+    tau: float,
+    m: float,
+    a: float,
+    b: float,
+    j: float,
+    sigma: float,
+    sigma_yaw: Optional[float] = None,
+) -> Tuple[float, float, float]:
     """Return (xdd, ydd, thetadd) of the exact constrained dynamics, in plain floats.
 
     Same result as ``forward_dynamics(..., exact=True)``; :func:`cart.dynamics.forward_dynamics`
     with ``sigma_yaw = sigma`` unless given.
     """
-    return dynamics.forward_dynamics(theta, vx, vy, omega, fx, fy, tau, m, a, b, j, sigma,
-                                     sigma if sigma_yaw is None else sigma_yaw)
+    return dynamics.forward_dynamics(
+        theta, vx, vy, omega, fx, fy, tau, m, a, b, j, sigma, sigma if sigma_yaw is None else sigma_yaw
+    )

@@ -9,6 +9,7 @@ contact point and an ``extra_force(t, q, qd, params) -> generalized force`` hook
 for effects outside the nominal model. It returns the true and the measured
 log (LOG_FORMAT.md columns, velocities included).
 """
+
 from __future__ import annotations
 
 import math
@@ -90,19 +91,38 @@ def min_effort_gamma(q: np.ndarray, gamma: np.ndarray, point_b: Sequence[float],
     return np.array([gamma[0] - s * extra, gamma[1] + c * extra, gamma[2]])
 
 
-def _accel(t: float, q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, p: CartParams,
-           phi: np.ndarray, extra_force: Optional[ExtraForce], exact: bool) -> np.ndarray:
+def _accel(
+    t: float,
+    q: np.ndarray,
+    qd: np.ndarray,
+    gamma: np.ndarray,
+    p: CartParams,
+    phi: np.ndarray,
+    extra_force: Optional[ExtraForce],
+    exact: bool,
+) -> np.ndarray:
     g = gamma
     if extra_force is not None:
         g = gamma + np.asarray(extra_force(t, q, qd, p), dtype=float)
     if not exact:
         return model.forward_dynamics(q, qd, g, phi, p.damping, exact=False)
-    return np.array(dynamics.forward_dynamics(q[2], qd[0], qd[1], qd[2], g[0], g[1], g[2],
-                                              phi[0], phi[1], phi[2], phi[3], p.sigma, p.sigma_yaw))
+    return np.array(
+        dynamics.forward_dynamics(
+            q[2], qd[0], qd[1], qd[2], g[0], g[1], g[2], phi[0], phi[1], phi[2], phi[3], p.sigma, p.sigma_yaw
+        )
+    )
 
 
-def rk4_step(t: float, q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: CartParams, h: float,
-             extra_force: Optional[ExtraForce] = None, exact: bool = True) -> Tuple[np.ndarray, np.ndarray]:
+def rk4_step(
+    t: float,
+    q: np.ndarray,
+    qd: np.ndarray,
+    gamma: np.ndarray,
+    params: CartParams,
+    h: float,
+    extra_force: Optional[ExtraForce] = None,
+    exact: bool = True,
+) -> Tuple[np.ndarray, np.ndarray]:
     """Return (q, qd) after one RK4 step of length h under a constant gamma."""
     phi = params.phi
     k1v = _accel(t, q, qd, gamma, params, phi, extra_force, exact)
@@ -116,12 +136,53 @@ def rk4_step(t: float, q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params:
     return (q + h / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q), qd + h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v))
 
 
-def simulate(params: CartParams, controller: Controller, duration: float, dt: float = 0.01,
-             q0: Sequence[float] = (0.0, 0.0, 0.0), qd0: Sequence[float] = (0.0, 0.0, 0.0),
-             noise: MeasurementNoise = MeasurementNoise(), rng: Optional[np.random.Generator] = None,
-             changes: Sequence[ParameterChange] = (), contact_point: Optional[ContactPoint] = None,
-             extra_force: Optional[ExtraForce] = None, substeps: int = 4, exact: bool = True,
-             metadata: Optional[dict] = None, allocate: bool = True) -> SimResult:
+def _rk4_exact(q: list, qd: list, gamma: list, p: CartParams, h: float, substeps: int) -> Tuple[list, list]:
+    """Return (q, qd) after ``substeps`` RK4 steps of length h of the exact dynamics (no extra force).
+
+    The arithmetic of :func:`rk4_step` (same operations in the same order, so bit for bit the same
+    result) on plain floats: the simulation's hot loop without per-step numpy arrays.
+    """
+    fd = dynamics.forward_dynamics
+    fx, fy, tau = gamma
+    m, a, b, j = p.phi.tolist()
+    sv, sw = p.sigma, p.sigma_yaw
+    h2, h6 = 0.5 * h, h / 6.0
+    x, y, th = q
+    vx, vy, om = qd
+    for _ in range(substeps):
+        a1x, a1y, a1o = fd(th, vx, vy, om, fx, fy, tau, m, a, b, j, sv, sw)
+        k2x, k2y, k2o = vx + h2 * a1x, vy + h2 * a1y, om + h2 * a1o
+        a2x, a2y, a2o = fd(th + h2 * om, k2x, k2y, k2o, fx, fy, tau, m, a, b, j, sv, sw)
+        k3x, k3y, k3o = vx + h2 * a2x, vy + h2 * a2y, om + h2 * a2o
+        a3x, a3y, a3o = fd(th + h2 * k2o, k3x, k3y, k3o, fx, fy, tau, m, a, b, j, sv, sw)
+        k4x, k4y, k4o = vx + h * a3x, vy + h * a3y, om + h * a3o
+        a4x, a4y, a4o = fd(th + h * k3o, k4x, k4y, k4o, fx, fy, tau, m, a, b, j, sv, sw)
+        x += h6 * (vx + 2 * k2x + 2 * k3x + k4x)
+        y += h6 * (vy + 2 * k2y + 2 * k3y + k4y)
+        th += h6 * (om + 2 * k2o + 2 * k3o + k4o)
+        vx += h6 * (a1x + 2 * a2x + 2 * a3x + a4x)
+        vy += h6 * (a1y + 2 * a2y + 2 * a3y + a4y)
+        om += h6 * (a1o + 2 * a2o + 2 * a3o + a4o)
+    return [x, y, th], [vx, vy, om]
+
+
+def simulate(
+    params: CartParams,
+    controller: Controller,
+    duration: float,
+    dt: float = 0.01,
+    q0: Sequence[float] = (0.0, 0.0, 0.0),
+    qd0: Sequence[float] = (0.0, 0.0, 0.0),
+    noise: MeasurementNoise = MeasurementNoise(),
+    rng: Optional[np.random.Generator] = None,
+    changes: Sequence[ParameterChange] = (),
+    contact_point: Optional[ContactPoint] = None,
+    extra_force: Optional[ExtraForce] = None,
+    substeps: int = 4,
+    exact: bool = True,
+    metadata: Optional[dict] = None,
+    allocate: bool = True,
+) -> SimResult:
     """Return the true and measured logs of the cart driven by ``controller`` for ``duration`` seconds.
 
     At each sample t_k = k dt the measurement (q, qd plus noise drawn from
@@ -132,17 +193,12 @@ def simulate(params: CartParams, controller: Controller, duration: float, dt: fl
     force/torque noise). With ``allocate=False`` the contact point is only logged
     (the controller then does its own allocation).
     """
-    if rng is None:
-        rng = np.random.default_rng(0)
+    rng = np.random.default_rng(0) if rng is None else rng
     n = int(round(duration / dt)) + 1
     pending = sorted(changes, key=lambda c: c.t)
-    p = params
-    q = np.array(q0, dtype=float)
-    qd = np.array(qd0, dtype=float)
+    p, q, qd = params, np.array(q0, dtype=float), np.array(qd0, dtype=float)
     t_arr = np.arange(n) * dt
-    q_true = np.empty((n, 3))
-    qd_true = np.empty((n, 3))
-    g_log = np.empty((n, 3))
+    q_true, qd_true, g_log = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     contact = np.zeros((n, 2)) if contact_point is not None else None
     params_t = np.empty((n, 5))
     std = noise.measurement_std()
@@ -151,11 +207,7 @@ def simulate(params: CartParams, controller: Controller, duration: float, dt: fl
     h = dt / substeps
     for k in range(n):
         t = t_arr[k]
-        while pending and pending[0].t <= t + 1e-12:
-            change = pending.pop(0)
-            if change.conserve_momentum:
-                qd = qd * (p.m / change.params.m)
-            p = change.params
+        p, qd = _apply_changes(pending, t, p, qd)
         q_true[k] = q
         qd_true[k] = qd
         params_t[k] = (p.m, p.dx, p.dy, p.I, p.sigma)
@@ -166,13 +218,40 @@ def simulate(params: CartParams, controller: Controller, duration: float, dt: fl
             if allocate:
                 gamma = min_effort_gamma(q, gamma, point)
         g_log[k] = gamma
-        if k == n - 1:
-            break
-        for j in range(substeps):
-            q, qd = rk4_step(t + j * h, q, qd, gamma, p, h, extra_force, exact)
-    meta = {"source": "cart.simulate", "dt": repr(dt)}
-    meta.update(metadata or {})
+        if k < n - 1:
+            q, qd = _advance(t, q, qd, gamma, p, h, substeps, extra_force, exact)
+    meta = {"source": "cart.simulate", "dt": repr(dt), **(metadata or {})}
     true = CartLog(t=t_arr, q=q_true, gamma=g_log, qd=qd_true, contact_b=contact, metadata=meta)
-    measured = CartLog(t=t_arr, q=q_true + meas_noise[:, :3], gamma=g_log + force_noise,
-                       qd=qd_true + meas_noise[:, 3:], contact_b=contact, metadata=dict(meta))
+    noisy = (q_true + meas_noise[:, :3], g_log + force_noise, qd_true + meas_noise[:, 3:])
+    measured = CartLog(t=t_arr, q=noisy[0], gamma=noisy[1], qd=noisy[2], contact_b=contact, metadata=dict(meta))
     return SimResult(true=true, measured=measured, params_t=params_t)
+
+
+def _advance(
+    t: float,
+    q: np.ndarray,
+    qd: np.ndarray,
+    gamma: np.ndarray,
+    p: CartParams,
+    h: float,
+    substeps: int,
+    extra_force: Optional[ExtraForce],
+    exact: bool,
+) -> Tuple[np.ndarray, np.ndarray]:
+    """Return (q, qd) one control period later: ``substeps`` RK4 steps of length h under a constant gamma."""
+    if exact and extra_force is None:  # the float fast path, bit for bit the same as rk4_step
+        ql, qdl = _rk4_exact(q.tolist(), qd.tolist(), gamma.tolist(), p, h, substeps)
+        return np.array(ql), np.array(qdl)
+    for j in range(substeps):
+        q, qd = rk4_step(t + j * h, q, qd, gamma, p, h, extra_force, exact)
+    return q, qd
+
+
+def _apply_changes(pending: list, t: float, p: CartParams, qd: np.ndarray) -> Tuple[CartParams, np.ndarray]:
+    """Apply (and pop) the parameter changes due at t; return the parameters and velocity in force."""
+    while pending and pending[0].t <= t + 1e-12:
+        change = pending.pop(0)
+        if change.conserve_momentum:
+            qd = qd * (p.m / change.params.m)
+        p = change.params
+    return p, qd

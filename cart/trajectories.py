@@ -6,13 +6,33 @@ to cruise speed and a step stop (paper §III); Traj. 2 adds three large turns
 whose yaw rate is a raised-cosine bump (continuous, so the desired torque is
 bounded) starting at t = 7, 16 and 23 s.
 """
+
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from dataclasses import dataclass
-from typing import Sequence, Tuple
+from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
+
+#: Position grids of the trajectories built so far, keyed by the (frozen, hashable) trajectory:
+#: (times, x, y) as arrays and as lists (for :func:`_interp`). Shared by equal trajectories, so the
+#: 11 Table I tests build each of their two grids once per process.
+_GRIDS: Dict[
+    "UnicycleTrajectory", Tuple[np.ndarray, np.ndarray, np.ndarray, List[float], List[float], List[float]]
+] = {}
+
+
+def _interp(t: float, tg: List[float], yg: List[float]) -> float:
+    """Return ``np.interp(t, tg, yg)`` for a scalar t, bit for bit, without numpy's per-call overhead."""
+    j = bisect_right(tg, t) - 1
+    if j < 0:
+        return yg[0]
+    if j >= len(tg) - 1 or tg[j] == t:
+        return yg[j]
+    slope = (yg[j + 1] - yg[j]) / (tg[j + 1] - tg[j])
+    return slope * (t - tg[j]) + yg[j]
 
 
 @dataclass(frozen=True)
@@ -65,28 +85,45 @@ class UnicycleTrajectory:
             th += turn.angle * (u - math.sin(2.0 * math.pi * u) / (2.0 * math.pi))
         return th, om, od
 
-    def _grid(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-        cache = self.__dict__.get("_cache")
+    def _grid(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray, List[float], List[float], List[float]]:
+        """Return the position grid (trapezoidal integral of the velocity every ``grid_dt``), built once."""
+        cache = self.__dict__.get("_cache")  # the instance's own first: hashing the dataclass is slower
         if cache is None:
-            tg = np.arange(0.0, self.duration + 2 * self.grid_dt, self.grid_dt)
-            vel = np.array([self.speed(t)[0] * np.array([math.cos(self.yaw(t)[0]), math.sin(self.yaw(t)[0])])
-                            for t in tg])
-            pos = np.zeros_like(vel)
-            pos[1:] = np.cumsum(0.5 * (vel[1:] + vel[:-1]) * self.grid_dt, axis=0)
-            cache = (tg, pos[:, 0], pos[:, 1])
+            cache = _GRIDS.get(self)
+            if cache is None:
+                cache = _GRIDS[self] = self._build_grid()
             object.__setattr__(self, "_cache", cache)
         return cache
 
+    def _build_grid(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray, List[float], List[float], List[float]]:
+        tg = np.arange(0.0, self.duration + 2 * self.grid_dt, self.grid_dt)
+        vel = np.empty((len(tg), 2))
+        for i, t in enumerate(tg.tolist()):
+            v = self.speed(t)[0]
+            th = self.yaw(t)[0]
+            vel[i] = (v * math.cos(th), v * math.sin(th))
+        pos = np.zeros_like(vel)
+        pos[1:] = np.cumsum(0.5 * (vel[1:] + vel[:-1]) * self.grid_dt, axis=0)
+        return tg, pos[:, 0], pos[:, 1], tg.tolist(), pos[:, 0].tolist(), pos[:, 1].tolist()
+
     def sample(self, t: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (q_d, qd_d, qdd_d) at time t (held at the end after ``duration``)."""
-        tg, xg, yg = self._grid()
+        _, _, _, tg, xg, yg = self._grid()
+        t = float(t)
         v, vdot = self.speed(t)
         th, om, od = self.yaw(t)
         c, s = math.cos(th), math.sin(th)
-        q = np.array([np.interp(t, tg, xg), np.interp(t, tg, yg), th])
+        q = np.array([_interp(t, tg, xg), _interp(t, tg, yg), th])
         qd = np.array([v * c, v * s, om])
         qdd = np.array([vdot * c - v * om * s, vdot * s + v * om * c, od])
         return q, qd, qdd
+
+    def poses(self, ts: Sequence[float]) -> np.ndarray:
+        """Return the desired poses q_d (N, 3) at the times ``ts``: ``sample(t)[0]`` for each t, at once."""
+        tg, xg, yg = self._grid()[:3]
+        ts = np.asarray(ts, dtype=float)
+        th = [self.yaw(t)[0] for t in ts.tolist()]
+        return np.column_stack([np.interp(ts, tg, xg), np.interp(ts, tg, yg), th])
 
 
 def trajectory_1(duration: float = 30.0) -> UnicycleTrajectory:

@@ -7,6 +7,7 @@ gamma_cov=...)``); :func:`contact_study` compares schedules over seeds,
 (``benchmarks/bench_excitation.py`` runs it). Not library API: the planner it
 evaluates is `wholebody.contacts.excitation`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -14,9 +15,18 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
+from studies.table1 import EstimatingLoop
 from wholebody.contacts.allocation import ArmLimits, WrenchAllocator
-from wholebody.contacts.excitation import (ContactSchedule, InputModel, WrenchNoise, cart_wrench_covariance,
-                                           com_crlb_course, default_prior, input_model, sample_push)
+from wholebody.contacts.excitation import (
+    ContactSchedule,
+    InputModel,
+    WrenchNoise,
+    cart_wrench_covariance,
+    com_crlb_course,
+    default_prior,
+    input_model,
+    sample_push,
+)
 from wholebody.contacts.handle import HandleSegment, grasp_map
 
 #: Table I test-5 cart (truth) and the EKF's initial guess used by the study.
@@ -76,8 +86,8 @@ class ConvergenceResult:
         return float(abs(self.mass_error[-1]))
 
 
-class _SensorLoop:
-    """Controller callback for cart.simulate: EKF on the chosen wrench input, tracking control, allocation.
+class _SensorLoop(EstimatingLoop):
+    """Table I's estimating loop (:class:`studies.table1.EstimatingLoop`) with a sensed wrench and one arm.
 
     Each period the arm applies ``w + e`` (``w`` the allocation of the tracking
     wrench at the scheduled contact, ``e`` the actuation error), the F/T sensor
@@ -87,49 +97,42 @@ class _SensorLoop:
     per-period covariance times dt, since the wrench is held over dt).
     """
 
-    def __init__(self, controller, guess, config, contact: Callable[[float], float], handle: HandleSegment,
-                 model: InputModel, sensor: WrenchNoise, actuation: WrenchNoise, rng, n: int,
-                 substeps: int = 1) -> None:
-        self.ctrl, self.guess, self.config = controller, guess, config
-        self.substeps = int(substeps)
-        self.contact, self.handle, self.rng = contact, handle, rng
+    def __init__(
+        self,
+        controller,
+        guess,
+        config,
+        contact: Callable[[float], float],
+        handle: HandleSegment,
+        model: InputModel,
+        sensor: WrenchNoise,
+        actuation: WrenchNoise,
+        rng,
+        n: int,
+        substeps: int = 1,
+    ) -> None:
+        super().__init__(controller, guess, config, contact, n, substeps)
+        self.handle, self.rng = handle, rng
         self.gain = model.gains_ee()
         self.cov_in = model.noise.covariance_ee()
         self.std_e = np.sqrt(np.diag(actuation.covariance_ee()))
         self.std_n = np.sqrt(np.diag(sensor.covariance_ee()))
         self.alloc = WrenchAllocator([handle.point(0.0)], ArmLimits(), only_motion_directions=True)
-        self.ekf = None
-        self.gamma_in = np.zeros(3)
         self.gamma_cov = np.zeros((3, 3))
-        self.t_prev = 0.0
-        self.k = 0
         self.com_hat = np.zeros((n, 2))
         self.com_std = np.zeros((n, 2))
         self.mass_hat = np.zeros(n)
-        self.nis = np.full(n, np.nan)
 
-    def __call__(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray) -> np.ndarray:
-        from cart.ekf import CartEKF
-
-        z = np.concatenate([q_meas, qd_meas])
-        if self.ekf is None:
-            self.ekf = CartEKF(q_meas, qd_meas, self.guess.phi, self.guess.sigma, self.config)
-        else:
-            dt = t - self.t_prev
-            if self.substeps == 1:
-                self.nis[self.k] = self.ekf.step(self.gamma_in, dt, z, gamma_cov=self.gamma_cov * dt)
-            else:  # finer Euler prediction (same input held), one update
-                h = dt / self.substeps
-                for _ in range(self.substeps):
-                    self.ekf.predict(self.gamma_in, h, gamma_cov=self.gamma_cov * dt)
-                self.nis[self.k] = self.ekf.update(z)
-        params = self.ekf.params()
+    def _record(self, params) -> None:
+        """Store the CoM estimate, its std and the mass of sample k."""
         self.com_hat[self.k] = (params.dx, params.dy)
         self.com_std[self.k] = self.ekf.params_std()["com"]
         self.mass_hat[self.k] = params.m
-        th = float(self.ekf.x[2])
+
+    def _apply(self, t: float, x_hat: np.ndarray, gamma_w: np.ndarray) -> np.ndarray:
+        """Allocate the tracking wrench to the arm at the scheduled contact; return what the arm applies."""
+        th = float(x_hat[2])
         c, s = np.cos(th), np.sin(th)
-        gamma_w = self.ctrl.gamma(t, self.ekf.x[:3], self.ekf.x[3:6], params)
         gamma_b = np.array([c * gamma_w[0] + s * gamma_w[1], 0.0, gamma_w[2]])
         p = self.handle.point(self.contact(t))
         self.alloc.set_points([p])
@@ -141,8 +144,6 @@ class _SensorLoop:
         Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         self.gamma_in = Rz @ (G @ (w + self.gain * (e + n)))
         self.gamma_cov = cart_wrench_covariance(p, self.cov_in, th)
-        self.t_prev = t
-        self.k += 1
         return Rz @ (G @ (w + e))
 
 
@@ -158,8 +159,7 @@ def study_config(dt: float = 0.01, q_floor: float = 1e-5, q_phi: float = 0.0):
     from cart.simulate import MeasurementNoise
 
     meas = MeasurementNoise.from_level(0.005)
-    return EKFConfig.from_noise(meas.measurement_std(), q_pos=1e-8, q_vel=q_floor, q_omega=q_floor,
-                                q_phi=(q_phi,) * 4)
+    return EKFConfig.from_noise(meas.measurement_std(), q_pos=1e-8, q_vel=q_floor, q_omega=q_floor, q_phi=(q_phi,) * 4)
 
 
 def com_convergence_traj2(
@@ -207,13 +207,33 @@ def com_convergence_traj2(
     meas = MeasurementNoise.from_level(0.005)
     config = study_config(dt, q_floor, q_phi)
     n = int(round(duration / dt)) + 1
-    loop = _SensorLoop(make_controller("fl_lqr", traj), guess, config, at, handle, model, noise, actuation,
-                       np.random.default_rng(seed + 10_000), n, ekf_substeps)
+    loop = _SensorLoop(
+        make_controller("fl_lqr", traj),
+        guess,
+        config,
+        at,
+        handle,
+        model,
+        noise,
+        actuation,
+        np.random.default_rng(seed + 10_000),
+        n,
+        ekf_substeps,
+    )
     q0, _, _ = traj.sample(0.0)
     sim = simulate(truth, loop, duration, dt, q0=q0, noise=meas, rng=np.random.default_rng(seed))
     err = np.hypot(loop.com_hat[:, 0] - truth.dx, loop.com_hat[:, 1] - truth.dy)
-    return ConvergenceResult(label, seed, sim.true.t, loop.com_hat, err, loop.com_std, loop.mass_hat - truth.m,
-                             float(np.nanmean(loop.nis)), tol)
+    return ConvergenceResult(
+        label,
+        seed,
+        sim.true.t,
+        loop.com_hat,
+        err,
+        loop.com_std,
+        loop.mass_hat - truth.m,
+        float(np.nanmean(loop.nis)),
+        tol,
+    )
 
 
 @dataclass(frozen=True)
@@ -263,9 +283,14 @@ def _rms_se(x: Sequence[float]) -> tuple[float, float]:
     return rms, (se / (2.0 * rms) if rms > 0.0 else float("nan"))
 
 
-def summarize(label: str, results: Sequence[ConvergenceResult], crlb_cov: np.ndarray,
-              times: Sequence[float] = (10.0, 20.0, 30.0), tols: Sequence[float] = (0.03, 0.01),
-              true_com=STUDY_TRUE_COM) -> StudyRow:
+def summarize(
+    label: str,
+    results: Sequence[ConvergenceResult],
+    crlb_cov: np.ndarray,
+    times: Sequence[float] = (10.0, 20.0, 30.0),
+    tols: Sequence[float] = (0.03, 0.01),
+    true_com=STUDY_TRUE_COM,
+) -> StudyRow:
     """Return the StudyRow of the runs of one schedule; ``crlb_cov`` is com_crlb_course at ``times``."""
     dur = float(results[0].t[-1])
     final = np.array([r.com[-1] for r in results]) - np.asarray(true_com)
@@ -277,7 +302,8 @@ def summarize(label: str, results: Sequence[ConvergenceResult], crlb_cov: np.nda
         tb[float(tol)] = (_mean_se([dur if v is None else v for v in x]), sum(v is None for v in x))
         per_seed[f"t(err<{100 * tol:g} cm) [s]"] = np.array([dur if v is None else v for v in x])
     return StudyRow(
-        label, len(results),
+        label,
+        len(results),
         {float(t): _mean_se([r.error_at(t) for r in results]) for t in times},
         {float(t): _rms_se([r.error_at(t) for r in results]) for t in times},
         {float(t): float(np.sqrt(np.trace(c))) for t, c in zip(times, crlb_cov)},
@@ -286,14 +312,24 @@ def summarize(label: str, results: Sequence[ConvergenceResult], crlb_cov: np.nda
         tuple(float(v) for v in (np.std(final, axis=0, ddof=1) if len(final) > 1 else [np.nan, np.nan])),
         tuple(float(v) for v in np.mean(final, axis=0)),
         tuple(float(v) for v in np.sqrt(np.diag(crlb_cov[-1]))),
-        _mean_se([r.mass_error[-1] for r in results]), float(np.mean([r.mean_nis for r in results])), per_seed)
+        _mean_se([r.mass_error[-1] for r in results]),
+        float(np.mean([r.mean_nis for r in results])),
+        per_seed,
+    )
 
 
-def contact_study(schedules: Mapping[str, Callable[[float], float] | ContactSchedule], seeds: Sequence[int],
-                  ekf_input: str = "fused", noise: WrenchNoise = WrenchNoise(),
-                  actuation: WrenchNoise = WrenchNoise(), duration: float = 30.0, dt: float = 0.01,
-                  times: Sequence[float] = (10.0, 20.0, 30.0), tols: Sequence[float] = (0.03, 0.01),
-                  **kwargs) -> tuple[list[StudyRow], dict]:
+def contact_study(
+    schedules: Mapping[str, Callable[[float], float] | ContactSchedule],
+    seeds: Sequence[int],
+    ekf_input: str = "fused",
+    noise: WrenchNoise = WrenchNoise(),
+    actuation: WrenchNoise = WrenchNoise(),
+    duration: float = 30.0,
+    dt: float = 0.01,
+    times: Sequence[float] = (10.0, 20.0, 30.0),
+    tols: Sequence[float] = (0.03, 0.01),
+    **kwargs,
+) -> tuple[list[StudyRow], dict]:
     """Return (rows, runs): each schedule on Traj. 2 over the seeds, summarized, and the raw results.
 
     Every schedule sees the same seeds (common random numbers: the same noise
@@ -310,8 +346,20 @@ def contact_study(schedules: Mapping[str, Callable[[float], float] | ContactSche
     samples = sample_push(trajectory_2(duration), dt=dt, duration=duration)
     rows, runs = [], {}
     for label, sched in schedules.items():
-        res = [com_convergence_traj2(sched, label, s, duration=duration, dt=dt, noise=noise,
-                                     ekf_input=ekf_input, actuation=actuation, **kwargs) for s in seeds]
+        res = [
+            com_convergence_traj2(
+                sched,
+                label,
+                s,
+                duration=duration,
+                dt=dt,
+                noise=noise,
+                ekf_input=ekf_input,
+                actuation=actuation,
+                **kwargs,
+            )
+            for s in seeds
+        ]
         crlb = com_crlb_course(samples, sched, truth.phi, times, model.noise, default_prior(guess.phi))
         runs[label] = res
         rows.append(summarize(label, res, crlb, times, tols))
@@ -335,8 +383,10 @@ def format_table(rows: Sequence[StudyRow], scores: Mapping[str, str] | None = No
         for tol in tols:
             (m, se), never = r.time_below[tol]
             cells.append(f"{m:.1f} ± {se:.1f}" + (f" ({never}/{r.n} never)" if never else ""))
-        cells.append(f"{mm(r.spread[0])} / {mm(r.post_std[0])} / {mm(r.crlb[0])}; "
-                     f"{mm(r.spread[1])} / {mm(r.post_std[1])} / {mm(r.crlb[1])}")
+        cells.append(
+            f"{mm(r.spread[0])} / {mm(r.post_std[0])} / {mm(r.crlb[0])}; "
+            f"{mm(r.spread[1])} / {mm(r.post_std[1])} / {mm(r.crlb[1])}"
+        )
         cells.append(f"{mm(r.bias[0])}; {mm(r.bias[1])}")
         cells += [f"{r.mass[0]:+.2f} ± {r.mass[1]:.2f}", f"{r.nis:.2f}"]
         out.append("| " + " | ".join(cells) + " |")

@@ -6,11 +6,15 @@ estimation) or by the same EKF with the parameters frozen at the initial guess
 (without estimation). The EKF's R comes from the test's noise level, its Q is
 the same for every test (:data:`PROCESS_NOISE`).
 """
+
 from __future__ import annotations
 
 import math
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
-from typing import Callable, List, Optional, Sequence, Tuple
+from typing import Callable, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -22,7 +26,7 @@ from cart.trajectories import UnicycleTrajectory, trajectory_1, trajectory_2
 
 TRUE_MASS = 20.0
 #: Inertia about the CoM of the simulated cart: a 1.0 m x 0.6 m box of 20 kg.
-TRUE_INERTIA = TRUE_MASS * (1.0 ** 2 + 0.6 ** 2) / 12.0
+TRUE_INERTIA = TRUE_MASS * (1.0**2 + 0.6**2) / 12.0
 SIGMA = 4.0
 COM_GUESS = (0.3, 0.0)
 #: Initial guess of the CoM inertia per kg of guessed mass (radius of gyration ~0.32 m).
@@ -90,16 +94,20 @@ class TestRun:
 
 @dataclass(frozen=True)
 class TestResult:
-    """Table I metrics of one test (with and without estimation) and its runs."""
+    """Table I metrics of one test (with and without estimation) and its runs.
+
+    Tracking errors (|p_d - p| of the {b} origin over t >= 5 s) in mm, as in
+    ``cartpush push``; masses in kg, CoM errors in m, times in s.
+    """
 
     test: int
     mass_error_final_kg: float
     mass_converged_s: Optional[float]
     com_error_final_m: float
-    tracking_rms_m: float
-    tracking_rms_no_estimation_m: float
-    tracking_max_after_5s_m: float
-    tracking_max_after_5s_no_estimation_m: float
+    tracking_rms_mm: float
+    tracking_rms_no_estimation_mm: float
+    tracking_max_after_5s_mm: float
+    tracking_max_after_5s_no_estimation_mm: float
     run: TestRun = field(repr=False)
     run_no_estimation: TestRun = field(repr=False)
     #: time-resolved estimation errors of the run with estimation (:func:`estimation_error_metrics`)
@@ -107,16 +115,28 @@ class TestResult:
 
     def as_json(self) -> dict:
         """Return the JSON object of `cartpush reproduce --json` for this test."""
-        return {"test": self.test, "mass_error_final_kg": self.mass_error_final_kg,
-                "mass_converged_s": self.mass_converged_s, "com_error_final_m": self.com_error_final_m,
-                "tracking_rms_m": self.tracking_rms_m,
-                "tracking_rms_no_estimation_m": self.tracking_rms_no_estimation_m, **self.estimation}
+        return {
+            "test": self.test,
+            "mass_error_final_kg": self.mass_error_final_kg,
+            "mass_converged_s": self.mass_converged_s,
+            "com_error_final_m": self.com_error_final_m,
+            "tracking_rms_mm": self.tracking_rms_mm,
+            "tracking_rms_no_estimation_mm": self.tracking_rms_no_estimation_mm,
+            "tracking_max_after_5s_mm": self.tracking_max_after_5s_mm,
+            "tracking_max_after_5s_no_estimation_mm": self.tracking_max_after_5s_no_estimation_mm,
+            **self.estimation,
+        }
 
 
 def describe_test(test: Table1Test) -> str:
     """Return a one-line description of a test from its definition (trajectory, guess, CoM, noise, CP, changes)."""
-    parts = [f"Traj. {test.traj}", f"m guess {test.mass_guess:g} kg", f"true CoM ({test.com[0]:g}, {test.com[1]:g}) m",
-             f"noise {test.noise * 1000:g} mm", "sliding CP" if test.vary_cp else "fixed CP"]
+    parts = [
+        f"Traj. {test.traj}",
+        f"m guess {test.mass_guess:g} kg",
+        f"true CoM ({test.com[0]:g}, {test.com[1]:g}) m",
+        f"noise {test.noise * 1000:g} mm",
+        "sliding CP" if test.vary_cp else "fixed CP",
+    ]
     if test.mass_changes:
         parts.append("mass " + ", ".join(f"{m:g} kg at {t:g} s" for t, m in test.mass_changes))
     return ", ".join(parts)
@@ -146,58 +166,122 @@ def ekf_config(noise_level: float, estimate: bool = True, change_detection: bool
 
 
 class EstimatingLoop:
-    """Controller callback for :func:`cart.simulate.simulate`: EKF, then controller, then contact allocation."""
+    """Controller callback for :func:`cart.simulate.simulate`: EKF, then controller, then the applied wrench.
 
-    def __init__(self, controller, guess: CartParams, config: EKFConfig,
-                 contact: Callable[[float], Tuple[float, float]], n: int) -> None:
+    At each sample the EKF (created from the first measurement) predicts over the
+    last period under the wrench it was given last (``gamma_in``; with
+    ``gamma_cov``, the covariance density of that wrench's error, see
+    :meth:`cart.ekf.CartEKF.step`; ``substeps`` Euler predictions then one
+    update when > 1) and fuses the measurement; :meth:`_record` stores the
+    estimate; the controller's gamma on the estimate goes through :meth:`_apply`,
+    which returns the wrench applied to the cart and sets the EKF's next input.
+    Here the input is exact and :meth:`_apply` adds the least-effort lateral force
+    at the contact (paper §II.C); ``studies.excitation_study`` overrides both
+    hooks (a sensed wrench and its arm allocation).
+    """
+
+    def __init__(
+        self, controller, guess: CartParams, config: EKFConfig, contact: Callable, n: int, substeps: int = 1
+    ) -> None:
         self.controller = controller
         self.guess = guess
         self.config = config
         self.contact = contact
+        self.substeps = int(substeps)
         self.ekf: Optional[CartEKF] = None
-        self.gamma_prev = np.zeros(3)
+        self.gamma_in = np.zeros(3)
+        self.gamma_cov: Optional[np.ndarray] = None
         self.t_prev = 0.0
         self.k = 0
         self.params_hat = np.empty((n, 4))
         self.nis = np.full(n, np.nan)
 
-    def __call__(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray) -> np.ndarray:
-        """Return the applied gamma for the sample at time t."""
+    def _filter(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray) -> CartEKF:
+        """Create the EKF at the first sample, else predict under ``gamma_in`` and fuse (q_meas, qd_meas)."""
         z = np.concatenate([q_meas, qd_meas])
         if self.ekf is None:
             self.ekf = CartEKF(q_meas, qd_meas, self.guess.phi, self.guess.sigma, self.config)
-        else:
-            self.nis[self.k] = self.ekf.step(self.gamma_prev, t - self.t_prev, z)
-        params = self.ekf.params()
+            return self.ekf
+        dt = t - self.t_prev
+        cov = None if self.gamma_cov is None else self.gamma_cov * dt
+        if self.substeps == 1:
+            self.nis[self.k] = self.ekf.step(self.gamma_in, dt, z, gamma_cov=cov)
+        else:  # finer Euler prediction (same input held), one update
+            h = dt / self.substeps
+            for _ in range(self.substeps):
+                self.ekf.predict(self.gamma_in, h, gamma_cov=cov)
+            self.nis[self.k] = self.ekf.update(z)
+        return self.ekf
+
+    def _record(self, params: CartParams) -> None:
+        """Store the estimate of sample k."""
         self.params_hat[self.k] = (params.m, params.dx, params.dy, params.I)
-        q_hat = self.ekf.x[:3]
-        gamma = self.controller.gamma(t, q_hat, self.ekf.x[3:6], params)
-        gamma = min_effort_gamma(q_hat, gamma, self.contact(t))
-        self.gamma_prev = gamma
-        self.t_prev = t
-        self.k += 1
+
+    def _apply(self, t: float, x_hat: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+        """Return the wrench applied until the next sample (and make it the EKF's next input)."""
+        gamma = min_effort_gamma(x_hat[:3], gamma, self.contact(t))
+        self.gamma_in = gamma
         return gamma
 
+    def __call__(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray) -> np.ndarray:
+        """Return the applied gamma for the sample at time t."""
+        ekf = self._filter(t, q_meas, qd_meas)
+        params = ekf.params()
+        self._record(params)
+        gamma = self.controller.gamma(t, ekf.x[:3], ekf.x[3:6], params)
+        applied = self._apply(t, ekf.x, gamma)
+        self.t_prev = t
+        self.k += 1
+        return applied
 
-def run_test(test: Table1Test, estimate: bool = True, controller: str = "fl_lqr", duration: float = 30.0,
-             dt: float = 0.01, seed: int = 0, trajectory: Optional[UnicycleTrajectory] = None,
-             change_detection: bool = False) -> TestRun:
+
+def run_test(
+    test: Table1Test,
+    estimate: bool = True,
+    controller: str = "fl_lqr",
+    duration: float = 30.0,
+    dt: float = 0.01,
+    seed: int = 0,
+    trajectory: Optional[UnicycleTrajectory] = None,
+    change_detection: bool = False,
+) -> TestRun:
     """Return the time series of one test, with or without parameter estimation."""
     traj = trajectory or (trajectory_1(duration) if test.traj == 1 else trajectory_2(duration))
     ctrl = make_controller(controller, traj)
     truth = true_params(test)
-    changes = [ParameterChange(tc, truth.with_mass(mc), conserve_momentum=False)
-               for tc, mc in test.mass_changes if tc < duration]
+    changes = [
+        ParameterChange(tc, truth.with_mass(mc), conserve_momentum=False)
+        for tc, mc in test.mass_changes
+        if tc < duration
+    ]
     n = int(round(duration / dt)) + 1
-    loop = EstimatingLoop(ctrl, guess_params(test), ekf_config(test.noise, estimate, change_detection),
-                         contact_point(test), n)
+    loop = EstimatingLoop(
+        ctrl, guess_params(test), ekf_config(test.noise, estimate, change_detection), contact_point(test), n
+    )
     rng = np.random.default_rng(seed * 1000 + test.test)
     q0, _, _ = traj.sample(0.0)
-    sim = simulate(truth, loop, duration, dt, q0=q0, noise=MeasurementNoise.from_level(test.noise), rng=rng,
-                   changes=changes, contact_point=contact_point(test), allocate=False)
-    q_des = np.array([traj.sample(t)[0] for t in sim.true.t])
-    return TestRun(t=sim.true.t, q=sim.true.q, q_desired=q_des, params_true=sim.params_t,
-                   params_hat=loop.params_hat, nis=loop.nis, gamma=sim.true.gamma)
+    sim = simulate(
+        truth,
+        loop,
+        duration,
+        dt,
+        q0=q0,
+        noise=MeasurementNoise.from_level(test.noise),
+        rng=rng,
+        changes=changes,
+        contact_point=contact_point(test),
+        allocate=False,
+    )
+    q_des = traj.poses(sim.true.t)
+    return TestRun(
+        t=sim.true.t,
+        q=sim.true.q,
+        q_desired=q_des,
+        params_true=sim.params_t,
+        params_hat=loop.params_hat,
+        nis=loop.nis,
+        gamma=sim.true.gamma,
+    )
 
 
 def mass_converged_time(t: np.ndarray, m_hat: np.ndarray, m_true: np.ndarray, tol: float = 1.0) -> Optional[float]:
@@ -222,43 +306,113 @@ def estimation_error_metrics(run: TestRun, after: float = 5.0) -> dict:
     e_c = np.hypot(*(run.params_hat[:, 1:3] - run.params_true[:, 1:3]).T)
     late = run.t >= after
     late = late if late.any() else np.ones_like(late)
-    return {"mass_error_rms_kg": float(np.sqrt(np.mean(e_m ** 2))),
-            "mass_error_max_after_5s_kg": float(e_m[late].max()),
-            "com_error_rms_m": float(np.sqrt(np.mean(e_c ** 2))),
-            "com_error_max_after_5s_m": float(e_c[late].max()),
-            "time_mass_within_1kg_s": float(np.sum(e_m <= 1.0) * dt),
-            "time_com_within_1cm_s": float(np.sum(e_c <= 0.01) * dt)}
+    return {
+        "mass_error_rms_kg": float(np.sqrt(np.mean(e_m**2))),
+        "mass_error_max_after_5s_kg": float(e_m[late].max()),
+        "com_error_rms_m": float(np.sqrt(np.mean(e_c**2))),
+        "com_error_max_after_5s_m": float(e_c[late].max()),
+        "time_mass_within_1kg_s": float(np.sum(e_m <= 1.0) * dt),
+        "time_com_within_1cm_s": float(np.sum(e_c <= 0.01) * dt),
+    }
 
 
-def _rms_after(run: TestRun, t0: float) -> Tuple[float, float]:
+def _tracking_mm_after(run: TestRun, t0: float) -> Tuple[float, float]:
+    """Return (RMS, max) of the tracking error |p_d - p| over t >= t0, in mm."""
     err = run.position_error[run.t >= t0]
-    return float(np.sqrt(np.mean(err ** 2))), float(np.max(err))
+    return 1e3 * float(np.sqrt(np.mean(err**2))), 1e3 * float(np.max(err))
 
 
-def evaluate(test: Table1Test, controller: str = "fl_lqr", duration: float = 30.0, dt: float = 0.01,
-             seed: int = 0, change_detection: bool = False) -> TestResult:
+def table1_result(test: Table1Test, run: TestRun, run0: TestRun) -> TestResult:
+    """Return the Table I metrics of a test from its runs with (``run``) and without (``run0``) estimation."""
+    m_true = run.params_true[:, 0]
+    com_err = float(np.hypot(*(run.params_hat[-1, 1:3] - run.params_true[-1, 1:3])))
+    rms, mx = _tracking_mm_after(run, 5.0)
+    rms0, mx0 = _tracking_mm_after(run0, 5.0)
+    return TestResult(
+        test=test.test,
+        mass_error_final_kg=float(abs(run.params_hat[-1, 0] - m_true[-1])),
+        mass_converged_s=mass_converged_time(run.t, run.params_hat[:, 0], m_true),
+        com_error_final_m=com_err,
+        tracking_rms_mm=rms,
+        tracking_rms_no_estimation_mm=rms0,
+        tracking_max_after_5s_mm=mx,
+        tracking_max_after_5s_no_estimation_mm=mx0,
+        run=run,
+        run_no_estimation=run0,
+        estimation=estimation_error_metrics(run),
+    )
+
+
+def evaluate(
+    test: Table1Test,
+    controller: str = "fl_lqr",
+    duration: float = 30.0,
+    dt: float = 0.01,
+    seed: int = 0,
+    change_detection: bool = False,
+) -> TestResult:
     """Return the Table I metrics of one test (runs it with and without estimation)."""
     run = run_test(test, True, controller, duration, dt, seed, change_detection=change_detection)
     run0 = run_test(test, False, controller, duration, dt, seed)
-    m_true = run.params_true[:, 0]
-    com_err = float(np.hypot(*(run.params_hat[-1, 1:3] - run.params_true[-1, 1:3])))
-    rms, mx = _rms_after(run, 5.0)
-    rms0, mx0 = _rms_after(run0, 5.0)
-    return TestResult(test=test.test, mass_error_final_kg=float(abs(run.params_hat[-1, 0] - m_true[-1])),
-                      mass_converged_s=mass_converged_time(run.t, run.params_hat[:, 0], m_true),
-                      com_error_final_m=com_err, tracking_rms_m=rms, tracking_rms_no_estimation_m=rms0,
-                      tracking_max_after_5s_m=mx, tracking_max_after_5s_no_estimation_m=mx0,
-                      run=run, run_no_estimation=run0, estimation=estimation_error_metrics(run))
+    return table1_result(test, run, run0)
 
 
-def run_table1(tests: Sequence[Table1Test] = TESTS, controller: str = "fl_lqr", duration: float = 30.0,
-               dt: float = 0.01, seed: int = 0,
-               progress: Optional[Callable[[int], None]] = None,
-               change_detection: bool = False) -> List[TestResult]:
-    """Return the TestResult of every test (``progress(test)`` is called after each)."""
-    out = []
-    for test in tests:
-        out.append(evaluate(test, controller, duration, dt, seed, change_detection))
-        if progress is not None:
-            progress(test.test)
-    return out
+def default_workers() -> int:
+    """Return the CPUs this process may use (the default number of worker processes of :func:`run_table1`)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _run_job(job: Tuple[Table1Test, bool, str, float, float, int, bool]) -> TestRun:
+    """Run one (test, estimate, ...) job of :func:`run_table1` (a worker process's task)."""
+    test, estimate, controller, duration, dt, seed, change_detection = job
+    return run_test(test, estimate, controller, duration, dt, seed, change_detection=change_detection and estimate)
+
+
+def _run_jobs(jobs: Sequence[tuple], workers: int) -> Iterator[Tuple[int, TestRun]]:
+    """Yield (job index, run) as the runs finish: in this process (workers 1) or on forked worker processes."""
+    if workers <= 1 or len(jobs) <= 1:
+        for i, job in enumerate(jobs):
+            yield i, _run_job(job)
+        return
+    methods = multiprocessing.get_all_start_methods()
+    ctx = multiprocessing.get_context("fork" if "fork" in methods else None)  # fork: no re-import per worker
+    for traj in {job[0].traj for job in jobs}:  # build the trajectory grids once, before forking
+        (trajectory_1 if traj == 1 else trajectory_2)(jobs[0][3])._grid()
+    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx) as pool:
+        futures = {pool.submit(_run_job, job): i for i, job in enumerate(jobs)}
+        for future in as_completed(futures):
+            yield futures[future], future.result()
+
+
+def run_table1(
+    tests: Sequence[Table1Test] = TESTS,
+    controller: str = "fl_lqr",
+    duration: float = 30.0,
+    dt: float = 0.01,
+    seed: int = 0,
+    progress: Optional[Callable[[int], None]] = None,
+    change_detection: bool = False,
+    workers: Optional[int] = None,
+) -> List[TestResult]:
+    """Return the TestResult of every test, in the order of ``tests``.
+
+    The two runs of every test (with and without estimation) are independent
+    jobs, run on ``workers`` processes (None: :func:`default_workers`; 1: in this
+    process); every run has its own seeded noise, so the results do not depend
+    on ``workers``. ``progress(test)`` is called as each test's two runs are done.
+    """
+    jobs = [
+        (test, estimate, controller, duration, dt, seed, change_detection)
+        for test in tests
+        for estimate in (True, False)
+    ]
+    runs: dict = {}
+    for i, run in _run_jobs(jobs, default_workers() if workers is None else int(workers)):
+        runs[i] = run
+        pair = i - i % 2
+        if progress is not None and pair in runs and pair + 1 in runs:
+            progress(jobs[pair][0].test)
+    return [table1_result(test, runs[2 * k], runs[2 * k + 1]) for k, test in enumerate(tests)]

@@ -1,4 +1,5 @@
 """A Meshcat scene of one Table I test (`cartpush view --scenario N`): the study's run, animated."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -40,9 +41,13 @@ def scenario_scene(test: int, duration: float = 30.0, serve: bool = False, fps: 
     scene.show_trace("actual", q[:, :2])
     scene.show_contact("arm0", contact_b[:1], frame="b")
     scene.show_com(np.asarray(run.params_true)[0, 1:3], np.asarray(run.params_hat)[0, 1:3])
-    scene.animate(run.t, {"ridgeback_iiwa": base, "shopping_cart": q},
-                  q_joints={"ridgeback_iiwa": np.tile(q_robot[4:], (len(q), 1))},
-                  wrenches={"arm0": (contact, np.asarray(run.gamma)[:, :2])},
-                  markers={"contacts/arm0/0": contact, "com/com_true": com_true, "com/com_est": com_est}, fps=fps)
+    scene.animate(
+        run.t,
+        {"ridgeback_iiwa": base, "shopping_cart": q},
+        q_joints={"ridgeback_iiwa": np.tile(q_robot[4:], (len(q), 1))},
+        wrenches={"arm0": (contact, np.asarray(run.gamma)[:, :2])},
+        markers={"contacts/arm0/0": contact, "com/com_true": com_true, "com/com_est": com_est},
+        fps=fps,
+    )
     frame_points(np.vstack((np.column_stack((q[:, :2], np.zeros(len(q)))), base)), scene)
     return scene

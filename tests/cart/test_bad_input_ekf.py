@@ -1,4 +1,5 @@
 """Issue 14, class 2: the EKF against bad measurements — NaN rows, gross outliers, gaps, a broken covariance."""
+
 from __future__ import annotations
 
 import math
@@ -74,8 +75,9 @@ def test_long_gap_is_split_into_substeps():
     truth, t, g, z = _log(20.0)
     keep = np.ones(len(t), dtype=bool)
     keep[500:1500] = False  # a 10 s hole in a 100 Hz log
-    ekf, hist, _ = run_ekf(t[keep], g[keep], z[keep], truth.with_mass(15.0).phi, truth.sigma,
-                           EKFConfig(estimate_sigma=True))
+    ekf, hist, _ = run_ekf(
+        t[keep], g[keep], z[keep], truth.with_mass(15.0).phi, truth.sigma, EKFConfig(estimate_sigma=True)
+    )
     assert ekf.gaps == 1
     assert abs(hist[-1, 6] - truth.m) < 2.0  # one Euler step over 10 s gave 12 kg for a 31.5 kg cart before
 

@@ -1,4 +1,5 @@
 """LQR gain (Hamiltonian eigenvector CARE vs scipy), the fl_lqr/kanayama controllers, Table I data."""
+
 import math
 
 import numpy as np
@@ -11,8 +12,9 @@ from cart.params import CartParams
 
 
 def _error_system(rng):
-    p = CartParams(rng.uniform(8, 40), rng.uniform(-0.3, 0.5), rng.uniform(-0.2, 0.2), rng.uniform(0.5, 4.0),
-                   rng.uniform(0, 8))
+    p = CartParams(
+        rng.uniform(8, 40), rng.uniform(-0.3, 0.5), rng.uniform(-0.2, 0.2), rng.uniform(0.5, 4.0), rng.uniform(0, 8)
+    )
     q = np.r_[rng.normal(size=2), rng.uniform(-math.pi, math.pi)]
     qd = rng.normal(size=3)
     return model.mass_matrix(q, p), model.coriolis_matrix(q, qd, p)
@@ -50,3 +52,37 @@ def test_handle_matches_the_shipped_cart():
     from robots import shopping_cart
 
     assert table1.HANDLE_X == pytest.approx(shopping_cart.CART_HANDLE_X)
+
+
+def test_trajectory_sample_is_numpy_interp_of_the_grid_and_poses_agree():
+    from cart.trajectories import trajectory_1, trajectory_2
+
+    rng = np.random.default_rng(3)
+    for traj in (trajectory_1(12.0), trajectory_2(30.0)):
+        tg, xg, yg = traj._grid()[:3]
+        ts = np.concatenate([np.arange(0, 1201) * 0.01, rng.uniform(-1.0, 31.0, 300), [0.0, tg[-1], 40.0]])
+        for t in ts:
+            q, _, _ = traj.sample(t)
+            assert q[0] == np.interp(t, tg, xg) and q[1] == np.interp(t, tg, yg)  # bit for bit
+        poses = traj.poses(ts)
+        np.testing.assert_array_equal(poses, np.array([traj.sample(t)[0] for t in ts]))
+
+
+def test_table1_runs_do_not_depend_on_the_worker_processes():
+    tests = (table1.TESTS[0], table1.TESTS[10])
+    one = table1.run_table1(tests, duration=6.0, workers=1)
+    seen = []
+    two = table1.run_table1(tests, duration=6.0, workers=2, progress=seen.append)
+    assert sorted(seen) == [1, 11]
+    for a, b in zip(one, two):
+        assert a.as_json() == b.as_json()
+        np.testing.assert_array_equal(a.run.q, b.run.q)
+        np.testing.assert_array_equal(a.run_no_estimation.params_hat, b.run_no_estimation.params_hat)
+    # the same as evaluating each test on its own
+    assert one[1].as_json() == table1.evaluate(table1.TESTS[10], duration=6.0).as_json()
+
+
+def test_sensor_loop_of_the_excitation_study_is_table1s_loop():
+    from studies.excitation_study import _SensorLoop
+
+    assert issubclass(_SensorLoop, table1.EstimatingLoop)

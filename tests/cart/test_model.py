@@ -1,4 +1,5 @@
 """Cart model: Pinocchio cross-check, exact vs projected constraint, wrenches, parameters."""
+
 import math
 
 import numpy as np
@@ -75,6 +76,7 @@ def test_projection_annihilates_constraint_direction_and_has_rank_two():
 
 def test_paper_projection_drifts_sideways_while_exact_form_keeps_the_constraint():
     """30 s of a turning push: lateral speed of the b origin < 1e-9 (exact) but large (paper eq. 5-7)."""
+
     def gamma_of(q):
         c, s = math.cos(q[2]), math.sin(q[2])
         return np.array([25.0 * c, 25.0 * s, 4.0])  # forward push + steady turning torque
@@ -122,3 +124,20 @@ def test_params_phi_roundtrip_and_validation():
         CartParams.from_phi([20.0, 6.0, 0.0, 1.0])  # I = 1 - 36/20 < 0
     clipped = project_phi(np.array([-3.0, 6.0, 0.0, 1.0]))
     assert clipped[0] > 0 and CartParams.from_phi(clipped).I > 0
+
+
+def test_simulate_fast_path_equals_the_generic_rk4_step_path():
+    """simulate's float RK4 (exact dynamics, no extra force) is bit for bit the generic `rk4_step` loop."""
+    from cart.simulate import MeasurementNoise, ParameterChange, simulate
+
+    def ctrl(t, q, qd):
+        return np.array([15.0 * math.cos(q[2]), 15.0 * math.sin(q[2]), 2.0 * math.sin(t)])
+
+    kw = dict(
+        noise=MeasurementNoise.from_level(0.005), changes=[ParameterChange(2.0, PARAMS.with_mass(1.5 * PARAMS.m))]
+    )
+    fast = simulate(PARAMS, ctrl, 5.0, rng=np.random.default_rng(2), **kw)
+    generic = simulate(PARAMS, ctrl, 5.0, rng=np.random.default_rng(2), extra_force=lambda *a: np.zeros(3), **kw)
+    np.testing.assert_array_equal(fast.true.q, generic.true.q)
+    np.testing.assert_array_equal(fast.true.qd, generic.true.qd)
+    assert np.ptp(fast.true.q[:, 2]) > 0.5  # the cart turned: the test exercises every state

@@ -1,7 +1,9 @@
 """CLI: `cartpush reproduce` (subset) and `cartpush estimate` on a simulated log and on bad logs."""
+
 import json
 
 import numpy as np
+import pytest
 
 from studies import table1
 from cart.logs import CartLog, write_log
@@ -11,14 +13,33 @@ from wholebody.cli import main
 def test_reproduce_json_fields_and_outputs(tmp_path, capsys):
     assert main(["reproduce", "--json", "--tests", "4", "--duration", "12", "--out", str(tmp_path)]) == 0
     rows = json.loads(capsys.readouterr().out)
-    assert [set(r) for r in rows] == [{"test", "mass_error_final_kg", "mass_converged_s", "com_error_final_m",
-                                       "tracking_rms_m", "tracking_rms_no_estimation_m",
-                                       "mass_error_rms_kg", "mass_error_max_after_5s_kg", "com_error_rms_m",
-                                       "com_error_max_after_5s_m", "time_mass_within_1kg_s",
-                                       "time_com_within_1cm_s"}]
+    assert [set(r) for r in rows] == [
+        {
+            "test",
+            "mass_error_final_kg",
+            "mass_converged_s",
+            "com_error_final_m",
+            "tracking_rms_mm",
+            "tracking_rms_no_estimation_mm",
+            "tracking_max_after_5s_mm",
+            "tracking_max_after_5s_no_estimation_mm",
+            "mass_error_rms_kg",
+            "mass_error_max_after_5s_kg",
+            "com_error_rms_m",
+            "com_error_max_after_5s_m",
+            "time_mass_within_1kg_s",
+            "time_com_within_1cm_s",
+        }
+    ]
     r = rows[0]
     assert r["test"] == 4 and r["mass_error_final_kg"] < 0.5
-    assert r["tracking_rms_no_estimation_m"] > r["tracking_rms_m"]
+    assert r["tracking_rms_no_estimation_mm"] > r["tracking_rms_mm"]
+    # millimetres: the study's own run, recomputed independently from its poses
+    run = table1.run_test(table1.TESTS[3], True, duration=12.0)
+    late = run.t >= 5.0
+    err = np.hypot(*(run.q_desired[late, :2] - run.q[late, :2]).T)
+    assert r["tracking_rms_mm"] == pytest.approx(1e3 * np.sqrt(np.mean(err**2)), rel=1e-12)
+    assert r["tracking_max_after_5s_mm"] == pytest.approx(1e3 * err.max(), rel=1e-12)
     # time-resolved: the max after 5 s bounds the final error, the time within 1 kg fits in the run
     assert r["mass_error_final_kg"] <= r["mass_error_max_after_5s_kg"] < 1.0
     assert r["com_error_final_m"] <= r["com_error_max_after_5s_m"]
@@ -27,6 +48,7 @@ def test_reproduce_json_fields_and_outputs(tmp_path, capsys):
         assert (tmp_path / name).stat().st_size > 0
     md = (tmp_path / "table.md").read_text()
     assert "m err max >5 s [kg]" in md and "mass_error_final_kg" not in md
+    assert "track RMS [mm]" in md and "[m]" not in md.split("CoM err final [m]")[1].splitlines()[0]
     assert "test 4: Traj. 2, m guess 16 kg" in md
 
 
@@ -41,6 +63,14 @@ def test_reproduce_table_headers_match_table_md_and_flag_unobservable_stretches(
     assert (tmp_path / "table.md").read_text().splitlines()[0] == "| " + " | ".join(header) + " |"
     # test 11: the payload change at 10 s leaves the mass estimate > 1 kg off for a stretch
     assert "test 11: Traj. 2" in out and "note: test 11: mass estimate off by > 1 kg" in out
+    # no progress output off a terminal (pytest's stderr is not one)
+    assert capsys.readouterr().err == ""
+
+
+def test_reproduce_rejects_zero_workers(capsys):
+    assert main(["reproduce", "--workers", "0", "--tests", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--workers" in err[0]
 
 
 def test_estimate_json_on_simulated_log(tmp_path, capsys):
@@ -51,8 +81,7 @@ def test_estimate_json_on_simulated_log(tmp_path, capsys):
         assert main(["estimate", str(path), "--method", method, "--mass-guess", "15", "--json"]) == 0
         out = json.loads(capsys.readouterr().out)
         # the contract's fields (DESIGN.md), whatever the method
-        assert {"mass", "com", "inertia", "sigma", "sigma_yaw", "std", "nis_mean", "model_fits",
-                "warnings"} <= set(out)
+        assert {"mass", "com", "inertia", "sigma", "sigma_yaw", "std", "nis_mean", "model_fits", "warnings"} <= set(out)
         assert set(out["std"]) == {"mass", "com", "inertia", "sigma", "sigma_yaw"}
         assert out["method"] == method
         assert abs(out["mass"] - 20.0) < 1.0
