@@ -26,6 +26,7 @@ d. Report: gap before/after (same replay metric), named effects with
    parameters, stds (Gauss-Newton covariance / profile curvature), evidence,
    windows.
 """
+
 from __future__ import annotations
 
 import math
@@ -34,31 +35,34 @@ from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
-from scipy import optimize
 
-from cart.effects import (N_NOMINAL, Effect, measured_rows, nominal_columns, nominal_loadings, registered_effects,
-                          speed_scales)
-from cart.errors import CartError
-from cart.log_signals import Signals, lateral_displacements, velocity_change_noise, signals_from_log, window_edges, window_integrals
+from cart.effects import N_NOMINAL, Effect, measured_rows, nominal_columns, nominal_loadings, registered_effects
+from cart.errors import DiagnoseError
+from cart.log_signals import (
+    Signals,
+    lateral_displacements,
+    signals_from_log,
+    velocity_change_noise,
+    window_edges,
+    window_integrals,
+)
 from cart.logs import CartLog
 from cart.params import CartParams
 from cart.diagnose_replay import Replay, flag_starts, merge_windows, replay
 
-GAP_METRIC = ("RMS excess position error (m) of the {b} origin over the noise floor: sqrt(max(mean(e^2 - f^2), 0)), "
-              "e = RMS error between the model and the measured pose over a 1.0 s replay (started every 0.25 s from "
-              "the smoothed measured state with the measured wrench), f = the RMS error the estimated pose, force "
-              "and torque noise alone predict for that replay; mean over the starts the nominal replay flags as "
-              "significant (all starts when none). 0 = the replay error is at the noise level")
+GAP_METRIC = (
+    "RMS excess position error (m) of the {b} origin over the noise floor: sqrt(max(mean(e^2 - f^2), 0)), "
+    "e = RMS error between the model and the measured pose over a 1.0 s replay (started every 0.25 s from "
+    "the smoothed measured state with the measured wrench), f = the RMS error the estimated pose, force "
+    "and torque noise alone predict for that replay; mean over the starts the nominal replay flags as "
+    "significant (all starts when none). 0 = the replay error is at the noise level"
+)
 NOMINAL_NAMES = ("m", "m_dx", "m_dy", "J", "sigma", "sigma_yaw")
 ROW_NAMES = ("forward force", "yaw torque", "lateral displacement")
 
 
 #: runners-up of a grid-only nonlinear parameter fitted in full and replayed before an effect is named
 GRID_ALTERNATIVES = 3
-
-
-class DiagnoseError(CartError):
-    """The log cannot be diagnosed (too short, no motion, degenerate fit)."""
 
 
 @dataclass
@@ -88,62 +92,96 @@ class Fit:
         return N_NOMINAL + sum(e.n_params for e, _ in self.effects)
 
 
-def _solve(d: np.ndarray, y: np.ndarray, lv: np.ndarray, lw: np.ndarray, s2v: float, s2w: float,
-           n_iter: int = 5) -> Tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+def _gram(a: np.ndarray) -> np.ndarray:
+    """Return a^T a for a stack of matrices a (g, k, p) -> (g, p, p)."""
+    return np.matmul(a.transpose(0, 2, 1), a)
+
+
+def _solve(
+    d: np.ndarray, y: np.ndarray, lv: np.ndarray, lw: np.ndarray, s2v: float, s2w: float, n_iter: int = 5
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (x, equation-noise variance per row, covariance, -2 log-likelihood) of y ~ d x with noisy regressors.
 
-    y (n, 3), d (n, 3, p). The regressors carry the noise of the differentiated
-    pose: column noise = lv * e_v + lw * e_w with var(e_v) = s2v, var(e_w) = s2w
-    (velocity changes over a window). The fit is the bias-corrected
-    (errors-in-variables) weighted least squares: minimise
-    sum w (r^2 - x' S x) with w = 1 / (V_r + x' S_k x); the likelihood uses
-    the variance V_r + x' S_k x of each window row.
+    Batched over the leading axis (one independent problem per entry): y (g, n, 3), d (g, n, 3, p).
+    The regressors carry the noise of the differentiated pose: column noise = lv * e_v + lw * e_w with
+    var(e_v) = s2v, var(e_w) = s2w (velocity changes over a window). The fit is the bias-corrected
+    (errors-in-variables) weighted least squares: minimise sum w (r^2 - x' S x) with
+    w = 1 / (V_r + x' S_k x); the likelihood uses the variance V_r + x' S_k x of each window row.
     """
-    n, r, p = d.shape
-    var_eq = np.array([max(np.var(y[:, k]), 1e-24) for k in range(r)])
-    x = np.zeros(p)
-    s_k = np.zeros((n, r))
+    g, n, r, p = d.shape
+    d2 = d.reshape(g, n * r, p)
+    y2 = y.reshape(g, n * r)
+    # the loadings are sparse (a few columns carry pose noise): only those columns enter
+    cv = np.flatnonzero(np.any(lv != 0.0, axis=(0, 1, 2)))
+    cw = np.flatnonzero(np.any(lw != 0.0, axis=(0, 1, 2)))
+    lv2, lw2 = lv.reshape(g, n * r, p)[:, :, cv], lw.reshape(g, n * r, p)[:, :, cw]
+    var_eq = np.maximum(np.var(y, axis=1), 1e-24)  # (g, r)
+    s_k = np.zeros((g, n, r))
+    ridge = 1e-10 * np.eye(p)
     for _ in range(n_iter):
-        w = 1.0 / (var_eq[None, :] + s_k)  # (n, r)
-        a = d * np.sqrt(w)[:, :, None]
-        b = y * np.sqrt(w)
-        a2 = a.reshape(n * r, p)
-        normal = a2.T @ a2
-        bv = (lv * np.sqrt(w)[:, :, None]).reshape(n * r, p)
-        bw = (lw * np.sqrt(w)[:, :, None]).reshape(n * r, p)
-        corr = s2v * (bv.T @ bv) + s2w * (bw.T @ bw)
-        rhs = a2.T @ b.reshape(n * r)
-        col = np.sqrt(np.maximum(np.diag(normal), 1e-300))
-        nn = normal / np.outer(col, col) + 1e-10 * np.eye(p)
-        cc = corr / np.outer(col, col)
-        chol = np.linalg.cholesky(nn)
+        sw = np.sqrt(1.0 / (var_eq[:, None, :] + s_k)).reshape(g, n * r, 1)
+        a2 = d2 * sw
+        normal = _gram(a2)
+        corr = np.zeros((g, p, p))
+        corr[:, cv[:, None], cv[None, :]] = s2v * _gram(lv2 * sw)
+        corr[:, cw[:, None], cw[None, :]] += s2w * _gram(lw2 * sw)
+        rhs = np.matmul(a2.transpose(0, 2, 1), (y2 * sw[:, :, 0])[:, :, None])[:, :, 0]
+        col = np.sqrt(np.maximum(np.diagonal(normal, axis1=1, axis2=2), 1e-300))
+        outer = col[:, :, None] * col[:, None, :]
+        chol = np.linalg.cholesky(normal / outer + ridge)
         linv = np.linalg.inv(chol)
-        mu, u = np.linalg.eigh(linv @ cc @ linv.T)
+        mu, u = np.linalg.eigh(linv @ (corr / outer) @ linv.transpose(0, 2, 1))
         # bounded bias correction: remove at most 70 % of the normal matrix in any direction
-        mat = chol @ (u * np.maximum(1.0 - mu, 0.3)) @ u.T @ chol.T
-        x = np.linalg.solve(mat, rhs / col) / col
-        res = y - np.einsum("nrp,p->nr", d, x)
-        s_k = s2v * np.einsum("nrp,p->nr", lv, x) ** 2 + s2w * np.einsum("nrp,p->nr", lw, x) ** 2
-        var_eq = np.maximum(np.mean(res * res - s_k, axis=0), 0.05 * np.mean(res * res, axis=0) + 1e-24)
-    var = var_eq[None, :] + s_k
-    a = d / np.sqrt(var)[:, :, None]
-    a2 = a.reshape(n * r, p)
-    cov = np.linalg.pinv(a2.T @ a2)
-    m2ll = float(np.sum(np.log(var) + res * res / var))
+        mat = chol @ (u * np.maximum(1.0 - mu, 0.3)[:, None, :]) @ u.transpose(0, 2, 1) @ chol.transpose(0, 2, 1)
+        x = np.linalg.solve(mat, (rhs / col)[:, :, None])[:, :, 0] / col
+        res = y - np.matmul(d2, x[:, :, None]).reshape(g, n, r)
+        s_k = (s2v * np.matmul(lv2, x[:, cv, None]) ** 2 + s2w * np.matmul(lw2, x[:, cw, None]) ** 2).reshape(g, n, r)
+        var_eq = np.maximum(np.mean(res * res - s_k, axis=1), 0.05 * np.mean(res * res, axis=1) + 1e-24)
+    var = var_eq[:, None, :] + s_k
+    cov = np.linalg.pinv(_gram((d / np.sqrt(var)[..., None]).reshape(g, n * r, p)))
+    m2ll = np.sum(np.log(var) + res * res / var, axis=(1, 2))
     return x, var_eq, cov, m2ll
 
 
-def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, Tuple[float, ...]]],
-              phi_ref: Optional[np.ndarray] = None, max_iter: int = 12,
-              theta_ref: Optional[Sequence[Optional[np.ndarray]]] = None, freeze: int = 0) -> Fit:
-    """Return the weighted least-squares fit of the nominal model plus ``effects`` (with their nl parameters).
+def _solve_many(problems: Sequence[Tuple[np.ndarray, ...]], s2v: float, s2w: float) -> List[Tuple]:
+    """Return :func:`_solve` of each (d, y, lv, lw) in ``problems``, same-shaped ones solved as one batch."""
+    out: List[Optional[Tuple]] = [None] * len(problems)
+    groups: Dict[tuple, List[int]] = {}
+    for i, (d, _, _, _) in enumerate(problems):
+        groups.setdefault(d.shape, []).append(i)
+    for idx in groups.values():
+        stacked = [np.stack([problems[i][k] for i in idx]) for k in range(4)]
+        x, var_eq, cov, m2ll = _solve(*stacked, s2v, s2w)
+        for j, i in enumerate(idx):
+            out[i] = (x[j], var_eq[j], cov[j], float(m2ll[j]))
+    return out
 
-    Effects whose columns use phi, or that add a set-valued term
-    (``Effect.offset``), are fitted by fixed-point iteration from ``phi_ref``
-    and ``theta_ref`` (previous estimates, one per effect; None: start afresh).
-    The set-valued terms of the first ``freeze`` effects stay at ``theta_ref``
-    (a quick refit of one more candidate on top of named effects).
-    """
+
+@dataclass
+class _FitState:
+    """One fit of :func:`fit_models` in progress: its signals, effects and the fixed-point iterate."""
+
+    sig: Signals
+    effects: List[Tuple[Effect, Tuple[float, ...]]]
+    base: Tuple[np.ndarray, np.ndarray, np.ndarray]
+    phi: Optional[np.ndarray]
+    thetas_prev: List[Optional[np.ndarray]]
+    iterate: bool
+    n_iter: int
+    solution: Optional[Tuple] = None
+    thetas: List[np.ndarray] = field(default_factory=list)
+    finished: bool = False
+
+
+def _start_fit(
+    sig0: Signals,
+    edges: np.ndarray,
+    effects: Sequence[Tuple[Effect, Tuple[float, ...]]],
+    phi_ref: Optional[np.ndarray],
+    theta_ref: Optional[Sequence[Optional[np.ndarray]]],
+    max_iter: int,
+) -> _FitState:
+    """Return the start of one fit: the effects' transformed signals, their window rows (cached), the start iterate."""
     sig = sig0
     for e, nl in effects:
         sig = e.transform(sig, nl)
@@ -154,50 +192,137 @@ def fit_model(sig0: Signals, edges: np.ndarray, effects: Sequence[Tuple[Effect, 
         y_w[:, 2] = lateral_displacements(sig, edges)
         base = (a_s, window_integrals(sig.t, a_s, edges), y_w)
         sig.extras["base"] = base
-    a_s, a_w, y_w = base
-    lv_b, lw_b = nominal_loadings(a_w.shape[0])
-    s2v, s2w = sig0.extras["noise_dv"]
-    phi = np.asarray(phi_ref, float) if phi_ref is not None else None
     thetas_prev: List[Optional[np.ndarray]] = list(theta_ref) if theta_ref is not None else []
-    thetas_prev = (thetas_prev + [None] * len(effects))[:len(effects)]
+    thetas_prev = (thetas_prev + [None] * len(effects))[: len(effects)]
     iterate = any(e.uses_phi or e.set_valued for e, _ in effects)
-    n_iter = max_iter if iterate else 1
-    if phi is None and n_iter > 1:
-        phi = _solve(a_w, y_w, lv_b, lw_b, s2v, s2w)[0][:4]
-    for it in range(n_iter):  # fixed-point iteration on phi (and set-valued terms) for effects that use them
-        g_w, lv, lw = [a_w], [lv_b], [lw_b]
-        y_fit = y_w
-        for (e, nl), th_prev in zip(effects, thetas_prev):
-            # the set-valued term first: it may update state the columns use (active set, swing choice)
-            off = e.offset(sig, nl, phi, a_s, th_prev) if e.set_valued else None
-            if off is not None:
-                y_fit = y_fit - window_integrals(sig.t, off, edges)
-            ck = e.column_key(sig, nl)
-            ck = ("cols", ck, len(edges), int(edges[-1])) if ck is not None else None
-            g = sig.extras.get(ck) if ck is not None else None
-            if g is None:
-                g = window_integrals(sig.t, e.columns(sig, nl, phi, a_s), edges)
-                if ck is not None:
-                    sig.extras[ck] = g
-            g_w.append(g)
-            lo = e.noise_loadings(sig, nl, edges, lv_b, lw_b)
-            lv.append(lo[0] if lo is not None else np.zeros_like(g))
-            lw.append(lo[1] if lo is not None else np.zeros_like(g))
-        d = np.concatenate(g_w, axis=2)
-        x, rss, cov, m2ll = _solve(d, y_fit, np.concatenate(lv, axis=2), np.concatenate(lw, axis=2), s2v, s2w)
-        thetas, k = [], N_NOMINAL
-        for e, _ in effects:
-            thetas.append(x[k:k + len(e.param_names)])
-            k += len(e.param_names)
-        done = phi is not None and np.all(np.abs(x[:4] - phi) <= 1e-4 * (np.abs(phi) + 1e-3)) and all(
-            tp is not None and np.all(np.abs(th - tp) <= 1e-3 * (np.abs(tp) + 1e-3))
-            for i, ((e, _), th, tp) in enumerate(zip(effects, thetas, thetas_prev)) if e.set_valued and i >= freeze)
-        phi = x[:4]
-        thetas_prev = [tp if i < freeze else th for i, (tp, th) in enumerate(zip(thetas_prev, thetas))]
-        if done or (it == 0 and not iterate):
+    phi = np.asarray(phi_ref, float) if phi_ref is not None else None
+    return _FitState(
+        sig=sig,
+        effects=list(effects),
+        base=base,
+        phi=phi,
+        thetas_prev=thetas_prev,
+        iterate=iterate,
+        n_iter=max_iter if iterate else 1,
+    )
+
+
+def _design(st: _FitState, edges: np.ndarray) -> Tuple[np.ndarray, ...]:
+    """Return (d, y, lv, lw) of the window rows for the current iterate of ``st`` (set-valued terms first)."""
+    sig, (a_s, a_w, y_w) = st.sig, st.base
+    lv_b, lw_b = nominal_loadings(a_w.shape[0])
+    g_w, lv, lw = [a_w], [lv_b], [lw_b]
+    y_fit = y_w
+    for (e, nl), th_prev in zip(st.effects, st.thetas_prev):
+        # the set-valued term first: it may update state the columns use (active set, swing choice)
+        off = e.offset(sig, nl, st.phi, a_s, th_prev) if e.set_valued else None
+        if off is not None:
+            y_fit = y_fit - window_integrals(sig.t, off, edges)
+        ck = e.column_key(sig, nl)
+        ck = ("cols", ck, len(edges), int(edges[-1])) if ck is not None else None
+        g = sig.extras.get(ck) if ck is not None else None
+        if g is None:
+            g = e.window_columns(sig, nl, st.phi, a_s, edges)
+            if ck is not None:
+                sig.extras[ck] = g
+        g_w.append(g)
+        lo = e.noise_loadings(sig, nl, edges, lv_b, lw_b)
+        lv.append(lo[0] if lo is not None else np.zeros_like(g))
+        lw.append(lo[1] if lo is not None else np.zeros_like(g))
+    return np.concatenate(g_w, axis=2), y_fit, np.concatenate(lv, axis=2), np.concatenate(lw, axis=2)
+
+
+def _converged(st: _FitState, x: np.ndarray, thetas: List[np.ndarray], freeze: int) -> bool:
+    """Return True when phi and the free set-valued effects' parameters stopped moving."""
+    if st.phi is None or not np.all(np.abs(x[:4] - st.phi) <= 1e-4 * (np.abs(st.phi) + 1e-3)):
+        return False
+    return all(
+        tp is not None and np.all(np.abs(th - tp) <= 1e-3 * (np.abs(tp) + 1e-3))
+        for i, ((e, _), th, tp) in enumerate(zip(st.effects, thetas, st.thetas_prev))
+        if e.set_valued and i >= freeze
+    )
+
+
+def _advance(st: _FitState, solution: Tuple, it: int, freeze: int) -> None:
+    """Take one solved iterate into ``st``: parameters, convergence, the next phi and set-valued parameters."""
+    x = solution[0]
+    thetas, k = [], N_NOMINAL
+    for e, _ in st.effects:
+        thetas.append(x[k : k + len(e.param_names)])
+        k += len(e.param_names)
+    done = _converged(st, x, thetas, freeze)
+    st.solution, st.thetas = solution, thetas
+    st.phi = x[:4]
+    st.thetas_prev = [tp if i < freeze else th for i, (tp, th) in enumerate(zip(st.thetas_prev, thetas))]
+    st.finished = bool(done or (it == 0 and not st.iterate) or it + 1 >= st.n_iter)
+
+
+def fit_models(
+    sig0: Signals,
+    edges: np.ndarray,
+    effect_lists: Sequence[Sequence[Tuple[Effect, Tuple[float, ...]]]],
+    phi_ref: Optional[np.ndarray] = None,
+    max_iter: int = 12,
+    theta_refs: Optional[Sequence[Optional[Sequence[Optional[np.ndarray]]]]] = None,
+    freeze: int = 0,
+) -> List[Fit]:
+    """Return :func:`fit_model` of every effect list, the least-squares solves of each iteration as one batch.
+
+    The fits are independent (each has its own iterate; ``theta_refs``: one ``theta_ref`` per list);
+    each fit's own sequence of designs is the one :func:`fit_model` builds.
+    """
+    refs = list(theta_refs) if theta_refs is not None else [None] * len(effect_lists)
+    states = [_start_fit(sig0, edges, eff, phi_ref, ref, max_iter) for eff, ref in zip(effect_lists, refs)]
+    s2v, s2w = sig0.extras["noise_dv"]
+    cold = [st for st in states if st.phi is None and st.n_iter > 1]
+    if cold:  # the nominal fit starts the fixed-point iteration
+        lv_b, lw_b = nominal_loadings(cold[0].base[1].shape[0])
+        sols = _solve_many([(st.base[1], st.base[2], lv_b, lw_b) for st in cold], s2v, s2w)
+        for st, sol in zip(cold, sols):
+            st.phi = sol[0][:4]
+    for it in range(max(st.n_iter for st in states) if states else 0):
+        active = [st for st in states if not st.finished]
+        if not active:
             break
-    n = y_w.shape[0]
-    return Fit(effects=list(effects), x=x[:N_NOMINAL], thetas=thetas, rss=rss, n_win=n, cov=cov, m2ll=m2ll, sig=sig)
+        sols = _solve_many([_design(st, edges) for st in active], s2v, s2w)
+        for st, sol in zip(active, sols):
+            _advance(st, sol, it, freeze)
+    out = []
+    for st in states:
+        x, rss, cov, m2ll = st.solution
+        out.append(
+            Fit(
+                effects=st.effects,
+                x=x[:N_NOMINAL],
+                thetas=st.thetas,
+                rss=rss,
+                n_win=st.base[2].shape[0],
+                cov=cov,
+                m2ll=m2ll,
+                sig=st.sig,
+            )
+        )
+    return out
+
+
+def fit_model(
+    sig0: Signals,
+    edges: np.ndarray,
+    effects: Sequence[Tuple[Effect, Tuple[float, ...]]],
+    phi_ref: Optional[np.ndarray] = None,
+    max_iter: int = 12,
+    theta_ref: Optional[Sequence[Optional[np.ndarray]]] = None,
+    freeze: int = 0,
+) -> Fit:
+    """Return the weighted least-squares fit of the nominal model plus ``effects`` (with their nl parameters).
+
+    Effects whose columns use phi, or that add a set-valued term
+    (``Effect.offset``), are fitted by fixed-point iteration from ``phi_ref``
+    and ``theta_ref`` (previous estimates, one per effect; None: start afresh).
+    The set-valued terms of the first ``freeze`` effects stay at ``theta_ref``
+    (a quick refit of one more candidate on top of named effects).
+    """
+    return fit_models(sig0, edges, [effects], phi_ref, max_iter, [theta_ref], freeze)[0]
 
 
 def _cart_ok(x: np.ndarray) -> bool:
@@ -222,82 +347,151 @@ def _valid(effect: Effect, fit: Fit, check_cart: bool = True) -> bool:
     return bool(effect.is_physical(fit.thetas[-1], fit.effects[-1][1], fit.x))
 
 
+@dataclass(frozen=True)
+class _Search:
+    """The fits of one candidate effect on top of the current fit (internal to :func:`_fit_candidate`)."""
+
+    sig: Signals
+    edges: np.ndarray
+    current: Fit
+    effect: Effect
+
+    @property
+    def named(self) -> int:
+        """Return the number of effects already named (their set-valued terms stay frozen in quick fits)."""
+        return len(self.current.effects)
+
+    def quick(self, nls: Sequence[Tuple[float, ...]], theta_tail: Sequence[Optional[np.ndarray]]) -> List[Fit]:
+        """Return the grid-style fits at ``nls``: the named effects' set-valued terms at their current estimate.
+
+        They iterate only for a candidate that needs it (3 iterations); ``theta_tail``: the candidate's
+        start (None: afresh).
+        """
+        it_grid = 3 if (self.effect.uses_phi or self.effect.set_valued) else 1
+        ref = list(self.current.thetas) + list(theta_tail)
+        return fit_models(
+            self.sig,
+            self.edges,
+            [self.current.effects + [(self.effect, nl)] for nl in nls],
+            self.current.phi,
+            max_iter=it_grid,
+            theta_refs=[ref] * len(nls),
+            freeze=self.named,
+        )
+
+    def full(self, nls: Sequence[Tuple[float, ...]], theta_refs: Sequence[Sequence[np.ndarray]]) -> List[Fit]:
+        """Return the full fits at ``nls`` (every set-valued term iterates), started from ``theta_refs``."""
+        return fit_models(
+            self.sig,
+            self.edges,
+            [self.current.effects + [(self.effect, nl)] for nl in nls],
+            self.current.phi,
+            theta_refs=theta_refs,
+        )
+
+    def score(self, fit: Fit, check: bool) -> float:
+        """Return -2 log-likelihood of a physically valid fit, inf otherwise."""
+        return fit.m2ll if _valid(self.effect, fit, check) else np.inf
+
+
+def _grid_alternatives(search: _Search, grid: list, fits: List[Fit], scores: np.ndarray, check: bool) -> List[Fit]:
+    """Return the full fits at the next-best grid points of a grid-only parameter that are physical."""
+    picks = [int(k) for k in np.argsort(scores)[1 : 1 + GRID_ALTERNATIVES] if np.isfinite(scores[k])]
+    alts = search.full([grid[k] for k in picks], [fits[k].thetas for k in picks]) if picks else []
+    return [alt for alt in alts if _valid(search.effect, alt, check)]
+
+
+def _profile_std(effect: Effect, grid: list, scores: np.ndarray, i: int) -> float:
+    """Return the std of a grid-only parameter from the parabola through the profile at the best point i (-1: none)."""
+    tr = np.log if effect.log_scale else (lambda z: z)
+    j = min(max(i, 1), len(grid) - 2)
+    u = np.array([float(tr(grid[k][0])) for k in (j - 1, j, j + 1)])
+    f = scores[j - 1 : j + 2]
+    if not np.all(np.isfinite(f)):
+        return -1.0
+    c2 = np.polyfit(u - u[1], f, 2)[0]
+    if c2 <= 0:
+        return -1.0
+    s_u = math.sqrt(1.0 / c2)  # m2ll = -2 log L: curvature 2 c2 = 2 / var
+    return s_u * float(np.exp(u[1])) if effect.log_scale else s_u
+
+
+def _refine_bracket(search: _Search, grid: list, i: int) -> Tuple[float, float]:
+    """Return the bracket (lo, hi) of the 1-D refinement around grid point i (extended past the grid's ends)."""
+    lo_b, hi_b = search.effect.nl_bounds(search.sig)[0]
+    log_scale = search.effect.log_scale
+    vals = np.array([g[0] for g in grid])
+    lo = vals[max(i - 1, 0)]
+    hi = vals[min(i + 1, len(vals) - 1)]
+    if i == 0:
+        lo = max(lo_b, vals[0] - (vals[1] - vals[0])) if not log_scale else max(lo_b, vals[0] ** 2 / vals[1])
+    if i == len(vals) - 1:
+        hi = min(hi_b, vals[-1] + (vals[-1] - vals[-2])) if not log_scale else min(hi_b, vals[-1] ** 2 / vals[-2])
+    return float(lo), float(hi)
+
+
+def _refine(search: _Search, grid: list, i: int, best: Fit, check: bool) -> Tuple[Fit, float]:
+    """Return the best fit after a bounded 1-D refinement of the nonlinear parameter, and its std (profile curvature)."""
+    from scipy import optimize  # lazy: scipy.optimize costs start-up time
+
+    log_scale = search.effect.log_scale
+    tr = np.log if log_scale else (lambda z: z)
+    itr = np.exp if log_scale else (lambda z: z)
+    lo, hi = _refine_bracket(search, grid, i)
+    span = abs(float(tr(hi)) - float(tr(lo)))
+
+    def objs(us: Sequence[float]) -> List[float]:
+        fits = search.quick([(float(itr(u)),) for u in us], best.thetas[search.named :])
+        return [f.m2ll if _valid(search.effect, f, check) else 1e300 for f in fits]
+
+    if hi > lo:
+        res = optimize.minimize_scalar(
+            lambda u: objs([u])[0],
+            bounds=(float(tr(lo)), float(tr(hi))),
+            method="bounded",
+            options={"xatol": 1e-3 * max(span, 1e-6)},
+        )
+        if res.fun < best.m2ll:
+            cand = search.full([(float(itr(res.x)),)], [best.thetas])[0]
+            if _valid(search.effect, cand, check):
+                best = cand
+    u0 = float(tr(best.effects[-1][1][0]))
+    du = 0.02 * max(span, 1e-3)
+    fp, fm = objs([u0 + du, u0 - du])
+    curv = (fp + fm - 2.0 * best.m2ll) / du**2
+    s_u = math.sqrt(2.0 / curv) if curv > 0 else float("inf")
+    s = s_u * float(itr(u0)) if log_scale else s_u
+    return best, float(s) if math.isfinite(s) else -1.0
+
+
 def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect) -> Tuple[Fit, List[float]]:
-    """Return the best fit of current effects + ``effect`` (nl parameters searched) and the nl stds."""
-    base_effects = current.effects
-    phi = current.phi
+    """Return the best fit of current effects + ``effect`` (nl parameters searched) and the nl stds.
+
+    Grid fits first (quick: the named effects' set-valued terms stay at their current estimate), then a
+    full fit at the best grid point; a grid-only parameter carries its runners-up along
+    (``Fit.alternatives``, replay-checked by :func:`diagnose`), a refinable one is refined in 1-D.
+    """
+    search = _Search(sig, edges, current, effect)
     grid = effect.nl_grid(sig)
-    th0 = list(current.thetas) + [None]
+    fits = search.quick(grid, [None])
     check = True
-    # grid fits iterate only for a candidate that needs it; the named effects' set-valued terms stay at their
-    # current estimate (the chosen fit below iterates everything)
-    it_grid = 3 if (effect.uses_phi or effect.set_valued) else 1
-    nb = len(base_effects)
-    fits = [fit_model(sig, edges, base_effects + [(effect, nl)], phi, max_iter=it_grid, theta_ref=th0, freeze=nb)
-            for nl in grid]
-    scores = np.array([f.m2ll if _valid(effect, f, check) else np.inf for f in fits])
+    scores = np.array([search.score(f, check) for f in fits])
     if not np.any(np.isfinite(scores)) and not _cart_ok(current.x):
         check = False  # the current cart is impossible already: judge the effect alone
-        scores = np.array([f.m2ll if _valid(effect, f, check) else np.inf for f in fits])
+        scores = np.array([search.score(f, check) for f in fits])
     i = int(np.argmin(scores))
-    best = fit_model(sig, edges, base_effects + [(effect, grid[i])], phi, theta_ref=fits[i].thetas)
+    best = search.full([grid[i]], [fits[i].thetas])[0]
     if not np.isfinite(scores[i]) or not _valid(effect, best, check):
         best.m2ll = float("inf")  # no physically valid fit: a failed candidate
         return best, [-1.0] * len(effect.nl_names)
-    nl_std: List[float] = []
     if not effect.refine and len(grid) > 1:
-        # grid-only parameter: the runners-up (full fits) go along, diagnose keeps the one that replays best
-        for k in np.argsort(scores)[1:1 + GRID_ALTERNATIVES]:
-            if np.isfinite(scores[k]):
-                alt = fit_model(sig, edges, base_effects + [(effect, grid[k])], phi, theta_ref=fits[k].thetas)
-                if _valid(effect, alt, check):
-                    best.alternatives.append(alt)
-    log_scale = effect.log_scale
-    tr = (np.log if log_scale else (lambda z: z))
-    itr = (np.exp if log_scale else (lambda z: z))
-    if len(effect.nl_names) == 1 and len(grid) > 1 and not effect.refine:
-        # grid only: std from the parabola through the profile at the best grid point and its neighbours
-        j = min(max(i, 1), len(grid) - 2)
-        u = np.array([float(tr(grid[k][0])) for k in (j - 1, j, j + 1)])
-        f = scores[j - 1:j + 2]
-        s = -1.0
-        if np.all(np.isfinite(f)):
-            c2 = np.polyfit(u - u[1], f, 2)[0]
-            if c2 > 0:
-                s_u = math.sqrt(1.0 / c2)  # m2ll = -2 log L: curvature 2 c2 = 2 / var
-                s = s_u * float(itr(u[1])) if log_scale else s_u
-        nl_std.append(float(s))
-    elif len(effect.nl_names) == 1 and len(grid) > 1:
-        lo_b, hi_b = effect.nl_bounds(sig)[0]
-        vals = np.array([g[0] for g in grid])
-        lo = vals[max(i - 1, 0)]
-        hi = vals[min(i + 1, len(vals) - 1)]
-        if i == 0:
-            lo = max(lo_b, vals[0] - (vals[1] - vals[0])) if not log_scale else max(lo_b, vals[0] ** 2 / vals[1])
-        if i == len(vals) - 1:
-            hi = min(hi_b, vals[-1] + (vals[-1] - vals[-2])) if not log_scale else min(hi_b, vals[-1] ** 2 / vals[-2])
-
-        def obj(u: float) -> float:
-            f = fit_model(sig, edges, base_effects + [(effect, (float(itr(u)),))], phi, max_iter=it_grid,
-                          theta_ref=th0[:nb] + best.thetas[nb:], freeze=nb)
-            return f.m2ll if _valid(effect, f, check) else 1e300
-
-        if hi > lo:
-            res = optimize.minimize_scalar(obj, bounds=(float(tr(lo)), float(tr(hi))), method="bounded",
-                                           options={"xatol": 1e-3 * max(abs(float(tr(hi)) - float(tr(lo))), 1e-6)})
-            if res.fun < best.m2ll:
-                cand = fit_model(sig, edges, base_effects + [(effect, (float(itr(res.x)),))], phi,
-                                 theta_ref=best.thetas)
-                if _valid(effect, cand, check):
-                    best = cand
-        u0 = float(tr(best.effects[-1][1][0]))
-        du = 0.02 * max(abs(float(tr(hi)) - float(tr(lo))), 1e-3)
-        f0, fp, fm = best.m2ll, obj(u0 + du), obj(u0 - du)
-        curv = (fp + fm - 2.0 * f0) / du ** 2
-        s_u = math.sqrt(2.0 / curv) if curv > 0 else float("inf")
-        s = s_u * float(itr(u0)) if log_scale else s_u
-        nl_std.append(float(s) if math.isfinite(s) else -1.0)
-    return best, nl_std
+        best.alternatives.extend(_grid_alternatives(search, grid, fits, scores, check))
+    if len(effect.nl_names) != 1 or len(grid) < 2:
+        return best, []
+    if not effect.refine:
+        return best, [_profile_std(effect, grid, scores, i)]
+    best, s = _refine(search, grid, i, best, check)
+    return best, [s]
 
 
 @dataclass(frozen=True)
@@ -312,9 +506,13 @@ class NamedEffect:
 
     def to_dict(self) -> dict:
         """Return the JSON form: name, parameters, uncertainties, evidence, windows."""
-        return {"name": self.name, "parameters": _clean(self.parameters), "uncertainties": _clean(self.uncertainties),
-                "evidence": round(float(self.evidence), 3),
-                "windows": [[round(a, 3), round(b, 3)] for a, b in self.windows]}
+        return {
+            "name": self.name,
+            "parameters": _clean(self.parameters),
+            "uncertainties": _clean(self.uncertainties),
+            "evidence": round(float(self.evidence), 3),
+            "windows": [[round(a, 3), round(b, 3)] for a, b in self.windows],
+        }
 
 
 @dataclass(frozen=True)
@@ -355,23 +553,33 @@ class DiagnosisReport:
 
     def to_dict(self) -> dict:
         """Return the JSON form of ``cartpush diagnose --json``."""
-        return {"effects": [e.to_dict() for e in self.effects], "gap_before": round(self.gap_before, 6),
-                "gap_after": round(self.gap_after, 6), "gap_metric": self.gap_metric,
-                "rms_before": round(self.rms_before, 6), "rms_after": round(self.rms_after, 6),
-                "noise_floor": round(self.noise_floor, 6),
-                "windows": [{"t0": round(w.t0, 3), "t1": round(w.t1, 3), "activity": w.activity,
-                             "chi2": round(w.chi2, 2)} for w in self.windows],
-                "nominal": _clean(self.nominal), "final_model": _clean(self.final_model),
-                "candidates": [{"name": n, "delta_bic": round(s, 3)} for n, s in self.candidates],
-                "threshold": self.threshold}
+        return {
+            "effects": [e.to_dict() for e in self.effects],
+            "gap_before": round(self.gap_before, 6),
+            "gap_after": round(self.gap_after, 6),
+            "gap_metric": self.gap_metric,
+            "rms_before": round(self.rms_before, 6),
+            "rms_after": round(self.rms_after, 6),
+            "noise_floor": round(self.noise_floor, 6),
+            "windows": [
+                {"t0": round(w.t0, 3), "t1": round(w.t1, 3), "activity": w.activity, "chi2": round(w.chi2, 2)}
+                for w in self.windows
+            ],
+            "nominal": _clean(self.nominal),
+            "final_model": _clean(self.final_model),
+            "candidates": [{"name": n, "delta_bic": round(s, 3)} for n, s in self.candidates],
+            "threshold": self.threshold,
+        }
 
     def summary(self) -> str:
         """Return a readable multi-line summary."""
         lines = [f"diagnosis of {self.source}"]
         nm = self.nominal
-        lines.append(f"nominal fit: m = {nm['m']:.2f} kg, CoM = ({nm['dx']:.3f}, {nm['dy']:.3f}) m, "
-                     f"I = {nm['I']:.2f} kg m^2, sigma = {nm['sigma']:.2f} N s/m, "
-                     f"sigma_yaw = {nm['sigma_yaw']:.2f} N m s/rad")
+        lines.append(
+            f"nominal fit: m = {nm['m']:.2f} kg, CoM = ({nm['dx']:.3f}, {nm['dy']:.3f}) m, "
+            f"I = {nm['I']:.2f} kg m^2, sigma = {nm['sigma']:.2f} N s/m, "
+            f"sigma_yaw = {nm['sigma_yaw']:.2f} N m s/rad"
+        )
         lines.append(f"significant discrepancy windows: {len(self.windows)}")
         for w in self.windows[:12]:
             lines.append(f"  [{w.t0:7.2f}, {w.t1:7.2f}] s  {w.activity:<28} chi2 max {w.chi2:8.1f}")
@@ -383,9 +591,11 @@ class DiagnosisReport:
             ps = ", ".join(_format_parameter(k, v, e.uncertainties.get(k)) for k, v in e.parameters.items())
             lines.append(f"{i}. {e.name}: {ps}  (Delta BIC {e.evidence:.1f}, {len(e.windows)} windows)")
         lines.append("first-round Delta BIC: " + ", ".join(f"{n} {s:.1f}" for n, s in self.candidates))
-        lines.append(f"gap before {self.gap_before * 1000:.1f} mm -> after {self.gap_after * 1000:.1f} mm "
-                     f"(RMS replay error over the noise floor; raw RMS {self.rms_before * 1000:.1f} -> "
-                     f"{self.rms_after * 1000:.1f} mm, noise floor {self.noise_floor * 1000:.1f} mm)")
+        lines.append(
+            f"gap before {self.gap_before * 1000:.1f} mm -> after {self.gap_after * 1000:.1f} mm "
+            f"(RMS replay error over the noise floor; raw RMS {self.rms_before * 1000:.1f} -> "
+            f"{self.rms_after * 1000:.1f} mm, noise floor {self.noise_floor * 1000:.1f} mm)"
+        )
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -394,11 +604,31 @@ class DiagnosisReport:
 
 #: Units of the effects' parameters in :meth:`DiagnosisReport.summary` (names of cart.effects' ``describe``).
 PARAMETER_UNITS: Dict[str, str] = {
-    "force": "N", "torque": "N m", "distance": "m", "shape": "1", "torque_sharp": "N m", "torque_soft": "N m",
-    "damping": "N m s/rad", "trail": "m", "fx": "N", "tau": "N m", "angle": "rad", "direction": "rad",
-    "gx": "m/s^2", "gy": "m/s^2", "delta_m": "kg", "delta_m_dx": "kg m", "delta_m_dy": "kg m",
-    "delta_J": "kg m^2", "time": "s", "mass_before": "kg", "mass_after": "kg", "com_x_after": "m",
-    "com_y_after": "m", "delay": "s", "compliance": "m/(s N)",
+    "force": "N",
+    "torque": "N m",
+    "distance": "m",
+    "shape": "1",
+    "torque_sharp": "N m",
+    "torque_soft": "N m",
+    "damping": "N m s/rad",
+    "trail": "m",
+    "fx": "N",
+    "tau": "N m",
+    "angle": "rad",
+    "direction": "rad",
+    "gx": "m/s^2",
+    "gy": "m/s^2",
+    "delta_m": "kg",
+    "delta_m_dx": "kg m",
+    "delta_m_dy": "kg m",
+    "delta_J": "kg m^2",
+    "time": "s",
+    "mass_before": "kg",
+    "mass_after": "kg",
+    "com_x_after": "m",
+    "com_y_after": "m",
+    "delay": "s",
+    "compliance": "m/(s N)",
 }
 
 
@@ -427,11 +657,22 @@ def _clean(d: Dict[str, float]) -> Dict[str, float]:
 def _physical(x: np.ndarray, cov: Optional[np.ndarray] = None) -> Dict[str, float]:
     """Return m, dx, dy, I (about the CoM), sigma, sigma_yaw of x (NaN where phi is not physical) with stds."""
     m, a, b, j, s, s_yaw = (float(v) for v in x[:N_NOMINAL])
-    out = {"m": m, "dx": a / m if m > 0 else float("nan"), "dy": b / m if m > 0 else float("nan"),
-           "I": j - (a * a + b * b) / m if m > 0 else float("nan"), "sigma": s, "sigma_yaw": s_yaw}
+    out = {
+        "m": m,
+        "dx": a / m if m > 0 else float("nan"),
+        "dy": b / m if m > 0 else float("nan"),
+        "I": j - (a * a + b * b) / m if m > 0 else float("nan"),
+        "sigma": s,
+        "sigma_yaw": s_yaw,
+    }
     if cov is not None:
-        out.update({"m_std": math.sqrt(max(cov[0, 0], 0)), "sigma_std": math.sqrt(max(cov[4, 4], 0)),
-                    "sigma_yaw_std": math.sqrt(max(cov[5, 5], 0))})
+        out.update(
+            {
+                "m_std": math.sqrt(max(cov[0, 0], 0)),
+                "sigma_std": math.sqrt(max(cov[4, 4], 0)),
+                "sigma_yaw_std": math.sqrt(max(cov[5, 5], 0)),
+            }
+        )
     return out
 
 
@@ -479,111 +720,278 @@ def _activity(sig: Signals, t0: float, t1: float) -> str:
     return "+".join(labels)
 
 
-def diagnose(log: CartLog, candidates: Optional[Sequence[Effect]] = None, threshold: float = 10.0,
-             max_effects: int = 3, horizon: Optional[float] = None, window: Optional[float] = None) -> DiagnosisReport:
+@dataclass(frozen=True)
+class _Trial:
+    """One fitted variant of a candidate effect: its Delta BIC, the variant, its fit and nl stds."""
+
+    dbic: float
+    effect: Effect
+    fit: Fit
+    nl_std: List[float]
+
+
+@dataclass(frozen=True)
+class _Ranked:
+    """The fitted variants of one candidate effect, best Delta BIC first."""
+
+    trials: List[_Trial]
+
+    @property
+    def best(self) -> _Trial:
+        """Return the variant with the best Delta BIC."""
+        return self.trials[0]
+
+
+@dataclass(frozen=True)
+class _Named:
+    """An effect named in one round of the search: its variant's trial and the replay of the model with it."""
+
+    trial: _Trial
+    replay: Replay
+
+
+def _checked_signals(
+    log: CartLog, horizon: Optional[float], window: Optional[float]
+) -> Tuple[Signals, float, np.ndarray]:
+    """Return (signals, replay horizon, window edges) of ``log``; raise DiagnoseError when it cannot be diagnosed."""
+    sig = signals_from_log(log)
+    if np.max(np.abs(sig.v)) < 5.0 * sig.sigma_v and np.max(np.abs(sig.omega)) < 5.0 * sig.sigma_omega:
+        raise DiagnoseError(
+            f"{log.source}: the cart does not move beyond the noise of its pose "
+            f"(speed noise {sig.sigma_v:.2g} m/s); nothing to diagnose"
+        )
+    if horizon is None:  # 1 s replays for a cart log, shorter for a short log
+        horizon = min(1.0, (sig.t[-1] - sig.t[0]) / 6.0)
+    med_dt = float(np.median(np.diff(sig.t)))
+    if horizon < 3.0 * med_dt:
+        raise DiagnoseError(
+            f"{log.source}: samples are {med_dt:.3g} s apart, too far apart to replay the model over "
+            f"{horizon:.3g} s (need at least 3 samples per replay); if t is in milliseconds, "
+            "convert it to seconds"
+        )
+    edges = window_edges(sig.t, window if window is not None else 2.0 * sig.half_window)
+    sig.extras["noise_dv"] = velocity_change_noise(sig, edges)
+    if len(edges) < 12:
+        raise DiagnoseError(f"{log.source}: too short for a fit ({len(edges) - 1} windows)")
+    return sig, horizon, edges
+
+
+def _rank_candidates(
+    sig: Signals, edges: np.ndarray, current: Fit, cands: Sequence[Effect], named: Sequence[str]
+) -> List[_Ranked]:
+    """Return every candidate not yet named with its variants ranked by Delta BIC, best candidate first."""
+    n_obs = 3 * (len(edges) - 1)
+    results = []
+    for e in cands:
+        if e.name in named:
+            continue
+        tried = []
+        for ev in e.variants():  # nested parameterisations of one effect: ranked by their best Delta BIC
+            fit, nl_std = _fit_candidate(sig, edges, current, ev)
+            for f in [fit] + fit.alternatives:
+                tried.append(_Trial((current.m2ll - f.m2ll) - ev.n_params * math.log(n_obs), ev, f, nl_std))
+        tried.sort(key=lambda r: -r.dbic if np.isfinite(r.dbic) else np.inf)
+        results.append(_Ranked(tried))
+    results.sort(key=lambda r: -r.best.dbic)
+    return results
+
+
+def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon: float) -> Optional[_Named]:
+    """Return, among an effect's significant variants, the one whose replay follows the whole log best (None: none)."""
+    best = None
+    for tr in trials:
+        if tr.dbic <= threshold or not np.isfinite(tr.dbic):
+            break
+        if tr.fit.x[0] <= 0 or not np.all(np.isfinite(tr.fit.x)):
+            continue
+        extra, dphi = _replay_terms(tr.fit)
+        rep = replay(tr.fit.sig, tr.fit.x, extra, dphi, horizon=horizon)
+        if not rep.finite:  # a blown-up replay = a failed candidate (infinite error)
+            continue
+        if best is None or rep.rms_error() < best.replay.rms_error():
+            best = _Named(tr, rep)
+    return best
+
+
+def _choose_effect(
+    results: Sequence[_Ranked], threshold: float, horizon: float, mask: Optional[np.ndarray], last: Optional[Replay]
+) -> Optional[_Named]:
+    """Return the best significant candidate whose replay stays finite (and, after a first one, keeps the gap)."""
+    for ranked in results:
+        if ranked.best.dbic <= threshold or not np.isfinite(ranked.best.dbic):
+            break
+        chosen = _best_replaying_variant(ranked.trials, threshold, horizon)
+        if chosen is None:
+            continue
+        if last is not None and chosen.replay.gap(mask) > 1.02 * last.gap(mask):
+            continue  # a further effect must not widen the gap the named ones left
+        return chosen
+    return None
+
+
+def _named_effects(
+    named: Sequence[_Named], reps: Sequence[Replay], flagged: np.ndarray, horizon: float
+) -> List[NamedEffect]:
+    """Return the report entries of the named effects: parameters, stds, evidence, windows they improve."""
+    out: List[NamedEffect] = []
+    for i, nm in enumerate(named):
+        e, fit = nm.trial.effect, nm.trial.fit
+        th = fit.thetas[-1]
+        k0 = N_NOMINAL + sum(len(ee.param_names) for ee, _ in fit.effects[:-1])
+        cov = fit.cov[k0 : k0 + len(th), k0 : k0 + len(th)] if len(th) else np.zeros((0, 0))
+        params, std = e.describe(th, fit.effects[-1][1], cov, nm.trial.nl_std, fit.phi)
+        better = flagged & (reps[i + 1].chi2 < 0.5 * reps[i].chi2)
+        wins = merge_windows(reps[0].starts, better, horizon)
+        out.append(
+            NamedEffect(
+                name=e.name, parameters=params, uncertainties=std, evidence=float(nm.trial.dbic), windows=tuple(wins)
+            )
+        )
+    return out
+
+
+def _discrepancy_windows(sig: Signals, rep0: Replay, flagged: np.ndarray, horizon: float) -> List[DiscrepancyWindow]:
+    """Return the windows where the nominal replay disagrees significantly, with activity and max chi2."""
+    windows = []
+    for t0, t1 in merge_windows(rep0.starts, flagged, horizon):
+        sel = flagged & (rep0.starts >= t0 - 1e-9) & (rep0.starts <= t1)
+        windows.append(
+            DiscrepancyWindow(t0=t0, t1=t1, activity=_activity(sig, t0, t1), chi2=float(np.max(rep0.chi2[sel])))
+        )
+    return windows
+
+
+def diagnose(
+    log: CartLog,
+    candidates: Optional[Sequence[Effect]] = None,
+    threshold: float = 10.0,
+    max_effects: int = 3,
+    horizon: Optional[float] = None,
+    window: Optional[float] = None,
+) -> DiagnosisReport:
     """Return the DiagnosisReport of ``log``: nominal fit, discrepancy windows, named effects, gap before/after.
 
     ``candidates`` defaults to every registered effect; an effect is named when
     its Delta BIC exceeds ``threshold`` (10 = "very strong" evidence).
     """
-    sig = signals_from_log(log)
-    if np.max(np.abs(sig.v)) < 5.0 * sig.sigma_v and np.max(np.abs(sig.omega)) < 5.0 * sig.sigma_omega:
-        raise DiagnoseError(f"{log.source}: the cart does not move beyond the noise of its pose "
-                            f"(speed noise {sig.sigma_v:.2g} m/s); nothing to diagnose")
-    if horizon is None:  # 1 s replays for a cart log, shorter for a short log
-        horizon = min(1.0, (sig.t[-1] - sig.t[0]) / 6.0)
-    med_dt = float(np.median(np.diff(sig.t)))
-    if horizon < 3.0 * med_dt:
-        raise DiagnoseError(f"{log.source}: samples are {med_dt:.3g} s apart, too far apart to replay the model over "
-                            f"{horizon:.3g} s (need at least 3 samples per replay); if t is in milliseconds, "
-                            "convert it to seconds")
-    edges = window_edges(sig.t, window if window is not None else 2.0 * sig.half_window)
-    sig.extras["noise_dv"] = velocity_change_noise(sig, edges)
-    if len(edges) < 12:
-        raise DiagnoseError(f"{log.source}: too short for a fit ({len(edges) - 1} windows)")
+    sig, horizon, edges = _checked_signals(log, horizon, window)
     cands = list(candidates) if candidates is not None else registered_effects()
-    n_obs = 3 * (len(edges) - 1)
     nominal = fit_model(sig, edges, [])
     if nominal.x[0] <= 0:
-        raise DiagnoseError(f"{log.source}: the nominal fit gives a non-positive mass ({nominal.x[0]:.3g} kg); "
-                            "the log lacks excitation or force and motion do not match")
+        raise DiagnoseError(
+            f"{log.source}: the nominal fit gives a non-positive mass ({nominal.x[0]:.3g} kg); "
+            "the log lacks excitation or force and motion do not match"
+        )
     rep0 = replay(sig, nominal.x, horizon=horizon)
     flagged = flag_starts(rep0)
-    current = nominal
-    named: List[Tuple[Effect, Fit, float, List[float]]] = []
+    mask = flagged if np.any(flagged) else None
+    current, named, reps = nominal, [], [rep0]  # reps: the nominal replay and one after each named effect
     first_scores: List[Tuple[str, float]] = []
-    reps = [rep0]  # replays of the nominal model and after each named effect
     for round_ in range(max_effects):
-        results = []
-        for e in cands:
-            if any(e.name == n.name for n, _, _, _ in named):
-                continue
-            tried = []
-            for ev in e.variants():  # nested parameterisations of one effect: ranked by their best Delta BIC
-                fit, nl_std = _fit_candidate(sig, edges, current, ev)
-                for f in [fit] + fit.alternatives:
-                    dbic = (current.m2ll - f.m2ll) - ev.n_params * math.log(n_obs)
-                    tried.append((dbic, ev, f, nl_std))
-            tried.sort(key=lambda r: -r[0] if np.isfinite(r[0]) else np.inf)
-            results.append(tried[0] + (tried,))
+        results = _rank_candidates(sig, edges, current, cands, [nm.trial.effect.name for nm in named])
         if not results:
             break
-        results.sort(key=lambda r: -r[0])
         if round_ == 0:
-            first_scores = [(r[1].name, float(r[0])) for r in results]
-        chosen = None
-        for dbic0, _, _, _, tried in results:  # best significant candidate whose replay stays finite
-            if dbic0 <= threshold or not np.isfinite(dbic0):
-                break
-            # among the effect's significant variants, the one whose replay follows the whole log best
-            best_var = None
-            for dbic, e, fit, nl_std in tried:
-                if dbic <= threshold or not np.isfinite(dbic):
-                    break
-                if fit.x[0] <= 0 or not np.all(np.isfinite(fit.x)):
-                    continue
-                extra, dphi = _replay_terms(fit)
-                rep = replay(fit.sig, fit.x, extra, dphi, horizon=horizon)
-                if not rep.finite:  # a blown-up replay = a failed candidate (infinite error)
-                    continue
-                if best_var is None or rep.rms_error() < best_var[-1].rms_error():
-                    best_var = (dbic, e, fit, nl_std, rep)
-            if best_var is None:
-                continue
-            dbic, e, fit, nl_std, rep = best_var
-            mask = flagged if np.any(flagged) else None
-            if named and rep.gap(mask) > 1.02 * reps[-1].gap(mask):
-                continue  # a further effect must not widen the gap the named ones left
-            chosen = (e, fit, dbic, nl_std, rep)
-            break
+            first_scores = [(r.best.effect.name, float(r.best.dbic)) for r in results]
+        chosen = _choose_effect(results, threshold, horizon, mask, reps[-1] if named else None)
         if chosen is None:
             break
-        named.append(chosen[:4])
-        reps.append(chosen[4])
-        current = chosen[1]
-    effects_out: List[NamedEffect] = []
-    for i, (e, fit, dbic, nl_std) in enumerate(named):
-        th = fit.thetas[-1]
-        k0 = N_NOMINAL + sum(len(ee.param_names) for ee, _ in fit.effects[:-1])
-        cov = fit.cov[k0:k0 + len(th), k0:k0 + len(th)] if len(th) else np.zeros((0, 0))
-        params, std = e.describe(th, fit.effects[-1][1], cov, nl_std, fit.phi)
-        better = flagged & (reps[i + 1].chi2 < 0.5 * reps[i].chi2)
-        wins = merge_windows(reps[0].starts, better, horizon)
-        effects_out.append(NamedEffect(name=e.name, parameters=params, uncertainties=std, evidence=float(dbic),
-                                       windows=tuple(wins)))
-    windows = []
-    for t0, t1 in merge_windows(rep0.starts, flagged, horizon):
-        sel = flagged & (rep0.starts >= t0 - 1e-9) & (rep0.starts <= t1)
-        windows.append(DiscrepancyWindow(t0=t0, t1=t1, activity=_activity(sig, t0, t1),
-                                         chi2=float(np.max(rep0.chi2[sel]))))
-    mask = flagged if np.any(flagged) else None
-    final_model = _physical(current.x, current.cov)
-    return DiagnosisReport(effects=tuple(effects_out), gap_before=rep0.gap(mask), gap_after=reps[-1].gap(mask),
-                           gap_metric=GAP_METRIC, windows=tuple(windows), nominal=_physical(nominal.x, nominal.cov),
-                           final_model=final_model, candidates=tuple(first_scores), threshold=float(threshold),
-                           source=log.source, rms_before=rep0.rms_error(mask), rms_after=reps[-1].rms_error(mask),
-                           noise_floor=rep0.noise_floor(mask), replay_before=rep0, replay_after=reps[-1],
-                           flagged=flagged)
+        named.append(chosen)
+        reps.append(chosen.replay)
+        current = chosen.trial.fit
+    return DiagnosisReport(
+        effects=tuple(_named_effects(named, reps, flagged, horizon)),
+        gap_before=rep0.gap(mask),
+        gap_after=reps[-1].gap(mask),
+        gap_metric=GAP_METRIC,
+        windows=tuple(_discrepancy_windows(sig, rep0, flagged, horizon)),
+        nominal=_physical(nominal.x, nominal.cov),
+        final_model=_physical(current.x, current.cov),
+        candidates=tuple(first_scores),
+        threshold=float(threshold),
+        source=log.source,
+        rms_before=rep0.rms_error(mask),
+        rms_after=reps[-1].rms_error(mask),
+        noise_floor=rep0.noise_floor(mask),
+        replay_before=rep0,
+        replay_after=reps[-1],
+        flagged=flagged,
+    )
+
+
+def _plot_replay_errors(ax, report: DiagnosisReport, mask: Optional[np.ndarray], horizon: float) -> None:
+    """Draw the position error of non-overlapping replays before/after, the noise floor and the flagged windows."""
+    rb, ra = report.replay_before, report.replay_after
+    for rep, colour, label in (
+        (rb, "tab:red", "nominal model (before)"),
+        (ra, "tab:blue", "with named effects (after)"),
+    ):
+        picked, last = [], -np.inf
+        for k, t0 in enumerate(rep.starts):  # non-overlapping replays, one per horizon
+            if t0 >= last + horizon - 1e-9:
+                picked.append(k)
+                last = t0
+        for n, k in enumerate(picked):
+            err = np.hypot(*(rep.sim[k, :, :2] - rep.meas[k, :, :2]).T) * 1000
+            ax.plot(
+                rep.starts[k] + rep.tau,
+                err,
+                "-",
+                color=colour,
+                lw=0.9,
+                label=f"{label}: RMS {rep.rms_error(mask) * 1000:.1f} mm" if n == 0 else None,
+            )
+    ax.plot(rb.starts, rb.floor * 1000, "k:", lw=1.0, label="noise floor (RMS of a replay)")
+    for i, w in enumerate(report.windows):
+        ax.axvspan(w.t0, w.t1, color="orange", alpha=0.25, label="flagged windows" if i == 0 else None)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("replay position error [mm]")
+    ax.set_title(f"position error of {horizon:.3g} s replays of the fitted model against the log")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left")
+
+
+def _plot_zoom(zx, report: DiagnosisReport, w: DiscrepancyWindow, first: bool) -> None:
+    """Draw the measured path and the replays before/after from the worst start of flagged window ``w``."""
+    rb, ra = report.replay_before, report.replay_after
+    sel = np.flatnonzero((rb.starts >= w.t0 - 1e-9) & (rb.starts <= w.t1))
+    k = int(sel[np.argmax(rb.chi2[sel])]) if len(sel) else int(np.argmin(np.abs(rb.starts - w.t0)))
+    meas = rb.meas[k, :, :2]
+    zx.plot(meas[:, 0], meas[:, 1], "k.-", ms=2, lw=1.2, label="measured")
+    zx.plot(rb.sim[k, :, 0], rb.sim[k, :, 1], "-", color="tab:red", lw=1.2, label="before")
+    ka = int(np.argmin(np.abs(ra.starts - rb.starts[k])))
+    zx.plot(ra.sim[ka, :, 0], ra.sim[ka, :, 1], "--", color="tab:blue", lw=1.2, label="after")
+    zx.plot(*meas[0], "ko", ms=4)
+    zx.set_aspect("equal", adjustable="datalim")
+    zx.set_xlabel("x [m]")
+    zx.set_ylabel("y [m]") if first else None
+    zx.set_title(f"replay from t = {rb.starts[k]:.2f} s (window {w.t0:.1f}-{w.t1:.1f} s)", fontsize=9)
+    zx.grid(alpha=0.3)
+    if first:
+        zx.legend(fontsize=7)
+
+
+def _residual_figure(report: DiagnosisReport):
+    """Return the figure of the per-replay RMS error and chi-square over time, before and after."""
+    from matplotlib.figure import Figure
+
+    rb, ra = report.replay_before, report.replay_after
+    res = Figure(figsize=(12, 6), layout="constrained")
+    axes = res.subplots(2, 1, sharex=True)
+    axes[0].plot(rb.starts, rb.rms * 1000, "r-", label="before")
+    axes[0].plot(ra.starts, ra.rms * 1000, "b-", label="after")
+    axes[0].plot(rb.starts, rb.floor * 1000, "k:", label="noise floor")
+    axes[0].set_ylabel("replay RMS error [mm]")
+    axes[0].legend()
+    axes[1].semilogy(rb.starts, np.maximum(rb.chi2, 1e-3), "r-", label="before")
+    axes[1].semilogy(ra.starts, np.maximum(ra.chi2, 1e-3), "b-", label="after")
+    axes[1].set_ylabel("chi2 (3 dof)")
+    axes[1].set_xlabel("replay start t [s]")
+    for a in axes:
+        for w in report.windows:
+            a.axvspan(w.t0, w.t1, color="orange", alpha=0.25)
+    axes[0].set_title("residuals over time; shaded: windows where the nominal model disagrees significantly")
+    return res
 
 
 def diagnosis_figures(report: DiagnosisReport, max_zooms: int = 3) -> dict:
@@ -607,59 +1015,11 @@ def diagnosis_figures(report: DiagnosisReport, max_zooms: int = 3) -> dict:
     mask = report.flagged if report.flagged is not None and np.any(report.flagged) else None
     fig = Figure(figsize=(12, 7.5 if windows else 4.5), layout="constrained")
     grid = fig.add_gridspec(2 if windows else 1, max(1, len(windows)), height_ratios=[1, 1.3] if windows else [1])
-    ax = fig.add_subplot(grid[0, :])
     horizon = float(rb.tau[-1] - rb.tau[0]) if len(rb.tau) > 1 else 1.0
-    for rep, colour, label in ((rb, "tab:red", "nominal model (before)"), (ra, "tab:blue", "with named effects (after)")):
-        picked, last = [], -np.inf
-        for k, t0 in enumerate(rep.starts):  # non-overlapping replays, one per horizon
-            if t0 >= last + horizon - 1e-9:
-                picked.append(k)
-                last = t0
-        for n, k in enumerate(picked):
-            err = np.hypot(*(rep.sim[k, :, :2] - rep.meas[k, :, :2]).T) * 1000
-            ax.plot(rep.starts[k] + rep.tau, err, "-", color=colour, lw=0.9,
-                    label=f"{label}: RMS {rep.rms_error(mask) * 1000:.1f} mm" if n == 0 else None)
-    ax.plot(rb.starts, rb.floor * 1000, "k:", lw=1.0, label="noise floor (RMS of a replay)")
-    for i, w in enumerate(report.windows):
-        ax.axvspan(w.t0, w.t1, color="orange", alpha=0.25, label="flagged windows" if i == 0 else None)
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("replay position error [mm]")
-    ax.set_title(f"position error of {horizon:.3g} s replays of the fitted model against the log")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left")
+    _plot_replay_errors(fig.add_subplot(grid[0, :]), report, mask, horizon)
     for j, w in enumerate(windows):
-        zx = fig.add_subplot(grid[1, j])
-        sel = np.flatnonzero((rb.starts >= w.t0 - 1e-9) & (rb.starts <= w.t1))
-        k = int(sel[np.argmax(rb.chi2[sel])]) if len(sel) else int(np.argmin(np.abs(rb.starts - w.t0)))
-        meas = rb.meas[k, :, :2]
-        zx.plot(meas[:, 0], meas[:, 1], "k.-", ms=2, lw=1.2, label="measured")
-        zx.plot(rb.sim[k, :, 0], rb.sim[k, :, 1], "-", color="tab:red", lw=1.2, label="before")
-        ka = int(np.argmin(np.abs(ra.starts - rb.starts[k])))
-        zx.plot(ra.sim[ka, :, 0], ra.sim[ka, :, 1], "--", color="tab:blue", lw=1.2, label="after")
-        zx.plot(*meas[0], "ko", ms=4)
-        zx.set_aspect("equal", adjustable="datalim")
-        zx.set_xlabel("x [m]")
-        zx.set_ylabel("y [m]") if j == 0 else None
-        zx.set_title(f"replay from t = {rb.starts[k]:.2f} s (window {w.t0:.1f}-{w.t1:.1f} s)", fontsize=9)
-        zx.grid(alpha=0.3)
-        if j == 0:
-            zx.legend(fontsize=7)
-    res = Figure(figsize=(12, 6), layout="constrained")
-    axes = res.subplots(2, 1, sharex=True)
-    axes[0].plot(rb.starts, rb.rms * 1000, "r-", label="before")
-    axes[0].plot(ra.starts, ra.rms * 1000, "b-", label="after")
-    axes[0].plot(rb.starts, rb.floor * 1000, "k:", label="noise floor")
-    axes[0].set_ylabel("replay RMS error [mm]")
-    axes[0].legend()
-    axes[1].semilogy(rb.starts, np.maximum(rb.chi2, 1e-3), "r-", label="before")
-    axes[1].semilogy(ra.starts, np.maximum(ra.chi2, 1e-3), "b-", label="after")
-    axes[1].set_ylabel("chi2 (3 dof)")
-    axes[1].set_xlabel("replay start t [s]")
-    for a in axes:
-        for w in report.windows:
-            a.axvspan(w.t0, w.t1, color="orange", alpha=0.25)
-    axes[0].set_title("residuals over time; shaded: windows where the nominal model disagrees significantly")
-    return {"replay": fig, "residuals": res}
+        _plot_zoom(fig.add_subplot(grid[1, j]), report, w, j == 0)
+    return {"replay": fig, "residuals": _residual_figure(report)}
 
 
 def plot_diagnosis(report: DiagnosisReport, out_dir: str) -> List[str]:

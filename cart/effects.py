@@ -18,6 +18,7 @@ To add an effect, subclass :class:`Effect`, set ``name`` and ``param_names``,
 implement ``columns`` (and optionally ``nl_names``/``nl_grid``/``transform``/
 ``describe``), and call :func:`register_effect`.
 """
+
 from __future__ import annotations
 
 import math
@@ -26,17 +27,23 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple, Type
 import numpy as np
 
 from cart.dynamics import regressor
-from cart.log_signals import Signals, derivative_gain, local_poly
+from cart.log_signals import Signals, derivative_gain, local_poly, window_integrals
 
 #: Nominal parameters x = [m, m dx, m dy, J, sigma, sigma_yaw] (two viscous coefficients).
 N_NOMINAL = 6
 
 GRAVITY = 9.81
-NONLINEAR_FREE = ()
 
 #: Effect names of the project contract (DESIGN.md), in the order they are tried.
-CONTRACT_NAMES = ("coulomb_friction", "caster_swivel", "wrench_bias", "payload_change", "floor_slope",
-                  "time_delay", "lateral_slip")
+CONTRACT_NAMES = (
+    "coulomb_friction",
+    "caster_swivel",
+    "wrench_bias",
+    "payload_change",
+    "floor_slope",
+    "time_delay",
+    "lateral_slip",
+)
 
 
 def nominal_columns(sig: Signals) -> np.ndarray:
@@ -79,8 +86,7 @@ def speed_scales(sig: Signals) -> Tuple[float, float]:
     """
     v_peak = float(np.max(np.abs(sig.v))) if sig.n else 0.0
     om_peak = float(np.max(np.abs(sig.omega))) if sig.n else 0.0
-    return (max(min(0.02, 0.05 * v_peak), 2.0 * sig.sigma_v),
-            max(min(0.03, 0.05 * om_peak), 2.0 * sig.sigma_omega))
+    return (max(min(0.02, 0.05 * v_peak), 2.0 * sig.sigma_v), max(min(0.03, 0.05 * om_peak), 2.0 * sig.sigma_omega))
 
 
 def stop_threshold(sig: Signals) -> float:
@@ -214,8 +220,18 @@ class Effect:
         """Return G (N, 3, len(param_names)): rows (forward force, yaw torque, lateral speed) per unit parameter."""
         return np.zeros((sig.n, 3, 0))
 
-    def offset(self, sig: Signals, nl: Tuple[float, ...], phi: np.ndarray, base: np.ndarray,
-               theta: Optional[np.ndarray]) -> Optional[np.ndarray]:
+    def window_columns(
+        self, sig: Signals, nl: Tuple[float, ...], phi: np.ndarray, base: np.ndarray, edges: np.ndarray
+    ) -> np.ndarray:
+        """Return the window integrals (windows, 3, k) of :meth:`columns` over the windows cut at ``edges``.
+
+        The fits use these; an effect whose columns are cheaper to integrate another way overrides it.
+        """
+        return window_integrals(sig.t, self.columns(sig, nl, phi, base), edges)
+
+    def offset(
+        self, sig: Signals, nl: Tuple[float, ...], phi: np.ndarray, base: np.ndarray, theta: Optional[np.ndarray]
+    ) -> Optional[np.ndarray]:
         """Return a term (N, 3) added to the rows besides ``G theta`` (a set-valued force), or None (default).
 
         Called with the previous estimate of phi and of this effect's
@@ -234,8 +250,9 @@ class Effect:
             return None
         return (type(self).__name__, tuple(sorted(vars(self).items())), tuple(float(u) for u in nl))
 
-    def noise_loadings(self, sig: Signals, nl: Tuple[float, ...], edges: np.ndarray, lv: np.ndarray,
-                       lw: np.ndarray) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    def noise_loadings(
+        self, sig: Signals, nl: Tuple[float, ...], edges: np.ndarray, lv: np.ndarray, lw: np.ndarray
+    ) -> Optional[Tuple[np.ndarray, np.ndarray]]:
         """Return the window noise loadings (like :func:`nominal_loadings`) of the columns, or None (noise-free)."""
         return None
 
@@ -243,8 +260,9 @@ class Effect:
         """Return False when the fitted parameters are physically impossible (the fit is then rejected)."""
         return True
 
-    def replay_phi_change(self, sig: Signals, nl: Tuple[float, ...], theta: np.ndarray,
-                          phi: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
+    def replay_phi_change(
+        self, sig: Signals, nl: Tuple[float, ...], theta: np.ndarray, phi: Optional[np.ndarray] = None
+    ) -> Optional[np.ndarray]:
         """Return the change of phi (N, 4) over time the replay must apply, or None (default)."""
         return None
 
@@ -256,8 +274,9 @@ class Effect:
         """
         return [self]
 
-    def describe(self, theta: np.ndarray, nl: Tuple[float, ...], cov: np.ndarray, nl_std: Sequence[float],
-                 phi: np.ndarray) -> Tuple[Dict[str, float], Dict[str, float]]:
+    def describe(
+        self, theta: np.ndarray, nl: Tuple[float, ...], cov: np.ndarray, nl_std: Sequence[float], phi: np.ndarray
+    ) -> Tuple[Dict[str, float], Dict[str, float]]:
         """Return (parameters, standard deviations) as plain dicts for the report."""
         params = {k: float(v) for k, v in zip(self.param_names, theta)}
         std = {k: float(math.sqrt(max(cov[i, i], 0.0))) for i, k in enumerate(self.param_names)}
@@ -335,8 +354,11 @@ class CasterSwivel(Effect):
 
     def variants(self):
         """Return one variant per shape exponent p in {1, 2, 4}, and the swivelling-caster model per axle position."""
-        return ([self] + [CasterSwivel(p) for p in self.SHAPES if p != self.shape]
-                + [SwivelCasterModel(x) for x in SwivelCasterModel.AXLES])
+        return (
+            [self]
+            + [CasterSwivel(p) for p in self.SHAPES if p != self.shape]
+            + [SwivelCasterModel(x) for x in SwivelCasterModel.AXLES]
+        )
 
     @property
     def n_params(self) -> int:
@@ -416,8 +438,9 @@ class CasterSwivel(Effect):
 CASTER_HALF_TRACK = 0.25  # m: lateral offset of the two modelled casters (their exact value matters little)
 #: swing modes of a caster that reaches its leading (unstable) equilibrium: (side, least misalignment);
 #: side 0 = natural (from the motion), +-1 = forced to that side, misalignment = how far from leading it starts
-SWING_MODES: Tuple[Tuple[int, float], ...] = ((0, 1e-5),) + tuple((side, d) for d in (0.1, 0.01, 1e-3, 1e-4, 1e-5)
-                                                                  for side in (1, -1))
+SWING_MODES: Tuple[Tuple[int, float], ...] = ((0, 1e-5),) + tuple(
+    (side, d) for d in (0.1, 0.01, 1e-3, 1e-4, 1e-5) for side in (1, -1)
+)
 
 
 #: half window (s) of the local quadratic that gives the yaw rate driving the caster kinematics
@@ -479,20 +502,20 @@ def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[flo
     alpha = np.empty((n, nx, nt, 2, nm))
     al = np.zeros((nx, nt, 2, nm))
     px = vm[:, None, None, None, None] - omm[:, None, None, None, None] * ys[None]  # (n, 1, 1, 2, 1)
-    py = omm[:, None, None, None, None] * xs[None]                                # (n, nx, 1, 1, 1)
-    psi_all = np.arctan2(py, px)                                                   # (n, nx, 1, 2, 1)
+    py = omm[:, None, None, None, None] * xs[None]  # (n, nx, 1, 1, 1)
+    psi_all = np.arctan2(py, px)  # (n, nx, 1, 2, 1)
     speed = np.hypot(px, py)
     forced = side != 0
+    # the rolling decay of every sample at once
+    decay_all = np.exp(-(speed * dt[:, None, None, None, None]) / es[None])  # (n, nx, nt, 2, 1)
+    yaw_step = omm * dt
     for i in range(n):
-        psi = psi_all[i]
-        decay = np.exp(-speed[i] * dt[i] / es)
-        b = np.mod(al - psi + math.pi, 2.0 * math.pi) - math.pi
+        b = np.mod(al - psi_all[i] + math.pi, 2.0 * math.pi) - math.pi
         far = np.abs(b) > lim
         if far.any():
             b = np.where(far, np.where(forced, side, np.sign(b)) * lim, b)
         hb = 0.5 * b
-        b = 2.0 * np.arctan2(np.sin(hb) * decay, np.cos(hb))
-        al = b + psi - omm[i] * dt[i]
+        al = 2.0 * np.arctan2(np.sin(hb) * decay_all[i], np.cos(hb)) + psi_all[i] - yaw_step[i]
         alpha[i] = al
     qx = v[:, None, None, None, None] - om[:, None, None, None, None] * ys[None]
     qy = om[:, None, None, None, None] * xs[None]
@@ -537,7 +560,8 @@ class SwivelCasterModel(CasterSwivel):
     EPS = (0.2, 0.8)  # rad/s: regularisations of the two Coulomb swivel-friction columns
     #: swing-mode combinations (caster 1, caster 2) tried per swing: both natural, then sides x misalignments
     COMBOS: Tuple[Tuple[int, int], ...] = ((0, 0),) + tuple(
-        (a, b) for d in range(1, len(SWING_MODES), 2) for a, b in ((d, d), (d + 1, d + 1), (d, d + 1), (d + 1, d)))
+        (a, b) for d in range(1, len(SWING_MODES), 2) for a, b in ((d, d), (d + 1, d + 1), (d, d + 1), (d + 1, d))
+    )
 
     #: swing-mode lane of caster 1 and of caster 2 in each combination
     COMBO_LANES: Tuple[np.ndarray, np.ndarray] = (np.array([c[0] for c in COMBOS]), np.array([c[1] for c in COMBOS]))
@@ -617,7 +641,7 @@ class SwivelCasterModel(CasterSwivel):
         cached = sig.extras.get(key)
         if cached is not None:
             return cached
-        w = np.array([1.0 / sig.sigma_force ** 2, 1.0 / sig.sigma_torque ** 2])
+        w = np.array([1.0 / sig.sigma_force**2, 1.0 / sig.sigma_torque**2])
         mkey = ("motion", "caster_swing_units", self.axle_x, trail)
         motion = sig.extras.get(mkey)
         if motion is None:
@@ -628,19 +652,50 @@ class SwivelCasterModel(CasterSwivel):
                 al = np.stack([alpha[i0:i1, 0, c1], alpha[i0:i1, 1, c2]], axis=-1)  # (L, combos, 2 casters)
                 ra = np.stack([rate[i0:i1, 0, c1], rate[i0:i1, 1, c2]], axis=-1)
                 u = self._unit_rows(al, ra, trail)  # (L, combos, 2 rows, 3 params)
-                uw = u * w[None, None, :, None]
-                bb = base[i0:i1, :2, :4]  # (L, 2, 4)
-                motion.append(((i0, i1), u, uw, np.einsum("lcrk,lcrj->ckj", uw, u), np.einsum("lcrk,lrj->ckj", uw, bb),
-                               np.einsum("lrj,lrk->jk", bb * w[None, :, None], bb)))
+                n_c = u.shape[1]
+                uc = u.transpose(1, 0, 2, 3).reshape(n_c, -1, 3)  # (combos, L * 2, 3): sums over samples and rows
+                uwc = (u * w[None, None, :, None]).transpose(1, 0, 2, 3).reshape(n_c, -1, 3)
+                bb = base[i0:i1, :2, :4].reshape(-1, 4)  # (L * 2, 4)
+                wr = np.tile(w, i1 - i0)[:, None]
+                motion.append(
+                    ((i0, i1), u, uwc, uwc.transpose(0, 2, 1) @ uc, uwc.transpose(0, 2, 1) @ bb, (bb * wr).T @ bb)
+                )
             sig.extras[mkey] = motion
         out = []
-        for (i0, i1), u, uw, q, rr, ss in motion:
+        for (i0, i1), u, uwc, q, rr, ss in motion:
             y = np.column_stack([sig.f_fwd[i0:i1], sig.tau[i0:i1]])  # (L, 2)
-            bw = base[i0:i1, :2, :4] * w[None, :, None]
-            out.append(((i0, i1), u, q, np.einsum("lcrk,lr->ck", uw, y), rr, float(np.sum(y * y * w)),
-                        np.einsum("lrj,lr->j", bw, y), ss))
+            bw = (base[i0:i1, :2, :4] * w[None, :, None]).reshape(-1, 4)
+            out.append(
+                (
+                    (i0, i1),
+                    u,
+                    q,
+                    uwc.transpose(0, 2, 1) @ y.reshape(-1),
+                    rr,
+                    float(np.sum(y * y * w)),
+                    bw.T @ y.reshape(-1),
+                    ss,
+                )
+            )
         sig.extras[key] = out
         return out
+
+    def _swing_arrays(self, sig: Signals, trail: float, base: np.ndarray) -> Tuple[tuple, ...]:
+        """Return the swings' ranges and their normal-equation terms of :meth:`_swing_stats` stacked over the swings.
+
+        (ranges, Q (S, C, 3, 3), P (S, C, 3), R (S, C, 3, 4), c0 (S,), b (S, 4), S (S, 4, 4), n_ind (S,)):
+        ``n_ind`` the number of roughly independent samples of each swing (one per 0.3 s). Cached.
+        """
+        key = ("caster_swing_arrays", self.axle_x, trail)
+        cached = sig.extras.get(key)
+        if cached is None:
+            stats = self._swing_stats(sig, trail, base)
+            dt = float(np.median(np.diff(sig.t)))
+            ranges = tuple(st[0] for st in stats)
+            n_ind = np.array([max((i1 - i0) * dt / 0.3, 1.0) for i0, i1 in ranges])
+            cached = (ranges,) + tuple(np.array([st[k] for st in stats]) for k in range(2, 8)) + (n_ind,)
+            sig.extras[key] = cached
+        return cached
 
     def _choose(self, sig: Signals, trail: float, phi: np.ndarray, base: np.ndarray, theta: np.ndarray) -> None:
         """Weigh the mode combinations of every swing by how well their forces explain the residual (given theta).
@@ -653,23 +708,27 @@ class SwivelCasterModel(CasterSwivel):
         """
         ph = np.asarray(phi[:4], float)
         th = np.asarray(theta[:3], float)
-        dt = float(np.median(np.diff(sig.t)))
-        choice = {}
-        for rng_, _, q, pp, rr, c0, b, ss in self._swing_stats(sig, trail, base):
-            score = (np.einsum("k,ckj,j->c", th, q, th) - 2.0 * ((pp - rr @ ph) @ th)
-                     + c0 - 2.0 * ph @ b + ph @ ss @ ph)
-            best = max(float(np.min(score)), 1e-12)
-            n_ind = max((rng_[1] - rng_[0]) * dt / 0.3, 1.0)
-            dchi = 2.0 * n_ind * (score / best - 1.0)
-            wts = np.exp(-0.5 * (dchi - np.min(dchi)))
-            choice[rng_] = wts / np.sum(wts)
-        sig.extras[("caster_choice", self.axle_x, trail)] = choice
+        ranges, q, pp, rr, c0, b, ss, n_ind = self._swing_arrays(sig, trail, base)
+        if not ranges:
+            sig.extras[("caster_choice", self.axle_x, trail)] = {}
+            return
+        score = (
+            np.einsum("k,sckj,j->sc", th, q, th)
+            - 2.0 * ((pp - rr @ ph) @ th)
+            + (c0 - 2.0 * (b @ ph) + np.einsum("j,sjk,k->s", ph, ss, ph))[:, None]
+        )
+        best = np.maximum(np.min(score, axis=1), 1e-12)
+        dchi = 2.0 * n_ind[:, None] * (score / best[:, None] - 1.0)
+        wts = np.exp(-0.5 * (dchi - np.min(dchi, axis=1)[:, None]))
+        wts = wts / np.sum(wts, axis=1)[:, None]
+        sig.extras[("caster_choice", self.axle_x, trail)] = dict(zip(ranges, wts))
 
     def column_key(self, sig, nl):
         """Return the default key plus the current swing-mode weights (the columns depend on them)."""
         choice = self._choice(sig, float(nl[0]))
-        return Effect.column_key(self, sig, nl) + (tuple((k, tuple(np.round(w, 4))) for k, w in sorted(
-            choice.items())),)
+        return Effect.column_key(self, sig, nl) + (
+            tuple((k, tuple(np.round(w, 4))) for k, w in sorted(choice.items())),
+        )
 
     def _rows(self, sig: Signals, trail: float) -> np.ndarray:
         """Return the unit rows (N, 2, 3): natural swings, each chosen swing as its weighted mixture of combos."""
@@ -685,18 +744,23 @@ class SwivelCasterModel(CasterSwivel):
             for st in sig.extras.get(("caster_swing_stats", self.axle_x, trail), []):
                 wts = choice.get(st[0])
                 if wts is not None:
-                    rows[st[0][0]:st[0][1]] = np.einsum("c,lcrk->lrk", wts, st[1])
+                    rows[st[0][0] : st[0][1]] = np.tensordot(wts, st[1], axes=(0, 1))  # (L, rows, params)
         return rows
 
     def _hold_capacity(self, sig: Signals, trail: float) -> np.ndarray:
         """Return sum |sin alpha| / e (N,) per unit torque: the casters' most likely swing per chosen swing."""
         alpha = self._lanes(sig, trail)[0]
-        a = alpha[:, :, 0].copy()
+        nkey = ("motion", "caster_hold_natural", self.axle_x, trail)
+        natural = sig.extras.get(nkey)
+        if natural is None:
+            natural = np.sum(np.abs(np.sin(alpha[:, :, 0])), axis=1) / trail
+            sig.extras[nkey] = natural
+        cap = natural.copy()
         c1, c2 = self.COMBO_LANES
         for (i0, i1), wts in self._choice(sig, trail).items():
             c = int(np.argmax(wts))
-            a[i0:i1, 0], a[i0:i1, 1] = alpha[i0:i1, 0, c1[c]], alpha[i0:i1, 1, c2[c]]
-        return np.sum(np.abs(np.sin(a)), axis=1) / trail
+            cap[i0:i1] = (np.abs(np.sin(alpha[i0:i1, 0, c1[c]])) + np.abs(np.sin(alpha[i0:i1, 1, c2[c]]))) / trail
+        return cap
 
     def columns(self, sig, nl, phi, base):
         """Return G = -dE/d(torque, damping) in the forward and yaw rows (swings as their chosen mixtures)."""
@@ -779,8 +843,12 @@ class FloorSlope(Effect):
         s_alpha = math.sqrt(max(float(jr @ cov2 @ jr), 0.0)) / GRAVITY / max(math.cos(alpha), 1e-6)
         s_beta = math.sqrt(max(float(jb @ cov2 @ jb), 0.0))
         params = {"angle": alpha, "direction": beta, "gx": gx, "gy": gy}
-        std = {"angle": s_alpha, "direction": s_beta, "gx": math.sqrt(max(cov[0, 0], 0)),
-               "gy": math.sqrt(max(cov[1, 1], 0))}
+        std = {
+            "angle": s_alpha,
+            "direction": s_beta,
+            "gx": math.sqrt(max(cov[0, 0], 0)),
+            "gy": math.sqrt(max(cov[1, 1], 0)),
+        }
         return params, std
 
 
@@ -802,7 +870,7 @@ class PayloadChange(Effect):
         phi is identifiable on a side only from its excitation; a change time
         with (almost) none on one side would fit noise there.
         """
-        e = sig.vdot ** 2 + (0.3 * sig.omegadot) ** 2
+        e = sig.vdot**2 + (0.3 * sig.omegadot) ** 2
         cum = np.concatenate([[0.0], np.cumsum(0.5 * (e[1:] + e[:-1]) * np.diff(sig.t))])
         cum = cum / max(cum[-1], 1e-12)
         lo = max(sig.t[0] + 1.5, float(np.interp(0.05, cum, sig.t)))
@@ -844,9 +912,14 @@ class PayloadChange(Effect):
         """Return time, mass before/after, mass change, CoM after the change (with stds)."""
         params, std = Effect.describe(self, theta, nl, cov, nl_std, phi)
         after = np.asarray(phi[:4], float) + np.asarray(theta[:4], float)
-        params.update({"mass_before": float(phi[0]), "mass_after": float(after[0]),
-                       "com_x_after": float(after[1] / after[0]) if after[0] > 0 else float("nan"),
-                       "com_y_after": float(after[2] / after[0]) if after[0] > 0 else float("nan")})
+        params.update(
+            {
+                "mass_before": float(phi[0]),
+                "mass_after": float(after[0]),
+                "com_x_after": float(after[1] / after[0]) if after[0] > 0 else float("nan"),
+                "com_y_after": float(after[2] / after[0]) if after[0] > 0 else float("nan"),
+            }
+        )
         std.update({"mass_after": std["delta_m"]})
         return params, std
 
@@ -872,6 +945,17 @@ class PayloadMassStep(PayloadChange):
         step = (sig.t >= nl[0]).astype(float)
         u = np.asarray(phi[:4], float) / float(phi[0])
         return (base[:, :, :4] @ u)[:, :, None] * step[:, None, None]
+
+    def window_columns(self, sig, nl, phi, base, edges):
+        """Return the window integrals of the columns: those of the stepped phi columns (cached) along phi / m."""
+        sig.extras["phi_mass_step"] = np.asarray(phi[:4], float)
+        key = ("phi_step_windows", float(nl[0]), len(edges), int(edges[-1]))
+        stepped = sig.extras.get(key)
+        if stepped is None:
+            stepped = window_integrals(sig.t, PayloadChange.columns(self, sig, nl, phi, base), edges)
+            sig.extras[key] = stepped
+        u = np.asarray(phi[:4], float) / float(phi[0])
+        return (stepped @ u)[:, :, None]
 
     def noise_loadings(self, sig, nl, edges, lv, lw):
         """Return the nominal phi loadings along phi / m in the windows after the change time."""
@@ -906,8 +990,14 @@ class PayloadMassStep(PayloadChange):
         for k, v, sd in zip(self.nl_names, nl, nl_std):
             params[k], std[k] = float(v), float(sd)
         after = np.asarray(phi[:4], float) + full
-        params.update({"mass_before": float(phi[0]), "mass_after": float(after[0]),
-                       "com_x_after": float(after[1] / after[0]), "com_y_after": float(after[2] / after[0])})
+        params.update(
+            {
+                "mass_before": float(phi[0]),
+                "mass_after": float(after[0]),
+                "com_x_after": float(after[1] / after[0]),
+                "com_y_after": float(after[2] / after[0]),
+            }
+        )
         std.update({"mass_after": std["delta_m"]})
         return params, std
 
@@ -942,7 +1032,7 @@ class LateralSlip(Effect):
     def columns(self, sig, nl, phi, base):
         """Return G: lateral force the wheels carry, f_lat - (m v omega + m dx omegadot - m dy omega^2)."""
         m, a, b = phi[0], phi[1], phi[2]
-        f_need = sig.f_lat - (m * sig.v * sig.omega + a * sig.omegadot - b * sig.omega ** 2)
+        f_need = sig.f_lat - (m * sig.v * sig.omega + a * sig.omegadot - b * sig.omega**2)
         g = np.zeros((sig.n, 3, 1))
         g[:, 2, 0] = f_need
         return g

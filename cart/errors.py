@@ -4,6 +4,7 @@ Every error the project raises for bad input derives from :class:`CartpushError`
 (a ``ValueError``): `cart` is the dependency root, so `robots` and `wholebody`
 import it from here. The CLI maps it to one line on stderr and exit code 2.
 """
+
 from __future__ import annotations
 
 
@@ -25,3 +26,7 @@ class ParameterError(CartError):
 
 class NumericalError(CartError):
     """A computation broke down numerically on the given data (e.g. a covariance no longer positive definite)."""
+
+
+class DiagnoseError(CartError):
+    """The log cannot be diagnosed (too short, no motion, degenerate fit); also importable from cart.diagnose."""

@@ -34,6 +34,7 @@ filtering):
 6. Model check: the residual RMS against what the wrench noise alone explains
    (``residual_ratio``, 1 for a model that fits).
 """
+
 from __future__ import annotations
 
 import math
@@ -41,8 +42,8 @@ from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
+from cart._kernels_identify import butter_lowpass_sos, sosfiltfilt, student_t_quantile
 from cart.dynamics import regressor
 from cart.errors import CartError
 from cart.logs import CartLog
@@ -125,12 +126,11 @@ def white_noise_std(y: np.ndarray) -> float:
 
 def _filtfilt(sos: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Return the zero-phase filtered y (along axis 0), edge padding shortened for short signals."""
-    return sosfiltfilt(sos, y, axis=0, padlen=min(15, len(y) - 1))
+    return sosfiltfilt(sos, y, padlen=min(15, len(y) - 1))
 
 
-def _kinematics(q: np.ndarray, dt: float, sos: np.ndarray) -> Tuple[np.ndarray, ...]:
-    """Return (theta, v, omega, vdot, omegadot) of the filtered pose (body frame, constraint w = 0)."""
-    qs = _filtfilt(sos, q)
+def _pose_kinematics(qs: np.ndarray, dt: float) -> Tuple[np.ndarray, ...]:
+    """Return (theta, v, omega, vdot, omegadot) of the filtered pose qs (body frame, constraint w = 0)."""
     qd = np.gradient(qs, dt, axis=0)
     th = qs[:, 2]
     c, s = np.cos(th), np.sin(th)
@@ -139,15 +139,36 @@ def _kinematics(q: np.ndarray, dt: float, sos: np.ndarray) -> Tuple[np.ndarray, 
     return th, v, om, np.gradient(v, dt), np.gradient(om, dt)
 
 
-def _noise_gains(n: int, dt: float, sos: np.ndarray, seed: int = 0) -> Tuple[float, float]:
-    """Return (acceleration std per unit pose noise, filtered-output std per unit input noise) of the pipeline."""
-    m = min(n, 20000)
-    e = np.random.default_rng(seed).standard_normal(m)
-    ef = _filtfilt(sos, e)
+def _kinematics(q: np.ndarray, dt: float, sos: np.ndarray) -> Tuple[np.ndarray, ...]:
+    """Return (theta, v, omega, vdot, omegadot) of the pose filtered by ``sos``."""
+    return _pose_kinematics(_filtfilt(sos, q), dt)
+
+
+def _unit_noise(n: int, seed: int = 0) -> np.ndarray:
+    """Return the white unit noise (at most 20000 samples) whose filtered version gives the pipeline's noise gains."""
+    return np.random.default_rng(seed).standard_normal(min(n, 20000))
+
+
+def _gains_of(ef: np.ndarray, dt: float) -> Tuple[float, float]:
+    """Return (acceleration std, output std) of filtered unit noise ``ef``, away from its ends."""
+    m = len(ef)
     acc = np.gradient(np.gradient(ef, dt), dt)
     k = m // 10
     core = slice(k, m - k) if m > 50 else slice(None)
     return float(np.std(acc[core])), float(np.std(ef[core]))
+
+
+def _noise_gains(n: int, dt: float, sos: np.ndarray, seed: int = 0) -> Tuple[float, float]:
+    """Return (acceleration std per unit pose noise, filtered-output std per unit input noise) of the pipeline."""
+    return _gains_of(_filtfilt(sos, _unit_noise(n, seed)), dt)
+
+
+def _filter_pose_and_noise(sos: np.ndarray, q: np.ndarray, e: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Return (filtered q, filtered e); one pass over both when they have the same length (columns are independent)."""
+    if len(e) == len(q):
+        both = _filtfilt(sos, np.column_stack([q, e]))
+        return both[:, :3], both[:, 3]
+    return _filtfilt(sos, q), _filtfilt(sos, e)
 
 
 def _choose_cutoff(grid: _Grid, pos_std: float, th_std: float, attenuation: float) -> Tuple[float, List[str]]:
@@ -159,10 +180,11 @@ def _choose_cutoff(grid: _Grid, pos_std: float, th_std: float, attenuation: floa
     low = max(4.0 / max(duration, 1e-9), 1e-3 * fs)
     candidates = np.geomspace(top, low, 40) if top > low else np.array([top])
     best = None
+    e = _unit_noise(len(grid.t))
     for fc in candidates:
-        sos = butter(4, fc / (fs / 2.0), output="sos")
-        _, v, om, vd, od = _kinematics(grid.q, grid.dt, sos)
-        acc_gain, _ = _noise_gains(len(grid.t), grid.dt, sos)
+        qs, ef = _filter_pose_and_noise(butter_lowpass_sos(4, fc / (fs / 2.0)), grid.q, e)
+        _, v, om, vd, od = _pose_kinematics(qs, grid.dt)
+        acc_gain, _ = _gains_of(ef, grid.dt)
         noise_v, noise_o = (pos_std * acc_gain) ** 2, (th_std * acc_gain) ** 2
         share_v = noise_v / max(float(np.var(vd[grid.valid])), 1e-300)
         share_o = noise_o / max(float(np.var(od[grid.valid])), 1e-300)
@@ -173,8 +195,10 @@ def _choose_cutoff(grid: _Grid, pos_std: float, th_std: float, attenuation: floa
             best = fc  # the yaw row may never be clean; keep looking a little for both
     if best is None:
         best = candidates[-1]
-        warnings.append("the pose noise dominates the accelerations at every cut-off: the log barely "
-                        "excites the inertia (push harder or longer, or log the pose with less noise)")
+        warnings.append(
+            "the pose noise dominates the accelerations at every cut-off: the log barely "
+            "excites the inertia (push harder or longer, or log the pose with less noise)"
+        )
     return float(best), warnings
 
 
@@ -211,8 +235,9 @@ def _noise_correction(wts: np.ndarray, noise: np.ndarray) -> np.ndarray:
     return np.diag(wts[:, 0].sum() * noise[0] + wts[:, 1].sum() * noise[1])
 
 
-def _wls(x: np.ndarray, y: np.ndarray, noise: np.ndarray, iterations: int = 4
-         ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _wls(
+    x: np.ndarray, y: np.ndarray, noise: np.ndarray, iterations: int = 4
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return (p, row scales (2,), weights (k, 2)) of Huber-weighted, bias-compensated least squares.
 
     ``noise`` (2, n_p): variance of the white part of each regressor entry, per row; its
@@ -224,7 +249,7 @@ def _wls(x: np.ndarray, y: np.ndarray, noise: np.ndarray, iterations: int = 4
     w = np.ones((k, 2))
     p = np.zeros(n_p)
     for _ in range(iterations):
-        wts = w / scale ** 2
+        wts = w / scale**2
         a = np.einsum("kij,kil->jl", x * wts[:, :, None], x) - _noise_correction(wts, noise)
         b = np.einsum("kij,ki->j", x * wts[:, :, None], y)
         p = np.linalg.lstsq(a, b, rcond=None)[0]
@@ -253,17 +278,16 @@ def _jackknife_cov(x: np.ndarray, y: np.ndarray, wts: np.ndarray, noise: np.ndar
     k, _, n_p = x.shape
     edges = np.linspace(0, k, blocks + 1).astype(int)
     xw = x * wts[:, :, None]
-    a_blocks = [np.einsum("kij,kil->jl", xw[i0:i1], x[i0:i1]) - _noise_correction(wts[i0:i1], noise)
-                for i0, i1 in zip(edges[:-1], edges[1:])]
+    a_blocks = [
+        np.einsum("kij,kil->jl", xw[i0:i1], x[i0:i1]) - _noise_correction(wts[i0:i1], noise)
+        for i0, i1 in zip(edges[:-1], edges[1:])
+    ]
     b_blocks = [np.einsum("kij,ki->j", xw[i0:i1], y[i0:i1]) for i0, i1 in zip(edges[:-1], edges[1:])]
     a_all, b_all = sum(a_blocks), sum(b_blocks)
-    ests = np.array([np.linalg.lstsq(a_all - a_i, b_all - b_i, rcond=None)[0]
-                     for a_i, b_i in zip(a_blocks, b_blocks)])
+    ests = np.array([np.linalg.lstsq(a_all - a_i, b_all - b_i, rcond=None)[0] for a_i, b_i in zip(a_blocks, b_blocks)])
     d = ests - ests.mean(axis=0)
     # blocks - 1 degrees of freedom: scale to the Student-t 95 % quantile so that 2 std cover ~95 %
-    from scipy.stats import t as student_t  # lazy: scipy.stats costs start-up time
-
-    t_scale = (float(student_t.ppf(0.975, blocks - 1)) / 1.959964) ** 2
+    t_scale = (student_t_quantile(0.975, blocks - 1) / 1.959964) ** 2
     return t_scale * (blocks - 1) / blocks * d.T @ d
 
 
@@ -271,23 +295,31 @@ def _physical_std(p: np.ndarray, cov: np.ndarray) -> Dict[str, object]:
     """Return the std of (m, dx, dy, I about the CoM, c_v, c_w) by linearising the phi -> physical map."""
     m, a, b, j = p[:4]
     jac = np.zeros((6, 6))
-    jac[:4, :4] = [[1.0, 0.0, 0.0, 0.0],
-                   [-a / m ** 2, 1.0 / m, 0.0, 0.0],
-                   [-b / m ** 2, 0.0, 1.0 / m, 0.0],
-                   [(a * a + b * b) / m ** 2, -2.0 * a / m, -2.0 * b / m, 1.0]]
+    jac[:4, :4] = [
+        [1.0, 0.0, 0.0, 0.0],
+        [-a / m**2, 1.0 / m, 0.0, 0.0],
+        [-b / m**2, 0.0, 1.0 / m, 0.0],
+        [(a * a + b * b) / m**2, -2.0 * a / m, -2.0 * b / m, 1.0],
+    ]
     jac[4, 4] = jac[5, 5] = 1.0
     std = np.sqrt(np.maximum(np.diag(jac @ cov[:6, :6] @ jac.T), 0.0))
-    return {"mass": float(std[0]), "com": [float(std[1]), float(std[2])], "inertia": float(std[3]),
-            "sigma": float(std[4]), "sigma_yaw": float(std[5])}
+    return {
+        "mass": float(std[0]),
+        "com": [float(std[1]), float(std[2])],
+        "inertia": float(std[3]),
+        "sigma": float(std[4]),
+        "sigma_yaw": float(std[5]),
+    }
 
 
-def _fit(x: np.ndarray, y: np.ndarray, noise: np.ndarray, lag: int
-         ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _fit(
+    x: np.ndarray, y: np.ndarray, noise: np.ndarray, lag: int
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (p, cov, row scales, residuals) of one weighted fit with its HAC / jackknife covariance."""
     n_p = x.shape[-1]
     noise = np.pad(noise, ((0, 0), (0, n_p - noise.shape[1])))
     p, scale, w = _wls(x, y, noise)
-    wts = w / scale ** 2
+    wts = w / scale**2
     r = y - np.einsum("kij,j->ki", x, p)
     cov_hac = _hac_cov(x, r, wts, noise, lag)
     cov_jk = _jackknife_cov(x, y, wts, noise, JACKKNIFE_BLOCKS)
@@ -297,6 +329,171 @@ def _fit(x: np.ndarray, y: np.ndarray, noise: np.ndarray, lag: int
     return p, corr * np.outer(sd, sd), scale, r
 
 
+@dataclass(frozen=True)
+class _Noise:
+    """White-noise stds the log shows: pose (position m, heading rad), wrench (force N, torque N m); pose span (m)."""
+
+    pos: float
+    theta: float
+    force: float
+    torque: float
+    span: float
+
+
+def _noise_levels(log: CartLog) -> _Noise:
+    """Return the log's noise levels (floored, scale-free); raise IdentifiabilityError when it cannot say anything."""
+    pos_std = max(white_noise_std(log.q[:, 0]), white_noise_std(log.q[:, 1]))
+    th_std = white_noise_std(log.q[:, 2])
+    f_std = max(white_noise_std(log.gamma[:, 0]), white_noise_std(log.gamma[:, 1]))
+    tau_std = white_noise_std(log.gamma[:, 2])
+    span = float(np.max(np.ptp(log.q[:, :2], axis=0)))
+    if span <= 20.0 * max(pos_std, 1e-12) or not np.any(np.abs(log.gamma) > 0):
+        what = (
+            "the cart does not move beyond the pose noise"
+            if span <= 20.0 * max(pos_std, 1e-12)
+            else "the wrench is zero throughout"
+        )
+        raise IdentifiabilityError(f"{log.source}: nothing can be estimated: {what}")
+    # floors: a noise-free log still has rounding; keep the choice scale-free
+    return _Noise(pos=max(pos_std, 1e-9 * span), theta=max(th_std, 1e-9), force=f_std, torque=tau_std, span=span)
+
+
+@dataclass(frozen=True)
+class _Regression:
+    """The filtered regression kept for the fit: X (k, 2, 6), y (k, 2), v and omega on the kept samples."""
+
+    x: np.ndarray
+    y: np.ndarray
+    v: np.ndarray
+    om: np.ndarray
+    keep: np.ndarray
+
+
+def _regression(log: CartLog, grid: _Grid, fc: float, sos: np.ndarray) -> _Regression:
+    """Return the filtered regression at cut-off ``fc`` away from the ends and gaps; raise when too short or not finite."""
+    x, y, v, om = _design(grid, sos)
+    keep = _keep_mask(grid, fc)
+    if keep.sum() < 8:
+        raise IdentifiabilityError(
+            f"{log.source}: the log is too short for its own bandwidth "
+            f"({grid.t[-1] - grid.t[0]:.3g} s at a {fc:.3g} Hz cut-off)"
+        )
+    x, y = x[keep], y[keep]
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        raise IdentifiabilityError(f"{log.source}: the filtered log is not finite (values out of range)")
+    return _Regression(x=x, y=y, v=v[keep], om=om[keep], keep=keep)
+
+
+def _coulomb_check(
+    reg: _Regression, noise: np.ndarray, lag: int, p: np.ndarray
+) -> Tuple[Dict[str, float], Optional[np.ndarray]]:
+    """Return the Coulomb-like resistance of the extended fit (force, torque, Wald) and, when significant, its shift.
+
+    The shift is the change of the six parameters the extra columns cause (model uncertainty).
+    """
+    eps = (0.05 * float(np.std(reg.v)) + 1e-12, 0.05 * float(np.std(reg.om)) + 1e-12)
+    try:
+        pc, covc, _, _ = _fit(_with_coulomb_columns(reg.x, reg.v, reg.om, eps), reg.y, noise, lag)
+    except np.linalg.LinAlgError:
+        pc, covc = np.r_[p, 0.0, 0.0], np.full((8, 8), np.nan)
+    cc = covc[6:, 6:]
+    wald = float(pc[6:] @ np.linalg.pinv(cc) @ pc[6:]) if np.all(np.isfinite(cc)) else 0.0
+    coulomb = {"force": float(pc[6]), "torque": float(pc[7]), "wald": wald}
+    return coulomb, (pc[:6] - p if wald > -2.0 * math.log(COULOMB_ALPHA) else None)
+
+
+def _misfit_scale(p: np.ndarray, ratio: np.ndarray, expected: np.ndarray, y: np.ndarray, fits: bool) -> np.ndarray:
+    """Return the model-uncertainty std of each parameter: the unexplained share of the wrench times its scale.
+
+    The share the model leaves unexplained beyond the noise could bias each parameter by up to that
+    share of its own scale (scale-free; zero when the model fits); forward row: m, c_v; yaw row: J,
+    c_w; both: the first moments.
+    """
+    y_rms = np.sqrt(np.mean(y**2, axis=0)) + 1e-300
+    sh = np.sqrt(np.maximum(ratio**2 - 1.0, 0.0)) * expected / y_rms if not fits else np.zeros(2)
+    m_, a_, b_, j_, cv_, cw_ = p
+    gyr = math.sqrt(abs(j_) / abs(m_)) if m_ != 0 else 0.0
+    return np.array(
+        [sh[0] * m_, sh.max() * abs(m_) * gyr, sh.max() * abs(m_) * gyr, sh[1] * j_, sh[0] * cv_, sh[1] * cw_]
+    )
+
+
+def _physical_params(log: CartLog, p: np.ndarray, cov: np.ndarray) -> Tuple[CartParams, float]:
+    """Return the CartParams of p = [m, m dx, m dy, J, c_v, c_w] and the inertia about the CoM; raise if unphysical."""
+    m, a, b, j, c_v, c_w = p
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(np.diag(cov)))):
+        raise IdentifiabilityError(
+            f"{log.source}: the least-squares problem is singular: the log does not excite "
+            "the parameters (no acceleration or turning above the noise)"
+        )
+    if not (m > 0):
+        raise IdentifiabilityError(
+            f"{log.source}: the fit gives a non-positive mass ({m:.3g} kg): the log does "
+            "not excite the mass (no forward acceleration above the noise)"
+        )
+    inertia = j - (a * a + b * b) / m
+    return CartParams(
+        m=m, dx=a / m, dy=b / m, I=max(inertia, 1e-3 * abs(j), 1e-8), sigma=max(c_v, 0.0), sigma_yaw=max(c_w, 0.0)
+    ), inertia
+
+
+def _residual_ratio(
+    lv: _Noise, out_gain: float, sv: float, so: float, p: np.ndarray, r: np.ndarray, y: np.ndarray
+) -> Tuple[np.ndarray, np.ndarray]:
+    """Return (residual RMS / what the noise explains, the explained RMS) of the forward and yaw rows.
+
+    The explained part: the filtered wrench noise plus the regressor's acceleration noise times the
+    parameters; at least FIT_FLOOR of the wrench (a model "fits" to within it on a noise-free log).
+    """
+    m_, _, b_, j_ = p[:4]
+    expected = (
+        np.sqrt(
+            [
+                (lv.force * out_gain) ** 2 + (m_ * sv) ** 2 + (b_ * so) ** 2,
+                (lv.torque * out_gain) ** 2 + (j_ * so) ** 2 + (b_ * sv) ** 2,
+            ]
+        )
+        + 1e-300
+    )
+    rms = np.sqrt(np.mean(r**2, axis=0))
+    expected = np.maximum(expected, FIT_FLOOR * np.sqrt(np.mean(y**2, axis=0)))
+    return rms / expected, expected
+
+
+def _model_uncertainty(
+    reg: _Regression,
+    noise: np.ndarray,
+    lag: int,
+    p: np.ndarray,
+    cov: np.ndarray,
+    ratio: np.ndarray,
+    expected: np.ndarray,
+    warnings: List[str],
+) -> Tuple[np.ndarray, Dict[str, float], bool]:
+    """Return (covariance with the model uncertainty added, Coulomb-like resistance, model fits); append warnings.
+
+    A significant Coulomb-like resistance (rolling resistance, dry friction: a nuisance term) adds the
+    shift it causes; a misfit adds the unexplained share of the wrench (:func:`_misfit_scale`).
+    """
+    coulomb, shift = _coulomb_check(reg, noise, lag, p)
+    if shift is not None:
+        cov = cov + np.diag(shift**2)
+        warnings.append(
+            f"a Coulomb-like resistance is significant ({coulomb['force']:.3g} N forward, "
+            f"{coulomb['torque']:.3g} N m yaw): the nominal viscous model misses it; the std includes "
+            "its effect on the estimate (`cartpush diagnose` names the effect)"
+        )
+    fits = bool(np.all(ratio <= FIT_RATIO))
+    cov = cov + np.diag(_misfit_scale(p, ratio, expected, reg.y, fits) ** 2)
+    if not fits:
+        warnings.append(
+            f"the model does not fit: residual wrench {ratio[0]:.1f}x (force) and {ratio[1]:.1f}x "
+            "(torque) what the sensor noise explains; the std covers the misfit seen along the log "
+            "(jackknife); run `cartpush diagnose`"
+        )
+    return cov, coulomb, fits
+
+
 def identify(log: CartLog, attenuation: float = ATTENUATION) -> Identification:
     """Return the filtered-regressor least-squares estimate of the cart's parameters on a whole log.
 
@@ -304,95 +501,46 @@ def identify(log: CartLog, attenuation: float = ATTENUATION) -> Identification:
     short, no motion above the noise); weakly excited parameters give warnings.
     """
     if len(log) < 12:
-        raise IdentifiabilityError(f"{log.source}: {len(log)} samples are too few to estimate anything "
-                                   "(need a push of many samples)")
+        raise IdentifiabilityError(
+            f"{log.source}: {len(log)} samples are too few to estimate anything (need a push of many samples)"
+        )
     grid = _uniform_grid(log)
-    pos_std = max(white_noise_std(log.q[:, 0]), white_noise_std(log.q[:, 1]))
-    th_std = white_noise_std(log.q[:, 2])
-    f_std = max(white_noise_std(log.gamma[:, 0]), white_noise_std(log.gamma[:, 1]))
-    tau_std = white_noise_std(log.gamma[:, 2])
-    span = float(np.max(np.ptp(log.q[:, :2], axis=0)))
-    if span <= 20.0 * max(pos_std, 1e-12) or not np.any(np.abs(log.gamma) > 0):
-        what = "the cart does not move beyond the pose noise" if span <= 20.0 * max(pos_std, 1e-12) \
-            else "the wrench is zero throughout"
-        raise IdentifiabilityError(f"{log.source}: nothing can be estimated: {what}")
-    # floors: a noise-free log still has rounding; keep the choice scale-free
-    pos_std = max(pos_std, 1e-9 * span)
-    th_std = max(th_std, 1e-9)
-    fc, warnings = _choose_cutoff(grid, pos_std, th_std, attenuation)
+    lv = _noise_levels(log)
+    fc, warnings = _choose_cutoff(grid, lv.pos, lv.theta, attenuation)
     fs = 1.0 / grid.dt
-    sos = butter(4, fc / (fs / 2.0), output="sos")
-    x, y, v, om = _design(grid, sos)
-    keep = _keep_mask(grid, fc)
-    if keep.sum() < 8:
-        raise IdentifiabilityError(f"{log.source}: the log is too short for its own bandwidth "
-                                   f"({grid.t[-1] - grid.t[0]:.3g} s at a {fc:.3g} Hz cut-off)")
-    x, y = x[keep], y[keep]
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-        raise IdentifiabilityError(f"{log.source}: the filtered log is not finite (values out of range)")
+    sos = butter_lowpass_sos(4, fc / (fs / 2.0))
+    reg = _regression(log, grid, fc, sos)
     lag = int(math.ceil(2.0 * fs / fc))
     acc_gain, out_gain = _noise_gains(len(grid.t), grid.dt, sos)
-    sv, so = pos_std * acc_gain, th_std * acc_gain  # acceleration noise of the regressor
+    sv, so = lv.pos * acc_gain, lv.theta * acc_gain  # acceleration noise of the regressor
     # white parts of the regressor entries: vdot in (row 1, m) and (row 2, m dy), omegadot in (1, m dy), (2, J)
     noise = np.array([[sv * sv, 0.0, so * so, 0.0, 0.0, 0.0], [0.0, 0.0, sv * sv, so * so, 0.0, 0.0]])
     try:
-        p, cov, scale, r = _fit(x, y, noise, lag)
+        p, cov, scale, r = _fit(reg.x, reg.y, noise, lag)
     except np.linalg.LinAlgError as exc:
-        raise IdentifiabilityError(f"{log.source}: the least-squares problem is singular ({exc}): the log does not "
-                                   "excite the parameters") from None
-    m_, _, b_, j_ = p[:4]
-    expected = np.sqrt([(f_std * out_gain) ** 2 + (m_ * sv) ** 2 + (b_ * so) ** 2,
-                        (tau_std * out_gain) ** 2 + (j_ * so) ** 2 + (b_ * sv) ** 2]) + 1e-300
-    rms = np.sqrt(np.mean(r ** 2, axis=0))
-    # a model "fits" to within FIT_FLOOR of the wrench even when the log is noise-free
-    expected = np.maximum(expected, FIT_FLOOR * np.sqrt(np.mean(y ** 2, axis=0)))
-    ratio = rms / expected
-    # Coulomb-like resistance (rolling resistance, dry friction) as a nuisance term: model uncertainty
-    eps = (0.05 * float(np.std(v[keep])) + 1e-12, 0.05 * float(np.std(om[keep])) + 1e-12)
-    try:
-        pc, covc, _, _ = _fit(_with_coulomb_columns(x, v[keep], om[keep], eps), y, noise, lag)
-    except np.linalg.LinAlgError:
-        pc, covc = np.r_[p, 0.0, 0.0], np.full((8, 8), np.nan)
-    cc = covc[6:, 6:]
-    wald = float(pc[6:] @ np.linalg.pinv(cc) @ pc[6:]) if np.all(np.isfinite(cc)) else 0.0
-    coulomb = {"force": float(pc[6]), "torque": float(pc[7]), "wald": wald}
-    if wald > -2.0 * math.log(COULOMB_ALPHA):
-        shift = pc[:6] - p
-        cov = cov + np.diag(shift ** 2)
-        warnings.append(f"a Coulomb-like resistance is significant ({pc[6]:.3g} N forward, {pc[7]:.3g} N m yaw): "
-                        "the nominal viscous model misses it; the std includes its effect on the estimate "
-                        "(`cartpush diagnose` names the effect)")
-    fits = bool(np.all(ratio <= FIT_RATIO))
-    # model uncertainty: the share of the wrench the model leaves unexplained beyond the noise could bias
-    # each parameter by up to that share of its own scale (scale-free; zero when the model fits)
-    # (forward row: m, c_v; yaw row: J, c_w; both: the first moments)
-    y_rms = np.sqrt(np.mean(y ** 2, axis=0)) + 1e-300
-    sh = np.sqrt(np.maximum(ratio ** 2 - 1.0, 0.0)) * expected / y_rms if not fits else np.zeros(2)
-    m_, a_, b_, j_, cv_, cw_ = p
-    gyr = math.sqrt(abs(j_) / abs(m_)) if m_ != 0 else 0.0
-    scale_p = np.array([sh[0] * m_, sh.max() * abs(m_) * gyr, sh.max() * abs(m_) * gyr, sh[1] * j_,
-                        sh[0] * cv_, sh[1] * cw_])
-    cov = cov + np.diag(scale_p ** 2)
-    if not fits:
-        warnings.append(f"the model does not fit: residual wrench {ratio[0]:.1f}x (force) and {ratio[1]:.1f}x "
-                        "(torque) what the sensor noise explains; the std covers the misfit seen along the log "
-                        "(jackknife); run `cartpush diagnose`")
-    m, a, b, j, c_v, c_w = p
-    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(np.diag(cov)))):
-        raise IdentifiabilityError(f"{log.source}: the least-squares problem is singular: the log does not excite "
-                                   "the parameters (no acceleration or turning above the noise)")
-    if not (m > 0):
-        raise IdentifiabilityError(f"{log.source}: the fit gives a non-positive mass ({m:.3g} kg): the log does "
-                                   "not excite the mass (no forward acceleration above the noise)")
-    inertia = j - (a * a + b * b) / m
+        raise IdentifiabilityError(
+            f"{log.source}: the least-squares problem is singular ({exc}): the log does not excite the parameters"
+        ) from None
+    ratio, expected = _residual_ratio(lv, out_gain, sv, so, p, r, reg.y)
+    cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings)
+    params, inertia = _physical_params(log, p, cov)
     std = _physical_std(p, cov)
     warnings += _excitation_warnings(p, std, inertia)
-    params = CartParams(m=m, dx=a / m, dy=b / m, I=max(inertia, 1e-3 * abs(j), 1e-8),
-                        sigma=max(c_v, 0.0), sigma_yaw=max(c_w, 0.0))
-    noise = {"position": pos_std, "theta": th_std, "force": f_std, "torque": tau_std}
-    return Identification(params=params, std=std, p=p, cov=cov, cutoff_hz=fc,
-                          residual_ratio=(float(ratio[0]), float(ratio[1])), model_fits=fits, coulomb=coulomb,
-                          noise=noise, warnings=tuple(warnings), samples_used=int(keep.sum()), gaps=grid.gaps)
+    noise_out = {"position": lv.pos, "theta": lv.theta, "force": lv.force, "torque": lv.torque}
+    return Identification(
+        params=params,
+        std=std,
+        p=p,
+        cov=cov,
+        cutoff_hz=fc,
+        residual_ratio=(float(ratio[0]), float(ratio[1])),
+        model_fits=fits,
+        coulomb=coulomb,
+        noise=noise_out,
+        warnings=tuple(warnings),
+        samples_used=int(reg.keep.sum()),
+        gaps=grid.gaps,
+    )
 
 
 def _excitation_warnings(p: np.ndarray, std: Dict[str, object], inertia: float) -> List[str]:
@@ -400,20 +548,25 @@ def _excitation_warnings(p: np.ndarray, std: Dict[str, object], inertia: float) 
     m, a, b, j = p[:4]
     out = []
     if std["mass"] > 0.5 * m:
-        out.append(f"mass weakly excited (std {std['mass']:.3g} kg for {m:.3g} kg): "
-                   "little forward acceleration above the noise")
+        out.append(
+            f"mass weakly excited (std {std['mass']:.3g} kg for {m:.3g} kg): "
+            "little forward acceleration above the noise"
+        )
     gyr = math.sqrt(max(j, 1e-300) / m)
     if max(std["com"]) > 0.5 * gyr:
-        out.append(f"centre of mass weakly excited (std {max(std['com']):.3g} m, radius of gyration {gyr:.3g} m): "
-                   "turn the cart more")
+        out.append(
+            f"centre of mass weakly excited (std {max(std['com']):.3g} m, radius of gyration {gyr:.3g} m): "
+            "turn the cart more"
+        )
     if inertia <= 0 or std["inertia"] > 0.5 * abs(inertia):
-        out.append(f"inertia weakly excited (I = {inertia:.3g} +- {std['inertia']:.3g} kg m^2): "
-                   "little yaw acceleration above the noise")
+        out.append(
+            f"inertia weakly excited (I = {inertia:.3g} +- {std['inertia']:.3g} kg m^2): "
+            "little yaw acceleration above the noise"
+        )
     return out
 
 
-def innovation_check(log: CartLog, params: CartParams, noise: Optional[Dict[str, float]] = None
-                     ) -> Tuple[float, int]:
+def innovation_check(log: CartLog, params: CartParams, noise: Optional[Dict[str, float]] = None) -> Tuple[float, int]:
     """Return (mean NIS, rejected samples) of the paper's EKF (eq. 8-20) over the log with ``params`` held.
 
     The mean NIS is about 6 (the measurement dimension) when the model with
@@ -425,16 +578,22 @@ def innovation_check(log: CartLog, params: CartParams, noise: Optional[Dict[str,
 
     meas_std = measurement_std_from_log(log.t, log.q, log.qd)
     if noise is None:
-        noise = {"force": max(white_noise_std(log.gamma[:, 0]), white_noise_std(log.gamma[:, 1])),
-                 "torque": white_noise_std(log.gamma[:, 2])}
+        noise = {
+            "force": max(white_noise_std(log.gamma[:, 0]), white_noise_std(log.gamma[:, 1])),
+            "torque": white_noise_std(log.gamma[:, 2]),
+        }
     f_std, tau_std = noise["force"], noise["torque"]
     dt = float(np.median(np.diff(log.t)))
-    cfg = EKFConfig.from_noise(meas_std, estimate_params=False,
-                               q_vel=max(EKFConfig.q_vel, (f_std / params.m) ** 2 * dt),
-                               q_omega=max(EKFConfig.q_omega, (tau_std / params.inertia_b) ** 2 * dt))
+    cfg = EKFConfig.from_noise(
+        meas_std,
+        estimate_params=False,
+        q_vel=max(EKFConfig.q_vel, (f_std / params.m) ** 2 * dt),
+        q_omega=max(EKFConfig.q_omega, (tau_std / params.inertia_b) ** 2 * dt),
+    )
     z = np.hstack([log.q, log.velocities()])
-    ekf, _, nis = run_ekf(log.t, log.gamma, z, phi0=params.phi, sigma=params.sigma, config=cfg,
-                          sigma_yaw=params.sigma_yaw)
+    ekf, _, nis = run_ekf(
+        log.t, log.gamma, z, phi0=params.phi, sigma=params.sigma, config=cfg, sigma_yaw=params.sigma_yaw
+    )
     nis = nis[np.isfinite(nis)]
     kept = nis[nis <= ekf.gate_threshold]
     return (float(np.mean(kept)) if len(kept) else float("nan")), int(len(nis) - len(kept))

@@ -5,6 +5,7 @@ Velocities and accelerations come from local polynomial fits of the pose
 with and without those columns are treated alike. Noise levels of the pose and
 the wrench are estimated from the residuals of the same fits.
 """
+
 from __future__ import annotations
 
 import math
@@ -17,8 +18,9 @@ from cart.errors import LogFormatError
 from cart.logs import CartLog, local_fit
 
 
-def local_poly(t: np.ndarray, y: np.ndarray, half_window: float, degree: int = 2
-               ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def local_poly(
+    t: np.ndarray, y: np.ndarray, half_window: float, degree: int = 2
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (value, d1, d2, leverage): local least-squares polynomial fits of y (N, k) at every t_i.
 
     Each fit uses the samples with |t_j - t_i| <= ``half_window`` (windows shift
@@ -31,7 +33,7 @@ def local_poly(t: np.ndarray, y: np.ndarray, half_window: float, degree: int = 2
     coef, scale, pinv, start, _ = local_fit(t, y, half_window, degree)
     value = coef[:, 0, :]
     d1 = coef[:, 1, :] / scale
-    d2 = 2.0 * coef[:, 2, :] / scale ** 2 if degree >= 2 else np.zeros_like(d1)
+    d2 = 2.0 * coef[:, 2, :] / scale**2 if degree >= 2 else np.zeros_like(d1)
     leverage = pinv[np.arange(n), 0, np.arange(n) - start]
     return value, d1, d2, leverage
 
@@ -42,7 +44,7 @@ def derivative_gain(t: np.ndarray, half_window: float, degree: int = 2) -> Tuple
     rng = np.random.default_rng(12345)
     e = rng.standard_normal((n, 8))
     v, d1, _, _ = local_poly(t, e, half_window, degree)
-    return float(np.sqrt(np.mean(v ** 2))), float(np.sqrt(np.mean(d1 ** 2)))
+    return float(np.sqrt(np.mean(v**2))), float(np.sqrt(np.mean(d1**2)))
 
 
 def robust_std(r: np.ndarray) -> float:
@@ -99,9 +101,14 @@ class Signals:
         """Return the signals with the wrench read ``delay`` s later: gamma_true(t) = gamma_meas(t + delay)."""
         g = np.column_stack([np.interp(self.t + delay, self.t, self.gamma_raw[:, k]) for k in range(3)])
         c, s = np.cos(self.q[:, 2]), np.sin(self.q[:, 2])
-        return replace(self, f_fwd=c * g[:, 0] + s * g[:, 1], f_lat=-s * g[:, 0] + c * g[:, 1], tau=g[:, 2],
-                       shift=self.shift + delay,
-                       extras={k: v for k, v in self.extras.items() if isinstance(k, tuple) and k[0] == "motion"})
+        return replace(
+            self,
+            f_fwd=c * g[:, 0] + s * g[:, 1],
+            f_lat=-s * g[:, 0] + c * g[:, 1],
+            tau=g[:, 2],
+            shift=self.shift + delay,
+            extras={k: v for k, v in self.extras.items() if isinstance(k, tuple) and k[0] == "motion"},
+        )
 
 
 def signals_from_log(log: CartLog, half_window: Optional[float] = None) -> Signals:
@@ -115,8 +122,9 @@ def signals_from_log(log: CartLog, half_window: Optional[float] = None) -> Signa
     # 0.15 s for a cart log; a short log (a quick push of a small object) gets windows in proportion
     hw = min(0.15, dur / 30.0) if half_window is None else float(half_window)
     if dur < 60.0 * med_dt:
-        raise LogFormatError(f"{log.source}: the log has {len(t)} samples over {dur:.3g} s; diagnosing needs at "
-                             "least 60 sample periods")
+        raise LogFormatError(
+            f"{log.source}: the log has {len(t)} samples over {dur:.3g} s; diagnosing needs at least 60 sample periods"
+        )
     hw = max(hw, 3.0 * med_dt)
     val, d1, d2, lev = local_poly(t, q, hw, degree=2)
     # noise levels from the residuals of a shorter cubic fit (little bias), unbiased by the leverage
@@ -139,12 +147,28 @@ def signals_from_log(log: CartLog, half_window: Optional[float] = None) -> Signa
     sigma_force = robust_std(np.concatenate([gres[:, 0], gres[:, 1]]))
     sigma_torque = robust_std(gres[:, 2])
     cr, sr = np.cos(q[:, 2]), np.sin(q[:, 2])
-    return Signals(t=t, q_raw=q, q=val, gamma_raw=g, v=v, w_lat=w, omega=om, vdot=vdot, omegadot=d2[:, 2],
-                   f_fwd=c * g[:, 0] + s * g[:, 1], f_lat=-s * g[:, 0] + c * g[:, 1], tau=g[:, 2],
-                   sigma_pos=max(sigma_pos, 1e-5), sigma_theta=max(sigma_theta, 1e-5),
-                   sigma_force=max(sigma_force, 1e-3), sigma_torque=max(sigma_torque, 1e-4),
-                   sigma_v=max(sigma_pos, 1e-5) * g1, sigma_omega=max(sigma_theta, 1e-5) * g1,
-                   gain_value=g0, half_window=hw)
+    return Signals(
+        t=t,
+        q_raw=q,
+        q=val,
+        gamma_raw=g,
+        v=v,
+        w_lat=w,
+        omega=om,
+        vdot=vdot,
+        omegadot=d2[:, 2],
+        f_fwd=c * g[:, 0] + s * g[:, 1],
+        f_lat=-s * g[:, 0] + c * g[:, 1],
+        tau=g[:, 2],
+        sigma_pos=max(sigma_pos, 1e-5),
+        sigma_theta=max(sigma_theta, 1e-5),
+        sigma_force=max(sigma_force, 1e-3),
+        sigma_torque=max(sigma_torque, 1e-4),
+        sigma_v=max(sigma_pos, 1e-5) * g1,
+        sigma_omega=max(sigma_theta, 1e-5) * g1,
+        gain_value=g0,
+        half_window=hw,
+    )
 
 
 def window_edges(t: np.ndarray, length: float) -> np.ndarray:
@@ -156,11 +180,18 @@ def window_edges(t: np.ndarray, length: float) -> np.ndarray:
 
 
 def window_integrals(t: np.ndarray, y: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """Return the trapezoid integrals of y (N, ...) over [t[e_k], t[e_{k+1}]], shape (len(edges)-1, ...)."""
+    """Return the trapezoid integrals of y (N, ...) over [t[e_k], t[e_{k+1}]], shape (len(edges)-1, ...).
+
+    ``edges``: strictly increasing sample indices (:func:`window_edges`).
+    """
     y = np.asarray(y, float)
-    dt = np.diff(t).reshape((-1,) + (1,) * (y.ndim - 1))
-    cum = np.concatenate([np.zeros((1,) + y.shape[1:]), np.cumsum(0.5 * (y[1:] + y[:-1]) * dt, axis=0)], axis=0)
-    return cum[edges[1:]] - cum[edges[:-1]]
+    edges = np.asarray(edges)
+    if len(edges) < 2:
+        return np.zeros((0,) + y.shape[1:])
+    i0, i1 = int(edges[0]), int(edges[-1])
+    half_dt = (0.5 * np.diff(t[i0 : i1 + 1])).reshape((-1,) + (1,) * (y.ndim - 1))
+    trapezoids = (y[i0 + 1 : i1 + 1] + y[i0:i1]) * half_dt
+    return np.add.reduceat(trapezoids, edges[:-1] - i0, axis=0)
 
 
 def lateral_displacements(sig: Signals, edges: np.ndarray) -> np.ndarray:

@@ -11,6 +11,7 @@ degrees, positions in millimetres, time in milliseconds, motion-capture
 glitches) is read, with plain-language notes in ``CartLog.warnings``
 (:func:`plausibility_warnings`).
 """
+
 from __future__ import annotations
 
 import gzip
@@ -87,8 +88,9 @@ class CartLog:
         return estimate_velocities(self.t, self.q, half_window)
 
 
-def local_fit(t: np.ndarray, y: np.ndarray, half_window: float = 0.05, degree: int = 2
-              ) -> Tuple[np.ndarray, float, np.ndarray, np.ndarray, int]:
+def local_fit(
+    t: np.ndarray, y: np.ndarray, half_window: float = 0.05, degree: int = 2
+) -> Tuple[np.ndarray, float, np.ndarray, np.ndarray, int]:
     """Return (coef, scale, pinv, start, width) of local least-squares polynomials at every t_i.
 
     Each sample gets a polynomial of ``degree`` in ``(t - t_i) / scale`` fitted
@@ -114,8 +116,9 @@ def local_fit(t: np.ndarray, y: np.ndarray, half_window: float = 0.05, degree: i
     return coef, scale, pinv, start, width
 
 
-def local_polyfit(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
-                  degree: int = 2) -> Tuple[np.ndarray, np.ndarray, int]:
+def local_polyfit(
+    t: np.ndarray, q: np.ndarray, half_window: float = 0.05, degree: int = 2
+) -> Tuple[np.ndarray, np.ndarray, int]:
     """Return (smoothed q, dq/dt, window size) of local least-squares polynomials (irregular Savitzky-Golay).
 
     See `local_fit` for the windows.
@@ -127,8 +130,7 @@ def local_polyfit(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
     return coef[:, 0, :].reshape(q.shape), (coef[:, 1, :] / scale).reshape(q.shape), width
 
 
-def estimate_velocities(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
-                        degree: int = 2) -> np.ndarray:
+def estimate_velocities(t: np.ndarray, q: np.ndarray, half_window: float = 0.05, degree: int = 2) -> np.ndarray:
     """Return velocities (N, k) of samples q (N, k) by local polynomial fits (Savitzky-Golay for irregular t)."""
     return local_polyfit(t, q, half_window, degree)[1]
 
@@ -152,10 +154,8 @@ def _read_lines(path: str) -> List[str]:
         raise LogFormatError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
 
 
-def read_log(path: str | os.PathLike) -> CartLog:
-    """Return the CartLog of a LOG_FORMAT.md file (.csv or .csv.gz); raise LogFormatError on bad input."""
-    path = os.fspath(path)
-    lines = _read_lines(path)
+def _metadata(lines: List[str]) -> Tuple[Dict[str, str], int]:
+    """Return the ``# key: value`` metadata and the index of the header line (comments and blank lines skipped)."""
     metadata: Dict[str, str] = {}
     i = 0
     while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
@@ -164,54 +164,88 @@ def read_log(path: str | os.PathLike) -> CartLog:
             key, value = text.split(":", 1)
             metadata[key.strip()] = value.strip()
         i += 1
-    if i >= len(lines):
-        raise LogFormatError(f"{path}: the file is empty (no header line)")
-    header_line = i + 1
-    header = [h.strip() for h in lines[i].split(",")]
+    return metadata, i
+
+
+def _header_columns(path: str, line: str, header_line: int) -> Tuple[List[str], List[str]]:
+    """Return (header, the columns the reader uses); raise LogFormatError for missing, duplicate or lone columns."""
+    header = [h.strip() for h in line.split(",")]
     missing = [c for c in REQUIRED_COLUMNS if c not in header]
     if missing:
-        raise LogFormatError(f"{path}: line {header_line}: missing required column(s) {', '.join(missing)} "
-                             f"(header is {lines[i].strip()!r})")
+        raise LogFormatError(
+            f"{path}: line {header_line}: missing required column(s) {', '.join(missing)} (header is {line.strip()!r})"
+        )
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
         raise LogFormatError(f"{path}: line {header_line}: duplicate column(s) {', '.join(dup)}")
     lone = [c for c in CONTACT_COLUMNS if c in header]
     if len(lone) == 1:
         other = [c for c in CONTACT_COLUMNS if c not in header][0]
-        raise LogFormatError(f"{path}: line {header_line}: column {lone[0]} without {other}; the contact point "
-                             f"needs both (or neither)")
-    wanted = [c for c in REQUIRED_COLUMNS + VELOCITY_COLUMNS + CONTACT_COLUMNS if c in header]
+        raise LogFormatError(
+            f"{path}: line {header_line}: column {lone[0]} without {other}; the contact point needs both (or neither)"
+        )
+    return header, [c for c in REQUIRED_COLUMNS + VELOCITY_COLUMNS + CONTACT_COLUMNS if c in header]
+
+
+def _parse_value(path: str, lineno: int, name: str, text: str) -> float:
+    """Return the float of one field; raise LogFormatError naming the line and column when it is not usable."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise LogFormatError(f"{path}: line {lineno}: column {name}: non-numeric value {text!r}") from None
+    if not -MAX_ABS_VALUE <= value <= MAX_ABS_VALUE:
+        if not math.isfinite(value):
+            raise LogFormatError(f"{path}: line {lineno}: column {name}: non-finite value {text!r}")
+        raise LogFormatError(
+            f"{path}: line {lineno}: column {name}: value {text} is out of range "
+            f"(|value| > {MAX_ABS_VALUE:g} in SI units)"
+        )
+    return value
+
+
+def _parse_rows_fast(body: List[str], header: List[str], wanted: List[str]) -> Optional[np.ndarray]:
+    """Return the values (rows, len(wanted)) in one numpy conversion, or None when any line needs the checked parser.
+
+    Valid when every line has all fields, every field is a number (numpy parses text as ``float``
+    does) and the used columns are within ``MAX_ABS_VALUE``; otherwise :func:`_parse_rows` names the problem.
+    """
+    try:
+        table = np.array([line.split(",") for line in body], dtype=float)
+    except ValueError:
+        return None
+    if table.ndim != 2 or table.shape[1] != len(header):
+        return None
+    rows = table[:, [header.index(c) for c in wanted]]
+    return rows if np.all(np.abs(rows) <= MAX_ABS_VALUE) else None
+
+
+def _parse_rows(path: str, body: List[str], header: List[str], wanted: List[str], first_line: int) -> np.ndarray:
+    """Return the values (rows, len(wanted)) of the data lines; ``first_line``: the file line of ``body[0]``."""
+    fast = _parse_rows_fast(body, header, wanted)
+    if fast is not None:
+        return fast
     col = {c: header.index(c) for c in wanted}
-    body = lines[i + 1:]
-    while body and not body[-1].strip():
-        body.pop()  # trailing newlines are not rows
     rows = np.empty((len(body), len(wanted)))
     for r, line in enumerate(body):
-        lineno = header_line + 1 + r
+        lineno = first_line + r
         fields = line.split(",")
         if len(fields) != len(header):
             raise LogFormatError(f"{path}: line {lineno}: expected {len(header)} fields, found {len(fields)}")
         for k, name in enumerate(wanted):
-            text = fields[col[name]].strip()
-            try:
-                value = float(text)
-            except ValueError:
-                raise LogFormatError(f"{path}: line {lineno}: column {name}: non-numeric value {text!r}") from None
-            if not -MAX_ABS_VALUE <= value <= MAX_ABS_VALUE:
-                if not math.isfinite(value):
-                    raise LogFormatError(f"{path}: line {lineno}: column {name}: non-finite value {text!r}")
-                raise LogFormatError(f"{path}: line {lineno}: column {name}: value {text} is out of range "
-                                     f"(|value| > {MAX_ABS_VALUE:g} in SI units)")
-            rows[r, k] = value
-    if len(body) < 3:
-        raise LogFormatError(f"{path}: only {len(body)} data row(s); a log needs at least 3")
-    data = {name: rows[:, k] for k, name in enumerate(wanted)}
+            rows[r, k] = _parse_value(path, lineno, name, fields[col[name]].strip())
+    return rows
+
+
+def _log_from_columns(path: str, data: Dict[str, np.ndarray], metadata: Dict[str, str], header_line: int) -> CartLog:
+    """Return the CartLog of the parsed columns (heading unwrapped, missing velocity columns estimated) with notes."""
     t = data["t"]
     bad = np.nonzero(np.diff(t) <= 0.0)[0]
     if bad.size:
         r = int(bad[0]) + 1
-        raise LogFormatError(f"{path}: line {header_line + 1 + r}: time {t[r]!r} is not strictly greater than "
-                             f"the previous time {t[r - 1]!r}")
+        raise LogFormatError(
+            f"{path}: line {header_line + 1 + r}: time {t[r]!r} is not strictly greater than "
+            f"the previous time {t[r - 1]!r}"
+        )
     q = np.column_stack([data["x"], data["y"], np.unwrap(data["theta"])])
     gamma = np.column_stack([data["fx"], data["fy"], data["tau"]])
     qd = None
@@ -229,8 +263,83 @@ def read_log(path: str | os.PathLike) -> CartLog:
     return log
 
 
-def plausibility_warnings(log: CartLog, raw_theta: Optional[np.ndarray] = None,
-                          first_line: Optional[int] = None) -> List[str]:
+def read_log(path: str | os.PathLike) -> CartLog:
+    """Return the CartLog of a LOG_FORMAT.md file (.csv or .csv.gz); raise LogFormatError on bad input."""
+    path = os.fspath(path)
+    lines = _read_lines(path)
+    metadata, i = _metadata(lines)
+    if i >= len(lines):
+        raise LogFormatError(f"{path}: the file is empty (no header line)")
+    header_line = i + 1
+    header, wanted = _header_columns(path, lines[i], header_line)
+    body = lines[i + 1 :]
+    while body and not body[-1].strip():
+        body.pop()  # trailing newlines are not rows
+    rows = _parse_rows(path, body, header, wanted, header_line + 1)
+    if len(body) < 3:
+        raise LogFormatError(f"{path}: only {len(body)} data row(s); a log needs at least 3")
+    return _log_from_columns(path, {name: rows[:, k] for k, name in enumerate(wanted)}, metadata, header_line)
+
+
+def _heading_notes(log: CartLog, dt: np.ndarray, raw_theta: Optional[np.ndarray], where) -> List[str]:
+    """Return the notes on the heading: steps too fast for a cart, or more than three turns (degrees?)."""
+    notes = []
+    theta = log.q[:, 2]
+    step = np.abs(np.diff(theta))
+    rate = step / dt
+    bad = np.nonzero((step > PLAUSIBLE_YAW_STEP) & (rate > PLAUSIBLE_YAW_RATE))[0]
+    if bad.size:
+        i = int(bad[np.argmax(step[bad])])
+        notes.append(
+            f"heading changes by {step[i]:.3g} rad in one sample ({rate[i]:.3g} rad/s) at {where(i + 1)}, "
+            f"{bad.size} such step(s); if theta is in degrees, convert it to radians"
+        )
+    raw = theta if raw_theta is None else np.asarray(raw_theta, dtype=float)
+    if float(np.max(np.abs(raw))) > PLAUSIBLE_HEADING and not bad.size:
+        notes.append(
+            f"heading reaches {float(np.max(np.abs(raw))):.4g} rad (more than three turns); if theta is in "
+            f"degrees, convert it to radians"
+        )
+    return notes
+
+
+def _motion_notes(log: CartLog, med: float, where) -> List[str]:
+    """Return the notes on speeds and accelerations over windows of ~0.05 s / 0.1 s (glitch, or millimetres?)."""
+    notes = []
+    t, n = log.t, len(log.t)
+    w = max(1, int(math.ceil(0.05 / med))) if med > 0 else 1  # single-sample noise averages out
+    if n > w:
+        span = t[w:] - t[:-w]
+        vel = (log.q[w:, :2] - log.q[:-w, :2]) / span[:, None]
+        speed = np.hypot(vel[:, 0], vel[:, 1])
+        i = int(np.argmax(speed))
+        if speed[i] > PLAUSIBLE_SPEED:
+            notes.append(
+                f"the pose moves at {speed[i]:.3g} m/s around {where(i + w)} (a cart moves at a few m/s): "
+                f"a motion-capture glitch, or positions in millimetres?"
+            )
+        elif len(speed) > w:
+            tv = 0.5 * (t[w:] + t[:-w])
+            acc = np.hypot(*((vel[w:] - vel[:-w]) / (tv[w:] - tv[:-w])[:, None]).T)
+            j = int(np.argmax(acc))
+            if acc[j] > PLAUSIBLE_ACCELERATION:
+                notes.append(
+                    f"the pose accelerates at {acc[j]:.3g} m/s^2 around {where(j + w)} (no pushed cart "
+                    f"exceeds ~10 m/s^2): a motion-capture glitch, or positions in millimetres?"
+                )
+    if log.qd is not None:
+        vspeed = np.hypot(log.qd[:, 0], log.qd[:, 1])
+        i = int(np.argmax(vspeed))
+        if vspeed[i] > PLAUSIBLE_SPEED:
+            notes.append(
+                f"the logged velocity reaches {vspeed[i]:.3g} m/s at {where(i)}: a glitch, or vx, vy not in m/s?"
+            )
+    return notes
+
+
+def plausibility_warnings(
+    log: CartLog, raw_theta: Optional[np.ndarray] = None, first_line: Optional[int] = None
+) -> List[str]:
     """Return plain-language notes on what looks implausible for a pushed cart (empty when nothing does).
 
     Flags what usually means a unit mistake or a glitch: heading steps beyond
@@ -244,57 +353,25 @@ def plausibility_warnings(log: CartLog, raw_theta: Optional[np.ndarray] = None,
     the file line of sample 0, to name lines instead of sample indices.
     """
     notes: List[str] = []
-    t = log.t
-    n = len(t)
-    if n < 2:
+    if len(log.t) < 2:
         return notes
 
     def where(i: int) -> str:
         return f"line {first_line + i}" if first_line is not None else f"sample {i}"
 
-    dt = np.diff(t)
+    dt = np.diff(log.t)
     med = float(np.median(dt))
     if med > PLAUSIBLE_MEDIAN_DT:
-        notes.append(f"median sample interval {med:g} s is long for a cart log (motion capture runs at 10 Hz or "
-                     f"more); if t is in milliseconds, convert it to seconds")
-    theta = log.q[:, 2]
-    step = np.abs(np.diff(theta))
-    rate = step / dt
-    bad = np.nonzero((step > PLAUSIBLE_YAW_STEP) & (rate > PLAUSIBLE_YAW_RATE))[0]
-    if bad.size:
-        i = int(bad[np.argmax(step[bad])])
-        notes.append(f"heading changes by {step[i]:.3g} rad in one sample ({rate[i]:.3g} rad/s) at {where(i + 1)}, "
-                     f"{bad.size} such step(s); if theta is in degrees, convert it to radians")
-    raw = theta if raw_theta is None else np.asarray(raw_theta, dtype=float)
-    if float(np.max(np.abs(raw))) > PLAUSIBLE_HEADING and not bad.size:
-        notes.append(f"heading reaches {float(np.max(np.abs(raw))):.4g} rad (more than three turns); if theta is in "
-                     f"degrees, convert it to radians")
-    # speeds and accelerations over windows of ~0.05 s / 0.1 s (single-sample noise averages out)
-    w = max(1, int(math.ceil(0.05 / med))) if med > 0 else 1
-    if n > w:
-        span = t[w:] - t[:-w]
-        vel = (log.q[w:, :2] - log.q[:-w, :2]) / span[:, None]
-        speed = np.hypot(vel[:, 0], vel[:, 1])
-        i = int(np.argmax(speed))
-        if speed[i] > PLAUSIBLE_SPEED:
-            notes.append(f"the pose moves at {speed[i]:.3g} m/s around {where(i + w)} (a cart moves at a few m/s): "
-                         f"a motion-capture glitch, or positions in millimetres?")
-        elif len(speed) > w:
-            tv = 0.5 * (t[w:] + t[:-w])
-            acc = np.hypot(*((vel[w:] - vel[:-w]) / (tv[w:] - tv[:-w])[:, None]).T)
-            j = int(np.argmax(acc))
-            if acc[j] > PLAUSIBLE_ACCELERATION:
-                notes.append(f"the pose accelerates at {acc[j]:.3g} m/s^2 around {where(j + w)} (no pushed cart "
-                             f"exceeds ~10 m/s^2): a motion-capture glitch, or positions in millimetres?")
-    if log.qd is not None:
-        vspeed = np.hypot(log.qd[:, 0], log.qd[:, 1])
-        i = int(np.argmax(vspeed))
-        if vspeed[i] > PLAUSIBLE_SPEED:
-            notes.append(f"the logged velocity reaches {vspeed[i]:.3g} m/s at {where(i)}: a glitch, or vx, vy not "
-                         f"in m/s?")
+        notes.append(
+            f"median sample interval {med:g} s is long for a cart log (motion capture runs at 10 Hz or "
+            f"more); if t is in milliseconds, convert it to seconds"
+        )
+    notes += _heading_notes(log, dt, raw_theta, where)
+    notes += _motion_notes(log, med, where)
     if not np.any(log.gamma):
-        notes.append("the wrench (fx, fy, tau) is zero throughout: the log carries no information on the "
-                     "cart's inertia")
+        notes.append(
+            "the wrench (fx, fy, tau) is zero throughout: the log carries no information on the cart's inertia"
+        )
     return notes
 
 

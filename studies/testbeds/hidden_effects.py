@@ -21,6 +21,7 @@ from cart.dynamics import body_accelerations, lateral_inertial_force
 from cart.errors import ParameterError
 from cart.logs import CartLog
 from cart.params import CartParams
+from wholebody.contacts.excitation import PushSamples
 
 GRAVITY = 9.81
 HIDDEN_NAMES = ("coulomb_friction", "caster_swivel", "wrench_bias", "payload_change", "floor_slope",
@@ -50,20 +51,9 @@ class HiddenEffect:
             raise ParameterError(f"unknown hidden effect {self.name!r}; known: {', '.join(HIDDEN_NAMES)}")
 
 
-@dataclass(frozen=True)
-class Motion:
-    """Desired forward speed and yaw rate on a time grid (t, v, vdot, omega, omegadot)."""
-
-    t: np.ndarray
-    v: np.ndarray
-    vdot: np.ndarray
-    omega: np.ndarray
-    omegadot: np.ndarray
-
-    def at(self, t: float) -> Tuple[float, float, float, float]:
-        """Return (v, vdot, omega, omegadot) at time t (linear interpolation)."""
-        return (float(np.interp(t, self.t, self.v)), float(np.interp(t, self.t, self.vdot)),
-                float(np.interp(t, self.t, self.omega)), float(np.interp(t, self.t, self.omegadot)))
+#: The desired forward speed and yaw rate on a time grid (t, v, vdot, omega, omegadot; ``at(t)`` interpolates):
+#: the library's planned-push record.
+Motion = PushSamples
 
 
 @dataclass(frozen=True)

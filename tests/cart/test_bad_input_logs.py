@@ -1,4 +1,5 @@
 """Issue 14, classes 4 and 8: the log reader — BOM, lone contact column, absurd values, unit plausibility."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -49,19 +50,28 @@ def test_absurd_magnitude_is_rejected_with_line_and_column(tmp_path, value):
 
 
 def test_existing_structural_checks_still_hold(tmp_path):
-    for body, fragment in [("", "empty"), ("t,x,y\n1,2,3\n", "missing required column"),
-                           ("t,x,y,theta,fx,fy,tau\n0,0,0,0,0,0,nan\n", "non-finite"),
-                           ("t,x,y,theta,fx,fy,tau\n0,0,0,0,0,0,0\n0,0,0,0,0,0,0\n0,0,0,0,0,0,0\n", "strictly")]:
+    for body, fragment in [
+        ("", "empty"),
+        ("t,x,y\n1,2,3\n", "missing required column"),
+        ("t,x,y,theta,fx,fy,tau\n0,0,0,0,0,0,nan\n", "non-finite"),
+        ("t,x,y,theta,fx,fy,tau\n0,0,0,0,0,0,0\n0,0,0,0,0,0,0\n0,0,0,0,0,0,0\n", "strictly"),
+    ]:
         path = tmp_path / "bad.csv"
         path.write_text(body)
         with pytest.raises(LogFormatError, match=fragment):
             read_log(path)
 
 
-@pytest.mark.parametrize("kind, fragment", [
-    ("degrees", "degrees"), ("millimetres", "millimetres"), ("milliseconds", "milliseconds"),
-    ("glitch", "glitch"), ("zero_wrench", "zero throughout"),
-])
+@pytest.mark.parametrize(
+    "kind, fragment",
+    [
+        ("degrees", "degrees"),
+        ("millimetres", "millimetres"),
+        ("milliseconds", "milliseconds"),
+        ("glitch", "glitch"),
+        ("zero_wrench", "zero throughout"),
+    ],
+)
 def test_unit_mistakes_and_glitches_warn(tmp_path, kind, fragment):
     log = _push()
     t, q, g = log.t.copy(), log.q.copy(), log.gamma.copy()
@@ -86,16 +96,24 @@ def test_unit_mistakes_and_glitches_warn(tmp_path, kind, fragment):
 def test_wrapped_heading_in_degrees_steps_are_flagged():
     t = np.arange(0.0, 10.0, 0.01)
     theta_deg = (np.degrees(0.8 * t) + 180.0) % 360.0 - 180.0  # wrapped to (-180, 180]
-    log = CartLog(t=t, q=np.column_stack([0.3 * t, 0 * t, np.unwrap(theta_deg)]),
-                  gamma=np.column_stack([10 + 0 * t, 0 * t, 0 * t]))
+    log = CartLog(
+        t=t,
+        q=np.column_stack([0.3 * t, 0 * t, np.unwrap(theta_deg)]),
+        gamma=np.column_stack([10 + 0 * t, 0 * t, 0 * t]),
+    )
     notes = plausibility_warnings(log, raw_theta=theta_deg)
     assert any("degrees" in n for n in notes), notes
 
 
-@pytest.mark.parametrize("speed, force, dt", [(0.01, 0.02, 0.01),  # a 1 kg block at 1 cm/s
-                                              (0.8, 120.0, 0.005),  # a 150 kg hospital bed
-                                              (1.5, 30.0, 0.1),  # 10 Hz logging
-                                              (0.2, 5.0, 0.001)])  # 1 kHz logging
+@pytest.mark.parametrize(
+    "speed, force, dt",
+    [
+        (0.01, 0.02, 0.01),  # a 1 kg block at 1 cm/s
+        (0.8, 120.0, 0.005),  # a 150 kg hospital bed
+        (1.5, 30.0, 0.1),  # 10 Hz logging
+        (0.2, 5.0, 0.001),
+    ],
+)  # 1 kHz logging
 def test_plausible_but_unusual_data_reads_without_warnings(tmp_path, speed, force, dt):
     path = tmp_path / "odd.csv"
     log = _push(duration=20.0, dt=dt, speed=speed, mass_force=force)

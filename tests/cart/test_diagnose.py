@@ -6,6 +6,7 @@ push/pull motions with turns and >= 1 reversal, 50-200 Hz irregular sampling,
 random effect sizes. The larger confusion-matrix study is
 ``benchmarks/bench_diagnose.py --study N``.
 """
+
 from __future__ import annotations
 
 import json
@@ -54,10 +55,13 @@ def test_fitted_parameters_match_the_hidden_ones():
     checks = {
         "coulomb_friction": lambda p, e: abs(p["force"] - e["force"]) < 0.25 * e["force"] + 1.0,
         "time_delay": lambda p, e: abs(p["delay"] - e["delay"]) < 0.03,
-        "floor_slope": lambda p, e: (abs(p["angle"] - e["angle"]) < 0.25 * e["angle"]
-                                     and abs(math.remainder(p["direction"] - e["direction"], 2 * math.pi)) < 0.3),
-        "payload_change": lambda p, e: p["time"] >= e["time"] - 1.0 and abs(p["delta_m"] - e["mass"])
-        < 0.3 * e["mass"] + 2.0,
+        "floor_slope": lambda p, e: (
+            abs(p["angle"] - e["angle"]) < 0.25 * e["angle"]
+            and abs(math.remainder(p["direction"] - e["direction"], 2 * math.pi)) < 0.3
+        ),
+        "payload_change": lambda p, e: (
+            p["time"] >= e["time"] - 1.0 and abs(p["delta_m"] - e["mass"]) < 0.3 * e["mass"] + 2.0
+        ),
         "lateral_slip": lambda p, e: abs(p["compliance"] - e["compliance"]) < 0.3 * e["compliance"],
         "wrench_bias": lambda p, e: abs(p["fx"] - e["fx"]) < 1.5 and abs(p["tau"] - e["tau"]) < 0.8,
     }
@@ -65,8 +69,11 @@ def test_fitted_parameters_match_the_hidden_ones():
         h = random_case(name, rng)
         rep = diagnose(h.measured)
         assert rep.names and rep.names[0] == name, (name, rep.names)
-        assert ok(rep.effects[0].parameters, h.effects[0].params), (name, rep.effects[0].parameters,
-                                                                    h.effects[0].params)
+        assert ok(rep.effects[0].parameters, h.effects[0].params), (
+            name,
+            rep.effects[0].parameters,
+            h.effects[0].params,
+        )
 
 
 def test_nominal_fit_recovers_mass_and_com():
@@ -131,7 +138,7 @@ def test_replay_noise_floor_matches_the_error_of_the_true_model():
         ratios.append(rep.rms_error() / rep.noise_floor())
         assert rep.gap() < 0.5 * rep.noise_floor()
         # excess is the RMS of rms^2 - floor^2, computed independently
-        assert rep.gap() == pytest.approx(math.sqrt(max(np.mean(rep.rms ** 2 - rep.floor ** 2), 0.0)))
+        assert rep.gap() == pytest.approx(math.sqrt(max(np.mean(rep.rms**2 - rep.floor**2), 0.0)))
     assert np.all(np.abs(np.array(ratios) - 1.0) < 0.15) and abs(np.mean(ratios) - 1.0) < 0.08, ratios
 
 
@@ -152,8 +159,8 @@ def test_payload_forms_reject_small_mass_and_non_positive_inertia():
     x = np.array([30.0, 9.0, 1.5, 6.0, 5.0])  # I about the CoM = 6 - (81 + 2.25) / 30 = 3.225 > 0
     ms, full = PayloadMassStep(), PayloadChange()
     assert ms.is_physical(np.array([10.0]), (5.0,), x)
-    assert not ms.is_physical(np.array([-29.6]), (5.0,), x)            # 0.4 kg after the step
-    bad = np.array([30.0, 9.0, 1.5, 2.0, 5.0])                         # 2 - 2.775 < 0: inertia not positive
+    assert not ms.is_physical(np.array([-29.6]), (5.0,), x)  # 0.4 kg after the step
+    bad = np.array([30.0, 9.0, 1.5, 2.0, 5.0])  # 2 - 2.775 < 0: inertia not positive
     assert not ms.is_physical(np.array([10.0]), (5.0,), bad)
     assert not ms.is_physical(np.array([np.nan]), (5.0,), x)
     assert full.is_physical(np.array([10.0, 3.0, 0.5, 2.0]), (5.0,), x)
@@ -200,7 +207,7 @@ def test_caster_shape_variants_and_their_columns():
     for v in vs:
         g = v.columns(sig, (0.3,), None, None)[:, 0, 0]
         fin = np.isfinite(s) & moving
-        assert np.allclose(g[fin], np.tanh(sig.v[fin] / v0) * np.exp(-(s[fin] / 0.3) ** v.shape))
+        assert np.allclose(g[fin], np.tanh(sig.v[fin] / v0) * np.exp(-((s[fin] / 0.3) ** v.shape)))
         assert np.all(g[~fin] == 0.0)
 
 
@@ -224,11 +231,25 @@ def test_a_caster_that_holds_the_cart_after_a_reversal_is_named_and_its_hold_rep
 
     p = CartParams(m=30.0, dx=0.3, dy=0.05, I=2.6, sigma=1.5)
     t = np.arange(0.0, 26.0, 0.002)
-    motion = _piecewise_motion(t, [(0.0, 0.0), (2.0, 0.5), (7.0, 0.5), (9.0, -0.3), (15.0, -0.3), (17.0, -0.8),
-                                   (21.0, -0.8), (24.0, 0.0), (26.0, 0.0)], turn=0.2)
+    motion = _piecewise_motion(
+        t,
+        [
+            (0.0, 0.0),
+            (2.0, 0.5),
+            (7.0, 0.5),
+            (9.0, -0.3),
+            (15.0, -0.3),
+            (17.0, -0.8),
+            (21.0, -0.8),
+            (24.0, 0.0),
+            (26.0, 0.0),
+        ],
+        turn=0.2,
+    )
     eff = HiddenEffect("caster_swivel", {"force": 40.0, "distance": 0.3})
-    h = simulate_hidden(p, (eff,), duration=26.0, rate=100.0, jitter=0.2, motion=motion,
-                        rng=np.random.default_rng(4), model_error=0.0)
+    h = simulate_hidden(
+        p, (eff,), duration=26.0, rate=100.0, jitter=0.2, motion=motion, rng=np.random.default_rng(4), model_error=0.0
+    )
     th = h.true.q[:, 2]
     vt = np.cos(th) * h.true.qd[:, 0] + np.sin(th) * h.true.qd[:, 1]
     held = (h.true.t > 10.0) & (h.true.t < 15.0)
@@ -257,12 +278,20 @@ def test_an_impossible_cart_fails_a_candidate():
     from cart.effects import CoulombFriction
 
     def fit(x):
-        return Fit(effects=[(CoulombFriction(), ())], x=np.asarray(x, float), thetas=[np.array([5.0, 0.0])],
-                   rss=np.zeros(3), n_win=10, cov=np.eye(7), m2ll=0.0, sig=None)
+        return Fit(
+            effects=[(CoulombFriction(), ())],
+            x=np.asarray(x, float),
+            thetas=[np.array([5.0, 0.0])],
+            rss=np.zeros(3),
+            n_win=10,
+            cov=np.eye(7),
+            m2ll=0.0,
+            sig=None,
+        )
 
-    assert _valid(CoulombFriction(), fit([30.0, 9.0, 0.0, 6.0, 1.0]))       # I = 6 - 81/30 = 3.3 > 0
-    assert not _valid(CoulombFriction(), fit([30.0, 9.0, 0.0, 2.0, 1.0]))   # I = 2 - 2.7 < 0
-    assert not _valid(CoulombFriction(), fit([0.3, 0.0, 0.0, 2.0, 1.0]))    # m <= 0.5 kg
+    assert _valid(CoulombFriction(), fit([30.0, 9.0, 0.0, 6.0, 1.0]))  # I = 6 - 81/30 = 3.3 > 0
+    assert not _valid(CoulombFriction(), fit([30.0, 9.0, 0.0, 2.0, 1.0]))  # I = 2 - 2.7 < 0
+    assert not _valid(CoulombFriction(), fit([0.3, 0.0, 0.0, 2.0, 1.0]))  # m <= 0.5 kg
 
 
 @pytest.mark.parametrize("seed", [3002, 3014])

@@ -1,4 +1,5 @@
 """Effect library and test bed: columns against independent computations (cart.model / cart.simulate)."""
+
 from __future__ import annotations
 
 import math
@@ -8,8 +9,17 @@ import pytest
 
 from cart import model
 from cart.diagnose import diagnose, fit_model
-from cart.effects import (CONTRACT_NAMES, Effect, FloorSlope, distance_since_reversal, measured_rows,
-                          nominal_columns, register_effect, registered_effects, unregister_effect)
+from cart.effects import (
+    CONTRACT_NAMES,
+    Effect,
+    FloorSlope,
+    distance_since_reversal,
+    measured_rows,
+    nominal_columns,
+    register_effect,
+    registered_effects,
+    unregister_effect,
+)
 from studies.testbeds.hidden_effects import HiddenEffect, payload_params, random_cart, simulate_hidden
 from cart.log_signals import local_poly, signals_from_log, velocity_change_noise, window_edges
 from cart.params import CartParams
@@ -23,7 +33,7 @@ def test_registry_holds_the_contract_names():
 def test_local_poly_recovers_derivatives_of_a_quadratic_on_irregular_times():
     rng = np.random.default_rng(0)
     t = np.cumsum(rng.uniform(0.005, 0.015, 400))
-    y = 1.0 + 2.0 * t - 0.7 * t ** 2
+    y = 1.0 + 2.0 * t - 0.7 * t**2
     val, d1, d2, _ = local_poly(t, y, 0.1)
     np.testing.assert_allclose(val[:, 0], y, atol=1e-9)
     np.testing.assert_allclose(d1[:, 0], 2.0 - 1.4 * t, atol=1e-7)
@@ -77,6 +87,7 @@ def test_distance_since_reversal_counts_from_the_zero_crossing():
     v = np.where(t < 5.0, 0.5, -0.5)  # reversal at t = 5
     q = np.column_stack([np.cumsum(v) * 0.01, np.zeros_like(t), np.zeros_like(t)])
     from cart.logs import CartLog
+
     sig = signals_from_log(CartLog(t=t, q=q, gamma=np.zeros((len(t), 3))), half_window=0.02)
     d = distance_since_reversal(sig)
     assert np.all(np.isinf(d[t < 4.9]))
@@ -94,8 +105,9 @@ def test_payload_params_add_phi_linearly():
 def test_hidden_time_delay_and_bias_are_in_the_log_only():
     rng = np.random.default_rng(3)
     p = random_cart(rng)
-    kw = dict(duration=8.0, rate=100.0, jitter=0.0, position_noise=0.0, theta_noise=0.0, force_noise=0.0,
-              torque_noise=0.0)
+    kw = dict(
+        duration=8.0, rate=100.0, jitter=0.0, position_noise=0.0, theta_noise=0.0, force_noise=0.0, torque_noise=0.0
+    )
     base = simulate_hidden(p, (), rng=np.random.default_rng(1), **kw)
     delayed = simulate_hidden(p, (HiddenEffect("time_delay", {"delay": 0.2}),), rng=np.random.default_rng(1), **kw)
     np.testing.assert_allclose(delayed.true.q, base.true.q, atol=1e-12)  # motion unchanged
@@ -104,15 +116,18 @@ def test_hidden_time_delay_and_bias_are_in_the_log_only():
     assert np.median(diff[20]) < 1e-9
     assert np.mean(diff[20] < 1e-9) > 0.9
     assert np.median(diff[19]) > 1e-4 and np.median(diff[21]) > 1e-4
-    biased = simulate_hidden(p, (HiddenEffect("wrench_bias", {"fx": 5.0, "fy": 0.0, "tau": 2.0}),),
-                             rng=np.random.default_rng(1), **kw)
-    body = np.array([model.generalized_to_body(q, g) for q, g in zip(biased.true.q, biased.measured.gamma
-                                                                      - base.true.gamma)])
+    biased = simulate_hidden(
+        p, (HiddenEffect("wrench_bias", {"fx": 5.0, "fy": 0.0, "tau": 2.0}),), rng=np.random.default_rng(1), **kw
+    )
+    body = np.array(
+        [model.generalized_to_body(q, g) for q, g in zip(biased.true.q, biased.measured.gamma - base.true.gamma)]
+    )
     np.testing.assert_allclose(body, np.tile([5.0, 0.0, 2.0], (len(body), 1)), atol=1e-9)
 
 
 def test_unknown_hidden_effect_is_rejected():
     from cart.errors import ParameterError
+
     with pytest.raises(ParameterError):
         HiddenEffect("gremlins", {})
 
@@ -138,6 +153,7 @@ def test_a_user_effect_can_be_registered_and_named():
         g = h.measured.gamma.copy()
         g[:, 2] += 8.0 * h.true.q[:, 2]
         from dataclasses import replace
+
         rep = diagnose(replace(h.measured, gamma=g))
         assert rep.names and rep.names[0] == "yaw_spring"
         assert rep.effects[0].parameters["stiffness"] == pytest.approx(8.0, rel=0.2)
@@ -149,6 +165,7 @@ def test_a_user_effect_can_be_registered_and_named():
 def test_velocity_change_noise_matches_the_full_pipeline_on_pure_noise():
     from cart.logs import CartLog
     from cart.log_signals import window_integrals
+
     rng = np.random.default_rng(2)
     t = np.cumsum(rng.uniform(0.007, 0.013, 1500))
     vals = []
@@ -165,6 +182,7 @@ def test_velocity_change_noise_matches_the_full_pipeline_on_pure_noise():
 
 def _log_of(t, x, y, th):
     from cart.logs import CartLog
+
     return CartLog(t=t, q=np.column_stack([x, y, th]), gamma=np.zeros((len(t), 3)))
 
 
@@ -176,8 +194,8 @@ def test_caster_kinematics_match_the_test_bed_casters_and_the_columns_their_forc
     from studies.testbeds.hidden_effects import SwivelCasters
 
     t = np.arange(0.0, 14.0, 0.01)
-    v = 0.5 * np.sin(2 * np.pi * t / 14.0)            # forward, then backward: one reversal at t = 7
-    om = 0.3 * np.sin(2 * np.pi * t / 5.0)            # turning throughout
+    v = 0.5 * np.sin(2 * np.pi * t / 14.0)  # forward, then backward: one reversal at t = 7
+    om = 0.3 * np.sin(2 * np.pi * t / 5.0)  # turning throughout
     th = np.concatenate([[0.0], np.cumsum(0.5 * (om[1:] + om[:-1]) * np.diff(t))])
     xy = np.zeros((len(t), 2))
     for k in range(1, len(t)):
@@ -189,8 +207,10 @@ def test_caster_kinematics_match_the_test_bed_casters_and_the_columns_their_forc
     alpha, rate = model._lanes(sig, e)
     # independent: fine Euler steps of SwivelCasters with the same speeds (the kinematic yaw rate of the model)
     omk = fx.kinematic_yaw_rate(sig)
-    cas = SwivelCasters({"trail": e, "torque": 1.0, "damping": 0.0, "eps": model.EPS[0], "x": 0.8,
-                         "half_track": fx.CASTER_HALF_TRACK}, CartParams(m=30.0, dx=0.3, dy=0.0, I=2.0))
+    cas = SwivelCasters(
+        {"trail": e, "torque": 1.0, "damping": 0.0, "eps": model.EPS[0], "x": 0.8, "half_track": fx.CASTER_HALF_TRACK},
+        CartParams(m=30.0, dx=0.3, dy=0.0, I=2.0),
+    )
     al = np.zeros(2)
     ref = np.empty((len(t), 2))
     for k in range(len(t)):
@@ -220,8 +240,11 @@ def test_a_push_against_a_held_cart_counts_as_a_reversal():
     v = np.where(t < 4.0, 0.4, 0.0) * np.clip(4.0 - t, 0.0, 1.0)  # forward, stop at t = 4, then held still
     x = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * 0.01)])
     f = np.where((t > 6.0) & (t < 9.0), -30.0, 0.0)  # a 30 N pull from 6 s to 9 s that does not move it
-    log = CartLog(t=t, q=np.column_stack([x, np.zeros_like(t), np.zeros_like(t)]),
-                  gamma=np.column_stack([f, np.zeros_like(t), np.zeros_like(t)]))
+    log = CartLog(
+        t=t,
+        q=np.column_stack([x, np.zeros_like(t), np.zeros_like(t)]),
+        gamma=np.column_stack([f, np.zeros_like(t), np.zeros_like(t)]),
+    )
     sig = signals_from_log(log, half_window=0.05)
     d = travel_direction(sig)
     assert np.all(d[(t > 1.0) & (t < 2.5)] == 1) and np.all(d[(t > 4.5)] == -1)  # the rest run carries the pull

@@ -1,4 +1,5 @@
 """The one dynamics core and the whole-log least-squares estimator (cart.dynamics, cart.identify)."""
+
 from __future__ import annotations
 
 import json
@@ -17,8 +18,14 @@ from studies.testbeds import rigid_sim
 def test_core_forward_dynamics_equals_the_matrix_form_with_a_yaw_coefficient():
     rng = np.random.default_rng(3)
     for _ in range(20):
-        p = CartParams(rng.uniform(5, 80), rng.normal(0.3, 0.1), rng.normal(0, 0.1), rng.uniform(0.5, 5),
-                       sigma=rng.uniform(0, 8), sigma_yaw=rng.uniform(0, 3))
+        p = CartParams(
+            rng.uniform(5, 80),
+            rng.normal(0.3, 0.1),
+            rng.normal(0, 0.1),
+            rng.uniform(0.5, 5),
+            sigma=rng.uniform(0, 8),
+            sigma_yaw=rng.uniform(0, 3),
+        )
         q, qd, g = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3) * 20
         dense = model.forward_dynamics(q, qd, g, p, exact=True)  # Lagrange multiplier form, paper eq. (4)
         fast = dynamics.forward_dynamics(q[2], *qd, *g, *p.phi, *p.damping)
@@ -38,8 +45,9 @@ def test_regressor_inverts_the_forward_dynamics_on_the_constraint():
         y = dynamics.regressor(v, om, vdot, odot) @ np.r_[phi, damping]
         fu = math.cos(th) * g[0] + math.sin(th) * g[1]
         np.testing.assert_allclose(y, [fu, g[2]], rtol=1e-9, atol=1e-9)
-        np.testing.assert_allclose(dynamics.inverse_dynamics(v, om, vdot, odot, *phi, *damping), [fu, g[2]],
-                                   rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(
+            dynamics.inverse_dynamics(v, om, vdot, odot, *phi, *damping), [fu, g[2]], rtol=1e-9, atol=1e-9
+        )
 
 
 @pytest.fixture(scope="module")

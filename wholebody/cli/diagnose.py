@@ -1,4 +1,5 @@
 """`cartpush diagnose LOG`: find where the cart model and a log disagree, name the missing effect(s)."""
+
 from __future__ import annotations
 
 import argparse
@@ -26,16 +27,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("log", help="cart log (LOG_FORMAT.md CSV, .csv or .csv.gz) or a ROS bag (with the topic options)")
     p.add_argument("--json", action="store_true", help="print JSON only")
     p.add_argument("--out", metavar="DIR", help="write replay.png and residuals.png into DIR")
-    p.add_argument("--threshold", type=float, default=10.0,
-                   help="Delta BIC needed to name an effect, a finite number >= 0 (default 10)")
+    p.add_argument(
+        "--threshold",
+        type=float,
+        default=10.0,
+        help="Delta BIC needed to name an effect, a finite number >= 0 (default 10)",
+    )
     add_topic_options(p)
     p.set_defaults(func=run)
 
 
 def check_args(args: argparse.Namespace) -> None:
     """Raise a CartpushError for options the command cannot use (before reading any log)."""
-    options.finite("--threshold", args.threshold, nonnegative=True, maximum=1e6,
-                   why="a Delta BIC: negative or NaN would name effects with negative evidence")
+    options.finite(
+        "--threshold",
+        args.threshold,
+        nonnegative=True,
+        maximum=1e6,
+        why="a Delta BIC: negative or NaN would name effects with negative evidence",
+    )
 
 
 def _report(log, args: argparse.Namespace):
@@ -49,8 +59,10 @@ def _report(log, args: argparse.Namespace):
     except (np.linalg.LinAlgError, FloatingPointError) as exc:
         # degenerate data (no motion, no excitation, implausible units) breaks the fits' linear algebra
         notes = f"; the reader noted: {log.warnings[0]}" if log.warnings else ""
-        raise DiagnoseError(f"{args.log}: the model fit broke down numerically on this log ({exc}): it is "
-                            f"degenerate for diagnosis (no motion or excitation, or implausible units){notes}") from None
+        raise DiagnoseError(
+            f"{args.log}: the model fit broke down numerically on this log ({exc}): it is "
+            f"degenerate for diagnosis (no motion or excitation, or implausible units){notes}"
+        ) from None
 
 
 def _to_json(report, log, paths=()) -> dict:

@@ -1,4 +1,5 @@
 """`cartpush estimate LOG`: the cart's mass, CoM, inertia and viscous coefficients from a measured log."""
+
 from __future__ import annotations
 
 import argparse
@@ -34,17 +35,37 @@ Example:
 
 def register(subparsers) -> None:
     """Add the `estimate` subcommand."""
-    parser = subparsers.add_parser("estimate", help="estimate cart mass/CoM/inertia/damping from a log",
-                                   description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = subparsers.add_parser(
+        "estimate",
+        help="estimate cart mass/CoM/inertia/damping from a log",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument("log", metavar="LOG", help="cart log (.csv or .csv.gz) or a ROS bag (with the topic options)")
-    parser.add_argument("--method", choices=("ls", "ekf"), default="ls",
-                        help="ls: whole-log least squares (default); ekf: the paper's EKF")
-    parser.add_argument("--mass-guess", type=float, default=20.0, metavar="KG",
-                        help="EKF only: initial mass (default 20)")
-    parser.add_argument("--com-guess", type=float, nargs=2, default=(0.0, 0.0), metavar=("DX", "DY"),
-                        help="EKF only: initial CoM in the cart frame {b} (default 0 0)")
-    parser.add_argument("--sigma-guess", type=float, default=1.0, metavar="NS_PER_M",
-                        help="EKF only: initial viscous coefficients (default 1)")
+    parser.add_argument(
+        "--method",
+        choices=("ls", "ekf"),
+        default="ls",
+        help="ls: whole-log least squares (default); ekf: the paper's EKF",
+    )
+    parser.add_argument(
+        "--mass-guess", type=float, default=20.0, metavar="KG", help="EKF only: initial mass (default 20)"
+    )
+    parser.add_argument(
+        "--com-guess",
+        type=float,
+        nargs=2,
+        default=(0.0, 0.0),
+        metavar=("DX", "DY"),
+        help="EKF only: initial CoM in the cart frame {b} (default 0 0)",
+    )
+    parser.add_argument(
+        "--sigma-guess",
+        type=float,
+        default=1.0,
+        metavar="NS_PER_M",
+        help="EKF only: initial viscous coefficients (default 1)",
+    )
     parser.add_argument("--json", action="store_true", help="print only JSON")
     add_topic_options(parser)
     parser.set_defaults(func=run)
@@ -85,12 +106,25 @@ def _run_ls(log) -> Dict[str, Any]:
     if math.isfinite(nis) and nis > 18.0 and fits:
         fits = False
         warnings.append(f"the EKF's innovations do not fit (mean NIS {nis:.1f}, ~6 expected); run `cartpush diagnose`")
-    return {"method": "ls", "mass": p.m, "com": [p.dx, p.dy], "inertia": p.I, "sigma": p.sigma,
-            "sigma_yaw": p.sigma_yaw, "std": res.std, "nis_mean": nis, "model_fits": fits,
-            "residual_ratio": list(res.residual_ratio), "cutoff_hz": res.cutoff_hz,
-            "coulomb_resistance": {"force": res.coulomb["force"], "torque": res.coulomb["torque"]},
-            "noise_std": res.noise, "samples_used": res.samples_used, "gaps": res.gaps,
-            "rejected_samples": rejected, "warnings": warnings}
+    return {
+        "method": "ls",
+        "mass": p.m,
+        "com": [p.dx, p.dy],
+        "inertia": p.I,
+        "sigma": p.sigma,
+        "sigma_yaw": p.sigma_yaw,
+        "std": res.std,
+        "nis_mean": nis,
+        "model_fits": fits,
+        "residual_ratio": list(res.residual_ratio),
+        "cutoff_hz": res.cutoff_hz,
+        "coulomb_resistance": {"force": res.coulomb["force"], "torque": res.coulomb["torque"]},
+        "noise_std": res.noise,
+        "samples_used": res.samples_used,
+        "gaps": res.gaps,
+        "rejected_samples": rejected,
+        "warnings": warnings,
+    }
 
 
 def _run_ekf(log, args: argparse.Namespace) -> Dict[str, Any]:
@@ -98,8 +132,7 @@ def _run_ekf(log, args: argparse.Namespace) -> Dict[str, Any]:
     from cart.errors import LogFormatError
     from cart.params import CartParams
 
-    guess = CartParams(args.mass_guess, args.com_guess[0], args.com_guess[1], 0.1 * args.mass_guess,
-                       args.sigma_guess)
+    guess = CartParams(args.mass_guess, args.com_guess[0], args.com_guess[1], 0.1 * args.mass_guess, args.sigma_guess)
     try:
         est = estimate_from_log(log, guess, estimate_sigma=True)
     except (FloatingPointError, TypeError) as exc:
@@ -109,13 +142,29 @@ def _run_ekf(log, args: argparse.Namespace) -> Dict[str, Any]:
         raise LogFormatError(f"{args.log}: the EKF diverged on this log (non-finite estimate)")
     fits = bool(math.isfinite(est.mean_nis) and est.mean_nis < 18.0)
     warnings = list(getattr(log, "warnings", ()))
-    warnings += [] if fits else [f"the EKF's innovations do not fit (mean NIS {est.mean_nis:.1f}, ~6 expected): "
-                                "the std understates the error; run `cartpush diagnose`"]
-    return {"method": "ekf", "mass": p.m, "com": [p.dx, p.dy], "inertia": p.I, "sigma": p.sigma,
-            "sigma_yaw": p.sigma_yaw, "std": est.std, "nis_mean": est.mean_nis, "model_fits": fits,
-            "velocities_estimated": est.velocities_estimated,
-            "rejected_samples": int(getattr(est, "rejected_samples", 0)), "gaps": int(getattr(est, "gaps", 0)),
-            "warnings": warnings}
+    warnings += (
+        []
+        if fits
+        else [
+            f"the EKF's innovations do not fit (mean NIS {est.mean_nis:.1f}, ~6 expected): "
+            "the std understates the error; run `cartpush diagnose`"
+        ]
+    )
+    return {
+        "method": "ekf",
+        "mass": p.m,
+        "com": [p.dx, p.dy],
+        "inertia": p.I,
+        "sigma": p.sigma,
+        "sigma_yaw": p.sigma_yaw,
+        "std": est.std,
+        "nis_mean": est.mean_nis,
+        "model_fits": fits,
+        "velocities_estimated": est.velocities_estimated,
+        "rejected_samples": int(getattr(est, "rejected_samples", 0)),
+        "gaps": int(getattr(est, "gaps", 0)),
+        "warnings": warnings,
+    }
 
 
 def check_args(args: argparse.Namespace) -> None:

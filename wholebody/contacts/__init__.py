@@ -13,14 +13,15 @@ from wholebody.contacts.excitation import (ContactSchedule, InputModel, PushSamp
                                            input_model, objective_value, plan_contact_schedule, sample_push,
                                            schedule_com_std, schedule_points, schedule_score)
 from wholebody.contacts.handle import (ContactSpec, HandleSegment, cart_wrench, grasp_map, grasp_map_paper,
-                                       grasp_matrix, wrench_basis, wrench_to_b)
-from wholebody.contacts.placement import ContactPlan, effort_profile, optimal_contact_points
+                                       grasp_matrices, grasp_matrix, wrench_basis, wrench_to_b)
+from wholebody.contacts.placement import ContactPlan, EffortSweep, effort_profile, effort_sweep, optimal_contact_points
 
 __all__ = [
-    "AllocationResult", "ArmLimits", "ContactPlan", "ContactSchedule", "ContactSpec", "EffortWeights", "GraspModel",
+    "AllocationResult", "ArmLimits", "ContactPlan", "ContactSchedule", "ContactSpec", "EffortSweep", "EffortWeights",
+    "GraspModel",
     "HandleSegment", "InputModel", "PushSamples", "SchedulePlan", "WrenchAllocator", "WrenchNoise", "allocate",
-    "cart_wrench", "com_covariance", "com_crlb_course", "effort_profile", "excitation_score", "fisher_information",
-    "grasp_map", "grasp_map_paper", "grasp_matrix", "input_model", "objective_value", "optimal_contact_points",
+    "cart_wrench", "com_covariance", "com_crlb_course", "effort_profile", "effort_sweep", "excitation_score", "fisher_information",
+    "grasp_map", "grasp_map_paper", "grasp_matrices", "grasp_matrix", "input_model", "objective_value", "optimal_contact_points",
     "plan_contact_schedule", "sample_push", "schedule_com_std", "schedule_points", "schedule_score", "wrench_basis",
     "wrench_to_b",
 ]

@@ -13,13 +13,21 @@ handle, find each end effector's wrench ``[f; tau]`` (in its contact frame
   normal load is the grip squeeze plus the push;
 * joint torque limits ``|J_i^T w_i| <= tau_max`` when Jacobians are given.
 
-`WrenchAllocator` builds the matrices once for a set of contacts and limits and
-then solves for a new ``Gamma_MM`` per call (the hot path of a control loop).
-An unconstrained-optimum shortcut (closed-form KKT) is taken when it already
-satisfies every inequality, which is then the exact QP optimum.
+`WrenchAllocator` builds the QP once for a set of contacts and limits (fixed
+dimensions and sparsity: only the equality matrix depends on the contact
+points) and then solves for a new ``Gamma_MM`` per call (the hot path of a
+control loop). With ``solver="proxqp"`` it calls ProxQP's dense solver directly,
+initialized once, updated in place and warm-started from the previous solution;
+every other backend (or ``direct=False``) goes through `qpsolvers`. An
+unconstrained-optimum shortcut (closed-form KKT) is taken when it already
+satisfies every inequality, which is then the exact QP optimum;
+`WrenchAllocator.closed_form_batch` evaluates that shortcut for many contact
+placements and wrenches at once (the vectorized effort sweep of
+`wholebody.contacts.placement.effort_sweep`).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -27,7 +35,7 @@ import numpy as np
 import qpsolvers
 import scipy.sparse as sp
 
-from wholebody.contacts.handle import ContactSpec, grasp_map
+from wholebody.contacts.handle import ContactSpec, grasp_matrices
 from wholebody.errors import InfeasibleWrenchError, WholeBodyError
 
 #: Robotiq 2F-85 grip force range (N).
@@ -36,6 +44,10 @@ GRIP_FORCE_RANGE = (20.0, 235.0)
 COMPONENTS = ("fx", "fy", "fz", "tau_x", "tau_y", "tau_z")
 #: Components used by a planar contact (the others are fixed to zero).
 PLANAR_COMPONENTS = (0, 1, 5)
+#: qpsolvers backends that want sparse (CSC) matrices.
+SPARSE_SOLVERS = ("osqp", "scs", "clarabel", "highs", "piqp", "qpalm", "gurobi", "mosek")
+#: ProxQP's absolute tolerance (relative 0): the QP result is then polished on its active set.
+PROXQP_EPS_ABS = 1e-9
 
 
 @dataclass(frozen=True)
@@ -119,8 +131,139 @@ def _as_contacts(contacts: Sequence) -> list[ContactSpec]:
     return out
 
 
+# ---------------------------------------------------------------------------------------------- QP structure
+def _components(lim: ArmLimits) -> Sequence[int]:
+    return PLANAR_COMPONENTS if lim.planar else range(6)
+
+
+def _free_indices(limits: Sequence[ArmLimits]) -> np.ndarray:
+    """Return the indices of the free components in the stacked 6N wrench (planar arms fix fz, tau_x, tau_y)."""
+    return np.array([6 * i + k for i, lim in enumerate(limits) for k in _components(lim)])
+
+
+def _effort_matrix(n: int, weights: EffortWeights, jacobians: list[np.ndarray] | None) -> np.ndarray:
+    """Return Q (6N x 6N): effort = w^T Q w, block-diagonal per arm (wrench weights, or w_joint J J^T)."""
+    Q = np.zeros((6 * n, 6 * n))
+    for i in range(n):
+        if jacobians is None:
+            Q[6 * i : 6 * i + 3, 6 * i : 6 * i + 3] = weights.force * np.eye(3)
+            Q[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6] = weights.torque * np.eye(3)
+        else:
+            J = jacobians[i]
+            Q[6 * i : 6 * i + 6, 6 * i : 6 * i + 6] = weights.joint * (J @ J.T)
+    return Q
+
+
+class _Inequalities:
+    """Rows ``c . w <= h`` over the stacked 6N wrench, each with a label naming the limit."""
+
+    def __init__(self, n: int) -> None:
+        self.n, self.rows, self.rhs, self.labels = n, [], [], []
+
+    def add(self, entries: dict[int, float], bound: float, label: str) -> None:
+        c = np.zeros(6 * self.n)
+        for k, v in entries.items():
+            c[k] = v
+        self.rows.append(c)
+        self.rhs.append(bound)
+        self.labels.append(label)
+
+    def box(self, i: int, lim: ArmLimits) -> None:
+        """Per-component force/torque bounds of arm i."""
+        for k in _components(lim):
+            bound, unit, kind = (lim.max_force, "N", "force") if k < 3 else (lim.max_torque, "N m", "torque")
+            for sgn in (1.0, -1.0):
+                self.add({6 * i + k: sgn}, bound, f"arm{i} {kind} bound ({COMPONENTS[k]} "
+                                                  f"{'<=' if sgn > 0 else '>='} {sgn * bound:g} {unit})")
+
+    def grasp(self, i: int, lim: ArmLimits) -> None:
+        """Grip pull limit, friction cone and torque limits of arm i's `GraspModel` (normal load 2 Fg + fx)."""
+        g = lim.grasp
+        self.add({6 * i: -1.0}, g.pull_capacity, f"arm{i} grip pull limit ({g.pull_capacity:g} N at grip force "
+                                                  f"{g.grip_force:g} N)")
+        mu, sq = g.friction, 2.0 * g.grip_force
+        if lim.planar:
+            dirs = [(1.0, 0.0, 1.0), (-1.0, 0.0, 1.0)]
+        else:
+            ang = 2.0 * np.pi * np.arange(g.facets) / g.facets
+            dirs = [(np.cos(a), np.sin(a), np.cos(np.pi / g.facets)) for a in ang]
+        for cy, cz, sh in dirs:  # c.f_t <= mu * s * (2 Fg + fx)
+            self.add({6 * i + 1: cy, 6 * i + 2: cz, 6 * i: -mu * sh}, mu * sh * sq,
+                     f"arm{i} grip friction cone (tangential force, mu={mu:g})")
+        for k in (k for k in _components(lim) if k >= 3):
+            for sgn in (1.0, -1.0):
+                self.add({6 * i + k: sgn, 6 * i: -g.torque_arm}, g.torque_arm * sq,
+                         f"arm{i} grip torque limit ({COMPONENTS[k]})")
+
+    def joint_torques(self, i: int, J: np.ndarray, torque_limit: np.ndarray) -> None:
+        """``|J_i^T w_i| <= tau_max`` per joint of arm i."""
+        tl = np.asarray(torque_limit, dtype=float)
+        if tl.shape != (J.shape[1],) or np.any(tl <= 0):
+            raise WholeBodyError(f"arm{i} torque limits must be {J.shape[1]} positive numbers")
+        for j in range(J.shape[1]):
+            for sgn in (1.0, -1.0):
+                self.add({6 * i + k: sgn * J[k, j] for k in range(6)}, tl[j],
+                         f"arm{i} joint {j} torque limit ({tl[j]:g} N m)")
+
+
+def _inequalities(limits: Sequence[ArmLimits], jacobians: list[np.ndarray] | None,
+                  torque_limits: Sequence[np.ndarray] | None) -> _Inequalities:
+    """Return every limit row of the allocation QP (boxes, grasp model, joint torques), arm by arm."""
+    out = _Inequalities(len(limits))
+    for i, lim in enumerate(limits):
+        out.box(i, lim)
+        if lim.grasp is not None:
+            out.grasp(i, lim)
+        if torque_limits is not None:
+            out.joint_torques(i, jacobians[i], torque_limits[i])
+    return out
+
+
+class _DirectProxQP:
+    """ProxQP's dense solver on one allocation QP: initialized once per equality matrix, then warm-started.
+
+    A new equality matrix (the contacts moved) re-initializes the QP (cold, scaled on the new matrix); a new
+    right-hand side only updates it and warm-starts from the previous solution. A warm start that fails is
+    retried cold, and a failed solve is never warm-started from.
+    """
+
+    def __init__(self, P: np.ndarray, G: np.ndarray, h: np.ndarray) -> None:
+        import proxsuite
+
+        self._proxqp = proxsuite.proxqp
+        self.P, self.G, self.h = P, G, h
+        self.qp = None
+
+    def _cold(self, A: np.ndarray, b: np.ndarray) -> None:
+        nx = self.P.shape[0]
+        self.qp = self._proxqp.dense.QP(nx, A.shape[0], self.G.shape[0])
+        self.qp.settings.eps_abs = PROXQP_EPS_ABS
+        self.qp.settings.eps_rel = 0.0
+        self.qp.settings.verbose = False
+        self.qp.init(self.P, np.zeros(nx), A, b, self.G, np.full(len(self.h), -np.inf), self.h)
+        self.qp.solve()  # ProxQP crashes when asked to warm-start before its first solve
+        self.qp.settings.initial_guess = self._proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+
+    def _solved(self) -> bool:
+        return self.qp.results.info.status == self._proxqp.QPSolverOutput.PROXQP_SOLVED
+
+    def solve(self, A: np.ndarray, b: np.ndarray, new_A: bool) -> np.ndarray | None:
+        """Return the solution for equality ``A x = b``, or None if ProxQP fails (cold as well as warm)."""
+        if self.qp is None or new_A:
+            self._cold(A, b)
+        else:
+            self.qp.update(b=b)
+            self.qp.solve()
+            if not self._solved():
+                self._cold(A, b)
+        if not self._solved():
+            self.qp = None
+            return None
+        return self.qp.results.x.copy()
+
+
 class WrenchAllocator:
-    """Cached QP of the wrench allocation for fixed contacts and limits; `solve(gamma_b)` per step."""
+    """The wrench allocation QP for fixed limits, built once; `set_points` moves the contacts, `solve` per step."""
 
     def __init__(
         self,
@@ -132,9 +275,12 @@ class WrenchAllocator:
         jacobians: Sequence[np.ndarray] | None = None,
         torque_limits: Sequence[np.ndarray] | None = None,
         fast_path: bool = True,
+        direct: bool = True,
     ) -> None:
-        self.contacts = _as_contacts(contacts)
-        n = len(self.contacts)
+        """``direct``: with ``solver="proxqp"``, call ProxQP's dense API (warm-started) rather than qpsolvers."""
+        specs = _as_contacts(contacts)
+        n = len(specs)
+        self._names = [c.name for c in specs]
         lims = [limits] * n if isinstance(limits, ArmLimits) else list(limits)
         if len(lims) != n:
             raise WholeBodyError(f"{len(lims)} arm limits given for {n} contacts")
@@ -152,139 +298,215 @@ class WrenchAllocator:
             if len(self.jacobians) != n or any(J.ndim != 2 or J.shape[0] != 6 for J in self.jacobians):
                 raise WholeBodyError("jacobians must be one (6 x n_joints) array per contact")
         self._build(torque_limits)
+        self._direct = _DirectProxQP(self.P, self.Gin, self.hin) if solver == "proxqp" and direct \
+            else None
+        self.set_points([c.point_b for c in specs])
 
     # ------------------------------------------------------------------ build
-    def _build(self, torque_limits) -> None:
-        n = len(self.contacts)
-        free = []  # indices into the stacked 6N wrench
-        for i, lim in enumerate(self.limits):
-            comps = PLANAR_COMPONENTS if lim.planar else range(6)
-            free.extend(6 * i + k for k in comps)
-        self.free = np.array(free)
-        nx = len(free)
-        E = np.zeros((6 * n, nx))
-        E[self.free, np.arange(nx)] = 1.0
-        self.E = E
+    def _build(self, torque_limits: Sequence[np.ndarray] | None) -> None:
+        """Build the point-independent parts: free components, cost P, inequalities Gin x <= hin."""
+        n = len(self._names)
+        self.free = _free_indices(self.limits)
+        nx = len(self.free)
+        self.E = np.zeros((6 * n, nx))
+        self.E[self.free, np.arange(nx)] = 1.0
         w = self.weights
-        Q = np.zeros((6 * n, 6 * n))  # effort = w_full^T Q w_full
-        for i in range(n):
-            if self.jacobians is None:
-                Q[6 * i : 6 * i + 3, 6 * i : 6 * i + 3] = w.force * np.eye(3)
-                Q[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6] = w.torque * np.eye(3)
-            else:
-                J = self.jacobians[i]
-                Q[6 * i : 6 * i + 6, 6 * i : 6 * i + 6] = w.joint * (J @ J.T)
-        self.Q = Q
+        self.Q = _effort_matrix(n, w, self.jacobians)
         reg = np.diag(np.tile(np.r_[[w.force] * 3, [w.torque] * 3], n)) * (1e-9 if self.jacobians is not None else 0.0)
-        self.P = 2.0 * E.T @ (Q + reg) @ E
+        self.P = 2.0 * self.E.T @ (self.Q + reg) @ self.E
+        self._Pinv = np.linalg.inv(self.P)
+        self._Q_free = self.E.T @ self.Q @ self.E  # effort = x^T Q_free x on the free components
+        self._active: tuple[int, ...] = ()  # active limits of the last QP solution (the shortcut's guess)
         self.q = np.zeros(nx)
-        rows, rhs, labels = [], [], []
+        rows = _inequalities(self.limits, self.jacobians, torque_limits)
+        self.Gin = np.array(rows.rows) @ self.E
+        self.hin = np.array(rows.rhs)
+        self.labels = rows.labels
+        slack = np.maximum(1.0, np.abs(self.hin))
+        self._h_exact = self.hin + 1e-12 * slack  # the closed form is the QP optimum within this
+        self._h_ok = self.hin + 1e-6 * slack  # a QP result within this is accepted
+        self._h_polish = self.hin + 1e-9 * slack  # a polished solution within this is kept
+        self._h_active = self.hin - 1e-7 * slack  # rows of a QP result taken as active
+        self._G_conv = sp.csc_matrix(self.Gin) if self.solver in SPARSE_SOLVERS else self.Gin
+        col = {int(k): j for j, k in enumerate(self.free)}  # stacked-wrench index -> free-variable index
+        self._fx_cols = np.array([col[6 * i] for i in range(n)])
+        self._fy_cols = np.array([col[6 * i + 1] for i in range(n)])
+        self._A_template = self._equality_batch(np.zeros((1, n, 3)))[1][0]  # tau row: lever arms filled per call
 
-        def add(coef_full: np.ndarray, bound: float, label: str) -> None:
-            rows.append(coef_full @ E)
-            rhs.append(bound)
-            labels.append(label)
+    def _equality_batch(self, points_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return (G_full (M, 3, 6N), A (M, r, nx)) of the equality rows for contact sets points_b (M, N, 3)."""
+        G = grasp_matrices(points_b)  # paper eq. (25)
+        return G, G[:, self.rows][:, :, self.free]
 
-        for i, lim in enumerate(self.limits):
-            comps = PLANAR_COMPONENTS if lim.planar else range(6)
-            for k in comps:
-                bound = lim.max_force if k < 3 else lim.max_torque
-                unit = "N" if k < 3 else "N m"
-                for sgn in (1.0, -1.0):
-                    c = np.zeros(6 * n)
-                    c[6 * i + k] = sgn
-                    add(c, bound, f"arm{i} {'force' if k < 3 else 'torque'} bound ({COMPONENTS[k]} {'<=' if sgn > 0 else '>='} {sgn * bound:g} {unit})")
-            g = lim.grasp
-            if g is not None:
-                c = np.zeros(6 * n)
-                c[6 * i] = -1.0
-                add(c, g.pull_capacity, f"arm{i} grip pull limit ({g.pull_capacity:g} N at grip force {g.grip_force:g} N)")
-                mu, sq = g.friction, 2.0 * g.grip_force
-                if lim.planar:
-                    dirs = [(1.0, 0.0, 1.0), (-1.0, 0.0, 1.0)]
-                else:
-                    ang = 2.0 * np.pi * np.arange(g.facets) / g.facets
-                    shrink = np.cos(np.pi / g.facets)
-                    dirs = [(np.cos(a), np.sin(a), shrink) for a in ang]
-                for cy, cz, s in dirs:  # c.f_t <= mu * s * (2 Fg + fx)
-                    c = np.zeros(6 * n)
-                    c[6 * i + 1], c[6 * i + 2], c[6 * i] = cy, cz, -mu * s
-                    add(c, mu * s * sq, f"arm{i} grip friction cone (tangential force, mu={mu:g})")
-                for k in comps:
-                    if k < 3:
-                        continue
-                    for sgn in (1.0, -1.0):
-                        c = np.zeros(6 * n)
-                        c[6 * i + k], c[6 * i] = sgn, -g.torque_arm
-                        add(c, g.torque_arm * sq, f"arm{i} grip torque limit ({COMPONENTS[k]})")
-            if torque_limits is not None:
-                tl = np.asarray(torque_limits[i], dtype=float)
-                J = self.jacobians[i]
-                if tl.shape != (J.shape[1],) or np.any(tl <= 0):
-                    raise WholeBodyError(f"arm{i} torque limits must be {J.shape[1]} positive numbers")
-                for j in range(J.shape[1]):
-                    for sgn in (1.0, -1.0):
-                        c = np.zeros(6 * n)
-                        c[6 * i : 6 * i + 6] = sgn * J[:, j]
-                        add(c, tl[j], f"arm{i} joint {j} torque limit ({tl[j]:g} N m)")
-        self.Gin = np.array(rows)
-        self.hin = np.array(rhs)
-        self.labels = labels
-        sparse = self.solver in ("osqp", "scs", "clarabel", "highs", "piqp", "qpalm", "gurobi", "mosek")
-        self._G_conv = sp.csc_matrix(self.Gin) if sparse else self.Gin
-        self.set_points([c.point_b for c in self.contacts])
+    @property
+    def contacts(self) -> list[ContactSpec]:
+        """Return the current contacts (points in {b}, names)."""
+        return [ContactSpec(tuple(p), name) for p, name in zip(self._points.tolist(), self._names)]
 
     def set_points(self, points_b: Sequence[Sequence[float]]) -> None:
         """Move the contacts to points_b (N x 3 in {b}); the limits and the cost are unchanged."""
-        pts = [ContactSpec(tuple(p), c.name) for p, c in zip(points_b, self.contacts)]
-        if len(pts) != len(self.contacts):
-            raise WholeBodyError(f"{len(points_b)} points given for {len(self.contacts)} contacts")
-        self.contacts = pts
-        self.G_full = np.hstack([grasp_map(c.point_b) for c in pts])  # paper eq. (25)
-        self.A = self.G_full[self.rows] @ self.E
-        # closed-form optimum of the equality-only problem: x = K b
-        Pinv_At = np.linalg.solve(self.P, self.A.T)
-        S = self.A @ Pinv_At
-        self.K = None if np.linalg.matrix_rank(S) < S.shape[0] else Pinv_At @ np.linalg.inv(S)
-        sparse = self.solver in ("osqp", "scs", "clarabel", "highs", "piqp", "qpalm", "gurobi", "mosek")
-        conv = (lambda M: sp.csc_matrix(M)) if sparse else (lambda M: M)
-        self._mats = dict(P=conv(self.P), G=self._G_conv, A=conv(self.A))
-        relax_scale = 1e6 * max(1.0, float(np.max(np.diag(self.P))))
-        self._relax_P = conv(self.P / relax_scale + 2.0 * self.A.T @ self.A)
+        pts = np.array(points_b, dtype=float)
+        if pts.shape != (len(self._names), 3):
+            raise WholeBodyError(f"{len(points_b)} points given for {len(self._names)} contacts (3 numbers each)")
+        if not np.isfinite(pts).all():
+            raise WholeBodyError(f"contact points must be finite, got {points_b!r}")
+        self._points = pts
+        G, A = self._equality_batch(pts[None])
+        self.G_full, self.A = G[0], A[0]
+        Pinv_At = self._Pinv @ self.A.T  # closed-form optimum of the equality-only problem: x = K b
+        self._kkt_cache = {(): (Pinv_At @ np.linalg.inv(self.A @ Pinv_At), np.zeros((0, len(self.rows))),
+                                np.zeros(0))}
+        self._A_new = True  # the direct QP takes the new equality matrix at its next solve
+        self._mats = None  # qpsolvers' matrices, built when first needed
+
+    def _qpsolvers_mats(self) -> dict:
+        if self._mats is None:
+            conv = sp.csc_matrix if self.solver in SPARSE_SOLVERS else (lambda M: M)
+            relax_scale = 1e6 * max(1.0, float(np.max(np.diag(self.P))))
+            self._mats = dict(P=conv(self.P), G=self._G_conv, A=conv(self.A),
+                              relax_P=conv(self.P / relax_scale + 2.0 * self.A.T @ self.A))
+        return self._mats
+
+    # ------------------------------------------------------------------ batch
+    def closed_form_batch(self, points_b: np.ndarray, gammas: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return the equality-only optimum for every contact set and wrench at once.
+
+        ``points_b``: (M, N, 3) contact sets; ``gammas``: (T, 3). Returns ``x`` (M, T, nx), ``exact``
+        (M, T): where it satisfies every limit (then it is the QP optimum, as in `solve`), and its effort
+        (M, T): the effort of the QP optimum where exact, a lower bound on it elsewhere (no joint-torque
+        weights).
+        """
+        _, A = self._equality_batch(np.asarray(points_b, dtype=float))
+        Pinv_At = self._Pinv @ np.swapaxes(A, 1, 2)  # (M, nx, r)
+        B = np.asarray(gammas, dtype=float)[:, self.rows].T  # (r, T)
+        X = np.swapaxes(Pinv_At @ np.linalg.solve(A @ Pinv_At, B), 1, 2)
+        exact = np.all(X @ self.Gin.T <= self._h_exact, axis=-1)
+        return X, exact, np.sum((X @ self._Q_free) * X, axis=-1)
+
+    def closed_form_effort(self, points_b: np.ndarray, gamma: np.ndarray) -> float | None:
+        """Return the effort of the equality-only optimum at contacts points_b (N, 3) if it keeps every limit.
+
+        One problem of `closed_form_batch` without the batch's overhead (the hot call of a local search): the
+        equality matrix is the cached one with the torque row's lever arms (-p_y, p_x; eq. 24) filled in.
+        None when the closed form breaks a limit (the QP is needed).
+        """
+        A = self._A_template.copy()
+        A[-1, self._fx_cols] = -points_b[:, 1]
+        A[-1, self._fy_cols] = points_b[:, 0]
+        Pinv_At = self._Pinv @ A.T
+        x = Pinv_At @ np.linalg.solve(A @ Pinv_At, gamma[self.rows])
+        if not (self.Gin @ x <= self._h_exact).all():
+            return None
+        return float(x @ self._Q_free @ x)
 
     # ------------------------------------------------------------------ solve
     def _solver_kwargs(self) -> dict:
         if self.solver == "proxqp":
-            return dict(eps_abs=1e-9, eps_rel=0.0)
+            return dict(eps_abs=PROXQP_EPS_ABS, eps_rel=0.0)
         if self.solver == "osqp":
             return dict(eps_abs=1e-9, eps_rel=1e-9, polish=True, max_iter=20000, verbose=False)
         return {}
 
-    def _polish(self, x: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Return the exact KKT solution on the active set of x when x misses the equality by > 1e-11."""
-        scale = max(1.0, float(np.max(np.abs(b))))
-        if float(np.max(np.abs(self.A @ x - b))) <= 1e-11 * scale:
+    def _qp(self, b: np.ndarray) -> np.ndarray | None:
+        """Return the QP solution for right-hand side b (None when the solver fails)."""
+        if self._direct is not None:
+            x = self._direct.solve(self.A, b, self._A_new)
+            self._A_new = False
+        else:
+            m = self._qpsolvers_mats()
+            sol = qpsolvers.solve_problem(qpsolvers.Problem(m["P"], self.q, m["G"], self.hin, m["A"], b),
+                                          solver=self.solver, **self._solver_kwargs())
+            x = sol.x if sol.found else None
+        return x if x is not None and np.isfinite(x).all() else None
+
+    def _kkt(self, active: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Return (Kx, Kl, h_active) of the equality-constrained QP with rows ``active`` of Gin held tight.
+
+        With ``A_eq = [A; G_active]``, ``b_eq = [b; h_active]`` and ``S = A_eq P^-1 A_eq^T`` (q = 0), the KKT
+        point is ``x = Kx b_eq``, ``Kx = P^-1 A_eq^T S^-1``, with multipliers ``lambda = Kl b_eq``,
+        ``Kl = -(S^-1)[n_eq:]`` of the active rows; it is the QP optimum when x satisfies every limit and
+        lambda >= 0. None for a degenerate active set (dependent rows). Cached until `set_points`.
+        """
+        if active in self._kkt_cache:
+            return self._kkt_cache[active]
+        idx = list(active)
+        Aeq = np.vstack([self.A, self.Gin[idx]])
+        entry = None
+        if Aeq.shape[0] <= Aeq.shape[1]:
+            Pinv_At = self._Pinv @ Aeq.T
+            S = Aeq @ Pinv_At
+            try:
+                T = np.linalg.inv(S)
+            except np.linalg.LinAlgError:
+                T = None
+            if T is not None and np.abs(S @ T - np.eye(len(S))).max() < 1e-9:  # not numerically degenerate
+                entry = (Pinv_At @ T, -T[len(self.rows):], self.hin[idx])
+        self._kkt_cache[active] = entry
+        return entry
+
+    def _on_active_set(self, b: np.ndarray, active: tuple[int, ...], h_max: np.ndarray,
+                       scale: float) -> np.ndarray | None:
+        """Return the KKT point of ``active`` if it is the QP optimum (limits within h_max, lambda >= 0)."""
+        entry = self._kkt(active)
+        if entry is None:
+            return None
+        Kx, Kl, h_act = entry
+        beq = np.concatenate([b, h_act]) if active else b
+        x = Kx @ beq
+        if (self.Gin @ x <= h_max).all() and (not active or (Kl @ beq >= -1e-9 * scale).all()):
             return x
-        active = self.Gin @ x >= self.hin - 1e-7 * np.maximum(1.0, np.abs(self.hin))
-        Aeq = np.vstack([self.A, self.Gin[active]])
-        beq = np.r_[b, self.hin[active]]
+        return None
+
+    def _shortcut(self, b: np.ndarray, scale: float) -> tuple[np.ndarray, str] | None:
+        """Return the exact optimum from the closed form, or on the last QP's active set, if either certifies."""
+        x = self._on_active_set(b, (), self._h_exact, scale)
+        if x is not None:
+            return x, "closed-form"
+        if self._active:
+            x = self._on_active_set(b, self._active, self._h_exact, scale)
+            if x is not None:
+                return x, "active-set"
+        return None
+
+    def _polish(self, x: np.ndarray, b: np.ndarray, scale: float) -> np.ndarray:
+        """Return the exact KKT point on the active set of the QP result x (x itself if that does not certify).
+
+        A degenerate active set (dependent rows) falls back to least squares on the full KKT system when x
+        misses the equality by more than 1e-11 scale.
+        """
+        active = tuple(np.flatnonzero(self.Gin @ x >= self._h_active).tolist())
+        sol = self._on_active_set(b, active, self._h_polish, scale)
+        if sol is not None:
+            self._active = active
+            return sol if np.abs(self.A @ sol - b).max() <= 1e-11 * scale else x
+        if np.abs(self.A @ x - b).max() <= 1e-11 * scale:
+            return x
+        Aeq = np.vstack([self.A, self.Gin[list(active)]])
         nx, m = self.P.shape[0], Aeq.shape[0]
         K = np.zeros((nx + m, nx + m))
         K[:nx, :nx], K[:nx, nx:], K[nx:, :nx] = self.P, Aeq.T, Aeq
-        sol = np.linalg.lstsq(K, np.r_[-self.q, beq], rcond=None)[0][:nx]
-        ok_in = np.all(self.Gin @ sol <= self.hin + 1e-9 * np.maximum(1.0, np.abs(self.hin)))
-        if ok_in and float(np.max(np.abs(self.A @ sol - b))) <= 1e-11 * scale:
+        sol = np.linalg.lstsq(K, np.r_[-self.q, b, self.hin[list(active)]], rcond=None)[0][:nx]
+        if (self.Gin @ sol <= self._h_polish).all() and np.abs(self.A @ sol - b).max() <= 1e-11 * scale:
             return sol
         return x
 
     def _result(self, x: np.ndarray, gamma: np.ndarray, solver: str) -> AllocationResult:
         w_full = self.E @ x
         achieved = self.G_full @ w_full
-        residual = float(np.linalg.norm((achieved - gamma)[self.rows]))
+        d = achieved[self.rows] - gamma[self.rows]
+        residual = math.sqrt(d @ d)  # = np.linalg.norm(d)
         effort = float(w_full @ self.Q @ w_full)
         W = w_full.reshape(-1, 6)
         taus = None if self.jacobians is None else tuple(J.T @ W[i] for i, J in enumerate(self.jacobians))
         return AllocationResult(W, achieved, residual, effort, solver, taus)
+
+    def optimum(self, gamma_b: Sequence[float]) -> AllocationResult | None:
+        """Return the minimum-effort allocation of gamma_b, or None when the QP finds none (no closest-wrench QP).
+
+        The same result as `solve` whenever gamma_b is achievable; for a search that only needs to know
+        that a request is not achievable (contact placement), not by how much.
+        """
+        return self._solve(gamma_b, False, closest=False)
 
     def solve(self, gamma_b: Sequence[float], raise_on_infeasible: bool = True) -> AllocationResult:
         """Return the minimum-effort wrenches producing gamma_b = (fx, fy, tau) in {b}.
@@ -293,31 +515,35 @@ class WrenchAllocator:
         if no wrench within the limits produces it, unless ``raise_on_infeasible``
         is False: then the closest achievable allocation is returned.
         """
-        gamma = np.asarray(gamma_b, dtype=float).reshape(-1)
-        if gamma.shape != (3,) or not np.all(np.isfinite(gamma)):
+        return self._solve(gamma_b, raise_on_infeasible, closest=True)
+
+    def _solve(self, gamma_b: Sequence[float], raise_on_infeasible: bool, closest: bool) -> AllocationResult | None:
+        """`solve`; with ``closest=False`` None instead of the closest allocation of an unachievable wrench."""
+        gamma = np.array(gamma_b, dtype=float).reshape(-1)
+        values = gamma.tolist()
+        if len(values) != 3 or not all(map(math.isfinite, values)):
             raise WholeBodyError(f"cart wrench must be 3 finite numbers (fx, fy, tau), got {gamma_b!r}")
         b = gamma[self.rows]
-        tol = 1e-7 * max(1.0, float(np.max(np.abs(gamma))))
-        if self.fast_path and self.K is not None:
-            x = self.K @ b
-            if np.all(self.Gin @ x <= self.hin + 1e-12 * np.maximum(1.0, np.abs(self.hin))):
-                return self._result(x, gamma, "closed-form")
-        sol = qpsolvers.solve_problem(
-            qpsolvers.Problem(self._mats["P"], self.q, self._mats["G"], self.hin, self._mats["A"], b),
-            solver=self.solver,
-            **self._solver_kwargs(),
-        )
-        if sol.found and sol.x is not None and np.all(np.isfinite(sol.x)):
-            x = self._polish(sol.x, b)
+        scale = max(1.0, abs(values[0]), abs(values[1]), abs(values[2]))
+        b_scale = max(1.0, float(np.abs(b).max()))
+        hot = self._shortcut(b, b_scale) if self.fast_path else None
+        if hot is not None:
+            return self._result(hot[0], gamma, hot[1])
+        x = self._qp(b)
+        if x is not None:
+            x = self._polish(x, b, b_scale)
             res = self._result(x, gamma, self.solver)
-            if res.residual <= tol and np.all(self.Gin @ x <= self.hin + 1e-6 * np.maximum(1.0, np.abs(self.hin))):
+            if res.residual <= 1e-7 * scale and (self.Gin @ x <= self._h_ok).all():
                 return res
-        return self._closest(gamma, b, tol, raise_on_infeasible)
+        if not closest:
+            return None
+        return self._closest(gamma, b, 1e-7 * scale, raise_on_infeasible)
 
     def _closest(self, gamma: np.ndarray, b: np.ndarray, tol: float, raise_on_infeasible: bool) -> AllocationResult:
         """Solve min |A x - b|^2 + effort / rho under the limits (rho large); raise or return it."""
+        m = self._qpsolvers_mats()
         sol = qpsolvers.solve_problem(
-            qpsolvers.Problem(self._relax_P, -2.0 * self.A.T @ b, self._mats["G"], self.hin),
+            qpsolvers.Problem(m["relax_P"], -2.0 * self.A.T @ b, m["G"], self.hin),
             solver=self.solver,
             **self._solver_kwargs(),
         )

@@ -56,6 +56,7 @@ import numpy as np
 from cart.dynamics import regressor
 from wholebody.contacts.allocation import ArmLimits, WrenchAllocator
 from wholebody.contacts.handle import HandleSegment, grasp_map
+from wholebody.contacts.placement import effort_sweep
 from wholebody.errors import WholeBodyError
 
 #: Scores the planner can maximize (see the module docstring).
@@ -137,7 +138,10 @@ def input_model(mode: str, sensor: WrenchNoise = WrenchNoise(), actuation: Wrenc
 
 @dataclass(frozen=True)
 class PushSamples:
-    """A planned cart motion sampled every dt: forward speed, its rate, yaw rate, its rate."""
+    """A planned cart motion on a time grid: forward speed, its rate, yaw rate, its rate.
+
+    Also the desired motion of the synthetic-log test bed (``studies.testbeds.hidden_effects.Motion``).
+    """
 
     t: np.ndarray
     v: np.ndarray
@@ -149,6 +153,11 @@ class PushSamples:
     def dt(self) -> float:
         """Return the sampling period."""
         return float(self.t[1] - self.t[0])
+
+    def at(self, t: float) -> tuple[float, float, float, float]:
+        """Return (v, vdot, omega, omegadot) at time t (linear interpolation)."""
+        return (float(np.interp(t, self.t, self.v)), float(np.interp(t, self.t, self.vdot)),
+                float(np.interp(t, self.t, self.omega)), float(np.interp(t, self.t, self.omegadot)))
 
 
 @dataclass(frozen=True)
@@ -315,21 +324,19 @@ def _segment_tables(samples, phi, sigma, handle, candidates, n_segments, noise, 
     alloc = WrenchAllocator([handle.point(0.0)], limits, only_motion_directions=True)
     scale = 1.0 if sensor_dt is None else samples.dt / float(sensor_dt)
     J = len(candidates)
+    pts = np.array([handle.point(float(s)) for s in candidates])
+    tol = 1e-6 * np.maximum(1.0, np.max(np.abs(gam), axis=1))
+    sweep = effort_sweep(alloc, pts[:, None, :], gam)  # (J, N) allocations, paper eq. (25)
+    e_all = np.where(sweep.residual < tol, sweep.effort, np.inf)
     info = np.zeros((n_segments, J, 4, 4))
     effort = np.zeros((n_segments, J))
-    for j, s in enumerate(candidates):
-        p = handle.point(float(s))
+    for j, p in enumerate(pts):
         Rinv = np.linalg.inv(measurement_covariance(p, noise))
         per = scale * np.einsum("nji,jk,nkl->nil", Y, Rinv, Y)
-        alloc.set_points([p])
-        e = np.empty(len(gam))
-        for n, g in enumerate(gam):
-            res = alloc.solve(g, raise_on_infeasible=False)
-            e[n] = res.effort if res.residual < 1e-6 * max(1.0, np.max(np.abs(g))) else np.inf
         for k in range(n_segments):
             mask = seg == k
             info[k, j] = per[mask].sum(axis=0)
-            effort[k, j] = e[mask].sum() * samples.dt
+            effort[k, j] = e_all[j][mask].sum() * samples.dt
     return bounds, info, effort
 
 

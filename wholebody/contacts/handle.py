@@ -66,24 +66,33 @@ def grasp_map_paper(point_b: Sequence[float]) -> np.ndarray:
     return wrench_to_b(point_b) @ wrench_basis()
 
 
+def grasp_matrices(points_b: np.ndarray) -> np.ndarray:
+    """Return [G_1 ... G_N] (..., 3, 6N) for contact points (..., N, 3): a batch of eq. 25 grasp matrices.
+
+    Rows are (fx_b, fy_b, tau_b about the {b} origin); each 3x6 block equals B_a^T Ad_{g_ab}^T (eqs. 23–24).
+    """
+    p = np.asarray(points_b, dtype=float)
+    n = p.shape[-2]
+    G = np.zeros(p.shape[:-2] + (3, 6 * n))
+    G[..., 0, 0::6] = 1.0
+    G[..., 1, 1::6] = 1.0
+    G[..., 2, 0::6] = -p[..., 1]  # (p x f)_z = px fy - py fx
+    G[..., 2, 1::6] = p[..., 0]
+    G[..., 2, 5::6] = 1.0
+    return G
+
+
 def grasp_map(point_b: Sequence[float]) -> np.ndarray:
     """Return the planar grasp map (3x6): Gamma_MM = G @ [f; tau]_a (paper eqs. 23–24).
 
     Rows are (fx_b, fy_b, tau_b about the {b} origin); equals B_a^T Ad_{g_ab}^T.
     """
-    p = np.asarray(point_b, dtype=float)
-    G = np.zeros((3, 6))
-    G[0, 0] = 1.0
-    G[1, 1] = 1.0
-    G[2, 0] = -p[1]  # (p x f)_z = px fy - py fx
-    G[2, 1] = p[0]
-    G[2, 5] = 1.0
-    return G
+    return grasp_matrices(np.reshape(np.asarray(point_b, dtype=float), (1, 3)))
 
 
 def grasp_matrix(points_b: Sequence[Sequence[float]]) -> np.ndarray:
     """Return [G_1 ... G_N] (3 x 6N): Gamma_MM = sum_i G_i Gamma_ee,i (paper eq. 25)."""
-    return np.hstack([grasp_map(p) for p in points_b]) if len(points_b) else np.zeros((3, 0))
+    return grasp_matrices(np.reshape(np.asarray(points_b, dtype=float), (-1, 3))) if len(points_b) else np.zeros((3, 0))
 
 
 def cart_wrench(points_b: Sequence[Sequence[float]], wrenches_ee: np.ndarray) -> np.ndarray:

@@ -35,13 +35,63 @@ from wholebody.errors import InfeasibleWrenchError, WholeBodyError
 
 @dataclass(frozen=True)
 class ContactPlan:
-    """Chosen contact points (N x 3 in {b}), their coordinates s on the handle, and the allocation."""
+    """Chosen contact points (N x 3 in {b}), their coordinates s on the handle, and the allocation.
+
+    ``evaluations`` counts the contact sets whose allocation was computed (in the vectorized closed form or
+    by the QP); grid candidates pruned by the lower bound are not counted.
+    """
 
     points_b: np.ndarray
     s: np.ndarray
     allocation: AllocationResult
     effort: float
     evaluations: int
+
+
+@dataclass(frozen=True)
+class EffortSweep:
+    """Allocations of T cart wrenches at M contact sets (N arms each), from `effort_sweep`.
+
+    ``effort`` (M, T): the allocation effort where ``solved``, elsewhere the effort of the equality-only
+    optimum, a lower bound on it (no joint-torque weights); ``residual`` (M, T) and ``wrenches_ee``
+    (M, T, N, 6) are those of `WrenchAllocator.solve` where ``solved``.
+    """
+
+    effort: np.ndarray
+    residual: np.ndarray
+    wrenches_ee: np.ndarray
+    solved: np.ndarray
+
+    def feasible_effort(self, tol: np.ndarray | float) -> np.ndarray:
+        """Return the effort where the wrench is produced (residual <= tol, per wrench or scalar), inf elsewhere."""
+        return np.where(self.solved & (self.residual <= tol), self.effort, np.inf)
+
+
+def effort_sweep(allocator: WrenchAllocator, points_b: np.ndarray, gammas: np.ndarray,
+                 solve: np.ndarray | None = None) -> EffortSweep:
+    """Return the allocation of every wrench ``gammas`` (T, 3) at every contact set ``points_b`` (M, N, 3).
+
+    The one effort sweep of the package: the equality-only optimum of all M x T problems at once
+    (`WrenchAllocator.closed_form_batch`; exact wherever it keeps every limit), then `allocator.solve`
+    (``raise_on_infeasible=False``) for the others, restricted to the mask ``solve`` (M, T) when given.
+    The allocator is left at the last contact set solved.
+    """
+    pts = np.asarray(points_b, dtype=float)
+    gam = np.asarray(gammas, dtype=float).reshape(-1, 3)
+    X, exact, effort = allocator.closed_form_batch(pts, gam)
+    M, T = exact.shape
+    W = np.zeros((M, T, 6 * pts.shape[1]))
+    W[..., allocator.free] = X
+    G, _ = allocator._equality_batch(pts)
+    d = (np.einsum("mrk,mtk->mtr", G, W) - gam)[..., allocator.rows]
+    residual = np.sqrt(np.sum(d * d, axis=-1))
+    todo = ~exact if solve is None else (~exact & np.asarray(solve, dtype=bool))
+    for m in np.flatnonzero(todo.any(axis=1)):
+        allocator.set_points(pts[m])
+        for t in np.flatnonzero(todo[m]):
+            res = allocator.solve(gam[t], raise_on_infeasible=False)
+            effort[m, t], residual[m, t], W[m, t] = res.effort, res.residual, res.wrenches_ee.reshape(-1)
+    return EffortSweep(effort, residual, W.reshape(M, T, -1, 6), exact | todo)
 
 
 class _Objective:
@@ -52,8 +102,8 @@ class _Objective:
         self.handle = handle
         self.alloc = allocator
         self.count = 0
-        self.best_infeasible: tuple[float, np.ndarray] | None = None
         self.tol = 1e-7 * max(1.0, float(np.max(np.abs(self.gamma))))
+        self._start, self._dir = np.asarray(handle.start_b), handle.direction
 
     def result(self, s: np.ndarray) -> AllocationResult:
         self.count += 1
@@ -61,16 +111,89 @@ class _Objective:
         return self.alloc.solve(self.gamma, raise_on_infeasible=False)
 
     def __call__(self, s: np.ndarray) -> float:
-        res = self.result(s)
-        if res.residual > self.tol:
-            if self.best_infeasible is None or res.residual < self.best_infeasible[0]:
-                self.best_infeasible = (res.residual, np.array(s, dtype=float))
-            return np.inf
-        return res.effort
+        pts = self._start + np.asarray(s, dtype=float)[:, None] * self._dir  # = handle.point(s_i)
+        self.count += 1
+        effort = self.alloc.closed_form_effort(pts, self.gamma)
+        if effort is not None:  # the closed form keeps every limit: it is the QP optimum
+            return effort
+        self.alloc.set_points(pts)
+        res = self.alloc.optimum(self.gamma)
+        return np.inf if res is None or res.residual > self.tol else res.effort
+
+    def least_infeasible(self, candidates: np.ndarray) -> np.ndarray:
+        """Return the candidate whose closest achievable wrench misses gamma by the least (all infeasible)."""
+        residuals = [self.result(c).residual for c in candidates]
+        return candidates[int(np.argmin(residuals))]
+
+    def grid_values(self, candidates: np.ndarray, keep: int) -> np.ndarray:
+        """Return V at the candidates (K, N): exact for the ``keep`` smallest (and any tie), inf for the rest.
+
+        All candidates in the vectorized closed form first (`effort_sweep` without QP); then, in increasing
+        order of that lower bound, the QP for the others until the bound exceeds the ``keep``-th smallest
+        exact value: a pruned candidate costs at least its bound, so the ``keep`` best are those of a brute
+        force over the whole grid.
+        """
+        pts = np.asarray(self.handle.start_b) + candidates[..., None] * self.handle.direction  # (K, N, 3)
+        sweep = effort_sweep(self.alloc, pts, self.gamma[None], solve=np.zeros((len(candidates), 1), bool))
+        values = sweep.feasible_effort(self.tol)[:, 0]
+        self.count += int(sweep.solved.sum())
+        best = sorted(values[np.isfinite(values)].tolist())[:keep]  # the `keep` smallest exact values so far
+        for k in np.argsort(sweep.effort[:, 0], kind="stable"):
+            if sweep.solved[k, 0]:
+                continue
+            kth = best[keep - 1] if len(best) >= keep else np.inf
+            if sweep.effort[k, 0] > kth * (1.0 + 1e-9) + 1e-12:
+                break
+            values[k] = self(candidates[k])
+            if np.isfinite(values[k]):
+                best = sorted(best + [float(values[k])])[:keep]
+        return values
 
 
 def _spacing_ok(s: np.ndarray, length: float, spacing: float) -> bool:
-    return bool(s[0] >= -1e-12 and s[-1] <= length + 1e-12 and np.all(np.diff(s) >= spacing - 1e-12))
+    v = s.tolist()
+    return v[0] >= -1e-12 and v[-1] <= length + 1e-12 and all(b - a >= spacing - 1e-12 for a, b in zip(v, v[1:]))
+
+
+def _grid(length: float, n_arms: int, spacing: float, resolution: float) -> tuple[np.ndarray, float]:
+    """Return the spacing-feasible ordered grid tuples (K, n_arms) on [0, length] and the grid step."""
+    n_grid = max(2, int(np.ceil(length / resolution)) + 1)
+    grid = np.linspace(0.0, length, n_grid)
+    step = grid[1] - grid[0]
+    if n_arms == 1:
+        return grid[:, None], step
+    k = int(np.ceil(spacing / step - 1e-9))
+    idx = np.array(list(combinations(range(n_grid), n_arms)), dtype=int).reshape(-1, n_arms)
+    c = grid[idx[np.all(np.diff(idx, axis=1) >= k, axis=1)]]
+    ok = (c[:, 0] >= -1e-12) & (c[:, -1] <= length + 1e-12) & np.all(np.diff(c, axis=1) >= spacing - 1e-12, axis=1)
+    return c[ok], step
+
+
+def _refine(obj: _Objective, s0: np.ndarray, step: float, length: float, spacing: float) -> tuple[np.ndarray, float]:
+    """Return a local minimum of V near grid point s0: bounded Brent (one arm), Nelder–Mead (several)."""
+    n_arms = len(s0)
+    if n_arms == 1:
+        lo, hi = max(0.0, s0[0] - step), min(length, s0[0] + step)
+        r = minimize_scalar(lambda v: obj(np.array([v])), bounds=(lo, hi), method="bounded", options={"xatol": 1e-7})
+        return np.array([r.x]), float(r.fun)
+
+    def penalized(s: np.ndarray) -> float:
+        s = np.sort(s)
+        return obj(s) if _spacing_ok(s, length, spacing) else np.inf
+
+    simplex = np.vstack([s0] + [s0 + step * np.eye(n_arms)[j] * (1 if s0[j] + step <= length else -1)
+                                for j in range(n_arms)])
+    r = minimize(penalized, s0, method="Nelder-Mead",
+                 options={"initial_simplex": simplex, "xatol": 1e-6, "fatol": 1e-9, "maxfev": 400})
+    return np.sort(r.x), float(r.fun)
+
+
+def _raise_infeasible(obj: _Objective, candidates: np.ndarray) -> None:
+    """Raise `InfeasibleWrenchError` naming the binding limit at the least-infeasible grid candidate."""
+    s_bad = obj.least_infeasible(candidates)
+    obj.alloc.set_points([obj.handle.point(float(v)) for v in s_bad])
+    obj.alloc.solve(obj.gamma)  # raises InfeasibleWrenchError naming the binding limit
+    raise InfeasibleWrenchError("no contact placement produces the requested wrench", binding="unknown")
 
 
 def optimal_contact_points(
@@ -90,7 +213,8 @@ def optimal_contact_points(
     Several arms keep ``min_spacing`` (metres) between neighbours along the
     handle (arm i holds a smaller s than arm i+1). Raises `InfeasibleWrenchError`
     (with the binding limit of the least-infeasible grid candidate) when no
-    placement can produce gamma_b.
+    placement can produce gamma_b. The ``refine`` best grid candidates (the
+    same as a brute force over the grid's QPs, `_Objective.grid_values`) are refined locally.
     """
     handle = HandleSegment.default() if handle is None else handle
     if n_arms < 1:
@@ -101,47 +225,18 @@ def optimal_contact_points(
     if n_arms > 1 and (n_arms - 1) * min_spacing > L + 1e-12:
         raise WholeBodyError(f"{n_arms} arms {min_spacing} m apart do not fit on a {L:.3f} m handle")
     spacing = max(0.0, float(min_spacing)) if n_arms > 1 else 0.0
-    allocator = WrenchAllocator(
-        [handle.point(0.0)] * n_arms, limits, weights, solver, only_motion_directions
-    )
+    allocator = WrenchAllocator([handle.point(0.0)] * n_arms, limits, weights, solver, only_motion_directions)
     obj = _Objective(gamma_b, handle, allocator)
-
-    n_grid = max(2, int(np.ceil(L / resolution)) + 1)
-    grid = np.linspace(0.0, L, n_grid)
-    step = grid[1] - grid[0]
-    if n_arms == 1:
-        candidates = [np.array([g]) for g in grid]
-    else:
-        k = int(np.ceil(spacing / step - 1e-9))
-        candidates = [
-            grid[list(idx)] for idx in combinations(range(n_grid), n_arms) if np.all(np.diff(idx) >= k)
-        ]
-        candidates = [c for c in candidates if _spacing_ok(c, L, spacing)]
-    values = np.array([obj(c) for c in candidates])
+    candidates, step = _grid(L, n_arms, spacing, resolution)
+    values = obj.grid_values(candidates, max(1, refine))
     if not np.any(np.isfinite(values)):
-        s_bad = obj.best_infeasible[1] if obj.best_infeasible is not None else candidates[0]
-        allocator.set_points([handle.point(float(v)) for v in s_bad])
-        allocator.solve(gamma_b)  # raises InfeasibleWrenchError naming the binding limit
-        raise InfeasibleWrenchError("no contact placement produces the requested wrench", binding="unknown")
-
-    order = np.argsort(values)
+        _raise_infeasible(obj, candidates)
+    order = np.argsort(values, kind="stable")
     best_s, best_v = candidates[order[0]].copy(), float(values[order[0]])
     for idx in order[: max(1, refine)]:
         if not np.isfinite(values[idx]):
             break
-        s0 = candidates[idx]
-        if n_arms == 1:
-            lo, hi = max(0.0, s0[0] - step), min(L, s0[0] + step)
-            r = minimize_scalar(lambda v: obj(np.array([v])), bounds=(lo, hi), method="bounded", options={"xatol": 1e-7})
-            s_new, v_new = np.array([r.x]), float(r.fun)
-        else:
-            def penalized(s: np.ndarray) -> float:
-                s = np.sort(s)
-                return obj(s) if _spacing_ok(s, L, spacing) else np.inf
-
-            simplex = np.vstack([s0] + [s0 + step * np.eye(n_arms)[j] * (1 if s0[j] + step <= L else -1) for j in range(n_arms)])
-            r = minimize(penalized, s0, method="Nelder-Mead", options={"initial_simplex": simplex, "xatol": 1e-6, "fatol": 1e-9, "maxfev": 400})
-            s_new, v_new = np.sort(r.x), float(r.fun)
+        s_new, v_new = _refine(obj, candidates[idx], step, L, spacing)
         if np.isfinite(v_new) and v_new < best_v:
             best_s, best_v = s_new, v_new
     final = obj.result(best_s)
@@ -158,10 +253,16 @@ def effort_profile(
     only_motion_directions: bool = False,
     solver: str = "proxqp",
 ) -> np.ndarray:
-    """Return the one-arm effort V(s) at each handle coordinate (inf where infeasible)."""
+    """Return the one-arm effort V(s) at each handle coordinate (inf where infeasible), by `effort_sweep`."""
     handle = HandleSegment.default() if handle is None else handle
-    obj = _Objective(gamma_b, handle, WrenchAllocator([handle.point(0.0)], limits, weights, solver, only_motion_directions))
-    return np.array([obj(np.array([float(s)])) for s in s_values])
+    gamma = np.asarray(gamma_b, dtype=float)
+    s = np.asarray(s_values, dtype=float).reshape(-1)
+    if np.any(s < -1e-12) or np.any(s > handle.length + 1e-12):
+        raise WholeBodyError(f"handle coordinates must lie in [0, {handle.length}]")
+    alloc = WrenchAllocator([handle.point(0.0)], limits, weights, solver, only_motion_directions)
+    pts = (np.asarray(handle.start_b) + s[:, None] * handle.direction)[:, None, :]
+    sweep = effort_sweep(alloc, pts, gamma[None])
+    return sweep.feasible_effort(1e-7 * max(1.0, float(np.max(np.abs(gamma)))))[:, 0]
 
 
 # ---------------------------------------------------------------------------------------------- reachability

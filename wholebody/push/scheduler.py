@@ -11,7 +11,7 @@ from cart.params import CartParams
 from cart.trajectories import UnicycleTrajectory
 from wholebody.contacts.allocation import WrenchAllocator
 from wholebody.contacts.handle import HandleSegment
-from wholebody.contacts.placement import ReachMap
+from wholebody.contacts.placement import ReachMap, effort_sweep
 from wholebody.errors import InfeasibleWrenchError
 from wholebody.push.config import PushConfig
 from wholebody.push.robot import handle_point
@@ -74,26 +74,37 @@ class ContactScheduler:
             out.append(np.array([fu, 0.0, tau]))
         return out
 
+    def _best_candidate(self, gammas: List[np.ndarray]) -> np.ndarray:
+        """Return the candidate with the least total effort over the planned wrenches (penalties included).
+
+        One `effort_sweep` over every candidate and wrench; an unachievable wrench adds 1e6 residual^2, and
+        with a `ReachMap` static joint torques beyond STATIC_TORQUE_FRACTION of the effortLimit add
+        1e6 excess^2. Ties keep the earlier candidate (improvement by more than 1e-9 needed).
+        """
+        if not self.candidates:
+            return self.plan
+        pts = np.array([[handle_point(v) for v in cand] for cand in self.candidates])
+        sweep = effort_sweep(self.alloc, pts, np.array(gammas))
+        totals = np.zeros(len(self.candidates))
+        for k in range(len(gammas)):  # the same summation order as one candidate at a time
+            totals = totals + (sweep.effort[:, k] + 1e6 * sweep.residual[:, k] ** 2)
+            if self.reach is not None:
+                over = np.array([self.reach.torque_ratio(float(c[0]), sweep.wrenches_ee[m, k, 0])
+                                 for m, c in enumerate(self.candidates)]) - STATIC_TORQUE_FRACTION
+                totals = totals + 1e6 * np.maximum(0.0, over) ** 2
+        best, best_v = self.plan, np.inf
+        for cand, total in zip(self.candidates, totals):
+            if total < best_v - 1e-9:
+                best, best_v = cand, total
+        return best
+
     def update(self, t: float, params: CartParams, dt: float) -> Tuple[np.ndarray, np.ndarray]:
         """Return (contact y per arm, their rates) after one period."""
         if self.config.contact == "fixed":
             return self.y, np.zeros_like(self.y)
         if t >= self.next_replan - 1e-12:
             self.next_replan = t + self.config.replan_period
-            gammas = self._planned_wrenches(t, params)
-            best, best_v = self.plan, np.inf
-            for cand in self.candidates:
-                self.alloc.set_points([handle_point(v) for v in cand])
-                total = 0.0
-                for g in gammas:
-                    res = self.alloc.solve(g, raise_on_infeasible=False)
-                    total += res.effort + 1e6 * res.residual ** 2
-                    if self.reach is not None:  # static joint torques beyond the effortLimit: heavily penalised
-                        over = self.reach.torque_ratio(float(cand[0]), res.wrenches_ee[0]) - STATIC_TORQUE_FRACTION
-                        total += 1e6 * max(0.0, over) ** 2
-                if total < best_v - 1e-9:
-                    best, best_v = cand, total
-            self.plan = best.copy()
+            self.plan = self._best_candidate(self._planned_wrenches(t, params)).copy()
         # slide towards the plan with bounded speed and acceleration (a trapezoidal profile that stops on the
         # plan): the hand's velocity never jumps, so the arm's joint torques stay continuous at a re-plan
         a, vmax = self.config.slide_acceleration, self.config.slide_speed

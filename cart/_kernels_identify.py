@@ -1,0 +1,151 @@
+"""Numerical kernels of :mod:`cart.identify` in numpy alone (no ``scipy.signal`` / ``scipy.stats`` import).
+
+``cartpush estimate`` spends most of its start-up importing ``scipy.signal`` (~0.8 s) and
+``scipy.stats`` (~0.3 s) for three small functions; these are their numpy equivalents:
+
+- :func:`butter_lowpass_sos`: ``scipy.signal.butter(order, wn, output="sos")`` (even order): analog
+  Butterworth prototype, pre-warped bilinear transform, second-order sections ordered like
+  ``scipy.signal.zpk2sos`` (the poles nearest the unit circle last, the gain in the first section);
+- :func:`sosfiltfilt`: ``scipy.signal.sosfiltfilt(sos, x, axis=0, padlen=...)`` (odd extension, initial
+  states from the steady state of a step, forward and backward passes). Each section's recursion
+  (transposed direct form II) is run by blocks: inside a block of ``L`` samples the output is a
+  convolution with the section's impulse response plus the free response of the block's initial state
+  (one matrix product for all blocks and columns); only the states between blocks are stepped one by one;
+- :func:`student_t_quantile`: ``scipy.stats.t.ppf`` for an integer number of degrees of freedom
+  (closed-form CDF, Abramowitz & Stegun 26.7.3-4, solved by bisection).
+
+The results agree with scipy's to rounding (tests/cart/test_identify_speed.py compares them).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def butter_lowpass_sos(order: int, wn: float) -> np.ndarray:
+    """Return the digital Butterworth low-pass of even ``order`` and cut-off ``wn`` (share of Nyquist) as sos (k, 6)."""
+    if order < 2 or order % 2:
+        raise ValueError(f"butter_lowpass_sos needs an even order >= 2, got {order}")
+    if not 0.0 < wn < 1.0:
+        raise ValueError(f"the cut-off must be in (0, 1) of the Nyquist frequency, got {wn}")
+    p = -np.exp(1j * np.pi * np.arange(-order + 1, order, 2) / (2 * order))  # analog prototype poles
+    warped = 4.0 * math.tan(math.pi * wn / 2.0)  # pre-warp, fs = 2
+    p = warped * p
+    k = warped**order
+    fs2 = 4.0
+    pz = (fs2 + p) / (fs2 - p)  # bilinear transform; every zero maps to -1
+    k = k * np.real(1.0 / np.prod(fs2 - p))
+    upper = pz[np.imag(pz) > 0]  # one pole of each conjugate pair
+    order_idx = np.argsort(-np.abs(1.0 - np.abs(upper)), kind="stable")  # farthest from the unit circle first
+    sos = np.zeros((order // 2, 6))
+    for row, i in enumerate(order_idx):
+        p1 = upper[i]
+        sos[row] = [1.0, 2.0, 1.0, 1.0, -2.0 * p1.real, p1.real * p1.real + p1.imag * p1.imag]
+    sos[0, :3] *= k
+    return sos
+
+
+def _section_zi(sos: np.ndarray) -> np.ndarray:
+    """Return the steady-state initial states (sections, 2) for a unit step (``scipy.signal.sosfilt_zi``)."""
+    zi = np.empty((len(sos), 2))
+    scale = 1.0
+    for s, (b0, b1, b2, _, a1, a2) in enumerate(sos):
+        i_minus_a = np.array([[1.0 + a1, -1.0], [a2, 1.0]])
+        zi[s] = scale * np.linalg.solve(i_minus_a, np.array([b1 - a1 * b0, b2 - a2 * b0]))
+        scale *= (b0 + b1 + b2) / (1.0 + a1 + a2)
+    return zi
+
+
+def _section_filter(section: np.ndarray, x: np.ndarray, z0: np.ndarray) -> np.ndarray:
+    """Return one biquad section applied along axis 0 of x (n, c) from the initial states z0 (2, c).
+
+    The section's recursion y[i] + a1 y[i-1] + a2 y[i-2] = b0 x[i] + b1 x[i-1] + b2 x[i-2] is a
+    lower-triangular banded system (bandwidth 2); the transposed-direct-form-II states z0 enter its
+    first two right-hand sides. LAPACK's banded triangular solve (``dtbtrs``) runs the recursion.
+    """
+    from scipy.linalg.lapack import dtbtrs  # scipy.linalg is light next to scipy.signal
+
+    b0, b1, b2, _, a1, a2 = section
+    n = len(x)
+    rhs = b0 * x
+    rhs[1:] += b1 * x[:-1]
+    rhs[2:] += b2 * x[:-2]
+    rhs[0] += z0[0]
+    if n > 1:
+        rhs[1] += z0[1]
+    band = np.empty((3, n))
+    band[0] = 1.0
+    band[1] = a1
+    band[2] = a2
+    y, info = dtbtrs(band, rhs, uplo="L", overwrite_b=1)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"banded triangular solve failed (LAPACK info {info})")
+    return y
+
+
+def sosfilt(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> np.ndarray:
+    """Return the cascade of second-order sections applied along axis 0 of x (n, c); zi (sections, 2, c)."""
+    y = x
+    for section, z0 in zip(sos, zi):
+        y = _section_filter(section, y, z0)
+    return y
+
+
+def sosfiltfilt(sos: np.ndarray, x: np.ndarray, padlen: int) -> np.ndarray:
+    """Return the zero-phase (forward-backward) filtering of x along axis 0, odd extension of ``padlen`` samples."""
+    x = np.asarray(x, float)
+    flat = x.reshape(len(x), -1)
+    if padlen >= len(flat):
+        raise ValueError(f"padlen {padlen} must be less than the signal length {len(flat)}")
+    if padlen > 0:
+        left = 2.0 * flat[0] - flat[padlen:0:-1]
+        right = 2.0 * flat[-1] - flat[-2 : -padlen - 2 : -1]
+        ext = np.concatenate([left, flat, right])
+    else:
+        ext = flat
+    zi = _section_zi(sos)[:, :, None]
+    y = sosfilt(sos, ext, zi * ext[0])
+    y = sosfilt(sos, y[::-1], zi * y[-1])[::-1]
+    if padlen > 0:
+        y = y[padlen:-padlen]
+    return np.ascontiguousarray(y).reshape(x.shape)
+
+
+def _student_t_two_sided(t: float, dof: int) -> float:
+    """Return P(|T| < t) of Student's t with integer ``dof`` (Abramowitz & Stegun 26.7.3-4)."""
+    theta = math.atan(t / math.sqrt(dof))
+    c2 = math.cos(theta) ** 2
+    if dof % 2:  # odd
+        if dof == 1:
+            return 2.0 * theta / math.pi
+        term, total = 1.0, 1.0
+        for k in range(1, (dof - 1) // 2):
+            term *= c2 * (2 * k) / (2 * k + 1)
+            total += term
+        return 2.0 / math.pi * (theta + math.sin(theta) * math.cos(theta) * total)
+    term, total = 1.0, 1.0
+    for k in range(1, dof // 2):
+        term *= c2 * (2 * k - 1) / (2 * k)
+        total += term
+    return math.sin(theta) * total
+
+
+def student_t_quantile(p: float, dof: int) -> float:
+    """Return the ``p`` quantile (0.5 < p < 1) of Student's t with integer ``dof`` >= 1 (bisection)."""
+    if not (0.5 < p < 1.0) or dof < 1 or int(dof) != dof:
+        raise ValueError(f"student_t_quantile needs 0.5 < p < 1 and an integer dof >= 1, got p={p}, dof={dof}")
+    target = 2.0 * p - 1.0
+    lo, hi = 0.0, 1.0
+    while _student_t_two_sided(hi, int(dof)) < target:
+        hi *= 2.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if _student_t_two_sided(mid, int(dof)) < target:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-14 * hi:
+            break
+    return 0.5 * (lo + hi)
