@@ -22,7 +22,7 @@ _LAZY = {
     "CartLog": "cart.logs", "read_log": "cart.logs", "write_log": "cart.logs",
     "Identification": "cart.identify", "IdentifiabilityError": "cart.identify", "identify": "cart.identify",
     "CartEKF": "cart.ekf", "EKFConfig": "cart.ekf", "estimate_from_log": "cart.ekf",
-    "DiagnoseError": "cart.diagnose", "diagnose": "cart.diagnose",
+    "DiagnoseError": "cart.errors", "diagnose": "cart.diagnose",
     "MeasurementNoise": "cart.simulate", "simulate": "cart.simulate",
     "UnicycleTrajectory": "cart.trajectories", "trajectory_1": "cart.trajectories",
     "trajectory_2": "cart.trajectories",

@@ -136,16 +136,20 @@ def student_t_quantile(p: float, dof: int) -> float:
     """Return the ``p`` quantile (0.5 < p < 1) of Student's t with integer ``dof`` >= 1 (bisection)."""
     if not (0.5 < p < 1.0) or dof < 1 or int(dof) != dof:
         raise ValueError(f"student_t_quantile needs 0.5 < p < 1 and an integer dof >= 1, got p={p}, dof={dof}")
-    target = 2.0 * p - 1.0
+    return bisect_increasing(lambda t: _student_t_two_sided(t, int(dof)), 2.0 * p - 1.0, 1e-14)
+
+
+def bisect_increasing(f, target: float, rel_tol: float) -> float:
+    """Return x >= 0 with f(x) = target for an increasing f with f(0) <= target (bracket by doubling, then bisect)."""
     lo, hi = 0.0, 1.0
-    while _student_t_two_sided(hi, int(dof)) < target:
+    while f(hi) < target:
         hi *= 2.0
     for _ in range(200):
         mid = 0.5 * (lo + hi)
-        if _student_t_two_sided(mid, int(dof)) < target:
+        if f(mid) < target:
             lo = mid
         else:
             hi = mid
-        if hi - lo <= 1e-14 * hi:
+        if hi - lo <= rel_tol * hi:
             break
     return 0.5 * (lo + hi)

@@ -47,7 +47,6 @@ from cart.log_signals import (
     window_integrals,
 )
 from cart.logs import CartLog
-from cart.params import CartParams
 from cart.diagnose_replay import Replay, flag_starts, merge_windows, replay
 
 GAP_METRIC = (

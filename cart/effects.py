@@ -22,7 +22,7 @@ implement ``columns`` (and optionally ``nl_names``/``nl_grid``/``transform``/
 from __future__ import annotations
 
 import math
-from typing import Callable, Dict, List, Optional, Sequence, Tuple, Type
+from typing import Dict, List, Optional, Sequence, Tuple, Type
 
 import numpy as np
 
@@ -145,7 +145,6 @@ def travel_direction(sig: Signals, min_rest: float = 0.3) -> np.ndarray:
     if not np.any(rest):
         return out
     edges = np.flatnonzero(np.diff(np.concatenate([[0], rest.astype(int), [0]])))
-    med_dt = float(np.median(np.diff(t)))
     for i0, i1 in zip(edges[::2], edges[1::2]):  # rest runs [i0, i1)
         if t[i1 - 1] - t[i0] < min_rest:
             continue

@@ -62,19 +62,9 @@ def chi2_isf(alpha: float, dof: int) -> float:
             total += term
         return -h + math.log(total)
 
-    target = math.log(alpha)
-    lo, hi = 0.0, 1.0
-    while log_q(hi) > target:
-        hi *= 2.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if log_q(mid) > target:
-            lo = mid
-        else:
-            hi = mid
-        if hi - lo <= 1e-12 * hi:
-            break
-    return 0.5 * (lo + hi)
+    from cart._kernels_identify import bisect_increasing
+
+    return bisect_increasing(lambda x: -log_q(x), -math.log(alpha), 1e-12)
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,6 @@ the wrench are estimated from the residuals of the same fits.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from typing import Optional, Tuple
 
@@ -146,7 +145,6 @@ def signals_from_log(log: CartLog, half_window: Optional[float] = None) -> Signa
     gres = (g - gs) / gcorr[:, None]
     sigma_force = robust_std(np.concatenate([gres[:, 0], gres[:, 1]]))
     sigma_torque = robust_std(gres[:, 2])
-    cr, sr = np.cos(q[:, 2]), np.sin(q[:, 2])
     return Signals(
         t=t,
         q_raw=q,

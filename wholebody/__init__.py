@@ -27,19 +27,20 @@ _LAZY = {
         "ControllerConfig", "DifferentialDrive", "MobileBase", "Omnidirectional", "ResolvedRateController",
         "SafetyBand", "StepResult", "WholeBody", "ee_path_time_optimal", "time_optimal", "wholebody_for")},
     **{n: "wholebody.contacts" for n in (
-        "AllocationResult", "ArmLimits", "ContactPlan", "EffortWeights", "GraspModel", "HandleSegment",
-        "WrenchAllocator", "allocate", "cart_wrench", "grasp_map", "optimal_contact_points",
+        "AllocationResult", "ArmLimits", "ContactPlan", "EffortSweep", "EffortWeights", "GraspModel", "HandleSegment",
+        "WrenchAllocator", "allocate", "cart_wrench", "effort_sweep", "grasp_map", "grasp_matrices",
+        "optimal_contact_points",
         "plan_contact_schedule")},
     **{n: "wholebody.push" for n in ("PushConfig", "PushMetrics", "PushResult", "run_demo", "run_push")},
     **{n: "wholebody.viz" for n in ("Scene",)},
 }
 
 __all__ = [
-    "AllocationResult", "ArmLimits", "BatchError", "ContactPlan", "ControllerConfig", "DifferentialDrive", "EffortWeights",
+    "AllocationResult", "ArmLimits", "BatchError", "ContactPlan", "EffortSweep", "ControllerConfig", "DifferentialDrive", "EffortWeights",
     "GraspModel", "HandleSegment", "InfeasibleWrenchError", "MobileBase", "Omnidirectional", "OptionError", "PushConfig",
     "PushMetrics", "PushResult", "ResolvedRateController", "SafetyBand", "Scene", "SceneError",
     "SingularConfigurationError", "StepResult", "TrajectoryInfeasibleError", "WholeBody", "WholeBodyError",
-    "WrenchAllocator", "allocate", "cart_wrench", "ee_path_time_optimal", "grasp_map", "optimal_contact_points",
+    "WrenchAllocator", "allocate", "cart_wrench", "ee_path_time_optimal", "effort_sweep", "grasp_map", "grasp_matrices", "optimal_contact_points",
     "plan_contact_schedule", "run_demo", "run_push", "time_optimal", "wholebody_for",
 ]
 

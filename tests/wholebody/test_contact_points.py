@@ -4,7 +4,7 @@ import pytest
 
 from cart.model import mass_matrix, generalized_to_body
 from cart.params import CartParams
-from wholebody.contacts.allocation import ArmLimits, GraspModel, allocate
+from wholebody.contacts.allocation import ArmLimits, GraspModel
 from wholebody.contacts.handle import HandleSegment
 from wholebody.contacts.placement import effort_profile, optimal_contact_points
 from wholebody.errors import InfeasibleWrenchError, WholeBodyError
