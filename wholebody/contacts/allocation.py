@@ -542,13 +542,18 @@ class WrenchAllocator:
     def _closest(self, gamma: np.ndarray, b: np.ndarray, tol: float, raise_on_infeasible: bool) -> AllocationResult:
         """Solve min |A x - b|^2 + effort / rho under the limits (rho large); raise or return it."""
         m = self._qpsolvers_mats()
-        sol = qpsolvers.solve_problem(
-            qpsolvers.Problem(m["relax_P"], -2.0 * self.A.T @ b, m["G"], self.hin),
-            solver=self.solver,
-            **self._solver_kwargs(),
-        )
-        if not sol.found or sol.x is None:
-            raise InfeasibleWrenchError(f"the QP solver {self.solver} failed on the relaxed allocation", binding="solver")
+        problem = qpsolvers.Problem(m["relax_P"], -2.0 * self.A.T @ b, m["G"], self.hin)
+        # x = 0 is feasible, so a failure is numerical: retry with the active-set solver daqp (a runtime dependency)
+        for solver in dict.fromkeys((self.solver, "daqp")):
+            sol = qpsolvers.solve_problem(problem, solver=solver, **(self._solver_kwargs() if solver == self.solver else {}))
+            if sol.found and sol.x is not None and np.all(np.isfinite(sol.x)):
+                break
+        else:
+            raise InfeasibleWrenchError(
+                f"the QP solvers {self.solver} and daqp failed on the relaxed allocation of ({gamma[0]:.4g}, "
+                f"{gamma[1]:.4g}, {gamma[2]:.4g}); check the arm limits and the contact points",
+                binding="solver",
+            )
         x = sol.x
         res = self._result(x, gamma, self.solver)
         if res.residual <= tol:
