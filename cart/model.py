@@ -121,6 +121,21 @@ def generalized_to_body(q: np.ndarray, gamma: np.ndarray) -> np.ndarray:
     return np.array([c * gamma[0] + s * gamma[1], -s * gamma[0] + c * gamma[1], gamma[2]])
 
 
+def _free_rhs(
+    q: np.ndarray,
+    qd: np.ndarray,
+    gamma: np.ndarray,
+    params: ParamsLike,
+    sigma: SigmaLike,
+    extra_force: np.ndarray | None,
+) -> np.ndarray:
+    """Return gamma + extra_force - C qd - N: eq. (4)'s right-hand side without the constraint force."""
+    rhs = (
+        np.asarray(gamma, float) - coriolis_matrix(q, qd, params) @ qd - damping_force(qd, damping_pair(params, sigma))
+    )
+    return rhs if extra_force is None else rhs + np.asarray(extra_force, float)
+
+
 def constraint_force(
     q: np.ndarray,
     qd: np.ndarray,
@@ -135,11 +150,7 @@ def constraint_force(
     exact=True solves Lambda qdd + Lambdadot qd = 0; exact=False Lambda qdd = 0 (paper eq. 5-7).
     """
     mm = mass_matrix(q, params)
-    rhs = (
-        np.asarray(gamma, float) - coriolis_matrix(q, qd, params) @ qd - damping_force(qd, damping_pair(params, sigma))
-    )
-    if extra_force is not None:
-        rhs = rhs + np.asarray(extra_force, float)
+    rhs = _free_rhs(q, qd, gamma, params, sigma, extra_force)
     lam = constraint_matrix(q)
     minv_rhs = np.linalg.solve(mm, rhs)
     minv_lt = np.linalg.solve(mm, lam.T)
@@ -164,11 +175,7 @@ def forward_dynamics(
     q = np.asarray(q, float)
     qd = np.asarray(qd, float)
     mm = mass_matrix(q, params)
-    rhs = (
-        np.asarray(gamma, float) - coriolis_matrix(q, qd, params) @ qd - damping_force(qd, damping_pair(params, sigma))
-    )
-    if extra_force is not None:
-        rhs = rhs + np.asarray(extra_force, float)
+    rhs = _free_rhs(q, qd, gamma, params, sigma, extra_force)
     if not exact:
         return np.linalg.solve(mm, projection(q, params) @ rhs)  # paper eq. (7): M qdd = P (gamma - C qd - N)
     lam = constraint_force(q, qd, gamma, params, sigma, exact=True, extra_force=extra_force)
