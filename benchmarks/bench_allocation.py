@@ -14,6 +14,7 @@ never asserts a time. Rows:
 Contact points: `optimal_contact_points` (grid 1 cm + local refinement) against the brute force it is proven
 equal to on the grid (one allocation QP per grid candidate, as `tests/wholebody/test_placement_sweep.py` checks).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -60,8 +61,10 @@ def raw_proxqp(alloc: WrenchAllocator, b0: np.ndarray):
 def stream(center: list[float], n: int = 200) -> list[np.ndarray]:
     """Return a smooth stream of cart wrenches around center (a control loop's requests)."""
     t = np.linspace(0.0, 2.0 * np.pi, n)
-    return [np.array([center[0] + 0.15 * center[0] * np.sin(u), center[1], center[2] + 0.15 * center[2] * np.cos(u)])
-            for u in t]
+    return [
+        np.array([center[0] + 0.15 * center[0] * np.sin(u), center[1], center[2] + 0.15 * center[2] * np.cos(u)])
+        for u in t
+    ]
 
 
 def allocation_rows(name: str, pts, hard: list[float], easy: list[float], repeat: int) -> dict:
@@ -135,10 +138,16 @@ def main(argv=None) -> None:
             times.append((time.perf_counter() - t0) * 1e3)
         t = float(np.median(times))
         brute = float(np.median([brute_force_ms(gamma, h, n_arms) for _ in range(3)]))
-        print(f"  {n_arms} arm(s): {t:8.2f} ms ({plan.evaluations} allocations); brute force over the grid "
-              f"{brute:8.2f} ms; ratio {t / brute:.3f}")
-        report["contact_points_ms"][f"{n_arms}_arm"] = {"median_ms": t, "allocations": plan.evaluations,
-                                                        "brute_force_grid_ms": brute, "ratio_vs_brute": t / brute}
+        print(
+            f"  {n_arms} arm(s): {t:8.2f} ms ({plan.evaluations} allocations); brute force over the grid "
+            f"{brute:8.2f} ms; ratio {t / brute:.3f}"
+        )
+        report["contact_points_ms"][f"{n_arms}_arm"] = {
+            "median_ms": t,
+            "allocations": plan.evaluations,
+            "brute_force_grid_ms": brute,
+            "ratio_vs_brute": t / brute,
+        }
     if args.json:
         _print(json.dumps(report))
 

@@ -28,7 +28,6 @@ import subprocess
 import sys
 import tempfile
 import time
-from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -41,7 +40,7 @@ CLASSES = ("none",) + HIDDEN_NAMES
 TARGET_S = 8.0
 
 #: robustness conditions: name -> (random_case overrides, effect scale)
-CONDITIONS: Dict[str, tuple] = {
+CONDITIONS: dict[str, tuple] = {
     "50 Hz, 30 % jitter": ({"rate": 50.0, "jitter": 0.3}, 1.0),
     "200 Hz, 30 % jitter": ({"rate": 200.0, "jitter": 0.3}, 1.0),
     "no velocity columns": ({"with_velocities": False}, 1.0),
@@ -52,7 +51,7 @@ CONDITIONS: Dict[str, tuple] = {
 }
 
 
-def _timing_log(name: Optional[str], form: Optional[str]):
+def _timing_log(name: str | None, form: str | None):
     """Return the 60 s, 100 Hz, 10 % jitter log of the timing rows (seed 0)."""
     rng = np.random.default_rng(0)
     p = random_cart(rng)
@@ -74,7 +73,7 @@ def _process_time(log, repeats: int) -> float:
     return float(np.median(times))
 
 
-def timing(repeats: int = 3, quiet: bool = False) -> List[dict]:
+def timing(repeats: int = 3, quiet: bool = False) -> list[dict]:
     """Return (and print unless ``quiet``) the median diagnose times of 60 s logs at 100 Hz, in process and whole process.
 
     Cases: no effect, swivelling casters, caster profile; the target (issue #18) is 8 s for the whole process.
@@ -119,12 +118,12 @@ def run_cases(
     n: int,
     seed0: int = 1000,
     duration: float = 30.0,
-    overrides: Optional[dict] = None,
+    overrides: dict | None = None,
     scale: float = 1.0,
     label: str = "",
-    classes: Optional[List[str]] = None,
-    caster_form: Optional[str] = None,
-) -> List[dict]:
+    classes: list[str] | None = None,
+    caster_form: str | None = None,
+) -> list[dict]:
     """Return one result dict per case: class, seed, first named, gap ratio, caster form, time."""
     out = []
     for ci, c in enumerate(CLASSES):
@@ -167,7 +166,7 @@ def run_cases(
     return out
 
 
-def confusion_table(results: List[dict]) -> str:
+def confusion_table(results: list[dict]) -> str:
     """Return the markdown confusion matrix (rows: hidden class, columns: first named effect or none)."""
     short = {c: c.replace("_", " ")[:10] for c in CLASSES}
     lines = [
@@ -181,7 +180,7 @@ def confusion_table(results: List[dict]) -> str:
     return "\n".join(lines)
 
 
-def rates_table(results: List[dict]) -> str:
+def rates_table(results: list[dict]) -> str:
     """Return per class: first named correct, gap halved (among all cases and among the correctly named)."""
     lines = [
         "| hidden | first named correct | gap_after <= 0.5 gap_before (all cases) | "
@@ -224,7 +223,7 @@ def rates_table(results: List[dict]) -> str:
     return "\n".join(lines)
 
 
-def robust_table(results: List[dict]) -> str:
+def robust_table(results: list[dict]) -> str:
     """Return per condition: naming rate, empty-list rate on nominal logs, gap-halved rate (effects, gap > 0)."""
     lines = [
         "| condition | cases | first named correct (effects) | empty on nominal logs | gap halved (effects) | "
@@ -250,7 +249,7 @@ def robust_table(results: List[dict]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: Optional[List[str]] = None) -> int:
+def main(argv: list[str] | None = None) -> int:
     """Run the timing and the requested studies; print tables (or, with a bare --json, one JSON object)."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--study", type=int, default=0, help="cases per class for the confusion matrix (0: none)")
@@ -271,10 +270,10 @@ def main(argv: Optional[List[str]] = None) -> int:
     a = ap.parse_args(argv)
     quiet = a.json == "-"
     cls = [c for c in a.classes.split(",") if c] or None
-    figures: Dict[str, object] = {}
+    figures: dict[str, object] = {}
     if not a.no_timing:
         figures["timing"] = timing(a.repeats, quiet)
-    everything: List[dict] = []
+    everything: list[dict] = []
     if a.study:
         res = run_cases(a.study, a.seed, label="default", classes=cls, caster_form=a.caster_form)
         everything += res
@@ -286,7 +285,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         if not quiet:
             print("\n" + confusion_table(res) + "\n\n" + rates_table(res))
     if a.robust:
-        rob: List[dict] = []
+        rob: list[dict] = []
         for cond, (over, scale) in CONDITIONS.items():
             rob += run_cases(
                 a.robust, a.seed, overrides=over, scale=scale, label=cond, classes=cls, caster_form=a.caster_form

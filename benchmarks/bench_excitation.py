@@ -9,6 +9,7 @@ one) and markdown tables. Schedules: planned by each objective:segments on the
 planning model (the EKF's initial guess, 16 kg, CoM (0.3, 0)) with 5 candidate
 points on the handle, and fixed at the centre and at both ends of the handle.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,14 +34,17 @@ def plans(noise: ex.WrenchNoise, specs: list[tuple[str, int]], fixed: list[float
     scheds, times = {}, {}
     for obj, segs in specs:
         t0 = time.perf_counter()
-        plan = ex.plan_contact_schedule(samples, guess.phi, guess.sigma, n_segments=segs, n_candidates=5,
-                                        noise=noise, objective=obj, sensor_dt=0.01)
+        plan = ex.plan_contact_schedule(
+            samples, guess.phi, guess.sigma, n_segments=segs, n_candidates=5, noise=noise, objective=obj, sensor_dt=0.01
+        )
         label = f"planned {obj}, {segs} x {30 / segs:g} s"
         times[label] = time.perf_counter() - t0
         scheds[label] = plan.schedule
-        print(f"{label}: {''.join(LETTERS.get(round(float(v), 3), '?') for v in plan.schedule.s)} "
-              f"(L: y = -0.25, C: y = 0, R: y = +0.25); effort {plan.effort:.0f} (budget {plan.budget:.0f}); "
-              f"best fixed by this score: s = {plan.fixed_s:g}")
+        print(
+            f"{label}: {''.join(LETTERS.get(round(float(v), 3), '?') for v in plan.schedule.s)} "
+            f"(L: y = -0.25, C: y = 0, R: y = +0.25); effort {plan.effort:.0f} (budget {plan.budget:.0f}); "
+            f"best fixed by this score: s = {plan.fixed_s:g}"
+        )
     names = {0.25: "fixed centre (y = 0)", 0.0: "fixed end y = -0.25", 0.5: "fixed end y = +0.25"}
     for c in fixed:
         scheds[names.get(c, f"fixed s = {c:g}")] = lambda t, c=c: c
@@ -68,8 +72,10 @@ def main(argv=None) -> None:
     specs = [(p.split(":")[0], int(p.split(":")[1])) for p in args.plans.split(",") if p]
     for mode in args.inputs.split(","):
         model = ex.input_model(mode)
-        print(f"\n## EKF input: {mode} (input error std {model.noise.force:.3g} N, {model.noise.torque:.3g} N m "
-              f"in {{a}}), {args.seeds} seeds")
+        print(
+            f"\n## EKF input: {mode} (input error std {model.noise.force:.3g} N, {model.noise.torque:.3g} N m "
+            f"in {{a}}), {args.seeds} seeds"
+        )
         scheds, times, scores = plans(model.noise, specs, [float(c) for c in args.fixed.split(",") if c])
         print("planning time [s]: " + ", ".join(f"{k} {v:.2f}" for k, v in times.items()))
         t0 = time.perf_counter()
@@ -79,8 +85,12 @@ def main(argv=None) -> None:
         print(study.format_table(rows, scores))
         print()
         print(study.format_paired(rows, rows[0].label))
-        report[mode] = {"planning_s": times, "study_s": time.perf_counter() - t0, "scores": scores,
-                        "rows": [_row(r) for r in rows]}
+        report[mode] = {
+            "planning_s": times,
+            "study_s": time.perf_counter() - t0,
+            "scores": scores,
+            "rows": [_row(r) for r in rows],
+        }
     if args.json:
         _print(json.dumps(report, default=float))
 

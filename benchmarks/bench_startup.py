@@ -8,6 +8,7 @@ the cart-only commands; this script reports, it never asserts a time.
 
 Run: .venv/bin/python benchmarks/bench_startup.py [--runs 5] [--json] [--command "diagnose --help" ...]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -46,15 +47,27 @@ def measure(args: str, runs: int) -> dict:
     argv = cartpush_argv() + shlex.split(args)
     first = time_once(argv)
     times = [time_once(argv) for _ in range(runs)]
-    return {"command": f"cartpush {args}", "runs": runs, "first_s": first, "median_s": statistics.median(times),
-            "min_s": min(times), "max_s": max(times), "under_target": statistics.median(times) < TARGET_S}
+    return {
+        "command": f"cartpush {args}",
+        "runs": runs,
+        "first_s": first,
+        "median_s": statistics.median(times),
+        "min_s": min(times),
+        "max_s": max(times),
+        "under_target": statistics.median(times) < TARGET_S,
+    }
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=5, help="timed runs per command (default 5)")
-    parser.add_argument("--command", action="append", default=None, metavar="ARGS",
-                        help="cartpush arguments to time (repeatable; default: '--help' and 'estimate --help')")
+    parser.add_argument(
+        "--command",
+        action="append",
+        default=None,
+        metavar="ARGS",
+        help="cartpush arguments to time (repeatable; default: '--help' and 'estimate --help')",
+    )
     parser.add_argument("--json", action="store_true", help="print the results as JSON only")
     a = parser.parse_args()
     rows = [measure(c, a.runs) for c in (a.command or DEFAULT_COMMANDS)]
@@ -64,8 +77,10 @@ def main() -> int:
     print(f"cartpush start-up: wall time of a fresh process, {a.runs} runs after one warm-up (target < {TARGET_S} s)")
     print(f"{'command':<32} {'first':>8} {'median':>8} {'min':>8} {'max':>8}  < {TARGET_S} s")
     for r in rows:
-        print(f"{r['command']:<32} {r['first_s']:8.3f} {r['median_s']:8.3f} {r['min_s']:8.3f} {r['max_s']:8.3f}  "
-              f"{'yes' if r['under_target'] else 'no'}")
+        print(
+            f"{r['command']:<32} {r['first_s']:8.3f} {r['median_s']:8.3f} {r['min_s']:8.3f} {r['max_s']:8.3f}  "
+            f"{'yes' if r['under_target'] else 'no'}"
+        )
     return 0
 
 

@@ -19,6 +19,7 @@ timeout and counts:
 Prints a table per class and the totals (``--json``: one JSON object).
 Never asserts. Run: .venv/bin/python benchmarks/malformed_suite.py [--jobs 2] [--json] [--only SUBSTRING]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -68,8 +69,9 @@ def _push_arrays(n: int = 600, dt: float = 0.01, seed: int = 0):
         f = 15.0 + 10.0 * math.sin(2.1 * t)
         return np.array([f * math.cos(q[2]), f * math.sin(q[2]), 3.0 * math.sin(1.7 * t)])
 
-    sim = simulate(truth, ctrl, (n - 1) * dt, dt, noise=MeasurementNoise.from_level(0.001),
-                   rng=np.random.default_rng(seed))
+    sim = simulate(
+        truth, ctrl, (n - 1) * dt, dt, noise=MeasurementNoise.from_level(0.001), rng=np.random.default_rng(seed)
+    )
     m = sim.measured
     return m.t, m.q, m.gamma
 
@@ -96,9 +98,17 @@ def malformed_logs(d: Path) -> dict:
     put("missing_tau", "\n".join([HEADER.replace(",tau", "")] + [r.rsplit(",", 1)[0] for r in lines[1:]]) + "\n")
     put("missing_t", "\n".join([HEADER[2:]] + [r.split(",", 1)[1] for r in lines[1:]]) + "\n")
     put("duplicate_column", "\n".join([HEADER + ",x"] + [r + ",0" for r in lines[1:]]) + "\n")
-    for name, cell in (("nan_cell", "nan"), ("inf_cell", "inf"), ("neg_inf_cell", "-inf"), ("text_cell", "abc"),
-                       ("empty_cell", ""), ("huge_cell", "1e300"), ("neg_huge_cell", "-1e300"), ("overflow", "1e999"),
-                       ("comma_decimal", "1,5")):
+    for name, cell in (
+        ("nan_cell", "nan"),
+        ("inf_cell", "inf"),
+        ("neg_inf_cell", "-inf"),
+        ("text_cell", "abc"),
+        ("empty_cell", ""),
+        ("huge_cell", "1e300"),
+        ("neg_huge_cell", "-1e300"),
+        ("overflow", "1e999"),
+        ("comma_decimal", "1,5"),
+    ):
         bad = list(lines)
         f = bad[10].split(",")
         f[4] = cell
@@ -124,8 +134,13 @@ def malformed_logs(d: Path) -> dict:
     put("gzip_truncated", gzip.compress(("\n".join(lines) + "\n").encode())[:-30], ".csv.gz")
     put("gzip_garbage", b"\x1f\x8b\x08\x00garbage-garbage", ".csv.gz")
     put("not_gzip", "\n".join(lines) + "\n", ".csv.gz")
-    put("nan_velocity", "\n".join([HEADER + ",vx,vy,omega"] + [r + (",nan,0,0" if k == 7 else ",0,0,0")
-                                                               for k, r in enumerate(lines[1:])]) + "\n")
+    put(
+        "nan_velocity",
+        "\n".join(
+            [HEADER + ",vx,vy,omega"] + [r + (",nan,0,0" if k == 7 else ",0,0,0") for k, r in enumerate(lines[1:])]
+        )
+        + "\n",
+    )
     out["directory"] = d
     out["missing_file"] = d / "no_such_file.csv"
     return out
@@ -195,8 +210,9 @@ def build_cases(d: Path) -> list:
     for name, p in odd.items():
         cases.append(Case(f"estimate/{name}", "odd log", ["estimate", str(p), "--json"], (0, 2)))
         cases.append(Case(f"diagnose/{name}", "odd log", ["diagnose", str(p), "--json"], (0, 2), timeout=240))
-        cases.append(Case(f"view/{name}", "odd log", ["view", str(p), "--html", str(d / f"v_{name}.html")], (0, 2),
-                          timeout=120))
+        cases.append(
+            Case(f"view/{name}", "odd log", ["view", str(p), "--html", str(d / f"v_{name}.html")], (0, 2), timeout=120)
+        )
     blocker = d / "a_file"
     blocker.write_text("x")
     nominal = str(odd["nominal"])
@@ -257,10 +273,14 @@ def build_cases(d: Path) -> list:
         ("track --robot bad", ["track", "line", "--robot", "r2d2"]),
         ("track --out unwritable", ["track", "line", "--duration", "1", "--out", str(blocker / "x.csv")]),
         ("track --out directory", ["track", "line", "--duration", "1", "--out", str(d)]),
-        ("plan-contacts --min-spacing nan", ["plan-contacts", "--wrench", "10", "0", "0", "--arms", "2",
-                                             "--min-spacing", "nan"]),
-        ("plan-contacts --min-spacing -1", ["plan-contacts", "--wrench", "10", "0", "0", "--arms", "2",
-                                            "--min-spacing", "-1"]),
+        (
+            "plan-contacts --min-spacing nan",
+            ["plan-contacts", "--wrench", "10", "0", "0", "--arms", "2", "--min-spacing", "nan"],
+        ),
+        (
+            "plan-contacts --min-spacing -1",
+            ["plan-contacts", "--wrench", "10", "0", "0", "--arms", "2", "--min-spacing", "-1"],
+        ),
         ("plan-contacts --wrench nan", ["plan-contacts", "--wrench", "nan", "0", "0"]),
         ("plan-contacts --wrench inf", ["plan-contacts", "--wrench", "inf", "0", "0"]),
         ("plan-contacts --wrench 2 values", ["plan-contacts", "--wrench", "1", "0"]),
@@ -275,10 +295,14 @@ def build_cases(d: Path) -> list:
         ("plan-contacts --solver bad", ["plan-contacts", "--wrench", "10", "0", "0", "--solver", "nosuch"]),
         ("view --scenario 0", ["view", "--scenario", "0", "--html", str(d / "s0.html")]),
         ("view --scenario 12", ["view", "--scenario", "12", "--html", str(d / "s12.html")]),
-        ("view --scenario 3 --duration inf", ["view", "--scenario", "3", "--duration", "inf", "--html",
-                                              str(d / "s3.html")]),
-        ("view --scenario 3 --duration nan", ["view", "--scenario", "3", "--duration", "nan", "--html",
-                                              str(d / "s3.html")]),
+        (
+            "view --scenario 3 --duration inf",
+            ["view", "--scenario", "3", "--duration", "inf", "--html", str(d / "s3.html")],
+        ),
+        (
+            "view --scenario 3 --duration nan",
+            ["view", "--scenario", "3", "--duration", "nan", "--html", str(d / "s3.html")],
+        ),
         ("view --robot bad", ["view", "--robot", "r2d2", "--html", str(d / "r.html")]),
         ("view --html unwritable", ["view", "--robot", "wmra", "--html", str(blocker / "r.html")]),
         ("view --html directory", ["view", "--robot", "wmra", "--html", str(d)]),
@@ -290,21 +314,27 @@ def build_cases(d: Path) -> list:
     cases += [Case(name, "bad option", argv) for name, argv in option_cases]
     good = [
         ("help", ["--help"]),
-        *[(f"{c} --help", [c, "--help"]) for c in ("demo", "track", "reproduce", "estimate", "plan-contacts",
-                                                     "diagnose", "push", "view")],
+        *[
+            (f"{c} --help", [c, "--help"])
+            for c in ("demo", "track", "reproduce", "estimate", "plan-contacts", "diagnose", "push", "view")
+        ],
         ("plan-contacts --wrench -1e2 0 0", ["plan-contacts", "--wrench", "-1e2", "0", "0", "--json"]),
         ("plan-contacts --wrench=-40,0,-2 style", ["plan-contacts", "--wrench", "-40", "0", "-2", "--json"]),
         ("plan-contacts --wrench 40 0 -2e0", ["plan-contacts", "--wrench", "40", "0", "-2e0", "--json"]),
         ("track line short", ["track", "line", "--duration", "1", "--json"]),
-        ("track sine band 0.001 (leaves the band: warns)", ["track", "sine", "--band", "0.001", "--duration", "3",
-                                                            "--json"]),
+        (
+            "track sine band 0.001 (leaves the band: warns)",
+            ["track", "sine", "--band", "0.001", "--duration", "3", "--json"],
+        ),
         ("track out new dir", ["track", "line", "--duration", "0.5", "--out", str(d / "new" / "run.csv")]),
         ("demo --robots-only", ["demo", "--robots-only", "--json"]),
         ("view --robot wmra", ["view", "--robot", "wmra", "--html", str(d / "wmra.html")]),
         ("reproduce --duration 6 --tests 1", ["reproduce", "--duration", "6", "--tests", "1", "--json"]),
         ("--debug estimate nominal", ["--debug", "estimate", nominal, "--json"]),
-        ("estimate --mass-guess 1e-9 (the guess is only a start)", ["estimate", nominal, "--mass-guess", "1e-9",
-                                                                    "--json"]),
+        (
+            "estimate --mass-guess 1e-9 (the guess is only a start)",
+            ["estimate", nominal, "--mass-guess", "1e-9", "--json"],
+        ),
     ]
     cases += [Case(name, "valid request", argv, (0,), timeout=180) for name, argv in good]
     return cases
@@ -323,18 +353,23 @@ def run_case(case: Case, cwd: Path) -> Case:
     env = dict(os.environ, PYTHONWARNINGS="default", MPLBACKEND="Agg")
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run(CLI + case.argv, capture_output=True, text=True, timeout=case.timeout, cwd=cwd,
-                              env=env)
+        proc = subprocess.run(CLI + case.argv, capture_output=True, text=True, timeout=case.timeout, cwd=cwd, env=env)
     except subprocess.TimeoutExpired:
         case.result = {"hang": True, "seconds": case.timeout}
         return case
     wall = time.perf_counter() - t0
     err_lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-    r = {"hang": False, "code": proc.returncode, "seconds": wall,
-         "traceback": "Traceback (most recent call last)" in proc.stderr,
-         "wrong_code": proc.returncode not in case.expect or proc.returncode == 1,
-         "invalid_json": False, "multiline_error": False, "warnings": [],
-         "stderr": proc.stderr.strip()[-400:]}
+    r = {
+        "hang": False,
+        "code": proc.returncode,
+        "seconds": wall,
+        "traceback": "Traceback (most recent call last)" in proc.stderr,
+        "wrong_code": proc.returncode not in case.expect or proc.returncode == 1,
+        "invalid_json": False,
+        "multiline_error": False,
+        "warnings": [],
+        "stderr": proc.stderr.strip()[-400:],
+    }
     if proc.returncode == 2:
         errors = [ln for ln in err_lines if ": error:" in ln]
         r["multiline_error"] = not (len(err_lines) == 1 and len(errors) == 1)
@@ -379,22 +414,31 @@ def main() -> None:
         table[k]["cases"] = sum(c.klass == k for c in cases)
         table[k]["warned"] = sum(bool(c.result.get("warnings")) for c in cases if c.klass == k)
     totals = {m: sum(table[k][m] for k in classes) for m in (*metrics, "cases", "warned")}
-    problems = [{"name": c.name, "argv": c.argv, **{m: c.result.get(m) for m in metrics},
-                 "code": c.result.get("code"), "stderr": c.result.get("stderr", "")}
-                for c in cases if any(c.result.get(m) for m in metrics)]
+    problems = [
+        {
+            "name": c.name,
+            "argv": c.argv,
+            **{m: c.result.get(m) for m in metrics},
+            "code": c.result.get("code"),
+            "stderr": c.result.get("stderr", ""),
+        }
+        for c in cases
+        if any(c.result.get(m) for m in metrics)
+    ]
     warned = [{"name": c.name, "warnings": c.result["warnings"][:3]} for c in cases if c.result.get("warnings")]
     slowest = sorted(cases, key=lambda c: -c.result.get("seconds", 0))[:5]
     if args.json:
-        print(json.dumps({"totals": totals, "by_class": table, "problems": problems, "warned": warned,
-                          "wall_s": wall}))
+        print(json.dumps({"totals": totals, "by_class": table, "problems": problems, "warned": warned, "wall_s": wall}))
         return
     head = ["class", "cases", *metrics, "warned"]
     print("  ".join(f"{h:>15}" for h in head))
     for k in classes + ["TOTAL"]:
         row = totals if k == "TOTAL" else table[k]
         print("  ".join([f"{k:>15}"] + [f"{row[h]:>15}" for h in head[1:]]))
-    print(f"\n{len(cases)} cases in {wall:.0f} s; slowest: "
-          + ", ".join(f"{c.name} {c.result.get('seconds', 0):.1f} s" for c in slowest))
+    print(
+        f"\n{len(cases)} cases in {wall:.0f} s; slowest: "
+        + ", ".join(f"{c.name} {c.result.get('seconds', 0):.1f} s" for c in slowest)
+    )
     if problems:
         print("\nproblems:")
         for p in problems:

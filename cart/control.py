@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal, Optional
+from typing import Literal
 
 import numpy as np
 import scipy.linalg
@@ -103,7 +103,7 @@ class FeedbackLinearizationLQR:
     gain_period: float = 0.5
 
     def __post_init__(self) -> None:
-        self._k: Optional[np.ndarray] = None
+        self._k: np.ndarray | None = None
         self._k_time = -math.inf
 
     def gamma(self, t: float, q: np.ndarray, qd: np.ndarray, params: CartParams) -> np.ndarray:

@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Sequence, Tuple
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -68,9 +68,9 @@ GRID_ALTERNATIVES = 3
 class Fit:
     """One least-squares fit of the nominal model plus effects (internal)."""
 
-    effects: List[Tuple[Effect, Tuple[float, ...]]]
+    effects: list[tuple[Effect, tuple[float, ...]]]
     x: np.ndarray
-    thetas: List[np.ndarray]
+    thetas: list[np.ndarray]
     rss: np.ndarray
     n_win: int
     cov: np.ndarray
@@ -78,7 +78,7 @@ class Fit:
     sig: Signals
     design: np.ndarray = field(repr=False, default=None)
     #: fits at the next-best grid points of a grid-only nonlinear parameter (replay-checked by ``diagnose``)
-    alternatives: List["Fit"] = field(repr=False, default_factory=list)
+    alternatives: list[Fit] = field(repr=False, default_factory=list)
 
     @property
     def phi(self) -> np.ndarray:
@@ -98,7 +98,7 @@ def _gram(a: np.ndarray) -> np.ndarray:
 
 def _solve(
     d: np.ndarray, y: np.ndarray, lv: np.ndarray, lw: np.ndarray, s2v: float, s2w: float, n_iter: int = 5
-) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (x, equation-noise variance per row, covariance, -2 log-likelihood) of y ~ d x with noisy regressors.
 
     Batched over the leading axis (one independent problem per entry): y (g, n, 3), d (g, n, 3, p).
@@ -142,10 +142,10 @@ def _solve(
     return x, var_eq, cov, m2ll
 
 
-def _solve_many(problems: Sequence[Tuple[np.ndarray, ...]], s2v: float, s2w: float) -> List[Tuple]:
+def _solve_many(problems: Sequence[tuple[np.ndarray, ...]], s2v: float, s2w: float) -> list[tuple]:
     """Return :func:`_solve` of each (d, y, lv, lw) in ``problems``, same-shaped ones solved as one batch."""
-    out: List[Optional[Tuple]] = [None] * len(problems)
-    groups: Dict[tuple, List[int]] = {}
+    out: list[tuple | None] = [None] * len(problems)
+    groups: dict[tuple, list[int]] = {}
     for i, (d, _, _, _) in enumerate(problems):
         groups.setdefault(d.shape, []).append(i)
     for idx in groups.values():
@@ -161,23 +161,23 @@ class _FitState:
     """One fit of :func:`fit_models` in progress: its signals, effects and the fixed-point iterate."""
 
     sig: Signals
-    effects: List[Tuple[Effect, Tuple[float, ...]]]
-    base: Tuple[np.ndarray, np.ndarray, np.ndarray]
-    phi: Optional[np.ndarray]
-    thetas_prev: List[Optional[np.ndarray]]
+    effects: list[tuple[Effect, tuple[float, ...]]]
+    base: tuple[np.ndarray, np.ndarray, np.ndarray]
+    phi: np.ndarray | None
+    thetas_prev: list[np.ndarray | None]
     iterate: bool
     n_iter: int
-    solution: Optional[Tuple] = None
-    thetas: List[np.ndarray] = field(default_factory=list)
+    solution: tuple | None = None
+    thetas: list[np.ndarray] = field(default_factory=list)
     finished: bool = False
 
 
 def _start_fit(
     sig0: Signals,
     edges: np.ndarray,
-    effects: Sequence[Tuple[Effect, Tuple[float, ...]]],
-    phi_ref: Optional[np.ndarray],
-    theta_ref: Optional[Sequence[Optional[np.ndarray]]],
+    effects: Sequence[tuple[Effect, tuple[float, ...]]],
+    phi_ref: np.ndarray | None,
+    theta_ref: Sequence[np.ndarray | None] | None,
     max_iter: int,
 ) -> _FitState:
     """Return the start of one fit: the effects' transformed signals, their window rows (cached), the start iterate."""
@@ -191,7 +191,7 @@ def _start_fit(
         y_w[:, 2] = lateral_displacements(sig, edges)
         base = (a_s, window_integrals(sig.t, a_s, edges), y_w)
         sig.extras["base"] = base
-    thetas_prev: List[Optional[np.ndarray]] = list(theta_ref) if theta_ref is not None else []
+    thetas_prev: list[np.ndarray | None] = list(theta_ref) if theta_ref is not None else []
     thetas_prev = (thetas_prev + [None] * len(effects))[: len(effects)]
     iterate = any(e.uses_phi or e.set_valued for e, _ in effects)
     phi = np.asarray(phi_ref, float) if phi_ref is not None else None
@@ -206,7 +206,7 @@ def _start_fit(
     )
 
 
-def _design(st: _FitState, edges: np.ndarray) -> Tuple[np.ndarray, ...]:
+def _design(st: _FitState, edges: np.ndarray) -> tuple[np.ndarray, ...]:
     """Return (d, y, lv, lw) of the window rows for the current iterate of ``st`` (set-valued terms first)."""
     sig, (a_s, a_w, y_w) = st.sig, st.base
     lv_b, lw_b = nominal_loadings(a_w.shape[0])
@@ -231,7 +231,7 @@ def _design(st: _FitState, edges: np.ndarray) -> Tuple[np.ndarray, ...]:
     return np.concatenate(g_w, axis=2), y_fit, np.concatenate(lv, axis=2), np.concatenate(lw, axis=2)
 
 
-def _converged(st: _FitState, x: np.ndarray, thetas: List[np.ndarray], freeze: int) -> bool:
+def _converged(st: _FitState, x: np.ndarray, thetas: list[np.ndarray], freeze: int) -> bool:
     """Return True when phi and the free set-valued effects' parameters stopped moving."""
     if st.phi is None or not np.all(np.abs(x[:4] - st.phi) <= 1e-4 * (np.abs(st.phi) + 1e-3)):
         return False
@@ -242,7 +242,7 @@ def _converged(st: _FitState, x: np.ndarray, thetas: List[np.ndarray], freeze: i
     )
 
 
-def _advance(st: _FitState, solution: Tuple, it: int, freeze: int) -> None:
+def _advance(st: _FitState, solution: tuple, it: int, freeze: int) -> None:
     """Take one solved iterate into ``st``: parameters, convergence, the next phi and set-valued parameters."""
     x = solution[0]
     thetas, k = [], N_NOMINAL
@@ -259,12 +259,12 @@ def _advance(st: _FitState, solution: Tuple, it: int, freeze: int) -> None:
 def fit_models(
     sig0: Signals,
     edges: np.ndarray,
-    effect_lists: Sequence[Sequence[Tuple[Effect, Tuple[float, ...]]]],
-    phi_ref: Optional[np.ndarray] = None,
+    effect_lists: Sequence[Sequence[tuple[Effect, tuple[float, ...]]]],
+    phi_ref: np.ndarray | None = None,
     max_iter: int = 12,
-    theta_refs: Optional[Sequence[Optional[Sequence[Optional[np.ndarray]]]]] = None,
+    theta_refs: Sequence[Sequence[np.ndarray | None] | None] | None = None,
     freeze: int = 0,
-) -> List[Fit]:
+) -> list[Fit]:
     """Return :func:`fit_model` of every effect list, the least-squares solves of each iteration as one batch.
 
     The fits are independent (each has its own iterate; ``theta_refs``: one ``theta_ref`` per list);
@@ -307,10 +307,10 @@ def fit_models(
 def fit_model(
     sig0: Signals,
     edges: np.ndarray,
-    effects: Sequence[Tuple[Effect, Tuple[float, ...]]],
-    phi_ref: Optional[np.ndarray] = None,
+    effects: Sequence[tuple[Effect, tuple[float, ...]]],
+    phi_ref: np.ndarray | None = None,
     max_iter: int = 12,
-    theta_ref: Optional[Sequence[Optional[np.ndarray]]] = None,
+    theta_ref: Sequence[np.ndarray | None] | None = None,
     freeze: int = 0,
 ) -> Fit:
     """Return the weighted least-squares fit of the nominal model plus ``effects`` (with their nl parameters).
@@ -360,7 +360,7 @@ class _Search:
         """Return the number of effects already named (their set-valued terms stay frozen in quick fits)."""
         return len(self.current.effects)
 
-    def quick(self, nls: Sequence[Tuple[float, ...]], theta_tail: Sequence[Optional[np.ndarray]]) -> List[Fit]:
+    def quick(self, nls: Sequence[tuple[float, ...]], theta_tail: Sequence[np.ndarray | None]) -> list[Fit]:
         """Return the grid-style fits at ``nls``: the named effects' set-valued terms at their current estimate.
 
         They iterate only for a candidate that needs it (3 iterations); ``theta_tail``: the candidate's
@@ -378,7 +378,7 @@ class _Search:
             freeze=self.named,
         )
 
-    def full(self, nls: Sequence[Tuple[float, ...]], theta_refs: Sequence[Sequence[np.ndarray]]) -> List[Fit]:
+    def full(self, nls: Sequence[tuple[float, ...]], theta_refs: Sequence[Sequence[np.ndarray]]) -> list[Fit]:
         """Return the full fits at ``nls`` (every set-valued term iterates), started from ``theta_refs``."""
         return fit_models(
             self.sig,
@@ -393,7 +393,7 @@ class _Search:
         return fit.m2ll if _valid(self.effect, fit, check) else np.inf
 
 
-def _grid_alternatives(search: _Search, grid: list, fits: List[Fit], scores: np.ndarray, check: bool) -> List[Fit]:
+def _grid_alternatives(search: _Search, grid: list, fits: list[Fit], scores: np.ndarray, check: bool) -> list[Fit]:
     """Return the full fits at the next-best grid points of a grid-only parameter that are physical."""
     picks = [int(k) for k in np.argsort(scores)[1 : 1 + GRID_ALTERNATIVES] if np.isfinite(scores[k])]
     alts = search.full([grid[k] for k in picks], [fits[k].thetas for k in picks]) if picks else []
@@ -415,7 +415,7 @@ def _profile_std(effect: Effect, grid: list, scores: np.ndarray, i: int) -> floa
     return s_u * float(np.exp(u[1])) if effect.log_scale else s_u
 
 
-def _refine_bracket(search: _Search, grid: list, i: int) -> Tuple[float, float]:
+def _refine_bracket(search: _Search, grid: list, i: int) -> tuple[float, float]:
     """Return the bracket (lo, hi) of the 1-D refinement around grid point i (extended past the grid's ends)."""
     lo_b, hi_b = search.effect.nl_bounds(search.sig)[0]
     log_scale = search.effect.log_scale
@@ -429,7 +429,7 @@ def _refine_bracket(search: _Search, grid: list, i: int) -> Tuple[float, float]:
     return float(lo), float(hi)
 
 
-def _refine(search: _Search, grid: list, i: int, best: Fit, check: bool) -> Tuple[Fit, float]:
+def _refine(search: _Search, grid: list, i: int, best: Fit, check: bool) -> tuple[Fit, float]:
     """Return the best fit after a bounded 1-D refinement of the nonlinear parameter, and its std (profile curvature)."""
     from scipy import optimize  # lazy: scipy.optimize costs start-up time
 
@@ -439,7 +439,7 @@ def _refine(search: _Search, grid: list, i: int, best: Fit, check: bool) -> Tupl
     lo, hi = _refine_bracket(search, grid, i)
     span = abs(float(tr(hi)) - float(tr(lo)))
 
-    def objs(us: Sequence[float]) -> List[float]:
+    def objs(us: Sequence[float]) -> list[float]:
         fits = search.quick([(float(itr(u)),) for u in us], best.thetas[search.named :])
         return [f.m2ll if _valid(search.effect, f, check) else 1e300 for f in fits]
 
@@ -463,7 +463,7 @@ def _refine(search: _Search, grid: list, i: int, best: Fit, check: bool) -> Tupl
     return best, float(s) if math.isfinite(s) else -1.0
 
 
-def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect) -> Tuple[Fit, List[float]]:
+def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect) -> tuple[Fit, list[float]]:
     """Return the best fit of current effects + ``effect`` (nl parameters searched) and the nl stds.
 
     Grid fits first (quick: the named effects' set-valued terms stay at their current estimate), then a
@@ -498,10 +498,10 @@ class NamedEffect:
     """An effect the workflow named: contract name, fitted parameters and stds, Delta BIC, windows [(t0, t1)]."""
 
     name: str
-    parameters: Dict[str, float]
-    uncertainties: Dict[str, float]
+    parameters: dict[str, float]
+    uncertainties: dict[str, float]
     evidence: float
-    windows: Tuple[Tuple[float, float], ...]
+    windows: tuple[tuple[float, float], ...]
 
     def to_dict(self) -> dict:
         """Return the JSON form: name, parameters, uncertainties, evidence, windows."""
@@ -528,25 +528,25 @@ class DiscrepancyWindow:
 class DiagnosisReport:
     """Result of :func:`diagnose`: named effects (most significant first), gaps, windows, fitted models."""
 
-    effects: Tuple[NamedEffect, ...]
+    effects: tuple[NamedEffect, ...]
     gap_before: float
     gap_after: float
     gap_metric: str
-    windows: Tuple[DiscrepancyWindow, ...]
-    nominal: Dict[str, float]
-    final_model: Dict[str, float]
-    candidates: Tuple[Tuple[str, float], ...]
+    windows: tuple[DiscrepancyWindow, ...]
+    nominal: dict[str, float]
+    final_model: dict[str, float]
+    candidates: tuple[tuple[str, float], ...]
     threshold: float
     source: str = "<memory>"
     rms_before: float = float("nan")
     rms_after: float = float("nan")
     noise_floor: float = float("nan")
-    replay_before: Optional[Replay] = field(default=None, repr=False, compare=False)
-    replay_after: Optional[Replay] = field(default=None, repr=False, compare=False)
-    flagged: Optional[np.ndarray] = field(default=None, repr=False, compare=False)
+    replay_before: Replay | None = field(default=None, repr=False, compare=False)
+    replay_after: Replay | None = field(default=None, repr=False, compare=False)
+    flagged: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
-    def names(self) -> List[str]:
+    def names(self) -> list[str]:
         """Return the named effects' names, most significant first (empty: the nominal model explains the log)."""
         return [e.name for e in self.effects]
 
@@ -602,7 +602,7 @@ class DiagnosisReport:
 
 
 #: Units of the effects' parameters in :meth:`DiagnosisReport.summary` (names of cart.effects' ``describe``).
-PARAMETER_UNITS: Dict[str, str] = {
+PARAMETER_UNITS: dict[str, str] = {
     "force": "N",
     "torque": "N m",
     "distance": "m",
@@ -631,7 +631,7 @@ PARAMETER_UNITS: Dict[str, str] = {
 }
 
 
-def _format_parameter(name: str, value: float, std: Optional[float]) -> str:
+def _format_parameter(name: str, value: float, std: float | None) -> str:
     """Return 'name = value ± std [unit]', the value rounded where its std's 2nd significant digit falls.
 
     Without a std (or a grid-chosen one, std 0) the value has 3 significant digits.
@@ -648,12 +648,12 @@ def _format_parameter(name: str, value: float, std: Optional[float]) -> str:
     return f"{name} = {v} ± {std:.{decimals}f} [{unit}]" if has_std else f"{name} = {v} [{unit}]"
 
 
-def _clean(d: Dict[str, float]) -> Dict[str, float]:
+def _clean(d: dict[str, float]) -> dict[str, float]:
     """Return d with non-finite values replaced by None (valid JSON)."""
     return {k: (float(v) if v is not None and math.isfinite(float(v)) else None) for k, v in d.items()}
 
 
-def _physical(x: np.ndarray, cov: Optional[np.ndarray] = None) -> Dict[str, float]:
+def _physical(x: np.ndarray, cov: np.ndarray | None = None) -> dict[str, float]:
     """Return m, dx, dy, I (about the CoM), sigma, sigma_yaw of x (NaN where phi is not physical) with stds."""
     m, a, b, j, s, s_yaw = (float(v) for v in x[:N_NOMINAL])
     out = {
@@ -675,7 +675,7 @@ def _physical(x: np.ndarray, cov: Optional[np.ndarray] = None) -> Dict[str, floa
     return out
 
 
-def _replay_terms(fit: Fit) -> Tuple[np.ndarray, Optional[np.ndarray]]:
+def _replay_terms(fit: Fit) -> tuple[np.ndarray, np.ndarray | None]:
     """Return the effects' (forward force, yaw torque, lateral speed) (N, 3) and phi change (N, 4) for replay."""
     sig = fit.sig
     extra = np.zeros((sig.n, 3))
@@ -726,14 +726,14 @@ class _Trial:
     dbic: float
     effect: Effect
     fit: Fit
-    nl_std: List[float]
+    nl_std: list[float]
 
 
 @dataclass(frozen=True)
 class _Ranked:
     """The fitted variants of one candidate effect, best Delta BIC first."""
 
-    trials: List[_Trial]
+    trials: list[_Trial]
 
     @property
     def best(self) -> _Trial:
@@ -749,9 +749,7 @@ class _Named:
     replay: Replay
 
 
-def _checked_signals(
-    log: CartLog, horizon: Optional[float], window: Optional[float]
-) -> Tuple[Signals, float, np.ndarray]:
+def _checked_signals(log: CartLog, horizon: float | None, window: float | None) -> tuple[Signals, float, np.ndarray]:
     """Return (signals, replay horizon, window edges) of ``log``; raise DiagnoseError when it cannot be diagnosed."""
     sig = signals_from_log(log)
     if np.max(np.abs(sig.v)) < 5.0 * sig.sigma_v and np.max(np.abs(sig.omega)) < 5.0 * sig.sigma_omega:
@@ -777,7 +775,7 @@ def _checked_signals(
 
 def _rank_candidates(
     sig: Signals, edges: np.ndarray, current: Fit, cands: Sequence[Effect], named: Sequence[str]
-) -> List[_Ranked]:
+) -> list[_Ranked]:
     """Return every candidate not yet named with its variants ranked by Delta BIC, best candidate first."""
     n_obs = 3 * (len(edges) - 1)
     results = []
@@ -795,7 +793,7 @@ def _rank_candidates(
     return results
 
 
-def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon: float) -> Optional[_Named]:
+def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon: float) -> _Named | None:
     """Return, among an effect's significant variants, the one whose replay follows the whole log best (None: none)."""
     best = None
     for tr in trials:
@@ -813,8 +811,8 @@ def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon:
 
 
 def _choose_effect(
-    results: Sequence[_Ranked], threshold: float, horizon: float, mask: Optional[np.ndarray], last: Optional[Replay]
-) -> Optional[_Named]:
+    results: Sequence[_Ranked], threshold: float, horizon: float, mask: np.ndarray | None, last: Replay | None
+) -> _Named | None:
     """Return the best significant candidate whose replay stays finite (and, after a first one, keeps the gap)."""
     for ranked in results:
         if ranked.best.dbic <= threshold or not np.isfinite(ranked.best.dbic):
@@ -830,9 +828,9 @@ def _choose_effect(
 
 def _named_effects(
     named: Sequence[_Named], reps: Sequence[Replay], flagged: np.ndarray, horizon: float
-) -> List[NamedEffect]:
+) -> list[NamedEffect]:
     """Return the report entries of the named effects: parameters, stds, evidence, windows they improve."""
-    out: List[NamedEffect] = []
+    out: list[NamedEffect] = []
     for i, nm in enumerate(named):
         e, fit = nm.trial.effect, nm.trial.fit
         th = fit.thetas[-1]
@@ -849,7 +847,7 @@ def _named_effects(
     return out
 
 
-def _discrepancy_windows(sig: Signals, rep0: Replay, flagged: np.ndarray, horizon: float) -> List[DiscrepancyWindow]:
+def _discrepancy_windows(sig: Signals, rep0: Replay, flagged: np.ndarray, horizon: float) -> list[DiscrepancyWindow]:
     """Return the windows where the nominal replay disagrees significantly, with activity and max chi2."""
     windows = []
     for t0, t1 in merge_windows(rep0.starts, flagged, horizon):
@@ -862,11 +860,11 @@ def _discrepancy_windows(sig: Signals, rep0: Replay, flagged: np.ndarray, horizo
 
 def diagnose(
     log: CartLog,
-    candidates: Optional[Sequence[Effect]] = None,
+    candidates: Sequence[Effect] | None = None,
     threshold: float = 10.0,
     max_effects: int = 3,
-    horizon: Optional[float] = None,
-    window: Optional[float] = None,
+    horizon: float | None = None,
+    window: float | None = None,
 ) -> DiagnosisReport:
     """Return the DiagnosisReport of ``log``: nominal fit, discrepancy windows, named effects, gap before/after.
 
@@ -885,7 +883,7 @@ def diagnose(
     flagged = flag_starts(rep0)
     mask = flagged if np.any(flagged) else None
     current, named, reps = nominal, [], [rep0]  # reps: the nominal replay and one after each named effect
-    first_scores: List[Tuple[str, float]] = []
+    first_scores: list[tuple[str, float]] = []
     for round_ in range(max_effects):
         results = _rank_candidates(sig, edges, current, cands, [nm.trial.effect.name for nm in named])
         if not results:
@@ -918,7 +916,7 @@ def diagnose(
     )
 
 
-def _plot_replay_errors(ax, report: DiagnosisReport, mask: Optional[np.ndarray], horizon: float) -> None:
+def _plot_replay_errors(ax, report: DiagnosisReport, mask: np.ndarray | None, horizon: float) -> None:
     """Draw the position error of non-overlapping replays before/after, the noise floor and the flagged windows."""
     rb, ra = report.replay_before, report.replay_after
     for rep, colour, label in (
@@ -1021,7 +1019,7 @@ def diagnosis_figures(report: DiagnosisReport, max_zooms: int = 3) -> dict:
     return {"replay": fig, "residuals": _residual_figure(report)}
 
 
-def plot_diagnosis(report: DiagnosisReport, out_dir: str) -> List[str]:
+def plot_diagnosis(report: DiagnosisReport, out_dir: str) -> list[str]:
     """Write ``replay.png`` and ``residuals.png`` of ``report`` (see `diagnosis_figures`) into ``out_dir``; return the paths."""
     os.makedirs(out_dir, exist_ok=True)
     paths = []

@@ -13,7 +13,7 @@ flagged and merged into windows.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, List, Optional, Tuple
+from collections.abc import Callable
 
 import math
 
@@ -40,17 +40,17 @@ class Replay:
         """Return True when every replay stayed finite (a blown-up replay means a non-physical model)."""
         return bool(np.all(np.isfinite(self.sim)))
 
-    def rms_error(self, mask: Optional[np.ndarray] = None) -> float:
+    def rms_error(self, mask: np.ndarray | None = None) -> float:
         """Return the RMS position error (m) over the starts in ``mask`` (all when None)."""
         r = self.rms if mask is None or not np.any(mask) else self.rms[mask]
         return float(np.sqrt(np.mean(r**2)))
 
-    def noise_floor(self, mask: Optional[np.ndarray] = None) -> float:
+    def noise_floor(self, mask: np.ndarray | None = None) -> float:
         """Return the RMS position error (m) the noise alone predicts over the starts in ``mask``."""
         f = self.floor if mask is None or not np.any(mask) else self.floor[mask]
         return float(np.sqrt(np.mean(f**2)))
 
-    def gap(self, mask: Optional[np.ndarray] = None) -> float:
+    def gap(self, mask: np.ndarray | None = None) -> float:
         """Return the RMS excess position error (m) over the noise floor: sqrt(max(mean(rms^2 - floor^2), 0)).
 
         The part of the replay error the noise cannot explain, over the starts
@@ -60,19 +60,19 @@ class Replay:
         return float(np.sqrt(max(float(np.mean(self.rms[sel] ** 2 - self.floor[sel] ** 2)), 0.0)))
 
 
-def _interp_cols(times: np.ndarray, t: np.ndarray, cols: np.ndarray) -> List[np.ndarray]:
+def _interp_cols(times: np.ndarray, t: np.ndarray, cols: np.ndarray) -> list[np.ndarray]:
     return [np.interp(times, t, cols[:, k]) for k in range(cols.shape[1])]
 
 
 def simulate_replays(
     sig: Signals,
     x: np.ndarray,
-    extra: Optional[np.ndarray] = None,
-    dphi: Optional[np.ndarray] = None,
+    extra: np.ndarray | None = None,
+    dphi: np.ndarray | None = None,
     horizon: float = 1.0,
     stride: float = 0.25,
     h: float = 0.02,
-) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (starts (K,), tau (J,), simulated poses (K, J, 3), measured poses (K, J, 3)) of the short replays.
 
     The model x = [m, m dx, m dy, J, sigma, sigma_yaw] (eq. 4-7) plus ``extra`` (N, 3):
@@ -104,8 +104,8 @@ def simulate_replays(
 def _replay_dynamics(
     sig: Signals,
     x: np.ndarray,
-    extra: Optional[np.ndarray],
-    dphi: Optional[np.ndarray],
+    extra: np.ndarray | None,
+    dphi: np.ndarray | None,
     starts: np.ndarray,
     h: float,
     k_steps: int,
@@ -167,8 +167,8 @@ def _rk4_replays(f: Callable[[int, np.ndarray], np.ndarray], state: np.ndarray, 
 def replay(
     sig: Signals,
     x: np.ndarray,
-    extra: Optional[np.ndarray] = None,
-    dphi: Optional[np.ndarray] = None,
+    extra: np.ndarray | None = None,
+    dphi: np.ndarray | None = None,
     horizon: float = 1.0,
     stride: float = 0.25,
     h: float = 0.02,
@@ -300,9 +300,9 @@ def flag_starts(rep: Replay, fdr: float = 0.01) -> np.ndarray:
     return mask
 
 
-def merge_windows(starts: np.ndarray, mask: np.ndarray, horizon: float) -> List[Tuple[float, float]]:
+def merge_windows(starts: np.ndarray, mask: np.ndarray, horizon: float) -> list[tuple[float, float]]:
     """Return the union of [start, start + horizon] over the masked starts, as sorted disjoint intervals."""
-    out: List[Tuple[float, float]] = []
+    out: list[tuple[float, float]] = []
     for s in starts[mask]:
         if out and s <= out[-1][1] + 1e-9:
             out[-1] = (out[-1][0], float(s + horizon))

@@ -29,7 +29,7 @@ which :func:`regressor` returns (the basis of least-squares identification).
 from __future__ import annotations
 
 import math
-from typing import List, Sequence, Tuple, Union
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -66,7 +66,7 @@ def forward_dynamics(
     j: float,
     c_v: float,
     c_w: float,
-) -> Tuple[float, float, float]:
+) -> tuple[float, float, float]:
     """Return (xdd, ydd, thetadd) of the exact constrained dynamics (paper eq. 4), in plain floats.
 
     Velocities in {s}; (fx, fy) in {s}, tau about the {b} origin.
@@ -92,7 +92,7 @@ def inverse_dynamics(
     c_v: float,
     c_w: float,
     w_lat: float = 0.0,
-) -> Tuple[float, float]:
+) -> tuple[float, float]:
     """Return (F_u, tau): the forward force in {b} and torque about {b} that produce (vdot, omegadot).
 
     The first two rows of the body-frame form of paper eq. (4), solved for the
@@ -135,14 +135,14 @@ def wrench_input_matrix(theta: float, m: float, b: float, j: float) -> np.ndarra
 
 
 def dynamics_jacobian_rows(
-    x: Union[np.ndarray, list],
+    x: np.ndarray | list,
     gamma: Sequence[float],
     c_v: float,
     c_w: float,
     with_damping: bool,
     scale: float = 1.0,
     add_eye: bool = False,
-) -> Tuple[float, float, float, List[float]]:
+) -> tuple[float, float, float, list[float]]:
     """Return (xdd, ydd, thetadd, rows): rows 3..5 of ``scale * F (+ I)`` as one flat list of floats.
 
     ``x = [x, y, theta, vx, vy, omega, m, a, b, J]`` (+ ``[c_v, c_w]`` when

@@ -22,7 +22,7 @@ implement ``columns`` (and optionally ``nl_names``/``nl_grid``/``transform``/
 from __future__ import annotations
 
 import math
-from typing import Dict, List, Optional, Sequence, Tuple, Type
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -57,7 +57,7 @@ def nominal_columns(sig: Signals) -> np.ndarray:
     return a
 
 
-def nominal_loadings(n_win: int) -> Tuple[np.ndarray, np.ndarray]:
+def nominal_loadings(n_win: int) -> tuple[np.ndarray, np.ndarray]:
     """Return (Lv, Lw) (n_win, 3, 6): how the noise of the window velocity changes enters the nominal columns.
 
     The forward row's m column is the change of v, its m dy column minus the
@@ -78,7 +78,7 @@ def measured_rows(sig: Signals) -> np.ndarray:
     return np.column_stack([sig.f_fwd, sig.tau, sig.w_lat])
 
 
-def speed_scales(sig: Signals) -> Tuple[float, float]:
+def speed_scales(sig: Signals) -> tuple[float, float]:
     """Return (v0, omega0): the speeds below which friction signs are smoothed (tanh), above the noise.
 
     2 cm/s and 0.03 rad/s for a cart, scaled down for slow motions (5 % of the peak speed), never below
@@ -99,7 +99,7 @@ def forward_residual(sig: Signals, phi: np.ndarray, base: np.ndarray) -> np.ndar
     return sig.f_fwd - base[:, 0, :4] @ np.asarray(phi[:4], float)
 
 
-def static_hold(sig: Signals, r: np.ndarray, cap) -> Optional[np.ndarray]:
+def static_hold(sig: Signals, r: np.ndarray, cap) -> np.ndarray | None:
     """Return the set-valued hold (N, 3): clip(r, -cap, cap) in the forward row at rest, 0 moving (None: never at rest)."""
     rest = np.abs(sig.v) < stop_threshold(sig)
     if not np.any(rest):
@@ -192,8 +192,8 @@ class Effect:
     """A candidate effect: name, linear parameters, optional nonlinear parameters searched on a grid."""
 
     name: str = "effect"
-    param_names: Tuple[str, ...] = ()
-    nl_names: Tuple[str, ...] = ()
+    param_names: tuple[str, ...] = ()
+    nl_names: tuple[str, ...] = ()
     #: True when the columns use the current estimate of phi (refit iterates).
     uses_phi: bool = False
     #: True when the effect adds a set-valued (parameter-free given the previous estimate) term, see :meth:`offset`.
@@ -203,24 +203,24 @@ class Effect:
     #: True: the nonlinear parameter is searched (and its std computed) on a log scale.
     log_scale: bool = False
 
-    def nl_grid(self, sig: Signals) -> List[Tuple[float, ...]]:
+    def nl_grid(self, sig: Signals) -> list[tuple[float, ...]]:
         """Return the grid of nonlinear-parameter tuples to search (one empty tuple when there are none)."""
         return [()]
 
-    def nl_bounds(self, sig: Signals) -> List[Tuple[float, float]]:
+    def nl_bounds(self, sig: Signals) -> list[tuple[float, float]]:
         """Return (low, high) bounds of each nonlinear parameter for the refinement search."""
         return []
 
-    def transform(self, sig: Signals, nl: Tuple[float, ...]) -> Signals:
+    def transform(self, sig: Signals, nl: tuple[float, ...]) -> Signals:
         """Return the signals corrected for this effect (default: unchanged)."""
         return sig
 
-    def columns(self, sig: Signals, nl: Tuple[float, ...], phi: np.ndarray, base: np.ndarray) -> np.ndarray:
+    def columns(self, sig: Signals, nl: tuple[float, ...], phi: np.ndarray, base: np.ndarray) -> np.ndarray:
         """Return G (N, 3, len(param_names)): rows (forward force, yaw torque, lateral speed) per unit parameter."""
         return np.zeros((sig.n, 3, 0))
 
     def window_columns(
-        self, sig: Signals, nl: Tuple[float, ...], phi: np.ndarray, base: np.ndarray, edges: np.ndarray
+        self, sig: Signals, nl: tuple[float, ...], phi: np.ndarray, base: np.ndarray, edges: np.ndarray
     ) -> np.ndarray:
         """Return the window integrals (windows, 3, k) of :meth:`columns` over the windows cut at ``edges``.
 
@@ -229,8 +229,8 @@ class Effect:
         return window_integrals(sig.t, self.columns(sig, nl, phi, base), edges)
 
     def offset(
-        self, sig: Signals, nl: Tuple[float, ...], phi: np.ndarray, base: np.ndarray, theta: Optional[np.ndarray]
-    ) -> Optional[np.ndarray]:
+        self, sig: Signals, nl: tuple[float, ...], phi: np.ndarray, base: np.ndarray, theta: np.ndarray | None
+    ) -> np.ndarray | None:
         """Return a term (N, 3) added to the rows besides ``G theta`` (a set-valued force), or None (default).
 
         Called with the previous estimate of phi and of this effect's
@@ -239,7 +239,7 @@ class Effect:
         """
         return None
 
-    def column_key(self, sig: Signals, nl: Tuple[float, ...]) -> Optional[tuple]:
+    def column_key(self, sig: Signals, nl: tuple[float, ...]) -> tuple | None:
         """Return a hashable key that fixes :meth:`columns` for these signals (fits cache them), or None (no cache).
 
         Default: the class, its attributes and ``nl`` -- valid unless the
@@ -250,22 +250,22 @@ class Effect:
         return (type(self).__name__, tuple(sorted(vars(self).items())), tuple(float(u) for u in nl))
 
     def noise_loadings(
-        self, sig: Signals, nl: Tuple[float, ...], edges: np.ndarray, lv: np.ndarray, lw: np.ndarray
-    ) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+        self, sig: Signals, nl: tuple[float, ...], edges: np.ndarray, lv: np.ndarray, lw: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         """Return the window noise loadings (like :func:`nominal_loadings`) of the columns, or None (noise-free)."""
         return None
 
-    def is_physical(self, theta: np.ndarray, nl: Tuple[float, ...], x: np.ndarray) -> bool:
+    def is_physical(self, theta: np.ndarray, nl: tuple[float, ...], x: np.ndarray) -> bool:
         """Return False when the fitted parameters are physically impossible (the fit is then rejected)."""
         return True
 
     def replay_phi_change(
-        self, sig: Signals, nl: Tuple[float, ...], theta: np.ndarray, phi: Optional[np.ndarray] = None
-    ) -> Optional[np.ndarray]:
+        self, sig: Signals, nl: tuple[float, ...], theta: np.ndarray, phi: np.ndarray | None = None
+    ) -> np.ndarray | None:
         """Return the change of phi (N, 4) over time the replay must apply, or None (default)."""
         return None
 
-    def variants(self) -> List["Effect"]:
+    def variants(self) -> list[Effect]:
         """Return the parameterisations of this effect to try (default: itself); the best Delta BIC is kept.
 
         An effect may offer a reduced (nested) form with fewer parameters: it
@@ -274,8 +274,8 @@ class Effect:
         return [self]
 
     def describe(
-        self, theta: np.ndarray, nl: Tuple[float, ...], cov: np.ndarray, nl_std: Sequence[float], phi: np.ndarray
-    ) -> Tuple[Dict[str, float], Dict[str, float]]:
+        self, theta: np.ndarray, nl: tuple[float, ...], cov: np.ndarray, nl_std: Sequence[float], phi: np.ndarray
+    ) -> tuple[dict[str, float], dict[str, float]]:
         """Return (parameters, standard deviations) as plain dicts for the report."""
         params = {k: float(v) for k, v in zip(self.param_names, theta)}
         std = {k: float(math.sqrt(max(cov[i, i], 0.0))) for i, k in enumerate(self.param_names)}
@@ -344,7 +344,7 @@ class CasterSwivel(Effect):
     log_scale = True
     #: shape exponent p of g(u) = exp(-u^p)
     shape: float = 1.0
-    SHAPES: Tuple[float, ...] = (1.0, 2.0, 4.0)
+    SHAPES: tuple[float, ...] = (1.0, 2.0, 4.0)
     #: holds (smoothed) above this fraction of the breakaway force count as at the limit (see :meth:`columns`)
     HOLD_LIMIT = 0.8
 
@@ -372,7 +372,7 @@ class CasterSwivel(Effect):
         """Return the distance bounds in metres."""
         return [(0.01, 3.0)]
 
-    def profile(self, sig: Signals, nl: Tuple[float, ...]) -> np.ndarray:
+    def profile(self, sig: Signals, nl: tuple[float, ...]) -> np.ndarray:
         """Return g(s / d) per sample (0 before the first reversal)."""
         s = distance_since_reversal(sig)
         with np.errstate(over="ignore", invalid="ignore"):
@@ -383,7 +383,7 @@ class CasterSwivel(Effect):
         """Return None: the columns at rest depend on phi and on the current force estimate (no caching)."""
         return None
 
-    def _held(self, sig: Signals, phi: np.ndarray, base: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    def _held(self, sig: Signals, phi: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return (r, r smoothed over +-0.1 s): the forward force the nominal model leaves unexplained."""
         r = forward_residual(sig, phi, base)
         return r, local_mean(sig.t, r, 0.1)
@@ -437,7 +437,7 @@ class CasterSwivel(Effect):
 CASTER_HALF_TRACK = 0.25  # m: lateral offset of the two modelled casters (their exact value matters little)
 #: swing modes of a caster that reaches its leading (unstable) equilibrium: (side, least misalignment);
 #: side 0 = natural (from the motion), +-1 = forced to that side, misalignment = how far from leading it starts
-SWING_MODES: Tuple[Tuple[int, float], ...] = ((0, 1e-5),) + tuple(
+SWING_MODES: tuple[tuple[int, float], ...] = ((0, 1e-5),) + tuple(
     (side, d) for d in (0.1, 0.01, 1e-3, 1e-4, 1e-5) for side in (1, -1)
 )
 
@@ -466,7 +466,7 @@ def kinematic_yaw_rate(sig: Signals) -> np.ndarray:
     return cached
 
 
-def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[float]) -> Tuple[np.ndarray, np.ndarray]:
+def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
     """Return swivel angles alpha and rates alpha', (N, len(axles), len(trails), 2 casters, len(SWING_MODES)).
 
     Casters at (x, +-CASTER_HALF_TRACK) in {b} with trail e; the wheel rolls
@@ -554,16 +554,16 @@ class SwivelCasterModel(CasterSwivel):
     nl_names = ("trail",)
     refine = False
     log_scale = True
-    AXLES: Tuple[float, ...] = (0.5, 0.8, 1.1)
-    TRAILS: Tuple[float, ...] = tuple(float(e) for e in np.geomspace(0.015, 0.08, 14))
+    AXLES: tuple[float, ...] = (0.5, 0.8, 1.1)
+    TRAILS: tuple[float, ...] = tuple(float(e) for e in np.geomspace(0.015, 0.08, 14))
     EPS = (0.2, 0.8)  # rad/s: regularisations of the two Coulomb swivel-friction columns
     #: swing-mode combinations (caster 1, caster 2) tried per swing: both natural, then sides x misalignments
-    COMBOS: Tuple[Tuple[int, int], ...] = ((0, 0),) + tuple(
+    COMBOS: tuple[tuple[int, int], ...] = ((0, 0),) + tuple(
         (a, b) for d in range(1, len(SWING_MODES), 2) for a, b in ((d, d), (d + 1, d + 1), (d, d + 1), (d + 1, d))
     )
 
     #: swing-mode lane of caster 1 and of caster 2 in each combination
-    COMBO_LANES: Tuple[np.ndarray, np.ndarray] = (np.array([c[0] for c in COMBOS]), np.array([c[1] for c in COMBOS]))
+    COMBO_LANES: tuple[np.ndarray, np.ndarray] = (np.array([c[0] for c in COMBOS]), np.array([c[1] for c in COMBOS]))
 
     def __init__(self, axle_x: float = 0.8) -> None:
         super().__init__(1.0)
@@ -586,7 +586,7 @@ class SwivelCasterModel(CasterSwivel):
         """Return the trail bounds in metres."""
         return [(self.TRAILS[0], self.TRAILS[-1])]
 
-    def _lanes(self, sig: Signals, trail: float) -> Tuple[np.ndarray, np.ndarray]:
+    def _lanes(self, sig: Signals, trail: float) -> tuple[np.ndarray, np.ndarray]:
         """Return alpha, alpha' (N, 2, modes) for this axle position and ``trail`` (grid values: one shared pass)."""
         if trail in self.TRAILS and self.axle_x in self.AXLES:
             alpha, rate = caster_kinematics(sig, self.AXLES, self.TRAILS)
@@ -595,7 +595,7 @@ class SwivelCasterModel(CasterSwivel):
         alpha, rate = caster_kinematics(sig, (self.axle_x,), (trail,))
         return alpha[:, 0, 0], rate[:, 0, 0]
 
-    def _swings(self, sig: Signals, trail: float) -> List[Tuple[int, int]]:
+    def _swings(self, sig: Signals, trail: float) -> list[tuple[int, int]]:
         """Return sample ranges [i0, i1) where the swing modes disagree (swings from a leading caster)."""
         key = ("motion", "caster_swings", self.axle_x, trail)
         cached = sig.extras.get(key)
@@ -620,11 +620,11 @@ class SwivelCasterModel(CasterSwivel):
             out[..., 1, k] = -np.sum(unit * lever, axis=-1)
         return out
 
-    def _choice(self, sig: Signals, trail: float) -> Dict[Tuple[int, int], np.ndarray]:
+    def _choice(self, sig: Signals, trail: float) -> dict[tuple[int, int], np.ndarray]:
         """Return the current weights of the mode combinations per swing ({(i0, i1): (combos,)}; empty: natural)."""
         return sig.extras.get(("caster_choice", self.axle_x, trail), {})
 
-    def _swing_stats(self, sig: Signals, trail: float, base: np.ndarray) -> List[tuple]:
+    def _swing_stats(self, sig: Signals, trail: float, base: np.ndarray) -> list[tuple]:
         """Return per swing ((i0, i1), U, Q, P, R, c0, b, S): unit rows and weighted normal equations of the combos.
 
         U_c (L, combos, 2 rows, 3 params) are the unit rows of combination c;
@@ -679,7 +679,7 @@ class SwivelCasterModel(CasterSwivel):
         sig.extras[key] = out
         return out
 
-    def _swing_arrays(self, sig: Signals, trail: float, base: np.ndarray) -> Tuple[tuple, ...]:
+    def _swing_arrays(self, sig: Signals, trail: float, base: np.ndarray) -> tuple[tuple, ...]:
         """Return the swings' ranges and their normal-equation terms of :meth:`_swing_stats` stacked over the swings.
 
         (ranges, Q (S, C, 3, 3), P (S, C, 3), R (S, C, 3, 4), c0 (S,), b (S, 4), S (S, 4, 4), n_ind (S,)):
@@ -1037,10 +1037,10 @@ class LateralSlip(Effect):
         return g
 
 
-_REGISTRY: Dict[str, Type[Effect]] = {}
+_REGISTRY: dict[str, type[Effect]] = {}
 
 
-def register_effect(cls: Type[Effect]) -> Type[Effect]:
+def register_effect(cls: type[Effect]) -> type[Effect]:
     """Register an Effect subclass under ``cls.name`` (usable as a class decorator); return it."""
     if not (isinstance(cls, type) and issubclass(cls, Effect)):
         raise TypeError("register_effect expects a subclass of cart.effects.Effect")
@@ -1053,7 +1053,7 @@ def unregister_effect(name: str) -> None:
     _REGISTRY.pop(name, None)
 
 
-def registered_effects() -> List[Effect]:
+def registered_effects() -> list[Effect]:
     """Return one instance of every registered effect, in registration order."""
     return [cls() for cls in _REGISTRY.values()]
 

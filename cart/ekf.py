@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional, Sequence, Tuple
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.linalg import cho_factor as _cho_factor, cho_solve as _cho_solve
@@ -84,11 +84,11 @@ class EKFConfig:
     window.
     """
 
-    meas_std: Tuple[float, ...] = (0.005, 0.005, 0.005, 0.005, 0.005, 0.005)
+    meas_std: tuple[float, ...] = (0.005, 0.005, 0.005, 0.005, 0.005, 0.005)
     q_pos: float = 1e-8
     q_vel: float = 1e-5
     q_omega: float = 1e-5
-    q_phi: Tuple[float, float, float, float] = (0.005, 0.005, 0.005, 0.005)
+    q_phi: tuple[float, float, float, float] = (0.005, 0.005, 0.005, 0.005)
     q_sigma: float = 0.01
     estimate_params: bool = True
     estimate_sigma: bool = False
@@ -103,7 +103,7 @@ class EKFConfig:
     gap_factor: float = 5.0
 
     @classmethod
-    def from_noise(cls, meas_std: Sequence[float], **kwargs) -> "EKFConfig":
+    def from_noise(cls, meas_std: Sequence[float], **kwargs) -> EKFConfig:
         """Return a config whose R comes from the measurement std (floored at 1e-6)."""
         return cls(meas_std=tuple(max(float(s), 1e-6) for s in meas_std), **kwargs)
 
@@ -139,8 +139,8 @@ def dynamics_jacobian(
     sigma: float,
     out_f: np.ndarray,
     with_sigma: bool,
-    sigma_yaw: Optional[float] = None,
-) -> Tuple[float, float, float]:
+    sigma_yaw: float | None = None,
+) -> tuple[float, float, float]:
     """Return (xdd, ydd, thetadd) at state x and write rows 3..5 of F = df/dx into ``out_f``.
 
     Exact constrained dynamics (:func:`cart.dynamics.dynamics_jacobian_rows`); columns are the
@@ -177,8 +177,8 @@ class CartEKF:
         phi0: Sequence[float],
         sigma: float,
         config: EKFConfig = EKFConfig(),
-        P0: Optional[np.ndarray] = None,
-        sigma_yaw: Optional[float] = None,
+        P0: np.ndarray | None = None,
+        sigma_yaw: float | None = None,
     ) -> None:
         self.config = config
         self.with_sigma = bool(config.estimate_sigma)
@@ -263,8 +263,8 @@ class CartEKF:
 
     def _init_monitors(self, config: EKFConfig) -> None:
         """Set the projection limits, the NIS gate, the change detection and the robustness counters."""
-        self._params_key: Optional[list] = None  # phi (and sigma) of the CartParams cached by params()
-        self._params: Optional[CartParams] = None
+        self._params_key: list | None = None  # phi (and sigma) of the CartParams cached by params()
+        self._params: CartParams | None = None
         self._min_mass = float(config.min_mass)
         self._min_inertia = float(config.min_inertia)
         self.nis = float("nan")
@@ -394,7 +394,7 @@ class CartEKF:
         self._phi6[0, 3] = self._phi6[1, 4] = self._phi6[2, 5] = dt
         np.multiply(self._qdiag, dt, out=self._qdt)
 
-    def predict(self, gamma: Sequence[float], dt: float, gamma_cov: Optional[np.ndarray] = None) -> None:
+    def predict(self, gamma: Sequence[float], dt: float, gamma_cov: np.ndarray | None = None) -> None:
         """Propagate state (Euler, eq. 16) and covariance (Phi (P + Q dt) Phi^T, Phi = I + F dt, eq. 13/17) over dt.
 
         F's first three rows are the selector [0 I 0] and its rows 6.. are zero,
@@ -561,9 +561,7 @@ class CartEKF:
             x[10] = max(x[10], 0.0)
             x[11] = max(x[11], 0.0)
 
-    def step(
-        self, gamma: Sequence[float], dt: float, z: Sequence[float], gamma_cov: Optional[np.ndarray] = None
-    ) -> float:
+    def step(self, gamma: Sequence[float], dt: float, z: Sequence[float], gamma_cov: np.ndarray | None = None) -> float:
         """Predict over dt under gamma, then update with z; return the NIS.
 
         The same arithmetic as :meth:`predict` then :meth:`update`, fused and in
@@ -592,7 +590,7 @@ class CartEKF:
             self._set_dt(dt)
         return self._fused_update(self._fused_predict(gamma, dt, zl, gamma_cov), zl)
 
-    def _fused_predict(self, gamma: Sequence[float], dt: float, zl: list, gamma_cov: Optional[np.ndarray]) -> list:
+    def _fused_predict(self, gamma: Sequence[float], dt: float, zl: list, gamma_cov: np.ndarray | None) -> list:
         """The prediction of :meth:`step` (eq. 13/16/17): x and rows/columns 0-5 of P; return minus the innovation.
 
         Also writes w = -y into the [w | T] buffer for the update's dposv.
@@ -661,7 +659,7 @@ class CartEKF:
             self._detect_change(ny)  # the test is on |sum y|^2: the sign does not matter
         return self.nis
 
-    def _skip_measurement(self, gamma: Sequence[float], dt: float, gamma_cov: Optional[np.ndarray]) -> float:
+    def _skip_measurement(self, gamma: Sequence[float], dt: float, gamma_cov: np.ndarray | None) -> float:
         """Predict only (a measurement with a NaN or an infinity); count it; return NaN."""
         if not 0.0 < dt < math.inf:
             raise ParameterError(f"EKF time step must be positive and finite, got {dt}")
@@ -696,7 +694,7 @@ class CartEKF:
         return self._update(zl, inflated=True)
 
 
-def _log_arrays(t: np.ndarray, gamma: np.ndarray, z: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+def _log_arrays(t: np.ndarray, gamma: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Return (t, gamma, z, k0) of :func:`run_ekf` as float arrays, checked; k0 the first finite measurement."""
     t = np.asarray(t, dtype=float)
     z = np.asarray(z, dtype=float)
@@ -721,9 +719,9 @@ def run_ekf(
     phi0: Sequence[float],
     sigma: float,
     config: EKFConfig = EKFConfig(),
-    nll: Optional[list] = None,
-    sigma_yaw: Optional[float] = None,
-) -> Tuple[CartEKF, np.ndarray, np.ndarray]:
+    nll: list | None = None,
+    sigma_yaw: float | None = None,
+) -> tuple[CartEKF, np.ndarray, np.ndarray]:
     """Return (ekf, x_history (N, n), nis (N,)) of the EKF run on a whole log.
 
     ``gamma[k]`` is held between t_k and t_{k+1}; the first sample with a
@@ -780,7 +778,7 @@ class LogEstimate:
 
     params: CartParams
     std: dict
-    meas_std: Tuple[float, ...]
+    meas_std: tuple[float, ...]
     mean_nis: float
     velocities_estimated: bool
     history: np.ndarray = field(repr=False)
@@ -790,8 +788,8 @@ class LogEstimate:
 
 
 def measurement_std_from_log(
-    t: np.ndarray, q: np.ndarray, qd: Optional[np.ndarray], half_window: float = 0.05
-) -> Tuple[float, ...]:
+    t: np.ndarray, q: np.ndarray, qd: np.ndarray | None, half_window: float = 0.05
+) -> tuple[float, ...]:
     """Return the std of (x, y, theta, vx, vy, omega) estimated from the residuals about local quadratic fits.
 
     When the velocities are absent (estimated by the same fits), their std is
@@ -820,7 +818,7 @@ def measurement_std_from_log(
     return (float(pos), float(pos), float(pose_std[2]), float(vel), float(vel), float(vel_std[2]))
 
 
-def wrench_noise_std_from_log(log) -> Tuple[float, float]:
+def wrench_noise_std_from_log(log) -> tuple[float, float]:
     """Return the std of the white noise on the logged wrench: (force per axis N, torque N m).
 
     From the residuals of short local cubic fits (see :func:`cart.log_signals.signals_from_log`);
@@ -836,7 +834,7 @@ def wrench_noise_std_from_log(log) -> Tuple[float, float]:
     return float(sig.sigma_force), float(sig.sigma_torque)
 
 
-def default_starts(guess: CartParams) -> Tuple[CartParams, ...]:
+def default_starts(guess: CartParams) -> tuple[CartParams, ...]:
     """Return the initial guesses :func:`estimate_from_log` tries: the guess, and its mass x0.6 and x1.6.
 
     The EKF on a weakly exciting log can lock into a wrong basin from a poor
@@ -850,7 +848,7 @@ def default_starts(guess: CartParams) -> Tuple[CartParams, ...]:
 def _start_config(
     start: CartParams,
     meas_std: Sequence[float],
-    wrench_std: Tuple[float, float],
+    wrench_std: tuple[float, float],
     dt: float,
     estimate_sigma: bool,
     config: dict,
@@ -871,8 +869,8 @@ def estimate_from_log(
     log,
     guess: CartParams,
     estimate_sigma: bool = True,
-    meas_std: Optional[Sequence[float]] = None,
-    starts: Optional[Sequence[CartParams]] = None,
+    meas_std: Sequence[float] | None = None,
+    starts: Sequence[CartParams] | None = None,
     refine: bool = True,
     **config,
 ) -> LogEstimate:

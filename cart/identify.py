@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -77,15 +76,15 @@ class Identification:
     """
 
     params: CartParams
-    std: Dict[str, object]
+    std: dict[str, object]
     p: np.ndarray = field(repr=False)
     cov: np.ndarray = field(repr=False)
     cutoff_hz: float
-    residual_ratio: Tuple[float, float]
+    residual_ratio: tuple[float, float]
     model_fits: bool
-    coulomb: Dict[str, float]
-    noise: Dict[str, float]
-    warnings: Tuple[str, ...]
+    coulomb: dict[str, float]
+    noise: dict[str, float]
+    warnings: tuple[str, ...]
     samples_used: int
     gaps: int
 
@@ -129,7 +128,7 @@ def _filtfilt(sos: np.ndarray, y: np.ndarray) -> np.ndarray:
     return sosfiltfilt(sos, y, padlen=min(15, len(y) - 1))
 
 
-def _pose_kinematics(qs: np.ndarray, dt: float) -> Tuple[np.ndarray, ...]:
+def _pose_kinematics(qs: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
     """Return (theta, v, omega, vdot, omegadot) of the filtered pose qs (body frame, constraint w = 0)."""
     qd = np.gradient(qs, dt, axis=0)
     th = qs[:, 2]
@@ -139,7 +138,7 @@ def _pose_kinematics(qs: np.ndarray, dt: float) -> Tuple[np.ndarray, ...]:
     return th, v, om, np.gradient(v, dt), np.gradient(om, dt)
 
 
-def _kinematics(q: np.ndarray, dt: float, sos: np.ndarray) -> Tuple[np.ndarray, ...]:
+def _kinematics(q: np.ndarray, dt: float, sos: np.ndarray) -> tuple[np.ndarray, ...]:
     """Return (theta, v, omega, vdot, omegadot) of the pose filtered by ``sos``."""
     return _pose_kinematics(_filtfilt(sos, q), dt)
 
@@ -149,7 +148,7 @@ def _unit_noise(n: int, seed: int = 0) -> np.ndarray:
     return np.random.default_rng(seed).standard_normal(min(n, 20000))
 
 
-def _gains_of(ef: np.ndarray, dt: float) -> Tuple[float, float]:
+def _gains_of(ef: np.ndarray, dt: float) -> tuple[float, float]:
     """Return (acceleration std, output std) of filtered unit noise ``ef``, away from its ends."""
     m = len(ef)
     acc = np.gradient(np.gradient(ef, dt), dt)
@@ -158,12 +157,12 @@ def _gains_of(ef: np.ndarray, dt: float) -> Tuple[float, float]:
     return float(np.std(acc[core])), float(np.std(ef[core]))
 
 
-def _noise_gains(n: int, dt: float, sos: np.ndarray, seed: int = 0) -> Tuple[float, float]:
+def _noise_gains(n: int, dt: float, sos: np.ndarray, seed: int = 0) -> tuple[float, float]:
     """Return (acceleration std per unit pose noise, filtered-output std per unit input noise) of the pipeline."""
     return _gains_of(_filtfilt(sos, _unit_noise(n, seed)), dt)
 
 
-def _filter_pose_and_noise(sos: np.ndarray, q: np.ndarray, e: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+def _filter_pose_and_noise(sos: np.ndarray, q: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Return (filtered q, filtered e); one pass over both when they have the same length (columns are independent)."""
     if len(e) == len(q):
         both = _filtfilt(sos, np.column_stack([q, e]))
@@ -171,10 +170,10 @@ def _filter_pose_and_noise(sos: np.ndarray, q: np.ndarray, e: np.ndarray) -> Tup
     return _filtfilt(sos, q), _filtfilt(sos, e)
 
 
-def _choose_cutoff(grid: _Grid, pos_std: float, th_std: float, attenuation: float) -> Tuple[float, List[str]]:
+def _choose_cutoff(grid: _Grid, pos_std: float, th_std: float, attenuation: float) -> tuple[float, list[str]]:
     """Return the highest cut-off (Hz) whose acceleration noise stays below ``attenuation`` of the signal power."""
     fs = 1.0 / grid.dt
-    warnings: List[str] = []
+    warnings: list[str] = []
     top = 0.4 * fs / 2.0
     duration = grid.t[-1] - grid.t[0]
     low = max(4.0 / max(duration, 1e-9), 1e-3 * fs)
@@ -202,7 +201,7 @@ def _choose_cutoff(grid: _Grid, pos_std: float, th_std: float, attenuation: floa
     return float(best), warnings
 
 
-def _design(grid: _Grid, sos: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _design(grid: _Grid, sos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (X (k, 2, 6), y (k, 2), v, omega) of the filtered regression on the grid."""
     th, v, om, vd, od = _kinematics(grid.q, grid.dt, sos)
     c, s = np.cos(th), np.sin(th)
@@ -211,7 +210,7 @@ def _design(grid: _Grid, sos: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.nd
     return regressor(v, om, vd, od), y, v, om
 
 
-def _with_coulomb_columns(x: np.ndarray, v: np.ndarray, om: np.ndarray, eps: Tuple[float, float]) -> np.ndarray:
+def _with_coulomb_columns(x: np.ndarray, v: np.ndarray, om: np.ndarray, eps: tuple[float, float]) -> np.ndarray:
     """Return X with two more columns: Coulomb-like forward force tanh(v / eps_v) and yaw torque tanh(omega / eps_w)."""
     z = np.zeros_like(v)
     extra = np.stack([np.stack([np.tanh(v / eps[0]), z], -1), np.stack([z, np.tanh(om / eps[1])], -1)], -2)
@@ -237,7 +236,7 @@ def _noise_correction(wts: np.ndarray, noise: np.ndarray) -> np.ndarray:
 
 def _wls(
     x: np.ndarray, y: np.ndarray, noise: np.ndarray, iterations: int = 4
-) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return (p, row scales (2,), weights (k, 2)) of Huber-weighted, bias-compensated least squares.
 
     ``noise`` (2, n_p): variance of the white part of each regressor entry, per row; its
@@ -291,7 +290,7 @@ def _jackknife_cov(x: np.ndarray, y: np.ndarray, wts: np.ndarray, noise: np.ndar
     return t_scale * (blocks - 1) / blocks * d.T @ d
 
 
-def _physical_std(p: np.ndarray, cov: np.ndarray) -> Dict[str, object]:
+def _physical_std(p: np.ndarray, cov: np.ndarray) -> dict[str, object]:
     """Return the std of (m, dx, dy, I about the CoM, c_v, c_w) by linearising the phi -> physical map."""
     m, a, b, j = p[:4]
     jac = np.zeros((6, 6))
@@ -314,7 +313,7 @@ def _physical_std(p: np.ndarray, cov: np.ndarray) -> Dict[str, object]:
 
 def _fit(
     x: np.ndarray, y: np.ndarray, noise: np.ndarray, lag: int
-) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (p, cov, row scales, residuals) of one weighted fit with its HAC / jackknife covariance."""
     n_p = x.shape[-1]
     noise = np.pad(noise, ((0, 0), (0, n_p - noise.shape[1])))
@@ -386,7 +385,7 @@ def _regression(log: CartLog, grid: _Grid, fc: float, sos: np.ndarray) -> _Regre
 
 def _coulomb_check(
     reg: _Regression, noise: np.ndarray, lag: int, p: np.ndarray
-) -> Tuple[Dict[str, float], Optional[np.ndarray]]:
+) -> tuple[dict[str, float], np.ndarray | None]:
     """Return the Coulomb-like resistance of the extended fit (force, torque, Wald) and, when significant, its shift.
 
     The shift is the change of the six parameters the extra columns cause (model uncertainty).
@@ -418,7 +417,7 @@ def _misfit_scale(p: np.ndarray, ratio: np.ndarray, expected: np.ndarray, y: np.
     )
 
 
-def _physical_params(log: CartLog, p: np.ndarray, cov: np.ndarray) -> Tuple[CartParams, float]:
+def _physical_params(log: CartLog, p: np.ndarray, cov: np.ndarray) -> tuple[CartParams, float]:
     """Return the CartParams of p = [m, m dx, m dy, J, c_v, c_w] and the inertia about the CoM; raise if unphysical."""
     m, a, b, j, c_v, c_w = p
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(np.diag(cov)))):
@@ -439,7 +438,7 @@ def _physical_params(log: CartLog, p: np.ndarray, cov: np.ndarray) -> Tuple[Cart
 
 def _residual_ratio(
     lv: _Noise, out_gain: float, sv: float, so: float, p: np.ndarray, r: np.ndarray, y: np.ndarray
-) -> Tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray]:
     """Return (residual RMS / what the noise explains, the explained RMS) of the forward and yaw rows.
 
     The explained part: the filtered wrench noise plus the regressor's acceleration noise times the
@@ -468,8 +467,8 @@ def _model_uncertainty(
     cov: np.ndarray,
     ratio: np.ndarray,
     expected: np.ndarray,
-    warnings: List[str],
-) -> Tuple[np.ndarray, Dict[str, float], bool]:
+    warnings: list[str],
+) -> tuple[np.ndarray, dict[str, float], bool]:
     """Return (covariance with the model uncertainty added, Coulomb-like resistance, model fits); append warnings.
 
     A significant Coulomb-like resistance (rolling resistance, dry friction: a nuisance term) adds the
@@ -543,7 +542,7 @@ def identify(log: CartLog, attenuation: float = ATTENUATION) -> Identification:
     )
 
 
-def _excitation_warnings(p: np.ndarray, std: Dict[str, object], inertia: float) -> List[str]:
+def _excitation_warnings(p: np.ndarray, std: dict[str, object], inertia: float) -> list[str]:
     """Return warnings for parameters the log excites weakly (relative std above a half)."""
     m, a, b, j = p[:4]
     out = []
@@ -566,7 +565,7 @@ def _excitation_warnings(p: np.ndarray, std: Dict[str, object], inertia: float) 
     return out
 
 
-def innovation_check(log: CartLog, params: CartParams, noise: Optional[Dict[str, float]] = None) -> Tuple[float, int]:
+def innovation_check(log: CartLog, params: CartParams, noise: dict[str, float] | None = None) -> tuple[float, int]:
     """Return (mean NIS, rejected samples) of the paper's EKF (eq. 8-20) over the log with ``params`` held.
 
     The mean NIS is about 6 (the measurement dimension) when the model with

@@ -1,4 +1,5 @@
 """Strict JSON output: NaN and +-Infinity become ``null`` (DESIGN.md: "JSON is strict")."""
+
 from __future__ import annotations
 
 import json
@@ -25,8 +26,10 @@ def to_strict(obj: Any) -> Any:
     if isinstance(obj, np.ndarray):
         return to_strict(obj.tolist())
     if isinstance(obj, dict):
-        return {str(k) if not isinstance(k, (str, int, float, bool)) and k is not None else k: to_strict(v)
-                for k, v in obj.items()}
+        return {
+            str(k) if not isinstance(k, (str, int, float, bool)) and k is not None else k: to_strict(v)
+            for k, v in obj.items()
+        }
     if isinstance(obj, (list, tuple)):
         return [to_strict(v) for v in obj]
     for name in ("to_dict", "as_dict"):

@@ -9,7 +9,6 @@ the wrench are estimated from the residuals of the same fits.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Optional, Tuple
 
 import numpy as np
 
@@ -19,7 +18,7 @@ from cart.logs import CartLog, local_fit
 
 def local_poly(
     t: np.ndarray, y: np.ndarray, half_window: float, degree: int = 2
-) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (value, d1, d2, leverage): local least-squares polynomial fits of y (N, k) at every t_i.
 
     Each fit uses the samples with |t_j - t_i| <= ``half_window`` (windows shift
@@ -37,7 +36,7 @@ def local_poly(
     return value, d1, d2, leverage
 
 
-def derivative_gain(t: np.ndarray, half_window: float, degree: int = 2) -> Tuple[float, float]:
+def derivative_gain(t: np.ndarray, half_window: float, degree: int = 2) -> tuple[float, float]:
     """Return (g0, g1): noise gains of the smoothed value and first derivative (std out / std in), median."""
     n = len(t)
     rng = np.random.default_rng(12345)
@@ -96,7 +95,7 @@ class Signals:
         tt = np.asarray(times, float) + self.shift
         return np.column_stack([np.interp(tt, self.t, self.gamma_raw[:, k]) for k in range(3)])
 
-    def shifted(self, delay: float) -> "Signals":
+    def shifted(self, delay: float) -> Signals:
         """Return the signals with the wrench read ``delay`` s later: gamma_true(t) = gamma_meas(t + delay)."""
         g = np.column_stack([np.interp(self.t + delay, self.t, self.gamma_raw[:, k]) for k in range(3)])
         c, s = np.cos(self.q[:, 2]), np.sin(self.q[:, 2])
@@ -110,7 +109,7 @@ class Signals:
         )
 
 
-def signals_from_log(log: CartLog, half_window: Optional[float] = None) -> Signals:
+def signals_from_log(log: CartLog, half_window: float | None = None) -> Signals:
     """Return the smoothed body-frame :class:`Signals` of ``log`` (pose differentiated by local quadratics)."""
     t = np.asarray(log.t, float)
     if len(t) < 20:
@@ -206,7 +205,7 @@ def lateral_displacements(sig: Signals, edges: np.ndarray) -> np.ndarray:
     return cum[edges[1:]] - cum[edges[:-1]]
 
 
-def velocity_change_noise(sig: Signals, edges: np.ndarray, replicates: int = 4, seed: int = 7) -> Tuple[float, float]:
+def velocity_change_noise(sig: Signals, edges: np.ndarray, replicates: int = 4, seed: int = 7) -> tuple[float, float]:
     """Return the variances of the window integrals of vdot and omegadot due to pose noise alone.
 
     Propagates white noise of the estimated std (``sigma_pos``, ``sigma_theta``)

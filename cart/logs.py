@@ -19,7 +19,6 @@ import math
 import os
 import zlib
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -52,11 +51,11 @@ class CartLog:
     t: np.ndarray
     q: np.ndarray
     gamma: np.ndarray
-    qd: Optional[np.ndarray] = None
-    contact_b: Optional[np.ndarray] = None
-    metadata: Dict[str, str] = field(default_factory=dict)
+    qd: np.ndarray | None = None
+    contact_b: np.ndarray | None = None
+    metadata: dict[str, str] = field(default_factory=dict)
     source: str = "<memory>"
-    warnings: Tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.t)
@@ -90,7 +89,7 @@ class CartLog:
 
 def local_fit(
     t: np.ndarray, y: np.ndarray, half_window: float = 0.05, degree: int = 2
-) -> Tuple[np.ndarray, float, np.ndarray, np.ndarray, int]:
+) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, int]:
     """Return (coef, scale, pinv, start, width) of local least-squares polynomials at every t_i.
 
     Each sample gets a polynomial of ``degree`` in ``(t - t_i) / scale`` fitted
@@ -118,7 +117,7 @@ def local_fit(
 
 def local_polyfit(
     t: np.ndarray, q: np.ndarray, half_window: float = 0.05, degree: int = 2
-) -> Tuple[np.ndarray, np.ndarray, int]:
+) -> tuple[np.ndarray, np.ndarray, int]:
     """Return (smoothed q, dq/dt, window size) of local least-squares polynomials (irregular Savitzky-Golay).
 
     See `local_fit` for the windows.
@@ -139,10 +138,10 @@ def _open_text(path: str):
     # utf-8-sig: a byte-order mark (Excel and some Windows tools write one) is not part of the header
     if path.endswith(".gz"):
         return gzip.open(path, "rt", encoding="utf-8-sig", newline="")
-    return open(path, "r", encoding="utf-8-sig", newline="")
+    return open(path, encoding="utf-8-sig", newline="")
 
 
-def _read_lines(path: str) -> List[str]:
+def _read_lines(path: str) -> list[str]:
     try:
         with _open_text(path) as fh:
             return fh.read().splitlines()
@@ -154,9 +153,9 @@ def _read_lines(path: str) -> List[str]:
         raise LogFormatError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
 
 
-def _metadata(lines: List[str]) -> Tuple[Dict[str, str], int]:
+def _metadata(lines: list[str]) -> tuple[dict[str, str], int]:
     """Return the ``# key: value`` metadata and the index of the header line (comments and blank lines skipped)."""
-    metadata: Dict[str, str] = {}
+    metadata: dict[str, str] = {}
     i = 0
     while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
         text = lines[i][1:].strip() if lines[i].startswith("#") else ""
@@ -167,7 +166,7 @@ def _metadata(lines: List[str]) -> Tuple[Dict[str, str], int]:
     return metadata, i
 
 
-def _header_columns(path: str, line: str, header_line: int) -> Tuple[List[str], List[str]]:
+def _header_columns(path: str, line: str, header_line: int) -> tuple[list[str], list[str]]:
     """Return (header, the columns the reader uses); raise LogFormatError for missing, duplicate or lone columns."""
     header = [h.strip() for h in line.split(",")]
     missing = [c for c in REQUIRED_COLUMNS if c not in header]
@@ -203,7 +202,7 @@ def _parse_value(path: str, lineno: int, name: str, text: str) -> float:
     return value
 
 
-def _parse_rows_fast(body: List[str], header: List[str], wanted: List[str]) -> Optional[np.ndarray]:
+def _parse_rows_fast(body: list[str], header: list[str], wanted: list[str]) -> np.ndarray | None:
     """Return the values (rows, len(wanted)) in one numpy conversion, or None when any line needs the checked parser.
 
     Valid when every line has all fields, every field is a number (numpy parses text as ``float``
@@ -219,7 +218,7 @@ def _parse_rows_fast(body: List[str], header: List[str], wanted: List[str]) -> O
     return rows if np.all(np.abs(rows) <= MAX_ABS_VALUE) else None
 
 
-def _parse_rows(path: str, body: List[str], header: List[str], wanted: List[str], first_line: int) -> np.ndarray:
+def _parse_rows(path: str, body: list[str], header: list[str], wanted: list[str], first_line: int) -> np.ndarray:
     """Return the values (rows, len(wanted)) of the data lines; ``first_line``: the file line of ``body[0]``."""
     fast = _parse_rows_fast(body, header, wanted)
     if fast is not None:
@@ -236,7 +235,7 @@ def _parse_rows(path: str, body: List[str], header: List[str], wanted: List[str]
     return rows
 
 
-def _log_from_columns(path: str, data: Dict[str, np.ndarray], metadata: Dict[str, str], header_line: int) -> CartLog:
+def _log_from_columns(path: str, data: dict[str, np.ndarray], metadata: dict[str, str], header_line: int) -> CartLog:
     """Return the CartLog of the parsed columns (heading unwrapped, missing velocity columns estimated) with notes."""
     t = data["t"]
     bad = np.nonzero(np.diff(t) <= 0.0)[0]
@@ -281,7 +280,7 @@ def read_log(path: str | os.PathLike) -> CartLog:
     return _log_from_columns(path, {name: rows[:, k] for k, name in enumerate(wanted)}, metadata, header_line)
 
 
-def _heading_notes(log: CartLog, dt: np.ndarray, raw_theta: Optional[np.ndarray], where) -> List[str]:
+def _heading_notes(log: CartLog, dt: np.ndarray, raw_theta: np.ndarray | None, where) -> list[str]:
     """Return the notes on the heading: steps too fast for a cart, or more than three turns (degrees?)."""
     notes = []
     theta = log.q[:, 2]
@@ -303,7 +302,7 @@ def _heading_notes(log: CartLog, dt: np.ndarray, raw_theta: Optional[np.ndarray]
     return notes
 
 
-def _motion_notes(log: CartLog, med: float, where) -> List[str]:
+def _motion_notes(log: CartLog, med: float, where) -> list[str]:
     """Return the notes on speeds and accelerations over windows of ~0.05 s / 0.1 s (glitch, or millimetres?)."""
     notes = []
     t, n = log.t, len(log.t)
@@ -338,8 +337,8 @@ def _motion_notes(log: CartLog, med: float, where) -> List[str]:
 
 
 def plausibility_warnings(
-    log: CartLog, raw_theta: Optional[np.ndarray] = None, first_line: Optional[int] = None
-) -> List[str]:
+    log: CartLog, raw_theta: np.ndarray | None = None, first_line: int | None = None
+) -> list[str]:
     """Return plain-language notes on what looks implausible for a pushed cart (empty when nothing does).
 
     Flags what usually means a unit mistake or a glitch: heading steps beyond
@@ -352,7 +351,7 @@ def plausibility_warnings(
     ``raw_theta``: the heading as logged (before unwrapping); ``first_line``:
     the file line of sample 0, to name lines instead of sample indices.
     """
-    notes: List[str] = []
+    notes: list[str] = []
     if len(log.t) < 2:
         return notes
 

@@ -24,14 +24,13 @@ is the hook for effects the nominal model lacks (friction, slope, ...).
 from __future__ import annotations
 
 import math
-from typing import Optional, Tuple, Union
 
 import numpy as np
 
 from cart import dynamics
 from cart.params import CartParams
 
-ParamsLike = Union[CartParams, np.ndarray]
+ParamsLike = CartParams | np.ndarray
 
 
 def _phi(params: ParamsLike) -> np.ndarray:
@@ -40,10 +39,10 @@ def _phi(params: ParamsLike) -> np.ndarray:
     return np.asarray(params, dtype=float).reshape(4)
 
 
-SigmaLike = Union[float, Tuple[float, float], None]
+SigmaLike = float | tuple[float, float] | None
 
 
-def damping_pair(params: ParamsLike, sigma: SigmaLike = None) -> Tuple[float, float]:
+def damping_pair(params: ParamsLike, sigma: SigmaLike = None) -> tuple[float, float]:
     """Return (sigma, sigma_yaw): from ``sigma`` (scalar or pair) if given, else from ``params``."""
     if sigma is not None:
         if isinstance(sigma, (tuple, list, np.ndarray)):
@@ -195,8 +194,8 @@ def forward_dynamics_fast(
     b: float,
     j: float,
     sigma: float,
-    sigma_yaw: Optional[float] = None,
-) -> Tuple[float, float, float]:
+    sigma_yaw: float | None = None,
+) -> tuple[float, float, float]:
     """Return (xdd, ydd, thetadd) of the exact constrained dynamics, in plain floats.
 
     Same result as ``forward_dynamics(..., exact=True)``; :func:`cart.dynamics.forward_dynamics`

@@ -9,11 +9,11 @@ about the centre of mass, plus the viscous coefficients of
 :meth:`CartParams.phi` and :meth:`CartParams.from_phi`
 are the only place in the project where the two are converted.
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Optional, Tuple
 
 import numpy as np
 
@@ -37,7 +37,7 @@ class CartParams:
     dy: float
     I: float
     sigma: float = 0.0
-    sigma_yaw: Optional[float] = None
+    sigma_yaw: float | None = None
 
     def __post_init__(self) -> None:
         if self.sigma_yaw is None:
@@ -52,8 +52,9 @@ class CartParams:
         if self.I <= MIN_INERTIA:
             raise ParameterError(f"cart inertia about the CoM must be positive, got I={self.I}")
         if self.sigma < 0.0 or self.sigma_yaw < 0.0:
-            raise ParameterError(f"viscous coefficients must be >= 0, got sigma={self.sigma}, "
-                                 f"sigma_yaw={self.sigma_yaw}")
+            raise ParameterError(
+                f"viscous coefficients must be >= 0, got sigma={self.sigma}, sigma_yaw={self.sigma_yaw}"
+            )
 
     @property
     def com(self) -> np.ndarray:
@@ -71,12 +72,12 @@ class CartParams:
         return np.array([self.m, self.m * self.dx, self.m * self.dy, self.inertia_b])
 
     @property
-    def damping(self) -> Tuple[float, float]:
+    def damping(self) -> tuple[float, float]:
         """Return the viscous coefficients (forward/lateral N s/m, yaw N m s/rad)."""
         return self.sigma, float(self.sigma_yaw)
 
     @classmethod
-    def from_phi(cls, phi: np.ndarray, sigma: float = 0.0, sigma_yaw: Optional[float] = None) -> "CartParams":
+    def from_phi(cls, phi: np.ndarray, sigma: float = 0.0, sigma_yaw: float | None = None) -> CartParams:
         """Return the physical parameters of a phi vector; raise ParameterError if m <= 0 or I <= 0."""
         phi = np.asarray(phi, dtype=float).reshape(-1)
         if phi.shape != (4,) or not np.all(np.isfinite(phi)):
@@ -88,7 +89,7 @@ class CartParams:
         inertia = j - (a * a + b * b) / m
         return cls(m=m, dx=dx, dy=dy, I=inertia, sigma=sigma, sigma_yaw=sigma_yaw)
 
-    def with_mass(self, m: float, keep_com: bool = True) -> "CartParams":
+    def with_mass(self, m: float, keep_com: bool = True) -> CartParams:
         """Return a copy with another mass; the CoM and the radius of gyration are kept."""
         return replace(self, m=m, I=self.I * m / self.m if keep_com else self.I)
 

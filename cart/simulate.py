@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, Optional, Sequence, Tuple
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -24,7 +24,7 @@ from cart.params import CartParams
 
 Controller = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
 ExtraForce = Callable[[float, np.ndarray, np.ndarray, CartParams], np.ndarray]
-ContactPoint = Callable[[float], Tuple[float, float]]
+ContactPoint = Callable[[float], tuple[float, float]]
 
 
 @dataclass(frozen=True)
@@ -39,7 +39,7 @@ class MeasurementNoise:
     torque: float = 0.0
 
     @classmethod
-    def from_level(cls, level: float) -> "MeasurementNoise":
+    def from_level(cls, level: float) -> MeasurementNoise:
         """Return the noise of a Table I level: ``level`` m on x, y, rad on theta, m/s on vx, vy, rad/s on omega."""
         return cls(position=level, theta=level, velocity=level, omega=level)
 
@@ -98,7 +98,7 @@ def _accel(
     gamma: np.ndarray,
     p: CartParams,
     phi: np.ndarray,
-    extra_force: Optional[ExtraForce],
+    extra_force: ExtraForce | None,
     exact: bool,
 ) -> np.ndarray:
     g = gamma
@@ -120,9 +120,9 @@ def rk4_step(
     gamma: np.ndarray,
     params: CartParams,
     h: float,
-    extra_force: Optional[ExtraForce] = None,
+    extra_force: ExtraForce | None = None,
     exact: bool = True,
-) -> Tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray]:
     """Return (q, qd) after one RK4 step of length h under a constant gamma."""
     phi = params.phi
     k1v = _accel(t, q, qd, gamma, params, phi, extra_force, exact)
@@ -136,7 +136,7 @@ def rk4_step(
     return (q + h / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q), qd + h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v))
 
 
-def _rk4_exact(q: list, qd: list, gamma: list, p: CartParams, h: float, substeps: int) -> Tuple[list, list]:
+def _rk4_exact(q: list, qd: list, gamma: list, p: CartParams, h: float, substeps: int) -> tuple[list, list]:
     """Return (q, qd) after ``substeps`` RK4 steps of length h of the exact dynamics (no extra force).
 
     The arithmetic of :func:`rk4_step` (same operations in the same order, so bit for bit the same
@@ -174,13 +174,13 @@ def simulate(
     q0: Sequence[float] = (0.0, 0.0, 0.0),
     qd0: Sequence[float] = (0.0, 0.0, 0.0),
     noise: MeasurementNoise = MeasurementNoise(),
-    rng: Optional[np.random.Generator] = None,
+    rng: np.random.Generator | None = None,
     changes: Sequence[ParameterChange] = (),
-    contact_point: Optional[ContactPoint] = None,
-    extra_force: Optional[ExtraForce] = None,
+    contact_point: ContactPoint | None = None,
+    extra_force: ExtraForce | None = None,
     substeps: int = 4,
     exact: bool = True,
-    metadata: Optional[dict] = None,
+    metadata: dict | None = None,
     allocate: bool = True,
 ) -> SimResult:
     """Return the true and measured logs of the cart driven by ``controller`` for ``duration`` seconds.
@@ -235,9 +235,9 @@ def _advance(
     p: CartParams,
     h: float,
     substeps: int,
-    extra_force: Optional[ExtraForce],
+    extra_force: ExtraForce | None,
     exact: bool,
-) -> Tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray]:
     """Return (q, qd) one control period later: ``substeps`` RK4 steps of length h under a constant gamma."""
     if exact and extra_force is None:  # the float fast path, bit for bit the same as rk4_step
         ql, qdl = _rk4_exact(q.tolist(), qd.tolist(), gamma.tolist(), p, h, substeps)
@@ -247,7 +247,7 @@ def _advance(
     return q, qd
 
 
-def _apply_changes(pending: list, t: float, p: CartParams, qd: np.ndarray) -> Tuple[CartParams, np.ndarray]:
+def _apply_changes(pending: list, t: float, p: CartParams, qd: np.ndarray) -> tuple[CartParams, np.ndarray]:
     """Apply (and pop) the parameter changes due at t; return the parameters and velocity in force."""
     while pending and pending[0].t <= t + 1e-12:
         change = pending.pop(0)

@@ -12,19 +12,17 @@ from __future__ import annotations
 import math
 from bisect import bisect_right
 from dataclasses import dataclass
-from typing import Dict, List, Sequence, Tuple
+from collections.abc import Sequence
 
 import numpy as np
 
 #: Position grids of the trajectories built so far, keyed by the (frozen, hashable) trajectory:
 #: (times, x, y) as arrays and as lists (for :func:`_interp`). Shared by equal trajectories, so the
 #: 11 Table I tests build each of their two grids once per process.
-_GRIDS: Dict[
-    "UnicycleTrajectory", Tuple[np.ndarray, np.ndarray, np.ndarray, List[float], List[float], List[float]]
-] = {}
+_GRIDS: dict[UnicycleTrajectory, tuple[np.ndarray, np.ndarray, np.ndarray, list[float], list[float], list[float]]] = {}
 
 
-def _interp(t: float, tg: List[float], yg: List[float]) -> float:
+def _interp(t: float, tg: list[float], yg: list[float]) -> float:
     """Return ``np.interp(t, tg, yg)`` for a scalar t, bit for bit, without numpy's per-call overhead."""
     j = bisect_right(tg, t) - 1
     if j < 0:
@@ -53,10 +51,10 @@ class UnicycleTrajectory:
     accel: float = 0.4
     cruise_speed: float = 0.8
     stop_start: float = 27.0
-    turns: Tuple[Turn, ...] = ()
+    turns: tuple[Turn, ...] = ()
     grid_dt: float = 1e-3
 
-    def speed(self, t: float) -> Tuple[float, float]:
+    def speed(self, t: float) -> tuple[float, float]:
         """Return (v, vdot): forward speed and its derivative at t."""
         t_ramp = self.cruise_speed / self.accel
         if t < self.accel_start:
@@ -69,7 +67,7 @@ class UnicycleTrajectory:
             return self.cruise_speed - self.accel * (t - self.stop_start), -self.accel
         return 0.0, 0.0
 
-    def yaw(self, t: float) -> Tuple[float, float, float]:
+    def yaw(self, t: float) -> tuple[float, float, float]:
         """Return (theta, omega, omegadot) at t."""
         th = om = od = 0.0
         for turn in self.turns:
@@ -85,7 +83,7 @@ class UnicycleTrajectory:
             th += turn.angle * (u - math.sin(2.0 * math.pi * u) / (2.0 * math.pi))
         return th, om, od
 
-    def _grid(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray, List[float], List[float], List[float]]:
+    def _grid(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float], list[float], list[float]]:
         """Return the position grid (trapezoidal integral of the velocity every ``grid_dt``), built once."""
         cache = self.__dict__.get("_cache")  # the instance's own first: hashing the dataclass is slower
         if cache is None:
@@ -95,7 +93,7 @@ class UnicycleTrajectory:
             object.__setattr__(self, "_cache", cache)
         return cache
 
-    def _build_grid(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray, List[float], List[float], List[float]]:
+    def _build_grid(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float], list[float], list[float]]:
         tg = np.arange(0.0, self.duration + 2 * self.grid_dt, self.grid_dt)
         vel = np.empty((len(tg), 2))
         for i, t in enumerate(tg.tolist()):
@@ -106,7 +104,7 @@ class UnicycleTrajectory:
         pos[1:] = np.cumsum(0.5 * (vel[1:] + vel[:-1]) * self.grid_dt, axis=0)
         return tg, pos[:, 0], pos[:, 1], tg.tolist(), pos[:, 0].tolist(), pos[:, 1].tolist()
 
-    def sample(self, t: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (q_d, qd_d, qdd_d) at time t (held at the end after ``duration``)."""
         _, _, _, tg, xg, yg = self._grid()
         t = float(t)

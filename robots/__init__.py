@@ -7,6 +7,7 @@
 >>> wmra.model.nv
 14
 """
+
 from __future__ import annotations
 
 from robots.loading import DATA_DIR, LoadedRobot, available, load, urdf_path

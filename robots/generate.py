@@ -1,4 +1,5 @@
 """Write the shipped URDF files from their generators: ``python -m robots.generate``."""
+
 from __future__ import annotations
 
 from robots.loading import DATA_DIR
@@ -6,7 +7,11 @@ from robots.ridgeback_iiwa import ridgeback_iiwa_urdf
 from robots.shopping_cart import shopping_cart_urdf
 from robots.wmra import wmra_urdf
 
-GENERATORS = {"wmra.urdf": wmra_urdf, "ridgeback_iiwa.urdf": ridgeback_iiwa_urdf, "shopping_cart.urdf": shopping_cart_urdf}
+GENERATORS = {
+    "wmra.urdf": wmra_urdf,
+    "ridgeback_iiwa.urdf": ridgeback_iiwa_urdf,
+    "shopping_cart.urdf": shopping_cart_urdf,
+}
 
 
 def main() -> None:

@@ -1,4 +1,5 @@
 """Load the shipped URDFs into Pinocchio with a planar root joint (x, y, yaw)."""
+
 from __future__ import annotations
 
 import contextlib
@@ -10,7 +11,7 @@ import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator, List
+from collections.abc import Iterator
 
 import pinocchio as pin
 
@@ -55,9 +56,7 @@ class LoadedRobot:
         """Return the Pinocchio frame id of a role (``"ee"``) or a frame name."""
         name = self.frames.get(role_or_name, role_or_name)
         if not self.model.existFrame(name):
-            raise UnknownRobotError(
-                f"robot {self.name!r} has no frame {role_or_name!r}; roles: {sorted(self.frames)}"
-            )
+            raise UnknownRobotError(f"robot {self.name!r} has no frame {role_or_name!r}; roles: {sorted(self.frames)}")
         return self.model.getFrameId(name)
 
 
@@ -74,7 +73,7 @@ def urdf_path(name: str) -> Path:
 
 
 @contextlib.contextmanager
-def _captured_stderr_fd(lines: List[str]) -> Iterator[None]:
+def _captured_stderr_fd(lines: list[str]) -> Iterator[None]:
     """Capture what C++ code (urdfdom) writes to file descriptor 2 into `lines` (best effort)."""
     try:
         fd = sys.stderr.fileno() if hasattr(sys.stderr, "fileno") else 2
@@ -118,16 +117,20 @@ def check_urdf_text(urdf_text: object) -> None:
 
 def _build(path: Path, root: pin.JointModel, label: str | None = None):
     """Return (model, visual, collision) of a URDF file; RobotError with the parser's message when it fails."""
-    messages: List[str] = []
+    messages: list[str] = []
     try:
         with _captured_stderr_fd(messages):
             model = pin.buildModelFromUrdf(str(path), root)
             visual = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.VISUAL, package_dirs=[str(DATA_DIR)])
-            collision = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.COLLISION,
-                                              package_dirs=[str(DATA_DIR)])
+            collision = pin.buildGeomFromUrdf(
+                model, str(path), pin.GeometryType.COLLISION, package_dirs=[str(DATA_DIR)]
+            )
     except (ValueError, RuntimeError, OSError) as exc:
-        detail = "; ".join(m[len("Error:"):].strip() if m.startswith("Error:") else m
-                           for m in messages if not re.match(r"^at line \d+ in ", m))
+        detail = "; ".join(
+            m[len("Error:") :].strip() if m.startswith("Error:") else m
+            for m in messages
+            if not re.match(r"^at line \d+ in ", m)
+        )
         text = str(exc) if label is None else str(exc).replace(f"The file {path}", label).replace(str(path), label)
         raise RobotError(f"invalid URDF: {text}" + (f" ({detail})" if detail else "")) from None
     return model, visual, collision

@@ -10,10 +10,11 @@ a robot's name.
 >>> profile("ridgeback_iiwa").base
 'omnidirectional'
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, Optional, Tuple
+from typing import Literal
 
 from robots.errors import UnknownRobotError
 from robots.ridgeback_iiwa import RIDGEBACK_WHEEL_RADIUS, RIDGEBACK_WHEEL_X, RIDGEBACK_WHEEL_Y
@@ -29,29 +30,29 @@ class RobotProfile:
     """One robot's joints, base, frames and pushing posture (every number sourced in robots/README.md)."""
 
     name: str
-    arm_joints: Tuple[str, ...] = ()
-    wheel_joints: Tuple[str, ...] = ()
+    arm_joints: tuple[str, ...] = ()
+    wheel_joints: tuple[str, ...] = ()
     base: BaseType = "none"
     #: Omnidirectional bases: wheel radius (m) and wheel (x, y) in the base frame, in `wheel_joints` order.
-    wheel_radius: Optional[float] = None
-    wheel_positions: Tuple[Tuple[float, float], ...] = ()
+    wheel_radius: float | None = None
+    wheel_positions: tuple[tuple[float, float], ...] = ()
     #: Frame roles of `robots.load(name)`: the grasp (end effector) and the F/T sensor (None: no sensor).
     ee_frame: str = "ee"
-    ft_frame: Optional[str] = None
+    ft_frame: str | None = None
     #: Arm posture holding the cart's handle with the base behind it (the grasp IK's seed), None if it never pushes.
-    push_arm_seed: Optional[Tuple[float, ...]] = None
+    push_arm_seed: tuple[float, ...] | None = None
     #: Grasp pitch (rad about y_b): the tool points forward and this much down onto the handle bar.
     grasp_pitch: float = 0.8
     #: Where the base stands while pushing, in the cart frame {b}: x relative to the handle (m, negative =
     #: behind it) and y (m; None = behind the contact point, which only a holonomic base can follow sideways).
     push_base_x: float = -0.65
-    push_base_y: Optional[float] = None
+    push_base_y: float | None = None
     #: Contact point y (m) on the handle when the contact is fixed and none is given.
     push_contact_y: float = -0.2
     #: Base body-twist limits (vx m/s, vy m/s, wz rad/s); vy = 0 for a nonholonomic base.
-    base_twist_limit: Tuple[float, float, float] = (0.0, 0.0, 0.0)
+    base_twist_limit: tuple[float, float, float] = (0.0, 0.0, 0.0)
     #: Wheel angular acceleration limit (rad/s^2), None = not enforced.
-    wheel_acceleration_limit: Optional[float] = None
+    wheel_acceleration_limit: float | None = None
     #: Look-ahead distance (m) of the base tracker of a nonholonomic base (paper 2 section VI); 0 = pose tracking.
     base_lookahead: float = 0.0
 
@@ -81,8 +82,11 @@ WMRA = RobotProfile(
     push_base_x=-0.9,
     push_base_y=0.0,
     push_contact_y=0.1,
-    base_twist_limit=(WMRA_WHEEL_RADIUS * WMRA_WHEEL_VELOCITY, 0.0,
-                      2.0 * WMRA_WHEEL_RADIUS * WMRA_WHEEL_VELOCITY / WMRA_TRACK),
+    base_twist_limit=(
+        WMRA_WHEEL_RADIUS * WMRA_WHEEL_VELOCITY,
+        0.0,
+        2.0 * WMRA_WHEEL_RADIUS * WMRA_WHEEL_VELOCITY / WMRA_TRACK,
+    ),
     wheel_acceleration_limit=WMRA_WHEEL_ACCELERATION,
     base_lookahead=0.3,
 )
@@ -113,6 +117,6 @@ def profile(name: str) -> RobotProfile:
         raise UnknownRobotError(f"no profile for robot {name!r}; known: {', '.join(sorted(PROFILES))}") from None
 
 
-def mobile_manipulators() -> Tuple[str, ...]:
+def mobile_manipulators() -> tuple[str, ...]:
     """Return the names of the robots with an arm on a wheeled base."""
     return tuple(sorted(n for n, p in PROFILES.items() if p.is_mobile_manipulator))

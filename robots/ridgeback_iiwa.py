@@ -3,6 +3,7 @@
 Numbers come from robots/README.md (Drake's iiwa14 URDF, the ridgeback
 description and control.yaml, Robotiq manuals); primitives stand in for meshes.
 """
+
 from __future__ import annotations
 
 import math
@@ -79,31 +80,69 @@ def ridgeback_iiwa_urdf() -> str:
     parts: list[str] = [link("base_footprint")]
     cx, cy, cz = RIDGEBACK_CHASSIS
     chassis_center_z = 0.018 - (RIDGEBACK_WHEEL_RADIUS - RIDGEBACK_WHEEL_Z) + cz / 2
-    parts.append(link("base_link", box_inertial(RIDGEBACK_CHASSIS_MASS, RIDGEBACK_CHASSIS, com=(0, 0, chassis_center_z)),
-                      (Shape("box", RIDGEBACK_CHASSIS, (0, 0, chassis_center_z), material="yellow"),
-                       Shape("box", (cx * 0.98, cy * 0.98, 0.01), (0, 0, RIDGEBACK_MID_MOUNT_Z - 0.005), material="dark"))))
-    parts.append(joint("base_joint", "fixed", "base_footprint", "base_link",
-                       xyz=(0, 0, RIDGEBACK_WHEEL_RADIUS - RIDGEBACK_WHEEL_Z)))
+    parts.append(
+        link(
+            "base_link",
+            box_inertial(RIDGEBACK_CHASSIS_MASS, RIDGEBACK_CHASSIS, com=(0, 0, chassis_center_z)),
+            (
+                Shape("box", RIDGEBACK_CHASSIS, (0, 0, chassis_center_z), material="yellow"),
+                Shape("box", (cx * 0.98, cy * 0.98, 0.01), (0, 0, RIDGEBACK_MID_MOUNT_Z - 0.005), material="dark"),
+            ),
+        )
+    )
+    parts.append(
+        joint(
+            "base_joint", "fixed", "base_footprint", "base_link", xyz=(0, 0, RIDGEBACK_WHEEL_RADIUS - RIDGEBACK_WHEEL_Z)
+        )
+    )
     for name, sx in (("front", 1.0), ("rear", -1.0)):
-        parts.append(link(f"{name}_rocker", box_inertial(RIDGEBACK_ROCKER_MASS, (0.08, 0.6, 0.06)),
-                          (Shape("box", (0.08, 0.6, 0.06), material="dark"),)))
-        parts.append(joint(f"{name}_rocker_joint", "fixed", "base_link", f"{name}_rocker",
-                           xyz=(sx * RIDGEBACK_WHEEL_X, 0, RIDGEBACK_WHEEL_Z)))
+        parts.append(
+            link(
+                f"{name}_rocker",
+                box_inertial(RIDGEBACK_ROCKER_MASS, (0.08, 0.6, 0.06)),
+                (Shape("box", (0.08, 0.6, 0.06), material="dark"),),
+            )
+        )
+        parts.append(
+            joint(
+                f"{name}_rocker_joint",
+                "fixed",
+                "base_link",
+                f"{name}_rocker",
+                xyz=(sx * RIDGEBACK_WHEEL_X, 0, RIDGEBACK_WHEEL_Z),
+            )
+        )
     for fx, sx in (("front", 1.0), ("rear", -1.0)):
         for side, sy in (("left", 1.0), ("right", -1.0)):
             w = f"{fx}_{side}_wheel"
-            parts.append(link(w, cylinder_inertial(RIDGEBACK_WHEEL_MASS, RIDGEBACK_WHEEL_RADIUS, RIDGEBACK_WHEEL_WIDTH),
-                              (Shape("cylinder", (RIDGEBACK_WHEEL_RADIUS, RIDGEBACK_WHEEL_WIDTH), material="dark"),)))
-            parts.append(joint(f"{w}_joint", "continuous", "base_link", w,
-                               xyz=(sx * RIDGEBACK_WHEEL_X, sy * RIDGEBACK_WHEEL_Y, RIDGEBACK_WHEEL_Z),
-                               rpy=(-PI / 2, 0, 0), limit=(0, 0, 50.0, RIDGEBACK_MAX_SPEED / RIDGEBACK_WHEEL_RADIUS)))
+            parts.append(
+                link(
+                    w,
+                    cylinder_inertial(RIDGEBACK_WHEEL_MASS, RIDGEBACK_WHEEL_RADIUS, RIDGEBACK_WHEEL_WIDTH),
+                    (Shape("cylinder", (RIDGEBACK_WHEEL_RADIUS, RIDGEBACK_WHEEL_WIDTH), material="dark"),),
+                )
+            )
+            parts.append(
+                joint(
+                    f"{w}_joint",
+                    "continuous",
+                    "base_link",
+                    w,
+                    xyz=(sx * RIDGEBACK_WHEEL_X, sy * RIDGEBACK_WHEEL_Y, RIDGEBACK_WHEEL_Z),
+                    rpy=(-PI / 2, 0, 0),
+                    limit=(0, 0, 50.0, RIDGEBACK_MAX_SPEED / RIDGEBACK_WHEEL_RADIUS),
+                )
+            )
     parts.append(link("mid_mount"))
     parts.append(joint("mid_mount_joint", "fixed", "base_link", "mid_mount", xyz=(0, 0, RIDGEBACK_MID_MOUNT_Z)))
     mx, my, mz = IIWA_MOUNT_XYZ
     parts.append(link("arm_mount_link", None, (Shape("box", (0.3, 0.3, mz), (0, 0, -mz / 2), material="grey"),)))
-    parts.append(joint("arm_mount_joint", "fixed", "mid_mount", "arm_mount_link", xyz=IIWA_MOUNT_XYZ,
-                       rpy=(0, 0, IIWA_MOUNT_YAW)))
-    parts.append(link("iiwa_link_0", _inertial(0), (Shape("cylinder", (0.1, 0.1575), (0, 0, 0.1575 / 2), material="grey"),)))
+    parts.append(
+        joint("arm_mount_joint", "fixed", "mid_mount", "arm_mount_link", xyz=IIWA_MOUNT_XYZ, rpy=(0, 0, IIWA_MOUNT_YAW))
+    )
+    parts.append(
+        link("iiwa_link_0", _inertial(0), (Shape("cylinder", (0.1, 0.1575), (0, 0, 0.1575 / 2), material="grey"),))
+    )
     parts.append(joint("iiwa_base_joint", "fixed", "arm_mount_link", "iiwa_link_0"))
     for i, (xyz, rpy, lim_deg, vel, effort) in enumerate(IIWA_JOINTS, start=1):
         nxt = IIWA_JOINTS[i][0] if i < 7 else (0, 0, IIWA_FLANGE_Z)
@@ -112,19 +151,41 @@ def ridgeback_iiwa_urdf() -> str:
         if seg is not None:
             shapes.append(seg)
         parts.append(link(f"iiwa_link_{i}", _inertial(i), tuple(shapes)))
-        parts.append(joint(f"iiwa_joint_{i}", "revolute", f"iiwa_link_{i - 1}", f"iiwa_link_{i}", xyz=xyz, rpy=rpy,
-                           limit=(-math.radians(lim_deg), math.radians(lim_deg), effort, vel), damping=IIWA_DAMPING))
+        parts.append(
+            joint(
+                f"iiwa_joint_{i}",
+                "revolute",
+                f"iiwa_link_{i - 1}",
+                f"iiwa_link_{i}",
+                xyz=xyz,
+                rpy=rpy,
+                limit=(-math.radians(lim_deg), math.radians(lim_deg), effort, vel),
+                damping=IIWA_DAMPING,
+            )
+        )
     parts.append(link("iiwa_flange"))
     parts.append(joint("iiwa_flange_joint", "fixed", "iiwa_link_7", "iiwa_flange", xyz=(0, 0, IIWA_FLANGE_Z)))
-    parts.append(link("ft300", cylinder_inertial(FT300_MASS, 0.0375, FT300_THICKNESS, com=(0, 0, FT300_COM_Z)),
-                      (Shape("cylinder", (0.0375, FT300_THICKNESS), (0, 0, FT300_THICKNESS / 2), material="dark"),)))
+    parts.append(
+        link(
+            "ft300",
+            cylinder_inertial(FT300_MASS, 0.0375, FT300_THICKNESS, com=(0, 0, FT300_COM_Z)),
+            (Shape("cylinder", (0.0375, FT300_THICKNESS), (0, 0, FT300_THICKNESS / 2), material="dark"),),
+        )
+    )
     parts.append(joint("ft300_joint", "fixed", "iiwa_flange", "ft300"))
     parts.append(link("ft_sensor"))
     parts.append(joint("ft_sensor_joint", "fixed", "ft300", "ft_sensor", xyz=(0, 0, FT300_MEASURE_Z)))
-    parts.append(link("gripper", box_inertial(GRIPPER_MASS, (0.09, 0.06, 0.12), com=(0, 0, GRIPPER_COM_Z)),
-                      (Shape("box", (0.09, 0.06, 0.1), (0, 0, 0.05), material="dark"),
-                       Shape("box", (0.02, 0.025, 0.05), (0.03, 0, 0.125), material="silver"),
-                       Shape("box", (0.02, 0.025, 0.05), (-0.03, 0, 0.125), material="silver"))))
+    parts.append(
+        link(
+            "gripper",
+            box_inertial(GRIPPER_MASS, (0.09, 0.06, 0.12), com=(0, 0, GRIPPER_COM_Z)),
+            (
+                Shape("box", (0.09, 0.06, 0.1), (0, 0, 0.05), material="dark"),
+                Shape("box", (0.02, 0.025, 0.05), (0.03, 0, 0.125), material="silver"),
+                Shape("box", (0.02, 0.025, 0.05), (-0.03, 0, 0.125), material="silver"),
+            ),
+        )
+    )
     parts.append(joint("gripper_joint", "fixed", "ft300", "gripper", xyz=(0, 0, FT300_THICKNESS)))
     parts.append(link("ee"))
     parts.append(joint("ee_joint", "fixed", "gripper", "ee", xyz=(0, 0, GRIPPER_LENGTH)))

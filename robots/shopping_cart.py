@@ -4,6 +4,7 @@ Frame `b` (LOG_FORMAT.md): origin at the midpoint of the fixed rear axle, x
 forward, z up; the handle is behind it (negative x). Dimensions are estimates
 within the ranges of robots/README.md (no public drawing exists).
 """
+
 from __future__ import annotations
 
 import math
@@ -48,24 +49,69 @@ def shopping_cart_urdf() -> str:
 
     parts.append(link("b", combine(inertials), tuple(shapes)))
     parts.append(joint("b_joint", "fixed", "cart_footprint", "b", xyz=(0, 0, CART_WHEEL_RADIUS)))
-    parts.append(link("handle", cylinder_inertial(CART_HANDLE_MASS, 0.015, CART_HANDLE_WIDTH, axis="y"),
-                      (Shape("cylinder", (0.015, CART_HANDLE_WIDTH), rpy=(-math.pi / 2, 0, 0), material="red"),)))
+    parts.append(
+        link(
+            "handle",
+            cylinder_inertial(CART_HANDLE_MASS, 0.015, CART_HANDLE_WIDTH, axis="y"),
+            (Shape("cylinder", (0.015, CART_HANDLE_WIDTH), rpy=(-math.pi / 2, 0, 0), material="red"),),
+        )
+    )
     parts.append(joint("handle_joint", "fixed", "b", "handle", xyz=(CART_HANDLE_X, 0, CART_HANDLE_Z_B)))
     wheel_rpy = (-math.pi / 2, 0.0, 0.0)
     wheel_shape = (Shape("cylinder", (CART_WHEEL_RADIUS, CART_WHEEL_WIDTH), material="dark"),)
     for side, sy in (("left", 1.0), ("right", -1.0)):
-        parts.append(link(f"rear_{side}_wheel", cylinder_inertial(CART_REAR_WHEEL_MASS, CART_WHEEL_RADIUS, CART_WHEEL_WIDTH),
-                          wheel_shape))
-        parts.append(joint(f"rear_{side}_wheel_joint", "continuous", "b", f"rear_{side}_wheel",
-                           xyz=(0, sy * CART_REAR_HALF_TRACK, 0), rpy=wheel_rpy, limit=(0, 0, 0.0, 50.0)))
+        parts.append(
+            link(
+                f"rear_{side}_wheel",
+                cylinder_inertial(CART_REAR_WHEEL_MASS, CART_WHEEL_RADIUS, CART_WHEEL_WIDTH),
+                wheel_shape,
+            )
+        )
+        parts.append(
+            joint(
+                f"rear_{side}_wheel_joint",
+                "continuous",
+                "b",
+                f"rear_{side}_wheel",
+                xyz=(0, sy * CART_REAR_HALF_TRACK, 0),
+                rpy=wheel_rpy,
+                limit=(0, 0, 0.0, 50.0),
+            )
+        )
         fork_z = 0.06
-        parts.append(link(f"caster_{side}_fork", box_inertial(CART_CASTER_FORK_MASS, (0.04, 0.04, 0.08), com=(-CART_CASTER_TRAIL / 2, 0, -0.02)),
-                          (Shape("box", (0.04, 0.04, 0.08), (-CART_CASTER_TRAIL / 2, 0, -0.02), material="grey"),)))
-        parts.append(joint(f"caster_{side}_swivel", "continuous", "b", f"caster_{side}_fork",
-                           xyz=(CART_WHEELBASE + CART_CASTER_TRAIL, sy * CART_FRONT_HALF_TRACK, fork_z),
-                           limit=(0, 0, 0.0, 50.0)))
-        parts.append(link(f"caster_{side}_wheel", cylinder_inertial(CART_CASTER_WHEEL_MASS, CART_WHEEL_RADIUS, CART_WHEEL_WIDTH),
-                          wheel_shape))
-        parts.append(joint(f"caster_{side}_wheel_joint", "continuous", f"caster_{side}_fork", f"caster_{side}_wheel",
-                           xyz=(-CART_CASTER_TRAIL, 0, -fork_z), rpy=wheel_rpy, limit=(0, 0, 0.0, 50.0)))
+        parts.append(
+            link(
+                f"caster_{side}_fork",
+                box_inertial(CART_CASTER_FORK_MASS, (0.04, 0.04, 0.08), com=(-CART_CASTER_TRAIL / 2, 0, -0.02)),
+                (Shape("box", (0.04, 0.04, 0.08), (-CART_CASTER_TRAIL / 2, 0, -0.02), material="grey"),),
+            )
+        )
+        parts.append(
+            joint(
+                f"caster_{side}_swivel",
+                "continuous",
+                "b",
+                f"caster_{side}_fork",
+                xyz=(CART_WHEELBASE + CART_CASTER_TRAIL, sy * CART_FRONT_HALF_TRACK, fork_z),
+                limit=(0, 0, 0.0, 50.0),
+            )
+        )
+        parts.append(
+            link(
+                f"caster_{side}_wheel",
+                cylinder_inertial(CART_CASTER_WHEEL_MASS, CART_WHEEL_RADIUS, CART_WHEEL_WIDTH),
+                wheel_shape,
+            )
+        )
+        parts.append(
+            joint(
+                f"caster_{side}_wheel_joint",
+                "continuous",
+                f"caster_{side}_fork",
+                f"caster_{side}_wheel",
+                xyz=(-CART_CASTER_TRAIL, 0, -fork_z),
+                rpy=wheel_rpy,
+                limit=(0, 0, 0.0, 50.0),
+            )
+        )
     return robot("shopping_cart", "".join(parts))

@@ -4,11 +4,12 @@ The 7-DoF arm follows the paper's modified D-H table (Table I): all a = 0,
 alpha_{i-1} alternating -90/+90 deg, offsets d1..d7, theta_i = q_i with no
 hidden offsets, so that logged joint angles of the real program map one to one.
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from collections.abc import Sequence
 
 from robots.errors import RobotError
 from robots.urdf_text import Shape, box_inertial, cylinder_inertial, joint, link, robot, combine
@@ -78,19 +79,36 @@ def _chassis(r: float) -> list[str]:
         Shape("box", (0.45, 0.5, 0.08), (0.15, 0.0, 0.35), material="blue"),
         Shape("box", (0.08, 0.5, 0.55), (-0.1, 0.0, 0.6), material="blue"),
     )
-    return [link("base_footprint"), link("base_link", chassis, shapes),
-            joint("base_joint", "fixed", "base_footprint", "base_link", xyz=(0, 0, r))]
+    return [
+        link("base_footprint"),
+        link("base_link", chassis, shapes),
+        joint("base_joint", "fixed", "base_footprint", "base_link", xyz=(0, 0, r)),
+    ]
 
 
 def _drive_wheels(track: float, r: float) -> list[str]:
     """Return the two driven wheels (radius r) on the axle through W, `track` apart (paper eq. 7-10)."""
     parts: list[str] = []
     for side, sy in (("left", 1.0), ("right", -1.0)):
-        parts.append(link(f"wheel_{side}", cylinder_inertial(WMRA_WHEEL_MASS, r, 0.06),
-                          (Shape("cylinder", (r, 0.06), material="dark"),)))
-        parts.append(joint(f"wheel_{side}_joint", "continuous", "base_link", f"wheel_{side}",
-                           xyz=(0.0, sy * track / 2, 0.0), rpy=_WHEEL_RPY,
-                           limit=(0, 0, WMRA_WHEEL_EFFORT, WMRA_WHEEL_VELOCITY), damping=0.0))
+        parts.append(
+            link(
+                f"wheel_{side}",
+                cylinder_inertial(WMRA_WHEEL_MASS, r, 0.06),
+                (Shape("cylinder", (r, 0.06), material="dark"),),
+            )
+        )
+        parts.append(
+            joint(
+                f"wheel_{side}_joint",
+                "continuous",
+                "base_link",
+                f"wheel_{side}",
+                xyz=(0.0, sy * track / 2, 0.0),
+                rpy=_WHEEL_RPY,
+                limit=(0, 0, WMRA_WHEEL_EFFORT, WMRA_WHEEL_VELOCITY),
+                damping=0.0,
+            )
+        )
     return parts
 
 
@@ -99,16 +117,41 @@ def _casters(r: float) -> list[str]:
     rc = WMRA_CASTER_RADIUS
     parts: list[str] = []
     for side, sy in (("left", 1.0), ("right", -1.0)):
-        parts.append(link(f"caster_{side}_fork", box_inertial(0.3, (0.05, 0.05, 0.1)),
-                          (Shape("box", (0.05, 0.05, 0.1), (0, 0, 0.02), material="grey"),)))
-        parts.append(joint(f"caster_{side}_swivel", "continuous", "base_link", f"caster_{side}_fork",
-                           xyz=(WMRA_CASTER_X, sy * WMRA_CASTER_HALF_TRACK, rc - r + 0.06),
-                           limit=(0, 0, 0.0, 20.0)))
-        parts.append(link(f"caster_{side}_wheel", cylinder_inertial(0.5, rc, 0.04),
-                          (Shape("cylinder", (rc, 0.04), material="dark"),)))
-        parts.append(joint(f"caster_{side}_wheel_joint", "continuous", f"caster_{side}_fork",
-                           f"caster_{side}_wheel", xyz=(-0.04, 0.0, -0.06), rpy=_WHEEL_RPY,
-                           limit=(0, 0, 0.0, 30.0)))
+        parts.append(
+            link(
+                f"caster_{side}_fork",
+                box_inertial(0.3, (0.05, 0.05, 0.1)),
+                (Shape("box", (0.05, 0.05, 0.1), (0, 0, 0.02), material="grey"),),
+            )
+        )
+        parts.append(
+            joint(
+                f"caster_{side}_swivel",
+                "continuous",
+                "base_link",
+                f"caster_{side}_fork",
+                xyz=(WMRA_CASTER_X, sy * WMRA_CASTER_HALF_TRACK, rc - r + 0.06),
+                limit=(0, 0, 0.0, 20.0),
+            )
+        )
+        parts.append(
+            link(
+                f"caster_{side}_wheel",
+                cylinder_inertial(0.5, rc, 0.04),
+                (Shape("cylinder", (rc, 0.04), material="dark"),),
+            )
+        )
+        parts.append(
+            joint(
+                f"caster_{side}_wheel_joint",
+                "continuous",
+                f"caster_{side}_fork",
+                f"caster_{side}_wheel",
+                xyz=(-0.04, 0.0, -0.06),
+                rpy=_WHEEL_RPY,
+                limit=(0, 0, 0.0, 30.0),
+            )
+        )
     return parts
 
 
@@ -121,19 +164,30 @@ def _arm_link(i: int, parent: str, di: float) -> list[str]:
     if abs(di) > 1e-6:
         shapes.append(Shape("cylinder", (0.035, abs(di)), (0, 0, -di / 2), material="silver"))
     mass = WMRA_LINK_MASS[i]
-    inertial = combine([cylinder_inertial(mass * 0.8, 0.035, max(abs(di), 0.05), com=(0, 0, -di / 2)),
-                        cylinder_inertial(mass * 0.2, 0.045, 0.09)])
-    limit = (math.radians(WMRA_Q_MIN_DEG[i]), math.radians(WMRA_Q_MAX_DEG[i]), WMRA_JOINT_EFFORT[i],
-             WMRA_JOINT_VELOCITY)
-    return [link(f"arm_link{i + 1}", inertial, tuple(shapes)),
-            joint(f"arm_joint{i + 1}", "revolute", parent, f"arm_link{i + 1}", xyz=xyz, rpy=(alpha, 0.0, 0.0),
-                  limit=limit)]
+    inertial = combine(
+        [
+            cylinder_inertial(mass * 0.8, 0.035, max(abs(di), 0.05), com=(0, 0, -di / 2)),
+            cylinder_inertial(mass * 0.2, 0.045, 0.09),
+        ]
+    )
+    limit = (
+        math.radians(WMRA_Q_MIN_DEG[i]),
+        math.radians(WMRA_Q_MAX_DEG[i]),
+        WMRA_JOINT_EFFORT[i],
+        WMRA_JOINT_VELOCITY,
+    )
+    return [
+        link(f"arm_link{i + 1}", inertial, tuple(shapes)),
+        joint(f"arm_joint{i + 1}", "revolute", parent, f"arm_link{i + 1}", xyz=xyz, rpy=(alpha, 0.0, 0.0), limit=limit),
+    ]
 
 
 def _arm(d: Sequence[float], mount: Sequence[float]) -> list[str]:
     """Return the arm mount (frame A at `mount` in W), the 7 D-H links and the end effector `ee` (= frame 7)."""
-    parts = [link("arm_mount", None, (Shape("box", (0.12, 0.12, 0.04), (0, 0, -0.02), material="grey"),)),
-             joint("arm_mount_joint", "fixed", "base_link", "arm_mount", xyz=tuple(mount))]
+    parts = [
+        link("arm_mount", None, (Shape("box", (0.12, 0.12, 0.04), (0, 0, -0.02), material="grey"),)),
+        joint("arm_mount_joint", "fixed", "base_link", "arm_mount", xyz=tuple(mount)),
+    ]
     parent = "arm_mount"
     for i in range(7):
         parts.extend(_arm_link(i, parent, d[i]))

@@ -15,7 +15,6 @@ import glob
 import json
 import os
 import sys
-from typing import Dict, List
 
 from cart.diagnose import diagnose
 from cart.errors import CartError
@@ -23,14 +22,14 @@ from cart.jsonout import dumps_strict
 from cart.logs import read_log
 
 
-def _truth_names(entry: Dict[str, object]) -> List[str]:
+def _truth_names(entry: dict[str, object]) -> list[str]:
     names = []
     for e in entry.get("hidden_effects", []) or []:
         names.append(e if isinstance(e, str) else str(e.get("name")))
     return names
 
 
-def study_dir(path: str, limit: int = 0, progress: bool = False) -> Dict[str, object]:
+def study_dir(path: str, limit: int = 0, progress: bool = False) -> dict[str, object]:
     """Return rows and a summary of `diagnose` over one directory of labelled logs (``progress``: a bar on stderr)."""
     from wholebody.progress import progress_bar
 

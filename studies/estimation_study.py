@@ -16,7 +16,6 @@ import glob
 import json
 import os
 import sys
-from typing import Dict, List
 
 import numpy as np
 
@@ -25,12 +24,12 @@ from cart.logs import read_log
 from cart.jsonout import dumps_strict
 
 
-def study_dir(path: str, progress: bool = False) -> Dict[str, object]:
+def study_dir(path: str, progress: bool = False) -> dict[str, object]:
     """Return the rows and the coverage summary of one directory of labelled logs (``progress``: a bar on stderr)."""
     from wholebody.progress import progress_bar
 
     truth = json.load(open(os.path.join(path, "truth.json")))
-    rows: List[Dict[str, object]] = []
+    rows: list[dict[str, object]] = []
     files = sorted(glob.glob(os.path.join(path, "*.csv*")))
     for f in progress_bar(files, desc=f"estimate {os.path.basename(path)}", unit="log", enabled=progress):
         name = os.path.basename(f).split(".")[0]

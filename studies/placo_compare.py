@@ -15,6 +15,7 @@ placo tasks used (placo 0.10.2; the robot is a free-flyer in placo):
 - `JointsTask` on the arm joints, soft, weight 1e-3: the same posture pull as our controller.
 - joint position and velocity limits enabled; solver.dt = 1/rate.
 """
+
 from __future__ import annotations
 
 import time
@@ -64,7 +65,8 @@ class Comparison:
     def summary(self) -> dict:
         """Return the comparison's scalar numbers as a JSON-ready dict."""
         return {
-            "robot": self.robot, "path": self.path,
+            "robot": self.robot,
+            "path": self.path,
             "ours_max_position_error_m": self.ours.max_position_error_m,
             "ours_rms_position_error_m": self.ours.rms_position_error_m,
             "placo_max_position_error_m": self.placo.max_position_error_m,
@@ -108,13 +110,15 @@ class PlacoTracker:
 
             for side in ("left", "right"):
                 s.add_wheel_task(f"caster_{side}_wheel_joint", WMRA_CASTER_RADIUS, True).configure(
-                    f"caster_{side}", "soft", 1e3)
+                    f"caster_{side}", "soft", 1e3
+                )
         elif name == "ridgeback_iiwa":
             # three hard omniwheels fix height, roll, pitch and the planar motion; a 4th hard one
             # would repeat a height row (rank-deficient equality constraints in placo's QP)
             for k, j in enumerate(wb.wheel_joints):
-                s.add_wheel_task(j, wb.base.wheel_radius, True).configure(f"wheel{k}", "hard" if k < 3 else "soft",
-                                                                          1.0 if k < 3 else 1e3)
+                s.add_wheel_task(j, wb.base.wheel_radius, True).configure(
+                    f"wheel{k}", "hard" if k < 3 else "soft", 1.0 if k < 3 else 1e3
+                )
         else:
             raise WholeBodyError(f"no placo setup for robot {name!r}")
         joints = s.add_joints_task()
@@ -142,8 +146,9 @@ class PlacoTracker:
         return pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
 
 
-def run_placo(robot: str = "wmra", path: str = "line", duration: float = 60.0, rate: float = 100.0,
-              wb: WholeBody | None = None) -> PlacoRun:
+def run_placo(
+    robot: str = "wmra", path: str = "line", duration: float = 60.0, rate: float = 100.0, wb: WholeBody | None = None
+) -> PlacoRun:
     """Return placo's run of the §IV experiment (same initial state, path and rate as `run_tracking`)."""
     f = path_function(path)
     wb = wb or wholebody_for(robots.load(robot))
@@ -162,8 +167,13 @@ def run_placo(robot: str = "wmra", path: str = "line", duration: float = 60.0, r
         xs[k] = tr.state()
         pos[k] = np.linalg.norm(T_des.translation - T.translation)
         rot[k] = np.linalg.norm(pin.log3(T_des.rotation @ T.rotation.T))
-    return PlacoRun(max_position_error_m=float(pos.max()), rms_position_error_m=float(np.sqrt(np.mean(pos ** 2))),
-                    max_orientation_error_rad=float(rot.max()), x=xs, step_times_s=times)
+    return PlacoRun(
+        max_position_error_m=float(pos.max()),
+        rms_position_error_m=float(np.sqrt(np.mean(pos**2))),
+        max_orientation_error_rad=float(rot.max()),
+        x=xs,
+        step_times_s=times,
+    )
 
 
 def compare(robot: str = "wmra", path: str = "line", duration: float = 60.0, rate: float = 100.0) -> Comparison:
@@ -188,7 +198,13 @@ def compare(robot: str = "wmra", path: str = "line", duration: float = 60.0, rat
     pl = run_placo(robot, path, duration, rate, wb=wb)
     dq = np.abs(ours.x[:, 3:] - pl.x[:, 3:]).max()
     dp = np.linalg.norm(ours.x[:, :2] - pl.x[:, :2], axis=1).max()
-    return Comparison(robot=robot, path=path, ours=ours, placo=pl, max_arm_joint_difference_rad=float(dq),
-                      max_base_position_difference_m=float(dp),
-                      ours_median_step_us=float(np.median(ours_times) * 1e6),
-                      placo_median_step_us=float(np.median(pl.step_times_s) * 1e6))
+    return Comparison(
+        robot=robot,
+        path=path,
+        ours=ours,
+        placo=pl,
+        max_arm_joint_difference_rad=float(dq),
+        max_base_position_difference_m=float(dp),
+        ours_median_step_us=float(np.median(ours_times) * 1e6),
+        placo_median_step_us=float(np.median(pl.step_times_s) * 1e6),
+    )

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Dict, List
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from wholebody.push import PushResult
 
 
-def study_configs(duration: float = 30.0) -> Dict[str, PushConfig]:
+def study_configs(duration: float = 30.0) -> dict[str, PushConfig]:
     """Return the comparison study of docs/push.md: estimation on/off x fixed/optimal contact, two arms, Traj. 1."""
     base = PushConfig(trajectory=2, duration=duration)
     fixed = replace(base, contact="fixed", fixed_contact_y=(-0.2,))
@@ -65,7 +65,7 @@ ROBOT_COLUMNS = (
 )
 
 
-def robot_configs(duration: float = 30.0) -> Dict[str, PushConfig]:
+def robot_configs(duration: float = 30.0) -> dict[str, PushConfig]:
     """Return holonomic (Ridgeback) vs nonholonomic (WMRA) base, both trajectories, with/without estimation."""
     out = {}
     for robot in ("ridgeback_iiwa", "wmra"):
@@ -76,7 +76,7 @@ def robot_configs(duration: float = 30.0) -> Dict[str, PushConfig]:
     return out
 
 
-def robot_table(results: Dict[str, object]) -> str:
+def robot_table(results: dict[str, object]) -> str:
     """Return the markdown table of `robot_configs` results."""
     head = "| run | " + " | ".join(h for _, h, _ in ROBOT_COLUMNS) + " |"
     rows = [head, "|" + "---|" * (len(ROBOT_COLUMNS) + 1)]
@@ -90,7 +90,7 @@ def robot_table(results: Dict[str, object]) -> str:
     return "\n".join(rows)
 
 
-def robot_results(duration: float = 30.0, workers: int = 4, progress: bool = False) -> Dict[str, "PushResult"]:
+def robot_results(duration: float = 30.0, workers: int = 4, progress: bool = False) -> dict[str, PushResult]:
     """Run `robot_configs` (in parallel processes) and return label -> result (with its time histories).
 
     ``progress``: a bar of finished runs on stderr (`wholebody.progress`).
@@ -116,7 +116,7 @@ def run_robot_comparison(duration: float = 30.0, workers: int = 4) -> str:
 ROBOT_STYLE = {"ridgeback_iiwa": ("C0", "Ridgeback + iiwa (holonomic)"), "wmra": ("C3", "WMRA (differential drive)")}
 
 
-def _traj_axes(fig: "Figure", results: Dict[str, "PushResult"], ylabel: str, signal, limit=None) -> None:
+def _traj_axes(fig: Figure, results: dict[str, PushResult], ylabel: str, signal, limit=None) -> None:
     """Draw `signal(result)` over time, one panel per trajectory, every robot x estimation run in it.
 
     `limit(result)`: an optional horizontal line per robot (its limit, dotted, in the robot's colour).
@@ -148,7 +148,7 @@ def _traj_axes(fig: "Figure", results: Dict[str, "PushResult"], ylabel: str, sig
     axes[-1].set_xlabel("t [s]")
 
 
-def robot_figures(results: Dict[str, "PushResult"]) -> Dict[str, "Figure"]:
+def robot_figures(results: dict[str, PushResult]) -> dict[str, Figure]:
     """Return the holonomic vs nonholonomic figures of `robot_results`, name -> Matplotlib Figure.
 
     One panel per trajectory, Ridgeback + iiwa blue and WMRA red, with estimation solid and without dashed:
@@ -184,16 +184,14 @@ def robot_figures(results: Dict[str, "PushResult"]) -> Dict[str, "Figure"]:
     return figs
 
 
-def save_robot_figures(
-    results: Dict[str, "PushResult"], out_dir: Path, prefix: str = "wmra_vs_ridgeback_"
-) -> List[Path]:
+def save_robot_figures(results: dict[str, PushResult], out_dir: Path, prefix: str = "wmra_vs_ridgeback_") -> list[Path]:
     """Write `robot_figures` as ``<prefix><name>.png`` in `out_dir`; return the paths."""
     from wholebody.push.report import save_figure_dict
 
     return save_figure_dict(robot_figures(results), out_dir, prefix)
 
 
-def main(argv: List[str] | None = None) -> int:
+def main(argv: list[str] | None = None) -> int:
     """CLI: the push study table, or with ``--figures DIR`` the robot comparison's table and figures."""
     import argparse
 

@@ -14,7 +14,7 @@ import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
-from typing import Callable, Iterator, List, Optional, Sequence, Tuple
+from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -53,13 +53,13 @@ class Table1Test:
     test: int
     traj: int
     mass_guess: float
-    com: Tuple[float, float]
+    com: tuple[float, float]
     noise: float
     vary_cp: bool
-    mass_changes: Tuple[Tuple[float, float], ...] = ()
+    mass_changes: tuple[tuple[float, float], ...] = ()
 
 
-TESTS: Tuple[Table1Test, ...] = (
+TESTS: tuple[Table1Test, ...] = (
     Table1Test(1, 1, 16.0, (0.3, 0.0), 0.005, False),
     Table1Test(2, 1, 24.0, (0.3, 0.0), 0.005, False),
     Table1Test(3, 1, 16.0, (0.3, 0.15), 0.005, True),
@@ -102,7 +102,7 @@ class TestResult:
 
     test: int
     mass_error_final_kg: float
-    mass_converged_s: Optional[float]
+    mass_converged_s: float | None
     com_error_final_m: float
     tracking_rms_mm: float
     tracking_rms_no_estimation_mm: float
@@ -152,7 +152,7 @@ def guess_params(test: Table1Test) -> CartParams:
     return CartParams(test.mass_guess, COM_GUESS[0], COM_GUESS[1], INERTIA_GUESS_PER_KG * test.mass_guess, SIGMA)
 
 
-def contact_point(test: Table1Test) -> Callable[[float], Tuple[float, float]]:
+def contact_point(test: Table1Test) -> Callable[[float], tuple[float, float]]:
     """Return the contact point (in {b}) as a function of time: fixed, or sliding along the handle."""
     if test.vary_cp:
         return lambda t: (HANDLE_X, HANDLE_HALF_WIDTH * math.sin(2.0 * math.pi * t / 6.0))
@@ -188,9 +188,9 @@ class EstimatingLoop:
         self.config = config
         self.contact = contact
         self.substeps = int(substeps)
-        self.ekf: Optional[CartEKF] = None
+        self.ekf: CartEKF | None = None
         self.gamma_in = np.zeros(3)
-        self.gamma_cov: Optional[np.ndarray] = None
+        self.gamma_cov: np.ndarray | None = None
         self.t_prev = 0.0
         self.k = 0
         self.params_hat = np.empty((n, 4))
@@ -242,7 +242,7 @@ def run_test(
     duration: float = 30.0,
     dt: float = 0.01,
     seed: int = 0,
-    trajectory: Optional[UnicycleTrajectory] = None,
+    trajectory: UnicycleTrajectory | None = None,
     change_detection: bool = False,
 ) -> TestRun:
     """Return the time series of one test, with or without parameter estimation."""
@@ -284,7 +284,7 @@ def run_test(
     )
 
 
-def mass_converged_time(t: np.ndarray, m_hat: np.ndarray, m_true: np.ndarray, tol: float = 1.0) -> Optional[float]:
+def mass_converged_time(t: np.ndarray, m_hat: np.ndarray, m_true: np.ndarray, tol: float = 1.0) -> float | None:
     """Return the first time after which |m_hat - m_true| < tol holds to the end (None if never)."""
     ok = np.abs(m_hat - m_true) < tol
     if not ok[-1]:
@@ -316,7 +316,7 @@ def estimation_error_metrics(run: TestRun, after: float = 5.0) -> dict:
     }
 
 
-def _tracking_mm_after(run: TestRun, t0: float) -> Tuple[float, float]:
+def _tracking_mm_after(run: TestRun, t0: float) -> tuple[float, float]:
     """Return (RMS, max) of the tracking error |p_d - p| over t >= t0, in mm."""
     err = run.position_error[run.t >= t0]
     return 1e3 * float(np.sqrt(np.mean(err**2))), 1e3 * float(np.max(err))
@@ -365,13 +365,13 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _run_job(job: Tuple[Table1Test, bool, str, float, float, int, bool]) -> TestRun:
+def _run_job(job: tuple[Table1Test, bool, str, float, float, int, bool]) -> TestRun:
     """Run one (test, estimate, ...) job of :func:`run_table1` (a worker process's task)."""
     test, estimate, controller, duration, dt, seed, change_detection = job
     return run_test(test, estimate, controller, duration, dt, seed, change_detection=change_detection and estimate)
 
 
-def _run_jobs(jobs: Sequence[tuple], workers: int) -> Iterator[Tuple[int, TestRun]]:
+def _run_jobs(jobs: Sequence[tuple], workers: int) -> Iterator[tuple[int, TestRun]]:
     """Yield (job index, run) as the runs finish: in this process (workers 1) or on forked worker processes."""
     if workers <= 1 or len(jobs) <= 1:
         for i, job in enumerate(jobs):
@@ -393,10 +393,10 @@ def run_table1(
     duration: float = 30.0,
     dt: float = 0.01,
     seed: int = 0,
-    progress: Optional[Callable[[int], None]] = None,
+    progress: Callable[[int], None] | None = None,
     change_detection: bool = False,
-    workers: Optional[int] = None,
-) -> List[TestResult]:
+    workers: int | None = None,
+) -> list[TestResult]:
     """Return the TestResult of every test, in the order of ``tests``.
 
     The two runs of every test (with and without estimation) are independent

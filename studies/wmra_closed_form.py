@@ -5,9 +5,10 @@ reference, and as readable documentation of the paper's model. Units: metres, ra
 Coordinates: base pose ``(Px, Py, phi)`` of the wheelchair frame W (axle centre,
 L5 above the floor), arm angles ``q`` (theta_i = q_i), wheels (left, right).
 """
+
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -18,12 +19,14 @@ ALPHA = np.radians([-90, 90, -90, 90, -90, 90, -90])
 def dh_transform(alpha: float, a: float, d: float, theta: float) -> np.ndarray:
     """Return the 4x4 modified D-H transform ^{i-1}_i T of paper eq. (1)."""
     ct, st, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
-    return np.array([
-        [ct, -st, 0.0, a],
-        [st * ca, ct * ca, -sa, -sa * d],
-        [st * sa, ct * sa, ca, ca * d],
-        [0.0, 0.0, 0.0, 1.0],
-    ])
+    return np.array(
+        [
+            [ct, -st, 0.0, a],
+            [st * ca, ct * ca, -sa, -sa * d],
+            [st * sa, ct * sa, ca, ca * d],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    )
 
 
 def arm_frames(q: Sequence[float], d: Sequence[float]) -> list[np.ndarray]:
@@ -82,8 +85,9 @@ def ground_to_wheelchair(Px: float, Py: float, phi: float, L5: float) -> np.ndar
     return np.array([[c, -s, 0, Px], [s, c, 0, Py], [0, 0, 1, L5], [0, 0, 0, 1.0]])
 
 
-def ground_to_ee(pose: Sequence[float], q: Sequence[float], d: Sequence[float],
-                 mount: Sequence[float], L5: float) -> np.ndarray:
+def ground_to_ee(
+    pose: Sequence[float], q: Sequence[float], d: Sequence[float], mount: Sequence[float], L5: float
+) -> np.ndarray:
     """Return ^G_E T = ^G_W T ^W_A T ^A_E T, paper eq. (10) and (13)."""
     return ground_to_wheelchair(*pose, L5) @ mount_transform(*mount) @ arm_fk(q, d)
 
@@ -92,11 +96,17 @@ def J_whA(phi: float, L1: float, L2: float, L3: float, L5: float) -> np.ndarray:
     """Return the 3x2 J_whA of paper eq. (12): (theta_l_dot, theta_r_dot) -> (xA_dot, yA_dot, phiA_dot)."""
     c, s = np.cos(phi), np.sin(phi)
     k = 2.0 / L1
-    return L5 / 2.0 * np.array([
-        [c + k * (L2 * s + L3 * c), c - k * (L2 * s + L3 * c)],
-        [s - k * (L2 * c - L3 * s), s + k * (L2 * c - L3 * s)],
-        [-k, k],
-    ])
+    return (
+        L5
+        / 2.0
+        * np.array(
+            [
+                [c + k * (L2 * s + L3 * c), c - k * (L2 * s + L3 * c)],
+                [s - k * (L2 * c - L3 * s), s + k * (L2 * c - L3 * s)],
+                [-k, k],
+            ]
+        )
+    )
 
 
 def J_whA_6d(phi: float, L1: float, L2: float, L3: float, L5: float) -> np.ndarray:
@@ -127,8 +137,9 @@ def J_E_G(phi: float, q: Sequence[float], d: Sequence[float]) -> np.ndarray:
     return R6 @ arm_jacobian(q, d)
 
 
-def combined_jacobian(pose: Sequence[float], q: Sequence[float], d: Sequence[float], L1: float,
-                      mount: Sequence[float], L5: float) -> np.ndarray:
+def combined_jacobian(
+    pose: Sequence[float], q: Sequence[float], d: Sequence[float], L1: float, mount: Sequence[float], L5: float
+) -> np.ndarray:
     """Return J_G^E = [J_E^G, J_A^E J_whA^6D] (6x9), paper eq. (19)-(21); u = [q_dot (7), theta_l_dot, theta_r_dot]."""
     phi = pose[2]
     L2, L3, _ = mount

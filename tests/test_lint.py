@@ -1,4 +1,5 @@
-"""`ruff check` (the rules in pyproject.toml's [tool.ruff]) passes on the whole repository."""
+"""`ruff check` and `ruff format --check` (the rules in pyproject.toml's [tool.ruff]) pass on the whole repository."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -9,10 +10,24 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+needs_ruff = pytest.mark.skipif(
+    importlib.util.find_spec("ruff") is None, reason="ruff not installed (pip install -e '.[dev]')"
+)
 
 
-@pytest.mark.skipif(importlib.util.find_spec("ruff") is None, reason="ruff not installed (pip install -e '.[dev]')")
-def test_ruff_check_passes():
-    proc = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", "--output-format", "concise", "."],
-                          cwd=ROOT, capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, f"ruff check found problems (fix them or `ruff check --fix`):\n{proc.stdout}{proc.stderr}"
+def _ruff(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "ruff", *args], cwd=ROOT, capture_output=True, text=True, timeout=120)
+
+
+@needs_ruff
+def test_ruff_check_passes() -> None:
+    proc = _ruff("check", "--no-cache", "--output-format", "concise", ".")
+    assert proc.returncode == 0, (
+        f"ruff check found problems (fix them or `ruff check --fix`):\n{proc.stdout}{proc.stderr}"
+    )
+
+
+@needs_ruff
+def test_ruff_format_is_applied() -> None:
+    proc = _ruff("format", "--check", "--no-cache", ".")
+    assert proc.returncode == 0, f"files not formatted (run `ruff format .`):\n{proc.stdout}{proc.stderr}"

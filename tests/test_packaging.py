@@ -5,6 +5,7 @@ Slow (a fresh venv, `pip install .` of Pinocchio, ProxSuite, ... : a few minutes
 separate step after `make test`. Locally: `CARTPUSH_FRESH_VENV_TEST=1 .venv/bin/python -m
 pytest tests/test_packaging.py`. Needs the package index (or a local wheel cache) pip uses.
 """
+
 from __future__ import annotations
 
 import os
@@ -20,15 +21,17 @@ ROOT = Path(__file__).resolve().parents[1]
 ENABLED = os.environ.get("CARTPUSH_FRESH_VENV_TEST") == "1"
 
 pytestmark = pytest.mark.skipif(
-    not ENABLED, reason="fresh-venv install test: set CARTPUSH_FRESH_VENV_TEST=1 (.ci/run does)")
+    not ENABLED, reason="fresh-venv install test: set CARTPUSH_FRESH_VENV_TEST=1 (.ci/run does)"
+)
 
 
 def run(cmd: list[str], cwd: Path, timeout: float) -> subprocess.CompletedProcess:
     """Run a command with a clean environment; fail with its output tail on a non-zero exit."""
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
     proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
-    assert proc.returncode == 0, (f"{' '.join(cmd)} exited {proc.returncode}\n"
-                                  f"stdout:\n{proc.stdout[-3000:]}\nstderr:\n{proc.stderr[-3000:]}")
+    assert proc.returncode == 0, (
+        f"{' '.join(cmd)} exited {proc.returncode}\nstdout:\n{proc.stdout[-3000:]}\nstderr:\n{proc.stderr[-3000:]}"
+    )
     return proc
 
 
@@ -40,19 +43,36 @@ def test_install_without_extras_runs_the_demo(tmp_path):
     # A copy of the source tree (pip builds in place; keep build/ out of the checkout), installed
     # like a wheel (not editable): package data must ship.
     src = tmp_path / "src"
-    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(".git", ".venv", "build", "*.egg-info", "__pycache__",
-                                                             ".pytest_cache", ".hypothesis", "cartpush_report"))
+    shutil.copytree(
+        ROOT,
+        src,
+        ignore=shutil.ignore_patterns(
+            ".git", ".venv", "build", "*.egg-info", "__pycache__", ".pytest_cache", ".hypothesis", "cartpush_report"
+        ),
+    )
     run([str(python), "-m", "pip", "install", "--quiet", str(src)], cwd=tmp_path, timeout=1500)
     # Nothing from the source tree on sys.path: run from tmp_path.
-    probe = run([str(python), "-c", "import cart, wholebody, robots, sys; "
-                 "print(wholebody.__file__); print(robots.load('wmra').urdf.is_file())"],
-                cwd=tmp_path, timeout=120)
+    probe = run(
+        [
+            str(python),
+            "-c",
+            "import cart, wholebody, robots, sys; print(wholebody.__file__); print(robots.load('wmra').urdf.is_file())",
+        ],
+        cwd=tmp_path,
+        timeout=120,
+    )
     assert str(ROOT) not in probe.stdout.splitlines()[0] and str(src) not in probe.stdout, probe.stdout
     assert probe.stdout.splitlines()[1] == "True"
     for package in ("cart", "wholebody", "robots"):
-        typed = run([str(python), "-c", f"import {package}, pathlib; "
-                     f"print((pathlib.Path({package}.__file__).parent / 'py.typed').is_file())"],
-                    cwd=tmp_path, timeout=60)
+        typed = run(
+            [
+                str(python),
+                "-c",
+                f"import {package}, pathlib; print((pathlib.Path({package}.__file__).parent / 'py.typed').is_file())",
+            ],
+            cwd=tmp_path,
+            timeout=60,
+        )
         assert typed.stdout.strip() == "True", f"{package}/py.typed is not installed"
     out = tmp_path / "demo"
     run([str(bin_dir / "cartpush"), "demo", "--out", str(out)], cwd=tmp_path, timeout=900)

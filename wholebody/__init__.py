@@ -12,36 +12,104 @@ The names below are loaded on first use (``import wholebody`` stays cheap for th
 
 >>> from wholebody import allocate, HandleSegment, run_push, PushConfig   # doctest: +SKIP
 """
+
 from __future__ import annotations
 
 import importlib
 from typing import Any
 
-from wholebody.errors import (BatchError, InfeasibleWrenchError, OptionError, SceneError,
-                              SingularConfigurationError, TrajectoryInfeasibleError,
-                              WholeBodyError)
+from wholebody.errors import (
+    BatchError,
+    InfeasibleWrenchError,
+    OptionError,
+    SceneError,
+    SingularConfigurationError,
+    TrajectoryInfeasibleError,
+    WholeBodyError,
+)
 
 #: public name -> subpackage that defines it
 _LAZY = {
-    **{n: "wholebody.motion" for n in (
-        "ControllerConfig", "DifferentialDrive", "MobileBase", "Omnidirectional", "ResolvedRateController",
-        "SafetyBand", "StepResult", "WholeBody", "ee_path_time_optimal", "time_optimal", "wholebody_for")},
-    **{n: "wholebody.contacts" for n in (
-        "AllocationResult", "ArmLimits", "ContactPlan", "EffortSweep", "EffortWeights", "GraspModel", "HandleSegment",
-        "WrenchAllocator", "allocate", "cart_wrench", "effort_sweep", "grasp_map", "grasp_matrices",
-        "optimal_contact_points",
-        "plan_contact_schedule")},
+    **{
+        n: "wholebody.motion"
+        for n in (
+            "ControllerConfig",
+            "DifferentialDrive",
+            "MobileBase",
+            "Omnidirectional",
+            "ResolvedRateController",
+            "SafetyBand",
+            "StepResult",
+            "WholeBody",
+            "ee_path_time_optimal",
+            "time_optimal",
+            "wholebody_for",
+        )
+    },
+    **{
+        n: "wholebody.contacts"
+        for n in (
+            "AllocationResult",
+            "ArmLimits",
+            "ContactPlan",
+            "EffortSweep",
+            "EffortWeights",
+            "GraspModel",
+            "HandleSegment",
+            "WrenchAllocator",
+            "allocate",
+            "cart_wrench",
+            "effort_sweep",
+            "grasp_map",
+            "grasp_matrices",
+            "optimal_contact_points",
+            "plan_contact_schedule",
+        )
+    },
     **{n: "wholebody.push" for n in ("PushConfig", "PushMetrics", "PushResult", "run_demo", "run_push")},
     **{n: "wholebody.viz" for n in ("Scene",)},
 }
 
 __all__ = [
-    "AllocationResult", "ArmLimits", "BatchError", "ContactPlan", "EffortSweep", "ControllerConfig", "DifferentialDrive", "EffortWeights",
-    "GraspModel", "HandleSegment", "InfeasibleWrenchError", "MobileBase", "Omnidirectional", "OptionError", "PushConfig",
-    "PushMetrics", "PushResult", "ResolvedRateController", "SafetyBand", "Scene", "SceneError",
-    "SingularConfigurationError", "StepResult", "TrajectoryInfeasibleError", "WholeBody", "WholeBodyError",
-    "WrenchAllocator", "allocate", "cart_wrench", "ee_path_time_optimal", "effort_sweep", "grasp_map", "grasp_matrices", "optimal_contact_points",
-    "plan_contact_schedule", "run_demo", "run_push", "time_optimal", "wholebody_for",
+    "AllocationResult",
+    "ArmLimits",
+    "BatchError",
+    "ContactPlan",
+    "EffortSweep",
+    "ControllerConfig",
+    "DifferentialDrive",
+    "EffortWeights",
+    "GraspModel",
+    "HandleSegment",
+    "InfeasibleWrenchError",
+    "MobileBase",
+    "Omnidirectional",
+    "OptionError",
+    "PushConfig",
+    "PushMetrics",
+    "PushResult",
+    "ResolvedRateController",
+    "SafetyBand",
+    "Scene",
+    "SceneError",
+    "SingularConfigurationError",
+    "StepResult",
+    "TrajectoryInfeasibleError",
+    "WholeBody",
+    "WholeBodyError",
+    "WrenchAllocator",
+    "allocate",
+    "cart_wrench",
+    "ee_path_time_optimal",
+    "effort_sweep",
+    "grasp_map",
+    "grasp_matrices",
+    "optimal_contact_points",
+    "plan_contact_schedule",
+    "run_demo",
+    "run_push",
+    "time_optimal",
+    "wholebody_for",
 ]
 
 

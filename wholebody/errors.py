@@ -1,4 +1,5 @@
 """Exceptions of the `wholebody` package."""
+
 from __future__ import annotations
 
 from cart.errors import CartpushError

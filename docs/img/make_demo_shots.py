@@ -7,6 +7,7 @@ how the three screenshots are taken. Run from the repository root:
 
     .venv/bin/python docs/img/make_demo_shots.py [--duration 30]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,11 +38,28 @@ def main(argv: list[str] | None = None) -> int:
             duration = scene.animation_duration()
         for name, t in (("start", 0.0), ("middle", duration / 2), ("end", duration)):
             png = OUT / f"demo_{name}.png"
-            subprocess.run([browser, "--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--disable-gpu",
-                            "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                            "--no-first-run", "--hide-scrollbars", f"--user-data-dir={profile}",
-                            "--window-size=1024,640", "--virtual-time-budget=4000", f"--screenshot={png}",
-                            html.resolve().as_uri() + f"#t={t:.3f}"], check=True, capture_output=True, timeout=120)
+            subprocess.run(
+                [
+                    browser,
+                    "--headless",
+                    "--no-sandbox",
+                    "--enable-unsafe-swiftshader",
+                    "--disable-gpu",
+                    "--disable-background-networking",
+                    "--disable-component-update",
+                    "--disable-sync",
+                    "--no-first-run",
+                    "--hide-scrollbars",
+                    f"--user-data-dir={profile}",
+                    "--window-size=1024,640",
+                    "--virtual-time-budget=4000",
+                    f"--screenshot={png}",
+                    html.resolve().as_uri() + f"#t={t:.3f}",
+                ],
+                check=True,
+                capture_output=True,
+                timeout=120,
+            )
             print(f"wrote {png} (t = {t:.1f} s)")
     return 0
 

@@ -2,6 +2,7 @@
 
 Run from the repository root: .venv/bin/python docs/img/make_scene.py
 """
+
 from __future__ import annotations
 
 import shutil
@@ -35,11 +36,28 @@ def main() -> int:
         print("chromium not found; wrote only", html, file=sys.stderr)
         return 1
     with tempfile.TemporaryDirectory() as profile:  # a fresh browser profile
-        subprocess.run([browser, "--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--disable-gpu",
-                        "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                        "--no-first-run", "--hide-scrollbars", f"--user-data-dir={profile}", "--window-size=1024,640",
-                        "--virtual-time-budget=4000", f"--screenshot={OUT / 'scene.png'}", html.as_uri()],
-                       check=True, capture_output=True, timeout=120)
+        subprocess.run(
+            [
+                browser,
+                "--headless",
+                "--no-sandbox",
+                "--enable-unsafe-swiftshader",
+                "--disable-gpu",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+                "--no-first-run",
+                "--hide-scrollbars",
+                f"--user-data-dir={profile}",
+                "--window-size=1024,640",
+                "--virtual-time-budget=4000",
+                f"--screenshot={OUT / 'scene.png'}",
+                html.as_uri(),
+            ],
+            check=True,
+            capture_output=True,
+            timeout=120,
+        )
     shutil.rmtree(tmp)
     print("wrote", OUT / "scene.png")
     return 0

@@ -4,6 +4,7 @@ Contract: `read_log` returns a finite CartLog or raises LogFormatError (nothing 
 `cartpush estimate|diagnose LOG --json` exits 2 with one line on stderr, or exits 0
 with strictly valid JSON (no NaN / Infinity anywhere).
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -28,14 +29,38 @@ SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, Heal
 def _valid_rows(n: int, seed: int) -> list[str]:
     rng = np.random.default_rng(seed)
     t = np.cumsum(rng.uniform(0.005, 0.02, n))
-    return [f"{t[k]:.6f},{0.3 * t[k] ** 2:.6f},{0.01 * math.sin(t[k]):.6f},{0.1 * t[k]:.6f},"
-            f"{10 + 3 * math.sin(5 * t[k]):.4f},{0.5:.4f},{math.sin(3 * t[k]):.4f}" for k in range(n)]
+    return [
+        f"{t[k]:.6f},{0.3 * t[k] ** 2:.6f},{0.01 * math.sin(t[k]):.6f},{0.1 * t[k]:.6f},"
+        f"{10 + 3 * math.sin(5 * t[k]):.4f},{0.5:.4f},{math.sin(3 * t[k]):.4f}"
+        for k in range(n)
+    ]
 
 
-MUTATIONS = ("drop_column", "non_numeric", "nan_cell", "inf_cell", "huge_cell", "repeat_time", "too_few_rows",
-             "empty", "bom", "crlf", "extra_field", "missing_field", "lone_contact", "blank_lines", "comments",
-             "garbage_bytes", "reorder_columns", "decreasing_time", "spaces", "header_only", "gzip_garbage",
-             "negative_zero", "exponent")
+MUTATIONS = (
+    "drop_column",
+    "non_numeric",
+    "nan_cell",
+    "inf_cell",
+    "huge_cell",
+    "repeat_time",
+    "too_few_rows",
+    "empty",
+    "bom",
+    "crlf",
+    "extra_field",
+    "missing_field",
+    "lone_contact",
+    "blank_lines",
+    "comments",
+    "garbage_bytes",
+    "reorder_columns",
+    "decreasing_time",
+    "spaces",
+    "header_only",
+    "gzip_garbage",
+    "negative_zero",
+    "exponent",
+)
 
 
 @st.composite
@@ -56,11 +81,15 @@ def malformed_log(draw):
         header = ",".join(cols)
         rows = [",".join(x for i, x in enumerate(row.split(",")) if i != c) for row in rows]
     elif kind in ("non_numeric", "nan_cell", "inf_cell", "huge_cell", "negative_zero", "exponent", "spaces"):
-        fields[c] = {"non_numeric": draw(st.sampled_from(["abc", "", "1,0", "0x10", "--1", "1e", "None"])),
-                     "nan_cell": draw(st.sampled_from(["nan", "NaN", "-nan"])),
-                     "inf_cell": draw(st.sampled_from(["inf", "-inf", "Infinity", "1e999"])),
-                     "huge_cell": draw(st.sampled_from(["1e300", "-1e300", "1e13", "1.7976931348623157e308"])),
-                     "negative_zero": "-0.0", "exponent": "1e-300", "spaces": f"  {fields[c]}  "}[kind]
+        fields[c] = {
+            "non_numeric": draw(st.sampled_from(["abc", "", "1,0", "0x10", "--1", "1e", "None"])),
+            "nan_cell": draw(st.sampled_from(["nan", "NaN", "-nan"])),
+            "inf_cell": draw(st.sampled_from(["inf", "-inf", "Infinity", "1e999"])),
+            "huge_cell": draw(st.sampled_from(["1e300", "-1e300", "1e13", "1.7976931348623157e308"])),
+            "negative_zero": "-0.0",
+            "exponent": "1e-300",
+            "spaces": f"  {fields[c]}  ",
+        }[kind]
         rows[r] = ",".join(fields)
     elif kind == "repeat_time" and n > 1:
         rows[r] = rows[r - 1] if r > 0 else rows[r]
@@ -69,7 +98,7 @@ def malformed_log(draw):
     elif kind == "decreasing_time":
         rows = rows[::-1]
     elif kind == "too_few_rows":
-        rows = rows[:draw(st.integers(0, 2))]
+        rows = rows[: draw(st.integers(0, 2))]
     elif kind == "empty":
         header, rows = "", []
     elif kind == "header_only":

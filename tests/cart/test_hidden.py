@@ -1,4 +1,5 @@
 """Test bed (studies.testbeds.hidden_effects): the swivelling casters against closed-form kinematics and force balances."""
+
 from __future__ import annotations
 
 import math
@@ -7,7 +8,14 @@ import numpy as np
 import pytest
 
 from cart.errors import ParameterError
-from studies.testbeds.hidden_effects import HiddenEffect, Motion, SwivelCasters, random_case, random_cart, simulate_hidden
+from studies.testbeds.hidden_effects import (
+    HiddenEffect,
+    Motion,
+    SwivelCasters,
+    random_case,
+    random_cart,
+    simulate_hidden,
+)
 from cart.params import CartParams
 
 
@@ -53,10 +61,20 @@ def test_swivel_casters_resist_after_a_reversal_and_stay_quiet_when_aligned():
     p = random_cart(rng)
     t = np.arange(0.0, 12.0, 0.002)
     v = np.where(t < 6.0, 0.4, -0.4) * np.clip(np.minimum(t, np.abs(t - 6.0)) / 1.0, 0.0, 1.0)
-    eff = HiddenEffect("caster_swivel", {"trail": 0.04, "torque": 0.4, "x": p.dx + 0.4, "half_track": 0.25,
-                                         "eps": 0.5})
-    h = simulate_hidden(p, (eff,), duration=12.0, rate=100.0, jitter=0.0, position_noise=0.0, theta_noise=0.0,
-                        force_noise=0.0, torque_noise=0.0, motion=_straight(t, v), rng=rng)
+    eff = HiddenEffect("caster_swivel", {"trail": 0.04, "torque": 0.4, "x": p.dx + 0.4, "half_track": 0.25, "eps": 0.5})
+    h = simulate_hidden(
+        p,
+        (eff,),
+        duration=12.0,
+        rate=100.0,
+        jitter=0.0,
+        position_noise=0.0,
+        theta_noise=0.0,
+        force_noise=0.0,
+        torque_noise=0.0,
+        motion=_straight(t, v),
+        rng=rng,
+    )
     th = h.true.q[:, 2]
     vt = np.cos(th) * h.true.qd[:, 0] + np.sin(th) * h.true.qd[:, 1]
     ef = h.effect_force[:, 0]
@@ -69,8 +87,9 @@ def test_swivel_casters_resist_after_a_reversal_and_stay_quiet_when_aligned():
 
 def test_random_case_overrides_change_only_what_they_name():
     base = random_case("caster_swivel", np.random.default_rng(5), caster_form="profile")
-    slow = random_case("caster_swivel", np.random.default_rng(5), caster_form="profile", rate=50.0,
-                       with_velocities=False)
+    slow = random_case(
+        "caster_swivel", np.random.default_rng(5), caster_form="profile", rate=50.0, with_velocities=False
+    )
     assert slow.effects == base.effects and slow.params == base.params
     assert slow.rate == 50.0 and slow.measured.qd is None
     assert np.median(np.diff(slow.measured.t)) > 1.5 * np.median(np.diff(base.measured.t)) or base.rate < 75

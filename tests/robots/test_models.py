@@ -1,4 +1,5 @@
 """Robot models: D-H forward kinematics, inertial consistency, the WMRA family, the cart's mass."""
+
 from __future__ import annotations
 
 import math
@@ -120,7 +121,9 @@ def test_inertias_are_physically_consistent(name):
 def test_ridgeback_iiwa_mass_and_chain():
     r = robots.load("ridgeback_iiwa")
     # RB: chassis + 2 rockers + 4 wheels; Drake iiwa 30.61; FT-300 0.3; 2F-85 0.905
-    assert pin.computeTotalMass(r.model) == pytest.approx(165.304 + 2 * 10.267 + 4 * 2.3 + 30.61 + 0.3 + 0.905, abs=1e-9)
+    assert pin.computeTotalMass(r.model) == pytest.approx(
+        165.304 + 2 * 10.267 + 4 * 2.3 + 30.61 + 0.3 + 0.905, abs=1e-9
+    )
     q = pin.neutral(r.model)
     pin.framesForwardKinematics(r.model, r.data, q)
     base0 = r.data.oMf[r.frame_id("arm_base")].translation[2]

@@ -1,4 +1,5 @@
 """Tests of the MuJoCo shopping-cart test bed (studies/testbeds/mujoco_cart.py)."""
+
 from __future__ import annotations
 
 import json
@@ -23,20 +24,32 @@ def _hand_truth(c: mc.MujocoCart) -> dict:
     """Mass, CoM in {b} and yaw inertia about the CoM from the MJCF parameters (casters trailing)."""
     length = c.wheelbase + 2 * c.chassis_overhang
     parts = [  # (mass, x, y, own yaw inertia)
-        (c.chassis_mass, c.wheelbase / 2, 0.0, c.chassis_mass * (length ** 2 + c.chassis_width ** 2) / 12),
+        (c.chassis_mass, c.wheelbase / 2, 0.0, c.chassis_mass * (length**2 + c.chassis_width**2) / 12),
     ]
     if c.payload_mass > 0:
         sx, sy, _ = c.payload_size
-        parts.append((c.payload_mass, *c.payload_offset, c.payload_mass * (sx ** 2 + sy ** 2) / 12))
+        parts.append((c.payload_mass, *c.payload_offset, c.payload_mass * (sx**2 + sy**2) / 12))
     for sgn in (1.0, -1.0):
         r, w = c.wheel_radius, c.wheel_width
-        parts.append((c.wheel_mass, 0.0, sgn * c.half_track, c.wheel_mass * (3 * r ** 2 + w ** 2) / 12))
+        parts.append((c.wheel_mass, 0.0, sgn * c.half_track, c.wheel_mass * (3 * r**2 + w**2) / 12))
         fl, fw = c.caster_trail + 0.02, 0.04  # fork box: full length along x, full width
-        parts.append((c.caster_fork_mass, c.wheelbase - c.caster_trail / 2, sgn * c.caster_half_track,
-                      c.caster_fork_mass * (fl ** 2 + fw ** 2) / 12))
+        parts.append(
+            (
+                c.caster_fork_mass,
+                c.wheelbase - c.caster_trail / 2,
+                sgn * c.caster_half_track,
+                c.caster_fork_mass * (fl**2 + fw**2) / 12,
+            )
+        )
         rc, wc = c.caster_wheel_radius, c.caster_wheel_width
-        parts.append((c.caster_wheel_mass, c.wheelbase - c.caster_trail, sgn * c.caster_half_track,
-                      c.caster_wheel_mass * (3 * rc ** 2 + wc ** 2) / 12))
+        parts.append(
+            (
+                c.caster_wheel_mass,
+                c.wheelbase - c.caster_trail,
+                sgn * c.caster_half_track,
+                c.caster_wheel_mass * (3 * rc**2 + wc**2) / 12,
+            )
+        )
     p = np.array(parts)
     m = p[:, 0].sum()
     dx, dy = (p[:, 0] * p[:, 1]).sum() / m, (p[:, 0] * p[:, 2]).sum() / m
@@ -45,8 +58,11 @@ def _hand_truth(c: mc.MujocoCart) -> dict:
     return {"m": m, "dx": dx, "dy": dy, "I_about_com": inertia, "m_effective_forward_incl_wheel_spin": m_eff}
 
 
-@pytest.mark.parametrize("cart", [mc.MujocoCart(), mc.random_case(5).cart, mc.MujocoCart(payload_mass=0.0)],
-                         ids=["default", "random5", "no_payload"])
+@pytest.mark.parametrize(
+    "cart",
+    [mc.MujocoCart(), mc.random_case(5).cart, mc.MujocoCart(payload_mass=0.0)],
+    ids=["default", "random5", "no_payload"],
+)
 def test_truth_matches_hand_computation(cart):
     want = _hand_truth(cart)
     # exactly, with the chassis level and the casters trailing (before settling)
@@ -59,8 +75,9 @@ def test_truth_matches_hand_computation(cart):
     # high parts move forward by a fraction of a millimetre; the casters stay trailing
     got = mc.truth(cart)
     assert got["m"] == pytest.approx(cart.total_mass, rel=1e-12)
-    assert got["m_effective_forward_incl_wheel_spin"] == pytest.approx(want["m_effective_forward_incl_wheel_spin"],
-                                                                       rel=1e-12)
+    assert got["m_effective_forward_incl_wheel_spin"] == pytest.approx(
+        want["m_effective_forward_incl_wheel_spin"], rel=1e-12
+    )
     assert got["dx"] == pytest.approx(want["dx"], abs=1.5e-3)
     assert got["dy"] == pytest.approx(want["dy"], abs=2e-4)
     assert got["I_about_com"] == pytest.approx(want["I_about_com"], rel=3e-3)
@@ -137,8 +154,12 @@ def test_logged_wrench_and_noise(short_run):
     tl = info["true_log"]
     np.testing.assert_allclose(
         tl["gamma"][:, 2],
-        [mc.tau_about_b(g[0], g[1], ta, c, q[:2]) for g, ta, c, q in
-         zip(tl["gamma"], tl["tau_applied"], tl["chassis_com"], tl["q"])], atol=1e-12)
+        [
+            mc.tau_about_b(g[0], g[1], ta, c, q[:2])
+            for g, ta, c, q in zip(tl["gamma"], tl["tau_applied"], tl["chassis_com"], tl["q"])
+        ],
+        atol=1e-12,
+    )
     np.testing.assert_allclose(np.diff(log.t), 1.0 / case.rate_hz, atol=1e-9)
     res_f = log.gamma[:, :2] - tl["gamma"][:, :2]
     assert np.std(res_f) == pytest.approx(case.force_noise, rel=0.1)
@@ -196,8 +217,7 @@ def test_log_round_trips_through_read_log(short_run, tmp_path):
 
 
 def test_reproducible_from_seed_and_options():
-    case = mc.random_case(3, duration=3.0, rate_hz=200.0, jitter=0.3, with_velocities=False,
-                          with_contact=False)
+    case = mc.random_case(3, duration=3.0, rate_hz=200.0, jitter=0.3, with_velocities=False, with_contact=False)
     a, ia = mc.simulate(case)
     b, ib = mc.simulate(case)
     np.testing.assert_array_equal(a.q, b.q)

@@ -1,4 +1,5 @@
 """Tests of the independent rigid-body cart log generator (studies/testbeds/rigid_sim.py)."""
+
 from __future__ import annotations
 
 import json
@@ -20,14 +21,18 @@ from studies.testbeds import rigid_sim as rs  # noqa: E402
 
 def _random_cart(rng: np.random.Generator) -> rs.RigidCart:
     m = float(rng.uniform(5, 150))
-    return rs.RigidCart(m=m, dx=float(rng.uniform(0.05, 0.6)), dy=float(rng.uniform(-0.15, 0.15)),
-                        I=m * float(rng.uniform(0.15, 0.45)) ** 2, c_v=float(rng.uniform(0.5, 15)),
-                        c_w=float(rng.uniform(0.2, 5)))
+    return rs.RigidCart(
+        m=m,
+        dx=float(rng.uniform(0.05, 0.6)),
+        dy=float(rng.uniform(-0.15, 0.15)),
+        I=m * float(rng.uniform(0.15, 0.45)) ** 2,
+        c_v=float(rng.uniform(0.5, 15)),
+        c_w=float(rng.uniform(0.2, 5)),
+    )
 
 
 def _random_state(rng: np.random.Generator) -> np.ndarray:
-    return np.array([*rng.uniform(-2, 2, 2), rng.uniform(-math.pi, math.pi), rng.uniform(-1, 1),
-                     rng.uniform(-1, 1)])
+    return np.array([*rng.uniform(-2, 2, 2), rng.uniform(-math.pi, math.pi), rng.uniform(-1, 1), rng.uniform(-1, 1)])
 
 
 def _world_kinetic_energy(q: np.ndarray, qd: np.ndarray, cart: rs.RigidCart) -> float:
@@ -35,7 +40,7 @@ def _world_kinetic_energy(q: np.ndarray, qd: np.ndarray, cart: rs.RigidCart) -> 
     c, s = math.cos(q[2]), math.sin(q[2])
     vcx = qd[0] - qd[2] * (s * cart.dx + c * cart.dy)
     vcy = qd[1] + qd[2] * (c * cart.dx - s * cart.dy)
-    return 0.5 * cart.m * (vcx ** 2 + vcy ** 2) + 0.5 * cart.I * qd[2] ** 2
+    return 0.5 * cart.m * (vcx**2 + vcy**2) + 0.5 * cart.I * qd[2] ** 2
 
 
 def _qd_of(state: np.ndarray) -> np.ndarray:
@@ -70,11 +75,27 @@ def _lagrangian_kkt_qdd(q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, cart: 
     e = np.eye(3)
     hv, hq = 1e-3, 1e-5
     # M = d2T/dqd2 (T is quadratic in qd: central differences are exact up to rounding)
-    M = np.array([[(T(q, qd + hv * (e[i] + e[j])) - T(q, qd + hv * (e[i] - e[j]))
-                    - T(q, qd - hv * (e[i] - e[j])) + T(q, qd - hv * (e[i] + e[j]))) / (4 * hv * hv)
-                   for j in range(3)] for i in range(3)])
-    dT_dqd = lambda q_: np.array([(T(q_, qd + hv * e[i]) - T(q_, qd - hv * e[i])) / (2 * hv)  # noqa: E731
-                                  for i in range(3)])
+    M = np.array(
+        [
+            [
+                (
+                    T(q, qd + hv * (e[i] + e[j]))
+                    - T(q, qd + hv * (e[i] - e[j]))
+                    - T(q, qd - hv * (e[i] - e[j]))
+                    + T(q, qd - hv * (e[i] + e[j]))
+                )
+                / (4 * hv * hv)
+                for j in range(3)
+            ]
+            for i in range(3)
+        ]
+    )
+    dT_dqd = lambda q_: np.array(
+        [
+            (T(q_, qd + hv * e[i]) - T(q_, qd - hv * e[i])) / (2 * hv)  # noqa: E731
+            for i in range(3)
+        ]
+    )
     # d/dt (dT/dqd) = M qdd + (d2T/dqd dq) qd
     mixed = np.column_stack([(dT_dqd(q + hq * e[j]) - dT_dqd(q - hq * e[j])) / (2 * hq) for j in range(3)])
     dT_dq = np.array([(T(q + hq * e[i], qd) - T(q - hq * e[i], qd)) / (2 * hq) for i in range(3)])
@@ -106,8 +127,9 @@ def test_dynamics_match_constrained_lagrange(seed: int) -> None:
 
 @pytest.fixture(scope="module")
 def long_case():
-    case = rs.random_case(11, duration=30.0, rate_hz=50.0, jitter=0.2, vel_std=0.005, omega_std=0.01,
-                          pos_std=2e-3, theta_std=3e-3)
+    case = rs.random_case(
+        11, duration=30.0, rate_hz=50.0, jitter=0.2, vel_std=0.005, omega_std=0.01, pos_std=2e-3, theta_std=3e-3
+    )
     log, truth = rs.simulate(case)
     return case, log, truth
 
@@ -135,10 +157,15 @@ def test_noise_std_matches_configuration(long_case) -> None:
     assert len(log) >= 1400
     np.testing.assert_array_equal(log.t, c["t"])
     stds = {
-        "x": log.q[:, 0] - c["q"][:, 0], "y": log.q[:, 1] - c["q"][:, 1], "theta": log.q[:, 2] - c["q"][:, 2],
-        "fx": log.gamma[:, 0] - c["gamma"][:, 0], "fy": log.gamma[:, 1] - c["gamma"][:, 1],
+        "x": log.q[:, 0] - c["q"][:, 0],
+        "y": log.q[:, 1] - c["q"][:, 1],
+        "theta": log.q[:, 2] - c["q"][:, 2],
+        "fx": log.gamma[:, 0] - c["gamma"][:, 0],
+        "fy": log.gamma[:, 1] - c["gamma"][:, 1],
         "tau": log.gamma[:, 2] - c["gamma"][:, 2],
-        "vx": log.qd[:, 0] - c["qd"][:, 0], "vy": log.qd[:, 1] - c["qd"][:, 1], "omega": log.qd[:, 2] - c["qd"][:, 2],
+        "vx": log.qd[:, 0] - c["qd"][:, 0],
+        "vy": log.qd[:, 1] - c["qd"][:, 1],
+        "omega": log.qd[:, 2] - c["qd"][:, 2],
     }
     assert set(stds) == set(truth["noise_std"])
     for key, err in stds.items():

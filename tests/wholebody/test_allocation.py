@@ -1,4 +1,5 @@
 """Wrench allocation QP: equality within 1e-8, optimality, limits, infeasibility diagnosis."""
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -44,14 +45,25 @@ def _scipy_reference(gamma, points, lim: ArmLimits, weights=EffortWeights()):
         for i in range(n):
             fx, fy, tz = x[3 * i : 3 * i + 3]
             nrm = 2 * g.grip_force + fx
-            out += [lim.max_force - abs(fx), lim.max_force - abs(fy), lim.max_torque - abs(tz),
-                    g.pull_capacity + fx, g.friction * nrm - abs(fy), g.torque_arm * nrm - abs(tz)]
+            out += [
+                lim.max_force - abs(fx),
+                lim.max_force - abs(fy),
+                lim.max_torque - abs(tz),
+                g.pull_capacity + fx,
+                g.friction * nrm - abs(fy),
+                g.torque_arm * nrm - abs(tz),
+            ]
         return np.array(out)
 
     x0 = np.linalg.lstsq(Gp, gamma, rcond=None)[0]
-    r = minimize(lambda x: x @ (Wd * x), x0, jac=lambda x: 2 * Wd * x, method="SLSQP",
-                 constraints=[{"type": "eq", "fun": lambda x: Gp @ x - gamma}, {"type": "ineq", "fun": ineq}],
-                 options={"ftol": 1e-12, "maxiter": 500})
+    r = minimize(
+        lambda x: x @ (Wd * x),
+        x0,
+        jac=lambda x: 2 * Wd * x,
+        method="SLSQP",
+        constraints=[{"type": "eq", "fun": lambda x: Gp @ x - gamma}, {"type": "ineq", "fun": ineq}],
+        options={"ftol": 1e-12, "maxiter": 500},
+    )
     return r.fun
 
 

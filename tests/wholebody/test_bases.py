@@ -1,4 +1,5 @@
 """Tests of wholebody.motion.bases: wheel maps, constraints, exact odometry (paper eq. 4-12)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -35,10 +36,12 @@ def test_diff_drive_point_jacobian_equals_paper_eq_12():
     base = DifferentialDrive(L1, L5)
     rng = np.random.default_rng(1)
     for phi in rng.uniform(-np.pi, np.pi, 10):
-        np.testing.assert_allclose(base.point_velocity_jacobian(phi, (L2, L3)), cf.J_whA(phi, L1, L2, L3, L5),
-                                   atol=1e-12)
-        np.testing.assert_allclose(base.point_velocity_jacobian_6d(phi, (L2, L3)),
-                                   cf.J_whA_6d(phi, L1, L2, L3, L5), atol=1e-12)
+        np.testing.assert_allclose(
+            base.point_velocity_jacobian(phi, (L2, L3)), cf.J_whA(phi, L1, L2, L3, L5), atol=1e-12
+        )
+        np.testing.assert_allclose(
+            base.point_velocity_jacobian_6d(phi, (L2, L3)), cf.J_whA_6d(phi, L1, L2, L3, L5), atol=1e-12
+        )
 
 
 def test_constraint_annihilates_feasible_motion():
@@ -92,8 +95,12 @@ def test_mecanum_inverse_kinematics_standard_form():
     r, lx, ly = 0.0759, 0.319, 0.2755
     H = RB.twist_to_wheels()
     vx, vy, wz = 0.3, -0.2, 0.5
-    expected = np.array([vx - vy - (lx + ly) * wz, vx + vy + (lx + ly) * wz,
-                         vx + vy - (lx + ly) * wz, vx - vy + (lx + ly) * wz]) / r
+    expected = (
+        np.array(
+            [vx - vy - (lx + ly) * wz, vx + vy + (lx + ly) * wz, vx + vy - (lx + ly) * wz, vx - vy + (lx + ly) * wz]
+        )
+        / r
+    )
     np.testing.assert_allclose(H @ [vx, vy, wz], expected, atol=1e-12)
     np.testing.assert_allclose(RB.wheel_to_body_twist() @ expected, [vx, vy, wz], atol=1e-12)
     np.testing.assert_allclose(RB.body_twist_to_wheels([vx, vy, wz]), expected, atol=1e-12)

@@ -1,4 +1,5 @@
 """`cartpush batch`: the same results as one-by-one runs (1 and 2 local workers, a local Ray), resume, bad logs."""
+
 from __future__ import annotations
 
 import json
@@ -88,8 +89,9 @@ def test_ray_matches_one_by_one(logs, reference, tmp_path):
     ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
     try:
         out = tmp_path / "ray.jsonl"
-        summary = run_batch(CommandJob("estimate"), expand_inputs([logs["dir"]]), out, workers=None,
-                            ray_address="auto", progress=False)
+        summary = run_batch(
+            CommandJob("estimate"), expand_inputs([logs["dir"]]), out, workers=None, ray_address="auto", progress=False
+        )
         assert summary["backend"] == "ray" and summary["workers"] == 2
         assert summary["ok"] == N_GOOD and summary["failed"] == 1
         _check_same(_lines(out), logs, reference)
@@ -113,8 +115,11 @@ def test_resume_runs_only_the_missing(logs, reference, tmp_path):
     """After an interrupted run (two lines done, one cut mid-line, a failed line), a rerun runs only what is missing."""
     out = tmp_path / "partial.jsonl"
     g0, g1, g2 = logs["good"]
-    done = [{"path": g0, "ok": True, "result": reference[g0]}, {"path": g1, "ok": True, "result": reference[g1]},
-            {"path": logs["bad"], "ok": False, "error": "an earlier failure"}]
+    done = [
+        {"path": g0, "ok": True, "result": reference[g0]},
+        {"path": g1, "ok": True, "result": reference[g1]},
+        {"path": logs["bad"], "ok": False, "error": "an earlier failure"},
+    ]
     text = "".join(json.dumps(rec) + "\n" for rec in done) + '{"path": "' + g2 + '", "ok": tr'
     out.write_text(text)
     assert done_paths(out) == {g0, g1}

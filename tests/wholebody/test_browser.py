@@ -14,6 +14,7 @@ package `chromium` (`make test` and .ci/run install it when they can); without i
 module is skipped with one line saying what to install, unless CARTPUSH_REQUIRE_BROWSER=1
 (set by .ci/run), where a missing browser is an error.
 """
+
 from __future__ import annotations
 
 import os
@@ -33,9 +34,11 @@ CART_POSE = (0.9, 0.0, 0.0)
 
 
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome")
-MISSING_BROWSER = ("browser tests need headless Chromium: install it with "
-                   "`sudo apt-get install -y --no-install-recommends chromium fonts-dejavu-core` "
-                   "(`make test` does this itself when run as root or with passwordless sudo)")
+MISSING_BROWSER = (
+    "browser tests need headless Chromium: install it with "
+    "`sudo apt-get install -y --no-install-recommends chromium fonts-dejavu-core` "
+    "(`make test` does this itself when run as root or with passwordless sudo)"
+)
 
 
 def find_chromium() -> str | None:
@@ -62,10 +65,23 @@ def chromium() -> str:
 
 def render(html: Path, png: Path, profile: Path, fragment: str = "") -> np.ndarray:
     """Return the RGB screenshot (H, W, 3) of a local page (URL fragment `fragment`) rendered by headless Chromium."""
-    cmd = [chromium(), "--headless", "--no-sandbox", "--enable-unsafe-swiftshader", "--disable-gpu",
-           "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run",
-           "--hide-scrollbars", f"--user-data-dir={profile}", f"--window-size={WIDTH},{HEIGHT}",
-           "--virtual-time-budget=4000", f"--screenshot={png}", html.resolve().as_uri() + fragment]
+    cmd = [
+        chromium(),
+        "--headless",
+        "--no-sandbox",
+        "--enable-unsafe-swiftshader",
+        "--disable-gpu",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--no-first-run",
+        "--hide-scrollbars",
+        f"--user-data-dir={profile}",
+        f"--window-size={WIDTH},{HEIGHT}",
+        "--virtual-time-budget=4000",
+        f"--screenshot={png}",
+        html.resolve().as_uri() + fragment,
+    ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert png.is_file(), f"chromium wrote no screenshot (exit {proc.returncode}): {proc.stderr[-2000:]}"
     return np.asarray(Image.open(png).convert("RGB"), dtype=float)
@@ -75,7 +91,7 @@ def window(img: np.ndarray, uv: np.ndarray, r: int) -> np.ndarray:
     """Return the pixels (k, 3) of the (2r+1)^2 window around pixel uv."""
     u, v = int(round(uv[0])), int(round(uv[1]))
     assert r <= u < WIDTH - r and r <= v < HEIGHT - r, f"projected point {uv} is off screen"
-    return img[v - r:v + r + 1, u - r:u + r + 1].reshape(-1, 3)
+    return img[v - r : v + r + 1, u - r : u + r + 1].reshape(-1, 3)
 
 
 def is_yellow(p):
@@ -108,7 +124,11 @@ def shots(tmp_path_factory):
     ref = render(tmp / "empty.html", tmp / "empty.png", tmp / "profile")
     x, y, _ = CART_POSE
     points = {
-        "ridgeback": (np.array([0.0, -0.39, 0.12]), is_yellow, 6),  # -y face of the chassis (base 0.1 m ahead of the origin)
+        "ridgeback": (
+            np.array([0.0, -0.39, 0.12]),
+            is_yellow,
+            6,
+        ),  # -y face of the chassis (base 0.1 m ahead of the origin)
         "iiwa": (arm_elbow, is_orange, 5),
         "handle": (np.array([x + CART_HANDLE_X, y - 0.2, CART_WHEEL_RADIUS + CART_HANDLE_Z_B]), is_red, 2),
         "basket": (np.array([x + 0.4, y - 0.26, CART_WHEEL_RADIUS + 0.62]), is_grey, 6),  # its -y face
@@ -194,7 +214,9 @@ def test_demo_page_shows_robot_and_cart_at_start_middle_and_end(demo_shots, when
     img, ref, uv, _ = demo_shots[when]
     assert img.shape == (HEIGHT, WIDTH, 3)
     for name, p in uv.items():
-        assert 80 <= p[0] < WIDTH - 80 and 80 <= p[1] < HEIGHT - 80, f"{when}: {name} projects off screen to {p.round()}"
+        assert 80 <= p[0] < WIDTH - 80 and 80 <= p[1] < HEIGHT - 80, (
+            f"{when}: {name} projects off screen to {p.round()}"
+        )
         diff = np.abs(window(img, p, 6) - window(ref, p, 6)).mean()
         assert diff > 40, f"{when}: {name}: mean |page - page without robots| = {diff:.1f} at pixel {p.round()}"
     changed = (np.abs(img - ref).sum(axis=2) > 60).mean()

@@ -1,4 +1,5 @@
 """Issue 14: the CLI's error contract (one line, exit 2 / 1), lazy --help, option validation (class 6)."""
+
 from __future__ import annotations
 
 import json
@@ -35,8 +36,16 @@ def test_every_package_error_derives_from_the_root():
     from cart.diagnose import DiagnoseError
     from wholebody.viz import SceneError
 
-    for cls in (CartError, LogFormatError, robots.errors.RobotError, robots.errors.UnknownRobotError,
-                wholebody.errors.WholeBodyError, wholebody.errors.InfeasibleWrenchError, DiagnoseError, SceneError):
+    for cls in (
+        CartError,
+        LogFormatError,
+        robots.errors.RobotError,
+        robots.errors.UnknownRobotError,
+        wholebody.errors.WholeBodyError,
+        wholebody.errors.InfeasibleWrenchError,
+        DiagnoseError,
+        SceneError,
+    ):
         assert issubclass(cls, CartpushError) and issubclass(cls, ValueError), cls
 
 
@@ -82,10 +91,12 @@ def test_argparse_errors_are_one_line(capsys):
 
 
 def test_help_imports_no_command_module():
-    code = ("import sys\nfrom wholebody.cli import main\n"
-            "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
-            "heavy = [m for m in ('pinocchio', 'meshcat', 'scipy', 'wholebody.viz', 'cart.diagnose', 'placo')"
-            " if m in sys.modules]\nprint('HEAVY', heavy)")
+    code = (
+        "import sys\nfrom wholebody.cli import main\n"
+        "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
+        "heavy = [m for m in ('pinocchio', 'meshcat', 'scipy', 'wholebody.viz', 'cart.diagnose', 'placo')"
+        " if m in sys.modules]\nprint('HEAVY', heavy)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert "HEAVY []" in out
     for command in ("diagnose", "track", "view", "push", "demo", "reproduce", "plan-contacts"):
@@ -97,34 +108,37 @@ def test_help_imports_no_command_module():
 # -- option validation ----------------------------------------------------------------------------
 def _tiny_log(path):
     t = np.arange(0.0, 3.0, 0.01)
-    q = np.column_stack([0.2 * t ** 2, 0 * t, 0.05 * t])
+    q = np.column_stack([0.2 * t**2, 0 * t, 0.05 * t])
     g = np.column_stack([10 + 5 * np.sin(3 * t), 0 * t, np.sin(2 * t)])
     write_log(path, CartLog(t=t, q=q, gamma=g))
     return str(path)
 
 
-@pytest.mark.parametrize("argv, fragment", [
-    (["diagnose", "LOG", "--threshold", "nan"], "--threshold"),
-    (["diagnose", "LOG", "--threshold", "-5"], "--threshold"),
-    (["diagnose", "LOG", "--threshold", "inf"], "--threshold"),
-    (["reproduce", "--seed", "-1"], "--seed"),
-    (["reproduce", "--duration", "inf"], "--duration"),
-    (["reproduce", "--duration", "1e7"], "--duration"),
-    (["reproduce", "--duration", "4.9"], "after t = 5 s"),
-    (["reproduce", "--duration", "nan"], "--duration"),
-    (["push", "--seed", "-1"], "--seed"),
-    (["push", "--duration", "1e7"], "--duration"),
-    (["push", "--initial-mass", "nan"], "--initial-mass"),
-    (["demo", "--duration", "inf"], "--duration"),
-    (["track", "line", "--duration", "1e7"], "--duration"),
-    (["track", "line", "--rate", "nan"], "--rate"),
-    (["track", "line", "--band", "nan"], "--band"),
-    (["plan-contacts", "--wrench", "10", "0", "0", "--arms", "2", "--min-spacing", "nan"], "--min-spacing"),
-    (["plan-contacts", "--wrench", "10", "0", "0", "--arms", "2", "--min-spacing", "-1"], "--min-spacing"),
-    (["plan-contacts", "--wrench", "nan", "0", "0"], "--wrench"),
-    (["view", "--scenario", "3", "--duration", "inf", "--html", "OUT/x.html"], "--duration"),
-    (["view", "--scenario", "12", "--html", "OUT/x.html"], "--scenario"),
-])
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["diagnose", "LOG", "--threshold", "nan"], "--threshold"),
+        (["diagnose", "LOG", "--threshold", "-5"], "--threshold"),
+        (["diagnose", "LOG", "--threshold", "inf"], "--threshold"),
+        (["reproduce", "--seed", "-1"], "--seed"),
+        (["reproduce", "--duration", "inf"], "--duration"),
+        (["reproduce", "--duration", "1e7"], "--duration"),
+        (["reproduce", "--duration", "4.9"], "after t = 5 s"),
+        (["reproduce", "--duration", "nan"], "--duration"),
+        (["push", "--seed", "-1"], "--seed"),
+        (["push", "--duration", "1e7"], "--duration"),
+        (["push", "--initial-mass", "nan"], "--initial-mass"),
+        (["demo", "--duration", "inf"], "--duration"),
+        (["track", "line", "--duration", "1e7"], "--duration"),
+        (["track", "line", "--rate", "nan"], "--rate"),
+        (["track", "line", "--band", "nan"], "--band"),
+        (["plan-contacts", "--wrench", "10", "0", "0", "--arms", "2", "--min-spacing", "nan"], "--min-spacing"),
+        (["plan-contacts", "--wrench", "10", "0", "0", "--arms", "2", "--min-spacing", "-1"], "--min-spacing"),
+        (["plan-contacts", "--wrench", "nan", "0", "0"], "--wrench"),
+        (["view", "--scenario", "3", "--duration", "inf", "--html", "OUT/x.html"], "--duration"),
+        (["view", "--scenario", "12", "--html", "OUT/x.html"], "--scenario"),
+    ],
+)
 def test_bad_options_exit_2_before_work(argv, fragment, tmp_path, capsys):
     log = _tiny_log(tmp_path / "log.csv")
     argv = [a.replace("LOG", log).replace("OUT", str(tmp_path)) for a in argv]

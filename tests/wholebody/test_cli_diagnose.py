@@ -1,4 +1,5 @@
 """`cartpush diagnose`: JSON fields, plots, bad input."""
+
 from __future__ import annotations
 
 import json
@@ -29,6 +30,7 @@ def test_diagnose_json_and_plots(tmp_path, capsys):
 def test_diagnose_table_without_velocity_columns(tmp_path, capsys):
     h = random_case(None, np.random.default_rng(22))
     from dataclasses import replace
+
     path = str(tmp_path / "run.csv")
     write_log(path, replace(h.measured, qd=None))
     assert main(["diagnose", path]) == 0

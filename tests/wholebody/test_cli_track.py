@@ -1,4 +1,5 @@
 """Tests of `cartpush track`: JSON fields, CSV output, bad input."""
+
 from __future__ import annotations
 
 import csv
@@ -14,8 +15,13 @@ from studies.wmra_experiments import run_tracking
 def test_track_json_matches_library(capsys):
     assert main(["track", "sine", "--duration", "5", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    for key in ("max_position_error_m", "rms_position_error_m", "max_orientation_error_rad",
-                "min_joint_limit_margin_rad", "steps"):
+    for key in (
+        "max_position_error_m",
+        "rms_position_error_m",
+        "max_orientation_error_rad",
+        "min_joint_limit_margin_rad",
+        "steps",
+    ):
         assert key in out
     assert out["steps"] == 500
     ref = run_tracking("wmra", "sine", duration=5.0)
@@ -25,8 +31,24 @@ def test_track_json_matches_library(capsys):
 
 def test_track_csv_and_band(tmp_path, capsys):
     log = tmp_path / "run.csv"
-    assert main(["track", "line", "--robot", "ridgeback_iiwa", "--band", "0.3", "--duration", "2",
-                 "--out", str(log), "--json"]) == 0
+    assert (
+        main(
+            [
+                "track",
+                "line",
+                "--robot",
+                "ridgeback_iiwa",
+                "--band",
+                "0.3",
+                "--duration",
+                "2",
+                "--out",
+                str(log),
+                "--json",
+            ]
+        )
+        == 0
+    )
     out = json.loads(capsys.readouterr().out)
     assert out["band_radius"] == 0.3 and out["max_band_distance_m"] <= 0.3 + 1e-6
     rows = list(csv.DictReader(open(log)))
@@ -35,8 +57,9 @@ def test_track_csv_and_band(tmp_path, capsys):
     assert float(last["time_s"]) == pytest.approx(2.0)
     d = np.array([float(last[f"ee_desired_{c}_m"]) - float(rows[0][f"ee_desired_{c}_m"]) for c in "xyz"])
     np.testing.assert_allclose(d, [0.18, 0.0, 0.0], atol=1e-9)
-    err = max(np.linalg.norm([float(r[f"ee_desired_{c}_m"]) - float(r[f"ee_actual_{c}_m"]) for c in "xyz"])
-              for r in rows)
+    err = max(
+        np.linalg.norm([float(r[f"ee_desired_{c}_m"]) - float(r[f"ee_actual_{c}_m"]) for c in "xyz"]) for r in rows
+    )
     assert err == pytest.approx(out["max_position_error_m"], abs=1e-9)
 
 

@@ -1,4 +1,5 @@
 """Grasp map (paper eqs. 22-25) against independent constructions."""
+
 import numpy as np
 import pinocchio as pin
 import pytest

@@ -1,4 +1,5 @@
 """`cartpush plan-contacts`: JSON fields, consistency with the grasp map, bad input -> exit 2."""
+
 import json
 
 import numpy as np

@@ -1,4 +1,5 @@
 """Contact-point optimization: the paper's CoM-line claim and globality against brute-force grids."""
+
 import numpy as np
 import pytest
 
@@ -32,8 +33,9 @@ def test_straight_push_is_cheapest_through_the_com_line(dy, motion_only):
     assert np.allclose(w[1:], 0.0, atol=1e-4)
     assert plan.effort == pytest.approx((25.0 * 0.6) ** 2, rel=1e-7)
     # anywhere else on the handle costs strictly more
-    others = effort_profile(gamma, [s for s in np.linspace(0, 0.5, 26) if abs(s - 0.25 - dy) > 0.01],
-                            only_motion_directions=motion_only)
+    others = effort_profile(
+        gamma, [s for s in np.linspace(0, 0.5, 26) if abs(s - 0.25 - dy) > 0.01], only_motion_directions=motion_only
+    )
     assert np.all(others > plan.effort + 1e-3)
 
 

@@ -13,6 +13,7 @@ read off the model. Checked against computations that do not use our Jacobian co
   for given wheel rates, the floor contact point of each wheel, computed by Pinocchio from the
   URDF's wheel joints, has zero velocity.
 """
+
 from __future__ import annotations
 
 from importlib.metadata import PackageNotFoundError, distribution
@@ -50,10 +51,17 @@ def tiago() -> WholeBody:
     path = tiago_urdf()
     model = pin.buildModelFromUrdf(str(path), pin.JointModelPlanar())
     geometry = pin.GeometryModel()  # kinematics only: no meshes needed
-    robot = LoadedRobot(name="tiago", urdf=path, model=model, data=model.createData(),
-                        visual_model=geometry, collision_model=geometry,
-                        visual_data=pin.GeometryData(geometry), collision_data=pin.GeometryData(geometry),
-                        frames={"ee": EE_FRAME, "base": "base_footprint"})
+    robot = LoadedRobot(
+        name="tiago",
+        urdf=path,
+        model=model,
+        data=model.createData(),
+        visual_model=geometry,
+        collision_model=geometry,
+        visual_data=pin.GeometryData(geometry),
+        collision_data=pin.GeometryData(geometry),
+        frames={"ee": EE_FRAME, "base": "base_footprint"},
+    )
     left, right = (model.jointPlacements[model.getJointId(j)].translation for j in WHEEL_JOINTS)
     track = float(np.linalg.norm(left - right))
     wheel_radius = float(left[2])  # axle height above base_footprint, which lies on the floor
@@ -66,15 +74,17 @@ def random_states(wb: WholeBody, n: int, seed: int) -> list[np.ndarray]:
     rng = np.random.default_rng(seed)
     lo, hi = wb.arm_lower, wb.arm_upper
     margin = 0.1 * (hi - lo)
-    return [np.concatenate([rng.uniform(-2, 2, 2), rng.uniform(-np.pi, np.pi, 1),
-                            rng.uniform(lo + margin, hi - margin)]) for _ in range(n)]
+    return [
+        np.concatenate([rng.uniform(-2, 2, 2), rng.uniform(-np.pi, np.pi, 1), rng.uniform(lo + margin, hi - margin)])
+        for _ in range(n)
+    ]
 
 
 def pinocchio_velocity(wb: WholeBody, u: np.ndarray) -> np.ndarray:
     """Return the full Pinocchio joint velocity of input u: planar twist, torso/arm rates, wheel rates."""
     v = np.zeros(wb.model.nv)
-    v[wb.arm_idx_v] = u[:wb.n_arm]
-    v[wb._root_v:wb._root_v + 3] = wb.wheel_map() @ u[wb.n_arm:]
+    v[wb.arm_idx_v] = u[: wb.n_arm]
+    v[wb._root_v : wb._root_v + 3] = wb.wheel_map() @ u[wb.n_arm :]
     v[wb.wheel_idx_v] = wb.wheel_rates(u)
     return v
 
@@ -106,7 +116,7 @@ def test_combined_jacobian_matches_finite_differences_of_pinocchio_kinematics(ti
             fd[3:, k] = pin.log3(plus.rotation @ minus.rotation.T) / (2 * h)
         assert np.abs(J - fd).max() < 1e-6, np.abs(J - fd).max()
         # and the world-aligned frame: a pure base turn moves the EE like a point on the base
-        turn = J[:, tiago.n_arm:] @ np.array([-1.0, 1.0])
+        turn = J[:, tiago.n_arm :] @ np.array([-1.0, 1.0])
         p = M0.translation - tiago.frame_placement(x, "base_footprint").translation
         assert np.allclose(turn[:3], np.cross(turn[3:], p), atol=1e-9)
 
@@ -120,7 +130,7 @@ def test_wheel_map_rolls_without_slip_on_the_urdf_wheels(tiago):
         q = tiago.to_pinocchio_q(x)
         v = pinocchio_velocity(tiago, u)
         pin.forwardKinematics(model, data, q, v)
-        twist = tiago.wheel_map() @ u[tiago.n_arm:]
+        twist = tiago.wheel_map() @ u[tiago.n_arm :]
         assert abs(twist[0]) > 1e-3 or abs(twist[2]) > 1e-3
         for name in tiago.wheel_joints:
             jid = model.getJointId(name)

@@ -1,4 +1,5 @@
 """Excitation: regressor vs the cart model, noise propagation, CRLB, planner vs brute force, closed-loop EKF."""
+
 import itertools
 
 import numpy as np
@@ -84,8 +85,12 @@ def test_gamma_cov_density_convention_matches_held_wrench_noise():
     p = CartParams(20.0, 0.3, 0.15, 2.27, 4.0)
     q, qd = np.array([0.0, 0.0, 0.4]), np.array([0.5 * np.cos(0.4), 0.5 * np.sin(0.4), 0.3])
     gamma = np.array([5.0, 1.0, 2.0])
-    A = np.column_stack([(forward_dynamics(q, qd, gamma + 1e-4 * e, p) - forward_dynamics(q, qd, gamma - 1e-4 * e, p))
-                         / 2e-4 for e in np.eye(3)])
+    A = np.column_stack(
+        [
+            (forward_dynamics(q, qd, gamma + 1e-4 * e, p) - forward_dynamics(q, qd, gamma - 1e-4 * e, p)) / 2e-4
+            for e in np.eye(3)
+        ]
+    )
     sigma = cart_wrench_covariance(HandleSegment.default().point(0.0), WrenchNoise().covariance_ee(), q[2])
     dt = 0.01
     x = np.concatenate([q, qd, p.phi])
@@ -177,11 +182,13 @@ def test_planner_matches_brute_force(objective):
     plan = plan_contact_schedule(s, GUESS.phi, sigma=4.0, exhaustive_limit=0, **kw)  # coordinate ascent
     assert plan.effort <= plan.budget
     assert plan.score >= plan.fixed_score
-    assert plan.score == pytest.approx(schedule_score(s, plan.schedule, GUESS.phi, objective=objective,
-                                                      sensor_dt=0.01), rel=1e-9)
+    assert plan.score == pytest.approx(
+        schedule_score(s, plan.schedule, GUESS.phi, objective=objective, sensor_dt=0.01), rel=1e-9
+    )
     cand = np.linspace(0, 0.5, 5)
-    _, info, effort = _segment_tables(s, GUESS.phi, 4.0, HandleSegment.default(), cand, 3, WrenchNoise(),
-                                      ArmLimits(), sensor_dt=0.01)
+    _, info, effort = _segment_tables(
+        s, GUESS.phi, 4.0, HandleSegment.default(), cand, 3, WrenchNoise(), ArmLimits(), sensor_dt=0.01
+    )
     best = -np.inf
     for idx in itertools.product(range(5), repeat=3):
         if sum(effort[k, j] for k, j in enumerate(idx)) <= plan.budget:
@@ -197,18 +204,25 @@ def test_planned_schedule_lowers_the_com_bound_of_traj2_at_all_times():
     truth = CartParams(20.0, 0.3, 0.15, 20.0 * 1.36 / 12.0, 4.0)
     noise = input_model("fused").noise
     P0 = default_prior(GUESS.phi)
-    plan = plan_contact_schedule(s, GUESS.phi, 4.0, n_segments=15, n_candidates=3, noise=noise,
-                                 objective="com_a_path", sensor_dt=0.01)
+    plan = plan_contact_schedule(
+        s, GUESS.phi, 4.0, n_segments=15, n_candidates=3, noise=noise, objective="com_a_path", sensor_dt=0.01
+    )
     times = (10.0, 20.0, 30.0)
-    bound = lambda sched: np.sqrt(np.trace(com_crlb_course(s, sched, truth.phi, times, noise, P0, 0.01),  # noqa: E731
-                                           axis1=1, axis2=2))
+    bound = lambda sched: np.sqrt(
+        np.trace(
+            com_crlb_course(s, sched, truth.phi, times, noise, P0, 0.01),  # noqa: E731
+            axis1=1,
+            axis2=2,
+        )
+    )
     planned = bound(plan.schedule)
     for c in np.linspace(0.0, 0.5, 5):
         assert np.all(planned < 0.9 * bound(lambda t, c=c: c))
     # the course ends at the bound of the whole push
     info = fisher_information(s, schedule_points(s, plan.schedule), noise, sensor_dt=0.01)
-    assert np.allclose(com_crlb_course(s, plan.schedule, truth.phi, [30.0], noise, P0, 0.01)[0],
-                       com_covariance(info, truth.phi, P0))
+    assert np.allclose(
+        com_crlb_course(s, plan.schedule, truth.phi, [30.0], noise, P0, 0.01)[0], com_covariance(info, truth.phi, P0)
+    )
 
 
 def test_closed_loop_ekf_is_consistent_with_fused_input_and_biased_with_measured():
@@ -220,6 +234,7 @@ def test_closed_loop_ekf_is_consistent_with_fused_input_and_biased_with_measured
         assert 5.6 < fused.mean_nis < 6.4
         assert abs(fused.mass_error[-1]) < 0.6
         assert fused.final_com_error < 3.0 * float(np.hypot(*fused.com_std[-1])) + 0.005
-        measured = com_convergence_traj2(lambda t: 0.5, seed=seed, duration=12.0, ekf_input="measured",
-                                         actuation=WrenchNoise(0.0, 0.0))
+        measured = com_convergence_traj2(
+            lambda t: 0.5, seed=seed, duration=12.0, ekf_input="measured", actuation=WrenchNoise(0.0, 0.0)
+        )
         assert measured.mass_error[-1] > 1.0

@@ -1,4 +1,5 @@
 """Tests of the paper's §IV experiments: WMRA tracking accuracy and limits at every step, safety band."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -14,7 +15,7 @@ TOL = 1e-9
 def _assert_limits(res, wb):
     q = res.x[:, 3:]
     assert np.all(q >= wb.arm_lower - TOL) and np.all(q <= wb.arm_upper + TOL)
-    assert np.all(np.abs(res.u[:, :wb.n_arm]) <= wb.arm_velocity_limit + TOL)
+    assert np.all(np.abs(res.u[:, : wb.n_arm]) <= wb.arm_velocity_limit + TOL)
     assert np.all(np.abs(res.wheel_rates) <= wb.wheel_velocity_limit * (1 + TOL))
     assert np.all(np.isfinite(res.x)) and np.all(np.isfinite(res.u))
 
@@ -29,7 +30,9 @@ def test_wmra_experiment_tracks_within_paper_bounds(wmra, path):
     res = run_tracking("wmra", path, wb=wmra)
     assert res.steps == 6000 and res.dt == pytest.approx(0.01)
     # recompute the errors independently from the stored states
-    errs = np.array([np.linalg.norm(wmra.ee_placement(x).translation - p) for x, p in zip(res.x[::50], res.ee_desired[::50])])
+    errs = np.array(
+        [np.linalg.norm(wmra.ee_placement(x).translation - p) for x, p in zip(res.x[::50], res.ee_desired[::50])]
+    )
     assert errs.max() <= res.max_position_error_m + 1e-12
     assert res.rms_position_error_m < 1e-3
     assert res.max_position_error_m < 5e-3

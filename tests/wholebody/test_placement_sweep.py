@@ -1,4 +1,5 @@
 """The vectorized effort sweep, the pruned grid search and the allocator's shortcuts against one-QP-at-a-time."""
+
 import numpy as np
 import pytest
 

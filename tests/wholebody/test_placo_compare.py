@@ -1,4 +1,5 @@
 """Cross-check against placo: the same §IV task on the same URDF gives the same motion."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -7,6 +7,7 @@ whose helpers it imports: without Chromium this module is skipped with that modu
 install). The WMRA's blue seat must be on screen where the page's following camera puts it: before
 `build_scene` took the robot from the run's config, the page drew the Ridgeback + iiwa instead.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -7,6 +7,7 @@ the wrench is written in the sensor frame and the pose by motion capture with a 
 expected sensor-frame values are computed here independently (scipy rotations, matrix products),
 so the import must undo them back to the simulator's log within float precision.
 """
+
 from __future__ import annotations
 
 import json
@@ -55,8 +56,12 @@ def _links(t):
     p_ba = np.column_stack([0.4 * one, 0.1 * one, 0.8 + 0.05 * np.sin(2 * t)])
     R_as = Rotation.from_euler("XZ", [np.pi, 0.3]).as_matrix()
     p_as = np.array([0.0, 0.02, 0.12])
-    return {("world", "odom"): (R_wo, p_wo), ("odom", "base_link"): (R_ob, p_ob),
-            ("base_link", "arm_link"): (R_ba, p_ba), ("arm_link", "ft_sensor"): (R_as, p_as)}
+    return {
+        ("world", "odom"): (R_wo, p_wo),
+        ("odom", "base_link"): (R_ob, p_ob),
+        ("base_link", "arm_link"): (R_ba, p_ba),
+        ("arm_link", "ft_sensor"): (R_as, p_as),
+    }
 
 
 def _sensor_in_world(t):
@@ -105,8 +110,7 @@ def _scenario(log: CartLog, rng_seed: int = 0):
     m_s_world = m_all - np.cross(p_ws, f_all)  # about the sensor origin
     f_sensor = np.einsum("nji,nj->ni", R_ws, f_all)  # R^T f
     m_sensor = np.einsum("nji,nj->ni", R_ws, m_s_world)
-    return {"t": t, "R_wc": R_wc, "p_c": p_b, "tw": tw, "f_sensor": f_sensor, "m_sensor": m_sensor,
-            "links": _links(tw)}
+    return {"t": t, "R_wc": R_wc, "p_c": p_b, "tw": tw, "f_sensor": f_sensor, "m_sensor": m_sensor, "links": _links(tw)}
 
 
 def _ns(t):
@@ -140,12 +144,15 @@ class _Msgs:
         return self.T["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
 
     def pose(self, p, q):
-        return self.T["geometry_msgs/msg/Pose"](position=self.vec(p, "geometry_msgs/msg/Point"), orientation=self.quat(q))
+        return self.T["geometry_msgs/msg/Pose"](
+            position=self.vec(p, "geometry_msgs/msg/Point"), orientation=self.quat(q)
+        )
 
     def transform_stamped(self, ns, parent, child, p, q):
         tr = self.T["geometry_msgs/msg/Transform"](translation=self.vec(p), rotation=self.quat(q))
-        return self.T["geometry_msgs/msg/TransformStamped"](header=self.header(ns, parent), child_frame_id=child,
-                                                            transform=tr)
+        return self.T["geometry_msgs/msg/TransformStamped"](
+            header=self.header(ns, parent), child_frame_id=child, transform=tr
+        )
 
     def tf(self, transforms):
         return self.T["tf2_msgs/msg/TFMessage"](transforms=transforms)
@@ -167,8 +174,9 @@ class _Msgs:
 
     def custom(self, ns, frame, p, q, residual):
         Q = self.T["cart_msgs/msg/Quality"](residual=float(residual), markers=5)
-        return self.T["cart_msgs/msg/MocapBody"](header=self.header(ns, frame), body="cart", pose=self.pose(p, q),
-                                                 quality=Q)
+        return self.T["cart_msgs/msg/MocapBody"](
+            header=self.header(ns, frame), body="cart", pose=self.pose(p, q), quality=Q
+        )
 
 
 def _store(fmt, custom=False):
@@ -188,8 +196,9 @@ def _write_bag(path, fmt, messages, store):
     if fmt == "ros1":
         writer = Writer1(path)
     else:
-        writer = Writer2(path, version=9,
-                         storage_plugin=StoragePlugin.SQLITE3 if fmt == "sqlite3" else StoragePlugin.MCAP)
+        writer = Writer2(
+            path, version=9, storage_plugin=StoragePlugin.SQLITE3 if fmt == "sqlite3" else StoragePlugin.MCAP
+        )
     conns = {}
     with writer:
         for topic, msgtype, record_ns, msg in messages:
@@ -212,13 +221,22 @@ def _tf_messages(M, sc, slash, drop_link=None, topic_link=None):
     quats = {k: _quat(links[k][0]) for k in links if k != ("arm_link", "ft_sensor")}
     out = []
     for i, ns in enumerate(tw_ns):
-        transforms = [M.transform_stamped(ns, fr(a), fr(b), links[(a, b)][1][i], quats[(a, b)][i])
-                      for (a, b) in quats if (a, b) not in (drop_link, topic_link)]
+        transforms = [
+            M.transform_stamped(ns, fr(a), fr(b), links[(a, b)][1][i], quats[(a, b)][i])
+            for (a, b) in quats
+            if (a, b) not in (drop_link, topic_link)
+        ]
         out.append(("/tf", "tf2_msgs/msg/TFMessage", ns + LATENCY_NS, M.tf(transforms)))
         if topic_link:
             a, b = topic_link
-            out.append(("/mocap/robot", "geometry_msgs/msg/TransformStamped", ns + LATENCY_NS,
-                        M.transform_stamped(ns, fr(a), fr(b), links[topic_link][1][i], quats[topic_link][i])))
+            out.append(
+                (
+                    "/mocap/robot",
+                    "geometry_msgs/msg/TransformStamped",
+                    ns + LATENCY_NS,
+                    M.transform_stamped(ns, fr(a), fr(b), links[topic_link][1][i], quats[topic_link][i]),
+                )
+            )
     R_as, p_as = links[("arm_link", "ft_sensor")]
     static = M.transform_stamped(T0_NS, fr("arm_link"), fr("ft_sensor"), p_as, _quat(R_as))
     out.append(("/tf_static", "tf2_msgs/msg/TFMessage", T0_NS, M.tf([static])))
@@ -226,9 +244,15 @@ def _tf_messages(M, sc, slash, drop_link=None, topic_link=None):
 
 
 def _wrench_messages(M, sc, frame, sign=1.0):
-    return [("/ft_sensor/wrench", "geometry_msgs/msg/WrenchStamped", ns + LATENCY_NS,
-             M.wrench(ns, frame, sign * sc["f_sensor"][i], sign * sc["m_sensor"][i]))
-            for i, ns in enumerate(_ns(sc["tw"]))]
+    return [
+        (
+            "/ft_sensor/wrench",
+            "geometry_msgs/msg/WrenchStamped",
+            ns + LATENCY_NS,
+            M.wrench(ns, frame, sign * sc["f_sensor"][i], sign * sc["m_sensor"][i]),
+        )
+        for i, ns in enumerate(_ns(sc["tw"]))
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -254,13 +278,31 @@ def bags(push, tmp_path_factory):
     M = _Msgs(s1)
     msgs = _tf_messages(M, sc, slash=True) + _wrench_messages(M, sc, "/ft_sensor")
     for i, ns in enumerate(pose_ns):
-        msgs.append(("/mocap/cart", "geometry_msgs/msg/TransformStamped", ns + LATENCY_NS,
-                     M.transform_stamped(ns, "/world", "/cart", sc["p_c"][i], q_wc[i])))
+        msgs.append(
+            (
+                "/mocap/cart",
+                "geometry_msgs/msg/TransformStamped",
+                ns + LATENCY_NS,
+                M.transform_stamped(ns, "/world", "/cart", sc["p_c"][i], q_wc[i]),
+            )
+        )
     k = len(pose_ns) // 2
-    msgs.append(("/mocap/cart", "geometry_msgs/msg/TransformStamped", pose_ns[k] + LATENCY_NS + 1000,
-                 M.transform_stamped(pose_ns[k], "/world", "/cart", sc["p_c"][k] + 1.0, q_wc[k])))  # duplicate
-    msgs.append(("/mocap/cart", "geometry_msgs/msg/TransformStamped", pose_ns[k + 5] + LATENCY_NS + 1000,
-                 M.transform_stamped(pose_ns[k - 3], "/world", "/cart", sc["p_c"][k] + 2.0, q_wc[k])))  # late
+    msgs.append(
+        (
+            "/mocap/cart",
+            "geometry_msgs/msg/TransformStamped",
+            pose_ns[k] + LATENCY_NS + 1000,
+            M.transform_stamped(pose_ns[k], "/world", "/cart", sc["p_c"][k] + 1.0, q_wc[k]),
+        )
+    )  # duplicate
+    msgs.append(
+        (
+            "/mocap/cart",
+            "geometry_msgs/msg/TransformStamped",
+            pose_ns[k + 5] + LATENCY_NS + 1000,
+            M.transform_stamped(pose_ns[k - 3], "/world", "/cart", sc["p_c"][k] + 2.0, q_wc[k]),
+        )
+    )  # late
     out["ros1"] = _write_bag(root / "push.bag", "ros1", msgs, s1)
 
     # ROS 2 sqlite3: PoseStamped in a 'mocap' frame, static world -> mocap; the sensor reports the negated wrench
@@ -270,12 +312,24 @@ def bags(push, tmp_path_factory):
     R_mc = np.einsum("ij,njk->nik", R_wm.T, sc["R_wc"])
     p_mc = (sc["p_c"] - p_wm) @ R_wm  # R_wm^T (p - p_wm)
     msgs = _tf_messages(M, sc, slash=False) + _wrench_messages(M, sc, "ft_sensor", sign=-1.0)
-    msgs.append(("/tf_static", "tf2_msgs/msg/TFMessage", T0_NS,
-                 M.tf([M.transform_stamped(T0_NS, "world", "mocap", p_wm, _quat(R_wm))])))
+    msgs.append(
+        (
+            "/tf_static",
+            "tf2_msgs/msg/TFMessage",
+            T0_NS,
+            M.tf([M.transform_stamped(T0_NS, "world", "mocap", p_wm, _quat(R_wm))]),
+        )
+    )
     q_mc = _quat(R_mc)
     for i, ns in enumerate(pose_ns):
-        msgs.append(("/mocap/cart_pose", "geometry_msgs/msg/PoseStamped", ns + LATENCY_NS,
-                     M.pose_stamped(ns, "mocap", p_mc[i], q_mc[i])))
+        msgs.append(
+            (
+                "/mocap/cart_pose",
+                "geometry_msgs/msg/PoseStamped",
+                ns + LATENCY_NS,
+                M.pose_stamped(ns, "mocap", p_mc[i], q_mc[i]),
+            )
+        )
     out["sqlite3"] = _write_bag(root / "push_sqlite3", "sqlite3", msgs, s2)
 
     # ROS 2 MCAP: nav_msgs/Odometry world -> cart with the twist in the child frame; the robot's base
@@ -285,8 +339,14 @@ def bags(push, tmp_path_factory):
         R = sc["R_wc"][i]
         v_c = R.T @ np.array([log.qd[i, 0], log.qd[i, 1], 0.0])
         w_c = R.T @ np.array([0.0, 0.0, log.qd[i, 2]])
-        msgs.append(("/odom", "nav_msgs/msg/Odometry", ns + LATENCY_NS,
-                     M.odometry(ns, "world", "cart", sc["p_c"][i], q_wc[i], v_c, w_c)))
+        msgs.append(
+            (
+                "/odom",
+                "nav_msgs/msg/Odometry",
+                ns + LATENCY_NS,
+                M.odometry(ns, "world", "cart", sc["p_c"][i], q_wc[i], v_c, w_c),
+            )
+        )
     out["mcap"] = _write_bag(root / "push_mcap", "mcap", msgs, s2)
     return out
 
@@ -307,13 +367,21 @@ def test_ros1_bag_with_slashes_duplicates_and_a_four_link_chain(push, bags):
     assert report.world_frame == "world" and report.cart_frame == "cart"
     assert report.tf_chains["ft_sensor"] == ["ft_sensor", "arm_link", "base_link", "odom", "world"]
     assert report.dropped["pose_duplicate_stamp"] == 1 and report.dropped["pose_out_of_order"] == 1
-    assert any("repeating the previous stamp" in w for w in report.warnings) and any("stamped earlier" in w for w in report.warnings)
+    assert any("repeating the previous stamp" in w for w in report.warnings) and any(
+        "stamped earlier" in w for w in report.warnings
+    )
     assert report.clock == "header" and report.t0_ns == T0_NS
     assert 1.0 < report.tilt_max_deg < 2.5 and not any("tilt" in w for w in report.warnings)
     assert got.qd is None
     # the same chain given with slashes, and a window in seconds from the start of the recording
-    win, rep = import_bag(bags["ros1"], pose_topic="mocap/cart", wrench_topic="/ft_sensor/wrench",
-                          world_frame="/world", start=2.0, end=5.0)
+    win, rep = import_bag(
+        bags["ros1"],
+        pose_topic="mocap/cart",
+        wrench_topic="/ft_sensor/wrench",
+        world_frame="/world",
+        start=2.0,
+        end=5.0,
+    )
     sel = (log.t >= 2.0) & (log.t <= 5.0)
     _assert_same_log(win, CartLog(t=log.t[sel], q=log.q[sel], gamma=log.gamma[sel]))
     assert rep.window == (2.0, 5.0)
@@ -321,18 +389,30 @@ def test_ros1_bag_with_slashes_duplicates_and_a_four_link_chain(push, bags):
 
 def test_ros2_sqlite3_pose_in_another_frame_negated_wrench_and_record_time(push, bags):
     log, _ = push
-    got, report = import_bag(bags["sqlite3"], pose_topic="/mocap/cart_pose", wrench_topic="/ft_sensor/wrench",
-                             world_frame="world", negate_wrench=True)
+    got, report = import_bag(
+        bags["sqlite3"],
+        pose_topic="/mocap/cart_pose",
+        wrench_topic="/ft_sensor/wrench",
+        world_frame="world",
+        negate_wrench=True,
+    )
     _assert_same_log(got, log)
     assert report.storage == "ROS 2 bag (sqlite3)" and report.negate_wrench
     assert not any(report.dropped.values())
     # without --negate-wrench the force comes out reversed
-    raw, _ = import_bag(bags["sqlite3"], pose_topic="/mocap/cart_pose", wrench_topic="/ft_sensor/wrench",
-                        world_frame="world")
+    raw, _ = import_bag(
+        bags["sqlite3"], pose_topic="/mocap/cart_pose", wrench_topic="/ft_sensor/wrench", world_frame="world"
+    )
     np.testing.assert_allclose(raw.gamma, -log.gamma, atol=1e-8)
     # the recorder's clock: every stream (and TF) 2 ms later, the same values
-    rec, rep = import_bag(bags["sqlite3"], pose_topic="/mocap/cart_pose", wrench_topic="/ft_sensor/wrench",
-                          world_frame="world", negate_wrench=True, use_record_time=True)
+    rec, rep = import_bag(
+        bags["sqlite3"],
+        pose_topic="/mocap/cart_pose",
+        wrench_topic="/ft_sensor/wrench",
+        world_frame="world",
+        negate_wrench=True,
+        use_record_time=True,
+    )
     assert rep.clock == "record"
     _assert_same_log(rec, log, shift=LATENCY_NS / 1e9)
 
@@ -341,7 +421,9 @@ def test_ros2_mcap_odometry_gives_velocities_and_the_single_mcap_file_reads_the_
     log, _ = push
     got, report = import_bag(bags["mcap"], pose_topic="/odom", wrench_topic="/ft_sensor/wrench")
     _assert_same_log(got, log)
-    assert report.storage == "ROS 2 bag (MCAP)" and report.has_velocities and report.pose_type == "nav_msgs/msg/Odometry"
+    assert (
+        report.storage == "ROS 2 bag (MCAP)" and report.has_velocities and report.pose_type == "nav_msgs/msg/Odometry"
+    )
     np.testing.assert_allclose(got.qd, log.qd, atol=1e-9)
     assert report.tf_chains["ft_sensor"][-2:] == ["odom", "world"]
     assert any("world -> odom from /mocap/robot" in n for n in report.notes)
@@ -370,14 +452,32 @@ def test_pose_from_a_tf_frame_and_a_cart_frame_attached_by_tf(push, bags, tmp_pa
     R_wc, p_c = sc["R_wc"][:300], sc["p_c"][:300]
     off = np.array([0.4, 0.0, 0.0])
     f = np.column_stack([log.gamma[:300, :2], 0 * t])
-    msgs = [("/tf_static", "tf2_msgs/msg/TFMessage", T0_NS,
-             M.tf([M.transform_stamped(T0_NS, "cart", "axle", off, [0, 0, 0, 1])]))]
+    msgs = [
+        (
+            "/tf_static",
+            "tf2_msgs/msg/TFMessage",
+            T0_NS,
+            M.tf([M.transform_stamped(T0_NS, "cart", "axle", off, [0, 0, 0, 1])]),
+        )
+    ]
     for i, ns in enumerate(_ns(t)):
-        msgs.append(("/mocap", "geometry_msgs/msg/TransformStamped", ns, M.transform_stamped(
-            ns, "world", "cart", p_c[i], _quat(R_wc[i]))))
+        msgs.append(
+            (
+                "/mocap",
+                "geometry_msgs/msg/TransformStamped",
+                ns,
+                M.transform_stamped(ns, "world", "cart", p_c[i], _quat(R_wc[i])),
+            )
+        )
         # the wrench in the axle frame itself: TF reaches it through the pose (world -> cart) and the static link
-        msgs.append(("/w", "geometry_msgs/msg/WrenchStamped", ns,
-                     M.wrench(ns, "axle", R_wc[i].T @ f[i], R_wc[i].T @ [0, 0, 1.0])))
+        msgs.append(
+            (
+                "/w",
+                "geometry_msgs/msg/WrenchStamped",
+                ns,
+                M.wrench(ns, "axle", R_wc[i].T @ f[i], R_wc[i].T @ [0, 0, 1.0]),
+            )
+        )
     bag = _write_bag(tmp_path / "offset_mcap", "mcap", msgs, s2)
     got, rep = import_bag(bag, pose_topic="/mocap", wrench_topic="/w", cart_frame="axle")
     p_b = p_c + np.einsum("nij,j->ni", R_wc, off)
@@ -399,11 +499,22 @@ def test_custom_message_definition_carried_in_the_bag(fmt, push, tmp_path):
     msgs = []
     for i, ns in enumerate(_ns(t)):
         quat = _quat(_rz(q[i, 2]))
-        msgs.append(("/mocap/body", "cart_msgs/msg/MocapBody", ns, M.custom(ns, "map", [q[i, 0], q[i, 1], 0.0], quat,
-                                                                            0.001)))
-        msgs.append(("/wrench", "geometry_msgs/msg/WrenchStamped", ns,
-                     M.wrench(ns, "map", [log.gamma[i, 0], log.gamma[i, 1], 0.0],
-                              [0.0, 0.0, log.gamma[i, 2] + q[i, 0] * log.gamma[i, 1] - q[i, 1] * log.gamma[i, 0]])))
+        msgs.append(
+            ("/mocap/body", "cart_msgs/msg/MocapBody", ns, M.custom(ns, "map", [q[i, 0], q[i, 1], 0.0], quat, 0.001))
+        )
+        msgs.append(
+            (
+                "/wrench",
+                "geometry_msgs/msg/WrenchStamped",
+                ns,
+                M.wrench(
+                    ns,
+                    "map",
+                    [log.gamma[i, 0], log.gamma[i, 1], 0.0],
+                    [0.0, 0.0, log.gamma[i, 2] + q[i, 0] * log.gamma[i, 1] - q[i, 1] * log.gamma[i, 0]],
+                ),
+            )
+        )
     path = tmp_path / ("custom.bag" if fmt == "ros1" else "custom_mcap")
     _write_bag(path, fmt, msgs, store)
     if fmt == "mcap":
@@ -426,14 +537,18 @@ def test_tilt_warning_wrench_gap_and_stream_ends_are_reported(push, tmp_path):
     n = 300
     t, q = log.t[:n], log.q[:n]
     R = Rotation.from_euler("ZYX", np.column_stack([q[:, 2], 0 * t, np.radians(8.0) + 0 * t])).as_matrix()
-    msgs = [("/pose", "geometry_msgs/msg/PoseStamped", ns, M.pose_stamped(ns, "world", [q[i, 0], q[i, 1], 0], _quat(R[i])))
-            for i, ns in enumerate(_ns(t))]
+    msgs = [
+        ("/pose", "geometry_msgs/msg/PoseStamped", ns, M.pose_stamped(ns, "world", [q[i, 0], q[i, 1], 0], _quat(R[i])))
+        for i, ns in enumerate(_ns(t))
+    ]
     gap = (t > 1.0) & (t < 1.5)
     tw = t[~gap][5:-5]  # the wrench starts later, ends earlier, and pauses for 0.5 s
-    msgs += [("/w", "geometry_msgs/msg/WrenchStamped", ns, M.wrench(ns, "world", [1.0, 0, 0], [0, 0, 0]))
-             for ns in _ns(tw)]
-    got, report = import_bag(_write_bag(tmp_path / "tilted", "sqlite3", msgs, store), pose_topic="/pose",
-                             wrench_topic="/w")
+    msgs += [
+        ("/w", "geometry_msgs/msg/WrenchStamped", ns, M.wrench(ns, "world", [1.0, 0, 0], [0, 0, 0])) for ns in _ns(tw)
+    ]
+    got, report = import_bag(
+        _write_bag(tmp_path / "tilted", "sqlite3", msgs, store), pose_topic="/pose", wrench_topic="/w"
+    )
     assert report.tilt_max_deg == pytest.approx(8.0, abs=1e-6)
     assert any("tilts up to 8.0 deg" in w for w in report.warnings)
     np.testing.assert_allclose(np.angle(np.exp(1j * (got.q[:, 2] - q[np.isin(t, got.t), 2]))), 0, atol=1e-9)
@@ -443,7 +558,8 @@ def test_tilt_warning_wrench_gap_and_stream_ends_are_reported(push, tmp_path):
     assert any("inside a gap of the wrench stream" in w for w in report.warnings)
     # a publisher that does not stamp its messages: header stamps all zero -> use the record time
     msgs = [m for m in msgs if m[0] == "/pose"] + [
-        ("/w", "geometry_msgs/msg/WrenchStamped", ns, M.wrench(0, "world", [1.0, 0, 0], [0, 0, 0])) for ns in _ns(t)]
+        ("/w", "geometry_msgs/msg/WrenchStamped", ns, M.wrench(0, "world", [1.0, 0, 0], [0, 0, 0])) for ns in _ns(t)
+    ]
     bag = _write_bag(tmp_path / "unstamped", "sqlite3", msgs, store)
     with pytest.raises(BagImportError, match="header stamps are zero.*record time"):
         import_bag(bag, pose_topic="/pose", wrench_topic="/w")
@@ -453,10 +569,13 @@ def test_tilt_warning_wrench_gap_and_stream_ends_are_reported(push, tmp_path):
     sim = [(topic, typ, ns, msg) for topic, typ, ns, msg in msgs[:n]]
     for i, (_, _, ns, msg) in enumerate(sim):
         msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(ns - T0_NS + 5 * NS), NS)
-    wrench = [("/w", "geometry_msgs/msg/WrenchStamped", ns, M.wrench(ns - T0_NS + 5 * NS, "world", [1.0, 0, 0],
-                                                                      [0, 0, 0])) for ns in _ns(t)]
-    got, report = import_bag(_write_bag(tmp_path / "simtime", "sqlite3", sim + wrench, store), pose_topic="/pose",
-                             wrench_topic="/w")
+    wrench = [
+        ("/w", "geometry_msgs/msg/WrenchStamped", ns, M.wrench(ns - T0_NS + 5 * NS, "world", [1.0, 0, 0], [0, 0, 0]))
+        for ns in _ns(t)
+    ]
+    got, report = import_bag(
+        _write_bag(tmp_path / "simtime", "sqlite3", sim + wrench, store), pose_topic="/pose", wrench_topic="/w"
+    )
     np.testing.assert_allclose(got.t, t - t[0], atol=2e-9)
     assert report.t0_ns == 5 * NS + int(round(t[0] * 1e9)) and any("another clock" in note for note in report.notes)
 
@@ -465,8 +584,7 @@ def test_tilt_warning_wrench_gap_and_stream_ends_are_reported(push, tmp_path):
 def test_tf_buffer_interpolates_along_the_chain_and_inverts():
     buf = TransformBuffer()
     ts = np.array([0.0, 1.0])
-    buf.add_many("/world", "base", ts, [[0, 0, 0], [2, 0, 0]],
-                 Rotation.from_euler("z", [[0.0], [1.0]]).as_quat())
+    buf.add_many("/world", "base", ts, [[0, 0, 0], [2, 0, 0]], Rotation.from_euler("z", [[0.0], [1.0]]).as_quat())
     buf.add_static("base", "/sensor", [0, 1, 0], [0, 0, 0, 1])
     R, p, ok = buf.lookup("world", "sensor", [0.25, 1.0, 1.5])
     assert ok.tolist() == [True, True, False]  # no extrapolation past the last sample
@@ -493,16 +611,40 @@ def small_bags(push, tmp_path_factory):
     s1 = _store("ros1")
     M = _Msgs(s1)
     q_wc = _quat(sc["R_wc"])
-    pose = [("/mocap/cart", "geometry_msgs/msg/TransformStamped", ns, M.transform_stamped(
-        ns, "/world", "/cart", sc["p_c"][i], q_wc[i])) for i, ns in enumerate(_ns(sc["t"]))]
-    imu = [("/imu", "sensor_msgs/msg/Imu", T0_NS + 5, s1.types["sensor_msgs/msg/Imu"](
-        header=M.header(T0_NS, "/imu"), orientation=M.quat([0, 0, 0, 1]), orientation_covariance=np.zeros(9),
-        angular_velocity=M.vec([0, 0, 0]), angular_velocity_covariance=np.zeros(9),
-        linear_acceleration=M.vec([0, 0, 0]), linear_acceleration_covariance=np.zeros(9)))]
-    ok = _write_bag(root / "ok.bag", "ros1", _tf_messages(M, sc, True) + _wrench_messages(M, sc, "/ft_sensor") + pose
-                    + imu, s1)
-    broken = _write_bag(root / "broken.bag", "ros1", _tf_messages(M, sc, True, drop_link=("base_link", "arm_link"))
-                        + _wrench_messages(M, sc, "/ft_sensor") + pose, s1)
+    pose = [
+        (
+            "/mocap/cart",
+            "geometry_msgs/msg/TransformStamped",
+            ns,
+            M.transform_stamped(ns, "/world", "/cart", sc["p_c"][i], q_wc[i]),
+        )
+        for i, ns in enumerate(_ns(sc["t"]))
+    ]
+    imu = [
+        (
+            "/imu",
+            "sensor_msgs/msg/Imu",
+            T0_NS + 5,
+            s1.types["sensor_msgs/msg/Imu"](
+                header=M.header(T0_NS, "/imu"),
+                orientation=M.quat([0, 0, 0, 1]),
+                orientation_covariance=np.zeros(9),
+                angular_velocity=M.vec([0, 0, 0]),
+                angular_velocity_covariance=np.zeros(9),
+                linear_acceleration=M.vec([0, 0, 0]),
+                linear_acceleration_covariance=np.zeros(9),
+            ),
+        )
+    ]
+    ok = _write_bag(
+        root / "ok.bag", "ros1", _tf_messages(M, sc, True) + _wrench_messages(M, sc, "/ft_sensor") + pose + imu, s1
+    )
+    broken = _write_bag(
+        root / "broken.bag",
+        "ros1",
+        _tf_messages(M, sc, True, drop_link=("base_link", "arm_link")) + _wrench_messages(M, sc, "/ft_sensor") + pose,
+        s1,
+    )
     write_log(root / "short.csv", short)
     return {"ok": ok, "broken": broken, "log": short, "csv": root / "short.csv"}
 
@@ -518,22 +660,34 @@ def _cli(capsys, argv):
 BASE = ["--pose-topic", "/mocap/cart", "--wrench-topic", "/ft_sensor/wrench"]
 
 
-@pytest.mark.parametrize("bag, extra, fragments", [
-    ("ok", ["--pose-topic", "/mocap/nope", "--wrench-topic", "/ft_sensor/wrench"],
-     ["no pose topic '/mocap/nope'", "/mocap/cart (geometry_msgs/TransformStamped)", "/ft_sensor/wrench", "/tf"]),
-    ("ok", ["--pose-topic", "/mocap/cart", "--wrench-topic", "/wrench"], ["no wrench topic '/wrench'", "/imu"]),
-    ("ok", ["--pose-topic", "/imu", "--wrench-topic", "/ft_sensor/wrench"],
-     ["sensor_msgs/Imu", "geometry_msgs/PoseStamped", "geometry_msgs/TransformStamped", "nav_msgs/Odometry"]),
-    ("ok", ["--pose-topic", "/mocap/cart", "--wrench-topic", "/mocap/cart"],
-     ["geometry_msgs/TransformStamped", "which carries no stamped wrench", "geometry_msgs/WrenchStamped"]),
-    ("broken", BASE, ["cannot connect frame 'ft_sensor' to frame 'world'", "rooted at 'arm_link'"]),
-    ("ok", BASE + ["--world-frame", "map"], ["'map'", "does not appear"]),
-    ("ok", BASE + ["--start", "100", "--end", "200"], ["empty time window", "pose stamps span"]),
-    ("ok", BASE + ["--start", "0.5", "--end", "0.2"], ["empty time window"]),
-    ("ok", BASE + ["--start", "nan"], ["--start"]),
-    ("ok", ["--wrench-topic", "/ft_sensor/wrench"], ["--pose-topic"]),
-    ("ok", ["--pose-topic", "/mocap/cart"], ["--wrench-topic"]),
-])
+@pytest.mark.parametrize(
+    "bag, extra, fragments",
+    [
+        (
+            "ok",
+            ["--pose-topic", "/mocap/nope", "--wrench-topic", "/ft_sensor/wrench"],
+            ["no pose topic '/mocap/nope'", "/mocap/cart (geometry_msgs/TransformStamped)", "/ft_sensor/wrench", "/tf"],
+        ),
+        ("ok", ["--pose-topic", "/mocap/cart", "--wrench-topic", "/wrench"], ["no wrench topic '/wrench'", "/imu"]),
+        (
+            "ok",
+            ["--pose-topic", "/imu", "--wrench-topic", "/ft_sensor/wrench"],
+            ["sensor_msgs/Imu", "geometry_msgs/PoseStamped", "geometry_msgs/TransformStamped", "nav_msgs/Odometry"],
+        ),
+        (
+            "ok",
+            ["--pose-topic", "/mocap/cart", "--wrench-topic", "/mocap/cart"],
+            ["geometry_msgs/TransformStamped", "which carries no stamped wrench", "geometry_msgs/WrenchStamped"],
+        ),
+        ("broken", BASE, ["cannot connect frame 'ft_sensor' to frame 'world'", "rooted at 'arm_link'"]),
+        ("ok", BASE + ["--world-frame", "map"], ["'map'", "does not appear"]),
+        ("ok", BASE + ["--start", "100", "--end", "200"], ["empty time window", "pose stamps span"]),
+        ("ok", BASE + ["--start", "0.5", "--end", "0.2"], ["empty time window"]),
+        ("ok", BASE + ["--start", "nan"], ["--start"]),
+        ("ok", ["--wrench-topic", "/ft_sensor/wrench"], ["--pose-topic"]),
+        ("ok", ["--pose-topic", "/mocap/cart"], ["--wrench-topic"]),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(small_bags, tmp_path, capsys, bag, extra, fragments):
     code, out, err = _cli(capsys, ["import", small_bags[bag], "-o", tmp_path / "out.csv"] + extra)
     assert code == 2, (out, err)
@@ -573,8 +727,20 @@ def test_cartpush_import_list_and_convert_then_estimate_as_on_the_csv(push, bags
     assert code == 0 and "arm_link -> ft_sensor  (static)" in out
 
     csv = tmp_path / "run.csv"
-    code, out, err = _cli(capsys, ["import", bags["ros1"], "-o", csv, "--pose-topic", "/mocap/cart",
-                                   "--wrench-topic", "/ft_sensor/wrench", "--json"])
+    code, out, err = _cli(
+        capsys,
+        [
+            "import",
+            bags["ros1"],
+            "-o",
+            csv,
+            "--pose-topic",
+            "/mocap/cart",
+            "--wrench-topic",
+            "/ft_sensor/wrench",
+            "--json",
+        ],
+    )
     assert code == 0, err
     report = json.loads(out, parse_constant=lambda c: pytest.fail(f"non-strict JSON {c}"))
     assert report["samples"] == len(log) and report["output"] == str(csv)

@@ -1,4 +1,5 @@
 """Tests of wholebody.motion.timing: toppra limits, optimality vs uniform scaling, EE path through the IK."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -22,7 +23,7 @@ def _uniform_duration(wp, v, a):
     s = np.r_[0, np.cumsum(seg)] / seg.sum()
     spl = CubicSpline(s, wp)
     tau = np.linspace(0, 1, 20001)
-    sv, s1, s2 = tau ** 2 * (3 - 2 * tau), 6 * tau * (1 - tau), 6 - 12 * tau
+    sv, s1, s2 = tau**2 * (3 - 2 * tau), 6 * tau * (1 - tau), 6 - 12 * tau
     vel = np.abs(spl(sv, 1) * s1[:, None]) / v
     acc = np.abs(spl(sv, 2) * s1[:, None] ** 2 + spl(sv, 1) * s2[:, None]) / a
     return max(vel.max(), np.sqrt(acc.max())), spl

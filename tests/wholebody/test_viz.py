@@ -1,4 +1,5 @@
 """Tests of wholebody.viz: recorded Meshcat scene vs Pinocchio kinematics, arrows, CoM, animation, page, server, CLI."""
+
 from __future__ import annotations
 
 import math
@@ -15,8 +16,7 @@ from cart.logs import CartLog, write_log
 from robots.errors import UnknownRobotError
 from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
 from wholebody.cli import main
-from wholebody.viz import (COM_MARKER_Z, Camera, Scene, SceneError, log_scene, pushing_configuration,
-                           pushing_scene)
+from wholebody.viz import COM_MARKER_Z, Camera, Scene, SceneError, log_scene, pushing_configuration, pushing_scene
 
 
 @pytest.fixture(scope="module")
@@ -121,8 +121,11 @@ def test_animation_of_moving_joints_matches_pinocchio():
     pin.forwardKinematics(robot.model, robot.data, q)
     pin.updateGeometryPlacements(robot.model, robot.data, robot.visual_model, robot.visual_data)
     gid = robot.visual_model.getGeometryId("iiwa_link_7_0")
-    np.testing.assert_allclose(keys["/meshcat/ridgeback_iiwa/visuals/iiwa_link_7_0"]["position"][1],
-                               robot.visual_data.oMg[gid].translation, atol=1e-12)
+    np.testing.assert_allclose(
+        keys["/meshcat/ridgeback_iiwa/visuals/iiwa_link_7_0"]["position"][1],
+        robot.visual_data.oMg[gid].translation,
+        atol=1e-12,
+    )
 
 
 def test_static_page_is_self_contained_and_replays_scene(tmp_path):
@@ -137,6 +140,7 @@ def test_static_page_is_self_contained_and_replays_scene(tmp_path):
     assert len(calls) == n_commands
     import base64
     import umsgpack
+
     kinds = [umsgpack.unpackb(base64.b64decode(c))["type"] for c in calls]
     assert kinds[-1] == "set_animation" and kinds.count("set_animation") == 1
     assert kinds.count("set_object") > 30
@@ -149,9 +153,14 @@ def test_camera_projection_closed_form():
     np.testing.assert_allclose(uv, [[400, 300], [400 + f / 4, 300], [400, 300 - f / 4]], atol=1e-9)
 
 
-@pytest.mark.parametrize("name, cart, contact_y", [("ridgeback_iiwa", (0.9, 0.3, 0.4), 0.0),
-                                                    ("ridgeback_iiwa", (0.2, -0.5, -1.1), 0.15),
-                                                    ("wmra", (0.0, 0.0, 0.3), 0.1)])
+@pytest.mark.parametrize(
+    "name, cart, contact_y",
+    [
+        ("ridgeback_iiwa", (0.9, 0.3, 0.4), 0.0),
+        ("ridgeback_iiwa", (0.2, -0.5, -1.1), 0.15),
+        ("wmra", (0.0, 0.0, 0.3), 0.1),
+    ],
+)
 def test_pushing_configuration_holds_handle_with_push_grasp(name, cart, contact_y):
     """The hand sits on the handle point, tool axis forward and `grasp_pitch` down, base where the profile says."""
     from robots.profiles import profile
@@ -162,8 +171,11 @@ def test_pushing_configuration_holds_handle_with_push_grasp(name, cart, contact_
     pin.framesForwardKinematics(robot.model, robot.data, q)
     M = robot.data.oMf[robot.frame_id("ee")]
     c, s = math.cos(cart[2]), math.sin(cart[2])
-    handle = [cart[0] + c * CART_HANDLE_X - s * contact_y, cart[1] + s * CART_HANDLE_X + c * contact_y,
-              CART_WHEEL_RADIUS + CART_HANDLE_Z_B]
+    handle = [
+        cart[0] + c * CART_HANDLE_X - s * contact_y,
+        cart[1] + s * CART_HANDLE_X + c * contact_y,
+        CART_WHEEL_RADIUS + CART_HANDLE_Z_B,
+    ]
     np.testing.assert_allclose(M.translation, handle, atol=1e-5)
     cp, sp = math.cos(prof.grasp_pitch), math.sin(prof.grasp_pitch)
     np.testing.assert_allclose(M.rotation[:, 2], [cp * c, cp * s, -sp], atol=1e-5)  # tool axis
@@ -240,9 +252,13 @@ def test_cli_view_html_and_errors(tmp_path, capsys):
     assert main(["view", str(tmp_path / "run.csv"), "--html", str(tmp_path / "log.html")]) == 0
     bad = tmp_path / "bad.csv"
     bad.write_text("t,x,y\n0,0,0\n")
-    for argv in (["view", "--robot", "nope"], ["view", str(tmp_path / "missing.csv")], ["view", str(bad)],
-                 ["view", "--scenario", "12", "--html", str(out)],
-                 ["view", "--robot", "wmra", "--html", str(tmp_path / "no" / "x.html")]):
+    for argv in (
+        ["view", "--robot", "nope"],
+        ["view", str(tmp_path / "missing.csv")],
+        ["view", str(bad)],
+        ["view", "--scenario", "12", "--html", str(out)],
+        ["view", "--robot", "wmra", "--html", str(tmp_path / "no" / "x.html")],
+    ):
         capsys.readouterr()
         assert main(argv) == 2
         err = capsys.readouterr().err
@@ -258,17 +274,24 @@ def test_cli_view_scenario_writes_page(tmp_path):
 def test_library_code_never_selects_a_matplotlib_backend():
     """Only command-line entry points may call matplotlib.use (it turns off a notebook's inline figures)."""
     root = Path(__file__).resolve().parents[2]
-    offenders = [str(p.relative_to(root)) for pkg in ("cart", "wholebody", "studies", "robots")
-                 for p in (root / pkg).rglob("*.py")
-                 if "matplotlib.use(" in p.read_text(encoding="utf-8") and "wholebody/cli/" not in p.as_posix()]
+    offenders = [
+        str(p.relative_to(root))
+        for pkg in ("cart", "wholebody", "studies", "robots")
+        for p in (root / pkg).rglob("*.py")
+        if "matplotlib.use(" in p.read_text(encoding="utf-8") and "wholebody/cli/" not in p.as_posix()
+    ]
     assert not offenders, f"library modules select a Matplotlib backend: {offenders}"
 
 
 def test_animated_page_opens_paused_at_first_frame_and_follows():
     """The static state is the first frame, the page does not autoplay, and the camera follows the named robots."""
     with Scene(["shopping_cart"]) as sc:
-        sc.animate([0.0, 1.0, 2.0], {"shopping_cart": [(0.0, 0, 0), (1.0, 0, 0), (3.0, 1.0, 0)]}, fps=10,
-                   follow=("shopping_cart",))
+        sc.animate(
+            [0.0, 1.0, 2.0],
+            {"shopping_cart": [(0.0, 0, 0), (1.0, 0, 0), (3.0, 1.0, 0)]},
+            fps=10,
+            follow=("shopping_cart",),
+        )
         np.testing.assert_allclose(sc.world_transform("/meshcat/shopping_cart")[:3, 3], 0.0, atol=1e-12)
         html = sc.static_html()
         cam0, cam = sc.camera_at(0.0), sc.camera_at(2.0)

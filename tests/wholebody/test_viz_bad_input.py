@@ -1,4 +1,5 @@
 """Issue 14, class 7: `view` must not hang on logs in map coordinates, millimetres or long time spans."""
+
 from __future__ import annotations
 
 import time
@@ -14,7 +15,7 @@ def test_floor_grid_is_sized_to_the_data():
     with Scene(["shopping_cart"]) as sc:
         assert sc.set_floor((-2.0, 6.0, -3.0, 3.0)) == 13 * 16 + 17 * 12  # 0.5 m cells as before
         n = sc.set_floor((500_000.0, 527_000.0, 4_000_000.0, 4_002_000.0))  # map coordinates, 27 km
-        assert n <= 2 * MAX_FLOOR_LINES ** 2
+        assert n <= 2 * MAX_FLOOR_LINES**2
 
 
 def test_long_log_in_millimetres_is_capped_and_fast(tmp_path):

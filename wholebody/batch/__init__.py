@@ -3,6 +3,7 @@
 `run_batch` is the engine of `cartpush batch` (see docs/batch.md): one JSON line per log,
 written as each finishes, resumable, on joblib processes or Ray tasks with the same code path.
 """
+
 from wholebody.batch.engine import BatchError, CommandJob, done_paths, expand_inputs, run_batch
 
 __all__ = ["BatchError", "CommandJob", "done_paths", "expand_inputs", "run_batch"]

@@ -15,6 +15,7 @@ A rerun skips the paths that already have an ``ok: true`` line (a failed log is 
 new line: the last line of a path wins), so an interrupted run loses nothing that finished. A job
 that raises gives an error line, never a crash of the batch.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,7 +26,8 @@ import sys
 import time
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple
+from typing import Any
+from collections.abc import Callable, Iterable, Iterator, Sequence
 
 from cart.errors import CartpushError
 from wholebody.errors import BatchError
@@ -34,7 +36,6 @@ from wholebody.errors import BatchError
 LOG_PATTERNS = ("*.csv", "*.csv.gz")
 #: Python warning categories that are about library versions, not about a log: not recorded.
 _QUIET = (DeprecationWarning, PendingDeprecationWarning, FutureWarning, ImportWarning, ResourceWarning)
-
 
 
 def _one_line(text: Any) -> str:
@@ -49,7 +50,7 @@ def _is_bag_dir(path: str) -> bool:
     return os.path.isfile(os.path.join(path, "metadata.yaml"))
 
 
-def expand_inputs(inputs: Sequence[str]) -> List[str]:
+def expand_inputs(inputs: Sequence[str]) -> list[str]:
     """Return the absolute paths of the logs named by ``inputs``, in order, without duplicates.
 
     A file is taken as is; a directory contributes its ``*.csv`` and ``*.csv.gz`` (sorted, not
@@ -57,7 +58,7 @@ def expand_inputs(inputs: Sequence[str]) -> List[str]:
     its matches sorted. An input that names nothing is a BatchError (a typo should not silently run
     nothing).
     """
-    out: List[str] = []
+    out: list[str] = []
     seen = set()
 
     def add(path: str) -> None:
@@ -99,7 +100,7 @@ def done_paths(out: str | os.PathLike) -> set:
     done = set()
     if not os.path.exists(out):
         return done
-    with open(out, "r", encoding="utf-8", errors="replace") as fh:
+    with open(out, encoding="utf-8", errors="replace") as fh:
         for line in fh:
             try:
                 rec = json.loads(line)
@@ -136,7 +137,7 @@ def _open_results(out: str | os.PathLike):
 # --------------------------------------------------------------------------- jobs
 
 
-def run_one(job: Callable[[str], Dict[str, Any]], path: str) -> Dict[str, Any]:
+def run_one(job: Callable[[str], dict[str, Any]], path: str) -> dict[str, Any]:
     """Run ``job(path)`` and return its result line (never raises for an ordinary exception).
 
     Runs in the worker (a loky process or a Ray task). Python warnings of the job are recorded in
@@ -147,7 +148,7 @@ def run_one(job: Callable[[str], Dict[str, Any]], path: str) -> Dict[str, Any]:
         warnings.simplefilter("always")
         try:
             result = job(path)
-            rec: Dict[str, Any] = {"path": path, "ok": True, "result": result}
+            rec: dict[str, Any] = {"path": path, "ok": True, "result": result}
         except Exception as exc:  # noqa: BLE001 - a bad log is an error line, not a crash of the batch
             if isinstance(exc, (CartpushError, OSError)):
                 msg = _one_line(exc)
@@ -156,7 +157,7 @@ def run_one(job: Callable[[str], Dict[str, Any]], path: str) -> Dict[str, Any]:
             else:
                 msg = f"internal error (bug): {type(exc).__name__}: {_one_line(exc)}"
             rec = {"path": path, "ok": False, "error": msg}
-    texts: List[str] = []
+    texts: list[str] = []
     for w in caught:
         text = f"{w.category.__name__}: {_one_line(w.message)}"
         if not issubclass(w.category, _QUIET) and text not in texts:
@@ -200,7 +201,7 @@ class CommandJob:
     """
 
     command: str
-    argv: Tuple[str, ...] = field(default_factory=tuple)
+    argv: tuple[str, ...] = field(default_factory=tuple)
 
     def check(self) -> None:
         """Raise a BatchError / CartpushError if the job's options are unusable (before any log is read)."""
@@ -214,7 +215,7 @@ class CommandJob:
         if check is not None:
             check(args)
 
-    def __call__(self, path: str) -> Dict[str, Any]:
+    def __call__(self, path: str) -> dict[str, Any]:
         import importlib
 
         args = command_args(self.command, path, self.argv)
@@ -240,7 +241,7 @@ def _load(path: str, args: argparse.Namespace):
 # --------------------------------------------------------------------------- back ends
 
 
-def _local_results(job, paths: Sequence[str], workers: int) -> Iterator[Dict[str, Any]]:
+def _local_results(job, paths: Sequence[str], workers: int) -> Iterator[dict[str, Any]]:
     """Yield the result lines as they finish, on ``workers`` loky processes (1: in this process)."""
     if workers <= 1:
         for p in paths:
@@ -248,12 +249,13 @@ def _local_results(job, paths: Sequence[str], workers: int) -> Iterator[Dict[str
         return
     from joblib import Parallel, delayed
 
-    parallel = Parallel(n_jobs=workers, backend="loky", return_as="generator_unordered", batch_size=1,
-                        pre_dispatch="2*n_jobs")
+    parallel = Parallel(
+        n_jobs=workers, backend="loky", return_as="generator_unordered", batch_size=1, pre_dispatch="2*n_jobs"
+    )
     yield from parallel(delayed(run_one)(job, p) for p in paths)
 
 
-def _ray_connect(address: str, workers: Optional[int]) -> int:
+def _ray_connect(address: str, workers: int | None) -> int:
     """Connect to the Ray cluster at ``address`` (unless Ray is initialised already); return the tasks in flight."""
     try:
         import ray
@@ -269,14 +271,14 @@ def _ray_connect(address: str, workers: Optional[int]) -> int:
     return workers
 
 
-def _ray_results(job, paths: Sequence[str], workers: int) -> Iterator[Dict[str, Any]]:
+def _ray_results(job, paths: Sequence[str], workers: int) -> Iterator[dict[str, Any]]:
     """Yield the result lines as they finish, as Ray tasks (at most ``workers`` running, as many queued)."""
     import ray
 
     remote = ray.remote(num_cpus=1, max_retries=1)(run_one)
     job_ref = ray.put(job)
     todo = list(paths)
-    pending: Dict[Any, str] = {}
+    pending: dict[Any, str] = {}
     window = 2 * workers  # queued + running: bounded so an interruption leaves little in flight
     while todo or pending:
         while todo and len(pending) < window:
@@ -288,11 +290,14 @@ def _ray_results(job, paths: Sequence[str], workers: int) -> Iterator[Dict[str, 
             try:
                 yield ray.get(ref)
             except Exception as exc:  # noqa: BLE001 - a worker that died: an error line for this log
-                yield {"path": path, "ok": False, "error": f"the Ray task failed: {type(exc).__name__}: "
-                                                          f"{_one_line(exc)[:300]}"}
+                yield {
+                    "path": path,
+                    "ok": False,
+                    "error": f"the Ray task failed: {type(exc).__name__}: {_one_line(exc)[:300]}",
+                }
 
 
-def _check_workers(workers: Optional[int], ray_address: Optional[str]) -> Optional[int]:
+def _check_workers(workers: int | None, ray_address: str | None) -> int | None:
     """Return the worker count to use: ``workers`` checked, 1 by default locally, the cluster's CPUs on Ray."""
     if workers is not None and workers < 1:
         raise BatchError(f"--workers must be at least 1, got {workers}")
@@ -303,7 +308,7 @@ def _check_workers(workers: Optional[int], ray_address: Optional[str]) -> Option
     return workers
 
 
-def _progress_bar(progress: Optional[bool], total: int) -> Any:
+def _progress_bar(progress: bool | None, total: int) -> Any:
     """Return a tqdm bar on stderr over ``total`` logs, or None (``progress`` None: only on a terminal)."""
     if progress is None:
         progress = bool(getattr(sys.stderr, "isatty", lambda: False)())
@@ -314,8 +319,9 @@ def _progress_bar(progress: Optional[bool], total: int) -> Any:
     return tqdm(total=total, file=sys.stderr, unit="log", dynamic_ncols=True)
 
 
-def _results(job: Callable[[str], Dict[str, Any]], todo: Sequence[str], workers: Optional[int],
-             ray_address: Optional[str]) -> Iterable[Dict[str, Any]]:
+def _results(
+    job: Callable[[str], dict[str, Any]], todo: Sequence[str], workers: int | None, ray_address: str | None
+) -> Iterable[dict[str, Any]]:
     """Return the result lines of ``todo`` as they finish, on Ray or locally."""
     if not todo:
         return ()
@@ -332,7 +338,7 @@ class _Tally:
     failed: int = 0
     job_seconds: float = 0.0
 
-    def add(self, rec: Dict[str, Any]) -> None:
+    def add(self, rec: dict[str, Any]) -> None:
         if rec.get("ok"):
             self.ok += 1
         else:
@@ -340,8 +346,9 @@ class _Tally:
         self.job_seconds += float(rec.get("seconds", 0.0))
 
 
-def _write_results(results: Iterable[Dict[str, Any]], fh: Any, bar: Any,
-                   on_result: Optional[Callable[[Dict[str, Any]], None]]) -> _Tally:
+def _write_results(
+    results: Iterable[dict[str, Any]], fh: Any, bar: Any, on_result: Callable[[dict[str, Any]], None] | None
+) -> _Tally:
     """Append each result line to ``fh`` (flushed at once), update the bar, call ``on_result``; return the counts."""
     from cart.jsonout import dumps_strict
 
@@ -359,9 +366,15 @@ def _write_results(results: Iterable[Dict[str, Any]], fh: Any, bar: Any,
     return tally
 
 
-def run_batch(job: Callable[[str], Dict[str, Any]], paths: Sequence[str], out: str | os.PathLike,
-              workers: Optional[int] = 1, ray_address: Optional[str] = None, progress: Optional[bool] = None,
-              on_result: Optional[Callable[[Dict[str, Any]], None]] = None) -> Dict[str, Any]:
+def run_batch(
+    job: Callable[[str], dict[str, Any]],
+    paths: Sequence[str],
+    out: str | os.PathLike,
+    workers: int | None = 1,
+    ray_address: str | None = None,
+    progress: bool | None = None,
+    on_result: Callable[[dict[str, Any]], None] | None = None,
+) -> dict[str, Any]:
     """Run ``job`` on every path not yet done in ``out``; append one JSON line per log as each finishes.
 
     ``workers``: local processes (joblib's loky; 1 runs in this process), or with ``ray_address``
@@ -384,9 +397,16 @@ def run_batch(job: Callable[[str], Dict[str, Any]], paths: Sequence[str], out: s
             bar.close()
     wall = time.perf_counter() - t0
     ran = tally.ok + tally.failed
-    return {"backend": "ray" if ray_address is not None else "joblib", "workers": workers,
-            "inputs": len(paths), "skipped": len(paths) - len(todo), "ran": ran, "ok": tally.ok,
-            "failed": tally.failed, "seconds": round(wall, 3),
-            "logs_per_min": round(60.0 * ran / wall, 2) if ran and wall > 0 else None,
-            "job_seconds_mean": round(tally.job_seconds / ran, 4) if ran else None,
-            "out": os.path.abspath(os.fspath(out))}
+    return {
+        "backend": "ray" if ray_address is not None else "joblib",
+        "workers": workers,
+        "inputs": len(paths),
+        "skipped": len(paths) - len(todo),
+        "ran": ran,
+        "ok": tally.ok,
+        "failed": tally.failed,
+        "seconds": round(wall, 3),
+        "logs_per_min": round(60.0 * ran / wall, 2) if ran and wall > 0 else None,
+        "job_seconds_mean": round(tally.job_seconds / ran, 4) if ran else None,
+        "out": os.path.abspath(os.fspath(out)),
+    }

@@ -6,6 +6,7 @@ its heavy dependencies inside ``run`` (``cartpush --help`` imports none of them)
 Only the commands that run studies (`reproduce`, `track`, `view --scenario`) import
 `studies`, lazily.
 """
+
 from __future__ import annotations
 
 from wholebody.cli.app import COMMAND_MODULES, COMMANDS, USER_ERRORS, build_parser, main, preprocess_argv

@@ -1,4 +1,5 @@
 """``python -m wholebody.cli``: the `cartpush` command line."""
+
 import sys
 
 from wholebody.cli.app import main

@@ -11,13 +11,14 @@ unreadable file becomes one line on stderr, ``cartpush CMD: error: ...``, and
 exit code 2; any other exception is a bug: one line naming it and exit code 1
 (``--debug`` re-raises it with the traceback).
 """
+
 from __future__ import annotations
 
 import argparse
 import importlib
 import sys
 import warnings
-from typing import Sequence
+from collections.abc import Sequence
 
 from cart.errors import CartpushError
 
@@ -28,8 +29,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": ("reproduce", "reproduce Table I of the cart paper (EKF + tracking)"),
     "estimate": ("estimate", "estimate cart mass/CoM/inertia/damping from a log (least squares or the EKF)"),
     "import": ("import_bag", "turn a ROS 1/ROS 2 bag or an MCAP file into a cart log"),
-    "plan-contacts": ("plan_contacts",
-                      "choose contact points on the cart handle and allocate the end-effector wrenches (QP)"),
+    "plan-contacts": (
+        "plan_contacts",
+        "choose contact points on the cart handle and allocate the end-effector wrenches (QP)",
+    ),
     "diagnose": ("diagnose", "fit the cart model to a log, find significant discrepancies, name the missing effects"),
     "push": ("push", "simulate the mobile manipulator(s) pushing the cart with the EKF in the loop"),
     "view": ("view", "show a cart log, a Table I test or a robot in Meshcat"),
@@ -64,8 +67,7 @@ def _top_parser() -> argparse.ArgumentParser:
             "Bad input gives one line on stderr and exit code 2; an internal error exit code 1\n"
             "(--debug shows its traceback)."
         ),
-        epilog="Example: cartpush demo\n         cartpush estimate run.csv --json\n"
-               "         cartpush COMMAND --help",
+        epilog="Example: cartpush demo\n         cartpush estimate run.csv --json\n         cartpush COMMAND --help",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--debug", action="store_true", help="re-raise internal errors with their traceback")
@@ -179,8 +181,11 @@ def _echo_warnings(name: str, caught: list) -> None:
     if len(seen) > MAX_WARNINGS:
         print(f"cartpush {name}: warning: {len(seen) - MAX_WARNINGS} more distinct warning(s)", file=sys.stderr)
     if numerical:
-        print(f"cartpush {name}: warning: numerical trouble during the computation ({'; '.join(numerical[:3])}"
-              f"{'; ...' if len(numerical) > 3 else ''}); check the result", file=sys.stderr)
+        print(
+            f"cartpush {name}: warning: numerical trouble during the computation ({'; '.join(numerical[:3])}"
+            f"{'; ...' if len(numerical) > 3 else ''}); check the result",
+            file=sys.stderr,
+        )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -216,8 +221,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"cartpush {name}: error: out of memory (reduce the duration or the log size)", file=sys.stderr)
             return 2
         except Exception as exc:  # noqa: BLE001 - anything else is a bug: one line, exit 1
-            print(f"cartpush {name}: internal error (bug): {type(exc).__name__}: {_one_line(exc)} "
-                  f"(rerun with --debug for the traceback)", file=sys.stderr)
+            print(
+                f"cartpush {name}: internal error (bug): {type(exc).__name__}: {_one_line(exc)} "
+                f"(rerun with --debug for the traceback)",
+                file=sys.stderr,
+            )
             return 1
     _echo_warnings(name, caught)
     return code

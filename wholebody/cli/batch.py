@@ -1,4 +1,5 @@
 """`cartpush batch estimate|diagnose INPUTS... --out RESULTS.jsonl`: one job over many logs, locally or on Ray."""
+
 from __future__ import annotations
 
 import argparse
@@ -29,18 +30,39 @@ Example:
 
 def register(subparsers) -> None:
     """Add the `batch` subcommand."""
-    p = subparsers.add_parser("batch", help="run estimate or diagnose over many logs, locally or on a Ray cluster",
-                              description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = subparsers.add_parser(
+        "batch",
+        help="run estimate or diagnose over many logs, locally or on a Ray cluster",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("job", choices=("estimate", "diagnose"), help="the command to run on every log")
     p.add_argument("inputs", nargs="+", metavar="INPUT", help="log files, directories or glob patterns")
-    p.add_argument("--out", required=True, metavar="RESULTS.jsonl",
-                   help="JSON Lines results file (appended; existing ok lines are skipped)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="local processes (default 1), or with --ray the most tasks in flight (default: cluster CPUs)")
-    p.add_argument("--ray", metavar="ADDRESS", default=None,
-                   help="run on a Ray cluster: 'auto' or its address (needs pip install 'cartpush[cluster]')")
-    p.add_argument("--job-args", default="", metavar="'OPTIONS'",
-                   help="options of the job's command, quoted, e.g. '--method ekf' or '--threshold 20'")
+    p.add_argument(
+        "--out",
+        required=True,
+        metavar="RESULTS.jsonl",
+        help="JSON Lines results file (appended; existing ok lines are skipped)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="local processes (default 1), or with --ray the most tasks in flight (default: cluster CPUs)",
+    )
+    p.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        default=None,
+        help="run on a Ray cluster: 'auto' or its address (needs pip install 'cartpush[cluster]')",
+    )
+    p.add_argument(
+        "--job-args",
+        default="",
+        metavar="'OPTIONS'",
+        help="options of the job's command, quoted, e.g. '--method ekf' or '--threshold 20'",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=run)
 
@@ -81,10 +103,12 @@ def run(args: argparse.Namespace) -> int:
         print(dumps_strict(summary))
         return 0
     rate = f"{summary['logs_per_min']:.1f} logs/min" if summary["logs_per_min"] else "-"
-    print(f"batch {args.job}: {summary['inputs']} logs, {summary['skipped']} already done, {summary['ran']} run "
-          f"({summary['ok']} ok, {summary['failed']} failed) in {summary['seconds']:.1f} s ({rate}; "
-          f"{summary['backend']}, workers {summary['workers'] or 'cluster CPUs'})")
+    print(
+        f"batch {args.job}: {summary['inputs']} logs, {summary['skipped']} already done, {summary['ran']} run "
+        f"({summary['ok']} ok, {summary['failed']} failed) in {summary['seconds']:.1f} s ({rate}; "
+        f"{summary['backend']}, workers {summary['workers'] or 'cluster CPUs'})"
+    )
     print(f"results: {summary['out']}")
     if summary["failed"]:
-        print(f"{summary['failed']} log(s) failed: see their \"error\" lines (a rerun retries them)")
+        print(f'{summary["failed"]} log(s) failed: see their "error" lines (a rerun retries them)')
     return 0

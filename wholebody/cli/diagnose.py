@@ -6,7 +6,7 @@ import argparse
 import contextlib
 import sys
 import threading
-from typing import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 from wholebody.cli import options
 from wholebody.cli.import_bag import add_topic_options, topic_options

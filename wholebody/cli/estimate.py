@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import Any, Dict
+from typing import Any
 
 from wholebody.cli.import_bag import add_topic_options, topic_options
 
@@ -89,7 +89,7 @@ def np_linalg_error() -> type:
     return np.linalg.LinAlgError
 
 
-def _run_ls(log) -> Dict[str, Any]:
+def _run_ls(log) -> dict[str, Any]:
     from cart.identify import identify, innovation_check
 
     from cart.errors import CartError
@@ -127,7 +127,7 @@ def _run_ls(log) -> Dict[str, Any]:
     }
 
 
-def _run_ekf(log, args: argparse.Namespace) -> Dict[str, Any]:
+def _run_ekf(log, args: argparse.Namespace) -> dict[str, Any]:
     from cart.ekf import estimate_from_log
     from cart.errors import LogFormatError
     from cart.params import CartParams
@@ -172,7 +172,7 @@ def check_args(args: argparse.Namespace) -> None:
     _check_guesses(args)
 
 
-def result_for(log, args: argparse.Namespace) -> Dict[str, Any]:
+def result_for(log, args: argparse.Namespace) -> dict[str, Any]:
     """Return the JSON dict `cartpush estimate --json` prints for ``log`` (also each result of `cartpush batch`)."""
     return _run_ls(log) if args.method == "ls" else _run_ekf(log, args)
 

@@ -4,10 +4,11 @@
 place of a log (``wholebody.ros.load_any(path, **topic_options(args))``); this module stays light
 (argparse only) so that they can import it at module level.
 """
+
 from __future__ import annotations
 
 import argparse
-from typing import Any, Dict
+from typing import Any
 
 DESCRIPTION = """\
 Turn a ROS recording into a cart log (LOG_FORMAT.md CSV): a ROS 1 .bag file, a ROS 2 bag
@@ -36,25 +37,39 @@ Examples:
 def add_topic_options(parser: argparse.ArgumentParser) -> None:
     """Add the options that say how to read a bag (pose, wrench, frames, window, clock) to ``parser``."""
     g = parser.add_argument_group("reading a ROS bag")
-    g.add_argument("--pose-topic", metavar="TOPIC", help="topic of the cart's pose (PoseStamped, TransformStamped, "
-                   "PoseWithCovarianceStamped, Odometry)")
+    g.add_argument(
+        "--pose-topic",
+        metavar="TOPIC",
+        help="topic of the cart's pose (PoseStamped, TransformStamped, PoseWithCovarianceStamped, Odometry)",
+    )
     g.add_argument("--pose-frame", metavar="FRAME", help="take the pose from this TF frame instead of a topic")
     g.add_argument("--wrench-topic", metavar="TOPIC", help="topic of the wrench on the cart (WrenchStamped)")
-    g.add_argument("--wrench-frame", metavar="FRAME",
-                   help="frame of the wrench when its header names none (overrides the header)")
-    g.add_argument("--world-frame", metavar="FRAME",
-                   help="world frame {s} (default: the pose messages' frame; the root of --pose-frame's TF tree)")
-    g.add_argument("--cart-frame", metavar="FRAME",
-                   help="TF frame that is the cart frame {b} (axle midpoint) when the tracked body's frame is not")
-    g.add_argument("--negate-wrench", action="store_true",
-                   help="flip the wrench's sign (the sensor reports the force on the tool, not on the cart)")
+    g.add_argument(
+        "--wrench-frame", metavar="FRAME", help="frame of the wrench when its header names none (overrides the header)"
+    )
+    g.add_argument(
+        "--world-frame",
+        metavar="FRAME",
+        help="world frame {s} (default: the pose messages' frame; the root of --pose-frame's TF tree)",
+    )
+    g.add_argument(
+        "--cart-frame",
+        metavar="FRAME",
+        help="TF frame that is the cart frame {b} (axle midpoint) when the tracked body's frame is not",
+    )
+    g.add_argument(
+        "--negate-wrench",
+        action="store_true",
+        help="flip the wrench's sign (the sensor reports the force on the tool, not on the cart)",
+    )
     g.add_argument("--start", type=float, metavar="S", help="keep pose samples from S seconds after the bag start")
     g.add_argument("--end", type=float, metavar="S", help="keep pose samples up to S seconds after the bag start")
-    g.add_argument("--record-time", action="store_true",
-                   help="use the recorder's receive times instead of the header stamps")
+    g.add_argument(
+        "--record-time", action="store_true", help="use the recorder's receive times instead of the header stamps"
+    )
 
 
-def topic_options(args: argparse.Namespace) -> Dict[str, Any]:
+def topic_options(args: argparse.Namespace) -> dict[str, Any]:
     """Return the keyword arguments of `wholebody.ros.import_bag` from the options of `add_topic_options`."""
     from wholebody.cli import options
 
@@ -62,20 +77,33 @@ def topic_options(args: argparse.Namespace) -> Dict[str, Any]:
         value = getattr(args, name, None)
         if value is not None:
             options.finite(f"--{name}", value, why="seconds from the start of the recording")
-    return {"pose_topic": args.pose_topic, "wrench_topic": args.wrench_topic, "pose_frame": args.pose_frame,
-            "world_frame": args.world_frame, "negate_wrench": bool(args.negate_wrench), "start": args.start,
-            "end": args.end, "use_record_time": bool(args.record_time), "cart_frame": args.cart_frame,
-            "wrench_frame": args.wrench_frame}
+    return {
+        "pose_topic": args.pose_topic,
+        "wrench_topic": args.wrench_topic,
+        "pose_frame": args.pose_frame,
+        "world_frame": args.world_frame,
+        "negate_wrench": bool(args.negate_wrench),
+        "start": args.start,
+        "end": args.end,
+        "use_record_time": bool(args.record_time),
+        "cart_frame": args.cart_frame,
+        "wrench_frame": args.wrench_frame,
+    }
 
 
 def register(subparsers) -> None:
     """Add the `import` subcommand."""
-    parser = subparsers.add_parser("import", help="turn a ROS 1/ROS 2 bag or an MCAP file into a cart log",
-                                   description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = subparsers.add_parser(
+        "import",
+        help="turn a ROS 1/ROS 2 bag or an MCAP file into a cart log",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument("bag", metavar="BAG", help="ROS 1 .bag, ROS 2 bag folder, or .mcap / .db3 file")
     parser.add_argument("-o", "--output", metavar="LOG", help="cart log to write (.csv or .csv.gz)")
-    parser.add_argument("--list", action="store_true", help="list topics, types, counts, rates and TF links; "
-                        "convert nothing")
+    parser.add_argument(
+        "--list", action="store_true", help="list topics, types, counts, rates and TF links; convert nothing"
+    )
     parser.add_argument("--json", action="store_true", help="print only JSON")
     add_topic_options(parser)
     parser.set_defaults(func=run)
@@ -89,8 +117,9 @@ def run(args: argparse.Namespace) -> int:
         if not args.output:
             raise options.OptionError("give the log to write (-o LOG.csv), or --list to see what the bag holds")
         if not args.pose_topic and not args.pose_frame:
-            raise options.OptionError("give the cart's pose: --pose-topic TOPIC or --pose-frame FRAME "
-                                      "(see `cartpush import BAG --list`)")
+            raise options.OptionError(
+                "give the cart's pose: --pose-topic TOPIC or --pose-frame FRAME (see `cartpush import BAG --list`)"
+            )
         if args.pose_topic and args.pose_frame:
             raise options.OptionError("give either --pose-topic or --pose-frame, not both")
         if not args.wrench_topic:

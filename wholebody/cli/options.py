@@ -3,13 +3,13 @@
 Every check raises :class:`cart.errors.CartpushError` subclasses with a message
 naming the option, so the CLI prints one line and exits with code 2.
 """
+
 from __future__ import annotations
 
 import math
 import os
 import tempfile
 from pathlib import Path
-from typing import Optional
 
 from wholebody.errors import OptionError
 
@@ -19,12 +19,19 @@ MAX_SIM_DURATION = 3600.0
 #: Most simulation steps (duration x rate) any command accepts.
 MAX_SIM_STEPS = 2_000_000
 #: Largest seed accepted (numpy's SeedSequence takes any non-negative integer; keep it sane).
-MAX_SEED = 2 ** 63 - 1
+MAX_SEED = 2**63 - 1
 
 
-
-def finite(name: str, value: float, *, positive: bool = False, nonnegative: bool = False,
-           minimum: Optional[float] = None, maximum: Optional[float] = None, why: str = "") -> float:
+def finite(
+    name: str,
+    value: float,
+    *,
+    positive: bool = False,
+    nonnegative: bool = False,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    why: str = "",
+) -> float:
     """Return ``value`` if it is a finite number within the bounds; raise OptionError naming ``name`` otherwise."""
     try:
         v = float(value)
@@ -44,15 +51,17 @@ def finite(name: str, value: float, *, positive: bool = False, nonnegative: bool
     return v
 
 
-def duration(value: float, *, minimum: float = 0.0, why: str = "", rate: Optional[float] = None,
-             name: str = "--duration") -> float:
+def duration(
+    value: float, *, minimum: float = 0.0, why: str = "", rate: float | None = None, name: str = "--duration"
+) -> float:
     """Return a validated simulated duration: finite, positive, >= minimum, within the memory budget."""
     v = finite(name, value, positive=True)
     if v < minimum:
         raise OptionError(f"{name} must be at least {minimum:g} s{f' ({why})' if why else ''}, got {value}")
     if v > MAX_SIM_DURATION:
-        raise OptionError(f"{name} must be at most {MAX_SIM_DURATION:g} s (memory budget of the simulation), "
-                          f"got {value}")
+        raise OptionError(
+            f"{name} must be at most {MAX_SIM_DURATION:g} s (memory budget of the simulation), got {value}"
+        )
     if rate is not None and v * rate > MAX_SIM_STEPS:
         raise OptionError(f"{name} x rate = {v * rate:.3g} steps exceeds the budget of {MAX_SIM_STEPS} steps")
     return v

@@ -1,4 +1,5 @@
 """`cartpush plan-contacts`: where each arm should hold the handle, and with which wrench."""
+
 from __future__ import annotations
 
 import argparse
@@ -23,16 +24,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--wrench", nargs=3, type=float, required=True, metavar=("FX", "FY", "TAU"),
-                   help="cart wrench in {b}: forces in N, torque in N m")
+    p.add_argument(
+        "--wrench",
+        nargs=3,
+        type=float,
+        required=True,
+        metavar=("FX", "FY", "TAU"),
+        help="cart wrench in {b}: forces in N, torque in N m",
+    )
     p.add_argument("--arms", type=int, default=1, help="number of arms (default 1)")
-    p.add_argument("--handle-width", type=float, default=HANDLE_WIDTH, help=f"handle length in m (default {HANDLE_WIDTH})")
+    p.add_argument(
+        "--handle-width", type=float, default=HANDLE_WIDTH, help=f"handle length in m (default {HANDLE_WIDTH})"
+    )
     p.add_argument("--min-spacing", type=float, default=0.2, help="minimum distance between arms in m (default 0.2)")
     p.add_argument("--grip-force", type=float, default=100.0, help="gripper force in N, 20..235 (default 100)")
     p.add_argument("--max-force", type=float, default=150.0, help="per-arm force bound per axis in N (default 150)")
     p.add_argument("--max-torque", type=float, default=20.0, help="per-arm torque bound per axis in N m (default 20)")
-    p.add_argument("--motion-only", action="store_true",
-                   help="match only fx and tau: the wheels absorb the lateral force")
+    p.add_argument(
+        "--motion-only", action="store_true", help="match only fx and tau: the wheels absorb the lateral force"
+    )
     p.add_argument("--solver", default="proxqp", help="qpsolvers backend (default proxqp)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=run)
@@ -55,31 +65,54 @@ def run(args: argparse.Namespace) -> int:
     from wholebody.contacts.placement import optimal_contact_points
 
     handle = HandleSegment.default(width=args.handle_width)
-    limits = ArmLimits(max_force=args.max_force, max_torque=args.max_torque, grasp=GraspModel(grip_force=args.grip_force))
-    plan = optimal_contact_points(args.wrench, handle, n_arms=args.arms, min_spacing=args.min_spacing, limits=limits,
-                                  only_motion_directions=args.motion_only, solver=args.solver)
+    limits = ArmLimits(
+        max_force=args.max_force, max_torque=args.max_torque, grasp=GraspModel(grip_force=args.grip_force)
+    )
+    plan = optimal_contact_points(
+        args.wrench,
+        handle,
+        n_arms=args.arms,
+        min_spacing=args.min_spacing,
+        limits=limits,
+        only_motion_directions=args.motion_only,
+        solver=args.solver,
+    )
     contacts = [
-        {"arm": i, "point_b": [round(float(v), 6) for v in plan.points_b[i]],
-         "wrench_ee": [round(float(v), 6) for v in plan.allocation.wrenches_ee[i]]}
+        {
+            "arm": i,
+            "point_b": [round(float(v), 6) for v in plan.points_b[i]],
+            "wrench_ee": [round(float(v), 6) for v in plan.allocation.wrenches_ee[i]],
+        }
         for i in range(args.arms)
     ]
     if args.json:
-        print(dumps_strict({"contacts": contacts, "residual": plan.allocation.residual, "effort": plan.effort,
-                          "gamma_achieved": [float(v) for v in plan.allocation.gamma_achieved]}))
+        print(
+            dumps_strict(
+                {
+                    "contacts": contacts,
+                    "residual": plan.allocation.residual,
+                    "effort": plan.effort,
+                    "gamma_achieved": [float(v) for v in plan.allocation.gamma_achieved],
+                }
+            )
+        )
         return 0
     print("contact points in the cart frame {b} (origin: fixed-axle midpoint, x forward, y left, z up);")
     print("each hand's wrench in its contact frame {a} (axes of {b}, origin at the contact point)")
     heads = ("arm", "x [m]", "y [m]", "z [m]", "fx [N]", "fy [N]", "fz [N]", "tx [N m]", "ty [N m]", "tz [N m]")
-    rows = [[str(c["arm"])] + [_num(v, 3) for v in c["point_b"]] + [_num(v, 2) for v in c["wrench_ee"]]
-            for c in contacts]
+    rows = [
+        [str(c["arm"])] + [_num(v, 3) for v in c["point_b"]] + [_num(v, 2) for v in c["wrench_ee"]] for c in contacts
+    ]
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(heads)]
     print("  ".join(h.rjust(w) for h, w in zip(heads, widths)))
     for r in rows:
         print("  ".join(v.rjust(w) for v, w in zip(r, widths)))
     fx, fy, tau = (float(v) for v in plan.allocation.gamma_achieved)
-    print(f"cart wrench in {{b}}: achieved fx {_num(fx, 2)} N, fy {_num(fy, 2)} N, tau {_num(tau, 2)} N m "
-          f"(requested {_num(args.wrench[0], 2)} N, {_num(args.wrench[1], 2)} N, {_num(args.wrench[2], 2)} N m; "
-          f"residual {plan.allocation.residual:.1e})")
+    print(
+        f"cart wrench in {{b}}: achieved fx {_num(fx, 2)} N, fy {_num(fy, 2)} N, tau {_num(tau, 2)} N m "
+        f"(requested {_num(args.wrench[0], 2)} N, {_num(args.wrench[1], 2)} N, {_num(args.wrench[2], 2)} N m; "
+        f"residual {plan.allocation.residual:.1e})"
+    )
     print(f"effort {plan.effort:.4g} (sum over arms of |f|^2 [N^2] + |tau|^2 [(N m)^2], unit weights)")
     return 0
 

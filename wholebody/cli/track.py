@@ -1,4 +1,5 @@
 """`cartpush track`: the WMRA paper's end-effector tracking experiments (§IV) in kinematic simulation."""
+
 from __future__ import annotations
 
 import argparse
@@ -36,8 +37,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("path", choices=PATHS, help="line: 90 mm/s along X; sine: plus 1 m sin(0.1 t) along Y")
     p.add_argument("--robot", default="wmra", choices=("wmra", "ridgeback_iiwa"), help="robot (default wmra)")
-    p.add_argument("--band", type=float, default=None, metavar="RADIUS",
-                   help="safety band radius in metres (base origin within RADIUS of the sliding centre)")
+    p.add_argument(
+        "--band",
+        type=float,
+        default=None,
+        metavar="RADIUS",
+        help="safety band radius in metres (base origin within RADIUS of the sliding centre)",
+    )
     p.add_argument("--duration", type=float, default=60.0, help="seconds (default 60)")
     p.add_argument("--rate", type=float, default=100.0, help="control rate in Hz (default 100)")
     p.add_argument("--out", type=Path, default=None, metavar="LOG.csv", help="write the run as CSV")
@@ -49,17 +55,26 @@ def write_csv(result, path: Path) -> None:
     """Write one row per sample: time, base pose, arm joints, wheel rates, EE desired/actual position."""
     n_arm = result.x.shape[1] - 3
     n_w = result.wheel_rates.shape[1]
-    header = (["time_s", "base_x_m", "base_y_m", "base_theta_rad"] + [f"arm_q{i + 1}_rad" for i in range(n_arm)]
-              + [f"wheel_rate{i + 1}_rad_s" for i in range(n_w)]
-              + ["ee_desired_x_m", "ee_desired_y_m", "ee_desired_z_m", "ee_actual_x_m", "ee_actual_y_m",
-                 "ee_actual_z_m"])
+    header = (
+        ["time_s", "base_x_m", "base_y_m", "base_theta_rad"]
+        + [f"arm_q{i + 1}_rad" for i in range(n_arm)]
+        + [f"wheel_rate{i + 1}_rad_s" for i in range(n_w)]
+        + ["ee_desired_x_m", "ee_desired_y_m", "ee_desired_z_m", "ee_actual_x_m", "ee_actual_y_m", "ee_actual_z_m"]
+    )
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
         for k in range(result.x.shape[0]):
             rates = result.wheel_rates[k] if k < result.steps else [math.nan] * n_w  # no input after the last sample
-            w.writerow([f"{result.t[k]:.4f}", *(f"{v:.9g}" for v in result.x[k]), *(f"{v:.9g}" for v in rates),
-                        *(f"{v:.9g}" for v in result.ee_desired[k]), *(f"{v:.9g}" for v in result.ee_actual[k])])
+            w.writerow(
+                [
+                    f"{result.t[k]:.4f}",
+                    *(f"{v:.9g}" for v in result.x[k]),
+                    *(f"{v:.9g}" for v in rates),
+                    *(f"{v:.9g}" for v in result.ee_desired[k]),
+                    *(f"{v:.9g}" for v in result.ee_actual[k]),
+                ]
+            )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -81,8 +96,14 @@ def run(args: argparse.Namespace) -> int:
 
         bar = tqdm(total=int(round(args.duration * args.rate)), file=sys.stderr, desc=f"track {args.path}")
     try:
-        result = run_tracking(args.robot, args.path, args.band, duration=args.duration, rate=args.rate,
-                              progress=(lambda k: bar.update(1)) if bar is not None else None)
+        result = run_tracking(
+            args.robot,
+            args.path,
+            args.band,
+            duration=args.duration,
+            rate=args.rate,
+            progress=(lambda k: bar.update(1)) if bar is not None else None,
+        )
     finally:
         if bar is not None:
             bar.close()
@@ -94,9 +115,11 @@ def run(args: argparse.Namespace) -> int:
         excess = m["max_band_distance_m"] - args.band
         m["band_respected"] = bool(excess <= BAND_TOLERANCE)
         if excess > BAND_TOLERANCE:
-            warnings.append(f"the base left the safety band: {m['max_band_distance_m']:.4f} m from the band "
-                            f"centre for a radius of {args.band:g} m ({excess:.4f} m outside); the path cannot be "
-                            f"followed within this band")
+            warnings.append(
+                f"the base left the safety band: {m['max_band_distance_m']:.4f} m from the band "
+                f"centre for a radius of {args.band:g} m ({excess:.4f} m outside); the path cannot be "
+                f"followed within this band"
+            )
     m["warnings"] = warnings
     for w in warnings:
         print(f"cartpush track: warning: {w}", file=sys.stderr)
@@ -111,10 +134,14 @@ def run(args: argparse.Namespace) -> int:
     print(f"  min joint-limit margin {m['min_joint_limit_margin_rad']:10.4f} rad")
     print(f"  max |rate|/limit       joints {m['max_joint_speed_ratio']:.3f}, wheels {m['max_wheel_speed_ratio']:.3f}")
     if m["max_band_distance_m"] is not None:
-        print(f"  max base distance from band centre {m['max_band_distance_m']:.4f} m"
-              + ("" if m.get("band_respected", True) else f"  ** OUTSIDE the {args.band:g} m band **"))
-    print(f"  flagged steps: singular {m['singular_steps']}, saturated {m['saturated_steps']}, "
-          f"solver failures {m['solver_failures']}")
+        print(
+            f"  max base distance from band centre {m['max_band_distance_m']:.4f} m"
+            + ("" if m.get("band_respected", True) else f"  ** OUTSIDE the {args.band:g} m band **")
+        )
+    print(
+        f"  flagged steps: singular {m['singular_steps']}, saturated {m['saturated_steps']}, "
+        f"solver failures {m['solver_failures']}"
+    )
     if args.out is not None:
         print(f"  wrote {args.out}")
     return 0

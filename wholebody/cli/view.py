@@ -1,4 +1,5 @@
 """`cartpush view`: show a cart log, a Table I test or a robot in Meshcat (live, or as an offline HTML page)."""
+
 from __future__ import annotations
 
 import argparse
@@ -30,15 +31,17 @@ Examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `view` subcommand."""
-    parser = subparsers.add_parser("view", help=HELP, description=DESCRIPTION,
-                                   formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = subparsers.add_parser(
+        "view", help=HELP, description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("log", nargs="?", help="cart log (.csv or .csv.gz, LOG_FORMAT.md) or a ROS bag")
     source.add_argument("--scenario", type=int, metavar="N", help="Table I simulation test N (1..11)")
     source.add_argument("--robot", metavar="NAME", help="a robot of `robots.available()`, or 'pushing'")
     parser.add_argument("--html", metavar="OUT.html", help="write a static page instead of serving")
-    parser.add_argument("--duration", type=float, default=30.0, metavar="S",
-                        help="simulated seconds for --scenario (default 30)")
+    parser.add_argument(
+        "--duration", type=float, default=30.0, metavar="S", help="simulated seconds for --scenario (default 30)"
+    )
     add_topic_options(parser)
     parser.set_defaults(func=run)
 

@@ -25,11 +25,12 @@ satisfies every inequality, which is then the exact QP optimum;
 placements and wrenches at once (the vectorized effort sweep of
 `wholebody.contacts.placement.effort_sweep`).
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import qpsolvers
@@ -173,14 +174,20 @@ class _Inequalities:
         for k in _components(lim):
             bound, unit, kind = (lim.max_force, "N", "force") if k < 3 else (lim.max_torque, "N m", "torque")
             for sgn in (1.0, -1.0):
-                self.add({6 * i + k: sgn}, bound, f"arm{i} {kind} bound ({COMPONENTS[k]} "
-                                                  f"{'<=' if sgn > 0 else '>='} {sgn * bound:g} {unit})")
+                self.add(
+                    {6 * i + k: sgn},
+                    bound,
+                    f"arm{i} {kind} bound ({COMPONENTS[k]} {'<=' if sgn > 0 else '>='} {sgn * bound:g} {unit})",
+                )
 
     def grasp(self, i: int, lim: ArmLimits) -> None:
         """Grip pull limit, friction cone and torque limits of arm i's `GraspModel` (normal load 2 Fg + fx)."""
         g = lim.grasp
-        self.add({6 * i: -1.0}, g.pull_capacity, f"arm{i} grip pull limit ({g.pull_capacity:g} N at grip force "
-                                                  f"{g.grip_force:g} N)")
+        self.add(
+            {6 * i: -1.0},
+            g.pull_capacity,
+            f"arm{i} grip pull limit ({g.pull_capacity:g} N at grip force {g.grip_force:g} N)",
+        )
         mu, sq = g.friction, 2.0 * g.grip_force
         if lim.planar:
             dirs = [(1.0, 0.0, 1.0), (-1.0, 0.0, 1.0)]
@@ -188,12 +195,18 @@ class _Inequalities:
             ang = 2.0 * np.pi * np.arange(g.facets) / g.facets
             dirs = [(np.cos(a), np.sin(a), np.cos(np.pi / g.facets)) for a in ang]
         for cy, cz, sh in dirs:  # c.f_t <= mu * s * (2 Fg + fx)
-            self.add({6 * i + 1: cy, 6 * i + 2: cz, 6 * i: -mu * sh}, mu * sh * sq,
-                     f"arm{i} grip friction cone (tangential force, mu={mu:g})")
+            self.add(
+                {6 * i + 1: cy, 6 * i + 2: cz, 6 * i: -mu * sh},
+                mu * sh * sq,
+                f"arm{i} grip friction cone (tangential force, mu={mu:g})",
+            )
         for k in (k for k in _components(lim) if k >= 3):
             for sgn in (1.0, -1.0):
-                self.add({6 * i + k: sgn, 6 * i: -g.torque_arm}, g.torque_arm * sq,
-                         f"arm{i} grip torque limit ({COMPONENTS[k]})")
+                self.add(
+                    {6 * i + k: sgn, 6 * i: -g.torque_arm},
+                    g.torque_arm * sq,
+                    f"arm{i} grip torque limit ({COMPONENTS[k]})",
+                )
 
     def joint_torques(self, i: int, J: np.ndarray, torque_limit: np.ndarray) -> None:
         """``|J_i^T w_i| <= tau_max`` per joint of arm i."""
@@ -202,12 +215,16 @@ class _Inequalities:
             raise WholeBodyError(f"arm{i} torque limits must be {J.shape[1]} positive numbers")
         for j in range(J.shape[1]):
             for sgn in (1.0, -1.0):
-                self.add({6 * i + k: sgn * J[k, j] for k in range(6)}, tl[j],
-                         f"arm{i} joint {j} torque limit ({tl[j]:g} N m)")
+                self.add(
+                    {6 * i + k: sgn * J[k, j] for k in range(6)},
+                    tl[j],
+                    f"arm{i} joint {j} torque limit ({tl[j]:g} N m)",
+                )
 
 
-def _inequalities(limits: Sequence[ArmLimits], jacobians: list[np.ndarray] | None,
-                  torque_limits: Sequence[np.ndarray] | None) -> _Inequalities:
+def _inequalities(
+    limits: Sequence[ArmLimits], jacobians: list[np.ndarray] | None, torque_limits: Sequence[np.ndarray] | None
+) -> _Inequalities:
     """Return every limit row of the allocation QP (boxes, grasp model, joint torques), arm by arm."""
     out = _Inequalities(len(limits))
     for i, lim in enumerate(limits):
@@ -298,8 +315,7 @@ class WrenchAllocator:
             if len(self.jacobians) != n or any(J.ndim != 2 or J.shape[0] != 6 for J in self.jacobians):
                 raise WholeBodyError("jacobians must be one (6 x n_joints) array per contact")
         self._build(torque_limits)
-        self._direct = _DirectProxQP(self.P, self.Gin, self.hin) if solver == "proxqp" and direct \
-            else None
+        self._direct = _DirectProxQP(self.P, self.Gin, self.hin) if solver == "proxqp" and direct else None
         self.set_points([c.point_b for c in specs])
 
     # ------------------------------------------------------------------ build
@@ -354,8 +370,7 @@ class WrenchAllocator:
         G, A = self._equality_batch(pts[None])
         self.G_full, self.A = G[0], A[0]
         Pinv_At = self._Pinv @ self.A.T  # closed-form optimum of the equality-only problem: x = K b
-        self._kkt_cache = {(): (Pinv_At @ np.linalg.inv(self.A @ Pinv_At), np.zeros((0, len(self.rows))),
-                                np.zeros(0))}
+        self._kkt_cache = {(): (Pinv_At @ np.linalg.inv(self.A @ Pinv_At), np.zeros((0, len(self.rows))), np.zeros(0))}
         self._A_new = True  # the direct QP takes the new equality matrix at its next solve
         self._mats = None  # qpsolvers' matrices, built when first needed
 
@@ -363,8 +378,12 @@ class WrenchAllocator:
         if self._mats is None:
             conv = sp.csc_matrix if self.solver in SPARSE_SOLVERS else (lambda M: M)
             relax_scale = 1e6 * max(1.0, float(np.max(np.diag(self.P))))
-            self._mats = dict(P=conv(self.P), G=self._G_conv, A=conv(self.A),
-                              relax_P=conv(self.P / relax_scale + 2.0 * self.A.T @ self.A))
+            self._mats = dict(
+                P=conv(self.P),
+                G=self._G_conv,
+                A=conv(self.A),
+                relax_P=conv(self.P / relax_scale + 2.0 * self.A.T @ self.A),
+            )
         return self._mats
 
     # ------------------------------------------------------------------ batch
@@ -414,8 +433,11 @@ class WrenchAllocator:
             self._A_new = False
         else:
             m = self._qpsolvers_mats()
-            sol = qpsolvers.solve_problem(qpsolvers.Problem(m["P"], self.q, m["G"], self.hin, m["A"], b),
-                                          solver=self.solver, **self._solver_kwargs())
+            sol = qpsolvers.solve_problem(
+                qpsolvers.Problem(m["P"], self.q, m["G"], self.hin, m["A"], b),
+                solver=self.solver,
+                **self._solver_kwargs(),
+            )
             x = sol.x if sol.found else None
         return x if x is not None and np.isfinite(x).all() else None
 
@@ -440,12 +462,13 @@ class WrenchAllocator:
             except np.linalg.LinAlgError:
                 T = None
             if T is not None and np.abs(S @ T - np.eye(len(S))).max() < 1e-9:  # not numerically degenerate
-                entry = (Pinv_At @ T, -T[len(self.rows):], self.hin[idx])
+                entry = (Pinv_At @ T, -T[len(self.rows) :], self.hin[idx])
         self._kkt_cache[active] = entry
         return entry
 
-    def _on_active_set(self, b: np.ndarray, active: tuple[int, ...], h_max: np.ndarray,
-                       scale: float) -> np.ndarray | None:
+    def _on_active_set(
+        self, b: np.ndarray, active: tuple[int, ...], h_max: np.ndarray, scale: float
+    ) -> np.ndarray | None:
         """Return the KKT point of ``active`` if it is the QP optimum (limits within h_max, lambda >= 0)."""
         entry = self._kkt(active)
         if entry is None:
@@ -545,7 +568,9 @@ class WrenchAllocator:
         problem = qpsolvers.Problem(m["relax_P"], -2.0 * self.A.T @ b, m["G"], self.hin)
         # x = 0 is feasible, so a failure is numerical: retry with the active-set solver daqp (a runtime dependency)
         for solver in dict.fromkeys((self.solver, "daqp")):
-            sol = qpsolvers.solve_problem(problem, solver=solver, **(self._solver_kwargs() if solver == self.solver else {}))
+            sol = qpsolvers.solve_problem(
+                problem, solver=solver, **(self._solver_kwargs() if solver == self.solver else {})
+            )
             if sol.found and sol.x is not None and np.all(np.isfinite(sol.x)):
                 break
         else:

@@ -45,11 +45,12 @@ The closed-loop study (``studies.excitation_study.com_convergence_traj2``: Traj.
 paper's EKF fed the wrench and its contact-dependent covariance) is kept apart from this
 library module; see docs/contacts.md for the numbers.
 """
+
 from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
-from typing import Callable, Optional, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -156,8 +157,12 @@ class PushSamples:
 
     def at(self, t: float) -> tuple[float, float, float, float]:
         """Return (v, vdot, omega, omegadot) at time t (linear interpolation)."""
-        return (float(np.interp(t, self.t, self.v)), float(np.interp(t, self.t, self.vdot)),
-                float(np.interp(t, self.t, self.omega)), float(np.interp(t, self.t, self.omegadot)))
+        return (
+            float(np.interp(t, self.t, self.v)),
+            float(np.interp(t, self.t, self.vdot)),
+            float(np.interp(t, self.t, self.omega)),
+            float(np.interp(t, self.t, self.omegadot)),
+        )
 
 
 @dataclass(frozen=True)
@@ -212,8 +217,9 @@ def reduced_regressor(v, vdot, omega, omegadot) -> np.ndarray:
     return regressor(v, omega, vdot, omegadot)[..., :4]
 
 
-def reduced_wrench(samples: PushSamples, phi: Sequence[float], sigma: float = 0.0,
-                   sigma_yaw: Optional[float] = None) -> np.ndarray:
+def reduced_wrench(
+    samples: PushSamples, phi: Sequence[float], sigma: float = 0.0, sigma_yaw: float | None = None
+) -> np.ndarray:
     """Return (N, 2) [f_forward, tau_b] the planned motion needs for parameters phi and the viscous coefficients."""
     p = np.r_[np.asarray(phi, dtype=float), sigma, sigma if sigma_yaw is None else sigma_yaw]
     return regressor(samples.v, samples.omega, samples.vdot, samples.omegadot) @ p
@@ -238,8 +244,9 @@ def measurement_covariance(point_b: Sequence[float], noise: WrenchNoise = Wrench
     return G @ np.diag([noise.force**2, noise.force**2, noise.torque**2]) @ G.T
 
 
-def fisher_information(samples: PushSamples, points_b: np.ndarray, noise: WrenchNoise = WrenchNoise(),
-                       sensor_dt: float | None = None) -> np.ndarray:
+def fisher_information(
+    samples: PushSamples, points_b: np.ndarray, noise: WrenchNoise = WrenchNoise(), sensor_dt: float | None = None
+) -> np.ndarray:
     """Return the 4x4 Fisher information of phi for samples held at points_b (N x 3, one per sample).
 
     One wrench reading per sample, or, with ``sensor_dt``, one every
@@ -291,8 +298,9 @@ def com_covariance(info: np.ndarray, phi: Sequence[float], prior_cov: np.ndarray
     return J @ C @ J.T
 
 
-def objective_value(info: np.ndarray, phi: Sequence[float], objective: str = "min_eig",
-                    prior_cov: np.ndarray | None = None) -> float:
+def objective_value(
+    info: np.ndarray, phi: Sequence[float], objective: str = "min_eig", prior_cov: np.ndarray | None = None
+) -> float:
     """Return the score of a push with Fisher information ``info`` (larger is better; see the module docstring).
 
     ``info`` is the 4x4 information of the whole push, or for ``"com_a_path"``
@@ -340,8 +348,14 @@ def _segment_tables(samples, phi, sigma, handle, candidates, n_segments, noise, 
     return bounds, info, effort
 
 
-def _best_schedule(info: np.ndarray, effort: np.ndarray, budget: float, score: Callable[[np.ndarray], float],
-                   sweeps: int, exhaustive_limit: int) -> tuple[list[int], float]:
+def _best_schedule(
+    info: np.ndarray,
+    effort: np.ndarray,
+    budget: float,
+    score: Callable[[np.ndarray], float],
+    sweeps: int,
+    exhaustive_limit: int,
+) -> tuple[list[int], float]:
     """Return (candidate index per segment, score) maximizing score(per-segment infos) within the effort budget.
 
     Exhaustive when J^K <= exhaustive_limit; else coordinate ascent (one segment
@@ -384,8 +398,14 @@ def _best_schedule(info: np.ndarray, effort: np.ndarray, budget: float, score: C
     return _cheapest_ties(best_idx, best, effort, budget, lambda idx: score(total(idx))), float(best)
 
 
-def _cheapest_ties(idx: np.ndarray, best: float, effort: np.ndarray, budget: float,
-                   score_of: Callable[[np.ndarray], float], rtol: float = 1e-9) -> list[int]:
+def _cheapest_ties(
+    idx: np.ndarray,
+    best: float,
+    effort: np.ndarray,
+    budget: float,
+    score_of: Callable[[np.ndarray], float],
+    rtol: float = 1e-9,
+) -> list[int]:
     """Return idx with each segment moved to its least-effort candidate that keeps the score (ties, e.g. no motion)."""
     idx = np.array(idx)
     K = len(idx)
@@ -442,33 +462,50 @@ def plan_contact_schedule(
     budget = float(effort_budget) if effort_budget is not None else budget_ratio * float(np.min(fixed_effort))
     P0 = default_prior(phi) if prior_cov is None else np.asarray(prior_cov, dtype=float)
     score = lambda I: objective_value(I, phi, objective, P0)  # noqa: E731
-    fixed_scores = np.array([score(info[:, j]) if fixed_effort[j] <= budget else -np.inf
-                             for j in range(len(cand))])
+    fixed_scores = np.array([score(info[:, j]) if fixed_effort[j] <= budget else -np.inf for j in range(len(cand))])
     if not np.any(np.isfinite(fixed_scores)):
-        raise WholeBodyError(f"effort budget {budget:.4g} is below the cheapest fixed contact "
-                             f"({np.min(fixed_effort):.4g})")
+        raise WholeBodyError(
+            f"effort budget {budget:.4g} is below the cheapest fixed contact ({np.min(fixed_effort):.4g})"
+        )
     j0 = int(np.argmax(fixed_scores))
     idx, best = _best_schedule(info, effort, budget, score, sweeps, exhaustive_limit)  # >= every fixed contact
     sched = ContactSchedule(bounds, cand[idx])
     total = float(sum(effort[k, j] for k, j in enumerate(idx)))
     std = lambda I: tuple(float(v) for v in np.sqrt(np.diag(com_covariance(I, phi, P0))))  # noqa: E731
-    return SchedulePlan(sched, float(best), total, float(cand[j0]), float(fixed_scores[j0]), float(fixed_effort[j0]),
-                        budget, objective, std(sum(info[k, j] for k, j in enumerate(idx))),
-                        std(info[:, j0].sum(axis=0)))
+    return SchedulePlan(
+        sched,
+        float(best),
+        total,
+        float(cand[j0]),
+        float(fixed_scores[j0]),
+        float(fixed_effort[j0]),
+        budget,
+        objective,
+        std(sum(info[k, j] for k, j in enumerate(idx))),
+        std(info[:, j0].sum(axis=0)),
+    )
 
 
-def schedule_points(samples: PushSamples, schedule: Callable[[float], float] | ContactSchedule,
-                    handle: HandleSegment | None = None) -> np.ndarray:
+def schedule_points(
+    samples: PushSamples, schedule: Callable[[float], float] | ContactSchedule, handle: HandleSegment | None = None
+) -> np.ndarray:
     """Return the contact points (N x 3 in {b}) a schedule s(t) holds at the sample times."""
     handle = HandleSegment.default() if handle is None else handle
     at = schedule.at if isinstance(schedule, ContactSchedule) else schedule
     return np.array([handle.point(at(t)) for t in samples.t])
 
 
-def schedule_score(samples: PushSamples, schedule: Callable[[float], float] | ContactSchedule, phi: Sequence[float],
-                   handle: HandleSegment | None = None, noise: WrenchNoise = WrenchNoise(),
-                   objective: str = "min_eig", prior_cov: np.ndarray | None = None,
-                   sensor_dt: float | None = None, boundaries: Sequence[float] | None = None) -> float:
+def schedule_score(
+    samples: PushSamples,
+    schedule: Callable[[float], float] | ContactSchedule,
+    phi: Sequence[float],
+    handle: HandleSegment | None = None,
+    noise: WrenchNoise = WrenchNoise(),
+    objective: str = "min_eig",
+    prior_cov: np.ndarray | None = None,
+    sensor_dt: float | None = None,
+    boundaries: Sequence[float] | None = None,
+) -> float:
     """Return the score (``objective``) of a push whose contact follows ``schedule`` (s(t) on the handle).
 
     ``"com_a_path"`` evaluates the bound at the ends of the segments
@@ -490,18 +527,30 @@ def schedule_score(samples: PushSamples, schedule: Callable[[float], float] | Co
     return objective_value(stack, phi, objective, prior_cov)
 
 
-def schedule_com_std(samples: PushSamples, schedule: Callable[[float], float] | ContactSchedule,
-                     phi: Sequence[float], handle: HandleSegment | None = None, noise: WrenchNoise = WrenchNoise(),
-                     prior_cov: np.ndarray | None = None, sensor_dt: float | None = None) -> np.ndarray:
+def schedule_com_std(
+    samples: PushSamples,
+    schedule: Callable[[float], float] | ContactSchedule,
+    phi: Sequence[float],
+    handle: HandleSegment | None = None,
+    noise: WrenchNoise = WrenchNoise(),
+    prior_cov: np.ndarray | None = None,
+    sensor_dt: float | None = None,
+) -> np.ndarray:
     """Return sqrt(diag) of the CoM Cramér–Rao bound (dx, dy) in m of a push following ``schedule``."""
     info = fisher_information(samples, schedule_points(samples, schedule, handle), noise, sensor_dt)
     return np.sqrt(np.diag(com_covariance(info, phi, prior_cov)))
 
 
-def com_crlb_course(samples: PushSamples, schedule: Callable[[float], float] | ContactSchedule,
-                    phi: Sequence[float], times: Sequence[float], noise: WrenchNoise = WrenchNoise(),
-                    prior_cov: np.ndarray | None = None, sensor_dt: float | None = None,
-                    handle: HandleSegment | None = None) -> np.ndarray:
+def com_crlb_course(
+    samples: PushSamples,
+    schedule: Callable[[float], float] | ContactSchedule,
+    phi: Sequence[float],
+    times: Sequence[float],
+    noise: WrenchNoise = WrenchNoise(),
+    prior_cov: np.ndarray | None = None,
+    sensor_dt: float | None = None,
+    handle: HandleSegment | None = None,
+) -> np.ndarray:
     """Return (len(times), 2, 2): the CoM Cramér–Rao bound from the information gathered up to each time."""
     pts = schedule_points(samples, schedule, handle)
     Y = reduced_regressor(samples.v, samples.vdot, samples.omega, samples.omegadot)

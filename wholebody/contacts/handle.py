@@ -14,10 +14,11 @@ allocation works with the transposed view, the 3x6 *planar grasp map*
 ``Gamma_MM`` (eq. 24): the out-of-plane rows (fz, tau_x, tau_y) are carried by
 the floor because the cart neither lifts nor tilts.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -139,7 +140,7 @@ class HandleSegment:
         object.__setattr__(self, "_dir", (b - a) / np.linalg.norm(b - a))
 
     @classmethod
-    def default(cls, width: float = HANDLE_WIDTH, x_b: float = HANDLE_X_B, z_b: float = HANDLE_Z_B) -> "HandleSegment":
+    def default(cls, width: float = HANDLE_WIDTH, x_b: float = HANDLE_X_B, z_b: float = HANDLE_Z_B) -> HandleSegment:
         """Return the shopping-cart handle: a bar along y_b of `width`, centred on y = 0."""
         if not (np.isfinite(width) and width > 0.0):
             raise WholeBodyError(f"handle width must be positive, got {width}")

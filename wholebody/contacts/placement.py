@@ -19,11 +19,12 @@ of a convex parametric QP in its right-hand side (convex). The grid minimum
 then brackets the global minimum and Brent finds it. For several arms the grid
 is the globality argument (the tests compare against a much finer grid).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import combinations
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
@@ -67,8 +68,9 @@ class EffortSweep:
         return np.where(self.solved & (self.residual <= tol), self.effort, np.inf)
 
 
-def effort_sweep(allocator: WrenchAllocator, points_b: np.ndarray, gammas: np.ndarray,
-                 solve: np.ndarray | None = None) -> EffortSweep:
+def effort_sweep(
+    allocator: WrenchAllocator, points_b: np.ndarray, gammas: np.ndarray, solve: np.ndarray | None = None
+) -> EffortSweep:
     """Return the allocation of every wrench ``gammas`` (T, 3) at every contact set ``points_b`` (M, N, 3).
 
     The one effort sweep of the package: the equality-only optimum of all M x T problems at once
@@ -181,10 +183,15 @@ def _refine(obj: _Objective, s0: np.ndarray, step: float, length: float, spacing
         s = np.sort(s)
         return obj(s) if _spacing_ok(s, length, spacing) else np.inf
 
-    simplex = np.vstack([s0] + [s0 + step * np.eye(n_arms)[j] * (1 if s0[j] + step <= length else -1)
-                                for j in range(n_arms)])
-    r = minimize(penalized, s0, method="Nelder-Mead",
-                 options={"initial_simplex": simplex, "xatol": 1e-6, "fatol": 1e-9, "maxfev": 400})
+    simplex = np.vstack(
+        [s0] + [s0 + step * np.eye(n_arms)[j] * (1 if s0[j] + step <= length else -1) for j in range(n_arms)]
+    )
+    r = minimize(
+        penalized,
+        s0,
+        method="Nelder-Mead",
+        options={"initial_simplex": simplex, "xatol": 1e-6, "fatol": 1e-9, "maxfev": 400},
+    )
     return np.sort(r.x), float(r.fun)
 
 
@@ -272,8 +279,16 @@ REACH_JOINT_MARGIN = 0.15
 REACH_MIN_SIGMA = 0.1
 
 
-def _arm_ik(wb, base_pose: np.ndarray, target, seed: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-            tol: float = 1e-5, max_nfev: int = 400) -> np.ndarray | None:
+def _arm_ik(
+    wb,
+    base_pose: np.ndarray,
+    target,
+    seed: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    tol: float = 1e-5,
+    max_nfev: int = 400,
+) -> np.ndarray | None:
     """Return arm joints within [lo, hi] placing the end effector at `target` (pin.SE3), or None."""
     import pinocchio as pin
     from scipy.optimize import least_squares
@@ -292,8 +307,15 @@ def _arm_ik(wb, base_pose: np.ndarray, target, seed: np.ndarray, lo: np.ndarray,
         iMd = pin.updateFramePlacement(model, data, fid).actInv(target)
         return -pin.Jlog6(iMd.inverse()) @ J
 
-    sol = least_squares(residual, np.clip(seed, lo + 1e-9, hi - 1e-9), jac=jacobian, bounds=(lo, hi),
-                        xtol=1e-12, ftol=1e-12, max_nfev=max_nfev)
+    sol = least_squares(
+        residual,
+        np.clip(seed, lo + 1e-9, hi - 1e-9),
+        jac=jacobian,
+        bounds=(lo, hi),
+        xtol=1e-12,
+        ftol=1e-12,
+        max_nfev=max_nfev,
+    )
     return sol.x if np.linalg.norm(sol.fun) <= tol else None
 
 
@@ -354,8 +376,16 @@ class ReachMap:
         return float(np.max(np.abs(self.torque(y, wrench_b)) / self.effort_limit))
 
 
-def reach_map(wb, base_pose_of, target_of, y_values: Sequence[float], seed: Sequence[float], y_start: float,
-              joint_margin: float = REACH_JOINT_MARGIN, min_sigma: float = REACH_MIN_SIGMA) -> ReachMap:
+def reach_map(
+    wb,
+    base_pose_of,
+    target_of,
+    y_values: Sequence[float],
+    seed: Sequence[float],
+    y_start: float,
+    joint_margin: float = REACH_JOINT_MARGIN,
+    min_sigma: float = REACH_MIN_SIGMA,
+) -> ReachMap:
     """Return the `ReachMap` of an arm along the handle (reachability with joint limits, not just geometry).
 
     Args:
@@ -395,8 +425,13 @@ def reach_map(wb, base_pose_of, target_of, y_values: Sequence[float], seed: Sequ
             x = np.r_[base, qa]
             sigma = float(np.linalg.svd(wb.combined_jacobian(x)[:, :na], compute_uv=False)[-1])
             if sigma < min_sigma:
-                failed, reason[i] = True, (f"the arm is near full extension or a singularity (smallest singular "
-                                           f"value of its Jacobian {sigma:.3f} < {min_sigma})")
+                failed, reason[i] = (
+                    True,
+                    (
+                        f"the arm is near full extension or a singularity (smallest singular "
+                        f"value of its Jacobian {sigma:.3f} < {min_sigma})"
+                    ),
+                )
             if failed:
                 continue
             postures[i], prev = qa, qa
@@ -412,9 +447,14 @@ def reach_map(wb, base_pose_of, target_of, y_values: Sequence[float], seed: Sequ
     return ReachMap(ys, postures, margin, gravity, jac, effort, tuple(reason))
 
 
-def robot_contact_point(gamma_b: Sequence[float], reach: ReachMap, limits: ArmLimits = ArmLimits(),
-                        weights: EffortWeights = EffortWeights(), torque_fraction: float = 1.0,
-                        solver: str = "proxqp") -> tuple[float, AllocationResult]:
+def robot_contact_point(
+    gamma_b: Sequence[float],
+    reach: ReachMap,
+    limits: ArmLimits = ArmLimits(),
+    weights: EffortWeights = EffortWeights(),
+    torque_fraction: float = 1.0,
+    solver: str = "proxqp",
+) -> tuple[float, AllocationResult]:
     """Return (contact y, allocation) of one arm: minimum effort over the points it holds with margin.
 
     Raises `InfeasibleWrenchError` naming what binds: ``reach`` (no handle point reachable with margin),
@@ -449,8 +489,11 @@ def robot_contact_point(gamma_b: Sequence[float], reach: ReachMap, limits: ArmLi
         return best[0], best[2]
     if worst_torque is not None:
         r, j, y = worst_torque
-        raise InfeasibleWrenchError(f"joint torque binds: arm joint {j + 1} needs {r:.2f} x its effortLimit at "
-                                    f"the best reachable point y = {y:.3f} m", binding=f"joint torque (arm joint {j + 1})")
+        raise InfeasibleWrenchError(
+            f"joint torque binds: arm joint {j + 1} needs {r:.2f} x its effortLimit at "
+            f"the best reachable point y = {y:.3f} m",
+            binding=f"joint torque (arm joint {j + 1})",
+        )
     alloc.set_points([np.array([handle.start_b[0], alloc_fail, handle.start_b[2]])])
     alloc.solve(gamma)  # raises naming the allocation limit that binds (grip, force or torque bound)
     raise InfeasibleWrenchError("no reachable contact produces the wrench", binding="unknown")

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, Optional, Protocol, Sequence, Tuple
+from typing import Literal, Protocol
+from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -74,10 +75,10 @@ class PushConfig:
     estimation: bool = True
     contact: ContactMode = "optimal"
     #: fixed contact point(s) y (m); None = the robot's `push_contact_y` (two arms: -0.2, 0.2)
-    fixed_contact_y: Optional[Tuple[float, ...]] = None
+    fixed_contact_y: tuple[float, ...] | None = None
     true_params: CartParams = TRUE_CART
     initial_mass: float = 16.0
-    initial_com: Tuple[float, float] = (0.3, 0.0)
+    initial_com: tuple[float, float] = (0.3, 0.0)
     controller: CartControllerName = "kanayama"
     noise: MeasurementNoise = PUSH_SENSOR_NOISE
     seed: int = 0
@@ -169,8 +170,8 @@ class PushMetrics:
     time_com_within_1cm_s: float = 0.0
     #: stretches [t0, t1] (s) over which the EKF's 1-sigma of the mass / CoM grew for >= 1 s: the pushes
     #: carried less information about it than the filter's random walk adds (`unobservable_intervals`)
-    mass_unobservable_s: Tuple[Tuple[float, float], ...] = ()
-    com_unobservable_s: Tuple[Tuple[float, float], ...] = ()
+    mass_unobservable_s: tuple[tuple[float, float], ...] = ()
+    com_unobservable_s: tuple[tuple[float, float], ...] = ()
 
     def as_dict(self) -> dict:
         """Return the metrics as a JSON-ready dict (intervals as lists of [t0, t1])."""
@@ -206,9 +207,9 @@ class PushResult:
     grasp_error: np.ndarray  # (N, n_arms) ee position error w.r.t. the handle point
     effort_limit: np.ndarray  # (7,)
     metrics: PushMetrics
-    base_twist: Optional[np.ndarray] = None  # (N, n_arms, 3) base body twist (vx, vy, wz)
-    wheel_rates: Optional[np.ndarray] = None  # (N, n_arms, n_wheels) rad/s
-    wheel_velocity_limit: Optional[np.ndarray] = None  # (n_wheels,) rad/s
+    base_twist: np.ndarray | None = None  # (N, n_arms, 3) base body twist (vx, vy, wz)
+    wheel_rates: np.ndarray | None = None  # (N, n_arms, n_wheels) rad/s
+    wheel_velocity_limit: np.ndarray | None = None  # (n_wheels,) rad/s
     #: (N, 2) the EKF's 1-sigma of the mass (kg) and of the CoM (m, norm over dx, dy) at t_k; NaN when the
     #: estimator gives no covariance
-    param_std: Optional[np.ndarray] = None
+    param_std: np.ndarray | None = None

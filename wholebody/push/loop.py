@@ -28,7 +28,7 @@ The pieces meet through small interfaces (:class:`CartController`,
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import List, Optional, Sequence, Tuple
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -89,7 +89,7 @@ class PushHistory:
     saturated: int = 0
 
     @classmethod
-    def empty(cls, n: int, n_arms: int, n_wheels: int = 4) -> "PushHistory":
+    def empty(cls, n: int, n_arms: int, n_wheels: int = 4) -> PushHistory:
         """Return zero histories for n samples."""
         na = n_arms
         shapes = dict(
@@ -131,8 +131,8 @@ def make_robots(
     config: PushConfig,
     q_cart: np.ndarray,
     contact_y: np.ndarray,
-    seeds: Optional[Sequence[Optional[np.ndarray]]] = None,
-) -> List[MobileManipulator]:
+    seeds: Sequence[np.ndarray | None] | None = None,
+) -> list[MobileManipulator]:
     """Return the mobile manipulators holding the handle at `contact_y` (two: bases spread apart).
 
     Everything robot-specific (joints, grasp pitch, base place, seeds) comes from `robots.profiles`.
@@ -182,7 +182,7 @@ def control_step(
     estimator: ParameterEstimator,
     scheduler: ContactScheduler,
     allocator: WrenchAllocator,
-) -> Tuple[ControlStep, bool]:
+) -> tuple[ControlStep, bool]:
     """Return (the period's decisions, whether the allocation saturated): controller eq. (26), allocation eq. (25)."""
     params_hat = estimator.params()
     q_hat, qd_hat = estimator.x[0:3].copy(), estimator.x[3:6].copy()
@@ -205,7 +205,7 @@ def robots_step(
     hist: PushHistory,
     config: PushConfig,
     rng: np.random.Generator,
-) -> Tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray]:
     """Move each robot one period, record it; return (the wrench the hands apply, the F/T-measured one) as Gamma_MM."""
     T_sb = cart_se3(q)
     W = step.wrenches_ee
@@ -257,8 +257,8 @@ def param_std(estimator: ParameterEstimator) -> np.ndarray:
 
 def run_push(
     config: PushConfig = PushConfig(),
-    controller: Optional[CartController] = None,
-    estimator: Optional[ParameterEstimator] = None,
+    controller: CartController | None = None,
+    estimator: ParameterEstimator | None = None,
     progress: bool = False,
     progress_label: str = "push",
 ) -> PushResult:
@@ -405,7 +405,7 @@ def _estimation_metrics(config: PushConfig, H: PushHistory, after: float = 5.0) 
 
 def unobservable_intervals(
     t: np.ndarray, std: np.ndarray, window: float = 0.5, min_length: float = 1.0
-) -> Tuple[Tuple[float, float], ...]:
+) -> tuple[tuple[float, float], ...]:
     """Return the stretches [t0, t1] (s, >= `min_length` long) over which the EKF's 1-sigma `std` of a parameter grew.
 
     The time t_k - window/2 is flagged when std(t_k) > std(t_k - window): around it

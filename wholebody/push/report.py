@@ -10,7 +10,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Dict, List, Sequence
+from typing import TYPE_CHECKING
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -45,7 +46,7 @@ TABLE_COLUMNS = (
 class DemoResult:
     """The demo's runs (label -> result), its table (text), report directory and wall time."""
 
-    runs: Dict[str, PushResult]
+    runs: dict[str, PushResult]
     table: str
     out_dir: Path
     seconds: float
@@ -61,7 +62,7 @@ def describe(config: PushConfig) -> str:
     return f"{robot}Traj.{config.trajectory} {config.n_arms} arm{'s' if config.n_arms > 1 else ''}, {est}, {contact}"
 
 
-def comparison_table(runs: Dict[str, PushResult], markdown: bool = False) -> str:
+def comparison_table(runs: dict[str, PushResult], markdown: bool = False) -> str:
     """Return the metrics of several runs as a text (or Markdown) table, one row per run."""
     heads = ["run"] + [h for _, h, _ in TABLE_COLUMNS]
     rows = [[label] + [fmt.format(r.metrics.as_dict()[k]) for k, _, fmt in TABLE_COLUMNS] for label, r in runs.items()]
@@ -79,7 +80,7 @@ def _spans(spans: Sequence[Sequence[float]]) -> str:
     return ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in spans) if spans else "none"
 
 
-def unobservable_note(runs: Dict[str, PushResult]) -> str:
+def unobservable_note(runs: dict[str, PushResult]) -> str:
     """Return one line per estimating run naming the stretches where the mass / CoM were unobservable.
 
     A stretch is where the EKF's 1-sigma of the parameter grew for >= 1 s
@@ -124,7 +125,7 @@ def push_log(result: PushResult) -> CartLog:
     )
 
 
-def push_figures(runs: Dict[str, PushResult]) -> Dict[str, "Figure"]:
+def push_figures(runs: dict[str, PushResult]) -> dict[str, Figure]:
     """Return the figures comparing the runs, name -> matplotlib Figure (no backend is selected or touched).
 
     ``path``: the cart's path of each run and the base of robot 1 (dotted, same
@@ -145,7 +146,7 @@ def _style(i: int) -> tuple[str, str]:
     return f"C{i % 10}", "-" if i == 0 else "--"
 
 
-def _path_figure(runs: Dict[str, PushResult]) -> "Figure":
+def _path_figure(runs: dict[str, PushResult]) -> Figure:
     """Return the cart and base paths; the first run is drawn last (on top), thinner, so none hides another."""
     from matplotlib.figure import Figure
 
@@ -174,7 +175,7 @@ def _shade(ax, spans: Sequence[Sequence[float]], colour: str, label: str) -> Non
         ax.axvspan(a, b, color=colour, alpha=0.12, lw=0, label=label if j == 0 else None)
 
 
-def _estimation_figure(runs: Dict[str, PushResult]) -> "Figure":
+def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
     """Return tracking error [mm], mass error [kg], CoM error [cm] and hand force over time."""
     from matplotlib.figure import Figure
 
@@ -210,7 +211,7 @@ def _estimation_figure(runs: Dict[str, PushResult]) -> "Figure":
     return fig
 
 
-def _torque_figure(runs: Dict[str, PushResult]) -> "Figure":
+def _torque_figure(runs: dict[str, PushResult]) -> Figure:
     """Return the arm's joint torques of each run (one panel per run, legend outside the axes)."""
     from matplotlib.figure import Figure
 
@@ -225,7 +226,7 @@ def _torque_figure(runs: Dict[str, PushResult]) -> "Figure":
     return fig
 
 
-def save_figure_dict(figs: Dict[str, "Figure"], out_dir: Path, prefix: str = "") -> List[Path]:
+def save_figure_dict(figs: dict[str, Figure], out_dir: Path, prefix: str = "") -> list[Path]:
     """Write each figure of ``figs`` as ``<prefix><name>.png`` in ``out_dir`` (created); return the paths."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -237,12 +238,12 @@ def save_figure_dict(figs: Dict[str, "Figure"], out_dir: Path, prefix: str = "")
     return paths
 
 
-def save_figures(runs: Dict[str, PushResult], out_dir: Path) -> List[Path]:
+def save_figures(runs: dict[str, PushResult], out_dir: Path) -> list[Path]:
     """Write the `push_figures` as PNG (path.png, tracking_estimation.png, arm_torques.png); return the paths."""
     return save_figure_dict(push_figures(runs), out_dir)
 
 
-def build_scene(result: PushResult, fps: int = 10) -> "Scene":
+def build_scene(result: PushResult, fps: int = 10) -> Scene:
     """Return a Meshcat scene animating the run: robot 1, the cart, the hand force, the true and estimated CoM.
 
     The page opens paused at the first frame (the robot holding the cart) and
@@ -293,8 +294,8 @@ def save_scene(result: PushResult, path: Path, fps: int = 10) -> Path:
 
 
 def write_report(
-    runs: Dict[str, PushResult], out_dir: Path, scene_run: str | None = None, html: bool = True
-) -> List[Path]:
+    runs: dict[str, PushResult], out_dir: Path, scene_run: str | None = None, html: bool = True
+) -> list[Path]:
     """Write figures, the first (or `scene_run`) run's log and Meshcat page, and the tables; return the paths."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -312,7 +313,7 @@ def write_report(
     return paths
 
 
-def demo_configs(duration: float = 30.0) -> Dict[str, PushConfig]:
+def demo_configs(duration: float = 30.0) -> dict[str, PushConfig]:
     """Return the demo's runs: Traj. 2, optimized contact, with and without estimation (initial mass 16 kg)."""
     base = PushConfig(trajectory=2, duration=duration, contact="optimal", estimation=True)
     return {"with estimation": base, "without estimation": replace(base, estimation=False)}

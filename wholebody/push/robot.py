@@ -1,9 +1,10 @@
 """One mobile manipulator holding the handle: grasp geometry, whole-body QP tracker, arm torques, F/T sensing."""
+
 from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Optional, Sequence, Tuple
+from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -50,8 +51,9 @@ def handle_point(y: float) -> np.ndarray:
     return np.array([h.start_b[0], y, h.start_b[2]])
 
 
-def grasp_target(q_cart: np.ndarray, qd_cart: np.ndarray, y: float, ydot: float,
-                 R_b_ee: np.ndarray) -> Tuple[pin.SE3, np.ndarray]:
+def grasp_target(
+    q_cart: np.ndarray, qd_cart: np.ndarray, y: float, ydot: float, R_b_ee: np.ndarray
+) -> tuple[pin.SE3, np.ndarray]:
     """Return (world pose of the grasp frame, its spatial velocity (v, w) world-aligned at the grasp point)."""
     T_sb = cart_se3(q_cart)
     p_b = handle_point(y)
@@ -62,7 +64,7 @@ def grasp_target(q_cart: np.ndarray, qd_cart: np.ndarray, y: float, ydot: float,
     return T, np.concatenate([v, [0.0, 0.0, om]])
 
 
-def base_target(q_cart: np.ndarray, qd_cart: np.ndarray, offset_b: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+def base_target(q_cart: np.ndarray, qd_cart: np.ndarray, offset_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Return (planar pose, world rates) of a base rigidly offset by offset_b = (x, y) in {b}, same heading."""
     c, s = math.cos(q_cart[2]), math.sin(q_cart[2])
     px, py = c * offset_b[0] - s * offset_b[1], s * offset_b[0] + c * offset_b[1]
@@ -72,10 +74,20 @@ def base_target(q_cart: np.ndarray, qd_cart: np.ndarray, offset_b: np.ndarray) -
 
 
 #: Whole-body QP settings of the push (task weight 1; the posture and base pulls are 1e-4 and 1e-3 of it).
-PUSH_CONTROLLER = ControllerConfig(gain=20.0, damping=1e-7, secondary="posture", secondary_weight=1e-4,
-                                   posture_gain=1.0, max_linear_speed=3.0, max_angular_speed=3.0,
-                                   limit_margin=0.05, solver="daqp", fallback_solver="proxqp",
-                                   base_weight=1e-3, base_gain=2.0)
+PUSH_CONTROLLER = ControllerConfig(
+    gain=20.0,
+    damping=1e-7,
+    secondary="posture",
+    secondary_weight=1e-4,
+    posture_gain=1.0,
+    max_linear_speed=3.0,
+    max_angular_speed=3.0,
+    limit_margin=0.05,
+    solver="daqp",
+    fallback_solver="proxqp",
+    base_weight=1e-3,
+    base_gain=2.0,
+)
 
 
 class WholeBodyQPTracker:
@@ -87,19 +99,30 @@ class WholeBodyQPTracker:
     imply its twist limits 1.1 m/s, 1.1 m/s, 2 rad/s).
     """
 
-    def __init__(self, wb: WholeBody, q_nominal: np.ndarray, config: Optional[ControllerConfig] = None) -> None:
+    def __init__(self, wb: WholeBody, q_nominal: np.ndarray, config: ControllerConfig | None = None) -> None:
         if config is None:  # the robot's own base tracker and wheel limits (robots.profiles)
             prof = profile(wb.robot.name)
-            config = replace(PUSH_CONTROLLER, base_lookahead=prof.base_lookahead,
-                             wheel_acceleration_limit=prof.wheel_acceleration_limit)
+            config = replace(
+                PUSH_CONTROLLER,
+                base_lookahead=prof.base_lookahead,
+                wheel_acceleration_limit=prof.wheel_acceleration_limit,
+            )
         self.controller = ResolvedRateController(wb, config, posture=q_nominal)
-        self.last: Optional[StepResult] = None
+        self.last: StepResult | None = None
 
-    def step(self, x: np.ndarray, target: pin.SE3, target_velocity: np.ndarray, base_target: np.ndarray,
-             base_velocity: np.ndarray, dt: float) -> np.ndarray:
+    def step(
+        self,
+        x: np.ndarray,
+        target: pin.SE3,
+        target_velocity: np.ndarray,
+        base_target: np.ndarray,
+        base_velocity: np.ndarray,
+        dt: float,
+    ) -> np.ndarray:
         """Return u = [arm rates (7), base body twist (3)] for one period."""
-        res = self.controller.step(x, target, target_velocity, dt, base_target=base_target,
-                                   base_target_velocity=base_velocity)
+        res = self.controller.step(
+            x, target, target_velocity, dt, base_target=base_target, base_target_velocity=base_velocity
+        )
         if not res.solver_ok:
             raise WholeBodyError("the whole-body velocity QP has no solution")
         self.last = res
@@ -119,13 +142,22 @@ def solve_grasp_ik(wb: WholeBody, base_pose: np.ndarray, target: pin.SE3, seed: 
     lo, hi = wb.arm_lower + 0.02, wb.arm_upper - 0.02
     sol = least_squares(residual, np.clip(seed, lo, hi), bounds=(lo, hi), xtol=1e-12, ftol=1e-12)
     if np.linalg.norm(sol.fun) > 1e-5:
-        raise WholeBodyError(f"the arm cannot reach the handle from base pose {np.round(base_pose, 3)} "
-                             f"(residual {np.linalg.norm(sol.fun):.3g})")
+        raise WholeBodyError(
+            f"the arm cannot reach the handle from base pose {np.round(base_pose, 3)} "
+            f"(residual {np.linalg.norm(sol.fun):.3g})"
+        )
     return sol.x
 
 
-def grasp_configuration(wb: WholeBody, prof: RobotProfile, q_cart: np.ndarray, contact_y: float, base_y: float,
-                        R_b_ee: np.ndarray, seed: Sequence[float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+def grasp_configuration(
+    wb: WholeBody,
+    prof: RobotProfile,
+    q_cart: np.ndarray,
+    contact_y: float,
+    base_y: float,
+    R_b_ee: np.ndarray,
+    seed: Sequence[float] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Return (base pose, arm joints) of the robot holding the handle at `contact_y` (m, in {b}).
 
     The base stands at ``(handle x + prof.push_base_x, base_y)`` in the cart frame {b}; the hand holds the bar
@@ -146,9 +178,16 @@ class MobileManipulator:
     (behind the handle, laterally at ``base_y``); the arm starts from the grasp IK.
     """
 
-    def __init__(self, robot: robots.LoadedRobot, q_cart: np.ndarray, contact_y: float, base_y: float,
-                 R_b_ee: np.ndarray, tracker: Optional[BodyTracker] = None,
-                 arm_seed: Optional[Sequence[float]] = None) -> None:
+    def __init__(
+        self,
+        robot: robots.LoadedRobot,
+        q_cart: np.ndarray,
+        contact_y: float,
+        base_y: float,
+        R_b_ee: np.ndarray,
+        tracker: BodyTracker | None = None,
+        arm_seed: Sequence[float] | None = None,
+    ) -> None:
         prof = profile(robot.name)
         if prof.ft_frame is None or prof.push_arm_seed is None:
             raise WholeBodyError(f"robot {robot.name!r} has no F/T sensor or push posture in robots.profiles")
@@ -170,18 +209,19 @@ class MobileManipulator:
 
     def body_twist(self, u: np.ndarray) -> np.ndarray:
         """Return the base body twist (vx, vy, wz) of an input u (vy = 0 exactly for a differential drive)."""
-        return self.wb._wheel_map @ np.asarray(u, dtype=float)[self.wb.n_arm:]
+        return self.wb._wheel_map @ np.asarray(u, dtype=float)[self.wb.n_arm :]
 
-    def pin_state(self, u: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    def pin_state(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return Pinocchio (q, v) for the current x and input u (wheel joints left at rest)."""
         q = self.wb.to_pinocchio_q(self.x)
         v = np.zeros(self.model.nv)
         v[0:3] = self.body_twist(u)  # planar root joint: body twist
-        v[self.wb.arm_idx_v] = u[:self.wb.n_arm]
+        v[self.wb.arm_idx_v] = u[: self.wb.n_arm]
         return q, v
 
-    def torques(self, u: np.ndarray, u_prev: np.ndarray, dt: float, wrench_world: np.ndarray
-                ) -> Tuple[np.ndarray, np.ndarray, pin.SE3, pin.SE3]:
+    def torques(
+        self, u: np.ndarray, u_prev: np.ndarray, dt: float, wrench_world: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, pin.SE3, pin.SE3]:
         """Return (arm torques, push part J^T w, ee placement, F/T sensor placement).
 
         tau = rnea(q, v, a)[arm] + J_arm^T w with w = [f; n] world-aligned at the ee (the wrench the hand
@@ -197,8 +237,9 @@ class MobileManipulator:
         return tau + push, push, pin.SE3(self.data.oMf[self.ee_id]), pin.SE3(self.data.oMf[self.ft_id])
 
 
-def ft_measurement(wrench_world: np.ndarray, oMee: pin.SE3, oMft: pin.SE3, rng: np.random.Generator,
-                   noise: MeasurementNoise) -> pin.Force:
+def ft_measurement(
+    wrench_world: np.ndarray, oMee: pin.SE3, oMft: pin.SE3, rng: np.random.Generator, noise: MeasurementNoise
+) -> pin.Force:
     """Return the F/T sensor reading (sensor frame, at its origin) of a hand wrench, plus white noise."""
     at_origin = pin.SE3(np.eye(3), oMee.translation).act(pin.Force(wrench_world[:3], wrench_world[3:]))
     local = oMft.actInv(at_origin)

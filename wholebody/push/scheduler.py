@@ -1,8 +1,8 @@
 """Contact points on the handle during the push: fixed, or re-planned from the estimate (cart paper §II.D)."""
+
 from __future__ import annotations
 
 import math
-from typing import List, Optional, Tuple
 
 import numpy as np
 
@@ -28,7 +28,7 @@ class ContactScheduler:
     holds with margin are candidates, and a plan whose static joint torques exceed the effortLimit is avoided.
     """
 
-    def __init__(self, config: PushConfig, trajectory: UnicycleTrajectory, reach: Optional[ReachMap] = None) -> None:
+    def __init__(self, config: PushConfig, trajectory: UnicycleTrajectory, reach: ReachMap | None = None) -> None:
         self.config = config
         self.trajectory = trajectory
         self.reach = reach
@@ -40,25 +40,30 @@ class ContactScheduler:
                 span = f"[{ok.min():.3f}, {ok.max():.3f}] m" if ok.size else "nowhere"
                 raise InfeasibleWrenchError(
                     f"robot {config.robot!r} cannot hold the handle at y = {self.y[0]:.3f} m with margin "
-                    f"({reach.reason[i] or 'outside the reachable span'}); it reaches {span}", binding="reach")
-            self.y = np.array([reach.nearest_reachable(float(v)) if not reach.is_reachable(v) else float(v)
-                               for v in self.y])
+                    f"({reach.reason[i] or 'outside the reachable span'}); it reaches {span}",
+                    binding="reach",
+                )
+            self.y = np.array(
+                [reach.nearest_reachable(float(v)) if not reach.is_reachable(v) else float(v) for v in self.y]
+            )
         self.plan = self.y.copy()
         self.ydot = np.zeros_like(self.y)
         self.next_replan = 0.0
-        self.alloc = WrenchAllocator([handle_point(v) for v in self.y], config.arm_limits,
-                                     only_motion_directions=True)
+        self.alloc = WrenchAllocator([handle_point(v) for v in self.y], config.arm_limits, only_motion_directions=True)
         self.handle = HandleSegment.default()
         n = config.n_arms
         grid = np.round(np.arange(-0.25, 0.2501, 0.025 if n == 1 else 0.05), 6)
-        self.candidates = [np.array([g]) for g in grid] if n == 1 else [
-            np.array([a, b]) for a in grid for b in grid if b - a >= 0.2 - 1e-9]
+        self.candidates = (
+            [np.array([g]) for g in grid]
+            if n == 1
+            else [np.array([a, b]) for a in grid for b in grid if b - a >= 0.2 - 1e-9]
+        )
         if reach is not None:
             self.candidates = [c for c in self.candidates if all(reach.is_reachable(v) for v in c)]
         self.y_lo = min(float(c.min()) for c in self.candidates) if self.candidates else float(grid[0])
         self.y_hi = max(float(c.max()) for c in self.candidates) if self.candidates else float(grid[-1])
 
-    def _planned_wrenches(self, t: float, params: CartParams) -> List[np.ndarray]:
+    def _planned_wrenches(self, t: float, params: CartParams) -> list[np.ndarray]:
         """Return the feed-forward body wrenches (fx_b, 0, tau_b) along the next replan_horizon seconds."""
         out = []
         ts = t + np.linspace(0.0, self.config.replan_horizon, 7)
@@ -74,7 +79,7 @@ class ContactScheduler:
             out.append(np.array([fu, 0.0, tau]))
         return out
 
-    def _best_candidate(self, gammas: List[np.ndarray]) -> np.ndarray:
+    def _best_candidate(self, gammas: list[np.ndarray]) -> np.ndarray:
         """Return the candidate with the least total effort over the planned wrenches (penalties included).
 
         One `effort_sweep` over every candidate and wrench; an unachievable wrench adds 1e6 residual^2, and
@@ -89,8 +94,15 @@ class ContactScheduler:
         for k in range(len(gammas)):  # the same summation order as one candidate at a time
             totals = totals + (sweep.effort[:, k] + 1e6 * sweep.residual[:, k] ** 2)
             if self.reach is not None:
-                over = np.array([self.reach.torque_ratio(float(c[0]), sweep.wrenches_ee[m, k, 0])
-                                 for m, c in enumerate(self.candidates)]) - STATIC_TORQUE_FRACTION
+                over = (
+                    np.array(
+                        [
+                            self.reach.torque_ratio(float(c[0]), sweep.wrenches_ee[m, k, 0])
+                            for m, c in enumerate(self.candidates)
+                        ]
+                    )
+                    - STATIC_TORQUE_FRACTION
+                )
                 totals = totals + 1e6 * np.maximum(0.0, over) ** 2
         best, best_v = self.plan, np.inf
         for cand, total in zip(self.candidates, totals):
@@ -98,7 +110,7 @@ class ContactScheduler:
                 best, best_v = cand, total
         return best
 
-    def update(self, t: float, params: CartParams, dt: float) -> Tuple[np.ndarray, np.ndarray]:
+    def update(self, t: float, params: CartParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Return (contact y per arm, their rates) after one period."""
         if self.config.contact == "fixed":
             return self.y, np.zeros_like(self.y)

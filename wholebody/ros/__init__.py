@@ -5,6 +5,7 @@
 ``TransformBuffer`` the TF tree (static + dynamic links, interpolated along chains of any length).
 See docs/ros_import.md.
 """
+
 from __future__ import annotations
 
 from wholebody.ros.bag_import import (

@@ -23,6 +23,7 @@ Semantics (docs/ros_import.md):
   recording; streams are aligned on the pose stamps with the wrench interpolated linearly; duplicate
   or out-of-order stamps are dropped and counted (``ImportReport.dropped``), never silently.
 """
+
 from __future__ import annotations
 
 import errno
@@ -30,7 +31,8 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, Iterator, List, NamedTuple, Optional, Sequence, Tuple
+from typing import Any, NamedTuple
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 
@@ -39,8 +41,12 @@ from wholebody.ros.errors import BagImportError, TransformLookupError
 from wholebody.ros.tf_tree import EdgeInfo, TransformBuffer, normalize_frame, quaternion_to_matrix
 
 #: Pose message types read (ROS 1 names; ROS 2 adds ``/msg/``); messages with the same fields are read too.
-POSE_TYPES = ("geometry_msgs/PoseStamped", "geometry_msgs/PoseWithCovarianceStamped",
-              "geometry_msgs/TransformStamped", "nav_msgs/Odometry")
+POSE_TYPES = (
+    "geometry_msgs/PoseStamped",
+    "geometry_msgs/PoseWithCovarianceStamped",
+    "geometry_msgs/TransformStamped",
+    "nav_msgs/Odometry",
+)
 #: Wrench message types read (and messages with the same fields).
 WRENCH_TYPES = ("geometry_msgs/WrenchStamped",)
 #: Topics holding TF links (with or without a leading slash).
@@ -71,8 +77,7 @@ class TopicSummary:
 
     def to_dict(self) -> dict:
         """Return the topic as a JSON-ready dict."""
-        return {"name": self.name, "type": self.msgtype, "count": self.count, "rate_hz": self.rate_hz,
-                "use": self.use}
+        return {"name": self.name, "type": self.msgtype, "count": self.count, "rate_hz": self.rate_hz, "use": self.use}
 
 
 @dataclass(frozen=True)
@@ -84,20 +89,26 @@ class BagSummary:
     start_ns: int
     duration: float
     message_count: int
-    topics: Tuple[TopicSummary, ...]
-    tf_links: Tuple[EdgeInfo, ...]
+    topics: tuple[TopicSummary, ...]
+    tf_links: tuple[EdgeInfo, ...]
 
     @property
-    def tf_frames(self) -> List[str]:
+    def tf_frames(self) -> list[str]:
         """Return every frame named by the bag's TF links, sorted."""
         return sorted({e.parent for e in self.tf_links} | {e.child for e in self.tf_links})
 
     def to_dict(self) -> dict:
         """Return the summary as a JSON-ready dict."""
-        return {"bag": self.path, "storage": self.storage, "start_unix_ns": self.start_ns,
-                "duration": self.duration, "message_count": self.message_count,
-                "topics": [t.to_dict() for t in self.topics], "tf_frames": self.tf_frames,
-                "tf_links": [e.to_dict() for e in self.tf_links]}
+        return {
+            "bag": self.path,
+            "storage": self.storage,
+            "start_unix_ns": self.start_ns,
+            "duration": self.duration,
+            "message_count": self.message_count,
+            "topics": [t.to_dict() for t in self.topics],
+            "tf_frames": self.tf_frames,
+            "tf_links": [e.to_dict() for e in self.tf_links],
+        }
 
     def summary(self) -> str:
         """Return a human-readable table of the topics and TF links."""
@@ -134,36 +145,53 @@ class ImportReport:
     wrench_type: str
     world_frame: str
     cart_frame: str
-    wrench_frames: Tuple[str, ...]
-    tf_chains: Dict[str, List[str]]
+    wrench_frames: tuple[str, ...]
+    tf_chains: dict[str, list[str]]
     negate_wrench: bool
-    window: Tuple[Optional[float], Optional[float]]
-    dropped: Dict[str, int]
+    window: tuple[float | None, float | None]
+    dropped: dict[str, int]
     tilt_max_deg: float
     has_velocities: bool
-    warnings: Tuple[str, ...] = ()
-    notes: Tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         """Return the report as a JSON-ready dict."""
-        return {"bag": self.bag, "storage": self.storage, "samples": self.samples, "duration": self.duration,
-                "t0_unix_ns": self.t0_ns, "clock": self.clock, "pose_source": self.pose_source,
-                "pose_type": self.pose_type, "wrench_topic": self.wrench_topic, "wrench_type": self.wrench_type,
-                "world_frame": self.world_frame, "cart_frame": self.cart_frame,
-                "wrench_frames": list(self.wrench_frames), "tf_chains": dict(self.tf_chains),
-                "negate_wrench": self.negate_wrench, "window": list(self.window), "dropped": dict(self.dropped),
-                "tilt_max_deg": self.tilt_max_deg, "has_velocities": self.has_velocities,
-                "warnings": list(self.warnings), "notes": list(self.notes)}
+        return {
+            "bag": self.bag,
+            "storage": self.storage,
+            "samples": self.samples,
+            "duration": self.duration,
+            "t0_unix_ns": self.t0_ns,
+            "clock": self.clock,
+            "pose_source": self.pose_source,
+            "pose_type": self.pose_type,
+            "wrench_topic": self.wrench_topic,
+            "wrench_type": self.wrench_type,
+            "world_frame": self.world_frame,
+            "cart_frame": self.cart_frame,
+            "wrench_frames": list(self.wrench_frames),
+            "tf_chains": dict(self.tf_chains),
+            "negate_wrench": self.negate_wrench,
+            "window": list(self.window),
+            "dropped": dict(self.dropped),
+            "tilt_max_deg": self.tilt_max_deg,
+            "has_velocities": self.has_velocities,
+            "warnings": list(self.warnings),
+            "notes": list(self.notes),
+        }
 
     def summary(self) -> str:
         """Return a few human-readable lines."""
-        lines = [f"bag        {self.bag} [{self.storage}]",
-                 f"samples    {self.samples} over {self.duration:.2f} s ({self.clock} stamps, t = 0 at "
-                 f"{self.t0_ns} ns since the Unix epoch)",
-                 f"pose       {self.pose_source} ({self.pose_type}); world frame '{self.world_frame}', cart frame "
-                 f"'{self.cart_frame or '-'}'; max tilt {self.tilt_max_deg:.2f} deg",
-                 f"wrench     {self.wrench_topic} ({self.wrench_type}) in {', '.join(self.wrench_frames)}"
-                 f"{' (negated)' if self.negate_wrench else ''}"]
+        lines = [
+            f"bag        {self.bag} [{self.storage}]",
+            f"samples    {self.samples} over {self.duration:.2f} s ({self.clock} stamps, t = 0 at "
+            f"{self.t0_ns} ns since the Unix epoch)",
+            f"pose       {self.pose_source} ({self.pose_type}); world frame '{self.world_frame}', cart frame "
+            f"'{self.cart_frame or '-'}'; max tilt {self.tilt_max_deg:.2f} deg",
+            f"wrench     {self.wrench_topic} ({self.wrench_type}) in {', '.join(self.wrench_frames)}"
+            f"{' (negated)' if self.negate_wrench else ''}",
+        ]
         for frame, chain in self.tf_chains.items():
             lines.append(f"TF chain   {' -> '.join(chain)}" if len(chain) > 1 else f"TF chain   {frame} (world frame)")
         lost = {k: v for k, v in self.dropped.items() if v}
@@ -190,8 +218,7 @@ def _storage_of(path: Path) -> str:
         return "MCAP file"
     if suffix == ".db3":
         return "ROS 2 sqlite3 file"
-    raise BagImportError(f"{path}: not a bag (expected a ROS 1 .bag file, a ROS 2 bag folder, or a .mcap or .db3 "
-                         f"file)")
+    raise BagImportError(f"{path}: not a bag (expected a ROS 1 .bag file, a ROS 2 bag folder, or a .mcap or .db3 file)")
 
 
 def is_bag(path: str | os.PathLike) -> bool:
@@ -209,11 +236,11 @@ class _Bag:
             raise FileNotFoundError(errno.ENOENT, "No such file or directory", str(path))
         self.storage = _storage_of(self.path)
         self.ros1 = self.storage == "ROS 1 bag"
-        self._stores: Dict[Tuple[str, Any, str], Any] = {}
+        self._stores: dict[tuple[str, Any, str], Any] = {}
         self._default_store = None
         self.reader: Any = None
 
-    def __enter__(self) -> "_Bag":
+    def __enter__(self) -> _Bag:
         from rosbags.rosbag1 import Reader as Reader1
         from rosbags.rosbag2 import Reader as Reader2
 
@@ -235,7 +262,7 @@ class _Bag:
 
     # topics ---------------------------------------------------------------------------------
     @property
-    def topics(self) -> Dict[str, Any]:
+    def topics(self) -> dict[str, Any]:
         return self.reader.topics
 
     @property
@@ -250,14 +277,16 @@ class _Bag:
     def message_count(self) -> int:
         return int(self.reader.message_count)
 
-    def type_name(self, msgtype: Optional[str]) -> str:
+    def type_name(self, msgtype: str | None) -> str:
         if msgtype is None:
             return "(several types)"
         return _ros1_name(msgtype) if self.ros1 else msgtype
 
     def topic_list(self) -> str:
-        return ", ".join(f"{name} ({self.type_name(info.msgtype)})" for name, info in sorted(self.topics.items())) \
+        return (
+            ", ".join(f"{name} ({self.type_name(info.msgtype)})" for name, info in sorted(self.topics.items()))
             or "none"
+        )
 
     def find_topic(self, name: str, what: str) -> str:
         """Return the bag's name of topic ``name`` (leading slash optional); raise BagImportError listing topics."""
@@ -269,11 +298,11 @@ class _Bag:
                 return topic
         raise BagImportError(f"{self.path}: no {what} topic '{name}' in the bag; its topics are: {self.topic_list()}")
 
-    def tf_topics(self) -> List[str]:
+    def tf_topics(self) -> list[str]:
         return [t for t in self.topics if t.lstrip("/") in (TF_TOPIC, TF_STATIC_TOPIC)]
 
     # messages -------------------------------------------------------------------------------
-    def raw(self, topics: Sequence[str]) -> Iterator[Tuple[str, int, bytes, Any]]:
+    def raw(self, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes, Any]]:
         """Yield (topic, record time ns, raw bytes, connection) of the topics, in record order."""
         conns = [c for t in topics for c in self.topics[t].connections]
         if not conns:
@@ -284,8 +313,9 @@ class _Bag:
         except BagImportError:
             raise
         except Exception as exc:  # noqa: BLE001 - a truncated or corrupt bag
-            raise BagImportError(f"{self.path}: cannot read the messages of {', '.join(topics)}: "
-                                 f"{' '.join(str(exc).split())}") from None
+            raise BagImportError(
+                f"{self.path}: cannot read the messages of {', '.join(topics)}: {' '.join(str(exc).split())}"
+            ) from None
 
     def _default(self) -> Any:
         from rosbags.typesys import Stores, get_typestore
@@ -310,8 +340,10 @@ class _Bag:
         if fmt == MessageDefinitionFormat.NONE or not str(text).strip():
             store = self._default()
             if conn.msgtype not in store.types:
-                raise BagImportError(f"{self.path}: topic {conn.topic}: the bag carries no definition of "
-                                     f"{self.type_name(conn.msgtype)} and it is not a standard ROS message")
+                raise BagImportError(
+                    f"{self.path}: topic {conn.topic}: the bag carries no definition of "
+                    f"{self.type_name(conn.msgtype)} and it is not a standard ROS message"
+                )
         else:
             try:
                 if fmt == MessageDefinitionFormat.MSG:
@@ -325,9 +357,11 @@ class _Bag:
                 store = get_typestore(Stores.EMPTY)
                 store.register(types)
             except Exception as exc:  # noqa: BLE001 - a definition rosbags cannot parse
-                raise BagImportError(f"{self.path}: topic {conn.topic}: cannot parse the definition of "
-                                     f"{self.type_name(conn.msgtype)} carried in the bag: "
-                                     f"{' '.join(str(exc).split())}") from None
+                raise BagImportError(
+                    f"{self.path}: topic {conn.topic}: cannot parse the definition of "
+                    f"{self.type_name(conn.msgtype)} carried in the bag: "
+                    f"{' '.join(str(exc).split())}"
+                ) from None
         self._stores[key] = store
         return store
 
@@ -340,8 +374,10 @@ class _Bag:
                 return store.deserialize_ros1(data, conn.msgtype)
             return store.deserialize_cdr(data, conn.msgtype)
         except Exception as exc:  # noqa: BLE001 - corrupt data or a definition that does not match it
-            raise BagImportError(f"{self.path}: topic {conn.topic}: cannot decode a {self.type_name(conn.msgtype)} "
-                                 f"message: {' '.join(str(exc).split())}") from None
+            raise BagImportError(
+                f"{self.path}: topic {conn.topic}: cannot decode a {self.type_name(conn.msgtype)} "
+                f"message: {' '.join(str(exc).split())}"
+            ) from None
 
 
 # -- message shapes ------------------------------------------------------------------------------
@@ -354,16 +390,22 @@ def _is_header(obj: Any) -> bool:
 
 
 def _is_pose(obj: Any) -> bool:
-    return _has(obj, "position", "orientation") and _has(obj.position, "x", "y", "z") \
+    return (
+        _has(obj, "position", "orientation")
+        and _has(obj.position, "x", "y", "z")
         and _has(obj.orientation, "x", "y", "z", "w")
+    )
 
 
 def _is_transform(obj: Any) -> bool:
-    return _has(obj, "translation", "rotation") and _has(obj.translation, "x", "y", "z") \
+    return (
+        _has(obj, "translation", "rotation")
+        and _has(obj.translation, "x", "y", "z")
         and _has(obj.rotation, "x", "y", "z", "w")
+    )
 
 
-def pose_kind(msg: Any) -> Optional[str]:
+def pose_kind(msg: Any) -> str | None:
     """Return how a message carries a pose ("odometry", "pose_cov", "pose", "transform") or None when it does not."""
     if not (_has(msg, "header") and _is_header(msg.header)):
         return None
@@ -380,8 +422,13 @@ def pose_kind(msg: Any) -> Optional[str]:
 
 def is_wrench(msg: Any) -> bool:
     """Return True when a message carries a stamped wrench (header + wrench.force + wrench.torque)."""
-    return _has(msg, "header", "wrench") and _is_header(msg.header) and _has(msg.wrench, "force", "torque") \
-        and _has(msg.wrench.force, "x", "y", "z") and _has(msg.wrench.torque, "x", "y", "z")
+    return (
+        _has(msg, "header", "wrench")
+        and _is_header(msg.header)
+        and _has(msg.wrench, "force", "torque")
+        and _has(msg.wrench.force, "x", "y", "z")
+        and _has(msg.wrench.torque, "x", "y", "z")
+    )
 
 
 def is_tf(msg: Any) -> bool:
@@ -393,11 +440,11 @@ def _stamp_ns(stamp: Any) -> int:
     return int(stamp.sec) * _NS + int(stamp.nanosec)
 
 
-def _xyz(v: Any) -> Tuple[float, float, float]:
+def _xyz(v: Any) -> tuple[float, float, float]:
     return (float(v.x), float(v.y), float(v.z))
 
 
-def _xyzw(q: Any) -> Tuple[float, float, float, float]:
+def _xyzw(q: Any) -> tuple[float, float, float, float]:
     return (float(q.x), float(q.y), float(q.z), float(q.w))
 
 
@@ -413,8 +460,11 @@ def _topic_use(msg: Any) -> str:
 
 def _supported(kind: str) -> str:
     types = POSE_TYPES if kind == "pose" else WRENCH_TYPES
-    shape = ("a std_msgs/Header header and a geometry_msgs/Pose pose (or a Transform transform)" if kind == "pose"
-             else "a std_msgs/Header header and a geometry_msgs/Wrench wrench")
+    shape = (
+        "a std_msgs/Header header and a geometry_msgs/Pose pose (or a Transform transform)"
+        if kind == "pose"
+        else "a std_msgs/Header header and a geometry_msgs/Wrench wrench"
+    )
     return f"supported: {', '.join(types)}, or a message with the same fields ({shape})"
 
 
@@ -423,16 +473,16 @@ def _supported(kind: str) -> str:
 class _Stream:
     """Decoded samples of one topic, in record order: record and header times (ns), frames, values."""
 
-    record_ns: List[int] = field(default_factory=list)
-    stamp_ns: List[int] = field(default_factory=list)
-    frames: List[str] = field(default_factory=list)
-    children: List[str] = field(default_factory=list)
-    values: List[Tuple[float, ...]] = field(default_factory=list)
+    record_ns: list[int] = field(default_factory=list)
+    stamp_ns: list[int] = field(default_factory=list)
+    frames: list[str] = field(default_factory=list)
+    children: list[str] = field(default_factory=list)
+    values: list[tuple[float, ...]] = field(default_factory=list)
     msgtype: str = ""
     kind: str = ""
 
 
-def _pose_values(msg: Any, kind: str) -> Tuple[Tuple[float, ...], str]:
+def _pose_values(msg: Any, kind: str) -> tuple[tuple[float, ...], str]:
     if kind == "transform":
         return _xyz(msg.transform.translation) + _xyzw(msg.transform.rotation), str(getattr(msg, "child_frame_id", ""))
     pose = msg.pose.pose if kind in ("odometry", "pose_cov") else msg.pose
@@ -455,20 +505,30 @@ class _TFSample(NamedTuple):
 
 
 def _tf_sample(kind: str, record_ns: int, tr: Any) -> _TFSample:
-    return _TFSample(kind, record_ns, _stamp_ns(tr.header.stamp), normalize_frame(tr.header.frame_id),
-                     normalize_frame(tr.child_frame_id), _xyz(tr.transform.translation) + _xyzw(tr.transform.rotation))
+    return _TFSample(
+        kind,
+        record_ns,
+        _stamp_ns(tr.header.stamp),
+        normalize_frame(tr.header.frame_id),
+        normalize_frame(tr.child_frame_id),
+        _xyz(tr.transform.translation) + _xyzw(tr.transform.rotation),
+    )
 
 
-def _read_streams(bag: _Bag, pose_topic: Optional[str], wrench_topic: str, extra_tf: bool = True
-                  ) -> Tuple[Optional[_Stream], _Stream, List[_TFSample]]:
+def _read_streams(
+    bag: _Bag, pose_topic: str | None, wrench_topic: str, extra_tf: bool = True
+) -> tuple[_Stream | None, _Stream, list[_TFSample]]:
     """Return (pose stream, wrench stream, transforms of /tf, /tf_static and, with ``extra_tf``, of the other
     geometry_msgs/TransformStamped topics (motion capture publishes them))."""
     pose = _Stream() if pose_topic else None
     wrench = _Stream()
-    tf: List[_TFSample] = []
+    tf: list[_TFSample] = []
     tf_topics = bag.tf_topics()
-    extra = [t for t, info in bag.topics.items() if extra_tf and str(info.msgtype).endswith("/TransformStamped")
-             and t not in (pose_topic, wrench_topic)]
+    extra = [
+        t
+        for t, info in bag.topics.items()
+        if extra_tf and str(info.msgtype).endswith("/TransformStamped") and t not in (pose_topic, wrench_topic)
+    ]
     topics = [t for t in dict.fromkeys([pose_topic, wrench_topic] + tf_topics + extra) if t]
     for topic, record_ns, data, conn in bag.raw(topics):
         msg = bag.decode(data, conn)
@@ -485,8 +545,10 @@ def _read_streams(bag: _Bag, pose_topic: Optional[str], wrench_topic: str, extra
             if not pose.kind:
                 kind = pose_kind(msg)
                 if kind is None:
-                    raise BagImportError(f"{bag.path}: pose topic {topic} has type {bag.type_name(conn.msgtype)}, "
-                                         f"which carries no stamped pose; {_supported('pose')}")
+                    raise BagImportError(
+                        f"{bag.path}: pose topic {topic} has type {bag.type_name(conn.msgtype)}, "
+                        f"which carries no stamped pose; {_supported('pose')}"
+                    )
                 pose.kind, pose.msgtype = kind, bag.type_name(conn.msgtype)
             values, child = _pose_values(msg, pose.kind)
             pose.record_ns.append(record_ns)
@@ -497,8 +559,10 @@ def _read_streams(bag: _Bag, pose_topic: Optional[str], wrench_topic: str, extra
         if topic == wrench_topic:
             if not wrench.kind:
                 if not is_wrench(msg):
-                    raise BagImportError(f"{bag.path}: wrench topic {topic} has type {bag.type_name(conn.msgtype)}, "
-                                         f"which carries no stamped wrench; {_supported('wrench')}")
+                    raise BagImportError(
+                        f"{bag.path}: wrench topic {topic} has type {bag.type_name(conn.msgtype)}, "
+                        f"which carries no stamped wrench; {_supported('wrench')}"
+                    )
                 wrench.kind, wrench.msgtype = "wrench", bag.type_name(conn.msgtype)
             wrench.record_ns.append(record_ns)
             wrench.stamp_ns.append(_stamp_ns(msg.header.stamp))
@@ -507,7 +571,7 @@ def _read_streams(bag: _Bag, pose_topic: Optional[str], wrench_topic: str, extra
     return pose, wrench, tf
 
 
-def _ordered(t_ns: np.ndarray) -> Tuple[np.ndarray, int, int]:
+def _ordered(t_ns: np.ndarray) -> tuple[np.ndarray, int, int]:
     """Return (keep mask, duplicates, out of order): a sample is kept when its time exceeds every earlier one."""
     keep = np.ones(len(t_ns), dtype=bool)
     if len(t_ns) < 2:
@@ -523,10 +587,10 @@ def _seconds(t_ns: np.ndarray, t0_ns: int) -> np.ndarray:
     return (np.asarray(t_ns, dtype=np.int64) - np.int64(t0_ns)).astype(float) / 1e9
 
 
-def _build_tf(tf: List[_TFSample], t0_ns: int, use_record_time: bool) -> Tuple[TransformBuffer, List[str]]:
+def _build_tf(tf: list[_TFSample], t0_ns: int, use_record_time: bool) -> tuple[TransformBuffer, list[str]]:
     """Return the TF buffer and the links taken from TransformStamped topics (for frames without a TF parent)."""
     buf = TransformBuffer()
-    links: Dict[Tuple[str, str, str], List[Tuple[int, tuple]]] = {}
+    links: dict[tuple[str, str, str], list[tuple[int, tuple]]] = {}
     for s in tf:
         if s.parent == s.child or not s.parent or not s.child:
             continue
@@ -534,11 +598,12 @@ def _build_tf(tf: List[_TFSample], t0_ns: int, use_record_time: bool) -> Tuple[T
             buf.add_static(s.parent, s.child, s.values[:3], s.values[3:])
         else:
             links.setdefault((s.kind, s.parent, s.child), []).append(
-                (s.record_ns if use_record_time else s.stamp_ns, s.values))
+                (s.record_ns if use_record_time else s.stamp_ns, s.values)
+            )
     # a TransformStamped topic may give a frame its parent (e.g. the robot's base in the motion-capture world),
     # never a second one
     has_parent = {child for (kind, _, child) in links if kind == "dynamic"} | {e.child for e in buf.edges()}
-    extra: List[str] = []
+    extra: list[str] = []
     for (kind, parent, child), samples in sorted(links.items(), key=lambda kv: kv[0][0] != "dynamic"):
         if kind != "dynamic":
             if child in has_parent:
@@ -573,7 +638,7 @@ def list_bag(path: str | os.PathLike) -> BagSummary:
         return BagSummary(str(path), bag.storage, bag.start_ns, duration, bag.message_count, tuple(topics), links)
 
 
-def _check_window(start: Optional[float], end: Optional[float]) -> None:
+def _check_window(start: float | None, end: float | None) -> None:
     for name, v in (("start", start), ("end", end)):
         if v is not None and not math.isfinite(float(v)):
             raise BagImportError(f"the window's {name} must be a finite number of seconds, got {v}")
@@ -588,16 +653,23 @@ class _Poses:
     t: np.ndarray
     R_hc: np.ndarray
     p_hc: np.ndarray
-    twist: Optional[np.ndarray]
+    twist: np.ndarray | None
     header_frame: str
     child: str
     source: str
     msgtype: str
 
-    def subset(self, mask: np.ndarray) -> "_Poses":
-        return _Poses(self.t[mask], self.R_hc[mask], self.p_hc[mask],
-                      None if self.twist is None else self.twist[mask], self.header_frame, self.child, self.source,
-                      self.msgtype)
+    def subset(self, mask: np.ndarray) -> _Poses:
+        return _Poses(
+            self.t[mask],
+            self.R_hc[mask],
+            self.p_hc[mask],
+            None if self.twist is None else self.twist[mask],
+            self.header_frame,
+            self.child,
+            self.source,
+            self.msgtype,
+        )
 
 
 #: How the report's warnings name each reason for dropping samples.
@@ -614,15 +686,25 @@ _DROP_REASONS = {
 }
 
 
-def _poses_from_topic(pose: _Stream, name: str, t_ns: np.ndarray, t0_ns: int, world: str,
-                      tf_buf: TransformBuffer, dropped: Dict[str, int], notes: List[str]) -> _Poses:
+def _poses_from_topic(
+    pose: _Stream,
+    name: str,
+    t_ns: np.ndarray,
+    t0_ns: int,
+    world: str,
+    tf_buf: TransformBuffer,
+    dropped: dict[str, int],
+    notes: list[str],
+) -> _Poses:
     keep, dropped["pose_duplicate_stamp"], dropped["pose_out_of_order"] = _ordered(t_ns)
     values = np.array(pose.values, dtype=float)[keep]
     t = _seconds(t_ns[keep], t0_ns)
     frames = sorted(set(np.array(pose.frames, dtype=object)[keep]))
     if len(frames) > 1:
-        raise BagImportError(f"{name}: the pose messages change frame ({', '.join(map(repr, frames))}); import one "
-                             f"stretch at a time (--start/--end)")
+        raise BagImportError(
+            f"{name}: the pose messages change frame ({', '.join(map(repr, frames))}); import one "
+            f"stretch at a time (--start/--end)"
+        )
     header_frame = frames[0] if frames else ""
     if not header_frame:
         header_frame = world or "world"
@@ -635,25 +717,39 @@ def _poses_from_topic(pose: _Stream, name: str, t_ns: np.ndarray, t0_ns: int, wo
     if child and not tf_buf.has_parent(child) and len(t):
         # the pose is a TF link too (unless TF already places C): a wrench may be given in C or a frame on it
         tf_buf.add_many(header_frame, child, t, values[:, :3], values[:, 3:7])
-    return _Poses(t, quaternion_to_matrix(values[:, 3:7]), values[:, :3],
-                  values[:, 7:13] if pose.kind == "odometry" else None, header_frame, child, name, pose.msgtype)
+    return _Poses(
+        t,
+        quaternion_to_matrix(values[:, 3:7]),
+        values[:, :3],
+        values[:, 7:13] if pose.kind == "odometry" else None,
+        header_frame,
+        child,
+        name,
+        pose.msgtype,
+    )
 
 
 def _poses_from_tf(frame: str, world: str, tf_buf: TransformBuffer) -> _Poses:
     child = normalize_frame(frame)
     if not tf_buf.has_frame(child):
-        raise TransformLookupError(f"pose frame '{child}' does not appear in /tf or /tf_static (frames present: "
-                                   f"{', '.join(tf_buf.frames) or 'none'})", source=child, target=world)
+        raise TransformLookupError(
+            f"pose frame '{child}' does not appear in /tf or /tf_static (frames present: "
+            f"{', '.join(tf_buf.frames) or 'none'})",
+            source=child,
+            target=world,
+        )
     world = world or tf_buf.root_of(child)
     t = tf_buf.dynamic_stamps(world, child)
     if not len(t):
-        raise BagImportError(f"pose frame '{child}' does not move relative to '{world}' (every TF link between them "
-                             f"is static): no pose samples")
+        raise BagImportError(
+            f"pose frame '{child}' does not move relative to '{world}' (every TF link between them "
+            f"is static): no pose samples"
+        )
     R, p, ok = tf_buf.lookup(world, child, t)
     return _Poses(t[ok], R[ok], p[ok], None, world, child, f"TF frame {child}", "tf2_msgs/TFMessage")
 
 
-def _window(poses: _Poses, start: Optional[float], end: Optional[float], path: Any) -> _Poses:
+def _window(poses: _Poses, start: float | None, end: float | None, path: Any) -> _Poses:
     t = poses.t
     if len(t) == 0:
         raise BagImportError(f"{path}: no valid pose samples on {poses.source}")
@@ -661,14 +757,17 @@ def _window(poses: _Poses, start: Optional[float], end: Optional[float], path: A
     hi = np.inf if end is None else float(end)
     inside = (t >= lo) & (t <= hi)
     if not np.any(inside):
-        raise BagImportError(f"{path}: empty time window: no pose sample between {start if start is not None else '-'}"
-                             f" s and {end if end is not None else '-'} s (the pose stamps span {t[0]:.3f} s to "
-                             f"{t[-1]:.3f} s from the start of the recording)")
+        raise BagImportError(
+            f"{path}: empty time window: no pose sample between {start if start is not None else '-'}"
+            f" s and {end if end is not None else '-'} s (the pose stamps span {t[0]:.3f} s to "
+            f"{t[-1]:.3f} s from the start of the recording)"
+        )
     return poses.subset(inside)
 
 
-def _cart_in_world(poses: _Poses, world: str, cart: str, tf_buf: TransformBuffer
-                   ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _cart_in_world(
+    poses: _Poses, world: str, cart: str, tf_buf: TransformBuffer
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (R_wc, p_wc, R_wb, p_wb, valid): the tracked frame C and the cart frame {b} in the world frame."""
     t = poses.t
     ok = np.ones(len(t), dtype=bool)
@@ -680,15 +779,24 @@ def _cart_in_world(poses: _Poses, world: str, cart: str, tf_buf: TransformBuffer
     if not cart or cart == poses.child:
         return R_wc, p_wc, R_wc, p_wc, ok
     if not poses.child:
-        raise BagImportError(f"cart frame '{cart}': the pose messages ({poses.msgtype}) name no child frame to "
-                             f"attach it to; use a TransformStamped or Odometry pose, or a TF frame (pose_frame)")
+        raise BagImportError(
+            f"cart frame '{cart}': the pose messages ({poses.msgtype}) name no child frame to "
+            f"attach it to; use a TransformStamped or Odometry pose, or a TF frame (pose_frame)"
+        )
     R_ck, p_ck, ok_k = tf_buf.lookup(poses.child, cart, t)
     return R_wc, p_wc, np.einsum("nij,njk->nik", R_wc, R_ck), np.einsum("nij,nj->ni", R_wc, p_ck) + p_wc, ok & ok_k
 
 
-def _wrench_in_world(wrench: _Stream, name: str, t_ns: np.ndarray, t0_ns: int, world: str,
-                     wrench_frame: Optional[str], tf_buf: TransformBuffer, dropped: Dict[str, int]
-                     ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, Dict[str, List[str]]]:
+def _wrench_in_world(
+    wrench: _Stream,
+    name: str,
+    t_ns: np.ndarray,
+    t0_ns: int,
+    world: str,
+    wrench_frame: str | None,
+    tf_buf: TransformBuffer,
+    dropped: dict[str, int],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, list[str]]]:
     """Return (t, force in {s}, torque about the world origin in {s}, TF chain of each wrench frame)."""
     keep, dropped["wrench_duplicate_stamp"], dropped["wrench_out_of_order"] = _ordered(t_ns)
     tw = _seconds(t_ns[keep], t0_ns)
@@ -697,14 +805,15 @@ def _wrench_in_world(wrench: _Stream, name: str, t_ns: np.ndarray, t0_ns: int, w
     if wrench_frame:
         frames[:] = normalize_frame(wrench_frame)
     if np.any(frames == ""):
-        raise BagImportError(f"{name}: the wrench messages name no frame (empty header frame_id): give the sensor "
-                             f"frame (--wrench-frame)")
+        raise BagImportError(
+            f"{name}: the wrench messages name no frame (empty header frame_id): give the sensor frame (--wrench-frame)"
+        )
     fin = np.all(np.isfinite(wv), axis=1)
     dropped["wrench_invalid"] = int(np.count_nonzero(~fin))
     f_w = np.zeros((len(tw), 3))
     m_o = np.zeros((len(tw), 3))
     ok = fin.copy()
-    chains: Dict[str, List[str]] = {}
+    chains: dict[str, list[str]] = {}
     for frame in sorted(set(frames)):
         sel = frames == frame
         n = int(np.count_nonzero(sel))
@@ -719,12 +828,13 @@ def _wrench_in_world(wrench: _Stream, name: str, t_ns: np.ndarray, t0_ns: int, w
         ok[sel] &= ok_s
     dropped["wrench_outside_tf"] = int(np.count_nonzero(fin & ~ok))
     if int(np.count_nonzero(ok)) < 2:
-        raise BagImportError(f"{name}: fewer than 2 usable wrench samples (dropped: "
-                             f"{ {k: v for k, v in dropped.items() if v} })")
+        raise BagImportError(
+            f"{name}: fewer than 2 usable wrench samples (dropped: { {k: v for k, v in dropped.items() if v} })"
+        )
     return tw[ok], f_w[ok], m_o[ok], chains
 
 
-def _aligned(t: np.ndarray, valid: np.ndarray, tw: np.ndarray, dropped: Dict[str, int], path: Any) -> np.ndarray:
+def _aligned(t: np.ndarray, valid: np.ndarray, tw: np.ndarray, dropped: dict[str, int], path: Any) -> np.ndarray:
     """Return the mask of pose samples the wrench covers (inside its span, not inside a gap of it)."""
     covered = (t >= tw[0]) & (t <= tw[-1])
     dropped["pose_outside_wrench"] = int(np.count_nonzero(valid & ~covered))
@@ -736,36 +846,46 @@ def _aligned(t: np.ndarray, valid: np.ndarray, tw: np.ndarray, dropped: Dict[str
     use = valid & covered & ~in_gap
     if int(np.count_nonzero(use)) < 3:
         lost = {k: v for k, v in dropped.items() if v}
-        raise BagImportError(f"{path}: only {int(np.count_nonzero(use))} pose sample(s) left in the window once "
-                             f"aligned with the wrench (a log needs 3; dropped: {lost or 'nothing'}; wrench stamps "
-                             f"span {tw[0]:.3f} s to {tw[-1]:.3f} s, pose stamps {t[0]:.3f} s to {t[-1]:.3f} s)")
+        raise BagImportError(
+            f"{path}: only {int(np.count_nonzero(use))} pose sample(s) left in the window once "
+            f"aligned with the wrench (a log needs 3; dropped: {lost or 'nothing'}; wrench stamps "
+            f"span {tw[0]:.3f} s to {tw[-1]:.3f} s, pose stamps {t[0]:.3f} s to {t[-1]:.3f} s)"
+        )
     return use
 
 
 class _Recording(NamedTuple):
     """What `import_bag` reads off the bag: resolved topic names, decoded streams, TF samples, start and storage."""
 
-    pose_name: Optional[str]
+    pose_name: str | None
     wrench_name: str
-    pose: Optional[_Stream]
+    pose: _Stream | None
     wrench: _Stream
-    tf: List[_TFSample]
+    tf: list[_TFSample]
     start_ns: int
     storage: str
 
 
-def _check_request(path: Any, pose_topic: Optional[str], pose_frame: Optional[str], wrench_topic: Optional[str],
-                   start: Optional[float], end: Optional[float]) -> None:
+def _check_request(
+    path: Any,
+    pose_topic: str | None,
+    pose_frame: str | None,
+    wrench_topic: str | None,
+    start: float | None,
+    end: float | None,
+) -> None:
     """Raise BagImportError unless exactly one pose source, a wrench topic and a valid window are given."""
     if (pose_topic is None) == (pose_frame is None):
-        raise BagImportError(f"{path}: give the cart's pose as exactly one of a pose topic or a TF frame "
-                             f"(--pose-topic / --pose-frame), got {'both' if pose_topic else 'neither'}")
+        raise BagImportError(
+            f"{path}: give the cart's pose as exactly one of a pose topic or a TF frame "
+            f"(--pose-topic / --pose-frame), got {'both' if pose_topic else 'neither'}"
+        )
     if not wrench_topic:
         raise BagImportError(f"{path}: give the wrench topic (--wrench-topic, a geometry_msgs/WrenchStamped topic)")
     _check_window(start, end)
 
 
-def _read_recording(bag: _Bag, pose_topic: Optional[str], wrench_topic: str) -> _Recording:
+def _read_recording(bag: _Bag, pose_topic: str | None, wrench_topic: str) -> _Recording:
     """Return the pose (None with a TF pose frame) and wrench streams and the TF samples; close the bag."""
     with bag:
         pose_name = bag.find_topic(pose_topic, "pose") if pose_topic else None
@@ -777,61 +897,93 @@ def _read_recording(bag: _Bag, pose_topic: Optional[str], wrench_topic: str) -> 
         return _Recording(pose_name, wrench_name, pose, wrench, tf, bag.start_ns, bag.storage)
 
 
-def _clock(rec: _Recording, use_record_time: bool, notes: List[str]) -> Tuple[np.ndarray, np.ndarray, int]:
+def _clock(rec: _Recording, use_record_time: bool, notes: list[str]) -> tuple[np.ndarray, np.ndarray, int]:
     """Return (pose times, wrench times (ns), t0_ns): t = 0 at the start of the recording, or at the first pose
     stamp when the header stamps use another clock."""
     if not use_record_time:
         for name, stream in ((rec.pose_name, rec.pose), (rec.wrench_name, rec.wrench)):
             if stream is not None and 2 * stream.stamp_ns.count(0) > len(stream.stamp_ns):
-                raise BagImportError(f"{name}: the header stamps are zero (its publisher does not stamp the "
-                                     f"messages): use the record time (--record-time)")
+                raise BagImportError(
+                    f"{name}: the header stamps are zero (its publisher does not stamp the "
+                    f"messages): use the record time (--record-time)"
+                )
     wrench_t_ns = np.array(rec.wrench.record_ns if use_record_time else rec.wrench.stamp_ns, dtype=np.int64)
     pose_t_ns = np.zeros(0, dtype=np.int64)
     if rec.pose is not None:
         pose_t_ns = np.array(rec.pose.record_ns if use_record_time else rec.pose.stamp_ns, dtype=np.int64)
         first_ns = int(pose_t_ns.min())
     else:
-        first_ns = min([s.record_ns if use_record_time else s.stamp_ns for s in rec.tf if s.kind != "static"]
-                       or [rec.start_ns])
+        first_ns = min(
+            [s.record_ns if use_record_time else s.stamp_ns for s in rec.tf if s.kind != "static"] or [rec.start_ns]
+        )
     t0_ns = rec.start_ns
     if not use_record_time and abs(first_ns - rec.start_ns) > SAME_CLOCK_S * _NS:
         t0_ns = first_ns
-        notes.append("the header stamps are on another clock than the recorder's (simulated time?): t = 0 at the "
-                     "first pose stamp; use the record time to window by the recorder's clock")
+        notes.append(
+            "the header stamps are on another clock than the recorder's (simulated time?): t = 0 at the "
+            "first pose stamp; use the record time to window by the recorder's clock"
+        )
     return pose_t_ns, wrench_t_ns, t0_ns
 
 
-def _tracked_poses(rec: _Recording, pose_frame: Optional[str], world: str, pose_t_ns: np.ndarray, t0_ns: int,
-                   tf_buf: TransformBuffer, dropped: Dict[str, int], notes: List[str]) -> Tuple[_Poses, str]:
+def _tracked_poses(
+    rec: _Recording,
+    pose_frame: str | None,
+    world: str,
+    pose_t_ns: np.ndarray,
+    t0_ns: int,
+    tf_buf: TransformBuffer,
+    dropped: dict[str, int],
+    notes: list[str],
+) -> tuple[_Poses, str]:
     """Return (pose samples of the tracked frame, the world frame) from the pose topic or the TF frame."""
     if rec.pose is not None:
-        poses = _poses_from_topic(rec.pose, rec.pose_name, pose_t_ns, t0_ns, world, tf_buf,  # type: ignore[arg-type]
-                                  dropped, notes)
+        poses = _poses_from_topic(
+            rec.pose,
+            rec.pose_name,
+            pose_t_ns,
+            t0_ns,
+            world,
+            tf_buf,  # type: ignore[arg-type]
+            dropped,
+            notes,
+        )
         return poses, world or poses.header_frame
     poses = _poses_from_tf(pose_frame, world, tf_buf)  # type: ignore[arg-type]
     return poses, poses.header_frame
 
 
-def _planar_pose(t: np.ndarray, R_wb: np.ndarray, warns: List[str]) -> Tuple[np.ndarray, float]:
+def _planar_pose(t: np.ndarray, R_wb: np.ndarray, warns: list[str]) -> tuple[np.ndarray, float]:
     """Return (unwrapped yaw of {b}, largest tilt in degrees); warn beyond TILT_WARNING_DEG."""
     theta = np.unwrap(np.arctan2(R_wb[:, 1, 0], R_wb[:, 0, 0]))
     tilt = np.degrees(np.arccos(np.clip(R_wb[:, 2, 2], -1.0, 1.0)))
     tilt_max = float(np.max(tilt))
     if tilt_max > TILT_WARNING_DEG:
-        warns.append(f"the cart frame tilts up to {tilt_max:.1f} deg from the vertical (at t = "
-                     f"{t[int(np.argmax(tilt))]:.2f} s): a planar cart stays within a few degrees; check the world "
-                     f"frame and the pose source")
+        warns.append(
+            f"the cart frame tilts up to {tilt_max:.1f} deg from the vertical (at t = "
+            f"{t[int(np.argmax(tilt))]:.2f} s): a planar cart stays within a few degrees; check the world "
+            f"frame and the pose source"
+        )
     return theta, tilt_max
 
 
-def _odometry_velocities(poses: _Poses, use: np.ndarray, world: str, tf_buf: TransformBuffer, R_wc: np.ndarray,
-                         p_wc: np.ndarray, p_wb: np.ndarray, notes: List[str]) -> Optional[np.ndarray]:
+def _odometry_velocities(
+    poses: _Poses,
+    use: np.ndarray,
+    world: str,
+    tf_buf: TransformBuffer,
+    R_wc: np.ndarray,
+    p_wc: np.ndarray,
+    p_wb: np.ndarray,
+    notes: list[str],
+) -> np.ndarray | None:
     """Return the cart rates (vx, vy, wz of {b} in {s}) of an odometry pose, None without a usable twist."""
     if poses.twist is None:
         return None
     if not (poses.header_frame == world or tf_buf.is_static(world, poses.header_frame)):
-        notes.append(f"velocities omitted: the odometry frame '{poses.header_frame}' moves relative to the world "
-                     f"frame '{world}'")
+        notes.append(
+            f"velocities omitted: the odometry frame '{poses.header_frame}' moves relative to the world frame '{world}'"
+        )
         return None
     # nav_msgs/Odometry: the twist is in the child frame C; R_wc includes the (static) R_wh
     twist = poses.twist[use]
@@ -849,18 +1001,29 @@ def _cart_wrench(t: np.ndarray, tw: np.ndarray, f_w: np.ndarray, m_o: np.ndarray
     return np.column_stack([F[:, 0], F[:, 1], tau])
 
 
-def _report_drops(dropped: Dict[str, int], warns: List[str], notes: List[str]) -> None:
+def _report_drops(dropped: dict[str, int], warns: list[str], notes: list[str]) -> None:
     """Add a warning per reason samples were dropped, and a note on poses outside the wrench's span."""
     warns.extend(f"dropped {n} {_DROP_REASONS[key]}" for key, n in dropped.items() if n and key in _DROP_REASONS)
     if dropped.get("pose_outside_wrench"):
-        notes.append(f"{dropped['pose_outside_wrench']} pose sample(s) before the first or after the last wrench "
-                     f"sample were left out")
+        notes.append(
+            f"{dropped['pose_outside_wrench']} pose sample(s) before the first or after the last wrench "
+            f"sample were left out"
+        )
 
 
-def import_bag(path: str | os.PathLike, pose_topic: Optional[str] = None, wrench_topic: Optional[str] = None,
-               pose_frame: Optional[str] = None, world_frame: Optional[str] = None, negate_wrench: bool = False,
-               start: Optional[float] = None, end: Optional[float] = None, use_record_time: bool = False,
-               cart_frame: Optional[str] = None, wrench_frame: Optional[str] = None) -> Tuple[CartLog, ImportReport]:
+def import_bag(
+    path: str | os.PathLike,
+    pose_topic: str | None = None,
+    wrench_topic: str | None = None,
+    pose_frame: str | None = None,
+    world_frame: str | None = None,
+    negate_wrench: bool = False,
+    start: float | None = None,
+    end: float | None = None,
+    use_record_time: bool = False,
+    cart_frame: str | None = None,
+    wrench_frame: str | None = None,
+) -> tuple[CartLog, ImportReport]:
     """Return (cart log, report) of a bag: the pose of {b} and the wrench on the cart, aligned on the pose stamps.
 
     ``pose_topic`` or ``pose_frame`` (a TF child frame) gives the pose; ``wrench_topic`` the wrench,
@@ -874,9 +1037,9 @@ def import_bag(path: str | os.PathLike, pose_topic: Optional[str] = None, wrench
     bag = _Bag(path)  # a bag at all? (before the options, which only make sense for one)
     _check_request(path, pose_topic, pose_frame, wrench_topic, start, end)
     clock = "record" if use_record_time else "header"
-    notes: List[str] = []
-    warns: List[str] = []
-    dropped: Dict[str, int] = {}
+    notes: list[str] = []
+    warns: list[str] = []
+    dropped: dict[str, int] = {}
     rec = _read_recording(bag, pose_topic, wrench_topic)  # type: ignore[arg-type]
     pose_t_ns, wrench_t_ns, t0_ns = _clock(rec, use_record_time, notes)
     tf_buf, extra_links = _build_tf(rec.tf, t0_ns, use_record_time)
@@ -888,8 +1051,9 @@ def import_bag(path: str | os.PathLike, pose_topic: Optional[str] = None, wrench
     cart = normalize_frame(cart_frame) if cart_frame else poses.child
     R_wc, p_wc, R_wb, p_wb, valid = _cart_in_world(poses, world, cart, tf_buf)
     dropped["pose_outside_tf"] = int(np.count_nonzero(~valid))
-    tw, f_w, m_o, chains = _wrench_in_world(rec.wrench, rec.wrench_name, wrench_t_ns, t0_ns, world, wrench_frame,
-                                            tf_buf, dropped)
+    tw, f_w, m_o, chains = _wrench_in_world(
+        rec.wrench, rec.wrench_name, wrench_t_ns, t0_ns, world, wrench_frame, tf_buf, dropped
+    )
     if negate_wrench:
         f_w, m_o = -f_w, -m_o
     use = _aligned(poses.t, valid, tw, dropped, path)
@@ -898,19 +1062,45 @@ def import_bag(path: str | os.PathLike, pose_topic: Optional[str] = None, wrench
     theta, tilt_max = _planar_pose(t, R_wb, warns)
     qd = _odometry_velocities(poses, use, world, tf_buf, R_wc, p_wc, p_wb, notes)
     _report_drops(dropped, warns, notes)
-    metadata = {"source": "ROS bag", "bag": str(path), "pose": poses.source, "wrench": rec.wrench_name,
-                "world_frame": world, "cart_frame": cart or "-", "clock": clock, "t0_unix_ns": str(t0_ns),
-                "negate_wrench": str(bool(negate_wrench)).lower()}
-    log = CartLog(t=t, q=np.column_stack([p_wb[:, 0], p_wb[:, 1], theta]), gamma=gamma, qd=qd, metadata=metadata,
-                  source=str(path))
+    metadata = {
+        "source": "ROS bag",
+        "bag": str(path),
+        "pose": poses.source,
+        "wrench": rec.wrench_name,
+        "world_frame": world,
+        "cart_frame": cart or "-",
+        "clock": clock,
+        "t0_unix_ns": str(t0_ns),
+        "negate_wrench": str(bool(negate_wrench)).lower(),
+    }
+    log = CartLog(
+        t=t, q=np.column_stack([p_wb[:, 0], p_wb[:, 1], theta]), gamma=gamma, qd=qd, metadata=metadata, source=str(path)
+    )
     warns.extend(plausibility_warnings(log))
     object.__setattr__(log, "warnings", tuple(warns))
     report = ImportReport(
-        bag=str(path), storage=rec.storage, samples=len(t), duration=float(t[-1] - t[0]), t0_ns=int(t0_ns),
-        clock=clock, pose_source=poses.source, pose_type=poses.msgtype, wrench_topic=rec.wrench_name,
-        wrench_type=rec.wrench.msgtype, world_frame=world, cart_frame=cart, wrench_frames=tuple(chains),
-        tf_chains=chains, negate_wrench=bool(negate_wrench), window=(start, end), dropped=dropped,
-        tilt_max_deg=tilt_max, has_velocities=qd is not None, warnings=tuple(warns), notes=tuple(notes))
+        bag=str(path),
+        storage=rec.storage,
+        samples=len(t),
+        duration=float(t[-1] - t[0]),
+        t0_ns=int(t0_ns),
+        clock=clock,
+        pose_source=poses.source,
+        pose_type=poses.msgtype,
+        wrench_topic=rec.wrench_name,
+        wrench_type=rec.wrench.msgtype,
+        world_frame=world,
+        cart_frame=cart,
+        wrench_frames=tuple(chains),
+        tf_chains=chains,
+        negate_wrench=bool(negate_wrench),
+        window=(start, end),
+        dropped=dropped,
+        tilt_max_deg=tilt_max,
+        has_velocities=qd is not None,
+        warnings=tuple(warns),
+        notes=tuple(notes),
+    )
     return log, report
 
 
@@ -923,6 +1113,8 @@ def load_any(path: str | os.PathLike, **topic_options: Any) -> CartLog:
     if is_bag(path):
         return import_bag(path, **options)[0]
     if options:
-        raise BagImportError(f"{path}: {', '.join(sorted(options))} apply to ROS bags only; this is a cart log "
-                             f"(a .bag, .mcap or .db3 file or a ROS 2 bag folder is converted)")
+        raise BagImportError(
+            f"{path}: {', '.join(sorted(options))} apply to ROS bags only; this is a cart log "
+            f"(a .bag, .mcap or .db3 file or a ROS 2 bag folder is converted)"
+        )
     return read_log(path)

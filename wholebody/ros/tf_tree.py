@@ -17,11 +17,12 @@ Times are plain floats (seconds, any zero the caller picks: keep them small,
 e.g. relative to the start of a recording, so that float64 resolves
 nanoseconds). Quaternions are ``(x, y, z, w)`` as in ROS messages.
 """
+
 from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
-from typing import Dict, Iterable, List, Optional, Sequence, Tuple
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 
@@ -89,9 +90,16 @@ class EdgeInfo:
 
     def to_dict(self) -> dict:
         """Return the link as a JSON-ready dict."""
-        return {"parent": self.parent, "child": self.child, "static": self.static, "count": self.count,
-                "first": self.first, "last": self.last, "duplicate_stamps": self.duplicates,
-                "invalid": self.invalid}
+        return {
+            "parent": self.parent,
+            "child": self.child,
+            "static": self.static,
+            "count": self.count,
+            "first": self.first,
+            "last": self.last,
+            "duplicate_stamps": self.duplicates,
+            "invalid": self.invalid,
+        }
 
 
 class _Edge:
@@ -101,11 +109,11 @@ class _Edge:
         self.parent = parent
         self.child = child
         self.static = False
-        self._static_value: Optional[Tuple[np.ndarray, np.ndarray]] = None
-        self._stamps: List[float] = []
-        self._p: List[Sequence[float]] = []
-        self._q: List[Sequence[float]] = []
-        self._arrays: Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]] = None
+        self._static_value: tuple[np.ndarray, np.ndarray] | None = None
+        self._stamps: list[float] = []
+        self._p: list[Sequence[float]] = []
+        self._q: list[Sequence[float]] = []
+        self._arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.duplicates = 0
         self.invalid = 0
 
@@ -120,7 +128,7 @@ class _Edge:
         self._q.extend(np.asarray(q, dtype=float).reshape(-1, 4).tolist())
         self._arrays = None
 
-    def arrays(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (stamps (n,), p (n, 3), q (n, 4)) sorted by stamp, one sample per stamp (the first received)."""
         if self._arrays is None:
             t = np.asarray(self._stamps, dtype=float)
@@ -137,26 +145,32 @@ class _Edge:
     def count(self) -> int:
         return 1 if self.static else len(self.arrays()[0])
 
-    def span(self) -> Tuple[float, float]:
+    def span(self) -> tuple[float, float]:
         if self.static:
             return (-np.inf, np.inf)
         t = self.arrays()[0]
         return (float(t[0]), float(t[-1])) if len(t) else (np.nan, np.nan)
 
-    def at(self, times: np.ndarray, tolerance: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def at(self, times: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (R (N, 3, 3), p (N, 3), valid (N,)) of T_parent_child at ``times``."""
         n = len(times)
         if self.static:
             p, q = self._static_value  # type: ignore[misc]
-            return (np.broadcast_to(quaternion_to_matrix(q), (n, 3, 3)).copy(), np.broadcast_to(p, (n, 3)).copy(),
-                    np.ones(n, dtype=bool))
+            return (
+                np.broadcast_to(quaternion_to_matrix(q), (n, 3, 3)).copy(),
+                np.broadcast_to(p, (n, 3)).copy(),
+                np.ones(n, dtype=bool),
+            )
         t, p, q = self.arrays()
         if len(t) == 0:
             return np.broadcast_to(np.eye(3), (n, 3, 3)).copy(), np.zeros((n, 3)), np.zeros(n, dtype=bool)
         valid = (times >= t[0] - tolerance) & (times <= t[-1] + tolerance)
         if len(t) == 1:
-            return (np.broadcast_to(quaternion_to_matrix(q[0]), (n, 3, 3)).copy(), np.broadcast_to(p[0], (n, 3)).copy(),
-                    valid)
+            return (
+                np.broadcast_to(quaternion_to_matrix(q[0]), (n, 3, 3)).copy(),
+                np.broadcast_to(p[0], (n, 3)).copy(),
+                valid,
+            )
         i = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 2)
         u = np.clip((times - t[i]) / (t[i + 1] - t[i]), 0.0, 1.0)
         pos = p[i] + u[:, None] * (p[i + 1] - p[i])
@@ -185,15 +199,16 @@ class TransformBuffer:
     """
 
     def __init__(self) -> None:
-        self._edges: Dict[Tuple[str, str], _Edge] = {}
-        self._adjacency: Dict[str, Dict[str, Tuple[str, str]]] = {}
+        self._edges: dict[tuple[str, str], _Edge] = {}
+        self._adjacency: dict[str, dict[str, tuple[str, str]]] = {}
 
     # -- filling -------------------------------------------------------------------------------
     def _edge(self, parent: str, child: str) -> _Edge:
         parent, child = normalize_frame(parent), normalize_frame(child)
         if parent == child:
-            raise TransformLookupError(f"a transform from frame '{parent}' to itself is not a TF link",
-                                       source=child, target=parent)
+            raise TransformLookupError(
+                f"a transform from frame '{parent}' to itself is not a TF link", source=child, target=parent
+            )
         key = (parent, child)
         if key not in self._edges:
             self._edges[key] = _Edge(parent, child)
@@ -209,24 +224,29 @@ class TransformBuffer:
             return
         edge.set_static(translation, rotation)
 
-    def add(self, parent: str, child: str, stamp: float, translation: Sequence[float],
-            rotation: Sequence[float]) -> None:
+    def add(
+        self, parent: str, child: str, stamp: float, translation: Sequence[float], rotation: Sequence[float]
+    ) -> None:
         """Record one sample of a dynamic link T_parent_child at time ``stamp``."""
         self.add_many(parent, child, [stamp], [translation], [rotation])
 
-    def add_many(self, parent: str, child: str, stamps: Iterable[float], translations: np.ndarray,
-                 rotations: np.ndarray) -> None:
+    def add_many(
+        self, parent: str, child: str, stamps: Iterable[float], translations: np.ndarray, rotations: np.ndarray
+    ) -> None:
         """Record samples (n,) / (n, 3) / (n, 4) of a dynamic link; order does not matter, repeated stamps count once."""
         edge = self._edge(parent, child)
         stamps = np.asarray(list(stamps) if not isinstance(stamps, np.ndarray) else stamps, dtype=float)
         ok = _clean(translations, rotations) & np.isfinite(stamps)
         edge.invalid += int(np.count_nonzero(~ok))
-        edge.append(stamps[ok], np.asarray(translations, dtype=float).reshape(-1, 3)[ok],
-                    np.asarray(rotations, dtype=float).reshape(-1, 4)[ok])
+        edge.append(
+            stamps[ok],
+            np.asarray(translations, dtype=float).reshape(-1, 3)[ok],
+            np.asarray(rotations, dtype=float).reshape(-1, 4)[ok],
+        )
 
     # -- inspection ----------------------------------------------------------------------------
     @property
-    def frames(self) -> List[str]:
+    def frames(self) -> list[str]:
         """Return every frame id (normalized), sorted."""
         return sorted(self._adjacency)
 
@@ -239,7 +259,7 @@ class TransformBuffer:
         frame = normalize_frame(frame)
         return any(c == frame for (_, c) in self._edges)
 
-    def edges(self) -> List[EdgeInfo]:
+    def edges(self) -> list[EdgeInfo]:
         """Return every link, sorted by (parent, child)."""
         out = []
         for (parent, child), e in sorted(self._edges.items()):
@@ -262,9 +282,12 @@ class TransformBuffer:
         present = ", ".join(self.frames) if self.frames else "none: the bag has no /tf or /tf_static messages"
         return TransformLookupError(
             f"cannot connect frame '{source}' to frame '{target}': '{frame}' does not appear in /tf or /tf_static "
-            f"(frames present: {present})", source=source, target=target)
+            f"(frames present: {present})",
+            source=source,
+            target=target,
+        )
 
-    def chain(self, target: str, source: str) -> List[str]:
+    def chain(self, target: str, source: str) -> list[str]:
         """Return the frames from ``source`` to ``target`` (both included); raise TransformLookupError if unconnected."""
         source, target = normalize_frame(source), normalize_frame(target)
         if source == target:
@@ -272,7 +295,7 @@ class TransformBuffer:
         for frame in (source, target):
             if frame not in self._adjacency:
                 raise self._missing(frame, source, target)
-        previous: Dict[str, Optional[str]] = {source: None}
+        previous: dict[str, str | None] = {source: None}
         queue = deque([source])
         while queue:
             frame = queue.popleft()
@@ -286,13 +309,16 @@ class TransformBuffer:
             raise TransformLookupError(
                 f"cannot connect frame '{source}' to frame '{target}': no chain of /tf or /tf_static transforms "
                 f"links them ('{source}' is in the tree rooted at '{self.root_of(source)}', '{target}' in the tree "
-                f"rooted at '{self.root_of(target)}')", source=source, target=target)
+                f"rooted at '{self.root_of(target)}')",
+                source=source,
+                target=target,
+            )
         path = [target]
         while path[-1] != source:
             path.append(previous[path[-1]])  # type: ignore[arg-type]
         return path[::-1]
 
-    def _links(self, target: str, source: str) -> List[Tuple[_Edge, bool]]:
+    def _links(self, target: str, source: str) -> list[tuple[_Edge, bool]]:
         """Return the links from source to target, each with True when it is walked child -> parent."""
         path = self.chain(target, source)
         out = []
@@ -312,7 +338,7 @@ class TransformBuffer:
                 return edge.arrays()[0].copy()
         return np.zeros(0)
 
-    def span(self, target: str, source: str) -> Tuple[float, float]:
+    def span(self, target: str, source: str) -> tuple[float, float]:
         """Return the interval of times over which every dynamic link of the chain has samples (-inf, inf if static)."""
         lo, hi = -np.inf, np.inf
         for edge, _ in self._links(target, source):
@@ -321,8 +347,9 @@ class TransformBuffer:
         return lo, hi
 
     # -- lookup --------------------------------------------------------------------------------
-    def lookup(self, target: str, source: str, times: Sequence[float] | np.ndarray,
-               tolerance: float = 0.0) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def lookup(
+        self, target: str, source: str, times: Sequence[float] | np.ndarray, tolerance: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (R (N, 3, 3), p (N, 3), valid (N,)): T_target_source at each time, composed along the chain.
 
         ``valid[i]`` is False where a dynamic link of the chain has no samples

@@ -4,14 +4,41 @@
 >>> scene = Scene(["ridgeback_iiwa", "shopping_cart"])    # doctest: +SKIP
 >>> scene.save_html("push.html")                          # doctest: +SKIP
 """
+
 from __future__ import annotations
 
-from wholebody.viz.scene import (COLORS, COM_MARKER_Z, FLOOR, FORCE_SCALE, MAX_FLOOR_LINES, MAX_FRAMES, Camera,
-                                 Scene, SceneError, cart_to_world_traj, frame_points, log_scene,
-                                 pushing_configuration, pushing_scene, robot_scene)
+from wholebody.viz.scene import (
+    COLORS,
+    COM_MARKER_Z,
+    FLOOR,
+    FORCE_SCALE,
+    MAX_FLOOR_LINES,
+    MAX_FRAMES,
+    Camera,
+    Scene,
+    SceneError,
+    cart_to_world_traj,
+    frame_points,
+    log_scene,
+    pushing_configuration,
+    pushing_scene,
+    robot_scene,
+)
 
 __all__ = [
-    "COLORS", "COM_MARKER_Z", "FLOOR", "FORCE_SCALE", "MAX_FLOOR_LINES", "MAX_FRAMES", "Camera", "Scene",
-    "SceneError", "cart_to_world_traj", "frame_points", "log_scene", "pushing_configuration", "pushing_scene",
+    "COLORS",
+    "COM_MARKER_Z",
+    "FLOOR",
+    "FORCE_SCALE",
+    "MAX_FLOOR_LINES",
+    "MAX_FRAMES",
+    "Camera",
+    "Scene",
+    "SceneError",
+    "cart_to_world_traj",
+    "frame_points",
+    "log_scene",
+    "pushing_configuration",
+    "pushing_scene",
     "robot_scene",
 ]

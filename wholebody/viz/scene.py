@@ -10,6 +10,7 @@ forwards the commands to it (open `Scene.url` in a browser); `close()` (or a
 ...     scene.set_robot_pose("shopping_cart", (0.9, 0.0, 0.0))
 ...     scene.save_html("scene.html")
 """
+
 from __future__ import annotations
 
 import base64
@@ -19,7 +20,8 @@ import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
+from collections.abc import Mapping, Sequence
 
 import meshcat
 import meshcat.geometry as mg
@@ -73,7 +75,7 @@ class Camera:
     fov_deg: float = 50.0
 
     @staticmethod
-    def framing(points: Any, elevation: float = 0.65) -> "Camera":
+    def framing(points: Any, elevation: float = 0.65) -> Camera:
         """Return a camera that sees the world points (N, 3) from the -y side, looking down by about `elevation` rad."""
         p = np.atleast_2d(np.asarray(points, dtype=float))
         lo, hi = p.min(axis=0), p.max(axis=0)
@@ -252,8 +254,13 @@ def _animation_js(follow: Sequence[str]) -> str:
 """
 
 
-def _static_html(commands: Sequence[bytes], controls: bool = True, camera: Camera | None = None,
-                 follow: Sequence[str] | None = None, animated: bool = False) -> str:
+def _static_html(
+    commands: Sequence[bytes],
+    controls: bool = True,
+    camera: Camera | None = None,
+    follow: Sequence[str] | None = None,
+    animated: bool = False,
+) -> str:
     """Return a self-contained HTML page (viewer JavaScript inlined) replaying `commands`, then setting `camera`.
 
     An `animated` page gets `_animation_js` (seek by ``#t=<s>``, camera following the nodes `follow`).
@@ -368,7 +375,11 @@ def _arrow_parts(origin: np.ndarray, vector: np.ndarray, head: float) -> list[tu
     group[:3, :3] = _rotation_x_to(vector)
     h = min(head, 0.5 * length)
     shaft, tip = tf.translation_matrix([(length - h) / 2, 0, 0]), tf.translation_matrix([length - h / 2, 0, 0])
-    return [("", group, np.ones(3)), ("shaft", shaft, np.array([length - h, 1.0, 1.0])), ("head", tip, np.full(3, h / head))]
+    return [
+        ("", group, np.ones(3)),
+        ("shaft", shaft, np.array([length - h, 1.0, 1.0])),
+        ("head", tip, np.full(3, h / head)),
+    ]
 
 
 def _set_arrow(node: Any, parts: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
@@ -400,8 +411,13 @@ def _frame_schedule(t: np.ndarray, fps: int) -> tuple[np.ndarray, np.ndarray]:
 class Scene:
     """A Meshcat scene of robots (by `robots.load` name) with contacts, wrenches, CoM markers, traces and animations."""
 
-    def __init__(self, robot_names: Sequence[str] = ("ridgeback_iiwa", "shopping_cart"), serve: bool = False,
-                 camera: Camera | None = None, floor: tuple[float, float, float, float] = FLOOR) -> None:
+    def __init__(
+        self,
+        robot_names: Sequence[str] = ("ridgeback_iiwa", "shopping_cart"),
+        serve: bool = False,
+        camera: Camera | None = None,
+        floor: tuple[float, float, float, float] = FLOOR,
+    ) -> None:
         """Load the robots (each under its own node `/meshcat/<name>`) at the origin; optionally start a server.
 
         `floor` (xmin, xmax, ymin, ymax) is drawn as a 0.5 m grid of short
@@ -425,8 +441,9 @@ class Scene:
         try:
             for name in names:
                 robot = robots.load(name)  # raises UnknownRobotError for bad names
-                viz = MeshcatVisualizer(robot.model, None, robot.visual_model, data=robot.data,
-                                        visual_data=robot.visual_data)
+                viz = MeshcatVisualizer(
+                    robot.model, None, robot.visual_model, data=robot.data, visual_data=robot.visual_data
+                )
                 viz.initViewer(viewer=self.viewer)
                 viz.loadViewerModel(rootNodeName=name)
                 self.robots[name], self._viz[name] = robot, viz
@@ -450,7 +467,7 @@ class Scene:
             self.window.live.zmq_socket.close(linger=0)
             self._server = None
 
-    def __enter__(self) -> "Scene":
+    def __enter__(self) -> Scene:
         return self
 
     def __exit__(self, *exc: Any) -> None:
@@ -508,8 +525,9 @@ class Scene:
         return p @ rot.T + np.array([q[0], q[1], CART_WHEEL_RADIUS])
 
     # -- overlays --------------------------------------------------------------------
-    def show_contact(self, name: str, points: Any, frame: str = "world", radius: float = 0.025,
-                     color: int = COLORS["contact"]) -> np.ndarray:
+    def show_contact(
+        self, name: str, points: Any, frame: str = "world", radius: float = 0.025, color: int = COLORS["contact"]
+    ) -> np.ndarray:
         """Draw contact points as spheres under `/meshcat/contacts/<name>`; return their world positions.
 
         `frame` is ``"world"`` (2-D points lie on the floor) or ``"b"`` (cart
@@ -542,8 +560,16 @@ class Scene:
         node["head"]["geom"].set_transform(shaft_rot)
         return node
 
-    def show_wrench(self, name: str, origin: Any, force: Any, kind: str = "applied", torque: float | None = None,
-                    frame: str = "world", scale: float = FORCE_SCALE) -> float:
+    def show_wrench(
+        self,
+        name: str,
+        origin: Any,
+        force: Any,
+        kind: str = "applied",
+        torque: float | None = None,
+        frame: str = "world",
+        scale: float = FORCE_SCALE,
+    ) -> float:
         """Draw a force arrow (length `scale` * |force| m) at `origin`; return the arrow length.
 
         `kind` ``"applied"`` (blue) or ``"desired"`` (green). `force` is (fx, fy)
@@ -563,8 +589,14 @@ class Scene:
             _set_arrow(tnode, _arrow_parts(o, np.array([0.0, 0.0, scale * float(torque)]), 0.04))
         return float(scale * np.linalg.norm(f))
 
-    def show_allocation(self, points_b: Any, wrenches_ee: Any, name: str = "arm", scale: float = FORCE_SCALE,
-                        cart: str = "shopping_cart") -> np.ndarray:
+    def show_allocation(
+        self,
+        points_b: Any,
+        wrenches_ee: Any,
+        name: str = "arm",
+        scale: float = FORCE_SCALE,
+        cart: str = "shopping_cart",
+    ) -> np.ndarray:
         """Draw planned contact points (N, 2|3) in the cart frame {b} and each hand's wrench (N, 6) as arrows.
 
         The wrenches are the allocation's end-effector wrenches ``[f; tau]`` in
@@ -627,13 +659,25 @@ class Scene:
         self.camera = camera
         if self.window.live is not None:
             d = np.asarray(camera.eye, float)  # the camera node is rotated +90 deg about x: (x, y, z) -> (x, z, -y)
-            self.window.live.send(SetProperty("position", [d[0], d[2], -d[1]], PathOf("/Cameras/default/rotated/<object>")))
+            self.window.live.send(
+                SetProperty("position", [d[0], d[2], -d[1]], PathOf("/Cameras/default/rotated/<object>"))
+            )
 
     # -- animation -------------------------------------------------------------------
-    def animate(self, t: Sequence[float], poses: Mapping[str, Any], q_joints: Mapping[str, Any] | None = None,
-                wrenches: Mapping[str, tuple[Any, Any]] | None = None, kind: str = "applied",
-                markers: Mapping[str, Any] | None = None, scale: float = FORCE_SCALE, fps: int = 30,
-                play: bool = False, repetitions: int = 1, follow: Sequence[str] = ()) -> int:
+    def animate(
+        self,
+        t: Sequence[float],
+        poses: Mapping[str, Any],
+        q_joints: Mapping[str, Any] | None = None,
+        wrenches: Mapping[str, tuple[Any, Any]] | None = None,
+        kind: str = "applied",
+        markers: Mapping[str, Any] | None = None,
+        scale: float = FORCE_SCALE,
+        fps: int = 30,
+        play: bool = False,
+        repetitions: int = 1,
+        follow: Sequence[str] = (),
+    ) -> int:
         """Animate robots, force arrows and markers over times `t`; return the number of animation frames.
 
         The scene's static state is the first frame, and the page opens paused
@@ -666,8 +710,9 @@ class Scene:
         self._fps = fps
         return len(frame_numbers)
 
-    def _animate_robot(self, anim: Animation, keys: list[tuple[int, int]], name: str, traj: Any,
-                       joints: Any, n: int) -> None:
+    def _animate_robot(
+        self, anim: Animation, keys: list[tuple[int, int]], name: str, traj: Any, joints: Any, n: int
+    ) -> None:
         """Add the root keys (and geometry keys when joints move) of robot `name`; show its first frame."""
         traj = np.asarray(traj, dtype=float)
         if traj.shape != (n, 3):
@@ -686,8 +731,17 @@ class Scene:
         first = keys[0][1]
         self.set_robot_pose(name, traj[first], None if joints is None else joints[first])
 
-    def _animate_arrow(self, anim: Animation, keys: list[tuple[int, int]], name: str, origins: Any, forces: Any,
-                       kind: str, scale: float, n: int) -> None:
+    def _animate_arrow(
+        self,
+        anim: Animation,
+        keys: list[tuple[int, int]],
+        name: str,
+        origins: Any,
+        forces: Any,
+        kind: str,
+        scale: float,
+        n: int,
+    ) -> None:
         """Add the keys of force arrow `name` (world origins (n, 3), forces (n, 2|3)); show its first frame."""
         origins, forces = _points3(origins, 0.0), np.asarray(forces, dtype=float)
         if len(origins) != n or len(forces) != n:
@@ -734,8 +788,14 @@ class Scene:
         origins = cart_to_world_traj(q, contact_b, CART_HANDLE_Z_B + CART_WHEEL_RADIUS)
         self.show_trace(f"{cart}_path", q[:, :2])
         self.show_contact(cart, origins[:1])
-        return self.animate(t, {cart: q}, wrenches={f"{cart}_force": (origins, gamma[:, :2])},
-                            markers={f"contacts/{cart}/0": origins}, fps=fps, play=play)
+        return self.animate(
+            t,
+            {cart: q},
+            wrenches={f"{cart}_force": (origins, gamma[:, :2])},
+            markers={f"contacts/{cart}/0": origins},
+            fps=fps,
+            play=play,
+        )
 
     def world_transform(self, path: str) -> np.ndarray:
         """Return the recorded world transform (4x4) of a node, e.g. ``"/meshcat/shopping_cart/visuals/handle_0"``."""
@@ -761,8 +821,9 @@ class Scene:
         if self.window.animation is None:
             return 0.0
         clips = [item["clip"] for item in umsgpack.unpackb(self.window.animation)["animations"]]
-        return max((float(k["time"]) / clip["fps"] for clip in clips for tr in clip["tracks"] for k in tr["keys"]),
-                   default=0.0)
+        return max(
+            (float(k["time"]) / clip["fps"] for clip in clips for tr in clip["tracks"] for k in tr["keys"]), default=0.0
+        )
 
     def camera_at(self, time: float) -> Camera:
         """Return the page's camera at animation time `time` (s): `self.camera` moved with the followed robots.
@@ -779,8 +840,13 @@ class Scene:
         for name in self.follow:
             path = self.viewer[name].path.lower()
             clip = anims[path]
-            frames = np.array([k["time"] for tr in clip["tracks"] if tr["name"].lstrip(".") == "position"
-                               for k in tr["keys"]], dtype=float) / clip["fps"]
+            frames = (
+                np.array(
+                    [k["time"] for tr in clip["tracks"] if tr["name"].lstrip(".") == "position" for k in tr["keys"]],
+                    dtype=float,
+                )
+                / clip["fps"]
+            )
             pos = keys[path]["position"]
             at = np.array([np.interp(time, frames, pos[:, j]) for j in range(3)])
             shift += (at - pos[0]) / len(self.follow)
@@ -808,14 +874,21 @@ class Scene:
         the robots named by `animate`'s `follow`.
         """
         follow = [self.viewer[name].path.lower() for name in self.follow]
-        return _static_html(self.window.commands(), controls=controls, camera=self.camera, follow=follow,
-                            animated=self.window.animation is not None)
+        return _static_html(
+            self.window.commands(),
+            controls=controls,
+            camera=self.camera,
+            follow=follow,
+            animated=self.window.animation is not None,
+        )
 
     def iframe(self, height: int = 420, controls: bool = True) -> str:
         """Return an ``<iframe>`` holding the static page, for a notebook's output (``IPython.display.HTML``)."""
         page = _html.escape(self.static_html(controls=controls), quote=True)
-        return (f'<iframe srcdoc="{page}" style="width: 100%; height: {int(height)}px; border: none" '
-                f'title="Meshcat scene"></iframe>')
+        return (
+            f'<iframe srcdoc="{page}" style="width: 100%; height: {int(height)}px; border: none" '
+            f'title="Meshcat scene"></iframe>'
+        )
 
     def _repr_html_(self) -> str:
         """Show the scene inline in Jupyter (the static page in an iframe)."""
@@ -828,8 +901,9 @@ class Scene:
         return path
 
 
-def pushing_configuration(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), contact_y: float = 0.0,
-                          robot: str = "ridgeback_iiwa") -> tuple[np.ndarray, np.ndarray]:
+def pushing_configuration(
+    cart_pose: Sequence[float] = (0.9, 0.0, 0.0), contact_y: float = 0.0, robot: str = "ridgeback_iiwa"
+) -> tuple[np.ndarray, np.ndarray]:
     """Return (base planar pose, full q) of `robot` holding the cart's handle at `contact_y` (m, in {b}).
 
     The grasp of the push loop (`wholebody.push.robot`): the base stands where the
@@ -899,5 +973,10 @@ def log_scene(log: Any, serve: bool = False, fps: int = 30) -> Scene:
 def cart_to_world_traj(q: np.ndarray, points_b: np.ndarray, z: float) -> np.ndarray:
     """Return world points (N, 3) of per-sample points (N, 2) in {b} of the cart poses q (N, 3), at height z."""
     c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
-    return np.column_stack((q[:, 0] + c * points_b[:, 0] - s * points_b[:, 1],
-                            q[:, 1] + s * points_b[:, 0] + c * points_b[:, 1], np.full(len(q), z)))
+    return np.column_stack(
+        (
+            q[:, 0] + c * points_b[:, 0] - s * points_b[:, 1],
+            q[:, 1] + s * points_b[:, 0] + c * points_b[:, 1],
+            np.full(len(q), z),
+        )
+    )
