@@ -11,7 +11,7 @@ evaluates is `wholebody.contacts.excitation`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -193,40 +193,55 @@ def com_convergence_traj2(
     under wrench noise (docs/contacts.md). ``guess``: the EKF's initial (m, dx,
     dy, I, sigma); its sigma is used as known.
     """
-    from cart.control import make_controller
     from cart.params import CartParams
-    from cart.simulate import MeasurementNoise, simulate
     from cart.trajectories import trajectory_2
 
     handle = HandleSegment.default() if handle is None else handle
     at = contact.at if isinstance(contact, ContactSchedule) else contact
     model = input_model(ekf_input, noise, actuation)
     traj = trajectory_2(duration)
-    truth = CartParams(20.0, true_com[0], true_com[1], 20.0 * (1.0 + 0.36) / 12.0, 4.0)
-    guess = CartParams(*guess)
-    meas = MeasurementNoise.from_level(0.005)
-    config = study_config(dt, q_floor, q_phi)
+    truth = _study_truth(true_com)
     n = int(round(duration / dt)) + 1
-    loop = _SensorLoop(
-        make_controller("fl_lqr", traj),
-        guess,
-        config,
-        at,
-        handle,
-        model,
-        noise,
-        actuation,
-        np.random.default_rng(seed + 10_000),
-        n,
-        ekf_substeps,
+    rng = np.random.default_rng(seed + 10_000)
+    sensing = (at, handle, model, noise, actuation, rng)
+    loop = _study_loop(traj, CartParams(*guess), study_config(dt, q_floor, q_phi), sensing, n, ekf_substeps)
+    sim = _run_traj2(truth, loop, traj, duration, dt, seed)
+    return _convergence(label, seed, sim.true.t, loop, truth, tol)
+
+
+def _study_truth(true_com: tuple[float, float]):
+    """Return the study's true cart (Table I test 5): 20 kg, CoM ``true_com``, I = 20 (1 + 0.36) / 12, sigma 4."""
+    from cart.params import CartParams
+
+    return CartParams(20.0, true_com[0], true_com[1], 20.0 * (1.0 + 0.36) / 12.0, 4.0)
+
+
+def _study_loop(traj, guess, config, sensing: tuple, n: int, substeps: int) -> _SensorLoop:
+    """Return the sensing loop tracking ``traj`` by FL/LQR; ``sensing`` = (contact, handle, model, sensor, actuation, rng)."""
+    from cart.control import make_controller
+
+    contact, handle, model, sensor, actuation, rng = sensing
+    return _SensorLoop(
+        make_controller("fl_lqr", traj), guess, config, contact, handle, model, sensor, actuation, rng, n, substeps
     )
+
+
+def _run_traj2(truth, loop: _SensorLoop, traj, duration: float, dt: float, seed: int):
+    """Return the simulation of the true cart under ``loop`` from the start of ``traj`` (Table I noise level 0.005)."""
+    from cart.simulate import MeasurementNoise, simulate
+
+    meas = MeasurementNoise.from_level(0.005)
     q0, _, _ = traj.sample(0.0)
-    sim = simulate(truth, loop, duration, dt, q0=q0, noise=meas, rng=np.random.default_rng(seed))
+    return simulate(truth, loop, duration, dt, q0=q0, noise=meas, rng=np.random.default_rng(seed))
+
+
+def _convergence(label: str, seed: int, t: np.ndarray, loop: _SensorLoop, truth, tol: float) -> ConvergenceResult:
+    """Return the convergence record of ``loop``'s estimates against the ``truth`` at the times ``t``."""
     err = np.hypot(loop.com_hat[:, 0] - truth.dx, loop.com_hat[:, 1] - truth.dy)
     return ConvergenceResult(
         label,
         seed,
-        sim.true.t,
+        t,
         loop.com_hat,
         err,
         loop.com_std,

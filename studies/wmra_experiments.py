@@ -14,7 +14,7 @@ denies the base.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
@@ -119,6 +119,112 @@ class TrackingResult:
         return out
 
 
+@dataclass
+class _Record:
+    """Per-sample arrays of a tracking run (see :class:`TrackingResult`), filled step by step."""
+
+    xs: np.ndarray
+    us: np.ndarray
+    wheels: np.ndarray
+    p_des: np.ndarray
+    p_act: np.ndarray
+    centers: np.ndarray
+    pos_err: np.ndarray
+    rot_err: np.ndarray
+    flags: np.ndarray = field(default_factory=lambda: np.zeros(4, dtype=int))
+
+    @classmethod
+    def empty(cls, wb: WholeBody, n: int, n_x: int) -> _Record:
+        """Return an unfilled record of ``n`` steps (``n + 1`` samples) for states of size ``n_x``."""
+        return cls(
+            xs=np.empty((n + 1, n_x)),
+            us=np.empty((n, wb.n_u)),
+            wheels=np.empty((n, wb.base.n_wheels)),
+            p_des=np.empty((n + 1, 3)),
+            p_act=np.empty((n + 1, 3)),
+            centers=np.empty((n + 1, 2)),
+            pos_err=np.empty(n + 1),
+            rot_err=np.empty(n + 1),
+        )
+
+    def sample(self, k: int, x: np.ndarray, T_des: pin.SE3, T: pin.SE3, center: np.ndarray) -> None:
+        """Store sample ``k``: state, desired and actual EE pose and their errors, band centre."""
+        self.xs[k] = x
+        self.p_des[k], self.p_act[k] = T_des.translation, T.translation
+        self.pos_err[k] = np.linalg.norm(T_des.translation - T.translation)
+        self.rot_err[k] = np.linalg.norm(pin.log3(T_des.rotation @ T.rotation.T))
+        self.centers[k] = center
+
+    def step(self, k: int, res, wb: WholeBody) -> None:
+        """Store the controller's step ``k``: input, wheel rates and its flags."""
+        self.flags += (res.singular, res.saturated, not res.solver_ok, res.fallback_used)
+        self.us[k] = res.u
+        self.wheels[k] = wb.wheel_rates(res.u)
+
+
+def _track(
+    wb: WholeBody,
+    ctrl: ResolvedRateController,
+    f: Callable[[float], tuple[np.ndarray, np.ndarray]],
+    x: np.ndarray,
+    n: int,
+    dt: float,
+    progress: Callable[[int], None] | None,
+) -> _Record:
+    """Return the record of ``n`` control steps of ``dt`` s tracking the path ``f`` from ``x`` (orientation held)."""
+    T0 = wb.ee_placement(x)
+    p0, R0 = T0.translation.copy(), T0.rotation.copy()
+    base0 = x[:2].copy()
+    rec = _Record.empty(wb, n, x.size)
+    for k in range(n + 1):
+        t = k * dt
+        off, vel = f(t)
+        T_des = pin.SE3(R0, p0 + off)
+        rec.sample(k, x, T_des, wb.ee_placement(x), base0 + np.array([BAND_SPEED * t, 0.0]))
+        if k == n:
+            break
+        res = ctrl.step(
+            x, T_des, np.r_[vel, 0.0, 0.0, 0.0], dt, band_center=rec.centers[k], band_center_velocity=(BAND_SPEED, 0.0)
+        )
+        rec.step(k, res, wb)
+        x = wb.integrate(x, res.u, dt)
+        if progress is not None:
+            progress(k)
+    return rec
+
+
+def _result(wb: WholeBody, path: str, band_radius: float | None, dt: float, n: int, rec: _Record) -> TrackingResult:
+    """Return the tracking result (metrics and arrays) of the record ``rec``."""
+    q = rec.xs[:, 3:]
+    margin = np.minimum(q - wb.arm_lower, wb.arm_upper - q)
+    band_dist = np.linalg.norm(rec.xs[:, :2] - rec.centers, axis=1).max() if band_radius is not None else float("nan")
+    return TrackingResult(
+        robot=wb.robot.name,
+        path=path,
+        band_radius=band_radius,
+        dt=dt,
+        steps=n,
+        max_position_error_m=float(rec.pos_err.max()),
+        rms_position_error_m=float(np.sqrt(np.mean(rec.pos_err**2))),
+        max_orientation_error_rad=float(rec.rot_err.max()),
+        min_joint_limit_margin_rad=float(margin.min()),
+        max_joint_speed_ratio=float(np.max(np.abs(rec.us[:, : wb.n_arm]) / wb.arm_velocity_limit)),
+        max_wheel_speed_ratio=float(np.max(np.abs(rec.wheels) / wb.wheel_velocity_limit)),
+        max_band_distance_m=float(band_dist),
+        singular_steps=int(rec.flags[0]),
+        saturated_steps=int(rec.flags[1]),
+        solver_failures=int(rec.flags[2]),
+        fallback_steps=int(rec.flags[3]),
+        t=np.arange(n + 1) * dt,
+        x=rec.xs,
+        u=rec.us,
+        wheel_rates=rec.wheels,
+        ee_desired=rec.p_des,
+        ee_actual=rec.p_act,
+        band_center=rec.centers,
+    )
+
+
 def run_tracking(
     robot: str = "wmra",
     path: str = "line",
@@ -152,64 +258,5 @@ def run_tracking(
     ctrl = ResolvedRateController(wb, config or ControllerConfig(), band=band)
     dt = 1.0 / rate
     n = int(round(duration * rate))
-    T0 = wb.ee_placement(x)
-    p0, R0 = T0.translation.copy(), T0.rotation.copy()
-    base0 = x[:2].copy()
-    xs = np.empty((n + 1, x.size))
-    us = np.empty((n, wb.n_u))
-    wheels = np.empty((n, wb.base.n_wheels))
-    p_des = np.empty((n + 1, 3))
-    p_act = np.empty((n + 1, 3))
-    centers = np.empty((n + 1, 2))
-    pos_err = np.empty(n + 1)
-    rot_err = np.empty(n + 1)
-    flags = np.zeros(4, dtype=int)
-    for k in range(n + 1):
-        t = k * dt
-        off, vel = f(t)
-        T_des = pin.SE3(R0, p0 + off)
-        xs[k] = x
-        T = wb.ee_placement(x)
-        p_des[k], p_act[k] = T_des.translation, T.translation
-        pos_err[k] = np.linalg.norm(T_des.translation - T.translation)
-        rot_err[k] = np.linalg.norm(pin.log3(T_des.rotation @ T.rotation.T))
-        centers[k] = base0 + np.array([BAND_SPEED * t, 0.0])
-        if k == n:
-            break
-        res = ctrl.step(
-            x, T_des, np.r_[vel, 0.0, 0.0, 0.0], dt, band_center=centers[k], band_center_velocity=(BAND_SPEED, 0.0)
-        )
-        flags += (res.singular, res.saturated, not res.solver_ok, res.fallback_used)
-        us[k] = res.u
-        wheels[k] = wb.wheel_rates(res.u)
-        x = wb.integrate(x, res.u, dt)
-        if progress is not None:
-            progress(k)
-    q = xs[:, 3:]
-    margin = np.minimum(q - wb.arm_lower, wb.arm_upper - q)
-    band_dist = np.linalg.norm(xs[:, :2] - centers, axis=1).max() if band is not None else float("nan")
-    return TrackingResult(
-        robot=wb.robot.name,
-        path=path,
-        band_radius=band_radius,
-        dt=dt,
-        steps=n,
-        max_position_error_m=float(pos_err.max()),
-        rms_position_error_m=float(np.sqrt(np.mean(pos_err**2))),
-        max_orientation_error_rad=float(rot_err.max()),
-        min_joint_limit_margin_rad=float(margin.min()),
-        max_joint_speed_ratio=float(np.max(np.abs(us[:, : wb.n_arm]) / wb.arm_velocity_limit)),
-        max_wheel_speed_ratio=float(np.max(np.abs(wheels) / wb.wheel_velocity_limit)),
-        max_band_distance_m=float(band_dist),
-        singular_steps=int(flags[0]),
-        saturated_steps=int(flags[1]),
-        solver_failures=int(flags[2]),
-        fallback_steps=int(flags[3]),
-        t=np.arange(n + 1) * dt,
-        x=xs,
-        u=us,
-        wheel_rates=wheels,
-        ee_desired=p_des,
-        ee_actual=p_act,
-        band_center=centers,
-    )
+    rec = _track(wb, ctrl, f, x, n, dt, progress)
+    return _result(wb, path, band_radius, dt, n, rec)

@@ -30,13 +30,14 @@ Usage::
     log, info = simulate(random_case(3))
     generate(5, seed0=100, out_dir="/tmp/mjlogs")   # mj100.csv.gz ... + truth.json
 """
+
 from __future__ import annotations
 
 import json
 import math
 import os
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any
 
 import numpy as np
 
@@ -56,8 +57,7 @@ CASTER_FORKS = ("caster_left", "caster_right")
 
 def _require_mujoco() -> None:
     if mujoco is None:
-        raise ImportError("studies.testbeds.mujoco_cart needs the 'mujoco' package "
-                          "(pip install -e '.[studies]')")
+        raise ImportError("studies.testbeds.mujoco_cart needs the 'mujoco' package (pip install -e '.[studies]')")
 
 
 @dataclass(frozen=True)
@@ -87,8 +87,8 @@ class MujocoCart:
 
     chassis_mass: float = 12.0
     payload_mass: float = 10.0
-    payload_offset: Tuple[float, float] = (0.40, 0.03)
-    payload_size: Tuple[float, float, float] = (0.30, 0.25, 0.20)
+    payload_offset: tuple[float, float] = (0.40, 0.03)
+    payload_size: tuple[float, float, float] = (0.30, 0.25, 0.20)
     wheelbase: float = 0.65
     half_track: float = 0.22
     wheel_radius: float = 0.075
@@ -111,21 +111,44 @@ class MujocoCart:
     swivel_damping: float = 0.02
     swivel_frictionloss: float = 0.02
     axle_damping: float = 0.0
-    solref: Tuple[float, float] = (0.02, 1.0)
-    solimp: Tuple[float, float, float] = (0.9, 0.95, 0.001)
+    solref: tuple[float, float] = (0.02, 1.0)
+    solimp: tuple[float, float, float] = (0.9, 0.95, 0.001)
     handle_distance: float = 0.30
     handle_y: float = 0.0
     timestep: float = 0.001
 
     def __post_init__(self) -> None:
-        positive = ("chassis_mass", "wheelbase", "half_track", "wheel_radius", "wheel_width", "wheel_mass",
-                    "caster_half_track", "caster_fork_height", "caster_fork_mass", "caster_wheel_radius",
-                    "caster_wheel_width", "caster_wheel_mass", "chassis_width", "chassis_thickness", "timestep")
+        positive = (
+            "chassis_mass",
+            "wheelbase",
+            "half_track",
+            "wheel_radius",
+            "wheel_width",
+            "wheel_mass",
+            "caster_half_track",
+            "caster_fork_height",
+            "caster_fork_mass",
+            "caster_wheel_radius",
+            "caster_wheel_width",
+            "caster_wheel_mass",
+            "chassis_width",
+            "chassis_thickness",
+            "timestep",
+        )
         for name in positive:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"MujocoCart.{name} must be > 0, got {getattr(self, name)!r}")
-        nonneg = ("payload_mass", "caster_trail", "chassis_overhang", "rolling_friction", "torsional_friction",
-                  "sliding_friction", "swivel_damping", "swivel_frictionloss", "axle_damping")
+        nonneg = (
+            "payload_mass",
+            "caster_trail",
+            "chassis_overhang",
+            "rolling_friction",
+            "torsional_friction",
+            "sliding_friction",
+            "swivel_damping",
+            "swivel_frictionloss",
+            "axle_damping",
+        )
         for name in nonneg:
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"MujocoCart.{name} must be >= 0, got {getattr(self, name)!r}")
@@ -145,8 +168,12 @@ class MujocoCart:
     @property
     def total_mass(self) -> float:
         """Sum of all body masses (kg)."""
-        return (self.chassis_mass + self.payload_mass + 2 * self.wheel_mass
-                + 2 * (self.caster_fork_mass + self.caster_wheel_mass))
+        return (
+            self.chassis_mass
+            + self.payload_mass
+            + 2 * self.wheel_mass
+            + 2 * (self.caster_fork_mass + self.caster_wheel_mass)
+        )
 
 
 @dataclass(frozen=True)
@@ -179,9 +206,9 @@ class MujocoCase:
     with_contact: bool = True
     seed: int = 0
     name: str = ""
-    q0: Optional[Tuple[float, float, float]] = None
+    q0: tuple[float, float, float] | None = None
     mass_guess_error: float = 0.3
-    lateral_share: Optional[float] = None
+    lateral_share: float | None = None
     v_max: float = 1.0
     omega_max: float = 0.6
 
@@ -196,16 +223,13 @@ class MujocoCase:
 
 # --------------------------------------------------------------------------- model
 
+
 def _f(*values: float) -> str:
     return " ".join(f"{float(v):.17g}" for v in values)
 
 
-def mjcf(cart: MujocoCart) -> str:
-    """Return the MJCF (XML string) of ``cart``; the chassis body frame is {b}."""
-    c = cart
-    r, rc = c.wheel_radius, c.caster_wheel_radius
-    length = c.wheelbase + 2.0 * c.chassis_overhang
-    friction = _f(c.sliding_friction, c.torsional_friction, c.rolling_friction)
+def _payload_xml(c: MujocoCart) -> str:
+    """Return the MJCF body of the payload box ("" without a payload)."""
     payload = ""
     if c.payload_mass > 0.0:
         px, py = c.payload_offset
@@ -215,6 +239,12 @@ def mjcf(cart: MujocoCart) -> str:
         <geom name="payload" type="box" size="{_f(sx / 2, sy / 2, sz / 2)}" mass="{c.payload_mass:.17g}"
               class="body" rgba="0.8 0.5 0.2 1"/>
       </body>"""
+    return payload
+
+
+def _rear_wheels_xml(c: MujocoCart) -> str:
+    """Return the MJCF bodies of the two fixed rear wheels (hinge axles on the {b} y axis)."""
+    r = c.wheel_radius
     rear = ""
     for side, sgn in (("left", 1.0), ("right", -1.0)):
         rear += f"""
@@ -224,6 +254,12 @@ def mjcf(cart: MujocoCart) -> str:
               fromto="{_f(0, -c.wheel_width / 2, 0, 0, c.wheel_width / 2, 0)}" rgba="0.1 0.1 0.1 1"/>
         <geom name="tyre_{side}" type="sphere" class="wheel" size="{_f(r)}" mass="0"/>
       </body>"""
+    return rear
+
+
+def _casters_xml(c: MujocoCart) -> str:
+    """Return the MJCF bodies of the two swivelling casters (fork with trail, wheel on its own axle)."""
+    rc = c.caster_wheel_radius
     casters = ""
     h, trail = c.caster_fork_height, c.caster_trail
     for side, sgn in (("left", 1.0), ("right", -1.0)):
@@ -241,6 +277,16 @@ def mjcf(cart: MujocoCart) -> str:
           <geom name="caster_tyre_{side}" type="sphere" class="wheel" size="{_f(rc)}" mass="0"/>
         </body>
       </body>"""
+    return casters
+
+
+def mjcf(cart: MujocoCart) -> str:
+    """Return the MJCF (XML string) of ``cart``; the chassis body frame is {b}."""
+    c = cart
+    r = c.wheel_radius
+    length = c.wheelbase + 2.0 * c.chassis_overhang
+    friction = _f(c.sliding_friction, c.torsional_friction, c.rolling_friction)
+    payload, rear, casters = _payload_xml(c), _rear_wheels_xml(c), _casters_xml(c)
     return f"""<mujoco model="mujoco_cart">
   <compiler angle="radian" inertiafromgeom="true" autolimits="true"/>
   <option timestep="{c.timestep:.17g}" gravity="0 0 {-GRAVITY}" integrator="implicitfast" cone="elliptic"/>
@@ -263,7 +309,7 @@ def mjcf(cart: MujocoCart) -> str:
 """
 
 
-def build(cart: MujocoCart) -> Tuple["mujoco.MjModel", "mujoco.MjData"]:
+def build(cart: MujocoCart) -> tuple[mujoco.MjModel, mujoco.MjData]:
     """Return (MjModel, MjData) of ``cart`` (data reset, cart standing at the origin)."""
     _require_mujoco()
     model = mujoco.MjModel.from_xml_string(mjcf(cart))
@@ -275,8 +321,7 @@ def _yaw(quat: np.ndarray) -> float:
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
-def place(model: "mujoco.MjModel", data: "mujoco.MjData", cart: MujocoCart,
-              pose: Tuple[float, float, float]) -> None:
+def place(model: mujoco.MjModel, data: mujoco.MjData, cart: MujocoCart, pose: tuple[float, float, float]) -> None:
     mujoco.mj_resetData(model, data)
     x, y, th = pose
     data.qpos[0:3] = (x, y, cart.wheel_radius + 1e-4)
@@ -284,8 +329,13 @@ def place(model: "mujoco.MjModel", data: "mujoco.MjData", cart: MujocoCart,
     mujoco.mj_forward(model, data)
 
 
-def settle(model: "mujoco.MjModel", data: "mujoco.MjData", cart: MujocoCart,
-           pose: Tuple[float, float, float] = (0.0, 0.0, 0.0), duration: float = SETTLE_TIME) -> None:
+def settle(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    cart: MujocoCart,
+    pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    duration: float = SETTLE_TIME,
+) -> None:
     """Place {b} at ``pose`` with the casters trailing (swivel 0) and let it settle for ``duration`` s."""
     place(model, data, cart, pose)
     data.xfrc_applied[:] = 0.0
@@ -294,7 +344,7 @@ def settle(model: "mujoco.MjModel", data: "mujoco.MjData", cart: MujocoCart,
     mujoco.mj_forward(model, data)
 
 
-def composite_inertia(model: "mujoco.MjModel", data: "mujoco.MjData") -> Tuple[float, np.ndarray, float]:
+def composite_inertia(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[float, np.ndarray, float]:
     """Return (mass, CoM in {s}, yaw inertia about the vertical axis through the CoM) of all bodies.
 
     The yaw inertia sums every body's own inertia rotated to {s} (``ximat diag(body_inertia)
@@ -308,13 +358,13 @@ def composite_inertia(model: "mujoco.MjModel", data: "mujoco.MjData") -> Tuple[f
     rot = np.asarray(data.ximat[1:], dtype=float).reshape(-1, 3, 3)
     izz_own = np.einsum("nj,nj->n", rot[:, 2, :] ** 2, np.asarray(model.body_inertia[1:], dtype=float))
     d = pos[:, :2] - com[:2]
-    inertia = float(izz_own.sum() + (masses * (d ** 2).sum(axis=1)).sum())
+    inertia = float(izz_own.sum() + (masses * (d**2).sum(axis=1)).sum())
     return mass, com, inertia
 
 
-def wheel_spin_inertias(model: "mujoco.MjModel") -> Dict[str, Tuple[float, float]]:
+def wheel_spin_inertias(model: mujoco.MjModel) -> dict[str, tuple[float, float]]:
     """Return {wheel body: (spin inertia about its axle (kg m^2), rolling radius (m))} from the model."""
-    out: Dict[str, Tuple[float, float]] = {}
+    out: dict[str, tuple[float, float]] = {}
     for name in WHEEL_BODIES:
         bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
         jid = int(model.body_jntadr[bid])
@@ -329,8 +379,9 @@ def wheel_spin_inertias(model: "mujoco.MjModel") -> Dict[str, Tuple[float, float
     return out
 
 
-def tau_about_b(fx: float, fy: float, tau_applied: float, com_xy: Tuple[float, float],
-                b_xy: Tuple[float, float]) -> float:
+def tau_about_b(
+    fx: float, fy: float, tau_applied: float, com_xy: tuple[float, float], b_xy: tuple[float, float]
+) -> float:
     """Return the torque about the vertical axis through the {b} origin of a planar wrench.
 
     ``(fx, fy)`` in {s} and ``tau_applied`` (z) act at ``com_xy`` (where MuJoCo applies
@@ -339,7 +390,7 @@ def tau_about_b(fx: float, fy: float, tau_applied: float, com_xy: Tuple[float, f
     return tau_applied + (com_xy[0] - b_xy[0]) * fy - (com_xy[1] - b_xy[1]) * fx
 
 
-def truth_from_state(model: "mujoco.MjModel", data: "mujoco.MjData") -> Dict[str, float]:
+def truth_from_state(model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, float]:
     chassis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "chassis")
     mass, com, inertia = composite_inertia(model, data)
     sub_mass = float(model.body_subtreemass[chassis])
@@ -351,12 +402,17 @@ def truth_from_state(model: "mujoco.MjModel", data: "mujoco.MjData") -> Dict[str
     c, s = math.cos(th), math.sin(th)
     dx, dy = c * rel[0] + s * rel[1], -s * rel[0] + c * rel[1]
     spins = wheel_spin_inertias(model)
-    m_eff = sub_mass + sum(j / rad ** 2 for j, rad in spins.values())
-    return {"m": sub_mass, "dx": float(dx), "dy": float(dy), "I_about_com": inertia,
-            "m_effective_forward_incl_wheel_spin": float(m_eff)}
+    m_eff = sub_mass + sum(j / rad**2 for j, rad in spins.values())
+    return {
+        "m": sub_mass,
+        "dx": float(dx),
+        "dy": float(dy),
+        "I_about_com": inertia,
+        "m_effective_forward_incl_wheel_spin": float(m_eff),
+    }
 
 
-def truth(cart: MujocoCart) -> Dict[str, float]:
+def truth(cart: MujocoCart) -> dict[str, float]:
     """Return the rigid-body truth of ``cart`` after 1 s of settling with the casters trailing.
 
     Keys: ``m`` (kg, ``body_subtreemass`` of the chassis), ``dx``, ``dy`` (m, ``subtree_com`` in
@@ -371,8 +427,10 @@ def truth(cart: MujocoCart) -> Dict[str, float]:
 
 # --------------------------------------------------------------------------- reference
 
-def _smooth_steps(times: np.ndarray, knots: np.ndarray, values: np.ndarray, ramps: np.ndarray
-                  ) -> Tuple[np.ndarray, np.ndarray]:
+
+def _smooth_steps(
+    times: np.ndarray, knots: np.ndarray, values: np.ndarray, ramps: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Return (y, dy/dt): piecewise-constant ``values`` joined by raised-cosine ramps starting at ``knots``."""
     y = np.full_like(times, values[0])
     dy = np.zeros_like(times)
@@ -385,8 +443,9 @@ def _smooth_steps(times: np.ndarray, knots: np.ndarray, values: np.ndarray, ramp
     return y, dy
 
 
-def reference(duration: float, rng: np.random.Generator, dt: float = 0.001, v_max: float = 1.0,
-              omega_max: float = 0.6) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def reference(
+    duration: float, rng: np.random.Generator, dt: float = 0.001, v_max: float = 1.0, omega_max: float = 0.6
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (t, v, dv/dt, omega, domega/dt) of a random push / stop / pull reference with turns.
 
     Segments of 2.5-6 s: push (0.3 v_max to v_max), stop (0), pull (-0.6 v_max to -0.2 v_max);
@@ -398,7 +457,7 @@ def reference(duration: float, rng: np.random.Generator, dt: float = 0.001, v_ma
     for _ in range(1000):
         knots, speeds, rates = [0.0], [0.0], [0.0]
         tk = rng.uniform(0.3, 1.0)
-        kinds: List[str] = []
+        kinds: list[str] = []
         while tk < duration - 1.0:
             kind = rng.choice(["push", "push", "stop", "pull"]) if kinds else "push"
             if kinds and kinds[-1] == kind == "stop":
@@ -426,6 +485,7 @@ def reference(duration: float, rng: np.random.Generator, dt: float = 0.001, v_ma
 
 # --------------------------------------------------------------------------- cases
 
+
 def random_case(seed: int, **overrides: Any) -> MujocoCase:
     """Return a random case: a cart of 10-80 kg total with the payload anywhere on the deck, 30-60 s.
 
@@ -449,18 +509,33 @@ def random_case(seed: int, **overrides: Any) -> MujocoCase:
     px = rng.uniform(psize[0] / 2 - 0.05, wheelbase - psize[0] / 2 + 0.05)
     py = rng.uniform(-1.0, 1.0) * max(half_track - psize[1] / 2 - 0.02, 0.0)
     cart = MujocoCart(
-        chassis_mass=chassis, payload_mass=payload, payload_offset=(px, py), payload_size=psize,
-        wheelbase=wheelbase, half_track=half_track, wheel_radius=wheel_radius,
-        wheel_width=rng.uniform(0.02, 0.045), wheel_mass=wheel_mass,
-        caster_half_track=half_track - rng.uniform(0.0, 0.05), caster_trail=rng.uniform(0.02, 0.05),
-        caster_fork_height=caster_wheel_radius + rng.uniform(0.01, 0.04), caster_fork_mass=fork_mass,
-        caster_wheel_radius=caster_wheel_radius, caster_wheel_width=rng.uniform(0.018, 0.035),
-        caster_wheel_mass=caster_wheel_mass, chassis_overhang=rng.uniform(0.05, 0.15),
-        chassis_width=2 * half_track - 0.06, chassis_thickness=rng.uniform(0.02, 0.06),
-        deck_height=rng.uniform(0.05, 0.25), rolling_friction=rng.uniform(3e-4, 1.5e-3),
-        torsional_friction=rng.uniform(5e-4, 3e-3), sliding_friction=rng.uniform(0.6, 1.0),
-        swivel_damping=rng.uniform(0.005, 0.05), swivel_frictionloss=rng.uniform(0.005, 0.05),
-        handle_distance=rng.uniform(0.15, 0.4), handle_y=rng.uniform(-0.05, 0.05),
+        chassis_mass=chassis,
+        payload_mass=payload,
+        payload_offset=(px, py),
+        payload_size=psize,
+        wheelbase=wheelbase,
+        half_track=half_track,
+        wheel_radius=wheel_radius,
+        wheel_width=rng.uniform(0.02, 0.045),
+        wheel_mass=wheel_mass,
+        caster_half_track=half_track - rng.uniform(0.0, 0.05),
+        caster_trail=rng.uniform(0.02, 0.05),
+        caster_fork_height=caster_wheel_radius + rng.uniform(0.01, 0.04),
+        caster_fork_mass=fork_mass,
+        caster_wheel_radius=caster_wheel_radius,
+        caster_wheel_width=rng.uniform(0.018, 0.035),
+        caster_wheel_mass=caster_wheel_mass,
+        chassis_overhang=rng.uniform(0.05, 0.15),
+        chassis_width=2 * half_track - 0.06,
+        chassis_thickness=rng.uniform(0.02, 0.06),
+        deck_height=rng.uniform(0.05, 0.25),
+        rolling_friction=rng.uniform(3e-4, 1.5e-3),
+        torsional_friction=rng.uniform(5e-4, 3e-3),
+        sliding_friction=rng.uniform(0.6, 1.0),
+        swivel_damping=rng.uniform(0.005, 0.05),
+        swivel_frictionloss=rng.uniform(0.005, 0.05),
+        handle_distance=rng.uniform(0.15, 0.4),
+        handle_y=rng.uniform(-0.05, 0.05),
     )
     cart_fields = {k: overrides.pop(k) for k in list(overrides) if k in MujocoCart.__dataclass_fields__}
     if cart_fields:
@@ -471,6 +546,7 @@ def random_case(seed: int, **overrides: Any) -> MujocoCase:
 
 
 # --------------------------------------------------------------------------- simulation
+
 
 def _sample_steps(case: MujocoCase, n_steps: int, rng: np.random.Generator) -> np.ndarray:
     """Return the physics-step indices of the log samples (strictly increasing)."""
@@ -483,7 +559,240 @@ def _sample_steps(case: MujocoCase, n_steps: int, rng: np.random.Generator) -> n
     return steps[np.r_[True, np.diff(steps) > 0]]
 
 
-def simulate(case: MujocoCase) -> Tuple[CartLog, Dict[str, Any]]:
+@dataclass(frozen=True)
+class _Reference:
+    """The reference on the physics-step grid: speed, acceleration, yaw rate and acceleration, and their integrals."""
+
+    v: np.ndarray
+    a: np.ndarray
+    w: np.ndarray
+    al: np.ndarray
+    s: np.ndarray
+    th: np.ndarray
+
+    @classmethod
+    def draw(cls, case: MujocoCase, rng: np.random.Generator, dt: float) -> _Reference:
+        """Return a random :func:`reference` of ``case`` with its progress and heading (trapezoidal rule)."""
+        _t, v_ref, a_ref, w_ref, al_ref = reference(case.duration, rng, dt, case.v_max, case.omega_max)
+        s_ref = np.concatenate([[0.0], np.cumsum(0.5 * (v_ref[1:] + v_ref[:-1]) * dt)])
+        th_ref = np.concatenate([[0.0], np.cumsum(0.5 * (w_ref[1:] + w_ref[:-1]) * dt)])
+        return cls(v_ref, a_ref, w_ref, al_ref, s_ref, th_ref)
+
+
+@dataclass(frozen=True)
+class _Tracker:
+    """The pushing robot's controller: feedforward from a rough guess of the cart plus PD on progress / heading."""
+
+    ref: _Reference
+    m_g: float
+    i_g: float
+    f_roll_g: float
+    share: float
+    handle: tuple[float, float]
+    wn_v: float = 2.5
+    wn_w: float = 3.0
+
+    @classmethod
+    def guessing(cls, case: MujocoCase, info: dict[str, float], ref: _Reference, rng: np.random.Generator) -> _Tracker:
+        """Return a tracker whose mass and yaw inertia about {b} are off by up to ``case.mass_guess_error``."""
+        m_true, i_b_true = info["m"], info["I_about_com"] + info["m"] * (info["dx"] ** 2 + info["dy"] ** 2)
+        err = case.mass_guess_error
+        m_g = m_true * float(rng.uniform(1.0 - err, 1.0 + err))
+        i_g = i_b_true * float(rng.uniform(1.0 - err, 1.0 + err))
+        f_roll_g = m_g * GRAVITY * float(rng.uniform(0.003, 0.02))
+        share = float(rng.uniform(0.2, 0.8)) if case.lateral_share is None else float(case.lateral_share)
+        return cls(ref, m_g, i_g, f_roll_g, share, (-case.cart.handle_distance, case.cart.handle_y))
+
+    def wrench(self, i: int, v: float, omega: float, s_meas: float, th_rel: float) -> tuple[float, float, float]:
+        """Return the handle wrench (forward, lateral force, wrist torque) in {b} at step ``i``."""
+        r = self.ref
+        m_g, i_g, hx, hy = self.m_g, self.i_g, self.handle[0], self.handle[1]
+        kp_s, kd_s = m_g * self.wn_v**2, 2.0 * m_g * self.wn_v
+        kp_th, kd_th = i_g * self.wn_w**2, 2.0 * i_g * self.wn_w
+        e_s = min(max(r.s[i] - s_meas, -0.2), 0.2)
+        e_th = min(max(r.th[i] - th_rel, -0.2), 0.2)
+        f_fwd = m_g * r.a[i] + self.f_roll_g * math.tanh(r.v[i] / 0.05) + kd_s * (r.v[i] - v) + kp_s * e_s
+        t_b = i_g * r.al[i] + kd_th * (r.w[i] - omega) + kp_th * e_th
+        f_lat = -self.share * t_b / hx
+        tau_h = t_b - (hx * f_lat - hy * f_fwd)  # wrist torque: the rest of t_b about {b}
+        return f_fwd, f_lat, tau_h
+
+
+def _planar_state(qpos: np.ndarray, qvel: np.ndarray) -> tuple[float, float, float, float, float, float]:
+    """Return (x, y, yaw, vx, vy, yaw rate) of the free joint's position ``qpos`` and velocity ``qvel``."""
+    x, y, _z, qw, qx, qy, qz = qpos[:7].tolist()
+    vx, vy, _vz, wx, wy, wz = qvel[:6].tolist()
+    th = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    # yaw rate: world z of the body angular velocity (row 2 of R times omega_local)
+    omega = 2.0 * (qx * qz - qw * qy) * wx + 2.0 * (qy * qz + qw * qx) * wy + (1.0 - 2.0 * (qx * qx + qy * qy)) * wz
+    return x, y, th, vx, vy, omega
+
+
+@dataclass
+class _Unwrap:
+    """Continuous heading from successive yaw angles in (-pi, pi]; ``start`` is the first angle."""
+
+    value: float = 0.0
+    prev: float | None = None
+    start: float | None = None
+
+    def update(self, th: float) -> float:
+        """Return the unwrapped heading after the yaw angle ``th``."""
+        if self.prev is None:
+            self.start, self.value = th, th
+        else:
+            self.value += math.remainder(th - self.prev, 2.0 * math.pi)
+        self.prev = th
+        return self.value
+
+
+@dataclass(frozen=True)
+class _Record:
+    """Clean arrays at the log samples: ``rec`` (t, x, y, theta, fx, fy, tau_b, vx, vy, omega), the applied
+    torque and chassis CoM, the CoM in {b} and the caster swivel angles."""
+
+    rec: np.ndarray
+    applied: np.ndarray
+    com_b: np.ndarray
+    swivel: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int) -> _Record:
+        """Return an unfilled record of ``n`` samples."""
+        return cls(np.empty((n, 10)), np.empty((n, 3)), np.empty((n, 2)), np.empty((n, 2)))
+
+
+def _swivel_addresses(model: mujoco.MjModel) -> list[int]:
+    """Return the qpos addresses of the left and right caster swivel joints."""
+    return [
+        int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"swivel_{side}")])
+        for side in ("left", "right")
+    ]
+
+
+def _run(model: mujoco.MjModel, data: mujoco.MjData, tracker: _Tracker, n_steps: int, samples: np.ndarray) -> _Record:
+    """Step the pushed cart ``n_steps`` physics steps; return the clean record at the step indices ``samples``."""
+    chassis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "chassis")
+    dt = model.opt.timestep
+    is_sample = np.zeros(n_steps, dtype=bool)
+    is_sample[samples] = True
+    out = _Record.empty(len(samples))
+    swivel_adr = _swivel_addresses(model)
+    qpos, qvel, xfrc, xipos = data.qpos, data.qvel, data.xfrc_applied, data.xipos
+    hx, hy = tracker.handle
+    heading, s_meas, k = _Unwrap(), 0.0, 0
+    for i in range(n_steps):
+        mujoco.mj_step1(model, data)  # kinematics and CoM of the current state (xipos used by xfrc_applied)
+        x, y, th, vx, vy, omega = _planar_state(qpos, qvel)
+        th_unwrapped = heading.update(th)
+        c, s = math.cos(th), math.sin(th)
+        v = c * vx + s * vy
+        f_fwd, f_lat, tau_h = tracker.wrench(i, v, omega, s_meas, th_unwrapped - heading.start)
+        fx, fy = c * f_fwd - s * f_lat, s * f_fwd + c * f_lat
+        px, py = x + c * hx - s * hy, y + s * hx + c * hy  # handle in {s}
+        cx, cy = float(xipos[chassis, 0]), float(xipos[chassis, 1])
+        tau_app = tau_h + (px - cx) * fy - (py - cy) * fx  # same wrench, moved to the chassis CoM
+        xfrc[chassis, 0] = fx
+        xfrc[chassis, 1] = fy
+        xfrc[chassis, 5] = tau_app
+        if is_sample[i]:
+            tau_b = tau_about_b(fx, fy, tau_app, (cx, cy), (x, y))
+            out.rec[k] = (i * dt, x, y, th_unwrapped, fx, fy, tau_b, vx, vy, omega)
+            out.applied[k] = (tau_app, cx, cy)
+            sc = data.subtree_com[chassis]
+            rx, ry = float(sc[0]) - x, float(sc[1]) - y
+            out.com_b[k] = (c * rx + s * ry, -s * rx + c * ry)
+            out.swivel[k] = (qpos[swivel_adr[0]], qpos[swivel_adr[1]])
+            k += 1
+        mujoco.mj_step2(model, data)
+        s_meas += v * dt
+    return out
+
+
+def _noise_std(case: MujocoCase) -> dict[str, float]:
+    """Return the log's noise standard deviations by column."""
+    return {
+        "x": case.position_noise,
+        "y": case.position_noise,
+        "theta": case.theta_noise,
+        "fx": case.force_noise,
+        "fy": case.force_noise,
+        "tau": case.torque_noise,
+        "vx": case.velocity_noise,
+        "vy": case.velocity_noise,
+        "omega": case.omega_noise,
+    }
+
+
+def _noisy_log(case: MujocoCase, rec: np.ndarray, handle: tuple[float, float], rng: np.random.Generator) -> CartLog:
+    """Return the log of the clean samples ``rec`` with white noise of the case's stds."""
+    n = len(rec)
+    noise = np.column_stack(
+        [
+            rng.normal(0.0, case.position_noise, (n, 2)),
+            rng.normal(0.0, case.theta_noise, n),
+            rng.normal(0.0, case.force_noise, (n, 2)),
+            rng.normal(0.0, case.torque_noise, n),
+            rng.normal(0.0, case.velocity_noise, (n, 2)),
+            rng.normal(0.0, case.omega_noise, n),
+        ]
+    )
+    meas = rec.copy()
+    meas[:, 1:] += noise
+    metadata = {
+        "log": case.name or f"mj{case.seed}",
+        "source": "MuJoCo cart (studies.testbeds.mujoco_cart)",
+        "mujoco": mujoco.__version__,
+        "seed": str(case.seed),
+        "rate_hz": f"{case.rate_hz:g}",
+        "jitter": f"{case.jitter:g}",
+    }
+    contact = np.tile(list(handle), (n, 1)) if case.with_contact else None
+    qd = meas[:, 7:10] if case.with_velocities else None
+    return CartLog(t=meas[:, 0], q=meas[:, 1:4], gamma=meas[:, 4:7], qd=qd, contact_b=contact, metadata=metadata)
+
+
+def _minmeanmax(x: np.ndarray) -> list[float]:
+    """Return [min, mean, max] of ``x`` as floats."""
+    return [float(x.min()), float(x.mean()), float(x.max())]
+
+
+def _truth_notes(case: MujocoCase, out: _Record, tracker: _Tracker, ref: _Reference, samples: np.ndarray) -> dict:
+    """Return the truth entries added to the settled state's :func:`truth_from_state` (see :func:`simulate`)."""
+    rec, com_b = out.rec, out.com_b
+    return {
+        "generator": f"MuJoCo {mujoco.__version__}: cart with two fixed rear wheels, two swivelling casters "
+        "with trail, rolling and torsional friction, wheel spin inertia, soft contacts",
+        "noise_std": _noise_std(case),
+        "stats": {
+            "dx": _minmeanmax(com_b[:, 0]),
+            "dy": _minmeanmax(com_b[:, 1]),
+            "stats_note": "min, mean, max over the log samples",
+        },
+        "truth_note": "m, dx, dy, I from the MuJoCo model after 1 s settling (casters trailing); dx/dy vary "
+        "slightly as the casters swivel (see stats); the engine adds caster swivel dynamics, "
+        "wheel spin inertia, rolling/torsional friction, load transfer, soft contacts.",
+        "wrench_note": "the tracker updates the wrench every 1 ms; the log samples the held wrench",
+        "controller": {"mass_guess": tracker.m_g, "inertia_b_guess": tracker.i_g, "lateral_share": tracker.share},
+        "cart": asdict(case.cart),
+        "duration": case.duration,
+        "seed": case.seed,
+        "true_log": {
+            "t": rec[:, 0],
+            "q": rec[:, 1:4],
+            "gamma": rec[:, 4:7],
+            "qd": rec[:, 7:10],
+            "v_ref": ref.v[samples],
+            "omega_ref": ref.w[samples],
+            "com_b": com_b,
+            "swivel": out.swivel,
+            "tau_applied": out.applied[:, 0],
+            "chassis_com": out.applied[:, 1:],
+        },
+    }
+
+
+def simulate(case: MujocoCase) -> tuple[CartLog, dict[str, Any]]:
     """Simulate ``case`` and return (the noisy log, its truth dict).
 
     The truth dict holds :func:`truth`'s keys (from the settled initial state), the
@@ -495,125 +804,21 @@ def simulate(case: MujocoCase) -> Tuple[CartLog, Dict[str, Any]]:
     MuJoCo applies it); :func:`generate` drops ``true_log`` from truth.json).
     """
     _require_mujoco()
-    cart = case.cart
     rng = np.random.default_rng([case.seed, 0x5EED])
-    model, data = build(cart)
-    q0 = case.q0 if case.q0 is not None else (0.0, 0.0, 0.0)
-    settle(model, data, cart, q0)
+    model, data = build(case.cart)
+    settle(model, data, case.cart, case.q0 if case.q0 is not None else (0.0, 0.0, 0.0))
     info = truth_from_state(model, data)
     data.time = 0.0
-    chassis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "chassis")
-
     dt = model.opt.timestep
     n_steps = int(round(case.duration / dt)) + 1
-    t_ref, v_ref, a_ref, w_ref, al_ref = reference(case.duration, rng, dt, case.v_max, case.omega_max)
-    s_ref = np.concatenate([[0.0], np.cumsum(0.5 * (v_ref[1:] + v_ref[:-1]) * dt)])
-    th_ref = np.concatenate([[0.0], np.cumsum(0.5 * (w_ref[1:] + w_ref[:-1]) * dt)])
-
-    # the tracker's rough guesses (feedforward) and gains
-    m_true, i_b_true = info["m"], info["I_about_com"] + info["m"] * (info["dx"] ** 2 + info["dy"] ** 2)
-    err = case.mass_guess_error
-    m_g = m_true * float(rng.uniform(1.0 - err, 1.0 + err))
-    i_g = i_b_true * float(rng.uniform(1.0 - err, 1.0 + err))
-    f_roll_g = m_g * GRAVITY * float(rng.uniform(0.003, 0.02))
-    share = float(rng.uniform(0.2, 0.8)) if case.lateral_share is None else float(case.lateral_share)
-    wn_v, wn_w = 2.5, 3.0
-    kp_s, kd_s = m_g * wn_v ** 2, 2.0 * m_g * wn_v
-    kp_th, kd_th = i_g * wn_w ** 2, 2.0 * i_g * wn_w
-    hx, hy = -cart.handle_distance, cart.handle_y
-
+    ref = _Reference.draw(case, rng, dt)
+    tracker = _Tracker.guessing(case, info, ref, rng)
     samples = _sample_steps(case, n_steps, rng)
-    is_sample = np.zeros(n_steps, dtype=bool)
-    is_sample[samples] = True
-    rec = np.empty((len(samples), 10))  # t, x, y, theta, fx, fy, tau_b, vx, vy, omega
-    applied = np.empty((len(samples), 3))  # tau_applied, chassis xipos x, y
-    com_b = np.empty((len(samples), 2))
-    swivel = np.empty((len(samples), 2))
-    swivel_adr = [int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"swivel_{side}")])
-                  for side in ("left", "right")]
-
-    qpos, qvel, xfrc, xipos = data.qpos, data.qvel, data.xfrc_applied, data.xipos
-    subtree_com = data.subtree_com
-    s_meas, th_unwrapped, th_prev = 0.0, 0.0, None
-    th0 = None
-    k = 0
-    step1, step2 = mujoco.mj_step1, mujoco.mj_step2
-    for i in range(n_steps):
-        step1(model, data)  # kinematics and CoM of the current state (xipos used by xfrc_applied)
-        x, y, _z, qw, qx, qy, qz = qpos[:7].tolist()
-        vx, vy, _vz, wx, wy, wz = qvel[:6].tolist()
-        th = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-        if th_prev is None:
-            th0, th_unwrapped = th, th
-        else:
-            th_unwrapped += math.remainder(th - th_prev, 2.0 * math.pi)
-        th_prev = th
-        # yaw rate: world z of the body angular velocity (row 2 of R times omega_local)
-        omega = (2.0 * (qx * qz - qw * qy) * wx + 2.0 * (qy * qz + qw * qx) * wy
-                 + (1.0 - 2.0 * (qx * qx + qy * qy)) * wz)
-        c, s = math.cos(th), math.sin(th)
-        v = c * vx + s * vy
-        # tracking controller: feedforward from the rough guess + PD on progress / heading
-        e_s = min(max(s_ref[i] - s_meas, -0.2), 0.2)
-        e_th = min(max(th_ref[i] - (th_unwrapped - th0), -0.2), 0.2)
-        f_fwd = (m_g * a_ref[i] + f_roll_g * math.tanh(v_ref[i] / 0.05)
-                 + kd_s * (v_ref[i] - v) + kp_s * e_s)
-        t_b = i_g * al_ref[i] + kd_th * (w_ref[i] - omega) + kp_th * e_th
-        f_lat = -share * t_b / hx
-        tau_h = t_b - (hx * f_lat - hy * f_fwd)  # wrist torque: the rest of t_b about {b}
-        fx, fy = c * f_fwd - s * f_lat, s * f_fwd + c * f_lat
-        px, py = x + c * hx - s * hy, y + s * hx + c * hy  # handle in {s}
-        cx, cy = float(xipos[chassis, 0]), float(xipos[chassis, 1])
-        tau_app = tau_h + (px - cx) * fy - (py - cy) * fx  # same wrench, moved to the chassis CoM
-        xfrc[chassis, 0] = fx
-        xfrc[chassis, 1] = fy
-        xfrc[chassis, 5] = tau_app
-        if is_sample[i]:
-            tau_b = tau_about_b(fx, fy, tau_app, (cx, cy), (x, y))
-            rec[k] = (i * dt, x, y, th_unwrapped, fx, fy, tau_b, vx, vy, omega)
-            applied[k] = (tau_app, cx, cy)
-            sc = subtree_com[chassis]
-            rx, ry = float(sc[0]) - x, float(sc[1]) - y
-            com_b[k] = (c * rx + s * ry, -s * rx + c * ry)
-            swivel[k] = (qpos[swivel_adr[0]], qpos[swivel_adr[1]])
-            k += 1
-        step2(model, data)
-        s_meas += v * dt
-    if not np.all(np.isfinite(rec)):
+    out = _run(model, data, tracker, n_steps, samples)
+    if not np.all(np.isfinite(out.rec)):
         raise RuntimeError(f"{case.name or case.seed}: the simulation diverged")
-
-    n = len(rec)
-    noise = np.column_stack([
-        rng.normal(0.0, case.position_noise, (n, 2)), rng.normal(0.0, case.theta_noise, n),
-        rng.normal(0.0, case.force_noise, (n, 2)), rng.normal(0.0, case.torque_noise, n),
-        rng.normal(0.0, case.velocity_noise, (n, 2)), rng.normal(0.0, case.omega_noise, n)])
-    meas = rec.copy()
-    meas[:, 1:] += noise
-    metadata = {"log": case.name or f"mj{case.seed}", "source": "MuJoCo cart (studies.testbeds.mujoco_cart)",
-                "mujoco": mujoco.__version__, "seed": str(case.seed), "rate_hz": f"{case.rate_hz:g}",
-                "jitter": f"{case.jitter:g}"}
-    contact = np.tile([hx, hy], (n, 1)) if case.with_contact else None
-    log = CartLog(t=meas[:, 0], q=meas[:, 1:4], gamma=meas[:, 4:7],
-                  qd=meas[:, 7:10] if case.with_velocities else None, contact_b=contact, metadata=metadata)
-    info.update({
-        "generator": f"MuJoCo {mujoco.__version__}: cart with two fixed rear wheels, two swivelling casters "
-                     "with trail, rolling and torsional friction, wheel spin inertia, soft contacts",
-        "noise_std": {"x": case.position_noise, "y": case.position_noise, "theta": case.theta_noise,
-                      "fx": case.force_noise, "fy": case.force_noise, "tau": case.torque_noise,
-                      "vx": case.velocity_noise, "vy": case.velocity_noise, "omega": case.omega_noise},
-        "stats": {"dx": [float(com_b[:, 0].min()), float(com_b[:, 0].mean()), float(com_b[:, 0].max())],
-                  "dy": [float(com_b[:, 1].min()), float(com_b[:, 1].mean()), float(com_b[:, 1].max())],
-                  "stats_note": "min, mean, max over the log samples"},
-        "truth_note": "m, dx, dy, I from the MuJoCo model after 1 s settling (casters trailing); dx/dy vary "
-                      "slightly as the casters swivel (see stats); the engine adds caster swivel dynamics, "
-                      "wheel spin inertia, rolling/torsional friction, load transfer, soft contacts.",
-        "wrench_note": "the tracker updates the wrench every 1 ms; the log samples the held wrench",
-        "controller": {"mass_guess": m_g, "inertia_b_guess": i_g, "lateral_share": share},
-        "cart": asdict(cart), "duration": case.duration, "seed": case.seed,
-        "true_log": {"t": rec[:, 0], "q": rec[:, 1:4], "gamma": rec[:, 4:7], "qd": rec[:, 7:10],
-                     "v_ref": v_ref[samples], "omega_ref": w_ref[samples], "com_b": com_b,
-                     "swivel": swivel, "tau_applied": applied[:, 0], "chassis_com": applied[:, 1:]},
-    })
+    log = _noisy_log(case, out.rec, tracker.handle, rng)
+    info.update(_truth_notes(case, out, tracker, ref, samples))
     return log, info
 
 
@@ -631,7 +836,7 @@ def generate(n: int, seed0: int, out_dir: str | os.PathLike, **overrides: Any) -
     """Write ``n`` logs ``mj<seed>.csv.gz`` (seeds ``seed0 .. seed0 + n - 1``) and ``truth.json`` to ``out_dir``."""
     out_dir = os.fspath(out_dir)
     os.makedirs(out_dir, exist_ok=True)
-    table: Dict[str, Any] = {}
+    table: dict[str, Any] = {}
     for seed in range(seed0, seed0 + n):
         case = random_case(seed, **overrides)
         log, info = simulate(case)

@@ -54,13 +54,15 @@ different integrator from the project's fixed-step RK4. Logs sample the
 *instantaneous* held wrench (not an average) and the pose at a rate in
 50–250 Hz, optionally irregular, with white noise at every sample.
 """
+
 from __future__ import annotations
 
 import json
 import math
 import os
 from dataclasses import asdict, dataclass, fields, replace
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.integrate import ode, solve_ivp
@@ -72,8 +74,10 @@ WRENCH_PERIOD = 1e-3
 #: Relative / absolute tolerances of the DOP853 integration.
 RTOL = 1e-9
 ATOL = 1e-12
-GENERATOR = ("studies.testbeds.rigid_sim: independent rigid-body simulator of the paper's model "
-             "(exact constraint, DOP853 between 1 ms wrench updates)")
+GENERATOR = (
+    "studies.testbeds.rigid_sim: independent rigid-body simulator of the paper's model "
+    "(exact constraint, DOP853 between 1 ms wrench updates)"
+)
 
 
 # --------------------------------------------------------------------------- cases
@@ -109,7 +113,7 @@ class RigidCart:
     @property
     def J(self) -> float:
         """Yaw inertia about the {b} origin, ``I + m (dx^2 + dy^2)`` (kg m^2)."""
-        return self.I + self.m * (self.dx ** 2 + self.dy ** 2)
+        return self.I + self.m * (self.dx**2 + self.dy**2)
 
 
 @dataclass(frozen=True)
@@ -136,7 +140,7 @@ class RigidCase:
     theta_std: float = 3e-3
     force_std: float = 3.0
     torque_std: float = 0.5
-    vel_std: Optional[float] = 0.005
+    vel_std: float | None = 0.005
     omega_std: float = 0.01
     speed_scale: float = 1.0
     lateral_std: float = 5.0
@@ -151,8 +155,16 @@ class RigidCase:
             raise ValueError(f"RigidCase.rate_hz must be positive, got {self.rate_hz}")
         if not 0 <= self.jitter < 1:
             raise ValueError(f"RigidCase.jitter must be in [0, 1), got {self.jitter}")
-        for name in ("pos_std", "theta_std", "force_std", "torque_std", "omega_std",
-                     "speed_scale", "lateral_std", "nominal_error"):
+        for name in (
+            "pos_std",
+            "theta_std",
+            "force_std",
+            "torque_std",
+            "omega_std",
+            "speed_scale",
+            "lateral_std",
+            "nominal_error",
+        ):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"RigidCase.{name} must be >= 0, got {getattr(self, name)}")
         if self.vel_std is not None and not self.vel_std >= 0:
@@ -185,11 +197,17 @@ def random_case(seed: int, **overrides: Any) -> RigidCase:
     loguni = lambda lo, hi: float(math.exp(rng.uniform(math.log(lo), math.log(hi))))  # noqa: E731
     m = loguni(5.0, 150.0)
     k = float(rng.uniform(0.15, 0.45))
-    cart = RigidCart(m=m, dx=float(rng.uniform(0.05, 0.6)), dy=float(rng.uniform(-0.15, 0.15)),
-                     I=m * k * k, c_v=loguni(0.5, 15.0), c_w=loguni(0.2, 5.0))
+    cart = RigidCart(
+        m=m,
+        dx=float(rng.uniform(0.05, 0.6)),
+        dy=float(rng.uniform(-0.15, 0.15)),
+        I=m * k * k,
+        c_v=loguni(0.5, 15.0),
+        c_w=loguni(0.2, 5.0),
+    )
     jitter = 0.0 if rng.random() < 0.5 else float(rng.uniform(0.0, 0.3))
     with_vel = bool(rng.random() < 0.5)
-    case_kw: Dict[str, Any] = dict(
+    case_kw: dict[str, Any] = dict(
         duration=float(rng.uniform(30.0, 60.0)),
         rate_hz=float(rng.integers(50, 251)),
         jitter=jitter,
@@ -235,8 +253,9 @@ def power(state: Sequence[float], gamma: Sequence[float], cart: RigidCart) -> fl
     """Return the power of the applied wrench plus the damping, ``Gamma . qdot - c_v v^2 - c_w omega^2``."""
     th, v, w = float(state[2]), float(state[3]), float(state[4])
     qd = (v * math.cos(th), v * math.sin(th), w)
-    return (gamma[0] * qd[0] + gamma[1] * qd[1] + gamma[2] * qd[2]
-            - cart.c_v * (qd[0] ** 2 + qd[1] ** 2) - cart.c_w * w * w)
+    return (
+        gamma[0] * qd[0] + gamma[1] * qd[1] + gamma[2] * qd[2] - cart.c_v * (qd[0] ** 2 + qd[1] ** 2) - cart.c_w * w * w
+    )
 
 
 def _make_rhs(cart: RigidCart):
@@ -246,7 +265,7 @@ def _make_rhs(cart: RigidCart):
     det = m * J - a * a  # = m (I + m dx^2) > 0
     mdx = m * dx
 
-    def rhs(t: float, y: Sequence[float], fx: float, fy: float, tau: float) -> List[float]:
+    def rhs(t: float, y: Sequence[float], fx: float, fy: float, tau: float) -> list[float]:
         th, v, w = y[2], y[3], y[4]
         c = math.cos(th)
         s = math.sin(th)
@@ -262,7 +281,7 @@ def dynamics(state: Sequence[float], gamma: Sequence[float], cart: RigidCart) ->
     return np.array(_make_rhs(cart)(0.0, [float(s) for s in state], *map(float, gamma)))
 
 
-def world_velocity(state: Sequence[float]) -> Tuple[float, float, float]:
+def world_velocity(state: Sequence[float]) -> tuple[float, float, float]:
     """Return ``qdot = (xdot, ydot, omega)`` of the {b} origin for ``state = (x, y, theta, v, omega)``."""
     th, v, w = float(state[2]), float(state[3]), float(state[4])
     return v * math.cos(th), v * math.sin(th), w
@@ -283,31 +302,38 @@ class SmoothSteps:
         self.widths = np.asarray(widths, dtype=float)
         self.deltas = np.asarray(deltas, dtype=float)
 
-    def __call__(self, t: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    def __call__(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         t = np.asarray(t, dtype=float)
         f = np.zeros_like(t)
         fd = np.zeros_like(t)
         for t0, w, d in zip(self.starts, self.widths, self.deltas):
             u = np.clip((t - t0) / w, 0.0, 1.0)
-            f += d * u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
+            f += d * u**3 * (10.0 - 15.0 * u + 6.0 * u * u)
             fd += d * 30.0 * u * u * (1.0 - u) ** 2 / w
         return f, fd
 
     @classmethod
-    def from_levels(cls, times: Sequence[float], widths: Sequence[float], levels: Sequence[float],
-                    start_level: float = 0.0) -> "SmoothSteps":
+    def from_levels(
+        cls, times: Sequence[float], widths: Sequence[float], levels: Sequence[float], start_level: float = 0.0
+    ) -> SmoothSteps:
         """Return the profile that moves from level to level, starting its i-th move at ``times[i]``."""
         prev = np.concatenate([[start_level], np.asarray(levels[:-1], dtype=float)])
         return cls(times, widths, np.asarray(levels, dtype=float) - prev)
 
 
-def _schedule(rng: np.random.Generator, t_begin: float, t_end: float, hold: Tuple[float, float],
-              width: Tuple[float, float], draw_level) -> Tuple[List[float], List[float], List[float], List[str]]:
+def _schedule(
+    rng: np.random.Generator,
+    t_begin: float,
+    t_end: float,
+    hold: tuple[float, float],
+    width: tuple[float, float],
+    draw_level,
+) -> tuple[list[float], list[float], list[float], list[str]]:
     """Return (start times, widths, levels, kinds) of successive moves in [t_begin, t_end]."""
-    times: List[float] = []
-    widths: List[float] = []
-    levels: List[float] = []
-    kinds: List[str] = []
+    times: list[float] = []
+    widths: list[float] = []
+    levels: list[float] = []
+    kinds: list[str] = []
     t = t_begin
     prev_kind = "rest"
     while True:
@@ -324,8 +350,7 @@ def _schedule(rng: np.random.Generator, t_begin: float, t_end: float, hold: Tupl
     return times, widths, levels, kinds
 
 
-def make_references(rng: np.random.Generator, duration: float, speed_scale: float
-                    ) -> Tuple[SmoothSteps, SmoothSteps]:
+def make_references(rng: np.random.Generator, duration: float, speed_scale: float) -> tuple[SmoothSteps, SmoothSteps]:
     """Return random smooth references ``(v_ref, omega_ref)``.
 
     Forward speed: rest, then push (0.3–1.0 m/s), stop and pull (0.2–0.6 m/s
@@ -337,7 +362,7 @@ def make_references(rng: np.random.Generator, duration: float, speed_scale: floa
     t_rest = float(rng.uniform(0.5, 1.5))
     t_stop = duration - 2.0  # leave time to come to rest
 
-    def draw_v(prev: str) -> Tuple[str, float]:
+    def draw_v(prev: str) -> tuple[str, float]:
         options = {"push": 0.5, "stop": 0.2, "pull": 0.3}
         if prev in ("rest", "stop"):
             options.pop("stop")
@@ -350,7 +375,7 @@ def make_references(rng: np.random.Generator, duration: float, speed_scale: floa
             return kind, -float(rng.uniform(0.2, 0.6)) * speed_scale
         return kind, 0.0
 
-    def draw_w(prev: str) -> Tuple[str, float]:
+    def draw_w(prev: str) -> tuple[str, float]:
         kinds = [k for k in ("left", "straight", "right") if k != prev]
         kind = kinds[int(rng.integers(len(kinds)))]
         sign = {"left": 1.0, "straight": 0.0, "right": -1.0}[kind]
@@ -369,8 +394,7 @@ def make_references(rng: np.random.Generator, duration: float, speed_scale: floa
     wv.append(end_w)
     lv.append(0.0)
     for _ in range(1000):
-        tw, ww, lw, kw = _schedule(rng, t_rest + float(rng.uniform(0.0, 1.0)), t_stop, (1.0, 4.0),
-                                   (0.4, 1.2), draw_w)
+        tw, ww, lw, kw = _schedule(rng, t_rest + float(rng.uniform(0.0, 1.0)), t_stop, (1.0, 4.0), (0.4, 1.2), draw_w)
         if "left" in kw and "right" in kw:
             break
     tw.append(max(t_stop, (tw[-1] + ww[-1]) if tw else t_rest))
@@ -381,8 +405,14 @@ def make_references(rng: np.random.Generator, duration: float, speed_scale: floa
 
 def make_lateral(rng: np.random.Generator, duration: float, std: float) -> SmoothSteps:
     """Return a smooth random lateral body force: levels N(0, std) held 1–4 s, 0.3–1 s transitions."""
-    t, w, lv, _ = _schedule(rng, float(rng.uniform(0.5, 2.0)), duration, (1.0, 4.0), (0.3, 1.0),
-                            lambda prev: ("lat", float(rng.normal(0.0, std))))
+    t, w, lv, _ = _schedule(
+        rng,
+        float(rng.uniform(0.5, 2.0)),
+        duration,
+        (1.0, 4.0),
+        (0.3, 1.0),
+        lambda prev: ("lat", float(rng.normal(0.0, std))),
+    )
     return SmoothSteps.from_levels(t, w, lv)
 
 
@@ -399,22 +429,33 @@ class Tracker:
     kp: float = 6.0
     ki: float = 9.0
 
-    def body_wrench(self, v: float, w: float, v_r: float, vd_r: float, w_r: float, wd_r: float,
-                    int_ev: float, int_ew: float) -> Tuple[float, float]:
+    def body_wrench(
+        self, v: float, w: float, v_r: float, vd_r: float, w_r: float, wd_r: float, int_ev: float, int_ew: float
+    ) -> tuple[float, float]:
         """Return (forward force, torque about the {b} origin)."""
         n = self.nominal
-        f = (n.m * (vd_r - n.dy * wd_r - n.dx * w_r * w_r) + n.c_v * v_r
-             + n.m * (self.kp * (v_r - v) + self.ki * int_ev))
-        tau = (n.J * wd_r - n.m * n.dy * vd_r + n.m * n.dx * v_r * w_r + n.c_w * w_r
-               + n.J * (self.kp * (w_r - w) + self.ki * int_ew))
+        f = n.m * (vd_r - n.dy * wd_r - n.dx * w_r * w_r) + n.c_v * v_r + n.m * (self.kp * (v_r - v) + self.ki * int_ev)
+        tau = (
+            n.J * wd_r
+            - n.m * n.dy * vd_r
+            + n.m * n.dx * v_r * w_r
+            + n.c_w * w_r
+            + n.J * (self.kp * (w_r - w) + self.ki * int_ew)
+        )
         return f, tau
 
 
 def nominal_cart(rng: np.random.Generator, cart: RigidCart, error: float) -> RigidCart:
     """Return the controller's guess: m, dx, I, c_v, c_w off by U(-error, error) relative, dy by ±0.05 m."""
     rel = lambda: 1.0 + float(rng.uniform(-error, error))  # noqa: E731
-    return RigidCart(m=cart.m * rel(), dx=cart.dx * rel(), dy=cart.dy + float(rng.uniform(-0.05, 0.05)),
-                     I=cart.I * rel(), c_v=cart.c_v * rel(), c_w=cart.c_w * rel())
+    return RigidCart(
+        m=cart.m * rel(),
+        dx=cart.dx * rel(),
+        dy=cart.dy + float(rng.uniform(-0.05, 0.05)),
+        I=cart.I * rel(),
+        c_v=cart.c_v * rel(),
+        c_w=cart.c_w * rel(),
+    )
 
 
 def sample_times(rng: np.random.Generator, duration: float, rate_hz: float, jitter: float) -> np.ndarray:
@@ -447,7 +488,7 @@ class _Integrator:
         elif kind != "solve_ivp":
             raise ValueError(f"integrator must be 'dop853' or 'solve_ivp', got {kind!r}")
 
-    def advance(self, t1: float, gamma: Tuple[float, float, float]) -> np.ndarray:
+    def advance(self, t1: float, gamma: tuple[float, float, float]) -> np.ndarray:
         """Integrate to ``t1`` with ``gamma`` held; return the state."""
         if t1 <= self.t:
             return self.y
@@ -457,8 +498,7 @@ class _Integrator:
             if not self.ode.successful():
                 raise RuntimeError(f"DOP853 failed at t={self.ode.t}")
         else:
-            sol = solve_ivp(self.rhs, (self.t, t1), self.y, method="DOP853", rtol=RTOL, atol=ATOL,
-                            args=gamma)
+            sol = solve_ivp(self.rhs, (self.t, t1), self.y, method="DOP853", rtol=RTOL, atol=ATOL, args=gamma)
             if not sol.success:
                 raise RuntimeError(f"solve_ivp failed at t={self.t}: {sol.message}")
             self.y = sol.y[:, -1].copy()
@@ -466,32 +506,158 @@ class _Integrator:
         return self.y
 
 
-def _noise_std(case: RigidCase) -> Dict[str, float]:
-    std = {"x": case.pos_std, "y": case.pos_std, "theta": case.theta_std,
-           "fx": case.force_std, "fy": case.force_std, "tau": case.torque_std}
+def _noise_std(case: RigidCase) -> dict[str, float]:
+    std = {
+        "x": case.pos_std,
+        "y": case.pos_std,
+        "theta": case.theta_std,
+        "fx": case.force_std,
+        "fy": case.force_std,
+        "tau": case.torque_std,
+    }
     if case.vel_std is not None:
         std.update(vx=case.vel_std, vy=case.vel_std, omega=case.omega_std)
     return {k: float(v) for k, v in std.items()}
 
 
-def truth_record(case: RigidCase) -> Dict[str, Any]:
+def truth_record(case: RigidCase) -> dict[str, Any]:
     """Return the JSON-able truth of ``case`` in the layout of the validation ``truth.json``."""
     c = case.cart
     jit = f", irregular: gaps (1 +/- {case.jitter:.2f}) x period" if case.jitter > 0 else ""
     return {
         "generator": GENERATOR,
-        "m": c.m, "dx": c.dx, "dy": c.dy, "I_about_com": c.I,
+        "m": c.m,
+        "dx": c.dx,
+        "dy": c.dy,
+        "I_about_com": c.I,
         "viscous_damping": {"forward_and_lateral_N_s_per_m": c.c_v, "yaw_N_m_s_per_rad": c.c_w},
         "noise_std": _noise_std(case),
         "noise_note": f"white, independent at every {case.rate_hz:g} Hz sample{jit}",
-        "wrench_note": (f"the tracker updates the wrench every {WRENCH_PERIOD * 1e3:g} ms; the log samples "
-                        f"the held wrench (not an average) at {case.rate_hz:g} Hz"),
+        "wrench_note": (
+            f"the tracker updates the wrench every {WRENCH_PERIOD * 1e3:g} ms; the log samples "
+            f"the held wrench (not an average) at {case.rate_hz:g} Hz"
+        ),
         "hidden_effects": [],
         "case": {k: v for k, v in asdict(case).items() if k != "cart"},
     }
 
 
-def simulate(case: RigidCase, integrator: str = "dop853") -> Tuple[CartLog, Dict[str, Any]]:
+@dataclass(frozen=True)
+class _TickReferences:
+    """The references and the lateral force on the 1 ms wrench grid ``t`` (``n_ticks + 1`` points)."""
+
+    t: np.ndarray
+    v: np.ndarray
+    vd: np.ndarray
+    w: np.ndarray
+    wd: np.ndarray
+    lat: np.ndarray
+
+    @classmethod
+    def on_grid(cls, t_end: float, v_ref_f: SmoothSteps, w_ref_f: SmoothSteps, lat_f: SmoothSteps) -> _TickReferences:
+        """Return the references sampled on the wrench ticks covering [0, ``t_end``]."""
+        n_ticks = int(math.floor(t_end / WRENCH_PERIOD + 1e-9)) + 1
+        t_ticks = np.arange(n_ticks + 1) * WRENCH_PERIOD
+        v_r, vd_r = v_ref_f(t_ticks)
+        w_r, wd_r = w_ref_f(t_ticks)
+        lat, _ = lat_f(t_ticks)
+        return cls(t_ticks, v_r, vd_r, w_r, wd_r, lat)
+
+    @property
+    def n_ticks(self) -> int:
+        """Number of wrench updates (grid intervals)."""
+        return len(self.t) - 1
+
+
+@dataclass(frozen=True)
+class _CleanRun:
+    """The noise-free run: states and held wrench at the log times, wrench history on the ticks (world, body)."""
+
+    states: np.ndarray
+    gamma_log: np.ndarray
+    gamma_ms: np.ndarray
+    gamma_body_ms: np.ndarray
+
+
+def _run_ticks(integ: _Integrator, tracker: Tracker, refs: _TickReferences, t_log: np.ndarray) -> _CleanRun:
+    """Return the closed-loop run: the tracker's wrench held over each 1 ms tick, states sampled at ``t_log``."""
+    n_ticks, n_log = refs.n_ticks, len(t_log)
+    run = _CleanRun(np.empty((n_log, 5)), np.empty((n_log, 3)), np.empty((n_ticks, 3)), np.empty((n_ticks, 3)))
+    # which tick interval [k h, (k+1) h) holds each sample
+    tick_of = np.minimum(np.floor(t_log / WRENCH_PERIOD + 1e-9).astype(int), n_ticks - 1)
+    int_ev = int_ew = 0.0
+    j = 0
+    y = integ.y
+    for k in range(n_ticks):
+        tk = float(refs.t[k])
+        th, v, w = y[2], y[3], y[4]
+        f_fwd, tau = tracker.body_wrench(v, w, refs.v[k], refs.vd[k], refs.w[k], refs.wd[k], int_ev, int_ew)
+        f_lat = float(refs.lat[k])
+        c, s = math.cos(th), math.sin(th)
+        gamma = (c * f_fwd - s * f_lat, s * f_fwd + c * f_lat, tau)
+        run.gamma_ms[k] = gamma
+        run.gamma_body_ms[k] = (f_fwd, f_lat, tau)
+        while j < n_log and tick_of[j] == k:
+            y = integ.advance(float(t_log[j]), gamma) if t_log[j] > tk else y
+            run.states[j] = y
+            run.gamma_log[j] = gamma
+            j += 1
+        y = integ.advance(float(refs.t[k + 1]), gamma)
+        # controller integrators (rectangle rule at the 1 ms update rate)
+        int_ev += (refs.v[k] - v) * WRENCH_PERIOD
+        int_ew += (refs.w[k] - w) * WRENCH_PERIOD
+    assert j == n_log
+    return run
+
+
+def _measure(
+    case: RigidCase, t_log: np.ndarray, q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, rng: np.random.Generator
+) -> CartLog:
+    """Return the noisy log of the clean ``q``, ``qd`` and ``gamma`` with the case's white noise stds."""
+    noise = rng.standard_normal((len(t_log), 9))
+    q_meas = q + noise[:, :3] * np.array([case.pos_std, case.pos_std, case.theta_std])
+    g_meas = gamma + noise[:, 3:6] * np.array([case.force_std, case.force_std, case.torque_std])
+    qd_meas = None
+    if case.vel_std is not None:
+        qd_meas = qd + noise[:, 6:9] * np.array([case.vel_std, case.vel_std, case.omega_std])
+    return CartLog(
+        t=t_log,
+        q=q_meas,
+        gamma=g_meas,
+        qd=qd_meas,
+        metadata={"log": f"rigid_seed{case.seed}", "source": "independent simulator"},
+    )
+
+
+def _truth(
+    case: RigidCase,
+    t_log: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    run: _CleanRun,
+    refs: _TickReferences,
+    tracker: Tracker,
+) -> dict[str, Any]:
+    """Return the truth record of ``case`` with the ``"clean"`` arrays (see :func:`simulate`)."""
+    truth = truth_record(case)
+    truth.update(c_v=case.cart.c_v, c_w=case.cart.c_w)
+    truth["clean"] = {
+        "t": t_log,
+        "q": q,
+        "qd": qd,
+        "gamma": run.gamma_log,
+        "v": run.states[:, 3].copy(),
+        "t_wrench": refs.t[:-1].copy(),
+        "gamma_wrench": run.gamma_ms,
+        "gamma_body_wrench": run.gamma_body_ms,
+        "v_ref": refs.v[:-1].copy(),
+        "omega_ref": refs.w[:-1].copy(),
+        "nominal": tracker.nominal,
+    }
+    return truth
+
+
+def simulate(case: RigidCase, integrator: str = "dop853") -> tuple[CartLog, dict[str, Any]]:
     """Simulate ``case``; return (noisy log, truth).
 
     The truth holds ``m, dx, dy, I_about_com, c_v, c_w``, ``noise_std`` and the
@@ -510,70 +676,18 @@ def simulate(case: RigidCase, integrator: str = "dop853") -> Tuple[CartLog, Dict
     lat_f = make_lateral(rng_ref, case.duration, case.lateral_std)
     tracker = Tracker(nominal_cart(rng_nom, cart, case.nominal_error))
     t_log = sample_times(rng_t, case.duration, case.rate_hz, case.jitter)
-
-    n_ticks = int(math.floor(t_log[-1] / WRENCH_PERIOD + 1e-9)) + 1
-    t_ticks = np.arange(n_ticks + 1) * WRENCH_PERIOD
-    v_r, vd_r = v_ref_f(t_ticks)
-    w_r, wd_r = w_ref_f(t_ticks)
-    lat, _ = lat_f(t_ticks)
-
-    y0 = np.array([rng_init.uniform(-3, 3), rng_init.uniform(-3, 3), rng_init.uniform(-math.pi, math.pi),
-                   0.0, 0.0])
-    integ = _Integrator(cart, y0, integrator)
-    gamma_ms = np.empty((n_ticks, 3))
-    gamma_body_ms = np.empty((n_ticks, 3))
-    n_log = len(t_log)
-    states = np.empty((n_log, 5))
-    gamma_log = np.empty((n_log, 3))
-    # which tick interval [k h, (k+1) h) holds each sample
-    tick_of = np.minimum(np.floor(t_log / WRENCH_PERIOD + 1e-9).astype(int), n_ticks - 1)
-    int_ev = int_ew = 0.0
-    j = 0
-    y = integ.y
-    for k in range(n_ticks):
-        tk = float(t_ticks[k])
-        th, v, w = y[2], y[3], y[4]
-        f_fwd, tau = tracker.body_wrench(v, w, v_r[k], vd_r[k], w_r[k], wd_r[k], int_ev, int_ew)
-        f_lat = float(lat[k])
-        c, s = math.cos(th), math.sin(th)
-        gamma = (c * f_fwd - s * f_lat, s * f_fwd + c * f_lat, tau)
-        gamma_ms[k] = gamma
-        gamma_body_ms[k] = (f_fwd, f_lat, tau)
-        while j < n_log and tick_of[j] == k:
-            y = integ.advance(float(t_log[j]), gamma) if t_log[j] > tk else y
-            states[j] = y
-            gamma_log[j] = gamma
-            j += 1
-        y = integ.advance(float(t_ticks[k + 1]), gamma)
-        # controller integrators (rectangle rule at the 1 ms update rate)
-        int_ev += (v_r[k] - v) * WRENCH_PERIOD
-        int_ew += (w_r[k] - w) * WRENCH_PERIOD
-    assert j == n_log
-
+    refs = _TickReferences.on_grid(t_log[-1], v_ref_f, w_ref_f, lat_f)
+    y0 = np.array([rng_init.uniform(-3, 3), rng_init.uniform(-3, 3), rng_init.uniform(-math.pi, math.pi), 0.0, 0.0])
+    run = _run_ticks(_Integrator(cart, y0, integrator), tracker, refs, t_log)
+    states = run.states
     th = states[:, 2]
     q = states[:, :3].copy()
     qd = np.column_stack([states[:, 3] * np.cos(th), states[:, 3] * np.sin(th), states[:, 4]])
-
-    noise = rng_noise.standard_normal((n_log, 9))
-    q_meas = q + noise[:, :3] * np.array([case.pos_std, case.pos_std, case.theta_std])
-    g_meas = gamma_log + noise[:, 3:6] * np.array([case.force_std, case.force_std, case.torque_std])
-    qd_meas = None
-    if case.vel_std is not None:
-        qd_meas = qd + noise[:, 6:9] * np.array([case.vel_std, case.vel_std, case.omega_std])
-    log = CartLog(t=t_log, q=q_meas, gamma=g_meas, qd=qd_meas,
-                  metadata={"log": f"rigid_seed{case.seed}", "source": "independent simulator"})
-
-    truth = truth_record(case)
-    truth.update(c_v=cart.c_v, c_w=cart.c_w)
-    truth["clean"] = {
-        "t": t_log, "q": q, "qd": qd, "gamma": gamma_log, "v": states[:, 3].copy(),
-        "t_wrench": t_ticks[:-1].copy(), "gamma_wrench": gamma_ms, "gamma_body_wrench": gamma_body_ms,
-        "v_ref": v_r[:-1].copy(), "omega_ref": w_r[:-1].copy(), "nominal": tracker.nominal,
-    }
-    return log, truth
+    log = _measure(case, t_log, q, qd, run.gamma_log, rng_noise)
+    return log, _truth(case, t_log, q, qd, run, refs, tracker)
 
 
-def write_case(case: RigidCase, path: str | os.PathLike) -> Dict[str, Any]:
+def write_case(case: RigidCase, path: str | os.PathLike) -> dict[str, Any]:
     """Simulate ``case``, write its noisy log to ``path`` (``.csv`` or ``.csv.gz``); return its JSON-able truth."""
     log, truth = simulate(case)
     name = os.path.basename(os.fspath(path)).split(".")[0]
@@ -585,8 +699,9 @@ def write_case(case: RigidCase, path: str | os.PathLike) -> Dict[str, Any]:
     return truth
 
 
-def generate(n: int, seed0: int, out_dir: str | os.PathLike, prefix: str = "rigid",
-             **overrides: Any) -> Dict[str, Dict[str, Any]]:
+def generate(
+    n: int, seed0: int, out_dir: str | os.PathLike, prefix: str = "rigid", **overrides: Any
+) -> dict[str, dict[str, Any]]:
     """Write ``n`` random logs ``{prefix}{i:02d}.csv.gz`` (seeds ``seed0 + i``) and ``truth.json`` to ``out_dir``.
 
     ``truth.json`` maps each log name to :func:`truth_record` (the layout of
@@ -595,7 +710,7 @@ def generate(n: int, seed0: int, out_dir: str | os.PathLike, prefix: str = "rigi
     """
     out_dir = os.fspath(out_dir)
     os.makedirs(out_dir, exist_ok=True)
-    truth: Dict[str, Dict[str, Any]] = {}
+    truth: dict[str, dict[str, Any]] = {}
     for i in range(n):
         name = f"{prefix}{i:02d}"
         case = random_case(seed0 + i, **overrides)
