@@ -10,6 +10,7 @@ from collections.abc import Callable, Iterator, Sequence
 
 from wholebody.cli import options
 from wholebody.cli.import_bag import add_topic_options, topic_options
+from wholebody.progress import show_progress
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -120,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     from wholebody.ros import load_any
 
     stages = ["reading the log", "fitting the model and the candidate effects"] + (["plotting"] if args.out else [])
-    with stage_bar(stages, enabled=sys.stderr.isatty() and not args.json) as step:
+    with stage_bar(stages, enabled=show_progress(args.json)) as step:
         step(stages[0])
         log = load_any(args.log, **topic_options(args))
         step(stages[1])

@@ -224,7 +224,9 @@ def run(args: argparse.Namespace) -> int:
     workers = min(default_workers() if args.workers is None else args.workers, 2 * len(tests))
 
     bar = None
-    if sys.stderr.isatty() and not args.json:  # a bar on a terminal; nothing on a pipe or with --json
+    from wholebody.progress import show_progress
+
+    if show_progress(args.json):  # a bar on a terminal; nothing on a pipe or with --json
         from tqdm import tqdm
 
         tqdm.monitor_interval = 0  # no monitor thread in a process that forks the workers
