@@ -1,7 +1,14 @@
 """Benchmark: combined Jacobian, one QP IK step, and placo's solver step on the same robot (median us).
 
+The QP step is `ResolvedRateController.step` with the default `ControllerConfig` (ProxQP updated in
+place, warm-started) and with `warm_start=False` (cold: reproduces a fresh solve), each
+measured twice: at a fixed state and target ("static", the QP repeats) and in closed loop
+("tracking": the state integrated after each step, the target moving 0.9 mm per step along x like placo's).
+placo's step (`PlacoTracker.step`: solve + integrate + FK) tracks the same moving target; all in one run.
+
 Run: .venv/bin/python benchmarks/bench_wholebody.py [--json]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -12,16 +19,19 @@ import numpy as np
 import pinocchio as pin
 
 import robots
-from wholebody.motion.control import ControllerConfig, ResolvedRateController
-from studies.wmra_experiments import initial_state
-from wholebody.motion.kinematics import wholebody_for
-from studies.placo_compare import PlacoTracker
 from studies import wmra_closed_form as cf
+from studies.placo_compare import PlacoTracker
+from studies.wmra_experiments import initial_state
+from wholebody.motion.control import ControllerConfig, ResolvedRateController
+from wholebody.motion.kinematics import WholeBody, wholebody_for
+
+DT = 0.01
+STEP = 0.0009  # target displacement per step (m), as placo's
 
 
-def median_us(fn, repeat: int = 2000) -> float:
+def median_us(fn, repeat: int = 2000, warmup: int = 50) -> float:
     """Return the median wall time of fn() in microseconds."""
-    for _ in range(50):
+    for _ in range(warmup):
         fn()
     times = np.empty(repeat)
     for i in range(repeat):
@@ -31,44 +41,88 @@ def median_us(fn, repeat: int = 2000) -> float:
     return float(np.median(times) * 1e6)
 
 
+def static_step_us(wb: WholeBody, x: np.ndarray, warm_start: bool) -> float:
+    """Median time of `step` at a fixed state and target."""
+    ctrl = ResolvedRateController(wb, ControllerConfig(warm_start=warm_start))
+    T0 = wb.ee_placement(x)
+    T_des = pin.SE3(T0.rotation, T0.translation + [0.001, 0.0005, 0.0])
+    v = np.r_[0.09, 0.05, 0, 0, 0, 0]
+    return median_us(lambda: ctrl.step(x, T_des, v, DT), 1000)
+
+
+def tracking_step_us(wb: WholeBody, x0: np.ndarray, warm_start: bool, steps: int = 1000) -> float:
+    """Median time of `step` in closed loop along a line (only `step` is timed)."""
+    ctrl = ResolvedRateController(wb, ControllerConfig(warm_start=warm_start))
+    T0 = wb.ee_placement(x0)
+    v = np.r_[STEP / DT, 0, 0, 0, 0, 0]
+    x, times = x0.copy(), np.empty(steps)
+    for k in range(steps + 50):
+        T_des = pin.SE3(T0.rotation, T0.translation + [STEP * (k + 1), 0.0, 0.0])
+        t0 = time.perf_counter()
+        u = ctrl.step(x, T_des, v, DT).u
+        if k >= 50:
+            times[k - 50] = time.perf_counter() - t0
+        x = wb.integrate(x, u, DT)
+    return float(np.median(times) * 1e6)
+
+
+def placo_step_us(wb: WholeBody, x: np.ndarray) -> float:
+    """Median time of placo's closed-loop step towards the moving target."""
+    tr = PlacoTracker(wb, x, DT)
+    Tp = tr.ee()
+    k = [0]
+
+    def step():
+        k[0] += 1
+        tr.step(pin.SE3(Tp.rotation, Tp.translation + [STEP * k[0], 0.0, 0.0]))
+
+    return median_us(step, 1000)
+
+
+def measure(name: str) -> dict[str, float]:
+    """Return the medians (us) and ratios to placo for one robot."""
+    wb = wholebody_for(robots.load(name))
+    x = initial_state(wb)
+    r = {"jacobian_us": median_us(lambda: wb.combined_jacobian(x))}
+    r["step_us"] = static_step_us(wb, x, True)
+    r["cold_step_us"] = static_step_us(wb, x, False)
+    r["tracking_step_us"] = tracking_step_us(wb, x, True)
+    r["tracking_cold_step_us"] = tracking_step_us(wb, x, False)
+    r["placo_step_us"] = placo_step_us(wb, x)
+    for key in ("step_us", "cold_step_us", "tracking_step_us", "tracking_cold_step_us"):
+        r["ratio_" + key[:-3] + "_vs_placo"] = r[key] / r["placo_step_us"]
+    return r
+
+
 def main(argv=None) -> None:
     """Print the table (or, with --json, one JSON object of the medians and ratios)."""
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     args = ap.parse_args(argv)
-    rows = []
-    for name in ("wmra", "ridgeback_iiwa"):
-        wb = wholebody_for(robots.load(name))
-        x = initial_state(wb)
-        T0 = wb.ee_placement(x)
-        jac = median_us(lambda: wb.combined_jacobian(x))
-        ctrl = ResolvedRateController(wb, ControllerConfig())
-        T_des = pin.SE3(T0.rotation, T0.translation + [0.001, 0.0005, 0.0])
-        v = np.r_[0.09, 0.05, 0, 0, 0, 0]
-        qp = median_us(lambda: ctrl.step(x, T_des, v, 0.01), 1000)
-        tr = PlacoTracker(wb, x, 0.01)
-        Tp = tr.ee()
-        k = [0]
+    rows = {name: measure(name) for name in ("wmra", "ridgeback_iiwa")}
+    from robots.wmra import WMRA_D, WMRA_MOUNT, WMRA_TRACK, WMRA_WHEEL_RADIUS
 
-        def placo_step():
-            k[0] += 1
-            tr.step(pin.SE3(Tp.rotation, Tp.translation + [0.0009 * k[0], 0.0, 0.0]))
-
-        pl = median_us(placo_step, 1000)
-        rows.append((name, jac, qp, pl))
-        if name == "wmra":
-            from robots.wmra import WMRA_D, WMRA_MOUNT, WMRA_TRACK, WMRA_WHEEL_RADIUS
-
-            cfj = median_us(lambda: cf.combined_jacobian(x[:3], x[3:], WMRA_D, WMRA_TRACK, WMRA_MOUNT,
-                                                         WMRA_WHEEL_RADIUS))
+    x = initial_state(wholebody_for(robots.load("wmra")))
+    cfj = median_us(lambda: cf.combined_jacobian(x[:3], x[3:], WMRA_D, WMRA_TRACK, WMRA_MOUNT, WMRA_WHEEL_RADIUS))
     if args.json:
-        print(json.dumps({"robots": {name: {"jacobian_us": jac, "qp_step_us": qp, "placo_step_us": pl,
-                                            "ratio_qp_vs_placo": qp / pl} for name, jac, qp, pl in rows},
-                          "wmra_closed_form_jacobian_us": cfj}))
+        print(json.dumps({"robots": rows, "wmra_closed_form_jacobian_us": cfj}))
         return
-    print(f"{'robot':<16}{'jacobian [us]':>15}{'QP IK step [us]':>17}{'placo step [us]':>17}{'ours/placo':>12}")
-    for name, jac, qp, pl in rows:
-        print(f"{name:<16}{jac:>15.1f}{qp:>17.1f}{pl:>17.1f}{qp / pl:>12.1f}")
+    cols = ("jacobian_us", "step_us", "cold_step_us", "tracking_step_us", "tracking_cold_step_us", "placo_step_us")
+    heads = ("jacobian", "step", "cold step", "tracking", "tracking cold", "placo step")
+    print("median us; ratios = ours / placo (same run)")
+    print(
+        f"{'robot':<16}"
+        + "".join(f"{h:>14}" for h in heads)
+        + f"{'step/placo':>12}{'cold/placo':>12}{'track/placo':>13}"
+    )
+    for name, r in rows.items():
+        ratios = (r["ratio_step_vs_placo"], r["ratio_cold_step_vs_placo"], r["ratio_tracking_step_vs_placo"])
+        print(
+            f"{name:<16}"
+            + "".join(f"{r[c]:>14.1f}" for c in cols)
+            + "".join(f"{q:>12.2f}" for q in ratios[:2])
+            + f"{ratios[2]:>13.2f}"
+        )
     print(f"(WMRA closed-form numpy Jacobian, paper eq. 19-20: {cfj:.1f} us)")
 
 

@@ -1,4 +1,5 @@
 """Tests of wholebody.motion.control: the resolved-rate QP, its limits, the safety band, degenerate targets."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -6,8 +7,14 @@ import pinocchio as pin
 import pytest
 
 import robots
-from wholebody.motion.control import (ControllerConfig, ResolvedRateController, SafetyBand, manipulability,
-                               manipulability_gradient, pose_error)
+from wholebody.motion.control import (
+    ControllerConfig,
+    ResolvedRateController,
+    SafetyBand,
+    manipulability,
+    manipulability_gradient,
+    pose_error,
+)
 from wholebody.errors import WholeBodyError
 from studies.wmra_experiments import initial_state
 from wholebody.motion.kinematics import wholebody_for

@@ -1,4 +1,5 @@
 """Tests of wholebody.motion.kinematics: WMRA closed forms (paper eq. 1-21) and finite differences of the FK."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -28,8 +29,9 @@ def test_wmra_fk_equals_dh_product(wmra):
         np.testing.assert_allclose(wmra.ee_placement(x).homogeneous, T, atol=1e-12)
         # arm alone, frame A -> EE (eq. 2)
         oMa = wmra.frame_placement(x, "arm_base")
-        np.testing.assert_allclose((oMa.inverse() * wmra.ee_placement(x)).homogeneous, cf.arm_fk(x[3:], WMRA_D),
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            (oMa.inverse() * wmra.ee_placement(x)).homogeneous, cf.arm_fk(x[3:], WMRA_D), atol=1e-12
+        )
 
 
 def test_wmra_combined_jacobian_equals_paper_closed_form(wmra):
@@ -62,8 +64,9 @@ def _fd_twist(wb, x, u, eps=1e-6):
     return np.r_[(Tp.translation - Tm.translation) / (2 * eps), pin.log3(Tp.rotation @ Tm.rotation.T) / (2 * eps)]
 
 
-@pytest.mark.parametrize("name,base_input", [("wmra", "wheels"), ("ridgeback_iiwa", "wheels"),
-                                             ("ridgeback_iiwa", "twist")])
+@pytest.mark.parametrize(
+    "name,base_input", [("wmra", "wheels"), ("ridgeback_iiwa", "wheels"), ("ridgeback_iiwa", "twist")]
+)
 def test_combined_jacobian_matches_finite_differences(name, base_input):
     wb = wholebody_for(robots.load(name), base_input)
     rng = np.random.default_rng(13)

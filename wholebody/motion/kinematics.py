@@ -5,17 +5,20 @@ joints). Velocity input ``u = [q_arm_dot..., base input...]`` where the base inp
 the wheel rates (paper eq. 20 ordering: 7 arm joints then the wheels) or, for a
 holonomic base with ``base_input="twist"``, the body twist (vx, vy, wz).
 """
+
 from __future__ import annotations
 
-from typing import Literal, Sequence
+import math
+from collections.abc import Sequence
+from typing import Literal
 
 import numpy as np
 import pinocchio as pin
 
 from robots.loading import LoadedRobot
 from robots.profiles import PROFILES, RobotProfile, mobile_manipulators
-from wholebody.motion.bases import DifferentialDrive, MobileBase, Omnidirectional, integrate_body_displacement
 from wholebody.errors import WholeBodyError
+from wholebody.motion.bases import DifferentialDrive, MobileBase, Omnidirectional, integrate_body_displacement
 
 #: The base part of the input vector u: wheel rates, or the body twist (vx, vy, wz) of a holonomic base.
 BaseInput = Literal["wheels", "twist"]
@@ -74,6 +77,16 @@ class WholeBody:
         self.wheel_velocity_limit = self.model.velocityLimit[self.wheel_idx_v].copy()
         self._q_neutral = pin.neutral(self.model)
         self._wheel_map = self.wheel_map()
+        self._q_work = self._q_neutral.copy()  # configuration buffer of ee_and_jacobian
+        self._arm_q = _as_slice(self.arm_idx_q)
+        self._input_map = self._velocity_from_input()
+
+    def _velocity_from_input(self) -> np.ndarray:
+        """Return the nv x n_u map from the input u to the Pinocchio velocity (planar root <- base input)."""
+        S = np.zeros((self.model.nv, self.n_u))
+        S[self.arm_idx_v, np.arange(self.n_arm)] = 1.0
+        S[self._root_v : self._root_v + 3, self.n_arm :] = self._wheel_map
+        return S
 
     def _joint(self, name: str) -> pin.JointModel:
         if not self.model.existJointName(name):
@@ -86,8 +99,8 @@ class WholeBody:
         x = np.asarray(x, dtype=float)
         q = self._q_neutral.copy()
         i = self._root_q
-        q[i:i + 4] = (x[0], x[1], np.cos(x[2]), np.sin(x[2]))
-        q[self.arm_idx_q] = x[3:3 + self.n_arm]
+        q[i : i + 4] = (x[0], x[1], np.cos(x[2]), np.sin(x[2]))
+        q[self.arm_idx_q] = x[3 : 3 + self.n_arm]
         if wheel_angles is not None:
             a = np.asarray(wheel_angles, dtype=float)
             q[self.wheel_idx_q] = np.cos(a)
@@ -100,7 +113,7 @@ class WholeBody:
 
     def wheel_rates(self, u: Sequence[float]) -> np.ndarray:
         """Return the wheel rates (rad/s) implied by an input vector u."""
-        ub = np.asarray(u, dtype=float)[self.n_arm:]
+        ub = np.asarray(u, dtype=float)[self.n_arm :]
         return self.base.body_twist_to_wheels(ub) if self.base_input == "twist" else ub
 
     def integrate(self, x: Sequence[float], u: Sequence[float], dt: float) -> np.ndarray:
@@ -108,8 +121,8 @@ class WholeBody:
         x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
         out = x.copy()
-        out[3:] = x[3:] + dt * u[:self.n_arm]
-        twist_step = self._wheel_map @ u[self.n_arm:] * dt
+        out[3:] = x[3:] + dt * u[: self.n_arm]
+        twist_step = self._wheel_map @ u[self.n_arm :] * dt
         out[:3] = integrate_body_displacement(x[:3], twist_step)
         return out
 
@@ -126,29 +139,43 @@ class WholeBody:
         return self.frame_placement(x)
 
     def ee_and_jacobian(self, x: Sequence[float]) -> tuple[pin.SE3, np.ndarray]:
-        """Return (end-effector placement, combined Jacobian) with one kinematics pass."""
-        q = self.to_pinocchio_q(x)
+        """Return (end-effector placement, combined Jacobian) with one kinematics pass.
+
+        Writes x into a reused configuration buffer (wheel angles stay neutral) and makes one
+        `computeFrameJacobian` call (forward kinematics of the EE's support and its Jacobian); the combined
+        Jacobian is that Jacobian times the input -> velocity map (arm columns selected, the planar joint's
+        body twist chained with the base's wheel map, eq. 19-20).
+        """
+        q, i = self._q_work, self._root_q
+        th = float(x[2])
+        q[i], q[i + 1], q[i + 2], q[i + 3] = x[0], x[1], math.cos(th), math.sin(th)
+        q[self._arm_q] = x[3 : 3 + self.n_arm]
         J = pin.computeFrameJacobian(self.model, self.data, q, self.ee_frame_id, pin.LOCAL_WORLD_ALIGNED)
         oMf = pin.updateFramePlacement(self.model, self.data, self.ee_frame_id)
-        out = np.empty((6, self.n_u))
-        out[:, :self.n_arm] = J[:, self.arm_idx_v]
-        # planar joint velocity is the body twist (vx, vy, wz): chain with the base's wheel map (eq. 19-20)
-        out[:, self.n_arm:] = J[:, self._root_v:self._root_v + 3] @ self._wheel_map
-        return pin.SE3(oMf), out
+        return oMf.copy(), J.dot(self._input_map)
 
     def combined_jacobian(self, x: Sequence[float]) -> np.ndarray:
         """Return the 6 x n_u Jacobian u -> end-effector (v, omega), world-aligned at the EE (paper eq. 21)."""
         return self.ee_and_jacobian(x)[1]
 
 
+def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
+    """Return a slice equal to the index array idx if its indices are consecutive, else idx."""
+    if len(idx) > 0 and np.all(np.diff(idx) == 1):
+        return slice(int(idx[0]), int(idx[-1]) + 1)
+    return idx
+
+
 def wholebody_for(robot: LoadedRobot, base_input: BaseInput = "wheels") -> WholeBody:
     """Return the `WholeBody` of a shipped robot, built from its profile (`robots.profiles`)."""
     prof = PROFILES.get(robot.name)
     if prof is None or not prof.is_mobile_manipulator:
-        raise WholeBodyError(f"no whole-body model for robot {robot.name!r}; use "
-                             f"{' or '.join(repr(n) for n in mobile_manipulators())}")
-    return WholeBody(robot, base_for(robot, prof), prof.arm_joints, prof.wheel_joints, ee_frame=prof.ee_frame,
-                     base_input=base_input)
+        raise WholeBodyError(
+            f"no whole-body model for robot {robot.name!r}; use {' or '.join(repr(n) for n in mobile_manipulators())}"
+        )
+    return WholeBody(
+        robot, base_for(robot, prof), prof.arm_joints, prof.wheel_joints, ee_frame=prof.ee_frame, base_input=base_input
+    )
 
 
 def base_for(robot: LoadedRobot, prof: RobotProfile) -> MobileBase:

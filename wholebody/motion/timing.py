@@ -4,10 +4,11 @@ The geometric path is the cubic spline (scipy "not-a-knot") through the waypoint
 parameterized by normalised chord length s in [0, 1]; toppra finds the fastest
 s(t) from rest to rest under joint velocity and acceleration limits.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -44,9 +45,14 @@ def path_parameter(waypoints: np.ndarray) -> np.ndarray:
     return s / s[-1]
 
 
-def time_optimal(waypoints: np.ndarray, vel_limits: Sequence[float], acc_limits: Sequence[float],
-                 sample_dt: float = 0.01, gridpoints: int | None = None,
-                 safety_factor: float = 0.98) -> SampledTrajectory:
+def time_optimal(
+    waypoints: np.ndarray,
+    vel_limits: Sequence[float],
+    acc_limits: Sequence[float],
+    sample_dt: float = 0.01,
+    gridpoints: int | None = None,
+    safety_factor: float = 0.98,
+) -> SampledTrajectory:
     """Return the time-optimal rest-to-rest trajectory along the spline through `waypoints` (N x n).
 
     Args:
@@ -88,8 +94,9 @@ def time_optimal(waypoints: np.ndarray, vel_limits: Sequence[float], acc_limits:
     return SampledTrajectory(t=t, q=traj(t), qd=traj(t, 1), qdd=traj(t, 2))
 
 
-def uniform_scaling_duration(waypoints: np.ndarray, vel_limits: Sequence[float], acc_limits: Sequence[float],
-                             samples: int = 4001) -> float:
+def uniform_scaling_duration(
+    waypoints: np.ndarray, vel_limits: Sequence[float], acc_limits: Sequence[float], samples: int = 4001
+) -> float:
     """Return the shortest duration T of the same spline path timed by s = 3 tau^2 - 2 tau^3, tau = t / T.
 
     The reference toppra must beat: one fixed rest-to-rest profile uniformly scaled in time
@@ -100,10 +107,10 @@ def uniform_scaling_duration(waypoints: np.ndarray, vel_limits: Sequence[float],
     wp = np.asarray(waypoints, dtype=float)
     spl = CubicSpline(path_parameter(wp), wp)
     tau = np.linspace(0.0, 1.0, samples)
-    s, s1, s2 = 3 * tau ** 2 - 2 * tau ** 3, 6 * tau - 6 * tau ** 2, 6 - 12 * tau
+    s, s1, s2 = 3 * tau**2 - 2 * tau**3, 6 * tau - 6 * tau**2, 6 - 12 * tau
     d1, d2 = spl(s, 1), spl(s, 2)
     vel = np.abs(d1 * s1[:, None]) / np.asarray(vel_limits)
-    acc = np.abs(d2 * (s1 ** 2)[:, None] + d1 * s2[:, None]) / np.asarray(acc_limits)
+    acc = np.abs(d2 * (s1**2)[:, None] + d1 * s2[:, None]) / np.asarray(acc_limits)
     return float(max(vel.max(), np.sqrt(acc.max())))
 
 
@@ -124,9 +131,16 @@ class EndEffectorTiming:
     max_ik_error_m: float
 
 
-def ee_path_time_optimal(wb: WholeBody, x0: Sequence[float], ee_waypoints: Sequence[pin.SE3],
-                         acc_limits: Sequence[float], ik_dt: float = 0.01, ik_iterations: int = 200,
-                         ik_tolerance: float = 1e-5, sample_dt: float = 0.01) -> EndEffectorTiming:
+def ee_path_time_optimal(
+    wb: WholeBody,
+    x0: Sequence[float],
+    ee_waypoints: Sequence[pin.SE3],
+    acc_limits: Sequence[float],
+    ik_dt: float = 0.01,
+    ik_iterations: int = 200,
+    ik_tolerance: float = 1e-5,
+    sample_dt: float = 0.01,
+) -> EndEffectorTiming:
     """Return the time-optimal timing of an EE path: resolved-rate IK to each waypoint, then toppra.
 
     The joint path is [arm q, cumulative wheel angles] (wheel input only) so that the

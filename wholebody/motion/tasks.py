@@ -1,0 +1,206 @@
+"""Cost terms (`Task`s) of the resolved-rate QP: end-effector pose, damping, posture, manipulability, base.
+
+Each returns (H, c) of ``1/2 u^T H u + c^T u`` over ``u = [arm rates, base input]`` (see `wholebody.motion.qp`);
+the factor 1/2 is the solver's, so a task ``w ||A u - b||^2`` contributes ``H = w A^T A, c = -w A^T b``.
+`add_objective` adds the same terms in place into the controller's buffers (what the controller calls).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from wholebody.errors import WholeBodyError
+from wholebody.motion.kinematics import WholeBody
+from wholebody.motion.qp import StepState, Task
+
+
+def pose_error(T: pin.SE3, T_des: pin.SE3) -> np.ndarray:
+    """Return the world-aligned error [p_d - p, log3(R_d R^T)] (6,)."""
+    e = np.empty(6)
+    np.subtract(T_des.translation, T.translation, out=e[:3])
+    e[3:] = pin.log3(T_des.rotation.dot(T.rotation.T))
+    return e
+
+
+def manipulability(wb: WholeBody, x: Sequence[float]) -> float:
+    """Return the arm's manipulability sqrt(det(J_arm J_arm^T)) at x."""
+    J = wb.combined_jacobian(x)[:, : wb.n_arm]
+    return float(np.sqrt(max(np.linalg.det(J @ J.T), 0.0)))
+
+
+def manipulability_gradient(wb: WholeBody, x: Sequence[float], eps: float = 1e-6) -> np.ndarray:
+    """Return d manipulability / d q_arm by central differences (n_arm,)."""
+    x = np.asarray(x, dtype=float)
+    g = np.zeros(wb.n_arm)
+    for i in range(wb.n_arm):
+        dx = np.zeros_like(x)
+        dx[3 + i] = eps
+        g[i] = (manipulability(wb, x + dx) - manipulability(wb, x - dx)) / (2 * eps)
+    return g
+
+
+class _DiagonalView:
+    """Writable views, cached per buffer, of the first k diagonal entries of an n x n C-contiguous matrix
+    (`view(H)`) and of the first k entries of a vector (`view.head(c)`)."""
+
+    def __init__(self, k: int) -> None:
+        self.k = k
+        self._buffer: np.ndarray | None = None
+        self._view: np.ndarray | None = None
+        self._vector: np.ndarray | None = None
+        self._head: np.ndarray | None = None
+
+    def head(self, c: np.ndarray) -> np.ndarray:
+        """Return c[:k], cached per vector."""
+        if c is not self._vector:
+            self._vector, self._head = c, c[: self.k]
+        return self._head
+
+    def __call__(self, H: np.ndarray) -> np.ndarray:
+        if H is not self._buffer:
+            n = H.shape[0]
+            view = H.reshape(-1)[: self.k * (n + 1) : n + 1]
+            if not np.shares_memory(view, H):
+                raise WholeBodyError("add_objective needs a C-contiguous n_u x n_u Hessian buffer")
+            self._buffer, self._view = H, view
+        return self._view
+
+
+class EndEffectorTask(Task):
+    """||J u - v_ref||_W^2: track the commanded end-effector twist (paper eq. 21), W = diag(weights)."""
+
+    def __init__(self, weights: Sequence[float]) -> None:
+        self.weights = weights
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Task weights (6,): [position x3, orientation x3] (read-only array: assign new weights to change them)."""
+        return self._weights
+
+    @weights.setter
+    def weights(self, value: Sequence[float]) -> None:
+        self._weights = np.array(value, dtype=float)
+        self._weights.flags.writeable = False
+        self._unit = bool(np.all(self._weights == 1.0))  # J^T W = J^T: skip the product
+
+    def objective(self, s: StepState) -> tuple[np.ndarray, np.ndarray]:
+        JW = s.J.T * self.weights
+        return JW.dot(s.J), -JW.dot(s.v_ref)
+
+    def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
+        JW = s.J.T if self._unit else s.J.T * self._weights
+        H += JW.dot(s.J)
+        c -= JW.dot(s.v_ref)
+
+
+class DampingTask(Task):
+    """damping ||u||^2 (Levenberg damping: keeps singular steps bounded)."""
+
+    def __init__(self, n_u: int, damping: float) -> None:
+        self.damping = damping
+        self._H = damping * np.eye(n_u)
+        self._diag = _DiagonalView(n_u)
+
+    def objective(self, s: StepState) -> tuple[np.ndarray, None]:
+        return self._H, None
+
+    def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
+        d = self._diag(H)
+        d += self.damping
+
+
+class PostureTask(Task):
+    """weight ||q_dot - gain (posture - q)||^2 over the arm rates (pulls the arm to `posture`).
+
+    `posture` None: the task is off until set (the controller sets it to the first state's arm posture).
+    """
+
+    def __init__(self, wb: WholeBody, weight: float, gain: float, posture: np.ndarray | None = None) -> None:
+        self.weight, self.gain, self.posture = weight, gain, posture
+        self._n_arm = wb.n_arm
+        self._c = np.zeros(wb.n_u)
+        self._H = np.zeros((wb.n_u, wb.n_u))
+        self._H[: wb.n_arm, : wb.n_arm] = weight * np.eye(wb.n_arm)
+        self._diag = _DiagonalView(wb.n_arm)
+        self._c_arm = self._c[: wb.n_arm]  # buffer reused by each call (the base part stays 0)
+
+    def objective(self, s: StepState) -> tuple[np.ndarray | None, np.ndarray | None]:
+        if self.posture is None:
+            return None, None
+        c_arm = self._c[: self._n_arm]  # buffer reused by each call (the base part stays 0)
+        np.subtract(self.posture, s.x[3:], out=c_arm)
+        c_arm *= -self.weight * self.gain
+        return self._H, self._c
+
+    def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
+        if self.posture is None:
+            return
+        c_arm = self._c_arm
+        np.subtract(self.posture, s.x[3:], out=c_arm)
+        c_arm *= -self.weight * self.gain
+        c_view = self._diag.head(c)
+        c_view += c_arm
+        d = self._diag(H)
+        d += self.weight
+
+
+class ManipulabilityTask(Task):
+    """Linear cost -weight grad(manipulability) . q_dot: ascend the arm's manipulability."""
+
+    def __init__(self, weight: float) -> None:
+        self.weight = weight
+
+    def objective(self, s: StepState) -> tuple[None, np.ndarray]:
+        c = np.zeros(s.wb.n_u)
+        c[: s.wb.n_arm] = -self.weight * manipulability_gradient(s.wb, s.x)
+        return None, c
+
+
+class BaseTask(Task):
+    """weight ||M u_b - t*||^2: pull the base to `StepState.base_target` (off when it is None).
+
+    M maps the base input to the body twist (paper eq. 19-20) and t* = vb_d + gain e_b (heading error
+    wrapped). With `lookahead` > 0 the term tracks the look-ahead point at body offset (lookahead, 0)
+    towards the same point of the target pose (paper 2 section VI, eq. 12 with (L2, L3) = (lookahead, 0)).
+    """
+
+    def __init__(self, weight: float, gain: float, lookahead: float = 0.0) -> None:
+        self.weight, self.gain, self.lookahead = weight, gain, lookahead
+
+    def objective(self, s: StepState) -> tuple[np.ndarray | None, np.ndarray | None]:
+        if s.base_target is None:
+            return None, None
+        n = s.wb.n_u
+        H, c = np.zeros((n, n)), np.zeros(n)
+        self.add_objective(s, H, c)
+        return H, c
+
+    def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
+        if s.base_target is None:
+            return
+        M, ref = self._map_and_reference(s)
+        n_arm = s.wb.n_arm
+        H[n_arm:, n_arm:] += (self.weight * M.T).dot(M)
+        c[n_arm:] += (-self.weight * M.T).dot(ref)
+
+    def _map_and_reference(self, s: StepState) -> tuple[np.ndarray, np.ndarray]:
+        """Return (M, t*): the base input -> tracked velocity map and the velocity reference."""
+        x = s.x
+        pose_d = np.asarray(s.base_target, dtype=float)
+        rates = np.zeros(3) if s.base_target_velocity is None else np.asarray(s.base_target_velocity, dtype=float)
+        th, ell = x[2], self.lookahead
+        c, sn = s.cos_sin
+        if ell > 0:  # look-ahead point P = base + ell (cos th, sin th) towards the target's P*
+            cd, sd = np.cos(pose_d[2]), np.sin(pose_d[2])
+            p = x[:2] + ell * np.array([c, sn])
+            p_d = pose_d[:2] + ell * np.array([cd, sd])
+            pdot_d = rates[:2] + ell * rates[2] * np.array([-sd, cd])
+            M = np.array([[c, -sn, -ell * sn], [sn, c, ell * c]]) @ s.wb._wheel_map
+            return M, pdot_d + self.gain * (p_d - p)
+        e = np.array([pose_d[0] - x[0], pose_d[1] - x[1], (pose_d[2] - th + np.pi) % (2 * np.pi) - np.pi])
+        w = rates + self.gain * e
+        twist = np.array([c * w[0] + sn * w[1], -sn * w[0] + c * w[1], w[2]])  # world rates -> body twist
+        return s.wb._wheel_map, twist
