@@ -70,31 +70,28 @@ def _segment(p: tuple[float, float, float], radius: float) -> Shape | None:
     return None
 
 
-def ridgeback_iiwa_urdf() -> str:
-    """Return the URDF text of the Ridgeback + iiwa 14 + FT-300 + 2F-85 mobile manipulator.
-
-    Root link `base_footprint` on the floor (`robots.load` adds the planar joint);
-    `base_link` 0.0259 m above it; frames `ft_sensor` (FT-300 measurement frame)
-    and `ee` (grasp point between the fingertip pads, z along the tool axis).
-    """
-    parts: list[str] = [link("base_footprint")]
+def _chassis() -> list[str]:
+    """Return the floor link `base_footprint` and the Ridgeback body `base_link` (chassis and mid-mount plate)."""
     cx, cy, cz = RIDGEBACK_CHASSIS
     chassis_center_z = 0.018 - (RIDGEBACK_WHEEL_RADIUS - RIDGEBACK_WHEEL_Z) + cz / 2
-    parts.append(
-        link(
-            "base_link",
-            box_inertial(RIDGEBACK_CHASSIS_MASS, RIDGEBACK_CHASSIS, com=(0, 0, chassis_center_z)),
-            (
-                Shape("box", RIDGEBACK_CHASSIS, (0, 0, chassis_center_z), material="yellow"),
-                Shape("box", (cx * 0.98, cy * 0.98, 0.01), (0, 0, RIDGEBACK_MID_MOUNT_Z - 0.005), material="dark"),
-            ),
-        )
+    shapes = (
+        Shape("box", RIDGEBACK_CHASSIS, (0, 0, chassis_center_z), material="yellow"),
+        Shape("box", (cx * 0.98, cy * 0.98, 0.01), (0, 0, RIDGEBACK_MID_MOUNT_Z - 0.005), material="dark"),
     )
-    parts.append(
+    return [
+        link("base_footprint"),
+        link(
+            "base_link", box_inertial(RIDGEBACK_CHASSIS_MASS, RIDGEBACK_CHASSIS, com=(0, 0, chassis_center_z)), shapes
+        ),
         joint(
             "base_joint", "fixed", "base_footprint", "base_link", xyz=(0, 0, RIDGEBACK_WHEEL_RADIUS - RIDGEBACK_WHEEL_Z)
-        )
-    )
+        ),
+    ]
+
+
+def _rockers() -> list[str]:
+    """Return the front and rear rocker links, fixed to `base_link` over the wheel axles."""
+    parts: list[str] = []
     for name, sx in (("front", 1.0), ("rear", -1.0)):
         parts.append(
             link(
@@ -112,6 +109,12 @@ def ridgeback_iiwa_urdf() -> str:
                 xyz=(sx * RIDGEBACK_WHEEL_X, 0, RIDGEBACK_WHEEL_Z),
             )
         )
+    return parts
+
+
+def _wheels() -> list[str]:
+    """Return the four mecanum wheels (as plain cylinders) on continuous joints to `base_link`."""
+    parts: list[str] = []
     for fx, sx in (("front", 1.0), ("rear", -1.0)):
         for side, sy in (("left", 1.0), ("right", -1.0)):
             w = f"{fx}_{side}_wheel"
@@ -133,49 +136,69 @@ def ridgeback_iiwa_urdf() -> str:
                     limit=(0, 0, 50.0, RIDGEBACK_MAX_SPEED / RIDGEBACK_WHEEL_RADIUS),
                 )
             )
-    parts.append(link("mid_mount"))
-    parts.append(joint("mid_mount_joint", "fixed", "base_link", "mid_mount", xyz=(0, 0, RIDGEBACK_MID_MOUNT_Z)))
+    return parts
+
+
+def _arm_mount() -> list[str]:
+    """Return `mid_mount` and the HAMS pedestal `arm_mount_link` the iiwa stands on."""
     mx, my, mz = IIWA_MOUNT_XYZ
-    parts.append(link("arm_mount_link", None, (Shape("box", (0.3, 0.3, mz), (0, 0, -mz / 2), material="grey"),)))
-    parts.append(
-        joint("arm_mount_joint", "fixed", "mid_mount", "arm_mount_link", xyz=IIWA_MOUNT_XYZ, rpy=(0, 0, IIWA_MOUNT_YAW))
-    )
-    parts.append(
-        link("iiwa_link_0", _inertial(0), (Shape("cylinder", (0.1, 0.1575), (0, 0, 0.1575 / 2), material="grey"),))
-    )
-    parts.append(joint("iiwa_base_joint", "fixed", "arm_mount_link", "iiwa_link_0"))
-    for i, (xyz, rpy, lim_deg, vel, effort) in enumerate(IIWA_JOINTS, start=1):
-        nxt = IIWA_JOINTS[i][0] if i < 7 else (0, 0, IIWA_FLANGE_Z)
-        shapes = [Shape("sphere", (0.075,), material="orange")]
-        seg = _segment(nxt, 0.065)
-        if seg is not None:
-            shapes.append(seg)
-        parts.append(link(f"iiwa_link_{i}", _inertial(i), tuple(shapes)))
-        parts.append(
-            joint(
-                f"iiwa_joint_{i}",
-                "revolute",
-                f"iiwa_link_{i - 1}",
-                f"iiwa_link_{i}",
-                xyz=xyz,
-                rpy=rpy,
-                limit=(-math.radians(lim_deg), math.radians(lim_deg), effort, vel),
-                damping=IIWA_DAMPING,
-            )
-        )
+    return [
+        link("mid_mount"),
+        joint("mid_mount_joint", "fixed", "base_link", "mid_mount", xyz=(0, 0, RIDGEBACK_MID_MOUNT_Z)),
+        link("arm_mount_link", None, (Shape("box", (0.3, 0.3, mz), (0, 0, -mz / 2), material="grey"),)),
+        joint(
+            "arm_mount_joint", "fixed", "mid_mount", "arm_mount_link", xyz=IIWA_MOUNT_XYZ, rpy=(0, 0, IIWA_MOUNT_YAW)
+        ),
+    ]
+
+
+def _iiwa_link(i: int) -> list[str]:
+    """Return iiwa link i (1..7) and its revolute joint to link i-1 (Drake's numbers)."""
+    xyz, rpy, lim_deg, vel, effort = IIWA_JOINTS[i - 1]
+    nxt = IIWA_JOINTS[i][0] if i < 7 else (0, 0, IIWA_FLANGE_Z)
+    shapes = [Shape("sphere", (0.075,), material="orange")]
+    seg = _segment(nxt, 0.065)
+    if seg is not None:
+        shapes.append(seg)
+    return [
+        link(f"iiwa_link_{i}", _inertial(i), tuple(shapes)),
+        joint(
+            f"iiwa_joint_{i}",
+            "revolute",
+            f"iiwa_link_{i - 1}",
+            f"iiwa_link_{i}",
+            xyz=xyz,
+            rpy=rpy,
+            limit=(-math.radians(lim_deg), math.radians(lim_deg), effort, vel),
+            damping=IIWA_DAMPING,
+        ),
+    ]
+
+
+def _iiwa() -> list[str]:
+    """Return the iiwa 14 on `arm_mount_link`: base link 0, links 1..7 and the `iiwa_flange` frame."""
+    parts = [
+        link("iiwa_link_0", _inertial(0), (Shape("cylinder", (0.1, 0.1575), (0, 0, 0.1575 / 2), material="grey"),)),
+        joint("iiwa_base_joint", "fixed", "arm_mount_link", "iiwa_link_0"),
+    ]
+    for i in range(1, len(IIWA_JOINTS) + 1):
+        parts.extend(_iiwa_link(i))
     parts.append(link("iiwa_flange"))
     parts.append(joint("iiwa_flange_joint", "fixed", "iiwa_link_7", "iiwa_flange", xyz=(0, 0, IIWA_FLANGE_Z)))
-    parts.append(
+    return parts
+
+
+def _tool() -> list[str]:
+    """Return the FT-300 (with its measurement frame `ft_sensor`), the 2F-85 gripper and the grasp frame `ee`."""
+    return [
         link(
             "ft300",
             cylinder_inertial(FT300_MASS, 0.0375, FT300_THICKNESS, com=(0, 0, FT300_COM_Z)),
             (Shape("cylinder", (0.0375, FT300_THICKNESS), (0, 0, FT300_THICKNESS / 2), material="dark"),),
-        )
-    )
-    parts.append(joint("ft300_joint", "fixed", "iiwa_flange", "ft300"))
-    parts.append(link("ft_sensor"))
-    parts.append(joint("ft_sensor_joint", "fixed", "ft300", "ft_sensor", xyz=(0, 0, FT300_MEASURE_Z)))
-    parts.append(
+        ),
+        joint("ft300_joint", "fixed", "iiwa_flange", "ft300"),
+        link("ft_sensor"),
+        joint("ft_sensor_joint", "fixed", "ft300", "ft_sensor", xyz=(0, 0, FT300_MEASURE_Z)),
         link(
             "gripper",
             box_inertial(GRIPPER_MASS, (0.09, 0.06, 0.12), com=(0, 0, GRIPPER_COM_Z)),
@@ -184,11 +207,21 @@ def ridgeback_iiwa_urdf() -> str:
                 Shape("box", (0.02, 0.025, 0.05), (0.03, 0, 0.125), material="silver"),
                 Shape("box", (0.02, 0.025, 0.05), (-0.03, 0, 0.125), material="silver"),
             ),
-        )
-    )
-    parts.append(joint("gripper_joint", "fixed", "ft300", "gripper", xyz=(0, 0, FT300_THICKNESS)))
-    parts.append(link("ee"))
-    parts.append(joint("ee_joint", "fixed", "gripper", "ee", xyz=(0, 0, GRIPPER_LENGTH)))
+        ),
+        joint("gripper_joint", "fixed", "ft300", "gripper", xyz=(0, 0, FT300_THICKNESS)),
+        link("ee"),
+        joint("ee_joint", "fixed", "gripper", "ee", xyz=(0, 0, GRIPPER_LENGTH)),
+    ]
+
+
+def ridgeback_iiwa_urdf() -> str:
+    """Return the URDF text of the Ridgeback + iiwa 14 + FT-300 + 2F-85 mobile manipulator.
+
+    Root link `base_footprint` on the floor (`robots.load` adds the planar joint);
+    `base_link` 0.0259 m above it; frames `ft_sensor` (FT-300 measurement frame)
+    and `ee` (grasp point between the fingertip pads, z along the tool axis).
+    """
+    parts = _chassis() + _rockers() + _wheels() + _arm_mount() + _iiwa() + _tool()
     return robot("ridgeback_iiwa", "".join(parts))
 
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import errno
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, NamedTuple
 from collections.abc import Iterator, Sequence
@@ -1011,6 +1011,152 @@ def _report_drops(dropped: dict[str, int], warns: list[str], notes: list[str]) -
         )
 
 
+def _tf_buffer(rec: _Recording, t0_ns: int, use_record_time: bool, notes: list[str]) -> TransformBuffer:
+    """Return the TF buffer of the recording; note the links taken from TransformStamped topics."""
+    tf_buf, extra_links = _build_tf(rec.tf, t0_ns, use_record_time)
+    if extra_links:
+        notes.append(f"TF links taken from TransformStamped topics: {'; '.join(extra_links)}")
+    return tf_buf
+
+
+class _CartPoses(NamedTuple):
+    """The windowed pose samples, the world and cart frames, and the tracked and cart frames in the world."""
+
+    poses: _Poses
+    world: str
+    cart: str
+    R_wc: np.ndarray
+    p_wc: np.ndarray
+    R_wb: np.ndarray
+    p_wb: np.ndarray
+    valid: np.ndarray
+
+
+def _cart_poses(
+    rec: _Recording,
+    pose_frame: str | None,
+    world_frame: str | None,
+    cart_frame: str | None,
+    window: tuple[float | None, float | None],
+    path: Any,
+    pose_t_ns: np.ndarray,
+    t0_ns: int,
+    tf_buf: TransformBuffer,
+    dropped: dict[str, int],
+    notes: list[str],
+) -> _CartPoses:
+    """Return the pose samples in the window with {b} in the world frame; count those TF cannot place."""
+    world = normalize_frame(world_frame) if world_frame else ""
+    poses, world = _tracked_poses(rec, pose_frame, world, pose_t_ns, t0_ns, tf_buf, dropped, notes)
+    poses = _window(poses, *window, path)
+    cart = normalize_frame(cart_frame) if cart_frame else poses.child
+    R_wc, p_wc, R_wb, p_wb, valid = _cart_in_world(poses, world, cart, tf_buf)
+    dropped["pose_outside_tf"] = int(np.count_nonzero(~valid))
+    return _CartPoses(poses, world, cart, R_wc, p_wc, R_wb, p_wb, valid)
+
+
+def _wrench_on_cart(
+    rec: _Recording,
+    wrench_t_ns: np.ndarray,
+    t0_ns: int,
+    world: str,
+    wrench_frame: str | None,
+    tf_buf: TransformBuffer,
+    dropped: dict[str, int],
+    negate_wrench: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, list[str]]]:
+    """Return `_wrench_in_world` of the wrench stream, its sign flipped with ``negate_wrench``."""
+    tw, f_w, m_o, chains = _wrench_in_world(
+        rec.wrench, rec.wrench_name, wrench_t_ns, t0_ns, world, wrench_frame, tf_buf, dropped
+    )
+    if negate_wrench:
+        f_w, m_o = -f_w, -m_o
+    return tw, f_w, m_o, chains
+
+
+class _Samples(NamedTuple):
+    """The cart log's columns at the kept pose stamps, and the largest tilt of {b} (degrees)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    gamma: np.ndarray
+    qd: np.ndarray | None
+    tilt_max: float
+
+
+def _cart_samples(
+    cp: _CartPoses,
+    wrench: tuple[np.ndarray, np.ndarray, np.ndarray],
+    tf_buf: TransformBuffer,
+    dropped: dict[str, int],
+    warns: list[str],
+    notes: list[str],
+    path: Any,
+) -> _Samples:
+    """Return the pose, wrench and (odometry) rates of {b} at the pose stamps the wrench covers."""
+    tw, f_w, m_o = wrench
+    use = _aligned(cp.poses.t, cp.valid, tw, dropped, path)
+    t, R_wb, p_wb, R_wc, p_wc = cp.poses.t[use], cp.R_wb[use], cp.p_wb[use], cp.R_wc[use], cp.p_wc[use]
+    gamma = _cart_wrench(t, tw, f_w, m_o, p_wb)
+    theta, tilt_max = _planar_pose(t, R_wb, warns)
+    qd = _odometry_velocities(cp.poses, use, cp.world, tf_buf, R_wc, p_wc, p_wb, notes)
+    return _Samples(t, np.column_stack([p_wb[:, 0], p_wb[:, 1], theta]), gamma, qd, tilt_max)
+
+
+def _import_report(
+    path: Any,
+    rec: _Recording,
+    cp: _CartPoses,
+    s: _Samples,
+    t0_ns: int,
+    clock: str,
+    chains: dict[str, list[str]],
+    negate_wrench: bool,
+    window: tuple[float | None, float | None],
+    dropped: dict[str, int],
+    notes: list[str],
+) -> ImportReport:
+    """Return the report of an import, without warnings (the log's are added once it exists)."""
+    return ImportReport(
+        bag=str(path),
+        storage=rec.storage,
+        samples=len(s.t),
+        duration=float(s.t[-1] - s.t[0]),
+        t0_ns=int(t0_ns),
+        clock=clock,
+        pose_source=cp.poses.source,
+        pose_type=cp.poses.msgtype,
+        wrench_topic=rec.wrench_name,
+        wrench_type=rec.wrench.msgtype,
+        world_frame=cp.world,
+        cart_frame=cp.cart,
+        wrench_frames=tuple(chains),
+        tf_chains=chains,
+        negate_wrench=bool(negate_wrench),
+        window=window,
+        dropped=dropped,
+        tilt_max_deg=s.tilt_max,
+        has_velocities=s.qd is not None,
+        notes=tuple(notes),
+    )
+
+
+def _cart_log(report: ImportReport, t0_ns: int, cart: str, s: _Samples) -> CartLog:
+    """Return the cart log of an import, its metadata (LOG_FORMAT.md) taken from `report`."""
+    metadata = {
+        "source": "ROS bag",
+        "bag": report.bag,
+        "pose": report.pose_source,
+        "wrench": report.wrench_topic,
+        "world_frame": report.world_frame,
+        "cart_frame": cart or "-",
+        "clock": report.clock,
+        "t0_unix_ns": str(t0_ns),
+        "negate_wrench": str(report.negate_wrench).lower(),
+    }
+    return CartLog(t=s.t, q=s.q, gamma=s.gamma, qd=s.qd, metadata=metadata, source=report.bag)
+
+
 def import_bag(
     path: str | os.PathLike,
     pose_topic: str | None = None,
@@ -1042,66 +1188,20 @@ def import_bag(
     dropped: dict[str, int] = {}
     rec = _read_recording(bag, pose_topic, wrench_topic)  # type: ignore[arg-type]
     pose_t_ns, wrench_t_ns, t0_ns = _clock(rec, use_record_time, notes)
-    tf_buf, extra_links = _build_tf(rec.tf, t0_ns, use_record_time)
-    if extra_links:
-        notes.append(f"TF links taken from TransformStamped topics: {'; '.join(extra_links)}")
-    world = normalize_frame(world_frame) if world_frame else ""
-    poses, world = _tracked_poses(rec, pose_frame, world, pose_t_ns, t0_ns, tf_buf, dropped, notes)
-    poses = _window(poses, start, end, path)
-    cart = normalize_frame(cart_frame) if cart_frame else poses.child
-    R_wc, p_wc, R_wb, p_wb, valid = _cart_in_world(poses, world, cart, tf_buf)
-    dropped["pose_outside_tf"] = int(np.count_nonzero(~valid))
-    tw, f_w, m_o, chains = _wrench_in_world(
-        rec.wrench, rec.wrench_name, wrench_t_ns, t0_ns, world, wrench_frame, tf_buf, dropped
+    tf_buf = _tf_buffer(rec, t0_ns, use_record_time, notes)
+    cp = _cart_poses(
+        rec, pose_frame, world_frame, cart_frame, (start, end), path, pose_t_ns, t0_ns, tf_buf, dropped, notes
     )
-    if negate_wrench:
-        f_w, m_o = -f_w, -m_o
-    use = _aligned(poses.t, valid, tw, dropped, path)
-    t, R_wb, p_wb, R_wc, p_wc = poses.t[use], R_wb[use], p_wb[use], R_wc[use], p_wc[use]
-    gamma = _cart_wrench(t, tw, f_w, m_o, p_wb)
-    theta, tilt_max = _planar_pose(t, R_wb, warns)
-    qd = _odometry_velocities(poses, use, world, tf_buf, R_wc, p_wc, p_wb, notes)
+    tw, f_w, m_o, chains = _wrench_on_cart(
+        rec, wrench_t_ns, t0_ns, cp.world, wrench_frame, tf_buf, dropped, negate_wrench
+    )
+    s = _cart_samples(cp, (tw, f_w, m_o), tf_buf, dropped, warns, notes, path)
     _report_drops(dropped, warns, notes)
-    metadata = {
-        "source": "ROS bag",
-        "bag": str(path),
-        "pose": poses.source,
-        "wrench": rec.wrench_name,
-        "world_frame": world,
-        "cart_frame": cart or "-",
-        "clock": clock,
-        "t0_unix_ns": str(t0_ns),
-        "negate_wrench": str(bool(negate_wrench)).lower(),
-    }
-    log = CartLog(
-        t=t, q=np.column_stack([p_wb[:, 0], p_wb[:, 1], theta]), gamma=gamma, qd=qd, metadata=metadata, source=str(path)
-    )
+    report = _import_report(path, rec, cp, s, t0_ns, clock, chains, negate_wrench, (start, end), dropped, notes)
+    log = _cart_log(report, t0_ns, cp.cart, s)
     warns.extend(plausibility_warnings(log))
     object.__setattr__(log, "warnings", tuple(warns))
-    report = ImportReport(
-        bag=str(path),
-        storage=rec.storage,
-        samples=len(t),
-        duration=float(t[-1] - t[0]),
-        t0_ns=int(t0_ns),
-        clock=clock,
-        pose_source=poses.source,
-        pose_type=poses.msgtype,
-        wrench_topic=rec.wrench_name,
-        wrench_type=rec.wrench.msgtype,
-        world_frame=world,
-        cart_frame=cart,
-        wrench_frames=tuple(chains),
-        tf_chains=chains,
-        negate_wrench=bool(negate_wrench),
-        window=(start, end),
-        dropped=dropped,
-        tilt_max_deg=tilt_max,
-        has_velocities=qd is not None,
-        warnings=tuple(warns),
-        notes=tuple(notes),
-    )
-    return log, report
+    return log, replace(report, warnings=tuple(warns))
 
 
 def load_any(path: str | os.PathLike, **topic_options: Any) -> CartLog:
