@@ -50,41 +50,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Plan the contacts and print them (table or JSON)."""
-    for k, v in zip(("FX", "FY", "TAU"), args.wrench):
-        options.finite(f"--wrench {k}", v, maximum=1e6, minimum=-1e6)
-    options.finite("--handle-width", args.handle_width, positive=True, maximum=100.0)
-    options.finite("--min-spacing", args.min_spacing, nonnegative=True, maximum=100.0)
-    options.finite("--grip-force", args.grip_force, positive=True, maximum=1e6)
-    options.finite("--max-force", args.max_force, positive=True, maximum=1e7)
-    options.finite("--max-torque", args.max_torque, positive=True, maximum=1e7)
-    if not 1 <= args.arms <= 8:
-        raise options.OptionError(f"--arms must be between 1 and 8, got {args.arms}")
+    _check_options(args)
     from cart.jsonout import dumps_strict
-    from wholebody.contacts.allocation import ArmLimits, GraspModel
-    from wholebody.contacts.handle import HandleSegment
-    from wholebody.contacts.placement import optimal_contact_points
 
-    handle = HandleSegment.default(width=args.handle_width)
-    limits = ArmLimits(
-        max_force=args.max_force, max_torque=args.max_torque, grasp=GraspModel(grip_force=args.grip_force)
-    )
-    plan = optimal_contact_points(
-        args.wrench,
-        handle,
-        n_arms=args.arms,
-        min_spacing=args.min_spacing,
-        limits=limits,
-        only_motion_directions=args.motion_only,
-        solver=args.solver,
-    )
-    contacts = [
-        {
-            "arm": i,
-            "point_b": [round(float(v), 6) for v in plan.points_b[i]],
-            "wrench_ee": [round(float(v), 6) for v in plan.allocation.wrenches_ee[i]],
-        }
-        for i in range(args.arms)
-    ]
+    plan = _plan(args)
+    contacts = _contact_rows(plan, args.arms)
     if args.json:
         print(
             dumps_strict(
@@ -97,6 +67,58 @@ def run(args: argparse.Namespace) -> int:
             )
         )
         return 0
+    _print_table(args, plan, contacts)
+    return 0
+
+
+def _check_options(args: argparse.Namespace) -> None:
+    """Raise `options.OptionError` for a non-finite or out-of-range option."""
+    for k, v in zip(("FX", "FY", "TAU"), args.wrench):
+        options.finite(f"--wrench {k}", v, maximum=1e6, minimum=-1e6)
+    options.finite("--handle-width", args.handle_width, positive=True, maximum=100.0)
+    options.finite("--min-spacing", args.min_spacing, nonnegative=True, maximum=100.0)
+    options.finite("--grip-force", args.grip_force, positive=True, maximum=1e6)
+    options.finite("--max-force", args.max_force, positive=True, maximum=1e7)
+    options.finite("--max-torque", args.max_torque, positive=True, maximum=1e7)
+    if not 1 <= args.arms <= 8:
+        raise options.OptionError(f"--arms must be between 1 and 8, got {args.arms}")
+
+
+def _plan(args: argparse.Namespace):
+    """Return the `ContactPlan` of the options (`optimal_contact_points`)."""
+    from wholebody.contacts.allocation import ArmLimits, GraspModel
+    from wholebody.contacts.handle import HandleSegment
+    from wholebody.contacts.placement import optimal_contact_points
+
+    handle = HandleSegment.default(width=args.handle_width)
+    limits = ArmLimits(
+        max_force=args.max_force, max_torque=args.max_torque, grasp=GraspModel(grip_force=args.grip_force)
+    )
+    return optimal_contact_points(
+        args.wrench,
+        handle,
+        n_arms=args.arms,
+        min_spacing=args.min_spacing,
+        limits=limits,
+        only_motion_directions=args.motion_only,
+        solver=args.solver,
+    )
+
+
+def _contact_rows(plan, n_arms: int) -> list[dict]:
+    """Return one dict per arm: its index, contact point in {b} and wrench in {a}, rounded to 6 decimals."""
+    return [
+        {
+            "arm": i,
+            "point_b": [round(float(v), 6) for v in plan.points_b[i]],
+            "wrench_ee": [round(float(v), 6) for v in plan.allocation.wrenches_ee[i]],
+        }
+        for i in range(n_arms)
+    ]
+
+
+def _print_table(args: argparse.Namespace, plan, contacts: list[dict]) -> None:
+    """Print the contacts as a table, then the achieved cart wrench and the effort."""
     print("contact points in the cart frame {b} (origin: fixed-axle midpoint, x forward, y left, z up);")
     print("each hand's wrench in its contact frame {a} (axes of {b}, origin at the contact point)")
     heads = ("arm", "x [m]", "y [m]", "z [m]", "fx [N]", "fy [N]", "fz [N]", "tx [N m]", "ty [N m]", "tz [N m]")
@@ -114,7 +136,6 @@ def run(args: argparse.Namespace) -> int:
         f"residual {plan.allocation.residual:.1e})"
     )
     print(f"effort {plan.effort:.4g} (sum over arms of |f|^2 [N^2] + |tau|^2 [(N m)^2], unit weights)")
-    return 0
 
 
 def _num(value: float, decimals: int) -> str:

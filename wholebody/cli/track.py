@@ -79,6 +79,26 @@ def write_csv(result, path: Path) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the experiment; print a table or JSON; optionally write the CSV."""
+    _check_options(args)
+    from cart.jsonout import dumps_strict
+
+    result = _run_experiment(args)
+    if args.out is not None:
+        write_csv(result, args.out)
+    m = result.metrics()
+    warnings = _band_warnings(m, args.band)
+    m["warnings"] = warnings
+    for w in warnings:
+        print(f"cartpush track: warning: {w}", file=sys.stderr)
+    if args.json:
+        print(dumps_strict(m))
+        return 0
+    _print_summary(args, m)
+    return 0
+
+
+def _check_options(args: argparse.Namespace) -> None:
+    """Raise `options.OptionError` for a bad band, rate, duration or output file."""
     if args.band is not None:
         options.finite("--band", args.band, positive=True, maximum=1e3, why="a radius in metres")
     rate = options.finite("--rate", args.rate, positive=True, maximum=10_000.0, why="control rate in Hz")
@@ -87,7 +107,10 @@ def run(args: argparse.Namespace) -> int:
         raise options.OptionError(f"--duration x --rate must give at least one step, got {args.duration * rate:g}")
     if args.out is not None:
         options.writable_file(args.out)
-    from cart.jsonout import dumps_strict
+
+
+def _run_experiment(args: argparse.Namespace):
+    """Return the tracking result, with a progress bar on stderr when it is a terminal."""
     from studies.wmra_experiments import run_tracking
 
     bar = None
@@ -96,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
 
         bar = tqdm(total=int(round(args.duration * args.rate)), file=sys.stderr, desc=f"track {args.path}")
     try:
-        result = run_tracking(
+        return run_tracking(
             args.robot,
             args.path,
             args.band,
@@ -107,25 +130,25 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
-    if args.out is not None:
-        write_csv(result, args.out)
-    m = result.metrics()
+
+
+def _band_warnings(m: dict, band: float | None) -> list[str]:
+    """Set ``m["band_respected"]`` when a band applies; return the warning when the base left it."""
     warnings = []
-    if args.band is not None and m["max_band_distance_m"] is not None:
-        excess = m["max_band_distance_m"] - args.band
+    if band is not None and m["max_band_distance_m"] is not None:
+        excess = m["max_band_distance_m"] - band
         m["band_respected"] = bool(excess <= BAND_TOLERANCE)
         if excess > BAND_TOLERANCE:
             warnings.append(
                 f"the base left the safety band: {m['max_band_distance_m']:.4f} m from the band "
-                f"centre for a radius of {args.band:g} m ({excess:.4f} m outside); the path cannot be "
+                f"centre for a radius of {band:g} m ({excess:.4f} m outside); the path cannot be "
                 f"followed within this band"
             )
-    m["warnings"] = warnings
-    for w in warnings:
-        print(f"cartpush track: warning: {w}", file=sys.stderr)
-    if args.json:
-        print(dumps_strict(m))
-        return 0
+    return warnings
+
+
+def _print_summary(args: argparse.Namespace, m: dict) -> None:
+    """Print the metrics as a table."""
     band = "free" if args.band is None else f"band R = {args.band:g} m"
     print(f"{m['robot']} {m['path']} ({band}), {m['steps']} steps at {1 / m['dt']:g} Hz")
     print(f"  max position error     {m['max_position_error_m'] * 1e3:10.4f} mm")
@@ -144,4 +167,3 @@ def run(args: argparse.Namespace) -> int:
     )
     if args.out is not None:
         print(f"  wrote {args.out}")
-    return 0

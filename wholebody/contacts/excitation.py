@@ -421,6 +421,28 @@ def _cheapest_ties(
     return [int(j) for j in idx]
 
 
+def _check_schedule_options(n_segments: int, n_candidates: int, objective: str) -> None:
+    """Raise `WholeBodyError` for too few segments or candidates, or an unknown objective."""
+    if n_segments < 1 or n_candidates < 2:
+        raise WholeBodyError("need n_segments >= 1 and n_candidates >= 2")
+    if objective not in OBJECTIVES:
+        raise WholeBodyError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}")
+
+
+def _fixed_contact_scores(
+    info: np.ndarray, fixed_effort: np.ndarray, budget: float, score: Callable[[np.ndarray], float]
+) -> np.ndarray:
+    """Return the score of each fixed contact j (-inf over the budget); raise when none is within it."""
+    fixed_scores = np.array(
+        [score(info[:, j]) if fixed_effort[j] <= budget else -np.inf for j in range(len(fixed_effort))]
+    )
+    if not np.any(np.isfinite(fixed_scores)):
+        raise WholeBodyError(
+            f"effort budget {budget:.4g} is below the cheapest fixed contact ({np.min(fixed_effort):.4g})"
+        )
+    return fixed_scores
+
+
 def plan_contact_schedule(
     samples: PushSamples,
     phi: Sequence[float],
@@ -450,10 +472,7 @@ def plan_contact_schedule(
     from every feasible fixed contact.
     """
     handle = HandleSegment.default() if handle is None else handle
-    if n_segments < 1 or n_candidates < 2:
-        raise WholeBodyError("need n_segments >= 1 and n_candidates >= 2")
-    if objective not in OBJECTIVES:
-        raise WholeBodyError(f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}")
+    _check_schedule_options(n_segments, n_candidates, objective)
     cand = np.linspace(0.0, handle.length, n_candidates)
     bounds, info, effort = _segment_tables(samples, phi, sigma, handle, cand, n_segments, noise, limits, sensor_dt)
     fixed_effort = effort.sum(axis=0)  # (J,)
@@ -462,11 +481,7 @@ def plan_contact_schedule(
     budget = float(effort_budget) if effort_budget is not None else budget_ratio * float(np.min(fixed_effort))
     P0 = default_prior(phi) if prior_cov is None else np.asarray(prior_cov, dtype=float)
     score = lambda I: objective_value(I, phi, objective, P0)  # noqa: E731
-    fixed_scores = np.array([score(info[:, j]) if fixed_effort[j] <= budget else -np.inf for j in range(len(cand))])
-    if not np.any(np.isfinite(fixed_scores)):
-        raise WholeBodyError(
-            f"effort budget {budget:.4g} is below the cheapest fixed contact ({np.min(fixed_effort):.4g})"
-        )
+    fixed_scores = _fixed_contact_scores(info, fixed_effort, budget, score)
     j0 = int(np.argmax(fixed_scores))
     idx, best = _best_schedule(info, effort, budget, score, sweeps, exhaustive_limit)  # >= every fixed contact
     sched = ContactSchedule(bounds, cand[idx])

@@ -401,15 +401,55 @@ def reach_map(
     its limits and the arm's Jacobian there keeps its smallest singular value above `min_sigma` (the hand can
     still move every way: not at full extension).
     """
-    import pinocchio as pin
-
     ys = np.asarray(y_values, dtype=float)
+    lo_m, hi_m = wb.arm_lower + joint_margin, wb.arm_upper - joint_margin
+
+    def hold(y: float, prev: np.ndarray) -> tuple[np.ndarray | None, str]:
+        return _hold_point(wb, base_pose_of(y), target_of(y), prev, lo_m, hi_m, joint_margin, min_sigma)
+
+    i0 = int(np.argmin(np.abs(ys - y_start)))
+    postures, margin, reason = _reach_branches(wb, ys, i0, seed, hold)
+    gravity, jac = _static_terms(wb, base_pose_of, ys, postures, margin)
+    effort = wb.model.effortLimit[wb.arm_idx_v].copy()
+    return ReachMap(ys, postures, margin, gravity, jac, effort, tuple(reason))
+
+
+def _hold_point(
+    wb,
+    base: np.ndarray,
+    target,
+    prev: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    joint_margin: float,
+    min_sigma: float,
+) -> tuple[np.ndarray | None, str]:
+    """Return (posture, "") holding `target` from `base` with margin near `prev`, or (None, why not)."""
+    qa = _arm_ik(wb, base, target, prev, lo, hi)
+    if qa is None:
+        return None, f"grasp IK fails within {joint_margin} rad of the joint limits"
+    x = np.r_[base, qa]
+    sigma = float(np.linalg.svd(wb.combined_jacobian(x)[:, : wb.n_arm], compute_uv=False)[-1])
+    if sigma < min_sigma:
+        return None, (
+            f"the arm is near full extension or a singularity (smallest singular "
+            f"value of its Jacobian {sigma:.3f} < {min_sigma})"
+        )
+    return qa, ""
+
+
+def _reach_branches(
+    wb, ys: np.ndarray, i0: int, seed: Sequence[float], hold
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Return (postures, joint margins, reasons) continuing `hold` from grid index i0 to both ends.
+
+    Each direction starts from `seed`, seeds every point with the previous posture and stops at the first
+    point `hold` fails (the rest of that direction is "beyond an unreachable point").
+    """
     n, na = ys.size, wb.n_arm
     postures = np.full((n, na), np.nan)
     margin = np.full(n, -np.inf)
     reason = [""] * n
-    lo_m, hi_m = wb.arm_lower + joint_margin, wb.arm_upper - joint_margin
-    i0 = int(np.argmin(np.abs(ys - y_start)))
     for order in (range(i0, n), range(i0 - 1, -1, -1)):
         prev = np.asarray(seed, dtype=float)
         failed = False
@@ -417,25 +457,22 @@ def reach_map(
             if failed:
                 reason[i] = "beyond an unreachable point"
                 continue
-            base, target = base_pose_of(ys[i]), target_of(ys[i])
-            qa = _arm_ik(wb, base, target, prev, lo_m, hi_m)
+            qa, why = hold(ys[i], prev)
             if qa is None:
-                failed, reason[i] = True, f"grasp IK fails within {joint_margin} rad of the joint limits"
-                continue
-            x = np.r_[base, qa]
-            sigma = float(np.linalg.svd(wb.combined_jacobian(x)[:, :na], compute_uv=False)[-1])
-            if sigma < min_sigma:
-                failed, reason[i] = (
-                    True,
-                    (
-                        f"the arm is near full extension or a singularity (smallest singular "
-                        f"value of its Jacobian {sigma:.3f} < {min_sigma})"
-                    ),
-                )
-            if failed:
+                failed, reason[i] = True, why
                 continue
             postures[i], prev = qa, qa
             margin[i] = float(min(np.min(qa - wb.arm_lower), np.min(wb.arm_upper - qa)))
+    return postures, margin, reason
+
+
+def _static_terms(
+    wb, base_pose_of, ys: np.ndarray, postures: np.ndarray, margin: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return (gravity torques (n, n_arm), hand Jacobians (n, 6, n_arm)) at the reachable postures (zeros elsewhere)."""
+    import pinocchio as pin
+
+    n, na = ys.size, wb.n_arm
     gravity = np.zeros((n, na))
     jac = np.zeros((n, 6, na))
     for i in np.flatnonzero(np.isfinite(margin)):
@@ -443,8 +480,7 @@ def reach_map(
         q = wb.to_pinocchio_q(x)
         gravity[i] = pin.computeGeneralizedGravity(wb.model, wb.data, q)[wb.arm_idx_v]
         jac[i] = wb.combined_jacobian(x)[:, :na]
-    effort = wb.model.effortLimit[wb.arm_idx_v].copy()
-    return ReachMap(ys, postures, margin, gravity, jac, effort, tuple(reason))
+    return gravity, jac
 
 
 def robot_contact_point(
