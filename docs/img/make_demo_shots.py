@@ -11,13 +11,12 @@ how the three screenshots are taken. Run from the repository root:
 from __future__ import annotations
 
 import argparse
-import shutil
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 from wholebody.push import build_scene, demo_configs, run_push
+from wholebody.viz.browser import find_chromium, screenshot
 
 OUT = Path(__file__).resolve().parent
 
@@ -27,7 +26,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=30.0)
     args = ap.parse_args(argv)
-    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    browser = find_chromium()
     if browser is None:
         print("chromium not found", file=sys.stderr)
         return 1
@@ -38,28 +37,7 @@ def main(argv: list[str] | None = None) -> int:
             duration = scene.animation_duration()
         for name, t in (("start", 0.0), ("middle", duration / 2), ("end", duration)):
             png = OUT / f"demo_{name}.png"
-            subprocess.run(
-                [
-                    browser,
-                    "--headless",
-                    "--no-sandbox",
-                    "--enable-unsafe-swiftshader",
-                    "--disable-gpu",
-                    "--disable-background-networking",
-                    "--disable-component-update",
-                    "--disable-sync",
-                    "--no-first-run",
-                    "--hide-scrollbars",
-                    f"--user-data-dir={profile}",
-                    "--window-size=1024,640",
-                    "--virtual-time-budget=4000",
-                    f"--screenshot={png}",
-                    html.resolve().as_uri() + f"#t={t:.3f}",
-                ],
-                check=True,
-                capture_output=True,
-                timeout=120,
-            )
+            screenshot(browser, html, png, fragment=f"#t={t:.3f}", profile=Path(profile))
             print(f"wrote {png} (t = {t:.1f} s)")
     return 0
 

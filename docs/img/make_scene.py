@@ -6,7 +6,6 @@ Run from the repository root: .venv/bin/python docs/img/make_scene.py
 from __future__ import annotations
 
 import shutil
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -15,6 +14,7 @@ import numpy as np
 
 from robots.shopping_cart import CART_HANDLE_X
 from wholebody.viz import Camera, pushing_scene
+from wholebody.viz.browser import find_chromium, screenshot
 
 OUT = Path(__file__).resolve().parent
 
@@ -31,33 +31,11 @@ def main() -> int:
         s = np.linspace(0.0, 1.0, 60)
         scene.show_trace("plan", np.column_stack((0.9 + 4.0 * s, 0.8 * np.sin(np.pi * s) ** 2)))
         html = scene.save_html(tmp / "scene.html", controls=False)
-    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    browser = find_chromium()
     if browser is None:
         print("chromium not found; wrote only", html, file=sys.stderr)
         return 1
-    with tempfile.TemporaryDirectory() as profile:  # a fresh browser profile
-        subprocess.run(
-            [
-                browser,
-                "--headless",
-                "--no-sandbox",
-                "--enable-unsafe-swiftshader",
-                "--disable-gpu",
-                "--disable-background-networking",
-                "--disable-component-update",
-                "--disable-sync",
-                "--no-first-run",
-                "--hide-scrollbars",
-                f"--user-data-dir={profile}",
-                "--window-size=1024,640",
-                "--virtual-time-budget=4000",
-                f"--screenshot={OUT / 'scene.png'}",
-                html.as_uri(),
-            ],
-            check=True,
-            capture_output=True,
-            timeout=120,
-        )
+    screenshot(browser, html, OUT / "scene.png")
     shutil.rmtree(tmp)
     print("wrote", OUT / "scene.png")
     return 0

@@ -19,21 +19,15 @@ from collections.abc import Sequence
 import numpy as np
 
 from cart.dynamics import body_accelerations, lateral_inertial_force
+from cart.effects import CONTRACT_NAMES
 from cart.errors import ParameterError
 from cart.logs import CartLog
 from cart.params import CartParams
 from wholebody.contacts.excitation import PushSamples
 
 GRAVITY = 9.81
-HIDDEN_NAMES = (
-    "coulomb_friction",
-    "caster_swivel",
-    "wrench_bias",
-    "payload_change",
-    "floor_slope",
-    "time_delay",
-    "lateral_slip",
-)
+#: the effects a log can hide: the diagnosis contract's names, in its order
+HIDDEN_NAMES = CONTRACT_NAMES
 
 
 @dataclass(frozen=True)

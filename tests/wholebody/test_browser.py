@@ -18,8 +18,6 @@ module is skipped with one line saying what to install, unless CARTPUSH_REQUIRE_
 from __future__ import annotations
 
 import os
-import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -28,26 +26,17 @@ from PIL import Image
 
 from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
 from wholebody.viz import Scene, pushing_scene
+from wholebody.viz.browser import find_chromium, screenshot
 
 WIDTH, HEIGHT = 1024, 768
 CART_POSE = (0.9, 0.0, 0.0)
 
 
-CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome")
 MISSING_BROWSER = (
     "browser tests need headless Chromium: install it with "
     "`sudo apt-get install -y --no-install-recommends chromium fonts-dejavu-core` "
     "(`make test` does this itself when run as root or with passwordless sudo)"
 )
-
-
-def find_chromium() -> str | None:
-    """Return the path of a Chromium executable on PATH, or None."""
-    for name in CHROMIUM_NAMES:
-        path = shutil.which(name)
-        if path:
-            return path
-    return None
 
 
 CHROMIUM = find_chromium()
@@ -65,25 +54,7 @@ def chromium() -> str:
 
 def render(html: Path, png: Path, profile: Path, fragment: str = "") -> np.ndarray:
     """Return the RGB screenshot (H, W, 3) of a local page (URL fragment `fragment`) rendered by headless Chromium."""
-    cmd = [
-        chromium(),
-        "--headless",
-        "--no-sandbox",
-        "--enable-unsafe-swiftshader",
-        "--disable-gpu",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        "--no-first-run",
-        "--hide-scrollbars",
-        f"--user-data-dir={profile}",
-        f"--window-size={WIDTH},{HEIGHT}",
-        "--virtual-time-budget=4000",
-        f"--screenshot={png}",
-        html.resolve().as_uri() + fragment,
-    ]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-    assert png.is_file(), f"chromium wrote no screenshot (exit {proc.returncode}): {proc.stderr[-2000:]}"
+    screenshot(chromium(), html, png, size=(WIDTH, HEIGHT), fragment=fragment, profile=profile)
     return np.asarray(Image.open(png).convert("RGB"), dtype=float)
 
 
