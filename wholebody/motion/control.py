@@ -262,6 +262,7 @@ class ResolvedRateController:
         for task in self.tasks:
             if isinstance(task, PostureTask):
                 task.posture = self._posture
+        self.workspace.reset()  # the posture task's Hessian is constant only while its posture is set
 
     def bounds(self, x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Return the input box (lb, ub) of the limits: position limits over dt, speed limits; contains 0."""

@@ -69,6 +69,8 @@ class JointPositionLimit(Limit):
         self.lower, self.upper = self._bounds[0], self._bounds[1]  # views: edit in place
         self._n_arm = wb.n_arm
         self._rates = np.empty_like(self._bounds)
+        self._rows = (self._rates[0], self._rates[1])
+        self._lb_in = self._ub_in = self._lb_arm = self._ub_arm = None
         self._lb, self._ub = np.full(wb.n_u, -np.inf), np.full(wb.n_u, np.inf)  # reused by each call
 
     def box(self, s: StepState) -> tuple[np.ndarray, np.ndarray]:
@@ -78,14 +80,16 @@ class JointPositionLimit(Limit):
         return self._lb, self._ub
 
     def intersect_box(self, s: StepState, lb: np.ndarray, ub: np.ndarray) -> None:
-        r, n = self._rates, self._n_arm
+        r = self._rates
         np.subtract(self._bounds, s.x[3:], out=r)
         np.divide(r, s.dt, out=r)
-        lo, hi = r[0], r[1]
+        lo, hi = self._rows
         np.minimum(lo, 0.0, out=lo)
         np.maximum(hi, 0.0, out=hi)
-        np.maximum(lb[:n], lo, out=lb[:n])
-        np.minimum(ub[:n], hi, out=ub[:n])
+        if lb is not self._lb_in or ub is not self._ub_in:  # arm views of the caller's buffers, cached
+            self._lb_in, self._ub_in, self._lb_arm, self._ub_arm = lb, ub, lb[: self._n_arm], ub[: self._n_arm]
+        np.maximum(self._lb_arm, lo, out=self._lb_arm)
+        np.minimum(self._ub_arm, hi, out=self._ub_arm)
 
 
 class JointVelocityLimit(Limit):

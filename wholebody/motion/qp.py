@@ -70,6 +70,12 @@ class StepState:
 class Task:
     """A quadratic cost term over the input u."""
 
+    #: True if the Hessian H added by `add_objective` does not depend on the step: a `QPWorkspace` then sums
+    #: it once per task list and calls only `add_linear` each step (call `QPWorkspace.reset` after changing it)
+    constant_hessian: bool = False
+    #: False if the cost has no linear term (a `constant_hessian` task is then not called each step)
+    linear: bool = True
+
     def objective(self, s: StepState) -> tuple[np.ndarray | None, np.ndarray | None]:
         """Return (H, c) of the cost 1/2 u^T H u + c^T u (n_u x n_u, n_u); None stands for zero.
 
@@ -82,6 +88,12 @@ class Task:
         Ht, ct = self.objective(s)
         if Ht is not None:
             H += Ht
+        if ct is not None:
+            c += ct
+
+    def add_linear(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
+        """Add only the linear term to c in place (H untouched; called for `constant_hessian` tasks)."""
+        ct = self.objective(s)[1]
         if ct is not None:
             c += ct
 
@@ -148,12 +160,16 @@ def stack_inequalities(
 class QPWorkspace:
     """The QP's buffers (H, c, lb, ub and stacked G, h) over n_u inputs, written in place each step.
 
-    Boxes of `constant_box` limits are intersected once per list of limits (again when the list changes).
+    Boxes of `constant_box` limits are intersected once per list of limits, Hessians of `constant_hessian`
+    tasks summed once per list of tasks (again when a list changes, or after `reset`).
     The returned arrays are overwritten by the next step.
     """
 
     def __init__(self, n_u: int) -> None:
         self.H, self.c = np.zeros((n_u, n_u)), np.zeros(n_u)
+        self._const_H = np.zeros((n_u, n_u))
+        self._tasks: tuple[Task, ...] | None = None  # the tasks `_adders` was built for
+        self._adders: list = []  # per-step (s, H, c) -> None calls of the tasks
         self._box = np.empty((2, n_u))  # rows lb, ub
         self.lb, self.ub = self._box[0], self._box[1]
         self._const_box = np.array([np.full(n_u, -np.inf), np.full(n_u, np.inf)])
@@ -165,14 +181,39 @@ class QPWorkspace:
         self._h: np.ndarray | None = None
         self._G_parts: list[np.ndarray] = []
 
+    def reset(self) -> None:
+        """Forget the constant Hessians and boxes (read again at the next step)."""
+        self._tasks = self._limits = None
+
     def objective(self, tasks: list[Task], s: StepState) -> tuple[np.ndarray, np.ndarray]:
-        """Return (H, c): the tasks' costs added in task order into the zeroed buffers."""
+        """Return (H, c): the constant Hessians, then the other tasks' costs added in task order."""
+        if self._tasks is None or not _same_objects(self._tasks, tasks):
+            self._refresh_tasks(tasks, s)
         H, c = self.H, self.c
-        H.fill(0.0)
+        np.copyto(H, self._const_H)
         c.fill(0.0)
-        for task in tasks:
-            task.add_objective(s, H, c)
+        for add in self._adders:
+            add(s, H, c)
         return H, c
+
+    def _refresh_tasks(self, tasks: list[Task], s: StepState) -> None:
+        """Sum the constant Hessians once; list the per-step calls."""
+        self._tasks = tuple(tasks)
+        self._const_H.fill(0.0)
+        scratch = np.zeros_like(self.c)
+        self._adders = []
+        for task in tasks:
+            if task.constant_hessian:
+                task.add_objective(s, self._const_H, scratch)
+                if task.linear:
+                    self._adders.append(task.add_linear)
+            else:
+                self._adders.append(task.add_objective)
+
+    def _check(self, limits: list[Limit], s: StepState) -> None:
+        """Re-sort the limits if the list changed."""
+        if self._limits is None or not _same_objects(self._limits, limits):
+            self._refresh(limits, s)
 
     def _refresh(self, limits: list[Limit], s: StepState) -> None:
         """Intersect the constant boxes once; sort out the limits read every step."""
@@ -189,8 +230,11 @@ class QPWorkspace:
 
     def box(self, limits: list[Limit], s: StepState) -> tuple[np.ndarray, np.ndarray]:
         """Return the intersection (lb, ub) of the limits' boxes (see `stack_box`)."""
-        if self._limits is None or not _same_objects(self._limits, limits):
-            self._refresh(limits, s)
+        self._check(limits, s)
+        return self._box_of(s)
+
+    def _box_of(self, s: StepState) -> tuple[np.ndarray, np.ndarray]:
+        """`box` of the limits last checked."""
         np.copyto(self._box, self._const_box)
         lb, ub = self.lb, self.ub
         for limit in self._varying:
@@ -205,8 +249,11 @@ class QPWorkspace:
         G is unchanged when every contributing limit is `constant_inequality` and returned the same
         arrays as at the previous call. A single limit's own arrays are returned (read them only).
         """
-        if self._limits is None or not _same_objects(self._limits, limits):
-            self._refresh(limits, s)
+        self._check(limits, s)
+        return self._inequalities_of(s, relax)
+
+    def _inequalities_of(self, s: StepState, relax: bool) -> tuple[np.ndarray | None, np.ndarray | None, bool]:
+        """`inequalities` of the limits last checked."""
         parts = []
         for limit in self._with_rows:
             gh = limit.inequality(s, relax)
@@ -292,7 +339,7 @@ class ProxQPSolver:
         if self._info.status != _SOLVED:  # NaN data never meets the residual tolerance: SOLVED means finite
             self._qp = None  # do not warm start from a failed solve
             return None
-        return self._results.x.copy()
+        return self._x.copy()
 
     def _init(
         self, H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: np.ndarray | None, lb: np.ndarray, ub: np.ndarray
@@ -303,6 +350,7 @@ class ProxQPSolver:
         qp.init(H, c, None, None, G, None if G is None else np.full(self._m, -np.inf), h, lb, ub)
         self._results = qp.results
         self._info = self._results.info
+        self._x = self._results.x  # a view of the solution vector, sized once per problem
         return qp
 
 
@@ -377,11 +425,12 @@ def solve_step(
     make the limits hold exactly. Without a workspace a fresh one is used (its arrays are then not shared)."""
     ws = QPWorkspace(s.wb.n_u) if workspace is None else workspace
     H, c = ws.objective(tasks, s)
-    lb, ub = ws.box(limits, s)
-    G, h, G_same = ws.inequalities(limits, s)
+    ws._check(limits, s)
+    lb, ub = ws._box_of(s)
+    G, h, G_same = ws._inequalities_of(s, False)
     u, fallback_used = solvers.solve(H, c, G, h, lb, ub, not G_same)
     if u is None and any(limit.relaxable for limit in limits):  # once more with u = 0 feasible
-        G, h, G_same = ws.inequalities(limits, s, relax=True)
+        G, h, G_same = ws._inequalities_of(s, True)
         u, fallback_used = solvers.solve(H, c, G, h, lb, ub, not G_same)
     solver_ok = u is not None
     u = np.zeros(s.wb.n_u) if u is None else u

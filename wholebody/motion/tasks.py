@@ -12,6 +12,9 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
+from scipy.linalg.blas import daxpy as _daxpy
+from scipy.linalg.blas import dgemm as _dgemm
+
 from wholebody.errors import WholeBodyError
 from wholebody.motion.kinematics import WholeBody
 from wholebody.motion.qp import StepState, Task
@@ -91,13 +94,25 @@ class EndEffectorTask(Task):
         return JW.dot(s.J), -JW.dot(s.v_ref)
 
     def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
-        JW = s.J.T if self._unit else s.J.T * self._weights
-        H += JW.dot(s.J)
+        J = s.J
+        if self._unit and H.flags.c_contiguous and J.flags.c_contiguous:
+            JT = J.T  # Fortran-ordered views: BLAS reads and writes them without copies
+            _dgemm(1.0, JT, JT, 1.0, H.T, 0, 1, 1)  # H^T += J^T J in place, i.e. H += J^T J
+            c -= JT.dot(s.v_ref)
+            return
+        JW = J.T if self._unit else J.T * self._weights
+        H += JW.dot(J)
         c -= JW.dot(s.v_ref)
 
 
 class DampingTask(Task):
-    """damping ||u||^2 (Levenberg damping: keeps singular steps bounded)."""
+    """damping ||u||^2 (Levenberg damping: keeps singular steps bounded).
+
+    Its Hessian is `constant_hessian`: call `QPWorkspace.reset` after changing `damping` between steps.
+    """
+
+    constant_hessian = True
+    linear = False
 
     def __init__(self, n_u: int, damping: float) -> None:
         self.damping = damping
@@ -116,6 +131,8 @@ class PostureTask(Task):
     """weight ||q_dot - gain (posture - q)||^2 over the arm rates (pulls the arm to `posture`).
 
     `posture` None: the task is off until set (the controller sets it to the first state's arm posture).
+    Once set, its Hessian is `constant_hessian`: call `QPWorkspace.reset` after changing `weight` or setting
+    `posture` back to None between steps (`ResolvedRateController.posture` does so).
     """
 
     def __init__(self, wb: WholeBody, weight: float, gain: float, posture: np.ndarray | None = None) -> None:
@@ -135,16 +152,29 @@ class PostureTask(Task):
         c_arm *= -self.weight * self.gain
         return self._H, self._c
 
+    @property
+    def constant_hessian(self) -> bool:
+        """True once `posture` is set (then the Hessian is weight on the arm's diagonal)."""
+        return self.posture is not None
+
     def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
+        if self.posture is None:
+            return
+        self.add_linear(s, H, c)
+        d = self._diag(H)
+        d += self.weight
+
+    def add_linear(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
         if self.posture is None:
             return
         c_arm = self._c_arm
         np.subtract(self.posture, s.x[3:], out=c_arm)
-        c_arm *= -self.weight * self.gain
         c_view = self._diag.head(c)
-        c_view += c_arm
-        d = self._diag(H)
-        d += self.weight
+        if c_view.flags.c_contiguous:
+            _daxpy(c_arm, c_view, a=-self.weight * self.gain)  # c_view += (-weight gain) c_arm, in place
+        else:
+            c_arm *= -self.weight * self.gain
+            c_view += c_arm
 
 
 class ManipulabilityTask(Task):
