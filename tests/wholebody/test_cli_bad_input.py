@@ -171,7 +171,9 @@ def test_unwritable_out_fails_before_the_computation(tmp_path, capsys):
 
 
 def test_track_leaving_the_band_is_said(capsys):
-    assert main(["track", "sine", "--band", "0.001", "--duration", "3", "--json"]) == 0
+    # 0.1 mm: far too tight for the sine (the base ends ~0.2 m out whatever the rounding; at 1 mm the outcome
+    # depends on last-bit rounding in the degenerate band QP, see docs/wholebody.md)
+    assert main(["track", "sine", "--band", "0.0001", "--duration", "3", "--json"]) == 0
     cap = capsys.readouterr()
     out = _strict(cap.out)
     assert out["band_respected"] is False and out["warnings"]
