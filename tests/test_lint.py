@@ -2,24 +2,20 @@
 
 from __future__ import annotations
 
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
 
-import pytest
+from tests.optional import require_module
 
 ROOT = Path(__file__).resolve().parents[1]
-needs_ruff = pytest.mark.skipif(
-    importlib.util.find_spec("ruff") is None, reason="ruff not installed (pip install -e '.[dev]')"
-)
 
 
 def _ruff(*args: str) -> subprocess.CompletedProcess:
+    require_module("ruff")
     return subprocess.run([sys.executable, "-m", "ruff", *args], cwd=ROOT, capture_output=True, text=True, timeout=120)
 
 
-@needs_ruff
 def test_ruff_check_passes() -> None:
     proc = _ruff("check", "--no-cache", "--output-format", "concise", ".")
     assert proc.returncode == 0, (
@@ -27,7 +23,6 @@ def test_ruff_check_passes() -> None:
     )
 
 
-@needs_ruff
 def test_ruff_format_is_applied() -> None:
     proc = _ruff("format", "--check", "--no-cache", ".")
     assert proc.returncode == 0, f"files not formatted (run `ruff format .`):\n{proc.stdout}{proc.stderr}"

@@ -10,7 +10,9 @@ import sys
 import numpy as np
 import pytest
 
-mujoco = pytest.importorskip("mujoco")
+from tests.optional import require_module
+
+mujoco = require_module("mujoco")
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:  # `studies` is not an installed package

@@ -10,6 +10,7 @@ import pytest
 from cart.logs import write_log
 from studies.testbeds import rigid_sim
 from wholebody.batch import BatchError, CommandJob, done_paths, expand_inputs, run_batch
+from tests.optional import require_module
 from wholebody.cli.app import main
 
 N_GOOD = 3
@@ -85,7 +86,7 @@ def test_local_workers_match_one_by_one(logs, reference, tmp_path, workers, caps
 
 def test_ray_matches_one_by_one(logs, reference, tmp_path):
     """The same engine on a local Ray instance gives the same lines."""
-    ray = pytest.importorskip("ray", reason="ray is not installed (pip install 'cartpush[cluster]')")
+    ray = require_module("ray", "pip install 'cartpush[cluster]'")
     ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
     try:
         out = tmp_path / "ray.jsonl"

@@ -24,6 +24,7 @@ import pinocchio as pin
 import pytest
 
 from robots.loading import LoadedRobot
+from tests.optional import missing
 from wholebody.motion.bases import DifferentialDrive
 from wholebody.motion.kinematics import WholeBody
 
@@ -38,7 +39,7 @@ def tiago_urdf() -> Path:
     try:
         dist = distribution("example-robot-data")
     except PackageNotFoundError:
-        pytest.skip("example-robot-data is not installed (pip install -e '.[dev]')")
+        missing("example-robot-data", "pip install -e '.[dev]'")
     matches = [f for f in dist.files or () if f.name == URDF and "tiago_description" in str(f)]
     assert matches, f"example-robot-data {dist.version} installs no tiago_description/.../{URDF}"
     path = Path(dist.locate_file(matches[0]))
