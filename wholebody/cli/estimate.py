@@ -8,6 +8,9 @@ from typing import Any
 
 from wholebody.cli.import_bag import add_topic_options, topic_options
 
+#: Mean NIS above which the EKF's innovations do not fit the 6-dof measurement (about 6 expected).
+NIS_MISFIT = 18.0
+
 DESCRIPTION = """\
 Estimate the cart's inertial parameters (mass, CoM, inertia about the CoM) and its
 two viscous coefficients (forward/lateral N s/m, yaw N m s/rad) from a log in the
@@ -103,17 +106,11 @@ def _run_ls(log) -> dict[str, Any]:
         nis, rejected = float("nan"), 0
         warnings.append(f"the EKF innovation check could not run on this log ({exc})")
     fits = res.model_fits
-    if math.isfinite(nis) and nis > 18.0 and fits:
+    if math.isfinite(nis) and nis > NIS_MISFIT and fits:
         fits = False
         warnings.append(f"the EKF's innovations do not fit (mean NIS {nis:.1f}, ~6 expected); run `cartpush diagnose`")
     return {
-        "method": "ls",
-        "mass": p.m,
-        "com": [p.dx, p.dy],
-        "inertia": p.I,
-        "sigma": p.sigma,
-        "sigma_yaw": p.sigma_yaw,
-        "std": res.std,
+        **_parameters("ls", p, res.std),
         "nis_mean": nis,
         "model_fits": fits,
         "residual_ratio": list(res.residual_ratio),
@@ -124,6 +121,19 @@ def _run_ls(log) -> dict[str, Any]:
         "gaps": res.gaps,
         "rejected_samples": rejected,
         "warnings": warnings,
+    }
+
+
+def _parameters(method: str, p, std: dict) -> dict[str, Any]:
+    """Return the leading fields of the JSON result: the method, the estimated parameters and their std."""
+    return {
+        "method": method,
+        "mass": p.m,
+        "com": [p.dx, p.dy],
+        "inertia": p.I,
+        "sigma": p.sigma,
+        "sigma_yaw": p.sigma_yaw,
+        "std": std,
     }
 
 
@@ -140,7 +150,7 @@ def _run_ekf(log, args: argparse.Namespace) -> dict[str, Any]:
     p = est.params
     if not all(math.isfinite(v) for v in (p.m, p.dx, p.dy, p.I, p.sigma, p.sigma_yaw)):
         raise LogFormatError(f"{args.log}: the EKF diverged on this log (non-finite estimate)")
-    fits = bool(math.isfinite(est.mean_nis) and est.mean_nis < 18.0)
+    fits = bool(math.isfinite(est.mean_nis) and est.mean_nis < NIS_MISFIT)
     warnings = list(getattr(log, "warnings", ()))
     warnings += (
         []
@@ -151,13 +161,7 @@ def _run_ekf(log, args: argparse.Namespace) -> dict[str, Any]:
         ]
     )
     return {
-        "method": "ekf",
-        "mass": p.m,
-        "com": [p.dx, p.dy],
-        "inertia": p.I,
-        "sigma": p.sigma,
-        "sigma_yaw": p.sigma_yaw,
-        "std": est.std,
+        **_parameters("ekf", p, est.std),
         "nis_mean": est.mean_nis,
         "model_fits": fits,
         "velocities_estimated": est.velocities_estimated,
