@@ -1,10 +1,14 @@
 """Benchmark: combined Jacobian, one QP IK step, and placo's solver step on the same robot (median us).
 
-The QP step is `ResolvedRateController.step` with the default `ControllerConfig` (ProxQP updated in
-place, warm-started) and with `warm_start=False` (cold: reproduces a fresh solve), each
-measured twice: at a fixed state and target ("static", the QP repeats) and in closed loop
-("tracking": the state integrated after each step, the target moving 0.9 mm per step along x like placo's).
-placo's step (`PlacoTracker.step`: solve + integrate + FK) tracks the same moving target; all in one run.
+The QP step is `ResolvedRateController.step` with the default `ControllerConfig` (daqp called directly), and
+with ProxQP called directly, warm-started (`solver="proxqp"`) and cold (`warm_start=False`, which reproduces a
+fresh solve). Each is measured at a fixed state and target ("static": the QP repeats) and in closed loop
+("tracking": the state integrated after each step, the target moving 0.9 mm per step along x). "cycle" is the
+default tracking step plus `WholeBody.integrate`, the same work as placo's timed step.
+
+placo's step (`PlacoTracker`) tracks the same moving target: the target matrix is assigned, then
+`solve(True)` (solve and integrate) and `update_kinematics()` (FK) are timed. On both sides the target is
+built before the clock starts. All in one run.
 
 Run: .venv/bin/python benchmarks/bench_wholebody.py [--json]
 """
@@ -41,18 +45,28 @@ def median_us(fn, repeat: int = 2000, warmup: int = 50) -> float:
     return float(np.median(times) * 1e6)
 
 
-def static_step_us(wb: WholeBody, x: np.ndarray, warm_start: bool) -> float:
+#: the controller configurations timed: name -> config
+CONFIGS = {
+    "": ControllerConfig(),
+    "proxqp_": ControllerConfig(solver="proxqp"),
+    "proxqp_cold_": ControllerConfig(solver="proxqp", warm_start=False),
+}
+
+
+def static_step_us(wb: WholeBody, x: np.ndarray, config: ControllerConfig) -> float:
     """Median time of `step` at a fixed state and target."""
-    ctrl = ResolvedRateController(wb, ControllerConfig(warm_start=warm_start))
+    ctrl = ResolvedRateController(wb, config)
     T0 = wb.ee_placement(x)
     T_des = pin.SE3(T0.rotation, T0.translation + [0.001, 0.0005, 0.0])
     v = np.r_[0.09, 0.05, 0, 0, 0, 0]
     return median_us(lambda: ctrl.step(x, T_des, v, DT), 1000)
 
 
-def tracking_step_us(wb: WholeBody, x0: np.ndarray, warm_start: bool, steps: int = 1000) -> float:
-    """Median time of `step` in closed loop along a line (only `step` is timed)."""
-    ctrl = ResolvedRateController(wb, ControllerConfig(warm_start=warm_start))
+def tracking_step_us(
+    wb: WholeBody, x0: np.ndarray, config: ControllerConfig, steps: int = 1000, with_integrate: bool = False
+) -> float:
+    """Median time of `step` (and `integrate` if `with_integrate`) in closed loop along a line."""
+    ctrl = ResolvedRateController(wb, config)
     T0 = wb.ee_placement(x0)
     v = np.r_[STEP / DT, 0, 0, 0, 0, 0]
     x, times = x0.copy(), np.empty(steps)
@@ -60,23 +74,31 @@ def tracking_step_us(wb: WholeBody, x0: np.ndarray, warm_start: bool, steps: int
         T_des = pin.SE3(T0.rotation, T0.translation + [STEP * (k + 1), 0.0, 0.0])
         t0 = time.perf_counter()
         u = ctrl.step(x, T_des, v, DT).u
+        if with_integrate:
+            x = wb.integrate(x, u, DT)
+        t1 = time.perf_counter()
+        if not with_integrate:
+            x = wb.integrate(x, u, DT)
         if k >= 50:
-            times[k - 50] = time.perf_counter() - t0
-        x = wb.integrate(x, u, DT)
+            times[k - 50] = t1 - t0
     return float(np.median(times) * 1e6)
 
 
-def placo_step_us(wb: WholeBody, x: np.ndarray) -> float:
-    """Median time of placo's closed-loop step towards the moving target."""
+def placo_step_us(wb: WholeBody, x: np.ndarray, steps: int = 1000) -> float:
+    """Median time of placo's closed-loop step towards the moving target (assignment, solve(True), FK)."""
     tr = PlacoTracker(wb, x, DT)
     Tp = tr.ee()
-    k = [0]
-
-    def step():
-        k[0] += 1
-        tr.step(pin.SE3(Tp.rotation, Tp.translation + [STEP * k[0], 0.0, 0.0]))
-
-    return median_us(step, 1000)
+    times = np.empty(steps)
+    for k in range(steps + 50):
+        target = pin.SE3(Tp.rotation, Tp.translation + [STEP * (k + 1), 0.0, 0.0]).homogeneous
+        t0 = time.perf_counter()
+        tr.ee_task.T_world_frame = target
+        tr.solver.solve(True)
+        tr.robot.update_kinematics()
+        t1 = time.perf_counter()
+        if k >= 50:
+            times[k - 50] = t1 - t0
+    return float(np.median(times) * 1e6)
 
 
 def measure(name: str) -> dict[str, float]:
@@ -84,12 +106,12 @@ def measure(name: str) -> dict[str, float]:
     wb = wholebody_for(robots.load(name))
     x = initial_state(wb)
     r = {"jacobian_us": median_us(lambda: wb.combined_jacobian(x))}
-    r["step_us"] = static_step_us(wb, x, True)
-    r["cold_step_us"] = static_step_us(wb, x, False)
-    r["tracking_step_us"] = tracking_step_us(wb, x, True)
-    r["tracking_cold_step_us"] = tracking_step_us(wb, x, False)
+    for prefix, config in CONFIGS.items():
+        r[prefix + "step_us"] = static_step_us(wb, x, config)
+        r[prefix + "tracking_step_us"] = tracking_step_us(wb, x, config)
+    r["tracking_cycle_us"] = tracking_step_us(wb, x, ControllerConfig(), with_integrate=True)
     r["placo_step_us"] = placo_step_us(wb, x)
-    for key in ("step_us", "cold_step_us", "tracking_step_us", "tracking_cold_step_us"):
+    for key in [k for k in r if k not in ("jacobian_us", "placo_step_us")]:
         r["ratio_" + key[:-3] + "_vs_placo"] = r[key] / r["placo_step_us"]
     return r
 
@@ -107,21 +129,16 @@ def main(argv=None) -> None:
     if args.json:
         print(json.dumps({"robots": rows, "wmra_closed_form_jacobian_us": cfj}))
         return
-    cols = ("jacobian_us", "step_us", "cold_step_us", "tracking_step_us", "tracking_cold_step_us", "placo_step_us")
-    heads = ("jacobian", "step", "cold step", "tracking", "tracking cold", "placo step")
-    print("median us; ratios = ours / placo (same run)")
-    print(
-        f"{'robot':<16}"
-        + "".join(f"{h:>14}" for h in heads)
-        + f"{'step/placo':>12}{'cold/placo':>12}{'track/placo':>13}"
-    )
+    cols = ("jacobian_us", "step_us", "tracking_step_us", "tracking_cycle_us")
+    cols += ("proxqp_step_us", "proxqp_tracking_step_us", "proxqp_cold_tracking_step_us", "placo_step_us")
+    heads = ("jacobian", "step", "tracking", "cycle", "proxqp step", "proxqp track", "proxqp cold tr", "placo step")
+    print("median us; ratios = ours / placo (same run); default solver daqp")
+    print(f"{'robot':<16}" + "".join(f"{h:>15}" for h in heads) + f"{'step/placo':>12}{'track/placo':>13}")
     for name, r in rows.items():
-        ratios = (r["ratio_step_vs_placo"], r["ratio_cold_step_vs_placo"], r["ratio_tracking_step_vs_placo"])
         print(
             f"{name:<16}"
-            + "".join(f"{r[c]:>14.1f}" for c in cols)
-            + "".join(f"{q:>12.2f}" for q in ratios[:2])
-            + f"{ratios[2]:>13.2f}"
+            + "".join(f"{r[c]:>15.1f}" for c in cols)
+            + f"{r['ratio_step_vs_placo']:>12.2f}{r['ratio_tracking_step_vs_placo']:>13.2f}"
         )
     print(f"(WMRA closed-form numpy Jacobian, paper eq. 19-20: {cfj:.1f} us)")
 

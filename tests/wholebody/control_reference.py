@@ -100,13 +100,16 @@ FIELDS = (
 )
 
 
+#: The solvers the reference was recorded with, unless a case names its own: ProxQP, daqp as fallback.
+RECORDED_SOLVERS = {"solver": "proxqp", "fallback_solver": "daqp"}
+
+
 def build(name: str, warm_start: bool = False) -> ResolvedRateController:
     """Return a fresh controller of case `name` (cold ProxQP solves by default: those the reference recorded)."""
     robot, base_input, cfg, band, _, _ = CASES[name]
     wb = wholebody_for(robots.load(robot), base_input)
-    return ResolvedRateController(
-        wb, replace(ControllerConfig(warm_start=warm_start), **cfg), band=None if band is None else SafetyBand(**band)
-    )
+    config = replace(ControllerConfig(warm_start=warm_start), **{**RECORDED_SOLVERS, **cfg})
+    return ResolvedRateController(wb, config, band=None if band is None else SafetyBand(**band))
 
 
 def _targets(kind: str, T0: pin.SE3, k: int, dt: float) -> tuple[pin.SE3, np.ndarray | None]:

@@ -22,7 +22,7 @@ from tests.wholebody.control_reference import CASES, REFERENCE, build
 from wholebody.motion import qp as qp_module
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, pose_error
 from wholebody.motion.kinematics import wholebody_for
-from wholebody.motion.qp import Limit, SolverChoice, Task, stack_objective
+from wholebody.motion.qp import DaqpSolver, Limit, SolverChoice, Task, stack_objective
 
 DT = 0.01
 
@@ -236,11 +236,14 @@ def test_warm_start_reaches_the_optimum_of_each_step(name, monkeypatch):
             assert np.all(G @ res.u <= h + 1e-8), (name, k)
 
 
-def test_warm_start_is_the_default_and_cold_is_kept():
-    """The controller warm-starts ProxQP unless told not to (the recorded reference is the cold path)."""
+def test_daqp_is_the_default_and_proxqp_warm_starts_unless_told_not_to():
+    """The default primary solver is daqp called directly; ProxQP (called directly) warm-starts by default."""
     wb = wholebody_for(robots.load("wmra"))
-    assert ResolvedRateController(wb).solvers.primary.warm_start
-    assert not ResolvedRateController(wb, ControllerConfig(warm_start=False)).solvers.primary.warm_start
+    assert isinstance(ResolvedRateController(wb).solvers.primary, DaqpSolver)
+    assert ResolvedRateController(wb).solvers.fallback == "proxqp"
+    assert ResolvedRateController(wb, ControllerConfig(solver="proxqp")).solvers.primary.warm_start
+    cold = ResolvedRateController(wb, ControllerConfig(solver="proxqp", warm_start=False))
+    assert not cold.solvers.primary.warm_start
 
 
 def test_step_result_sigma_min_is_the_smallest_singular_value(wmra):

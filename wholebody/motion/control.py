@@ -35,6 +35,8 @@ from wholebody.motion.limits import (
     WheelVelocityLimit,
 )
 from wholebody.motion.qp import (
+    DaqpSolver,
+    DirectSolver,
     Limit,
     ProxQPSolver,
     QPWorkspace,
@@ -86,16 +88,19 @@ class ControllerConfig:
         limit_margin: joint position limits are shrunk by this much (rad).
         singular_threshold: a step is flagged singular when sigma_min(J) is below this.
         residual_tolerance: a step is flagged saturated when ||J u - v_ref|| exceeds this.
-        solver: a `qpsolvers` solver name; "proxqp" is called directly (`wholebody.motion.qp.ProxQPSolver`:
-            one dense ProxQP problem updated in place each step), any other through `qpsolvers`.
+        solver: a `qpsolvers` solver name. "daqp" (default) and "proxqp" are called directly
+            (`wholebody.motion.qp.DaqpSolver`: daqp's active-set solve of each step's QP, exact to rounding and
+            independent of earlier steps; `ProxQPSolver`: one dense ProxQP problem updated in place each step),
+            any other through `qpsolvers`.
         solver_tolerance: absolute tolerance passed to proxqp (its default 1e-5 perturbs the
             rates by ~1e-4 rad/s); other solvers use their defaults.
-        warm_start: True (default): proxqp starts each solve from the previous solution and keeps its
-            first preconditioner (faster; u moves within the solver tolerance along nearly free directions,
+        warm_start: for solver "proxqp": True (default) starts each solve from the previous solution and keeps
+            its first preconditioner (faster; u moves within the solver tolerance along nearly free directions,
             up to ~2e-3 on ill-conditioned steps, while the QP cost and J u stay within ~1e-6 of the
-            optimum); False reproduces a fresh proxqp solve.
-        fallback_solver: solver tried when `solver` returns nothing (proxqp can fail on degenerate
-            active sets, e.g. a safety band pinning the base's forward speed to 0 from both sides), or None.
+            optimum); False reproduces a fresh proxqp solve. Other solvers ignore it.
+        fallback_solver: `qpsolvers` solver tried when `solver` returns nothing (an active-set or interior
+            solver can fail on degenerate active sets, e.g. a safety band pinning the base's forward speed to 0
+            from both sides), or None.
         base_weight: weight of the optional base regularisation ||M u_b - t*||^2 (M: base input ->
             body twist, t*: body twist steering the base to the `base_target` passed to `step`);
             0 (default) or no `base_target` = off.
@@ -120,8 +125,8 @@ class ControllerConfig:
     limit_margin: float = 0.0
     singular_threshold: float = 1e-3
     residual_tolerance: float = 1e-3
-    solver: str = "proxqp"
-    fallback_solver: str | None = "daqp"
+    solver: str = "daqp"
+    fallback_solver: str | None = "proxqp"
     solver_tolerance: float = 1e-9
     base_weight: float = 0.0
     base_gain: float = 2.0
@@ -196,6 +201,15 @@ def _clip_twist_inplace(v: np.ndarray, linear: float, angular: float) -> None:
         v[3:] *= angular / n_ang
 
 
+def direct_solver(config: ControllerConfig) -> DirectSolver | str:
+    """Return the primary solver of a config: daqp or ProxQP called directly, else the `qpsolvers` name."""
+    if config.solver == "daqp":
+        return DaqpSolver()
+    if config.solver == "proxqp":
+        return ProxQPSolver(config.solver_tolerance, config.warm_start)
+    return config.solver
+
+
 def default_tasks(wb: WholeBody, config: ControllerConfig, posture: np.ndarray | None) -> list[Task]:
     """Return the tasks of a config: end-effector, damping, the secondary objective, the base term."""
     tasks: list[Task] = [
@@ -245,9 +259,7 @@ class ResolvedRateController:
         self._posture = None if p is None else np.asarray(p, dtype=float)
         self.tasks: list[Task] = default_tasks(wb, config, self._posture) + list(extra_tasks)
         self.limits: list[Limit] = default_limits(wb, config, band) + list(extra_limits)
-        primary = (
-            ProxQPSolver(config.solver_tolerance, config.warm_start) if config.solver == "proxqp" else config.solver
-        )
+        primary = direct_solver(config)
         self.solvers = SolverChoice(primary, config.fallback_solver, config.solver_tolerance)
         self.workspace = QPWorkspace(wb.n_u)
 

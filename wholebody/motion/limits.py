@@ -68,9 +68,6 @@ class JointPositionLimit(Limit):
         self._bounds = np.stack([wb.arm_lower + margin, wb.arm_upper - margin])  # rows: lower, upper
         self.lower, self.upper = self._bounds[0], self._bounds[1]  # views: edit in place
         self._n_arm = wb.n_arm
-        self._rates = np.empty_like(self._bounds)
-        self._rows = (self._rates[0], self._rates[1])
-        self._lb_in = self._ub_in = self._lb_arm = self._ub_arm = None
         self._lb, self._ub = np.full(wb.n_u, -np.inf), np.full(wb.n_u, np.inf)  # reused by each call
 
     def box(self, s: StepState) -> tuple[np.ndarray, np.ndarray]:
@@ -80,16 +77,22 @@ class JointPositionLimit(Limit):
         return self._lb, self._ub
 
     def intersect_box(self, s: StepState, lb: np.ndarray, ub: np.ndarray) -> None:
-        r = self._rates
-        np.subtract(self._bounds, s.x[3:], out=r)
-        np.divide(r, s.dt, out=r)
-        lo, hi = self._rows
-        np.minimum(lo, 0.0, out=lo)
-        np.maximum(hi, 0.0, out=hi)
-        if lb is not self._lb_in or ub is not self._ub_in:  # arm views of the caller's buffers, cached
-            self._lb_in, self._ub_in, self._lb_arm, self._ub_arm = lb, ub, lb[: self._n_arm], ub[: self._n_arm]
-        np.maximum(self._lb_arm, lo, out=self._lb_arm)
-        np.minimum(self._ub_arm, hi, out=self._ub_arm)
+        # in Python floats: n_arm entries cost less than numpy's per-call overhead
+        n, dt = self._n_arm, s.dt
+        lower, upper = self._bounds.tolist()
+        q = s.x.tolist()[3 : 3 + n]
+        lbl, ubl = lb[:n].tolist(), ub[:n].tolist()
+        for k in range(n):
+            lo = (lower[k] - q[k]) / dt  # rate reaching the lower bound in dt, at most 0 (contains 0)
+            lo = lo if lo < 0.0 else 0.0
+            if lo > lbl[k]:
+                lbl[k] = lo
+            hi = (upper[k] - q[k]) / dt
+            hi = hi if hi > 0.0 else 0.0
+            if hi < ubl[k]:
+                ubl[k] = hi
+        lb[:n] = lbl
+        ub[:n] = ubl
 
 
 class JointVelocityLimit(Limit):

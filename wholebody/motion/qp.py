@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import NamedTuple
 
+import daqp
 import numpy as np
 import pinocchio as pin
 import qpsolvers
@@ -354,6 +355,55 @@ class ProxQPSolver:
         return qp
 
 
+class DaqpSolver:
+    """daqp (a dual active-set solver) called directly on each step's QP: exact to rounding, no state between steps.
+
+    The data are laid out as `qpsolvers` lays them out for daqp (the box as daqp's simple bounds, then the rows
+    of G with lower bound -1e30), so a solve returns what ``qpsolvers.solve_qp(..., solver="daqp")`` returns,
+    without its per-call checks and copies. Each solve starts from an empty active set: the step's input does
+    not depend on earlier steps.
+    """
+
+    def __init__(self) -> None:
+        self._n = self._m = -1
+
+    def reset(self) -> None:
+        """Forget the buffers (sized again at the next solve)."""
+        self._n = self._m = -1
+
+    def _size(self, n: int, m: int) -> None:
+        self._n, self._m = n, m
+        self._no_rows = np.zeros((0, n))
+        self._upper, self._lower = np.empty(n + m), np.full(n + m, -1e30)
+        self._sense = np.zeros(n + m, dtype=np.intc)  # all inequalities; daqp reads it, never writes it
+
+    def solve(
+        self,
+        H: np.ndarray,
+        c: np.ndarray,
+        G: np.ndarray | None,
+        h: np.ndarray | None,
+        lb: np.ndarray,
+        ub: np.ndarray,
+        G_changed: bool = True,
+    ) -> np.ndarray | None:
+        """Return the QP's solution (a new array), or None if daqp does not report it solved (or it is not finite)."""
+        n, m = c.shape[0], 0 if G is None else G.shape[0]
+        if n != self._n or m != self._m:
+            self._size(n, m)
+        if m == 0:
+            u, cost, flag, _ = daqp.solve(H, c, self._no_rows, ub, lb, self._sense)
+        else:
+            upper, lower = self._upper, self._lower
+            upper[:n], upper[n:], lower[:n] = ub, h, lb
+            u, cost, flag, _ = daqp.solve(H, c, np.ascontiguousarray(G), upper, lower, self._sense)
+        return u if flag > 0 and math.isfinite(cost) else None  # daqp reports NaN data solved: its cost is NaN
+
+
+#: The solvers `SolverChoice` calls directly (any other `qpsolvers` name goes through `qpsolvers.solve_qp`).
+DirectSolver = ProxQPSolver | DaqpSolver
+
+
 def solve_qpsolvers(
     H: np.ndarray,
     c: np.ndarray,
@@ -380,21 +430,21 @@ class SolverChoice:
     """Which solvers `solve_step` uses.
 
     Attributes:
-        primary: a `ProxQPSolver` (in-place ProxQP), or the name of a `qpsolvers` solver.
+        primary: a `DaqpSolver` or `ProxQPSolver` (called directly), or the name of a `qpsolvers` solver.
         fallback: `qpsolvers` solver tried when the primary returns nothing, or None.
         tolerance: eps_abs of proxqp through `qpsolvers` (other solvers use their defaults).
     """
 
-    primary: ProxQPSolver | str
+    primary: DirectSolver | str
     fallback: str | None
     tolerance: float
 
     def solve(self, H, c, G, h, lb, ub, G_changed: bool = True) -> tuple[np.ndarray | None, bool]:
         """Return (solution or None, True if the fallback produced it); `G_changed` as in `ProxQPSolver.solve`."""
-        if isinstance(self.primary, ProxQPSolver):
-            u = self.primary.solve(H, c, G, h, lb, ub, G_changed)
-        else:
+        if isinstance(self.primary, str):
             u = solve_qpsolvers(H, c, G, h, lb, ub, self.primary, self.tolerance)
+        else:
+            u = self.primary.solve(H, c, G, h, lb, ub, G_changed)
         if u is None and self.fallback is not None:
             u = solve_qpsolvers(H, c, G, h, lb, ub, self.fallback, self.tolerance)
             return u, u is not None

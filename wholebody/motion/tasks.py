@@ -12,9 +12,6 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
-from scipy.linalg.blas import daxpy as _daxpy
-from scipy.linalg.blas import dgemm as _dgemm
-
 from wholebody.errors import WholeBodyError
 from wholebody.motion.kinematics import WholeBody
 from wholebody.motion.qp import StepState, Task
@@ -95,11 +92,6 @@ class EndEffectorTask(Task):
 
     def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
         J = s.J
-        if self._unit and H.flags.c_contiguous and J.flags.c_contiguous:
-            JT = J.T  # Fortran-ordered views: BLAS reads and writes them without copies
-            _dgemm(1.0, JT, JT, 1.0, H.T, 0, 1, 1)  # H^T += J^T J in place, i.e. H += J^T J
-            c -= JT.dot(s.v_ref)
-            return
         JW = J.T if self._unit else J.T * self._weights
         H += JW.dot(J)
         c -= JW.dot(s.v_ref)
@@ -170,11 +162,8 @@ class PostureTask(Task):
         c_arm = self._c_arm
         np.subtract(self.posture, s.x[3:], out=c_arm)
         c_view = self._diag.head(c)
-        if c_view.flags.c_contiguous:
-            _daxpy(c_arm, c_view, a=-self.weight * self.gain)  # c_view += (-weight gain) c_arm, in place
-        else:
-            c_arm *= -self.weight * self.gain
-            c_view += c_arm
+        c_arm *= -self.weight * self.gain
+        c_view += c_arm
 
 
 class ManipulabilityTask(Task):
