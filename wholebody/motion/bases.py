@@ -7,6 +7,7 @@ Paper: wmra_kinematics.md eq. (4)-(12), (15).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from collections.abc import Sequence
 
@@ -35,7 +36,7 @@ def se2_exp_factors(dphi: float) -> tuple[float, float]:
     if abs(dphi) < 1e-4:
         d2 = dphi * dphi
         return 1.0 - d2 / 6.0 + d2 * d2 / 120.0, dphi / 2.0 - dphi * d2 / 24.0
-    return np.sin(dphi) / dphi, (1.0 - np.cos(dphi)) / dphi
+    return math.sin(dphi) / dphi, (1.0 - math.cos(dphi)) / dphi
 
 
 def integrate_body_displacement(pose: Sequence[float], body_step: Sequence[float]) -> np.ndarray:
@@ -46,12 +47,17 @@ def integrate_body_displacement(pose: Sequence[float], body_step: Sequence[float
     """
     x, y, th = (float(v) for v in pose)
     dx, dy, dphi = (float(v) for v in body_step)
+    return np.array(displaced_pose(x, y, th, dx, dy, dphi))
+
+
+def displaced_pose(x: float, y: float, th: float, dx: float, dy: float, dphi: float) -> tuple[float, float, float]:
+    """`integrate_body_displacement` on Python floats: the pose (x, y, th) moved by the body step (dx, dy, dphi)."""
     a, b = se2_exp_factors(dphi)
     # displacement in the start frame W0 (paper eq. 7: R sin(dphi), R (1 - cos(dphi)) with R = arc / dphi)
     px = a * dx - b * dy
     py = b * dx + a * dy
-    c, s = np.cos(th), np.sin(th)
-    return np.array([x + c * px - s * py, y + s * px + c * py, th + dphi])
+    c, s = math.cos(th), math.sin(th)
+    return x + c * px - s * py, y + s * px + c * py, th + dphi
 
 
 class MobileBase:

@@ -18,7 +18,7 @@ import pinocchio as pin
 from robots.loading import LoadedRobot
 from robots.profiles import PROFILES, RobotProfile, mobile_manipulators
 from wholebody.errors import WholeBodyError
-from wholebody.motion.bases import DifferentialDrive, MobileBase, Omnidirectional, integrate_body_displacement
+from wholebody.motion.bases import DifferentialDrive, MobileBase, Omnidirectional, displaced_pose
 
 #: The base part of the input vector u: wheel rates, or the body twist (vx, vy, wz) of a holonomic base.
 BaseInput = Literal["wheels", "twist"]
@@ -120,11 +120,11 @@ class WholeBody:
         """Return x after applying input u for dt: arm joints linearly, the base by exact odometry (eq. 4-10)."""
         x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
-        out = x.copy()
-        out[3:] = x[3:] + dt * u[: self.n_arm]
-        twist_step = self._wheel_map @ u[self.n_arm :] * dt
-        out[:3] = integrate_body_displacement(x[:3], twist_step)
-        return out
+        n = self.n_arm
+        xs, rates = x.tolist(), u[:n].tolist()  # Python floats: a few entries, cheaper than numpy calls
+        dx, dy, dphi = (v * dt for v in self._wheel_map.dot(u[n:]).tolist())
+        pose = displaced_pose(xs[0], xs[1], xs[2], dx, dy, dphi)
+        return np.array([*pose, *(q + dt * w for q, w in zip(xs[3:], rates))])
 
     # ------------------------------------------------------------------ kinematics
     def frame_placement(self, x: Sequence[float], frame: str | int | None = None) -> pin.SE3:
