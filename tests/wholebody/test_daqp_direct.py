@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 from dataclasses import replace
 
 import numpy as np
@@ -108,3 +112,15 @@ def test_buffers_follow_the_problem_shape():
         u = s.solve(H, c, G, h, -np.ones(n), np.ones(n))
         expected = np.ones(n) if m == 0 else np.full(n, 0.5 / n)
         np.testing.assert_allclose(u, expected, atol=1e-12)
+
+
+def test_degenerate_band_run_does_not_depend_on_hash_seed():
+    """With the default solver a band the path cannot hold gives the same run whatever PYTHONHASHSEED is."""
+    argv = [sys.executable, "-m", "wholebody.cli", "track", "sine", "--band", "0.001", "--duration", "3", "--json"]
+    outs = []
+    for seed in ("0", "5"):
+        env = {**os.environ, "PYTHONHASHSEED": seed}
+        done = subprocess.run(argv, env=env, capture_output=True, text=True, check=True)
+        outs.append(json.loads(done.stdout))
+    assert outs[0]["band_respected"] is False
+    assert outs[0] == outs[1]
