@@ -112,6 +112,19 @@ def build(name: str, warm_start: bool = False) -> ResolvedRateController:
     return ResolvedRateController(wb, config, band=None if band is None else SafetyBand(**band))
 
 
+def capture_qps(monkeypatch) -> list[tuple]:
+    """Make every `SolverChoice.solve` record a copy of its QP (H, c, G, h, lb, ub); return the growing list."""
+    qps = []
+    real = qp.SolverChoice.solve
+
+    def spy(self, H, c, G, h, lb, ub, G_changed=True):
+        qps.append(tuple(None if a is None else a.copy() for a in (H, c, G, h, lb, ub)))
+        return real(self, H, c, G, h, lb, ub, G_changed)
+
+    monkeypatch.setattr(qp.SolverChoice, "solve", spy)
+    return qps
+
+
 def _targets(kind: str, T0: pin.SE3, k: int, dt: float) -> tuple[pin.SE3, np.ndarray | None]:
     t = k * dt
     if kind == "circle":

@@ -18,11 +18,11 @@ from scipy import sparse
 
 import robots
 from studies.wmra_experiments import initial_state
-from tests.wholebody.control_reference import CASES, REFERENCE, build
+from tests.wholebody.control_reference import CASES, REFERENCE, build, capture_qps
 from wholebody.motion import qp as qp_module
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, pose_error
 from wholebody.motion.kinematics import wholebody_for
-from wholebody.motion.qp import DaqpSolver, Limit, SolverChoice, Task, stack_objective
+from wholebody.motion.qp import DaqpSolver, Limit, Task, stack_objective
 
 DT = 0.01
 
@@ -215,14 +215,7 @@ def test_warm_start_reaches_the_optimum_of_each_step(name, monkeypatch):
     """warm_start=True (default): each step's QP cost and task velocity J u equal those of daqp's exact
     (active-set) optimum of the same QP, and the limits hold; u itself may move along the nearly free
     directions that the 1e-6 damping leaves (measured: cost within 3e-7 relative, J u within 6e-7)."""
-    qps = []
-    real = SolverChoice.solve
-
-    def spy(self, H, c, G, h, lb, ub, G_changed=True):
-        qps.append(tuple(None if a is None else a.copy() for a in (H, c, G, h, lb, ub)))
-        return real(self, H, c, G, h, lb, ub, G_changed)
-
-    monkeypatch.setattr(SolverChoice, "solve", spy)
+    qps = capture_qps(monkeypatch)
     for k, _, res, rec in _replay(name, warm_start=True):
         H, c, G, h, lb, ub = qps[-1]
         exact = qpsolvers.solve_qp(H, c, G, h, lb=lb, ub=ub, solver="daqp")

@@ -15,7 +15,7 @@ import qpsolvers
 
 import robots
 from studies.wmra_experiments import initial_state
-from tests.wholebody.control_reference import CASES, REFERENCE, build
+from tests.wholebody.control_reference import CASES, REFERENCE, build, capture_qps
 from wholebody.motion.control import ControllerConfig, ResolvedRateController
 from wholebody.motion.kinematics import wholebody_for
 from wholebody.motion.qp import DaqpSolver, SolverChoice
@@ -25,14 +25,7 @@ REF = np.load(REFERENCE)
 
 def _recorded_qps(name: str, monkeypatch) -> list[tuple]:
     """Replay case `name` with the default (daqp) solver; return each step's QP data."""
-    qps = []
-    real = SolverChoice.solve
-
-    def spy(self, H, c, G, h, lb, ub, G_changed=True):
-        qps.append(tuple(None if a is None else a.copy() for a in (H, c, G, h, lb, ub)))
-        return real(self, H, c, G, h, lb, ub, G_changed)
-
-    monkeypatch.setattr(SolverChoice, "solve", spy)
+    qps = capture_qps(monkeypatch)
     ctrl = build(name)
     ctrl.config = replace(ctrl.config, solver="daqp")
     ctrl.solvers = SolverChoice(DaqpSolver(), "proxqp", ctrl.config.solver_tolerance)
