@@ -6,7 +6,7 @@ fresh solve). Each is measured at a fixed state and target ("static": the QP rep
 ("tracking": the state integrated after each step, the target moving 0.9 mm per step along x). "cycle" is the
 default tracking step plus `WholeBody.integrate`, the same work as placo's timed step.
 
-placo's step (`PlacoTracker`) tracks the same moving target: the target matrix is assigned, then
+placo's step (`PlacoTracker.step_to`) tracks the same moving target: the assignment of the target matrix,
 `solve(True)` (solve and integrate) and `update_kinematics()` (FK) are timed. On both sides the target is
 built before the clock starts. All in one run.
 
@@ -74,13 +74,10 @@ def tracking_step_us(
         T_des = pin.SE3(T0.rotation, T0.translation + [STEP * (k + 1), 0.0, 0.0])
         t0 = time.perf_counter()
         u = ctrl.step(x, T_des, v, DT).u
-        if with_integrate:
-            x = wb.integrate(x, u, DT)
-        t1 = time.perf_counter()
-        if not with_integrate:
-            x = wb.integrate(x, u, DT)
+        t_step = time.perf_counter()
+        x = wb.integrate(x, u, DT)
         if k >= 50:
-            times[k - 50] = t1 - t0
+            times[k - 50] = (time.perf_counter() if with_integrate else t_step) - t0
     return float(np.median(times) * 1e6)
 
 
@@ -91,13 +88,9 @@ def placo_step_us(wb: WholeBody, x: np.ndarray, steps: int = 1000) -> float:
     times = np.empty(steps)
     for k in range(steps + 50):
         target = pin.SE3(Tp.rotation, Tp.translation + [STEP * (k + 1), 0.0, 0.0]).homogeneous
-        t0 = time.perf_counter()
-        tr.ee_task.T_world_frame = target
-        tr.solver.solve(True)
-        tr.robot.update_kinematics()
-        t1 = time.perf_counter()
+        elapsed = tr.step_to(target)
         if k >= 50:
-            times[k - 50] = t1 - t0
+            times[k - 50] = elapsed
     return float(np.median(times) * 1e6)
 
 

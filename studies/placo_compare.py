@@ -127,9 +127,14 @@ class PlacoTracker:
         self.solver = s
 
     def step(self, T_des: pin.SE3) -> float:
-        """Solve one step towards T_des and integrate; return the wall time of solve + FK (s)."""
-        self.ee_task.T_world_frame = T_des.homogeneous
+        """Solve one step towards T_des and integrate; return the wall time of `step_to` (s)."""
+        return self.step_to(T_des.homogeneous)
+
+    def step_to(self, target: np.ndarray) -> float:
+        """Assign the 4 x 4 target, solve one step (solve and integrate) and update the kinematics; return the
+        wall time of the three (s)."""
         t0 = time.perf_counter()
+        self.ee_task.T_world_frame = target
         self.solver.solve(True)
         self.robot.update_kinematics()
         return time.perf_counter() - t0

@@ -367,10 +367,6 @@ class DaqpSolver:
     def __init__(self) -> None:
         self._n = self._m = -1
 
-    def reset(self) -> None:
-        """Forget the buffers (sized again at the next solve)."""
-        self._n = self._m = -1
-
     def _size(self, n: int, m: int) -> None:
         self._n, self._m = n, m
         self._no_rows = np.zeros((0, n))
