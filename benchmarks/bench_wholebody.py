@@ -4,7 +4,8 @@ The QP step is `ResolvedRateController.step` with the default `ControllerConfig`
 with ProxQP called directly, warm-started (`solver="proxqp"`) and cold (`warm_start=False`, which reproduces a
 fresh solve). Each is measured at a fixed state and target ("static": the QP repeats) and in closed loop
 ("tracking": the state integrated after each step, the target moving 0.9 mm per step along x). "cycle" is the
-default tracking step plus `WholeBody.integrate`, the same work as placo's timed step.
+default tracking step plus `WholeBody.integrate`, the same work as placo's timed step. The tracking runs and
+placo's run advance in turn, 100 steps at a time, so that a slow spell of the machine falls on all of them.
 
 placo's step (`PlacoTracker.step_to`) tracks the same moving target: the assignment of the target matrix,
 `solve(True)` (solve and integrate) and `update_kinematics()` (FK) are timed. On both sides the target is
@@ -18,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Iterator
 
 import numpy as np
 import pinocchio as pin
@@ -62,36 +64,47 @@ def static_step_us(wb: WholeBody, x: np.ndarray, config: ControllerConfig) -> fl
     return median_us(lambda: ctrl.step(x, T_des, v, DT), 1000)
 
 
-def tracking_step_us(
-    wb: WholeBody, x0: np.ndarray, config: ControllerConfig, steps: int = 1000, with_integrate: bool = False
-) -> float:
-    """Median time of `step` (and `integrate` if `with_integrate`) in closed loop along a line."""
+def our_tracking(
+    wb: WholeBody, x0: np.ndarray, config: ControllerConfig, with_integrate: bool = False
+) -> Iterator[float]:
+    """Yield the wall time (s) of each closed-loop `step` (and `integrate` if `with_integrate`) along a line."""
     ctrl = ResolvedRateController(wb, config)
     T0 = wb.ee_placement(x0)
     v = np.r_[STEP / DT, 0, 0, 0, 0, 0]
-    x, times = x0.copy(), np.empty(steps)
-    for k in range(steps + 50):
-        T_des = pin.SE3(T0.rotation, T0.translation + [STEP * (k + 1), 0.0, 0.0])
+    x, k = x0.copy(), 0
+    while True:
+        k += 1
+        T_des = pin.SE3(T0.rotation, T0.translation + [STEP * k, 0.0, 0.0])
         t0 = time.perf_counter()
         u = ctrl.step(x, T_des, v, DT).u
         t_step = time.perf_counter()
         x = wb.integrate(x, u, DT)
-        if k >= 50:
-            times[k - 50] = (time.perf_counter() if with_integrate else t_step) - t0
-    return float(np.median(times) * 1e6)
+        yield (time.perf_counter() if with_integrate else t_step) - t0
 
 
-def placo_step_us(wb: WholeBody, x: np.ndarray, steps: int = 1000) -> float:
-    """Median time of placo's closed-loop step towards the moving target (assignment, solve(True), FK)."""
-    tr = PlacoTracker(wb, x, DT)
-    Tp = tr.ee()
-    times = np.empty(steps)
-    for k in range(steps + 50):
-        target = pin.SE3(Tp.rotation, Tp.translation + [STEP * (k + 1), 0.0, 0.0]).homogeneous
-        elapsed = tr.step_to(target)
-        if k >= 50:
-            times[k - 50] = elapsed
-    return float(np.median(times) * 1e6)
+def placo_tracking(wb: WholeBody, x0: np.ndarray) -> Iterator[float]:
+    """Yield the wall time (s) of each of placo's closed-loop steps towards the moving target (assignment,
+    solve(True), FK)."""
+    tr = PlacoTracker(wb, x0, DT)
+    Tp, k = tr.ee(), 0
+    while True:
+        k += 1
+        yield tr.step_to(pin.SE3(Tp.rotation, Tp.translation + [STEP * k, 0.0, 0.0]).homogeneous)
+
+
+def interleaved_medians_us(
+    runs: dict[str, Iterator[float]], steps: int = 1000, chunk: int = 100, warmup: int = 50
+) -> dict[str, float]:
+    """Return each run's median step time (us) over `steps` steps, the runs advanced in turn `chunk` steps at a
+    time, so that a slow spell of the machine falls on all of them alike."""
+    times: dict[str, list[float]] = {name: [] for name in runs}
+    for run in runs.values():
+        for _ in range(warmup):
+            next(run)
+    for _ in range(steps // chunk):
+        for name, run in runs.items():
+            times[name].extend(next(run) for _ in range(chunk))
+    return {name: float(np.median(t) * 1e6) for name, t in times.items()}
 
 
 def measure(name: str) -> dict[str, float]:
@@ -101,9 +114,10 @@ def measure(name: str) -> dict[str, float]:
     r = {"jacobian_us": median_us(lambda: wb.combined_jacobian(x))}
     for prefix, config in CONFIGS.items():
         r[prefix + "step_us"] = static_step_us(wb, x, config)
-        r[prefix + "tracking_step_us"] = tracking_step_us(wb, x, config)
-    r["tracking_cycle_us"] = tracking_step_us(wb, x, ControllerConfig(), with_integrate=True)
-    r["placo_step_us"] = placo_step_us(wb, x)
+    runs = {prefix + "tracking_step_us": our_tracking(wb, x, config) for prefix, config in CONFIGS.items()}
+    runs["tracking_cycle_us"] = our_tracking(wb, x, ControllerConfig(), with_integrate=True)
+    runs["placo_step_us"] = placo_tracking(wb, x)
+    r.update(interleaved_medians_us(runs))
     for key in [k for k in r if k not in ("jacobian_us", "placo_step_us")]:
         r["ratio_" + key[:-3] + "_vs_placo"] = r[key] / r["placo_step_us"]
     return r

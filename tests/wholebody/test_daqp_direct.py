@@ -56,7 +56,7 @@ def test_direct_daqp_equals_qpsolvers_daqp(name, monkeypatch):
         theirs = qpsolvers.solve_qp(H, c, G, h, lb=lb, ub=ub, solver="daqp")
         assert (ours is None) == (theirs is None)
         if ours is not None:
-            np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-13)
+            np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-11)
         with_rows += G is not None
     if CASES[name][3] is not None:  # a band: the inequality rows were exercised
         assert with_rows == len(qps)
@@ -109,7 +109,7 @@ def test_buffers_follow_the_problem_shape():
 
 def test_degenerate_band_run_does_not_depend_on_hash_seed():
     """With the default solver a band the path cannot hold gives the same run whatever PYTHONHASHSEED is."""
-    argv = [sys.executable, "-m", "wholebody.cli", "track", "sine", "--band", "0.001", "--duration", "3", "--json"]
+    argv = [sys.executable, "-m", "wholebody.cli", "track", "sine", "--band", "0.001", "--duration", "5", "--json"]
     outs = []
     for seed in ("0", "5"):
         env = {**os.environ, "PYTHONHASHSEED": seed}

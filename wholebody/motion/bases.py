@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from collections.abc import Sequence
 
 import numpy as np
+from numba import njit
 
 from wholebody.errors import WholeBodyError
 
@@ -31,8 +32,10 @@ def planar_pose_matrix(x: float, y: float, theta: float) -> np.ndarray:
     return T
 
 
+@njit(cache=True)
 def se2_exp_factors(dphi: float) -> tuple[float, float]:
-    """Return (sin(dphi)/dphi, (1 - cos(dphi))/dphi), continuous through dphi = 0 (series)."""
+    """Return (sin(dphi)/dphi, (1 - cos(dphi))/dphi), continuous through dphi = 0 (series). Compiled (numba),
+    so that `wholebody.motion.kernels` calls it from the state integration."""
     if abs(dphi) < 1e-4:
         d2 = dphi * dphi
         return 1.0 - d2 / 6.0 + d2 * d2 / 120.0, dphi / 2.0 - dphi * d2 / 24.0
@@ -50,8 +53,10 @@ def integrate_body_displacement(pose: Sequence[float], body_step: Sequence[float
     return np.array(displaced_pose(x, y, th, dx, dy, dphi))
 
 
+@njit(cache=True)
 def displaced_pose(x: float, y: float, th: float, dx: float, dy: float, dphi: float) -> tuple[float, float, float]:
-    """`integrate_body_displacement` on Python floats: the pose (x, y, th) moved by the body step (dx, dy, dphi)."""
+    """`integrate_body_displacement` on floats: the pose (x, y, th) moved by the body step (dx, dy, dphi).
+    Compiled (numba), callable from Python and from `wholebody.motion.kernels`."""
     a, b = se2_exp_factors(dphi)
     # displacement in the start frame W0 (paper eq. 7: R sin(dphi), R (1 - cos(dphi)) with R = arc / dphi)
     px = a * dx - b * dy

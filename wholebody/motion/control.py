@@ -15,7 +15,6 @@ QP is feasible; if the solver fails anyway the step returns zero motion and says
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -25,6 +24,7 @@ import pinocchio as pin
 import qpsolvers
 
 from wholebody.errors import WholeBodyError
+from wholebody.motion.kernels import reference_twist, residual_norm
 from wholebody.motion.kinematics import WholeBody
 from wholebody.motion.limits import (
     JointPositionLimit,
@@ -186,21 +186,6 @@ class StepResult:
         return bool(self.sigma_min < self.singular_threshold)
 
 
-def _half_norms(v: np.ndarray) -> tuple[float, float]:
-    """Return the norms of the linear and angular halves of a twist (6,), in Python floats (cheaper than numpy)."""
-    a, b, c, d, e, f = v.tolist()
-    return math.sqrt(a * a + b * b + c * c), math.sqrt(d * d + e * e + f * f)
-
-
-def _clip_twist_inplace(v: np.ndarray, linear: float, angular: float) -> None:
-    """Scale the linear and angular halves of a twist in place so that their norms are at most the limits."""
-    n_lin, n_ang = _half_norms(v)
-    if n_lin > linear:
-        v[:3] *= linear / n_lin
-    if n_ang > angular:
-        v[3:] *= angular / n_ang
-
-
 def direct_solver(config: ControllerConfig) -> DirectSolver | str:
     """Return the primary solver of a config: daqp or ProxQP called directly, else the `qpsolvers` name."""
     if config.solver == "daqp":
@@ -262,6 +247,7 @@ class ResolvedRateController:
         primary = direct_solver(config)
         self.solvers = SolverChoice(primary, config.fallback_solver, config.solver_tolerance)
         self.workspace = QPWorkspace(wb.n_u)
+        self._no_twist = np.zeros(6)
 
     @property
     def posture(self) -> np.ndarray | None:
@@ -322,23 +308,24 @@ class ResolvedRateController:
         if not dt > 0:
             raise WholeBodyError(f"dt must be positive, got {dt}")
         wb, cfg = self.wb, self.config
-        x = np.asarray(x, dtype=float)
+        x = wb.as_state(x)
+        v_des = self._no_twist if v_des is None else np.asarray(v_des, dtype=float)
+        if v_des.shape != (6,):
+            raise WholeBodyError(f"feed-forward twist v_des must have 6 entries, got shape {v_des.shape}")
         if self._posture is None:
             self.posture = x[3:].copy()
         T, J = wb.ee_and_jacobian(x)
         e = pose_error(T, T_des)
-        v_ref = cfg.gain * e
-        if v_des is not None:
-            v_ref += v_des
-        _clip_twist_inplace(v_ref, cfg.max_linear_speed, cfg.max_angular_speed)
+        v_ref, position_error, orientation_error = reference_twist(
+            e, cfg.gain, v_des, cfg.max_linear_speed, cfg.max_angular_speed
+        )
         s = StepState(
             wb, x, dt, T, J, v_ref, self.u_prev, band_center, band_center_velocity, base_target, base_target_velocity
         )
         sol = solve_step(self.tasks, self.limits, s, self.solvers, self.workspace)
         u = sol.u
         self.u_prev = u.copy()
-        residual = math.dist(J.dot(u).tolist(), v_ref.tolist())  # ||J u - v_ref||, in Python floats (6 entries)
-        position_error, orientation_error = _half_norms(e)
+        residual = residual_norm(J, u, v_ref)
         return StepResult(
             u=u,
             position_error=position_error,

@@ -8,7 +8,6 @@ holonomic base with ``base_input="twist"``, the body twist (vx, vy, wz).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Literal
 
@@ -18,7 +17,8 @@ import pinocchio as pin
 from robots.loading import LoadedRobot
 from robots.profiles import PROFILES, RobotProfile, mobile_manipulators
 from wholebody.errors import WholeBodyError
-from wholebody.motion.bases import DifferentialDrive, MobileBase, Omnidirectional, displaced_pose
+from wholebody.motion.bases import DifferentialDrive, MobileBase, Omnidirectional
+from wholebody.motion.kernels import integrate_state, write_configuration
 
 #: The base part of the input vector u: wheel rates, or the body twist (vx, vy, wz) of a holonomic base.
 BaseInput = Literal["wheels", "twist"]
@@ -78,7 +78,7 @@ class WholeBody:
         self._q_neutral = pin.neutral(self.model)
         self._wheel_map = self.wheel_map()
         self._q_work = self._q_neutral.copy()  # configuration buffer of ee_and_jacobian
-        self._arm_q = _as_slice(self.arm_idx_q)
+        self._x_shape = (3 + self.n_arm,)
         self._input_map = self._velocity_from_input()
 
     def _velocity_from_input(self) -> np.ndarray:
@@ -94,13 +94,18 @@ class WholeBody:
         return self.model.joints[self.model.getJointId(name)]
 
     # ------------------------------------------------------------------ configuration
+    def as_state(self, x: Sequence[float]) -> np.ndarray:
+        """Return x as a float array of shape (3 + n_arm,), or raise `WholeBodyError`."""
+        xa = np.asarray(x, dtype=float)
+        if xa.shape != self._x_shape:
+            raise WholeBodyError(f"state x must have shape {self._x_shape} (x, y, theta, arm joints), got {xa.shape}")
+        return xa
+
     def to_pinocchio_q(self, x: Sequence[float], wheel_angles: Sequence[float] | None = None) -> np.ndarray:
         """Return the Pinocchio configuration of reduced coordinates x (other joints neutral)."""
-        x = np.asarray(x, dtype=float)
+        x = self.as_state(x)
         q = self._q_neutral.copy()
-        i = self._root_q
-        q[i : i + 4] = (x[0], x[1], np.cos(x[2]), np.sin(x[2]))
-        q[self.arm_idx_q] = x[3 : 3 + self.n_arm]
+        write_configuration(q, x, self._root_q, self.arm_idx_q)
         if wheel_angles is not None:
             a = np.asarray(wheel_angles, dtype=float)
             q[self.wheel_idx_q] = np.cos(a)
@@ -118,13 +123,10 @@ class WholeBody:
 
     def integrate(self, x: Sequence[float], u: Sequence[float], dt: float) -> np.ndarray:
         """Return x after applying input u for dt: arm joints linearly, the base by exact odometry (eq. 4-10)."""
-        x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
-        n = self.n_arm
-        xs, rates = x.tolist(), u[:n].tolist()  # Python floats: a few entries, cheaper than numpy calls
-        dx, dy, dphi = (v * dt for v in self._wheel_map.dot(u[n:]).tolist())
-        pose = displaced_pose(xs[0], xs[1], xs[2], dx, dy, dphi)
-        return np.array([*pose, *(q + dt * w for q, w in zip(xs[3:], rates))])
+        if u.shape != (self.n_u,):
+            raise WholeBodyError(f"input u must have shape ({self.n_u},) (arm rates, base input), got {u.shape}")
+        return integrate_state(self.as_state(x), u, float(dt), self._wheel_map, self.n_arm)
 
     # ------------------------------------------------------------------ kinematics
     def frame_placement(self, x: Sequence[float], frame: str | int | None = None) -> pin.SE3:
@@ -146,10 +148,8 @@ class WholeBody:
         Jacobian is that Jacobian times the input -> velocity map (arm columns selected, the planar joint's
         body twist chained with the base's wheel map, eq. 19-20).
         """
-        q, i = self._q_work, self._root_q
-        th = float(x[2])
-        q[i], q[i + 1], q[i + 2], q[i + 3] = x[0], x[1], math.cos(th), math.sin(th)
-        q[self._arm_q] = x[3 : 3 + self.n_arm]
+        q = self._q_work
+        write_configuration(q, self.as_state(x), self._root_q, self.arm_idx_q)
         J = pin.computeFrameJacobian(self.model, self.data, q, self.ee_frame_id, pin.LOCAL_WORLD_ALIGNED)
         oMf = pin.updateFramePlacement(self.model, self.data, self.ee_frame_id)
         return oMf.copy(), J.dot(self._input_map)
@@ -157,13 +157,6 @@ class WholeBody:
     def combined_jacobian(self, x: Sequence[float]) -> np.ndarray:
         """Return the 6 x n_u Jacobian u -> end-effector (v, omega), world-aligned at the EE (paper eq. 21)."""
         return self.ee_and_jacobian(x)[1]
-
-
-def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
-    """Return a slice equal to the index array idx if its indices are consecutive, else idx."""
-    if len(idx) > 0 and np.all(np.diff(idx) == 1):
-        return slice(int(idx[0]), int(idx[-1]) + 1)
-    return idx
 
 
 def wholebody_for(robot: LoadedRobot, base_input: BaseInput = "wheels") -> WholeBody:

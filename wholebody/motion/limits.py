@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wholebody.errors import WholeBodyError
+from wholebody.motion.kernels import intersect_position_box
 from wholebody.motion.kinematics import WholeBody
 from wholebody.motion.qp import Limit, StepState
 
@@ -77,22 +78,7 @@ class JointPositionLimit(Limit):
         return self._lb, self._ub
 
     def intersect_box(self, s: StepState, lb: np.ndarray, ub: np.ndarray) -> None:
-        # in Python floats: n_arm entries cost less than numpy's per-call overhead
-        n, dt = self._n_arm, s.dt
-        lower, upper = self._bounds.tolist()
-        q = s.x.tolist()[3 : 3 + n]
-        lbl, ubl = lb[:n].tolist(), ub[:n].tolist()
-        for k in range(n):
-            lo = (lower[k] - q[k]) / dt  # rate reaching the lower bound in dt, at most 0 (contains 0)
-            lo = lo if lo < 0.0 else 0.0
-            if lo > lbl[k]:
-                lbl[k] = lo
-            hi = (upper[k] - q[k]) / dt
-            hi = hi if hi > 0.0 else 0.0
-            if hi < ubl[k]:
-                ubl[k] = hi
-        lb[:n] = lbl
-        ub[:n] = ubl
+        intersect_position_box(self.lower, self.upper, s.x, 3, s.dt, lb, ub)
 
 
 class JointVelocityLimit(Limit):

@@ -28,6 +28,7 @@ import pinocchio as pin
 import qpsolvers
 from proxsuite import proxqp
 
+from wholebody.motion.kernels import clip_to_box, unconstrained_if_feasible
 from wholebody.motion.kinematics import WholeBody
 
 _SOLVED = proxqp.QPSolverOutput.PROXQP_SOLVED
@@ -356,12 +357,15 @@ class ProxQPSolver:
 
 
 class DaqpSolver:
-    """daqp (a dual active-set solver) called directly on each step's QP: exact to rounding, no state between steps.
+    """The step's QP solved exactly: the unconstrained minimiser when it satisfies every constraint, else daqp.
 
-    The data are laid out as `qpsolvers` lays them out for daqp (the box as daqp's simple bounds, then the rows
-    of G with lower bound -1e30), so a solve returns what ``qpsolvers.solve_qp(..., solver="daqp")`` returns,
-    without its per-call checks and copies. Each solve starts from an empty active set: the step's input does
-    not depend on earlier steps.
+    With H positive definite (the controller's damping makes it so), the minimiser ``u = -H^-1 c`` that
+    satisfies ``lb <= u <= ub`` and ``G u <= h`` exactly is the QP's solution: it is returned without calling a
+    solver (`kernels.unconstrained_if_feasible`; in free-space tracking most steps end here). Otherwise daqp (a
+    dual active-set solver) solves the QP, its data laid out as `qpsolvers` lays them out for daqp (the box as
+    daqp's simple bounds, then the rows of G with lower bound -1e30), so that it returns what
+    ``qpsolvers.solve_qp(..., solver="daqp")`` returns, without its per-call checks and copies. Each solve starts
+    from an empty active set: the step's input does not depend on earlier steps.
     """
 
     def __init__(self) -> None:
@@ -369,7 +373,7 @@ class DaqpSolver:
 
     def _size(self, n: int, m: int) -> None:
         self._n, self._m = n, m
-        self._no_rows = np.zeros((0, n))
+        self._no_rows, self._no_rhs = np.zeros((0, n)), np.zeros(0)
         self._upper, self._lower = np.empty(n + m), np.full(n + m, -1e30)
         self._sense = np.zeros(n + m, dtype=np.intc)  # all inequalities; daqp reads it, never writes it
 
@@ -387,6 +391,11 @@ class DaqpSolver:
         n, m = c.shape[0], 0 if G is None else G.shape[0]
         if n != self._n or m != self._m:
             self._size(n, m)
+        u, feasible = unconstrained_if_feasible(
+            H, c, self._no_rows if G is None else G, self._no_rhs if h is None else h, lb, ub
+        )
+        if feasible:
+            return u  # a NaN in the data fails the positive-definiteness or the feasibility test
         if m == 0:
             u, cost, flag, _ = daqp.solve(H, c, self._no_rows, ub, lb, self._sense)
         else:
@@ -480,7 +489,7 @@ def solve_step(
         u, fallback_used = solvers.solve(H, c, G, h, lb, ub, not G_same)
     solver_ok = u is not None
     u = np.zeros(s.wb.n_u) if u is None else u
-    np.minimum(np.maximum(u, lb, out=u), ub, out=u)  # = np.clip(u, lb, ub): solver tolerance, make the box exact
+    clip_to_box(u, lb, ub)  # solver tolerance: make the box exact
     for limit in ws.enforcing:
         limit.enforce(u, s)
     return QPSolution(u, lb, ub, solver_ok, fallback_used)

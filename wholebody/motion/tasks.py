@@ -13,15 +13,15 @@ import numpy as np
 import pinocchio as pin
 
 from wholebody.errors import WholeBodyError
+from wholebody.motion.kernels import add_scaled_difference, add_weighted_gram, pose_difference
 from wholebody.motion.kinematics import WholeBody
 from wholebody.motion.qp import StepState, Task
 
 
 def pose_error(T: pin.SE3, T_des: pin.SE3) -> np.ndarray:
     """Return the world-aligned error [p_d - p, log3(R_d R^T)] (6,)."""
-    e = np.empty(6)
-    np.subtract(T_des.translation, T.translation, out=e[:3])
-    e[3:] = pin.log3(T_des.rotation.dot(T.rotation.T))
+    e, R = pose_difference(T.homogeneous, T_des.homogeneous)
+    e[3:] = pin.log3(R)
     return e
 
 
@@ -43,21 +43,12 @@ def manipulability_gradient(wb: WholeBody, x: Sequence[float], eps: float = 1e-6
 
 
 class _DiagonalView:
-    """Writable views, cached per buffer, of the first k diagonal entries of an n x n C-contiguous matrix
-    (`view(H)`) and of the first k entries of a vector (`view.head(c)`)."""
+    """Writable views, cached per buffer, of the first k diagonal entries of an n x n C-contiguous matrix."""
 
     def __init__(self, k: int) -> None:
         self.k = k
         self._buffer: np.ndarray | None = None
         self._view: np.ndarray | None = None
-        self._vector: np.ndarray | None = None
-        self._head: np.ndarray | None = None
-
-    def head(self, c: np.ndarray) -> np.ndarray:
-        """Return c[:k], cached per vector."""
-        if c is not self._vector:
-            self._vector, self._head = c, c[: self.k]
-        return self._head
 
     def __call__(self, H: np.ndarray) -> np.ndarray:
         if H is not self._buffer:
@@ -82,19 +73,20 @@ class EndEffectorTask(Task):
 
     @weights.setter
     def weights(self, value: Sequence[float]) -> None:
-        self._weights = np.array(value, dtype=float)
-        self._weights.flags.writeable = False
-        self._unit = bool(np.all(self._weights == 1.0))  # J^T W = J^T: skip the product
+        weights = np.array(value, dtype=float)
+        if weights.shape != (6,):
+            raise WholeBodyError(f"end-effector task weights must have 6 entries, got shape {weights.shape}")
+        weights.flags.writeable = False
+        self._weights = weights
 
     def objective(self, s: StepState) -> tuple[np.ndarray, np.ndarray]:
-        JW = s.J.T * self.weights
-        return JW.dot(s.J), -JW.dot(s.v_ref)
+        n = s.J.shape[1]
+        H, c = np.zeros((n, n)), np.zeros(n)
+        self.add_objective(s, H, c)
+        return H, c
 
     def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
-        J = s.J
-        JW = J.T if self._unit else J.T * self._weights
-        H += JW.dot(J)
-        c -= JW.dot(s.v_ref)
+        add_weighted_gram(s.J, self._weights, s.v_ref, H, c)
 
 
 class DampingTask(Task):
@@ -127,22 +119,33 @@ class PostureTask(Task):
     `posture` back to None between steps (`ResolvedRateController.posture` does so).
     """
 
-    def __init__(self, wb: WholeBody, weight: float, gain: float, posture: np.ndarray | None = None) -> None:
-        self.weight, self.gain, self.posture = weight, gain, posture
-        self._n_arm = wb.n_arm
-        self._c = np.zeros(wb.n_u)
-        self._H = np.zeros((wb.n_u, wb.n_u))
-        self._H[: wb.n_arm, : wb.n_arm] = weight * np.eye(wb.n_arm)
+    def __init__(self, wb: WholeBody, weight: float, gain: float, posture: Sequence[float] | None = None) -> None:
+        self.weight, self.gain = weight, gain
+        self._n_arm, self._n_u = wb.n_arm, wb.n_u
+        self.posture = posture
         self._diag = _DiagonalView(wb.n_arm)
-        self._c_arm = self._c[: wb.n_arm]  # buffer reused by each call (the base part stays 0)
+
+    @property
+    def posture(self) -> np.ndarray | None:
+        """The arm posture pulled to (n_arm,), or None (task off)."""
+        return self._posture
+
+    @posture.setter
+    def posture(self, value: Sequence[float] | None) -> None:
+        if value is None:
+            self._posture = None
+            return
+        posture = np.asarray(value, dtype=float)
+        if posture.shape != (self._n_arm,):
+            raise WholeBodyError(f"posture must have {self._n_arm} arm joint values, got shape {posture.shape}")
+        self._posture = posture
 
     def objective(self, s: StepState) -> tuple[np.ndarray | None, np.ndarray | None]:
         if self.posture is None:
             return None, None
-        c_arm = self._c[: self._n_arm]  # buffer reused by each call (the base part stays 0)
-        np.subtract(self.posture, s.x[3:], out=c_arm)
-        c_arm *= -self.weight * self.gain
-        return self._H, self._c
+        H, c = np.zeros((self._n_u, self._n_u)), np.zeros(self._n_u)
+        self.add_objective(s, H, c)
+        return H, c
 
     @property
     def constant_hessian(self) -> bool:
@@ -159,11 +162,7 @@ class PostureTask(Task):
     def add_linear(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
         if self.posture is None:
             return
-        c_arm = self._c_arm
-        np.subtract(self.posture, s.x[3:], out=c_arm)
-        c_view = self._diag.head(c)
-        c_arm *= -self.weight * self.gain
-        c_view += c_arm
+        add_scaled_difference(c, -self.weight * self.gain, self.posture, s.x, 3)
 
 
 class ManipulabilityTask(Task):
