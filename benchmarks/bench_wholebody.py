@@ -6,6 +6,8 @@ fresh solve). Each is measured at a fixed state and target ("static": the QP rep
 ("tracking": the state integrated after each step, the target moving 0.9 mm per step along x). "cycle" is the
 default tracking step plus `WholeBody.integrate`, the same work as placo's timed step. The tracking runs and
 placo's run advance in turn, 100 steps at a time, so that a slow spell of the machine falls on all of them.
+Last, the first step of a fresh process is timed with an empty numba cache (the compiled kernels of
+`wholebody.motion.kernels` compile) and with the cache that run wrote.
 
 placo's step (`PlacoTracker.step_to`) tracks the same moving target: the assignment of the target matrix,
 `solve(True)` (solve and integrate) and `update_kinematics()` (FK) are timed. On both sides the target is
@@ -18,6 +20,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import subprocess
+import sys
+import tempfile
 import time
 from collections.abc import Iterator
 
@@ -123,6 +129,33 @@ def measure(name: str) -> dict[str, float]:
     return r
 
 
+_FIRST_STEP = """
+import time
+import robots
+from studies.wmra_experiments import initial_state
+from wholebody.motion.control import ResolvedRateController
+from wholebody.motion.kinematics import wholebody_for
+wb = wholebody_for(robots.load("wmra"))
+x = initial_state(wb)
+ctrl = ResolvedRateController(wb)
+t0 = time.perf_counter()
+T = wb.ee_placement(x)
+wb.integrate(x, ctrl.step(x, T, None, 0.01).u, 0.01)
+print(time.perf_counter() - t0)
+"""
+
+
+def first_step_s() -> dict[str, float]:
+    """Return the wall time (s) of a fresh process's first `ee_placement`, step and integrate: with an empty numba cache (the kernels
+    compile) and then with the cache that run wrote (the kernels load), both in a temporary NUMBA_CACHE_DIR."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+        run = [sys.executable, "-c", _FIRST_STEP]
+        compiled = float(subprocess.run(run, env=env, capture_output=True, text=True, check=True).stdout)
+        loaded = float(subprocess.run(run, env=env, capture_output=True, text=True, check=True).stdout)
+    return {"first_step_empty_cache_s": compiled, "first_step_cached_s": loaded}
+
+
 def main(argv=None) -> None:
     """Print the table (or, with --json, one JSON object of the medians and ratios)."""
     ap = argparse.ArgumentParser(description=__doc__)
@@ -133,21 +166,31 @@ def main(argv=None) -> None:
 
     x = initial_state(wholebody_for(robots.load("wmra")))
     cfj = median_us(lambda: cf.combined_jacobian(x[:3], x[3:], WMRA_D, WMRA_TRACK, WMRA_MOUNT, WMRA_WHEEL_RADIUS))
+    first = first_step_s()
     if args.json:
-        print(json.dumps({"robots": rows, "wmra_closed_form_jacobian_us": cfj}))
+        print(json.dumps({"robots": rows, "wmra_closed_form_jacobian_us": cfj, **first}))
         return
     cols = ("jacobian_us", "step_us", "tracking_step_us", "tracking_cycle_us")
     cols += ("proxqp_step_us", "proxqp_tracking_step_us", "proxqp_cold_tracking_step_us", "placo_step_us")
     heads = ("jacobian", "step", "tracking", "cycle", "proxqp step", "proxqp track", "proxqp cold tr", "placo step")
     print("median us; ratios = ours / placo (same run); default solver daqp")
-    print(f"{'robot':<16}" + "".join(f"{h:>15}" for h in heads) + f"{'step/placo':>12}{'track/placo':>13}")
+    print(
+        f"{'robot':<16}"
+        + "".join(f"{h:>15}" for h in heads)
+        + f"{'step/placo':>12}{'track/placo':>13}{'cycle/placo':>13}"
+    )
     for name, r in rows.items():
         print(
             f"{name:<16}"
             + "".join(f"{r[c]:>15.1f}" for c in cols)
             + f"{r['ratio_step_vs_placo']:>12.2f}{r['ratio_tracking_step_vs_placo']:>13.2f}"
+            + f"{r['ratio_tracking_cycle_vs_placo']:>13.2f}"
         )
     print(f"(WMRA closed-form numpy Jacobian, paper eq. 19-20: {cfj:.1f} us)")
+    print(
+        f"first step of a fresh process: {first['first_step_empty_cache_s']:.2f} s with an empty numba cache "
+        f"(kernels compile), {first['first_step_cached_s']:.2f} s with the cache"
+    )
 
 
 if __name__ == "__main__":
