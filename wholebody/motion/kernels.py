@@ -2,9 +2,10 @@
 
 Each function is the one implementation of its formula: the built-in `Task`s and `Limit`s
 (`wholebody.motion.tasks`, `wholebody.motion.limits`) and `solve_step` call them on the step's small
-arrays (n_u <= ~20), where one compiled loop replaces several numpy calls. The first call in a process
-loads the machine code from numba's cache (`cache=True`), or compiles it when there is none (about 1 s,
-once per installation).
+arrays (n_u <= ~20), where one compiled loop replaces several numpy calls. The first step of a process
+loads the machine code from numba's cache (`cache=True`, 0.2 s), or compiles it when there is none (about 3 s,
+once per installation; `benchmarks/bench_wholebody.py` times both). The callers check the arrays' shapes:
+the kernels do not.
 """
 
 from __future__ import annotations
