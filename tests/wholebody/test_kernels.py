@@ -126,6 +126,13 @@ def test_write_configuration_matches_pinocchio_layout():
     np.testing.assert_allclose(wb.ee_placement(x).homogeneous, T.homogeneous, atol=1e-15)
 
 
+def test_an_index_out_of_range_raises_instead_of_reading_past_the_array():
+    """A hand-built `StepState` with a short state reaches the kernels unchecked: bounds checking stops it."""
+    lb, ub = np.full(9, -1.0), np.full(9, 1.0)
+    with pytest.raises(IndexError):
+        K.intersect_position_box(-np.ones(7), np.ones(7), np.zeros(5), 3, 0.01, lb, ub)
+
+
 def test_bad_shapes_are_rejected_before_the_kernels():
     wb = wholebody_for(robots.load("wmra"))
     x = initial_state(wb)

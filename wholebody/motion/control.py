@@ -264,7 +264,7 @@ class ResolvedRateController:
 
     def bounds(self, x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Return the input box (lb, ub) of the limits: position limits over dt, speed limits; contains 0."""
-        return stack_box(self.limits, StepState(self.wb, np.asarray(x, dtype=float), dt, u_prev=self.u_prev))
+        return stack_box(self.limits, StepState(self.wb, self.wb.as_state(x), dt, u_prev=self.u_prev))
 
     def inequalities(
         self,
@@ -280,7 +280,7 @@ class ResolvedRateController:
         """
         s = StepState(
             self.wb,
-            np.asarray(x, dtype=float),
+            self.wb.as_state(x),
             dt,
             u_prev=self.u_prev,
             band_center=band_center,

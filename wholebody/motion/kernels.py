@@ -4,8 +4,9 @@ Each function is the one implementation of its formula: the built-in `Task`s and
 (`wholebody.motion.tasks`, `wholebody.motion.limits`) and `solve_step` call them on the step's small
 arrays (n_u <= ~20), where one compiled loop replaces several numpy calls. The first step of a process
 loads the machine code from numba's cache (`cache=True`, 0.2 s), or compiles it when there is none (about 3 s,
-once per installation; `benchmarks/bench_wholebody.py` times both). The callers check the arrays' shapes:
-the kernels do not.
+once per installation; `benchmarks/bench_wholebody.py` times both). The callers check the arrays' shapes and
+the kernels are compiled with bounds checking: an index out of range raises `IndexError`, never reads past an
+array.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from numba import njit
 from wholebody.motion.bases import displaced_pose
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=True)
 def add_weighted_gram(J: np.ndarray, w: np.ndarray, v: np.ndarray, H: np.ndarray, c: np.ndarray) -> None:
     """H += J^T W J and c -= J^T W v in place, W = diag(w): the cost w||J u - v||^2 (factor 1/2 of the QP)."""
     m, n = J.shape
@@ -36,14 +37,14 @@ def add_weighted_gram(J: np.ndarray, w: np.ndarray, v: np.ndarray, H: np.ndarray
                 H[j, i] += s
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=True)
 def add_scaled_difference(c: np.ndarray, scale: float, target: np.ndarray, x: np.ndarray, offset: int) -> None:
     """c[i] += scale (target[i] - x[offset + i]) for i < len(target), in place."""
     for i in range(target.shape[0]):
         c[i] += scale * (target[i] - x[offset + i])
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=True)
 def intersect_position_box(
     lower: np.ndarray, upper: np.ndarray, x: np.ndarray, offset: int, dt: float, lb: np.ndarray, ub: np.ndarray
 ) -> None:
@@ -62,7 +63,7 @@ def intersect_position_box(
             ub[i] = hi
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=True)
 def clip_to_box(u: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> None:
     """u = min(max(u, lb), ub) in place."""
     for i in range(u.shape[0]):
@@ -72,7 +73,7 @@ def clip_to_box(u: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> None:
             u[i] = ub[i]
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=True)
 def residual_norm(J: np.ndarray, u: np.ndarray, v: np.ndarray) -> float:
     """Return ||J u - v||."""
     m, n = J.shape
@@ -85,7 +86,7 @@ def residual_norm(J: np.ndarray, u: np.ndarray, v: np.ndarray) -> float:
     return math.sqrt(r)
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=True)
 def reference_twist(
     e: np.ndarray, gain: float, v_des: np.ndarray, linear: float, angular: float
 ) -> tuple[np.ndarray, float, float]:
@@ -104,7 +105,7 @@ def reference_twist(
     return v, e_lin, e_ang
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=True)
 def unconstrained_if_feasible(
     H: np.ndarray, c: np.ndarray, G: np.ndarray, h: np.ndarray, lb: np.ndarray, ub: np.ndarray
 ) -> tuple[np.ndarray, bool]:
@@ -151,7 +152,7 @@ def unconstrained_if_feasible(
     return u, True
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=True)
 def write_configuration(q: np.ndarray, x: np.ndarray, root_q: int, arm_idx_q: np.ndarray) -> None:
     """Write reduced coordinates x = [x, y, theta, arm...] into a Pinocchio configuration q in place: the planar
     root joint's (x, y, cos theta, sin theta) at root_q, the arm joints at arm_idx_q."""
@@ -163,7 +164,7 @@ def write_configuration(q: np.ndarray, x: np.ndarray, root_q: int, arm_idx_q: np
         q[arm_idx_q[k]] = x[3 + k]
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=True)
 def pose_difference(T: np.ndarray, T_des: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Return (e, R_des R^T) of two 4 x 4 placements: e (6,) holds p_des - p in e[:3] (e[3:] left to fill)."""
     e = np.empty(6)
@@ -175,7 +176,7 @@ def pose_difference(T: np.ndarray, T_des: np.ndarray) -> tuple[np.ndarray, np.nd
     return e, R
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=True)
 def integrate_state(x: np.ndarray, u: np.ndarray, dt: float, wheel_map: np.ndarray, n_arm: int) -> np.ndarray:
     """Return x = [x, y, theta, arm...] after input u = [arm rates, base input] for dt: the arm joints linearly, the
     base by the exact odometry of its body step wheel_map u_base dt (`bases.displaced_pose`, paper eq. 4-10)."""
