@@ -811,16 +811,20 @@ def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon:
 
 
 def _choose_effect(
-    results: Sequence[_Ranked], threshold: float, horizon: float, mask: np.ndarray | None, last: Replay | None
+    results: Sequence[_Ranked], threshold: float, horizon: float, mask: np.ndarray | None, last: Replay, first: bool
 ) -> _Named | None:
-    """Return the best significant candidate whose replay stays finite (and, after a first one, keeps the gap)."""
+    """Return the best significant candidate whose replay stays finite and that shrinks the nominal model's gap
+    (the first effect) or keeps the gap the named ones left (a further effect); None if there is none."""
     for ranked in results:
         if ranked.best.dbic <= threshold or not np.isfinite(ranked.best.dbic):
             break
         chosen = _best_replaying_variant(ranked.trials, threshold, horizon)
         if chosen is None:
             continue
-        if last is not None and chosen.replay.gap(mask) > 1.02 * last.gap(mask):
+        gap, last_gap = chosen.replay.gap(mask), last.gap(mask)
+        if first and not gap < last_gap:
+            continue  # nothing the replay shows is explained: the nominal model already replays the log this well
+        if not first and gap > 1.02 * last_gap:
             continue  # a further effect must not widen the gap the named ones left
         return chosen
     return None
@@ -890,7 +894,7 @@ def diagnose(
             break
         if round_ == 0:
             first_scores = [(r.best.effect.name, float(r.best.dbic)) for r in results]
-        chosen = _choose_effect(results, threshold, horizon, mask, reps[-1] if named else None)
+        chosen = _choose_effect(results, threshold, horizon, mask, reps[-1], first=not named)
         if chosen is None:
             break
         named.append(chosen)

@@ -306,3 +306,16 @@ def test_swivelling_casters_are_named_with_the_form_that_replays_best(seed):
     rep = diagnose(h.measured)
     assert rep.names and rep.names[0] == "caster_swivel", rep.names
     assert rep.gap_after <= 0.5 * rep.gap_before, (rep.gap_after, rep.gap_before)
+
+
+def test_an_effect_that_does_not_shrink_the_nominal_gap_is_not_named():
+    """Independent simulator, no effect, a 20 s log at 88 Hz: a delay fits the noise (Delta BIC above the threshold),
+    but the nominal model already replays the log at the noise level, so nothing is named."""
+    from studies.testbeds import rigid_sim
+
+    log, _ = rigid_sim.simulate(rigid_sim.random_case(7001, duration=20.0))
+    rep = diagnose(log)
+    assert dict(rep.candidates)["time_delay"] > rep.threshold  # the rule, not the threshold, decides here
+    assert rep.gap_before == 0.0
+    assert not rep.names
+    assert rep.gap_after == rep.gap_before
