@@ -720,9 +720,27 @@ def generate(
     return truth
 
 
-if __name__ == "__main__":  # python -m studies.testbeds.rigid_sim N SEED0 OUT_DIR
+def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
+    """Return the overrides of ``key=value`` items (values read as JSON: numbers, true/false, null), e.g.
+    ``["rate_hz=30", "vel_std=null"]``; raise ValueError on an item without ``=`` or an unknown field."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or key not in _CART_FIELDS | _CASE_FIELDS - {"cart", "seed"}:
+            raise ValueError(
+                f"override {item!r}: expected FIELD=VALUE with FIELD one of {sorted(_CART_FIELDS | _CASE_FIELDS - {'cart', 'seed'})}"
+            )
+        out[key] = json.loads(text)
+    return out
+
+
+if __name__ == "__main__":  # python -m studies.testbeds.rigid_sim N SEED0 OUT_DIR [FIELD=VALUE ...]
     import sys
 
-    if len(sys.argv) != 4:
-        sys.exit("usage: python -m studies.testbeds.rigid_sim N SEED0 OUT_DIR")
-    generate(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3])
+    if len(sys.argv) < 4:
+        sys.exit("usage: python -m studies.testbeds.rigid_sim N SEED0 OUT_DIR [FIELD=VALUE ...] (e.g. rate_hz=30)")
+    try:
+        overrides = parse_overrides(sys.argv[4:])
+    except ValueError as exc:
+        sys.exit(str(exc))
+    generate(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], **overrides)

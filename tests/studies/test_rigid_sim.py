@@ -266,3 +266,15 @@ def test_write_case_and_generate(tmp_path) -> None:
         assert rec["hidden_effects"] == []
         log = read_log(tmp_path / "set" / f"{name}.csv.gz")
         assert log.has_velocities == ("vx" in rec["noise_std"])
+
+
+def test_command_line_overrides_are_parsed_and_checked():
+    from studies.testbeds.rigid_sim import parse_overrides, random_case
+
+    over = parse_overrides(["rate_hz=30", "vel_std=null", "m=2.5"])
+    assert over == {"rate_hz": 30, "vel_std": None, "m": 2.5}
+    case = random_case(3, **over)
+    assert case.rate_hz == 30 and not case.has_velocities and case.cart.m == 2.5
+    for bad in ("rate_hz", "seed=4", "bogus=1"):
+        with pytest.raises(ValueError, match="FIELD=VALUE"):
+            parse_overrides([bad])
