@@ -53,6 +53,25 @@ def test_closed_form_effort_is_a_lower_bound_and_exact_where_it_keeps_the_limits
     assert np.allclose(lower[exact], eff[exact], rtol=1e-10)
 
 
+@pytest.mark.parametrize("motion_only", [False, True])
+def test_compiled_closed_form_effort_equals_the_batch_closed_form(motion_only):
+    """`closed_form_effort` (one compiled call) against `closed_form_batch` (numpy), point set by point set."""
+    rng = np.random.default_rng(9)
+    s = np.sort(rng.uniform(0.0, 0.5, (25, 2)), axis=1)
+    points = np.asarray(HANDLE.start_b) + s[..., None] * HANDLE.direction
+    gammas = rng.uniform([0, -10, -8], [130, 10, 8], (8, 3))
+    alloc = WrenchAllocator(points[0], TIGHT, only_motion_directions=motion_only)
+    _, exact, lower = alloc.closed_form_batch(points, gammas)
+    assert exact.any() and not exact.all()
+    for i, pts in enumerate(points):
+        for t, gamma in enumerate(gammas):
+            got = alloc.closed_form_effort(pts, gamma)
+            if exact[i, t]:
+                assert got == pytest.approx(lower[i, t], rel=1e-10)
+            else:
+                assert got is None
+
+
 @pytest.mark.parametrize("n_arms", [1, 2])
 def test_pruned_grid_keeps_the_brute_force_best_candidates(n_arms):
     rng = np.random.default_rng(20 + n_arms)

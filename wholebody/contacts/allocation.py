@@ -37,6 +37,7 @@ import qpsolvers
 import scipy.sparse as sp
 
 from wholebody.contacts.handle import ContactSpec, grasp_matrices
+from wholebody.contacts.kernels import equality_optimum_effort
 from wholebody.errors import InfeasibleWrenchError, WholeBodyError
 
 #: Robotiq 2F-85 grip force range (N).
@@ -407,16 +408,20 @@ class WrenchAllocator:
 
         One problem of `closed_form_batch` without the batch's overhead (the hot call of a local search): the
         equality matrix is the cached one with the torque row's lever arms (-p_y, p_x; eq. 24) filled in.
-        None when the closed form breaks a limit (the QP is needed).
+        None when the closed form breaks a limit or A P^-1 A^T is not positive definite (the QP is needed).
         """
-        A = self._A_template.copy()
-        A[-1, self._fx_cols] = -points_b[:, 1]
-        A[-1, self._fy_cols] = points_b[:, 0]
-        Pinv_At = self._Pinv @ A.T
-        x = Pinv_At @ np.linalg.solve(A @ Pinv_At, gamma[self.rows])
-        if not (self.Gin @ x <= self._h_exact).all():
-            return None
-        return float(x @ self._Q_free @ x)
+        effort, ok = equality_optimum_effort(
+            self._A_template,
+            self._fx_cols,
+            self._fy_cols,
+            np.asarray(points_b, dtype=float),
+            self._Pinv,
+            np.asarray(gamma, dtype=float)[self.rows],
+            self.Gin,
+            self._h_exact,
+            self._Q_free,
+        )
+        return effort if ok else None
 
     # ------------------------------------------------------------------ solve
     def _solver_kwargs(self) -> dict:

@@ -106,40 +106,51 @@ def reference_twist(
 
 
 @njit(cache=True, boundscheck=True)
+def cholesky_solve(S: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Return (x, True) with S x = b for a symmetric positive definite S (its lower triangle is read), or
+    (x, False) if S is not positive definite (or holds NaN).
+
+    A Cholesky factorisation S = L L^T written out as loops: at the sizes solved here (n <= ~20) it costs less than
+    a LAPACK call from Python, and compiles in a fraction of the time numba takes for `np.linalg.solve`.
+    """
+    n = b.shape[0]
+    L = np.zeros((n, n))
+    x = np.empty(n)
+    for j in range(n):
+        d = S[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if not d > 0.0:
+            return x, False
+        L[j, j] = math.sqrt(d)
+        for i in range(j + 1, n):
+            s = S[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / L[j, j]
+    for i in range(n):  # L y = b
+        s = b[i]
+        for k in range(i):
+            s -= L[i, k] * x[k]
+        x[i] = s / L[i, i]
+    for i in range(n - 1, -1, -1):  # L^T x = y
+        s = x[i]
+        for k in range(i + 1, n):
+            s -= L[k, i] * x[k]
+        x[i] = s / L[i, i]
+    return x, True
+
+
+@njit(cache=True, boundscheck=True)
 def unconstrained_if_feasible(
     H: np.ndarray, c: np.ndarray, G: np.ndarray, h: np.ndarray, lb: np.ndarray, ub: np.ndarray
 ) -> tuple[np.ndarray, bool]:
     """Return (u, True) if H is positive definite and the minimiser u = -H^-1 c of 1/2 u^T H u + c^T u satisfies
-    lb <= u <= ub and G u <= h exactly (then u solves the QP), else (u, False).
-
-    u comes from a Cholesky factorisation H = L L^T written out as loops: at the QP's sizes (n <= ~20) it costs
-    less than a LAPACK call from Python, and compiles in a fraction of the time numba takes for `np.linalg.solve`.
-    """
-    n = c.shape[0]
-    L = np.zeros((n, n))
-    u = np.empty(n)
-    for j in range(n):
-        d = H[j, j]
-        for k in range(j):
-            d -= L[j, k] * L[j, k]
-        if not d > 0.0:  # not positive definite (or NaN): leave it to the active-set solver
-            return u, False
-        L[j, j] = math.sqrt(d)
-        for i in range(j + 1, n):
-            s = H[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            L[i, j] = s / L[j, j]
-    for i in range(n):  # L y = -c
-        s = -c[i]
-        for k in range(i):
-            s -= L[i, k] * u[k]
-        u[i] = s / L[i, i]
-    for i in range(n - 1, -1, -1):  # L^T u = y
-        s = u[i]
-        for k in range(i + 1, n):
-            s -= L[k, i] * u[k]
-        u[i] = s / L[i, i]
+    lb <= u <= ub and G u <= h exactly (then u solves the QP), else (u, False)."""
+    u, ok = cholesky_solve(H, -c)
+    if not ok:  # not positive definite (or NaN): leave it to the active-set solver
+        return u, False
+    n = u.shape[0]
     for i in range(n):
         if not (lb[i] <= u[i] <= ub[i]):
             return u, False
