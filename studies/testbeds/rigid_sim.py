@@ -723,13 +723,12 @@ def generate(
 def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
     """Return the overrides of ``key=value`` items (values read as JSON: numbers, true/false, null), e.g.
     ``["rate_hz=30", "vel_std=null"]``; raise ValueError on an item without ``=`` or an unknown field."""
+    fields_ = _CART_FIELDS | (_CASE_FIELDS - {"cart", "seed"})
     out: dict[str, Any] = {}
     for item in items:
         key, sep, text = item.partition("=")
-        if not sep or key not in _CART_FIELDS | _CASE_FIELDS - {"cart", "seed"}:
-            raise ValueError(
-                f"override {item!r}: expected FIELD=VALUE with FIELD one of {sorted(_CART_FIELDS | _CASE_FIELDS - {'cart', 'seed'})}"
-            )
+        if not sep or key not in fields_:
+            raise ValueError(f"override {item!r}: expected FIELD=VALUE with FIELD one of {sorted(fields_)}")
         out[key] = json.loads(text)
     return out
 
