@@ -33,7 +33,7 @@ import time
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
-from studies import table1
+from cart import table1
 from cart.ekf import CartEKF, EKFConfig, dynamics_jacobian
 from cart.simulate import MeasurementNoise, simulate
 
@@ -130,7 +130,7 @@ def time_reproduce(repeats: int, baseline: str | None = None) -> tuple[dict, dic
     import resource
 
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    cmd = [sys.executable, "-m", "wholebody.cli", "reproduce", "--json"]
+    cmd = [sys.executable, "-m", "cartpush.cli", "reproduce", "--json"]
     variants = {
         "reproduce (default workers)": (cmd, root, root),
         "reproduce --workers 1": (cmd + ["--workers", "1"], root, root),

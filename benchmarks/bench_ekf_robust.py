@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from studies import table1
+from cart import table1
 from cart.ekf import EKFConfig, run_ekf
 from cart.simulate import MeasurementNoise, simulate
 

@@ -1,7 +1,7 @@
 """Benchmark: start-up time of the command line (`cartpush --help`, `cartpush estimate --help`).
 
 Each command runs as a fresh subprocess (the console script next to this Python, or
-`python -c 'from wholebody.cli import main; main()'` when there is none): one warm-up run
+`python -c 'from cartpush.cli import main; main()'` when there is none): one warm-up run
 (fills the OS file cache; printed as `first`), then N timed runs (default 5) whose median,
 min and max wall times are printed. The target in issue #16 is under 0.5 s for `--help` and
 the cart-only commands; this script reports, it never asserts a time.
@@ -29,7 +29,7 @@ def cartpush_argv() -> list[str]:
     script = Path(sys.executable).with_name("cartpush")
     if script.is_file():
         return [str(script)]
-    return [sys.executable, "-c", "import sys; from wholebody.cli import main; sys.exit(main())"]
+    return [sys.executable, "-c", "import sys; from cartpush.cli import main; sys.exit(main())"]
 
 
 def time_once(argv: list[str]) -> float:

@@ -33,7 +33,7 @@ import pinocchio as pin
 import robots
 from studies import wmra_closed_form as cf
 from studies.placo_compare import PlacoTracker
-from studies.wmra_experiments import initial_state
+from wholebody.motion.experiments import initial_state
 from wholebody.motion.control import ControllerConfig, ResolvedRateController
 from wholebody.motion.kinematics import WholeBody, wholebody_for
 
@@ -132,7 +132,7 @@ def measure(name: str) -> dict[str, float]:
 _FIRST_STEP = """
 import time
 import robots
-from studies.wmra_experiments import initial_state
+from wholebody.motion.experiments import initial_state
 from wholebody.motion.control import ResolvedRateController
 from wholebody.motion.kinematics import wholebody_for
 wb = wholebody_for(robots.load("wmra"))

@@ -41,7 +41,7 @@ import numpy as np
 from cart.logs import CartLog, write_log
 
 ROOT = Path(__file__).resolve().parents[1]
-CLI = [sys.executable, "-m", "wholebody.cli"]
+CLI = [sys.executable, "-m", "cartpush.cli"]
 HEADER = "t,x,y,theta,fx,fy,tau"
 
 
@@ -60,7 +60,7 @@ class Case:
 # -- logs ---------------------------------------------------------------------------------------
 def _push_arrays(n: int = 600, dt: float = 0.01, seed: int = 0):
     """(t, q, gamma) of a simulated push of the Table I test-5 cart (consistent dynamics, 1 mm noise)."""
-    from studies import table1
+    from cart import table1
     from cart.simulate import MeasurementNoise, simulate
 
     truth = table1.true_params(table1.TESTS[4])

@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from studies.table1 import EstimatingLoop
+from cart.table1 import EstimatingLoop
 from wholebody.contacts.allocation import ArmLimits, WrenchAllocator
 from wholebody.contacts.excitation import (
     ContactSchedule,
@@ -87,7 +87,7 @@ class ConvergenceResult:
 
 
 class _SensorLoop(EstimatingLoop):
-    """Table I's estimating loop (:class:`studies.table1.EstimatingLoop`) with a sensed wrench and one arm.
+    """Table I's estimating loop (:class:`cart.table1.EstimatingLoop`) with a sensed wrench and one arm.
 
     Each period the arm applies ``w + e`` (``w`` the allocation of the tracking
     wrench at the scheduled contact, ``e`` the actuation error), the F/T sensor

@@ -28,7 +28,7 @@ import placo
 import robots
 from wholebody.errors import WholeBodyError
 from wholebody.motion.bases import planar_pose_matrix
-from studies.wmra_experiments import TrackingResult, initial_state, path_function, run_tracking
+from wholebody.motion.experiments import TrackingResult, initial_state, path_function, run_tracking
 from wholebody.motion.kinematics import WholeBody, wholebody_for
 
 

@@ -6,7 +6,7 @@ Subpackages (the folder list is the architecture):
 * `wholebody.contacts`: the handle and its grasp maps, wrench allocation, contact placement, excitation;
 * `wholebody.push`: the closed robot + cart + EKF loop and its reports;
 * `wholebody.viz`: Meshcat scenes;
-* `wholebody.cli`: the `cartpush` commands.
+
 
 The names below are loaded on first use (``import wholebody`` stays cheap for the CLI):
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from studies import table1
+from cart import table1
 from cart.ekf import CartEKF, EKFConfig, chi2_isf, run_ekf
 from cart.errors import CartpushError, NumericalError
 from cart.simulate import MeasurementNoise, simulate

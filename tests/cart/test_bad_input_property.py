@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from cart.errors import LogFormatError
 from cart.logs import CartLog, read_log, write_log
-from wholebody.cli import main
+from cartpush.cli import main
 
 HEADER = "t,x,y,theta,fx,fy,tau"
 SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

@@ -7,7 +7,7 @@ import pytest
 import scipy.linalg
 
 from cart import control, model
-from studies import table1
+from cart import table1
 from cart.params import CartParams
 
 

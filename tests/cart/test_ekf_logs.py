@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from studies import table1
+from cart import table1
 from cart.ekf import CartEKF, EKFConfig, dynamics_jacobian, estimate_from_log
 from cart.errors import LogFormatError, ParameterError
 from cart.logs import CartLog, estimate_velocities, read_log, write_log

@@ -94,7 +94,7 @@ def test_misfit_is_reported_and_covered(independent_log):
 
 
 def test_cli_estimate_json_has_the_contract_fields(tmp_path, independent_log, capsys):
-    from wholebody.cli import main
+    from cartpush.cli import main
 
     log, truth = independent_log
     path = tmp_path / "push.csv"

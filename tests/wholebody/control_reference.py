@@ -19,7 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 import robots
-from studies.wmra_experiments import initial_state
+from wholebody.motion.experiments import initial_state
 from wholebody.motion import control, qp
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, SafetyBand
 from wholebody.motion.kinematics import wholebody_for

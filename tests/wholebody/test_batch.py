@@ -9,9 +9,9 @@ import pytest
 
 from cart.logs import write_log
 from studies.testbeds import rigid_sim
-from wholebody.batch import BatchError, CommandJob, done_paths, expand_inputs, run_batch
+from cartpush.batch import BatchError, CommandJob, done_paths, expand_inputs, run_batch
 from tests.optional import require_module
-from wholebody.cli.app import main
+from cartpush.cli.app import main
 
 N_GOOD = 3
 

@@ -11,7 +11,7 @@ import pytest
 
 from cart.errors import CartError, CartpushError, LogFormatError
 from cart.logs import CartLog, write_log
-from wholebody.cli import main, preprocess_argv
+from cartpush.cli import main, preprocess_argv
 
 
 def _one_error_line(capsys, command: str) -> str:
@@ -51,7 +51,7 @@ def test_every_package_error_derives_from_the_root():
 
 # -- the mapping in main --------------------------------------------------------------------------
 def test_internal_error_is_one_line_exit_1_and_debug_reraises(monkeypatch, capsys):
-    import wholebody.cli.plan_contacts as mod
+    import cartpush.cli.plan_contacts as mod
 
     def boom(args):
         raise ZeroDivisionError("division by zero\nsecond line")
@@ -92,7 +92,7 @@ def test_argparse_errors_are_one_line(capsys):
 
 def test_help_imports_no_command_module():
     code = (
-        "import sys\nfrom wholebody.cli import main\n"
+        "import sys\nfrom cartpush.cli import main\n"
         "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
         "heavy = [m for m in ('pinocchio', 'meshcat', 'scipy', 'wholebody.viz', 'cart.diagnose', 'placo')"
         " if m in sys.modules]\nprint('HEAVY', heavy)"

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from wholebody.cli import main
+from cartpush.cli import main
 
 
 def test_demo_json_lists_every_robot(capsys):
@@ -21,7 +21,7 @@ def test_demo_json_lists_every_robot(capsys):
 
 
 def test_console_script_help_has_example():
-    out = subprocess.run([sys.executable, "-m", "wholebody.cli", "--help"], capture_output=True, text=True)
+    out = subprocess.run([sys.executable, "-m", "cartpush.cli", "--help"], capture_output=True, text=True)
     assert out.returncode == 0 and "Example" in out.stdout
 
 

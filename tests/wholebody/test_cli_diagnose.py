@@ -9,7 +9,7 @@ import numpy as np
 
 from studies.testbeds.hidden_effects import random_case
 from cart.logs import write_log
-from wholebody.cli import main
+from cartpush.cli import main
 
 
 def test_diagnose_json_and_plots(tmp_path, capsys):

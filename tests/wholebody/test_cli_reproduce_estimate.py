@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from studies import table1
+from cart import table1
 from cart.logs import CartLog, write_log
-from wholebody.cli import main
+from cartpush.cli import main
 
 
 def test_reproduce_json_fields_and_outputs(tmp_path, capsys):
@@ -53,7 +53,7 @@ def test_reproduce_json_fields_and_outputs(tmp_path, capsys):
 
 
 def test_reproduce_table_headers_match_table_md_and_flag_unobservable_stretches(tmp_path, capsys):
-    from wholebody.cli.reproduce import table_header
+    from cartpush.cli.reproduce import table_header
 
     assert main(["reproduce", "--tests", "11", "--duration", "15", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out

@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from wholebody.cli import main
-from studies.wmra_experiments import run_tracking
+from cartpush.cli import main
+from wholebody.motion.experiments import run_tracking
 
 
 def test_track_json_matches_library(capsys):

@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from wholebody.cli import main
+from cartpush.cli import main
 from wholebody.contacts.handle import cart_wrench
 
 

@@ -16,7 +16,7 @@ from wholebody.motion.control import (
     pose_error,
 )
 from wholebody.errors import WholeBodyError
-from studies.wmra_experiments import initial_state
+from wholebody.motion.experiments import initial_state
 from wholebody.motion.kinematics import wholebody_for
 
 DT = 0.01

@@ -17,7 +17,7 @@ import qpsolvers
 from scipy import sparse
 
 import robots
-from studies.wmra_experiments import initial_state
+from wholebody.motion.experiments import initial_state
 from tests.wholebody.control_reference import CASES, REFERENCE, build, capture_qps
 from wholebody.motion import qp as qp_module
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, pose_error

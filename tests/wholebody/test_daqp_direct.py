@@ -14,7 +14,7 @@ import pytest
 import qpsolvers
 
 import robots
-from studies.wmra_experiments import initial_state
+from wholebody.motion.experiments import initial_state
 from tests.wholebody.control_reference import CASES, REFERENCE, build, capture_qps
 from wholebody.motion.control import ControllerConfig, ResolvedRateController
 from wholebody.motion.kinematics import wholebody_for
@@ -109,7 +109,7 @@ def test_buffers_follow_the_problem_shape():
 
 def test_degenerate_band_run_does_not_depend_on_hash_seed():
     """With the default solver a band the path cannot hold gives the same run whatever PYTHONHASHSEED is."""
-    argv = [sys.executable, "-m", "wholebody.cli", "track", "sine", "--band", "0.001", "--duration", "5", "--json"]
+    argv = [sys.executable, "-m", "cartpush.cli", "track", "sine", "--band", "0.001", "--duration", "5", "--json"]
     outs = []
     for seed in ("0", "5"):
         env = {**os.environ, "PYTHONHASHSEED": seed}

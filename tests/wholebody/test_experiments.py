@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import robots
-from studies.wmra_experiments import run_tracking
+from wholebody.motion.experiments import run_tracking
 from wholebody.motion.kinematics import wholebody_for
 
 TOL = 1e-9

@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 
 import robots
-from studies.wmra_experiments import initial_state
+from wholebody.motion.experiments import initial_state
 from wholebody.errors import WholeBodyError
 from wholebody.motion import kernels as K
 from wholebody.motion.control import ResolvedRateController

@@ -36,7 +36,7 @@ def test_progress_bar_yields_every_item_and_draws_only_when_enabled(monkeypatch)
 
 @pytest.mark.parametrize("json_flag", [True, False])
 def test_push_draws_a_bar_on_a_terminal_but_not_with_json(monkeypatch, capsys, json_flag):
-    from wholebody.cli import main
+    from cartpush.cli import main
 
     term = FakeTerminal()
     monkeypatch.setattr(sys, "stderr", term)

@@ -143,7 +143,7 @@ def test_cli_push_json_log_and_bad_input(tmp_path, capsys):
     import json
 
     from cart.logs import read_log
-    from wholebody.cli import main
+    from cartpush.cli import main
 
     rc = main(["push", "--trajectory", "1", "--duration", "8", "--contact", "fixed", "--json", "--out", str(tmp_path)])
     assert rc == 0

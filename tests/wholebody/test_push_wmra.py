@@ -88,7 +88,7 @@ def test_infeasible_requests_name_what_binds(reach):
 
 
 def test_cli_push_robot_option(capsys):
-    from wholebody.cli.app import main
+    from cartpush.cli.app import main
 
     assert main(["push", "--robot", "nope", "--duration", "8", "--json"]) == 2
     assert "--robot" in capsys.readouterr().err

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 import robots
-from studies.wmra_experiments import initial_state
+from wholebody.motion.experiments import initial_state
 from wholebody.motion import ResolvedRateController
 from wholebody.motion.kinematics import wholebody_for
 from wholebody.motion.qp import QPWorkspace, StepState, Task

@@ -1,4 +1,4 @@
-"""Issue 15: ROS 1 bags, ROS 2 bags (sqlite3, MCAP) and .mcap files as cart logs (wholebody.ros, `cartpush import`).
+"""Issue 15: ROS 1 bags, ROS 2 bags (sqlite3, MCAP) and .mcap files as cart logs (cartpush.ros, `cartpush import`).
 
 The bags are written with rosbags' own writers from a simulated push with known truth
 (studies.testbeds.rigid_sim). The F/T sensor sits on a moving arm link four TF links from the
@@ -22,7 +22,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from cart.logs import CartLog, read_log, write_log
 from studies.testbeds import rigid_sim
-from wholebody.ros import (
+from cartpush.ros import (
     BagImportError,
     TransformBuffer,
     TransformLookupError,
@@ -650,7 +650,7 @@ def small_bags(push, tmp_path_factory):
 
 
 def _cli(capsys, argv):
-    from wholebody.cli import main
+    from cartpush.cli import main
 
     code = main([str(a) for a in argv])
     out, err = capsys.readouterr()

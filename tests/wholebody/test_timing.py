@@ -9,7 +9,7 @@ from scipy.interpolate import CubicSpline
 
 import robots
 from wholebody.errors import TrajectoryInfeasibleError, WholeBodyError
-from studies.wmra_experiments import initial_state
+from wholebody.motion.experiments import initial_state
 from wholebody.motion.kinematics import wholebody_for
 from wholebody.motion.timing import ee_path_time_optimal, time_optimal
 

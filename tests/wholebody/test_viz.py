@@ -15,7 +15,7 @@ import robots
 from cart.logs import CartLog, write_log
 from robots.errors import UnknownRobotError
 from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
-from wholebody.cli import main
+from cartpush.cli import main
 from wholebody.viz import COM_MARKER_Z, Camera, Scene, SceneError, log_scene, pushing_configuration, pushing_scene
 
 
@@ -278,7 +278,7 @@ def test_library_code_never_selects_a_matplotlib_backend():
         str(p.relative_to(root))
         for pkg in ("cart", "wholebody", "studies", "robots")
         for p in (root / pkg).rglob("*.py")
-        if "matplotlib.use(" in p.read_text(encoding="utf-8") and "wholebody/cli/" not in p.as_posix()
+        if "matplotlib.use(" in p.read_text(encoding="utf-8") and "cartpush/cli/" not in p.as_posix()
     ]
     assert not offenders, f"library modules select a Matplotlib backend: {offenders}"
 

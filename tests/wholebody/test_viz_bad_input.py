@@ -7,7 +7,7 @@ import time
 import numpy as np
 
 from cart.logs import CartLog, write_log
-from wholebody.cli import main
+from cartpush.cli import main
 from wholebody.viz import MAX_FLOOR_LINES, MAX_FRAMES, Scene, log_scene
 
 

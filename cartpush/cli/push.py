@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from wholebody.cli import options
+from cartpush.cli import options
 from wholebody.errors import WholeBodyError
 
 JSON_FIELDS = (

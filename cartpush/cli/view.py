@@ -8,8 +8,8 @@ import sys
 import time
 from pathlib import Path
 
-from wholebody.cli import options
-from wholebody.cli.import_bag import add_topic_options, topic_options
+from cartpush.cli import options
+from cartpush.cli.import_bag import add_topic_options, topic_options
 
 HELP = "show a cart log, a Table I test or a robot in Meshcat"
 DESCRIPTION = """\
@@ -62,14 +62,14 @@ def build_scene(args: argparse.Namespace, serve: bool):
 
     if args.scenario is not None:
         options.duration(args.duration, rate=100.0)
-        from studies.table1_scene import scenario_scene
+        from wholebody.viz.scenarios import scenario_scene
 
         return scenario_scene(args.scenario, duration=args.duration, serve=serve)
     if args.robot is not None:
         if args.robot == "pushing":
             return pushing_scene(serve=serve)
         return robot_scene(args.robot, serve=serve)
-    from wholebody.ros import load_any
+    from cartpush.ros import load_any
 
     log = load_any(args.log, **topic_options(args))
     for w in log.warnings:  # the reader's plausibility notes (units, glitches), one line each

@@ -1,4 +1,4 @@
-"""Exceptions of `wholebody.ros`: bad bags and bad import options (one line, exit code 2 in the CLI)."""
+"""Exceptions of `cartpush.ros`: bad bags and bad import options (one line, exit code 2 in the CLI)."""
 
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from wholebody.cli import options
+from cartpush.cli import options
 
 #: The default handle length (m), as `wholebody.contacts.handle.HANDLE_WIDTH` (kept here so --help imports nothing heavy).
 HANDLE_WIDTH = 0.5

@@ -1,4 +1,4 @@
-"""The `cartpush` command line: one subcommand per module of the `wholebody.cli` package.
+"""The `cartpush` command line: one subcommand per module of the `cartpush.cli` package.
 
 Each command module defines ``register(subparsers)`` (adds its parser and sets
 ``func``) and a ``run(args) -> int``; its heavy imports (Pinocchio, Meshcat,
@@ -22,7 +22,7 @@ from collections.abc import Sequence
 
 from cart.errors import CartpushError
 
-#: command -> (module in wholebody.cli, one-line help), in the order `cartpush --help` lists them.
+#: command -> (module in cartpush.cli, one-line help), in the order `cartpush --help` lists them.
 COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("demo", "push the cart along Traj. 2 with and without estimation; write a report directory"),
     "track": ("track", "track the paper's straight-line or sinusoidal end-effector path (WMRA or Ridgeback+iiwa)"),
@@ -78,9 +78,9 @@ def _load_module(name: str):
     """Return the command module of `name` (None when it is not written yet)."""
     module_name = COMMANDS[name][0]
     try:
-        return importlib.import_module(f"wholebody.cli.{module_name}")
+        return importlib.import_module(f"cartpush.cli.{module_name}")
     except ModuleNotFoundError as exc:  # a command whose module is not written yet
-        if exc.name == f"wholebody.cli.{module_name}":
+        if exc.name == f"cartpush.cli.{module_name}":
             return None
         raise
 

@@ -8,7 +8,7 @@ See docs/ros_import.md.
 
 from __future__ import annotations
 
-from wholebody.ros.bag_import import (
+from cartpush.ros.bag_import import (
     POSE_TYPES,
     WRENCH_TYPES,
     BagSummary,
@@ -19,8 +19,8 @@ from wholebody.ros.bag_import import (
     list_bag,
     load_any,
 )
-from wholebody.ros.errors import BagImportError, TransformLookupError
-from wholebody.ros.tf_tree import EdgeInfo, TransformBuffer, normalize_frame
+from cartpush.ros.errors import BagImportError, TransformLookupError
+from cartpush.ros.tf_tree import EdgeInfo, TransformBuffer, normalize_frame
 
 __all__ = [
     "BagImportError",

@@ -26,7 +26,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from wholebody.ros.errors import TransformLookupError
+from cartpush.ros.errors import TransformLookupError
 
 #: Quaternions shorter than this are not rotations: samples carrying them are skipped (counted as invalid).
 MIN_QUATERNION_NORM = 1e-6

@@ -8,8 +8,8 @@ import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 
-from wholebody.cli import options
-from wholebody.cli.import_bag import add_topic_options, topic_options
+from cartpush.cli import options
+from cartpush.cli.import_bag import add_topic_options, topic_options
 from wholebody.progress import show_progress
 
 
@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
         options.writable_dir(args.out)
     from cart.diagnose import plot_diagnosis
     from cart.jsonout import dumps_strict
-    from wholebody.ros import load_any
+    from cartpush.ros import load_any
 
     stages = ["reading the log", "fitting the model and the candidate effects"] + (["plotting"] if args.out else [])
     with stage_bar(stages, enabled=show_progress(args.json)) as step:

@@ -4,6 +4,6 @@
 written as each finishes, resumable, on joblib processes or Ray tasks with the same code path.
 """
 
-from wholebody.batch.engine import BatchError, CommandJob, done_paths, expand_inputs, run_batch
+from cartpush.batch.engine import BatchError, CommandJob, done_paths, expand_inputs, run_batch
 
 __all__ = ["BatchError", "CommandJob", "done_paths", "expand_inputs", "run_batch"]

@@ -8,9 +8,9 @@ import math
 import sys
 from pathlib import Path
 
-from wholebody.cli import options
+from cartpush.cli import options
 
-#: The paths of `studies.wmra_experiments.PATHS` (kept here so --help imports nothing heavy).
+#: The paths of `wholebody.motion.experiments.PATHS` (kept here so --help imports nothing heavy).
 PATHS = ("line", "sine")
 #: Tolerance on the band radius before a run is reported as leaving the band (m).
 BAND_TOLERANCE = 1e-3
@@ -111,7 +111,7 @@ def _check_options(args: argparse.Namespace) -> None:
 
 def _run_experiment(args: argparse.Namespace):
     """Return the tracking result, with a progress bar on stderr when it is a terminal."""
-    from studies.wmra_experiments import run_tracking
+    from wholebody.motion.experiments import run_tracking
 
     bar = None
     if sys.stderr.isatty():

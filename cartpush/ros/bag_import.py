@@ -37,8 +37,8 @@ from collections.abc import Iterator, Sequence
 import numpy as np
 
 from cart.logs import CartLog, plausibility_warnings, read_log
-from wholebody.ros.errors import BagImportError, TransformLookupError
-from wholebody.ros.tf_tree import EdgeInfo, TransformBuffer, normalize_frame, quaternion_to_matrix
+from cartpush.ros.errors import BagImportError, TransformLookupError
+from cartpush.ros.tf_tree import EdgeInfo, TransformBuffer, normalize_frame, quaternion_to_matrix
 
 #: Pose message types read (ROS 1 names; ROS 2 adds ``/msg/``); messages with the same fields are read too.
 POSE_TYPES = (

@@ -8,7 +8,7 @@ import sys
 import time
 
 from cart.errors import CartError
-from wholebody.cli import options
+from cartpush.cli import options
 
 #: Table I's metrics are taken after t = 5 s; a run must reach past that.
 MIN_DURATION = 6.0
@@ -92,7 +92,7 @@ def register(subparsers) -> None:
 
 
 def _select(spec: str | None):
-    from studies.table1 import TESTS
+    from cart.table1 import TESTS
 
     if spec is None:
         return TESTS
@@ -128,8 +128,8 @@ def table_rows(results: list) -> list[list[str]]:
 
 
 def describe_lines(results: list) -> list[str]:
-    """Return one line per test run: what the test is (from its definition in studies.table1)."""
-    from studies.table1 import TESTS, describe_test
+    """Return one line per test run: what the test is (from its definition in cart.table1)."""
+    from cart.table1 import TESTS, describe_test
 
     return [f"test {r.test}: {describe_test(TESTS[r.test - 1])}" for r in results]
 
@@ -219,7 +219,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         options.writable_dir(args.out)
     from cart.jsonout import dumps_strict
-    from studies.table1 import default_workers, run_table1
+    from cart.table1 import default_workers, run_table1
 
     workers = min(default_workers() if args.workers is None else args.workers, 2 * len(tests))
 

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 from robots.shopping_cart import CART_HANDLE_Z_B, CART_WHEEL_RADIUS
-from studies.table1 import TESTS, contact_point, run_test
+from cart.table1 import TESTS, contact_point, run_test
 from wholebody.viz import COM_MARKER_Z, Scene, SceneError, cart_to_world_traj, frame_points, pushing_configuration
 
 
 def scenario_scene(test: int, duration: float = 30.0, serve: bool = False, fps: int = 30) -> Scene:
     """Return an animated scene of Table I test `test` (1..11): simulated cart, robot, force, contact, CoM estimate.
 
-    Runs `studies.table1.run_test` (with estimation). The robot keeps the arm
+    Runs `cart.table1.run_test` (with estimation). The robot keeps the arm
     pose of `pushing_configuration` and its base rigidly behind the cart (a
     display convention: the simulation has the cart alone); the force arrow
     sits at the simulation's contact point; the estimated CoM (magenta)

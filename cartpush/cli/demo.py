@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from wholebody.cli import options
+from cartpush.cli import options
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

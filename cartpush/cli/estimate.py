@@ -6,7 +6,7 @@ import argparse
 import math
 from typing import Any
 
-from wholebody.cli.import_bag import add_topic_options, topic_options
+from cartpush.cli.import_bag import add_topic_options, topic_options
 
 #: Mean NIS above which the EKF's innovations do not fit the 6-dof measurement (about 6 expected).
 NIS_MISFIT = 18.0
@@ -184,7 +184,7 @@ def result_for(log, args: argparse.Namespace) -> dict[str, Any]:
 def run(args: argparse.Namespace) -> int:
     """Estimate the parameters of the log and print them; return 0."""
     from cart.jsonout import dumps_strict
-    from wholebody.ros import load_any
+    from cartpush.ros import load_any
 
     _check_guesses(args)
     log = load_any(args.log, **topic_options(args))

@@ -168,7 +168,7 @@ def run_one(job: Callable[[str], dict[str, Any]], path: str) -> dict[str, Any]:
     return rec
 
 
-#: Jobs `cartpush batch` knows: name -> module of wholebody.cli with ``result_for(log, args)``.
+#: Jobs `cartpush batch` knows: name -> module of cartpush.cli with ``result_for(log, args)``.
 COMMAND_JOBS = {"estimate": "estimate", "diagnose": "diagnose"}
 
 
@@ -176,11 +176,11 @@ def command_args(command: str, path: str, argv: Sequence[str] = ()) -> argparse.
     """Parse ``[path, *argv]`` with the parser of the CLI command ``command`` (its defaults, its validation)."""
     import importlib
 
-    from wholebody.cli.app import CliParser
+    from cartpush.cli.app import CliParser
 
     if command not in COMMAND_JOBS:
         raise BatchError(f"unknown job {command!r}; one of {', '.join(COMMAND_JOBS)}")
-    module = importlib.import_module(f"wholebody.cli.{COMMAND_JOBS[command]}")
+    module = importlib.import_module(f"cartpush.cli.{COMMAND_JOBS[command]}")
     parser = CliParser(prog=f"cartpush batch {command} --job-args")
     module.register(parser.add_subparsers(dest="command"))
     if any(a in ("-h", "--help") for a in argv):
@@ -210,7 +210,7 @@ class CommandJob:
         args = command_args(self.command, "LOG", self.argv)
         if getattr(args, "out", None):
             raise BatchError(f"--job-args: --out (plots) is not supported by `cartpush batch {self.command}`")
-        module = importlib.import_module(f"wholebody.cli.{COMMAND_JOBS[self.command]}")
+        module = importlib.import_module(f"cartpush.cli.{COMMAND_JOBS[self.command]}")
         check = getattr(module, "check_args", None)
         if check is not None:
             check(args)
@@ -219,7 +219,7 @@ class CommandJob:
         import importlib
 
         args = command_args(self.command, path, self.argv)
-        module = importlib.import_module(f"wholebody.cli.{COMMAND_JOBS[self.command]}")
+        module = importlib.import_module(f"cartpush.cli.{COMMAND_JOBS[self.command]}")
         return module.result_for(_load(path, args), args)
 
 
@@ -227,8 +227,8 @@ def _load(path: str, args: argparse.Namespace):
     """Read the log at ``path`` as the command does: a bag (with its topic options) or a CSV."""
     if hasattr(args, "pose_topic"):  # the command reads bags too
         try:
-            from wholebody.cli.import_bag import topic_options
-            from wholebody.ros import load_any
+            from cartpush.cli.import_bag import topic_options
+            from cartpush.ros import load_any
         except ImportError:
             pass
         else:

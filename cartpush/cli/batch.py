@@ -83,7 +83,7 @@ def _term_is_interrupt() -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the batch; print the summary; return 0 (failed logs are error lines in the results, counted)."""
     from cart.jsonout import dumps_strict
-    from wholebody.batch import BatchError, CommandJob, expand_inputs, run_batch
+    from cartpush.batch import BatchError, CommandJob, expand_inputs, run_batch
 
     if args.workers is not None and args.workers < 1:
         raise BatchError(f"--workers must be at least 1, got {args.workers}")

@@ -1,7 +1,7 @@
 """`cartpush import BAG -o LOG.csv --pose-topic T --wrench-topic T`: a ROS recording as a cart log.
 
 `add_topic_options` / `topic_options` are the bag options for other commands that accept a bag in
-place of a log (``wholebody.ros.load_any(path, **topic_options(args))``); this module stays light
+place of a log (``cartpush.ros.load_any(path, **topic_options(args))``); this module stays light
 (argparse only) so that they can import it at module level.
 """
 
@@ -70,8 +70,8 @@ def add_topic_options(parser: argparse.ArgumentParser) -> None:
 
 
 def topic_options(args: argparse.Namespace) -> dict[str, Any]:
-    """Return the keyword arguments of `wholebody.ros.import_bag` from the options of `add_topic_options`."""
-    from wholebody.cli import options
+    """Return the keyword arguments of `cartpush.ros.import_bag` from the options of `add_topic_options`."""
+    from cartpush.cli import options
 
     for name in ("start", "end"):
         value = getattr(args, name, None)
@@ -111,7 +111,7 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """List the bag, or convert it and write the log; print a report (or JSON); return 0."""
-    from wholebody.cli import options
+    from cartpush.cli import options
 
     if not args.list:
         if not args.output:
@@ -127,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
         kwargs = topic_options(args)
         options.writable_file(args.output, "-o")
     from cart.jsonout import dumps_strict
-    from wholebody.ros import import_bag, list_bag
+    from cartpush.ros import import_bag, list_bag
 
     if args.list:
         summary = list_bag(args.bag)
