@@ -1,7 +1,8 @@
 """A MuJoCo shopping cart that writes cart logs (LOG_FORMAT) with its rigid-body truth.
 
 This is a physics-engine test bed, not library API: nothing in it is written
-to match the project's cart equations. A chassis box (plus an optional payload
+to match the project's cart equations. The cart model is the library's
+(:mod:`wholebody.push.mujoco_cart`, re-exported here). A chassis box (plus an optional payload
 box placed off-centre) rides on a free joint over a plane floor, on two fixed
 rear wheels and two swivelling front casters with trail. Every wheel is a
 cylinder with its own mass and spin inertia; contacts have ``condim=6``
@@ -43,137 +44,33 @@ import numpy as np
 
 from cart.logs import CartLog, write_log
 
-try:  # optional dependency (extra "studies")
+try:  # optional dependency (extra "studies"; also a run-time dependency of wholebody.push.mujoco_plant)
     import mujoco
+
+    from wholebody.push.mujoco_cart import (  # noqa: F401  (re-exported: the test bed's cart is the library's)
+        CART_BODY,
+        CASTER_FORKS,
+        GRAVITY,
+        REAR_WHEELS,
+        SETTLE_TIME,
+        WHEEL_BODIES,
+        MujocoCart,
+        build,
+        composite_inertia,
+        mjcf,
+        place,
+        settle,
+        truth,
+        truth_from_state,
+        wheel_spin_inertias,
+    )
 except ImportError:  # pragma: no cover - exercised only without mujoco
     mujoco = None  # type: ignore[assignment]
-
-GRAVITY = 9.81
-SETTLE_TIME = 1.0
-WHEEL_BODIES = ("wheel_left", "wheel_right", "caster_left_wheel", "caster_right_wheel")
-REAR_WHEELS = WHEEL_BODIES[:2]
-CASTER_FORKS = ("caster_left", "caster_right")
 
 
 def _require_mujoco() -> None:
     if mujoco is None:
         raise ImportError("studies.testbeds.mujoco_cart needs the 'mujoco' package (pip install -e '.[studies]')")
-
-
-@dataclass(frozen=True)
-class MujocoCart:
-    """Physical parameters of the MuJoCo cart (SI units; positions in {b}).
-
-    {b}: origin at the midpoint of the rear (fixed-wheel) axle, x towards the
-    casters, z up; the chassis body frame coincides with {b} (at axle height).
-
-    - ``chassis_mass``: the chassis box, centred at ``(wheelbase / 2, 0)``,
-      ``deck_height`` above the axle, length ``wheelbase + 2 chassis_overhang``,
-      width ``chassis_width``, thickness ``chassis_thickness``.
-    - ``payload_mass`` (0 for none), ``payload_offset`` = (x, y) of its centre in
-      {b}, ``payload_size`` = full (length, width, height); it rests on the deck.
-    - rear wheels at ``y = +-half_track`` (``wheel_radius``, ``wheel_width``,
-      ``wheel_mass``; solid cylinders, spin inertia ``m r^2 / 2``).
-    - casters: swivel axes at ``x = wheelbase``, ``y = +-caster_half_track``, a fork of
-      ``caster_fork_mass`` and height ``caster_fork_height`` (swivel joint to wheel
-      axle), the caster wheel ``caster_trail`` behind the swivel axis;
-      ``swivel_damping`` (N m s/rad) and ``swivel_frictionloss`` (N m) on the swivel,
-      ``axle_damping`` (N m s/rad) on every wheel axle.
-    - contact: ``sliding_friction`` (-), ``torsional_friction`` (m),
-      ``rolling_friction`` (m; MuJoCo's rolling coefficient: the resisting force of a
-      rolling wheel is about ``rolling_friction * N / r``), ``solref``, ``solimp``.
-    - the handle (grasp point) at ``(-handle_distance, handle_y)`` in {b}.
-    """
-
-    chassis_mass: float = 12.0
-    payload_mass: float = 10.0
-    payload_offset: tuple[float, float] = (0.40, 0.03)
-    payload_size: tuple[float, float, float] = (0.30, 0.25, 0.20)
-    wheelbase: float = 0.65
-    half_track: float = 0.22
-    wheel_radius: float = 0.075
-    wheel_width: float = 0.03
-    wheel_mass: float = 0.5
-    caster_half_track: float = 0.20
-    caster_trail: float = 0.035
-    caster_fork_height: float = 0.06
-    caster_fork_mass: float = 0.15
-    caster_wheel_radius: float = 0.05
-    caster_wheel_width: float = 0.025
-    caster_wheel_mass: float = 0.2
-    chassis_overhang: float = 0.10
-    chassis_width: float = 0.40
-    chassis_thickness: float = 0.04
-    deck_height: float = 0.10
-    rolling_friction: float = 8e-4
-    torsional_friction: float = 2e-3
-    sliding_friction: float = 0.9
-    swivel_damping: float = 0.02
-    swivel_frictionloss: float = 0.02
-    axle_damping: float = 0.0
-    solref: tuple[float, float] = (0.02, 1.0)
-    solimp: tuple[float, float, float] = (0.9, 0.95, 0.001)
-    handle_distance: float = 0.30
-    handle_y: float = 0.0
-    timestep: float = 0.001
-
-    def __post_init__(self) -> None:
-        positive = (
-            "chassis_mass",
-            "wheelbase",
-            "half_track",
-            "wheel_radius",
-            "wheel_width",
-            "wheel_mass",
-            "caster_half_track",
-            "caster_fork_height",
-            "caster_fork_mass",
-            "caster_wheel_radius",
-            "caster_wheel_width",
-            "caster_wheel_mass",
-            "chassis_width",
-            "chassis_thickness",
-            "timestep",
-        )
-        for name in positive:
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"MujocoCart.{name} must be > 0, got {getattr(self, name)!r}")
-        nonneg = (
-            "payload_mass",
-            "caster_trail",
-            "chassis_overhang",
-            "rolling_friction",
-            "torsional_friction",
-            "sliding_friction",
-            "swivel_damping",
-            "swivel_frictionloss",
-            "axle_damping",
-        )
-        for name in nonneg:
-            if not getattr(self, name) >= 0.0:
-                raise ValueError(f"MujocoCart.{name} must be >= 0, got {getattr(self, name)!r}")
-        if self.handle_distance <= 0.0:
-            raise ValueError("MujocoCart.handle_distance must be > 0 (the handle is behind the axle, at -x)")
-
-    @property
-    def caster_mount_z(self) -> float:
-        """Height in {b} of the caster swivel joint (so that the chassis is level at rest)."""
-        return self.caster_wheel_radius - self.wheel_radius + self.caster_fork_height
-
-    @property
-    def payload_z(self) -> float:
-        """Height in {b} of the payload centre (resting on the deck)."""
-        return self.deck_height + 0.5 * self.chassis_thickness + 0.5 * self.payload_size[2]
-
-    @property
-    def total_mass(self) -> float:
-        """Sum of all body masses (kg)."""
-        return (
-            self.chassis_mass
-            + self.payload_mass
-            + 2 * self.wheel_mass
-            + 2 * (self.caster_fork_mass + self.caster_wheel_mass)
-        )
 
 
 @dataclass(frozen=True)
@@ -221,164 +118,6 @@ class MujocoCase:
             raise ValueError(f"MujocoCase.jitter must be in [0, 0.5), got {self.jitter!r}")
 
 
-# --------------------------------------------------------------------------- model
-
-
-def _f(*values: float) -> str:
-    return " ".join(f"{float(v):.17g}" for v in values)
-
-
-def _payload_xml(c: MujocoCart) -> str:
-    """Return the MJCF body of the payload box ("" without a payload)."""
-    payload = ""
-    if c.payload_mass > 0.0:
-        px, py = c.payload_offset
-        sx, sy, sz = c.payload_size
-        payload = f"""
-      <body name="payload" pos="{_f(px, py, c.payload_z)}">
-        <geom name="payload" type="box" size="{_f(sx / 2, sy / 2, sz / 2)}" mass="{c.payload_mass:.17g}"
-              class="body" rgba="0.8 0.5 0.2 1"/>
-      </body>"""
-    return payload
-
-
-def _rear_wheels_xml(c: MujocoCart) -> str:
-    """Return the MJCF bodies of the two fixed rear wheels (hinge axles on the {b} y axis)."""
-    r = c.wheel_radius
-    rear = ""
-    for side, sgn in (("left", 1.0), ("right", -1.0)):
-        rear += f"""
-      <body name="wheel_{side}" pos="{_f(0.0, sgn * c.half_track, 0.0)}">
-        <joint name="axle_{side}" type="hinge" axis="0 1 0" damping="{c.axle_damping:.17g}"/>
-        <geom name="wheel_{side}" type="cylinder" class="body" size="{_f(r)}" mass="{c.wheel_mass:.17g}"
-              fromto="{_f(0, -c.wheel_width / 2, 0, 0, c.wheel_width / 2, 0)}" rgba="0.1 0.1 0.1 1"/>
-        <geom name="tyre_{side}" type="sphere" class="wheel" size="{_f(r)}" mass="0"/>
-      </body>"""
-    return rear
-
-
-def _casters_xml(c: MujocoCart) -> str:
-    """Return the MJCF bodies of the two swivelling casters (fork with trail, wheel on its own axle)."""
-    rc = c.caster_wheel_radius
-    casters = ""
-    h, trail = c.caster_fork_height, c.caster_trail
-    for side, sgn in (("left", 1.0), ("right", -1.0)):
-        casters += f"""
-      <body name="caster_{side}" pos="{_f(c.wheelbase, sgn * c.caster_half_track, c.caster_mount_z)}">
-        <joint name="swivel_{side}" type="hinge" axis="0 0 1" damping="{c.swivel_damping:.17g}"
-               frictionloss="{c.swivel_frictionloss:.17g}"/>
-        <geom name="fork_{side}" type="box" class="body" mass="{c.caster_fork_mass:.17g}"
-              pos="{_f(-trail / 2, 0, -h / 2)}" size="{_f(trail / 2 + 0.01, 0.02, h / 2)}" rgba="0.3 0.3 0.3 1"/>
-        <body name="caster_{side}_wheel" pos="{_f(-trail, 0, -h)}">
-          <joint name="caster_axle_{side}" type="hinge" axis="0 1 0" damping="{c.axle_damping:.17g}"/>
-          <geom name="caster_wheel_{side}" type="cylinder" class="body" size="{_f(rc)}"
-                mass="{c.caster_wheel_mass:.17g}" rgba="0.1 0.1 0.1 1"
-                fromto="{_f(0, -c.caster_wheel_width / 2, 0, 0, c.caster_wheel_width / 2, 0)}"/>
-          <geom name="caster_tyre_{side}" type="sphere" class="wheel" size="{_f(rc)}" mass="0"/>
-        </body>
-      </body>"""
-    return casters
-
-
-def mjcf(cart: MujocoCart) -> str:
-    """Return the MJCF (XML string) of ``cart``; the chassis body frame is {b}."""
-    c = cart
-    r = c.wheel_radius
-    length = c.wheelbase + 2.0 * c.chassis_overhang
-    friction = _f(c.sliding_friction, c.torsional_friction, c.rolling_friction)
-    payload, rear, casters = _payload_xml(c), _rear_wheels_xml(c), _casters_xml(c)
-    return f"""<mujoco model="mujoco_cart">
-  <compiler angle="radian" inertiafromgeom="true" autolimits="true"/>
-  <option timestep="{c.timestep:.17g}" gravity="0 0 {-GRAVITY}" integrator="implicitfast" cone="elliptic"/>
-  <default>
-    <geom solref="{_f(*c.solref)}" solimp="{_f(*c.solimp)}"/>
-    <default class="body"><geom contype="0" conaffinity="0"/></default>
-    <default class="wheel"><geom contype="2" conaffinity="1" condim="6" friction="{friction}"
-                                 group="3" rgba="0.1 0.1 0.1 0.3"/></default>
-  </default>
-  <worldbody>
-    <geom name="floor" type="plane" size="0 0 1" contype="1" conaffinity="2" condim="6" friction="{friction}"/>
-    <body name="chassis" pos="0 0 {r:.17g}">
-      <freejoint name="root"/>
-      <geom name="chassis" type="box" class="body" mass="{c.chassis_mass:.17g}"
-            pos="{_f(c.wheelbase / 2, 0, c.deck_height)}"
-            size="{_f(length / 2, c.chassis_width / 2, c.chassis_thickness / 2)}" rgba="0.6 0.6 0.7 1"/>{payload}{rear}{casters}
-    </body>
-  </worldbody>
-</mujoco>
-"""
-
-
-def build(cart: MujocoCart) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """Return (MjModel, MjData) of ``cart`` (data reset, cart standing at the origin)."""
-    _require_mujoco()
-    model = mujoco.MjModel.from_xml_string(mjcf(cart))
-    return model, mujoco.MjData(model)
-
-
-def _yaw(quat: np.ndarray) -> float:
-    w, x, y, z = (float(v) for v in quat)
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
-def place(model: mujoco.MjModel, data: mujoco.MjData, cart: MujocoCart, pose: tuple[float, float, float]) -> None:
-    mujoco.mj_resetData(model, data)
-    x, y, th = pose
-    data.qpos[0:3] = (x, y, cart.wheel_radius + 1e-4)
-    data.qpos[3:7] = (math.cos(th / 2), 0.0, 0.0, math.sin(th / 2))
-    mujoco.mj_forward(model, data)
-
-
-def settle(
-    model: mujoco.MjModel,
-    data: mujoco.MjData,
-    cart: MujocoCart,
-    pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    duration: float = SETTLE_TIME,
-) -> None:
-    """Place {b} at ``pose`` with the casters trailing (swivel 0) and let it settle for ``duration`` s."""
-    place(model, data, cart, pose)
-    data.xfrc_applied[:] = 0.0
-    for _ in range(int(round(duration / model.opt.timestep))):
-        mujoco.mj_step(model, data)
-    mujoco.mj_forward(model, data)
-
-
-def composite_inertia(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[float, np.ndarray, float]:
-    """Return (mass, CoM in {s}, yaw inertia about the vertical axis through the CoM) of all bodies.
-
-    The yaw inertia sums every body's own inertia rotated to {s} (``ximat diag(body_inertia)
-    ximat^T``, its zz entry) and the parallel-axis term ``m_i ((x_i - x_c)^2 + (y_i - y_c)^2)``.
-    Needs ``data`` after ``mj_forward`` (or a step).
-    """
-    masses = np.asarray(model.body_mass[1:], dtype=float)
-    pos = np.asarray(data.xipos[1:], dtype=float)
-    mass = float(masses.sum())
-    com = (masses[:, None] * pos).sum(axis=0) / mass
-    rot = np.asarray(data.ximat[1:], dtype=float).reshape(-1, 3, 3)
-    izz_own = np.einsum("nj,nj->n", rot[:, 2, :] ** 2, np.asarray(model.body_inertia[1:], dtype=float))
-    d = pos[:, :2] - com[:2]
-    inertia = float(izz_own.sum() + (masses * (d**2).sum(axis=1)).sum())
-    return mass, com, inertia
-
-
-def wheel_spin_inertias(model: mujoco.MjModel) -> dict[str, tuple[float, float]]:
-    """Return {wheel body: (spin inertia about its axle (kg m^2), rolling radius (m))} from the model."""
-    out: dict[str, tuple[float, float]] = {}
-    for name in WHEEL_BODIES:
-        bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-        jid = int(model.body_jntadr[bid])
-        axis = np.asarray(model.jnt_axis[jid], dtype=float)  # in the body frame
-        rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, np.asarray(model.body_iquat[bid], dtype=float))
-        rot = rot.reshape(3, 3)  # inertial frame -> body frame
-        a = rot.T @ axis
-        spin = float(a @ (np.asarray(model.body_inertia[bid], dtype=float) * a))
-        gid = int(model.body_geomadr[bid])
-        out[name] = (spin, float(model.geom_size[gid][0]))
-    return out
-
-
 def tau_about_b(
     fx: float, fy: float, tau_applied: float, com_xy: tuple[float, float], b_xy: tuple[float, float]
 ) -> float:
@@ -388,41 +127,6 @@ def tau_about_b(
     ``xfrc_applied``: the body's ``xipos``): ``tau_b = tau_applied + ((com - p_b) x f)_z``.
     """
     return tau_applied + (com_xy[0] - b_xy[0]) * fy - (com_xy[1] - b_xy[1]) * fx
-
-
-def truth_from_state(model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, float]:
-    chassis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "chassis")
-    mass, com, inertia = composite_inertia(model, data)
-    sub_mass = float(model.body_subtreemass[chassis])
-    sub_com = np.asarray(data.subtree_com[chassis], dtype=float)
-    if abs(sub_mass - mass) > 1e-9 * mass or np.max(np.abs(sub_com - com)) > 1e-9:
-        raise RuntimeError("composite mass/CoM disagree with MuJoCo's subtree mass/CoM")
-    th = _yaw(data.xquat[chassis])
-    rel = sub_com[:2] - data.xpos[chassis][:2]
-    c, s = math.cos(th), math.sin(th)
-    dx, dy = c * rel[0] + s * rel[1], -s * rel[0] + c * rel[1]
-    spins = wheel_spin_inertias(model)
-    m_eff = sub_mass + sum(j / rad**2 for j, rad in spins.values())
-    return {
-        "m": sub_mass,
-        "dx": float(dx),
-        "dy": float(dy),
-        "I_about_com": inertia,
-        "m_effective_forward_incl_wheel_spin": float(m_eff),
-    }
-
-
-def truth(cart: MujocoCart) -> dict[str, float]:
-    """Return the rigid-body truth of ``cart`` after 1 s of settling with the casters trailing.
-
-    Keys: ``m`` (kg, ``body_subtreemass`` of the chassis), ``dx``, ``dy`` (m, ``subtree_com`` in
-    {b}), ``I_about_com`` (kg m^2, yaw inertia of the composite body about the vertical axis
-    through the CoM) and ``m_effective_forward_incl_wheel_spin`` (kg, ``m + sum J_spin / r^2``
-    over the four wheels, all of which spin when the cart rolls forward).
-    """
-    model, data = build(cart)
-    settle(model, data, cart)
-    return truth_from_state(model, data)
 
 
 # --------------------------------------------------------------------------- reference
@@ -672,7 +376,7 @@ def _swivel_addresses(model: mujoco.MjModel) -> list[int]:
 
 def _run(model: mujoco.MjModel, data: mujoco.MjData, tracker: _Tracker, n_steps: int, samples: np.ndarray) -> _Record:
     """Step the pushed cart ``n_steps`` physics steps; return the clean record at the step indices ``samples``."""
-    chassis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "chassis")
+    chassis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, CART_BODY)
     dt = model.opt.timestep
     is_sample = np.zeros(n_steps, dtype=bool)
     is_sample[samples] = True
