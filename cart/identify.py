@@ -46,7 +46,9 @@ from cart._kernels_identify import butter_lowpass_sos, sosfiltfilt, student_t_qu
 from cart.dynamics import regressor
 from cart.errors import CartError
 from cart.logs import CartLog
+from cart.noise_model import AR1Noise, fit_ar1
 from cart.params import CartParams
+from cart.streams import Streams, split_streams
 
 #: Largest share of the filtered acceleration's power that differentiated pose noise may have (the
 #: attenuation bias of the inertial parameters is about this share).
@@ -87,6 +89,10 @@ class Identification:
     warnings: tuple[str, ...]
     samples_used: int
     gaps: int
+    streams: Streams | None = field(default=None, repr=False)
+    wrench_noise: tuple[AR1Noise, AR1Noise] | None = None
+    offsets: dict[str, float] = field(default_factory=dict)
+    grid_dt: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -99,20 +105,50 @@ class _Grid:
     gaps: int
 
 
-def _uniform_grid(log: CartLog, gap_factor: float = 5.0) -> _Grid:
-    """Return the log resampled at its median period; grid points inside gaps > gap_factor periods are invalid."""
-    t = log.t
-    steps = np.diff(t)
-    dt = float(np.median(steps))
-    n = int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1
-    tg = t[0] + dt * np.arange(n)
-    q = np.column_stack([np.interp(tg, t, log.q[:, i]) for i in range(3)])
-    g = np.column_stack([np.interp(tg, t, log.gamma[:, i]) for i in range(3)])
-    valid = np.ones(n, dtype=bool)
-    big = np.flatnonzero(steps > gap_factor * dt)
+def _box_average(t: np.ndarray, y: np.ndarray, tg: np.ndarray, dt: float) -> np.ndarray:
+    """Return the mean of the piecewise-linear y(t) over [tg - dt/2, tg + dt/2] (anti-aliasing a faster stream)."""
+    area = np.concatenate([np.zeros((1, y.shape[1])), np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(t)[:, None], 0)])
+    lo, hi = np.clip(tg - 0.5 * dt, t[0], t[-1]), np.clip(tg + 0.5 * dt, t[0], t[-1])
+    width = np.maximum(hi - lo, 1e-300)
+    out = np.column_stack([(np.interp(hi, t, area[:, i]) - np.interp(lo, t, area[:, i])) / width for i in range(3)])
+    point = hi - lo <= 0.0
+    if point.any():
+        out[point] = np.column_stack([np.interp(tg[point], t, y[:, i]) for i in range(3)])
+    return out
+
+
+def _mark_gaps(valid: np.ndarray, tg: np.ndarray, t: np.ndarray, limit: float) -> int:
+    """Mark grid points strictly inside intervals of ``t`` longer than ``limit`` invalid; return their number."""
+    big = np.flatnonzero(np.diff(t) > limit)
     for i in big:
         valid[(tg > t[i]) & (tg < t[i + 1])] = False
-    return _Grid(tg, q, g, valid, dt, int(len(big)))
+    return int(len(big))
+
+
+def _uniform_grid(log: CartLog, streams: Streams | None = None, gap_factor: float = 5.0) -> _Grid:
+    """Return the log resampled on a uniform grid; grid points inside gaps > gap_factor periods are invalid.
+
+    Single-rate logs: the grid is the log's median period, pose and wrench interpolated linearly.
+    Multi-rate logs (:mod:`cart.streams`): the grid is the pose stream's period, the pose interpolated
+    at its own instants, a faster wrench averaged over each grid cell.
+    """
+    st = streams if streams is not None else split_streams(log)
+    t = log.t
+    dt = float(np.median(np.diff(t)))
+    if st.multi_rate or st.wrench.period < dt / 1.5 or st.pose.period > 1.5 * dt:
+        dt = st.pose.period
+    t0, t1 = max(st.pose.t[0], st.wrench.t[0]), min(st.pose.t[-1], st.wrench.t[-1])
+    n = int(math.floor((t1 - t0) / dt + 1e-9)) + 1
+    tg = t0 + dt * np.arange(n)
+    q = np.column_stack([np.interp(tg, st.pose.t, st.pose.values[:, i]) for i in range(3)])
+    if st.wrench.period < dt / 1.5:
+        g = _box_average(st.wrench.t, st.wrench.values, tg, dt)
+    else:
+        g = np.column_stack([np.interp(tg, st.wrench.t, st.wrench.values[:, i]) for i in range(3)])
+    valid = np.ones(n, dtype=bool)
+    gaps = _mark_gaps(valid, tg, st.pose.t, gap_factor * dt)
+    gaps += _mark_gaps(valid, tg, st.wrench.t, gap_factor * max(dt, st.wrench.period))
+    return _Grid(tg, q, g, valid, dt, gaps)
 
 
 def white_noise_std(y: np.ndarray) -> float:
@@ -201,13 +237,28 @@ def _choose_cutoff(grid: _Grid, pos_std: float, th_std: float, attenuation: floa
     return float(best), warnings
 
 
-def _design(grid: _Grid, sos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Return (X (k, 2, 6), y (k, 2), v, omega) of the filtered regression on the grid."""
+def _offset_columns(th: np.ndarray) -> np.ndarray:
+    """Return the (k, 2, 4) regressor of the wrench sensor's offsets.
+
+    Forward row: a constant forward force (offset in the sensor's frame, which moves with the cart)
+    and the world-frame offsets (fx0, fy0) projected on the heading; yaw row: a constant torque.
+    """
+    z, one = np.zeros_like(th), np.ones_like(th)
+    return np.stack([np.stack([one, np.cos(th), np.sin(th), z], -1), np.stack([z, z, z, one], -1)], -2)
+
+
+def _design(grid: _Grid, sos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return (X (k, 2, N_P), y (k, 2), v, omega, raw y (k, 2)) of the filtered regression on the grid.
+
+    X: the dynamics' regressor (paper eq. 4, ``cart.dynamics.regressor``) and the sensor offsets.
+    """
     th, v, om, vd, od = _kinematics(grid.q, grid.dt, sos)
     c, s = np.cos(th), np.sin(th)
     fu = c * grid.gamma[:, 0] + s * grid.gamma[:, 1]
-    y = np.column_stack([_filtfilt(sos, fu), _filtfilt(sos, grid.gamma[:, 2])])
-    return regressor(v, om, vd, od), y, v, om
+    y_raw = np.column_stack([fu, grid.gamma[:, 2]])
+    y = _filtfilt(sos, y_raw)
+    x = np.concatenate([regressor(v, om, vd, od), _offset_columns(th)], axis=-1)
+    return x, y, v, om, y_raw
 
 
 def _with_coulomb_columns(x: np.ndarray, v: np.ndarray, om: np.ndarray, eps: tuple[float, float]) -> np.ndarray:
@@ -339,13 +390,18 @@ class _Noise:
     span: float
 
 
-def _noise_levels(log: CartLog) -> _Noise:
-    """Return the log's noise levels (floored, scale-free); raise IdentifiabilityError when it cannot say anything."""
-    pos_std = max(white_noise_std(log.q[:, 0]), white_noise_std(log.q[:, 1]))
-    th_std = white_noise_std(log.q[:, 2])
-    f_std = max(white_noise_std(log.gamma[:, 0]), white_noise_std(log.gamma[:, 1]))
-    tau_std = white_noise_std(log.gamma[:, 2])
-    span = float(np.max(np.ptp(log.q[:, :2], axis=0)))
+def _noise_levels(log: CartLog, streams: Streams) -> _Noise:
+    """Return the log's noise levels (floored, scale-free); raise IdentifiabilityError when it cannot say anything.
+
+    Pose noise: white, measured on the pose stream at its own instants; wrench: the white level here,
+    replaced by the residual's coloured-noise model (:mod:`cart.noise_model`) after the fit.
+    """
+    q, g = streams.pose.values, streams.wrench.values
+    pos_std = max(white_noise_std(q[:, 0]), white_noise_std(q[:, 1]))
+    th_std = white_noise_std(q[:, 2])
+    f_std = max(white_noise_std(g[:, 0]), white_noise_std(g[:, 1]))
+    tau_std = white_noise_std(g[:, 2])
+    span = float(np.max(np.ptp(q[:, :2], axis=0)))
     if span <= 20.0 * max(pos_std, 1e-12) or not np.any(np.abs(log.gamma) > 0):
         what = (
             "the cart does not move beyond the pose noise"
@@ -366,11 +422,12 @@ class _Regression:
     v: np.ndarray
     om: np.ndarray
     keep: np.ndarray
+    y_raw: np.ndarray
 
 
 def _regression(log: CartLog, grid: _Grid, fc: float, sos: np.ndarray) -> _Regression:
     """Return the filtered regression at cut-off ``fc`` away from the ends and gaps; raise when too short or not finite."""
-    x, y, v, om = _design(grid, sos)
+    x, y, v, om, y_raw = _design(grid, sos)
     keep = _keep_mask(grid, fc)
     if keep.sum() < 8:
         raise IdentifiabilityError(
@@ -380,7 +437,7 @@ def _regression(log: CartLog, grid: _Grid, fc: float, sos: np.ndarray) -> _Regre
     x, y = x[keep], y[keep]
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         raise IdentifiabilityError(f"{log.source}: the filtered log is not finite (values out of range)")
-    return _Regression(x=x, y=y, v=v[keep], om=om[keep], keep=keep)
+    return _Regression(x=x, y=y, v=v[keep], om=om[keep], keep=keep, y_raw=y_raw[keep])
 
 
 def _coulomb_check(
@@ -394,11 +451,11 @@ def _coulomb_check(
     try:
         pc, covc, _, _ = _fit(_with_coulomb_columns(reg.x, reg.v, reg.om, eps), reg.y, noise, lag)
     except np.linalg.LinAlgError:
-        pc, covc = np.r_[p, 0.0, 0.0], np.full((8, 8), np.nan)
-    cc = covc[6:, 6:]
-    wald = float(pc[6:] @ np.linalg.pinv(cc) @ pc[6:]) if np.all(np.isfinite(cc)) else 0.0
-    coulomb = {"force": float(pc[6]), "torque": float(pc[7]), "wald": wald}
-    return coulomb, (pc[:6] - p if wald > -2.0 * math.log(COULOMB_ALPHA) else None)
+        pc, covc = np.r_[p, 0.0, 0.0], np.full((len(p) + 2, len(p) + 2), np.nan)
+    cc = covc[-2:, -2:]
+    wald = float(pc[-2:] @ np.linalg.pinv(cc) @ pc[-2:]) if np.all(np.isfinite(cc)) else 0.0
+    coulomb = {"force": float(pc[-2]), "torque": float(pc[-1]), "wald": wald}
+    return coulomb, (pc[:-2] - p if wald > -2.0 * math.log(COULOMB_ALPHA) else None)
 
 
 def _misfit_scale(p: np.ndarray, ratio: np.ndarray, expected: np.ndarray, y: np.ndarray, fits: bool) -> np.ndarray:
@@ -410,16 +467,16 @@ def _misfit_scale(p: np.ndarray, ratio: np.ndarray, expected: np.ndarray, y: np.
     """
     y_rms = np.sqrt(np.mean(y**2, axis=0)) + 1e-300
     sh = np.sqrt(np.maximum(ratio**2 - 1.0, 0.0)) * expected / y_rms if not fits else np.zeros(2)
-    m_, a_, b_, j_, cv_, cw_ = p
+    m_, a_, b_, j_, cv_, cw_ = p[:6]
     gyr = math.sqrt(abs(j_) / abs(m_)) if m_ != 0 else 0.0
-    return np.array(
-        [sh[0] * m_, sh.max() * abs(m_) * gyr, sh.max() * abs(m_) * gyr, sh[1] * j_, sh[0] * cv_, sh[1] * cw_]
-    )
+    out = np.zeros(len(p))
+    out[:6] = [sh[0] * m_, sh.max() * abs(m_) * gyr, sh.max() * abs(m_) * gyr, sh[1] * j_, sh[0] * cv_, sh[1] * cw_]
+    return out
 
 
 def _physical_params(log: CartLog, p: np.ndarray, cov: np.ndarray) -> tuple[CartParams, float]:
     """Return the CartParams of p = [m, m dx, m dy, J, c_v, c_w] and the inertia about the CoM; raise if unphysical."""
-    m, a, b, j, c_v, c_w = p
+    m, a, b, j, c_v, c_w = p[:6]
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(np.diag(cov)))):
         raise IdentifiabilityError(
             f"{log.source}: the least-squares problem is singular: the log does not excite "
@@ -436,20 +493,33 @@ def _physical_params(log: CartLog, p: np.ndarray, cov: np.ndarray) -> tuple[Cart
     ), inertia
 
 
+def _wrench_noise(reg: _Regression, p: np.ndarray, dt: float, sos: np.ndarray) -> tuple[AR1Noise, AR1Noise, np.ndarray]:
+    """Return the coloured-noise models of the forward and yaw rows and their filtered-output std (2,).
+
+    Measured on the raw (unfiltered) wrench minus the model's prediction (:func:`cart.noise_model.fit_ar1`).
+    """
+    r_raw = reg.y_raw - np.einsum("kij,j->ki", reg.x, p)
+    models = (fit_ar1(r_raw[:, 0], dt), fit_ar1(r_raw[:, 1], dt))
+    n = min(len(r_raw), 20000)
+    gains = np.array([_gains_of(_filtfilt(sos, mdl.unit_series(n)), dt)[1] for mdl in models])
+    return models[0], models[1], gains
+
+
 def _residual_ratio(
-    lv: _Noise, out_gain: float, sv: float, so: float, p: np.ndarray, r: np.ndarray, y: np.ndarray
+    lv: _Noise, out_gain: np.ndarray, sv: float, so: float, p: np.ndarray, r: np.ndarray, y: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return (residual RMS / what the noise explains, the explained RMS) of the forward and yaw rows.
 
-    The explained part: the filtered wrench noise plus the regressor's acceleration noise times the
-    parameters; at least FIT_FLOOR of the wrench (a model "fits" to within it on a noise-free log).
+    The explained part: the filtered wrench noise (its colour included: ``out_gain`` per row) plus the
+    regressor's acceleration noise times the parameters; at least FIT_FLOOR of the wrench (a model
+    "fits" to within it on a noise-free log).
     """
     m_, _, b_, j_ = p[:4]
     expected = (
         np.sqrt(
             [
-                (lv.force * out_gain) ** 2 + (m_ * sv) ** 2 + (b_ * so) ** 2,
-                (lv.torque * out_gain) ** 2 + (j_ * so) ** 2 + (b_ * sv) ** 2,
+                (lv.force * out_gain[0]) ** 2 + (m_ * sv) ** 2 + (b_ * so) ** 2,
+                (lv.torque * out_gain[1]) ** 2 + (j_ * so) ** 2 + (b_ * sv) ** 2,
             ]
         )
         + 1e-300
@@ -493,24 +563,30 @@ def _model_uncertainty(
     return cov, coulomb, fits
 
 
-def identify(log: CartLog, attenuation: float = ATTENUATION) -> Identification:
+def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | None = None) -> Identification:
     """Return the filtered-regressor least-squares estimate of the cart's parameters on a whole log.
 
-    Raises :class:`IdentifiabilityError` when the log cannot say anything (too
+    ``streams``: the log's pose and wrench streams (:func:`cart.streams.split_streams`, computed here
+    when None). Raises :class:`IdentifiabilityError` when the log cannot say anything (too
     short, no motion above the noise); weakly excited parameters give warnings.
     """
     if len(log) < 12:
         raise IdentifiabilityError(
             f"{log.source}: {len(log)} samples are too few to estimate anything (need a push of many samples)"
         )
-    grid = _uniform_grid(log)
-    lv = _noise_levels(log)
+    streams = split_streams(log) if streams is None else streams
+    if len(streams.pose.t) < 12 or len(streams.wrench.t) < 12:
+        raise IdentifiabilityError(
+            f"{log.source}: {len(streams.pose.t)} pose and {len(streams.wrench.t)} wrench samples are too few"
+        )
+    grid = _uniform_grid(log, streams)
+    lv = _noise_levels(log, streams)
     fc, warnings = _choose_cutoff(grid, lv.pos, lv.theta, attenuation)
     fs = 1.0 / grid.dt
     sos = butter_lowpass_sos(4, fc / (fs / 2.0))
     reg = _regression(log, grid, fc, sos)
     lag = int(math.ceil(2.0 * fs / fc))
-    acc_gain, out_gain = _noise_gains(len(grid.t), grid.dt, sos)
+    acc_gain, _ = _noise_gains(len(grid.t), grid.dt, sos)
     sv, so = lv.pos * acc_gain, lv.theta * acc_gain  # acceleration noise of the regressor
     # white parts of the regressor entries: vdot in (row 1, m) and (row 2, m dy), omegadot in (1, m dy), (2, J)
     noise = np.array([[sv * sv, 0.0, so * so, 0.0, 0.0, 0.0], [0.0, 0.0, sv * sv, so * so, 0.0, 0.0]])
@@ -520,6 +596,8 @@ def identify(log: CartLog, attenuation: float = ATTENUATION) -> Identification:
         raise IdentifiabilityError(
             f"{log.source}: the least-squares problem is singular ({exc}): the log does not excite the parameters"
         ) from None
+    f_noise, t_noise, out_gain = _wrench_noise(reg, p, grid.dt, sos)
+    lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(lv, out_gain, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings)
     params, inertia = _physical_params(log, p, cov)
@@ -529,8 +607,8 @@ def identify(log: CartLog, attenuation: float = ATTENUATION) -> Identification:
     return Identification(
         params=params,
         std=std,
-        p=p,
-        cov=cov,
+        p=p[:6],
+        cov=cov[:6, :6],
         cutoff_hz=fc,
         residual_ratio=(float(ratio[0]), float(ratio[1])),
         model_fits=fits,
@@ -539,6 +617,10 @@ def identify(log: CartLog, attenuation: float = ATTENUATION) -> Identification:
         warnings=tuple(warnings),
         samples_used=int(reg.keep.sum()),
         gaps=grid.gaps,
+        streams=streams,
+        wrench_noise=(f_noise, t_noise),
+        offsets={"forward": float(p[6]), "fx": float(p[7]), "fy": float(p[8]), "torque": float(p[9])},
+        grid_dt=grid.dt,
     )
 
 

@@ -1,0 +1,221 @@
+"""The pose and wrench of a log as the two sensor streams they are (multi-rate tables, dropouts, stuck sensors).
+
+A real set-up records motion capture (the pose, 100-250 Hz) and an F/T sensor (the wrench,
+500-1000 Hz) on their own clocks. Written into one table, the slower stream is either *held*
+(a naive logger repeats the last pose on every F/T row, also through motion-capture dropouts)
+or the faster one is averaged (a row per pose sample). :func:`split_streams` undoes the table:
+
+- held pose rows (x, y, theta exactly equal to the previous row) are dropped when they make a
+  fifth of the rows or more (a multi-rate table); the pose is then timed at the middle of the
+  interval in which it first appeared (it arrived after the previous row);
+- in a single-rate table, a run of repeated poses during which the cart moved (the pose jumps at
+  the run's end) is a dropout: the repeated rows are dropped, the interval becomes a gap;
+- wrench rows repeated in every channel over at least ``STUCK_SECONDS`` (and 5 rows) are a stuck
+  sensor: excluded (a gap), with a warning;
+- isolated pose samples far from their neighbours (motion-capture glitches: beyond
+  ``GLITCH_SCALE`` robust residual scales of a running median and several typical steps) are dropped.
+
+The estimator (:mod:`cart.identify`) then samples each stream at its own instants.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cart.logs import CartLog
+
+#: Share of rows repeating the previous pose above which the table is a multi-rate (held-pose) table.
+HELD_SHARE = 0.2
+#: A wrench frozen in all channels this long (s) is a stuck sensor.
+STUCK_SECONDS = 0.25
+#: Gaps in a stream longer than this many of its median periods are dropouts.
+DROPOUT_PERIODS = 2.5
+#: A pose sample this many robust residual scales from its running median is a glitch.
+GLITCH_SCALE = 12.0
+
+
+@dataclass(frozen=True)
+class Stream:
+    """One sensor stream: times (n,), values (n, 3) and the rows of the table they came from."""
+
+    t: np.ndarray
+    values: np.ndarray
+    rows: np.ndarray
+
+    @property
+    def median_period(self) -> float:
+        """Return the median interval between samples (s)."""
+        return float(np.median(np.diff(self.t))) if len(self.t) > 1 else float("nan")
+
+    @property
+    def period(self) -> float:
+        """Return the mean interval between samples outside dropouts (s): the stream's clock period."""
+        if len(self.t) < 2:
+            return float("nan")
+        steps = np.diff(self.t)
+        inside = steps[steps <= DROPOUT_PERIODS * np.median(steps)]
+        return float(np.mean(inside))
+
+
+@dataclass(frozen=True)
+class Streams:
+    """The log's pose and wrench streams and what was found while separating them.
+
+    ``held_rows``: table rows that repeat the previous pose (dropped); ``dropouts``: (t0, t1) intervals
+    without a pose sample; ``stuck``: (t0, t1) intervals of a frozen wrench (excluded); ``glitches``: the
+    times of dropped pose glitches; ``multi_rate``: the table holds the pose between motion-capture samples.
+    """
+
+    pose: Stream
+    wrench: Stream
+    held_rows: int
+    dropouts: tuple[tuple[float, float], ...]
+    stuck: tuple[tuple[float, float], ...]
+    glitches: tuple[float, ...]
+    multi_rate: bool
+
+    @property
+    def pose_hz(self) -> float:
+        """Return the pose stream's rate (1 / mean period outside dropouts)."""
+        return 1.0 / self.pose.period
+
+    @property
+    def wrench_hz(self) -> float:
+        """Return the wrench stream's rate (1 / mean period outside dropouts)."""
+        return 1.0 / self.wrench.period
+
+    def to_dict(self) -> dict[str, object]:
+        """Return the JSON fields ``{pose_hz, wrench_hz, held_rows, dropouts, stuck, glitches}``."""
+        return {
+            "pose_hz": self.pose_hz,
+            "wrench_hz": self.wrench_hz,
+            "held_rows": self.held_rows,
+            "dropouts": len(self.dropouts),
+            "dropout_s": float(sum(t1 - t0 for t0, t1 in self.dropouts)),
+            "stuck_wrench_s": float(sum(t1 - t0 for t0, t1 in self.stuck)),
+            "glitches": len(self.glitches),
+        }
+
+    def warnings(self) -> list[str]:
+        """Return plain-language notes on what was found (held rows, stuck sensor, glitches)."""
+        out = []
+        if self.multi_rate:
+            out.append(
+                f"multi-rate table: {self.held_rows} rows repeat the previous pose; pose at {self.pose_hz:.4g} Hz "
+                f"and wrench at {self.wrench_hz:.4g} Hz used as separate streams"
+            )
+        for t0, t1 in self.stuck:
+            out.append(
+                f"the wrench is frozen from t = {t0:.3f} s to {t1:.3f} s ({t1 - t0:.3g} s): a stuck force "
+                "sensor; that stretch is excluded"
+            )
+        if self.glitches:
+            out.append(
+                f"{len(self.glitches)} motion-capture glitch(es) dropped (first at t = {self.glitches[0]:.3f} s)"
+            )
+        return out
+
+
+def _runs(same: np.ndarray) -> list[tuple[int, int]]:
+    """Return [(first, last)] index ranges of rows i with same[i-1] true: runs repeating row first - 1."""
+    d = np.diff(np.r_[0, same.astype(np.int8), 0])
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    return [(int(s) + 1, int(e)) for s, e in zip(starts, ends)]  # rows s+1 .. e repeat row s
+
+
+def _repeats(v: np.ndarray) -> np.ndarray:
+    """Return (n-1,) booleans: row i+1 equals row i in every column."""
+    return np.all(v[1:] == v[:-1], axis=1)
+
+
+def _pose_stream(log: CartLog) -> tuple[Stream, int, bool]:
+    """Return (pose stream, held rows, multi-rate) with held rows and dropout repeats removed."""
+    t, q = log.t, log.q
+    n = len(t)
+    same = _repeats(q)
+    held = int(same.sum())
+    keep = np.ones(n, dtype=bool)
+    if n > 3 and held >= HELD_SHARE * n:
+        keep[1:] = ~same
+        rows = np.flatnonzero(keep)
+        tp = t[rows].copy()
+        tp[1:] = 0.5 * (t[rows[1:] - 1] + t[rows[1:]])  # the sample arrived after the previous row
+        return Stream(tp, q[rows], rows), held, True
+    if held:
+        step = np.hypot(*np.diff(q[:, :2], axis=0).T)
+        typical = float(np.median(step[step > 0])) if np.any(step > 0) else 0.0
+        for first, last in _runs(same):
+            jump = float(np.hypot(*(q[min(last + 1, n - 1), :2] - q[first - 1, :2])))
+            if last - first >= 2 and typical > 0 and jump > 2.5 * typical:
+                keep[first : last + 1] = False
+    rows = np.flatnonzero(keep)
+    return Stream(t[rows], q[rows], rows), int((~keep).sum()), False
+
+
+def _running_median(y: np.ndarray, half: int = 3) -> np.ndarray:
+    """Return the running median of y (n, k) over 2 half + 1 samples (edges padded by reflection)."""
+    pad = np.pad(y, ((half, half), (0, 0)), mode="reflect")
+    win = np.lib.stride_tricks.sliding_window_view(pad, 2 * half + 1, axis=0)
+    return np.median(win, axis=-1)
+
+
+def _glitches(stream: Stream) -> np.ndarray:
+    """Return booleans marking pose samples far beyond the noise and the motion from their running median."""
+    v = stream.values
+    if len(v) < 15:
+        return np.zeros(len(v), dtype=bool)
+    r = v - _running_median(v)
+    scale = 1.4826 * np.median(np.abs(r), axis=0) + 1e-12
+    step = np.median(np.abs(np.diff(v, axis=0)), axis=0) + 1e-12
+    span = np.ptp(v, axis=0)
+    bad = (np.abs(r) > GLITCH_SCALE * scale) & (np.abs(r) > 5.0 * step) & (np.abs(r) > 1e-3 * span)
+    return np.any(bad, axis=1)
+
+
+def _stuck(t: np.ndarray, g: np.ndarray) -> list[tuple[int, int]]:
+    """Return [(first, last)] row ranges where the wrench repeats the previous row in every channel long enough."""
+    out = []
+    for first, last in _runs(_repeats(g)):
+        if last - first >= 4 and t[last] - t[first - 1] >= STUCK_SECONDS and (last - first) < 0.9 * len(t):
+            out.append((first, last))
+    return out
+
+
+def _dropouts(stream: Stream) -> tuple[tuple[float, float], ...]:
+    """Return the intervals between consecutive samples longer than ``DROPOUT_PERIODS`` median periods."""
+    if len(stream.t) < 3:
+        return ()
+    steps = np.diff(stream.t)
+    big = np.flatnonzero(steps > DROPOUT_PERIODS * np.median(steps))
+    return tuple((float(stream.t[i]), float(stream.t[i + 1])) for i in big)
+
+
+def split_streams(log: CartLog) -> Streams:
+    """Return the pose and wrench streams of ``log`` (held rows, dropouts, glitches, stuck wrench handled)."""
+    pose, held, multi = _pose_stream(log)
+    bad = _glitches(pose)
+    glitch_t = tuple(float(x) for x in pose.t[bad])
+    if bad.any():
+        pose = Stream(pose.t[~bad], pose.values[~bad], pose.rows[~bad])
+    t, g = log.t, log.gamma
+    keep = np.ones(len(t), dtype=bool)
+    same = _repeats(g)
+    if len(t) > 3 and same.sum() >= HELD_SHARE * len(t):  # the wrench is the slower, held stream
+        keep[1:] = ~same
+    stuck = []
+    for first, last in _stuck(t, g):
+        keep[first : last + 1] = False
+        stuck.append((float(t[first - 1]), float(t[last])))
+    rows = np.flatnonzero(keep)
+    wrench = Stream(t[rows], g[rows], rows)
+    return Streams(
+        pose=pose,
+        wrench=wrench,
+        held_rows=held,
+        dropouts=_dropouts(pose),
+        stuck=tuple(stuck),
+        glitches=glitch_t,
+        multi_rate=multi,
+    )
