@@ -60,7 +60,11 @@ def test_closed_loop_follows_short_trajectory_within_torque_limits(runs):
     assert m.grasp_error_max_m < 0.005
     body_d = np.array([cart_model.generalized_to_body(q, g) for q, g in zip(on.q_true, on.gamma_desired)])
     body_a = np.array([cart_model.generalized_to_body(q, g) for q, g in zip(on.q_true, on.gamma_applied)])
-    np.testing.assert_allclose(body_a[:, [0, 2]], body_d[:, [0, 2]], atol=1e-6)
+    # the controller aligns the wrench with its estimated heading (motion capture: 3 mrad) and the hand pushes
+    # where it is (at most grasp_error_max_m from the handle point): the torque differs by at most |f| x that
+    f = np.linalg.norm(on.wrenches[:, 0, :2], axis=1)
+    np.testing.assert_allclose(body_a[:, 0], body_d[:, 0], atol=0.01 * f.max())
+    assert np.all(np.abs(body_a[:, 2] - body_d[:, 2]) <= f * m.grasp_error_max_m + 0.01 * np.abs(body_d[:, 2]) + 1e-9)
     assert m.saturated_steps == 0
 
 

@@ -4,9 +4,11 @@
 >>> result = run_push(PushConfig(duration=5.0))          # doctest: +SKIP
 >>> result.metrics.tracking_rms_mm                        # doctest: +SKIP
 
-Modules: `config` (settings, results, interfaces), `robot` (one mobile manipulator:
-grasp, tracker, torques, F/T), `scheduler` (contact points on the handle), `loop`
-(`run_push`), `report` (table, figures, scene, log, the demo).
+Modules: `config` (settings, results, interfaces), `plant` (the seam: `Measurement`,
+`RobotCommand`, `Plant`), `controller` (`PushController`: measurements in, robot commands out),
+`kinematic_plant` (ideal servos, the exact cart model), `robot` (one mobile manipulator: grasp,
+tracker, torques, F/T), `scheduler` (contact points on the handle), `loop` (`run_push`: measure ->
+controller step -> plant step), `report` (table, figures, scene, log, the demo).
 """
 
 from __future__ import annotations
@@ -23,7 +25,19 @@ from wholebody.push.config import (
     PushMetrics,
     PushResult,
 )
-from wholebody.push.loop import make_estimator, run_push, unobservable_intervals
+from wholebody.push.controller import ControlDecision, PushController
+from wholebody.push.kinematic_plant import KinematicPlant
+from wholebody.push.loop import (
+    PushSetup,
+    StepRecord,
+    build_controller,
+    kinematic_plant,
+    make_estimator,
+    run_loop,
+    run_push,
+    unobservable_intervals,
+)
+from wholebody.push.plant import Measurement, Plant, RobotCommand, RobotReading
 from wholebody.push.report import (
     DemoResult,
     build_scene,
@@ -55,6 +69,18 @@ from wholebody.push.robot import (
 from wholebody.push.scheduler import ContactScheduler
 
 __all__ = [
+    "ControlDecision",
+    "KinematicPlant",
+    "Measurement",
+    "Plant",
+    "PushController",
+    "PushSetup",
+    "RobotCommand",
+    "RobotReading",
+    "StepRecord",
+    "build_controller",
+    "kinematic_plant",
+    "run_loop",
     "BASE_OFFSET_X",
     "GRASP_PITCH",
     "PUSH_CONTROLLER",

@@ -1,54 +1,34 @@
-"""The closed loop: mobile manipulator(s) push the cart, the EKF closes the loop (cart paper §II–III).
+"""A push run: a loop of measure -> controller step -> plant step, recorded once per period.
 
-One control period ``dt`` (100 Hz by default):
-
-1. cart controller (``cart.control``, using the current parameter estimate)
-   -> desired cart wrench Gamma_MM (paper eq. 26);
-2. contact points on the handle (fixed, or re-planned every ``replan_period``
-   from the estimated model and slid towards the plan at ``slide_speed``) and
-   the wrench allocation QP (``wholebody.contacts.allocation``, paper eq. 25) ->
-   end-effector wrenches;
-3. arm joint torques ``tau = rnea(q, v, a) + J^T w`` (Pinocchio; the arm's own
-   gravity and dynamics plus the push), checked against the iiwa's effortLimit;
-4. each mobile manipulator's base + arm follow the grasp point on the moving
-   handle with the project's whole-body QP (``wholebody.motion.control``, through the
-   :class:`WholeBodyQPTracker` adapter: joint, wheel-speed and twist limits,
-   base pulled to its nominal place behind the handle);
-5. cart dynamics: exact constrained model (``cart.simulate.rk4_step``) under
-   the wrenches the hands apply;
-6. measurements: cart pose and velocity as from motion capture, the F/T
-   sensor's wrench (noise in the sensor frame) mapped to the cart through the
-   robot's kinematics and the grasp map (paper eq. 23–24);
-7. EKF (``cart.ekf.CartEKF``, paper eq. 8–20) -> state and parameter estimate.
-
-The pieces meet through small interfaces (:class:`CartController`,
-:class:`ParameterEstimator`, :class:`BodyTracker`) so any of them can be swapped.
+The controller (`wholebody.push.controller.PushController`) holds the cart controller (eq. 26),
+the estimator (eq. 8-20), the contact scheduler and the allocation (eq. 25) and the robots'
+whole-body QPs; the plant answers its commands (`wholebody.push.kinematic_plant.KinematicPlant`:
+ideal servos and the exact cart model; or any `wholebody.push.plant.Plant`). The record of each
+period (`StepRecord`) is written once; `run_push` stacks them into a `PushResult` with its metrics.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from types import SimpleNamespace
 from collections.abc import Sequence
 
 import numpy as np
 
 import robots
-from cart import model as cart_model
 from cart.control import make_controller
 from cart.ekf import CartEKF, EKFConfig
 from cart.params import CartParams
-from cart.simulate import rk4_step
-from wholebody.contacts.allocation import WrenchAllocator
 from wholebody.push.config import CartController, ParameterEstimator, PushConfig, PushMetrics, PushResult
 from robots.profiles import profile
 from wholebody.errors import WholeBodyError
+from wholebody.push.controller import ControlDecision, PushController
+from wholebody.push.kinematic_plant import KinematicPlant
+from wholebody.push.plant import Measurement, Plant, RobotCommand
 from wholebody.push.robot import (
     TWO_ARM_BASE_SPREAD,
     MobileManipulator,
     base_target,
-    cart_se3,
-    ft_measurement,
-    ft_to_cart_gamma,
     grasp_rotation,
     grasp_target,
     handle_point,
@@ -61,70 +41,6 @@ def make_estimator(config: PushConfig, q0: np.ndarray) -> CartEKF:
     p0 = config.initial_params()
     ekf_config = EKFConfig.from_noise(config.noise.measurement_std(), estimate_params=config.estimation)
     return CartEKF(q0, np.zeros(3), p0.phi, p0.sigma, ekf_config)
-
-
-@dataclass
-class PushHistory:
-    """The run's time histories, filled one period at a time (N samples, n_arms robots)."""
-
-    q_true: np.ndarray
-    qd_true: np.ndarray
-    q_desired: np.ndarray
-    z_meas: np.ndarray
-    gamma_desired: np.ndarray
-    gamma_applied: np.ndarray
-    gamma_measured: np.ndarray
-    phi_hat: np.ndarray
-    contact_y: np.ndarray
-    wrenches: np.ndarray
-    arm_torque: np.ndarray
-    push_torque: np.ndarray
-    robot_x: np.ndarray
-    grasp_error: np.ndarray
-    base_ratio: np.ndarray
-    wheel_ratio: np.ndarray
-    base_twist: np.ndarray
-    wheel_rates: np.ndarray
-    param_std: np.ndarray
-    saturated: int = 0
-
-    @classmethod
-    def empty(cls, n: int, n_arms: int, n_wheels: int = 4) -> PushHistory:
-        """Return zero histories for n samples."""
-        na = n_arms
-        shapes = dict(
-            q_true=(n, 3),
-            qd_true=(n, 3),
-            q_desired=(n, 3),
-            z_meas=(n, 6),
-            gamma_desired=(n, 3),
-            gamma_applied=(n, 3),
-            gamma_measured=(n, 3),
-            phi_hat=(n, 4),
-            contact_y=(n, na),
-            wrenches=(n, na, 6),
-            arm_torque=(n, na, 7),
-            push_torque=(n, na, 7),
-            robot_x=(n, na, 10),
-            grasp_error=(n, na),
-            base_ratio=(n, na),
-            wheel_ratio=(n, na),
-            base_twist=(n, na, 3),
-            wheel_rates=(n, na, n_wheels),
-            param_std=(n, 2),
-        )
-        return cls(**{k: np.zeros(shape) for k, shape in shapes.items()})
-
-
-@dataclass
-class ControlStep:
-    """What the cart side decides in one period: the desired wrench, the contacts and the hand wrenches."""
-
-    params_hat: CartParams
-    gamma_desired: np.ndarray
-    contact_y: np.ndarray
-    contact_rates: np.ndarray
-    wrenches_ee: np.ndarray  # (n_arms, 6) in {a}
 
 
 def make_robots(
@@ -174,69 +90,6 @@ def make_reach_map(config: PushConfig):
     )
 
 
-def control_step(
-    t: float,
-    dt: float,
-    q: np.ndarray,
-    controller: CartController,
-    estimator: ParameterEstimator,
-    scheduler: ContactScheduler,
-    allocator: WrenchAllocator,
-) -> tuple[ControlStep, bool]:
-    """Return (the period's decisions, whether the allocation saturated): controller eq. (26), allocation eq. (25)."""
-    params_hat = estimator.params()
-    q_hat, qd_hat = estimator.x[0:3].copy(), estimator.x[3:6].copy()
-    gamma_d = np.asarray(controller.gamma(t, q_hat, qd_hat, params_hat), dtype=float)  # paper eq. (26)
-    ys, ydots = scheduler.update(t, params_hat, dt)
-    allocator.set_points([handle_point(v) for v in ys])
-    alloc = allocator.solve(cart_model.generalized_to_body(q, gamma_d), raise_on_infeasible=False)  # eq. (25)
-    saturated = alloc.residual > 1e-6 * max(1.0, float(np.abs(gamma_d).max()))
-    return ControlStep(params_hat, gamma_d, ys, ydots, alloc.wrenches_ee), saturated
-
-
-def robots_step(
-    k: int,
-    dt: float,
-    q: np.ndarray,
-    qd: np.ndarray,
-    z: np.ndarray,
-    step: ControlStep,
-    mms: Sequence[MobileManipulator],
-    hist: PushHistory,
-    config: PushConfig,
-    rng: np.random.Generator,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Move each robot one period, record it; return (the wrench the hands apply, the F/T-measured one) as Gamma_MM."""
-    T_sb = cart_se3(q)
-    W = step.wrenches_ee
-    gamma_true = np.zeros(3)
-    gamma_meas = np.zeros(3)
-    for i, mm in enumerate(mms):
-        target, vel = grasp_target(q, qd, step.contact_y[i], step.contact_rates[i], mm.R_b_ee)
-        bpose, brates = base_target(q, qd, mm.base_offset_b)
-        u = mm.tracker.step(mm.x, target, vel, bpose, brates, dt)
-        w_world = np.concatenate([T_sb.rotation @ W[i, :3], T_sb.rotation @ W[i, 3:]])
-        tau, push, oMee, oMft = mm.torques(u, mm.u, dt, w_world)
-        gamma_true += cart_model.contact_wrench_to_generalized(q, handle_point(step.contact_y[i]), W[i, :2], W[i, 5])
-        reading = ft_measurement(w_world, oMee, oMft, rng, config.noise)
-        gamma_meas += ft_to_cart_gamma(reading, oMft, z[:3])
-        hist.arm_torque[k, i] = tau
-        hist.push_torque[k, i] = push
-        hist.robot_x[k, i] = mm.x
-        hist.grasp_error[k, i] = np.linalg.norm(oMee.translation - target.translation)
-        twist = mm.body_twist(u)
-        lim = np.asarray(mm.profile.base_twist_limit)
-        hist.base_ratio[k, i] = np.max(np.abs(twist)[lim > 0] / lim[lim > 0])
-        hist.base_twist[k, i] = twist
-        wheels = mm.wb.wheel_rates(u)
-        hist.wheel_rates[k, i, : wheels.size] = wheels
-        hist.wheel_ratio[k, i] = np.max(np.abs(wheels) / mm.wb.wheel_velocity_limit)
-        hist.wrenches[k, i] = W[i]
-        mm.x = mm.wb.integrate(mm.x, u, dt)
-        mm.u = u
-    return gamma_true, gamma_meas
-
-
 def _iterations(n: int, progress: bool, label: str):
     """Return range(n), wrapped in a terminal progress bar when `progress` (`wholebody.progress`)."""
     if not progress:
@@ -246,13 +99,107 @@ def _iterations(n: int, progress: bool, label: str):
     return progress_bar(range(n), desc=label, unit="step", enabled=True)
 
 
-def param_std(estimator: ParameterEstimator) -> np.ndarray:
-    """Return the estimator's 1-sigma of (mass [kg], CoM [m]); NaN when it gives no covariance (`CartEKF.params_std`)."""
-    std = getattr(estimator, "params_std", None)
-    if std is None:
-        return np.full(2, np.nan)
-    s = std()
-    return np.array([s["mass"], float(np.hypot(*s["com"]))])
+@dataclass(frozen=True)
+class StepRecord:
+    """What one control period leaves behind (the fields of `PushResult`'s histories, written once)."""
+
+    q_true: np.ndarray
+    qd_true: np.ndarray
+    q_desired: np.ndarray
+    z_meas: np.ndarray
+    gamma_desired: np.ndarray
+    gamma_applied: np.ndarray
+    gamma_measured: np.ndarray
+    phi_hat: np.ndarray
+    contact_y: np.ndarray
+    wrenches: np.ndarray
+    arm_torque: np.ndarray
+    push_torque: np.ndarray
+    robot_x: np.ndarray
+    grasp_error: np.ndarray
+    base_twist: np.ndarray
+    wheel_rates: np.ndarray
+    param_std: np.ndarray
+    saturated: bool
+    base_ratio: np.ndarray
+    wheel_ratio: np.ndarray
+
+
+def stack_records(records: Sequence[StepRecord]) -> dict[str, np.ndarray]:
+    """Return each `StepRecord` field stacked over the periods (first axis: time)."""
+    return {f.name: np.array([getattr(r, f.name) for r in records]) for f in fields(StepRecord)}
+
+
+@dataclass
+class PushSetup:
+    """A run's controller and the robots' initial states (what a plant needs to start from)."""
+
+    controller: PushController
+    #: (n_arms,) initial robot states x = [base pose, arm joints], holding the handle
+    robot_x0: list[np.ndarray]
+    q0: np.ndarray
+    qd0: np.ndarray
+
+
+def build_controller(
+    config: PushConfig,
+    controller: CartController | None = None,
+    estimator: ParameterEstimator | None = None,
+) -> PushSetup:
+    """Return the push controller of `config` and the robots' initial grasp states at the trajectory's start."""
+    traj = config.make_trajectory()
+    controller = controller if controller is not None else make_controller(config.controller, traj)
+    q, qd, _ = traj.sample(0.0)
+    estimator = estimator if estimator is not None else make_estimator(config, q)
+    reach = make_reach_map(config)
+    scheduler = ContactScheduler(config, traj, reach)
+    seeds = None if reach is None else [reach.postures[reach.index(scheduler.y[0])]]
+    mms = make_robots(config, q, scheduler.y, seeds)
+    x0 = [mm.x.copy() for mm in mms]
+    return PushSetup(PushController(config, controller, estimator, scheduler, mms), x0, q.copy(), qd.copy())
+
+
+def kinematic_plant(config: PushConfig, setup: PushSetup) -> KinematicPlant:
+    """Return the kinematic plant of `config` starting where `setup` holds the handle."""
+    robots_ = [(mm.wb, x, mm.ft_id) for mm, x in zip(setup.controller.robots, setup.robot_x0)]
+    return KinematicPlant(
+        robots_, setup.q0, setup.qd0, config.true_params, config.noise, config.dt, config.substeps, config.seed
+    )
+
+
+def record(
+    plant: Plant,
+    m: Measurement,
+    d: ControlDecision,
+    cmds: Sequence[RobotCommand],
+    q_desired: np.ndarray,
+    mms: Sequence[MobileManipulator],
+) -> StepRecord:
+    """Return the period's record: the plant's truth, the measurement and the controller's decision."""
+    q, qd = plant.cart_state()  # type: ignore[attr-defined]
+    lim = [np.asarray(mm.profile.base_twist_limit) for mm in mms]
+    return StepRecord(
+        q_true=q,
+        qd_true=qd,
+        q_desired=q_desired,
+        z_meas=m.z,
+        gamma_desired=d.gamma_desired,
+        gamma_applied=plant.cart_wrench(cmds),  # type: ignore[attr-defined]
+        gamma_measured=d.gamma_measured,
+        phi_hat=d.params_hat.phi,
+        contact_y=d.contact_y,
+        wrenches=d.wrenches_ee,
+        arm_torque=d.arm_torque,
+        push_torque=d.push_torque,
+        robot_x=np.array(plant.robot_states()),  # type: ignore[attr-defined]
+        grasp_error=d.grasp_error,
+        base_twist=d.base_twist,
+        wheel_rates=d.wheel_rates,
+        param_std=d.param_std,
+        saturated=d.saturated,
+        base_ratio=np.array([np.max(np.abs(tw)[li > 0] / li[li > 0]) for tw, li in zip(d.base_twist, lim)]),
+        wheel_ratio=np.array([np.max(np.abs(w) / mm.wb.wheel_velocity_limit) for w, mm in zip(d.wheel_rates, mms)]),
+    )
 
 
 def run_push(
@@ -262,90 +209,57 @@ def run_push(
     progress: bool = False,
     progress_label: str = "push",
 ) -> PushResult:
-    """Return the time histories and metrics of one closed-loop push (see the module docstring).
+    """Return the time histories and metrics of one closed-loop push on the kinematic plant.
 
     ``progress``: show a progress bar on stderr (the CLI passes True only on a terminal without --json).
     """
-    rng = np.random.default_rng(config.seed)
+    setup = build_controller(config, controller, estimator)
+    plant = kinematic_plant(config, setup)
+    return run_loop(config, setup.controller, plant, progress, progress_label)
+
+
+def run_loop(
+    config: PushConfig, ctrl: PushController, plant: Plant, progress: bool = False, progress_label: str = "push"
+) -> PushResult:
+    """Return the result of measure -> ``ctrl.step`` -> ``plant.step`` over the run's duration."""
     traj = config.make_trajectory()
-    controller = controller if controller is not None else make_controller(config.controller, traj)
-    q, qd, _ = traj.sample(0.0)
-    qd = qd.copy()
-    estimator = estimator if estimator is not None else make_estimator(config, q)
-    reach = make_reach_map(config)
-    scheduler = ContactScheduler(config, traj, reach)
-    seeds = None if reach is None else [reach.postures[reach.index(scheduler.y[0])]]
-    mms = make_robots(config, q, scheduler.y, seeds)
-    allocator = WrenchAllocator([handle_point(v) for v in scheduler.y], config.arm_limits, only_motion_directions=True)
     n = int(round(config.duration / config.dt)) + 1
-    dt, h = config.dt, config.dt / config.substeps
-    hist = PushHistory.empty(n, config.n_arms, mms[0].wb.wheel_velocity_limit.size)
-    std = config.noise.measurement_std()
-    z = np.r_[q, qd] + rng.normal(0.0, 1.0, 6) * std
+    records = []
     for k in _iterations(n, progress, progress_label):
-        t = k * dt
-        step, saturated = control_step(t, dt, q, controller, estimator, scheduler, allocator)
-        hist.saturated += int(saturated)
-        gamma_true, gamma_meas = robots_step(k, dt, q, qd, z, step, mms, hist, config, rng)
-        q_d, _, _ = traj.sample(t)
-        for key, val in (
-            ("q_true", q),
-            ("qd_true", qd),
-            ("q_desired", q_d),
-            ("z_meas", z),
-            ("gamma_desired", step.gamma_desired),
-            ("gamma_applied", gamma_true),
-            ("gamma_measured", gamma_meas),
-            ("phi_hat", step.params_hat.phi),
-            ("contact_y", step.contact_y),
-            ("param_std", param_std(estimator)),
-        ):
-            getattr(hist, key)[k] = val
+        m = plant.measure()
+        cmds = ctrl.step(m)
+        assert ctrl.last is not None
+        records.append(record(plant, m, ctrl.last, cmds, traj.sample(m.t)[0], ctrl.robots))
         if k == n - 1:
             break
-        for j in range(config.substeps):  # the true cart under the hands' wrench
-            q, qd = rk4_step(t + j * h, q, qd, gamma_true, config.true_params, h)
-        z = np.r_[q, qd] + rng.normal(0.0, 1.0, 6) * std  # motion capture
-        estimator.step(gamma_meas, dt, z)  # paper eq. (8-20)
-    return _result(config, hist, mms[0].effort_limit, estimator.params(), mms[0].wb.wheel_velocity_limit)
-
-
-_RESULT_FIELDS = (
-    "q_true",
-    "qd_true",
-    "q_desired",
-    "z_meas",
-    "gamma_desired",
-    "gamma_applied",
-    "gamma_measured",
-    "phi_hat",
-    "contact_y",
-    "wrenches",
-    "arm_torque",
-    "push_torque",
-    "robot_x",
-    "grasp_error",
-    "base_twist",
-    "wheel_rates",
-    "param_std",
-)
+        plant.step(cmds)
+    H = stack_records(records)
+    # the F/T-measured wrench of period k arrives with the measurement at t_{k+1}: align it with its period
+    H["gamma_measured"] = np.r_[H["gamma_measured"][1:], H["gamma_measured"][-1:]]
+    mm = ctrl.robots[0]
+    return _result(config, H, mm.effort_limit, ctrl.estimator.params(), mm.wb.wheel_velocity_limit)
 
 
 def _result(
-    config: PushConfig, hist: PushHistory, effort_limit: np.ndarray, final: CartParams, wheel_limit: np.ndarray
+    config: PushConfig,
+    hist: dict[str, np.ndarray],
+    effort_limit: np.ndarray,
+    final: CartParams,
+    wheel_limit: np.ndarray,
 ) -> PushResult:
-    n = hist.q_true.shape[0]
+    n = hist["q_true"].shape[0]
+    H = SimpleNamespace(**hist)
     return PushResult(
         config=config,
         t=np.arange(n) * config.dt,
         effort_limit=effort_limit,
         wheel_velocity_limit=wheel_limit,
-        metrics=_metrics(config, hist, effort_limit, final),
-        **{key: getattr(hist, key) for key in _RESULT_FIELDS},
+        metrics=_metrics(config, H, effort_limit, final),
+        **{k: v for k, v in hist.items() if k not in ("saturated", "base_ratio", "wheel_ratio")},
     )
 
 
-def _metrics(config: PushConfig, H: PushHistory, effort_limit: np.ndarray, final: CartParams) -> PushMetrics:
+def _metrics(config: PushConfig, H: SimpleNamespace, effort_limit: np.ndarray, final: CartParams) -> PushMetrics:
     err = np.hypot(H.q_true[:, 0] - H.q_desired[:, 0], H.q_true[:, 1] - H.q_desired[:, 1])
     tau = H.arm_torque
     f = np.linalg.norm(H.wrenches[:, :, :3], axis=2)
@@ -371,7 +285,7 @@ def _metrics(config: PushConfig, H: PushHistory, effort_limit: np.ndarray, final
         grasp_error_max_m=float(H.grasp_error.max()),
         base_twist_limit_ratio=float(H.base_ratio.max()),
         base_wheel_limit_ratio=float(H.wheel_ratio.max()),
-        saturated_steps=int(H.saturated),
+        saturated_steps=int(np.sum(H.saturated)),
         base_wheel_speed_rms_rad_s=float(np.sqrt(np.mean(wheels**2))),
         base_wheel_speed_max_rad_s=float(np.abs(wheels).max()),
         base_wheel_acceleration_max_rad_s2=float(np.abs(wheel_acc).max()),
@@ -381,7 +295,7 @@ def _metrics(config: PushConfig, H: PushHistory, effort_limit: np.ndarray, final
     )
 
 
-def _estimation_metrics(config: PushConfig, H: PushHistory, after: float = 5.0) -> dict:
+def _estimation_metrics(config: PushConfig, H: SimpleNamespace, after: float = 5.0) -> dict:
     """Return time-resolved estimation errors: RMS over the run, max after `after` s, time within 1 kg / 1 cm."""
     truth = config.true_params
     t = np.arange(H.phi_hat.shape[0]) * config.dt

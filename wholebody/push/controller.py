@@ -1,0 +1,204 @@
+"""The push controller: what a real robot gives in, what a real robot takes out (cart paper §II–III).
+
+One control period, :meth:`PushController.step` with a :class:`~wholebody.push.plant.Measurement`:
+
+1. the F/T readings of the last period, mapped to the cart through each robot's measured kinematics
+   and the grasp map (paper eq. 23–24), and the motion-capture pose update the estimator
+   (``ParameterEstimator.step``: the paper's EKF eq. 8–20, or any other);
+2. the cart controller gives the desired cart wrench Gamma_MM (eq. 26) from the estimate;
+3. contact points on the handle (fixed, or re-planned from the estimated model) and the wrench
+   allocation QP (eq. 25) give each hand's wrench;
+4. each robot's whole-body QP follows its grasp point on the (estimated) handle; the arm torques
+   are ``rnea(q, v, a) + J^T w`` (Pinocchio).
+
+It holds no simulated truth: everything it reads comes through the measurement, so the same
+object drives the kinematic plant, the MuJoCo plant or real robots.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from collections.abc import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from cart import model as cart_model
+from cart.params import CartParams
+from wholebody.contacts.allocation import WrenchAllocator
+from wholebody.errors import WholeBodyError
+from wholebody.push.config import CartController, ParameterEstimator, PushConfig
+from wholebody.push.plant import Measurement, RobotCommand
+from wholebody.push.robot import MobileManipulator, base_target, ft_to_cart_gamma, grasp_target, handle_point
+from wholebody.push.scheduler import ContactScheduler
+
+
+#: time constant (s) of the filter between the cart estimate and the pose the hands hold (`PushController._grasp_pose`)
+GRASP_FILTER_TAU = 0.1
+
+
+@dataclass(frozen=True)
+class ControlDecision:
+    """What the controller decided in one period (its estimate, the cart wrench, contacts, hand wrenches, torques)."""
+
+    t: float
+    params_hat: CartParams
+    #: (6,) estimated cart state (x, y, theta, xdot, ydot, thetadot)
+    x_hat: np.ndarray
+    #: (2,) 1-sigma of the mass (kg) and of the CoM (m); NaN when the estimator gives no covariance
+    param_std: np.ndarray
+    #: (3,) desired Gamma_MM (eq. 26)
+    gamma_desired: np.ndarray
+    #: (3,) Gamma_MM measured by the F/T sensors over the last period (eq. 23-24)
+    gamma_measured: np.ndarray
+    #: (n_arms,) contact points y on the handle (m, in {b})
+    contact_y: np.ndarray
+    #: (n_arms, 6) hand wrenches in {a} (eq. 25)
+    wrenches_ee: np.ndarray
+    #: True when the allocation could not produce the desired wrench
+    saturated: bool
+    #: (n_arms, n_arm_joints) arm torques and their J^T w part (N m)
+    arm_torque: np.ndarray
+    push_torque: np.ndarray
+    #: (n_arms, 3) base body twists commanded
+    base_twist: np.ndarray
+    #: (n_arms, n_wheels) wheel rates commanded (rad/s)
+    wheel_rates: np.ndarray
+    #: (n_arms,) hand target position error of the robot's measured state (m)
+    grasp_error: np.ndarray
+
+
+def param_std(estimator: ParameterEstimator) -> np.ndarray:
+    """Return the estimator's 1-sigma of (mass [kg], CoM [m]); NaN when it gives no covariance."""
+    std = getattr(estimator, "params_std", None)
+    if std is None:
+        return np.full(2, np.nan)
+    s = std()
+    return np.array([s["mass"], float(np.hypot(*s["com"]))])
+
+
+class PushController:
+    """Closed-loop push controller of one or two mobile manipulators holding the cart's handle.
+
+    ``robots`` are the controller's models of the robots (Pinocchio model, whole-body QP tracker,
+    grasp geometry); their states are overwritten from each measurement.
+    """
+
+    def __init__(
+        self,
+        config: PushConfig,
+        cart_controller: CartController,
+        estimator: ParameterEstimator,
+        scheduler: ContactScheduler,
+        robots: Sequence[MobileManipulator],
+    ) -> None:
+        if len(robots) != config.n_arms:
+            raise WholeBodyError(f"{len(robots)} robots given for {config.n_arms} arms")
+        self.config = config
+        self.cart_controller = cart_controller
+        self.estimator = estimator
+        self.scheduler = scheduler
+        self.robots = list(robots)
+        self.allocator = WrenchAllocator(
+            [handle_point(v) for v in scheduler.y], config.arm_limits, only_motion_directions=True
+        )
+        self._t_prev: float | None = None
+        self._q_grasp: np.ndarray | None = None
+        self._t_grasp: float | None = None
+        self.last: ControlDecision | None = None
+
+    def step(self, m: Measurement) -> list[RobotCommand]:
+        """Return one command per robot for the period starting at ``m.t`` (see the module docstring)."""
+        if len(m.robots) != len(self.robots):
+            raise WholeBodyError(f"measurement has {len(m.robots)} robots, the controller {len(self.robots)}")
+        for mm, r in zip(self.robots, m.robots):
+            mm.x = np.r_[r.base_pose, r.q_arm]
+        gamma_meas = self._measured_gamma(m)
+        if self._t_prev is not None:  # the wrench of the last period and the pose at its end (eq. 8-20)
+            self.estimator.step(gamma_meas, m.t - self._t_prev, m.z)
+        self._t_prev = m.t
+        dt = self.config.dt
+        params_hat = self.estimator.params()
+        x_hat = np.array(self.estimator.x[:6], dtype=float)
+        q_hat, qd_hat = x_hat[0:3], x_hat[3:6]
+        gamma_d = np.asarray(self.cart_controller.gamma(m.t, q_hat, qd_hat, params_hat), dtype=float)  # eq. (26)
+        ys, ydots = self.scheduler.update(m.t, params_hat, dt)
+        self.allocator.set_points([handle_point(v) for v in ys])
+        alloc = self.allocator.solve(cart_model.generalized_to_body(q_hat, gamma_d), raise_on_infeasible=False)
+        saturated = alloc.residual > 1e-6 * max(1.0, float(np.abs(gamma_d).max()))  # eq. (25)
+        q_grasp = self._grasp_pose(q_hat, qd_hat, m.t)
+        commands, parts = zip(
+            *(
+                self._robot_command(mm, q_grasp, qd_hat, y, yd, w)
+                for mm, y, yd, w in zip(self.robots, ys, ydots, alloc.wrenches_ee)
+            )
+        )
+        self.last = ControlDecision(
+            t=m.t,
+            params_hat=params_hat,
+            x_hat=x_hat,
+            param_std=param_std(self.estimator),
+            gamma_desired=gamma_d,
+            gamma_measured=gamma_meas,
+            contact_y=np.array(ys, dtype=float),
+            wrenches_ee=np.array(alloc.wrenches_ee, dtype=float),
+            saturated=bool(saturated),
+            arm_torque=np.array([p[0] for p in parts]),
+            push_torque=np.array([p[1] for p in parts]),
+            base_twist=np.array([c.base_twist for c in commands]),
+            wheel_rates=np.array([c.wheel_rates for c in commands]),
+            grasp_error=np.array([p[2] for p in parts]),
+        )
+        return list(commands)
+
+    def _grasp_pose(self, q_hat: np.ndarray, qd_hat: np.ndarray, t: float) -> np.ndarray:
+        """Return the cart pose the hands hold: the estimate, predicted with its velocity and corrected with
+        time constant `GRASP_FILTER_TAU` (the hands follow the handle, not the motion capture's noise)."""
+        if self._q_grasp is None or self._t_grasp is None:
+            self._q_grasp, self._t_grasp = q_hat.copy(), t
+            return self._q_grasp
+        h = t - self._t_grasp
+        pred = self._q_grasp + h * qd_hat
+        err = q_hat - pred
+        err[2] = (err[2] + np.pi) % (2.0 * np.pi) - np.pi
+        self._q_grasp = pred + min(1.0, h / GRASP_FILTER_TAU) * err
+        self._t_grasp = t
+        return self._q_grasp
+
+    def _measured_gamma(self, m: Measurement) -> np.ndarray:
+        """Return Gamma_MM of the F/T readings, through each robot's measured F/T frame (eq. 23-24)."""
+        gamma = np.zeros(3)
+        for mm, r in zip(self.robots, m.robots):
+            oMft = mm.wb.frame_placement(mm.x, mm.ft_id)
+            gamma += ft_to_cart_gamma(pin.Force(r.ft[:3], r.ft[3:]), oMft, m.cart_pose)
+        return gamma
+
+    def _robot_command(
+        self, mm: MobileManipulator, q: np.ndarray, qd: np.ndarray, y: float, ydot: float, wrench_a: np.ndarray
+    ) -> tuple[RobotCommand, tuple[np.ndarray, np.ndarray, float]]:
+        """Return (the command of one robot, (arm torque, J^T w part, grasp error)) for one period."""
+        dt = self.config.dt
+        target, vel = grasp_target(q, qd, y, ydot, mm.R_b_ee)
+        bpose, brates = base_target(q, qd, mm.base_offset_b)
+        u = mm.tracker.step(mm.x, target, vel, bpose, brates, dt)
+        R = _rot_z(q[2])
+        w_world = np.concatenate([R @ wrench_a[:3], R @ wrench_a[3:]])
+        tau, push, oMee, _ = mm.torques(u, mm.u, dt, w_world)
+        mm.u = u
+        n = mm.wb.n_arm
+        cmd = RobotCommand(
+            arm_velocity=u[:n].copy(),
+            arm_position=mm.x[3:] + dt * u[:n],
+            arm_torque=tau,
+            base_twist=mm.body_twist(u),
+            wheel_rates=mm.wb.wheel_rates(u),
+            hand_wrench=w_world,
+            hand_target=target.homogeneous,
+        )
+        return cmd, (tau, push, float(np.linalg.norm(oMee.translation - target.translation)))
+
+
+def _rot_z(theta: float) -> np.ndarray:
+    """Return the rotation about z by theta (3x3)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
