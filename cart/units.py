@@ -1,0 +1,86 @@
+"""Unit mistakes recognised from the physics of a pushed cart, refused with the fix named.
+
+LOG_FORMAT.md asks for SI units and radians. Three mistakes are common and silently give absurd
+parameters (a 50 kg cart estimated at 0.06 kg from positions in millimetres); each shows in the
+kinematics of the pose stream, whatever the cart:
+
+- time in milliseconds: the pose's median sample interval is beyond ``MAX_POSE_PERIOD`` (motion
+  capture runs at 10 Hz or more);
+- positions in millimetres (or centimetres): the cart's typical speed (the 90th percentile over
+  0.1 s windows, so a glitch does not count) is beyond ``MAX_TYPICAL_SPEED``;
+- heading in degrees: the heading turns about 57 times faster than the direction of travel (a cart
+  rolls along its heading: paper eq. 3), or its typical yaw rate is beyond ``MAX_TYPICAL_YAW_RATE``.
+
+:func:`check_units` raises :class:`UnitsError` (exit code 2 on the command line) naming the fix.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cart.errors import CartError
+from cart.streams import Streams
+
+MAX_POSE_PERIOD = 0.5  # s
+MAX_TYPICAL_SPEED = 8.0  # m/s, 90th percentile: no pushed cart moves that fast most of the time
+MAX_TYPICAL_YAW_RATE = 12.0  # rad/s, 90th percentile
+#: Share of moving, turning windows whose heading rate / travel-direction rate is near 180 / pi.
+DEGREE_SHARE = 0.6
+
+
+class UnitsError(CartError):
+    """The log is not in SI units / radians (names the column and the conversion)."""
+
+
+def _windows(t: np.ndarray, span: float) -> int:
+    """Return the number of samples in about ``span`` seconds (at least 1)."""
+    med = float(np.median(np.diff(t)))
+    return max(1, int(math.ceil(span / med))) if med > 0 else 1
+
+
+def _travel_vs_heading(t: np.ndarray, q: np.ndarray, w: int) -> float:
+    """Return the share of moving, turning windows where the heading turns ~57x the direction of travel."""
+    d = q[w:] - q[:-w]
+    dist = np.hypot(d[:, 0], d[:, 1])
+    moving = dist > 10.0 * np.median(np.abs(np.diff(q[:, :2], axis=0))) + 1e-12
+    psi = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+    dpsi = psi[w:] - psi[:-w]
+    dth = q[2 * w :, 2] - q[w:-w, 2]  # heading change over the same stretch (pose instants w..2w)
+    ok = moving[w:] & moving[:-w] & (np.abs(dpsi) > 0.05)
+    if ok.sum() < 10:
+        return 0.0
+    ratio = dth[ok] / dpsi[ok]
+    return float(np.mean((ratio > 180.0 / math.pi / 1.5) & (ratio < 180.0 / math.pi * 1.5)))
+
+
+def check_units(streams: Streams, source: str = "<memory>") -> None:
+    """Raise :class:`UnitsError` when the pose stream's kinematics say time, positions or heading are not SI."""
+    t, q = streams.pose.t, streams.pose.values
+    if len(t) < 5:
+        return
+    period = float(np.median(np.diff(t)))
+    if period > MAX_POSE_PERIOD:
+        raise UnitsError(
+            f"{source}: the pose is sampled every {period:.4g} s (median): time looks like milliseconds; "
+            "divide t by 1000 (LOG_FORMAT: seconds)"
+        )
+    w = _windows(t, 0.1)
+    if len(t) <= 3 * w:
+        return
+    span = t[w:] - t[:-w]
+    speed = np.hypot(*((q[w:, :2] - q[:-w, :2]) / span[:, None]).T)
+    typical = float(np.percentile(speed, 90))
+    if typical > MAX_TYPICAL_SPEED:
+        raise UnitsError(
+            f"{source}: the cart's typical speed is {typical:.4g} m/s: positions look like millimetres "
+            f"(or centimetres); divide x, y by 1000 (or 100) (LOG_FORMAT: metres)"
+        )
+    yaw_rate = float(np.percentile(np.abs(q[w:, 2] - q[:-w, 2]) / span, 90))
+    share = _travel_vs_heading(t, q, w)
+    if yaw_rate > MAX_TYPICAL_YAW_RATE or share > DEGREE_SHARE:
+        raise UnitsError(
+            f"{source}: the heading turns {'at ' + format(yaw_rate, '.4g') + ' rad/s typically' if yaw_rate > MAX_TYPICAL_YAW_RATE else 'about 57 times faster than the direction of travel'}: "
+            "theta looks like degrees; multiply theta by pi/180 (LOG_FORMAT: radians)"
+        )
