@@ -1,4 +1,4 @@
-"""Load the shipped URDFs into Pinocchio with a planar root joint (x, y, yaw)."""
+"""Load a robot (a registered name, a profile file or a profile) into Pinocchio with a planar root joint (x, y, yaw)."""
 
 from __future__ import annotations
 
@@ -15,31 +15,25 @@ from collections.abc import Iterator
 
 import pinocchio as pin
 
-from robots.errors import RobotError, UnknownRobotError
+from robots import registry
+from robots.checks import check_profile, package_search_dirs, resolve_package_uri
+from robots.errors import ProfileError, RobotError, UnknownRobotError
+from robots.profiles import RobotProfile
 
 DATA_DIR = Path(__file__).resolve().parent
-
-#: name -> (URDF file, named frames: role -> frame name)
-_ROBOTS: dict[str, tuple[str, dict[str, str]]] = {
-    "ridgeback_iiwa": (
-        "ridgeback_iiwa.urdf",
-        {"base": "base_link", "arm_base": "iiwa_link_0", "flange": "iiwa_flange", "ft_sensor": "ft_sensor", "ee": "ee"},
-    ),
-    "shopping_cart": ("shopping_cart.urdf", {"base": "b", "b": "b", "handle": "handle"}),
-    "wmra": ("wmra.urdf", {"base": "base_link", "arm_base": "arm_mount", "ee": "ee"}),
-}
 
 
 @dataclass
 class LoadedRobot:
-    """A robot loaded into Pinocchio: models, data, and its named frames.
+    """A robot loaded into Pinocchio: models, data, its named frames and its profile.
 
     Attributes:
-        name: the robot's name in `available()`.
+        name: the robot's name (its profile's `name`).
         urdf: path of the URDF file.
         model, data: Pinocchio kinematic/dynamic model (planar root joint `root_joint`) and its data.
-        visual_model, collision_model, visual_data, collision_data: geometry models (primitives).
+        visual_model, collision_model, visual_data, collision_data: geometry models.
         frames: role -> frame name, e.g. ``{"ee": "ee", "ft_sensor": "ft_sensor"}``.
+        profile: the robot's profile (`robots.profiles.RobotProfile`); None for a model built by hand.
     """
 
     name: str
@@ -51,6 +45,7 @@ class LoadedRobot:
     visual_data: pin.GeometryData
     collision_data: pin.GeometryData
     frames: dict[str, str] = field(default_factory=dict)
+    profile: RobotProfile | None = None
 
     def frame_id(self, role_or_name: str) -> int:
         """Return the Pinocchio frame id of a role (``"ee"``) or a frame name."""
@@ -61,15 +56,29 @@ class LoadedRobot:
 
 
 def available() -> tuple[str, ...]:
-    """Return the names `load` accepts, sorted."""
-    return tuple(sorted(_ROBOTS))
+    """Return the names `load` accepts, sorted (the registry's: built-in and registered robots)."""
+    return registry.available()
 
 
-def urdf_path(name: str) -> Path:
-    """Return the path of a shipped URDF by robot name."""
-    if name not in _ROBOTS:
-        raise UnknownRobotError(f"unknown robot {name!r}; valid names: {', '.join(available())}")
-    return DATA_DIR / _ROBOTS[name][0]
+def urdf_path(robot: str | Path | RobotProfile) -> Path:
+    """Return the path of a robot's URDF file (a registered name, a profile file or a profile)."""
+    prof = registry.resolve(robot)
+    return _urdf_file(prof)
+
+
+def _urdf_file(prof: RobotProfile) -> Path:
+    """Return the profile's URDF file; a ``package://`` URI resolves through the package search folders."""
+    text = str(prof.urdf)
+    src = prof.source or prof.name
+    if text.startswith("package:/"):
+        uri = "package://" + text[len("package:/") :].lstrip("/")
+        found = resolve_package_uri(uri, package_search_dirs(prof.package_dirs, Path.cwd()))
+        if found is None:
+            raise ProfileError(src, "urdf", f"{uri} is in none of the package folders; add its folder to package_dirs")
+        return found
+    if not prof.urdf.is_file():
+        raise ProfileError(src, "urdf", f"file {prof.urdf} not found; give a path absolute or relative to the profile")
+    return prof.urdf
 
 
 @contextlib.contextmanager
@@ -115,62 +124,102 @@ def check_urdf_text(urdf_text: object) -> None:
         raise RobotError(f"urdf_text must have a <robot> root element, got <{root.tag}>")
 
 
-def _build(path: Path, root: pin.JointModel, label: str | None = None):
-    """Return (model, visual, collision) of a URDF file; RobotError with the parser's message when it fails."""
+def _parser_message(exc: Exception, messages: list[str], path: Path, label: str | None) -> str:
+    detail = "; ".join(
+        m[len("Error:") :].strip() if m.startswith("Error:") else m
+        for m in messages
+        if not re.match(r"^at line \d+ in ", m)
+    )
+    text = str(exc) if label is None else str(exc).replace(f"The file {path}", label).replace(str(path), label)
+    return f"invalid URDF: {text}" + (f" ({detail})" if detail else "")
+
+
+def _build(path: Path, root: pin.JointModel, label: str | None = None, prof: RobotProfile | None = None):
+    """Return (model, visual, collision) of a URDF file.
+
+    A URDF the parser rejects is a RobotError with the parser's message; a mesh that is in none of the
+    package folders is a `ProfileError` on ``package_dirs``.
+    """
     messages: list[str] = []
     try:
         with _captured_stderr_fd(messages):
             model = pin.buildModelFromUrdf(str(path), root)
-            visual = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.VISUAL, package_dirs=[str(DATA_DIR)])
-            collision = pin.buildGeomFromUrdf(
-                model, str(path), pin.GeometryType.COLLISION, package_dirs=[str(DATA_DIR)]
-            )
     except (ValueError, RuntimeError, OSError) as exc:
-        detail = "; ".join(
-            m[len("Error:") :].strip() if m.startswith("Error:") else m
-            for m in messages
-            if not re.match(r"^at line \d+ in ", m)
-        )
-        text = str(exc) if label is None else str(exc).replace(f"The file {path}", label).replace(str(path), label)
-        raise RobotError(f"invalid URDF: {text}" + (f" ({detail})" if detail else "")) from None
+        raise RobotError(_parser_message(exc, messages, path, label)) from None
+    dirs = package_search_dirs(prof.package_dirs if prof is not None else (), path) + [str(DATA_DIR)]
+    try:
+        with _captured_stderr_fd(messages):
+            visual = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.VISUAL, package_dirs=dirs)
+            collision = pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.COLLISION, package_dirs=dirs)
+    except (ValueError, RuntimeError, OSError) as exc:
+        text = str(exc)
+        if "could not be found" in text or "package://" in text:
+            mesh = re.search(r"(package://\S+|\S+\.(?:stl|dae|obj|STL|DAE|OBJ))", text)
+            where = mesh.group(1) if mesh else text
+            raise ProfileError(
+                (prof.source or prof.name) if prof is not None else path,
+                "package_dirs",
+                f"mesh {where} not found; add the folder that holds its package to package_dirs",
+            ) from None
+        raise RobotError(_parser_message(exc, messages, path, label)) from None
     return model, visual, collision
 
 
-def load(name: str, urdf_text: str | None = None) -> LoadedRobot:
-    """Return the robot `name` loaded into Pinocchio with a planar root joint.
+def _root_link(model: pin.Model) -> str:
+    """Return the name of the body frame carried by the root joint (the URDF's root link)."""
+    for f in model.frames:
+        if f.type == pin.FrameType.BODY and f.parentJoint == 1:
+            return f.name
+    return "root_joint"
+
+
+def _build_text(name: str, urdf_text: str, root: pin.JointModel, prof: RobotProfile):
+    """Return (path, model, visual, collision) of URDF text kept in a content-addressed file."""
+    check_urdf_text(urdf_text)
+    # Keep the text in a content-addressed file so `LoadedRobot.urdf` stays valid (placo reads it);
+    # it is written under a private name first and kept only if Pinocchio accepts it.
+    digest = hashlib.sha256(urdf_text.encode()).hexdigest()[:16]
+    path = Path(tempfile.gettempdir()) / "cartpush_urdf" / f"{name}_{digest}.urdf"
+    if path.exists():
+        return (path, *_build(path, root, prof=prof))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{name}_", suffix=".urdf", dir=path.parent)
+    tmp = Path(tmp_name)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(urdf_text)
+        built = _build(tmp, root, label="urdf_text", prof=prof)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return (path, *built)
+
+
+def load(robot: str | Path | RobotProfile, urdf_text: str | None = None) -> LoadedRobot:
+    """Return a robot loaded into Pinocchio with a planar root joint, its profile checked against its URDF.
 
     Args:
-        name: one of `available()`.
-        urdf_text: optional URDF text to load instead of the shipped file (e.g.
-            another WMRA build from `robots.wmra_urdf(...)`); frame roles are those of `name`.
+        robot: a registered name (`available()`), the path of a robot profile (.toml), or a profile.
+        urdf_text: optional URDF text to load instead of the profile's file (e.g. another WMRA build from
+            `robots.wmra_urdf(...)`); meshes resolve through the profile's package folders, and the
+            joints and frames are those of the profile.
+
+    Raises `UnknownRobotError` (unknown name), `ProfileError` (a profile its URDF contradicts, a missing
+    URDF or mesh) or `RobotError` (a URDF the parser rejects).
     """
-    path = urdf_path(name)
-    roles = dict(_ROBOTS[name][1])
+    prof = registry.resolve(robot)
     root = pin.JointModelPlanar()
     if urdf_text is None:
-        model, visual, collision = _build(path, root)
+        path = _urdf_file(prof)
+        model, visual, collision = _build(path, root, prof=prof)
     else:
-        check_urdf_text(urdf_text)
-        # Keep the text in a content-addressed file so `LoadedRobot.urdf` stays valid (placo reads it);
-        # it is written under a private name first and kept only if Pinocchio accepts it.
-        digest = hashlib.sha256(urdf_text.encode()).hexdigest()[:16]
-        path = Path(tempfile.gettempdir()) / "cartpush_urdf" / f"{name}_{digest}.urdf"
-        if path.exists():
-            model, visual, collision = _build(path, root)
-        else:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp_name = tempfile.mkstemp(prefix=f".{name}_", suffix=".urdf", dir=path.parent)
-            tmp = Path(tmp_name)
-            try:
-                with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                    fh.write(urdf_text)
-                model, visual, collision = _build(tmp, root, label="urdf_text")
-                os.replace(tmp, path)
-            finally:
-                if tmp.exists():
-                    tmp.unlink()
+        path, model, visual, collision = _build_text(prof.name, urdf_text, root, prof)
+    check_profile(prof, model)
+    roles = prof.frame_roles
+    roles.setdefault("base", _root_link(model))
     return LoadedRobot(
-        name=name,
+        name=prof.name,
         urdf=path,
         model=model,
         data=model.createData(),
@@ -179,4 +228,5 @@ def load(name: str, urdf_text: str | None = None) -> LoadedRobot:
         visual_data=visual.createData() if hasattr(visual, "createData") else pin.GeometryData(visual),
         collision_data=collision.createData() if hasattr(collision, "createData") else pin.GeometryData(collision),
         frames=roles,
+        profile=prof,
     )

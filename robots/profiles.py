@@ -1,122 +1,401 @@
-"""What generic code needs to know about each shipped robot, looked up by name.
+"""Robot profiles: everything generic code needs to know about a robot, read from a TOML file.
 
-A :class:`RobotProfile` names the arm and wheel joints (in the order of the
-whole-body vectors), the base type with its geometry, the frames of the grasp
-and the F/T sensor, and the arm posture that seeds the grasp IK when the robot
-pushes the cart. `wholebody` builds its models from these; it never switches on
-a robot's name.
+A profile names the URDF, the base (differential or holonomic) and its wheel joints, one table per
+arm (joints base to tip, the frame that holds the handle, the F/T frame) and the value every other
+movable joint is held at. Everything else (joint and torque limits, wheel radius and separation,
+push posture and base placement) comes from the URDF or is computed. The built-in robots are
+profiles in this format (``robots/*.toml``); their tuned push settings are optional keys of the
+``[push]`` table. The format is documented in docs/robots.md.
 
 >>> from robots.profiles import profile
 >>> profile("ridgeback_iiwa").base
-'omnidirectional'
+'holonomic'
+>>> profile("wmra").arms[0].joints[:2]
+('arm_joint1', 'arm_joint2')
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
-from robots.errors import UnknownRobotError
-from robots.ridgeback_iiwa import RIDGEBACK_WHEEL_RADIUS, RIDGEBACK_WHEEL_X, RIDGEBACK_WHEEL_Y
-from robots.wmra import WMRA_TRACK, WMRA_WHEEL_ACCELERATION, WMRA_WHEEL_RADIUS, WMRA_WHEEL_VELOCITY
+from robots.errors import ProfileError
 
-#: Base kinematics: a differential drive (track and wheel radius read off the model) or a
-#: holonomic base with mecanum wheels (radius and wheel positions given here).
-BaseType = Literal["differential", "omnidirectional", "none"]
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
+#: Base kinematics: a differential drive (two driven wheels, left then right), a holonomic base with
+#: mecanum wheels, or none (a cart, a fixed arm).
+BaseType = Literal["differential", "holonomic", "none"]
+BASE_TYPES = ("differential", "holonomic", "none")
+#: Axes a gripper frame's tool axis may point along (the direction from the wrist to the fingertips).
+TOOL_AXES = ("x", "y", "z", "-x", "-y", "-z")
+
+_TOP_KEYS = (
+    "name",
+    "urdf",
+    "package_dirs",
+    "base",
+    "wheel_joints",
+    "wheel_radius",
+    "wheel_separation",
+    "wheel_positions",
+    "arms",
+    "locked",
+    "frames",
+    "push",
+)
+_ARM_KEYS = ("joints", "gripper_frame", "ft_frame", "tool_axis", "push_seed")
+_PUSH_KEYS = (
+    "grasp_pitch",
+    "grasp_roll",
+    "base_x",
+    "base_y",
+    "base_dy",
+    "contact_y",
+    "base_twist_limit",
+    "wheel_acceleration_limit",
+    "base_lookahead",
+)
+
+
+@dataclass(frozen=True)
+class ArmProfile:
+    """One arm: its joints (base to tip), the frame that holds the handle and the F/T sensor's frame."""
+
+    joints: tuple[str, ...]
+    gripper_frame: str
+    #: frame of the F/T sensor; None = the gripper frame
+    ft_frame: str | None = None
+    #: the gripper frame's axis pointing from the wrist to the fingertips; None = computed from the URDF
+    tool_axis: str | None = None
+    #: arm posture holding the handle (the grasp IK's seed); None = computed by IK
+    push_seed: tuple[float, ...] | None = None
+
+    @property
+    def sensor_frame(self) -> str:
+        """Return the F/T frame (the gripper frame when the profile names none)."""
+        return self.ft_frame if self.ft_frame is not None else self.gripper_frame
 
 
 @dataclass(frozen=True)
 class RobotProfile:
-    """One robot's joints, base, frames and pushing posture (every number sourced in robots/README.md)."""
+    """One robot: URDF, base, arms, locked joints and optional tuned push settings (docs/robots.md).
+
+    ``None`` in an optional field means "computed": from the URDF (wheel radius, separation and
+    positions, base twist limits) or by the push posture's IK (`wholebody.push.robot.push_profile`).
+    """
 
     name: str
-    arm_joints: tuple[str, ...] = ()
-    wheel_joints: tuple[str, ...] = ()
+    urdf: Path
     base: BaseType = "none"
-    #: Omnidirectional bases: wheel radius (m) and wheel (x, y) in the base frame, in `wheel_joints` order.
+    package_dirs: tuple[Path, ...] = ()
+    wheel_joints: tuple[str, ...] = ()
     wheel_radius: float | None = None
+    wheel_separation: float | None = None
+    #: holonomic bases: wheel (x, y) in the base frame, in `wheel_joints` order; () = from the URDF
     wheel_positions: tuple[tuple[float, float], ...] = ()
-    #: Frame roles of `robots.load(name)`: the grasp (end effector) and the F/T sensor (None: no sensor).
-    ee_frame: str = "ee"
-    ft_frame: str | None = None
-    #: Arm posture holding the cart's handle with the base behind it (the grasp IK's seed), None if it never pushes.
-    push_arm_seed: tuple[float, ...] | None = None
-    #: Grasp pitch (rad about y_b): the tool points forward and this much down onto the handle bar.
-    grasp_pitch: float = 0.8
-    #: Where the base stands while pushing, in the cart frame {b}: x relative to the handle (m, negative =
-    #: behind it) and y (m; None = behind the contact point, which only a holonomic base can follow sideways).
-    push_base_x: float = -0.65
+    arms: tuple[ArmProfile, ...] = ()
+    #: joint name -> value (rad or m) every movable joint outside the arms and wheels is held at (else 0)
+    locked: tuple[tuple[str, float], ...] = ()
+    #: frame roles: role -> frame name (``"ee"``, ``"ft_sensor"``, ``"base"`` ... ; defaults from the arms)
+    frames: tuple[tuple[str, str], ...] = ()
+    #: the TOML file this profile was read from (None: built in code)
+    source: Path | None = None
+    #: grasp pitch (rad about y_b): the tool points forward and this much down onto the handle bar
+    grasp_pitch: float | None = None
+    #: grasp roll (rad) about the tool axis
+    grasp_roll: float | None = None
+    #: base x relative to the handle, in {b} (m, negative = behind it)
+    push_base_x: float | None = None
+    #: base y in {b} (m); None = behind its contact point (a base that follows the contact sideways)
     push_base_y: float | None = None
-    #: Contact point y (m) on the handle when the contact is fixed and none is given.
-    push_contact_y: float = -0.2
-    #: Base body-twist limits (vx m/s, vy m/s, wz rad/s); vy = 0 for a nonholonomic base.
-    base_twist_limit: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    #: Wheel angular acceleration limit (rad/s^2), None = not enforced.
+    #: lateral offset of the base from its contact point when it follows the contact (m)
+    push_base_dy: float = 0.0
+    #: contact point y (m) on the handle when the contact is fixed and none is given
+    push_contact_y: float | None = None
+    #: base body-twist limits (vx m/s, vy m/s, wz rad/s); None = from the wheel speed limits
+    base_twist_limit: tuple[float, float, float] | None = None
+    #: wheel angular acceleration limit (rad/s^2), None = not enforced
     wheel_acceleration_limit: float | None = None
-    #: Look-ahead distance (m) of the base tracker of a nonholonomic base (paper 2 section VI); 0 = pose tracking.
-    base_lookahead: float = 0.0
+    #: look-ahead distance (m) of a differential base's tracker; None = 0.3 m differential, 0 holonomic
+    base_lookahead: float | None = None
+    #: whether the push settings came from the profile (True) or still need the IK (False)
+    tuned: bool = field(default=False, compare=False)
 
+    # ------------------------------------------------------------------ derived
     @property
     def is_mobile_manipulator(self) -> bool:
-        """Return True when the robot has an arm on a wheeled base (a `wholebody.WholeBody` can be built)."""
-        return bool(self.arm_joints) and self.base != "none"
+        """Return True when the robot has an arm on a wheeled base (a whole-body model can be built)."""
+        return bool(self.arms) and self.base != "none"
 
     @property
     def base_input(self) -> str:
         """Return the whole-body base input: a body twist for a holonomic base, wheel rates for a differential
         drive (its lateral velocity is then zero by construction, paper 2 eq. 11-21)."""
-        return "twist" if self.base == "omnidirectional" else "wheels"
+        return "twist" if self.base == "holonomic" else "wheels"
+
+    @property
+    def arm_joints(self) -> tuple[str, ...]:
+        """Return the first arm's joints (base to tip)."""
+        return self.arms[0].joints if self.arms else ()
+
+    @property
+    def ee_frame(self) -> str:
+        """Return the first arm's gripper frame."""
+        return self.arms[0].gripper_frame if self.arms else "ee"
+
+    @property
+    def ft_frame(self) -> str | None:
+        """Return the first arm's F/T frame (its gripper frame when the profile names none)."""
+        return self.arms[0].sensor_frame if self.arms else None
+
+    @property
+    def push_arm_seed(self) -> tuple[float, ...] | None:
+        """Return the first arm's push posture (None until computed, `wholebody.push.robot.push_profile`)."""
+        return self.arms[0].push_seed if self.arms else None
+
+    @property
+    def locked_joints(self) -> dict[str, float]:
+        """Return the locked joints as a dict."""
+        return dict(self.locked)
+
+    @property
+    def frame_roles(self) -> dict[str, str]:
+        """Return role -> frame name: the profile's `frames`, and ``ee``/``ft_sensor`` from the first arm."""
+        roles: dict[str, str] = {}
+        if self.arms:
+            roles["ee"] = self.arms[0].gripper_frame
+            if self.arms[0].ft_frame is not None:
+                roles["ft_sensor"] = self.arms[0].ft_frame
+        roles.update(dict(self.frames))
+        return roles
 
 
-WMRA = RobotProfile(
-    name="wmra",
-    arm_joints=tuple(f"arm_joint{i}" for i in range(1, 8)),
-    wheel_joints=("wheel_left_joint", "wheel_right_joint"),
-    base="differential",
-    # F/T sensing at the wrist: the sensor frame is the end effector (D-H frame 7)
-    ft_frame="ee",
-    # found by IK (continuation along the handle) with the base axle 1.0 m behind the handle, centred;
-    # joint-limit margin 0.4 rad at y = 0
-    push_arm_seed=(1.08, 1.54, 1.08, 1.55, 0.53, 0.86, -0.67),
-    grasp_pitch=0.2,
-    push_base_x=-0.9,
-    push_base_y=0.0,
-    push_contact_y=0.1,
-    base_twist_limit=(
-        WMRA_WHEEL_RADIUS * WMRA_WHEEL_VELOCITY,
-        0.0,
-        2.0 * WMRA_WHEEL_RADIUS * WMRA_WHEEL_VELOCITY / WMRA_TRACK,
-    ),
-    wheel_acceleration_limit=WMRA_WHEEL_ACCELERATION,
-    base_lookahead=0.3,
-)
+# ---------------------------------------------------------------------------------------------- parsing
+class _Reader:
+    """Typed access to a profile's TOML tables; every problem is a `ProfileError` naming the key."""
 
-RIDGEBACK_IIWA = RobotProfile(
-    name="ridgeback_iiwa",
-    arm_joints=tuple(f"iiwa_joint_{i}" for i in range(1, 8)),
-    wheel_joints=tuple(f"{a}_{b}_wheel_joint" for a in ("front", "rear") for b in ("left", "right")),
-    base="omnidirectional",
-    wheel_radius=RIDGEBACK_WHEEL_RADIUS,
-    wheel_positions=tuple((sx * RIDGEBACK_WHEEL_X, sy * RIDGEBACK_WHEEL_Y) for sx in (1, -1) for sy in (1, -1)),
-    ft_frame="ft_sensor",
-    # found by IK with the base 0.65 m behind the handle point; joint-limit margin 1.1 rad
-    push_arm_seed=(-1.70, -0.94, 0.28, 1.00, -0.43, -0.47, 0.25),
-    base_twist_limit=(1.1, 1.1, 2.0),
-)
+    def __init__(self, source: object) -> None:
+        self.source = source
 
-SHOPPING_CART = RobotProfile(name="shopping_cart")
+    def fail(self, key: str, problem: str) -> ProfileError:
+        return ProfileError(self.source, key, problem)
 
-PROFILES = {p.name: p for p in (RIDGEBACK_IIWA, SHOPPING_CART, WMRA)}
+    def only(self, table: Mapping, allowed: tuple[str, ...], prefix: str = "") -> None:
+        for k in table:
+            if k not in allowed:
+                raise self.fail(f"{prefix}{k}", f"unknown key; valid keys here: {', '.join(allowed)}")
+
+    def string(self, table: Mapping, key: str, prefix: str = "", required: bool = True) -> str | None:
+        if key not in table:
+            if required:
+                raise self.fail(f"{prefix}{key}", "missing; give a string")
+            return None
+        v = table[key]
+        if not isinstance(v, str) or not v.strip():
+            raise self.fail(f"{prefix}{key}", f"must be a non-empty string, got {v!r}")
+        return v
+
+    def number(self, table: Mapping, key: str, prefix: str = "", positive: bool = False) -> float | None:
+        if key not in table:
+            return None
+        v = table[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise self.fail(f"{prefix}{key}", f"must be a finite number, got {v!r}")
+        if positive and v <= 0:
+            raise self.fail(f"{prefix}{key}", f"must be positive, got {v!r}")
+        return float(v)
+
+    def strings(self, table: Mapping, key: str, prefix: str = "", required: bool = False) -> tuple[str, ...]:
+        if key not in table:
+            if required:
+                raise self.fail(f"{prefix}{key}", "missing; give a list of joint names")
+            return ()
+        v = table[key]
+        if not isinstance(v, list) or not all(isinstance(s, str) and s for s in v):
+            raise self.fail(f"{prefix}{key}", f"must be a list of names (strings), got {v!r}")
+        if len(set(v)) != len(v):
+            raise self.fail(f"{prefix}{key}", f"lists a name twice: {v!r}")
+        return tuple(v)
+
+    def numbers(self, table: Mapping, key: str, size: int | None = None, prefix: str = "") -> tuple[float, ...] | None:
+        if key not in table:
+            return None
+        v = table[key]
+        ok = isinstance(v, list) and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v
+        )
+        if not ok or (size is not None and len(v) != size):
+            want = f"{size} numbers" if size is not None else "a list of numbers"
+            raise self.fail(f"{prefix}{key}", f"must be {want}, got {v!r}")
+        return tuple(float(x) for x in v)
+
+    def table(self, table: Mapping, key: str) -> Mapping:
+        v = table.get(key, {})
+        if not isinstance(v, dict):
+            raise self.fail(key, f"must be a table ([{key}]), got {v!r}")
+        return v
 
 
-def profile(name: str) -> RobotProfile:
-    """Return the profile of a shipped robot; raise `UnknownRobotError` naming the known ones."""
+def _resolve_path(text: str, base_dir: Path) -> Path:
+    """Return a profile path: absolute, ``~``-expanded, or relative to the profile's folder."""
+    p = Path(text).expanduser()
+    return p if p.is_absolute() else (base_dir / p)
+
+
+def _arm(r: _Reader, i: int, table: object) -> ArmProfile:
+    prefix = f"arms[{i}]."
+    if not isinstance(table, dict):
+        raise r.fail(f"arms[{i}]", "must be a table ([[arms]])")
+    r.only(table, _ARM_KEYS, prefix)
+    joints = r.strings(table, "joints", prefix, required=True)
+    if not joints:
+        raise r.fail(f"{prefix}joints", "is empty; list the arm's joints from its base to its tip")
+    axis = r.string(table, "tool_axis", prefix, required=False)
+    if axis is not None and axis not in TOOL_AXES:
+        raise r.fail(f"{prefix}tool_axis", f"must be one of {', '.join(TOOL_AXES)}, got {axis!r}")
+    return ArmProfile(
+        joints=joints,
+        gripper_frame=r.string(table, "gripper_frame", prefix),
+        ft_frame=r.string(table, "ft_frame", prefix, required=False),
+        tool_axis=axis,
+        push_seed=r.numbers(table, "push_seed", len(joints), prefix),
+    )
+
+
+def _base(r: _Reader, data: Mapping) -> tuple[str, tuple[str, ...]]:
+    wheels = r.strings(data, "wheel_joints")
+    base = data.get("base", "none" if not wheels else None)
+    if base not in BASE_TYPES:
+        raise r.fail("base", f"must be one of {', '.join(repr(b) for b in BASE_TYPES)}, got {base!r}")
+    if base == "differential" and len(wheels) != 2:
+        raise r.fail("wheel_joints", f"a differential base needs 2 wheel joints (left, right), got {len(wheels)}")
+    if base == "holonomic" and len(wheels) < 3:
+        raise r.fail("wheel_joints", f"a holonomic base needs at least 3 wheel joints, got {len(wheels)}")
+    if base == "none" and wheels:
+        raise r.fail("base", "is 'none' but wheel_joints are given; set base = 'differential' or 'holonomic'")
+    return base, wheels
+
+
+def _push(r: _Reader, data: Mapping) -> dict:
+    push = r.table(data, "push")
+    r.only(push, _PUSH_KEYS, "push.")
+    out = {k: r.number(push, k, "push.") for k in ("grasp_pitch", "grasp_roll", "base_x", "base_y", "contact_y")}
+    lim = r.numbers(push, "base_twist_limit", 3, "push.")
+    if lim is not None and any(v < 0 for v in lim):
+        raise r.fail("push.base_twist_limit", f"must be 3 non-negative numbers (vx, vy, wz), got {list(lim)}")
+    return dict(
+        grasp_pitch=out["grasp_pitch"],
+        grasp_roll=out["grasp_roll"],
+        push_base_x=out["base_x"],
+        push_base_y=out["base_y"],
+        push_base_dy=r.number(push, "base_dy", "push.") or 0.0,
+        push_contact_y=out["contact_y"],
+        base_twist_limit=lim,
+        wheel_acceleration_limit=r.number(push, "wheel_acceleration_limit", "push.", positive=True),
+        base_lookahead=r.number(push, "base_lookahead", "push."),
+    )
+
+
+def parse_profile(data: Mapping, base_dir: Path, source: object = "<profile>") -> RobotProfile:
+    """Return the profile of a parsed TOML document; relative paths are taken from `base_dir`.
+
+    Checks the profile on its own (keys, types, base and wheel counts); `robots.load` checks it against
+    its URDF (joints, frames, wheel joint types, meshes). Raises `ProfileError` naming the key.
+    """
+    r = _Reader(source)
+    r.only(data, _TOP_KEYS)
+    name = r.string(data, "name")
+    urdf_text = r.string(data, "urdf")
+    base, wheels = _base(r, data)
+    arms_raw = data.get("arms", [])
+    if not isinstance(arms_raw, list):
+        raise r.fail("arms", "must be an array of tables ([[arms]])")
+    arms = tuple(_arm(r, i, t) for i, t in enumerate(arms_raw))
+    locked = r.table(data, "locked")
+    for k in locked:
+        r.number(locked, k, "locked.")
+    frames = r.table(data, "frames")
+    for k in frames:
+        r.string(frames, k, "frames.")
+    positions = data.get("wheel_positions", [])
+    if not (isinstance(positions, list) and all(isinstance(p, list) and len(p) == 2 for p in positions)):
+        raise r.fail("wheel_positions", "must be a list of [x, y] pairs (m), one per wheel joint")
+    if positions and len(positions) != len(wheels):
+        raise r.fail("wheel_positions", f"gives {len(positions)} positions for {len(wheels)} wheel joints")
+    push = _push(r, data)
+    urdf = Path(urdf_text) if urdf_text.startswith("package://") else _resolve_path(urdf_text, base_dir)
+    return RobotProfile(
+        name=name,
+        urdf=urdf,
+        base=base,
+        package_dirs=tuple(_resolve_path(p, base_dir) for p in r.strings(data, "package_dirs")),
+        wheel_joints=wheels,
+        wheel_radius=r.number(data, "wheel_radius", positive=True),
+        wheel_separation=r.number(data, "wheel_separation", positive=True),
+        wheel_positions=tuple((float(x), float(y)) for x, y in positions),
+        arms=arms,
+        locked=tuple((k, float(v)) for k, v in locked.items()),
+        frames=tuple((k, str(v)) for k, v in frames.items()),
+        source=Path(source) if isinstance(source, Path) else None,
+        tuned=all(a.push_seed is not None for a in arms) and push["push_base_x"] is not None,
+        **push,
+    )
+
+
+def read_profile(path: str | Path) -> RobotProfile:
+    """Return the profile in a TOML file (docs/robots.md); raise `ProfileError` naming the bad key."""
+    p = Path(path).expanduser()
+    if not p.is_file():
+        raise ProfileError(p, "file", "not found; give the path of a robot profile (.toml)")
     try:
-        return PROFILES[name]
-    except KeyError:
-        raise UnknownRobotError(f"no profile for robot {name!r}; known: {', '.join(sorted(PROFILES))}") from None
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ProfileError(p, "file", f"is not valid TOML ({exc})") from None
+    return parse_profile(data, p.resolve().parent, p)
+
+
+# ---------------------------------------------------------------------------------------------- registry
+def profile(name_or_path: str | Path | RobotProfile) -> RobotProfile:
+    """Return a registered robot's profile, or read a profile file (a path ending in ``.toml``).
+
+    Raises `UnknownRobotError` naming the known robots for an unknown name, `ProfileError` for a bad file.
+    """
+    from robots.registry import resolve
+
+    return resolve(name_or_path)
 
 
 def mobile_manipulators() -> tuple[str, ...]:
-    """Return the names of the robots with an arm on a wheeled base."""
-    return tuple(sorted(n for n, p in PROFILES.items() if p.is_mobile_manipulator))
+    """Return the names of the registered robots with an arm on a wheeled base."""
+    from robots.registry import registered
+
+    return tuple(sorted(n for n, p in registered().items() if p.is_mobile_manipulator))
+
+
+class _RegistryView(Mapping):
+    """Read-only name -> profile view of the registry (`robots.register` adds to it)."""
+
+    def _all(self) -> dict[str, RobotProfile]:
+        from robots.registry import registered
+
+        return registered()
+
+    def __getitem__(self, name: str) -> RobotProfile:
+        return self._all()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._all())
+
+    def __len__(self) -> int:
+        return len(self._all())
+
+
+#: name -> profile of every registered robot (a live view of `robots.registry`).
+PROFILES: Mapping[str, RobotProfile] = _RegistryView()

@@ -11,7 +11,9 @@ handle, find each end effector's wrench ``[f; tau]`` (in its contact frame
 * a grasp model: the gripper pulls only up to its friction capacity, and the
   tangential force and the torques stay inside linearized friction cones whose
   normal load is the grip squeeze plus the push;
-* joint torque limits ``|J_i^T w_i| <= tau_max`` when Jacobians are given.
+* joint torque limits ``|J_i^T w_i| <= tau_max`` when Jacobians are given, or, per control step,
+  ``|J_i^T w_i + g_i| <= tau_max`` with each arm's Jacobian and bias torques at its current
+  configuration (`WrenchAllocator.set_torque_limits` with `TorqueConstraint`s).
 
 `WrenchAllocator` builds the QP once for a set of contacts and limits (fixed
 dimensions and sparsity: only the equality matrix depends on the contact
@@ -29,7 +31,7 @@ placements and wrenches at once (the vectorized effort sweep of
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from collections.abc import Sequence
 
 import numpy as np
@@ -122,6 +124,27 @@ class AllocationResult:
     effort: float
     solver: str
     joint_torques: tuple[np.ndarray, ...] | None = None
+    #: the limit that binds when the wrench is not achievable (the label of its QP row), else None
+    binding: str | None = None
+
+
+@dataclass(frozen=True)
+class TorqueConstraint:
+    """One arm's joint-torque limits as a constraint on its hand wrench w (in {a}): |J^T w + bias| <= limit.
+
+    ``jacobian`` (6 x n): maps the wrench [f; n] the hand applies, in {a} at the contact, to joint torques;
+    ``bias`` (n,): the torques with no wrench (gravity and velocity terms, `pinocchio.rnea(q, v, 0)`);
+    ``limit`` (n,): the joints' torque limits (URDF effort); ``joints``: their names, for the report.
+    """
+
+    jacobian: np.ndarray
+    bias: np.ndarray
+    limit: np.ndarray
+    joints: tuple[str, ...] = ()
+
+    def torques(self, wrench: Sequence[float]) -> np.ndarray:
+        """Return the joint torques J^T w + bias of a hand wrench."""
+        return self.jacobian.T @ np.asarray(wrench, dtype=float) + self.bias
 
 
 def _as_contacts(contacts: Sequence) -> list[ContactSpec]:
@@ -221,6 +244,39 @@ class _Inequalities:
                     tl[j],
                     f"arm{i} joint {j} torque limit ({tl[j]:g} N m)",
                 )
+
+
+def _torque_rows(
+    n: int, constraints: Sequence[TorqueConstraint | None], margin: float
+) -> tuple[np.ndarray, np.ndarray, list[str], list[str]]:
+    """Return (rows over the stacked 6N wrench, right-hand sides, labels, joints whose bias alone exceeds its limit).
+
+    ``|J^T w + g| <= (1 - margin) tau_max`` is ``+-J_j . w <= (1 - margin) tau_max_j -+ g_j`` per joint; a
+    right-hand side below 0 (the bias alone breaks the limit) is held at 0 so that w = 0 stays feasible.
+    """
+    rows, rhs, labels, over = [], [], [], []
+    for i, c in enumerate(constraints):
+        if c is None:
+            continue
+        J = np.asarray(c.jacobian, dtype=float)
+        g = np.asarray(c.bias, dtype=float)
+        lim = np.asarray(c.limit, dtype=float)
+        if J.ndim != 2 or J.shape[0] != 6 or g.shape != (J.shape[1],) or lim.shape != (J.shape[1],):
+            raise WholeBodyError(f"arm{i} torque constraint: jacobian must be 6 x n with n biases and limits")
+        if np.any(lim <= 0) or not (np.isfinite(J).all() and np.isfinite(g).all()):
+            raise WholeBodyError(f"arm{i} torque limits must be positive and the Jacobian and bias finite")
+        names = c.joints if len(c.joints) == J.shape[1] else tuple(f"joint {j}" for j in range(J.shape[1]))
+        cap = (1.0 - margin) * lim
+        for j in range(J.shape[1]):
+            if abs(g[j]) > cap[j]:
+                over.append(f"arm{i} {names[j]}")
+            for sgn in (1.0, -1.0):
+                row = np.zeros(6 * n)
+                row[6 * i : 6 * i + 6] = sgn * J[:, j]
+                rows.append(row)
+                rhs.append(max(cap[j] - sgn * g[j], 0.0))
+                labels.append(f"arm{i} {names[j]} torque limit ({lim[j]:g} N m)")
+    return np.array(rows).reshape(-1, 6 * n), np.array(rhs), labels, over
 
 
 def _inequalities(
@@ -336,19 +392,52 @@ class WrenchAllocator:
         self._active: tuple[int, ...] = ()  # active limits of the last QP solution (the shortcut's guess)
         self.q = np.zeros(nx)
         rows = _inequalities(self.limits, self.jacobians, torque_limits)
-        self.Gin = np.array(rows.rows) @ self.E
-        self.hin = np.array(rows.rhs)
-        self.labels = rows.labels
+        self._static = (np.array(rows.rows) @ self.E, np.array(rows.rhs), list(rows.labels))
+        self.torque_constraints: tuple[TorqueConstraint | None, ...] = ()
+        #: arms' joints whose bias torque alone exceeds its limit at the last `set_torque_limits`
+        self.bias_over_limit: tuple[str, ...] = ()
+        self._set_inequalities(*self._static)
+        col = {int(k): j for j, k in enumerate(self.free)}  # stacked-wrench index -> free-variable index
+        self._fx_cols = np.array([col[6 * i] for i in range(n)])
+        self._fy_cols = np.array([col[6 * i + 1] for i in range(n)])
+        self._A_template = self._equality_batch(np.zeros((1, n, 3)))[1][0]  # tau row: lever arms filled per call
+
+    def _set_inequalities(self, Gin: np.ndarray, hin: np.ndarray, labels: list[str]) -> None:
+        """Take the limit rows Gin x <= hin (free components) and their labels; derived tolerances and caches."""
+        self.Gin, self.hin, self.labels = Gin, hin, labels
         slack = np.maximum(1.0, np.abs(self.hin))
         self._h_exact = self.hin + 1e-12 * slack  # the closed form is the QP optimum within this
         self._h_ok = self.hin + 1e-6 * slack  # a QP result within this is accepted
         self._h_polish = self.hin + 1e-9 * slack  # a polished solution within this is kept
         self._h_active = self.hin - 1e-7 * slack  # rows of a QP result taken as active
         self._G_conv = sp.csc_matrix(self.Gin) if self.solver in SPARSE_SOLVERS else self.Gin
-        col = {int(k): j for j, k in enumerate(self.free)}  # stacked-wrench index -> free-variable index
-        self._fx_cols = np.array([col[6 * i] for i in range(n)])
-        self._fy_cols = np.array([col[6 * i + 1] for i in range(n)])
-        self._A_template = self._equality_batch(np.zeros((1, n, 3)))[1][0]  # tau row: lever arms filled per call
+
+    def set_torque_limits(self, constraints: Sequence[TorqueConstraint | None], margin: float = 0.0) -> None:
+        """Bound each arm's joint torques at its current configuration: |J_i^T w_i + g_i| <= (1 - margin) tau_max.
+
+        One `TorqueConstraint` per contact (None: that arm's joints unbounded); call it every control step
+        with the arms' Jacobians and bias torques (`wholebody.push.robot.MobileManipulator.torque_constraint`).
+        The rows replace those of the previous call; ``margin`` (0..1) keeps room for the dynamic terms the
+        bias leaves out. A joint whose bias alone exceeds its limit is listed in `bias_over_limit` (its row
+        then allows no wrench that adds to the excess). An unachievable wrench's `AllocationResult.binding`
+        names the joint limit that binds (``"arm0 arm_5_joint torque limit (3 N m)"``).
+        """
+        n = len(self._names)
+        if len(constraints) != n:
+            raise WholeBodyError(f"{len(constraints)} torque constraints given for {n} contacts")
+        if not 0.0 <= margin < 1.0:
+            raise WholeBodyError(f"torque margin must be in [0, 1), got {margin}")
+        rows, rhs, labels, over = _torque_rows(n, constraints, margin)
+        G0, h0, l0 = self._static
+        self.torque_constraints = tuple(constraints)
+        self.bias_over_limit = tuple(over)
+        self._set_inequalities(np.vstack([G0, rows @ self.E]), np.r_[h0, rhs], l0 + labels)
+        self._kkt_cache = {(): self._kkt_cache[()]} if hasattr(self, "_kkt_cache") else {}
+        self._active = ()
+        self._mats = None
+        if self._direct is not None:
+            self._direct = _DirectProxQP(self.P, self.Gin, self.hin)
+            self._A_new = True
 
     def _equality_batch(self, points_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return (G_full (M, 3, 6N), A (M, r, nx)) of the equality rows for contact sets points_b (M, N, 3)."""
@@ -526,6 +615,8 @@ class WrenchAllocator:
         effort = float(w_full @ self.Q @ w_full)
         W = w_full.reshape(-1, 6)
         taus = None if self.jacobians is None else tuple(J.T @ W[i] for i, J in enumerate(self.jacobians))
+        if taus is None and self.torque_constraints:
+            taus = tuple(np.zeros(0) if c is None else c.torques(W[i]) for i, c in enumerate(self.torque_constraints))
         return AllocationResult(W, achieved, residual, effort, solver, taus)
 
     def optimum(self, gamma_b: Sequence[float]) -> AllocationResult | None:
@@ -593,7 +684,7 @@ class WrenchAllocator:
         score = np.where(slack <= 1e-5 * np.maximum(1.0, np.abs(self.hin)), np.abs(z) + 1e-12, 0.0)
         binding = self.labels[int(np.argmax(score))] if np.any(score > 0) else "unknown"
         if not raise_on_infeasible:
-            return res
+            return replace(res, binding=binding)
         closest = res.gamma_achieved
         raise InfeasibleWrenchError(
             f"cart wrench (fx, fy, tau) = ({gamma[0]:.4g}, {gamma[1]:.4g}, {gamma[2]:.4g}) is not achievable: "

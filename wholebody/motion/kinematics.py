@@ -2,8 +2,9 @@
 
 Reduced coordinates ``x = [x, y, theta, q_arm...]`` (base pose on the floor + arm
 joints). Velocity input ``u = [q_arm_dot..., base input...]`` where the base input is
-the wheel rates (paper eq. 20 ordering: 7 arm joints then the wheels) or, for a
-holonomic base with ``base_input="twist"``, the body twist (vx, vy, wz).
+the wheel rates (paper eq. 20 ordering: the arm joints then the wheels) or, for a
+holonomic base with ``base_input="twist"``, the body twist (vx, vy, wz). Any number of arm joints;
+every other joint (torso, head, fingers, casters) is held at its locked value from the robot's profile.
 """
 
 from __future__ import annotations
@@ -14,8 +15,9 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
+from robots.checks import reference_configuration, wheel_geometry
 from robots.loading import LoadedRobot
-from robots.profiles import PROFILES, RobotProfile, mobile_manipulators
+from robots.profiles import RobotProfile, mobile_manipulators
 from wholebody.errors import WholeBodyError
 from wholebody.motion.bases import DifferentialDrive, MobileBase, Omnidirectional
 from wholebody.motion.kernels import integrate_state, write_configuration
@@ -34,6 +36,8 @@ class WholeBody:
         wheel_joints: names of the driven wheel joints, in the base's wheel order.
         ee_frame: role or frame name of the end effector.
         base_input: "wheels" (wheel rates) or "twist" (body twist; holonomic bases only).
+        q_reference: Pinocchio configuration of the joints outside x (locked joints); None = the profile's
+            locked values (`robots.checks.reference_configuration`), or neutral without a profile.
     """
 
     def __init__(
@@ -44,6 +48,7 @@ class WholeBody:
         wheel_joints: Sequence[str],
         ee_frame: str = "ee",
         base_input: BaseInput = "wheels",
+        q_reference: np.ndarray | None = None,
     ) -> None:
         self.robot = robot
         self.model: pin.Model = robot.model
@@ -75,8 +80,16 @@ class WholeBody:
         self.arm_upper = self.model.upperPositionLimit[self.arm_idx_q].copy()
         self.arm_velocity_limit = self.model.velocityLimit[self.arm_idx_v].copy()
         self.wheel_velocity_limit = self.model.velocityLimit[self.wheel_idx_v].copy()
-        self._q_neutral = pin.neutral(self.model)
+        if q_reference is None:
+            prof = robot.profile
+            q_reference = pin.neutral(self.model) if prof is None else reference_configuration(prof, self.model)
+        q_reference = np.asarray(q_reference, dtype=float)
+        if q_reference.shape != (self.model.nq,):
+            raise WholeBodyError(f"q_reference must have shape ({self.model.nq},), got {q_reference.shape}")
+        self._q_neutral = q_reference.copy()
         self._wheel_map = self.wheel_map()
+        #: 3 x n_base_input map from the base input to the base body twist (vx, vy, wz)
+        self.twist_map = self._wheel_map
         self._q_work = self._q_neutral.copy()  # configuration buffer of ee_and_jacobian
         self._x_shape = (3 + self.n_arm,)
         self._input_map = self._velocity_from_input()
@@ -115,6 +128,15 @@ class WholeBody:
     def wheel_map(self) -> np.ndarray:
         """Return the 3 x n_base_input map from the base input to the body twist (vx, vy, wz)."""
         return np.eye(3) if self.base_input == "twist" else self.base.wheel_to_body_twist()
+
+    def body_twist(self, u: Sequence[float]) -> np.ndarray:
+        """Return the base body twist (vx, vy, wz) of an input u (vy = 0 exactly for a differential drive)."""
+        return self._wheel_map @ np.asarray(u, dtype=float)[self.n_arm :]
+
+    @property
+    def arm_effort_limit(self) -> np.ndarray:
+        """Return the arm joints' torque (force) limits from the URDF (N m or N)."""
+        return self.model.effortLimit[self.arm_idx_v].copy()
 
     def wheel_rates(self, u: Sequence[float]) -> np.ndarray:
         """Return the wheel rates (rad/s) implied by an input vector u."""
@@ -159,26 +181,35 @@ class WholeBody:
         return self.ee_and_jacobian(x)[1]
 
 
-def wholebody_for(robot: LoadedRobot, base_input: BaseInput = "wheels") -> WholeBody:
-    """Return the `WholeBody` of a shipped robot, built from its profile (`robots.profiles`)."""
-    prof = PROFILES.get(robot.name)
+def wholebody_for(robot: LoadedRobot, base_input: BaseInput | None = "wheels", arm: int = 0) -> WholeBody:
+    """Return the `WholeBody` of a loaded robot with its arm number `arm`, built from its profile.
+
+    ``base_input``: "wheels" (wheel rates, the default), "twist" (holonomic bases), or None = the profile's
+    (`RobotProfile.base_input`: a body twist for a holonomic base, wheel rates for a differential drive).
+    """
+    prof = robot.profile
     if prof is None or not prof.is_mobile_manipulator:
         raise WholeBodyError(
-            f"no whole-body model for robot {robot.name!r}; use {' or '.join(repr(n) for n in mobile_manipulators())}"
+            f"no whole-body model for robot {robot.name!r} (no arm on a wheeled base in its profile); "
+            f"use {' or '.join(repr(n) for n in mobile_manipulators())} or a profile with [[arms]] and wheel_joints"
         )
+    if not 0 <= arm < len(prof.arms):
+        raise WholeBodyError(f"robot {robot.name!r} has {len(prof.arms)} arm(s) in its profile; arm {arm} asked")
+    a = prof.arms[arm]
     return WholeBody(
-        robot, base_for(robot, prof), prof.arm_joints, prof.wheel_joints, ee_frame=prof.ee_frame, base_input=base_input
+        robot,
+        base_for(robot, prof),
+        a.joints,
+        prof.wheel_joints,
+        ee_frame=a.gripper_frame,
+        base_input=prof.base_input if base_input is None else base_input,
     )
 
 
 def base_for(robot: LoadedRobot, prof: RobotProfile) -> MobileBase:
-    """Return the base model of a profile: a differential drive measured on the model, or mecanum wheels."""
-    if prof.base == "omnidirectional":
-        return Omnidirectional(prof.wheel_radius, prof.wheel_positions)
-    # Read the track and the wheel radius off the model, so that any build of `robots.wmra_urdf(...)` gets its own.
-    model = robot.model
-    left, right = (model.jointPlacements[model.getJointId(j)].translation for j in prof.wheel_joints)
-    track = float(np.linalg.norm(left - right))
-    pin.framesForwardKinematics(model, robot.data, pin.neutral(model))
-    wheel_radius = float(robot.data.oMf[model.getFrameId("base_link")].translation[2])
-    return DifferentialDrive(track, wheel_radius)
+    """Return the base model of a profile: a differential drive or mecanum wheels, dimensions from the profile
+    where it gives them, else read off the URDF (`robots.checks.wheel_geometry`)."""
+    geo = wheel_geometry(prof, robot.model)
+    if prof.base == "holonomic":
+        return Omnidirectional(geo.radius, geo.positions)
+    return DifferentialDrive(geo.separation, geo.radius)

@@ -5,18 +5,21 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
 import pinocchio as pin
 
 import robots
-from robots.profiles import RobotProfile, profile
+from robots.profiles import RobotProfile
 from cart.simulate import MeasurementNoise
 from wholebody.contacts.handle import HandleSegment
 from wholebody.errors import WholeBodyError
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, StepResult
+from wholebody.motion.bases import DifferentialDrive
 from wholebody.motion.kinematics import WholeBody, wholebody_for
 from wholebody.push.config import BodyTracker
+from wholebody.contacts.allocation import TorqueConstraint
 
 #: Grasp orientation in {b} at pitch 0: tool axis (ee z) along +x_b, fingers (ee x) along z_b, bar along ee y.
 R_B_EE0 = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]])
@@ -26,14 +29,39 @@ GRASP_PITCH = 0.8
 BASE_OFFSET_X = -0.65
 #: Lateral offset (m) of each base beyond its contact when two robots push side by side (bases are 0.79 m wide).
 TWO_ARM_BASE_SPREAD = 0.25
-#: Ridgeback limits (robots/ridgeback_iiwa.py): |vx|, |vy| <= 1.1 m/s, |wz| <= 2 rad/s.
-BASE_TWIST_LIMIT = np.array([1.1, 1.1, 2.0])
+#: Look-ahead (m) of a differential base's tracker when its profile gives none (paper 2 section VI).
+DIFFERENTIAL_LOOKAHEAD = 0.3
+#: Contact point y (m) of a fixed contact when the profile gives none.
+DEFAULT_CONTACT_Y = 0.0
 
 
-def grasp_rotation(pitch: float = GRASP_PITCH) -> np.ndarray:
-    """Return R_b_ee of the grasp: R_y(pitch) @ R_B_EE0 (the bar stays along the ee y axis)."""
+def _axis_rotation(axis: str) -> np.ndarray:
+    """Return R with R @ e_axis = e_z: gripper-frame coordinates -> the canonical grasp frame (tool axis z)."""
+    c = {"z": (0.0, 0.0), "-z": (1.0, 0.0), "x": (0.0, -1.0), "-x": (0.0, 1.0), "y": (2.0, 1.0), "-y": (2.0, -1.0)}
+    kind, s = c[axis]
+    if kind == 0.0 and s == 0.0:
+        return np.eye(3)
+    if kind == 1.0:  # -z: half turn about x
+        return np.diag([1.0, -1.0, -1.0])
+    if kind == 0.0:  # +-x: quarter turn about y by -+90 deg
+        return np.array([[0.0, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, 0.0]])
+    return np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -s], [0.0, s, 0.0]])  # +-y: quarter turn about x by +-90 deg
+
+
+def grasp_rotation(pitch: float = GRASP_PITCH, roll: float = 0.0, tool_axis: str = "z") -> np.ndarray:
+    """Return R_b_ee of the grasp: R_y(pitch) @ R_B_EE0 @ R_z(roll) @ A(tool_axis).
+
+    At roll 0 with the tool along the gripper frame's z the bar lies along the ee y axis; ``tool_axis``
+    names the gripper frame's axis that points from the wrist to the fingertips (A maps it onto z).
+    """
     c, s = math.cos(pitch), math.sin(pitch)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]) @ R_B_EE0
+    R = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]) @ R_B_EE0
+    if roll != 0.0:
+        cr, sr = math.cos(roll), math.sin(roll)
+        R = R @ np.array([[cr, -sr, 0.0], [sr, cr, 0.0], [0.0, 0.0, 1.0]])
+    if tool_axis != "z":
+        R = R @ _axis_rotation(tool_axis)
+    return R
 
 
 def cart_se3(q_cart: Sequence[float]) -> pin.SE3:
@@ -100,8 +128,8 @@ class WholeBodyQPTracker:
     """
 
     def __init__(self, wb: WholeBody, q_nominal: np.ndarray, config: ControllerConfig | None = None) -> None:
-        if config is None:  # the robot's own base tracker and wheel limits (robots.profiles)
-            prof = profile(wb.robot.name)
+        if config is None:  # the robot's own base tracker and wheel limits (its profile)
+            prof = push_profile(wb.robot)
             config = replace(
                 PUSH_CONTROLLER,
                 base_lookahead=prof.base_lookahead,
@@ -119,7 +147,7 @@ class WholeBodyQPTracker:
         base_velocity: np.ndarray,
         dt: float,
     ) -> np.ndarray:
-        """Return u = [arm rates (7), base body twist (3)] for one period."""
+        """Return u = [arm rates (n_arm), base input] for one period."""
         res = self.controller.step(
             x, target, target_velocity, dt, base_target=base_target, base_target_velocity=base_velocity
         )
@@ -162,20 +190,120 @@ def grasp_configuration(
 
     The base stands at ``(handle x + prof.push_base_x, base_y)`` in the cart frame {b}; the hand holds the bar
     with orientation ``R_b_ee``; the arm comes from `solve_grasp_ik` seeded with `seed` (default: the
-    profile's push posture).
+    profile's push posture). `prof` is a profile with its push settings filled (`push_profile`).
     """
     offset = np.array([handle_point(contact_y)[0] + prof.push_base_x, base_y])
     pose, _ = base_target(q_cart, np.zeros(3), offset)
     target, _ = grasp_target(q_cart, np.zeros(3), contact_y, 0.0, R_b_ee)
-    qa = solve_grasp_ik(wb, pose, target, prof.push_arm_seed if seed is None else seed)
+    arm_seed = seed if seed is not None else _arm_of(prof, wb).push_seed
+    qa = solve_grasp_ik(wb, pose, target, arm_seed)
     return pose, qa
 
 
+# ---------------------------------------------------------------------------------------------- push settings
+def _arm_of(prof: RobotProfile, wb: WholeBody):
+    """Return the profile's arm that `wb` drives (matched by its joints)."""
+    for arm in prof.arms:
+        if arm.joints == wb.arm_joints:
+            return arm
+    raise WholeBodyError(f"the whole-body model's joints are not an arm of robot {prof.name!r}'s profile")
+
+
+def tool_axis(wb: WholeBody) -> str:
+    """Return the gripper frame's axis pointing from the wrist to the fingertips, read off the URDF.
+
+    The last arm joint's origin, seen from the gripper frame at the reference configuration, lies behind
+    the tool: the tool axis is minus its largest component ("z" when the two coincide).
+    """
+    q = wb.to_pinocchio_q(np.r_[0.0, 0.0, 0.0, np.clip(np.zeros(wb.n_arm), wb.arm_lower, wb.arm_upper)])
+    pin.forwardKinematics(wb.model, wb.data, q)
+    pin.updateFramePlacements(wb.model, wb.data)
+    last = wb.model.getJointId(wb.arm_joints[-1])
+    p = wb.data.oMf[wb.ee_frame_id].actInv(wb.data.oMi[last].translation)
+    k = int(np.argmax(np.abs(p)))
+    if abs(p[k]) < 1e-6:
+        return "z"
+    return ("-" if p[k] > 0 else "") + "xyz"[k]
+
+
+def base_twist_limit(wb: WholeBody) -> tuple[float, float, float]:
+    """Return the largest base body twist (vx, vy, wz) per axis that keeps every wheel within its URDF speed limit."""
+    if isinstance(wb.base, DifferentialDrive):  # rim speed r w and turn rate 2 r w / track
+        v = wb.base.wheel_radius * float(np.min(wb.wheel_velocity_limit))
+        return (v, 0.0, 2.0 * v / wb.base.track)
+    M = wb.base.body_twist_to_wheels
+    out = []
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = 1.0
+        rates = np.abs(M(e))
+        if not wb.base.holonomic and k == 1:
+            out.append(0.0)
+            continue
+        out.append(float(np.min(wb.wheel_velocity_limit[rates > 1e-12] / rates[rates > 1e-12])))
+    return tuple(out)
+
+
+def push_profile(robot: robots.LoadedRobot | RobotProfile | str, arm: int = 0) -> RobotProfile:
+    """Return the robot's profile with every push setting filled: the profile's own values, the rest computed.
+
+    Computed: the tool axis (`tool_axis`), base twist limits from the wheel speeds (`base_twist_limit`),
+    the base tracker's look-ahead (0.3 m differential, 0 holonomic), the fixed contact (0 m) and, when the
+    profile holds no tuned push posture, the grasp (pitch, roll), the base placement behind the handle and
+    each arm's push posture by IK (`solve_push_placement`). Cached per profile and URDF.
+    """
+    loaded = robot if isinstance(robot, robots.LoadedRobot) else robots.load(robot)
+    if loaded.profile is None:
+        raise WholeBodyError(f"robot {loaded.name!r} was built without a profile; load it with robots.load(...)")
+    return _push_profile(loaded.profile, str(loaded.urdf), _LoadedKey(loaded))
+
+
+class _LoadedKey:
+    """Carries a loaded robot into the cache without making it part of the key."""
+
+    def __init__(self, robot: robots.LoadedRobot) -> None:
+        self.robot = robot
+
+    def __hash__(self) -> int:
+        return 0
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _LoadedKey)
+
+
+@lru_cache(maxsize=32)
+def _push_profile(prof: RobotProfile, urdf: str, key: _LoadedKey) -> RobotProfile:
+    if not prof.is_mobile_manipulator:
+        raise WholeBodyError(f"robot {prof.name!r} cannot push the cart: its profile has no arm on a wheeled base")
+    robot = key.robot
+    wbs = [wholebody_for(robot, base_input=prof.base_input, arm=i) for i in range(len(prof.arms))]
+    arms = tuple(replace(a, tool_axis=a.tool_axis or tool_axis(wb)) for a, wb in zip(prof.arms, wbs))
+    out = replace(
+        prof,
+        arms=arms,
+        push_contact_y=DEFAULT_CONTACT_Y if prof.push_contact_y is None else prof.push_contact_y,
+        base_twist_limit=prof.base_twist_limit or base_twist_limit(wbs[0]),
+        base_lookahead=(DIFFERENTIAL_LOOKAHEAD if prof.base == "differential" else 0.0)
+        if prof.base_lookahead is None
+        else prof.base_lookahead,
+    )
+    if out.tuned:
+        return replace(
+            out,
+            grasp_pitch=GRASP_PITCH if out.grasp_pitch is None else out.grasp_pitch,
+            grasp_roll=out.grasp_roll or 0.0,
+        )
+    from wholebody.push.posture import solve_push_placement
+
+    return solve_push_placement(out, wbs)
+
+
 class MobileManipulator:
-    """One mobile manipulator (a `robots.profiles` entry with an F/T sensor and a push posture) holding the handle.
+    """One mobile manipulator holding the handle with one of its arms (any profile: joints, frames, base).
 
     State ``x`` = [base pose, arm joints]; ``base_offset_b`` is where its base stays, in {b}
-    (behind the handle, laterally at ``base_y``); the arm starts from the grasp IK.
+    (behind the handle, laterally at ``base_y``); the arm starts from the grasp IK. ``arm`` picks the
+    profile's arm; the push settings come from `push_profile`.
     """
 
     def __init__(
@@ -187,29 +315,35 @@ class MobileManipulator:
         R_b_ee: np.ndarray,
         tracker: BodyTracker | None = None,
         arm_seed: Sequence[float] | None = None,
+        arm: int = 0,
     ) -> None:
-        prof = profile(robot.name)
-        if prof.ft_frame is None or prof.push_arm_seed is None:
-            raise WholeBodyError(f"robot {robot.name!r} has no F/T sensor or push posture in robots.profiles")
+        prof = push_profile(robot)
         self.profile = prof
+        self.arm = prof.arms[arm]
         # a holonomic base takes a body twist; a differential drive takes wheel rates, so that its lateral
         # velocity is zero by construction (combined Jacobian of paper 2, eq. 11-21)
-        self.wb = wholebody_for(robot, base_input=prof.base_input)
+        self.wb = wholebody_for(robot, base_input=prof.base_input, arm=arm)
         self.model = self.wb.model
         self.data = self.model.createData()
         self.R_b_ee = R_b_ee
         self.ee_id = self.wb.ee_frame_id
-        self.ft_id = robot.frame_id(prof.ft_frame)
+        self.ft_id = robot.frame_id(self.arm.sensor_frame)
         self.base_offset_b = np.array([handle_point(contact_y)[0] + prof.push_base_x, base_y])
         pose, qa = grasp_configuration(self.wb, prof, q_cart, contact_y, base_y, R_b_ee, arm_seed)
         self.x = np.r_[pose, qa]
         self.tracker = tracker if tracker is not None else WholeBodyQPTracker(self.wb, qa)
         self.u = np.zeros(self.wb.n_u)
-        self.effort_limit = self.model.effortLimit[self.wb.arm_idx_v].copy()
+        #: the arm joints' torque limits from the URDF (N m; N for a prismatic joint)
+        self.effort_limit = self.wb.arm_effort_limit
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Return the arm's joint names (base to tip)."""
+        return self.wb.arm_joints
 
     def body_twist(self, u: np.ndarray) -> np.ndarray:
         """Return the base body twist (vx, vy, wz) of an input u (vy = 0 exactly for a differential drive)."""
-        return self.wb._wheel_map @ np.asarray(u, dtype=float)[self.wb.n_arm :]
+        return self.wb.body_twist(u)
 
     def pin_state(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return Pinocchio (q, v) for the current x and input u (wheel joints left at rest)."""
@@ -235,6 +369,67 @@ class MobileManipulator:
         push = J[:, self.wb.arm_idx_v].T @ wrench_world
         pin.updateFramePlacements(self.model, self.data)
         return tau + push, push, pin.SE3(self.data.oMf[self.ee_id]), pin.SE3(self.data.oMf[self.ft_id])
+
+    def torque_constraint(self, q_cart: Sequence[float], u: np.ndarray | None = None) -> TorqueConstraint:
+        """Return this arm's joint-torque constraint on its hand wrench in {a}: |J_a^T w_a + bias| <= tau_max.
+
+        ``J_a`` (6 x n_arm) is the ee Jacobian (world-aligned, arm columns) with its rows rotated into the
+        cart frame of pose `q_cart` (a wrench in {a} is oriented like {b}); ``bias`` = rnea(q, v, 0): gravity
+        and the velocity terms of input `u` (default: the last command). `WrenchAllocator.set_torque_limits`
+        takes them.
+        """
+        q, v = self.pin_state(self.u if u is None else u)
+        bias = pin.rnea(self.model, self.data, q, v, np.zeros(self.model.nv))[self.wb.arm_idx_v]
+        J = pin.computeFrameJacobian(self.model, self.data, q, self.ee_id, pin.LOCAL_WORLD_ALIGNED)
+        c, s = math.cos(q_cart[2]), math.sin(q_cart[2])
+        Rt = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # R_sb^T
+        Ja = J[:, self.wb.arm_idx_v]
+        return TorqueConstraint(np.vstack([Rt @ Ja[:3], Rt @ Ja[3:]]), bias, self.effort_limit, self.joint_names)
+
+
+def base_lateral_places(prof: RobotProfile, contact_y: Sequence[float]) -> list[float]:
+    """Return each robot's base y in {b} for contacts `contact_y` (one robot per contact).
+
+    A base with a fixed place (`push_base_y`) stands there when alone; two such robots stand behind their
+    own contacts, shifted apart by `TWO_ARM_BASE_SPREAD` each. A base that follows its contact stands
+    `push_base_dy` beside it (two of them: spread apart as well).
+    """
+    ys = [float(v) for v in contact_y]
+    if len(ys) == 1:
+        return [prof.push_base_y if prof.push_base_y is not None else ys[0] + prof.push_base_dy]
+    shift = [-TWO_ARM_BASE_SPREAD, TWO_ARM_BASE_SPREAD]
+    off = 0.0 if prof.push_base_y is None else prof.push_base_y - prof.push_contact_y
+    return [y + off + prof.push_base_dy + d for y, d in zip(ys, shift)]
+
+
+def make_robots(
+    robot: str | RobotProfile | robots.LoadedRobot,
+    q_cart: np.ndarray,
+    contact_y: Sequence[float],
+    seeds: Sequence[Sequence[float] | None] | None = None,
+) -> list[MobileManipulator]:
+    """Return one mobile manipulator per contact, each holding the handle at its contact (bases spread apart).
+
+    Everything robot-specific (joints, grasp, base place, seeds) comes from the robot's profile
+    (`push_profile`); a posture the IK cannot reach from the place found for one robot is searched again
+    (`wholebody.push.placement.arm_posture_near`).
+    """
+    loaded = robot if isinstance(robot, robots.LoadedRobot) else robots.load(robot)
+    prof = push_profile(loaded)
+    arm = prof.arms[0]
+    R_b_ee = grasp_rotation(prof.grasp_pitch, prof.grasp_roll or 0.0, arm.tool_axis or "z")
+    seeds = list(seeds) if seeds is not None else [None] * len(contact_y)
+    out = []
+    for y, by, sd in zip(contact_y, base_lateral_places(prof, contact_y), seeds):
+        try:
+            out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=sd))
+        except WholeBodyError:
+            from wholebody.push.posture import arm_posture_near
+
+            wb = wholebody_for(loaded, base_input=prof.base_input)
+            seed = arm_posture_near(wb, prof, q_cart, float(y), float(by), R_b_ee)
+            out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=seed))
+    return out
 
 
 def ft_measurement(

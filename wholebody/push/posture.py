@@ -1,0 +1,180 @@
+"""The push posture of a robot its profile does not tune: grasp, base placement and arm posture by IK.
+
+`solve_push_placement` searches the grasp orientation (pitch and roll about the tool axis), the base's
+place behind the handle and the arm's posture that hold the handle's contact point with the largest
+joint-limit margin and the least gravity torque: a bounded least-squares IK (scipy) per candidate, then
+the exact grasp IK (`wholebody.push.robot.solve_grasp_ik`) with the base at the place found.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pinocchio as pin
+
+from robots.profiles import RobotProfile
+from wholebody.errors import WholeBodyError
+from wholebody.motion.kinematics import WholeBody
+
+#: Grasp pitches (rad) and rolls about the tool axis (rad) tried when the profile gives none.
+PITCHES = (0.8, 0.4, 0.0, 1.2)
+ROLLS = (0.0, math.pi / 2, math.pi, -math.pi / 2)
+#: Base x relative to the handle, in {b} (m): searched in this range (the base stays behind the handle).
+BASE_X_RANGE = (-1.4, -0.45)
+#: Lateral base offset searched (m).
+BASE_Y_RANGE = (-0.6, 0.6)
+#: Joint-limit margin (rad or m) of the search.
+SEARCH_MARGIN = 0.05
+
+
+@dataclass(frozen=True)
+class Placement:
+    """One solved push placement: grasp, base offset in {b}, arm posture and its score."""
+
+    pitch: float
+    roll: float
+    base_x: float
+    base_dy: float
+    arm: np.ndarray
+    margin: float
+    gravity_ratio: float
+
+    @property
+    def score(self) -> float:
+        """Return the ranking score: joint-limit margin (fraction of range) less any gravity load above half."""
+        return self.margin - max(0.0, self.gravity_ratio - 0.5)
+
+
+def joint_margin(wb: WholeBody, q: np.ndarray) -> float:
+    """Return the smallest distance of the arm joints to their limits, as a fraction of each joint's range."""
+    span = wb.arm_upper - wb.arm_lower
+    return float(np.min(np.minimum(q - wb.arm_lower, wb.arm_upper - q) / span))
+
+
+def gravity_ratio(wb: WholeBody, x: np.ndarray) -> float:
+    """Return max_j |g_j(q)| / tau_max_j of the arm at state x (gravity alone against the URDF's limits)."""
+    g = pin.computeGeneralizedGravity(wb.model, wb.model.createData(), wb.to_pinocchio_q(x))[wb.arm_idx_v]
+    lim = wb.arm_effort_limit
+    return float(np.max(np.abs(g) / np.where(lim > 0, lim, np.inf)))
+
+
+def _search(
+    wb: WholeBody, prof: RobotProfile, R_b_ee: np.ndarray, contact_y: float, seed: np.ndarray, bx0: float
+) -> np.ndarray | None:
+    """Return [bx, dy, q...] of a bounded least-squares IK with a pull to mid-range, or None."""
+    from scipy.optimize import least_squares
+
+    from wholebody.push.robot import base_target, grasp_target, handle_point
+
+    zero = np.zeros(3)
+    target, _ = grasp_target(zero, zero, contact_y, 0.0, R_b_ee)
+    hx = handle_point(contact_y)[0]
+    lo_q, hi_q = wb.arm_lower + SEARCH_MARGIN, wb.arm_upper - SEARCH_MARGIN
+    mid, half = 0.5 * (wb.arm_lower + wb.arm_upper), 0.5 * (wb.arm_upper - wb.arm_lower)
+    fix_x, fix_y = prof.push_base_x, prof.push_base_y
+    lo = np.r_[BASE_X_RANGE[0], BASE_Y_RANGE[0], lo_q]
+    hi = np.r_[BASE_X_RANGE[1], BASE_Y_RANGE[1], hi_q]
+    x = np.zeros(3 + wb.n_arm)
+
+    def state(z: np.ndarray) -> np.ndarray:
+        bx = z[0] if fix_x is None else fix_x
+        by = contact_y + z[1] if fix_y is None else fix_y
+        x[:3] = base_target(zero, zero, np.array([hx + bx, by]))[0]
+        x[3:] = z[2:]
+        return x
+
+    def residual(z: np.ndarray) -> np.ndarray:
+        err = pin.log6(wb.ee_placement(state(z)).actInv(target)).vector
+        return np.r_[10.0 * err, 0.05 * (z[2:] - mid) / half, 0.05 * z[1]]
+
+    z0 = np.clip(np.r_[bx0, 0.0, seed], lo + 1e-9, hi - 1e-9)
+    sol = least_squares(residual, z0, bounds=(lo, hi), xtol=1e-10, ftol=1e-10, max_nfev=400)
+    return sol.x if np.linalg.norm(sol.fun[:6]) < 1e-3 else None
+
+
+def _candidates(prof: RobotProfile) -> list[tuple[float, float]]:
+    pitches = PITCHES if prof.grasp_pitch is None else (prof.grasp_pitch,)
+    rolls = ROLLS if prof.grasp_roll is None else (prof.grasp_roll,)
+    return [(p, r) for p in pitches for r in rolls]
+
+
+def _placement(wb: WholeBody, prof: RobotProfile, pitch: float, roll: float, axis: str) -> Placement | None:
+    """Return the best placement of one grasp orientation (two base seeds), or None if the arm cannot reach."""
+    from wholebody.push.robot import base_target, grasp_rotation, grasp_target, handle_point, solve_grasp_ik
+
+    y0 = prof.push_contact_y
+    R = grasp_rotation(pitch, roll, axis)
+    mid = 0.5 * (wb.arm_lower + wb.arm_upper)
+    best = None
+    for bx0 in (-0.6, -0.9):
+        z = _search(wb, prof, R, y0, mid if prof.push_arm_seed is None else np.asarray(prof.push_arm_seed), bx0)
+        if z is None:
+            continue
+        bx = z[0] if prof.push_base_x is None else prof.push_base_x
+        dy = z[1] if prof.push_base_y is None else prof.push_base_y - y0
+        zero = np.zeros(3)
+        pose = base_target(zero, zero, np.array([handle_point(y0)[0] + bx, y0 + dy]))[0]
+        try:
+            qa = solve_grasp_ik(wb, pose, grasp_target(zero, zero, y0, 0.0, R)[0], z[2:])
+        except WholeBodyError:
+            continue
+        p = Placement(pitch, roll, float(bx), float(dy), qa, joint_margin(wb, qa), gravity_ratio(wb, np.r_[pose, qa]))
+        if best is None or p.score > best.score:
+            best = p
+    return best
+
+
+def solve_push_placement(prof: RobotProfile, wbs: Sequence[WholeBody]) -> RobotProfile:
+    """Return `prof` with its grasp, base placement and arm push postures found by IK (see the module docstring).
+
+    Arm 0 sets the grasp and the base place; the other arms get the posture that holds the handle's
+    mirror point from the same base. Raises `WholeBodyError` when no candidate reaches the handle.
+    """
+    wb = wbs[0]
+    axis = prof.arms[0].tool_axis or "z"
+    found = [p for p in (_placement(wb, prof, pitch, roll, axis) for pitch, roll in _candidates(prof)) if p]
+    if not found:
+        raise WholeBodyError(
+            f"robot {prof.name!r}: no arm posture reaches the cart handle from behind it; "
+            "give [push] base_x and the arm's push_seed in its profile"
+        )
+    best = max(found, key=lambda p: p.score)
+    arms = list(prof.arms)
+    arms[0] = replace(arms[0], push_seed=tuple(float(v) for v in best.arm))
+    fixed_base = prof.base != "holonomic"
+    return replace(
+        prof,
+        arms=tuple(arms),
+        grasp_pitch=best.pitch,
+        grasp_roll=best.roll,
+        push_base_x=best.base_x,
+        push_base_y=(prof.push_contact_y + best.base_dy) if fixed_base else prof.push_base_y,
+        push_base_dy=0.0 if fixed_base else best.base_dy,
+    )
+
+
+def arm_posture_near(
+    wb: WholeBody, prof: RobotProfile, q_cart: np.ndarray, contact_y: float, base_y: float, R_b_ee: np.ndarray
+) -> np.ndarray:
+    """Return an arm posture holding the handle at `contact_y` with the base at `base_y` in {b}.
+
+    Tries the profile's push posture, mid-range and eight seeded random postures (fixed seed) as IK seeds;
+    raises `WholeBodyError` when none converges.
+    """
+    from wholebody.push.robot import grasp_configuration
+
+    rng = np.random.default_rng(0)
+    seeds = [np.asarray(prof.push_arm_seed), 0.5 * (wb.arm_lower + wb.arm_upper)]
+    seeds += [rng.uniform(wb.arm_lower, wb.arm_upper) for _ in range(8)]
+    for seed in seeds:
+        try:
+            return grasp_configuration(wb, prof, q_cart, contact_y, base_y, R_b_ee, seed)[1]
+        except WholeBodyError:
+            continue
+    raise WholeBodyError(
+        f"robot {prof.name!r}: the arm cannot hold the handle at y = {contact_y:.3f} m with its base at "
+        f"y = {base_y:.3f} m; fix the contact points or give [push] base_x in its profile"
+    )
