@@ -48,6 +48,7 @@ from cart.errors import CartError
 from cart.logs import CartLog
 from cart.noise_model import AR1Noise, fit_ar1
 from cart.params import CartParams
+from cart.physical import constrained_fit
 from cart.streams import Streams, split_streams
 
 #: Largest share of the filtered acceleration's power that differentiated pose noise may have (the
@@ -505,6 +506,20 @@ def _wrench_noise(reg: _Regression, p: np.ndarray, dt: float, sos: np.ndarray) -
     return models[0], models[1], gains
 
 
+def _physical(p: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Return p with [m, m dx, m dy, J] made physical (:func:`cart.physical.constrained_fit`) and a note if changed."""
+    m, a, b, j = p[:4]
+    if m > 0 and j - (a * a + b * b) / m > 1e-6 * abs(j):
+        return p, []
+    fixed = p.copy()
+    fixed[:6] = constrained_fit(p[:6], cov[:6, :6])
+    inertia = j - (a * a + b * b) / m if m > 0 else float("nan")
+    return fixed, [
+        f"the unconstrained fit is not a physical body (m = {m:.3g} kg, I about the CoM = {inertia:.3g} kg m^2); "
+        "the closest physical parameters (m > 0, I > 0) are reported"
+    ]
+
+
 def _residual_ratio(
     lv: _Noise, out_gain: np.ndarray, sv: float, so: float, p: np.ndarray, r: np.ndarray, y: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -600,9 +615,11 @@ def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | 
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(lv, out_gain, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings)
+    p, note = _physical(p, cov)
+    warnings += note
     params, inertia = _physical_params(log, p, cov)
     std = _physical_std(p, cov)
-    warnings += _excitation_warnings(p, std, inertia)
+    warnings += _excitation_warnings(p, std, inertia if inertia > 0 else params.I)
     noise_out = {"position": lv.pos, "theta": lv.theta, "force": lv.force, "torque": lv.torque}
     return Identification(
         params=params,

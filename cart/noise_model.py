@@ -21,6 +21,8 @@ from cart._kernels_identify import sosfilt
 
 #: Longest lag (s) of the variogram: sensor noise decorrelates faster; slower residual is misfit.
 HORIZON = 0.25
+#: The horizon is at most this share of the log: on a short log slow misfit would look like noise.
+MIN_HORIZONS = 50
 
 
 @dataclass(frozen=True)
@@ -56,11 +58,11 @@ def fit_ar1(r: np.ndarray, dt: float, horizon: float = HORIZON) -> AR1Noise:
     """Return the AR(1) model of the noise ``r`` (uniform period ``dt``) from its variogram up to ``horizon`` s.
 
     Fits ``sigma^2 (1 - a^L)`` to half the robust variance of ``r_(i+L) - r_i`` at lags L = 1 ... horizon / dt
-    (log-spaced), with the correlation time ``-dt / ln a`` at most half the horizon: slower parts of ``r``
+    (log-spaced; at most a fiftieth of the log), with the correlation time ``-dt / ln a`` at most half the horizon: slower parts of ``r``
     (a model misfit) are not taken for sensor noise.
     """
     r = np.asarray(r, float)
-    max_lag = max(2, min(int(round(horizon / dt)), len(r) // 4))
+    max_lag = max(2, min(int(round(horizon / dt)), len(r) // MIN_HORIZONS))
     lags = np.unique(np.round(np.geomspace(1, max_lag, 14)).astype(int))
     gam = np.array([0.5 * _robust_var(r[lag:] - r[:-lag]) for lag in lags])
     if not np.all(gam > 0):
