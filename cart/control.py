@@ -28,7 +28,7 @@ from cart import model
 from cart.dynamics import inverse_dynamics
 from cart.errors import CartError
 from cart.params import CartParams
-from cart.trajectories import UnicycleTrajectory
+from cart.trajectories import CartTrajectory
 
 #: Names of the cart tracking laws of :func:`make_controller`.
 ControllerName = Literal["fl_lqr", "kanayama"]
@@ -95,7 +95,7 @@ class FeedbackLinearizationLQR:
     K is recomputed every ``gain_period`` seconds from the current M, C (estimated parameters).
     """
 
-    trajectory: UnicycleTrajectory
+    trajectory: CartTrajectory
     alpha: float = 2.0
     q_e: float = 400.0
     q_r: float = 20.0
@@ -139,7 +139,7 @@ class KanayamaTracker:
     vdot = vdot_r + k_v (v_c - v), wdot = wdot_r + k_w (w_c - w).
     """
 
-    trajectory: UnicycleTrajectory
+    trajectory: CartTrajectory
     k_x: float = 3.0
     k_y: float = 12.0
     k_th: float = 5.0
@@ -171,7 +171,7 @@ class KanayamaTracker:
         return np.array([c * fu, s * fu, tau])
 
 
-def make_controller(name: ControllerName, trajectory: UnicycleTrajectory, **gains) -> object:
+def make_controller(name: ControllerName, trajectory: CartTrajectory, **gains) -> object:
     """Return the controller called ``name`` ("fl_lqr" or "kanayama") for ``trajectory``."""
     if name == "fl_lqr":
         return FeedbackLinearizationLQR(trajectory, **gains)

@@ -12,7 +12,8 @@ from __future__ import annotations
 import math
 from bisect import bisect_right
 from dataclasses import dataclass
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Protocol
 
 import numpy as np
 
@@ -134,3 +135,119 @@ def trajectory_2(duration: float = 30.0, turns: Sequence[Turn] | None = None) ->
     if turns is None:
         turns = (Turn(7.0, 3.0, math.pi / 2), Turn(16.0, 3.0, -math.pi / 2), Turn(23.0, 3.0, math.pi / 2))
     return UnicycleTrajectory(duration=duration, stop_start=duration - 3.0, turns=tuple(turns))
+
+
+class CartTrajectory(Protocol):
+    """A desired cart motion: what the cart controllers (eq. 26) and the push loop sample."""
+
+    duration: float
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return (q_d, qd_d, qdd_d) at time t: pose (x, y, theta) and its first two derivatives."""
+
+
+@dataclass(frozen=True)
+class WaypointTrajectory:
+    """A nonholonomic path through planar waypoints (m), driven with a trapezoidal speed profile.
+
+    The path is a C2 cubic spline through the waypoints, parameterised by its chord length; the heading
+    is the path's tangent (so the desired velocity satisfies the no-slip constraint, eq. 1-3); the
+    speed ramps at ``accel`` to ``speed``, cruises, and ramps down to stop at the last waypoint. The
+    motion starts at ``start`` s and is held at the end.
+    """
+
+    waypoints: tuple[tuple[float, float], ...]
+    speed: float = 0.5
+    accel: float = 0.4
+    start: float = 1.0
+
+    def __post_init__(self) -> None:
+        pts = np.asarray(self.waypoints, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] < 2 or not np.all(np.isfinite(pts)):
+            raise ValueError(f"waypoints must be >= 2 finite (x, y) pairs, got shape {pts.shape}")
+        if np.any(np.linalg.norm(np.diff(pts, axis=0), axis=1) < 1e-6):
+            raise ValueError("consecutive waypoints must differ")
+        if not (self.speed > 0 and self.accel > 0 and self.start >= 0):
+            raise ValueError("speed and accel must be > 0 and start >= 0")
+
+    def _spline(self):
+        cache = self.__dict__.get("_cache")
+        if cache is None:
+            from scipy.interpolate import CubicSpline
+
+            pts = np.asarray(self.waypoints, dtype=float)
+            u = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))]
+            spline = CubicSpline(u, pts, bc_type="natural")
+            fine = np.linspace(0.0, u[-1], 2000)
+            ds = np.linalg.norm(spline(fine, 1), axis=1)
+            s = np.r_[0.0, np.cumsum(0.5 * (ds[1:] + ds[:-1]) * np.diff(fine))]
+            cache = (spline, fine, s)
+            object.__setattr__(self, "_cache", cache)
+        return cache
+
+    @property
+    def length(self) -> float:
+        """Return the path's arc length (m)."""
+        return float(self._spline()[2][-1])
+
+    @property
+    def duration(self) -> float:
+        """Return the time (s) at which the cart stops at the last waypoint."""
+        L, v, a = self.length, self.speed, self.accel
+        v_top = min(v, math.sqrt(L * a))
+        return self.start + 2.0 * v_top / a + max(0.0, L - v_top**2 / a) / v_top
+
+    def _progress(self, t: float) -> tuple[float, float, float]:
+        """Return (s, sdot, sddot): arc length travelled and its derivatives at t."""
+        L, a = self.length, self.accel
+        v = min(self.speed, math.sqrt(L * a))
+        t_ramp, t_end = v / a, self.duration
+        tau = t - self.start
+        if tau <= 0.0:
+            return 0.0, 0.0, 0.0
+        if t >= t_end:
+            return L, 0.0, 0.0
+        if tau < t_ramp:
+            return 0.5 * a * tau**2, a * tau, a
+        if t < t_end - t_ramp:
+            return 0.5 * v * t_ramp + v * (tau - t_ramp), v, 0.0
+        r = t_end - t
+        return L - 0.5 * a * r**2, a * r, -a
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return (q_d, qd_d, qdd_d) at time t."""
+        spline, fine, s_of_u = self._spline()
+        s, sd, sdd = self._progress(float(t))
+        u = float(np.interp(s, s_of_u, fine))
+        p, dp, ddp = spline(u), spline(u, 1), spline(u, 2)
+        n = float(np.hypot(*dp))
+        tx, ty = dp / n  # unit tangent
+        kappa = (dp[0] * ddp[1] - dp[1] * ddp[0]) / n**3  # signed curvature
+        th = math.atan2(ty, tx)
+        om, omd = kappa * sd, kappa * sdd  # curvature held over the sample (its derivative along s neglected)
+        q = np.array([p[0], p[1], th])
+        qd = np.array([sd * tx, sd * ty, om])
+        qdd = np.array([sdd * tx - sd * om * ty, sdd * ty + sd * om * tx, omd])
+        return q, qd, qdd
+
+
+@dataclass(frozen=True)
+class FunctionTrajectory:
+    """A user's desired motion given as a function of time ``f(t) -> (q_d, qd_d, qdd_d)``, over ``duration`` s."""
+
+    function: Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]
+    duration: float
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return the function's (q_d, qd_d, qdd_d) at t, checked for shape (3,) each."""
+        out = tuple(np.asarray(v, dtype=float) for v in self.function(float(t)))
+        if len(out) != 3 or any(v.shape != (3,) for v in out):
+            raise ValueError("a trajectory function must return (q_d, qd_d, qdd_d), each of shape (3,)")
+        return out[0], out[1], out[2]
+
+
+def paper_trajectory(number: int, duration: float = 30.0) -> UnicycleTrajectory:
+    """Return the paper's Traj. 1 or 2 (Fig. 3)."""
+    if number not in (1, 2):
+        raise ValueError(f"the paper has trajectories 1 and 2, got {number}")
+    return trajectory_1(duration) if number == 1 else trajectory_2(duration)

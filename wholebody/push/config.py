@@ -12,7 +12,7 @@ import pinocchio as pin
 from cart.control import ControllerName as CartControllerName
 from cart.params import CartParams
 from cart.simulate import MeasurementNoise
-from cart.trajectories import UnicycleTrajectory, trajectory_1, trajectory_2
+from cart.trajectories import CartTrajectory, paper_trajectory
 from wholebody.contacts.allocation import ArmLimits
 from wholebody.errors import WholeBodyError
 
@@ -67,7 +67,9 @@ PUSH_SENSOR_NOISE = MeasurementNoise(position=0.003, theta=0.003, velocity=0.01,
 class PushConfig:
     """One closed-loop run: trajectory, robots, contact mode, estimator, truth, noise, seed."""
 
-    trajectory: int = 2
+    #: the paper's Traj. 1 or 2, or any desired cart motion (`cart.trajectories.WaypointTrajectory`,
+    #: `FunctionTrajectory`, or an object with ``duration`` and ``sample(t) -> (q, qd, qdd)``)
+    trajectory: int | CartTrajectory = 2
     duration: float = 30.0
     dt: float = 0.01
     substeps: int = 2
@@ -92,8 +94,10 @@ class PushConfig:
     robot: str = "ridgeback_iiwa"
 
     def __post_init__(self) -> None:
-        if self.trajectory not in (1, 2):
-            raise WholeBodyError(f"trajectory must be 1 or 2, got {self.trajectory}")
+        if isinstance(self.trajectory, int) and self.trajectory not in (1, 2):
+            raise WholeBodyError(f"trajectory must be 1, 2 or a trajectory object, got {self.trajectory}")
+        if not isinstance(self.trajectory, int) and not callable(getattr(self.trajectory, "sample", None)):
+            raise WholeBodyError("trajectory must be 1, 2 or an object with sample(t) -> (q, qd, qdd)")
         if self.n_arms not in (1, 2):
             raise WholeBodyError(f"arms must be 1 or 2, got {self.n_arms}")
         if self.contact not in ("fixed", "optimal"):
@@ -130,9 +134,16 @@ class PushConfig:
             self.true_params.sigma,
         )
 
-    def make_trajectory(self) -> UnicycleTrajectory:
-        """Return Traj. 1 or 2 of the paper with this run's duration."""
-        return trajectory_1(self.duration) if self.trajectory == 1 else trajectory_2(self.duration)
+    def make_trajectory(self) -> CartTrajectory:
+        """Return the desired cart motion: Traj. 1 or 2 of the paper with this run's duration, or the given one."""
+        if isinstance(self.trajectory, int):
+            return paper_trajectory(self.trajectory, self.duration)
+        return self.trajectory
+
+    @property
+    def trajectory_label(self) -> str:
+        """Return a short name of the trajectory ("Traj. 2", or the object's class name)."""
+        return f"Traj. {self.trajectory}" if isinstance(self.trajectory, int) else type(self.trajectory).__name__
 
 
 @dataclass(frozen=True)

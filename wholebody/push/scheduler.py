@@ -8,7 +8,7 @@ import numpy as np
 
 from cart.dynamics import inverse_dynamics
 from cart.params import CartParams
-from cart.trajectories import UnicycleTrajectory
+from cart.trajectories import CartTrajectory
 from wholebody.contacts.allocation import WrenchAllocator
 from wholebody.contacts.handle import HandleSegment
 from wholebody.contacts.placement import ReachMap, effort_sweep
@@ -28,7 +28,7 @@ class ContactScheduler:
     holds with margin are candidates, and a plan whose static joint torques exceed the effortLimit is avoided.
     """
 
-    def __init__(self, config: PushConfig, trajectory: UnicycleTrajectory, reach: ReachMap | None = None) -> None:
+    def __init__(self, config: PushConfig, trajectory: CartTrajectory, reach: ReachMap | None = None) -> None:
         self.config = config
         self.trajectory = trajectory
         self.reach = reach
@@ -70,7 +70,7 @@ class ContactScheduler:
         m, a, b, j = params.phi
         for tk in ts:
             _, qd_d, qdd_d = self.trajectory.sample(tk)
-            th = math.atan2(qd_d[1], qd_d[0]) if np.hypot(qd_d[0], qd_d[1]) > 1e-6 else self.trajectory.yaw(tk)[0]
+            th = math.atan2(qd_d[1], qd_d[0]) if np.hypot(qd_d[0], qd_d[1]) > 1e-6 else self.trajectory.sample(tk)[0][2]
             c, s = math.cos(th), math.sin(th)
             v = c * qd_d[0] + s * qd_d[1]
             vdot = c * qdd_d[0] + s * qdd_d[1]

@@ -55,3 +55,16 @@ def test_a_measurement_with_the_wrong_number_of_robots_is_refused(recorded):
     ctrl = build_controller(CONFIG).controller
     with pytest.raises(WholeBodyError, match="robots"):
         ctrl.step(Measurement(m.t, m.cart_pose, m.cart_velocity, m.robots * 2))
+
+
+def test_a_user_path_through_waypoints_is_pushed():
+    from cart.trajectories import WaypointTrajectory
+    from wholebody.push import run_push
+
+    traj = WaypointTrajectory(((0.0, 0.0), (1.5, 0.0), (2.5, 0.8)), speed=0.4)
+    r = run_push(PushConfig(trajectory=traj, duration=traj.duration + 0.5, contact="fixed", fixed_contact_y=(0.0,)))
+    end = traj.sample(traj.duration)[0]
+    assert r.metrics.tracking_max_mm < 20.0
+    assert np.hypot(*(r.q_true[-1, :2] - end[:2])) < 0.02  # the cart reached the last waypoint
+    with pytest.raises(WholeBodyError, match="trajectory"):
+        PushConfig(trajectory=3)
