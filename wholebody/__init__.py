@@ -19,9 +19,7 @@ import importlib
 from typing import Any
 
 from wholebody.errors import (
-    BatchError,
     InfeasibleWrenchError,
-    OptionError,
     SceneError,
     SingularConfigurationError,
     TrajectoryInfeasibleError,
@@ -73,7 +71,6 @@ _LAZY = {
 __all__ = [
     "AllocationResult",
     "ArmLimits",
-    "BatchError",
     "ContactPlan",
     "EffortSweep",
     "ControllerConfig",
@@ -84,7 +81,6 @@ __all__ = [
     "InfeasibleWrenchError",
     "MobileBase",
     "Omnidirectional",
-    "OptionError",
     "PushConfig",
     "PushMetrics",
     "PushResult",

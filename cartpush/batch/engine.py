@@ -30,7 +30,7 @@ from typing import Any
 from collections.abc import Callable, Iterable, Iterator, Sequence
 
 from cart.errors import CartpushError
-from wholebody.errors import BatchError
+from cartpush.errors import BatchError
 
 #: File names a directory input contributes (sorted), in that directory only.
 LOG_PATTERNS = ("*.csv", "*.csv.gz")

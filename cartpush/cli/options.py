@@ -11,7 +11,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from wholebody.errors import OptionError
+from cartpush.errors import OptionError
 
 #: Longest simulated time any command accepts (s): the memory budget of the simulations
 #: (a few arrays of one row per control step; 3600 s at 100 Hz is 360,000 rows).
