@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from cart.errors import CartError, CartpushError, LogFormatError
+from cart.errors import CartpushError
 from cart.logs import CartLog, write_log
 from cartpush.cli import main, preprocess_argv
 
