@@ -12,7 +12,7 @@ never asserts a time. Rows:
 * "qpsolvers <backend>": the QP forced through `qpsolvers` (``direct=False``), cold each call.
 
 Contact points: `optimal_contact_points` (grid 1 cm + local refinement) against the brute force it is proven
-equal to on the grid (one allocation QP per grid candidate, as `tests/wholebody/test_placement_sweep.py` checks).
+equal to on the grid (one allocation QP per grid candidate, as `tests/wholebody/contacts/test_placement_sweep.py` checks).
 """
 
 from __future__ import annotations

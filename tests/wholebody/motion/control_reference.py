@@ -2,9 +2,9 @@
 
 Each case runs the controller in closed loop and records, per step, the inputs of `step` and its
 outputs, plus the QP's box and inequalities (`bounds`, `inequalities`). The reference file
-`tests/wholebody/data/control_reference.npz` holds the outputs of the controller as built before it was
+`tests/wholebody/motion/data/control_reference.npz` holds the outputs of the controller as built before it was
 composed from tasks and limits; regenerate it (only when the controller's behaviour is meant to change) with
-`.venv/bin/python -m tests.wholebody.control_reference`.
+`.venv/bin/python -m tests.wholebody.motion.control_reference`.
 """
 
 from __future__ import annotations

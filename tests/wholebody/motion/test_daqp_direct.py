@@ -15,7 +15,7 @@ import qpsolvers
 
 import robots
 from wholebody.motion.experiments import initial_state
-from tests.wholebody.control_reference import CASES, REFERENCE, build, capture_qps
+from tests.wholebody.motion.control_reference import CASES, REFERENCE, build, capture_qps
 from wholebody.motion.control import ControllerConfig, ResolvedRateController
 from wholebody.motion.kinematics import wholebody_for
 from wholebody.motion.qp import DaqpSolver, SolverChoice

@@ -18,7 +18,7 @@ from scipy import sparse
 
 import robots
 from wholebody.motion.experiments import initial_state
-from tests.wholebody.control_reference import CASES, REFERENCE, build, capture_qps
+from tests.wholebody.motion.control_reference import CASES, REFERENCE, build, capture_qps
 from wholebody.motion import qp as qp_module
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, pose_error
 from wholebody.motion.kinematics import wholebody_for
