@@ -1,0 +1,114 @@
+"""Online detection of a step change of the cart's inertial parameters (a payload put in or taken out).
+
+Generalized likelihood ratio (GLR) test on the residuals of the online regression
+(:mod:`cart.online_regression`; Willsky and Jones, "A generalized likelihood ratio
+approach to the detection and estimation of jumps in linear systems", IEEE TAC 1976).
+With the a-priori residual ``r_k = y_k - Y_k p_hat`` of each sample, the rows' weights
+``W_k`` and ``Phi_k`` the regressor columns of ``[m, m dx, m dy, J]``, a step change
+``delta`` of those parameters shifts the residuals by ``Phi_k delta``. Over an
+exponentially weighted window the score ``S = sum w_k Phi_k^T W_k r_k`` has, without a
+change, the covariance ``A2 + A P A`` (``A = sum w_k Phi^T W Phi``, ``A2`` the same with
+``w_k^2``, ``P`` the covariance of p_hat: the estimate's own error also biases the
+residuals); ``g = S^T (A2 + A P A)^-1 S`` is then chi-square with 4 dof. A change is
+declared when ``g`` passes the ``1 - alpha`` quantile and the estimated mass change is
+at least ``min_change`` of the mass. Its onset is the maximum-likelihood start over
+the last ``buffer_s`` seconds (the GLR over every candidate start, :meth:`onset`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cart.ekf import chi2_isf
+
+N_INERTIAL = 4
+
+
+class RingBuffer:
+    """The last ``size`` samples of named arrays (one row per sample), oldest first on read."""
+
+    def __init__(self, size: int, shapes: dict[str, tuple[int, ...]]) -> None:
+        self.size = int(size)
+        self.data = {k: np.zeros((self.size, *s)) for k, s in shapes.items()}
+        self.count = 0
+
+    def push(self, **rows: np.ndarray | float) -> None:
+        """Store one sample (overwrites the oldest when full)."""
+        i = self.count % self.size
+        for k, v in rows.items():
+            self.data[k][i] = v
+        self.count += 1
+
+    def read(self, key: str) -> np.ndarray:
+        """Return the stored rows of ``key``, oldest first."""
+        arr = self.data[key]
+        n = min(self.count, self.size)
+        if self.count <= self.size:
+            return arr[:n]
+        i = self.count % self.size
+        return np.concatenate([arr[i:], arr[:i]])
+
+    def clear(self) -> None:
+        """Forget every sample."""
+        self.count = 0
+
+
+class ChangeDetector:
+    """Windowed GLR test for a step of [m, m dx, m dy, J]; see the module docstring."""
+
+    def __init__(self, window_s: float = 1.5, alpha: float = 1e-6, min_change: float = 0.08) -> None:
+        if not (window_s > 0.0 and 0.0 < alpha < 1.0 and min_change >= 0.0):
+            from cart.online_regression import OnlineEstimatorError
+
+            raise OnlineEstimatorError(
+                f"change detection needs window_s > 0, 0 < alpha < 1, min_change >= 0; got {window_s}, {alpha}, {min_change}"
+            )
+        self.window_s = float(window_s)
+        self.threshold = chi2_isf(float(alpha), N_INERTIAL)
+        self.min_change = float(min_change)
+        self.statistic = 0.0
+        self.delta = np.zeros(N_INERTIAL)
+        self.restart()
+
+    def restart(self) -> None:
+        """Empty the window (after a detection: the next test uses only residuals of the new estimate)."""
+        self._s = np.zeros(N_INERTIAL)
+        self._a = np.zeros((N_INERTIAL, N_INERTIAL))
+        self._a2 = np.zeros((N_INERTIAL, N_INERTIAL))
+        self._filled = 0.0
+
+    def update(
+        self, dt: float, s: np.ndarray, info: np.ndarray, p_cov: np.ndarray, ridge: np.ndarray, mass: float
+    ) -> bool:
+        """Add one sample's score ``s`` (4,) and information ``info`` (4, 4); return whether a change is declared.
+
+        ``p_cov``: covariance of the inertial estimate (4, 4); ``ridge``: information added to
+        ``A`` when estimating the change (the prior's, so an unexcited direction gives no change).
+        """
+        lam = math.exp(-dt / self.window_s)
+        self._s = lam * self._s + s
+        self._a = lam * self._a + info
+        self._a2 = lam * lam * self._a2 + info
+        self._filled += dt
+        if self._filled < self.window_s:
+            return False
+        cov = self._a2 + self._a @ p_cov @ self._a
+        cov += np.diag(1e-12 * np.diag(cov) + 1e-300)
+        try:
+            self.statistic = float(self._s @ np.linalg.solve(cov, self._s))
+            self.delta = np.linalg.solve(self._a + ridge, self._s)
+        except np.linalg.LinAlgError:
+            return False
+        return self.statistic > self.threshold and abs(float(self.delta[0])) >= self.min_change * abs(mass)
+
+    @staticmethod
+    def onset(scores: np.ndarray, infos: np.ndarray, p_cov: np.ndarray) -> int:
+        """Return the index (into the buffered samples) of the most likely start of the change (GLR over starts)."""
+        s_rev = np.cumsum(scores[::-1], axis=0)[::-1]  # sum from each candidate start to the end
+        a_rev = np.cumsum(infos[::-1], axis=0)[::-1]
+        cov = a_rev + a_rev @ p_cov @ a_rev
+        cov += np.eye(N_INERTIAL) * (1e-12 * np.trace(cov, axis1=1, axis2=2)[:, None, None] + 1e-300)
+        g = np.einsum("ki,ki->k", s_rev, np.linalg.solve(cov, s_rev[:, :, None])[:, :, 0])
+        return int(np.argmax(g))

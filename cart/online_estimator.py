@@ -1,0 +1,512 @@
+"""Online estimator of the cart's state and parameters for the push loop, unbiased under wrench noise.
+
+:class:`OnlineLSEstimator` satisfies the push loop's ``ParameterEstimator`` protocol
+(``x``, ``step(gamma, dt, z)``, ``params()``, ``params_std()``) and combines
+
+1. the *parameters*: recursive filtered-regressor least squares
+   (:class:`cart.online_regression.RecursiveRegression`) in which the measured wrench is the
+   regression's output (paper eq. 4 in regressor form, :func:`cart.dynamics.regressor`), the
+   kinematics come from the motion capture alone (causal Butterworth state-variable filter of
+   the velocity and heading; the same filter on the wrench), with a prior on the physical
+   parameters that an unexcited direction keeps, and bias compensation of the pose noise;
+2. *load changes*: a GLR test on the regression's residuals
+   (:class:`cart.change_detection.ChangeDetector`); on a detection the information on
+   mass, CoM and inertia is reset to the samples after the estimated onset (the damping keeps
+   what it learnt), and the change is recorded in :attr:`OnlineLSEstimator.events`;
+3. *plausibility and run-off*: mass > 0, inertia about the CoM > 0, CoM inside the footprint,
+   residual ratio (a windowed innovation test of the regression); each episode is recorded in
+   :attr:`OnlineLSEstimator.flags` and the controller receives the estimate projected on the
+   plausible set;
+4. the *state* ``x`` (pose, velocity) for the controller: the paper's EKF (:class:`cart.ekf.CartEKF`,
+   eq. 8-20) with its parameters frozen and overwritten every step by the regression's estimate
+   (a state observer only: the wrench enters as its input, never the parameters' update).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from collections.abc import Sequence
+
+import numpy as np
+
+from cart.change_detection import ChangeDetector, RingBuffer
+from cart.dynamics import regressor
+from cart.ekf import CartEKF, EKFConfig
+from cart.online_regression import OnlineEstimatorError, PhysicalPrior, RecursiveRegression, StateVariableFilter
+from cart.params import CartParams
+
+#: Physical parameter names of :meth:`OnlineLSEstimator.unexcited`.
+PHYSICAL_NAMES = ("mass", "dx", "dy", "inertia", "sigma", "sigma_yaw")
+
+
+@dataclass(frozen=True)
+class OnlineOptions:
+    """Settings of :class:`OnlineLSEstimator` (defaults: the push loop's sensors and the paper's carts).
+
+    ``cutoff_hz``: low-pass of both sides of the regression; ``wrench_std`` (force N, torque N m):
+    white noise of the measured wrench, ``None`` = measured online (third differences);
+    ``mass_rel_std``, ``com_std`` (m), ``rho_rel_std``, ``damping_rel_std``: the prior around the
+    initial guess (damping std at least ``damping_min_std``); ``footprint`` (|dx|, |dy| limits, m);
+    ``forgetting_s``: time constant of the data's exponential forgetting (inf: none);
+    change detection: ``detect_changes``, ``change_window_s``, ``change_alpha`` (false-alarm
+    probability of one test), ``min_change`` (relative mass change), ``buffer_s`` (onset search);
+    ``observer_q_vel`` / ``observer_q_omega``: the state observer's process noise (EKFConfig);
+    ``misfit_ratio``: residual ratio flagged as misfit; ``excited_ratio``: posterior / prior std
+    above which a parameter counts as not excited.
+    """
+
+    cutoff_hz: float = 2.0
+    wrench_std: tuple[float, float] | None = None
+    mass_rel_std: float = 0.5
+    com_std: float = 0.2
+    rho_rel_std: float = 0.5
+    damping_rel_std: float = 0.5
+    damping_min_std: float = 1.0
+    footprint: tuple[float, float] = (1.0, 1.0)
+    forgetting_s: float = math.inf
+    detect_changes: bool = True
+    change_window_s: float = 1.5
+    change_alpha: float = 1e-6
+    min_change: float = 0.08
+    buffer_s: float = 4.0
+    observer_q_vel: float = 1e-5
+    observer_q_omega: float = 1e-5
+    observer_input_noise: bool = True
+    misfit_ratio: float = 2.0
+    excited_ratio: float = 0.9
+    noise_time_s: float = 5.0
+
+
+@dataclass(frozen=True)
+class LoadChange:
+    """A detected load change: estimated onset, detection time (s), mass before and after (kg), GLR statistic."""
+
+    t_change: float
+    t_detected: float
+    mass_before: float
+    mass_after: float
+    statistic: float
+
+    def as_dict(self) -> dict:
+        """Return the change as a JSON-ready dict."""
+        return {k: float(v) for k, v in self.__dict__.items()}
+
+
+@dataclass(frozen=True)
+class RunoffFlag:
+    """The start of an implausible or misfitting episode: time (s), kind and what was seen."""
+
+    t: float
+    kind: str
+    detail: str
+
+    def as_dict(self) -> dict:
+        """Return the flag as a JSON-ready dict."""
+        return {"t": float(self.t), "kind": self.kind, "detail": self.detail}
+
+
+@dataclass
+class _Change:
+    t_change: float
+    t_detected: float
+    mass_before: float
+    statistic: float
+    mass_end: float | None = None
+
+
+def _vector(value: Sequence[float], n: int, what: str) -> np.ndarray:
+    """Return value as a finite float array of shape (n,); raise OnlineEstimatorError otherwise."""
+    try:
+        arr = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise OnlineEstimatorError(f"{what} must be {n} numbers, got {value!r}") from None
+    if arr.shape != (n,):
+        raise OnlineEstimatorError(f"{what} must have {n} entries, got shape {np.shape(value)}")
+    if not np.all(np.isfinite(arr)):
+        raise OnlineEstimatorError(f"{what} must be finite, got {arr.tolist()}")
+    return arr
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _physical_jacobian(p: np.ndarray) -> np.ndarray:
+    """Return d(m, dx, dy, I, c_v, c_w) / d(m, a, b, J, c_v, c_w) at p (the linearized phi -> physical map)."""
+    m, a, b, _ = p[:4]
+    jac = np.eye(6)
+    jac[1, :2] = (-a / m**2, 1.0 / m)
+    jac[2, [0, 2]] = (-b / m**2, 1.0 / m)
+    jac[3, :4] = ((a * a + b * b) / m**2, -2.0 * a / m, -2.0 * b / m, 1.0)
+    return jac
+
+
+def make_prior(params0: CartParams, options: OnlineOptions) -> PhysicalPrior:
+    """Return the prior around the initial guess: mass, CoM, J / m, damping with the options' stds."""
+    rho0 = params0.inertia_b / params0.m
+    sv, sw = params0.damping
+    o = options
+    return PhysicalPrior(
+        center=np.array([params0.m, params0.dx, params0.dy, rho0, sv, sw]),
+        std=np.array(
+            [
+                o.mass_rel_std * params0.m,
+                o.com_std,
+                o.com_std,
+                o.rho_rel_std * rho0,
+                max(o.damping_rel_std * sv, o.damping_min_std),
+                max(o.damping_rel_std * sw, o.damping_min_std),
+            ]
+        ),
+    )
+
+
+class OnlineLSEstimator:
+    """Online state + parameter estimator for the push loop (see the module docstring).
+
+    ``q0`` (3,) and ``qd0`` (3,): initial pose and velocity; ``params0``: initial guess
+    (the prior's center); ``meas_std`` (6,): motion-capture noise std of
+    (x, y, theta, vx, vy, omega). ``step(gamma, dt, z)``: gamma = (fx, fy, tau) measured
+    over the last period, z the motion capture at its end; returns the state observer's NIS.
+    """
+
+    def __init__(
+        self,
+        q0: Sequence[float],
+        qd0: Sequence[float],
+        params0: CartParams,
+        meas_std: Sequence[float],
+        options: OnlineOptions = OnlineOptions(),
+    ) -> None:
+        q0, qd0 = _vector(q0, 3, "q0"), _vector(qd0, 3, "qd0")
+        meas_std = _vector(meas_std, 6, "meas_std")
+        if np.any(meas_std < 0.0):
+            raise OnlineEstimatorError(f"meas_std must be >= 0, got {meas_std.tolist()}")
+        if not isinstance(params0, CartParams):
+            raise OnlineEstimatorError(f"params0 must be CartParams, got {type(params0).__name__}")
+        self.options = options
+        self.t = 0.0
+        self._footprint = np.abs(_vector(options.footprint, 2, "footprint"))
+        self._prior0 = make_prior(params0, options)
+        self.regression = RecursiveRegression(self._prior0)
+        self.filter = StateVariableFilter(options.cutoff_hz, 6)
+        self.detector = ChangeDetector(options.change_window_s, options.change_alpha, options.min_change)
+        self._meas_std = meas_std
+        self._init_observer(q0, qd0, params0, meas_std)
+        self._z_prev = np.r_[q0, qd0]
+        self._theta = float(q0[2])
+        self._started = False
+        self._gains_dt = -1.0
+        self._noise = [0.0, 0.0, 0.0]  # EW weight sum, EW sums of d3^2 / 20 (force, torque)
+        self._raw: list[tuple[float, float]] = []
+        self._cov = self.regression.covariance()
+        self._params = params0
+        self._misfit = [0.0, 0.0, 0.0]  # EW weight, EW sums of normalized squared residuals (rows)
+        self.residual_ratio = (float("nan"), float("nan"))
+        self._changes: list[_Change] = []
+        self._flags: list[RunoffFlag] = []
+        self._active: set[str] = set()
+        self._buffer: RingBuffer | None = None
+        self.nis = float("nan")
+
+    def _init_observer(self, q0: np.ndarray, qd0: np.ndarray, params0: CartParams, meas_std: np.ndarray) -> None:
+        """Create the state observer: the paper's EKF with the parameters frozen (overwritten every step)."""
+        cfg = EKFConfig.from_noise(
+            meas_std,
+            estimate_params=False,
+            q_vel=self.options.observer_q_vel,
+            q_omega=self.options.observer_q_omega,
+        )
+        self.observer = CartEKF(q0, qd0, params0.phi, params0.sigma, cfg, sigma_yaw=params0.sigma_yaw)
+
+    # -- protocol ---------------------------------------------------------------------------
+    @property
+    def x(self) -> np.ndarray:
+        """Return the state estimate (x, y, theta, vx, vy, omega) (a view of the observer's state)."""
+        return self.observer.x[:6]
+
+    def params(self) -> CartParams:
+        """Return the current parameter estimate, projected on the plausible set (see :attr:`flags`)."""
+        return self._params
+
+    def params_std(self) -> dict:
+        """Return the 1-sigma std of mass, com (dx, dy), inertia, sigma, sigma_yaw (like ``CartEKF.params_std``).
+
+        The regression's covariance, scaled up by the residual ratio when the model misfits.
+        """
+        std = self._physical_std(self._cov)
+        scale = max([1.0, *(r for r in self.residual_ratio if r == r)])
+        std = std * scale
+        return {
+            "mass": float(std[0]),
+            "com": [float(std[1]), float(std[2])],
+            "inertia": float(std[3]),
+            "sigma": float(std[4]),
+            "sigma_yaw": float(std[5]),
+        }
+
+    def _physical_std(self, cov: np.ndarray) -> np.ndarray:
+        jac = _physical_jacobian(self.regression.p)
+        return np.sqrt(np.maximum(np.diag(jac @ cov @ jac.T), 0.0))
+
+    def unexcited(self) -> tuple[str, ...]:
+        """Return the parameters the motion has not excited: posterior std above ``excited_ratio`` of the prior's."""
+        post = self._physical_std(self._cov)
+        prior = self._physical_std(self.regression.prior_covariance())
+        return tuple(n for n, a, b in zip(PHYSICAL_NAMES, post, prior) if a > self.options.excited_ratio * b)
+
+    @property
+    def events(self) -> tuple[LoadChange, ...]:
+        """Return the load changes detected so far (mass after: the estimate now, or before the next change)."""
+        out = []
+        for c in self._changes:
+            after = c.mass_end if c.mass_end is not None else float(self.regression.p[0])
+            out.append(LoadChange(c.t_change, c.t_detected, c.mass_before, after, c.statistic))
+        return tuple(out)
+
+    @property
+    def flags(self) -> tuple[RunoffFlag, ...]:
+        """Return the start of every implausible / misfitting episode so far."""
+        return tuple(self._flags)
+
+    @property
+    def active_flags(self) -> frozenset[str]:
+        """Return the kinds of flag that hold at the last step."""
+        return frozenset(self._active)
+
+    def report(self) -> dict:
+        """Return what the loop reports: events, flags, unexcited parameters, residual ratio (JSON-ready)."""
+        return {
+            "load_changes": [e.as_dict() for e in self.events],
+            "runoff_flags": [f.as_dict() for f in self.flags],
+            "unexcited": list(self.unexcited()),
+            "residual_ratio": [None if r != r else float(r) for r in self.residual_ratio],
+        }
+
+    # -- step -------------------------------------------------------------------------------
+    def step(self, gamma: Sequence[float], dt: float, z: Sequence[float]) -> float:
+        """Fuse one period: gamma measured over the last dt, z at its end; return the observer's NIS.
+
+        Raises :class:`OnlineEstimatorError` on a wrong shape, a non-finite value or dt <= 0.
+        """
+        gamma = _vector(gamma, 3, "gamma")
+        z = _vector(z, 6, "z")
+        if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0.0):
+            raise OnlineEstimatorError(f"dt must be positive and finite, got {dt!r}")
+        dt = float(dt)
+        self.t += dt
+        obs = self.observer
+        p = self._params
+        obs.x[6:10] = p.phi
+        obs.sigma, obs.sigma_yaw = p.damping
+        sf, st = self._wrench_var()
+        self.nis = obs.step(
+            gamma, dt, z, gamma_cov=np.diag([sf, sf, st]) * dt if self.options.observer_input_noise else None
+        )
+        self._regression_step(gamma, dt, z)
+        return self.nis
+
+    # -- regression -------------------------------------------------------------------------
+    def _filter_inputs(self, gamma: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """Return the filter input at the period's midpoint: mean velocity and heading, forward force, torque.
+
+        The wrench is held over the period, so it stands for the midpoint; the motion
+        capture samples its ends (average of the two).
+        """
+        th = self._theta + _wrap(float(z[2]) - self._theta)  # continuous heading
+        mid = 0.5 * (self._theta + th)
+        self._theta = th
+        zp = self._z_prev
+        self._z_prev = z
+        fu = math.cos(mid) * gamma[0] + math.sin(mid) * gamma[1]
+        return np.array([0.5 * (zp[3] + z[3]), 0.5 * (zp[4] + z[4]), 0.5 * (zp[5] + z[5]), mid, fu, gamma[2]])
+
+    def _regression_row(self, st: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return (Y (2, 6), y (2,)) of the filtered signals: body-frame kinematics (constraint w = 0) and wrench."""
+        vx, vy, om, th, fu, tau = st[0].tolist()
+        ax, ay, al = st[1, :3].tolist()
+        c, s = math.cos(th), math.sin(th)
+        v = c * vx + s * vy
+        w_lat = -s * vx + c * vy
+        vdot = c * ax + s * ay + om * w_lat
+        return regressor(v, om, vdot, al), np.array([fu, tau])
+
+    def _gains(self, dt: float) -> tuple[float, float, float]:
+        """Return the filter's noise gains per unit white input variance at dt: (wrench, velocity, acceleration).
+
+        The velocity and acceleration gains include the midpoint average of two motion-capture samples.
+        """
+        from scipy.linalg import solve_discrete_lyapunov
+
+        if dt != self._gains_dt:
+            ad, bd = self.filter.discretize(dt)
+            p = solve_discrete_lyapunov(ad, np.outer(bd, bd))
+            lag1 = ad @ p
+            self._g = (float(p[0, 0]), 0.5 * float(p[0, 0] + lag1[0, 0]), 0.5 * float(p[1, 1] + lag1[1, 1]))
+            self._gains_dt = dt
+        return self._g
+
+    def _update_noise(self, fu: float, tau: float, dt: float) -> None:
+        """Update the online white-noise variance of (forward force, torque) from third differences."""
+        raw = self._raw
+        raw.append((fu, tau))
+        if len(raw) > 4:
+            raw.pop(0)
+        if len(raw) == 4:
+            lam = math.exp(-dt / self.options.noise_time_s)
+            n = self._noise
+            d3f = raw[3][0] - 3.0 * raw[2][0] + 3.0 * raw[1][0] - raw[0][0]
+            d3t = raw[3][1] - 3.0 * raw[2][1] + 3.0 * raw[1][1] - raw[0][1]
+            n[0] = lam * n[0] + 1.0
+            n[1] = lam * n[1] + d3f * d3f / 20.0
+            n[2] = lam * n[2] + d3t * d3t / 20.0
+
+    def _wrench_var(self) -> tuple[float, float]:
+        """Return the white-noise variance of (forward force, torque): given, or measured (floored)."""
+        if self.options.wrench_std is not None:
+            f, t = self.options.wrench_std
+            return max(f * f, 1e-12), max(t * t, 1e-12)
+        c = self._prior0.center
+        floor_f, floor_t = (1e-3 * c[0]) ** 2, (1e-3 * c[0] * c[3]) ** 2
+        n = self._noise
+        if n[0] <= 0.0:
+            return floor_f, floor_t
+        return max(n[1] / n[0], floor_f), max(n[2] / n[0], floor_t)
+
+    def _weights(self, dt: float, v: float, om: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return (row weights (2,), regressor-noise power (6, 6), expected filtered residual variance (2,)).
+
+        The motion-capture noise, filtered, enters the regressor's entries: dv and domega in the v, omega,
+        omega v, omega^2 columns, their derivatives in the vdot, omegadot columns (forward speed v, yaw rate om).
+        """
+        g_out, g_vel, g_acc = self._gains(dt)
+        ms = self._meas_std
+        var_v, var_o = 0.5 * (ms[3] ** 2 + ms[4] ** 2), ms[5] ** 2
+        sv, so = var_v * g_acc, var_o * g_acc  # acceleration noise
+        nv, no = var_v * g_vel, var_o * g_vel  # velocity noise
+        sf, st = self._wrench_var()
+        m, a, b, j, cv, cw = self.regression.p.tolist()
+        var1 = sf + (m * m * sv + b * b * so + cv * cv * nv + 4.0 * a * a * om * om * no) / g_out
+        var2 = st + (j * j * so + b * b * sv + (cw + a * v) ** 2 * no + a * a * om * om * nv) / g_out
+        w1, w2 = 1.0 / var1, 1.0 / var2
+        c = np.zeros((6, 6))
+        c[0, 0], c[2, 2], c[4, 4] = w1 * sv, w1 * so + w2 * sv, w1 * nv
+        c[1, 1] = w1 * 4.0 * om * om * no + w2 * (v * v * no + om * om * nv)
+        c[3, 3], c[5, 5] = w2 * so, w2 * no
+        c[1, 5] = c[5, 1] = w2 * v * no
+        return np.array([w1, w2]), c, np.array([g_out * var1, g_out * var2])
+
+    def _init_buffer(self, dt: float) -> None:
+        size = max(int(math.ceil(self.options.buffer_s / dt)), 2)
+        shapes = {"t": (), "m": (), "s": (4,), "info": (4, 4), "D": (6, 6), "d": (6,), "C": (6, 6)}
+        self._buffer = RingBuffer(size, shapes)
+
+    def _regression_step(self, gamma: np.ndarray, dt: float, z: np.ndarray) -> None:
+        """Filter, accumulate one regression sample, test for a change, solve, check plausibility."""
+        u = self._filter_inputs(gamma, z)
+        if not self._started:
+            self.filter.reset(u)
+            self._init_buffer(dt)
+            self._started = True
+        Y, y = self._regression_row(self.filter.step(u, dt))
+        self._update_noise(float(u[4]), float(u[5]), dt)
+        w, noise, expected = self._weights(dt, float(Y[0, 4]), float(Y[1, 5]))
+        reg = self.regression
+        p = reg.p
+        r = y - Y @ p
+        self._check_misfit(Y, r, expected, dt)
+        yw = Y * w[:, None]
+        info, dvec = yw.T @ Y, yw.T @ y
+        lam = math.exp(-dt / self.options.forgetting_s)
+        reg.add(info, dvec, noise, lam)
+        s = yw[:, :4].T @ r
+        self._buffer.push(t=self.t, m=float(p[0]), s=s, info=info[:4, :4], D=info, d=dvec, C=noise)
+        if self.options.detect_changes and self._test_change(dt, s, info[:4, :4]):
+            self._reset_for_change()
+        else:
+            reg.solve(1)
+            self._cov = reg.covariance()
+        self._update_params()
+
+    def _test_change(self, dt: float, s: np.ndarray, info: np.ndarray) -> bool:
+        """Return whether the GLR test declares a change of mass / CoM / inertia at this sample."""
+        _, jr = self.regression.prior.residual(self.regression.p)
+        ridge = (jr.T @ jr)[:4, :4]
+        return self.detector.update(dt, s, info, self._cov[:4, :4], ridge, float(self.regression.p[0]))
+
+    def _reset_for_change(self) -> None:
+        """Restart mass / CoM / inertia from the prior widths and the samples after the onset; keep the damping."""
+        buf = self._buffer
+        idx = self.detector.onset(buf.read("s"), buf.read("info"), self._cov[:4, :4])
+        t_change, m_before = float(buf.read("t")[idx]), float(buf.read("m")[idx])
+        if self._changes:
+            self._changes[-1].mass_end = m_before
+        p, prm = self.regression.p, self._params
+        std0 = self._prior0.std
+        center = np.array([prm.m, prm.dx, prm.dy, prm.inertia_b / prm.m, max(p[4], 0.0), max(p[5], 0.0)])
+        std = np.r_[self.options.mass_rel_std * prm.m, std0[1:4], np.sqrt(np.maximum(np.diag(self._cov)[4:], 1e-12))]
+        new = RecursiveRegression(PhysicalPrior(center, std))
+        new.D, new.d, new.C = buf.read("D")[idx:].sum(0), buf.read("d")[idx:].sum(0), buf.read("C")[idx:].sum(0)
+        new.solve(iterations=5)
+        self.regression = new
+        self._cov = new.covariance()
+        self._changes.append(_Change(t_change, self.t, m_before, self.detector.statistic))
+        self.detector.restart()
+        buf.clear()
+
+    # -- plausibility -----------------------------------------------------------------------
+    def _flag(self, kind: str, on: bool, detail: str) -> None:
+        """Record the start of an episode of ``kind`` (once until it ends)."""
+        if on and kind not in self._active:
+            self._flags.append(RunoffFlag(self.t, kind, detail))
+            self._active.add(kind)
+        elif not on:
+            self._active.discard(kind)
+
+    def _check_misfit(self, Y: np.ndarray, r: np.ndarray, expected: np.ndarray, dt: float) -> None:
+        """Windowed innovation test: residual power over what noise and the estimate's std explain, per row."""
+        pred = expected + np.einsum("ij,jk,ik->i", Y, self._cov, Y)
+        lam = math.exp(-dt / (2.0 * self.options.change_window_s))
+        mf = self._misfit
+        mf[0] = lam * mf[0] + 1.0
+        mf[1] = lam * mf[1] + float(r[0] ** 2 / pred[0])
+        mf[2] = lam * mf[2] + float(r[1] ** 2 / pred[1])
+        if self.t < 2.0 * self.options.change_window_s:
+            return
+        self.residual_ratio = (math.sqrt(mf[1] / mf[0]), math.sqrt(mf[2] / mf[0]))
+        worst = max(self.residual_ratio)
+        self._flag("misfit", worst > self.options.misfit_ratio, f"residual ratio {worst:.2f}")
+
+    def _update_params(self) -> None:
+        """Set the controller's parameters: the estimate projected on the plausible set; flag what was projected."""
+        m, a, b, j, cv, cw = self.regression.p.tolist()
+        m0, i0 = self._prior0.center[0], self._prior0.center[0] * self._prior0.center[3]
+        self._flag("nonpositive_mass", m <= 1e-3 * m0, f"mass {m:.4g} kg")
+        mp = max(m, 1e-3 * m0)
+        dx, dy = a / mp, b / mp
+        fx, fy = self._footprint
+        self._flag("com_outside_footprint", abs(dx) > fx or abs(dy) > fy, f"CoM ({dx:.3g}, {dy:.3g}) m")
+        inertia = j - (a * a + b * b) / mp
+        self._flag("nonpositive_inertia", inertia <= 0.0, f"inertia about the CoM {inertia:.4g} kg m^2")
+        dxc, dyc = min(max(dx, -fx), fx), min(max(dy, -fy), fy)
+        self._params = CartParams(mp, dxc, dyc, max(inertia, 1e-3 * i0), max(cv, 0.0), max(cw, 0.0))
+
+
+def make_online_estimator(
+    q0: Sequence[float], params0: CartParams, noise_std: Sequence[float], **options
+) -> OnlineLSEstimator:
+    """Return an :class:`OnlineLSEstimator` starting at rest at pose q0 (or q0 = 6-state) with the guess params0.
+
+    ``noise_std`` (6,): motion-capture std of (x, y, theta, vx, vy, omega); ``options``: fields of
+    :class:`OnlineOptions` (e.g. ``wrench_std=(3.0, 0.3)``, ``detect_changes=False``).
+    """
+    q = np.asarray(q0, dtype=float).reshape(-1)
+    if q.shape not in ((3,), (6,)):
+        raise OnlineEstimatorError(f"q0 must be a pose (3,) or a state (6,), got shape {q.shape}")
+    try:
+        opts = replace(OnlineOptions(), **options)
+    except TypeError as exc:
+        raise OnlineEstimatorError(f"unknown online estimator option: {exc}") from None
+    qd0 = q[3:6] if q.shape == (6,) else np.zeros(3)
+    return OnlineLSEstimator(q[:3], qd0, params0, noise_std, opts)

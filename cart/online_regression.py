@@ -1,0 +1,187 @@
+"""Recursive filtered-regressor least squares with a physical prior: the online form of :mod:`cart.identify`.
+
+The equations of motion are linear in ``p = [m, m dx, m dy, J, c_v, c_w]``
+(:func:`cart.dynamics.regressor`, body-frame form of paper eq. 4):
+``Y(v, omega, vdot, omegadot) p = [F_u, tau]``. As in :func:`cart.identify.identify`
+the measured wrench is the regression's *output* (its noise leaves the estimate
+unbiased) and both sides pass through the same low-pass filter ("parallel
+filtering"); here the filter is causal: a 3rd-order Butterworth state-variable
+filter (:class:`StateVariableFilter`) whose states give the filtered signal and
+its derivative without numerical differentiation.
+
+:class:`RecursiveRegression` accumulates the weighted normal equations (with
+exponential forgetting of the *data* only) and returns the maximum a-posteriori
+estimate under a Gaussian prior on the *physical* parameters
+``(m, dx, dy, rho = J / m, c_v, c_w)``: one Gauss-Newton step per sample from
+the last estimate. A direction the motion does not excite keeps the prior's
+value and variance (a straight push leaves ``dx`` and ``J`` at the guess).
+The known power of the differentiated pose noise is removed from the normal
+matrix (bias-compensated least squares, as in ``identify``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm, solve_discrete_lyapunov
+
+from cart.errors import CartError, NumericalError
+
+#: Names of the physical prior variables of :class:`PhysicalPrior`.
+PRIOR_NAMES = ("m", "dx", "dy", "rho", "c_v", "c_w")
+#: Largest share of a diagonal entry of the normal matrix that the noise correction removes.
+COMPENSATION_SHARE = 0.5
+
+
+class OnlineEstimatorError(CartError):
+    """Bad input to the online estimator (shape, non-finite value, non-positive time step, option)."""
+
+
+class StateVariableFilter:
+    """Causal 3rd-order Butterworth low-pass per channel; states (y, y', y'') of y = L[u] (ZOH-discretized).
+
+    ``y`` is the filtered signal and ``y'`` = s L[u] its derivative, both from the
+    filter's states: the derivative of a noisy input is never formed.
+    """
+
+    def __init__(self, cutoff_hz: float, channels: int) -> None:
+        if not (math.isfinite(cutoff_hz) and cutoff_hz > 0.0):
+            raise OnlineEstimatorError(f"cutoff_hz must be positive and finite, got {cutoff_hz}")
+        w = 2.0 * math.pi * float(cutoff_hz)
+        # y''' = w^3 (u - y) - 2 w^2 y' - 2 w y'': the Butterworth polynomial s^3 + 2 w s^2 + 2 w^2 s + w^3
+        self.a = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-(w**3), -2.0 * w * w, -2.0 * w]])
+        self.b = np.array([0.0, 0.0, w**3])
+        self.cutoff_hz = float(cutoff_hz)
+        self.state = np.zeros((3, channels))
+        self._dt = -1.0
+        self._ad = np.eye(3)
+        self._bd = np.zeros(3)
+
+    def discretize(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return (Ad, Bd) of the zero-order-hold discretization at period dt (cached)."""
+        if dt != self._dt:
+            m = np.zeros((4, 4))
+            m[:3, :3] = self.a * dt
+            m[:3, 3] = self.b * dt
+            e = expm(m)
+            self._ad, self._bd, self._dt = e[:3, :3], e[:3, 3].copy(), dt
+        return self._ad, self._bd
+
+    def reset(self, u: np.ndarray) -> None:
+        """Set every channel at rest on its input (y = u, derivatives 0): no start-up transient."""
+        self.state[...] = 0.0
+        self.state[0] = u
+
+    def step(self, u: np.ndarray, dt: float) -> np.ndarray:
+        """Advance over dt with the input u held; return the states (3, channels)."""
+        ad, bd = self.discretize(dt)
+        self.state = ad @ self.state + np.outer(bd, u)
+        return self.state
+
+    def noise_gains(self, dt: float) -> tuple[float, float]:
+        """Return (var of y, var of y') per unit variance of white input samples at period dt (discrete Lyapunov)."""
+        ad, bd = self.discretize(dt)
+        p = solve_discrete_lyapunov(ad, np.outer(bd, bd))
+        return float(p[0, 0]), float(p[1, 1])
+
+
+@dataclass(frozen=True)
+class PhysicalPrior:
+    """Independent Gaussian prior on (m, dx, dy, rho = J / m, c_v, c_w): ``center`` and ``std`` (6,)."""
+
+    center: np.ndarray
+    std: np.ndarray
+
+    def __post_init__(self) -> None:
+        c, s = np.asarray(self.center, float), np.asarray(self.std, float)
+        if c.shape != (6,) or s.shape != (6,) or not (np.all(np.isfinite(c)) and np.all(np.isfinite(s))):
+            raise OnlineEstimatorError("the prior needs 6 finite centers and stds (m, dx, dy, rho, c_v, c_w)")
+        if not (np.all(s > 0.0) and c[0] > 0.0):
+            raise OnlineEstimatorError(f"the prior needs a positive mass and positive stds, got {c}, {s}")
+        object.__setattr__(self, "center", c)
+        object.__setattr__(self, "std", s)
+
+    def residual(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return (r, dr/dp): the prior's whitened residual at p = [m, a, b, J, c_v, c_w] and its Jacobian."""
+        m = max(float(p[0]), 1e-9)
+        phys = np.array([m, p[1] / m, p[2] / m, p[3] / m, p[4], p[5]])
+        jac = np.eye(6)
+        jac[1, 0], jac[2, 0], jac[3, 0] = -p[1] / m**2, -p[2] / m**2, -p[3] / m**2
+        jac[1, 1] = jac[2, 2] = jac[3, 3] = 1.0 / m
+        return (phys - self.center) / self.std, jac / self.std[:, None]
+
+    def p(self) -> np.ndarray:
+        """Return the prior's center as p = [m, m dx, m dy, m rho, c_v, c_w]."""
+        m, dx, dy, rho, cv, cw = self.center
+        return np.array([m, m * dx, m * dy, m * rho, cv, cw])
+
+
+class RecursiveRegression:
+    """Weighted normal equations with forgetting of the data, solved for the MAP estimate under a physical prior.
+
+    ``D = sum w_k Y_k^T W_k Y_k``, ``d = sum w_k Y_k^T W_k y_k`` and the noise correction ``C``
+    (the regressor-noise power, removed from ``D``) decay by ``lam`` per sample; the prior does
+    not decay, so an unexcited direction returns to (and stays at) the prior.
+    """
+
+    def __init__(self, prior: PhysicalPrior) -> None:
+        self.prior = prior
+        self.D = np.zeros((6, 6))
+        self.d = np.zeros(6)
+        self.C = np.zeros((6, 6))
+        self.p = prior.p()
+        self.H = np.eye(6)
+        self.compensated = True
+        self.solve(iterations=3)
+
+    def add(self, info: np.ndarray, dvec: np.ndarray, noise: np.ndarray, lam: float) -> None:
+        """Accumulate one sample: ``info = Y^T W Y`` (6, 6), ``dvec = Y^T W y`` (6,), regressor-noise power (6, 6)."""
+        self.D *= lam
+        self.D += info
+        self.d *= lam
+        self.d += dvec
+        self.C *= lam
+        self.C += noise
+
+    def solve(self, iterations: int = 1) -> np.ndarray:
+        """Return the MAP estimate after Gauss-Newton steps from the current one; sets H (the posterior information)."""
+        for _ in range(iterations):
+            r, jr = self.prior.residual(self.p)
+            h = self.D - self.compensation() + jr.T @ jr
+            try:
+                chol = np.linalg.cholesky(h)
+                self.compensated = True
+            except np.linalg.LinAlgError:  # the noise correction overshoots on little data: drop it
+                h = self.D + jr.T @ jr
+                chol = np.linalg.cholesky(h)
+                self.compensated = False
+            g = h @ self.p - (self.d + jr.T @ (jr @ self.p - r))
+            step = np.linalg.solve(chol.T, np.linalg.solve(chol, g))
+            if not np.all(np.isfinite(step)):
+                raise NumericalError("the online regression diverged (non-finite step)")
+            self.p = self.p - step
+            self.H = h
+            if float(np.abs(step[0])) <= 1e-9 * abs(float(self.p[0])):
+                break
+        return self.p
+
+    def compensation(self) -> np.ndarray:
+        """Return the noise correction removed from D: C scaled so that at most COMPENSATION_SHARE of each diagonal goes.
+
+        On little data the regressor-noise power in D fluctuates around its expectation C; removing
+        all of it could leave a direction with negative information.
+        """
+        c_diag = np.diag(self.C)
+        scale = np.sqrt(np.minimum(1.0, COMPENSATION_SHARE * np.diag(self.D) / np.maximum(c_diag, 1e-300)))
+        return self.C * np.outer(scale, scale)
+
+    def covariance(self) -> np.ndarray:
+        """Return the posterior covariance of p (the inverse of the last information matrix H)."""
+        return np.linalg.inv(self.H)
+
+    def prior_covariance(self) -> np.ndarray:
+        """Return the covariance of p under the prior alone, linearized at the current estimate."""
+        _, jr = self.prior.residual(self.p)
+        return np.linalg.inv(jr.T @ jr)
