@@ -16,6 +16,7 @@ from cart.logs import CartLog, write_log
 from robots.errors import UnknownRobotError
 from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
 from cartpush.cli import main
+from wholebody.viz.scene import ARROW_HEAD
 from wholebody.viz import COM_MARKER_Z, Camera, Scene, SceneError, log_scene, pushing_configuration, pushing_scene
 
 
@@ -49,7 +50,7 @@ def test_cart_handle_position_closed_form(scene):
     np.testing.assert_allclose(scene.cart_to_world([(CART_HANDLE_X, 0.0)])[0], expected, atol=1e-12)
 
 
-def _tip(scene: Scene, kind: str, name: str, head_length: float = 0.06) -> tuple[np.ndarray, np.ndarray]:
+def _tip(scene: Scene, kind: str, name: str, head_length: float = ARROW_HEAD) -> tuple[np.ndarray, np.ndarray]:
     """Return (tail, tip) of an arrow from the recorded transforms (shaft along x, head of nominal `head_length`)."""
     base = f"/meshcat/wrenches/{kind}/{name}"
     head = scene.world_transform(base + "/head")
@@ -283,8 +284,8 @@ def test_library_code_never_selects_a_matplotlib_backend():
     assert not offenders, f"library modules select a Matplotlib backend: {offenders}"
 
 
-def test_animated_page_opens_paused_at_first_frame_and_follows():
-    """The static state is the first frame, the page does not autoplay, and the camera follows the named robots."""
+def test_animated_page_plays_on_open_from_first_frame_and_follows():
+    """The static state is the first frame, the page plays when opened, and the camera follows the named robots."""
     with Scene(["shopping_cart"]) as sc:
         sc.animate(
             [0.0, 1.0, 2.0],
@@ -299,7 +300,83 @@ def test_animated_page_opens_paused_at_first_frame_and_follows():
         with pytest.raises(SceneError):
             sc.animate([0.0, 1.0], {"shopping_cart": np.zeros((2, 3))}, follow=("ridgeback_iiwa",))
     anim = umsgpack.unpackb(sc.window.animation)
-    assert anim["options"]["play"] is False
+    assert anim["options"]["play"] is True
     assert '[["meshcat", "shopping_cart"]]' in html and "anim.seek = seek" in html
+    assert 'id="cartpush-play"' in html and "!m && !pause && true" in html  # pause button; plays without a fragment
     np.testing.assert_allclose(np.subtract(cam.eye, cam0.eye), [3.0, 1.0, 0.0], atol=1e-9)
     np.testing.assert_allclose(np.subtract(cam.target, cam0.target), [3.0, 1.0, 0.0], atol=1e-9)
+
+
+def test_page_opened_paused_when_asked():
+    """``animate(play=False)``: the page opens paused (``#play`` starts it)."""
+    with Scene(["shopping_cart"]) as sc:
+        sc.animate([0.0, 1.0], {"shopping_cart": [(0.0, 0, 0), (1.0, 0, 0)]}, fps=10, play=False)
+        html = sc.static_html()
+    assert "!m && !pause && false" in html
+
+
+def test_default_scene_puts_cart_ahead_and_frames_everything():
+    """Scene(robot, cart) with defaults: the cart stands ahead of the robot and the camera sees the arm's tip."""
+    with Scene(["ridgeback_iiwa", "shopping_cart"]) as sc:
+        np.testing.assert_allclose(sc.robot_q("shopping_cart")[:2], (0.9, 0.0))
+        cam = sc.camera
+        pts = np.array([sc.frame_position("ridgeback_iiwa", "ee"), sc.frame_position("shopping_cart", "handle")])
+    uv = cam.project(pts, 1024, 768)
+    assert np.all((uv > 20) & (uv < (1004, 748))), f"projected off screen: {uv.round()}"
+
+
+def test_legend_names_what_the_scene_draws():
+    """The page's legend lists the arrows (with their scale), the CoM spheres, the contact and the traces drawn."""
+    with Scene(["shopping_cart"]) as sc:
+        assert sc.legend() == []
+        sc.show_wrench("arm0", [(CART_HANDLE_X, 0.0)], (10.0, 0.0), torque=1.0, frame="b", scale=0.03)
+        sc.show_com((0.3, 0.1), (0.25, 0.0))
+        sc.show_contact("arm0", [(CART_HANDLE_X, 0.0)], frame="b")
+        sc.show_trace("plan", [(0.0, 0.0), (1.0, 0.0)], label="cyan line: the plan")
+        texts = [e.text for e in sc.legend()]
+        html = sc.static_html()
+    assert any("force the hand applies, 3 cm per N (10 N = 30 cm)" in t for t in texts)
+    assert any("yaw torque" in t for t in texts)
+    assert any("true CoM" in t for t in texts) and any("estimated CoM" in t for t in texts)
+    assert "cyan line: the plan" in texts and any("contact point" in t for t in texts)
+    assert all(t.split(",")[0] in html for t in texts)
+
+
+def test_animation_scale_draws_a_median_push_force_visibly_and_clips_peaks():
+    """3.5 N median hand force -> 5 cm per N; a 60 N peak is clipped to ARROW_MAX."""
+    from wholebody.viz.scene import ARROW_MAX
+
+    t = np.linspace(0.0, 1.0, 11)
+    forces = np.column_stack((np.full(11, 3.5), np.zeros(11)))
+    forces[5, 0] = 60.0
+    origins = np.zeros((11, 3))
+    with Scene(["shopping_cart"]) as sc:
+        sc.animate(t, {"shopping_cart": np.zeros((11, 3))}, wrenches={"hand": (origins, forces)}, fps=10)
+        keys = sc.animation_keys()
+        assert sc.arrow_scale == pytest.approx(0.05)
+    shaft = keys["/meshcat/wrenches/applied/hand/shaft"]["scale"][:, 0]
+    head = keys["/meshcat/wrenches/applied/hand/head"]["scale"][:, 0] * ARROW_HEAD
+    np.testing.assert_allclose((shaft + head)[0], 0.05 * 3.5, atol=1e-9)
+    assert (shaft + head)[5] == pytest.approx(ARROW_MAX)
+
+
+def test_axes_at_the_origin_are_hidden():
+    """Meshcat's axes (a blue vertical line at the origin, read as a torque arrow) are hidden."""
+    with Scene(["shopping_cart"]) as sc:
+        props = [umsgpack.unpackb(b) for b in sc.window.commands()]
+    assert any(c.get("path") == "/Axes" and c.get("property") == "visible" and c["value"] is False for c in props)
+
+
+def test_iframe_is_compressed_and_wrapped():
+    """The notebook iframe holds the gzipped page (a third of its size) inside a <div> (no IPython warning)."""
+    import base64
+    import gzip
+    import html as html_mod
+    import re
+
+    with Scene(["shopping_cart"]) as sc:
+        page, frame = sc.static_html(), sc.iframe()
+    assert frame.startswith("<div") and "<iframe" in frame
+    blob = re.search(r'atob\("([A-Za-z0-9+/=]+)"\)', html_mod.unescape(frame)).group(1)
+    assert gzip.decompress(base64.b64decode(blob)).decode("utf-8") == page
+    assert len(frame) < 0.5 * len(page)

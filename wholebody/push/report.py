@@ -246,8 +246,10 @@ def save_figures(runs: dict[str, PushResult], out_dir: Path) -> list[Path]:
 def build_scene(result: PushResult, fps: int = 10) -> Scene:
     """Return a Meshcat scene animating the run: robot 1, the cart, the hand force, the true and estimated CoM.
 
-    The page opens paused at the first frame (the robot holding the cart) and
-    its camera follows the robot and the cart (`wholebody.viz.Scene.animate`).
+    The page plays when opened (pause button and legend bottom left; ``#t=<s>``
+    opens it paused at a time), starts on the robot holding the cart, and its
+    camera follows the robot and the cart (`wholebody.viz.Scene.animate`). It
+    shows the hand force (N), the mass estimate and the CoM error (cm) live.
     """
     import robots
     from robots.shopping_cart import CART_WHEEL_RADIUS
@@ -272,14 +274,18 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     y0, y1 = result.q_true[:, 1].min() - 2, result.q_true[:, 1].max() + 2
     scene = Scene([name, "shopping_cart"], floor=(x0, x1, y0, y1))
     scene.show_com((p.dx, p.dy), (phi[0, 1] / phi[0, 0], phi[0, 2] / phi[0, 0]))
-    scene.show_trace("desired", result.q_desired[:, :2])
+    scene.show_trace("desired", result.q_desired[:, :2], label="cyan line: the cart's desired path")
+    t = result.t[idx]
+    scene.add_readout("hand force |f|", "N", t, np.linalg.norm(forces, axis=1))
+    est = "EKF estimate" if result.config.estimation else "no EKF, fixed guess"
+    scene.add_readout(f"mass ({est}; true {p.m:g} kg)", "kg", t, phi[:, 0])
+    scene.add_readout("CoM error", "cm", t, 100 * np.hypot(phi[:, 1] / phi[:, 0] - p.dx, phi[:, 2] / phi[:, 0] - p.dy))
     scene.animate(
         result.t[idx],
         {name: result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},
         q_joints={name: qj},
         wrenches={"hand": (origins, forces)},
         markers={"com/com_true": com_true, "com/com_est": com_est},
-        scale=0.02,
         fps=fps,
         follow=(name, "shopping_cart"),
     )

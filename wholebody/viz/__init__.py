@@ -10,6 +10,7 @@ from __future__ import annotations
 from wholebody.viz.scene import (
     COLORS,
     COM_MARKER_Z,
+    DEFAULT_CART_POSE,
     FLOOR,
     FORCE_SCALE,
     MAX_FLOOR_LINES,
@@ -18,6 +19,7 @@ from wholebody.viz.scene import (
     Scene,
     SceneError,
     cart_to_world_traj,
+    cover_floor,
     frame_points,
     log_scene,
     pushing_configuration,
@@ -28,6 +30,7 @@ from wholebody.viz.scene import (
 __all__ = [
     "COLORS",
     "COM_MARKER_Z",
+    "DEFAULT_CART_POSE",
     "FLOOR",
     "FORCE_SCALE",
     "MAX_FLOOR_LINES",
@@ -36,6 +39,7 @@ __all__ = [
     "Scene",
     "SceneError",
     "cart_to_world_traj",
+    "cover_floor",
     "frame_points",
     "log_scene",
     "pushing_configuration",

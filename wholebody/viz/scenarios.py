@@ -6,7 +6,7 @@ import numpy as np
 
 from robots.shopping_cart import CART_HANDLE_Z_B, CART_WHEEL_RADIUS
 from cart.table1 import TESTS, contact_point, run_test
-from wholebody.viz import COM_MARKER_Z, Scene, SceneError, cart_to_world_traj, frame_points, pushing_configuration
+from wholebody.viz import COM_MARKER_Z, Scene, SceneError, cart_to_world_traj, cover_floor, pushing_configuration
 
 
 def scenario_scene(test: int, duration: float = 30.0, serve: bool = False, fps: int = 30) -> Scene:
@@ -17,7 +17,9 @@ def scenario_scene(test: int, duration: float = 30.0, serve: bool = False, fps: 
     display convention: the simulation has the cart alone); the force arrow
     sits at the simulation's contact point; the estimated CoM (magenta)
     converges towards the true one (blue); the traces are the desired (grey)
-    and the actual (purple) paths.
+    and the actual (cyan) paths. The page plays when opened; its camera starts
+    on the robot and the cart and follows them; the overlay shows the force
+    (N), the mass estimate (kg) and the CoM error (cm) live, and the legend.
     """
     numbers = [spec.test for spec in TESTS]
     if test not in numbers:
@@ -37,10 +39,11 @@ def scenario_scene(test: int, duration: float = 30.0, serve: bool = False, fps: 
     com_est = cart_to_world_traj(q, np.asarray(run.params_hat)[:, 1:3], com_z)
 
     scene = Scene(["ridgeback_iiwa", "shopping_cart"], serve=serve)
-    scene.show_trace("desired", np.asarray(run.q_desired)[:, :2], color=0x8A8F98)
-    scene.show_trace("actual", q[:, :2])
+    scene.show_trace("desired", np.asarray(run.q_desired)[:, :2], color=0x8A8F98, label="grey line: desired path")
+    scene.show_trace("actual", q[:, :2], label="cyan line: the cart's simulated path")
     scene.show_contact("arm0", contact_b[:1], frame="b")
     scene.show_com(np.asarray(run.params_true)[0, 1:3], np.asarray(run.params_hat)[0, 1:3])
+    _readouts(scene, run)
     scene.animate(
         run.t,
         {"ridgeback_iiwa": base, "shopping_cart": q},
@@ -48,6 +51,17 @@ def scenario_scene(test: int, duration: float = 30.0, serve: bool = False, fps: 
         wrenches={"arm0": (contact, np.asarray(run.gamma)[:, :2])},
         markers={"contacts/arm0/0": contact, "com/com_true": com_true, "com/com_est": com_est},
         fps=fps,
+        follow=("ridgeback_iiwa", "shopping_cart"),
     )
-    frame_points(np.vstack((np.column_stack((q[:, :2], np.zeros(len(q)))), base)), scene)
+    cover_floor(np.vstack((q[:, :2], base[:, :2])), scene)
+    scene.frame_robots(margin=0.6)  # the first frame, large on screen; the camera then follows
     return scene
+
+
+def _readouts(scene: Scene, run) -> None:
+    """Add the live read-outs of a Table I run: force (N), mass estimate (kg), CoM error (cm)."""
+    gamma, true, hat = np.asarray(run.gamma), np.asarray(run.params_true), np.asarray(run.params_hat)
+    scene.add_readout("force on the cart |f|", "N", run.t, np.hypot(gamma[:, 0], gamma[:, 1]))
+    scene.add_readout("mass (EKF estimate)", "kg", run.t, hat[:, 0])
+    scene.add_readout("true mass", "kg", run.t, true[:, 0])
+    scene.add_readout("CoM error", "cm", run.t, 100 * np.hypot(*(hat[:, 1:3] - true[:, 1:3]).T))

@@ -13,9 +13,7 @@ forwards the commands to it (open `Scene.url` in a browser); `close()` (or a
 
 from __future__ import annotations
 
-import base64
 import contextlib
-import html as _html
 import io
 import math
 from dataclasses import dataclass
@@ -39,6 +37,7 @@ import robots
 from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
 from wholebody.errors import SceneError
 from wholebody.motion.bases import planar_pose_matrix
+from wholebody.viz.page import LegendEntry, Readout, compressed_iframe, nice_scale, static_html
 
 #: Colours (0xRRGGBB) of the overlays.
 COLORS = {
@@ -57,9 +56,36 @@ FLOOR = (-2.0, 6.0, -3.0, 3.0)
 MAX_FLOOR_LINES = 120
 #: Most keyframes of one animation (longer runs are decimated; playback stays in real time).
 MAX_FRAMES = 3000
-#: Default arrow scale: metres of arrow per newton (and per newton-metre for torques).
-FORCE_SCALE = 0.01
-_VIEWER_JS = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
+#: Default arrow scale of static scenes: metres of arrow per newton (and per newton-metre for torques).
+#: Animations choose theirs from the forces they draw (`wholebody.viz.page.nice_scale`); the legend says it.
+FORCE_SCALE = 0.03
+#: Radius and head length (m) of force arrows (torque arrows: half the radius, 2/3 of the head).
+ARROW_RADIUS, ARROW_HEAD = 0.018, 0.08
+#: Longest animated force arrow (m): longer ones are drawn this long (the legend says so, the read-out gives |f|).
+ARROW_MAX = 1.5
+#: Where a scene with the cart and another robot puts the cart by default: ahead of the robot at the origin.
+DEFAULT_CART_POSE = (0.9, 0.0, 0.0)
+#: What each overlay colour means, for the page's legend (kind -> (shape, text)).
+LEGEND_TEXT = {
+    "applied": ("arrow", "blue arrow: force the hand applies"),
+    "desired": ("arrow", "green arrow: force the controller asked for"),
+    "torque": ("arrow", "thin vertical arrow at the hand: yaw torque (up = counter-clockwise)"),
+    "contact": ("dot", "black dot: contact point on the handle"),
+    "com_true": ("sphere", "blue sphere (large, see-through): the cart's true CoM"),
+    "com_est": ("sphere", "magenta sphere (small): the estimated CoM"),
+}
+
+
+class _OnTopMesh(mg.Mesh):
+    """A mesh drawn over everything else (no depth test, rendered last): arrows stay visible inside cart and hand."""
+
+    def __init__(self, geometry: Any, color: int) -> None:
+        super().__init__(geometry, mg.MeshLambertMaterial(color=color, depthTest=False, depthWrite=False))
+
+    def lower(self) -> dict:
+        data = super().lower()
+        data["object"]["renderOrder"] = 10
+        return data
 
 
 @dataclass(frozen=True)
@@ -174,123 +200,6 @@ def _grid_step(span: float, step: float) -> float:
     return 10.0 * base
 
 
-def _camera_js(camera: Camera) -> str:
-    """Return JavaScript that points the viewer's camera from `camera.eye` at `camera.target`.
-
-    Meshcat's three.js scene is rotated -90 deg about x (z up) and the camera
-    hangs under a node rotated +90 deg, so camera and orbit-control coordinates
-    are three.js world coordinates: meshcat (x, y, z) -> (x, z, -y).
-    """
-    (ex, ey, ez), (tx, ty, tz) = camera.eye, camera.target
-    e, t = (", ".join(f"{float(v):.6g}" for v in vec) for vec in ((ex, ez, -ey), (tx, tz, -ty)))
-    return f"""(function () {{
-  const cam = viewer.camera;
-  cam.fov = {float(camera.fov_deg):.6g};
-  cam.updateProjectionMatrix();
-  cam.position.set({e});
-  viewer.controls.target.set({t});
-  viewer.controls.update();
-  viewer.set_dirty();
-}})();
-"""
-
-
-def _animation_js(follow: Sequence[str]) -> str:
-    """Return JavaScript for an animated page: seek by URL hash, a scrubber that works while paused, camera follow.
-
-    * ``page.html#t=12.5`` opens the animation at 12.5 s (paused); ``#play`` (or
-      ``#t=3&play``) starts playing. The page opens paused at the first frame.
-    * The GUI's time scrubber seeks even before the first "play".
-    * When `follow` names nodes (``"/meshcat/<robot>"``), the camera and its
-      orbit target move with the mean world position of those nodes, keeping
-      the offset the viewer had (orbiting by mouse still works).
-    """
-    paths = "[" + ", ".join("[" + ", ".join(f'"{part}"' for part in p.split("/") if part) + "]" for p in follow) + "]"
-    return f"""(function () {{
-  const anim = viewer.animator;
-  function seek(t) {{
-    if (!anim.actions.length) return;
-    anim.pause();
-    for (const a of anim.actions) {{
-      a.play(); a.paused = false; a.time = Math.max(0, Math.min(a._clip.duration, t));
-    }}
-    anim.mixer.update(0);
-    anim.display_progress(Math.max(0, Math.min(anim.duration, t)));
-    viewer.set_dirty();
-  }}
-  anim.seek = seek;
-  const nodes = {paths}.map(function (p) {{ return viewer.scene_tree.find(p).object; }});
-  const last = viewer.camera.position.clone(), now = last.clone(), tmp = last.clone();
-  function centre(out) {{
-    out.set(0, 0, 0);
-    for (const n of nodes) {{ n.getWorldPosition(tmp); out.add(tmp); }}
-    return out.multiplyScalar(1 / Math.max(1, nodes.length));
-  }}
-  if (nodes.length) {{
-    centre(last);
-    const update = anim.update.bind(anim);
-    anim.update = function () {{
-      update();
-      centre(now);
-      if (now.distanceToSquared(last) > 1e-12) {{
-        tmp.copy(now).sub(last);
-        viewer.camera.position.add(tmp);
-        viewer.controls.target.add(tmp);
-        viewer.controls.update();
-        last.copy(now);
-        viewer.set_dirty();
-      }}
-    }};
-  }}
-  function fromHash() {{
-    const h = window.location.hash;
-    const m = /(?:^#|&)t=([-+0-9.eE]+)/.exec(h);
-    if (m) seek(parseFloat(m[1]));
-    if (/(?:^#|&)play(?:&|$)/.test(h)) anim.play();
-  }}
-  window.addEventListener("hashchange", fromHash);
-  fromHash();
-}})();
-"""
-
-
-def _static_html(
-    commands: Sequence[bytes],
-    controls: bool = True,
-    camera: Camera | None = None,
-    follow: Sequence[str] | None = None,
-    animated: bool = False,
-) -> str:
-    """Return a self-contained HTML page (viewer JavaScript inlined) replaying `commands`, then setting `camera`.
-
-    An `animated` page gets `_animation_js` (seek by ``#t=<s>``, camera following the nodes `follow`).
-    """
-    js = _VIEWER_JS.read_text(encoding="utf-8")
-    calls = "".join(
-        f'viewer.handle_command_bytearray(b64("{base64.b64encode(c).decode("ascii")}"));\n' for c in commands
-    )
-    hide = "" if controls else ".dg.main, .dg.ac {display: none !important;}"
-    return f"""<!DOCTYPE html>
-<html>
-<head><meta charset="utf-8"><title>cartpush scene</title>
-<style>body {{margin: 0;}} #meshcat-pane {{width: 100vw; height: 100vh; overflow: hidden;}} {hide}</style>
-</head>
-<body>
-<div id="meshcat-pane"></div>
-<script>
-{js}
-</script>
-<script>
-function b64(s) {{ const b = atob(s); const a = new Uint8Array(b.length);
-  for (let i = 0; i < b.length; i++) a[i] = b.charCodeAt(i); return a; }}
-var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
-{calls}{_camera_js(camera) if camera is not None else ""}{_animation_js(follow or ()) if animated else ""}
-</script>
-</body>
-</html>
-"""
-
-
 def _start_server() -> tuple[Any, Any]:
     """Return (meshcat ViewerWindow connected to a new local server, server process)."""
     with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints the URL on stdout
@@ -382,6 +291,11 @@ def _arrow_parts(origin: np.ndarray, vector: np.ndarray, head: float) -> list[tu
     ]
 
 
+def _per_unit(scale: float, unit: str) -> str:
+    """Return an arrow scale in words, e.g. '3 cm per N (10 N = 30 cm)'."""
+    return f"{100 * scale:.3g} cm per {unit} (10 {unit} = {1000 * scale:.3g} cm)"
+
+
 def _set_arrow(node: Any, parts: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
     """Set the (scaled) arrow transforms on the Visualizer `node`."""
     for part, T, scale in parts:
@@ -418,11 +332,15 @@ class Scene:
         camera: Camera | None = None,
         floor: tuple[float, float, float, float] = FLOOR,
     ) -> None:
-        """Load the robots (each under its own node `/meshcat/<name>`) at the origin; optionally start a server.
+        """Load the robots (each under its own node `/meshcat/<name>`); optionally start a server.
 
-        `floor` (xmin, xmax, ymin, ymax) is drawn as a 0.5 m grid of short
-        segments instead of Meshcat's 20 m grid (whose long lines software
-        renderers drop when they pass behind the camera).
+        Robots stand at the origin, except the cart next to another robot:
+        it stands ahead of it at `DEFAULT_CART_POSE`. Without `camera` the page's
+        camera frames every robot as displayed when the page is written
+        (`set_camera` or `frame_robots` fix it). `floor` (xmin, xmax, ymin,
+        ymax) is drawn as a 0.5 m grid of short segments instead of Meshcat's
+        20 m grid (whose long lines software renderers drop when they pass
+        behind the camera); Meshcat's axes at the origin are hidden.
         """
         names = list(robot_names)
         if len(set(names)) != len(names):
@@ -438,6 +356,10 @@ class Scene:
         self._viz: dict[str, MeshcatVisualizer] = {}
         self._q: dict[str, np.ndarray] = {}
         self.follow: tuple[str, ...] = ()
+        self._camera: Camera | None = None
+        self._legend: dict[str, LegendEntry] = {}
+        self._readouts: list[Readout] = []
+        self._autoplay = True
         try:
             for name in names:
                 robot = robots.load(name)  # raises UnknownRobotError for bad names
@@ -447,9 +369,10 @@ class Scene:
                 viz.initViewer(viewer=self.viewer)
                 viz.loadViewerModel(rootNodeName=name)
                 self.robots[name], self._viz[name] = robot, viz
-                self.set_robot_pose(name, (0.0, 0.0, 0.0))
-            self.camera = camera or Camera()
-            self.set_camera(self.camera)
+                pose = DEFAULT_CART_POSE if name == "shopping_cart" and len(names) > 1 else (0.0, 0.0, 0.0)
+                self.set_robot_pose(name, pose)
+            if camera is not None:
+                self.set_camera(camera)
             self.set_floor(floor)
         except BaseException:
             self.close()
@@ -534,6 +457,8 @@ class Scene:
         frame; 2-D points lie at the handle height, like LOG_FORMAT's contact_x/y).
         """
         world = self._to_world(points, frame)
+        if color == COLORS["contact"]:
+            self.add_legend("contact", color, *LEGEND_TEXT["contact"])
         node = self.viewer["contacts"][name]
         node.delete()
         for i, p in enumerate(world):
@@ -552,11 +477,12 @@ class Scene:
         if kind not in ("applied", "desired"):
             raise SceneError(f"wrench kind must be 'applied' or 'desired', got {kind!r}")
         node = self.viewer["wrenches"][kind][name]
-        material = mg.MeshLambertMaterial(color=COLORS[kind])
         shaft_rot = tf.rotation_matrix(-math.pi / 2, [0, 0, 1])  # meshcat cylinders lie along y
-        node["shaft"]["geom"].set_object(mg.Cylinder(1.0, radius), material)
+        node["shaft"]["geom"].set_object(_OnTopMesh(mg.Cylinder(1.0, radius), COLORS[kind]))
         node["shaft"]["geom"].set_transform(shaft_rot)
-        node["head"]["geom"].set_object(mg.Cylinder(head, radiusTop=0.0, radiusBottom=2.2 * radius), material)
+        node["head"]["geom"].set_object(
+            _OnTopMesh(mg.Cylinder(head, radiusTop=0.0, radiusBottom=2.2 * radius), COLORS[kind])
+        )
         node["head"]["geom"].set_transform(shaft_rot)
         return node
 
@@ -576,16 +502,19 @@ class Scene:
         or (fx, fy, fz) in world axes. A vertical torque `torque` (N m) is drawn
         as a thinner vertical arrow (right-hand rule) at the same origin.
         `frame` says where `origin` is given (``"world"`` or cart ``"b"``).
+        Arrows are drawn over the robots and the cart (never hidden by them);
+        the page's legend states the scale.
         """
         o = self._to_world(origin, frame)[0]
         f = np.asarray(force, dtype=float).ravel()
         if f.shape not in ((2,), (3,)) or not np.all(np.isfinite(f)):
             raise SceneError(f"force must be 2 or 3 finite numbers, got {force!r}")
         f = np.append(f, 0.0) if f.size == 2 else f
-        node = self._arrow_node(name, kind, 0.012, 0.06)
-        _set_arrow(node, _arrow_parts(o, scale * f, 0.06))
+        node = self._arrow_node(name, kind, ARROW_RADIUS, ARROW_HEAD)
+        _set_arrow(node, _arrow_parts(o, scale * f, ARROW_HEAD))
+        self._legend_arrow(kind, scale, torque is not None)
         if torque is not None:
-            tnode = self._arrow_node(f"{name}_torque", kind, 0.006, 0.04)
+            tnode = self._arrow_node(f"{name}_torque", kind, ARROW_RADIUS / 2, 0.04)
             _set_arrow(tnode, _arrow_parts(o, np.array([0.0, 0.0, scale * float(torque)]), 0.04))
         return float(scale * np.linalg.norm(f))
 
@@ -616,19 +545,36 @@ class Scene:
         return world
 
     def show_com(self, true_b: Any, est_b: Any, radius: float = 0.04) -> np.ndarray:
-        """Draw the cart's true and estimated CoM (dx, dy) in {b} as two spheres; return their world positions (2, 3)."""
+        """Draw the cart's true and estimated CoM (dx, dy) in {b} as two spheres; return their world positions (2, 3).
+
+        The true CoM is a larger see-through blue sphere (1.6 `radius`), the
+        estimate a smaller solid magenta one inside it: both stay visible when
+        the estimate has converged. The legend says which is which.
+        """
         pts = np.vstack((_points3(true_b, 0.0), _points3(est_b, 0.0)))[:, :2]
         world = self.cart_to_world(np.column_stack((pts, np.full(2, COM_MARKER_Z - CART_WHEEL_RADIUS))))
+        materials = {
+            "com_true": (1.6 * radius, mg.MeshLambertMaterial(color=COLORS["com_true"], opacity=0.4, depthWrite=False)),
+            "com_est": (0.8 * radius, mg.MeshLambertMaterial(color=COLORS["com_est"])),
+        }
         for key, p in zip(("com_true", "com_est"), world):
-            self.viewer["com"][key].set_object(mg.Sphere(radius), mg.MeshLambertMaterial(color=COLORS[key]))
+            r, material = materials[key]
+            self.viewer["com"][key].set_object(mg.Sphere(r), material)
             self.viewer["com"][key].set_transform(tf.translation_matrix(p))
+            self.add_legend(key, COLORS[key], *LEGEND_TEXT[key])
         return world
 
-    def show_trace(self, name: str, points: Any, color: int = COLORS["trace"], z: float = 0.005) -> np.ndarray:
-        """Draw a polyline through `points` ((N, 2) on the floor at height `z`, or (N, 3)); return them as (N, 3)."""
+    def show_trace(
+        self, name: str, points: Any, color: int = COLORS["trace"], z: float = 0.005, label: str | None = None
+    ) -> np.ndarray:
+        """Draw a polyline through `points` ((N, 2) on the floor at height `z`, or (N, 3)); return them as (N, 3).
+
+        `label` is its legend line (default: ``"line: path <name>"``).
+        """
         p = _points3(points, z)
         if len(p) < 2:
             raise SceneError("a trace needs at least 2 points")
+        self.add_legend(f"trace_{name}", color, "line", label or f"line: path {name}")
         geom = mg.PointsGeometry(p.T.astype(np.float32))
         self.viewer["traces"][name].set_object(mg.Line(geom, mg.LineBasicMaterial(color=color, linewidth=3)))
         return p
@@ -646,6 +592,7 @@ class Scene:
         pts = np.array([p for seg in segs for p in seg])
         pts = np.column_stack((pts, np.zeros(len(pts)))).T.astype(np.float32)
         self.viewer["/Grid"].set_property("visible", False)
+        self.viewer["/Axes"].set_property("visible", False)  # its blue z axis at the origin read as a torque arrow
         self.viewer["floor"].set_object(mg.LineSegments(mg.PointsGeometry(pts), mg.LineBasicMaterial(color=0x9AA4B0)))
         return len(segs)
 
@@ -656,12 +603,53 @@ class Scene:
         it with a script (`_camera_js`); a live viewer only gets the camera
         position and orbits around the world origin.
         """
-        self.camera = camera
+        self._camera = camera
         if self.window.live is not None:
             d = np.asarray(camera.eye, float)  # the camera node is rotated +90 deg about x: (x, y, z) -> (x, z, -y)
             self.window.live.send(
                 SetProperty("position", [d[0], d[2], -d[1]], PathOf("/Cameras/default/rotated/<object>"))
             )
+
+    @property
+    def camera(self) -> Camera:
+        """The page's camera: the one set (`set_camera`, `frame_robots`), else one framing the robots as displayed."""
+        if self._camera is not None:
+            return self._camera
+        return self._framing(list(self.robots), margin=0.3) if self.robots else Camera()
+
+    def _framing(self, names: Sequence[str], margin: float) -> Camera:
+        """Return a camera seeing every frame of the robots `names` as displayed, `margin` m around them."""
+        pts = []
+        for name in names:
+            robot = self._robot(name)
+            pin.framesForwardKinematics(robot.model, robot.data, self._q[name])
+            pts.extend(f.translation for f in robot.data.oMf)
+        p = np.array(pts)
+        return Camera.framing(np.vstack((p, p.min(axis=0) - margin, p.max(axis=0) + margin)))
+
+    # -- legend ----------------------------------------------------------------------
+    def add_legend(self, key: str, color: int, shape: str, text: str) -> None:
+        """Add (or replace) the legend line `key` of the page: a `shape` swatch in `color` and `text`."""
+        self._legend[key] = LegendEntry(int(color), shape, text)
+
+    def legend(self) -> list[LegendEntry]:
+        """Return the page's legend lines, in the order they were first added."""
+        return list(self._legend.values())
+
+    def add_readout(self, label: str, unit: str, t: Any, values: Any, digits: int = 1) -> None:
+        """Show ``label: value unit`` live on the animated page (the latest of samples (t, values) at the page's time)."""
+        t, v = np.asarray(t, dtype=float).ravel(), np.asarray(values, dtype=float).ravel()
+        if t.shape != v.shape or len(t) < 1 or not np.all(np.isfinite(t)):
+            raise SceneError(f"readout {label!r}: t and values must have the same length, got {t.shape}, {v.shape}")
+        self._readouts.append(Readout(label, unit, t, v, digits))
+
+    def _legend_arrow(self, kind: str, scale: float, torque: bool = False, clipped: bool = False) -> None:
+        shape, text = LEGEND_TEXT[kind]
+        clip = f"; at most {ARROW_MAX:g} m" if clipped else ""
+        self.add_legend(f"arrow_{kind}", COLORS[kind], shape, f"{text}, {_per_unit(scale, 'N')}{clip}")
+        if torque:
+            shape, text = LEGEND_TEXT["torque"]
+            self.add_legend(f"torque_{kind}", COLORS[kind], shape, f"{text}, {_per_unit(scale, 'N m')}")
 
     # -- animation -------------------------------------------------------------------
     def animate(
@@ -672,17 +660,22 @@ class Scene:
         wrenches: Mapping[str, tuple[Any, Any]] | None = None,
         kind: str = "applied",
         markers: Mapping[str, Any] | None = None,
-        scale: float = FORCE_SCALE,
+        scale: float | None = None,
         fps: int = 30,
-        play: bool = False,
-        repetitions: int = 1,
+        play: bool = True,
+        repetitions: int = 10**6,
         follow: Sequence[str] = (),
     ) -> int:
         """Animate robots, force arrows and markers over times `t`; return the number of animation frames.
 
-        The scene's static state is the first frame, and the page opens paused
-        there (``play=True`` starts playing on load). `follow`: robot names whose
-        mean root position the page's camera follows (see `camera_at`).
+        The scene's static state is the first frame. The page plays when opened
+        and loops (``play=False``: it opens paused, ``#play`` starts it); its
+        overlay has a pause button and the legend. `repetitions` is for a live
+        viewer (``serve=True``). `follow`: robot names whose mean root position
+        the page's camera follows (see `camera_at`). `scale` (m per N) of the
+        force arrows: by default the largest of 0.1, 0.05, 0.03, 0.02, 0.01
+        that draws the median force at most 30 cm long; animated arrows are at
+        most `ARROW_MAX` m long (the legend says when some were clipped).
 
         poses: robot name -> (N, 3) planar poses. q_joints: robot name -> (N, nq-4).
         wrenches: arrow name -> ((N, 3) world origins, (N, 2|3) forces).
@@ -701,6 +694,9 @@ class Scene:
                 raise SceneError(f"follow: robot {name!r} is not animated; animated: {', '.join(poses)}")
         for name, traj in poses.items():
             self._animate_robot(anim, keys, name, traj, (q_joints or {}).get(name), len(t))
+        if scale is None:
+            norms = [np.linalg.norm(np.asarray(f, dtype=float), axis=-1) for _, f in (wrenches or {}).values()]
+            scale = nice_scale(np.concatenate(norms)) if norms else FORCE_SCALE
         for name, (origins, forces) in (wrenches or {}).items():
             self._animate_arrow(anim, keys, name, origins, forces, kind, scale, len(t))
         for path, pts in (markers or {}).items():
@@ -708,6 +704,8 @@ class Scene:
         self.viewer.set_animation(anim, play=play, repetitions=repetitions)
         self.follow = tuple(follow)
         self._fps = fps
+        self._autoplay = bool(play)
+        self.arrow_scale = float(scale)
         return len(frame_numbers)
 
     def _animate_robot(
@@ -747,12 +745,16 @@ class Scene:
         if len(origins) != n or len(forces) != n:
             raise SceneError(f"wrenches[{name!r}] must have {n} origins and forces")
         forces = forces if forces.shape[1] == 3 else np.column_stack((forces, np.zeros(n)))
-        node = self._arrow_node(name, kind, 0.012, 0.06)
+        node = self._arrow_node(name, kind, ARROW_RADIUS, ARROW_HEAD)
+        vectors = scale * forces
+        lengths = np.linalg.norm(vectors, axis=1)
+        vectors *= np.minimum(1.0, ARROW_MAX / np.maximum(lengths, 1e-12))[:, None]
         for k, i in keys:
-            for part, T, sc in _arrow_parts(origins[i], scale * forces[i], 0.06):
+            for part, T, sc in _arrow_parts(origins[i], vectors[i], ARROW_HEAD):
                 _set_key(anim, (node[part] if part else node).path, k, T, sc)
         first = keys[0][1]
-        _set_arrow(node, _arrow_parts(origins[first], scale * forces[first], 0.06))
+        _set_arrow(node, _arrow_parts(origins[first], vectors[first], ARROW_HEAD))
+        self._legend_arrow(kind, scale, clipped=bool(np.any(lengths > ARROW_MAX)))
 
     def _animate_marker(self, anim: Animation, keys: list[tuple[int, int]], path: str, pts: Any, n: int) -> None:
         """Add the position keys of the marker node `path` (world positions (n, 3)); show its first frame."""
@@ -773,11 +775,15 @@ class Scene:
             node = self.viewer[viz.getViewerNodeName(geom, pin.GeometryType.VISUAL)]
             _set_key(anim, node.path, frame, viz.visual_data.oMg[gid].homogeneous)
 
-    def animate_cart_log(self, log: Any, cart: str = "shopping_cart", fps: int = 30, play: bool = False) -> int:
+    def animate_cart_log(
+        self, log: Any, cart: str = "shopping_cart", fps: int = 30, play: bool = True, follow: bool = True
+    ) -> int:
         """Animate a cart log (`cart.logs.CartLog`: t, q, gamma, optional contact_b); return the number of frames.
 
         The cart follows `q`; the applied force (fx, fy) is an arrow at the
-        contact point (`contact_b`, else the handle midpoint); the path is a trace.
+        contact point (`contact_b`, else the handle midpoint); the path is a
+        trace; the page shows the force in N live and (`follow`) its camera
+        follows the cart.
         """
         self._robot(cart)
         t, q, gamma = np.asarray(log.t, float), np.asarray(log.q, float), np.asarray(log.gamma, float)
@@ -786,8 +792,9 @@ class Scene:
             contact_b = np.tile([CART_HANDLE_X, 0.0], (len(t), 1))
         contact_b = np.asarray(contact_b, dtype=float)
         origins = cart_to_world_traj(q, contact_b, CART_HANDLE_Z_B + CART_WHEEL_RADIUS)
-        self.show_trace(f"{cart}_path", q[:, :2])
+        self.show_trace(f"{cart}_path", q[:, :2], label="cyan line: the cart's path in the log")
         self.show_contact(cart, origins[:1])
+        self.add_readout("force on the cart |f|", "N", t, np.hypot(gamma[:, 0], gamma[:, 1]))
         return self.animate(
             t,
             {cart: q},
@@ -795,6 +802,7 @@ class Scene:
             markers={f"contacts/{cart}/0": origins},
             fps=fps,
             play=play,
+            follow=(cart,) if follow else (),
         )
 
     def world_transform(self, path: str) -> np.ndarray:
@@ -855,13 +863,7 @@ class Scene:
 
     def frame_robots(self, names: Sequence[str] | None = None, margin: float = 0.3) -> Camera:
         """Point the camera at the robots `names` (default: all) as displayed now; return the camera."""
-        pts = []
-        for name in names or list(self.robots):
-            robot = self._robot(name)
-            pin.framesForwardKinematics(robot.model, robot.data, self._q[name])
-            pts.extend(f.translation for f in robot.data.oMf)
-        p = np.array(pts)
-        camera = Camera.framing(np.vstack((p, p.min(axis=0) - margin, p.max(axis=0) + margin)))
+        camera = self._framing(list(names or self.robots), margin)
         self.set_camera(camera)
         return camera
 
@@ -869,26 +871,32 @@ class Scene:
     def static_html(self, controls: bool = True) -> str:
         """Return the scene as a self-contained HTML page (works offline; `controls=False` hides the GUI panel).
 
-        An animated page opens paused at the first frame; ``#t=<seconds>`` in
-        its URL opens it at that time, ``#play`` plays it; its camera follows
-        the robots named by `animate`'s `follow`.
+        An animated page plays when opened and loops (unless `animate` got
+        ``play=False``); its overlay has a pause button (or the space bar),
+        the time, the read-outs and the legend. ``#t=<seconds>`` in its URL
+        opens it paused at that time, ``#pause`` paused at the start,
+        ``#t=<s>&play`` plays from there; its camera follows the robots named
+        by `animate`'s `follow`. A static page shows the legend only.
         """
         follow = [self.viewer[name].path.lower() for name in self.follow]
-        return _static_html(
+        return static_html(
             self.window.commands(),
             controls=controls,
             camera=self.camera,
             follow=follow,
             animated=self.window.animation is not None,
+            legend=self.legend(),
+            autoplay=self._autoplay,
+            readouts=self._readouts,
         )
 
     def iframe(self, height: int = 420, controls: bool = True) -> str:
-        """Return an ``<iframe>`` holding the static page, for a notebook's output (``IPython.display.HTML``)."""
-        page = _html.escape(self.static_html(controls=controls), quote=True)
-        return (
-            f'<iframe srcdoc="{page}" style="width: 100%; height: {int(height)}px; border: none" '
-            f'title="Meshcat scene"></iframe>'
-        )
+        """Return the static page in an ``<iframe>`` (stored gzipped, inflated by the browser), for a notebook's output.
+
+        Use ``IPython.display.HTML(scene.iframe())``; about a third of the
+        page's size (the viewer's JavaScript, 0.9 MB, becomes ~0.3 MB).
+        """
+        return compressed_iframe(self.static_html(controls=controls), height)
 
     def _repr_html_(self) -> str:
         """Show the scene inline in Jupyter (the static page in an iframe)."""
@@ -930,8 +938,15 @@ def pushing_configuration(
 def frame_points(points: np.ndarray, scene: Scene) -> None:
     """Frame `points` (N, 3) with the camera and cover them with the floor grid."""
     scene.set_camera(Camera.framing(points))
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    scene.set_floor((math.floor(lo[0]) - 2.0, math.ceil(hi[0]) + 2.0, math.floor(lo[1]) - 2.0, math.ceil(hi[1]) + 2.0))
+    cover_floor(points, scene)
+
+
+def cover_floor(points: np.ndarray, scene: Scene, border: float = 2.0) -> None:
+    """Draw the floor grid under `points` (N, 2|3) with `border` m around them."""
+    lo, hi = np.min(points, axis=0), np.max(points, axis=0)
+    scene.set_floor(
+        (math.floor(lo[0]) - border, math.ceil(hi[0]) + border, math.floor(lo[1]) - border, math.ceil(hi[1]) + border)
+    )
 
 
 def robot_scene(name: str, serve: bool = False) -> Scene:
@@ -964,9 +979,9 @@ def log_scene(log: Any, serve: bool = False, fps: int = 30) -> Scene:
             raise SceneError(f"log file {str(log)!r} not found")
         log = read_log(log)
     scene = Scene(["shopping_cart"], serve=serve)
-    scene.animate_cart_log(log, fps=fps)
-    q = np.asarray(log.q, float)
-    frame_points(np.column_stack((q[:, :2], np.zeros(len(q)))), scene)
+    scene.animate_cart_log(log, fps=fps)  # the camera follows the cart
+    cover_floor(np.asarray(log.q, float)[:, :2], scene)
+    scene.frame_robots(margin=0.8)  # the cart at its first sample, large on screen
     return scene
 
 

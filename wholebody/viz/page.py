@@ -1,0 +1,313 @@
+"""The offline page of a scene: the viewer, the camera script, the player (play/pause, time) and the legend.
+
+`static_html` turns recorded Meshcat commands into one self-contained HTML page.
+An animated page **plays when opened** and loops; its overlay (bottom left) has
+a pause/play button (the space bar toggles it too), the animation time, live
+read-outs (e.g. the hand force in N) and the legend saying what each colour and
+arrow means. ``#t=<s>`` in the URL opens the page paused at that time,
+``#pause`` opens it paused at the start, ``#t=<s>&play`` plays from there.
+"""
+
+from __future__ import annotations
+
+import base64
+import gzip
+import html as _html
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import meshcat
+import numpy as np
+
+if TYPE_CHECKING:
+    from wholebody.viz.scene import Camera
+
+_VIEWER_JS = Path(meshcat.__file__).resolve().parent / "viewer" / "dist" / "main.min.js"
+#: three.js's THREE.LoopRepeat (the page loops its animation).
+_LOOP_REPEAT = 2201
+
+
+@dataclass(frozen=True)
+class LegendEntry:
+    """One legend line: a colour swatch (0xRRGGBB), its shape (``"arrow"``, ``"sphere"``, ``"line"``, ``"dot"``) and text."""
+
+    color: int
+    shape: str
+    text: str
+
+
+@dataclass(frozen=True)
+class Readout:
+    """A number shown live on an animated page: ``label: value unit`` at the animation time (samples t, values)."""
+
+    label: str
+    unit: str
+    t: np.ndarray
+    values: np.ndarray
+    digits: int = 1
+
+    def as_json(self) -> dict:
+        """Return the readout as plain lists (times relative to the first sample, rounded)."""
+        t = np.asarray(self.t, float)
+        v = np.asarray(self.values, float)
+        keep = np.isfinite(v)
+        return {
+            "label": self.label,
+            "unit": self.unit,
+            "digits": int(self.digits),
+            "t": [round(float(x), 3) for x in (t - t[0])[keep]],
+            "v": [round(float(x), self.digits + 2) for x in v[keep]],
+        }
+
+
+def camera_js(camera: Camera) -> str:
+    """Return JavaScript that points the viewer's camera from `camera.eye` at `camera.target`.
+
+    Meshcat's three.js scene is rotated -90 deg about x (z up) and the camera
+    hangs under a node rotated +90 deg, so camera and orbit-control coordinates
+    are three.js world coordinates: meshcat (x, y, z) -> (x, z, -y).
+    """
+    (ex, ey, ez), (tx, ty, tz) = camera.eye, camera.target
+    e, t = (", ".join(f"{float(v):.6g}" for v in vec) for vec in ((ex, ez, -ey), (tx, tz, -ty)))
+    return f"""(function () {{
+  const cam = viewer.camera;
+  cam.fov = {float(camera.fov_deg):.6g};
+  cam.updateProjectionMatrix();
+  cam.position.set({e});
+  viewer.controls.target.set({t});
+  viewer.controls.update();
+  viewer.set_dirty();
+}})();
+"""
+
+
+#: The animated page's script (`animation_js` fills in the __NAMES__).
+_ANIMATION_JS = """(function () {
+  const anim = viewer.animator;
+  for (const a of anim.actions) a.setLoop(__LOOP__, Infinity);
+  const button = document.getElementById("cartpush-play");
+  const clock = document.getElementById("cartpush-time");
+  const readouts = __READOUTS__;
+  const readoutNodes = readouts.map(function (r, i) { return document.getElementById("cartpush-readout-" + i); });
+  function sample(r, t) {
+    let lo = 0, hi = r.t.length - 1;
+    if (hi < 0) return NaN;
+    while (lo < hi) { const mid = (lo + hi + 1) >> 1; if (r.t[mid] <= t) lo = mid; else hi = mid - 1; }
+    return r.v[lo];
+  }
+  function now() {
+    if (!anim.actions.length) return 0;
+    return anim.actions.reduce(function (m, a) { return Math.max(m, a.time); }, 0);
+  }
+  function refresh() {
+    const t = now();
+    if (button) button.textContent = anim.playing ? "\\u275a\\u275a pause" : "\\u25b6 play";
+    if (clock) clock.textContent = "t = " + t.toFixed(1) + " / " + anim.duration.toFixed(1) + " s";
+    readouts.forEach(function (r, i) {
+      const v = sample(r, t);
+      if (readoutNodes[i]) readoutNodes[i].textContent = r.label + ": " + (isFinite(v) ? v.toFixed(r.digits) : "-") + " " + r.unit;
+    });
+  }
+  function seek(t) {
+    if (!anim.actions.length) return;
+    anim.pause();
+    for (const a of anim.actions) {
+      a.play(); a.paused = false; a.time = Math.max(0, Math.min(a._clip.duration, t));
+    }
+    anim.mixer.update(0);
+    anim.display_progress(Math.max(0, Math.min(anim.duration, t)));
+    viewer.set_dirty();
+    refresh();
+  }
+  anim.seek = seek;
+  function toggle() {
+    if (anim.playing) anim.pause(); else anim.play();
+    refresh();
+  }
+  if (button) button.addEventListener("click", toggle);
+  window.addEventListener("keydown", function (e) {
+    if (e.code === "Space" && e.target === document.body) { e.preventDefault(); toggle(); }
+  });
+  const nodes = __FOLLOW__.map(function (p) { return viewer.scene_tree.find(p).object; });
+  const last = viewer.camera.position.clone(), here = last.clone(), tmp = last.clone();
+  function centre(out) {
+    out.set(0, 0, 0);
+    for (const n of nodes) { n.getWorldPosition(tmp); out.add(tmp); }
+    return out.multiplyScalar(1 / Math.max(1, nodes.length));
+  }
+  if (nodes.length) centre(last);
+  const update = anim.update.bind(anim);
+  anim.update = function () {
+    update();
+    if (anim.playing) refresh();
+    if (!nodes.length) return;
+    centre(here);
+    if (here.distanceToSquared(last) > 1e-12) {
+      tmp.copy(here).sub(last);
+      viewer.camera.position.add(tmp);
+      viewer.controls.target.add(tmp);
+      viewer.controls.update();
+      last.copy(here);
+      viewer.set_dirty();
+    }
+  };
+  function fromHash() {
+    const h = window.location.hash;
+    const m = /(?:^#|&)t=([-+0-9.eE]+)/.exec(h);
+    const play = /(?:^#|&)play(?:&|$)/.test(h), pause = /(?:^#|&)pause(?:&|$)/.test(h);
+    if (m) seek(parseFloat(m[1]));
+    else if (pause) seek(0);
+    if (play || (!m && !pause && __AUTOPLAY__)) anim.play();
+    refresh();
+  }
+  window.addEventListener("hashchange", fromHash);
+  fromHash();
+})();
+"""
+
+
+def animation_js(follow: Sequence[str], autoplay: bool = True, readouts: Sequence[Readout] = ()) -> str:
+    """Return JavaScript for an animated page: autoplay and loop, pause button, seek by URL hash, camera follow.
+
+    * The page plays when opened (`autoplay`) and loops; ``#pause`` opens it
+      paused at the start, ``#t=12.5`` paused at 12.5 s, ``#t=3&play`` plays
+      from 3 s (``#play`` plays a page built with ``autoplay=False``).
+    * The overlay's button (id ``cartpush-play``) and the space bar pause and
+      resume; the time and the `readouts` update every frame.
+    * The GUI's time scrubber seeks even while paused.
+    * When `follow` names nodes (``"/meshcat/<robot>"``), the camera and its
+      orbit target move with the mean world position of those nodes, keeping
+      the offset the viewer had (orbiting by mouse still works).
+    """
+    paths = "[" + ", ".join("[" + ", ".join(f'"{part}"' for part in p.split("/") if part) + "]" for p in follow) + "]"
+    data = json.dumps([r.as_json() for r in readouts], separators=(",", ":"))
+    return (
+        _ANIMATION_JS.replace("__LOOP__", str(_LOOP_REPEAT))
+        .replace("__READOUTS__", data)
+        .replace("__FOLLOW__", paths)
+        .replace("__AUTOPLAY__", "true" if autoplay else "false")
+    )
+
+
+_SWATCH = {
+    "arrow": "width: 18px; height: 4px; margin: 0 6px 2px 0;",
+    "line": "width: 18px; height: 2px; margin: 0 6px 3px 0;",
+    "sphere": "width: 11px; height: 11px; border-radius: 50%; margin: 0 10px -1px 3px;",
+    "dot": "width: 7px; height: 7px; border-radius: 50%; margin: 0 12px 1px 5px;",
+}
+
+
+def overlay_html(legend: Sequence[LegendEntry], animated: bool, readouts: Sequence[Readout] = ()) -> str:
+    """Return the overlay (bottom left): player and read-outs of an animated page, then the legend; '' when empty."""
+    rows = []
+    if animated:
+        rows.append(
+            '<div class="cp-row"><button id="cartpush-play" type="button">\u25b6 play</button> '
+            '<span id="cartpush-time">t = 0.0 s</span></div>'
+        )
+        rows += [f'<div class="cp-row" id="cartpush-readout-{i}"></div>' for i in range(len(readouts))]
+    for e in legend:
+        style = _SWATCH.get(e.shape, _SWATCH["line"])
+        rows.append(
+            f'<div class="cp-row"><span class="cp-swatch" style="{style} background: #{e.color:06x}"></span>'
+            f"{_html.escape(e.text)}</div>"
+        )
+    if not rows:
+        return ""
+    return '<div id="cartpush-overlay">' + "".join(rows) + "</div>"
+
+
+_OVERLAY_CSS = (
+    "#cartpush-overlay {position: absolute; left: 8px; bottom: 8px; max-width: 430px; padding: 6px 9px;"
+    " font: 12px/1.45 'DejaVu Sans', sans-serif; color: #111; background: rgba(255, 255, 255, 0.85);"
+    " border-radius: 4px; z-index: 10;}"
+    " .cp-swatch {display: inline-block; vertical-align: middle;}"
+    " #cartpush-play {font: 12px 'DejaVu Sans', sans-serif; min-width: 70px; margin-right: 6px;}"
+)
+
+
+def static_html(
+    commands: Sequence[bytes],
+    controls: bool = True,
+    camera: Camera | None = None,
+    follow: Sequence[str] | None = None,
+    animated: bool = False,
+    legend: Sequence[LegendEntry] = (),
+    autoplay: bool = True,
+    readouts: Sequence[Readout] = (),
+) -> str:
+    """Return a self-contained HTML page (viewer JavaScript inlined) replaying `commands`, then setting `camera`.
+
+    An `animated` page gets `animation_js` (plays on open unless `autoplay` is
+    False, pause button, ``#t=<s>`` seeks, camera following the nodes `follow`)
+    and the overlay shows the player, the `readouts` and the `legend`.
+    """
+    js = _VIEWER_JS.read_text(encoding="utf-8")
+    calls = "".join(
+        f'viewer.handle_command_bytearray(b64("{base64.b64encode(c).decode("ascii")}"));\n' for c in commands
+    )
+    hide = "" if controls else ".dg.main, .dg.ac {display: none !important;}"
+    script = animation_js(follow or (), autoplay, readouts) if animated else ""
+    return f"""<!DOCTYPE html>
+<html>
+<head><meta charset="utf-8"><title>cartpush scene</title>
+<style>body {{margin: 0;}} #meshcat-pane {{width: 100vw; height: 100vh; overflow: hidden;}} {hide} {_OVERLAY_CSS}</style>
+</head>
+<body>
+<div id="meshcat-pane"></div>
+{overlay_html(legend, animated, readouts)}
+<script>
+{js}
+</script>
+<script>
+function b64(s) {{ const b = atob(s); const a = new Uint8Array(b.length);
+  for (let i = 0; i < b.length; i++) a[i] = b.charCodeAt(i); return a; }}
+var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+{calls}{camera_js(camera) if camera is not None else ""}{script}
+</script>
+</body>
+</html>
+"""
+
+
+def compressed_iframe(page: str, height: int = 420) -> str:
+    """Return a ``<div>`` holding an ``<iframe>`` whose page is stored gzipped (about a third of its size).
+
+    The iframe's ``srcdoc`` is a short script that inflates the page with the
+    browser's DecompressionStream and writes it: works offline and in exported
+    HTML (any browser since 2023). The ``<div>`` keeps IPython from warning
+    that an ``<iframe>`` should be an ``IFrame``.
+    """
+    blob = base64.b64encode(gzip.compress(page.encode("utf-8"), compresslevel=9, mtime=0)).decode("ascii")
+    loader = (
+        "<script>(async function () {"
+        f'const b = Uint8Array.from(atob("{blob}"), function (c) {{ return c.charCodeAt(0); }});'
+        'const s = new Blob([b]).stream().pipeThrough(new DecompressionStream("gzip"));'
+        "const text = await new Response(s).text();"
+        "document.open(); document.write(text); document.close();"
+        "})();</script>"
+    )
+    return (
+        f'<div class="cartpush-scene"><iframe srcdoc="{_html.escape(loader, quote=True)}" '
+        f'style="width: 100%; height: {int(height)}px; border: none" title="Meshcat scene"></iframe></div>'
+    )
+
+
+def nice_scale(
+    values: np.ndarray, typical: float = 0.3, choices: Sequence[float] = (0.1, 0.05, 0.03, 0.02, 0.01)
+) -> float:
+    """Return the largest of `choices` (m per unit) drawing the median of |values| at most `typical` m long.
+
+    A median push force of 3.5 N gets 0.05 m/N (17.5 cm; 10 N = 50 cm); the
+    rare large forces are clipped by the caller (`Scene.animate`).
+    """
+    v = np.abs(np.asarray(values, dtype=float))
+    v = v[np.isfinite(v)]
+    p50 = float(np.median(v)) if v.size else 0.0
+    for s in choices:
+        if s * p50 <= typical:
+            return float(s)
+    return typical / p50
