@@ -61,6 +61,11 @@ COULOMB_ALPHA = 1e-3
 JACKKNIFE_BLOCKS = 10
 #: Smallest residual (share of the filtered wrench RMS) that counts as misfit on a noise-free log.
 FIT_FLOOR = 0.02
+#: Samples x lags up to which the HAC sum runs lag by lag (beyond: the equal one-pass window form).
+HAC_DIRECT = 2_000_000
+#: Grid samples beyond which the cut-off is chosen on CUTOFF_CHUNKS evenly spaced stretches of the log.
+CUTOFF_SAMPLES = 24_000
+CUTOFF_CHUNKS = 4
 
 
 class IdentifiabilityError(CartError):
@@ -94,6 +99,7 @@ class Identification:
     wrench_noise: tuple[AR1Noise, AR1Noise] | None = None
     offsets: dict[str, float] = field(default_factory=dict)
     grid_dt: float = float("nan")
+    fit_data: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)
@@ -207,6 +213,34 @@ def _filter_pose_and_noise(sos: np.ndarray, q: np.ndarray, e: np.ndarray) -> tup
     return _filtfilt(sos, q), _filtfilt(sos, e)
 
 
+def _cutoff_chunks(n: int) -> list[tuple[int, int]]:
+    """Return the grid stretches the cut-off is chosen on: the whole grid, or evenly spaced chunks of a long one."""
+    if n <= CUTOFF_SAMPLES:
+        return [(0, n)]
+    size = CUTOFF_SAMPLES // CUTOFF_CHUNKS
+    starts = np.linspace(0, n - size, CUTOFF_CHUNKS).astype(int)
+    return [(int(i0), int(i0) + size) for i0 in starts]
+
+
+def _chunk_accelerations(
+    grid: _Grid, sos: np.ndarray, e: np.ndarray, chunks: list[tuple[int, int]]
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Return (vdot, omegadot on the valid samples of the chunks, acceleration noise gain) at one filter."""
+    vds, ods = [], []
+    for i0, i1 in chunks:
+        qs, ef = _filter_pose_and_noise(sos, grid.q[i0:i1], e[: i1 - i0])
+        _, _, _, vd, od = _pose_kinematics(qs, grid.dt)
+        valid = grid.valid[i0:i1]
+        if len(chunks) > 1:  # away from the chunk's own ends
+            k = (i1 - i0) // 10
+            valid = valid.copy()
+            valid[:k] = valid[-k:] = False
+        vds.append(vd[valid])
+        ods.append(od[valid])
+    acc_gain, _ = _gains_of(ef, grid.dt)
+    return np.concatenate(vds), np.concatenate(ods), acc_gain
+
+
 def _choose_cutoff(grid: _Grid, pos_std: float, th_std: float, attenuation: float) -> tuple[float, list[str]]:
     """Return the highest cut-off (Hz) whose acceleration noise stays below ``attenuation`` of the signal power."""
     fs = 1.0 / grid.dt
@@ -216,14 +250,14 @@ def _choose_cutoff(grid: _Grid, pos_std: float, th_std: float, attenuation: floa
     low = max(4.0 / max(duration, 1e-9), 1e-3 * fs)
     candidates = np.geomspace(top, low, 40) if top > low else np.array([top])
     best = None
-    e = _unit_noise(len(grid.t))
+    chunks = _cutoff_chunks(len(grid.t))
+    e = _unit_noise(max(i1 - i0 for i0, i1 in chunks))
     for fc in candidates:
-        qs, ef = _filter_pose_and_noise(butter_lowpass_sos(4, fc / (fs / 2.0)), grid.q, e)
-        _, v, om, vd, od = _pose_kinematics(qs, grid.dt)
-        acc_gain, _ = _gains_of(ef, grid.dt)
+        sos = butter_lowpass_sos(4, fc / (fs / 2.0))
+        vd, od, acc_gain = _chunk_accelerations(grid, sos, e, chunks)
         noise_v, noise_o = (pos_std * acc_gain) ** 2, (th_std * acc_gain) ** 2
-        share_v = noise_v / max(float(np.var(vd[grid.valid])), 1e-300)
-        share_o = noise_o / max(float(np.var(od[grid.valid])), 1e-300)
+        share_v = noise_v / max(float(np.var(vd)), 1e-300)
+        share_o = noise_o / max(float(np.var(od)), 1e-300)
         if share_v <= attenuation and share_o <= attenuation:
             best = fc
             break
@@ -316,10 +350,18 @@ def _hac_cov(x: np.ndarray, r: np.ndarray, wts: np.ndarray, noise: np.ndarray, l
     xw = x * wts[:, :, None]
     a = np.einsum("kij,kil->jl", xw, x) - _noise_correction(wts, noise)
     score = np.einsum("kij,ki->kj", xw, r)  # (k, n_p)
-    s = score.T @ score
-    for l in range(1, min(lag, len(score) - 1) + 1):
-        g = score[l:].T @ score[:-l]
-        s += (1.0 - l / (lag + 1.0)) * (g + g.T)
+    lag = min(lag, len(score) - 1)
+    if len(score) * lag <= HAC_DIRECT:
+        s = score.T @ score
+        for l in range(1, lag + 1):
+            g = score[l:].T @ score[:-l]
+            s += (1.0 - l / (lag + 1.0)) * (g + g.T)
+    else:  # the same Bartlett sum in one pass: sums over every window of lag + 1 samples (zero-padded ends)
+        pad = np.zeros((lag, score.shape[1]))
+        c = np.cumsum(np.concatenate([pad, score, pad]), axis=0)
+        c = np.concatenate([np.zeros((1, score.shape[1])), c])
+        w = c[lag + 1 :] - c[: -lag - 1]
+        s = w.T @ w / (lag + 1.0)
     a_inv = np.linalg.pinv(a)
     return a_inv @ s @ a_inv
 
@@ -638,6 +680,7 @@ def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | 
         wrench_noise=(f_noise, t_noise),
         offsets={"forward": float(p[6]), "fx": float(p[7]), "fy": float(p[8]), "torque": float(p[9])},
         grid_dt=grid.dt,
+        fit_data={"t": grid.t[reg.keep], "x": reg.x, "y": reg.y, "scale": scale},
     )
 
 

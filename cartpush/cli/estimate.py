@@ -8,8 +8,6 @@ from typing import Any
 
 from cartpush.cli.import_bag import add_topic_options, topic_options
 
-#: Mean NIS above which the EKF's innovations do not fit the 6-dof measurement (about 6 expected).
-NIS_MISFIT = 18.0
 
 DESCRIPTION = """\
 Estimate the cart's inertial parameters (mass, CoM, inertia about the CoM) and its
@@ -24,7 +22,12 @@ project's cart log format (CSV or .csv.gz; velocity columns optional).
 
 The output says whether the model fits the log (`model_fits`, `nis_mean`: the
 EKF's mean normalized innovation with these parameters, ~6 when it fits) and
-lists warnings (weak excitation, misfit: then run `cartpush diagnose`).
+lists warnings (weak excitation, misfit: then run `cartpush diagnose`). A
+parameter the log cannot identify is printed "not identified" (null in --json).
+Multi-rate tables (a pose held on every F/T row, or F/T averaged per pose row)
+are split into their pose and wrench streams (`streams` in --json); a load
+change splits the log into segments (`segments`). Positions in mm, heading in
+degrees or time in ms are refused (exit 2) with the conversion named.
 
 A ROS bag (ROS 1 .bag, ROS 2 folder, .mcap) is converted in memory with the same
 options as `cartpush import` (--pose-topic, --wrench-topic, ...).
@@ -74,7 +77,8 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def _check_guesses(args: argparse.Namespace) -> None:
+def check_args(args: argparse.Namespace) -> None:
+    """Raise a CartpushError for options the command cannot use (before reading any log)."""
     from cart.errors import CartError
 
     if not (math.isfinite(args.mass_guess) and args.mass_guess > 0):
@@ -85,122 +89,69 @@ def _check_guesses(args: argparse.Namespace) -> None:
         raise CartError(f"--sigma-guess must be a non-negative number, got {args.sigma_guess}")
 
 
-def np_linalg_error() -> type:
-    """Return numpy's LinAlgError class (imported lazily)."""
-    import numpy as np
+def report_for(log, args: argparse.Namespace):
+    """Return the library's :class:`cart.estimate_report.EstimateReport` for ``log`` with the command's options."""
+    from cart.estimate_report import estimate_log
 
-    return np.linalg.LinAlgError
-
-
-def _run_ls(log) -> dict[str, Any]:
-    from cart.identify import identify, innovation_check
-
-    from cart.errors import CartError
-
-    res = identify(log)
-    p = res.params
-    warnings = list(getattr(log, "warnings", ())) + list(res.warnings)
-    try:
-        nis, rejected = innovation_check(log, p, res.noise)
-    except (CartError, ArithmeticError, np_linalg_error()) as exc:
-        nis, rejected = float("nan"), 0
-        warnings.append(f"the EKF innovation check could not run on this log ({exc})")
-    fits = res.model_fits
-    if math.isfinite(nis) and nis > NIS_MISFIT and fits:
-        fits = False
-        warnings.append(f"the EKF's innovations do not fit (mean NIS {nis:.1f}, ~6 expected); run `cartpush diagnose`")
-    return {
-        **_parameters("ls", p, res.std),
-        "nis_mean": nis,
-        "model_fits": fits,
-        "residual_ratio": list(res.residual_ratio),
-        "cutoff_hz": res.cutoff_hz,
-        "coulomb_resistance": {"force": res.coulomb["force"], "torque": res.coulomb["torque"]},
-        "noise_std": res.noise,
-        "samples_used": res.samples_used,
-        "gaps": res.gaps,
-        "rejected_samples": rejected,
-        "warnings": warnings,
-    }
-
-
-def _parameters(method: str, p, std: dict) -> dict[str, Any]:
-    """Return the leading fields of the JSON result: the method, the estimated parameters and their std."""
-    return {
-        "method": method,
-        "mass": p.m,
-        "com": [p.dx, p.dy],
-        "inertia": p.I,
-        "sigma": p.sigma,
-        "sigma_yaw": p.sigma_yaw,
-        "std": std,
-    }
-
-
-def _run_ekf(log, args: argparse.Namespace) -> dict[str, Any]:
-    from cart.ekf import estimate_from_log
-    from cart.errors import LogFormatError
-    from cart.params import CartParams
-
-    guess = CartParams(args.mass_guess, args.com_guess[0], args.com_guess[1], 0.1 * args.mass_guess, args.sigma_guess)
-    try:
-        est = estimate_from_log(log, guess, estimate_sigma=True)
-    except (FloatingPointError, TypeError) as exc:
-        raise LogFormatError(f"{args.log}: the EKF diverged on this log ({exc})") from None
-    p = est.params
-    if not all(math.isfinite(v) for v in (p.m, p.dx, p.dy, p.I, p.sigma, p.sigma_yaw)):
-        raise LogFormatError(f"{args.log}: the EKF diverged on this log (non-finite estimate)")
-    fits = bool(math.isfinite(est.mean_nis) and est.mean_nis < NIS_MISFIT)
-    warnings = list(getattr(log, "warnings", ()))
-    warnings += (
-        []
-        if fits
-        else [
-            f"the EKF's innovations do not fit (mean NIS {est.mean_nis:.1f}, ~6 expected): "
-            "the std understates the error; run `cartpush diagnose`"
-        ]
+    return estimate_log(
+        log,
+        method=args.method,
+        mass_guess=args.mass_guess,
+        com_guess=tuple(args.com_guess),
+        sigma_guess=args.sigma_guess,
     )
-    return {
-        **_parameters("ekf", p, est.std),
-        "nis_mean": est.mean_nis,
-        "model_fits": fits,
-        "velocities_estimated": est.velocities_estimated,
-        "rejected_samples": int(getattr(est, "rejected_samples", 0)),
-        "gaps": int(getattr(est, "gaps", 0)),
-        "warnings": warnings,
-    }
-
-
-def check_args(args: argparse.Namespace) -> None:
-    """Raise a CartpushError for options the command cannot use (before reading any log)."""
-    _check_guesses(args)
 
 
 def result_for(log, args: argparse.Namespace) -> dict[str, Any]:
-    """Return the JSON dict `cartpush estimate --json` prints for ``log`` (also each result of `cartpush batch`)."""
-    return _run_ls(log) if args.method == "ls" else _run_ekf(log, args)
+    """Return the JSON dict `cartpush estimate --json` prints for ``log`` (``estimate_log(...).to_dict()``)."""
+    return report_for(log, args).to_dict()
+
+
+def _print_table(path: str, log, out: dict[str, Any]) -> None:
+    s, why = out["std"], out["not_identified"]
+    print(f"log        {path} ({len(log)} samples, {log.t[-1] - log.t[0]:.2f} s; method {out['method']})")
+    st = out.get("streams")
+    if st and (st["held_rows"] or st["dropouts"] or st["glitches"] or st["stuck_wrench_s"]):
+        print(
+            f"streams    pose {st['pose_hz']:.4g} Hz, wrench {st['wrench_hz']:.4g} Hz, {st['held_rows']} held rows, "
+            f"{st['dropouts']} dropouts, {st['glitches']} glitches, stuck wrench {st['stuck_wrench_s']:.3g} s"
+        )
+
+    def row(label: str, key: str, value, std, unit: str, fmt: str) -> None:
+        if value is None:
+            print(f"{label:<10} not identified: {why.get(key, 'see warnings')}")
+        else:
+            print(f"{label:<10} {value:9{fmt}} +- {std:{fmt}} {unit}")
+
+    com = out["com"] or [None, None]
+    row("mass", "mass", out["mass"], s["mass"], "kg", ".3f")
+    row("CoM dx", "com", com[0], s["com"][0], "m   (in the cart frame {b})", ".4f")
+    row("CoM dy", "com", com[1], s["com"][1], "m", ".4f")
+    row("inertia", "inertia", out["inertia"], s["inertia"], "kg m^2 (about the CoM)", ".4f")
+    row("sigma", "sigma", out["sigma"], s["sigma"], "N s/m (forward/lateral)", ".4f")
+    row("sigma_yaw", "sigma_yaw", out["sigma_yaw"], s["sigma_yaw"], "N m s/rad (yaw)", ".4f")
+    nis = out["nis_mean"]
+    nis_text = f"{nis:.2f}" if nis is not None else "n/a"
+    print(f"model fits {'yes' if out['model_fits'] else 'NO'} (mean NIS {nis_text}, ~6 when it fits)")
+    segs = out.get("segments") or []
+    if len(segs) > 1:
+        for k, g in enumerate(segs):
+            mass = "not identified" if g["mass"] is None else f"{g['mass']:.3f} +- {g['std']['mass']:.3f} kg"
+            print(f"segment {k + 1}  t {g['t0']:.2f}-{g['t1']:.2f} s: mass {mass}")
+    for w in out["warnings"]:
+        print(f"warning: {w}")
 
 
 def run(args: argparse.Namespace) -> int:
     """Estimate the parameters of the log and print them; return 0."""
-    from cart.jsonout import dumps_strict
+    from cart.jsonout import dumps_strict, to_strict
     from cartpush.ros import load_any
 
-    _check_guesses(args)
+    check_args(args)
     log = load_any(args.log, **topic_options(args))
-    out = result_for(log, args)
+    out = to_strict(result_for(log, args))
     if args.json:
         print(dumps_strict(out))
         return 0
-    s = out["std"]
-    print(f"log        {args.log} ({len(log)} samples, {log.t[-1] - log.t[0]:.2f} s; method {out['method']})")
-    print(f"mass       {out['mass']:9.3f} +- {s['mass']:.3f} kg")
-    print(f"CoM dx     {out['com'][0]:9.4f} +- {s['com'][0]:.4f} m   (in the cart frame {{b}})")
-    print(f"CoM dy     {out['com'][1]:9.4f} +- {s['com'][1]:.4f} m")
-    print(f"inertia    {out['inertia']:9.4f} +- {s['inertia']:.4f} kg m^2 (about the CoM)")
-    print(f"sigma      {out['sigma']:9.4f} +- {s['sigma']:.4f} N s/m (forward/lateral)")
-    print(f"sigma_yaw  {out['sigma_yaw']:9.4f} +- {s['sigma_yaw']:.4f} N m s/rad (yaw)")
-    print(f"model fits {'yes' if out['model_fits'] else 'NO'} (mean NIS {out['nis_mean']:.2f}, ~6 when it fits)")
-    for w in out["warnings"]:
-        print(f"warning: {w}")
+    _print_table(args.log, log, out)
     return 0

@@ -1,0 +1,342 @@
+"""The verdict of `cartpush estimate` as a library result: :func:`estimate_log` -> :class:`EstimateReport`.
+
+Everything `cartpush estimate --json` prints is computed here (the command line only formats it, and
+`cartpush batch` calls the same function): the parameters and their std, ``model_fits`` with
+``nis_mean`` (the paper's EKF, eq. 8-20, run over the log with the parameters held), the warnings,
+the log's sensor streams (:mod:`cart.streams`), the unit check (:mod:`cart.units`), the parameters
+the log cannot identify (``null`` with a reason) and the load segments (:mod:`cart.segments`).
+
+``method="ekf"`` runs the paper's EKF; its answer is checked against the least-squares estimate
+(whose wrench-noise bias is zero): a difference beyond ``EKF_BIAS_Z`` combined std means the EKF's std
+does not cover its bias, and ``model_fits`` is false with a warning naming the bias.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cart.errors import CartError, LogFormatError
+from cart.logs import CartLog, read_log
+from cart.params import CartParams
+from cart.streams import Streams, split_streams
+from cart.units import check_units
+
+#: Mean NIS above which the EKF's innovations do not fit the 6-dof measurement (about 6 expected).
+NIS_MISFIT = 18.0
+#: An EKF answer this many combined std from the least-squares one is a bias its std does not cover.
+EKF_BIAS_Z = 3.0
+#: Mass or inertia whose std exceeds this share of the value: not identified.
+MAX_RELATIVE_STD = 0.5
+#: Half-size (m) of the largest cart (a hospital bed) when the log cannot give the body's size.
+MAX_HALF_SIZE = 1.0
+#: Samples beyond which the EKF check runs on CHECK_CHUNKS evenly spaced stretches of this total length.
+CHECK_SAMPLES = 36_000
+CHECK_CHUNKS = 4
+
+
+@dataclass(frozen=True)
+class EstimateReport:
+    """The result of :func:`estimate_log`: what `cartpush estimate --json` prints (:meth:`to_dict`).
+
+    ``params``/``std``: the estimate and its 1-sigma std; ``not_identified``: parameter name -> reason
+    (printed as ``null``); ``fields``: the method's own diagnostics (residual_ratio, cutoff_hz, ...);
+    ``segments``: one entry per stretch of constant load (one for a log without a load change).
+    """
+
+    method: str
+    params: CartParams
+    std: dict[str, Any]
+    nis_mean: float
+    model_fits: bool
+    warnings: tuple[str, ...]
+    not_identified: dict[str, str] = field(default_factory=dict)
+    fields: dict[str, Any] = field(default_factory=dict)
+    streams: Streams | None = field(default=None, repr=False)
+    segments: tuple[dict[str, Any], ...] = ()
+
+    def value(self, name: str) -> Any:
+        """Return the JSON value of parameter ``name`` (None when it is not identified)."""
+        if name in self.not_identified:
+            return None
+        p = self.params
+        return {"mass": p.m, "com": [p.dx, p.dy], "inertia": p.I, "sigma": p.sigma, "sigma_yaw": p.sigma_yaw}[name]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the JSON fields of `cartpush estimate --json` (existing names kept, new ones added)."""
+        out: dict[str, Any] = {"method": self.method}
+        for name in ("mass", "com", "inertia", "sigma", "sigma_yaw"):
+            out[name] = self.value(name)
+        out["std"] = self.std
+        out["nis_mean"] = self.nis_mean
+        out["model_fits"] = self.model_fits
+        out.update(self.fields)
+        out["not_identified"] = dict(self.not_identified)
+        out["streams"] = self.streams.to_dict() if self.streams is not None else None
+        out["segments"] = list(self.segments)
+        out["warnings"] = list(self.warnings)
+        return out
+
+
+def not_identified(params: CartParams, std: dict[str, Any]) -> dict[str, str]:
+    """Return parameter -> reason for the parameters whose std is larger than the object allows.
+
+    Mass and inertia: std above ``MAX_RELATIVE_STD`` of the value. CoM: std above the body's half-size
+    (sqrt(3) radii of gyration, a uniform bar's half-length, from the inertia plus 2 std; at most
+    ``MAX_HALF_SIZE``).
+    """
+    out: dict[str, str] = {}
+    if std["mass"] > MAX_RELATIVE_STD * params.m:
+        out["mass"] = f"std {std['mass']:.3g} kg for {params.m:.3g} kg: little forward acceleration above the noise"
+    if std["inertia"] > MAX_RELATIVE_STD * params.I:
+        out["inertia"] = (
+            f"std {std['inertia']:.3g} kg m^2 for {params.I:.3g} kg m^2: little yaw acceleration above the noise"
+        )
+    i_upper = params.I + 2.0 * std["inertia"]  # the largest inertia the log allows
+    half = min(MAX_HALF_SIZE, math.sqrt(3.0 * i_upper / params.m))
+    s_com = max(std["com"])
+    if s_com > max(half, 1e-3):
+        out["com"] = (
+            f"std {s_com:.3g} m, larger than the body (half-size about {half:.3g} m): the cart does not turn "
+            "enough above the noise"
+        )
+    return out
+
+
+def check_log(log: CartLog, streams: Streams) -> CartLog:
+    """Return the log the EKF check runs on: at the pose instants, the wrench averaged over each interval.
+
+    A log whose table already is one stream per row (nothing held, stuck or dropped) is returned as is.
+    """
+    if not (streams.multi_rate or streams.held_rows or streams.stuck or streams.glitches):
+        return log
+    from cart.identify import _box_average
+
+    t = streams.pose.t
+    dt = streams.pose.period
+    w = streams.wrench
+    g = (
+        _box_average(w.t, w.values, t, dt)
+        if w.period < dt / 1.5
+        else np.column_stack([np.interp(t, w.t, w.values[:, i]) for i in range(3)])
+    )
+    keep = np.ones(len(t), dtype=bool)
+    for t0, t1 in streams.stuck:
+        keep &= ~((t >= t0) & (t <= t1))
+    qd = log.qd[streams.pose.rows] if (log.qd is not None and not streams.multi_rate) else None
+    return CartLog(
+        t=t[keep],
+        q=streams.pose.values[keep],
+        gamma=g[keep],
+        qd=None if qd is None else qd[keep],
+        source=log.source,
+        metadata=log.metadata,
+    )
+
+
+def _innovation(log: CartLog, streams: Streams, params: CartParams, noise: dict[str, float]) -> tuple[float, int, str]:
+    """Return (mean NIS, rejected samples, a warning or "") of the EKF check with ``params`` held."""
+    from cart.identify import innovation_check
+    from cart.segments import slice_log
+
+    clog = check_log(log, streams)
+    n = len(clog)
+    if n <= CHECK_SAMPLES:
+        stretches = [clog]
+    else:  # a long log: the check on evenly spaced stretches (time linear in CHECK_SAMPLES, not in the log)
+        size = CHECK_SAMPLES // CHECK_CHUNKS
+        starts = np.linspace(0, n - size, CHECK_CHUNKS).astype(int)
+        stretches = [slice_log(clog, clog.t[i], clog.t[i + size - 1]) for i in starts]
+    try:
+        runs = [innovation_check(part, params, noise) for part in stretches]
+    except (CartError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return float("nan"), 0, f"the EKF innovation check could not run on this log ({exc})"
+    means = [m for m, _ in runs if math.isfinite(m)]
+    return (float(np.mean(means)) if means else float("nan")), int(sum(r for _, r in runs)), ""
+
+
+def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
+    """Return the least-squares report (identify + EKF innovation check + segments)."""
+    from cart.identify import identify
+    from cart.segments import find_segments
+
+    res = identify(log, streams=streams)
+    warnings = list(log.warnings) + streams.warnings() + list(res.warnings)
+    f_noise, t_noise = res.wrench_noise
+    noise = {"force": f_noise.low_frequency_std, "torque": t_noise.low_frequency_std}
+    nis, rejected, note = _innovation(log, streams, res.params, noise)
+    warnings += [note] if note else []
+    fits = res.model_fits
+    if math.isfinite(nis) and nis > NIS_MISFIT and fits:
+        fits = False
+        warnings.append(f"the EKF's innovations do not fit (mean NIS {nis:.1f}, ~6 expected); run `cartpush diagnose`")
+    segments, seg_notes = find_segments(log, streams, res)
+    warnings += seg_notes
+    params, std = res.params, res.std
+    if len(segments) > 1:
+        last = segments[-1]
+        params, std = last["params"], last["std"]
+        fits = fits and all(s["model_fits"] for s in segments)
+    fields = {
+        "residual_ratio": list(res.residual_ratio),
+        "cutoff_hz": res.cutoff_hz,
+        "coulomb_resistance": {"force": res.coulomb["force"], "torque": res.coulomb["torque"]},
+        "noise_std": res.noise,
+        "noise_model": {
+            "force": {"std": f_noise.sigma, "lag1_corr": f_noise.a, "low_frequency_std": f_noise.low_frequency_std},
+            "torque": {"std": t_noise.sigma, "lag1_corr": t_noise.a, "low_frequency_std": t_noise.low_frequency_std},
+            "grid_dt": res.grid_dt,
+        },
+        "wrench_offsets": res.offsets,
+        "samples_used": res.samples_used,
+        "gaps": res.gaps,
+        "rejected_samples": rejected,
+    }
+    unknown = not_identified(params, std)
+    return EstimateReport(
+        method="ls",
+        params=params,
+        std=std,
+        nis_mean=nis,
+        model_fits=fits,
+        warnings=tuple(warnings + _unknown_notes(unknown)),
+        not_identified=unknown,
+        fields=fields,
+        streams=streams,
+        segments=tuple(_segment_json(s) for s in segments),
+    )
+
+
+def _unknown_notes(unknown: dict[str, str]) -> list[str]:
+    return [f"{name} not identified: {why}" for name, why in unknown.items()]
+
+
+def _segment_json(seg: dict[str, Any]) -> dict[str, Any]:
+    """Return the JSON entry of one segment."""
+    p, s = seg["params"], seg["std"]
+    unknown = not_identified(p, s)
+    val = {"mass": p.m, "com": [p.dx, p.dy], "inertia": p.I}
+    out = {"t0": seg["t0"], "t1": seg["t1"]}
+    out.update({k: (None if k in unknown else v) for k, v in val.items()})
+    out.update(
+        sigma=p.sigma,
+        sigma_yaw=p.sigma_yaw,
+        std=s,
+        model_fits=seg["model_fits"],
+        residual_ratio=list(seg["residual_ratio"]),
+        not_identified=unknown,
+    )
+    return out
+
+
+def _ekf_bias(est_params: CartParams, est_std: dict[str, Any], ls) -> tuple[dict[str, float], list[str]]:
+    """Return (EKF - LS differences, warnings naming the ones beyond ``EKF_BIAS_Z`` combined std)."""
+    pairs = {
+        "mass": (est_params.m, ls.params.m, est_std["mass"], ls.std["mass"], "kg"),
+        "com_dx": (est_params.dx, ls.params.dx, est_std["com"][0], ls.std["com"][0], "m"),
+        "com_dy": (est_params.dy, ls.params.dy, est_std["com"][1], ls.std["com"][1], "m"),
+        "inertia": (est_params.I, ls.params.I, est_std["inertia"], ls.std["inertia"], "kg m^2"),
+    }
+    diffs, notes = {}, []
+    for name, (e, ref, se, sr, unit) in pairs.items():
+        diffs[name] = e - ref
+        z = abs(e - ref) / max(math.hypot(se, sr), 1e-300)
+        if z > EKF_BIAS_Z:
+            notes.append(
+                f"the EKF's {name} {e:.4g} +- {se:.2g} {unit} is {z:.1f} std from the least-squares "
+                f"{ref:.4g} +- {sr:.2g} {unit}: a bias its std does not cover (the EKF takes the noisy wrench "
+                "as an exact input: errors in variables); use --method ls"
+            )
+    return diffs, notes
+
+
+def _run_ekf(log: CartLog, streams: Streams, guess: CartParams) -> EstimateReport:
+    """Return the EKF report, its verdict checked against the least-squares estimate."""
+    from cart.ekf import estimate_from_log
+    from cart.identify import IdentifiabilityError, identify
+
+    ekf_log = check_log(log, streams)
+    try:
+        est = estimate_from_log(ekf_log, guess, estimate_sigma=True)
+    except (FloatingPointError, TypeError) as exc:
+        raise LogFormatError(f"{log.source}: the EKF diverged on this log ({exc})") from None
+    p = est.params
+    if not all(math.isfinite(v) for v in (p.m, p.dx, p.dy, p.I, p.sigma, p.sigma_yaw)):
+        raise LogFormatError(f"{log.source}: the EKF diverged on this log (non-finite estimate)")
+    fits = bool(math.isfinite(est.mean_nis) and est.mean_nis < NIS_MISFIT)
+    warnings = list(log.warnings) + streams.warnings()
+    if not fits:
+        warnings.append(
+            f"the EKF's innovations do not fit (mean NIS {est.mean_nis:.1f}, ~6 expected): "
+            "the std understates the error; run `cartpush diagnose`"
+        )
+    diffs: dict[str, float] = {}
+    try:
+        ls = identify(log, streams=streams)
+        diffs, notes = _ekf_bias(p, est.std, ls)
+    except (IdentifiabilityError, np.linalg.LinAlgError) as exc:
+        notes = [f"the EKF's answer could not be checked against least squares ({exc})"]
+        fits = False
+    if notes and diffs:
+        fits = False
+    if diffs and not ls.model_fits:
+        fits = False
+        notes.append(
+            "the least-squares fit of the same model says the model does not fit this log "
+            f"(residual {ls.residual_ratio[0]:.1f}x / {ls.residual_ratio[1]:.1f}x the noise): the EKF's std "
+            "does not cover that misfit"
+        )
+    warnings += notes
+    unknown = not_identified(p, est.std)
+    return EstimateReport(
+        method="ekf",
+        params=p,
+        std=est.std,
+        nis_mean=est.mean_nis,
+        model_fits=fits,
+        warnings=tuple(warnings + _unknown_notes(unknown)),
+        not_identified=unknown,
+        fields={
+            "velocities_estimated": est.velocities_estimated,
+            "rejected_samples": int(getattr(est, "rejected_samples", 0)),
+            "gaps": int(getattr(est, "gaps", 0)),
+            "ekf_minus_ls": diffs,
+        },
+        streams=streams,
+    )
+
+
+def estimate_log(
+    log: CartLog | str | os.PathLike,
+    method: str = "ls",
+    mass_guess: float = 20.0,
+    com_guess: tuple[float, float] = (0.0, 0.0),
+    sigma_guess: float = 1.0,
+) -> EstimateReport:
+    """Return the estimate of a cart log (a CartLog or a LOG_FORMAT file) with its verdict.
+
+    ``method``: ``"ls"`` (whole-log least squares, :func:`cart.identify.identify`) or ``"ekf"``
+    (the paper's EKF from the guesses). Raises a :class:`~cart.errors.CartError` for bad input
+    (:class:`~cart.units.UnitsError` for a unit mistake, ``IdentifiabilityError`` for a log that
+    says nothing).
+    """
+    if method not in ("ls", "ekf"):
+        raise CartError(f"method must be 'ls' or 'ekf', got {method!r}")
+    if not (math.isfinite(mass_guess) and mass_guess > 0):
+        raise CartError(f"--mass-guess must be a positive number of kg, got {mass_guess}")
+    if not all(math.isfinite(v) for v in com_guess):
+        raise CartError(f"--com-guess must be two finite numbers of metres, got {com_guess}")
+    if not (math.isfinite(sigma_guess) and sigma_guess >= 0):
+        raise CartError(f"--sigma-guess must be a non-negative number, got {sigma_guess}")
+    if not isinstance(log, CartLog):
+        log = read_log(log)
+    streams = split_streams(log)
+    check_units(streams, log.source)
+    if method == "ls":
+        return _run_ls(log, streams)
+    guess = CartParams(mass_guess, com_guess[0], com_guess[1], 0.1 * mass_guess, sigma_guess)
+    return _run_ekf(log, streams, guess)
