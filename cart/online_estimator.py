@@ -479,18 +479,23 @@ class OnlineLSEstimator:
         self._flag("misfit", worst > self.options.misfit_ratio, f"residual ratio {worst:.2f}")
 
     def _update_params(self) -> None:
-        """Set the controller's parameters: the estimate projected on the plausible set; flag what was projected."""
+        """Set the controller's parameters: the estimate when plausible, else the last plausible one (flagged).
+
+        Plausible: mass above 5 % of the prior's, inertia about the CoM positive, CoM inside the footprint.
+        """
         m, a, b, j, cv, cw = self.regression.p.tolist()
-        m0, i0 = self._prior0.center[0], self._prior0.center[0] * self._prior0.center[3]
-        self._flag("nonpositive_mass", m <= 1e-3 * m0, f"mass {m:.4g} kg")
-        mp = max(m, 1e-3 * m0)
+        m0 = self._prior0.center[0]
+        bad_m = m <= 0.05 * m0
+        self._flag("nonpositive_mass", bad_m, f"mass {m:.4g} kg")
+        mp = max(m, 0.05 * m0)
         dx, dy = a / mp, b / mp
         fx, fy = self._footprint
-        self._flag("com_outside_footprint", abs(dx) > fx or abs(dy) > fy, f"CoM ({dx:.3g}, {dy:.3g}) m")
+        outside = abs(dx) > fx or abs(dy) > fy
+        self._flag("com_outside_footprint", outside, f"CoM ({dx:.3g}, {dy:.3g}) m")
         inertia = j - (a * a + b * b) / mp
         self._flag("nonpositive_inertia", inertia <= 0.0, f"inertia about the CoM {inertia:.4g} kg m^2")
-        dxc, dyc = min(max(dx, -fx), fx), min(max(dy, -fy), fy)
-        self._params = CartParams(mp, dxc, dyc, max(inertia, 1e-3 * i0), max(cv, 0.0), max(cw, 0.0))
+        if not (bad_m or outside or inertia <= 0.0):
+            self._params = CartParams(mp, dx, dy, inertia, max(cv, 0.0), max(cw, 0.0))
 
 
 def make_online_estimator(

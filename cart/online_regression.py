@@ -31,6 +31,8 @@ from cart.errors import CartError, NumericalError
 
 #: Names of the physical prior variables of :class:`PhysicalPrior`.
 PRIOR_NAMES = ("m", "dx", "dy", "rho", "c_v", "c_w")
+#: The prior is linearized at a mass of at least this share of its center (an estimate may run negative).
+MIN_MASS_SHARE = 0.05
 #: Largest share of a diagonal entry of the normal matrix that the noise correction removes.
 COMPENSATION_SHARE = 0.5
 
@@ -105,7 +107,7 @@ class PhysicalPrior:
 
     def residual(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return (r, dr/dp): the prior's whitened residual at p = [m, a, b, J, c_v, c_w] and its Jacobian."""
-        m = max(float(p[0]), 1e-9)
+        m = max(float(p[0]), MIN_MASS_SHARE * float(self.center[0]))  # linearized at a positive mass
         phys = np.array([m, p[1] / m, p[2] / m, p[3] / m, p[4], p[5]])
         jac = np.eye(6)
         jac[1, 0], jac[2, 0], jac[3, 0] = -p[1] / m**2, -p[2] / m**2, -p[3] / m**2
@@ -155,6 +157,7 @@ class RecursiveRegression:
                 self.compensated = True
             except np.linalg.LinAlgError:  # the noise correction overshoots on little data: drop it
                 h = self.D + jr.T @ jr
+                h += np.diag(1e-12 * np.diag(h))
                 chol = np.linalg.cholesky(h)
                 self.compensated = False
             g = h @ self.p - (self.d + jr.T @ (jr @ self.p - r))

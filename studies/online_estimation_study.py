@@ -1,0 +1,173 @@
+"""Study of the online estimator (issue 27): push runs, Table I test 11, load changes on an independent simulator.
+
+Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loads|all] [--json]
+
+1. ``push``: ``run_push(PushConfig(trajectory=1|2))`` with the paper's EKF (the loop's default,
+   ``make_estimator``) and with :class:`cart.online_estimator.OnlineLSEstimator` (built like
+   ``make_estimator``: initial guess, initial pose at rest, motion-capture std), same seeds;
+   metrics of the loop (tracking RMS, mass / CoM errors) plus the estimator's report.
+2. ``table1``: Table I test 11 (10 kg loaded at 10 s, 5 kg off at 20 s, at cruise) with the EKF
+   (``cart.table1.run_test``, with and without its change detection) and with the online
+   estimator in the same closed loop (``cart.simulate`` + the fl_lqr controller).
+3. ``loads``: logs of the independent simulator ``studies.testbeds.rigid_sim`` with a load put in
+   or taken out mid-log (the simulation restarted from the state at the change with the new cart;
+   no momentum exchange) and logs without one; the online estimator runs over each log.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from cart.control import make_controller
+from cart.online_estimator import make_online_estimator
+from cart.simulate import MeasurementNoise, ParameterChange, simulate
+from cart.table1 import (
+    TESTS,
+    EstimatingLoop,
+    TestRun,
+    contact_point,
+    estimation_error_metrics,
+    guess_params,
+    run_test,
+    true_params,
+)
+from cart.trajectories import trajectory_1, trajectory_2
+
+PUSH_METRICS = (
+    "tracking_rms_mm",
+    "mass_error_max_after_5s_kg",
+    "mass_error_final_kg",
+    "com_error_final_m",
+    "com_error_max_after_5s_m",
+    "time_mass_within_1kg_s",
+)
+
+
+# --------------------------------------------------------------------------- push runs
+def push_run(trajectory: int, online: bool, seed: int = 0, **options) -> dict:
+    """Return the metrics of one closed-loop push (paper EKF or online estimator) and the estimator's report."""
+    from wholebody.push.config import PushConfig
+    from wholebody.push.loop import run_push
+
+    cfg = PushConfig(trajectory=trajectory, seed=seed)
+    est = None
+    if online:
+        q0 = cfg.make_trajectory().sample(0.0)[0]
+        est = make_online_estimator(q0, cfg.initial_params(), cfg.noise.measurement_std(), **options)
+    res = run_push(cfg, estimator=est)
+    out = {k: float(getattr(res.metrics, k)) for k in PUSH_METRICS}
+    if est is not None:
+        out["report"] = est.report()
+        out["params_std"] = est.params_std()
+    return out
+
+
+def push_part(seeds: tuple[int, ...] = (0,)) -> dict:
+    """Return {trajectory: {estimator: metrics}} for both trajectories and both estimators."""
+    out: dict = {}
+    for traj in (1, 2):
+        for seed in seeds:
+            key = f"traj{traj}_seed{seed}"
+            out[key] = {"paper_ekf": push_run(traj, False, seed), "online": push_run(traj, True, seed)}
+    return out
+
+
+# --------------------------------------------------------------------------- Table I test 11
+class OnlineLoop(EstimatingLoop):
+    """Table I's closed loop with the online estimator in place of the paper's EKF (same controller, same wrench)."""
+
+    def __init__(self, *args, meas_std: np.ndarray, options: dict, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.meas_std = meas_std
+        self.options = options
+
+    def _filter(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray):
+        z = np.concatenate([q_meas, qd_meas])
+        if self.ekf is None:
+            self.ekf = make_online_estimator(z, self.guess, self.meas_std, **self.options)
+            return self.ekf
+        self.nis[self.k] = self.ekf.step(self.gamma_in, t - self.t_prev, z)
+        return self.ekf
+
+
+def run_test_online(test, seed: int = 0, duration: float = 30.0, dt: float = 0.01, **options):
+    """Return (TestRun, estimator) of a Table I test with the online estimator (as ``cart.table1.run_test``)."""
+    traj = trajectory_1(duration) if test.traj == 1 else trajectory_2(duration)
+    ctrl = make_controller("fl_lqr", traj)
+    truth = true_params(test)
+    changes = [ParameterChange(tc, truth.with_mass(mc), conserve_momentum=False) for tc, mc in test.mass_changes]
+    n = int(round(duration / dt)) + 1
+    noise = MeasurementNoise.from_level(test.noise)
+    loop = OnlineLoop(
+        ctrl, guess_params(test), None, contact_point(test), n, meas_std=noise.measurement_std(), options=options
+    )
+    rng = np.random.default_rng(seed * 1000 + test.test)
+    q0, _, _ = traj.sample(0.0)
+    sim = simulate(
+        truth,
+        loop,
+        duration,
+        dt,
+        q0=q0,
+        noise=noise,
+        rng=rng,
+        changes=changes,
+        contact_point=contact_point(test),
+        allocate=False,
+    )
+    run = TestRun(
+        t=sim.true.t,
+        q=sim.true.q,
+        q_desired=traj.poses(sim.true.t),
+        params_true=sim.params_t,
+        params_hat=loop.params_hat,
+        nis=loop.nis,
+        gamma=sim.true.gamma,
+    )
+    return run, loop.ekf
+
+
+def _tracking_rms_mm(run: TestRun) -> float:
+    err = run.position_error[run.t >= 5.0]
+    return 1e3 * float(np.sqrt(np.mean(err**2)))
+
+
+def table1_part(test_index: int = 10, seed: int = 0) -> dict:
+    """Return the estimation metrics of one Table I test for the EKF (with / without change detection) and online."""
+    test = TESTS[test_index]
+    out = {}
+    for label, cd in (("paper_ekf", False), ("paper_ekf_change_detection", True)):
+        run = run_test(test, True, seed=seed, change_detection=cd)
+        out[label] = {**estimation_error_metrics(run), "tracking_rms_mm": _tracking_rms_mm(run)}
+    run, est = run_test_online(test, seed)
+    out["online"] = {**estimation_error_metrics(run), "tracking_rms_mm": _tracking_rms_mm(run), "report": est.report()}
+    out["observable_bound_s"] = observable_bound(run)
+    return out
+
+
+def observable_bound(run: TestRun, tol: float = 1.0) -> float:
+    """Return the time (s) within ``tol`` kg of an estimator that knows each mass from the first excitation after it.
+
+    A load changed at cruise (no momentum exchange, unchanged wrench) shows in the data only once
+    the cart accelerates or turns: between the change and that moment no estimator can know it.
+    Excitation: |forward acceleration| > 0.05 m/s^2 or |yaw rate| > 0.05 rad/s of the desired motion.
+    """
+    m_true = run.params_true[:, 0]
+    q_d = run.q_desired
+    dt = float(run.t[1] - run.t[0])
+    th = q_d[:, 2]
+    v = np.gradient(q_d[:, 0], dt) * np.cos(th) + np.gradient(q_d[:, 1], dt) * np.sin(th)
+    excited = (np.abs(np.gradient(v, dt)) > 0.05) | (np.abs(np.gradient(th, dt)) > 0.05)
+    known = np.zeros(len(m_true), dtype=bool)
+    state_known = False
+    for k in range(len(m_true)):
+        if k > 0 and abs(m_true[k] - m_true[k - 1]) > tol:
+            state_known = False
+        state_known = state_known or bool(excited[k])
+        known[k] = state_known
+    return float(np.sum(known) * dt)
