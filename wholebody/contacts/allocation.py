@@ -712,3 +712,55 @@ def allocate(
     """
     alloc = WrenchAllocator(contacts, limits, weights, solver, only_motion_directions, jacobians, torque_limits)
     return alloc.solve(gamma_b, raise_on_infeasible=raise_on_infeasible)
+
+
+@dataclass(frozen=True)
+class SaturationSpan:
+    """A stretch of consecutive control periods over which one limit kept the allocation from the desired wrench."""
+
+    #: the binding limit's label (`AllocationResult.binding`)
+    limit: str
+    #: first and last sample time (s)
+    start: float
+    end: float
+    #: number of periods
+    steps: int
+    #: duration (s): steps x dt
+    duration: float
+
+    def as_dict(self) -> dict:
+        """Return the span as a JSON-ready dict."""
+        return {
+            "limit": self.limit,
+            "start_s": self.start,
+            "end_s": self.end,
+            "steps": self.steps,
+            "duration_s": self.duration,
+        }
+
+
+def saturation_spans(t: Sequence[float], binding: Sequence[str | None], dt: float) -> tuple[SaturationSpan, ...]:
+    """Return the stretches of consecutive samples with the same binding limit (None: not saturated), in time order."""
+    spans: list[SaturationSpan] = []
+    start = None
+    for k, label in enumerate(list(binding) + [None]):
+        prev = binding[start] if start is not None else None
+        if start is not None and label != prev:
+            n = k - start
+            spans.append(SaturationSpan(str(prev), float(t[start]), float(t[k - 1]), n, n * float(dt)))
+            start = None
+        if label is not None and start is None:
+            start = k
+    return tuple(spans)
+
+
+def saturation_summary(spans: Sequence[SaturationSpan]) -> dict[str, dict]:
+    """Return per binding limit: total time (s), number of spans and the longest span (s) -- "which limit binds,
+    where and for how long"."""
+    out: dict[str, dict] = {}
+    for s in spans:
+        e = out.setdefault(s.limit, {"total_s": 0.0, "spans": 0, "longest_s": 0.0, "first_s": s.start})
+        e["total_s"] += s.duration
+        e["spans"] += 1
+        e["longest_s"] = max(e["longest_s"], s.duration)
+    return out

@@ -26,8 +26,12 @@ ROLLS = (0.0, math.pi / 2, math.pi, -math.pi / 2)
 BASE_X_RANGE = (-1.4, -0.45)
 #: Lateral base offset searched (m).
 BASE_Y_RANGE = (-0.6, 0.6)
-#: Joint-limit margin (rad or m) of the search.
-SEARCH_MARGIN = 0.05
+#: Joint-limit margin (rad or m) of the search: above the reach map's (`REACH_JOINT_MARGIN`, 0.15 rad).
+SEARCH_MARGIN = 0.2
+#: Weight of the base's lateral offset from its contact in the search (per m; the joint pull is 0.05 per half range).
+BASE_Y_WEIGHT = 0.5
+#: How many of the best placements of a fixed base are ranked by the handle length they reach.
+REACH_CANDIDATES = 3
 
 
 @dataclass(frozen=True)
@@ -41,11 +45,14 @@ class Placement:
     arm: np.ndarray
     margin: float
     gravity_ratio: float
+    #: length (m) of the handle the arm holds with margin from this base place (0 for a base that follows)
+    reach: float = 0.0
 
     @property
     def score(self) -> float:
-        """Return the ranking score: joint-limit margin (fraction of range) less any gravity load above half."""
-        return self.margin - max(0.0, self.gravity_ratio - 0.5)
+        """Return the ranking score: reachable handle length (m) + joint-limit margin (fraction of range) less
+        any gravity load above half the limits."""
+        return self.reach + self.margin - max(0.0, self.gravity_ratio - 0.5)
 
 
 def joint_margin(wb: WholeBody, q: np.ndarray) -> float:
@@ -88,11 +95,29 @@ def _search(
 
     def residual(z: np.ndarray) -> np.ndarray:
         err = pin.log6(wb.ee_placement(state(z)).actInv(target)).vector
-        return np.r_[10.0 * err, 0.05 * (z[2:] - mid) / half, 0.05 * z[1]]
+        return np.r_[10.0 * err, 0.05 * (z[2:] - mid) / half, BASE_Y_WEIGHT * z[1]]
 
     z0 = np.clip(np.r_[bx0, 0.0, seed], lo + 1e-9, hi - 1e-9)
     sol = least_squares(residual, z0, bounds=(lo, hi), xtol=1e-10, ftol=1e-10, max_nfev=400)
     return sol.x if np.linalg.norm(sol.fun[:6]) < 1e-3 else None
+
+
+def _reach_length(wb: WholeBody, prof: RobotProfile, p: Placement) -> float:
+    """Return the length (m) of the handle an arm holds with margin from a placement's base pose (`reach_map`)."""
+    from wholebody.contacts.placement import reach_map
+    from wholebody.push.robot import base_target, grasp_rotation, grasp_target, handle_point
+
+    zero = np.zeros(3)
+    y0, qa = prof.push_contact_y, p.arm
+    pose = base_target(zero, zero, np.array([handle_point(y0)[0] + p.base_x, y0 + p.base_dy]))[0]
+    R_b_ee = grasp_rotation(p.pitch, p.roll, prof.arms[0].tool_axis or "z")
+    ys = np.round(np.arange(-0.25, 0.2501, 0.025), 6)
+    try:
+        rm = reach_map(wb, lambda y: pose, lambda y: grasp_target(zero, zero, float(y), 0.0, R_b_ee)[0], ys, qa, y0)
+    except WholeBodyError:
+        return 0.0
+    ok = rm.y[rm.reachable]
+    return float(ok.max() - ok.min()) if ok.size else 0.0
 
 
 def _candidates(prof: RobotProfile) -> list[tuple[float, float]]:
@@ -141,6 +166,9 @@ def solve_push_placement(prof: RobotProfile, wbs: Sequence[WholeBody]) -> RobotP
             f"robot {prof.name!r}: no arm posture reaches the cart handle from behind it; "
             "give [push] base_x and the arm's push_seed in its profile"
         )
+    if prof.base != "holonomic":  # a base at a fixed place: rank the best few by the handle length they reach
+        found = sorted(found, key=lambda p: p.score)[-REACH_CANDIDATES:]
+        found = [replace(p, reach=_reach_length(wb, prof, p)) for p in found]
     best = max(found, key=lambda p: p.score)
     arms = list(prof.arms)
     arms[0] = replace(arms[0], push_seed=tuple(float(v) for v in best.arm))

@@ -387,6 +387,41 @@ class MobileManipulator:
         return TorqueConstraint(np.vstack([Rt @ Ja[:3], Rt @ Ja[3:]]), bias, self.effort_limit, self.joint_names)
 
 
+def push_grasp_rotation(prof: RobotProfile, arm: int = 0) -> np.ndarray:
+    """Return R_b_ee of a filled profile's grasp (`push_profile`): its pitch, roll and the arm's tool axis."""
+    return grasp_rotation(
+        GRASP_PITCH if prof.grasp_pitch is None else prof.grasp_pitch,
+        prof.grasp_roll or 0.0,
+        prof.arms[arm].tool_axis or "z",
+    )
+
+
+def push_reach_map(robot: str | RobotProfile | robots.LoadedRobot):
+    """Return the `ReachMap` along the handle of a robot whose base stands at a fixed place (None otherwise).
+
+    The base stands at ``(handle x + push_base_x, push_base_y)`` in {b}; the continuation starts at y = 0
+    from the profile's push posture (or at its fixed contact when the posture was computed there).
+    """
+    from wholebody.contacts.placement import reach_map
+
+    loaded = robot if isinstance(robot, robots.LoadedRobot) else robots.load(robot)
+    prof = push_profile(loaded)
+    if prof.push_base_y is None:  # the base follows the contact sideways: every handle point is held alike
+        return None
+    wb = wholebody_for(loaded, base_input=prof.base_input)
+    R = push_grasp_rotation(prof)
+    zero = np.zeros(3)
+    offset = np.array([handle_point(0.0)[0] + prof.push_base_x, prof.push_base_y])
+    return reach_map(
+        wb,
+        lambda y: base_target(zero, zero, offset)[0],
+        lambda y: grasp_target(zero, zero, float(y), 0.0, R)[0],
+        np.round(np.arange(-0.25, 0.2501, 0.025), 6),
+        prof.push_arm_seed,
+        0.0 if prof.tuned else prof.push_contact_y,
+    )
+
+
 def base_lateral_places(prof: RobotProfile, contact_y: Sequence[float]) -> list[float]:
     """Return each robot's base y in {b} for contacts `contact_y` (one robot per contact).
 
@@ -416,8 +451,7 @@ def make_robots(
     """
     loaded = robot if isinstance(robot, robots.LoadedRobot) else robots.load(robot)
     prof = push_profile(loaded)
-    arm = prof.arms[0]
-    R_b_ee = grasp_rotation(prof.grasp_pitch, prof.grasp_roll or 0.0, arm.tool_axis or "z")
+    R_b_ee = push_grasp_rotation(prof)
     seeds = list(seeds) if seeds is not None else [None] * len(contact_y)
     out = []
     for y, by, sd in zip(contact_y, base_lateral_places(prof, contact_y), seeds):
