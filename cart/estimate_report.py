@@ -35,7 +35,7 @@ MAX_RELATIVE_STD = 0.5
 #: Half-size (m) of the largest cart (a hospital bed) when the log cannot give the body's size.
 MAX_HALF_SIZE = 1.0
 #: Samples beyond which the EKF check runs on CHECK_CHUNKS evenly spaced stretches of this total length.
-CHECK_SAMPLES = 36_000
+CHECK_SAMPLES = 12_000
 CHECK_CHUNKS = 4
 
 

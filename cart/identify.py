@@ -320,6 +320,18 @@ def _noise_correction(wts: np.ndarray, noise: np.ndarray) -> np.ndarray:
     return np.diag(wts[:, 0].sum() * noise[0] + wts[:, 1].sum() * noise[1])
 
 
+def _normal(x: np.ndarray, y: np.ndarray, wts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return (sum_k X_k^T W_k X_k, sum_k X_k^T W_k y_k) of rows x (k, 2, P), y (k, 2), diagonal weights (k, 2)."""
+    sw = np.sqrt(wts)
+    xs = (x * sw[:, :, None]).reshape(-1, x.shape[-1])
+    return xs.T @ xs, xs.T @ (y * sw).reshape(-1)
+
+
+def _predict(x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Return X p (k, 2) of rows x (k, 2, P)."""
+    return (x.reshape(-1, x.shape[-1]) @ p).reshape(x.shape[0], 2)
+
+
 def _wls(
     x: np.ndarray, y: np.ndarray, noise: np.ndarray, iterations: int = 4
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -335,10 +347,10 @@ def _wls(
     p = np.zeros(n_p)
     for _ in range(iterations):
         wts = w / scale**2
-        a = np.einsum("kij,kil->jl", x * wts[:, :, None], x) - _noise_correction(wts, noise)
-        b = np.einsum("kij,ki->j", x * wts[:, :, None], y)
+        a, b = _normal(x, y, wts)
+        a = a - _noise_correction(wts, noise)
         p = np.linalg.lstsq(a, b, rcond=None)[0]
-        r = y - np.einsum("kij,j->ki", x, p)
+        r = y - _predict(x, p)
         scale = np.array([1.4826 * np.median(np.abs(r[:, i])) + 1e-300 for i in range(2)])
         u = np.abs(r) / (1.5 * scale)
         w = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-300))
@@ -348,8 +360,8 @@ def _wls(
 def _hac_cov(x: np.ndarray, r: np.ndarray, wts: np.ndarray, noise: np.ndarray, lag: int) -> np.ndarray:
     """Return the Newey-West covariance of the weighted least-squares estimate (Bartlett kernel, ``lag``)."""
     xw = x * wts[:, :, None]
-    a = np.einsum("kij,kil->jl", xw, x) - _noise_correction(wts, noise)
-    score = np.einsum("kij,ki->kj", xw, r)  # (k, n_p)
+    a = _normal(x, r, wts)[0] - _noise_correction(wts, noise)
+    score = xw[:, 0, :] * r[:, :1] + xw[:, 1, :] * r[:, 1:]  # (k, n_p)
     lag = min(lag, len(score) - 1)
     if len(score) * lag <= HAC_DIRECT:
         s = score.T @ score
@@ -370,12 +382,9 @@ def _jackknife_cov(x: np.ndarray, y: np.ndarray, wts: np.ndarray, noise: np.ndar
     """Return the delete-one-block jackknife covariance of the weighted least-squares estimate."""
     k, _, n_p = x.shape
     edges = np.linspace(0, k, blocks + 1).astype(int)
-    xw = x * wts[:, :, None]
-    a_blocks = [
-        np.einsum("kij,kil->jl", xw[i0:i1], x[i0:i1]) - _noise_correction(wts[i0:i1], noise)
-        for i0, i1 in zip(edges[:-1], edges[1:])
-    ]
-    b_blocks = [np.einsum("kij,ki->j", xw[i0:i1], y[i0:i1]) for i0, i1 in zip(edges[:-1], edges[1:])]
+    ab = [_normal(x[i0:i1], y[i0:i1], wts[i0:i1]) for i0, i1 in zip(edges[:-1], edges[1:])]
+    a_blocks = [a_i - _noise_correction(wts[i0:i1], noise) for (a_i, _), i0, i1 in zip(ab, edges[:-1], edges[1:])]
+    b_blocks = [b_i for _, b_i in ab]
     a_all, b_all = sum(a_blocks), sum(b_blocks)
     ests = np.array([np.linalg.lstsq(a_all - a_i, b_all - b_i, rcond=None)[0] for a_i, b_i in zip(a_blocks, b_blocks)])
     d = ests - ests.mean(axis=0)
@@ -413,7 +422,7 @@ def _fit(
     noise = np.pad(noise, ((0, 0), (0, n_p - noise.shape[1])))
     p, scale, w = _wls(x, y, noise)
     wts = w / scale**2
-    r = y - np.einsum("kij,j->ki", x, p)
+    r = y - _predict(x, p)
     cov_hac = _hac_cov(x, r, wts, noise, lag)
     cov_jk = _jackknife_cov(x, y, wts, noise, JACKKNIFE_BLOCKS)
     sd = np.sqrt(np.maximum(np.maximum(np.diag(cov_hac), np.diag(cov_jk)), 0.0))
@@ -541,7 +550,7 @@ def _wrench_noise(reg: _Regression, p: np.ndarray, dt: float, sos: np.ndarray) -
 
     Measured on the raw (unfiltered) wrench minus the model's prediction (:func:`cart.noise_model.fit_ar1`).
     """
-    r_raw = reg.y_raw - np.einsum("kij,j->ki", reg.x, p)
+    r_raw = reg.y_raw - _predict(reg.x, p)
     models = (fit_ar1(r_raw[:, 0], dt), fit_ar1(r_raw[:, 1], dt))
     n = min(len(r_raw), 20000)
     gains = np.array([_gains_of(_filtfilt(sos, mdl.unit_series(n)), dt)[1] for mdl in models])

@@ -47,24 +47,28 @@ def best_split(t: np.ndarray, x: np.ndarray, y: np.ndarray, scale: np.ndarray, m
     ``x`` (k, 2, P), ``y`` (k, 2) at times ``t`` (k,), rows weighted by ``1 / scale^2``; candidates at
     least ``min_len`` s from either end (None when the log is too short).
     """
-    w = 1.0 / scale**2
-    xw = x * w[None, :, None]
-    a = np.cumsum(np.einsum("kij,kil->kjl", xw, x), axis=0)
-    b = np.cumsum(np.einsum("kij,ki->kj", xw, y), axis=0)
-    c = np.cumsum(np.einsum("ki,ki->k", y * w[None, :], y), axis=0)
     ok = np.flatnonzero((t - t[0] >= min_len) & (t[-1] - t >= min_len))
     if len(ok) == 0:
         return None
     idx = ok[:: max(1, len(ok) // _CANDIDATES)]
+    sw = 1.0 / scale
+    xs, ys = x * sw[None, :, None], y * sw[None, :]
+    edges = np.r_[0, idx + 1]
+    blocks = [(xs[i0:i1].reshape(-1, x.shape[-1]), ys[i0:i1].reshape(-1)) for i0, i1 in zip(edges[:-1], edges[1:])]
+    tail = (xs[edges[-1] :].reshape(-1, x.shape[-1]), ys[edges[-1] :].reshape(-1))
+    a = np.cumsum([xb.T @ xb for xb, _ in blocks], axis=0)
+    b = np.cumsum([xb.T @ yb for xb, yb in blocks], axis=0)
+    c = np.cumsum([yb @ yb for _, yb in blocks])
+    a_all, b_all, c_all = a[-1] + tail[0].T @ tail[0], b[-1] + tail[0].T @ tail[1], c[-1] + tail[1] @ tail[1]
     p_dim = x.shape[-1]
-    ridge = 1e-12 * np.trace(a[-1]) / p_dim * np.eye(p_dim)
+    ridge = 1e-12 * np.trace(a_all) / p_dim * np.eye(p_dim)
 
     def ssr(aa: np.ndarray, bb: np.ndarray, cc: np.ndarray) -> np.ndarray:
         sol = np.linalg.solve(aa + ridge, bb[..., None])[..., 0]
         return cc - np.einsum("kj,kj->k", bb, sol)
 
-    left = ssr(a[idx], b[idx], c[idx])
-    right = ssr(a[-1] - a[idx], b[-1] - b[idx], c[-1] - c[idx])
+    left = ssr(a, b, c)
+    right = ssr(a_all - a, b_all - b, c_all - c)
     return float(t[idx[int(np.argmin(left + right))]])
 
 
