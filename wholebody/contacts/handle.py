@@ -165,3 +165,15 @@ class HandleSegment:
     def coordinate(self, point_b: Sequence[float]) -> float:
         """Return s of the projection of point_b onto the segment's line."""
         return float(np.dot(np.asarray(point_b, dtype=float) - np.asarray(self.start_b), self._dir))
+
+
+#: spacing (m) of the contact candidates along the handle when one arm pushes (two arms: twice as coarse)
+CONTACT_GRID_STEP = 0.025
+
+
+def contact_grid(step: float = CONTACT_GRID_STEP, width: float = HANDLE_WIDTH) -> np.ndarray:
+    """Return the contact candidates y (m, in {b}) along the default handle, from -width/2 to +width/2 by `step`."""
+    if not (step > 0.0 and width > 0.0):
+        raise WholeBodyError(f"contact grid step and handle width must be positive, got {step}, {width}")
+    half = width / 2.0
+    return np.round(np.arange(-half, half + 1e-4, step), 6)

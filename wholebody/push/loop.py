@@ -21,6 +21,7 @@ from cart.ekf import CartEKF, EKFConfig
 from cart.params import CartParams
 from wholebody.push.config import CartController, ParameterEstimator, PushConfig, PushMetrics, PushResult
 from robots.profiles import profile
+from wholebody.contacts.handle import contact_grid
 from wholebody.errors import WholeBodyError
 from wholebody.push.controller import ControlDecision, PushController
 from wholebody.push.kinematic_plant import KinematicPlant
@@ -84,7 +85,7 @@ def make_reach_map(config: PushConfig):
         wb,
         lambda y: base_target(zero, zero, offset)[0],
         lambda y: grasp_target(zero, zero, float(y), 0.0, R)[0],
-        np.round(np.arange(-0.25, 0.2501, 0.025), 6),
+        contact_grid(),
         prof.push_arm_seed,
         0.0,
     )

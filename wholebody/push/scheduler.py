@@ -10,7 +10,7 @@ from cart.dynamics import inverse_dynamics
 from cart.params import CartParams
 from cart.trajectories import CartTrajectory
 from wholebody.contacts.allocation import WrenchAllocator
-from wholebody.contacts.handle import HandleSegment
+from wholebody.contacts.handle import CONTACT_GRID_STEP, HandleSegment, contact_grid
 from wholebody.contacts.placement import ReachMap, effort_sweep
 from wholebody.errors import InfeasibleWrenchError
 from wholebody.push.config import PushConfig
@@ -52,7 +52,7 @@ class ContactScheduler:
         self.alloc = WrenchAllocator([handle_point(v) for v in self.y], config.arm_limits, only_motion_directions=True)
         self.handle = HandleSegment.default()
         n = config.n_arms
-        grid = np.round(np.arange(-0.25, 0.2501, 0.025 if n == 1 else 0.05), 6)
+        grid = contact_grid(CONTACT_GRID_STEP if n == 1 else 2 * CONTACT_GRID_STEP)
         self.candidates = (
             [np.array([g]) for g in grid]
             if n == 1
