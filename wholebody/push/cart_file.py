@@ -1,0 +1,194 @@
+"""Cart files: any MJCF cart that follows the contract below can be pushed by the MuJoCo plant.
+
+The contract (also in docs/mujoco.md):
+
+1. one body named ``cart`` with a free joint; its frame is {b} (x forward, z up) and the cart's
+   planar pose is this frame's x, y and yaw; the body's ``pos`` z is the height of {b} when the cart
+   stands on the floor;
+2. sites on ``cart`` named ``handle`` or ``handle_*`` mark where hands may hold: a point site
+   (type sphere, the default) is a grip point; a capsule site (declared with ``fromto``) is a bar that
+   may be held anywhere along its axis; at least one such site;
+3. the file may contain a floor (a plane in the worldbody); if none, the plant adds one at z = 0;
+4. everything else is the file's own (wheels, joints, friction, options); the controller never reads
+   the cart's inertial parameters from it (the run reports them as the truth).
+
+A file that breaks the contract raises :class:`CartFileError` with one line naming what is missing.
+:func:`cart_source` also wraps the project's own carts (`CartParams` -> the shopping cart,
+`MujocoCart`) behind the same :class:`CartSource` interface.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+
+from cart.params import CartParams
+from wholebody.errors import WholeBodyError
+from wholebody.push import mujoco_cart
+
+#: prefix of the handle sites' names
+HANDLE_PREFIX = "handle"
+
+
+class CartFileError(WholeBodyError):
+    """A cart file that MuJoCo cannot read or that breaks the cart-file contract (docs/mujoco.md)."""
+
+
+@dataclass(frozen=True)
+class HandleSite:
+    """A place on the cart where a hand may hold, in {b}: a point (start == end) or a bar from start to end."""
+
+    name: str
+    start_b: np.ndarray
+    end_b: np.ndarray
+
+    @property
+    def is_bar(self) -> bool:
+        """Return True for a bar (a capsule site), False for a grip point."""
+        return bool(np.linalg.norm(self.end_b - self.start_b) > 1e-9)
+
+    def closest(self, p_b: np.ndarray) -> np.ndarray:
+        """Return the point of the handle closest to `p_b` (in {b})."""
+        a, b = self.start_b, self.end_b
+        ab = b - a
+        L2 = float(ab @ ab)
+        s = 0.0 if L2 < 1e-18 else float(np.clip((np.asarray(p_b) - a) @ ab / L2, 0.0, 1.0))
+        return a + s * ab
+
+
+@dataclass(frozen=True)
+class CartSource:
+    """A cart the plant can put in its scene: a fresh spec on demand, {b}'s standing height, handles, wheels."""
+
+    label: str
+    make_spec: Callable[[], mujoco.MjSpec]
+    #: height of {b} above the floor when the cart stands
+    z: float
+    handles: tuple[HandleSite, ...]
+    #: {wheel body: (spin inertia, rolling radius)} of a compiled scene at rest (None: found by shape)
+    named_wheels: tuple[str, ...] | None = None
+
+    def spec(self) -> mujoco.MjSpec:
+        """Return a new spec of the cart (the scene is composed onto it)."""
+        return self.make_spec()
+
+    def distance_to_handle(self, p_b: np.ndarray) -> tuple[float, str]:
+        """Return (distance from `p_b` to the closest handle site, that site's name)."""
+        best = min(self.handles, key=lambda h: float(np.linalg.norm(h.closest(p_b) - p_b)))
+        return float(np.linalg.norm(best.closest(p_b) - p_b)), best.name
+
+    def wheels(self, model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, tuple[float, float]]:
+        """Return the cart's wheels {body: (spin inertia, rolling radius)} in a compiled scene (after settling)."""
+        bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, mujoco_cart.CART_BODY)
+        if self.named_wheels is not None:
+            return mujoco_cart.wheel_spin_inertias(model)
+        return mujoco_cart.rolling_wheels(model, data, bid, floor_z=_floor_z(model))
+
+
+def _floor_z(model: mujoco.MjModel) -> float:
+    """Return the height of the scene's lowest plane geom attached to the world (0 without one)."""
+    zs = [
+        float(model.geom_pos[g][2])
+        for g in range(model.ngeom)
+        if int(model.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_PLANE) and model.geom_bodyid[g] == 0
+    ]
+    return min(zs) if zs else 0.0
+
+
+def _project_cart(cart: mujoco_cart.MujocoCart, label: str) -> CartSource:
+    """Return the source of one of the project's MuJoCo carts (its handle bar or point from the cart's fields)."""
+    hx, hy, hz, w = -cart.handle_distance, cart.handle_y, cart.handle_height, cart.handle_width / 2
+    handle = HandleSite(cart.handle_site, np.array([hx, hy - w, hz]), np.array([hx, hy + w, hz]))
+    xml = mujoco_cart.mjcf(cart)
+    return CartSource(
+        label=label,
+        make_spec=lambda: mujoco.MjSpec.from_string(xml),
+        z=cart.wheel_radius,
+        handles=(handle,),
+        named_wheels=mujoco_cart.WHEEL_BODIES,
+    )
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def _read(path: Path) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
+    """Return (spec, compiled model) of a file, or raise CartFileError with MuJoCo's first line."""
+    if not path.is_file():
+        raise CartFileError(f"cart file {path}: no such file")
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+        model = spec.compile()
+    except (ValueError, RuntimeError) as exc:
+        raise CartFileError(f"cart file {path}: not a valid MuJoCo model: {_first_line(exc)}") from None
+    return spec, model
+
+
+def _check_cart_body(path: Path, model: mujoco.MjModel) -> int:
+    """Return the id of body ``cart``; it must exist and carry exactly one free joint."""
+    bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, mujoco_cart.CART_BODY)
+    if bid < 0:
+        raise CartFileError(f"cart file {path}: no body named 'cart'")
+    joints = range(int(model.body_jntadr[bid]), int(model.body_jntadr[bid] + model.body_jntnum[bid]))
+    if not any(int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE) for j in joints):
+        raise CartFileError(f"cart file {path}: body 'cart' has no free joint")
+    return bid
+
+
+def _handle_sites(path: Path, model: mujoco.MjModel, cart: int) -> tuple[HandleSite, ...]:
+    """Return the handle sites of body ``cart`` in {b}; raise on a handle site elsewhere or of another shape."""
+    handles = []
+    for s in range(model.nsite):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or ""
+        if not (name == HANDLE_PREFIX or name.startswith(HANDLE_PREFIX + "_")):
+            continue
+        if int(model.site_bodyid[s]) != cart:
+            owner = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.site_bodyid[s]))
+            raise CartFileError(f"cart file {path}: handle site {name!r} is on body {owner!r}, not on 'cart'")
+        pos = np.asarray(model.site_pos[s], dtype=float)
+        kind = int(model.site_type[s])
+        if kind == int(mujoco.mjtGeom.mjGEOM_SPHERE):
+            handles.append(HandleSite(name, pos.copy(), pos.copy()))
+        elif kind == int(mujoco.mjtGeom.mjGEOM_CAPSULE):
+            R = np.zeros(9)
+            mujoco.mju_quat2Mat(R, np.asarray(model.site_quat[s], dtype=float))
+            axis = R.reshape(3, 3)[:, 2] * float(model.site_size[s][1])
+            handles.append(HandleSite(name, pos - axis, pos + axis))
+        else:
+            raise CartFileError(
+                f"cart file {path}: handle site {name!r} is neither a point (sphere) nor a bar (capsule)"
+            )
+    if not handles:
+        raise CartFileError(f"cart file {path}: body 'cart' has no site named 'handle' or 'handle_*'")
+    return tuple(handles)
+
+
+def load_cart_file(path: str | os.PathLike) -> CartSource:
+    """Return the `CartSource` of an MJCF cart file, or raise `CartFileError` naming what breaks the contract."""
+    p = Path(path)
+    spec, model = _read(p)
+    cart = _check_cart_body(p, model)
+    handles = _handle_sites(p, model, cart)
+    z = float(spec.body(mujoco_cart.CART_BODY).pos[2])
+    if not math.isfinite(z):
+        raise CartFileError(f"cart file {p}: body 'cart' has no finite pos")
+    return CartSource(label=str(p), make_spec=lambda: mujoco.MjSpec.from_file(str(p)), z=z, handles=handles)
+
+
+def cart_source(cart: CartParams | mujoco_cart.MujocoCart | str | os.PathLike) -> CartSource:
+    """Return the `CartSource` of `CartParams` (the shopping cart with them), a `MujocoCart` or a cart file path."""
+    if isinstance(cart, CartParams):
+        return _project_cart(mujoco_cart.shopping_cart(cart), f"shopping cart {cart}")
+    if isinstance(cart, mujoco_cart.MujocoCart):
+        return _project_cart(cart, "MujocoCart")
+    if isinstance(cart, (str, os.PathLike)):
+        return load_cart_file(cart)
+    raise CartFileError(f"cart must be CartParams, MujocoCart or a file path, got {type(cart).__name__}")

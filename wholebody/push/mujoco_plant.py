@@ -1,0 +1,509 @@
+"""The MuJoCo plant: robots and cart in a physics engine, behind the plant seam (`wholebody.push.plant`).
+
+One scene (`wholebody.push.mujoco_scene`): the cart (the shopping cart built from `CartParams`, a
+`MujocoCart`, or any cart file that follows the contract of `wholebody.push.cart_file`), a floor, the
+robots from their URDFs and one compliant weld per grasp. Physics runs at ``physics_dt`` (500 Hz by
+default), control at ``control_dt`` (100 Hz): each :meth:`MujocoPlant.step` holds one command per robot
+for one control period:
+
+- bases: a holonomic base (the Ridgeback) follows the commanded body twist on velocity servos of a
+  planar joint set (its mecanum rollers are not simulated); a differential base (the WMRA) drives its
+  two wheels on velocity servos at the commanded wheel rates, on tyres in contact with the floor with
+  its casters: its nonholonomic constraint and its wheel slip are physical (the largest slip speed is
+  reported);
+- arms: `wholebody.push.arm_control` (torque law for a torque-controlled arm, admittance around
+  velocity servos for a velocity-controlled one);
+- sensing (:meth:`MujocoPlant.measure`): motion capture of the ``cart`` body (with the noise model of
+  the kinematic plant, `cart.simulate.MeasurementNoise`), joint and base states, and each wrist F/T
+  sensor (MuJoCo force and torque sensors at the F/T frame, the static load of the tool beyond the
+  sensor removed as a real sensor's tool compensation does, plus white noise).
+
+:meth:`report` gives the run's diagnostics (``cart_mass_kg``, ``cart_mass_effective_kg``,
+``wrench_error_rms_n``, ``grasp_slip_max_m``, ``base_wheel_slip_max_m_s``, ``real_time_factor``, ...).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from cart.params import CartParams
+from cart.simulate import MeasurementNoise
+from wholebody.errors import WholeBodyError
+from wholebody.push import mujoco_cart
+from wholebody.push.arm_control import AdmittanceArmLaw, AdmittanceGains, TorqueArmGains, TorqueArmLaw
+from wholebody.push.config import PUSH_SENSOR_NOISE, TRUE_CART
+from wholebody.push.mujoco_scene import (
+    ARM_TORQUE,
+    ARM_VELOCITY,
+    GraspCompliance,
+    RobotIndex,
+    RobotSetup,
+    Scene,
+    ServoGains,
+    compose,
+)
+from wholebody.push.plant import Measurement, RobotCommand, RobotReading
+
+#: How each shipped robot's arm is driven: joint torques (the iiwa) or joint velocity servos (the WMRA's).
+#: Robots not listed get velocity servos (any position/velocity-servoed arm).
+ARM_MODES = {"ridgeback_iiwa": ARM_TORQUE, "wmra": ARM_VELOCITY}
+GRAVITY_VECTOR = np.array([0.0, 0.0, -mujoco_cart.GRAVITY])
+
+
+class MujocoPlantError(WholeBodyError):
+    """Bad input to the MuJoCo plant (command count or shape, grasp not on a handle, unknown arm mode)."""
+
+
+@dataclass(frozen=True)
+class MujocoPlantConfig:
+    """Rates, grasp compliance, servo gains and arm laws of the MuJoCo plant."""
+
+    physics_dt: float = 0.002
+    control_dt: float = 0.01
+    compliance: GraspCompliance = GraspCompliance()
+    servos: ServoGains = ServoGains()
+    torque_gains: TorqueArmGains = TorqueArmGains()
+    admittance: AdmittanceGains = AdmittanceGains()
+    #: largest distance (m) between a grasp and the handle sites for the grasp to count as on the handle
+    handle_tolerance: float = 0.02
+    #: time (s) the scene settles (wheels onto the floor, casters, grasp) before t = 0, robots holding still
+    settle_time: float = 0.2
+
+    def __post_init__(self) -> None:
+        if not (0 < self.physics_dt <= self.control_dt):
+            raise MujocoPlantError(f"need 0 < physics_dt <= control_dt, got {self.physics_dt}, {self.control_dt}")
+        ratio = self.control_dt / self.physics_dt
+        if abs(ratio - round(ratio)) > 1e-9:
+            raise MujocoPlantError(
+                f"control_dt must be a multiple of physics_dt, got {self.control_dt}/{self.physics_dt}"
+            )
+
+
+@dataclass(frozen=True)
+class CartInertial:
+    """The cart's rigid-body truth read from MuJoCo (for reports; a controller never reads it)."""
+
+    mass: float
+    #: (dx, dy) centre of mass in {b}
+    com_b: tuple[float, float]
+    #: yaw inertia about the centre of mass (kg m^2)
+    inertia: float
+    #: mass the forward motion feels: mass + sum of wheel spin inertia / r^2 (kg)
+    mass_effective: float
+
+
+@dataclass
+class _Stats:
+    """Running diagnostics of a run."""
+
+    slip_max: float = 0.0
+    wheel_slip_max: float = 0.0
+    err_sq: float = 0.0
+    force_sq: float = 0.0
+    n: int = 0
+    wall: float = 0.0
+    sim: float = 0.0
+    arm_force_peak_ratio: float = 0.0
+    arm_saturated: int = 0
+    per_robot_err: list = field(default_factory=list)
+
+
+def _robot_setup(mm, T_b_hand: np.ndarray, arm_mode: str) -> RobotSetup:
+    """Return the scene's view of a `MobileManipulator` (URDF, joints, frames, initial state)."""
+    prof = mm.profile
+    frames = mm.model.frames
+    return RobotSetup(
+        name=mm.wb.robot.name,
+        urdf=str(mm.wb.robot.urdf),
+        base="differential" if prof.base == "differential" else "planar",
+        arm_joints=tuple(prof.arm_joints),
+        wheel_joints=tuple(prof.wheel_joints),
+        x=np.array(mm.x, dtype=float),
+        arm_mode=arm_mode,
+        ee_link=frames[mm.ee_id].name,
+        ft_link=frames[mm.ft_id].name,
+        T_b_hand=T_b_hand,
+    )
+
+
+def _planar(T: np.ndarray) -> tuple[float, float, float]:
+    return float(T[0, 3]), float(T[1, 3]), math.atan2(T[1, 0], T[0, 0])
+
+
+def _pose_matrix(x: float, y: float, z: float, yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    T = np.eye(4)
+    T[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+class MujocoPlant:
+    """Robots and cart in MuJoCo, answering a push controller one control period at a time (see the module doc).
+
+    Args:
+        robots: the mobile manipulators (`wholebody.push.robot.MobileManipulator`), each in its initial
+            state ``x`` = [base pose, arm joints] holding the handle; only read here (URDF, profile,
+            frames, ``x``).
+        cart_pose: (x, y, theta) of {b} at the start.
+        cart: `CartParams` (the shopping cart with these inertial parameters, `mujoco_cart.shopping_cart`),
+            a `mujoco_cart.MujocoCart`, or the path of an MJCF cart file (`wholebody.push.cart_file`).
+        grasp_points_b: (n_robots, 3) grasp points in {b}; each must be within
+            ``config.handle_tolerance`` of the robot's hand and of a handle site. None: the hands' points.
+        noise: white noise of motion capture and F/T sensors (`cart.simulate.MeasurementNoise`).
+        seed: seed of the noise.
+        config: rates, compliance, gains (`MujocoPlantConfig`).
+        arm_modes: "torque" or "velocity" per robot; None: `ARM_MODES` by robot name.
+    """
+
+    def __init__(
+        self,
+        robots: Sequence,
+        cart_pose: Sequence[float],
+        cart: CartParams | mujoco_cart.MujocoCart | str | os.PathLike = TRUE_CART,
+        grasp_points_b: Sequence[Sequence[float]] | None = None,
+        noise: MeasurementNoise = PUSH_SENSOR_NOISE,
+        seed: int = 0,
+        config: MujocoPlantConfig = MujocoPlantConfig(),
+        arm_modes: Sequence[str] | None = None,
+    ) -> None:
+        from wholebody.push.cart_file import CartSource, cart_source
+
+        self.config = config
+        self.dt = float(config.control_dt)
+        self.noise = noise
+        self.rng = np.random.default_rng(seed)
+        self.n_sub = int(round(config.control_dt / config.physics_dt))
+        robots = list(robots)
+        modes = (
+            list(arm_modes)
+            if arm_modes is not None
+            else [ARM_MODES.get(mm.wb.robot.name, ARM_VELOCITY) for mm in robots]
+        )
+        if len(modes) != len(robots) or any(m not in (ARM_TORQUE, ARM_VELOCITY) for m in modes):
+            raise MujocoPlantError(f"arm_modes must give 'torque' or 'velocity' per robot, got {modes}")
+        source: CartSource = cart_source(cart)
+        self.cart_source = source
+        T_sb = _pose_matrix(cart_pose[0], cart_pose[1], source.z, cart_pose[2])
+        hands_b = [np.linalg.inv(T_sb) @ mm.wb.ee_placement(mm.x).homogeneous for mm in robots]
+        self._check_grasps(hands_b, grasp_points_b, source)
+        setups = [_robot_setup(mm, T, mode) for mm, T, mode in zip(robots, hands_b, modes)]
+        self.scene: Scene = compose(
+            source.spec(), cart_pose, source.z, setups, config.physics_dt, config.compliance, config.servos
+        )
+        self._robots = robots
+        self._setups = setups
+        self._laws = [
+            TorqueArmLaw(r.effort_limit, config.torque_gains)
+            if s.arm_mode == ARM_TORQUE
+            else AdmittanceArmLaw(len(s.arm_joints), config.admittance)
+            for r, s in zip(self.scene.robots, setups)
+        ]
+        self._qacc = np.zeros(self.scene.model.nv)
+        self._rne = np.zeros(self.scene.model.nv)
+        self._stats = _Stats(per_robot_err=[[0.0, 0.0] for _ in robots])
+        self._theta_prev = float(cart_pose[2])
+        self._theta = float(cart_pose[2])
+        self._base_yaw = [float(s.x[2]) for s in setups]
+        self._yaw_prev = list(self._base_yaw)
+        self._hand_clean = [np.zeros(6) for _ in robots]
+        self._settle()
+        self._inertial = self._read_inertial()
+        self.t = 0.0
+        self.scene.data.time = 0.0
+        self._ft = [self._ft_reading(i, noisy=True) for i in range(len(robots))]
+        self._z = self._motion_capture()
+
+    # ------------------------------------------------------------------ set-up
+
+    def _check_grasps(self, hands_b: list[np.ndarray], points: Sequence[Sequence[float]] | None, source) -> None:
+        tol = self.config.handle_tolerance
+        for i, T in enumerate(hands_b):
+            p = T[:3, 3]
+            if points is not None:
+                if len(points) != len(hands_b):
+                    raise MujocoPlantError(f"{len(points)} grasp points for {len(hands_b)} robots")
+                gap = float(np.linalg.norm(np.asarray(points[i], dtype=float) - p))
+                if gap > tol:
+                    raise MujocoPlantError(
+                        f"robot {i}'s hand is {gap:.3f} m from its grasp point {np.round(points[i], 3)}"
+                    )
+            dist, name = source.distance_to_handle(p)
+            if dist > tol:
+                raise MujocoPlantError(
+                    f"robot {i}'s hand at {np.round(p, 3)} in {{b}} is {dist:.3f} m from the handle site {name!r}"
+                )
+
+    def _settle(self) -> None:
+        """Let wheels, casters and grasps settle for `settle_time` with the robots holding still (MuJoCo's own bias)."""
+        m, d = self.scene.model, self.scene.data
+        for _ in range(int(round(self.config.settle_time / self.config.physics_dt))):
+            for r, s in zip(self.scene.robots, self._setups):
+                if s.arm_mode == ARM_TORQUE:
+                    d.ctrl[r.arm_actuators] = d.qfrc_bias[r.arm_dof]
+                else:
+                    d.ctrl[r.arm_actuators] = 0.0
+                d.ctrl[r.base_actuators] = 0.0
+                d.ctrl[r.wheel_actuators] = 0.0
+            mujoco.mj_step(m, d)
+        mujoco.mj_forward(m, d)
+
+    def _read_inertial(self) -> CartInertial:
+        m, d = self.scene.model, self.scene.data
+        info = mujoco_cart.truth_from_state(m, d, mujoco_cart.CART_BODY, self.cart_source.wheels(m, d))
+        return CartInertial(
+            info["m"], (info["dx"], info["dy"]), info["I_about_com"], info["m_effective_forward_incl_wheel_spin"]
+        )
+
+    # ------------------------------------------------------------------ truth
+
+    def cart_inertial(self) -> CartInertial:
+        """Return the cart's mass, CoM in {b}, yaw inertia about the CoM and effective forward mass (truth only)."""
+        return self._inertial
+
+    def cart_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the true cart pose (x, y, theta unwrapped) and velocity (xdot, ydot, thetadot) of {b} in {s}."""
+        d, b, dof = self.scene.data, self.scene.cart_body, self.scene.cart_dof
+        x, y = float(d.xpos[b][0]), float(d.xpos[b][1])
+        R = d.xmat[b].reshape(3, 3)
+        omega = float((R @ d.qvel[dof + 3 : dof + 6])[2])
+        return np.array([x, y, self._theta]), np.array([float(d.qvel[dof]), float(d.qvel[dof + 1]), omega])
+
+    truth = cart_state
+
+    def robot_states(self) -> list[np.ndarray]:
+        """Return the true robot states x = [base pose, arm joints]."""
+        return [np.r_[self._base_pose(i), self.scene.data.qpos[r.arm_qpos]] for i, r in enumerate(self.scene.robots)]
+
+    def cart_wrench(self, commands: Sequence[RobotCommand] | None = None) -> np.ndarray:
+        """Return Gamma_MM (fx, fy in {s}, tau about the {b} origin) the hands applied over the last period (clean F/T).
+
+        ``commands`` is ignored: the wrench is what the physics made of the last commands.
+        """
+        d = self.scene.data
+        ob = d.xpos[self.scene.cart_body]
+        gamma = np.zeros(3)
+        for r, w in zip(self.scene.robots, self._hand_clean):
+            p = d.site_xpos[r.handle_site]
+            gamma += np.array([w[0], w[1], w[5] + (p[0] - ob[0]) * w[1] - (p[1] - ob[1]) * w[0]])
+        return gamma
+
+    # ------------------------------------------------------------------ sensing
+
+    def _base_pose(self, i: int) -> np.ndarray:
+        r, d = self.scene.robots[i], self.scene.data
+        if r.base == "planar":
+            return d.qpos[r.base_qpos].copy()
+        b = r.root_body
+        return np.array([float(d.xpos[b][0]), float(d.xpos[b][1]), self._base_yaw[i]])
+
+    def _base_twist(self, i: int) -> np.ndarray:
+        r, d = self.scene.robots[i], self.scene.data
+        if r.base == "planar":
+            v = d.qvel[r.base_dof]
+            c, s = math.cos(d.qpos[r.base_qpos[2]]), math.sin(d.qpos[r.base_qpos[2]])
+            return np.array([c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]])
+        R = d.xmat[r.root_body].reshape(3, 3)
+        v_w = d.qvel[r.base_dof[:3]]
+        w_w = R @ d.qvel[r.base_dof[3:]]
+        v_b = R.T @ v_w
+        return np.array([v_b[0], v_b[1], w_w[2]])
+
+    def _sensor_wrench(self, i: int) -> np.ndarray:
+        """Return the hand's wrench on the cart in the F/T frame, about its origin (tool load removed), no noise."""
+        r, d = self.scene.robots[i], self.scene.data
+        f = d.sensordata[r.force_adr : r.force_adr + 3]
+        n = d.sensordata[r.torque_adr : r.torque_adr + 3]
+        R = d.site_xmat[r.ft_site].reshape(3, 3)
+        g_s = R.T @ (r.tool_mass * GRAVITY_VECTOR)  # the tool's weight in the sensor frame
+        # MuJoCo senses what the child subtree applies to its parent: the hand's push on the cart, minus the
+        # tool's weight (statics: F_sensor = w_hand - m g), and likewise for the torque about the site
+        return np.r_[f + g_s, n + np.cross(r.tool_com, g_s)]
+
+    def _hand_wrench_world(self, i: int, w_s: np.ndarray) -> np.ndarray:
+        """Return a sensor-frame wrench as world-aligned [f, n] at the grasp (the hand's site)."""
+        r, d = self.scene.robots[i], self.scene.data
+        R = d.site_xmat[r.ft_site].reshape(3, 3)
+        f, n = R @ w_s[:3], R @ w_s[3:]
+        o, p = d.site_xpos[r.ft_site], d.site_xpos[r.hand_site]
+        return np.r_[f, n + np.cross(o - p, f)]
+
+    def _ft_reading(self, i: int, noisy: bool) -> np.ndarray:
+        w = self._sensor_wrench(i)
+        if noisy:
+            w = w + np.r_[self.rng.normal(0.0, self.noise.force, 3), self.rng.normal(0.0, self.noise.torque, 3)]
+        return w
+
+    def _motion_capture(self) -> np.ndarray:
+        q, qd = self.cart_state()
+        return np.r_[q, qd] + self.rng.normal(0.0, 1.0, 6) * self.noise.measurement_std()
+
+    def measure(self) -> Measurement:
+        """Return motion capture of the cart, each robot's base/joint states and F/T reading, at the current instant."""
+        d = self.scene.data
+        readings = tuple(
+            RobotReading(
+                base_pose=self._base_pose(i),
+                base_twist=self._base_twist(i),
+                q_arm=d.qpos[r.arm_qpos].copy(),
+                v_arm=d.qvel[r.arm_dof].copy(),
+                ft=self._ft[i].copy(),
+            )
+            for i, r in enumerate(self.scene.robots)
+        )
+        return Measurement(self.t, self._z[:3].copy(), self._z[3:].copy(), readings)
+
+    # ------------------------------------------------------------------ stepping
+
+    def _arm_jacobian_inertia(self, r: RobotIndex) -> tuple[np.ndarray, np.ndarray]:
+        """Return the hand's world-aligned Jacobian (6, n_arm) at the hand site and the arm's joint inertia."""
+        m, d = self.scene.model, self.scene.data
+        jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        mujoco.mj_jacSite(m, d, jacp, jacr, r.hand_site)
+        J = np.vstack([jacp[:, r.arm_dof], jacr[:, r.arm_dof]])
+        M = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, M)
+        return J, M[np.ix_(r.arm_dof, r.arm_dof)]
+
+    def step(self, commands: Sequence[RobotCommand]) -> None:
+        """Hold one command per robot for one control period (`n_sub` physics steps), then sense."""
+        if len(commands) != len(self.scene.robots):
+            raise MujocoPlantError(f"{len(commands)} commands for {len(self.scene.robots)} robots")
+        wall0 = time.perf_counter()
+        m, d = self.scene.model, self.scene.data
+        t_end = self.t + self.dt
+        for i, (r, c, law) in enumerate(zip(self.scene.robots, commands, self._laws)):
+            self._check_command(r, c)
+            if isinstance(law, TorqueArmLaw):
+                J, M = self._arm_jacobian_inertia(r)
+                law.begin(c.hand_wrench, c.arm_torque, c.arm_position, c.arm_velocity, J, M, t_end, self.dt)
+            else:
+                J, _ = self._arm_jacobian_inertia(r)
+                w_meas = self._hand_wrench_world(i, self._ft[i])
+                q = d.qpos[r.arm_qpos]
+                d.ctrl[r.arm_actuators] = law.velocity(
+                    c.arm_velocity, c.arm_position, q, J, c.hand_wrench, w_meas, self.dt
+                )
+            if r.base == "differential":
+                d.ctrl[r.wheel_actuators] = c.wheel_rates
+        for k in range(self.n_sub):
+            t = self.t + k * self.config.physics_dt
+            for r, c, law in zip(self.scene.robots, commands, self._laws):
+                if isinstance(law, TorqueArmLaw):
+                    bias = self._arm_bias(r, law)
+                    d.ctrl[r.arm_actuators] = law.torque(t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias)
+                if r.base == "planar":
+                    yaw = float(d.qpos[r.base_qpos[2]])
+                    cy, sy = math.cos(yaw), math.sin(yaw)
+                    tw = c.base_twist
+                    d.ctrl[r.base_actuators] = (cy * tw[0] - sy * tw[1], sy * tw[0] + cy * tw[1], tw[2])
+            mujoco.mj_step(m, d)
+            self._track_slip()
+        self.t = t_end
+        self._after_period(commands)
+        self._stats.wall += time.perf_counter() - wall0
+        self._stats.sim += self.dt
+
+    def _arm_bias(self, r: RobotIndex, law: TorqueArmLaw) -> np.ndarray:
+        """Return the arm's feed-forward besides J^T w: bias forces, or inverse dynamics (see `TorqueArmGains`)."""
+        m, d = self.scene.model, self.scene.data
+        if law.gains.feedforward not in ("dynamics", "base"):
+            return d.qfrc_bias[r.arm_dof]
+        acc = self._qacc
+        acc[:] = d.qacc  # the last step's accelerations: the base's is measured
+        acc[r.arm_dof] = law.a_plan if law.gains.feedforward == "dynamics" else 0.0
+        saved = d.qacc.copy()
+        d.qacc[:] = acc
+        mujoco.mj_rne(m, d, 1, self._rne)
+        d.qacc[:] = saved
+        return self._rne[r.arm_dof]
+
+    def _check_command(self, r: RobotIndex, c: RobotCommand) -> None:
+        n = r.arm_qpos.size
+        if np.shape(c.arm_torque) != (n,) or np.shape(c.arm_position) != (n,) or np.shape(c.arm_velocity) != (n,):
+            raise MujocoPlantError(f"arm commands must have shape ({n},)")
+        if np.shape(c.hand_wrench) != (6,):
+            raise MujocoPlantError("hand_wrench must have shape (6,)")
+        if r.base == "differential" and np.shape(c.wheel_rates) != (r.wheel_actuators.size,):
+            raise MujocoPlantError(f"wheel_rates must have shape ({r.wheel_actuators.size},)")
+
+    def _track_slip(self) -> None:
+        d, st = self.scene.data, self._stats
+        for r in self.scene.robots:
+            gap = d.site_xpos[r.hand_site] - d.site_xpos[r.handle_site]
+            slip = math.sqrt(float(gap @ gap))
+            if slip > st.slip_max:
+                st.slip_max = slip
+
+    def _after_period(self, commands: Sequence[RobotCommand]) -> None:
+        """Unwrap the headings, sense, and add the period to the diagnostics."""
+        d, st = self.scene.data, self._stats
+        th = mujoco_cart.yaw_of(d.xquat[self.scene.cart_body])
+        self._theta += math.remainder(th - self._theta_prev, 2.0 * math.pi)
+        self._theta_prev = th
+        for i, r in enumerate(self.scene.robots):
+            if r.base == "differential":
+                yaw = mujoco_cart.yaw_of(d.xquat[r.root_body])
+                self._base_yaw[i] += math.remainder(yaw - self._yaw_prev[i], 2.0 * math.pi)
+                self._yaw_prev[i] = yaw
+                st.wheel_slip_max = max(st.wheel_slip_max, self._wheel_slip(r))
+            clean = self._sensor_wrench(i)
+            self._hand_clean[i] = self._hand_wrench_world(i, clean)
+            err = self._hand_clean[i][:3] - np.asarray(commands[i].hand_wrench[:3])
+            st.err_sq += float(err @ err)
+            st.force_sq += float(np.dot(commands[i].hand_wrench[:3], commands[i].hand_wrench[:3]))
+            st.per_robot_err[i][0] += float(err @ err)
+            st.per_robot_err[i][1] += 1
+            self._ft[i] = self._ft_reading(i, noisy=True)
+            law = self._laws[i]
+            if isinstance(law, TorqueArmLaw):
+                st.arm_force_peak_ratio = max(st.arm_force_peak_ratio, law.peak_ratio)
+                st.arm_saturated = max(st.arm_saturated, law.saturated_steps)
+            else:
+                ratio = np.max(np.abs(d.actuator_force[r.arm_actuators]) / r.effort_limit)
+                st.arm_force_peak_ratio = max(st.arm_force_peak_ratio, float(ratio))
+        st.n += 1
+        self._z = self._motion_capture()
+
+    def _wheel_slip(self, r: RobotIndex) -> float:
+        """Return the largest horizontal slip speed (m/s) of the robot's driven wheels' contact points."""
+        m, d = self.scene.model, self.scene.data
+        worst = 0.0
+        vel = np.zeros(6)
+        for b in r.wheel_bodies:
+            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, int(b), vel, 0)
+            w, v = vel[:3], vel[3:]
+            contact = v + np.cross(w, np.array([0.0, 0.0, -r.wheel_radius]))
+            worst = max(worst, float(math.hypot(contact[0], contact[1])))
+        return worst
+
+    # ------------------------------------------------------------------ report
+
+    def report(self) -> dict:
+        """Return the run's diagnostics (JSON-ready; ``base_wheel_slip_max_m_s`` is None without a differential base)."""
+        st, ci = self._stats, self._inertial
+        n = max(st.n * len(self.scene.robots), 1)
+        differential = any(r.base == "differential" for r in self.scene.robots)
+        return {
+            "cart_mass_kg": ci.mass,
+            "cart_mass_effective_kg": ci.mass_effective,
+            "cart_com_b_m": [float(v) for v in ci.com_b],
+            "cart_inertia_kg_m2": ci.inertia,
+            "wrench_error_rms_n": math.sqrt(st.err_sq / n),
+            "hand_force_rms_n": math.sqrt(st.force_sq / n),
+            "grasp_slip_max_m": st.slip_max,
+            "base_wheel_slip_max_m_s": st.wheel_slip_max if differential else None,
+            "arm_torque_limit_ratio": st.arm_force_peak_ratio,
+            "arm_torque_saturated_steps": int(st.arm_saturated),
+            "real_time_factor": st.sim / st.wall if st.wall > 0 else None,
+            "physics_dt_s": self.config.physics_dt,
+            "control_dt_s": self.config.control_dt,
+            "cart_source": self.cart_source.label,
+        }
