@@ -1,0 +1,175 @@
+"""How real set-ups record a push: turn a clean run of the independent simulator into such logs.
+
+Starts from :func:`studies.testbeds.rigid_sim.simulate` run noise-free at 1 kHz (states at every wrench
+update, the 1 ms held wrench), never from the estimator's code, and writes what a recording set-up
+would: an F/T sensor at ``ft_hz`` with coloured AR(1) noise and an offset, motion capture at
+``mocap_hz`` with white noise, dropouts and timestamp jitter, merged into one table by
+
+- :func:`held_pose_table`: a naive logger, one row per F/T sample with the last pose repeated;
+- :func:`mocap_rows_table`: one row per pose sample with the F/T averaged over the interval;
+
+and the faults of :func:`with_glitch` (one motion-capture sample far off), :func:`with_stuck_wrench`
+(the F/T frozen for a stretch) and :func:`in_wrong_units` (mm, degrees, ms).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from cart.logs import CartLog
+from studies.testbeds import rigid_sim
+
+
+@dataclass(frozen=True)
+class Recording:
+    """The two sensor streams of one run: pose samples (t, q) and F/T samples (t, gamma), plus the truth."""
+
+    t_pose: np.ndarray
+    q: np.ndarray
+    t_ft: np.ndarray
+    gamma: np.ndarray
+    truth: dict
+
+
+def _ar1(rng: np.random.Generator, n: int, sigma: float, rho10: float) -> np.ndarray:
+    """Return n samples of AR(1) noise with std sigma and lag-10 correlation rho10 (stationary start)."""
+    a = rho10**0.1
+    e = np.empty(n)
+    e[0] = rng.normal(0.0, sigma)
+    w = rng.normal(0.0, sigma * math.sqrt(1.0 - a * a), n)
+    for i in range(1, n):
+        e[i] = a * e[i - 1] + w[i]
+    return e
+
+
+def record(
+    case: rigid_sim.RigidCase,
+    ft_hz: float = 500.0,
+    mocap_hz: float = 120.0,
+    ft_sigma: tuple[float, float, float] = (2.5, 2.5, 0.5),
+    ft_rho10: float = 0.7,
+    ft_offset: tuple[float, float, float] = (0.15, -0.1, 0.05),
+    dropouts: int = 3,
+    jitter: float = 2e-4,
+    seed: int = 0,
+    load_change: tuple[float, float] | None = None,
+) -> Recording:
+    """Return the two sensor streams of ``case`` (its pose noise stds are used for the motion capture).
+
+    ``load_change``: (time s, mass factor) -- the cart's mass (and inertia, CoM kept) is scaled at that time.
+    """
+    rng = np.random.default_rng(seed)
+    clean_case = replace(
+        case, rate_hz=1000.0, jitter=0.0, pos_std=0.0, theta_std=0.0, force_std=0.0, torque_std=0.0, vel_std=None
+    )
+    if load_change is not None:
+        log, truth = _simulate_with_change(clean_case, *load_change)
+    else:
+        log, truth = rigid_sim.simulate(clean_case)
+    t_end = float(log.t[-1])
+    t_ft = np.arange(0.0, t_end, 1.0 / ft_hz) + rng.uniform(0, 1.0 / ft_hz)
+    t_ft = np.sort(t_ft + rng.normal(0, jitter, len(t_ft)))
+    t_ft = t_ft[(t_ft > 0) & (t_ft < t_end)]
+    tick = np.minimum((t_ft / rigid_sim.WRENCH_PERIOD).astype(int), len(log.t) - 1)
+    gamma = log.gamma[tick] + np.column_stack(
+        [_ar1(rng, len(t_ft), s, ft_rho10) + o for s, o in zip(ft_sigma, ft_offset)]
+    )
+    t_m = np.arange(0.0, t_end, 1.0 / mocap_hz) + rng.uniform(0, 1.0 / mocap_hz)
+    t_m = np.sort(t_m + rng.normal(0, jitter, len(t_m)))
+    t_m = t_m[(t_m > 0) & (t_m < t_end)]
+    keep = np.ones(len(t_m), dtype=bool)
+    for _ in range(dropouts):
+        i0 = int(rng.integers(len(t_m) // 10, len(t_m) * 9 // 10))
+        keep[i0 : i0 + int(rng.integers(15, 60))] = False
+    t_m = t_m[keep]
+    q = np.column_stack([np.interp(t_m, log.t, log.q[:, i]) for i in range(3)])
+    q += rng.standard_normal(q.shape) * [case.pos_std, case.pos_std, case.theta_std]
+    return Recording(t_m, q, t_ft, gamma, truth)
+
+
+def _simulate_with_change(case: rigid_sim.RigidCase, t_change: float, factor: float) -> tuple[CartLog, dict]:
+    """Return a clean run whose mass (and inertia) is scaled by ``factor`` from ``t_change`` on (velocities kept)."""
+    first = replace(case, duration=t_change)
+    log1, truth1 = rigid_sim.simulate(first)
+    cart2 = replace(case.cart, m=case.cart.m * factor, I=case.cart.I * factor)
+    # the second part starts from the first part's last state: simulate it with the rigid model directly
+    rhs = rigid_sim._make_rhs(cart2)  # the simulator's own equations (Kane), not the estimator's
+    y = np.r_[truth1["clean"]["q"][-1], truth1["clean"]["v"][-1], truth1["clean"]["qd"][-1, 2]]
+    tracker = rigid_sim.Tracker(truth1["clean"]["nominal"])
+    rng = np.random.default_rng(case.seed + 1)
+    v_ref, w_ref = rigid_sim.make_references(rng, case.duration - t_change, case.speed_scale)
+    h = rigid_sim.WRENCH_PERIOD
+    n = int((case.duration - t_change) / h)
+    ts, qs, gs = [], [], []
+    int_ev = int_ew = 0.0
+    for k in range(n):
+        tt = k * h
+        (vr, vdr), (wr, wdr) = v_ref(np.array([tt])), w_ref(np.array([tt]))
+        f, tau = tracker.body_wrench(y[3], y[4], vr[0], vdr[0], wr[0], wdr[0], int_ev, int_ew)
+        c, s = math.cos(y[2]), math.sin(y[2])
+        g = (c * f, s * f, tau)
+        ts.append(t_change + tt)
+        qs.append(y[:3].copy())
+        gs.append(g)
+        for _ in range(4):  # RK4 sub-steps of h / 4 under the held wrench
+            d = h / 4
+            k1 = np.array(rhs(0, y, *g))
+            k2 = np.array(rhs(0, y + 0.5 * d * k1, *g))
+            k3 = np.array(rhs(0, y + 0.5 * d * k2, *g))
+            k4 = np.array(rhs(0, y + d * k3, *g))
+            y = y + d / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        int_ev += (vr[0] - y[3]) * h
+        int_ew += (wr[0] - y[4]) * h
+    t = np.r_[log1.t, np.array(ts[1:])]
+    q = np.vstack([log1.q, np.array(qs[1:])])
+    g = np.vstack([log1.gamma, np.array(gs[1:])])
+    truth = dict(truth1, m_after=cart2.m, I_after=cart2.I, t_change=t_change, m_before=case.cart.m)
+    return CartLog(t=t, q=q, gamma=g), truth
+
+
+def held_pose_table(rec: Recording) -> CartLog:
+    """Return the naive logger's table: a row per F/T sample, the last pose (held, also through dropouts)."""
+    t = rec.t_ft[rec.t_ft >= rec.t_pose[0]]
+    idx = np.searchsorted(rec.t_pose, t, side="right") - 1
+    g = rec.gamma[rec.t_ft >= rec.t_pose[0]]
+    return CartLog(t=np.round(t, 6), q=rec.q[idx], gamma=g, metadata={"merging": "hold_last_mocap"})
+
+
+def mocap_rows_table(rec: Recording) -> CartLog:
+    """Return a row per pose sample with the F/T averaged over (previous pose time, this pose time]."""
+    edges = np.searchsorted(rec.t_ft, rec.t_pose, side="right")
+    csum = np.vstack([np.zeros((1, 3)), np.cumsum(rec.gamma, axis=0)])
+    lo = np.r_[max(edges[0] - 4, 0), edges[:-1]]
+    cnt = np.maximum(edges - lo, 1)
+    g = (csum[edges] - csum[lo]) / cnt[:, None]
+    return CartLog(t=np.round(rec.t_pose, 6), q=rec.q, gamma=g, metadata={"merging": "mocap_times_ft_mean"})
+
+
+def with_glitch(log: CartLog, at: float, size: float = 5.0) -> CartLog:
+    """Return ``log`` with one motion-capture sample ``size`` metres off (x) near time ``at``."""
+    q = log.q.copy()
+    i = int(np.searchsorted(log.t, at))
+    q[i, 0] += size
+    return replace(log, q=q)
+
+
+def with_stuck_wrench(log: CartLog, t0: float, seconds: float = 10.0) -> CartLog:
+    """Return ``log`` with the wrench frozen at its value at ``t0`` for ``seconds``."""
+    g = log.gamma.copy()
+    m = (log.t >= t0) & (log.t < t0 + seconds)
+    g[m] = g[np.argmax(m)]
+    return replace(log, gamma=g)
+
+
+def in_wrong_units(log: CartLog, mistake: str) -> CartLog:
+    """Return ``log`` with one unit mistake: ``"mm"`` positions, ``"deg"`` heading, ``"ms"`` time."""
+    if mistake == "mm":
+        return replace(log, q=log.q * [1000.0, 1000.0, 1.0], qd=None)
+    if mistake == "deg":
+        return replace(log, q=np.column_stack([log.q[:, :2], np.degrees(log.q[:, 2])]), qd=None)
+    if mistake == "ms":
+        return replace(log, t=log.t * 1000.0, qd=None)
+    raise ValueError(f"unknown unit mistake {mistake!r} (mm, deg, ms)")
