@@ -20,6 +20,7 @@ import numpy as np
 
 from cart.control import make_controller
 from cart.ekf import CartEKF, EKFConfig
+from cart.estimation_metrics import estimation_errors
 from cart.params import CartParams
 from cart.simulate import MeasurementNoise, ParameterChange, min_effort_gamma, simulate
 from cart.trajectories import UnicycleTrajectory, trajectory_1, trajectory_2
@@ -294,26 +295,14 @@ def mass_converged_time(t: np.ndarray, m_hat: np.ndarray, m_true: np.ndarray, to
 
 
 def estimation_error_metrics(run: TestRun, after: float = 5.0) -> dict:
-    """Return the time-resolved estimation errors of a run against the (possibly changing) true parameters.
+    """Return the time-resolved estimation errors of a run against its (possibly changing) true parameters.
 
-    RMS of |m_hat - m| and of the CoM error over the whole run, their maxima
-    after `after` s, and the time (s, summed over samples) within 1 kg / 1 cm.
-    The same fields as the push loop's metrics (``wholebody.push.loop``),
-    computed here because Table I's truth may change during the run (test 11).
+    The push loop's fields (`cart.estimation_metrics.estimation_errors`); Table I's truth may change during
+    the run (test 11).
     """
-    dt = float(np.median(np.diff(run.t))) if len(run.t) > 1 else 0.0
-    e_m = np.abs(run.params_hat[:, 0] - run.params_true[:, 0])
-    e_c = np.hypot(*(run.params_hat[:, 1:3] - run.params_true[:, 1:3]).T)
-    late = run.t >= after
-    late = late if late.any() else np.ones_like(late)
-    return {
-        "mass_error_rms_kg": float(np.sqrt(np.mean(e_m**2))),
-        "mass_error_max_after_5s_kg": float(e_m[late].max()),
-        "com_error_rms_m": float(np.sqrt(np.mean(e_c**2))),
-        "com_error_max_after_5s_m": float(e_c[late].max()),
-        "time_mass_within_1kg_s": float(np.sum(e_m <= 1.0) * dt),
-        "time_com_within_1cm_s": float(np.sum(e_c <= 0.01) * dt),
-    }
+    return estimation_errors(
+        run.t, run.params_hat[:, 0], run.params_hat[:, 1:3], run.params_true[:, 0], run.params_true[:, 1:3], after
+    )
 
 
 def _tracking_mm_after(run: TestRun, t0: float) -> tuple[float, float]:
