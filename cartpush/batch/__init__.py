@@ -4,6 +4,14 @@
 written as each finishes, resumable, on joblib processes or Ray tasks with the same code path.
 """
 
-from cartpush.batch.engine import BatchError, CommandJob, done_paths, expand_inputs, run_batch
+from cartpush.batch.engine import (
+    BatchError,
+    CommandJob,
+    OutputPathError,
+    check_output,
+    done_paths,
+    expand_inputs,
+    run_batch,
+)
 
-__all__ = ["BatchError", "CommandJob", "done_paths", "expand_inputs", "run_batch"]
+__all__ = ["BatchError", "CommandJob", "OutputPathError", "check_output", "done_paths", "expand_inputs", "run_batch"]

@@ -22,6 +22,7 @@ import argparse
 import glob
 import json
 import os
+import stat
 import sys
 import time
 import warnings
@@ -109,6 +110,41 @@ def done_paths(out: str | os.PathLike) -> set:
             if isinstance(rec, dict) and rec.get("ok") is True and isinstance(rec.get("path"), str):
                 done.add(os.path.abspath(rec["path"]))
     return done
+
+
+class OutputPathError(BatchError):
+    """``--out`` cannot take the results: one of the input logs, a device or FIFO, a directory, not writable."""
+
+
+def check_output(out: str | os.PathLike, paths: Sequence[str]) -> None:
+    """Raise OutputPathError unless ``out`` is a writable regular file (or can be created) that is no input log.
+
+    Called before any log is read: appending result lines to an input log would corrupt it, and a
+    device (``/dev/full``, ``/dev/null``) or a FIFO is no results file a rerun could resume from.
+    """
+    out = os.fspath(out)
+    if os.path.isdir(out):
+        raise OutputPathError(f"--out {out}: is a directory, give a .jsonl file")
+    if os.path.exists(out):
+        st = os.stat(out)
+        if not stat.S_ISREG(st.st_mode):
+            kind = "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file"
+            raise OutputPathError(f"--out {out}: is {kind}; give a .jsonl file")
+        for p in paths:
+            try:
+                same = os.path.samefile(out, p)
+            except OSError:
+                same = False
+            if same:
+                raise OutputPathError(f"--out {out}: is one of the input logs; give a new .jsonl file")
+        if not os.access(out, os.W_OK):
+            raise OutputPathError(f"--out {out}: is not writable")
+        return
+    parent = os.path.dirname(os.path.abspath(out))
+    if not os.path.isdir(parent):
+        raise OutputPathError(f"--out {out}: the directory {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputPathError(f"--out {out}: cannot create a file in {parent} (not writable)")
 
 
 def _open_results(out: str | os.PathLike):
@@ -383,6 +419,7 @@ def run_batch(
     (None: only when stderr is a terminal). Returns the summary: counts, wall time, logs per minute.
     """
     paths = [os.path.abspath(os.fspath(p)) for p in paths]
+    check_output(out, paths)
     workers = _check_workers(workers, ray_address)
     done = done_paths(out)
     todo = [p for p in paths if p not in done]
