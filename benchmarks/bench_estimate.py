@@ -10,7 +10,11 @@ Times, in the same run and interleaved (medians over repeats):
 The log comes from the independent test bed (``studies.testbeds.rigid_sim``), 60 s at 100 Hz.
 Never asserts a time.
 
-Run: .venv/bin/python benchmarks/bench_estimate.py [--repeats N] [--json]
+``--lengths 1 5 20``: also :func:`cart.estimate_report.estimate_log` (what `cartpush estimate` runs)
+on 200 Hz logs of those many minutes (issue 30: linear in the log's length; 20 minutes within 3 s);
+the logs are simulated first (about a minute for 20 minutes of log) and cached in ``--cache DIR``.
+
+Run: .venv/bin/python benchmarks/bench_estimate.py [--repeats N] [--json] [--lengths 1 5 20] [--cache DIR]
 """
 
 from __future__ import annotations
@@ -42,12 +46,39 @@ def _time(fn) -> float:
     return time.perf_counter() - t0
 
 
+def _lengths(minutes: list[float], cache: str, repeats: int, as_json: bool) -> int:
+    """Time estimate_log on 200 Hz logs of the given lengths (minutes); print a table or JSON."""
+    from cart.estimate_report import estimate_log
+    from cart.logs import read_log
+
+    os.makedirs(cache, exist_ok=True)
+    rows = []
+    for mins in minutes:
+        path = os.path.join(cache, f"long_{mins:g}min.csv.gz")
+        if not os.path.exists(path):
+            rigid_sim.write_case(rigid_sim.random_case(11, duration=60.0 * mins, rate_hz=200.0, m=40.0), path)
+        log = read_log(path)
+        times = [_time(lambda: estimate_log(log)) for _ in range(repeats)]
+        rows.append({"minutes": mins, "samples": len(log), "median_s": statistics.median(times)})
+    if as_json:
+        print(json.dumps({"estimate_log_by_length": rows}))
+        return 0
+    print("estimate_log on 200 Hz logs (independent simulator), medians of", repeats)
+    for r in rows:
+        print(f"  {r['minutes']:5g} min  {r['samples']:8d} samples  {r['median_s']:7.2f} s")
+    return 0
+
+
 def main(argv=None) -> int:
     """Run the benchmark; print a table (or one JSON object)."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--lengths", type=float, nargs="*", default=[], metavar="MIN")
+    ap.add_argument("--cache", default=os.path.join(tempfile.gettempdir(), "cartpush_bench_estimate"))
     args = ap.parse_args(argv)
+    if args.lengths:
+        return _lengths(args.lengths, args.cache, args.repeats, args.json)
     case = rigid_sim.random_case(11, duration=60.0, rate_hz=100.0, jitter=0.0, vel_std=None)
     log, truth = rigid_sim.simulate(case)
     guess = CartParams(20.0, 0.0, 0.0, 2.0, 1.0)
