@@ -36,6 +36,8 @@ PLAUSIBLE_YAW_STEP = 0.5  # rad per sample, together with
 PLAUSIBLE_YAW_RATE = 15.0  # rad/s
 PLAUSIBLE_HEADING = 6 * math.pi  # |theta| of a wrapped or slowly unwrapped heading (3 turns)
 PLAUSIBLE_MEDIAN_DT = 0.5  # s
+#: Share of rows repeating the previous pose above which a table holds a slower pose stream (cart.streams).
+HELD_POSE_SHARE = 0.2
 
 
 @dataclass(frozen=True)
@@ -366,7 +368,14 @@ def plausibility_warnings(
             f"more); if t is in milliseconds, convert it to seconds"
         )
     notes += _heading_notes(log, dt, raw_theta, where)
-    notes += _motion_notes(log, med, where)
+    same = np.all(log.q[1:] == log.q[:-1], axis=1)
+    if len(log.t) > 3 and same.sum() >= HELD_POSE_SHARE * len(log.t):  # a multi-rate table: the pose's own samples
+        rows = np.r_[0, np.flatnonzero(~same) + 1]
+        if len(rows) > 2:
+            poses = CartLog(t=log.t[rows], q=log.q[rows], gamma=log.gamma[rows])
+            notes += _motion_notes(poses, float(np.median(np.diff(poses.t))), lambda i: where(int(rows[i])))
+    else:
+        notes += _motion_notes(log, med, where)
     if not np.any(log.gamma):
         notes.append(
             "the wrench (fx, fy, tau) is zero throughout: the log carries no information on the cart's inertia"

@@ -59,16 +59,17 @@ def record(
 ) -> Recording:
     """Return the two sensor streams of ``case`` (its pose noise stds are used for the motion capture).
 
-    ``load_change``: (time s, mass factor) -- the cart's mass (and inertia, CoM kept) is scaled at that time.
+    ``load_change``: (time s, factor): the simulator's load change (``RigidCase.load_time``, ``load_factor``).
     """
     rng = np.random.default_rng(seed)
     clean_case = replace(
         case, rate_hz=1000.0, jitter=0.0, pos_std=0.0, theta_std=0.0, force_std=0.0, torque_std=0.0, vel_std=None
     )
     if load_change is not None:
-        log, truth = _simulate_with_change(clean_case, *load_change)
-    else:
-        log, truth = rigid_sim.simulate(clean_case)
+        clean_case = replace(clean_case, load_time=load_change[0], load_factor=load_change[1])
+    log, truth = rigid_sim.simulate(clean_case)
+    if load_change is not None:
+        truth["m_after"] = truth["load_change"]["m_after"]
     t_end = float(log.t[-1])
     t_ft = np.arange(0.0, t_end, 1.0 / ft_hz) + rng.uniform(0, 1.0 / ft_hz)
     t_ft = np.sort(t_ft + rng.normal(0, jitter, len(t_ft)))
@@ -88,46 +89,6 @@ def record(
     q = np.column_stack([np.interp(t_m, log.t, log.q[:, i]) for i in range(3)])
     q += rng.standard_normal(q.shape) * [case.pos_std, case.pos_std, case.theta_std]
     return Recording(t_m, q, t_ft, gamma, truth)
-
-
-def _simulate_with_change(case: rigid_sim.RigidCase, t_change: float, factor: float) -> tuple[CartLog, dict]:
-    """Return a clean run whose mass (and inertia) is scaled by ``factor`` from ``t_change`` on (velocities kept)."""
-    first = replace(case, duration=t_change)
-    log1, truth1 = rigid_sim.simulate(first)
-    cart2 = replace(case.cart, m=case.cart.m * factor, I=case.cart.I * factor)
-    # the second part starts from the first part's last state: simulate it with the rigid model directly
-    rhs = rigid_sim._make_rhs(cart2)  # the simulator's own equations (Kane), not the estimator's
-    y = np.r_[truth1["clean"]["q"][-1], truth1["clean"]["v"][-1], truth1["clean"]["qd"][-1, 2]]
-    tracker = rigid_sim.Tracker(truth1["clean"]["nominal"])
-    rng = np.random.default_rng(case.seed + 1)
-    v_ref, w_ref = rigid_sim.make_references(rng, case.duration - t_change, case.speed_scale)
-    h = rigid_sim.WRENCH_PERIOD
-    n = int((case.duration - t_change) / h)
-    ts, qs, gs = [], [], []
-    int_ev = int_ew = 0.0
-    for k in range(n):
-        tt = k * h
-        (vr, vdr), (wr, wdr) = v_ref(np.array([tt])), w_ref(np.array([tt]))
-        f, tau = tracker.body_wrench(y[3], y[4], vr[0], vdr[0], wr[0], wdr[0], int_ev, int_ew)
-        c, s = math.cos(y[2]), math.sin(y[2])
-        g = (c * f, s * f, tau)
-        ts.append(t_change + tt)
-        qs.append(y[:3].copy())
-        gs.append(g)
-        for _ in range(4):  # RK4 sub-steps of h / 4 under the held wrench
-            d = h / 4
-            k1 = np.array(rhs(0, y, *g))
-            k2 = np.array(rhs(0, y + 0.5 * d * k1, *g))
-            k3 = np.array(rhs(0, y + 0.5 * d * k2, *g))
-            k4 = np.array(rhs(0, y + d * k3, *g))
-            y = y + d / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        int_ev += (vr[0] - y[3]) * h
-        int_ew += (wr[0] - y[4]) * h
-    t = np.r_[log1.t, np.array(ts[1:])]
-    q = np.vstack([log1.q, np.array(qs[1:])])
-    g = np.vstack([log1.gamma, np.array(gs[1:])])
-    truth = dict(truth1, m_after=cart2.m, I_after=cart2.I, t_change=t_change, m_before=case.cart.m)
-    return CartLog(t=t, q=q, gamma=g), truth
 
 
 def held_pose_table(rec: Recording) -> CartLog:
@@ -173,3 +134,41 @@ def in_wrong_units(log: CartLog, mistake: str) -> CartLog:
     if mistake == "ms":
         return replace(log, t=log.t * 1000.0, qd=None)
     raise ValueError(f"unknown unit mistake {mistake!r} (mm, deg, ms)")
+
+
+def generate(n: int, seed0: int, out_dir: str) -> dict[str, dict]:
+    """Write, for seeds seed0 .. seed0 + n - 1, the held-pose and mocap-rows tables of one random case each,
+    the mocap-rows table with a 5 m glitch and with the F/T stuck for 10 s, and ``truth.json``; return the truth."""
+    import json
+    import os
+
+    from cart.logs import write_log
+
+    os.makedirs(out_dir, exist_ok=True)
+    truth: dict[str, dict] = {}
+    for i in range(n):
+        case = rigid_sim.random_case(seed0 + i, duration=45.0)
+        rng = np.random.default_rng(seed0 + i)
+        rec = record(case, ft_rho10=float(rng.uniform(0.6, 0.8)), seed=seed0 + i)
+        rows = mocap_rows_table(rec)
+        logs = {
+            f"held{i:02d}": held_pose_table(rec),
+            f"rows{i:02d}": rows,
+            f"glitch{i:02d}": with_glitch(rows, float(rng.uniform(10, 35))),
+            f"stuck{i:02d}": with_stuck_wrench(rows, float(rng.uniform(10, 25))),
+        }
+        for name, log in logs.items():
+            write_log(os.path.join(out_dir, name + ".csv.gz"), log)
+            rec_truth = {k: v for k, v in rec.truth.items() if k != "clean"}
+            truth[name] = {k: rec_truth[k] for k in ("m", "dx", "dy", "I_about_com")}
+    with open(os.path.join(out_dir, "truth.json"), "w", encoding="utf-8") as fh:
+        json.dump(truth, fh, indent=1)
+    return truth
+
+
+if __name__ == "__main__":  # python -m studies.testbeds.log_recorders N SEED0 OUT_DIR
+    import sys
+
+    if len(sys.argv) != 4:
+        sys.exit("usage: python -m studies.testbeds.log_recorders N SEED0 OUT_DIR")
+    generate(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3])

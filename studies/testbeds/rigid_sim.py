@@ -129,7 +129,10 @@ class RigidCase:
     typical size of the random lateral pushing force (absorbed by the wheels);
     ``nominal_error`` relative error of the controller's nominal model;
     ``wrap_theta`` writes theta wrapped to (-pi, pi]; ``seed`` drives all
-    randomness of the simulation.
+    randomness of the simulation; ``load_time`` s (None: no change) and
+    ``load_factor``: a load placed on the cart at its CoM (or removed) at that time
+    multiplies its mass and its inertia about the CoM (the velocities carry on; the
+    pusher's nominal model does not change).
     """
 
     cart: RigidCart
@@ -147,6 +150,8 @@ class RigidCase:
     nominal_error: float = 0.3
     wrap_theta: bool = False
     seed: int = 0
+    load_time: float | None = None
+    load_factor: float = 1.0
 
     def __post_init__(self) -> None:
         if not self.duration > 0.1:
@@ -169,6 +174,13 @@ class RigidCase:
                 raise ValueError(f"RigidCase.{name} must be >= 0, got {getattr(self, name)}")
         if self.vel_std is not None and not self.vel_std >= 0:
             raise ValueError(f"RigidCase.vel_std must be >= 0 or None, got {self.vel_std}")
+        if not self.load_factor > 0:
+            raise ValueError(f"RigidCase.load_factor must be positive, got {self.load_factor}")
+
+    @property
+    def cart_after_load(self) -> RigidCart:
+        """The cart after the load change: mass and inertia about the CoM times ``load_factor`` (CoM kept)."""
+        return replace(self.cart, m=self.cart.m * self.load_factor, I=self.cart.I * self.load_factor)
 
     @property
     def has_velocities(self) -> bool:
@@ -488,6 +500,13 @@ class _Integrator:
         elif kind != "solve_ivp":
             raise ValueError(f"integrator must be 'dop853' or 'solve_ivp', got {kind!r}")
 
+    def switch_cart(self, cart: RigidCart) -> None:
+        """Continue from the current state and time with another cart (a load change)."""
+        self.rhs = _make_rhs(cart)
+        if self.kind == "dop853":
+            self.ode = ode(self.rhs).set_integrator("dop853", rtol=RTOL, atol=ATOL, nsteps=100000)
+            self.ode.set_initial_value(self.y, self.t)
+
     def advance(self, t1: float, gamma: tuple[float, float, float]) -> np.ndarray:
         """Integrate to ``t1`` with ``gamma`` held; return the state."""
         if t1 <= self.t:
@@ -539,6 +558,17 @@ def truth_record(case: RigidCase) -> dict[str, Any]:
         ),
         "hidden_effects": [],
         "case": {k: v for k, v in asdict(case).items() if k != "cart"},
+        **(
+            {
+                "load_change": {
+                    "t": case.load_time,
+                    "m_after": case.cart_after_load.m,
+                    "I_about_com_after": case.cart_after_load.I,
+                }
+            }
+            if case.load_time is not None
+            else {}
+        ),
     }
 
 
@@ -579,7 +609,13 @@ class _CleanRun:
     gamma_body_ms: np.ndarray
 
 
-def _run_ticks(integ: _Integrator, tracker: Tracker, refs: _TickReferences, t_log: np.ndarray) -> _CleanRun:
+def _run_ticks(
+    integ: _Integrator,
+    tracker: Tracker,
+    refs: _TickReferences,
+    t_log: np.ndarray,
+    load: tuple[float, RigidCart] | None = None,
+) -> _CleanRun:
     """Return the closed-loop run: the tracker's wrench held over each 1 ms tick, states sampled at ``t_log``."""
     n_ticks, n_log = refs.n_ticks, len(t_log)
     run = _CleanRun(np.empty((n_log, 5)), np.empty((n_log, 3)), np.empty((n_ticks, 3)), np.empty((n_ticks, 3)))
@@ -590,6 +626,9 @@ def _run_ticks(integ: _Integrator, tracker: Tracker, refs: _TickReferences, t_lo
     y = integ.y
     for k in range(n_ticks):
         tk = float(refs.t[k])
+        if load is not None and tk >= load[0]:
+            integ.switch_cart(load[1])
+            load = None
         th, v, w = y[2], y[3], y[4]
         f_fwd, tau = tracker.body_wrench(v, w, refs.v[k], refs.vd[k], refs.w[k], refs.wd[k], int_ev, int_ew)
         f_lat = float(refs.lat[k])
@@ -678,7 +717,8 @@ def simulate(case: RigidCase, integrator: str = "dop853") -> tuple[CartLog, dict
     t_log = sample_times(rng_t, case.duration, case.rate_hz, case.jitter)
     refs = _TickReferences.on_grid(t_log[-1], v_ref_f, w_ref_f, lat_f)
     y0 = np.array([rng_init.uniform(-3, 3), rng_init.uniform(-3, 3), rng_init.uniform(-math.pi, math.pi), 0.0, 0.0])
-    run = _run_ticks(_Integrator(cart, y0, integrator), tracker, refs, t_log)
+    load = (case.load_time, case.cart_after_load) if case.load_time is not None else None
+    run = _run_ticks(_Integrator(cart, y0, integrator), tracker, refs, t_log, load)
     states = run.states
     th = states[:, 2]
     q = states[:, :3].copy()
