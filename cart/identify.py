@@ -145,6 +145,10 @@ def _uniform_grid(log: CartLog, streams: Streams | None = None, gap_factor: floa
     if st.multi_rate or st.wrench.period < dt / 1.5 or st.pose.period > 1.5 * dt:
         dt = st.pose.period
     t0, t1 = max(st.pose.t[0], st.wrench.t[0]), min(st.pose.t[-1], st.wrench.t[-1])
+    if not (math.isfinite(dt) and dt > 0 and t1 - t0 >= 12 * dt):
+        raise IdentifiabilityError(
+            f"{log.source}: the pose and the wrench overlap for {max(t1 - t0, 0.0):.3g} s only: nothing to estimate"
+        )
     n = int(math.floor((t1 - t0) / dt + 1e-9)) + 1
     tg = t0 + dt * np.arange(n)
     q = np.column_stack([np.interp(tg, st.pose.t, st.pose.values[:, i]) for i in range(3)])

@@ -55,6 +55,21 @@ def _travel_vs_heading(t: np.ndarray, q: np.ndarray, w: int) -> float:
     return float(np.mean((ratio > 180.0 / math.pi / 1.5) & (ratio < 180.0 / math.pi * 1.5)))
 
 
+def _heading_fit(t: np.ndarray, q: np.ndarray, w: int) -> tuple[float, float]:
+    """Return the median |sin(travel direction - heading)| on moving windows, heading as is and from degrees.
+
+    A rolling cart travels along its heading (or against it when pulled): near 0 for the right unit.
+    """
+    d = q[w:, :2] - q[:-w, :2]
+    dist = np.hypot(d[:, 0], d[:, 1])
+    moving = dist > 10.0 * np.median(np.abs(np.diff(q[:, :2], axis=0))) + 1e-12
+    if moving.sum() < 10:
+        return 0.0, 1.0
+    psi = np.arctan2(d[moving, 1], d[moving, 0])
+    th = 0.5 * (q[w:, 2] + q[:-w, 2])[moving]
+    return float(np.median(np.abs(np.sin(psi - th)))), float(np.median(np.abs(np.sin(psi - np.radians(th)))))
+
+
 def check_units(streams: Streams, source: str = "<memory>") -> None:
     """Raise :class:`UnitsError` when the pose stream's kinematics say time, positions or heading are not SI."""
     t, q = streams.pose.t, streams.pose.values
@@ -72,13 +87,16 @@ def check_units(streams: Streams, source: str = "<memory>") -> None:
     span = t[w:] - t[:-w]
     speed = np.hypot(*((q[w:, :2] - q[:-w, :2]) / span[:, None]).T)
     typical = float(np.percentile(speed, 90))
-    if typical > MAX_TYPICAL_SPEED:
+    if typical > MAX_TYPICAL_SPEED or float(np.percentile(speed, 98)) > 2.5 * MAX_TYPICAL_SPEED:
         raise UnitsError(
             f"{source}: the cart's typical speed is {typical:.4g} m/s: positions look like millimetres "
             f"(or centimetres); divide x, y by 1000 (or 100) (LOG_FORMAT: metres)"
         )
     yaw_rate = float(np.percentile(np.abs(q[w:, 2] - q[:-w, 2]) / span, 90))
     share = _travel_vs_heading(t, q, w)
+    as_is, as_degrees = _heading_fit(t, q, w)
+    if as_is > 0.3 and as_degrees < 0.1:
+        share = 1.0  # the cart travels along its heading only when the heading is read in degrees
     if yaw_rate > MAX_TYPICAL_YAW_RATE or share > DEGREE_SHARE:
         raise UnitsError(
             f"{source}: the heading turns {'at ' + format(yaw_rate, '.4g') + ' rad/s typically' if yaw_rate > MAX_TYPICAL_YAW_RATE else 'about 57 times faster than the direction of travel'}: "
