@@ -166,9 +166,42 @@ def generate(n: int, seed0: int, out_dir: str) -> dict[str, dict]:
     return truth
 
 
-if __name__ == "__main__":  # python -m studies.testbeds.log_recorders N SEED0 OUT_DIR
+def evaluate(out_dir: str) -> dict[str, dict[str, float]]:
+    """Return, per kind of log written by :func:`generate` (held, rows, glitch, stuck), the share of logs with
+    the mass within 5 % / the truth within 3 std / model fits, and the largest mass error (%), from
+    :func:`cart.estimate_report.estimate_log`; glitch and stuck also against the clean rows log."""
+    import json
+    import os
+
+    from cart.estimate_report import estimate_log
+
+    with open(os.path.join(out_dir, "truth.json"), encoding="utf-8") as fh:
+        truth = json.load(fh)
+    res = {name: estimate_log(os.path.join(out_dir, name + ".csv.gz")) for name in sorted(truth)}
+    out: dict[str, dict[str, float]] = {}
+    for kind in ("held", "rows", "glitch", "stuck"):
+        names = [n for n in res if n.startswith(kind)]
+        err = [res[n].params.m / truth[n]["m"] - 1 for n in names]
+        z = [abs(res[n].params.m - truth[n]["m"]) / res[n].std["mass"] for n in names]
+        vs_rows = [abs(res[n].params.m / res["rows" + n[len(kind) :]].params.m - 1) for n in names]
+        out[kind] = {
+            "logs": len(names),
+            "within_5pct": float(np.mean(np.abs(err) < 0.05)),
+            "within_3std": float(np.mean(np.array(z) < 3)),
+            "model_fits": float(np.mean([res[n].model_fits for n in names])),
+            "max_abs_error_pct": float(100 * np.max(np.abs(err))),
+            "max_change_vs_rows_pct": float(100 * np.max(vs_rows)),
+        }
+    return out
+
+
+if __name__ == "__main__":  # python -m studies.testbeds.log_recorders N SEED0 OUT_DIR | --evaluate OUT_DIR
+    import json
     import sys
 
-    if len(sys.argv) != 4:
-        sys.exit("usage: python -m studies.testbeds.log_recorders N SEED0 OUT_DIR")
-    generate(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3])
+    if len(sys.argv) == 3 and sys.argv[1] == "--evaluate":
+        print(json.dumps(evaluate(sys.argv[2]), indent=1))
+    elif len(sys.argv) == 4:
+        generate(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3])
+    else:
+        sys.exit("usage: python -m studies.testbeds.log_recorders N SEED0 OUT_DIR | --evaluate OUT_DIR")
