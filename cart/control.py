@@ -167,7 +167,9 @@ class KanayamaTracker:
         om = qd[2]
         vdot = vdot_r + self.k_v * (v_c - v)
         odot = wdot_r + self.k_w * (w_c - om)
-        fu, tau = inverse_dynamics(v, om, vdot, odot, *params.phi, *params.damping, w_lat=w_lat)
+        m, a, b, j = params.phi
+        c_v, c_w = params.damping
+        fu, tau = inverse_dynamics(v, om, vdot, odot, m, a, b, j, c_v, c_w, w_lat=w_lat)
         return np.array([c * fu, s * fu, tau])
 
 

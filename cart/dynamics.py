@@ -136,7 +136,7 @@ def wrench_input_matrix(theta: float, m: float, b: float, j: float) -> np.ndarra
 
 def dynamics_jacobian_rows(
     x: np.ndarray | list,
-    gamma: Sequence[float],
+    gamma: Sequence[float] | np.ndarray,
     c_v: float,
     c_w: float,
     with_damping: bool,

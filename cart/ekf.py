@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 from scipy.linalg import cho_factor as _cho_factor, cho_solve as _cho_solve
 from scipy.linalg.lapack import dposv as _dposv, dtrtrs as _dtrtrs
 
@@ -103,14 +104,14 @@ class EKFConfig:
     gap_factor: float = 5.0
 
     @classmethod
-    def from_noise(cls, meas_std: Sequence[float], **kwargs) -> EKFConfig:
+    def from_noise(cls, meas_std: Sequence[float] | np.ndarray, **kwargs) -> EKFConfig:
         """Return a config whose R comes from the measurement std (floored at 1e-6)."""
         return cls(meas_std=tuple(max(float(s), 1e-6) for s in meas_std), **kwargs)
 
 
 def initial_covariance(
     phi0: np.ndarray,
-    meas_std: Sequence[float],
+    meas_std: Sequence[float] | np.ndarray,
     sigma0: float = 0.0,
     estimate_sigma: bool = False,
     mass_rel_std: float = 0.5,
@@ -135,7 +136,7 @@ def initial_covariance(
 
 def dynamics_jacobian(
     x: np.ndarray,
-    gamma: Sequence[float],
+    gamma: Sequence[float] | np.ndarray,
     sigma: float,
     out_f: np.ndarray,
     with_sigma: bool,
@@ -172,9 +173,9 @@ class CartEKF:
 
     def __init__(
         self,
-        q0: Sequence[float],
-        qd0: Sequence[float],
-        phi0: Sequence[float],
+        q0: npt.ArrayLike,
+        qd0: npt.ArrayLike,
+        phi0: npt.ArrayLike,
         sigma: float,
         config: EKFConfig = EKFConfig(),
         P0: np.ndarray | None = None,
@@ -198,7 +199,7 @@ class CartEKF:
         self._init_buffers()
         self._init_monitors(config)
 
-    def _init_state(self, q0: Sequence[float], qd0: Sequence[float], phi0: np.ndarray, P0: np.ndarray) -> None:
+    def _init_state(self, q0: npt.ArrayLike, qd0: npt.ArrayLike, phi0: np.ndarray, P0: np.ndarray) -> None:
         """Allocate A = [x | P] and set x0 = [q0, qd0, phi0 (, sigma, sigma_yaw)] and P0 (eq. 8-9).
 
         State and covariance share one C-ordered n x (n+1) array A = [x | P], so that the
@@ -296,7 +297,7 @@ class CartEKF:
         return self._x
 
     @x.setter
-    def x(self, value: Sequence[float]) -> None:
+    def x(self, value: npt.ArrayLike) -> None:
         value = np.asarray(value, dtype=float)
         if value.shape != self._x.shape:
             raise ParameterError(f"x must have shape {self._x.shape}, got {value.shape}")
@@ -307,13 +308,6 @@ class CartEKF:
         """Return the last innovation y = z - h(x_pred) (heading wrapped to (-pi, pi])."""
         return [-v for v in self._ny]
 
-    @property
-    def P(self) -> np.ndarray:
-        """Return the state covariance, exactly symmetric (the filter's own array, updated in place by each step)."""
-        if self._unsym:
-            self._symmetrize()
-        return self._P
-
     def _symmetrize(self) -> None:
         """P <- (P + P^T) / 2: remove the rounding asymmetry of the last updates (see SYMMETRIZE_EVERY)."""
         P = self._P
@@ -321,8 +315,15 @@ class CartEKF:
         P *= 0.5
         self._unsym = 0
 
+    @property
+    def P(self) -> np.ndarray:
+        """Return the state covariance, exactly symmetric (the filter's own array, updated in place by each step)."""
+        if self._unsym:
+            self._symmetrize()
+        return self._P
+
     @P.setter
-    def P(self, value: np.ndarray) -> None:
+    def P(self, value: npt.ArrayLike) -> None:
         value = np.asarray(value, dtype=float)
         if value.shape != self._P.shape:
             raise ParameterError(f"P must be {self._P.shape}, got {value.shape}")
@@ -356,10 +357,12 @@ class CartEKF:
     def params(self) -> CartParams:
         """Return the physical parameters of the current estimate (the same object while phi and sigma stay put)."""
         key = self._x[6:].tolist()
-        if key != self._params_key:  # a frozen phi (no estimation) keeps its CartParams: no re-validation
-            self._params = CartParams.from_phi(self._x[6:10], self.sigma_hat, self.sigma_yaw_hat)
+        params = self._params
+        # (params is None only before the first call, when the key is None too)
+        if params is None or key != self._params_key:  # a frozen phi (no estimation) keeps its CartParams
+            params = self._params = CartParams.from_phi(self._x[6:10], self.sigma_hat, self.sigma_yaw_hat)
             self._params_key = key
-        return self._params
+        return params
 
     def params_std(self) -> dict:
         """Return the 1-sigma std of m, dx, dy, I (about the CoM) and sigma by linearising the phi map."""
@@ -394,7 +397,7 @@ class CartEKF:
         self._phi6[0, 3] = self._phi6[1, 4] = self._phi6[2, 5] = dt
         np.multiply(self._qdiag, dt, out=self._qdt)
 
-    def predict(self, gamma: Sequence[float], dt: float, gamma_cov: np.ndarray | None = None) -> None:
+    def predict(self, gamma: Sequence[float] | np.ndarray, dt: float, gamma_cov: np.ndarray | None = None) -> None:
         """Propagate state (Euler, eq. 16) and covariance (Phi (P + Q dt) Phi^T, Phi = I + F dt, eq. 13/17) over dt.
 
         F's first three rows are the selector [0 I 0] and its rows 6.. are zero,
@@ -429,7 +432,7 @@ class CartEKF:
         """Return the NIS above which a measurement is rejected (inf when the gate is off)."""
         return self._gate
 
-    def update(self, z: Sequence[float]) -> float:
+    def update(self, z: Sequence[float] | np.ndarray) -> float:
         """Fuse a measurement z = (x, y, theta, vx, vy, omega); return its NIS.
 
         With H = [I_6 0]: S = P[:6, :6] + R, K = P[:6, :]^T S^-1 (eq. 18),
@@ -513,10 +516,10 @@ class CartEKF:
         self._unsym = 0
         self._project()
         if self._prior_var is not None and self.config.change_detection:
-            self._detect_change(y)
+            self._detect_change(y, self._prior_var)
         return self.nis
 
-    def _detect_change(self, y: list) -> None:
+    def _detect_change(self, y: list, prior_var: np.ndarray) -> None:
         """Windowed innovation-mean test; on a detection, reset the parameter variances to their prior.
 
         For a consistent filter the innovations are white with covariance S, so
@@ -540,12 +543,12 @@ class CartEKF:
         self.change_statistic = stat
         self._ysum = [0.0] * N_MEAS
         self._ycount = 0
-        k = N_MEAS + len(self._prior_var)
+        k = N_MEAS + len(prior_var)
         pd = self._pdiag[N_MEAS:k]
-        converged = bool(np.all(pd[:4] < self.config.change_converged * self._prior_var[:4]))
+        converged = bool(np.all(pd[:4] < self.config.change_converged * prior_var[:4]))
         if stat > self._change_threshold and converged:
-            if pd[0] < self._prior_var[0]:
-                pd[0] = self._prior_var[0]
+            if pd[0] < prior_var[0]:
+                pd[0] = prior_var[0]
             self.changes_detected += 1
 
     def _project(self) -> None:
@@ -561,7 +564,13 @@ class CartEKF:
             x[10] = max(x[10], 0.0)
             x[11] = max(x[11], 0.0)
 
-    def step(self, gamma: Sequence[float], dt: float, z: Sequence[float], gamma_cov: np.ndarray | None = None) -> float:
+    def step(
+        self,
+        gamma: Sequence[float] | np.ndarray,
+        dt: float,
+        z: Sequence[float] | np.ndarray,
+        gamma_cov: np.ndarray | None = None,
+    ) -> float:
         """Predict over dt under gamma, then update with z; return the NIS.
 
         The same arithmetic as :meth:`predict` then :meth:`update`, fused and in
@@ -590,7 +599,9 @@ class CartEKF:
             self._set_dt(dt)
         return self._fused_update(self._fused_predict(gamma, dt, zl, gamma_cov), zl)
 
-    def _fused_predict(self, gamma: Sequence[float], dt: float, zl: list, gamma_cov: np.ndarray | None) -> list:
+    def _fused_predict(
+        self, gamma: Sequence[float] | np.ndarray, dt: float, zl: Sequence[float], gamma_cov: np.ndarray | None
+    ) -> list:
         """The prediction of :meth:`step` (eq. 13/16/17): x and rows/columns 0-5 of P; return minus the innovation.
 
         Also writes w = -y into the [w | T] buffer for the update's dposv.
@@ -626,7 +637,7 @@ class CartEKF:
         self._p_lo[...] = self._tt_lo
         return ny
 
-    def _fused_update(self, ny: list, zl: list) -> float:
+    def _fused_update(self, ny: list, zl: Sequence[float]) -> float:
         """The update of :meth:`step` (eq. 18-20, H = [I_6 0]) after :meth:`_fused_predict`; return the NIS."""
         x = self._x
         sf = self._sf
@@ -656,10 +667,10 @@ class CartEKF:
             self._project()
         self._ny = ny
         if self._prior_var is not None and self.config.change_detection:
-            self._detect_change(ny)  # the test is on |sum y|^2: the sign does not matter
+            self._detect_change(ny, self._prior_var)  # the test is on |sum y|^2: the sign does not matter
         return self.nis
 
-    def _skip_measurement(self, gamma: Sequence[float], dt: float, gamma_cov: np.ndarray | None) -> float:
+    def _skip_measurement(self, gamma: Sequence[float] | np.ndarray, dt: float, gamma_cov: np.ndarray | None) -> float:
         """Predict only (a measurement with a NaN or an infinity); count it; return NaN."""
         if not 0.0 < dt < math.inf:
             raise ParameterError(f"EKF time step must be positive and finite, got {dt}")
@@ -716,7 +727,7 @@ def run_ekf(
     t: np.ndarray,
     gamma: np.ndarray,
     z: np.ndarray,
-    phi0: Sequence[float],
+    phi0: npt.ArrayLike,
     sigma: float,
     config: EKFConfig = EKFConfig(),
     nll: list | None = None,
@@ -766,7 +777,7 @@ def run_ekf(
             rejected[k] = True
         if want_nll:
             log_det += ekf.log_det_innovation_covariance()
-    if want_nll:
+    if nll is not None:
         robust = np.where(rejected, ekf.gate_threshold, nis)
         nll.append(0.5 * (float(np.nansum(robust)) + log_det))
     return ekf, hist, nis

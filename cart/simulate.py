@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from collections.abc import Callable, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from cart import dynamics, model
 from cart.logs import CartLog
@@ -106,9 +107,10 @@ def _accel(
         g = gamma + np.asarray(extra_force(t, q, qd, p), dtype=float)
     if not exact:
         return model.forward_dynamics(q, qd, g, phi, p.damping, exact=False)
+    sigma, sigma_yaw = p.damping
     return np.array(
         dynamics.forward_dynamics(
-            q[2], qd[0], qd[1], qd[2], g[0], g[1], g[2], phi[0], phi[1], phi[2], phi[3], p.sigma, p.sigma_yaw
+            q[2], qd[0], qd[1], qd[2], g[0], g[1], g[2], phi[0], phi[1], phi[2], phi[3], sigma, sigma_yaw
         )
     )
 
@@ -145,7 +147,7 @@ def _rk4_exact(q: list, qd: list, gamma: list, p: CartParams, h: float, substeps
     fd = dynamics.forward_dynamics
     fx, fy, tau = gamma
     m, a, b, j = p.phi.tolist()
-    sv, sw = p.sigma, p.sigma_yaw
+    sv, sw = p.damping
     h2, h6 = 0.5 * h, h / 6.0
     x, y, th = q
     vx, vy, om = qd
@@ -171,8 +173,8 @@ def simulate(
     controller: Controller,
     duration: float,
     dt: float = 0.01,
-    q0: Sequence[float] = (0.0, 0.0, 0.0),
-    qd0: Sequence[float] = (0.0, 0.0, 0.0),
+    q0: npt.ArrayLike = (0.0, 0.0, 0.0),
+    qd0: npt.ArrayLike = (0.0, 0.0, 0.0),
     noise: MeasurementNoise = MeasurementNoise(),
     rng: np.random.Generator | None = None,
     changes: Sequence[ParameterChange] = (),
@@ -212,7 +214,7 @@ def simulate(
         qd_true[k] = qd
         params_t[k] = (p.m, p.dx, p.dy, p.I, p.sigma)
         gamma = np.asarray(controller(t, q + meas_noise[k, :3], qd + meas_noise[k, 3:]), dtype=float)
-        if contact_point is not None:
+        if contact_point is not None and contact is not None:  # (contact is allocated with contact_point)
             point = contact_point(t)
             contact[k] = point
             if allocate:

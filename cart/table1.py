@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
-from cart.control import make_controller
+from cart.control import ControllerName, make_controller
 from cart.ekf import CartEKF, EKFConfig
 from cart.estimation_metrics import estimation_errors
 from cart.params import CartParams
@@ -239,7 +239,7 @@ class EstimatingLoop:
 def run_test(
     test: Table1Test,
     estimate: bool = True,
-    controller: str = "fl_lqr",
+    controller: ControllerName = "fl_lqr",
     duration: float = 30.0,
     dt: float = 0.01,
     seed: int = 0,
@@ -334,7 +334,7 @@ def table1_result(test: Table1Test, run: TestRun, run0: TestRun) -> TestResult:
 
 def evaluate(
     test: Table1Test,
-    controller: str = "fl_lqr",
+    controller: ControllerName = "fl_lqr",
     duration: float = 30.0,
     dt: float = 0.01,
     seed: int = 0,
@@ -354,7 +354,7 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _run_job(job: tuple[Table1Test, bool, str, float, float, int, bool]) -> TestRun:
+def _run_job(job: tuple[Table1Test, bool, ControllerName, float, float, int, bool]) -> TestRun:
     """Run one (test, estimate, ...) job of :func:`run_table1` (a worker process's task)."""
     test, estimate, controller, duration, dt, seed, change_detection = job
     return run_test(test, estimate, controller, duration, dt, seed, change_detection=change_detection and estimate)
@@ -378,7 +378,7 @@ def _run_jobs(jobs: Sequence[tuple], workers: int) -> Iterator[tuple[int, TestRu
 
 def run_table1(
     tests: Sequence[Table1Test] = TESTS,
-    controller: str = "fl_lqr",
+    controller: ControllerName = "fl_lqr",
     duration: float = 30.0,
     dt: float = 0.01,
     seed: int = 0,

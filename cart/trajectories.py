@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 from typing import Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 #: Position grids of the trajectories built so far, keyed by the (frozen, hashable) trajectory:
 #: (times, x, y) as arrays and as lists (for :func:`_interp`). Shared by equal trajectories, so the
@@ -117,7 +118,7 @@ class UnicycleTrajectory:
         qdd = np.array([vdot * c - v * om * s, vdot * s + v * om * c, od])
         return q, qd, qdd
 
-    def poses(self, ts: Sequence[float]) -> np.ndarray:
+    def poses(self, ts: npt.ArrayLike) -> np.ndarray:
         """Return the desired poses q_d (N, 3) at the times ``ts``: ``sample(t)[0]`` for each t, at once."""
         tg, xg, yg = self._grid()[:3]
         ts = np.asarray(ts, dtype=float)
@@ -140,7 +141,9 @@ def trajectory_2(duration: float = 30.0, turns: Sequence[Turn] | None = None) ->
 class CartTrajectory(Protocol):
     """A desired cart motion: what the cart controllers (eq. 26) and the push loop sample."""
 
-    duration: float
+    @property
+    def duration(self) -> float:
+        """Return the time (s) at which the motion ends (it is held after)."""
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (q_d, qd_d, qdd_d) at time t: pose (x, y, theta) and its first two derivatives."""
