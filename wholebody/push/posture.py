@@ -19,6 +19,9 @@ from robots.profiles import RobotProfile
 from wholebody.errors import WholeBodyError
 from wholebody.motion.kinematics import WholeBody
 
+#: Lateral offset (m) of each base beyond its contact when two robots push side by side (`wholebody.push.robot`).
+TWO_ARM_BASE_SPREAD = 0.25
+
 #: Grasp pitches (rad) and rolls about the tool axis (rad) tried when the profile gives none.
 PITCHES = (0.8, 0.4, 0.0, 1.2)
 ROLLS = (0.0, math.pi / 2, math.pi, -math.pi / 2)
@@ -79,7 +82,8 @@ def _search(
     zero = np.zeros(3)
     target, _ = grasp_target(zero, zero, contact_y, 0.0, R_b_ee)
     hx = handle_point(contact_y)[0]
-    lo_q, hi_q = wb.arm_lower + SEARCH_MARGIN, wb.arm_upper - SEARCH_MARGIN
+    margin = np.minimum(SEARCH_MARGIN, 0.25 * (wb.arm_upper - wb.arm_lower))  # short prismatic joints: a quarter
+    lo_q, hi_q = wb.arm_lower + margin, wb.arm_upper - margin
     mid, half = 0.5 * (wb.arm_lower + wb.arm_upper), 0.5 * (wb.arm_upper - wb.arm_lower)
     fix_x, fix_y = prof.push_base_x, prof.push_base_y
     lo = np.r_[BASE_X_RANGE[0], BASE_Y_RANGE[0], lo_q]
@@ -120,6 +124,21 @@ def _reach_length(wb: WholeBody, prof: RobotProfile, p: Placement) -> float:
     return float(ok.max() - ok.min()) if ok.size else 0.0
 
 
+def _side_margin(
+    wb: WholeBody, prof: RobotProfile, R_b_ee: np.ndarray, bx: float, dy: float, seed: np.ndarray
+) -> float:
+    """Return the joint margin (fraction of range) of the grasp with the base `dy` beside the contact (-1: none)."""
+    from wholebody.push.robot import base_target, grasp_target, handle_point, solve_grasp_ik
+
+    zero = np.zeros(3)
+    y0 = prof.push_contact_y
+    pose = base_target(zero, zero, np.array([handle_point(y0)[0] + bx, y0 + dy]))[0]
+    try:
+        return joint_margin(wb, solve_grasp_ik(wb, pose, grasp_target(zero, zero, y0, 0.0, R_b_ee)[0], seed))
+    except WholeBodyError:
+        return -1.0
+
+
 def _candidates(prof: RobotProfile) -> list[tuple[float, float]]:
     pitches = PITCHES if prof.grasp_pitch is None else (prof.grasp_pitch,)
     rolls = ROLLS if prof.grasp_roll is None else (prof.grasp_roll,)
@@ -146,7 +165,11 @@ def _placement(wb: WholeBody, prof: RobotProfile, pitch: float, roll: float, axi
             qa = solve_grasp_ik(wb, pose, grasp_target(zero, zero, y0, 0.0, R)[0], z[2:])
         except WholeBodyError:
             continue
-        p = Placement(pitch, roll, float(bx), float(dy), qa, joint_margin(wb, qa), gravity_ratio(wb, np.r_[pose, qa]))
+        margin = joint_margin(wb, qa)
+        if prof.base == "holonomic":  # two robots side by side stand TWO_ARM_BASE_SPREAD beside their contacts
+            side = [_side_margin(wb, prof, R, bx, dy + s * TWO_ARM_BASE_SPREAD, qa) for s in (-1.0, 1.0)]
+            margin = min(margin, *side)
+        p = Placement(pitch, roll, float(bx), float(dy), qa, margin, gravity_ratio(wb, np.r_[pose, qa]))
         if best is None or p.score > best.score:
             best = p
     return best

@@ -11,6 +11,7 @@ import numpy as np
 import pinocchio as pin
 
 import robots
+from robots.checks import wheel_geometry
 from robots.profiles import RobotProfile
 from cart.simulate import MeasurementNoise
 from wholebody.contacts.handle import HandleSegment
@@ -18,6 +19,7 @@ from wholebody.errors import WholeBodyError
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, StepResult
 from wholebody.motion.bases import DifferentialDrive
 from wholebody.motion.kinematics import WholeBody, wholebody_for
+from wholebody.motion.limits import WheelAccelerationLimit
 from wholebody.push.config import BodyTracker
 from wholebody.contacts.allocation import TorqueConstraint
 
@@ -31,6 +33,8 @@ BASE_OFFSET_X = -0.65
 TWO_ARM_BASE_SPREAD = 0.25
 #: Look-ahead (m) of a differential base's tracker when its profile gives none (paper 2 section VI).
 DIFFERENTIAL_LOOKAHEAD = 0.3
+#: Rim acceleration (m/s^2) a profile without tuned push settings gets as its wheel acceleration limit.
+DEFAULT_RIM_ACCELERATION = 2.5
 #: Contact point y (m) of a fixed contact when the profile gives none.
 DEFAULT_CONTACT_Y = 0.0
 
@@ -123,11 +127,13 @@ class WholeBodyQPTracker:
 
     The grasp frame follows the handle (feed-forward + `gain` feedback), the arm is pulled to its
     grasp posture, and the base to its nominal place behind its contact point (the controller's
-    base regularisation). Bounds: joint positions/rates, and the Ridgeback's wheel speeds (which
-    imply its twist limits 1.1 m/s, 1.1 m/s, 2 rad/s).
+    base regularisation). Bounds: joint positions/rates, the wheel speeds of the URDF (which imply
+    the base's twist limits), and the profile's wheel acceleration limit: on the wheel rates of a
+    differential drive, on the body twist (wheel radius x limit per second) of a holonomic base.
     """
 
     def __init__(self, wb: WholeBody, q_nominal: np.ndarray, config: ControllerConfig | None = None) -> None:
+        extra = []
         if config is None:  # the robot's own base tracker and wheel limits (its profile)
             prof = push_profile(wb.robot)
             config = replace(
@@ -135,7 +141,9 @@ class WholeBodyQPTracker:
                 base_lookahead=prof.base_lookahead,
                 wheel_acceleration_limit=prof.wheel_acceleration_limit,
             )
-        self.controller = ResolvedRateController(wb, config, posture=q_nominal)
+            if wb.base_input == "twist" and prof.wheel_acceleration_limit is not None:
+                extra.append(WheelAccelerationLimit(wb, prof.wheel_acceleration_limit * wb.base.wheel_radius))
+        self.controller = ResolvedRateController(wb, config, posture=q_nominal, extra_limits=extra)
         self.last: StepResult | None = None
 
     def step(
@@ -287,6 +295,8 @@ def _push_profile(prof: RobotProfile, urdf: str, key: _LoadedKey) -> RobotProfil
         if prof.base_lookahead is None
         else prof.base_lookahead,
     )
+    if not out.tuned and out.wheel_acceleration_limit is None:  # rim acceleration 2.5 m/s^2 (Ridgeback's)
+        out = replace(out, wheel_acceleration_limit=DEFAULT_RIM_ACCELERATION / wheel_geometry(out, robot.model).radius)
     if out.tuned:
         return replace(
             out,
@@ -452,7 +462,8 @@ def make_robots(
     loaded = robot if isinstance(robot, robots.LoadedRobot) else robots.load(robot)
     prof = push_profile(loaded)
     R_b_ee = push_grasp_rotation(prof)
-    seeds = list(seeds) if seeds is not None else [None] * len(contact_y)
+    seeds = list(seeds or ())[: len(contact_y)]
+    seeds += [None] * (len(contact_y) - len(seeds))
     out = []
     for y, by, sd in zip(contact_y, base_lateral_places(prof, contact_y), seeds):
         try:
