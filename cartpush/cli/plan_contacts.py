@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     _check_options(args)
     from cart.jsonout import dumps_strict
 
-    plan = _plan(args)
+    plan = _plan_explained(args)
     contacts = _contact_rows(plan, args.arms)
     if args.json:
         print(
@@ -105,6 +105,41 @@ def _plan(args: argparse.Namespace):
     )
 
 
+#: Why each kind of limit binds, in the options' words (label fragment -> reason).
+LIMIT_REASONS = (
+    ("grip pull", "a hand pulls the handle back only as hard as its grip holds it (--grip-force)"),
+    ("grip torque", "the grip slips before it passes that torque to the handle (--grip-force)"),
+    ("force bound", "each hand pushes at most --max-force per axis"),
+    ("torque bound", "each hand twists at most --max-torque per axis"),
+    ("torque limit", "an arm joint's torque limit (its URDF effort) binds"),
+)
+
+
+def _plan_explained(args: argparse.Namespace):
+    """Return `_plan(args)`; an unachievable wrench raises `InfeasibleWrenchError` saying which limit binds and why."""
+    from wholebody.errors import InfeasibleWrenchError
+
+    try:
+        return _plan(args)
+    except InfeasibleWrenchError as exc:
+        raise InfeasibleWrenchError(_infeasible_message(args, exc), exc.binding, exc.closest) from exc
+
+
+def _infeasible_message(args: argparse.Namespace, exc) -> str:
+    """Return one line: the requested wrench, the binding limit, the reason, the closest achievable wrench (rounded)."""
+    fx, fy, tau = (_num(v, 2) for v in args.wrench)
+    reason = next((why for key, why in LIMIT_REASONS if key in exc.binding), "")
+    closest = ""
+    if exc.closest is not None:
+        cx, cy, ct = (_num(v, 2) for v in exc.closest)
+        closest = f"; closest achievable with {args.arms} arm(s): fx {cx} N, fy {cy} N, tau {ct} N m"
+    why = f" ({reason})" if reason else ""
+    return (
+        f"cart wrench fx {fx} N, fy {fy} N, tau {tau} N m is not achievable: {exc.binding or 'a limit'} binds{why}"
+        f"{closest}"
+    )
+
+
 def _contact_rows(plan, n_arms: int) -> list[dict]:
     """Return one dict per arm: its index, contact point in {b} and wrench in {a}, rounded to 6 decimals."""
     return [
@@ -130,10 +165,12 @@ def _print_table(args: argparse.Namespace, plan, contacts: list[dict]) -> None:
     for r in rows:
         print("  ".join(v.rjust(w) for v, w in zip(r, widths)))
     fx, fy, tau = (float(v) for v in plan.allocation.gamma_achieved)
+    residual = plan.allocation.residual
+    match = "exactly" if residual < 5e-3 else f"within {residual:.2f} (|requested - achieved|, N and N m)"
     print(
         f"cart wrench in {{b}}: achieved fx {_num(fx, 2)} N, fy {_num(fy, 2)} N, tau {_num(tau, 2)} N m "
-        f"(requested {_num(args.wrench[0], 2)} N, {_num(args.wrench[1], 2)} N, {_num(args.wrench[2], 2)} N m; "
-        f"residual {plan.allocation.residual:.1e})"
+        f"(requested {_num(args.wrench[0], 2)} N, {_num(args.wrench[1], 2)} N, {_num(args.wrench[2], 2)} N m: "
+        f"met {match})"
     )
     print(f"effort {plan.effort:.4g} (sum over arms of |f|^2 [N^2] + |tau|^2 [(N m)^2], unit weights)")
 

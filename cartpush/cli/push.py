@@ -122,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
     from cart.jsonout import dumps_strict
     from wholebody.push import run_push
     from wholebody.progress import show_progress
-    from wholebody.push.report import comparison_table, describe, push_log, save_figures, save_scene, unobservable_note
+    from wholebody.push.report import describe, push_log, save_figures, save_scene
 
     result = run_push(config, progress=show_progress(args.json))
     written = []
@@ -143,14 +143,29 @@ def run(args: argparse.Namespace) -> int:
         out["files"] = [str(p) for p in written]
         print(dumps_strict(out))
         return 0
+    print_summary(result)
+    for p in written:
+        print(f"wrote {p}")
+    return 0
+
+
+def print_summary(result) -> None:
+    """Print the run's table, what the unobservable stretches meant, and the limit verdicts (over-limit: stderr too)."""
+    import sys
+
+    from wholebody.push.report import comparison_table, describe, torque_verdict, unobservable_note
+
+    config, metrics = result.config, result.metrics.as_dict()
     print(describe(config))
     print(comparison_table({"this run": result}))
     if config.estimation:
         print(unobservable_note({"this run": result}))
+    verdict, over = torque_verdict(result)
+    print(verdict)
+    if over:
+        print(f"cartpush push: warning: {verdict}", file=sys.stderr)
+    p = config.true_params
     print(
-        f"arm torque / effortLimit peak {metrics['arm_torque_limit_ratio']:.2f}, grasp error max "
-        f"{1000 * metrics['grasp_error_max_m']:.2f} mm, final mass {metrics['mass_final_kg']:.2f} kg"
+        f"grasp error max {1000 * metrics['grasp_error_max_m']:.2f} mm; final mass {metrics['mass_final_kg']:.2f} kg "
+        f"(true {p.m:g} kg{'' if config.estimation else ', estimation off: the initial guess is kept'})"
     )
-    for p in written:
-        print(f"wrote {p}")
-    return 0

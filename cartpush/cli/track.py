@@ -147,6 +147,49 @@ def _band_warnings(m: dict, band: float | None) -> list[str]:
     return warnings
 
 
+#: A ratio this close to 1 means the limit was reached (the QP keeps rates and the band within their bounds).
+AT_LIMIT = 0.999
+
+
+def _bound_limits(m: dict, band: float | None) -> list[str]:
+    """Return the limits the run reached: the band's edge, joint or wheel rate limits, joint position limits."""
+    reached = []
+    if band is not None and m["max_band_distance_m"] is not None and m["max_band_distance_m"] >= band - 1e-3:
+        reached.append(
+            f"the base reached the {band:g} m band's edge ({m['max_band_distance_m']:.4f} m from its centre)"
+        )
+    if m["max_joint_speed_ratio"] >= AT_LIMIT:
+        reached.append("an arm joint reached its rate limit")
+    if m["max_wheel_speed_ratio"] >= AT_LIMIT:
+        reached.append("a wheel reached its rate limit")
+    if m["min_joint_limit_margin_rad"] <= 1e-3:
+        reached.append("an arm joint reached its position limit")
+    return reached
+
+
+def flag_reasons(m: dict, band: float | None) -> list[str]:
+    """Return why steps were flagged (one line each) and whether it cost tracking accuracy; [] when none were."""
+    lines = []
+    n, steps = m["saturated_steps"], max(1, m["steps"])
+    if n:
+        reached = _bound_limits(m, band)
+        cause = "; ".join(reached) if reached else "a limit or a singular direction"
+        lines.append(
+            f"saturated = the QP could not give the commanded hand velocity exactly (|J u - v_ref| > 1e-3 m/s, rad/s) "
+            f"in {n} of {m['steps']} steps ({100 * n / steps:.0f} %): {cause}"
+        )
+        worst = m["max_position_error_m"] * 1e3
+        effect = "the hand still tracked the path" if worst < 1.0 else "the hand fell behind the path"
+        lines.append(f"{effect}: max position error {worst:.4f} mm")
+    if m["singular_steps"]:
+        lines.append(
+            f"singular = the arm's Jacobian lost rank (sigma_min below threshold) in {m['singular_steps']} steps"
+        )
+    if m["solver_failures"]:
+        lines.append(f"solver failures = no QP solution in {m['solver_failures']} steps (the previous rates were held)")
+    return lines
+
+
 def _print_summary(args: argparse.Namespace, m: dict) -> None:
     """Print the metrics as a table."""
     band = "free" if args.band is None else f"band R = {args.band:g} m"
@@ -165,5 +208,7 @@ def _print_summary(args: argparse.Namespace, m: dict) -> None:
         f"  flagged steps: singular {m['singular_steps']}, saturated {m['saturated_steps']}, "
         f"solver failures {m['solver_failures']}"
     )
+    for line in flag_reasons(m, args.band):
+        print(f"    {line}")
     if args.out is not None:
         print(f"  wrote {args.out}")

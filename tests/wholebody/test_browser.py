@@ -1,10 +1,16 @@
 """Browser test: headless Chromium renders the static page of the Ridgeback + iiwa pushing the cart.
 
-The second half renders the animated page that `cartpush demo` and `push --html`
+The second part renders the animated page that `cartpush demo` and `push --html`
 write (`wholebody.push.report.build_scene`, here from a short run) at the start,
 the middle and the end of its animation (``#t=<s>`` seeks), and checks the robot
 and the cart are on screen at each time, where the page's following camera
-(`Scene.camera_at`) puts them, against the same page with both hidden.
+(`Scene.camera_at`) puts them, against the same page with both hidden; and that a
+10 N hand force is a visible arrow there.
+
+The third part opens each kind of animated page the command line writes (`push --html`,
+`view --scenario N --html`, `view LOG --html`) as a user would, without a URL fragment,
+and checks that it moves: two screenshots taken at different times differ, the page's
+clock advances and its button offers "pause"; with ``#pause`` it stands still.
 
 The screenshot must differ clearly from the screenshot of an empty scene (same
 camera) where the robot and the cart stand — positions projected with the
@@ -26,7 +32,7 @@ from PIL import Image
 
 from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
 from wholebody.viz import Scene, pushing_scene
-from wholebody.viz.browser import find_chromium, screenshot
+from wholebody.viz.browser import dump_dom, find_chromium, screenshot
 
 WIDTH, HEIGHT = 1024, 768
 CART_POSE = (0.9, 0.0, 0.0)
@@ -52,9 +58,9 @@ def chromium() -> str:
     return CHROMIUM
 
 
-def render(html: Path, png: Path, profile: Path, fragment: str = "") -> np.ndarray:
+def render(html: Path, png: Path, profile: Path, fragment: str = "", budget_ms: int = 4000) -> np.ndarray:
     """Return the RGB screenshot (H, W, 3) of a local page (URL fragment `fragment`) rendered by headless Chromium."""
-    screenshot(chromium(), html, png, size=(WIDTH, HEIGHT), fragment=fragment, profile=profile)
+    screenshot(chromium(), html, png, size=(WIDTH, HEIGHT), fragment=fragment, profile=profile, budget_ms=budget_ms)
     return np.asarray(Image.open(png).convert("RGB"), dtype=float)
 
 
@@ -88,8 +94,7 @@ def shots(tmp_path_factory):
         camera = scene.camera
         arm_elbow = scene.frame_position("ridgeback_iiwa", "iiwa_link_4")
         scene.save_html(tmp / "scene.html", controls=False)
-    with Scene([]) as empty:
-        assert empty.camera == camera
+    with Scene([], camera=camera) as empty:
         empty.save_html(tmp / "empty.html", controls=False)
     img = render(tmp / "scene.html", tmp / "scene.png", tmp / "profile")
     ref = render(tmp / "empty.html", tmp / "empty.png", tmp / "profile")
@@ -196,8 +201,92 @@ def test_demo_page_shows_robot_and_cart_at_start_middle_and_end(demo_shots, when
     assert is_orange(img.reshape(-1, 3)).mean() > 0.002, f"{when}: no iiwa orange on the page"
 
 
-def test_demo_page_opens_paused_at_the_first_frame(demo_shots):
-    """Without a URL fragment the page shows the first frame (after the browser's 4 s of virtual time)."""
-    img, _, _, start = demo_shots["start"]
-    plain = render(start.parent / "demo.html", start.parent / "plain.png", start.parent / "profile")
-    assert np.abs(plain - img).mean() < 1.0
+def is_arrow_blue(p):
+    """The applied-force arrow's blue (0x1565C0 under the scene's lights), not the sky behind it."""
+    return (p[:, 2] > 110) & (p[:, 0] < 70) & (p[:, 1] > 50) & (p[:, 1] < 150) & (p[:, 2] - p[:, 1] > 60)
+
+
+@pytest.fixture(scope="module")
+def ten_newton_shot(tmp_path_factory):
+    """The demo page at the frame whose hand force is nearest 10 N, and the same page without the arrow."""
+    from wholebody.push import PushConfig, build_scene, run_push
+    from wholebody.viz.scene import ARROW_HEAD
+
+    tmp = tmp_path_factory.mktemp("arrow")
+    result = run_push(PushConfig(trajectory=2, duration=DEMO_DURATION, contact="optimal", estimation=True))
+    with build_scene(result) as scene:
+        keys = scene.animation_keys()["/meshcat/wrenches/applied/hand"]
+        shaft = scene.animation_keys()["/meshcat/wrenches/applied/hand/shaft"]["scale"][:, 0]
+        head = scene.animation_keys()["/meshcat/wrenches/applied/hand/head"]["scale"][:, 0] * ARROW_HEAD
+        length = shaft + head
+        k = int(np.argmin(np.abs(length / scene.arrow_scale - 10.0)))
+        force, t = length[k] / scene.arrow_scale, k / 10.0  # build_scene animates at 10 frames per second
+        x, y, z, w = keys["quaternion"][k]
+        direction = np.array([1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w)])
+        points = keys["position"][k] + np.outer([0.25, 0.5, 0.75], length[k] * direction)
+        uv = scene.camera_at(t).project(points, WIDTH, HEIGHT)
+        scene.save_html(tmp / "page.html", controls=False)
+        scene.viewer["wrenches"].set_property("visible", False)
+        scene.save_html(tmp / "no_arrow.html", controls=False)
+    img = render(tmp / "page.html", tmp / "page.png", tmp / "profile", f"#t={t:.3f}")
+    ref = render(tmp / "no_arrow.html", tmp / "no_arrow.png", tmp / "profile", f"#t={t:.3f}")
+    return img, ref, uv, force, length[k]
+
+
+def test_ten_newton_hand_force_is_a_visible_arrow(ten_newton_shot):
+    img, ref, uv, force, length = ten_newton_shot
+    assert abs(force - 10.0) < 1.5, f"no frame near 10 N (nearest {force:.1f} N)"
+    assert length > 0.3, f"a {force:.1f} N arrow is only {100 * length:.0f} cm long"
+    arrow = is_arrow_blue(img.reshape(-1, 3)) & ~is_arrow_blue(ref.reshape(-1, 3))
+    assert arrow.sum() > 300, f"only {arrow.sum()} arrow-blue pixels for a {force:.1f} N hand force"
+    for p in uv:  # along the arrow (a quarter, half, three quarters of its length) the page is arrow blue
+        here = is_arrow_blue(window(img, p, 3)).mean()
+        assert here > 0.2, f"{here:.0%} arrow blue at {p.round()} ({force:.1f} N arrow, {100 * length:.0f} cm)"
+
+
+# -- every kind of animated page, opened as a user opens it ---------------------------------------------------------
+PAGES = ("push", "scenario", "log")
+
+
+@pytest.fixture(scope="module")
+def cli_pages(tmp_path_factory):
+    """The pages `cartpush push --html`, `view --scenario 6 --html` and `view LOG --html` write."""
+    from cartpush.cli import main
+
+    tmp = tmp_path_factory.mktemp("pages")
+    pages = {name: tmp / f"{name}.html" for name in PAGES}
+    assert main(["push", "--duration", "8", "--html", str(pages["push"]), "--out", str(tmp / "run")]) == 0
+    assert main(["view", "--scenario", "6", "--duration", "8", "--html", str(pages["scenario"])]) == 0
+    assert main(["view", str(tmp / "run" / "push_log.csv"), "--html", str(pages["log"])]) == 0
+    return pages
+
+
+def _clock(dom: str) -> tuple[str, float]:
+    """Return (button text, animation time in s) of a page's DOM."""
+    import re
+
+    button = re.search(r'id="cartpush-play"[^>]*>([^<]*)<', dom).group(1)
+    t = float(re.search(r'id="cartpush-time"[^>]*>t = ([0-9.]+) /', dom).group(1))
+    return button, t
+
+
+@pytest.mark.parametrize("kind", PAGES)
+def test_page_plays_when_opened_without_fragment(cli_pages, kind, tmp_path):
+    html = cli_pages[kind]
+    early = render(html, tmp_path / "early.png", tmp_path / "profile", budget_ms=1500)
+    late = render(html, tmp_path / "late.png", tmp_path / "profile", budget_ms=6000)
+    changed = (np.abs(early - late).sum(axis=2) > 30).mean()
+    assert changed > 0.01, f"{kind}: {changed:.2%} of the pixels changed between two times: the page stands still"
+    (b0, t0), (b1, t1) = (_clock(dump_dom(chromium(), html, budget_ms=ms)) for ms in (1500, 6000))
+    assert "pause" in b0 and "pause" in b1, f"{kind}: the button offers {b0!r}, {b1!r}: not playing"
+    assert t0 > 0.0 and abs(t1 - t0) > 0.5, f"{kind}: the page's clock reads {t0} s, then {t1} s"  # (it loops)
+
+
+@pytest.mark.parametrize("kind", PAGES)
+def test_paused_page_stands_still(cli_pages, kind, tmp_path):
+    html = cli_pages[kind]
+    early = render(html, tmp_path / "early.png", tmp_path / "profile", "#pause", budget_ms=1500)
+    late = render(html, tmp_path / "late.png", tmp_path / "profile", "#pause", budget_ms=6000)
+    assert np.abs(early - late).mean() < 0.5, f"{kind}: a paused page moved"
+    button, t = _clock(dump_dom(chromium(), html, "#pause", budget_ms=3000))
+    assert "play" in button and t == 0.0

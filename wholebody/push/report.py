@@ -24,21 +24,23 @@ if TYPE_CHECKING:
 
     from wholebody.viz import Scene
 
-#: Columns of the comparison table: (metrics key, header, format).
+#: Columns of the comparison table: (metrics key, header, format, factor from the metric's unit). Human
+#: output uses one unit per quantity: mm for tracking, cm for the CoM (the JSON keeps the metrics' units).
 TABLE_COLUMNS = (
-    ("tracking_rms_mm", "track RMS [mm]", "{:.2f}"),
-    ("tracking_max_mm", "track max [mm]", "{:.2f}"),
-    ("arm_torque_rms_nm", "tau RMS [Nm]", "{:.2f}"),
-    ("arm_torque_peak_nm", "tau peak [Nm]", "{:.1f}"),
-    ("arm_push_torque_rms_nm", "J^T w RMS [Nm]", "{:.2f}"),
-    ("ee_force_rms_n", "|f| RMS [N]", "{:.2f}"),
-    ("ee_force_peak_n", "|f| peak [N]", "{:.1f}"),
-    ("ee_torque_rms_nm", "|n| RMS [Nm]", "{:.2f}"),
-    ("mass_error_final_kg", "m err [kg]", "{:.3f}"),
-    ("com_error_final_m", "CoM err [m]", "{:.3f}"),
-    ("mass_error_max_after_5s_kg", "m err max >5s [kg]", "{:.2f}"),
-    ("time_mass_within_1kg_s", "t m within 1 kg [s]", "{:.1f}"),
-    ("com_error_max_after_5s_m", "CoM err max >5s [m]", "{:.3f}"),
+    ("tracking_rms_mm", "track RMS [mm]", "{:.2f}", 1.0),
+    ("tracking_max_mm", "track max [mm]", "{:.2f}", 1.0),
+    ("arm_torque_rms_nm", "tau RMS [Nm]", "{:.2f}", 1.0),
+    ("arm_torque_peak_nm", "tau peak [Nm]", "{:.1f}", 1.0),
+    ("arm_torque_limit_ratio", "tau/limit peak", "{:.2f}", 1.0),
+    ("arm_push_torque_rms_nm", "J^T w RMS [Nm]", "{:.2f}", 1.0),
+    ("ee_force_rms_n", "|f| RMS [N]", "{:.2f}", 1.0),
+    ("ee_force_peak_n", "|f| peak [N]", "{:.1f}", 1.0),
+    ("ee_torque_rms_nm", "|n| RMS [Nm]", "{:.2f}", 1.0),
+    ("mass_error_final_kg", "m err [kg]", "{:.3f}", 1.0),
+    ("com_error_final_m", "CoM err [cm]", "{:.2f}", 100.0),
+    ("mass_error_max_after_5s_kg", "m err max >5s [kg]", "{:.2f}", 1.0),
+    ("time_mass_within_1kg_s", "t m within 1 kg [s]", "{:.1f}", 1.0),
+    ("com_error_max_after_5s_m", "CoM err max >5s [cm]", "{:.2f}", 100.0),
 )
 
 
@@ -64,8 +66,11 @@ def describe(config: PushConfig) -> str:
 
 def comparison_table(runs: dict[str, PushResult], markdown: bool = False) -> str:
     """Return the metrics of several runs as a text (or Markdown) table, one row per run."""
-    heads = ["run"] + [h for _, h, _ in TABLE_COLUMNS]
-    rows = [[label] + [fmt.format(r.metrics.as_dict()[k]) for k, _, fmt in TABLE_COLUMNS] for label, r in runs.items()]
+    heads = ["run"] + [h for _, h, _, _ in TABLE_COLUMNS]
+    rows = [
+        [label] + [fmt.format(factor * r.metrics.as_dict()[k]) for k, _, fmt, factor in TABLE_COLUMNS]
+        for label, r in runs.items()
+    ]
     if markdown:
         lines = ["| " + " | ".join(heads) + " |", "|" + "|".join("---" for _ in heads) + "|"]
         lines += ["| " + " | ".join(row) + " |" for row in rows]
@@ -81,11 +86,14 @@ def _spans(spans: Sequence[Sequence[float]]) -> str:
 
 
 def unobservable_note(runs: dict[str, PushResult]) -> str:
-    """Return one line per estimating run naming the stretches where the mass / CoM were unobservable.
+    """Return, per estimating run, the stretches where the mass / CoM were unobservable and what that meant.
 
     A stretch is where the EKF's 1-sigma of the parameter grew for >= 1 s
-    (`wholebody.push.loop.unobservable_intervals`): the estimate there is held
-    by the filter's memory, not by the data, and may drift.
+    (`wholebody.push.loop.unobservable_intervals`): the pushes there carried no
+    new information about it (steady motion), so the estimate was held by the
+    filter's memory, not updated by the data. The note says how the 1-sigma
+    grew and how often the error stayed within 1 kg / 1 cm there: a held
+    estimate may still be right.
     """
     lines = []
     for label, r in runs.items():
@@ -93,10 +101,62 @@ def unobservable_note(runs: dict[str, PushResult]) -> str:
             continue
         m = r.metrics
         lines.append(
-            f"{label}: unobservable (EKF 1-sigma growing >= 1 s): mass {_spans(m.mass_unobservable_s)}; "
-            f"CoM {_spans(m.com_unobservable_s)}"
+            f"{label}: unobservable (EKF 1-sigma growing >= 1 s: no new information from the pushes, the estimate "
+            f"is held from earlier data, not updated): mass {_spans(m.mass_unobservable_s)}"
+            f"{_held(r, 0, m.mass_unobservable_s)}; CoM {_spans(m.com_unobservable_s)}"
+            f"{_held(r, 1, m.com_unobservable_s)}"
         )
     return "\n".join(lines)
+
+
+def _errors(result: PushResult) -> tuple[np.ndarray, np.ndarray]:
+    """Return the mass error (kg) and the CoM error (cm) of the run's estimate over time."""
+    p, phi = result.config.true_params, result.phi_hat
+    m = phi[:, 0]
+    return np.abs(m - p.m), 100 * np.hypot(phi[:, 1] / m - p.dx, phi[:, 2] / m - p.dy)
+
+
+def _held(result: PushResult, which: int, spans: Sequence[Sequence[float]]) -> str:
+    """Return ' (1-sigma a -> b unit; error within 1 unit for x % of it)' for parameter 0 (mass) or 1 (CoM)."""
+    if not spans:
+        return ""
+    inside = np.zeros(len(result.t), dtype=bool)
+    for a, b in spans:
+        inside |= (result.t >= a) & (result.t <= b)
+    error = _errors(result)[which][inside]
+    unit, factor = ("kg", 1.0) if which == 0 else ("cm", 100.0)
+    within = f"error within 1 {unit} for {100 * np.mean(error <= 1.0):.0f} % of it"
+    std = None if result.param_std is None else factor * result.param_std[inside, which]
+    if std is None or not np.all(np.isfinite(std)):
+        return f" ({within})"
+    return f" (1-sigma {std[0]:.2f} -> {std[-1]:.2f} {unit}; {within})"
+
+
+def torque_verdict(result: PushResult) -> tuple[str, bool]:
+    """Return (one line on the arm torques against their limits, whether a limit was exceeded).
+
+    The line names the joint and time of the peak |tau| / effortLimit and, when
+    it is above 1, how long and at which joints the limit was exceeded: the
+    simulated arm produced torques a real one cannot, so the run overstates what
+    the robot can push.
+    """
+    ratio = np.abs(result.arm_torque) / result.effort_limit
+    k, arm, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+    peak, tau, limit = float(ratio[k, arm, j]), float(result.arm_torque[k, arm, j]), float(result.effort_limit[j])
+    where = f"joint {j + 1}{f' of arm {arm + 1}' if ratio.shape[1] > 1 else ''}"
+    head = (
+        f"arm torque peak {peak:.2f} x effortLimit: {where} at {abs(tau):.1f} of {limit:g} N m, t = {result.t[k]:.1f} s"
+    )
+    if peak <= 1.0:
+        return f"{head} (within the limits)", False
+    over = ratio > 1.0
+    joints = ", ".join(str(i + 1) for i in np.flatnonzero(over.any(axis=(0, 1))))
+    seconds = float(over.any(axis=(1, 2)).sum() * result.config.dt)
+    return (
+        f"{head}: OVER THE LIMIT for {seconds:.2f} s (joints {joints}); a real arm saturates there, "
+        f"so this run overstates what the robot can push",
+        True,
+    )
 
 
 def push_log(result: PushResult) -> CartLog:

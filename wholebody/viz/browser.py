@@ -64,3 +64,23 @@ def screenshot(
     if not Path(png).is_file():
         raise SceneError(f"chromium wrote no screenshot (exit {proc.returncode}): {proc.stderr[-2000:]}")
     return proc
+
+
+def dump_dom(browser: str, html: Path, fragment: str = "", budget_ms: int = 4000, timeout: float = 120.0) -> str:
+    """Return the DOM (HTML text) of the local page `html` after `budget_ms` of virtual time (scripts have run).
+
+    Raises `SceneError` when Chromium printed nothing.
+    """
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [
+            browser,
+            *HEADLESS_FLAGS,
+            f"--user-data-dir={tmp}",
+            f"--virtual-time-budget={budget_ms}",
+            "--dump-dom",
+            Path(html).resolve().as_uri() + fragment,
+        ]
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    if not proc.stdout.strip():
+        raise SceneError(f"chromium printed no DOM (exit {proc.returncode}): {proc.stderr[-2000:]}")
+    return proc.stdout
