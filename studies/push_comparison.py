@@ -119,12 +119,14 @@ ROBOT_STYLE = {"ridgeback_iiwa": ("C0", "Ridgeback + iiwa (holonomic)"), "wmra":
 def _traj_axes(fig: Figure, results: dict[str, PushResult], ylabel: str, signal, limit=None) -> None:
     """Draw `signal(result)` over time, one panel per trajectory, every robot x estimation run in it.
 
-    `limit(result)`: an optional horizontal line per robot (its limit, dotted, in the robot's colour).
+    `limit(result)`: an optional limit per robot, drawn once per distinct value (dotted; black and named
+    "limit (all robots)" when the robots share it, else in the robot's colour). One legend, beside the
+    first panel, with each run and each limit once.
     """
     trajs = sorted({r.config.trajectory for r in results.values()})
     axes = fig.subplots(len(trajs), 1, sharex=True, squeeze=False)[:, 0]
     for ax, traj in zip(axes, trajs):
-        drawn = set()
+        limits: dict[float, list[str]] = {}
         for label, r in results.items():
             c = r.config
             if c.trajectory != traj:
@@ -138,14 +140,25 @@ def _traj_axes(fig: Figure, results: dict[str, PushResult], ylabel: str, signal,
                 lw=1.1 if c.estimation else 0.9,
                 label=f"{name}, {'EKF' if c.estimation else 'no estimation'}",
             )
-            if limit is not None and c.robot not in drawn:
-                ax.axhline(limit(r), color=colour, ls=":", lw=1.0, label=f"{name} limit")
-                drawn.add(c.robot)
+            if limit is not None and c.robot not in {n for names in limits.values() for n in names}:
+                limits.setdefault(round(float(limit(r)), 9), []).append(c.robot)
+        _limit_lines(ax, limits)
         ax.set_title(f"Traj. {traj}", fontsize=9)
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1].set_xlabel("t [s]")
+
+
+def _limit_lines(ax, limits: dict[float, list[str]]) -> None:
+    """Draw one dotted line per distinct limit value; shared by every robot drawn: black, else the robot's colour."""
+    for value, robots in limits.items():
+        if len(limits) == 1:
+            colour, label = "k", f"limit {value:g} ({'all robots' if len(robots) > 1 else ROBOT_STYLE[robots[0]][1]})"
+        else:
+            colour, name = ROBOT_STYLE.get(robots[0], ("C7", robots[0]))
+            label = f"{' = '.join(ROBOT_STYLE.get(r, ('', r))[1] for r in robots)} limit {value:g}"
+        ax.axhline(value, color=colour, ls=":", lw=1.2, label=label)
 
 
 def robot_figures(results: dict[str, PushResult]) -> dict[str, Figure]:

@@ -190,9 +190,10 @@ def push_figures(runs: dict[str, PushResult]) -> dict[str, Figure]:
 
     ``path``: the cart's path of each run and the base of robot 1 (dotted, same
     colour), the first run drawn on top; ``tracking_estimation``: tracking error
-    (mm), mass and CoM errors over time with the 1 kg / 1 cm bands and the
-    stretches where the EKF found them unobservable, hand force; ``arm_torques``:
-    the arm's joint torques of each run, legend outside the axes.
+    (mm), mass and CoM (cm) errors over time with the EKF's 1-sigma, the 1 kg /
+    1 cm bands and the stretches where the 1-sigma grew (no new information),
+    hand force; ``arm_torques``: each joint's torque as a share of its limit,
+    the limits at +-100 %, legend outside the axes.
     """
     return {
         "path": _path_figure(runs),
@@ -229,6 +230,14 @@ def _path_figure(runs: dict[str, PushResult]) -> Figure:
     return fig
 
 
+def _std_lines(axes, result: PushResult, colour: str, label: str) -> None:
+    """Draw the EKF's 1-sigma of the mass (kg) and of the CoM (cm) as dotted lines (`PushResult.param_std`)."""
+    if result.param_std is None or not np.any(np.isfinite(result.param_std)):
+        return
+    axes[0].plot(result.t, result.param_std[:, 0], ":", color=colour, lw=1.0, label=f"1-sigma, {label}")
+    axes[1].plot(result.t, 100 * result.param_std[:, 1], ":", color=colour, lw=1.0, label=f"1-sigma, {label}")
+
+
 def _shade(ax, spans: Sequence[Sequence[float]], colour: str, label: str) -> None:
     """Shade the stretches [t0, t1] of a run (one legend entry)."""
     for j, (a, b) in enumerate(spans):
@@ -243,17 +252,19 @@ def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
     axes = fig.subplots(4, 1, sharex=True)
     for i, (label, r) in enumerate(runs.items()):
         c, ls = _style(i)
-        p = r.config.true_params
-        m = r.phi_hat[:, 0]
+        mass_error, com_error = _errors(r)
         axes[0].plot(r.t, 1e3 * np.hypot(*(r.q_true[:, :2] - r.q_desired[:, :2]).T), ls, color=c, label=label)
-        axes[1].plot(r.t, np.abs(m - p.m), ls, color=c, label=label)
-        axes[2].plot(
-            r.t, 100 * np.hypot(r.phi_hat[:, 1] / m - p.dx, r.phi_hat[:, 2] / m - p.dy), ls, color=c, label=label
-        )
+        axes[1].plot(r.t, mass_error, ls, color=c, label=label)
+        axes[2].plot(r.t, com_error, ls, color=c, label=label)
         axes[3].plot(r.t, np.linalg.norm(r.wrenches[:, 0, :3], axis=1), ls, color=c, label=label)
         if r.config.estimation:
-            _shade(axes[1], r.metrics.mass_unobservable_s, c, f"mass unobservable, {label}")
-            _shade(axes[2], r.metrics.com_unobservable_s, c, f"CoM unobservable, {label}")
+            _std_lines(axes[1:3], r, c, label)
+            _shade(
+                axes[1], r.metrics.mass_unobservable_s, c, f"mass unobservable (1-sigma grows, estimate held), {label}"
+            )
+            _shade(
+                axes[2], r.metrics.com_unobservable_s, c, f"CoM unobservable (1-sigma grows, estimate held), {label}"
+            )
     for a, band, unit in ((axes[1], 1.0, "1 kg"), (axes[2], 1.0, "1 cm")):
         a.axhspan(0.0, band, color="g", alpha=0.12, lw=0, label=f"within {unit}")
     metrics = [r.metrics for r in runs.values()]  # y range: the errors after 5 s (the start transient is clipped)
@@ -263,8 +274,8 @@ def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
     for a, lab in zip(axes, labels):
         a.set_ylabel(lab), a.grid(alpha=0.3), a.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.suptitle(
-        "errors over time (start transient clipped)\nshaded: the EKF's 1-sigma grew for >= 1 s "
-        "(no information from the pushes)",
+        "errors over time (start transient clipped); dotted: the EKF's 1-sigma\nshaded: the 1-sigma grew for >= 1 s "
+        "(no new information from the pushes: the estimate is held, not updated; it may still be right)",
         fontsize=8,
     )
     axes[-1].set_xlabel("t [s]")
@@ -272,15 +283,25 @@ def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
 
 
 def _torque_figure(runs: dict[str, PushResult]) -> Figure:
-    """Return the arm's joint torques of each run (one panel per run, legend outside the axes)."""
+    """Return each arm joint's torque as a share of its limit (one panel per run), the limits at +-100 %.
+
+    Every joint is drawn against its own effortLimit, so one pair of lines marks
+    all seven limits; the legend (outside the axes) gives each joint's limit in N m.
+    """
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(8.5, 3 * len(runs)), layout="constrained")
     axes = fig.subplots(len(runs), 1, sharex=True, squeeze=False)
     for a, (label, r) in zip(axes[:, 0], runs.items()):
-        for j in range(r.arm_torque.shape[2]):
-            a.plot(r.t, r.arm_torque[:, 0, j], lw=0.8, label=f"joint {j + 1}")
-        a.set_title(label, fontsize=8), a.set_ylabel("tau [N m]"), a.grid(alpha=0.3)
+        ratio = 100 * r.arm_torque[:, 0, :] / r.effort_limit
+        for j in range(ratio.shape[1]):
+            a.plot(r.t, ratio[:, j], lw=0.8, label=f"joint {j + 1} (limit {r.effort_limit[j]:g} N m)")
+        a.axhline(100, color="k", ls=":", lw=1.2, label="effort limit (+-100 %)")
+        a.axhline(-100, color="k", ls=":", lw=1.2)
+        peak = float(np.max(np.abs(ratio)))
+        a.set_ylim(-max(110.0, 1.1 * peak), max(110.0, 1.1 * peak))
+        a.set_title(f"{label}: peak {peak:.0f} % of a limit", fontsize=8)
+        a.set_ylabel("tau / effortLimit [%]"), a.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("t [s]")
     return fig
