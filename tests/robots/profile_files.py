@@ -1,0 +1,48 @@
+"""Robot profiles the tests write: TIAGo from example-robot-data (one arm, torso locked) and variants."""
+
+from __future__ import annotations
+
+from importlib.metadata import PackageNotFoundError, distribution
+from pathlib import Path
+
+from tests.optional import missing
+
+TIAGO_ARM = [f"arm_{i}_joint" for i in range(1, 8)]
+
+#: TIAGo's profile: the URDF and its meshes resolve through the cmeel prefix (no path of this machine in it).
+TIAGO = """\
+name = "tiago"
+urdf = "package://example-robot-data/robots/tiago_description/robots/tiago_no_hand.urdf"
+base = "differential"
+wheel_joints = ["wheel_left_joint", "wheel_right_joint"]
+
+[[arms]]
+joints = {arm}
+gripper_frame = "arm_tool_link"
+ft_frame = "wrist_ft_link"
+
+[locked]
+torso_lift_joint = 0.2
+"""
+
+
+def need_example_robot_data() -> None:
+    """Skip (or fail under CARTPUSH_REQUIRE_EXTRAS=1) when example-robot-data is not installed."""
+    try:
+        distribution("example-robot-data")
+    except PackageNotFoundError:
+        missing("example-robot-data", "pip install -e '.[dev]'")
+
+
+def write_profile(folder: Path, text: str, name: str = "robot.toml") -> Path:
+    """Return the path of a profile file with `text` written in `folder`."""
+    path = folder / name
+    path.write_text(text)
+    return path
+
+
+def tiago_profile(folder: Path, arm: list[str] | None = None, extra: str = "") -> Path:
+    """Return the path of TIAGo's profile written in `folder` (arm joints `arm`, default the 7 arm joints)."""
+    need_example_robot_data()
+    joints = "[" + ", ".join(f'"{j}"' for j in (arm or TIAGO_ARM)) + "]"
+    return write_profile(folder, TIAGO.format(arm=joints) + extra, "tiago.toml")

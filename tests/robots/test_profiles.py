@@ -1,0 +1,191 @@
+"""Robot profiles (TOML): format, one registry, `robots.load(NAME | PROFILE.toml)`, meshes, one-line errors."""
+
+from __future__ import annotations
+
+import shutil
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import robots
+from robots.errors import ProfileError, RobotError, UnknownRobotError
+from robots.profiles import PROFILES, profile
+from tests.robots.profile_files import TIAGO_ARM, tiago_profile, write_profile
+from wholebody.motion.kinematics import wholebody_for
+
+WMRA = robots.DATA_DIR / "wmra.urdf"
+WMRA_ARM = [f"arm_joint{i}" for i in range(1, 8)]
+
+
+def wmra_text(arm: str | None = None, **over: str) -> str:
+    """Return a minimal WMRA profile (URDF next to it: 'wmra.urdf'): top-level keys replaced by `over`, the
+    [[arms]] table's body by `arm`."""
+    keys = {
+        "name": '"wmra_copy"',
+        "urdf": '"wmra.urdf"',
+        "base": '"differential"',
+        "wheel_joints": '["wheel_left_joint", "wheel_right_joint"]',
+    }
+    keys.update(over)
+    joints = ", ".join(f'"{j}"' for j in WMRA_ARM)
+    body = arm if arm is not None else f'joints = [{joints}]\ngripper_frame = "ee"\n'
+    return "".join(f"{k} = {v}\n" for k, v in keys.items()) + "[[arms]]\n" + body
+
+
+@pytest.fixture
+def wmra_dir(tmp_path):
+    shutil.copy(WMRA, tmp_path / "wmra.urdf")
+    return tmp_path
+
+
+def test_builtin_robots_are_profiles_in_one_registry():
+    assert robots.available() == ("ridgeback_iiwa", "shopping_cart", "wmra")
+    assert set(PROFILES) == set(robots.available())
+    for name in robots.available():
+        path = robots.DATA_DIR / f"{name}.toml"
+        assert profile(name) == robots.read_profile(path)  # the shipped file is the registry's entry
+        assert tomllib.loads(path.read_text())["name"] == name
+    rb = profile("ridgeback_iiwa")
+    assert rb.base == "holonomic" and rb.arm_joints == tuple(f"iiwa_joint_{i}" for i in range(1, 8))
+    assert rb.ft_frame == "ft_sensor" and rb.push_arm_seed is not None and rb.tuned
+
+
+def test_load_a_profile_file_with_a_relative_urdf(wmra_dir):
+    path = write_profile(wmra_dir, wmra_text())
+    r = robots.load(path)
+    assert r.name == "wmra_copy" and r.urdf == wmra_dir / "wmra.urdf"
+    assert r.profile.source == path and r.frames["ee"] == "ee" and r.frames["base"] == "base_footprint"
+    assert robots.load(str(path)).model.nv == robots.load("wmra").model.nv
+    # the base read off the URDF: the WMRA's track and wheel radius (robots/wmra.py constants)
+    wb = wholebody_for(r)
+    assert wb.base.track == pytest.approx(robots.wmra.WMRA_TRACK, abs=1e-12)
+    assert wb.base.wheel_radius == pytest.approx(robots.wmra.WMRA_WHEEL_RADIUS, abs=1e-12)
+
+
+def test_register_makes_a_name_and_unregister_removes_it(wmra_dir):
+    path = write_profile(wmra_dir, wmra_text(name='"wmra_registered"'))
+    try:
+        prof = robots.register(path)
+        assert "wmra_registered" in robots.available() and robots.load("wmra_registered").profile == prof
+        with pytest.raises(ProfileError, match="registered"):
+            other = write_profile(wmra_dir, wmra_text(name='"wmra_registered"', wheel_radius="0.2"), "b.toml")
+            robots.register(other)
+    finally:
+        robots.unregister("wmra_registered")
+    assert "wmra_registered" not in robots.available()
+    with pytest.raises(ProfileError, match="built-in"):
+        robots.unregister("wmra")
+    with pytest.raises(UnknownRobotError, match=r"ridgeback_iiwa, shopping_cart, wmra, or the path of a robot profile"):
+        robots.load("tiago")
+
+
+def test_tiago_from_example_robot_data_loads_with_its_meshes(tmp_path):
+    path = tiago_profile(tmp_path)
+    r = robots.load(path)
+    assert r.name == "tiago" and r.urdf.name == "tiago_no_hand.urdf"
+    meshes = [Path(g.meshPath) for g in r.visual_model.geometryObjects if g.meshPath.lower().endswith((".stl", ".dae"))]
+    assert len(meshes) > 20 and all(p.is_file() for p in meshes)  # resolved to files of example-robot-data
+    # wheel radius and separation read off the URDF = the values of its wheel joints (0.0985 m, 2 x 0.2022 m)
+    wb = wholebody_for(r)
+    assert wb.base.wheel_radius == pytest.approx(0.0985, abs=1e-9)
+    assert wb.base.track == pytest.approx(0.4044, abs=1e-9)
+    assert wb.n_arm == 7 and wb.arm_joints == tuple(TIAGO_ARM)
+    # urdf_text of the same robot finds the meshes through the profile's package folders as well
+    text = r.urdf.read_text()
+    again = robots.load(path, urdf_text=text)
+    assert len(again.visual_model.geometryObjects) == len(r.visual_model.geometryObjects)
+
+
+def test_locked_joints_hold_their_value(tmp_path):
+    r = robots.load(tiago_profile(tmp_path))
+    wb = wholebody_for(r)
+    x = np.r_[0.3, -0.2, 0.4, np.full(7, 0.3)]
+    q = wb.to_pinocchio_q(x)
+    torso = r.model.joints[r.model.getJointId("torso_lift_joint")]
+    assert q[torso.idx_q] == pytest.approx(0.2)
+    # independent: Pinocchio's FK of a configuration written by hand
+    q2 = pin.neutral(r.model)
+    q2[:4] = [0.3, -0.2, np.cos(0.4), np.sin(0.4)]
+    q2[torso.idx_q] = 0.2
+    for name in TIAGO_ARM:
+        q2[r.model.joints[r.model.getJointId(name)].idx_q] = 0.3
+    pin.framesForwardKinematics(r.model, r.data, q2)
+    np.testing.assert_allclose(
+        wb.ee_placement(x).homogeneous, r.data.oMf[r.frame_id("arm_tool_link")].homogeneous, atol=1e-12
+    )
+
+
+@pytest.mark.parametrize(
+    "over, key, fix",
+    [
+        ({"urdf": '"missing.urdf"'}, "urdf", "not found"),
+        ({"base": '"tracked"'}, "base", "must be one of"),
+        ({"wheel_joints": '["wheel_left_joint"]'}, "wheel_joints", "needs 2 wheel joints"),
+        ({"wheel_joints": '["wheel_left_joint", "arm_joint1"]'}, "wheel_joints[1]", "not a continuous joint"),
+        ({"colour": '"red"'}, "colour", "unknown key"),
+        (
+            {"arm": 'joints = ["arm_joint1", "elbow"]\ngripper_frame = "ee"\n'},
+            "arms[0].joints[1]",
+            "not a movable joint",
+        ),
+        (
+            {"arm": 'joints = ["arm_joint1"]\ngripper_frame = "hand"\n'},
+            "arms[0].gripper_frame",
+            "frame 'hand' is not in",
+        ),
+        ({"arm": 'joints = ["arm_joint1"]\ngripper_frame = "ee"\nft_frame = "wrist"\n'}, "arms[0].ft_frame", "not in"),
+        (
+            {"arm": 'joints = ["arm_joint1"]\ngripper_frame = "ee"\n\n[locked]\narm_joint2 = 9.0\n'},
+            "locked.arm_joint2",
+            "outside",
+        ),
+        (
+            {"arm": 'joints = ["arm_joint1"]\ngripper_frame = "ee"\n\n[locked]\nneck = 0.0\n'},
+            "locked.neck",
+            "not a movable",
+        ),
+        ({"arm": 'joints = []\ngripper_frame = "ee"\n'}, "arms[0].joints", "is empty"),
+        (
+            {"arm": 'joints = ["arm_joint1"]\ngripper_frame = "ee"\npush_seed = [0.1, 0.2]\n'},
+            "arms[0].push_seed",
+            "1 numbers",
+        ),
+    ],
+)
+def test_a_bad_profile_is_one_line_naming_the_key(wmra_dir, over, key, fix):
+    path = write_profile(wmra_dir, wmra_text(**over))
+    with pytest.raises(ProfileError) as err:
+        robots.load(path)
+    msg = str(err.value)
+    assert err.value.key == key and f": {key}: " in msg and fix in msg and "\n" not in msg
+    assert isinstance(err.value, RobotError)
+
+
+def test_missing_meshes_name_package_dirs(tmp_path):
+    urdf = tmp_path / "one.urdf"
+    urdf.write_text(
+        '<robot name="one"><link name="base_footprint"><visual><geometry>'
+        '<mesh filename="package://no_such_package/meshes/base.stl"/></geometry></visual></link></robot>'
+    )
+    path = write_profile(tmp_path, 'name = "one"\nurdf = "one.urdf"\n')
+    with pytest.raises(ProfileError, match=r"package_dirs: mesh package://no_such_package/meshes/base.stl not found"):
+        robots.load(path)
+    mesh = tmp_path / "pkgs" / "no_such_package" / "meshes" / "base.stl"
+    mesh.parent.mkdir(parents=True)
+    mesh.write_bytes(b"solid empty\nendsolid empty\n")  # an ASCII STL without facets
+    ok = write_profile(tmp_path, 'name = "one"\nurdf = "one.urdf"\npackage_dirs = ["pkgs"]\n', "ok.toml")
+    try:
+        robots.load(ok)
+    except RobotError as err:  # found now: whatever the mesh reader says, the mesh is not reported missing
+        assert "package_dirs" not in str(err)
+
+
+def test_not_toml_and_missing_file(tmp_path):
+    bad = write_profile(tmp_path, "name = \n")
+    with pytest.raises(ProfileError, match="file: is not valid TOML"):
+        robots.load(bad)
+    with pytest.raises(ProfileError, match="file: not found"):
+        robots.load(tmp_path / "nope.toml")
