@@ -158,7 +158,7 @@ def _uniform_grid(log: CartLog, streams: Streams | None = None, gap_factor: floa
         g = np.column_stack([np.interp(tg, st.wrench.t, st.wrench.values[:, i]) for i in range(3)])
     valid = np.ones(n, dtype=bool)
     gaps = _mark_gaps(valid, tg, st.pose.t, gap_factor * dt)
-    gaps += _mark_gaps(valid, tg, st.wrench.t, gap_factor * max(dt, st.wrench.period))
+    gaps = max(gaps, _mark_gaps(valid, tg, st.wrench.t, gap_factor * max(dt, st.wrench.period)))
     return _Grid(tg, q, g, valid, dt, gaps)
 
 
