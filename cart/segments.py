@@ -41,11 +41,15 @@ def slice_log(log: CartLog, t0: float, t1: float) -> CartLog:
     )
 
 
-def best_split(t: np.ndarray, x: np.ndarray, y: np.ndarray, scale: np.ndarray, min_len: float) -> float | None:
+def best_split(
+    t: np.ndarray, x: np.ndarray, y: np.ndarray, scale: np.ndarray, min_len: float, tol: float = 0.0
+) -> float | None:
     """Return the time that splits the regression ``x p = y`` into the two fits of least total residual.
 
     ``x`` (k, 2, P), ``y`` (k, 2) at times ``t`` (k,), rows weighted by ``1 / scale^2``; candidates at
-    least ``min_len`` s from either end (None when the log is too short).
+    least ``min_len`` s from either end (None when the log is too short). Splits whose residual is within
+    ``tol`` of the least (the regression cannot tell them apart: the cart stands still) are alike: the
+    middle of that stretch around the best one is returned.
     """
     ok = np.flatnonzero((t - t[0] >= min_len) & (t[-1] - t >= min_len))
     if len(ok) == 0:
@@ -69,7 +73,15 @@ def best_split(t: np.ndarray, x: np.ndarray, y: np.ndarray, scale: np.ndarray, m
 
     left = ssr(a, b, c)
     right = ssr(a_all - a, b_all - b, c_all - c)
-    return float(t[idx[int(np.argmin(left + right))]])
+    total = left + right
+    k = int(np.argmin(total))
+    near = total <= total[k] + tol
+    lo, hi = k, k
+    while lo > 0 and near[lo - 1]:
+        lo -= 1
+    while hi < len(near) - 1 and near[hi + 1]:
+        hi += 1
+    return float(0.5 * (t[idx[lo]] + t[idx[hi]]))
 
 
 def _sides_differ(data: dict[str, np.ndarray], tc: float, res) -> bool:
@@ -113,7 +125,8 @@ def _split(log: CartLog, res, t0: float, t1: float, depth: int) -> list[dict[str
     if depth <= 0 or data is None:
         return here
     min_len = max(MIN_SEGMENT_S, 10.0 / res.cutoff_hz)
-    tc = best_split(data["t"], data["x"], data["y"], data["scale"], min_len)
+    lag = 2.0 / (res.cutoff_hz * res.grid_dt)  # samples per independent residual (the filter's memory)
+    tc = best_split(data["t"], data["x"], data["y"], data["scale"], min_len, tol=lag)
     if tc is None:
         return here
     if not _sides_differ(data, tc, res):
