@@ -3,10 +3,19 @@
 import numpy as np
 import pinocchio as pin
 import pytest
-from scipy.optimize import minimize
+from scipy.optimize import LinearConstraint, minimize
 
 import robots
-from wholebody.contacts.allocation import ArmLimits, EffortWeights, GraspModel, WrenchAllocator, allocate
+from wholebody.contacts.allocation import (
+    ArmLimits,
+    EffortWeights,
+    GraspModel,
+    TorqueConstraint,
+    WrenchAllocator,
+    allocate,
+    saturation_spans,
+    saturation_summary,
+)
 from wholebody.contacts.handle import HandleSegment, cart_wrench, grasp_map
 from wholebody.errors import InfeasibleWrenchError, WholeBodyError
 
@@ -185,3 +194,110 @@ def test_bad_input_raises_project_errors():
         GraspModel(grip_force=500.0)
     with pytest.raises(WholeBodyError):
         allocate([1.0, 0.0, 0.0], [HANDLE.point(0.2)], torque_limits=[np.ones(7)])
+
+
+# ---------------------------------------------------------------------------------------------- per-step torque limits
+def _torque_case(seed: int, n: int = 2):
+    """Random arm Jacobians (wrench in {a} -> 7 joint torques), bias torques and limits the bias leaves room in."""
+    rng = np.random.default_rng(seed)
+    cons = []
+    for i in range(n):
+        J = rng.normal(0.0, 0.15, (6, 7))
+        g = rng.uniform(-4.0, 4.0, 7)
+        lim = np.abs(g) + rng.uniform(6.0, 15.0, 7)
+        cons.append(TorqueConstraint(J, g, lim, tuple(f"j{i}{k}" for k in range(7))))
+    return cons
+
+
+def _reference_with_torques(gamma, points, cons, margin):
+    """Independent optimum (scipy trust-constr): planar (fx, fy, tau_z) per arm, wrench effort, the cart wrench
+    as an equality, -(1 - margin) limit <= J^T w + g <= (1 - margin) limit as linear constraints."""
+    n = len(points)
+    Gp = np.hstack([grasp_map(p)[:, [0, 1, 5]] for p in points])
+    rows, lo, hi = [], [], []
+    for i, c in enumerate(cons):
+        for j in range(c.jacobian.shape[1]):
+            r = np.zeros(3 * n)
+            r[3 * i : 3 * i + 3] = c.jacobian[[0, 1, 5], j]
+            rows.append(r)
+            lo.append(-(1 - margin) * c.limit[j] - c.bias[j])
+            hi.append((1 - margin) * c.limit[j] - c.bias[j])
+    r = minimize(
+        lambda x: x @ x,
+        np.linalg.lstsq(Gp, gamma, rcond=None)[0],
+        jac=lambda x: 2 * x,
+        hess=lambda x: 2 * np.eye(3 * n),
+        method="trust-constr",
+        constraints=[LinearConstraint(Gp, gamma, gamma), LinearConstraint(np.array(rows), lo, hi)],
+        options={"gtol": 1e-12, "xtol": 1e-14, "maxiter": 5000},
+    )
+    return r.x
+
+
+@pytest.mark.parametrize("solver", ["proxqp", "daqp"])
+def test_torque_limits_with_bias_match_an_independent_optimum(solver):
+    pts = [HANDLE.point(0.1), HANDLE.point(0.4)]
+    lim = ArmLimits(max_force=1e4, max_torque=1e4, grasp=None)
+    alloc = WrenchAllocator(pts, lim, solver=solver)
+    free = WrenchAllocator(pts, lim, solver=solver)
+    bound = 0
+    for seed in range(6):
+        cons = _torque_case(seed)
+        alloc.set_torque_limits(cons, margin=0.05)
+        gamma = np.array([30.0, 10.0, -4.0]) * (1 + seed / 5)
+        res = alloc.solve(gamma)
+        x_ref = _reference_with_torques(gamma, pts, cons, 0.05)
+        np.testing.assert_allclose(res.wrenches_ee[:, [0, 1, 5]].ravel(), x_ref, atol=1e-4)
+        for i, c in enumerate(cons):  # every joint within its (shrunk) limit, torques reported
+            np.testing.assert_allclose(res.joint_torques[i], c.jacobian.T @ res.wrenches_ee[i] + c.bias, atol=1e-12)
+            assert np.all(np.abs(res.joint_torques[i]) <= 0.95 * c.limit + 1e-7)
+        bound += not np.allclose(res.wrenches_ee, free.solve(gamma).wrenches_ee, atol=1e-6)
+    assert bound >= 2  # the torque rows changed the optimum in some of the cases
+
+
+def test_a_push_beyond_the_torque_limits_saturates_and_names_the_joint():
+    pts = [HANDLE.point(0.25)]
+    cons = _torque_case(3, n=1)
+    alloc = WrenchAllocator(pts, ArmLimits(max_force=1e4, max_torque=1e4, grasp=None), only_motion_directions=True)
+    alloc.set_torque_limits(cons)
+    res = alloc.solve([500.0, 0.0, 0.0], raise_on_infeasible=False)
+    assert res.residual > 1.0 and res.binding is not None
+    assert res.binding.startswith("arm0 j0") and "torque limit" in res.binding
+    tau = cons[0].torques(res.wrenches_ee[0])
+    assert np.all(np.abs(tau) <= cons[0].limit + 1e-6)
+    k = int(res.binding.split()[1][2:])  # the named joint is at its limit
+    assert abs(tau[k]) == pytest.approx(cons[0].limit[k], rel=1e-5)
+    with pytest.raises(InfeasibleWrenchError) as err:
+        alloc.solve([500.0, 0.0, 0.0])
+    assert err.value.binding == res.binding
+
+
+def test_bias_beyond_a_limit_is_listed_and_no_wrench_adds_to_it():
+    c = _torque_case(1, n=1)[0]
+    g = c.bias.copy()
+    g[2] = 1.5 * c.limit[2] * np.sign(g[2] or 1.0)
+    c = TorqueConstraint(c.jacobian, g, c.limit, c.joints)
+    alloc = WrenchAllocator([HANDLE.point(0.25)], ArmLimits(max_force=1e4, max_torque=1e4, grasp=None))
+    alloc.set_torque_limits([c])
+    assert alloc.bias_over_limit == ("arm0 j02",)
+    res = alloc.solve([20.0, 0.0, 1.0], raise_on_infeasible=False)
+    assert abs(c.torques(res.wrenches_ee[0])[2]) <= abs(g[2]) + 1e-7
+    with pytest.raises(WholeBodyError):
+        alloc.set_torque_limits([c, c])
+    with pytest.raises(WholeBodyError):
+        alloc.set_torque_limits([TorqueConstraint(c.jacobian, g, -c.limit)])
+
+
+def test_saturation_spans_group_consecutive_binding_limits():
+    t = np.arange(10) * 0.01
+    b = [None, "a", "a", None, "b", "b", "b", "a", None, "a"]
+    spans = saturation_spans(t, b, 0.01)
+    assert [(s.limit, s.start, s.end, s.steps) for s in spans] == [
+        ("a", 0.01, 0.02, 2),
+        ("b", 0.04, 0.06, 3),
+        ("a", 0.07, 0.07, 1),
+        ("a", 0.09, 0.09, 1),
+    ]
+    summary = saturation_summary(spans)
+    assert summary["a"]["spans"] == 3 and summary["a"]["total_s"] == pytest.approx(0.04)
+    assert summary["b"]["longest_s"] == pytest.approx(0.03) and summary["b"]["first_s"] == pytest.approx(0.04)
