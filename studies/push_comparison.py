@@ -157,7 +157,7 @@ def _limit_lines(ax, limits: dict[float, list[str]]) -> None:
             colour, label = "k", f"limit {value:g} ({'all robots' if len(robots) > 1 else ROBOT_STYLE[robots[0]][1]})"
         else:
             colour, name = ROBOT_STYLE.get(robots[0], ("C7", robots[0]))
-            label = f"{' = '.join(ROBOT_STYLE.get(r, ('', r))[1] for r in robots)} limit {value:g}"
+            label = f"{' = '.join(ROBOT_STYLE.get(r, ('', r))[1] for r in robots)} limit {value:.3g}"
         ax.axhline(value, color=colour, ls=":", lw=1.2, label=label)
 
 

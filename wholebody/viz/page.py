@@ -284,6 +284,9 @@ def compressed_iframe(page: str, height: int = 420) -> str:
     blob = base64.b64encode(gzip.compress(page.encode("utf-8"), compresslevel=9, mtime=0)).decode("ascii")
     loader = (
         "<script>(async function () {"
+        "if (!window.DecompressionStream) {"
+        'document.body.textContent = "This Meshcat scene (MeshCat.Viewer page, stored gzipped) needs a browser '
+        'with DecompressionStream (Chrome 80, Firefox 113, Safari 16.4 or later)."; return; }'
         f'const b = Uint8Array.from(atob("{blob}"), function (c) {{ return c.charCodeAt(0); }});'
         'const s = new Blob([b]).stream().pipeThrough(new DecompressionStream("gzip"));'
         "const text = await new Response(s).text();"
