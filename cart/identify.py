@@ -66,6 +66,11 @@ HAC_DIRECT = 2_000_000
 #: Grid samples beyond which the cut-off is chosen on CUTOFF_CHUNKS evenly spaced stretches of the log.
 CUTOFF_SAMPLES = 24_000
 CUTOFF_CHUNKS = 4
+#: Rows of the filtered regression beyond which they are decimated to DECIMATED_OVERSAMPLING per cut-off period.
+DECIMATE_ABOVE = 60_000
+DECIMATED_OVERSAMPLING = 10.0
+#: Rows of the raw residual the wrench noise model is fitted on (the first ones: the noise is stationary).
+NOISE_ROWS = 60_000
 
 
 class IdentifiabilityError(CartError):
@@ -549,12 +554,30 @@ def _physical_params(log: CartLog, p: np.ndarray, cov: np.ndarray) -> tuple[Cart
     ), inertia
 
 
+def _decimation(rows: int, fs: float, fc: float) -> int:
+    """Return the step by which the filtered regression's rows are taken: 1, or for a long log the step that
+    keeps DECIMATED_OVERSAMPLING samples per period of the cut-off (the rows are band-limited by the filter)."""
+    if rows <= DECIMATE_ABOVE:
+        return 1
+    return max(1, int(fs / (DECIMATED_OVERSAMPLING * fc)))
+
+
+def _every(reg: _Regression, step: int) -> _Regression:
+    """Return every ``step``-th row of the regression (``keep``, the grid mask, unchanged)."""
+    if step == 1:
+        return reg
+    return _Regression(
+        x=reg.x[::step], y=reg.y[::step], v=reg.v[::step], om=reg.om[::step], keep=reg.keep, y_raw=reg.y_raw[::step]
+    )
+
+
 def _wrench_noise(reg: _Regression, p: np.ndarray, dt: float, sos: np.ndarray) -> tuple[AR1Noise, AR1Noise, np.ndarray]:
     """Return the coloured-noise models of the forward and yaw rows and their filtered-output std (2,).
 
     Measured on the raw (unfiltered) wrench minus the model's prediction (:func:`cart.noise_model.fit_ar1`).
     """
-    r_raw = reg.y_raw - _predict(reg.x, p)
+    n_rows = min(len(reg.y_raw), NOISE_ROWS)
+    r_raw = reg.y_raw[:n_rows] - _predict(reg.x[:n_rows], p)
     models = (fit_ar1(r_raw[:, 0], dt), fit_ar1(r_raw[:, 1], dt))
     n = min(len(r_raw), 20000)
     gains = np.array([_gains_of(_filtfilt(sos, mdl.unit_series(n)), dt)[1] for mdl in models])
@@ -660,13 +683,15 @@ def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | 
     sv, so = lv.pos * acc_gain, lv.theta * acc_gain  # acceleration noise of the regressor
     # white parts of the regressor entries: vdot in (row 1, m) and (row 2, m dy), omegadot in (1, m dy), (2, J)
     noise = np.array([[sv * sv, 0.0, so * so, 0.0, 0.0, 0.0], [0.0, 0.0, sv * sv, so * so, 0.0, 0.0]])
+    full, step = reg, _decimation(len(reg.y), fs, fc)
+    reg, lag = _every(reg, step), int(math.ceil(lag / step))
     try:
         p, cov, scale, r = _fit(reg.x, reg.y, noise, lag)
     except np.linalg.LinAlgError as exc:
         raise IdentifiabilityError(
             f"{log.source}: the least-squares problem is singular ({exc}): the log does not excite the parameters"
         ) from None
-    f_noise, t_noise, out_gain = _wrench_noise(reg, p, grid.dt, sos)
+    f_noise, t_noise, out_gain = _wrench_noise(full, p, grid.dt, sos)
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(lv, out_gain, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings)
@@ -693,7 +718,7 @@ def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | 
         wrench_noise=(f_noise, t_noise),
         offsets={"forward": float(p[6]), "fx": float(p[7]), "fy": float(p[8]), "torque": float(p[9])},
         grid_dt=grid.dt,
-        fit_data={"t": grid.t[reg.keep], "x": reg.x, "y": reg.y, "scale": scale},
+        fit_data={"t": grid.t[reg.keep][::step], "x": reg.x, "y": reg.y, "scale": scale, "step": step},
     )
 
 
