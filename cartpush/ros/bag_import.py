@@ -31,7 +31,7 @@ import math
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 from collections.abc import Iterator, Sequence
 
 import numpy as np
@@ -39,6 +39,9 @@ import numpy as np
 from cart.logs import CartLog, plausibility_warnings, read_log
 from cartpush.ros.errors import BagImportError, TransformLookupError
 from cartpush.ros.tf_tree import EdgeInfo, TransformBuffer, normalize_frame, quaternion_to_matrix
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
 
 #: Pose message types read (ROS 1 names; ROS 2 adds ``/msg/``); messages with the same fields are read too.
 POSE_TYPES = (
@@ -237,7 +240,7 @@ class _Bag:
         self.storage = _storage_of(self.path)
         self.ros1 = self.storage == "ROS 1 bag"
         self._stores: dict[tuple[str, Any, str], Any] = {}
-        self._default_store = None
+        self._default_store: Typestore | None = None
         self.reader: Any = None
 
     def __enter__(self) -> _Bag:
@@ -529,7 +532,7 @@ def _read_streams(
         for t, info in bag.topics.items()
         if extra_tf and str(info.msgtype).endswith("/TransformStamped") and t not in (pose_topic, wrench_topic)
     ]
-    topics = [t for t in dict.fromkeys([pose_topic, wrench_topic] + tf_topics + extra) if t]
+    topics = [t for t in dict.fromkeys([pose_topic, wrench_topic, *tf_topics, *extra]) if t]
     for topic, record_ns, data, conn in bag.raw(topics):
         msg = bag.decode(data, conn)
         if topic in tf_topics and topic not in (pose_topic, wrench_topic):
@@ -543,13 +546,13 @@ def _read_streams(
             continue
         if topic == pose_topic and pose is not None:
             if not pose.kind:
-                kind = pose_kind(msg)
-                if kind is None:
+                msg_kind = pose_kind(msg)
+                if msg_kind is None:
                     raise BagImportError(
                         f"{bag.path}: pose topic {topic} has type {bag.type_name(conn.msgtype)}, "
                         f"which carries no stamped pose; {_supported('pose')}"
                     )
-                pose.kind, pose.msgtype = kind, bag.type_name(conn.msgtype)
+                pose.kind, pose.msgtype = msg_kind, bag.type_name(conn.msgtype)
             values, child = _pose_values(msg, pose.kind)
             pose.record_ns.append(record_ns)
             pose.stamp_ns.append(_stamp_ns(msg.header.stamp))
@@ -937,19 +940,12 @@ def _tracked_poses(
     notes: list[str],
 ) -> tuple[_Poses, str]:
     """Return (pose samples of the tracked frame, the world frame) from the pose topic or the TF frame."""
-    if rec.pose is not None:
-        poses = _poses_from_topic(
-            rec.pose,
-            rec.pose_name,
-            pose_t_ns,
-            t0_ns,
-            world,
-            tf_buf,  # type: ignore[arg-type]
-            dropped,
-            notes,
-        )
+    if rec.pose is not None and rec.pose_name is not None:  # a pose topic (the stream exists with its name)
+        poses = _poses_from_topic(rec.pose, rec.pose_name, pose_t_ns, t0_ns, world, tf_buf, dropped, notes)
         return poses, world or poses.header_frame
-    poses = _poses_from_tf(pose_frame, world, tf_buf)  # type: ignore[arg-type]
+    if pose_frame is None:  # _check_request asks for exactly one of a pose topic and a pose frame
+        raise BagImportError("give the cart's pose as exactly one of a pose topic or a TF frame")
+    poses = _poses_from_tf(pose_frame, world, tf_buf)
     return poses, poses.header_frame
 
 

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from collections.abc import Iterable, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from cartpush.ros.errors import TransformLookupError
 
@@ -108,8 +109,7 @@ class _Edge:
     def __init__(self, parent: str, child: str) -> None:
         self.parent = parent
         self.child = child
-        self.static = False
-        self._static_value: tuple[np.ndarray, np.ndarray] | None = None
+        self._static_value: tuple[np.ndarray, np.ndarray] | None = None  # (p, q) of a static link
         self._stamps: list[float] = []
         self._p: list[Sequence[float]] = []
         self._q: list[Sequence[float]] = []
@@ -117,12 +117,16 @@ class _Edge:
         self.duplicates = 0
         self.invalid = 0
 
-    def set_static(self, p: np.ndarray, q: np.ndarray) -> None:
-        self.static = True
+    @property
+    def static(self) -> bool:
+        """True when the link is static (its last update was `set_static`, not `append`)."""
+        return self._static_value is not None
+
+    def set_static(self, p: npt.ArrayLike, q: npt.ArrayLike) -> None:
         self._static_value = (np.asarray(p, dtype=float), np.asarray(q, dtype=float))
 
-    def append(self, stamps: np.ndarray, p: np.ndarray, q: np.ndarray) -> None:
-        self.static = False
+    def append(self, stamps: npt.ArrayLike, p: npt.ArrayLike, q: npt.ArrayLike) -> None:
+        self._static_value = None
         self._stamps.extend(np.asarray(stamps, dtype=float).tolist())
         self._p.extend(np.asarray(p, dtype=float).reshape(-1, 3).tolist())
         self._q.extend(np.asarray(q, dtype=float).reshape(-1, 4).tolist())
@@ -154,8 +158,9 @@ class _Edge:
     def at(self, times: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (R (N, 3, 3), p (N, 3), valid (N,)) of T_parent_child at ``times``."""
         n = len(times)
-        if self.static:
-            p, q = self._static_value  # type: ignore[misc]
+        static = self._static_value
+        if static is not None:
+            p, q = static
             return (
                 np.broadcast_to(quaternion_to_matrix(q), (n, 3, 3)).copy(),
                 np.broadcast_to(p, (n, 3)).copy(),
@@ -178,7 +183,7 @@ class _Edge:
         return rot, pos, valid
 
 
-def _clean(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+def _clean(p: npt.ArrayLike, q: npt.ArrayLike) -> np.ndarray:
     """Return the mask of samples with finite values and a quaternion that is a rotation."""
     p = np.asarray(p, dtype=float).reshape(-1, 3)
     q = np.asarray(q, dtype=float).reshape(-1, 4)
@@ -216,7 +221,7 @@ class TransformBuffer:
             self._adjacency.setdefault(child, {})[parent] = key
         return self._edges[key]
 
-    def add_static(self, parent: str, child: str, translation: Sequence[float], rotation: Sequence[float]) -> None:
+    def add_static(self, parent: str, child: str, translation: npt.ArrayLike, rotation: npt.ArrayLike) -> None:
         """Record a static link T_parent_child (translation (3,), quaternion (x, y, z, w)); the latest one holds."""
         edge = self._edge(parent, child)
         if not _clean(translation, rotation)[0]:
@@ -231,7 +236,7 @@ class TransformBuffer:
         self.add_many(parent, child, [stamp], [translation], [rotation])
 
     def add_many(
-        self, parent: str, child: str, stamps: Iterable[float], translations: np.ndarray, rotations: np.ndarray
+        self, parent: str, child: str, stamps: Iterable[float], translations: npt.ArrayLike, rotations: npt.ArrayLike
     ) -> None:
         """Record samples (n,) / (n, 3) / (n, 4) of a dynamic link; order does not matter, repeated stamps count once."""
         edge = self._edge(parent, child)
@@ -295,7 +300,7 @@ class TransformBuffer:
         for frame in (source, target):
             if frame not in self._adjacency:
                 raise self._missing(frame, source, target)
-        previous: dict[str, str | None] = {source: None}
+        previous = {source: source}  # frame -> the frame it was reached from (the source: itself)
         queue = deque([source])
         while queue:
             frame = queue.popleft()
@@ -315,7 +320,7 @@ class TransformBuffer:
             )
         path = [target]
         while path[-1] != source:
-            path.append(previous[path[-1]])  # type: ignore[arg-type]
+            path.append(previous[path[-1]])
         return path[::-1]
 
     def _links(self, target: str, source: str) -> list[tuple[_Edge, bool]]:

@@ -53,6 +53,7 @@ from dataclasses import dataclass
 from collections.abc import Callable, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from cart.dynamics import regressor
 from wholebody.contacts.allocation import ArmLimits, WrenchAllocator
@@ -238,7 +239,7 @@ def cart_wrench_covariance(point_b: Sequence[float], cov_ee: np.ndarray, theta: 
     return M @ np.asarray(cov_ee, dtype=float) @ M.T
 
 
-def measurement_covariance(point_b: Sequence[float], noise: WrenchNoise = WrenchNoise()) -> np.ndarray:
+def measurement_covariance(point_b: npt.ArrayLike, noise: WrenchNoise = WrenchNoise()) -> np.ndarray:
     """Return R(p) (2x2): covariance of (f_forward, tau_b) from a wrench noise in {a} at contact p."""
     G = grasp_map(point_b)[[0, 2]][:, [0, 1, 5]]  # rows fx_b, tau_b; columns fx, fy, tau_z at {a}
     return G @ np.diag([noise.force**2, noise.force**2, noise.torque**2]) @ G.T
@@ -364,37 +365,40 @@ def _best_schedule(
     K, J = effort.shape
     total = lambda idx: info[np.arange(K), idx]  # noqa: E731  (K, 4, 4): the chosen segments' information
     cost = lambda idx: effort[np.arange(K), idx].sum()  # noqa: E731
-    best_idx, best = None, -np.inf
+    best_idx: np.ndarray | None = None
+    best = -np.inf
     if J**K <= exhaustive_limit:
-        for idx in itertools.product(range(J), repeat=K):
-            idx = np.array(idx)
+        for combo in itertools.product(range(J), repeat=K):
+            idx = np.array(combo)
             if cost(idx) <= budget:
                 sc = score(total(idx))
                 if sc > best:
                     best_idx, best = idx, sc
-        return _cheapest_ties(best_idx, best, effort, budget, lambda idx: score(total(idx))), float(best)
-    for j0 in range(J):
-        idx = np.full(K, j0)
-        if not cost(idx) <= budget:
-            continue
-        cur = score(total(idx))
-        for _ in range(sweeps):
-            improved = False
-            for k in range(K):
-                for j in range(J):
-                    if j == idx[k]:
-                        continue
-                    trial = idx.copy()
-                    trial[k] = j
-                    if not cost(trial) <= budget:
-                        continue
-                    sc = score(total(trial))
-                    if sc > cur + 1e-12 * abs(cur):
-                        idx, cur, improved = trial, sc, True
-            if not improved:
-                break
-        if cur > best:
-            best_idx, best = idx, cur
+    else:
+        for j0 in range(J):
+            idx = np.full(K, j0)
+            if not cost(idx) <= budget:
+                continue
+            cur = score(total(idx))
+            for _ in range(sweeps):
+                improved = False
+                for k in range(K):
+                    for j in range(J):
+                        if j == idx[k]:
+                            continue
+                        trial = idx.copy()
+                        trial[k] = j
+                        if not cost(trial) <= budget:
+                            continue
+                        sc = score(total(trial))
+                        if sc > cur + 1e-12 * abs(cur):
+                            idx, cur, improved = trial, sc, True
+                if not improved:
+                    break
+            if cur > best:
+                best_idx, best = idx, cur
+    if best_idx is None:  # the callers check that a fixed contact keeps the budget with a finite score
+        raise WholeBodyError("no contact schedule within the effort budget has a finite score")
     return _cheapest_ties(best_idx, best, effort, budget, lambda idx: score(total(idx))), float(best)
 
 
@@ -486,7 +490,12 @@ def plan_contact_schedule(
     idx, best = _best_schedule(info, effort, budget, score, sweeps, exhaustive_limit)  # >= every fixed contact
     sched = ContactSchedule(bounds, cand[idx])
     total = float(sum(effort[k, j] for k, j in enumerate(idx)))
-    std = lambda I: tuple(float(v) for v in np.sqrt(np.diag(com_covariance(I, phi, P0))))  # noqa: E731
+
+    def std(I: np.ndarray) -> tuple[float, float]:
+        """Return the CoM std (dx, dy) of the information I."""
+        dx, dy = np.sqrt(np.diag(com_covariance(I, phi, P0)))
+        return float(dx), float(dy)
+
     return SchedulePlan(
         sched,
         float(best),
@@ -519,7 +528,7 @@ def schedule_score(
     objective: str = "min_eig",
     prior_cov: np.ndarray | None = None,
     sensor_dt: float | None = None,
-    boundaries: Sequence[float] | None = None,
+    boundaries: npt.ArrayLike | None = None,
 ) -> float:
     """Return the score (``objective``) of a push whose contact follows ``schedule`` (s(t) on the handle).
 
@@ -574,6 +583,6 @@ def com_crlb_course(
     cum = np.cumsum(scale * np.einsum("nji,njk,nkl->nil", Y, Rinv, Y), axis=0)
     out = []
     for t in times:
-        k = int(min(np.searchsorted(samples.t, t - 1e-9), len(samples.t) - 1))
+        k = min(int(np.searchsorted(samples.t, t - 1e-9)), len(samples.t) - 1)
         out.append(com_covariance(cum[k], phi, prior_cov))
     return np.array(out)

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from wholebody.errors import WholeBodyError
 
@@ -30,7 +31,7 @@ HANDLE_Z_B = 0.9365  # m, 1.0 m above the floor; {b} sits at the rear axle heigh
 HANDLE_WIDTH = 0.50  # m, centred on y = 0
 
 
-def skew(p: Sequence[float]) -> np.ndarray:
+def skew(p: Sequence[float] | np.ndarray) -> np.ndarray:
     """Return the 3x3 skew-symmetric matrix [p]_x with [p]_x v = p x v."""
     x, y, z = (float(v) for v in p)
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
@@ -43,7 +44,7 @@ def wrench_basis() -> np.ndarray:
     return basis
 
 
-def adjoint(rotation: np.ndarray, translation: Sequence[float]) -> np.ndarray:
+def adjoint(rotation: npt.ArrayLike, translation: Sequence[float] | np.ndarray) -> np.ndarray:
     """Return Ad_g = [[R, [p]x R], [0, R]] (6x6) of g = (p, R) (paper eq. 23)."""
     R = np.asarray(rotation, dtype=float)
     out = np.zeros((6, 6))
@@ -53,7 +54,7 @@ def adjoint(rotation: np.ndarray, translation: Sequence[float]) -> np.ndarray:
     return out
 
 
-def wrench_to_b(point_b: Sequence[float]) -> np.ndarray:
+def wrench_to_b(point_b: npt.ArrayLike) -> np.ndarray:
     """Return Ad_{g_ab}^T (6x6): maps a wrench [f; tau] at {a} to the same wrench at {b}.
 
     ``g_ab`` is the pose of {b} seen from {a}: R = I, p = -point_b, so the
@@ -62,7 +63,7 @@ def wrench_to_b(point_b: Sequence[float]) -> np.ndarray:
     return adjoint(np.eye(3), -np.asarray(point_b, dtype=float)).T  # paper eq. (23)
 
 
-def grasp_map_paper(point_b: Sequence[float]) -> np.ndarray:
+def grasp_map_paper(point_b: npt.ArrayLike) -> np.ndarray:
     """Return the paper's grasp map G = Ad_{g_ab}^T B_a (6x3, eq. 23) for a contact at point_b."""
     return wrench_to_b(point_b) @ wrench_basis()
 
@@ -83,7 +84,7 @@ def grasp_matrices(points_b: np.ndarray) -> np.ndarray:
     return G
 
 
-def grasp_map(point_b: Sequence[float]) -> np.ndarray:
+def grasp_map(point_b: npt.ArrayLike) -> np.ndarray:
     """Return the planar grasp map (3x6): Gamma_MM = G @ [f; tau]_a (paper eqs. 23–24).
 
     Rows are (fx_b, fy_b, tau_b about the {b} origin); equals B_a^T Ad_{g_ab}^T.
@@ -91,12 +92,12 @@ def grasp_map(point_b: Sequence[float]) -> np.ndarray:
     return grasp_matrices(np.reshape(np.asarray(point_b, dtype=float), (1, 3)))
 
 
-def grasp_matrix(points_b: Sequence[Sequence[float]]) -> np.ndarray:
+def grasp_matrix(points_b: Sequence[Sequence[float]] | np.ndarray) -> np.ndarray:
     """Return [G_1 ... G_N] (3 x 6N): Gamma_MM = sum_i G_i Gamma_ee,i (paper eq. 25)."""
     return grasp_matrices(np.reshape(np.asarray(points_b, dtype=float), (-1, 3))) if len(points_b) else np.zeros((3, 0))
 
 
-def cart_wrench(points_b: Sequence[Sequence[float]], wrenches_ee: np.ndarray) -> np.ndarray:
+def cart_wrench(points_b: Sequence[Sequence[float]] | np.ndarray, wrenches_ee: npt.ArrayLike) -> np.ndarray:
     """Return Gamma_MM (3,) produced by end-effector wrenches (N x 6) at points_b (eq. 25)."""
     w = np.asarray(wrenches_ee, dtype=float).reshape(len(points_b), 6)
     return grasp_matrix(points_b) @ w.reshape(-1)
@@ -162,7 +163,7 @@ class HandleSegment:
             raise WholeBodyError(f"s = {s} is outside the handle [0, {self.length}]")
         return np.asarray(self.start_b) + float(s) * self._dir
 
-    def coordinate(self, point_b: Sequence[float]) -> float:
+    def coordinate(self, point_b: npt.ArrayLike) -> float:
         """Return s of the projection of point_b onto the segment's line."""
         return float(np.dot(np.asarray(point_b, dtype=float) - np.asarray(self.start_b), self._dir))
 

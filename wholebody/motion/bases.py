@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
 from wholebody.errors import WholeBodyError
@@ -42,7 +43,9 @@ def se2_exp_factors(dphi: float) -> tuple[float, float]:
     return math.sin(dphi) / dphi, (1.0 - math.cos(dphi)) / dphi
 
 
-def integrate_body_displacement(pose: Sequence[float], body_step: Sequence[float]) -> np.ndarray:
+def integrate_body_displacement(
+    pose: Sequence[float] | np.ndarray, body_step: Sequence[float] | np.ndarray
+) -> np.ndarray:
     """Return the pose reached by moving with a constant body twist whose integral is `body_step`.
 
     Exact SE(2) exponential: paper eq. (7) for vy = 0 (R = arc/dphi, sin/cos terms),
@@ -80,7 +83,11 @@ class MobileBase:
         """Return the 3 x n_wheels map from wheel rates to the body twist (vx, vy, wz)."""
         raise NotImplementedError
 
-    def body_twist_to_wheels(self, twist: Sequence[float]) -> np.ndarray:
+    def twist_to_wheels(self) -> np.ndarray:
+        """Return the n_wheels x 3 map from a body twist (vx, vy, wz) to wheel rates: pinv of `wheel_to_body_twist`."""
+        return np.linalg.pinv(self.wheel_to_body_twist())
+
+    def body_twist_to_wheels(self, twist: npt.ArrayLike) -> np.ndarray:
         """Return the wheel rates that produce a body twist (least squares for a nonholonomic base)."""
         return np.linalg.pinv(self.wheel_to_body_twist()) @ np.asarray(twist, dtype=float)
 
@@ -92,7 +99,7 @@ class MobileBase:
         """Return A (k x 3) with A @ (xdot, ydot, thetadot) = 0 for every feasible base motion."""
         raise NotImplementedError
 
-    def point_velocity_jacobian(self, theta: float, offset: Sequence[float]) -> np.ndarray:
+    def point_velocity_jacobian(self, theta: float, offset: Sequence[float] | np.ndarray) -> np.ndarray:
         """Return J (3 x n_wheels): wheel rates -> world (xdot, ydot, phidot) of a point at body `offset` (x, y).
 
         For the WMRA's arm mount A at (L2, L3) this is J_whA of paper eq. (12).
@@ -102,7 +109,7 @@ class MobileBase:
         shift = np.array([[1.0, 0.0, -(ox * s + oy * c)], [0.0, 1.0, ox * c - oy * s], [0.0, 0.0, 1.0]])
         return shift @ self.wheel_to_world_twist(theta)
 
-    def point_velocity_jacobian_6d(self, theta: float, offset: Sequence[float]) -> np.ndarray:
+    def point_velocity_jacobian_6d(self, theta: float, offset: Sequence[float] | np.ndarray) -> np.ndarray:
         """Return the 6 x n_wheels map wheel rates -> (v, omega) of a body point, paper eq. (15)."""
         j3 = self.point_velocity_jacobian(theta, offset)
         out = np.zeros((6, j3.shape[1]))
@@ -110,14 +117,14 @@ class MobileBase:
         out[5] = j3[2]
         return out
 
-    def integrate(self, pose: Sequence[float], wheel_increments: Sequence[float]) -> np.ndarray:
+    def integrate(self, pose: Sequence[float] | np.ndarray, wheel_increments: npt.ArrayLike) -> np.ndarray:
         """Return the pose after wheel angle increments (rad), exact for constant rates (paper eq. 4-10)."""
         dq = np.asarray(wheel_increments, dtype=float)
         if dq.shape != (self.n_wheels,):
             raise WholeBodyError(f"expected {self.n_wheels} wheel increments, got shape {dq.shape}")
         return integrate_body_displacement(pose, self.wheel_to_body_twist() @ dq)
 
-    def integrate_twist(self, pose: Sequence[float], body_twist: Sequence[float], dt: float) -> np.ndarray:
+    def integrate_twist(self, pose: Sequence[float] | np.ndarray, body_twist: npt.ArrayLike, dt: float) -> np.ndarray:
         """Return the pose after applying a constant body twist for dt seconds (exact)."""
         return integrate_body_displacement(pose, np.asarray(body_twist, dtype=float) * dt)
 
@@ -192,7 +199,7 @@ class Omnidirectional(MobileBase):
         """Return pinv(H) (3 x n): wheel rates -> body twist (least squares over roller slip)."""
         return np.linalg.pinv(self.twist_to_wheels())
 
-    def body_twist_to_wheels(self, twist: Sequence[float]) -> np.ndarray:
+    def body_twist_to_wheels(self, twist: npt.ArrayLike) -> np.ndarray:
         """Return the wheel rates of a body twist (exact for a mecanum base)."""
         return self.twist_to_wheels() @ np.asarray(twist, dtype=float)
 

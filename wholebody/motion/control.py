@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 import qpsolvers
 
@@ -232,7 +233,7 @@ class ResolvedRateController:
         wb: WholeBody,
         config: ControllerConfig = ControllerConfig(),
         band: SafetyBand | None = None,
-        posture: Sequence[float] | None = None,
+        posture: npt.ArrayLike | None = None,
         extra_tasks: Sequence[Task] = (),
         extra_limits: Sequence[Limit] = (),
     ) -> None:
@@ -255,7 +256,7 @@ class ResolvedRateController:
         return self._posture
 
     @posture.setter
-    def posture(self, value: Sequence[float] | None) -> None:
+    def posture(self, value: npt.ArrayLike | None) -> None:
         self._posture = None if value is None else np.asarray(value, dtype=float)
         for task in self.tasks:
             if isinstance(task, PostureTask):
@@ -270,8 +271,8 @@ class ResolvedRateController:
         self,
         x: np.ndarray,
         dt: float,
-        band_center: Sequence[float] | None,
-        band_center_velocity: Sequence[float] | None,
+        band_center: npt.ArrayLike | None,
+        band_center_velocity: npt.ArrayLike | None,
         relax: bool = False,
     ) -> tuple[np.ndarray | None, np.ndarray | None]:
         """Return (G, h) of G u <= h: wheel limits of a twist input, and the safety band (§VI).
@@ -287,18 +288,18 @@ class ResolvedRateController:
             band_center_velocity=band_center_velocity,
         )
         G, h = stack_inequalities(self.limits, s, relax)
-        return (None, None) if G is None else (G.copy(), h.copy())
+        return (None, None) if G is None or h is None else (G.copy(), h.copy())  # (both or neither are None)
 
     def step(
         self,
-        x: Sequence[float],
+        x: npt.ArrayLike,
         T_des: pin.SE3,
-        v_des: Sequence[float] | None,
+        v_des: npt.ArrayLike | None,
         dt: float,
-        band_center: Sequence[float] | None = None,
-        band_center_velocity: Sequence[float] | None = None,
-        base_target: Sequence[float] | None = None,
-        base_target_velocity: Sequence[float] | None = None,
+        band_center: npt.ArrayLike | None = None,
+        band_center_velocity: npt.ArrayLike | None = None,
+        base_target: npt.ArrayLike | None = None,
+        base_target_velocity: npt.ArrayLike | None = None,
     ) -> StepResult:
         """Return the input tracking pose `T_des` with feed-forward twist `v_des` (world-aligned) over dt.
 

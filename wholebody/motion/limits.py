@@ -152,6 +152,8 @@ class WheelAccelerationLimit(Limit):
         self._lb, self._ub = np.full(wb.n_u, -np.inf), np.full(wb.n_u, np.inf)  # reused by each call
 
     def box(self, s: StepState) -> tuple[np.ndarray, np.ndarray]:
+        if s.u_prev is None:
+            raise WholeBodyError("the wheel acceleration limit needs the previous input (StepState.u_prev)")
         prev, step = s.u_prev[self._n_arm :], self.acceleration * s.dt
         np.subtract(prev, step, out=self._lb[self._n_arm :])
         np.add(prev, step, out=self._ub[self._n_arm :])

@@ -20,10 +20,11 @@ import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import daqp
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 import qpsolvers
 from proxsuite import proxqp
@@ -57,10 +58,10 @@ class StepState:
     J: np.ndarray | None = None
     v_ref: np.ndarray | None = None
     u_prev: np.ndarray | None = None
-    band_center: np.ndarray | None = None
-    band_center_velocity: np.ndarray | None = None
-    base_target: np.ndarray | None = None
-    base_target_velocity: np.ndarray | None = None
+    band_center: npt.ArrayLike | None = None
+    band_center_velocity: npt.ArrayLike | None = None
+    base_target: npt.ArrayLike | None = None
+    base_target_velocity: npt.ArrayLike | None = None
 
     @cached_property
     def cos_sin(self) -> tuple[float, float]:
@@ -72,9 +73,15 @@ class StepState:
 class Task:
     """A quadratic cost term over the input u."""
 
-    #: True if the Hessian H added by `add_objective` does not depend on the step: a `QPWorkspace` then sums
-    #: it once per task list and calls only `add_linear` each step (call `QPWorkspace.reset` after changing it)
-    constant_hessian: bool = False
+    @property
+    def constant_hessian(self) -> bool:
+        """True if the Hessian H added by `add_objective` does not depend on the step: a `QPWorkspace` then sums
+        it once per task list and calls only `add_linear` each step (call `QPWorkspace.reset` after changing it).
+
+        False here; a subclass overrides it (a class attribute, or a property when it depends on the task's state).
+        """
+        return False
+
     #: False if the cost has no linear term (a `constant_hessian` task is then not called each step)
     linear: bool = True
 
@@ -271,14 +278,15 @@ class QPWorkspace:
         if len(parts) == 1:
             return parts[0][1], parts[0][2], same
         m = sum(G.shape[0] for G in G_parts)
-        if self._G is None or self._G.shape[0] != m:
-            self._G, self._h = np.empty((m, self.c.shape[0])), np.empty(m)
+        G_all, h_all = self._G, self._h
+        if G_all is None or h_all is None or G_all.shape[0] != m:  # (both are allocated together)
+            G_all, h_all = self._G, self._h = np.empty((m, self.c.shape[0])), np.empty(m)
         r = 0
         for _, G, h in parts:
-            self._G[r : r + G.shape[0]] = G
-            self._h[r : r + G.shape[0]] = h
+            G_all[r : r + G.shape[0]] = G
+            h_all[r : r + G.shape[0]] = h
             r += G.shape[0]
-        return self._G, self._h, same
+        return G_all, h_all, same
 
 
 def _same_objects(a: Sequence[object], b: Sequence[object]) -> bool:
@@ -420,7 +428,8 @@ def solve_qpsolvers(
     tolerance: float,
 ) -> np.ndarray | None:
     """Return the QP's solution by `qpsolvers.solve_qp(solver=...)`, or None if it fails or is not finite."""
-    options = {"eps_abs": tolerance, "eps_rel": 0.0} if solver == "proxqp" else {}
+    # solver-specific keyword arguments, passed through by qpsolvers to the solver
+    options: dict[str, Any] = {"eps_abs": tolerance, "eps_rel": 0.0} if solver == "proxqp" else {}
     try:
         u = qpsolvers.solve_qp(H, c, G, h, lb=lb, ub=ub, solver=solver, **options)
     except Exception:  # noqa: BLE001 - any solver failure is reported as None

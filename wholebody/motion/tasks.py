@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from wholebody.errors import WholeBodyError
@@ -25,13 +26,13 @@ def pose_error(T: pin.SE3, T_des: pin.SE3) -> np.ndarray:
     return e
 
 
-def manipulability(wb: WholeBody, x: Sequence[float]) -> float:
+def manipulability(wb: WholeBody, x: npt.ArrayLike) -> float:
     """Return the arm's manipulability sqrt(det(J_arm J_arm^T)) at x."""
     J = wb.combined_jacobian(x)[:, : wb.n_arm]
     return float(np.sqrt(max(np.linalg.det(J @ J.T), 0.0)))
 
 
-def manipulability_gradient(wb: WholeBody, x: Sequence[float], eps: float = 1e-6) -> np.ndarray:
+def manipulability_gradient(wb: WholeBody, x: npt.ArrayLike, eps: float = 1e-6) -> np.ndarray:
     """Return d manipulability / d q_arm by central differences (n_arm,)."""
     x = np.asarray(x, dtype=float)
     g = np.zeros(wb.n_arm)
@@ -51,13 +52,14 @@ class _DiagonalView:
         self._view: np.ndarray | None = None
 
     def __call__(self, H: np.ndarray) -> np.ndarray:
-        if H is not self._buffer:
+        view = self._view
+        if H is not self._buffer or view is None:  # (view is None only before the first buffer)
             n = H.shape[0]
             view = H.reshape(-1)[: self.k * (n + 1) : n + 1]
             if not np.shares_memory(view, H):
                 raise WholeBodyError("add_objective needs a C-contiguous n_u x n_u Hessian buffer")
             self._buffer, self._view = H, view
-        return self._view
+        return view
 
 
 class EndEffectorTask(Task):
@@ -80,13 +82,22 @@ class EndEffectorTask(Task):
         self._weights = weights
 
     def objective(self, s: StepState) -> tuple[np.ndarray, np.ndarray]:
-        n = s.J.shape[1]
+        n = _jacobian_and_twist(s)[0].shape[1]
         H, c = np.zeros((n, n)), np.zeros(n)
         self.add_objective(s, H, c)
         return H, c
 
     def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
-        add_weighted_gram(s.J, self._weights, s.v_ref, H, c)
+        J, v_ref = _jacobian_and_twist(s)
+        add_weighted_gram(J, self._weights, v_ref, H, c)
+
+
+def _jacobian_and_twist(s: StepState) -> tuple[np.ndarray, np.ndarray]:
+    """Return (J, v_ref) of the step; raise WholeBodyError if the step state lacks them."""
+    J, v_ref = s.J, s.v_ref
+    if J is None or v_ref is None:
+        raise WholeBodyError("the end-effector task needs the step's Jacobian J and commanded twist v_ref")
+    return J, v_ref
 
 
 class DampingTask(Task):
@@ -119,7 +130,7 @@ class PostureTask(Task):
     `posture` back to None between steps (`ResolvedRateController.posture` does so).
     """
 
-    def __init__(self, wb: WholeBody, weight: float, gain: float, posture: Sequence[float] | None = None) -> None:
+    def __init__(self, wb: WholeBody, weight: float, gain: float, posture: npt.ArrayLike | None = None) -> None:
         self.weight, self.gain = weight, gain
         self._n_arm, self._n_u = wb.n_arm, wb.n_u
         self.posture = posture
@@ -131,7 +142,7 @@ class PostureTask(Task):
         return self._posture
 
     @posture.setter
-    def posture(self, value: Sequence[float] | None) -> None:
+    def posture(self, value: npt.ArrayLike | None) -> None:
         if value is None:
             self._posture = None
             return

@@ -152,7 +152,9 @@ def ee_path_time_optimal(
     ctrl = ResolvedRateController(wb, ControllerConfig(secondary="posture"))
     x = np.asarray(x0, dtype=float).copy()
     wheels = np.zeros(wb.base.n_wheels)
-    rows, states, worst = [], [], 0.0
+    rows: list[np.ndarray] = []
+    states: list[np.ndarray] = []
+    worst = 0.0
     for T_des in ee_waypoints:
         for _ in range(ik_iterations):
             res = ctrl.step(x, T_des, None, ik_dt)
