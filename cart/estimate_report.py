@@ -23,7 +23,7 @@ import numpy as np
 from cart.errors import CartError, LogFormatError
 from cart.logs import CartLog, read_log
 from cart.params import CartParams
-from cart.streams import Streams, split_streams
+from cart.streams import Streams, box_average, split_streams
 from cart.units import check_units
 
 #: Mean NIS above which the EKF's innovations do not fit the 6-dof measurement (about 6 expected).
@@ -114,13 +114,11 @@ def check_log(log: CartLog, streams: Streams) -> CartLog:
     """
     if not (streams.multi_rate or streams.held_rows or streams.stuck or streams.glitches):
         return log
-    from cart.identify import _box_average
-
     t = streams.pose.t
     dt = streams.pose.period
     w = streams.wrench
     g = (
-        _box_average(w.t, w.values, t, dt)
+        box_average(w.t, w.values, t, dt)
         if w.period < dt / 1.5
         else np.column_stack([np.interp(t, w.t, w.values[:, i]) for i in range(3)])
     )

@@ -49,7 +49,7 @@ from cart.logs import CartLog
 from cart.noise_model import AR1Noise, fit_ar1
 from cart.params import CartParams
 from cart.physical import constrained_fit
-from cart.streams import Streams, split_streams
+from cart.streams import Streams, box_average, split_streams
 
 #: Largest share of the filtered acceleration's power that differentiated pose noise may have (the
 #: attenuation bias of the inertial parameters is about this share).
@@ -117,18 +117,6 @@ class _Grid:
     gaps: int
 
 
-def _box_average(t: np.ndarray, y: np.ndarray, tg: np.ndarray, dt: float) -> np.ndarray:
-    """Return the mean of the piecewise-linear y(t) over [tg - dt/2, tg + dt/2] (anti-aliasing a faster stream)."""
-    area = np.concatenate([np.zeros((1, y.shape[1])), np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(t)[:, None], 0)])
-    lo, hi = np.clip(tg - 0.5 * dt, t[0], t[-1]), np.clip(tg + 0.5 * dt, t[0], t[-1])
-    width = np.maximum(hi - lo, 1e-300)
-    out = np.column_stack([(np.interp(hi, t, area[:, i]) - np.interp(lo, t, area[:, i])) / width for i in range(3)])
-    point = hi - lo <= 0.0
-    if point.any():
-        out[point] = np.column_stack([np.interp(tg[point], t, y[:, i]) for i in range(3)])
-    return out
-
-
 def _mark_gaps(valid: np.ndarray, tg: np.ndarray, t: np.ndarray, limit: float) -> int:
     """Mark grid points strictly inside intervals of ``t`` longer than ``limit`` invalid; return their number."""
     big = np.flatnonzero(np.diff(t) > limit)
@@ -158,7 +146,7 @@ def _uniform_grid(log: CartLog, streams: Streams | None = None, gap_factor: floa
     tg = t0 + dt * np.arange(n)
     q = np.column_stack([np.interp(tg, st.pose.t, st.pose.values[:, i]) for i in range(3)])
     if st.wrench.period < dt / 1.5:
-        g = _box_average(st.wrench.t, st.wrench.values, tg, dt)
+        g = box_average(st.wrench.t, st.wrench.values, tg, dt)
     else:
         g = np.column_stack([np.interp(tg, st.wrench.t, st.wrench.values[:, i]) for i in range(3)])
     valid = np.ones(n, dtype=bool)

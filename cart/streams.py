@@ -118,6 +118,18 @@ class Streams:
         return out
 
 
+def box_average(t: np.ndarray, y: np.ndarray, tg: np.ndarray, dt: float) -> np.ndarray:
+    """Return the mean of the piecewise-linear y(t) over [tg - dt/2, tg + dt/2] (anti-aliasing a faster stream)."""
+    area = np.concatenate([np.zeros((1, y.shape[1])), np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(t)[:, None], 0)])
+    lo, hi = np.clip(tg - 0.5 * dt, t[0], t[-1]), np.clip(tg + 0.5 * dt, t[0], t[-1])
+    width = np.maximum(hi - lo, 1e-300)
+    out = np.column_stack([(np.interp(hi, t, area[:, i]) - np.interp(lo, t, area[:, i])) / width for i in range(3)])
+    point = hi - lo <= 0.0
+    if point.any():
+        out[point] = np.column_stack([np.interp(tg[point], t, y[:, i]) for i in range(3)])
+    return out
+
+
 def _runs(same: np.ndarray) -> list[tuple[int, int]]:
     """Return [(first, last)] index ranges of rows i with same[i-1] true: runs repeating row first - 1."""
     d = np.diff(np.r_[0, same.astype(np.int8), 0])
