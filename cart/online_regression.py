@@ -34,7 +34,7 @@ PRIOR_NAMES = ("m", "dx", "dy", "rho", "c_v", "c_w")
 #: The prior is linearized at a mass of at least this share of its center (an estimate may run negative).
 MIN_MASS_SHARE = 0.05
 #: Largest share of a diagonal entry of the normal matrix that the noise correction removes.
-COMPENSATION_SHARE = 0.5
+COMPENSATION_SHARE = 0.98
 
 
 class OnlineEstimatorError(CartError):

@@ -16,10 +16,6 @@ Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loa
 
 from __future__ import annotations
 
-import argparse
-import json
-import math
-from dataclasses import replace
 
 import numpy as np
 
