@@ -146,6 +146,10 @@ def run(args: argparse.Namespace) -> int:
     print_summary(result)
     for p in written:
         print(f"wrote {p}")
+    if args.html is not None:
+        from cartpush.cli.view import PLAYER_HINT
+
+        print(PLAYER_HINT.format(page=args.html.name))
     return 0
 
 

@@ -29,6 +29,13 @@ Examples:
 """
 
 
+#: How an animated page is used, printed after writing one (`push --html`, `demo` print it too).
+PLAYER_HINT = (
+    "it plays when opened and loops: pause with the button in its bottom-left corner (or the space bar); "
+    "{page}#t=12 opens it paused at 12 s; the corner's legend says what each colour and arrow means"
+)
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `view` subcommand."""
     parser = subparsers.add_parser(
@@ -84,12 +91,17 @@ def run(args: argparse.Namespace) -> int:
         out = Path(args.html)
         with build_scene(args, serve=False) as scene:
             scene.save_html(out)
+            animated = scene.animation_duration() > 0
         print(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB); open it in a browser (works offline)")
+        if animated:
+            print(PLAYER_HINT.format(page=out.name))
         return 0
     previous = signal.signal(signal.SIGTERM, _interrupt)  # stop the server on SIGTERM too
     try:
         with build_scene(args, serve=True) as scene:
             print(f"Meshcat scene at {scene.url} (Ctrl-C to stop)", flush=True)
+            if scene.animation_duration() > 0:
+                print("the live viewer plays the animation; play/pause/time in its Animations panel", flush=True)
             try:
                 while True:
                     time.sleep(1.0)

@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from cartpush.cli import main
@@ -54,3 +55,64 @@ def test_demo_json_reports_mm_and_unobservable_stretches(tmp_path, capsys):
         "push_log.csv",
         "comparison.md",
     }
+
+
+def test_demo_table_gives_the_com_in_cm_and_says_what_unobservable_means(tmp_path, capsys):
+    assert main(["demo", "--duration", "8", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "CoM err [cm]" in out and "CoM err [m]" not in out
+    assert "the estimate is held from earlier data, not updated" in out
+    assert "arm torque peak" in out and "(within the limits)" in out
+    assert "plays when opened" in out
+    table = (tmp_path / "comparison.md").read_text()
+    assert "CoM err [cm]" in table
+
+
+# -- verdicts with their reasons -----------------------------------------------------------------------------------
+def test_track_explains_saturated_steps_by_the_limit_reached():
+    from cartpush.cli.track import flag_reasons
+
+    m = {
+        "steps": 6000,
+        "saturated_steps": 1116,
+        "singular_steps": 0,
+        "solver_failures": 0,
+        "max_band_distance_m": 0.7000008,
+        "max_joint_speed_ratio": 0.086,
+        "max_wheel_speed_ratio": 0.258,
+        "min_joint_limit_margin_rad": 0.317,
+        "max_position_error_m": 0.000185,
+    }
+    lines = flag_reasons(m, band=0.7)
+    assert "1116 of 6000 steps (19 %)" in lines[0] and "0.7 m band's edge" in lines[0]
+    assert lines[1].startswith("the hand still tracked the path") and "0.1850 mm" in lines[1]
+    m["max_band_distance_m"], m["max_wheel_speed_ratio"] = 0.5, 1.0
+    assert "a wheel reached its rate limit" in flag_reasons(m, band=0.7)[0]
+    assert flag_reasons({**m, "saturated_steps": 0}, band=0.7) == []
+
+
+def _fake_run(peak_nm: float):
+    from types import SimpleNamespace
+
+    t = np.arange(0.0, 2.0, 0.01)
+    tau = np.zeros((len(t), 1, 7))
+    tau[100:110, 0, 2] = peak_nm  # 0.1 s on joint 3
+    limit = np.array([60.0, 60.0, 30.0, 30.0, 15.0, 10.0, 10.0])
+    return SimpleNamespace(t=t, arm_torque=tau, effort_limit=limit, config=SimpleNamespace(dt=0.01))
+
+
+def test_push_torque_verdict_warns_over_the_limit_and_names_the_joint():
+    from wholebody.push.report import torque_verdict
+
+    line, over = torque_verdict(_fake_run(37.0))
+    assert over and "1.23 x effortLimit" in line and "joint 3 at 37.0 of 30 N m" in line
+    assert "OVER THE LIMIT for 0.10 s (joints 3)" in line and "t = 1.0 s" in line
+    line, over = torque_verdict(_fake_run(15.0))
+    assert not over and "within the limits" in line
+
+
+def test_plan_contacts_infeasible_names_the_limit_and_rounds_the_closest_wrench(capsys):
+    assert main(["plan-contacts", "--wrench", "-1e3", "0", "0"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "e-" not in err
+    assert "grip pull limit" in err and "--grip-force" in err and "fx -100.00 N, fy 0.00 N, tau 0.00 N m" in err

@@ -429,5 +429,13 @@ def run_demo(
         )
         print(table)
         print(unobservable_note(runs))
+        for label, run in runs.items():
+            print(f"{label}: {torque_verdict(run)[0]}")
         print(f"report: {Path(out_dir).resolve()}  ({seconds:.1f} s)")
+        if html:
+            print(
+                "  scene.html plays when opened (pause: the button in its bottom-left corner or the space bar; "
+                "scene.html#t=12 opens it paused at 12 s); push_log.csv is the run's log: "
+                "`cartpush estimate push_log.csv`, `cartpush view push_log.csv`"
+            )
     return DemoResult(runs=runs, table=table, out_dir=Path(out_dir), seconds=seconds)
