@@ -876,8 +876,11 @@ def _check_request(
     wrench_topic: str | None,
     start: float | None,
     end: float | None,
-) -> None:
-    """Raise BagImportError unless exactly one pose source, a wrench topic and a valid window are given."""
+) -> str:
+    """Raise BagImportError unless exactly one pose source, a wrench topic and a valid window are given.
+
+    Return the wrench topic.
+    """
     if (pose_topic is None) == (pose_frame is None):
         raise BagImportError(
             f"{path}: give the cart's pose as exactly one of a pose topic or a TF frame "
@@ -886,6 +889,7 @@ def _check_request(
     if not wrench_topic:
         raise BagImportError(f"{path}: give the wrench topic (--wrench-topic, a geometry_msgs/WrenchStamped topic)")
     _check_window(start, end)
+    return wrench_topic
 
 
 def _read_recording(bag: _Bag, pose_topic: str | None, wrench_topic: str) -> _Recording:
@@ -1177,12 +1181,12 @@ def import_bag(
     Raises BagImportError (TransformLookupError for TF) on bad input, FileNotFoundError for a missing path.
     """
     bag = _Bag(path)  # a bag at all? (before the options, which only make sense for one)
-    _check_request(path, pose_topic, pose_frame, wrench_topic, start, end)
+    wrench_topic = _check_request(path, pose_topic, pose_frame, wrench_topic, start, end)
     clock = "record" if use_record_time else "header"
     notes: list[str] = []
     warns: list[str] = []
     dropped: dict[str, int] = {}
-    rec = _read_recording(bag, pose_topic, wrench_topic)  # type: ignore[arg-type]
+    rec = _read_recording(bag, pose_topic, wrench_topic)
     pose_t_ns, wrench_t_ns, t0_ns = _clock(rec, use_record_time, notes)
     tf_buf = _tf_buffer(rec, t0_ns, use_record_time, notes)
     cp = _cart_poses(
