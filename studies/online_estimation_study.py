@@ -17,6 +17,9 @@ Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loa
 from __future__ import annotations
 
 
+import argparse
+import json
+
 import numpy as np
 
 from cart.control import make_controller
@@ -167,3 +170,38 @@ def observable_bound(run: TestRun, tol: float = 1.0) -> float:
         state_known = state_known or bool(excited[k])
         known[k] = state_known
     return float(np.sum(known) * dt)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--part", choices=("push", "table1", "all"), default="all")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    args = parser.parse_args()
+    out = {}
+    if args.part in ("push", "all"):
+        out["push"] = push_part()
+    if args.part in ("table1", "all"):
+        out["table1_test11"] = table1_part()
+    if args.json:
+        print(json.dumps(out, default=float))
+        return
+    for key, runs in out.get("push", {}).items():
+        for est, m in runs.items():
+            print(key, f"{est:12s}", " ".join(f"{k}={m[k]:.4g}" for k in PUSH_METRICS))
+    t11 = out.get("table1_test11")
+    if t11:
+        for est in ("paper_ekf", "paper_ekf_change_detection", "online"):
+            m = t11[est]
+            print(
+                f"test 11 {est:28s} within 1 kg {m['time_mass_within_1kg_s']:.1f} s, "
+                f"max mass error after 5 s {m['mass_error_max_after_5s_kg']:.1f} kg"
+            )
+        print(
+            f"test 11: time within 1 kg of an estimator knowing each mass from its first excitation: "
+            f"{t11['observable_bound_s']:.1f} s"
+        )
+        print("online events:", t11["online"]["report"]["load_changes"])
+
+
+if __name__ == "__main__":
+    main()
