@@ -42,7 +42,10 @@ class TorqueArmGains:
     #: "bias": the arm's bias forces (gravity, Coriolis) at the measured state, every physics step, + J^T w
     #: of the command's ``hand_wrench``; "dynamics": the arm's inverse dynamics at the measured state with
     #: the base's measured acceleration and the plan's arm acceleration, every physics step, + J^T w
-    feedforward: str = "dynamics"
+    feedforward: str = "command"
+    #: True: the impedance acts in the hand's null space only; False: on every joint (it then also damps the
+    #: hand's motion relative to the plan)
+    null_space: bool = True
 
 
 @dataclass(frozen=True)
@@ -112,7 +115,7 @@ class TorqueArmLaw:
             self._ff = np.asarray(arm_torque, dtype=float)
         self._q_end = np.asarray(arm_position, dtype=float)
         self._v = v_new
-        self._NT = null_space_projector_T(J, M)
+        self._NT = null_space_projector_T(J, M) if self.gains.null_space else np.eye(M.shape[0])
         self._t_end = t_end
 
     def torque(self, t: float, q: np.ndarray, v: np.ndarray, bias: np.ndarray) -> np.ndarray:

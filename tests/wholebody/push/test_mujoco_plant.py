@@ -1,0 +1,182 @@
+"""The MuJoCo plant: the scene keeps the robots' masses, gravity compensation, the F/T sensor vs the weld's force."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from cart.simulate import MeasurementNoise
+from wholebody.push import PushConfig, build_controller
+from wholebody.push.arm_control import TorqueArmGains, null_space_projector_T
+from wholebody.push.config import TRUE_CART
+from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantConfig, MujocoPlantError
+from wholebody.push.plant import RobotCommand
+
+CONFIG = PushConfig(trajectory=2, duration=2.0, contact="fixed")
+QUIET = MeasurementNoise()  # no noise
+
+
+@pytest.fixture(scope="module")
+def setup():
+    return build_controller(CONFIG)
+
+
+def _plant(setup, **kw) -> MujocoPlant:
+    return MujocoPlant(setup.controller.robots, setup.q0, TRUE_CART, **kw)
+
+
+def _hold(plant: MujocoPlant, wrench=np.zeros(6), arm_torque=None) -> RobotCommand:
+    """A command that holds the arm where it is and the base still, with `wrench` allocated to the hand."""
+    r = plant.measure().robots[0]
+    n = r.q_arm.size
+    return RobotCommand(
+        arm_velocity=np.zeros(n),
+        arm_position=r.q_arm.copy(),
+        arm_torque=np.zeros(n) if arm_torque is None else arm_torque,
+        base_twist=np.zeros(3),
+        wheel_rates=np.zeros(4),
+        hand_wrench=np.asarray(wrench, dtype=float),
+    )
+
+
+def test_scene_keeps_the_robots_mass_and_the_carts_inertial(setup):
+    plant = _plant(setup, noise=QUIET)
+    m = plant.scene.model
+    r = plant.scene.robots[0]
+    # MuJoCo's URDF import would fuse the fixed links into the world (36 kg): the scene keeps them
+    assert m.body_subtreemass[r.root_body] == pytest.approx(266.903, abs=1e-3)
+    ci = plant.cart_inertial()
+    assert ci.mass == pytest.approx(TRUE_CART.m, rel=1e-9)
+    assert ci.com_b == pytest.approx((TRUE_CART.dx, TRUE_CART.dy), abs=2e-3)  # settled: casters trail
+    assert ci.inertia == pytest.approx(TRUE_CART.I, rel=1e-3)
+    # four solid-cylinder wheels of 0.35 kg: each adds J / r^2 = m / 2 to the forward mass
+    assert ci.mass_effective == pytest.approx(TRUE_CART.m + 4 * 0.35 / 2, rel=1e-3)
+
+
+def test_pinocchio_gravity_equals_mujocos_bias_forces(setup):
+    plant = _plant(setup, noise=QUIET)
+    mm, r, d = setup.controller.robots[0], plant.scene.robots[0], plant.scene.data
+    d.qvel[:] = 0.0  # at rest the bias forces are gravity alone
+    mujoco.mj_forward(plant.scene.model, d)
+    x = plant.robot_states()[0]
+    g = pin.computeGeneralizedGravity(mm.model, mm.data, mm.wb.to_pinocchio_q(x))[mm.wb.arm_idx_v]
+    np.testing.assert_allclose(g, d.qfrc_bias[r.arm_dof], atol=1e-9 * np.abs(g).max())
+
+
+def _released(setup, arm_torque_of) -> float:
+    """Return the largest arm joint motion (rad) over 1 s with the grasp released and torques `arm_torque_of(x)`."""
+    gains = TorqueArmGains(stiffness=0.0, damping=0.0, feedforward="command")
+    plant = _plant(setup, noise=QUIET, config=MujocoPlantConfig(torque_gains=gains))
+    r = plant.scene.robots[0]
+    plant.scene.data.eq_active[r.weld] = 0  # the hand lets go of the handle
+    q0 = plant.measure().robots[0].q_arm.copy()
+    worst = 0.0
+    for _ in range(100):
+        x = plant.robot_states()[0]
+        cmd = replace(_hold(plant), arm_torque=arm_torque_of(x))
+        plant.step([cmd])
+        worst = max(worst, float(np.abs(plant.measure().robots[0].q_arm - q0).max()))
+    return worst
+
+
+def test_gravity_compensation_holds_an_arm_still_with_no_command(setup):
+    mm = setup.controller.robots[0]
+
+    def gravity(x):  # Pinocchio's gravity torques at the measured joints: nothing else commanded
+        return pin.computeGeneralizedGravity(mm.model, mm.data, mm.wb.to_pinocchio_q(x))[mm.wb.arm_idx_v]
+
+    assert _released(setup, gravity) < 2e-3
+    assert _released(setup, lambda x: np.zeros(7)) > 0.1  # without it the arm falls
+
+
+def _weld_wrench_on_cart(plant: MujocoPlant) -> np.ndarray:
+    """Return the weld's constraint wrench on the cart: world force and torque about the cart body's origin."""
+    m, d = plant.scene.model, plant.scene.data
+    r = plant.scene.robots[0]
+    rows = (d.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY) & (d.efc_id == r.weld)
+    assert rows.sum() == 6
+    qfrc = np.zeros(m.nv)
+    mujoco.mj_mulJacTVec(m, d, qfrc, np.where(rows, d.efc_force, 0.0))
+    c = plant.scene.cart_dof
+    R = d.xmat[plant.scene.cart_body].reshape(3, 3)
+    return np.r_[qfrc[c : c + 3], R @ qfrc[c + 3 : c + 6]]  # free joint: world force, body-frame torque
+
+
+def test_ft_sensor_equals_the_grasps_constraint_force_within_noise(setup):
+    noise = MeasurementNoise(force=3.0, torque=0.3)
+    plant = _plant(setup, noise=noise, seed=3)
+    push = np.array([25.0, -8.0, 0.0, 0.0, 0.0, 1.5])  # world-aligned at the grasp, on the cart
+    errors_noisy, errors_clean = [], []
+    for _ in range(40):
+        plant.step([_hold(plant, push)])
+        d, r = plant.scene.data, plant.scene.robots[0]
+        mujoco.mj_forward(plant.scene.model, d)  # constraint forces of the current state
+        weld = _weld_wrench_on_cart(plant)
+        o = d.xpos[plant.scene.cart_body]
+        p = d.site_xpos[r.hand_site]
+        clean = plant._hand_wrench_world(0, plant._sensor_wrench(0))
+        noisy = plant._hand_wrench_world(0, plant.measure().robots[0].ft)
+        for w, out in ((clean, errors_clean), (noisy, errors_noisy)):
+            on_cart = np.r_[w[:3], w[3:] + np.cross(p - o, w[:3])]  # the hand's wrench about the cart origin
+            out.append(on_cart - weld)
+    e_clean, e_noisy = np.array(errors_clean), np.array(errors_noisy)
+    # the sensor is the weld's force, up to the inertia of the gripper beyond it (0.9 kg, slow push)
+    assert np.abs(e_clean[:, :3]).max() < 1.0
+    # and the reading adds the sensor's white noise: 3 N per axis
+    assert np.std(e_noisy[:, :3]) == pytest.approx(3.0, rel=0.3)
+    assert np.abs(e_noisy[:, :3].mean(axis=0)).max() < 3.0 * 4 / math.sqrt(40) + 1.0
+
+
+def test_null_space_torques_put_no_force_on_a_held_hand():
+    rng = np.random.default_rng(0)
+    J = rng.normal(size=(6, 7))
+    A = rng.normal(size=(7, 7))
+    M = A @ A.T + 7 * np.eye(7)
+    NT = null_space_projector_T(J, M)
+    raw = rng.normal(size=7)
+
+    def hand_force(tau):  # the hand's force from joint torques tau with the hand held: (J M^-1 J^T)^-1 J M^-1 tau
+        return np.linalg.solve(J @ np.linalg.solve(M, J.T), J @ np.linalg.solve(M, tau))
+
+    assert np.abs(hand_force(NT @ raw)).max() < 1e-6 * np.abs(raw).max()
+    assert np.abs(hand_force(raw)).max() > 0.1 * np.abs(raw).max()
+
+
+def test_closed_loop_run_reports_its_diagnostics(setup):
+    from wholebody.push.loop import run_loop
+
+    fresh = build_controller(CONFIG)
+    plant = MujocoPlant(fresh.controller.robots, fresh.q0, CONFIG.true_params, noise=CONFIG.noise, seed=1)
+    res = run_loop(CONFIG, fresh.controller, plant)
+    rep = plant.report()
+    for key in (
+        "cart_mass_kg",
+        "cart_mass_effective_kg",
+        "wrench_error_rms_n",
+        "grasp_slip_max_m",
+        "base_wheel_slip_max_m_s",
+        "real_time_factor",
+    ):
+        assert key in rep
+    assert rep["base_wheel_slip_max_m_s"] is None  # the Ridgeback's base is planar
+    assert 0.0 < rep["grasp_slip_max_m"] < 5e-3
+    assert rep["arm_torque_limit_ratio"] < 1.0
+    assert res.metrics.tracking_max_mm < 20.0
+    # the cart moved along the trajectory's start (Traj. 2 accelerates from rest after 1 s)
+    q, qd = plant.cart_state()
+    assert qd[0] > 0.1
+
+
+def test_bad_commands_are_rejected(setup):
+    plant = _plant(setup, noise=QUIET)
+    with pytest.raises(MujocoPlantError, match="commands for 1 robots"):
+        plant.step([])
+    with pytest.raises(MujocoPlantError, match="hand_wrench"):
+        plant.step([replace(_hold(plant), hand_wrench=np.zeros(3))])
+    with pytest.raises(MujocoPlantError, match="grasp point"):
+        _plant(setup, grasp_points_b=[(-0.15, 0.1, 0.9365)])
