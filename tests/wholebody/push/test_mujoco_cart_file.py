@@ -1,0 +1,83 @@
+"""Cart files (docs/mujoco.md): each break of the contract gets its one-line message; a conforming file is pushed."""
+
+from __future__ import annotations
+
+import pytest
+
+from wholebody.push import PushConfig, build_controller, mujoco_cart
+from wholebody.push.cart_file import CartFileError, load_cart_file
+from wholebody.push.config import TRUE_CART
+from wholebody.push.mujoco_plant import MujocoPlant
+
+GOOD_BODY = """
+    <body name="cart" pos="0 0 0.1">
+      <freejoint/>
+      <geom type="box" size="0.4 0.25 0.05" mass="12"/>
+      {sites}
+    </body>"""
+BAR = '<site name="handle" type="capsule" size="0.015" fromto="-0.15 -0.25 0.9 -0.15 0.25 0.9"/>'
+
+
+def _write(tmp_path, body: str, floor: bool = True) -> str:
+    plane = '<geom name="ground" type="plane" size="0 0 1"/>' if floor else ""
+    path = tmp_path / "cart.xml"
+    path.write_text(f"<mujoco><worldbody>{plane}{body}</worldbody></mujoco>")
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        (GOOD_BODY.replace('name="cart"', 'name="trolley"').format(sites=BAR), "no body named 'cart'"),
+        (GOOD_BODY.replace("<freejoint/>", '<joint type="slide" axis="1 0 0"/>').format(sites=BAR), "no free joint"),
+        (GOOD_BODY.format(sites='<site name="grip" pos="-0.15 0 0.9"/>'), "no site named 'handle' or 'handle_\\*'"),
+        (
+            GOOD_BODY.format(sites='<site name="handle_left" type="box" size="0.02 0.02 0.02" pos="-0.15 0 0.9"/>'),
+            "handle site 'handle_left' is neither a point",
+        ),
+        (
+            GOOD_BODY.format(sites='<body name="bar" pos="-0.15 0 0.9"><site name="handle"/></body>'),
+            "handle site 'handle' is on body 'bar', not on 'cart'",
+        ),
+        ("<body name='cart'><freejoint/><geom type='nonsense'/></body>", "not a valid MuJoCo model"),
+    ],
+    ids=["no_cart_body", "no_free_joint", "no_handle_site", "handle_not_point_or_bar", "handle_elsewhere", "bad_mjcf"],
+)
+def test_each_break_of_the_contract_gets_its_message(tmp_path, body, message):
+    with pytest.raises(CartFileError, match=message) as info:
+        load_cart_file(_write(tmp_path, body))
+    assert "\n" not in str(info.value)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(CartFileError, match="no such file"):
+        load_cart_file(tmp_path / "none.xml")
+
+
+def test_handles_in_b(tmp_path):
+    sites = BAR + '<site name="handle_side" pos="0.2 0.3 0.5"/>'
+    src = load_cart_file(_write(tmp_path, GOOD_BODY.format(sites=sites)))
+    bar, point = src.handles
+    assert bar.is_bar and not point.is_bar
+    assert bar.start_b.tolist() == pytest.approx([-0.15, -0.25, 0.9]) or bar.end_b.tolist() == pytest.approx(
+        [-0.15, -0.25, 0.9]
+    )
+    assert src.distance_to_handle([-0.15, 0.1, 0.9])[0] == pytest.approx(0.0, abs=1e-9)  # anywhere on the bar
+    assert src.distance_to_handle([0.2, 0.3, 0.6]) == pytest.approx((0.1, "handle_side"))
+    assert src.z == pytest.approx(0.1)
+
+
+def test_a_conforming_file_without_floor_is_pushed_and_reports_its_truth(tmp_path):
+    """The shopping cart written as a file (floor removed): the plant adds a floor, finds the wheels by shape."""
+    xml = mujoco_cart.mjcf(mujoco_cart.shopping_cart(TRUE_CART))
+    start = xml.index('<geom name="floor"')
+    xml = xml[:start] + xml[xml.index("/>", start) + 2 :]
+    path = tmp_path / "shopping_cart.xml"
+    path.write_text(xml)
+    setup = build_controller(PushConfig(contact="fixed", duration=1.0))
+    plant = MujocoPlant(setup.controller.robots, setup.q0, path)
+    ci = plant.cart_inertial()
+    assert ci.mass == pytest.approx(TRUE_CART.m, rel=1e-9)
+    # rolling radius from the axle's height over the (added) floor: soft contacts sink by about a millimetre
+    assert ci.mass_effective == pytest.approx(TRUE_CART.m + 4 * 0.35 / 2, rel=0.01)
+    assert plant.scene.model.ngeom > 0 and plant.cart_state()[0][2] == pytest.approx(0.0, abs=1e-3)  # stands still
