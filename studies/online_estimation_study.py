@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 
 import numpy as np
 
@@ -172,9 +173,95 @@ def observable_bound(run: TestRun, tol: float = 1.0) -> float:
     return float(np.sum(known) * dt)
 
 
+# --------------------------------------------------------------------------- load changes, independent simulator
+class _SwitchingIntegrator:
+    """rigid_sim's DOP853 integrator of one cart until ``t_change``, of another from the state there (no momentum exchange)."""
+
+    def __init__(self, cart, new_cart, y0: np.ndarray, t_change: float) -> None:
+        from studies.testbeds import rigid_sim
+
+        self._rs = rigid_sim
+        self.first = rigid_sim._Integrator(cart, y0, "dop853")
+        self.second = None
+        self.new_cart = new_cart
+        self.t_change = float(t_change)
+        self.y = self.first.y
+
+    def advance(self, t1: float, gamma: tuple[float, float, float]) -> np.ndarray:
+        """Integrate to t1 with gamma held (switching carts at the change)."""
+        if self.second is None and t1 > self.t_change:
+            y = self.first.advance(self.t_change, gamma)
+            self.second = self._rs._Integrator(self.new_cart, y, "dop853")
+            self.second.t = self.t_change
+            self.second.ode.set_initial_value(y, self.t_change)
+        self.y = (self.second or self.first).advance(t1, gamma)
+        return self.y
+
+
+def rigid_log_with_load(seed: int, added_mass: float, t_change: float, **overrides):
+    """Return (log, truth before, truth after) of a rigid_sim case whose mass changes by ``added_mass`` at t_change.
+
+    The load sits at the CoM (CoM kept, inertia scaled with the mass). ``added_mass = 0``: no change.
+    """
+    from dataclasses import replace
+
+    from studies.testbeds import rigid_sim as rs
+
+    case = rs.random_case(seed, vel_std=0.005, jitter=0.0, **overrides)
+    cart = case.cart
+    new = replace(cart, m=cart.m + added_mass, I=cart.I * (cart.m + added_mass) / cart.m)
+    ss = np.random.SeedSequence([int(case.seed), 0xCA27]).spawn(5)
+    rng_ref, rng_nom, rng_t, rng_noise, rng_init = (np.random.default_rng(s) for s in ss)
+    v_ref_f, w_ref_f = rs.make_references(rng_ref, case.duration, case.speed_scale)
+    lat_f = rs.make_lateral(rng_ref, case.duration, case.lateral_std)
+    tracker = rs.Tracker(rs.nominal_cart(rng_nom, cart, case.nominal_error))
+    t_log = rs.sample_times(rng_t, case.duration, case.rate_hz, case.jitter)
+    refs = rs._TickReferences.on_grid(t_log[-1], v_ref_f, w_ref_f, lat_f)
+    y0 = np.array([rng_init.uniform(-3, 3), rng_init.uniform(-3, 3), rng_init.uniform(-math.pi, math.pi), 0.0, 0.0])
+    integ = _SwitchingIntegrator(cart, new, y0, t_change if added_mass else math.inf)
+    run = rs._run_ticks(integ, tracker, refs, t_log)
+    th = run.states[:, 2]
+    qd = np.column_stack([run.states[:, 3] * np.cos(th), run.states[:, 3] * np.sin(th), run.states[:, 4]])
+    log = rs._measure(case, t_log, run.states[:, :3].copy(), qd, run.gamma_log, rng_noise)
+    return log, case, cart, new
+
+
+def loads_part(seeds: tuple[int, ...] = (0, 1, 2, 3, 4, 5), t_change: float = 15.0) -> list[dict]:
+    """Return, per rigid_sim case: the change (in or out of +-40 % of the mass, or none) and what the estimator reported."""
+    from cart.params import CartParams
+
+    out = []
+    for seed in seeds:
+        kind = ("in", "out", "none")[seed % 3]
+        probe = __import__("studies.testbeds.rigid_sim", fromlist=["random_case"]).random_case(seed)
+        added = {"in": 0.4, "out": -0.3, "none": 0.0}[kind] * probe.cart.m
+        log, case, cart, new = rigid_log_with_load(seed, added, t_change)
+        guess = CartParams(cart.m * 0.8, cart.dx, 0.0, cart.I * 0.8, cart.c_v, cart.c_w)
+        std = [case.pos_std, case.pos_std, case.theta_std, case.vel_std, case.vel_std, case.omega_std]
+        est = make_online_estimator(np.r_[log.q[0], log.qd[0]], guess, std)
+        z = np.hstack([log.q, log.qd])
+        for k in range(1, len(log.t)):
+            est.step(log.gamma[k - 1], log.t[k] - log.t[k - 1], z[k])
+        events = [e.as_dict() for e in est.events]
+        final_true = new.m if added else cart.m
+        out.append(
+            {
+                "seed": seed,
+                "kind": kind,
+                "mass_before": cart.m,
+                "mass_after": final_true,
+                "t_change": t_change if added else None,
+                "events": events,
+                "final_mass": est.params().m,
+                "final_mass_error_pct": 100.0 * (est.params().m / final_true - 1.0),
+            }
+        )
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("push", "table1", "all"), default="all")
+    parser.add_argument("--part", choices=("push", "table1", "loads", "all"), default="all")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args()
     out = {}
@@ -182,6 +269,8 @@ def main() -> None:
         out["push"] = push_part()
     if args.part in ("table1", "all"):
         out["table1_test11"] = table1_part()
+    if args.part in ("loads", "all"):
+        out["loads"] = loads_part()
     if args.json:
         print(json.dumps(out, default=float))
         return
@@ -201,6 +290,15 @@ def main() -> None:
             f"{t11['observable_bound_s']:.1f} s"
         )
         print("online events:", t11["online"]["report"]["load_changes"])
+    for row in out.get("loads", []):
+        print(
+            f"rigid seed {row['seed']} load {row['kind']:4s} {row['mass_before']:.1f} -> {row['mass_after']:.1f} kg:"
+            f" final {row['final_mass']:.2f} ({row['final_mass_error_pct']:+.1f} %), events "
+            + ", ".join(
+                f"t {e['t_change']:.2f}/{e['t_detected']:.2f} s, {e['mass_before']:.1f}->{e['mass_after']:.1f} kg"
+                for e in row["events"]
+            )
+        )
 
 
 if __name__ == "__main__":
