@@ -1,5 +1,7 @@
 """Write docs/img/scene.png, the README's screenshot: the static page of a scene rendered by headless Chromium.
 
+The page's legend (bottom left) names every overlay and the arrows' scale.
+
 Run from the repository root: .venv/bin/python docs/img/make_scene.py
 """
 
@@ -25,11 +27,14 @@ def main() -> int:
     with pushing_scene((0.9, 0.0, 0.0)) as scene:
         scene.set_camera(Camera(target=(0.55, 0.0, 0.55), eye=(2.3, -2.4, 1.9), fov_deg=50.0))
         scene.show_contact("arm0", [(CART_HANDLE_X, 0.0)], frame="b")
-        scene.show_wrench("arm0", [(CART_HANDLE_X, 0.0)], (40.0, 6.0), torque=4.0, frame="b")
-        scene.show_wrench("arm0", [(CART_HANDLE_X, 0.0)], (34.0, -4.0), kind="desired", frame="b")
+        # a typical push (the demo's median hand force is 3.5 N, its cruise 10 N): 3 cm per N, drawn on top
+        scene.show_wrench("arm0", [(CART_HANDLE_X, 0.0)], (12.0, 2.0), torque=4.0, frame="b")
+        scene.show_wrench("arm0", [(CART_HANDLE_X, 0.0)], (10.0, -3.0), kind="desired", frame="b")
         scene.show_com((0.35, 0.12), (0.30, 0.0))
         s = np.linspace(0.0, 1.0, 60)
-        scene.show_trace("plan", np.column_stack((0.9 + 4.0 * s, 0.8 * np.sin(np.pi * s) ** 2)))
+        scene.show_trace(
+            "plan", np.column_stack((0.9 + 4.0 * s, 0.8 * np.sin(np.pi * s) ** 2)), label="cyan line: a planned path"
+        )
         html = scene.save_html(tmp / "scene.html", controls=False)
     browser = find_chromium()
     if browser is None:

@@ -221,7 +221,7 @@ def overlay_html(legend: Sequence[LegendEntry], animated: bool, readouts: Sequen
 
 
 _OVERLAY_CSS = (
-    "#cartpush-overlay {position: absolute; left: 8px; bottom: 8px; max-width: 430px; padding: 6px 9px;"
+    "#cartpush-overlay {position: absolute; left: 8px; bottom: 8px; max-width: 520px; padding: 6px 9px;"
     " font: 12px/1.45 'DejaVu Sans', sans-serif; color: #111; background: rgba(255, 255, 255, 0.85);"
     " border-radius: 4px; z-index: 10;}"
     " .cp-swatch {display: inline-block; vertical-align: middle;}"

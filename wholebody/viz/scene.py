@@ -69,7 +69,7 @@ DEFAULT_CART_POSE = (0.9, 0.0, 0.0)
 LEGEND_TEXT = {
     "applied": ("arrow", "blue arrow: force the hand applies"),
     "desired": ("arrow", "green arrow: force the controller asked for"),
-    "torque": ("arrow", "thin vertical arrow at the hand: yaw torque (up = counter-clockwise)"),
+    "torque": ("arrow", "thin vertical arrow: yaw torque, up = counter-clockwise"),
     "contact": ("dot", "black dot: contact point on the handle"),
     "com_true": ("sphere", "blue sphere (large, see-through): the cart's true CoM"),
     "com_est": ("sphere", "magenta sphere (small): the estimated CoM"),
