@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots.profiles import RobotProfile
+from wholebody.contacts.placement import REACH_MIN_SIGMA
 from wholebody.errors import WholeBodyError
 from wholebody.motion.kinematics import WholeBody
 
@@ -34,7 +35,7 @@ SEARCH_MARGIN = 0.2
 #: Weight of the base's lateral offset from its contact in the search (per m; the joint pull is 0.05 per half range).
 BASE_Y_WEIGHT = 0.5
 #: How many of the best placements of a fixed base are ranked by the handle length they reach.
-REACH_CANDIDATES = 3
+REACH_CANDIDATES = 4
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,11 @@ def joint_margin(wb: WholeBody, q: np.ndarray) -> float:
     """Return the smallest distance of the arm joints to their limits, as a fraction of each joint's range."""
     span = wb.arm_upper - wb.arm_lower
     return float(np.min(np.minimum(q - wb.arm_lower, wb.arm_upper - q) / span))
+
+
+def arm_sigma(wb: WholeBody, x: np.ndarray) -> float:
+    """Return the smallest singular value of the arm's part of the hand Jacobian at state x."""
+    return float(np.linalg.svd(wb.combined_jacobian(x)[:, : wb.n_arm], compute_uv=False)[-1])
 
 
 def gravity_ratio(wb: WholeBody, x: np.ndarray) -> float:
@@ -164,6 +170,8 @@ def _placement(wb: WholeBody, prof: RobotProfile, pitch: float, roll: float, axi
         try:
             qa = solve_grasp_ik(wb, pose, grasp_target(zero, zero, y0, 0.0, R)[0], z[2:])
         except WholeBodyError:
+            continue
+        if arm_sigma(wb, np.r_[pose, qa]) < REACH_MIN_SIGMA:  # near full extension: no room to move the hand
             continue
         margin = joint_margin(wb, qa)
         if prof.base == "holonomic":  # two robots side by side stand TWO_ARM_BASE_SPREAD beside their contacts

@@ -41,13 +41,13 @@ DEFAULT_CONTACT_Y = 0.0
 
 def _axis_rotation(axis: str) -> np.ndarray:
     """Return R with R @ e_axis = e_z: gripper-frame coordinates -> the canonical grasp frame (tool axis z)."""
-    c = {"z": (0.0, 0.0), "-z": (1.0, 0.0), "x": (0.0, -1.0), "-x": (0.0, 1.0), "y": (2.0, 1.0), "-y": (2.0, -1.0)}
+    c = {"z": (0.0, 0.0), "-z": (1.0, 0.0), "x": (0.0, 1.0), "-x": (0.0, -1.0), "y": (2.0, 1.0), "-y": (2.0, -1.0)}
     kind, s = c[axis]
     if kind == 0.0 and s == 0.0:
         return np.eye(3)
     if kind == 1.0:  # -z: half turn about x
         return np.diag([1.0, -1.0, -1.0])
-    if kind == 0.0:  # +-x: quarter turn about y by -+90 deg
+    if kind == 0.0:  # +-x: quarter turn about y by +-90 deg
         return np.array([[0.0, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, 0.0]])
     return np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -s], [0.0, s, 0.0]])  # +-y: quarter turn about x by +-90 deg
 
