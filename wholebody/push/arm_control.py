@@ -17,11 +17,15 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
 - **Velocity-controlled arm** (the WMRA's, joint velocity servos): once per control period, an
   admittance around the servos,
 
-  ``qdot_set = arm_velocity + J^+ A (w - w_meas + K_i int(w - w_meas)) + N (k_q (arm_position - q))``,
+  ``qdot_set = J^+ (J qdot + A (w - w_meas + K_i int(w - w_meas))) + N (arm_velocity + k_q (arm_position - q))``,
 
   with ``A = diag(a_f I3, a_n I3)`` (m/s per N, rad/s per N m), ``J^+`` a damped pseudo-inverse, ``N =
-  I - J^+ J`` and ``w_meas`` the F/T reading mapped to the hand (world-aligned at the grasp): where
-  the hand pushes less than allocated it moves into the handle, and the other way round.
+  I - J^+ J`` and ``w_meas`` the F/T reading mapped to the hand (world-aligned at the grasp). The hand
+  holds the handle, so in task space the setpoint is the hand's measured motion plus the admittance:
+  the servo's velocity error there is ``A (...)`` and its force the push (a damping force controller
+  whose loop gain is ``A`` times the servo's task-space damping); where the hand pushes less than
+  allocated it moves into the handle, and the other way round. The drives' integral action holds the
+  arm's static load (the plant feeds each joint its bias forces).
 """
 
 from __future__ import annotations
@@ -53,8 +57,8 @@ class AdmittanceGains:
     """Admittance of the velocity law: hand velocity per unit wrench error, integral gain, posture gain."""
 
     #: m/s per N and rad/s per N m
-    force_gain: float = 0.01
-    torque_gain: float = 0.05
+    force_gain: float = 0.001
+    torque_gain: float = 0.005
     #: 1/s: integral of the wrench error (removes the steady error under a constant push)
     integral_gain: float = 2.0
     #: 1/s: null-space pull toward the planned joint positions
@@ -145,6 +149,7 @@ class AdmittanceArmLaw:
         arm_velocity: np.ndarray,
         arm_position: np.ndarray,
         q: np.ndarray,
+        v: np.ndarray,
         J: np.ndarray,
         wrench: np.ndarray,
         wrench_measured: np.ndarray,
@@ -162,6 +167,7 @@ class AdmittanceArmLaw:
                 twist[part] *= g.max_speed / norm
         Jp = damped_pinv(J, g.pinv_damping)
         N = np.eye(self.n) - Jp @ J
-        return (
-            np.asarray(arm_velocity, dtype=float) + Jp @ twist + N @ (g.posture_gain * (np.asarray(arm_position) - q))
-        )
+        plan = np.asarray(arm_velocity, dtype=float) + g.posture_gain * (np.asarray(arm_position) - q)
+        # the hand moves with the handle it holds: in task space the servo follows the measured motion plus the
+        # admittance (its velocity error is then the push), in the null space the plan
+        return Jp @ (J @ np.asarray(v, dtype=float) + twist) + N @ plan

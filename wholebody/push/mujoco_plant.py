@@ -250,6 +250,7 @@ class MujocoPlant:
                     d.ctrl[r.arm_actuators] = d.qfrc_bias[r.arm_dof]
                 else:
                     d.ctrl[r.arm_actuators] = 0.0
+                    d.ctrl[r.arm_hold_actuators] = d.qfrc_bias[r.arm_dof]
                 d.ctrl[r.base_actuators] = 0.0
                 d.ctrl[r.wheel_actuators] = 0.0
             mujoco.mj_step(m, d)
@@ -389,13 +390,15 @@ class MujocoPlant:
                 w_meas = self._hand_wrench_world(i, self._ft[i])
                 q = d.qpos[r.arm_qpos]
                 d.ctrl[r.arm_actuators] = law.velocity(
-                    c.arm_velocity, c.arm_position, q, J, c.hand_wrench, w_meas, self.dt
+                    c.arm_velocity, c.arm_position, q, d.qvel[r.arm_dof], J, c.hand_wrench, w_meas, self.dt
                 )
             if r.base == "differential":
                 d.ctrl[r.wheel_actuators] = c.wheel_rates
         for k in range(self.n_sub):
             t = self.t + k * self.config.physics_dt
             for r, c, law in zip(self.scene.robots, commands, self._laws):
+                if r.arm_hold_actuators.size:
+                    d.ctrl[r.arm_hold_actuators] = d.qfrc_bias[r.arm_dof]
                 if isinstance(law, TorqueArmLaw):
                     bias = self._arm_bias(r, law)
                     d.ctrl[r.arm_actuators] = law.torque(t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias)

@@ -100,6 +100,8 @@ class RobotIndex:
     arm_qpos: np.ndarray
     arm_dof: np.ndarray
     arm_actuators: np.ndarray
+    #: velocity-servoed arms: motors holding the static load (the drives' integral action); empty otherwise
+    arm_hold_actuators: np.ndarray
     base_actuators: np.ndarray  # planar: (x, y, yaw) velocity servos
     wheel_actuators: np.ndarray  # differential: (left, right) velocity servos
     wheel_qpos: np.ndarray
@@ -208,8 +210,9 @@ def sensor_placement(urdf: str, ee_link: str, ft_link: str, robot: str) -> tuple
 
 def _disable_collisions(spec: mujoco.MjSpec) -> None:
     for g in spec.geoms:
-        g.contype = 0
-        g.conaffinity = 0
+        if not g.name.endswith("_tyre"):
+            g.contype = 0
+            g.conaffinity = 0
 
 
 def _add_tyres(spec: mujoco.MjSpec, setup: RobotSetup, floor: tuple[int, int]) -> list[str]:
@@ -257,7 +260,6 @@ def _prepare_robot(scene: mujoco.MjSpec, setup: RobotSetup, i: int, floor: tuple
     """Attach robot `i` to the scene (joints, tyres, sensor site, hand site); return the names to index later."""
     prefix = f"r{i}/"
     spec = _urdf_spec(setup.urdf)
-    _disable_collisions(spec)
     root = spec.worldbody.first_body()
     if root is None:
         raise SceneCompositionError(f"robot {setup.name!r}: its URDF has no link")
@@ -270,9 +272,11 @@ def _prepare_robot(scene: mujoco.MjSpec, setup: RobotSetup, i: int, floor: tuple
     elif setup.base == "differential":
         driven = _add_tyres(spec, setup, floor)
         root.add_freejoint(name="base_free")
-        base = "free"
+        base = "differential"
     else:
         raise SceneCompositionError(f"robot {setup.name!r}: base {setup.base!r} is neither 'planar' nor 'differential'")
+    _disable_collisions(spec)  # after the tyres were sized from the wheels' collision cylinders
+    spec.compiler.discardvisual = False  # keep the (now collision-free) shapes for viewers
     sensor_body, T_sf, tool_mass, tool_com = sensor_placement(setup.urdf, setup.ee_link, setup.ft_link, setup.name)
     spec.body(sensor_body).add_site(name="ft", pos=T_sf[:3, 3], quat=quat_from_matrix(T_sf[:3, :3]), size=[0.01, 0, 0])
     spec.body(setup.ee_link).add_site(name="hand", size=[0.01, 0, 0])
@@ -317,8 +321,10 @@ def _add_robot_elements(
         if setup.arm_mode == ARM_TORQUE:
             act = scene.add_actuator(name=f"{p}{jn}_motor", target=f"{p}{jn}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
             act.set_to_motor()
-        else:
+        else:  # a velocity servo; its drive's integral action holds the static load (a motor fed the bias forces)
             _velocity_servo(scene, f"{p}{jn}", gains.arm_kv, None)
+            act = scene.add_actuator(name=f"{p}{jn}_hold", target=f"{p}{jn}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            act.set_to_motor()
     scene.add_sensor(
         name=f"{p}ft_force", type=mujoco.mjtSensor.mjSENS_FORCE, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=f"{p}ft"
     )
@@ -416,7 +422,7 @@ def _index(model: mujoco.MjModel, s: RobotSetup, names: dict, i: int) -> RobotIn
         tyre = mujoco.mj_name2id(
             model,
             mujoco.mjtObj.mjOBJ_GEOM,
-            f"{p}{mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(wheel_bodies[0]))}_tyre",
+            f"{mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(wheel_bodies[0]))}_tyre",
         )
         radius = float(model.geom_size[tyre][0]) if tyre >= 0 else 0.0
     limit = np.array([model.jnt_actfrcrange[j][1] if model.jnt_actfrclimited[j] else np.inf for j in arm_j])
@@ -428,6 +434,9 @@ def _index(model: mujoco.MjModel, s: RobotSetup, names: dict, i: int) -> RobotIn
         arm_qpos=np.array([model.jnt_qposadr[j] for j in arm_j]),
         arm_dof=np.array([model.jnt_dofadr[j] for j in arm_j]),
         arm_actuators=np.array([_aid(model, f"{p}{n}{suffix}") for n in s.arm_joints]),
+        arm_hold_actuators=np.array(
+            [_aid(model, f"{p}{n}_hold") for n in s.arm_joints] if s.arm_mode == ARM_VELOCITY else [], dtype=int
+        ),
         base_actuators=base_act,
         wheel_actuators=wheel_act,
         wheel_qpos=np.array([model.jnt_qposadr[j] for j in wheel_j], dtype=int),

@@ -180,3 +180,34 @@ def test_bad_commands_are_rejected(setup):
         plant.step([replace(_hold(plant), hand_wrench=np.zeros(3))])
     with pytest.raises(MujocoPlantError, match="grasp point"):
         _plant(setup, grasp_points_b=[(-0.15, 0.1, 0.9365)])
+
+
+def test_wmra_rolls_on_its_wheels_with_the_cart_in_hand():
+    """Open loop: both wheels at 1 rad/s, the arm holding: the base rolls forward at ~r w without sliding sideways."""
+    cfg = PushConfig(robot="wmra", contact="fixed", duration=1.0)
+    wmra = build_controller(cfg)
+    plant = MujocoPlant(wmra.controller.robots, wmra.q0, TRUE_CART, noise=QUIET)
+    r = plant.scene.robots[0]
+    assert r.base == "differential" and r.wheel_radius == pytest.approx(0.17)
+    x0 = plant.robot_states()[0]
+    twists = []
+    for _ in range(100):
+        m = plant.measure().robots[0]
+        n = m.q_arm.size
+        cmd = RobotCommand(
+            arm_velocity=np.zeros(n),
+            arm_position=m.q_arm.copy(),
+            arm_torque=np.zeros(n),
+            base_twist=np.array([0.17, 0.0, 0.0]),
+            wheel_rates=np.array([1.0, 1.0]),
+            hand_wrench=np.zeros(6),
+        )
+        plant.step([cmd])
+        twists.append(plant.measure().robots[0].base_twist)
+    tw = np.array(twists[50:])
+    assert tw[:, 0].mean() == pytest.approx(0.17, rel=0.1)  # rolling: v = r w
+    assert np.abs(tw[:, 1]).max() < 0.05 * tw[:, 0].mean()  # the nonholonomic constraint, physically
+    x1 = plant.robot_states()[0]
+    assert x1[0] - x0[0] == pytest.approx(0.17 * 0.8, rel=0.25)
+    rep = plant.report()
+    assert 0.0 < rep["base_wheel_slip_max_m_s"] < 0.1  # the step to 1 rad/s spins the wheels up with some slip
