@@ -109,7 +109,9 @@ def _weld_wrench_on_cart(plant: MujocoPlant) -> np.ndarray:
 
 def test_ft_sensor_equals_the_grasps_constraint_force_within_noise(setup):
     noise = MeasurementNoise(force=3.0, torque=0.3)
-    plant = _plant(setup, noise=noise, seed=3)
+    # the arm's own gravity compensation (the plant's bias forces) + J^T w of the allocated push
+    config = MujocoPlantConfig(torque_gains=TorqueArmGains(feedforward="bias"))
+    plant = _plant(setup, noise=noise, seed=3, config=config)
     push = np.array([25.0, -8.0, 0.0, 0.0, 0.0, 1.5])  # world-aligned at the grasp, on the cart
     errors_noisy, errors_clean = [], []
     for _ in range(40):
