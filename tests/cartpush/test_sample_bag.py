@@ -57,3 +57,16 @@ def test_sample_bag_wrench_is_in_the_sensor_frame():
     np.testing.assert_allclose((R @ f)[:2], [10.0, 2.0], atol=1e-12)
     r = gen._rz(0.3) @ gen.SENSOR_B
     assert (R @ m)[2] + np.cross(r, R @ f)[2] == pytest.approx(1.5)
+
+
+def test_estimate_of_the_sample_bag_finds_the_carts_mass(tmp_path, capsys):
+    """The README's first ten minutes: import the sample bag, then `cartpush estimate` gives the 20 kg cart."""
+    out = tmp_path / "run.csv"
+    topics = ["--pose-topic", "/mocap/cart", "--wrench-topic", "/ft_sensor/wrench"]
+    assert main(["import", str(BAG), "-o", str(out), *topics]) == 0
+    capsys.readouterr()
+    assert main(["estimate", str(out), "--json"]) == 0
+    est = json.loads(capsys.readouterr().out)
+    truth = _generator().sample_config().true_params
+    mass = est["mass"]
+    assert abs(mass - truth.m) < 1.5, f"estimated {mass} kg for a {truth.m} kg cart"
