@@ -1,0 +1,175 @@
+"""Speed and physics of the MuJoCo plant (`wholebody.push.mujoco_plant.MujocoPlant`).
+
+Two runs per case (robot, trajectory):
+
+- **open loop**: the commands of a kinematic-plant run (today's loop: `build_controller` +
+  `kinematic_plant`) are recorded, then replayed into the MuJoCo plant: the plant's own cost (physics at
+  500 Hz, arm laws, sensing) as a real-time factor, and the grasp slip and wrench error it makes of
+  commands planned for the ideal cart;
+- **closed loop**: `run_loop` with the push controller on the MuJoCo plant: tracking, final mass,
+  the plant's report (wrench error, slip, wheel slip) and the real-time factor of the whole loop
+  (controller included) and of the plant alone;
+- **cart only** (``--cart-only``): no robot; the cart controller (true parameters) pushes the MuJoCo cart
+  either with its generalized force Gamma_MM applied at {b}, or with the allocated hand wrench applied
+  at the handle point (what a perfect arm would do): the cart's own response to the loop's wrenches.
+
+Prints one table; never asserts a time (the real-time factor depends on the machine and its load).
+
+    .venv/bin/python benchmarks/bench_mujoco_plant.py [--duration 30] [--cases ridgeback_iiwa:1,ridgeback_iiwa:2]
+        [--feedforward command|bias|dynamics] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from wholebody.push import PushConfig, build_controller, kinematic_plant
+from wholebody.push.arm_control import TorqueArmGains
+from wholebody.push.loop import run_loop
+from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantConfig
+
+
+def _config(robot: str, trajectory: int, duration: float) -> PushConfig:
+    return PushConfig(robot=robot, trajectory=trajectory, duration=duration, contact="fixed")
+
+
+def open_loop(robot: str, trajectory: int, duration: float, plant_config: MujocoPlantConfig) -> dict:
+    """Return the MuJoCo plant's figures under the commands of a kinematic-plant run, replayed open loop."""
+    cfg = _config(robot, trajectory, duration)
+    setup = build_controller(cfg)
+    kin = kinematic_plant(cfg, setup)
+    commands = []
+    for _ in range(int(round(duration / cfg.dt))):
+        cmds = setup.controller.step(kin.measure())
+        commands.append(cmds)
+        kin.step(cmds)
+    fresh = build_controller(cfg)
+    plant = MujocoPlant(fresh.controller.robots, fresh.q0, cfg.true_params, noise=cfg.noise, config=plant_config)
+    t0 = time.perf_counter()
+    for cmds in commands:
+        plant.step(cmds)
+    wall = time.perf_counter() - t0
+    q_mj, _ = plant.cart_state()
+    q_kin, _ = kin.cart_state()
+    rep = plant.report()
+    return {
+        "case": f"{robot} traj {trajectory} open loop",
+        "real_time_factor_plant": duration / wall,
+        "grasp_slip_max_mm": 1000 * rep["grasp_slip_max_m"],
+        "wrench_error_rms_n": rep["wrench_error_rms_n"],
+        "hand_force_rms_n": rep["hand_force_rms_n"],
+        "base_wheel_slip_max_m_s": rep["base_wheel_slip_max_m_s"],
+        "final_gap_to_kinematic_cart_mm": 1000 * float(np.hypot(*(q_mj[:2] - q_kin[:2]))),
+    }
+
+
+def closed_loop(robot: str, trajectory: int, duration: float, plant_config: MujocoPlantConfig) -> dict:
+    """Return tracking, estimate and plant diagnostics of a closed-loop run on the MuJoCo plant."""
+    cfg = _config(robot, trajectory, duration)
+    setup = build_controller(cfg)
+    plant = MujocoPlant(setup.controller.robots, setup.q0, cfg.true_params, noise=cfg.noise, config=plant_config)
+    t0 = time.perf_counter()
+    res = run_loop(cfg, setup.controller, plant)
+    wall = time.perf_counter() - t0
+    rep = plant.report()
+    return {
+        "case": f"{robot} traj {trajectory} closed loop",
+        "real_time_factor_loop": duration / wall,
+        "real_time_factor_plant": rep["real_time_factor"],
+        "tracking_rms_mm": res.metrics.tracking_rms_mm,
+        "tracking_max_mm": res.metrics.tracking_max_mm,
+        "mass_final_kg": res.metrics.mass_final_kg,
+        "cart_mass_effective_kg": rep["cart_mass_effective_kg"],
+        "grasp_slip_max_mm": 1000 * rep["grasp_slip_max_m"],
+        "wrench_error_rms_n": rep["wrench_error_rms_n"],
+        "hand_force_rms_n": rep["hand_force_rms_n"],
+        "arm_torque_limit_ratio": rep["arm_torque_limit_ratio"],
+        "base_wheel_slip_max_m_s": rep["base_wheel_slip_max_m_s"],
+    }
+
+
+def cart_only(trajectory: int, duration: float, at_handle: bool) -> dict:
+    """Return the tracking of the MuJoCo cart pushed by the cart controller alone (no robot, true parameters)."""
+    import math
+
+    import mujoco
+
+    from cart import model as cart_model
+    from cart.control import make_controller
+    from wholebody.contacts.allocation import WrenchAllocator
+    from wholebody.push import mujoco_cart as mc
+    from wholebody.push.robot import handle_point
+
+    cfg = _config("ridgeback_iiwa", trajectory, duration)
+    traj = cfg.make_trajectory()
+    ctrl = make_controller(cfg.controller, traj)
+    cart = mc.shopping_cart(cfg.true_params)
+    model, data = mc.build(cart)
+    q0 = traj.sample(0.0)[0]
+    mc.settle(model, data, cart, tuple(q0), 0.2)
+    p = handle_point(cfg.contact_y0()[0])
+    alloc = WrenchAllocator([p], cfg.arm_limits, only_motion_directions=True)
+    th, th_prev, errs, lateral = q0[2], q0[2], [], []
+    for k in range(int(round(duration / cfg.dt))):
+        t = k * cfg.dt
+        yaw = mc.yaw_of(data.xquat[1])
+        th += math.remainder(yaw - th_prev, 2 * math.pi)
+        th_prev = yaw
+        R = data.xmat[1].reshape(3, 3)
+        q = np.array([data.xpos[1][0], data.xpos[1][1], th])
+        qd = np.array([data.qvel[0], data.qvel[1], (R @ data.qvel[3:6])[2]])
+        gamma = ctrl.gamma(t, q, qd, cfg.true_params)
+        errs.append(float(np.hypot(*(q[:2] - traj.sample(t)[0][:2]))))
+        lateral.append(abs(-math.sin(th) * qd[0] + math.cos(th) * qd[1]))
+        if at_handle:
+            w = alloc.solve(cart_model.generalized_to_body(q, gamma), raise_on_infeasible=False).wrenches_ee[0]
+            f, n, point = R @ w[:3], R @ w[3:], data.xpos[1] + R @ p
+        else:
+            f, n, point = np.array([gamma[0], gamma[1], 0.0]), np.array([0.0, 0.0, gamma[2]]), data.xpos[1].copy()
+        for _ in range(int(round(cfg.dt / model.opt.timestep))):
+            data.qfrc_applied[:] = 0.0
+            mujoco.mj_applyFT(model, data, f, n, point, 1, data.qfrc_applied)
+            mujoco.mj_step(model, data)
+    e = np.array(errs)
+    return {
+        "case": f"cart only traj {trajectory} " + ("hand wrench at the handle" if at_handle else "Gamma at {b}"),
+        "tracking_rms_mm": 1000 * float(np.sqrt(np.mean(e**2))),
+        "tracking_max_mm": 1000 * float(e.max()),
+        "rear_axle_lateral_speed_max_m_s": float(max(lateral)),
+    }
+
+
+def _row(d: dict) -> str:
+    return "  ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in d.items())
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--duration", type=float, default=30.0)
+    parser.add_argument("--cases", default="ridgeback_iiwa:1,ridgeback_iiwa:2")
+    parser.add_argument("--feedforward", default="command", choices=["command", "bias", "dynamics"])
+    parser.add_argument("--cart-only", action="store_true", help="also push the cart alone (no robot)")
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args(argv)
+    plant_config = MujocoPlantConfig(torque_gains=TorqueArmGains(feedforward=args.feedforward))
+    rows = []
+    for case in filter(None, args.cases.split(",")):
+        robot, traj = case.split(":")
+        rows.append(open_loop(robot, int(traj), args.duration, plant_config))
+        rows.append(closed_loop(robot, int(traj), args.duration, plant_config))
+    if args.cart_only:
+        for traj in (1, 2):
+            rows += [cart_only(traj, args.duration, at_handle) for at_handle in (False, True)]
+    if args.json:
+        print(json.dumps(rows, indent=1))
+    else:
+        for r in rows:
+            print(_row(r))
+
+
+if __name__ == "__main__":
+    main()
