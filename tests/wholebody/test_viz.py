@@ -380,3 +380,35 @@ def test_iframe_is_compressed_and_wrapped():
     blob = re.search(r'atob\("([A-Za-z0-9+/=]+)"\)', html_mod.unescape(frame)).group(1)
     assert gzip.decompress(base64.b64decode(blob)).decode("utf-8") == page
     assert len(frame) < 0.5 * len(page)
+
+
+def _robot_pixel_height(scene: Scene, name: str, height: int = 768) -> float:
+    """Return the projected height (px, 1024x768 page) of robot `name`'s frames as displayed, with the page's camera."""
+    robot = scene.robots[name]
+    pin.framesForwardKinematics(robot.model, robot.data, scene.robot_q(name))
+    uv = scene.camera.project(np.array([f.translation for f in robot.data.oMf]), 1024, height)
+    assert np.all((uv > 0) & (uv < (1024, height))), f"{name} is partly off screen: {uv.min(axis=0)}, {uv.max(axis=0)}"
+    return float(np.ptp(uv[:, 1]))
+
+
+def test_scenario_page_frames_the_robot_not_the_whole_path():
+    """`view --scenario 6`: the robot fills a quarter of the page's height at the first frame, and the camera follows."""
+    from wholebody.viz.scenarios import scenario_scene
+
+    with scenario_scene(6, duration=4.0) as sc:
+        assert _robot_pixel_height(sc, "ridgeback_iiwa") > 0.25 * 768
+        assert sc.follow == ("ridgeback_iiwa", "shopping_cart")
+        texts = " ".join(e.text for e in sc.legend())
+        html = sc.static_html()
+    assert "true CoM" in texts and "estimated CoM" in texts and "desired path" in texts
+    assert "CoM error" in html and '"unit":"cm"' in html  # the live read-out, in cm
+
+
+def test_log_page_frames_and_follows_the_cart():
+    """`view LOG`: the cart is large on screen at its first sample and the camera follows it."""
+    t = np.linspace(0.0, 10.0, 101)
+    log = CartLog(t=t, q=np.column_stack((0.8 * t, np.zeros_like(t), np.zeros_like(t))), gamma=np.ones((101, 3)))
+    with log_scene(log) as sc:
+        assert _robot_pixel_height(sc, "shopping_cart") > 0.2 * 768
+        assert sc.follow == ("shopping_cart",)
+        np.testing.assert_allclose(np.subtract(sc.camera_at(10.0).eye, sc.camera.eye), [8.0, 0.0, 0.0], atol=1e-9)
