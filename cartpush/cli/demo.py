@@ -17,8 +17,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "List the robot models, then run the whole loop: the Ridgeback + iiwa 14 pushes the shopping\n"
             "cart along Traj. 2 of the cart paper with the EKF and an optimized contact point, and again\n"
             "without estimation (16 kg guess for a 20 kg cart). Prints the comparison table and writes a\n"
-            "report directory (figures, Meshcat page scene.html, the run's log push_log.csv). A progress\n"
-            "bar shows on a terminal (never with --json or when stderr is not a terminal).\n\n"
+            "report directory (figures, Meshcat page scene.html, the run's log push_log.csv). Tracking errors\n"
+            "are in mm, CoM errors in cm; scene.html plays when opened (pause button and legend in its\n"
+            "bottom-left corner). A progress bar shows on a terminal (never with --json or when stderr is\n"
+            "not a terminal).\n\n"
             "Example:\n  cartpush demo\n  cartpush demo --out my_report --duration 20\n  cartpush demo --robots-only --json"
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -20,7 +20,10 @@ Ridgeback + iiwa holding the cart's handle).
 
 Without --html it serves the scene on localhost, prints the URL and keeps
 serving until Ctrl-C. With --html it writes a self-contained page (opens
-offline in any browser) and exits.
+offline in any browser) and exits. Animated pages play when opened and loop;
+the box in the bottom-left corner has a pause button, the time, live values
+and the legend; OUT.html#t=12 opens the page paused at 12 s. The camera
+starts on the robot and the cart and follows them.
 
 Examples:
   cartpush view --robot ridgeback_iiwa

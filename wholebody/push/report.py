@@ -425,7 +425,8 @@ def run_demo(
         print(
             f"Push loop, {describe(runs['with estimation'].config)} vs without estimation "
             f"(true cart m={runs['with estimation'].config.true_params.m:g} kg, CoM "
-            f"({runs['with estimation'].config.true_params.dx:g}, {runs['with estimation'].config.true_params.dy:g}) m):"
+            f"({100 * runs['with estimation'].config.true_params.dx:g}, "
+            f"{100 * runs['with estimation'].config.true_params.dy:g}) cm):"
         )
         print(table)
         print(unobservable_note(runs))
