@@ -50,6 +50,11 @@ class TorqueArmGains:
     #: True: the impedance acts in the hand's null space only; False: on every joint (it then also damps the
     #: hand's motion relative to the plan)
     null_space: bool = True
+    #: Cartesian stiffness (N m/rad) and damping (N m s/rad) holding the hand's roll and pitch (about the world's
+    #: horizontal axes) at the command's ``hand_target``: the grip keeps the cart upright against the roll
+    #: moment of a lateral push at the handle's height; 0 = off. It leaves the planar push alone.
+    tilt_stiffness: float = 0.0
+    tilt_damping: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -120,14 +125,31 @@ class TorqueArmLaw:
         self._q_end = np.asarray(arm_position, dtype=float)
         self._v = v_new
         self._NT = null_space_projector_T(J, M) if self.gains.null_space else np.eye(M.shape[0])
+        self._Jr = J[3:]
         self._t_end = t_end
 
-    def torque(self, t: float, q: np.ndarray, v: np.ndarray, bias: np.ndarray) -> np.ndarray:
-        """Return the joint torques at time `t` and state (q, v) (`bias`: the arm's bias forces there), within limits."""
+    def torque(
+        self,
+        t: float,
+        q: np.ndarray,
+        v: np.ndarray,
+        bias: np.ndarray,
+        tilt: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> np.ndarray:
+        """Return the joint torques at time `t` and state (q, v), within limits.
+
+        `bias`: the arm's bias forces there; `tilt`: (rotation error hand -> target, hand angular velocity), world
+        frame, for the roll/pitch hold (None: off).
+        """
         g = self.gains
         q_plan = self._q_end - self._v * (self._t_end - t)
         ff = self._ff if g.feedforward == "command" else self._ff + bias
         tau = ff + self._NT @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
+        if tilt is not None and (g.tilt_stiffness > 0.0 or g.tilt_damping > 0.0):
+            err, omega = tilt
+            n = g.tilt_stiffness * err - g.tilt_damping * omega
+            n[2] = 0.0  # roll and pitch only: the yaw torque is the allocation's
+            tau = tau + self._Jr.T @ n
         ratio = float(np.max(np.abs(tau) / self.limit))
         self.peak_ratio = max(self.peak_ratio, ratio)
         if ratio > 1.0:

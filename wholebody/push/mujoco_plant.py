@@ -207,6 +207,7 @@ class MujocoPlant:
             for r, s in zip(self.scene.robots, setups)
         ]
         self._qacc = np.zeros(self.scene.model.nv)
+        self._quat = np.zeros(4)
         self._rne = np.zeros(self.scene.model.nv)
         self._stats = _Stats(per_robot_err=[[0.0, 0.0] for _ in robots])
         self._theta_prev = float(cart_pose[2])
@@ -401,7 +402,8 @@ class MujocoPlant:
                     d.ctrl[r.arm_hold_actuators] = d.qfrc_bias[r.arm_dof]
                 if isinstance(law, TorqueArmLaw):
                     bias = self._arm_bias(r, law)
-                    d.ctrl[r.arm_actuators] = law.torque(t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias)
+                    tilt = self._tilt(r, c) if law.gains.tilt_stiffness > 0.0 else None
+                    d.ctrl[r.arm_actuators] = law.torque(t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias, tilt)
                 if r.base == "planar":
                     yaw = float(d.qpos[r.base_qpos[2]])
                     cy, sy = math.cos(yaw), math.sin(yaw)
@@ -427,6 +429,17 @@ class MujocoPlant:
         mujoco.mj_rne(m, d, 1, self._rne)
         d.qacc[:] = saved
         return self._rne[r.arm_dof]
+
+    def _tilt(self, r: RobotIndex, c: RobotCommand) -> tuple[np.ndarray, np.ndarray]:
+        """Return (rotation error from the hand to its target, the hand's angular velocity), world frame."""
+        d = self.scene.data
+        R = d.site_xmat[r.hand_site].reshape(3, 3)
+        err = np.zeros(3)
+        mujoco.mju_mat2Quat(self._quat, np.ascontiguousarray(np.asarray(c.hand_target)[:3, :3] @ R.T).reshape(9))
+        mujoco.mju_quat2Vel(err, self._quat, 1.0)
+        b = self.scene.cart_body  # the hand turns with the handle it holds
+        omega = d.xmat[b].reshape(3, 3) @ d.qvel[self.scene.cart_dof + 3 : self.scene.cart_dof + 6]
+        return err, omega
 
     def _check_command(self, r: RobotIndex, c: RobotCommand) -> None:
         n = r.arm_qpos.size
