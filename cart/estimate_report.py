@@ -30,8 +30,8 @@ from cart.units import check_units
 NIS_MISFIT = 18.0
 #: An EKF answer this many combined std from the least-squares one is a bias its std does not cover.
 EKF_BIAS_Z = 3.0
-#: Mass or inertia whose std exceeds this share of the value: not identified.
-MAX_RELATIVE_STD = 0.5
+#: Mass or inertia whose std exceeds this share of the value (its ± larger than itself): not identified.
+MAX_RELATIVE_STD = 1.0
 #: Half-size (m) of the largest cart (a hospital bed) when the log cannot give the body's size.
 MAX_HALF_SIZE = 1.0
 #: Samples beyond which the EKF check runs on CHECK_CHUNKS evenly spaced stretches of this total length.
@@ -85,7 +85,7 @@ class EstimateReport:
 def not_identified(params: CartParams, std: dict[str, Any]) -> dict[str, str]:
     """Return parameter -> reason for the parameters whose std is larger than the object allows.
 
-    Mass and inertia: std above ``MAX_RELATIVE_STD`` of the value. CoM: std above the body's half-size
+    Mass and inertia: std above ``MAX_RELATIVE_STD`` times the value. CoM: std above the body's half-size
     (sqrt(3) radii of gyration, a uniform bar's half-length, from the inertia plus 2 std; at most
     ``MAX_HALF_SIZE``).
     """
