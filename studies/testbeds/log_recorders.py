@@ -195,13 +195,45 @@ def evaluate(out_dir: str) -> dict[str, dict[str, float]]:
     return out
 
 
+def load_change_study(n: int, seed0: int) -> dict[str, float]:
+    """Return the share of rigid_sim logs (40-60 s, a load of factor 0.6, 0.7, 1.4 or 1.6 at 35-65 % of the log)
+    whose change `estimate` finds within 1 s with the after-mass within 5 %, and the share of the same carts
+    without a change where it reports one."""
+    from cart.estimate_report import estimate_log
+
+    found = false = 0
+    for i in range(n):
+        rng = np.random.default_rng(seed0 + i)
+        dur = float(rng.uniform(40, 60))
+        tc = float(rng.uniform(0.35, 0.65) * dur)
+        fac = float(rng.choice([0.6, 0.7, 1.4, 1.6]))
+        log, truth = rigid_sim.simulate(rigid_sim.random_case(seed0 + i, duration=dur, load_time=tc, load_factor=fac))
+        segs = estimate_log(log).segments
+        m_after = truth["load_change"]["m_after"]
+        last = segs[-1]
+        found += bool(
+            len(segs) >= 2
+            and abs(last["t0"] - tc) < 1.0
+            and last["mass"] is not None
+            and abs(last["mass"] / m_after - 1) < 0.05
+        )
+        log0, _ = rigid_sim.simulate(rigid_sim.random_case(seed0 + i, duration=dur))
+        false += len(estimate_log(log0).segments) > 1
+    return {"logs": n, "found_within_1s_5pct": found / n, "false_changes": false / n}
+
+
 if __name__ == "__main__":  # python -m studies.testbeds.log_recorders N SEED0 OUT_DIR | --evaluate OUT_DIR
     import json
     import sys
 
     if len(sys.argv) == 3 and sys.argv[1] == "--evaluate":
         print(json.dumps(evaluate(sys.argv[2]), indent=1))
+    elif len(sys.argv) == 4 and sys.argv[1] == "--load-changes":
+        print(json.dumps(load_change_study(int(sys.argv[2]), int(sys.argv[3])), indent=1))
     elif len(sys.argv) == 4:
         generate(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3])
     else:
-        sys.exit("usage: python -m studies.testbeds.log_recorders N SEED0 OUT_DIR | --evaluate OUT_DIR")
+        sys.exit(
+            "usage: python -m studies.testbeds.log_recorders N SEED0 OUT_DIR | --evaluate OUT_DIR "
+            "| --load-changes N SEED0"
+        )
