@@ -6,6 +6,8 @@ Usage:
   .venv/bin/python benchmarks/bench_diagnose.py --json          # the same figures as one JSON object
   .venv/bin/python benchmarks/bench_diagnose.py --study 20      # + confusion matrix, 20 random cases per class
   .venv/bin/python benchmarks/bench_diagnose.py --robust 4      # + robustness conditions, 4 cases per class each
+  .venv/bin/python benchmarks/bench_diagnose.py --no-timing --scale 1,5,20   # long 200 Hz logs: wall time and
+                                                                # peak RSS of `diagnose` per length (subprocesses)
   options: --seed S (first seed), --no-timing, --repeats N, --json FILE (all per-case results),
            --classes c1,c2 (only these classes; seeds as in the full study), --caster-form profile|swivel
 
@@ -249,6 +251,53 @@ def robust_table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
+#: targets of a 20-minute, 200 Hz log (issue 30, item 3)
+SCALE_TARGET_S, SCALE_TARGET_MB = 60.0, 2048.0
+
+_SCALE_CHILD = """
+import json, resource, sys, time
+from cart.diagnose import diagnose
+from cart.logs import read_log
+log = read_log(sys.argv[1])
+t0 = time.perf_counter()
+rep = diagnose(log)
+ru = resource.getrusage(resource.RUSAGE_SELF)
+print(json.dumps({"seconds": time.perf_counter() - t0, "names": rep.names, "samples": len(log.t),
+                  "cpu_seconds": ru.ru_utime + ru.ru_stime, "peak_rss_mb": ru.ru_maxrss / 1024.0}))
+"""
+
+
+def scale_study(minutes: list[float], rate: float = 200.0, quiet: bool = False) -> list[dict]:
+    """Return (and print unless ``quiet``) diagnose's wall time and peak RSS on effect-free logs of these lengths.
+
+    Each log (hidden-effect test bed, ``rate`` Hz, 10 % jitter, seed 5) is written to a file and
+    diagnosed in a fresh process (the log already read: the wall time is diagnose's own; the CPU
+    time, start-up and reading included, is the figure to read on a shared machine); the peak
+    resident memory is that process's (``getrusage``), reading included.
+    """
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        for mins in minutes:
+            rng = np.random.default_rng(5)
+            log = simulate_hidden(random_cart(rng), (), duration=60.0 * mins, rate=rate, jitter=0.1, rng=rng).measured
+            path = os.path.join(d, f"long{mins:g}.csv")
+            write_log(path, log)
+            out = subprocess.run(
+                [sys.executable, "-c", _SCALE_CHILD, path], check=True, capture_output=True, text=True
+            ).stdout
+            rows.append({"minutes": mins, **json.loads(out.strip().splitlines()[-1])})
+    if not quiet:
+        print("| log | samples | diagnose [s] | peak RSS [MB] | named | target (20 min) |")
+        print("|---|---|---|---|---|---|")
+        for r in rows:
+            print(
+                f"| {r['minutes']:g} min, {rate:g} Hz | {r['samples']} | {r['seconds']:.1f} | {r['cpu_seconds']:.1f} | "
+                f"{r['peak_rss_mb']:.0f} | "
+                f"{', '.join(r['names']) or 'none'} | {SCALE_TARGET_S:g} s, {SCALE_TARGET_MB:g} MB |"
+            )
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the timing and the requested studies; print tables (or, with a bare --json, one JSON object)."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -267,12 +316,15 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--classes", default="", help="comma-separated classes to run (default: all)")
     ap.add_argument("--caster-form", default=None, choices=("profile", "swivel"))
+    ap.add_argument("--scale", default="", metavar="MINUTES", help="e.g. 1,5,20: time and memory of long 200 Hz logs")
     a = ap.parse_args(argv)
     quiet = a.json == "-"
     cls = [c for c in a.classes.split(",") if c] or None
     figures: dict[str, object] = {}
     if not a.no_timing:
         figures["timing"] = timing(a.repeats, quiet)
+    if a.scale:
+        figures["scale"] = scale_study([float(m) for m in a.scale.split(",") if m], quiet=quiet)
     everything: list[dict] = []
     if a.study:
         res = run_cases(a.study, a.seed, label="default", classes=cls, caster_form=a.caster_form)

@@ -30,13 +30,21 @@ d. Report: gap before/after (same replay metric), named effects with
 from __future__ import annotations
 
 import math
-import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from collections.abc import Sequence
 
 import numpy as np
 
-from cart.effects import N_NOMINAL, Effect, measured_rows, nominal_columns, nominal_loadings, registered_effects
+from cart.effects import (
+    N_NOMINAL,
+    Effect,
+    FloorSlope,
+    WrenchBias,
+    measured_rows,
+    nominal_columns,
+    nominal_loadings,
+    registered_effects,
+)
 from cart.errors import DiagnoseError
 from cart.log_signals import (
     Signals,
@@ -45,9 +53,31 @@ from cart.log_signals import (
     velocity_change_noise,
     window_edges,
     window_integrals,
+    window_keep,
 )
 from cart.logs import CartLog
+from cart.diagnose_checks import (
+    SLIP_RATIO,
+    WrenchFrameError,
+    cart_is_physical,
+    constrained_fit,
+    lateral_slip_ratio,
+)
+from cart.diagnose_prep import prepare_log
 from cart.diagnose_replay import Replay, flag_starts, merge_windows, replay
+from cart.diagnose_report import (  # noqa: F401  (re-exported: the report is part of this module's API)
+    PARAMETER_UNITS,
+    DiagnosisReport,
+    DiscrepancyWindow,
+    NamedEffect,
+    Verdict,
+    _format_parameter,
+    _mm,
+    _physical,
+    diagnosis_figures,
+    effect_comment,
+    plot_diagnosis,
+)
 
 GAP_METRIC = (
     "RMS excess position error (m) of the {b} origin over the noise floor: sqrt(max(mean(e^2 - f^2), 0)), "
@@ -59,6 +89,12 @@ GAP_METRIC = (
 NOMINAL_NAMES = ("m", "m_dx", "m_dy", "J", "sigma", "sigma_yaw")
 ROW_NAMES = ("forward force", "yaw torque", "lateral displacement")
 
+
+#: ``Signals.extras`` key of the mask of the windows that lie within one contiguous segment
+KEEP_KEY = ("motion", "keep_windows")
+
+#: grid points of a candidate fitted as one batch (bounds the working memory of long logs)
+QUICK_BATCH = 16
 
 #: runners-up of a grid-only nonlinear parameter fitted in full and replayed before an effect is named
 GRID_ALTERNATIVES = 3
@@ -79,6 +115,8 @@ class Fit:
     design: np.ndarray = field(repr=False, default=None)
     #: fits at the next-best grid points of a grid-only nonlinear parameter (replay-checked by ``diagnose``)
     alternatives: list[Fit] = field(repr=False, default_factory=list)
+    #: True for a nominal fit whose parameters were bounded to a physical cart (:func:`constrained_fit`)
+    constrained: bool = False
 
     @property
     def phi(self) -> np.ndarray:
@@ -228,7 +266,15 @@ def _design(st: _FitState, edges: np.ndarray) -> tuple[np.ndarray, ...]:
         lo = e.noise_loadings(sig, nl, edges, lv_b, lw_b)
         lv.append(lo[0] if lo is not None else np.zeros_like(g))
         lw.append(lo[1] if lo is not None else np.zeros_like(g))
-    return np.concatenate(g_w, axis=2), y_fit, np.concatenate(lv, axis=2), np.concatenate(lw, axis=2)
+    return _kept(sig, (np.concatenate(g_w, axis=2), y_fit, np.concatenate(lv, axis=2), np.concatenate(lw, axis=2)))
+
+
+def _kept(sig: Signals, rows: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """Return the window rows without the windows across a logging gap (``sig.extras`` ``keep`` mask)."""
+    keep = sig.extras.get(KEEP_KEY)
+    if keep is None or bool(np.all(keep)):
+        return rows
+    return tuple(r[keep] for r in rows)
 
 
 def _converged(st: _FitState, x: np.ndarray, thetas: list[np.ndarray], freeze: int) -> bool:
@@ -276,7 +322,7 @@ def fit_models(
     cold = [st for st in states if st.phi is None and st.n_iter > 1]
     if cold:  # the nominal fit starts the fixed-point iteration
         lv_b, lw_b = nominal_loadings(cold[0].base[1].shape[0])
-        sols = _solve_many([(st.base[1], st.base[2], lv_b, lw_b) for st in cold], s2v, s2w)
+        sols = _solve_many([_kept(st.sig, (st.base[1], st.base[2], lv_b, lw_b)) for st in cold], s2v, s2w)
         for st, sol in zip(cold, sols):
             st.phi = sol[0][:4]
     for it in range(max(st.n_iter for st in states) if states else 0):
@@ -295,7 +341,7 @@ def fit_models(
                 x=x[:N_NOMINAL],
                 thetas=st.thetas,
                 rss=rss,
-                n_win=st.base[2].shape[0],
+                n_win=_n_windows(st.sig, st.base[2].shape[0]),
                 cov=cov,
                 m2ll=m2ll,
                 sig=st.sig,
@@ -324,10 +370,15 @@ def fit_model(
     return fit_models(sig0, edges, [effects], phi_ref, max_iter, [theta_ref], freeze)[0]
 
 
+def _n_windows(sig: Signals, n_all: int) -> int:
+    """Return the number of fitted windows (those across a logging gap left out)."""
+    keep = sig.extras.get(KEEP_KEY)
+    return n_all if keep is None else int(np.sum(keep))
+
+
 def _cart_ok(x: np.ndarray) -> bool:
     """Return True for a possible cart: finite, m > 0.5 kg, J - ((m dx)^2 + (m dy)^2) / m > 0."""
-    m, a, b, j = (float(u) for u in x[:4])
-    return bool(np.all(np.isfinite(x)) and m > 0.5 and j - (a * a + b * b) / m > 0.0)
+    return cart_is_physical(x)
 
 
 def _valid(effect: Effect, fit: Fit, check_cart: bool = True) -> bool:
@@ -368,15 +419,21 @@ class _Search:
         """
         it_grid = 3 if (self.effect.uses_phi or self.effect.set_valued) else 1
         ref = list(self.current.thetas) + list(theta_tail)
-        return fit_models(
-            self.sig,
-            self.edges,
-            [self.current.effects + [(self.effect, nl)] for nl in nls],
-            self.current.phi,
-            max_iter=it_grid,
-            theta_refs=[ref] * len(nls),
-            freeze=self.named,
-        )
+        out: list[Fit] = []
+        for c0 in range(0, len(nls), QUICK_BATCH):  # bounded memory: a batch of grid points at a time
+            part = fit_models(
+                self.sig,
+                self.edges,
+                [self.current.effects + [(self.effect, nl)] for nl in nls[c0 : c0 + QUICK_BATCH]],
+                self.current.phi,
+                max_iter=it_grid,
+                theta_refs=[ref] * len(nls[c0 : c0 + QUICK_BATCH]),
+                freeze=self.named,
+            )
+            for f in part:  # grid fits are scored, never replayed: drop their (possibly shifted) signals
+                f.sig, f.design = None, None
+            out.extend(part)
+        return out
 
     def full(self, nls: Sequence[tuple[float, ...]], theta_refs: Sequence[Sequence[np.ndarray]]) -> list[Fit]:
         """Return the full fits at ``nls`` (every set-valued term iterates), started from ``theta_refs``."""
@@ -475,8 +532,8 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
     fits = search.quick(grid, [None])
     check = True
     scores = np.array([search.score(f, check) for f in fits])
-    if not np.any(np.isfinite(scores)) and not _cart_ok(current.x):
-        check = False  # the current cart is impossible already: judge the effect alone
+    if not np.any(np.isfinite(scores)) and (current.constrained or not _cart_ok(current.x)):
+        check = False  # the current cart is impossible (or only bounded into a cart): judge the effect alone
         scores = np.array([search.score(f, check) for f in fits])
     i = int(np.argmin(scores))
     best = search.full([grid[i]], [fits[i].thetas])[0]
@@ -491,188 +548,6 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
         return best, [_profile_std(effect, grid, scores, i)]
     best, s = _refine(search, grid, i, best, check)
     return best, [s]
-
-
-@dataclass(frozen=True)
-class NamedEffect:
-    """An effect the workflow named: contract name, fitted parameters and stds, Delta BIC, windows [(t0, t1)]."""
-
-    name: str
-    parameters: dict[str, float]
-    uncertainties: dict[str, float]
-    evidence: float
-    windows: tuple[tuple[float, float], ...]
-
-    def to_dict(self) -> dict:
-        """Return the JSON form: name, parameters, uncertainties, evidence, windows."""
-        return {
-            "name": self.name,
-            "parameters": _clean(self.parameters),
-            "uncertainties": _clean(self.uncertainties),
-            "evidence": round(float(self.evidence), 3),
-            "windows": [[round(a, 3), round(b, 3)] for a, b in self.windows],
-        }
-
-
-@dataclass(frozen=True)
-class DiscrepancyWindow:
-    """A time window where the nominal replay disagrees significantly: [t0, t1], activity, max chi2."""
-
-    t0: float
-    t1: float
-    activity: str
-    chi2: float
-
-
-@dataclass(frozen=True)
-class DiagnosisReport:
-    """Result of :func:`diagnose`: named effects (most significant first), gaps, windows, fitted models."""
-
-    effects: tuple[NamedEffect, ...]
-    gap_before: float
-    gap_after: float
-    gap_metric: str
-    windows: tuple[DiscrepancyWindow, ...]
-    nominal: dict[str, float]
-    final_model: dict[str, float]
-    candidates: tuple[tuple[str, float], ...]
-    threshold: float
-    source: str = "<memory>"
-    rms_before: float = float("nan")
-    rms_after: float = float("nan")
-    noise_floor: float = float("nan")
-    replay_before: Replay | None = field(default=None, repr=False, compare=False)
-    replay_after: Replay | None = field(default=None, repr=False, compare=False)
-    flagged: np.ndarray | None = field(default=None, repr=False, compare=False)
-
-    @property
-    def names(self) -> list[str]:
-        """Return the named effects' names, most significant first (empty: the nominal model explains the log)."""
-        return [e.name for e in self.effects]
-
-    def to_dict(self) -> dict:
-        """Return the JSON form of ``cartpush diagnose --json``."""
-        return {
-            "effects": [e.to_dict() for e in self.effects],
-            "gap_before": round(self.gap_before, 6),
-            "gap_after": round(self.gap_after, 6),
-            "gap_metric": self.gap_metric,
-            "rms_before": round(self.rms_before, 6),
-            "rms_after": round(self.rms_after, 6),
-            "noise_floor": round(self.noise_floor, 6),
-            "windows": [
-                {"t0": round(w.t0, 3), "t1": round(w.t1, 3), "activity": w.activity, "chi2": round(w.chi2, 2)}
-                for w in self.windows
-            ],
-            "nominal": _clean(self.nominal),
-            "final_model": _clean(self.final_model),
-            "candidates": [{"name": n, "delta_bic": round(s, 3)} for n, s in self.candidates],
-            "threshold": self.threshold,
-        }
-
-    def summary(self) -> str:
-        """Return a readable multi-line summary."""
-        lines = [f"diagnosis of {self.source}"]
-        nm = self.nominal
-        lines.append(
-            f"nominal fit: m = {nm['m']:.2f} kg, CoM = ({nm['dx']:.3f}, {nm['dy']:.3f}) m, "
-            f"I = {nm['I']:.2f} kg m^2, sigma = {nm['sigma']:.2f} N s/m, "
-            f"sigma_yaw = {nm['sigma_yaw']:.2f} N m s/rad"
-        )
-        lines.append(f"significant discrepancy windows: {len(self.windows)}")
-        for w in self.windows[:12]:
-            lines.append(f"  [{w.t0:7.2f}, {w.t1:7.2f}] s  {w.activity:<28} chi2 max {w.chi2:8.1f}")
-        if len(self.windows) > 12:
-            lines.append(f"  ... {len(self.windows) - 12} more")
-        if not self.effects:
-            lines.append("named effects: none (the nominal model explains the log)")
-        for i, e in enumerate(self.effects, 1):
-            ps = ", ".join(_format_parameter(k, v, e.uncertainties.get(k)) for k, v in e.parameters.items())
-            lines.append(f"{i}. {e.name}: {ps}  (Delta BIC {e.evidence:.1f}, {len(e.windows)} windows)")
-        lines.append("first-round Delta BIC: " + ", ".join(f"{n} {s:.1f}" for n, s in self.candidates))
-        lines.append(
-            f"gap before {self.gap_before * 1000:.1f} mm -> after {self.gap_after * 1000:.1f} mm "
-            f"(RMS replay error over the noise floor; raw RMS {self.rms_before * 1000:.1f} -> "
-            f"{self.rms_after * 1000:.1f} mm, noise floor {self.noise_floor * 1000:.1f} mm)"
-        )
-        return "\n".join(lines)
-
-    def __str__(self) -> str:
-        return self.summary()
-
-
-#: Units of the effects' parameters in :meth:`DiagnosisReport.summary` (names of cart.effects' ``describe``).
-PARAMETER_UNITS: dict[str, str] = {
-    "force": "N",
-    "torque": "N m",
-    "distance": "m",
-    "shape": "1",
-    "torque_sharp": "N m",
-    "torque_soft": "N m",
-    "damping": "N m s/rad",
-    "trail": "m",
-    "fx": "N",
-    "tau": "N m",
-    "angle": "rad",
-    "direction": "rad",
-    "gx": "m/s^2",
-    "gy": "m/s^2",
-    "delta_m": "kg",
-    "delta_m_dx": "kg m",
-    "delta_m_dy": "kg m",
-    "delta_J": "kg m^2",
-    "time": "s",
-    "mass_before": "kg",
-    "mass_after": "kg",
-    "com_x_after": "m",
-    "com_y_after": "m",
-    "delay": "s",
-    "compliance": "m/(s N)",
-}
-
-
-def _format_parameter(name: str, value: float, std: float | None) -> str:
-    """Return 'name = value ± std [unit]', the value rounded where its std's 2nd significant digit falls.
-
-    Without a std (or a grid-chosen one, std 0) the value has 3 significant digits.
-    """
-    unit = PARAMETER_UNITS.get(name, "?")
-    if value is None or not math.isfinite(value):
-        return f"{name} = n/a [{unit}]"
-    has_std = std is not None and math.isfinite(std) and std > 0.0
-    ref, digits = (std, 2) if has_std else (abs(value), 3)
-    decimals = min(8, max(0, digits - 1 - int(math.floor(math.log10(ref))))) if ref > 0 else 2
-    v = f"{value:.{decimals}f}"
-    if float(v) == 0.0:
-        v = f"{0.0:.{decimals}f}"  # no "-0.00"
-    return f"{name} = {v} ± {std:.{decimals}f} [{unit}]" if has_std else f"{name} = {v} [{unit}]"
-
-
-def _clean(d: dict[str, float]) -> dict[str, float]:
-    """Return d with non-finite values replaced by None (valid JSON)."""
-    return {k: (float(v) if v is not None and math.isfinite(float(v)) else None) for k, v in d.items()}
-
-
-def _physical(x: np.ndarray, cov: np.ndarray | None = None) -> dict[str, float]:
-    """Return m, dx, dy, I (about the CoM), sigma, sigma_yaw of x (NaN where phi is not physical) with stds."""
-    m, a, b, j, s, s_yaw = (float(v) for v in x[:N_NOMINAL])
-    out = {
-        "m": m,
-        "dx": a / m if m > 0 else float("nan"),
-        "dy": b / m if m > 0 else float("nan"),
-        "I": j - (a * a + b * b) / m if m > 0 else float("nan"),
-        "sigma": s,
-        "sigma_yaw": s_yaw,
-    }
-    if cov is not None:
-        out.update(
-            {
-                "m_std": math.sqrt(max(cov[0, 0], 0)),
-                "sigma_std": math.sqrt(max(cov[4, 4], 0)),
-                "sigma_yaw_std": math.sqrt(max(cov[5, 5], 0)),
-            }
-        )
-    return out
 
 
 def _replay_terms(fit: Fit) -> tuple[np.ndarray, np.ndarray | None]:
@@ -766,10 +641,12 @@ def _checked_signals(log: CartLog, horizon: float | None, window: float | None) 
             f"{horizon:.3g} s (need at least 3 samples per replay); if t is in milliseconds, "
             "convert it to seconds"
         )
-    edges = window_edges(sig.t, window if window is not None else 2.0 * sig.half_window)
+    edges = window_edges(sig.t, window if window is not None else 2.0 * sig.half_window, sig.breaks)
+    sig.extras[KEEP_KEY] = window_keep(edges, sig.breaks)
     sig.extras["noise_dv"] = velocity_change_noise(sig, edges)
-    if len(edges) < 12:
-        raise DiagnoseError(f"{log.source}: too short for a fit ({len(edges) - 1} windows)")
+    n_win = int(np.sum(sig.extras[KEEP_KEY]))
+    if n_win < 11:
+        raise DiagnoseError(f"{log.source}: too short for a fit ({n_win} window{'s' if n_win != 1 else ''})")
     return sig, horizon, edges
 
 
@@ -777,7 +654,7 @@ def _rank_candidates(
     sig: Signals, edges: np.ndarray, current: Fit, cands: Sequence[Effect], named: Sequence[str]
 ) -> list[_Ranked]:
     """Return every candidate not yet named with its variants ranked by Delta BIC, best candidate first."""
-    n_obs = 3 * (len(edges) - 1)
+    n_obs = 3 * _n_windows(sig, len(edges) - 1)
     results = []
     for e in cands:
         if e.name in named:
@@ -793,73 +670,314 @@ def _rank_candidates(
     return results
 
 
-def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon: float) -> _Named | None:
-    """Return, among an effect's significant variants, the one whose replay follows the whole log best (None: none)."""
-    best = None
+def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon: float) -> tuple[_Named | None, str]:
+    """Return, among an effect's significant variants, the one whose replay follows the whole log best, and why not.
+
+    (None, reason) when no significant variant has a physical fit whose replay stays finite.
+    """
+    best, why = None, "no significant form of it has a physical fit"
     for tr in trials:
         if tr.dbic <= threshold or not np.isfinite(tr.dbic):
             break
         if tr.fit.x[0] <= 0 or not np.all(np.isfinite(tr.fit.x)):
+            why = "its fits give a non-positive or non-finite mass"
             continue
         extra, dphi = _replay_terms(tr.fit)
         rep = replay(tr.fit.sig, tr.fit.x, extra, dphi, horizon=horizon)
         if not rep.finite:  # a blown-up replay = a failed candidate (infinite error)
+            why = "the replay of its fit blows up (the fitted cart is not physical)"
             continue
         if best is None or rep.rms_error() < best.replay.rms_error():
             best = _Named(tr, rep)
-    return best
+    return best, why
+
+
+#: a named effect must close at least this share of the gap the nominal model (or the named effects) leave
+MIN_SHRINK = 0.1
+
+
+@dataclass(frozen=True)
+class _Round:
+    """The outcome of one round of the search: the named effect (or None), why, and why the others were not."""
+
+    chosen: _Named | None
+    reason: str
+    verdicts: list[Verdict]
+
+
+def _gap_objection(first: bool, slip_now: bool, last_gap: float, gap: float) -> str:
+    """Return why a candidate's replay gap (after) does not justify naming it ('' when it does)."""
+    if slip_now:
+        if gap > 1.02 * last_gap:
+            return f"its replay widens the gap ({_mm(last_gap)} -> {_mm(gap)}) although {{b}} slides sideways"
+        return ""
+    if last_gap <= 0:
+        if first:
+            return "the nominal model replays the log at the noise level (gap 0 mm): nothing to explain"
+        return "the named effects already replay the log at the noise level (gap 0 mm)"
+    if not gap <= (1.0 - MIN_SHRINK) * last_gap:
+        left = "the nominal model leaves" if first else "the named effects leave"
+        return (
+            f"its replay closes too little of the gap {left} ({_mm(last_gap)} -> {_mm(gap)}; "
+            f"an effect must close at least {MIN_SHRINK:.0%} of it)"
+        )
+    return ""
+
+
+def _chosen_reason(
+    name: str,
+    dbic: float,
+    named: Sequence[str],
+    gaps: tuple[float, float],
+    slip: float,
+    passed: Sequence[Verdict],
+    deferred: Sequence[tuple[str, float]] = (),
+) -> str:
+    """Return why the round's effect was named: the slip rule, its evidence and gap, the stronger ones passed over."""
+    base = "the model with " + ", ".join(named) if named else "the nominal model"
+    parts = []
+    if not named and slip > SLIP_RATIO and name == "lateral_slip":
+        ahead = ", ".join(f"{n} (Delta BIC {d:.1f})" for n, d in deferred if d > dbic)
+        parts.append(
+            f"the {{b}} origin slides sideways ({slip:.1f} x the travel the pose noise explains): the "
+            "no-slip constraint (eq. 3) does not hold, so lateral_slip is tried first"
+            + (f", before {ahead}" if ahead else "")
+        )
+    parts.append(f"Delta BIC {dbic:.1f} over {base}; replay gap {_mm(gaps[0])} -> {_mm(gaps[1])}")
+    stronger = [v for v in passed if v.delta_bic > dbic]
+    if stronger:
+        parts.append(
+            "named although "
+            + "; ".join(f"{v.name} had the larger Delta BIC ({v.delta_bic:.1f}) but {v.reason}" for v in stronger)
+        )
+    return "; ".join(parts)
+
+
+def _weak(dbic: float, threshold: float) -> str:
+    """Return why a Delta BIC does not name an effect ('' when it is significant)."""
+    if not np.isfinite(dbic):
+        return "no physically possible fit"
+    return "" if dbic > threshold else f"evidence too weak: Delta BIC {dbic:.1f} <= {threshold:g}"
 
 
 def _choose_effect(
-    results: Sequence[_Ranked], threshold: float, horizon: float, mask: np.ndarray | None, last: Replay, first: bool
-) -> _Named | None:
-    """Return the best significant candidate whose replay stays finite and that shrinks the nominal model's gap
-    (the first effect) or keeps the gap the named ones left (a further effect); None if there is none."""
-    for ranked in results:
-        if ranked.best.dbic <= threshold or not np.isfinite(ranked.best.dbic):
-            break
-        chosen = _best_replaying_variant(ranked.trials, threshold, horizon)
-        if chosen is None:
+    results: Sequence[_Ranked],
+    threshold: float,
+    horizon: float,
+    mask: np.ndarray | None,
+    last: Replay,
+    named: Sequence[str],
+    slip_ratio: float,
+) -> _Round:
+    """Return the round's choice: the best significant candidate whose replay stays finite and that shrinks the gap.
+
+    Every effect must close at least MIN_SHRINK of the gap the nominal model (or the named
+    effects) leave. When the {b} origin slides sideways
+    (``slip_ratio`` > SLIP_RATIO) ``lateral_slip`` is tried first (it must then not widen the gap):
+    no other term of the model can stand in for a broken no-slip constraint.
+    """
+    first = not named
+    slip_rule = first and slip_ratio > SLIP_RATIO
+    order = sorted(results, key=lambda r: r.best.effect.name != "lateral_slip") if slip_rule else list(results)
+    last_gap = last.gap(mask)
+    verdicts: list[Verdict] = []
+    passed: list[Verdict] = []  # candidates passed over, for the chosen one's reason
+    chosen, reason = None, ""
+    for ranked in order:
+        name, dbic = ranked.best.effect.name, float(ranked.best.dbic)
+        weak = _weak(dbic, threshold)
+        if chosen is not None or weak:
+            verdicts.append(
+                Verdict(name, dbic, weak or f"{chosen.trial.effect.name} was named before it in this round")
+            )
             continue
-        gap, last_gap = chosen.replay.gap(mask), last.gap(mask)
-        if first and not gap < last_gap:
-            continue  # nothing the replay shows is explained: the nominal model already replays the log this well
-        if not first and gap > 1.02 * last_gap:
-            continue  # a further effect must not widen the gap the named ones left
-        return chosen
-    return None
+        cand, why = _best_replaying_variant(ranked.trials, threshold, horizon)
+        gap = cand.replay.gap(mask) if cand is not None else float("nan")
+        why = why if cand is None else _gap_objection(first, slip_rule and name == "lateral_slip", last_gap, gap)
+        if why:
+            verdicts.append(Verdict(name, dbic, why))
+            passed.append(verdicts[-1])
+            continue
+        chosen = cand
+        deferred = [(r.best.effect.name, float(r.best.dbic)) for r in results if r.best.effect.name != name]
+        reason = _chosen_reason(name, dbic, named, (last_gap, gap), slip_ratio if slip_rule else 0.0, passed, deferred)
+    return _Round(chosen, reason, verdicts)
 
 
 def _named_effects(
-    named: Sequence[_Named], reps: Sequence[Replay], flagged: np.ndarray, horizon: float
+    named: Sequence[_Named],
+    reasons: Sequence[str],
+    reps: Sequence[Replay],
+    flagged: np.ndarray,
+    horizon: float,
+    offset: float,
 ) -> list[NamedEffect]:
-    """Return the report entries of the named effects: parameters, stds, evidence, windows they improve."""
+    """Return the report entries of the named effects: parameters, stds, evidence, windows they improve, why."""
     out: list[NamedEffect] = []
-    for i, nm in enumerate(named):
+    for i, (nm, why) in enumerate(zip(named, reasons)):
         e, fit = nm.trial.effect, nm.trial.fit
         th = fit.thetas[-1]
         k0 = N_NOMINAL + sum(len(ee.param_names) for ee, _ in fit.effects[:-1])
         cov = fit.cov[k0 : k0 + len(th), k0 : k0 + len(th)] if len(th) else np.zeros((0, 0))
         params, std = e.describe(th, fit.effects[-1][1], cov, nm.trial.nl_std, fit.phi)
+        if "time" in params and params["time"] is not None:
+            params["time"] = float(params["time"]) + offset
         better = flagged & (reps[i + 1].chi2 < 0.5 * reps[i].chi2)
         wins = merge_windows(reps[0].starts, better, horizon)
+        comment = effect_comment(e.name, params)
         out.append(
             NamedEffect(
-                name=e.name, parameters=params, uncertainties=std, evidence=float(nm.trial.dbic), windows=tuple(wins)
+                name=e.name,
+                parameters=params,
+                uncertainties=std,
+                evidence=float(nm.trial.dbic),
+                windows=tuple((a + offset, b + offset) for a, b in wins),
+                reason=why + (f"; {comment}" if comment else ""),
             )
         )
     return out
 
 
-def _discrepancy_windows(sig: Signals, rep0: Replay, flagged: np.ndarray, horizon: float) -> list[DiscrepancyWindow]:
+def _discrepancy_windows(
+    sig: Signals, rep0: Replay, flagged: np.ndarray, horizon: float, offset: float
+) -> list[DiscrepancyWindow]:
     """Return the windows where the nominal replay disagrees significantly, with activity and max chi2."""
     windows = []
     for t0, t1 in merge_windows(rep0.starts, flagged, horizon):
         sel = flagged & (rep0.starts >= t0 - 1e-9) & (rep0.starts <= t1)
         windows.append(
-            DiscrepancyWindow(t0=t0, t1=t1, activity=_activity(sig, t0, t1), chi2=float(np.max(rep0.chi2[sel])))
+            DiscrepancyWindow(
+                t0=t0 + offset,
+                t1=t1 + offset,
+                activity=_activity(sig, t0, t1),
+                chi2=float(np.max(rep0.chi2[sel])),
+            )
         )
     return windows
+
+
+#: heading range (rad) from which a wrench logged in the cart frame can be told from one in {s}
+FRAME_MIN_TURN = 0.5
+#: -2 log-likelihood margin by which the cart-frame reading must fit better to refuse the log
+FRAME_MARGIN = 20.0
+#: ... the largest share of the forward row's misfit variance it may leave
+FRAME_RATIO = 0.5
+#: ... and its forward misfit at most this many times the force noise's (a cart that fits, not an effect)
+FRAME_NOISE = 4.0
+
+
+def _frame_check(sig: Signals, edges: np.ndarray) -> None:
+    """Raise WrenchFrameError when the log's wrench reads as expressed in {b}, not {s} (LOG_FORMAT).
+
+    The model is fitted to the wrench as logged and to (fx, fy) read in {b} and rotated into {s} by
+    the heading, both times with a constant force in {s} (a floor slope) and a constant wrench in {b}
+    (a bias), so that neither reading wins by absorbing one of those. When the {b} reading fits
+    better by FRAME_MARGIN (same parameters), leaves at most FRAME_RATIO of the forward row's misfit,
+    fits the forward row at the force noise's level (FRAME_NOISE: an unmodelled effect such as
+    swivelling casters can make the {b} reading fit somewhat better, never at the noise level) and
+    gives a physical cart, the log's wrench was written in the cart frame. Needs the heading to
+    turn by FRAME_MIN_TURN (otherwise the two readings agree).
+    """
+    th = sig.q_raw[:, 2]
+    if float(np.ptp(th)) < FRAME_MIN_TURN:
+        return
+    c, s = np.cos(th), np.sin(th)
+    g = sig.gamma_raw
+    g_alt = np.column_stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1], g[:, 2]])
+    cq, sq = np.cos(sig.q[:, 2]), np.sin(sig.q[:, 2])
+    keep = {k: v for k, v in sig.extras.items() if k in (KEEP_KEY, "noise_dv")}
+    alt = replace(
+        sig,
+        gamma_raw=g_alt,
+        f_fwd=cq * g_alt[:, 0] + sq * g_alt[:, 1],
+        f_lat=-sq * g_alt[:, 0] + cq * g_alt[:, 1],
+        extras=dict(keep),
+    )
+    both = [(FloorSlope(), ()), (WrenchBias(), ())]
+    as_logged = fit_model(replace(sig, extras=dict(keep)), edges, both)
+    fit_alt = fit_model(alt, edges, both)
+    better = as_logged.m2ll - fit_alt.m2ll
+    t_win = float(np.mean(np.diff(sig.t[edges])))
+    noise_level = sig.sigma_force**2 * float(np.median(np.diff(sig.t))) * t_win  # white force noise over a window
+    at_noise = fit_alt.rss[0] <= FRAME_NOISE * noise_level
+    if (
+        better > FRAME_MARGIN
+        and fit_alt.rss[0] < FRAME_RATIO * as_logged.rss[0]
+        and at_noise
+        and cart_is_physical(fit_alt.x)
+    ):
+        raise WrenchFrameError(
+            f"the wrench (fx, fy) looks expressed in the cart frame {{b}}, not in the world frame {{s}} that "
+            f"LOG_FORMAT requires: read as {{b}} and rotated by theta, the model fits it far better "
+            f"(-2 log L lower by {better:.0f}, m = {fit_alt.x[0]:.1f} kg instead of {as_logged.x[0]:.1f} kg); "
+            "rotate fx, fy into {s} (fx_s = cos(theta) fx - sin(theta) fy, fy_s = sin(theta) fx + cos(theta) fy)"
+        )
+
+
+def _nominal_fit(sig: Signals, edges: np.ndarray, source: str) -> tuple[Fit, list[str]]:
+    """Return the nominal fit, bounded to a physical cart when the plain fit is not one, and the warnings."""
+    nominal = fit_model(sig, edges, [])
+    if cart_is_physical(nominal.x):
+        return nominal, []
+    a_s, a_w, y_w = sig.extras["base"]
+    lv, lw = nominal_loadings(a_w.shape[0])
+    d, y, lv, lw = _kept(sig, (a_w, y_w, lv, lw))
+    s2v, s2w = sig.extras["noise_dv"]
+    x, var_eq, cov, m2ll = constrained_fit(d, y, lv, lw, s2v, s2w, nominal.x, nominal.rss)
+    m, a, b, j = (float(u) for u in nominal.x[:4])
+    inertia = j - (a * a + b * b) / m if m != 0 else float("nan")
+    warn = (
+        f"the unconstrained nominal fit is not a cart (m = {m:.3g} kg, I about the CoM = {inertia:.3g} kg m^2): "
+        f"the nominal model is fitted with m >= 0.5 kg, I > 0 and damping >= 0 instead (m = {x[0]:.3g} kg); "
+        "the log lacks excitation, or force and motion do not match the model"
+    )
+    fit = Fit(
+        effects=[], x=x, thetas=[], rss=var_eq, n_win=nominal.n_win, cov=cov, m2ll=m2ll, sig=sig, constrained=True
+    )
+    return fit, [warn]
+
+
+def _search(
+    sig: Signals,
+    edges: np.ndarray,
+    nominal: Fit,
+    cands: Sequence[Effect],
+    settings: tuple[float, float, int],
+    start: tuple[np.ndarray | None, Replay, float],
+) -> tuple[Fit, list[_Named], list[str], list[Replay], list[tuple[str, float]], dict[str, Verdict]]:
+    """Return the search's outcome: final fit, named effects, their reasons, replays, first-round scores, verdicts.
+
+    ``settings``: (threshold, horizon, max_effects); ``start``: (mask of flagged starts, nominal replay,
+    lateral slip ratio). Rounds until no candidate is named or ``max_effects`` are.
+    """
+    threshold, horizon, max_effects = settings
+    mask, rep0, slip_ratio = start
+    current, named, reps = nominal, [], [rep0]  # reps: the nominal replay and one after each named effect
+    reasons: list[str] = []
+    first_scores: list[tuple[str, float]] = []
+    verdicts: dict[str, Verdict] = {}
+    for round_ in range(max_effects):
+        names = [nm.trial.effect.name for nm in named]
+        results = _rank_candidates(sig, edges, current, cands, names)
+        if not results:
+            break
+        if round_ == 0:
+            first_scores = [(r.best.effect.name, float(r.best.dbic)) for r in results]
+        rnd = _choose_effect(results, threshold, horizon, mask, reps[-1], names, slip_ratio)
+        for v in rnd.verdicts:  # the reasons of every round, the first round's Delta BIC
+            old = verdicts.get(v.name)
+            if old is None:
+                verdicts[v.name] = Verdict(v.name, v.delta_bic, f"round {round_ + 1}: {v.reason}")
+            elif not old.reason.endswith(v.reason):
+                verdicts[v.name] = Verdict(v.name, old.delta_bic, f"{old.reason}; round {round_ + 1}: {v.reason}")
+        if rnd.chosen is None:
+            break
+        named.append(rnd.chosen)
+        reasons.append(rnd.reason)
+        verdicts.pop(rnd.chosen.trial.effect.name, None)
+        reps.append(rnd.chosen.replay)
+        current = rnd.chosen.trial.fit
+    return current, named, reasons, reps, first_scores, verdicts
 
 
 def diagnose(
@@ -873,39 +991,29 @@ def diagnose(
     """Return the DiagnosisReport of ``log``: nominal fit, discrepancy windows, named effects, gap before/after.
 
     ``candidates`` defaults to every registered effect; an effect is named when
-    its Delta BIC exceeds ``threshold`` (10 = "very strong" evidence).
+    its Delta BIC exceeds ``threshold`` (10 = "very strong" evidence), its replay
+    shrinks the gap and its fit is physical; every named effect carries its
+    ``reason``, every other candidate a :class:`Verdict` (``report.not_named``).
+    The log is first prepared (:func:`cart.diagnose_prep.prepare_log`: sensor streams, size, time origin).
     """
-    sig, horizon, edges = _checked_signals(log, horizon, window)
+    prep = prepare_log(log)
+    sig, horizon, edges = _checked_signals(prep.log, horizon, window)
     cands = list(candidates) if candidates is not None else registered_effects()
-    nominal = fit_model(sig, edges, [])
-    if nominal.x[0] <= 0:
-        raise DiagnoseError(
-            f"{log.source}: the nominal fit gives a non-positive mass ({nominal.x[0]:.3g} kg); "
-            "the log lacks excitation or force and motion do not match"
-        )
+    nominal, warnings = _nominal_fit(sig, edges, log.source)
+    _frame_check(sig, edges)
     rep0 = replay(sig, nominal.x, horizon=horizon)
     flagged = flag_starts(rep0)
     mask = flagged if np.any(flagged) else None
-    current, named, reps = nominal, [], [rep0]  # reps: the nominal replay and one after each named effect
-    first_scores: list[tuple[str, float]] = []
-    for round_ in range(max_effects):
-        results = _rank_candidates(sig, edges, current, cands, [nm.trial.effect.name for nm in named])
-        if not results:
-            break
-        if round_ == 0:
-            first_scores = [(r.best.effect.name, float(r.best.dbic)) for r in results]
-        chosen = _choose_effect(results, threshold, horizon, mask, reps[-1], first=not named)
-        if chosen is None:
-            break
-        named.append(chosen)
-        reps.append(chosen.replay)
-        current = chosen.trial.fit
+    slip_ratio = lateral_slip_ratio(sig, sig.extras["base"][2][:, 2], edges, sig.extras.get(KEEP_KEY))
+    current, named, reasons, reps, first_scores, verdicts = _search(
+        sig, edges, nominal, cands, (threshold, horizon, max_effects), (mask, rep0, slip_ratio)
+    )
     return DiagnosisReport(
-        effects=tuple(_named_effects(named, reps, flagged, horizon)),
+        effects=tuple(_named_effects(named, reasons, reps, flagged, horizon, prep.time_offset)),
         gap_before=rep0.gap(mask),
         gap_after=reps[-1].gap(mask),
         gap_metric=GAP_METRIC,
-        windows=tuple(_discrepancy_windows(sig, rep0, flagged, horizon)),
+        windows=tuple(_discrepancy_windows(sig, rep0, flagged, horizon, prep.time_offset)),
         nominal=_physical(nominal.x, nominal.cov),
         final_model=_physical(current.x, current.cov),
         candidates=tuple(first_scores),
@@ -917,118 +1025,8 @@ def diagnose(
         replay_before=rep0,
         replay_after=reps[-1],
         flagged=flagged,
+        not_named=tuple(sorted(verdicts.values(), key=lambda v: -v.delta_bic if math.isfinite(v.delta_bic) else 1e300)),
+        warnings=tuple(list(prep.notes) + warnings),
+        time_offset=prep.time_offset,
+        lateral_slip_ratio=slip_ratio,
     )
-
-
-def _plot_replay_errors(ax, report: DiagnosisReport, mask: np.ndarray | None, horizon: float) -> None:
-    """Draw the position error of non-overlapping replays before/after, the noise floor and the flagged windows."""
-    rb, ra = report.replay_before, report.replay_after
-    for rep, colour, label in (
-        (rb, "tab:red", "nominal model (before)"),
-        (ra, "tab:blue", "with named effects (after)"),
-    ):
-        picked, last = [], -np.inf
-        for k, t0 in enumerate(rep.starts):  # non-overlapping replays, one per horizon
-            if t0 >= last + horizon - 1e-9:
-                picked.append(k)
-                last = t0
-        for n, k in enumerate(picked):
-            err = np.hypot(*(rep.sim[k, :, :2] - rep.meas[k, :, :2]).T) * 1000
-            ax.plot(
-                rep.starts[k] + rep.tau,
-                err,
-                "-",
-                color=colour,
-                lw=0.9,
-                label=f"{label}: RMS {rep.rms_error(mask) * 1000:.1f} mm" if n == 0 else None,
-            )
-    ax.plot(rb.starts, rb.floor * 1000, "k:", lw=1.0, label="noise floor (RMS of a replay)")
-    for i, w in enumerate(report.windows):
-        ax.axvspan(w.t0, w.t1, color="orange", alpha=0.25, label="flagged windows" if i == 0 else None)
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("replay position error [mm]")
-    ax.set_title(f"position error of {horizon:.3g} s replays of the fitted model against the log")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left")
-
-
-def _plot_zoom(zx, report: DiagnosisReport, w: DiscrepancyWindow, first: bool) -> None:
-    """Draw the measured path and the replays before/after from the worst start of flagged window ``w``."""
-    rb, ra = report.replay_before, report.replay_after
-    sel = np.flatnonzero((rb.starts >= w.t0 - 1e-9) & (rb.starts <= w.t1))
-    k = int(sel[np.argmax(rb.chi2[sel])]) if len(sel) else int(np.argmin(np.abs(rb.starts - w.t0)))
-    meas = rb.meas[k, :, :2]
-    zx.plot(meas[:, 0], meas[:, 1], "k.-", ms=2, lw=1.2, label="measured")
-    zx.plot(rb.sim[k, :, 0], rb.sim[k, :, 1], "-", color="tab:red", lw=1.2, label="before")
-    ka = int(np.argmin(np.abs(ra.starts - rb.starts[k])))
-    zx.plot(ra.sim[ka, :, 0], ra.sim[ka, :, 1], "--", color="tab:blue", lw=1.2, label="after")
-    zx.plot(*meas[0], "ko", ms=4)
-    zx.set_aspect("equal", adjustable="datalim")
-    zx.set_xlabel("x [m]")
-    zx.set_ylabel("y [m]") if first else None
-    zx.set_title(f"replay from t = {rb.starts[k]:.2f} s (window {w.t0:.1f}-{w.t1:.1f} s)", fontsize=9)
-    zx.grid(alpha=0.3)
-    if first:
-        zx.legend(fontsize=7)
-
-
-def _residual_figure(report: DiagnosisReport):
-    """Return the figure of the per-replay RMS error and chi-square over time, before and after."""
-    from matplotlib.figure import Figure
-
-    rb, ra = report.replay_before, report.replay_after
-    res = Figure(figsize=(12, 6), layout="constrained")
-    axes = res.subplots(2, 1, sharex=True)
-    axes[0].plot(rb.starts, rb.rms * 1000, "r-", label="before")
-    axes[0].plot(ra.starts, ra.rms * 1000, "b-", label="after")
-    axes[0].plot(rb.starts, rb.floor * 1000, "k:", label="noise floor")
-    axes[0].set_ylabel("replay RMS error [mm]")
-    axes[0].legend()
-    axes[1].semilogy(rb.starts, np.maximum(rb.chi2, 1e-3), "r-", label="before")
-    axes[1].semilogy(ra.starts, np.maximum(ra.chi2, 1e-3), "b-", label="after")
-    axes[1].set_ylabel("chi2 (3 dof)")
-    axes[1].set_xlabel("replay start t [s]")
-    for a in axes:
-        for w in report.windows:
-            a.axvspan(w.t0, w.t1, color="orange", alpha=0.25)
-    axes[0].set_title("residuals over time; shaded: windows where the nominal model disagrees significantly")
-    return res
-
-
-def diagnosis_figures(report: DiagnosisReport, max_zooms: int = 3) -> dict:
-    """Return the figures of ``report`` as ``{"replay": Figure, "residuals": Figure}`` (no backend is touched).
-
-    ``replay``: top, the position error of the 1 s replays along time (one
-    replay every second, so the curve restarts at 0 each second), nominal model
-    (before, red) and with the named effects (after, blue), the noise floor
-    dotted, flagged windows shaded; below, up to ``max_zooms`` zooms on the
-    flagged windows with the largest chi-square: the measured path (black) and
-    the replays, in cart-path coordinates (mm-scale errors are visible there).
-    ``residuals``: per-replay RMS error and chi-square over time.
-    Display them in a notebook with ``display(fig)``; save with ``fig.savefig``.
-    """
-    from matplotlib.figure import Figure
-
-    rb, ra = report.replay_before, report.replay_after
-    if rb is None or ra is None:
-        raise DiagnoseError("the report carries no replay data to plot")
-    windows = sorted(report.windows, key=lambda w: -w.chi2)[:max_zooms]
-    mask = report.flagged if report.flagged is not None and np.any(report.flagged) else None
-    fig = Figure(figsize=(12, 7.5 if windows else 4.5), layout="constrained")
-    grid = fig.add_gridspec(2 if windows else 1, max(1, len(windows)), height_ratios=[1, 1.3] if windows else [1])
-    horizon = float(rb.tau[-1] - rb.tau[0]) if len(rb.tau) > 1 else 1.0
-    _plot_replay_errors(fig.add_subplot(grid[0, :]), report, mask, horizon)
-    for j, w in enumerate(windows):
-        _plot_zoom(fig.add_subplot(grid[1, j]), report, w, j == 0)
-    return {"replay": fig, "residuals": _residual_figure(report)}
-
-
-def plot_diagnosis(report: DiagnosisReport, out_dir: str) -> list[str]:
-    """Write ``replay.png`` and ``residuals.png`` of ``report`` (see `diagnosis_figures`) into ``out_dir``; return the paths."""
-    os.makedirs(out_dir, exist_ok=True)
-    paths = []
-    for name, fig in diagnosis_figures(report).items():
-        path = os.path.join(out_dir, f"{name}.png")
-        fig.savefig(path, dpi=100)
-        paths.append(path)
-    return paths

@@ -85,6 +85,8 @@ def simulate_replays(
     """
     t = sig.t
     starts_all = np.arange(t[0], t[-1] - horizon + 1e-9, stride)
+    for b in sig.breaks:  # no replay across a logging gap
+        starts_all = starts_all[(starts_all >= t[b] - 1e-9) | (starts_all + horizon <= t[b - 1] + 1e-9)]
     if len(starts_all) == 0:
         starts_all = np.array([t[0]])
         horizon = float(t[-1] - t[0])
@@ -224,7 +226,7 @@ def _noise_floor(
         acc = np.zeros((len(starts), len(tau)))
         for _ in range(replicates):
             e = rng.standard_normal((sig.n, 3)) * np.array([sig.sigma_pos, sig.sigma_pos, sig.sigma_theta])
-            val, d1, _, _ = local_poly(t, e, sig.half_window, degree=2)
+            val, d1, _, _ = local_poly(t, e, sig.half_window, degree=2, breaks=sig.breaks)
             p0 = [np.interp(starts, t, val[:, k])[:, None] for k in range(3)]
             v0 = [np.interp(starts, t, d1[:, k])[:, None] for k in range(3)]
             dv = c * v0[0] + s * v0[1]

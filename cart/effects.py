@@ -458,12 +458,60 @@ def kinematic_yaw_rate(sig: Signals) -> np.ndarray:
     cached = sig.extras.get(key)
     if cached is None:
         hw = max(CASTER_OMEGA_WINDOW, sig.half_window)
-        _, d1, _, _ = local_poly(sig.t, sig.q_raw[:, 2:3], hw, 2)
+        _, d1, _, _ = local_poly(sig.t, sig.q_raw[:, 2:3], hw, 2, sig.breaks)
         # soft threshold at twice the noise of this derivative: a cart at rest must not rock its casters
-        noise = sig.sigma_theta * derivative_gain(sig.t, hw, 2)[1]
+        noise = sig.sigma_theta * derivative_gain(sig.t, hw, 2, sig.breaks)[1]
         cached = np.sign(d1[:, 0]) * np.maximum(np.abs(d1[:, 0]) - 2.0 * noise, 0.0)
         sig.extras[key] = cached
     return cached
+
+
+def _swivel_angles(
+    out: np.ndarray,
+    psi: np.ndarray,
+    decay: np.ndarray,
+    yaw_step: np.ndarray,
+    side: np.ndarray,
+    lim: np.ndarray,
+    chunk: int = 1024,
+) -> None:
+    """Fill ``out`` (n, ...) with the swivel angles of :func:`caster_kinematics`, starting trailing (alpha = 0).
+
+    Per sample the angle b = alpha - psi relative to the swivel axis's direction of travel decays as
+    tan(b / 2) -> tan(b / 2) exp(-R dt / e) (exact rolling) and is clamped to at least the lane's
+    misalignment from leading (|b| <= ``lim``; side 0: the side it is on, +-1: forced). The state is
+    carried as the projective pair (p, q), tan(b / 2) = p / q: the decay scales p, the change of the
+    reference direction (psi_i - yaw_i - psi_{i+1}) rotates (q, p) by half of it -- no trigonometric
+    function per step (the angles are recovered per chunk: alpha_i = 2 atan2(p, q) + psi_i - yaw_i).
+    """
+    n = len(yaw_step)
+    shape = out.shape[1:]
+    half = 0.5 * (psi[:-1] - yaw_step[:-1, None, None, None, None] - psi[1:])  # (n-1, nx, 1, 2, 1)
+    cs, sn = np.cos(half), np.sin(half)
+    b0 = -psi[0]  # alpha = 0 at the start
+    p = np.broadcast_to(np.sin(0.5 * b0), shape).copy()
+    q = np.broadcast_to(np.cos(0.5 * b0), shape).copy()
+    tl = np.tan(0.5 * lim)  # |b| > lim  <=>  |p| > tan(lim / 2) |q|
+    forced = side != 0.0
+    buf_p = np.empty((min(chunk, n),) + shape)
+    buf_q = np.empty_like(buf_p)
+    for c0 in range(0, n, chunk):
+        c1 = min(c0 + chunk, n)
+        for i in range(c0, c1):
+            far = np.abs(p) > tl * np.abs(q)
+            if far.any():
+                sgn = np.where(forced, side, np.sign(p * q))
+                p = np.where(far, sgn * tl, p)
+                q = np.where(far, 1.0, q)
+            p = p * decay[i]
+            buf_p[i - c0], buf_q[i - c0] = p, q
+            if i + 1 < n:
+                p, q = p * cs[i] + q * sn[i], q * cs[i] - p * sn[i]
+                if i % 32 == 0:  # keep the pair of order one
+                    scale = np.abs(p) + np.abs(q)
+                    p, q = p / scale, q / scale
+        k = c1 - c0
+        out[c0:c1] = 2.0 * np.arctan2(buf_p[:k], buf_q[:k]) + psi[c0:c1] - yaw_step[c0:c1, None, None, None, None]
 
 
 def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
@@ -498,8 +546,8 @@ def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[flo
     omm = np.concatenate([[om[0]], 0.5 * (om[1:] + om[:-1])])
     dt = np.concatenate([[0.0], np.diff(t)])
     n = sig.n
-    alpha = np.empty((n, nx, nt, 2, nm))
-    al = np.zeros((nx, nt, 2, nm))
+    alpha = np.empty((n, nx, nt, 2, nm), np.float32)  # stored in single precision: ~1e-7 rad, half the memory
+    al = np.zeros((nx, nt, 2, nm))  # the casters start trailing
     px = vm[:, None, None, None, None] - omm[:, None, None, None, None] * ys[None]  # (n, 1, 1, 2, 1)
     py = omm[:, None, None, None, None] * xs[None]  # (n, nx, 1, 1, 1)
     psi_all = np.arctan2(py, px)  # (n, nx, 1, 2, 1)
@@ -507,18 +555,14 @@ def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[flo
     forced = side != 0
     # the rolling decay of every sample at once
     decay_all = np.exp(-(speed * dt[:, None, None, None, None]) / es[None])  # (n, nx, nt, 2, 1)
-    yaw_step = omm * dt
-    for i in range(n):
-        b = np.mod(al - psi_all[i] + math.pi, 2.0 * math.pi) - math.pi
-        far = np.abs(b) > lim
-        if far.any():
-            b = np.where(far, np.where(forced, side, np.sign(b)) * lim, b)
-        hb = 0.5 * b
-        al = 2.0 * np.arctan2(np.sin(hb) * decay_all[i], np.cos(hb)) + psi_all[i] - yaw_step[i]
-        alpha[i] = al
-    qx = v[:, None, None, None, None] - om[:, None, None, None, None] * ys[None]
-    qy = om[:, None, None, None, None] * xs[None]
-    rate = (-qx * np.sin(alpha) + qy * np.cos(alpha)) / es[None] - om[:, None, None, None, None]
+    _swivel_angles(alpha, psi_all, decay_all, omm * dt, np.broadcast_to(np.where(forced, side, 0.0), al.shape), lim)
+    rate = np.empty_like(alpha)
+    for c0 in range(0, n, 2048):  # chunks: the full-size float64 temporaries would dominate the memory
+        sl = slice(c0, min(c0 + 2048, n))
+        a = alpha[sl].astype(float)
+        qx = v[sl, None, None, None, None] - om[sl, None, None, None, None] * ys[None]
+        qy = om[sl, None, None, None, None] * xs[None]
+        rate[sl] = (-qx * np.sin(a) + qy * np.cos(a)) / es[None] - om[sl, None, None, None, None]
     out = (alpha, rate)
     sig.extras[key] = out
     return out
@@ -587,7 +631,7 @@ class SwivelCasterModel(CasterSwivel):
         return [(self.TRAILS[0], self.TRAILS[-1])]
 
     def _lanes(self, sig: Signals, trail: float) -> tuple[np.ndarray, np.ndarray]:
-        """Return alpha, alpha' (N, 2, modes) for this axle position and ``trail`` (grid values: one shared pass)."""
+        """Return alpha, alpha' (N, 2, modes; single precision views) for this axle and ``trail`` (grid: one shared pass)."""
         if trail in self.TRAILS and self.axle_x in self.AXLES:
             alpha, rate = caster_kinematics(sig, self.AXLES, self.TRAILS)
             i, j = self.AXLES.index(self.axle_x), self.TRAILS.index(trail)
@@ -858,10 +902,14 @@ class PayloadChange(Effect):
     param_names = ("delta_m", "delta_m_dx", "delta_m_dy", "delta_J")
     nl_names = ("time",)
 
+    #: most change times on the grid (a long log gets a coarser grid; the 1-D refinement follows)
+    GRID_MAX = 120
+
     def nl_grid(self, sig):
-        """Return change times every 0.25 s within :meth:`nl_bounds`."""
+        """Return change times every 0.25 s within :meth:`nl_bounds` (at most GRID_MAX, evenly spaced)."""
         t0, t1 = self.nl_bounds(sig)[0]
-        return [(float(x),) for x in np.arange(t0, t1, 0.25)] or [(0.5 * (t0 + t1),)]
+        step = max(0.25, (t1 - t0) / self.GRID_MAX)
+        return [(float(x),) for x in np.arange(t0, t1, step)] or [(0.5 * (t0 + t1),)]
 
     def nl_bounds(self, sig):
         """Return the change-time bounds: at least 1.5 s and 5 % of the acceleration content on each side.

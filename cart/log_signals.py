@@ -13,35 +13,94 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from cart.errors import LogFormatError
-from cart.logs import CartLog, local_fit
+from cart.logs import CartLog
+
+
+#: rows of the local polynomial fits computed at once (bounds the working memory of long logs)
+CHUNK_ROWS = 4096
+
+#: an interval between samples longer than this (s), and than GAP_PERIODS median periods, splits the log
+GAP_SECONDS = 1.0
+GAP_PERIODS = 20.0
+
+
+def segment_breaks(t: np.ndarray) -> tuple[int, ...]:
+    """Return the indices where a new contiguous segment starts: after a gap of > GAP_SECONDS and GAP_PERIODS periods."""
+    t = np.asarray(t, float)
+    if len(t) < 3:
+        return ()
+    dt = np.diff(t)
+    lim = max(GAP_SECONDS, GAP_PERIODS * float(np.median(dt)))
+    return tuple(int(i) + 1 for i in np.flatnonzero(dt > lim))
+
+
+def _segment_bounds(n: int, breaks: tuple[int, ...] | None) -> list[tuple[int, int]]:
+    """Return [(a, b)] sample ranges of the segments cut at ``breaks``."""
+    cuts = [0] + [int(b) for b in (breaks or ()) if 0 < b < n] + [n]
+    return [(a, b) for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
 
 
 def local_poly(
-    t: np.ndarray, y: np.ndarray, half_window: float, degree: int = 2
+    t: np.ndarray,
+    y: np.ndarray,
+    half_window: float,
+    degree: int = 2,
+    breaks: tuple[int, ...] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (value, d1, d2, leverage): local least-squares polynomial fits of y (N, k) at every t_i.
 
-    Each fit uses the samples with |t_j - t_i| <= ``half_window`` (windows shift
-    inwards at the ends); ``leverage`` is the weight of sample i on its own
-    fitted value (used to unbias residual variances).
+    Each fit uses the ``2 k + 1`` samples around t_i, ``k = round(half_window / median dt)`` (windows
+    shift inwards at the ends, as :func:`cart.logs.local_fit`); ``leverage`` is the weight of sample i
+    on its own fitted value (used to unbias residual variances). Fits never cross ``breaks`` (the first
+    indices of contiguous segments, :func:`segment_breaks`); a segment too short for a fit keeps its
+    samples with zero derivatives. Computed in chunks of ``CHUNK_ROWS`` samples: the working memory
+    is linear in the log's length and bounded per chunk.
     """
+    t = np.asarray(t, float)
     n = len(t)
     if n < degree + 2:
         raise LogFormatError(f"need at least {degree + 2} samples to differentiate the pose, got {n}")
-    coef, scale, pinv, start, _ = local_fit(t, y, half_window, degree)
-    value = coef[:, 0, :]
-    d1 = coef[:, 1, :] / scale
-    d2 = 2.0 * coef[:, 2, :] / scale**2 if degree >= 2 else np.zeros_like(d1)
-    leverage = pinv[np.arange(n), 0, np.arange(n) - start]
+    y2 = np.asarray(y, float).reshape(n, -1)
+    med_dt = float(np.median(np.diff(t)))
+    k = max(degree // 2 + 1, int(round(half_window / med_dt)))
+    value = y2.copy()
+    d1 = np.zeros_like(y2)
+    d2 = np.zeros_like(y2)
+    leverage = np.ones(n)
+    for a, b in _segment_bounds(n, breaks):
+        ns = b - a
+        if ns < degree + 2:
+            continue
+        ts, ys = t[a:b], y2[a:b]
+        width = min(2 * k + 1, ns)
+        start = np.clip(np.arange(ns) - width // 2, 0, ns - width)
+        scale = max(float(np.max(np.maximum(ts[start + width - 1] - ts, ts - ts[start]))), 1e-12)
+        for c0 in range(0, ns, CHUNK_ROWS):
+            rows = np.arange(c0, min(c0 + CHUNK_ROWS, ns))
+            idx = start[rows, None] + np.arange(width)[None, :]
+            u = (ts[idx] - ts[rows, None]) / scale
+            vt = np.empty((len(rows), degree + 1, width))  # transposed Vandermonde rows
+            vt[:, 0] = 1.0
+            for p in range(1, degree + 1):
+                vt[:, p] = vt[:, p - 1] * u
+            ninv = np.linalg.inv(vt @ vt.transpose(0, 2, 1))  # (c, degree+1, degree+1)
+            coef = ninv @ (vt @ ys[idx])
+            value[a + rows] = coef[:, 0, :]
+            d1[a + rows] = coef[:, 1, :] / scale
+            if degree >= 2:
+                d2[a + rows] = 2.0 * coef[:, 2, :] / scale**2
+            leverage[a + rows] = ninv[:, 0, 0]  # own sample: tau = 0, its Vandermonde row is e_0
     return value, d1, d2, leverage
 
 
-def derivative_gain(t: np.ndarray, half_window: float, degree: int = 2) -> tuple[float, float]:
-    """Return (g0, g1): noise gains of the smoothed value and first derivative (std out / std in), median."""
+def derivative_gain(
+    t: np.ndarray, half_window: float, degree: int = 2, breaks: tuple[int, ...] | None = None
+) -> tuple[float, float]:
+    """Return (g0, g1): noise gains of the smoothed value and first derivative (std out / std in), RMS."""
     n = len(t)
     rng = np.random.default_rng(12345)
     e = rng.standard_normal((n, 8))
-    v, d1, _, _ = local_poly(t, e, half_window, degree)
+    v, d1, _, _ = local_poly(t, e, half_window, degree, breaks)
     return float(np.sqrt(np.mean(v**2))), float(np.sqrt(np.mean(d1**2)))
 
 
@@ -84,6 +143,8 @@ class Signals:
     half_window: float
     shift: float = 0.0
     extras: dict = field(default_factory=dict, compare=False)
+    #: first sample index of every contiguous segment after the first (a logging gap before it)
+    breaks: tuple[int, ...] = ()
 
     @property
     def n(self) -> int:
@@ -124,14 +185,15 @@ def signals_from_log(log: CartLog, half_window: float | None = None) -> Signals:
             f"{log.source}: the log has {len(t)} samples over {dur:.3g} s; diagnosing needs at least 60 sample periods"
         )
     hw = max(hw, 3.0 * med_dt)
-    val, d1, d2, lev = local_poly(t, q, hw, degree=2)
+    breaks = segment_breaks(t)
+    val, d1, d2, lev = local_poly(t, q, hw, degree=2, breaks=breaks)
     # noise levels from the residuals of a shorter cubic fit (little bias), unbiased by the leverage
-    v3, _, _, lev3 = local_poly(t, q, max(0.06, 3.0 * med_dt), degree=3)
+    v3, _, _, lev3 = local_poly(t, q, max(0.06, 3.0 * med_dt), degree=3, breaks=breaks)
     corr = np.sqrt(np.clip(1.0 - lev3, 0.05, 1.0))
     res = (q - v3) / corr[:, None]
     sigma_pos = robust_std(np.concatenate([res[:, 0], res[:, 1]]))
     sigma_theta = robust_std(res[:, 2])
-    g0, g1 = derivative_gain(t, hw, 2)
+    g0, g1 = derivative_gain(t, hw, 2, breaks)
     th = val[:, 2]
     c, s = np.cos(th), np.sin(th)
     xd, yd, om = d1[:, 0], d1[:, 1], d1[:, 2]
@@ -139,7 +201,7 @@ def signals_from_log(log: CartLog, half_window: float | None = None) -> Signals:
     w = -s * xd + c * yd
     vdot = c * d2[:, 0] + s * d2[:, 1] + om * w
     g = np.asarray(log.gamma, float)
-    gs, _, _, glev = local_poly(t, g, max(0.06, 3.0 * med_dt), degree=3)
+    gs, _, _, glev = local_poly(t, g, max(0.06, 3.0 * med_dt), degree=3, breaks=breaks)
     gcorr = np.sqrt(np.clip(1.0 - glev, 0.05, 1.0))
     gres = (g - gs) / gcorr[:, None]
     sigma_force = robust_std(np.concatenate([gres[:, 0], gres[:, 1]]))
@@ -165,15 +227,33 @@ def signals_from_log(log: CartLog, half_window: float | None = None) -> Signals:
         sigma_omega=max(sigma_theta, 1e-5) * g1,
         gain_value=g0,
         half_window=hw,
+        breaks=breaks,
     )
 
 
-def window_edges(t: np.ndarray, length: float) -> np.ndarray:
-    """Return sample indices [i0, i1, ...] cutting t into consecutive windows of about ``length`` seconds."""
-    n_w = max(1, int((t[-1] - t[0]) // length))
-    targets = t[0] + np.arange(n_w + 1) * (t[-1] - t[0]) / n_w
-    edges = np.unique(np.searchsorted(t, targets).clip(0, len(t) - 1))
-    return edges
+def window_edges(t: np.ndarray, length: float, breaks: tuple[int, ...] | None = None) -> np.ndarray:
+    """Return sample indices [i0, i1, ...] cutting t into consecutive windows of about ``length`` seconds.
+
+    With ``breaks`` (:func:`segment_breaks`) every segment is cut on its own and both samples around
+    each gap are edges: the window across a gap is :func:`window_keep`'s one to drop.
+    """
+    t = np.asarray(t, float)
+    parts = []
+    for a, b in _segment_bounds(len(t), breaks):
+        ts = t[a:b]
+        n_w = max(1, int((ts[-1] - ts[0]) // length))
+        targets = ts[0] + np.arange(n_w + 1) * (ts[-1] - ts[0]) / n_w
+        parts.append(a + np.searchsorted(ts, targets).clip(0, b - a - 1))
+    return np.unique(np.concatenate(parts))
+
+
+def window_keep(edges: np.ndarray, breaks: tuple[int, ...] | None = None) -> np.ndarray:
+    """Return a boolean mask of the windows of ``edges`` that lie within one segment (False across a gap)."""
+    edges = np.asarray(edges)
+    keep = np.ones(max(len(edges) - 1, 0), bool)
+    for b in breaks or ():
+        keep &= ~((edges[:-1] < b) & (edges[1:] >= b))
+    return keep
 
 
 def window_integrals(t: np.ndarray, y: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -216,8 +296,9 @@ def velocity_change_noise(sig: Signals, edges: np.ndarray, replicates: int = 4, 
     acc_v, acc_w = [], []
     for _ in range(replicates):
         e = rng.standard_normal((n, 3)) * np.array([sig.sigma_pos, sig.sigma_pos, sig.sigma_theta])
-        _, _, d2, _ = local_poly(sig.t, e, sig.half_window, degree=2)
+        _, _, d2, _ = local_poly(sig.t, e, sig.half_window, degree=2, breaks=sig.breaks)
         c, s = np.cos(sig.q[:, 2]), np.sin(sig.q[:, 2])
-        acc_v.append(window_integrals(sig.t, c * d2[:, 0] + s * d2[:, 1], edges))
-        acc_w.append(window_integrals(sig.t, d2[:, 2], edges))
+        keep = window_keep(edges, sig.breaks)
+        acc_v.append(window_integrals(sig.t, c * d2[:, 0] + s * d2[:, 1], edges)[keep])
+        acc_w.append(window_integrals(sig.t, d2[:, 2], edges)[keep])
     return float(np.mean(np.concatenate(acc_v) ** 2)), float(np.mean(np.concatenate(acc_w) ** 2))

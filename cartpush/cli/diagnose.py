@@ -21,7 +21,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Fit the nominal cart model (mass, CoM, inertia, viscous sigma) to a cart log, replay it over\n"
         "1 s horizons to find windows where it disagrees significantly with the measured motion, then try\n"
         "each candidate effect (coulomb_friction, caster_swivel, wrench_bias, payload_change, floor_slope,\n"
-        "time_delay, lateral_slip), keep the ones with Delta BIC > threshold and report the gap before/after.\n\n"
+        "time_delay, lateral_slip), keep the ones with Delta BIC > threshold whose replay shrinks the gap, and\n"
+        "say why each was named or not (a broken no-slip constraint puts lateral_slip first). Multi-rate tables,\n"
+        "logging gaps and clock offsets are handled; a wrench given in the cart frame is refused.\n\n"
         "Example:\n  cartpush diagnose run.csv\n  cartpush diagnose run.csv.gz --json --out plots/",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

@@ -666,3 +666,98 @@ def random_case(
         raise ParameterError(f"unknown simulate_hidden keyword(s) {sorted(unknown)}")
     kw.update(overrides)
     return simulate_hidden(params, effects, duration=duration, rng=rng, **kw)
+
+
+# --------------------------------------------------------------------------- log defects (effect-free twins)
+
+#: the defects :func:`defective_log` writes into a log: none of them is a physical effect
+DEFECTS = ("held_pose", "mocap_rows", "gap", "time_offset", "wrench_in_cart_frame")
+
+
+def _ar1(rng: np.random.Generator, n: int, sigma: float, rho_lag10: float) -> np.ndarray:
+    """Return a stationary AR(1) sequence of std ``sigma`` whose lag-10 correlation is ``rho_lag10``."""
+    a = rho_lag10 ** (1.0 / 10.0)
+    e = np.empty(n)
+    e[0] = rng.normal(0.0, sigma)
+    w = rng.normal(0.0, sigma * math.sqrt(1.0 - a * a), n)
+    for i in range(1, n):
+        e[i] = a * e[i - 1] + w[i]
+    return e
+
+
+def _dropout_mask(rng: np.random.Generator, t: np.ndarray, count: int) -> np.ndarray:
+    """Return booleans: False inside ``count`` random dropouts of 0.15-0.5 s."""
+    keep = np.ones(len(t), bool)
+    for _ in range(count):
+        t0 = rng.uniform(t[0] + 2.0, t[-1] - 2.0)
+        keep &= ~((t >= t0) & (t < t0 + rng.uniform(0.15, 0.5)))
+    return keep
+
+
+def multirate_log(
+    rng: np.random.Generator,
+    merging: str,
+    duration: float = 60.0,
+    ft_rate: float = 500.0,
+    mocap_rate: float = 120.0,
+) -> tuple[CartLog, CartParams]:
+    """Return an effect-free log sensed as a real set-up does, written into one table, and its cart.
+
+    The cart (:func:`random_cart`) is simulated noise-free at ``ft_rate``; the F/T stream gets AR(1)
+    noise (2-3 N, 0.4-0.6 N m; lag-10 correlation 0.6-0.8) and a small offset, the motion-capture
+    stream (``mocap_rate``, 0.2 ms timestamp jitter, three dropouts) white noise of 0.5-1.5 mm and 2-4
+    mrad. ``merging``: ``"held_pose"`` (a row per F/T sample, the last pose repeated) or
+    ``"mocap_rows"`` (a row per pose sample, the F/T averaged over the interval); ``t`` starts at 3-50 s.
+    """
+    params = random_cart(rng)
+    quiet = dict(position_noise=0.0, theta_noise=0.0, force_noise=0.0, torque_noise=0.0, velocity_noise=0.0)
+    hl = simulate_hidden(params, (), duration=duration, rate=ft_rate, jitter=0.0, rng=rng, **quiet)
+    t_ft, q_true, g_true = hl.measured.t, hl.true.q, hl.measured.gamma
+    g_ft = g_true + np.column_stack(
+        [_ar1(rng, len(t_ft), rng.uniform(2.0, 3.0), rng.uniform(0.6, 0.8)) + rng.uniform(-0.3, 0.3) for _ in range(2)]
+        + [_ar1(rng, len(t_ft), rng.uniform(0.4, 0.6), rng.uniform(0.6, 0.8)) + rng.uniform(-0.1, 0.1)]
+    )
+    t_mc = np.arange(t_ft[0] + 0.5 / mocap_rate, t_ft[-1], 1.0 / mocap_rate)
+    t_mc = t_mc[_dropout_mask(rng, t_mc, 3)]
+    pos_std, th_std = rng.uniform(5e-4, 1.5e-3), rng.uniform(0.002, 0.004)
+    q_mc = np.column_stack([np.interp(t_mc, t_ft, q_true[:, k]) for k in range(3)])
+    q_mc += rng.normal(0.0, 1.0, q_mc.shape) * np.array([pos_std, pos_std, th_std])
+    t_mc_logged = t_mc + rng.normal(0.0, 2e-4, len(t_mc))
+    t_ft_logged = t_ft + rng.normal(0.0, 2e-4, len(t_ft))
+    if merging == "held_pose":
+        rows = np.flatnonzero(t_ft >= t_mc[0])
+        last = np.searchsorted(t_mc, t_ft[rows], side="right") - 1
+        t, q, g = t_ft_logged[rows], q_mc[last], g_ft[rows]
+    elif merging == "mocap_rows":
+        idx = np.searchsorted(t_ft, t_mc, side="right")
+        lo = np.r_[max(idx[0] - int(ft_rate / mocap_rate), 0), idx[:-1]]
+        cum = np.vstack([np.zeros((1, 3)), np.cumsum(g_ft, axis=0)])
+        g = (cum[idx] - cum[lo]) / np.maximum(idx - lo, 1)[:, None]
+        t, q = t_mc_logged, q_mc
+    else:
+        raise ParameterError(f"unknown merging {merging!r}; known: held_pose, mocap_rows")
+    t = np.maximum.accumulate(t) + 1e-7 * np.arange(len(t))  # strictly increasing, as a logger writes it
+    t = t + rng.uniform(3.0, 50.0)
+    meta = {"source": "studies.testbeds.hidden_effects.multirate_log", "merging": merging}
+    return CartLog(t=t, q=q, gamma=g, metadata=meta), params
+
+
+def defective_log(log: CartLog, defect: str, rng: np.random.Generator) -> CartLog:
+    """Return ``log`` with a recording defect that is no physical effect (``DEFECTS``).
+
+    ``gap``: 10 s of rows missing in the middle; ``time_offset``: the clock starts at a Unix time;
+    ``wrench_in_cart_frame``: (fx, fy) written in {b} instead of {s}. The multi-rate defects are
+    :func:`multirate_log`.
+    """
+    t, q, g = np.array(log.t), np.array(log.q), np.array(log.gamma)
+    if defect == "gap":
+        t0 = rng.uniform(0.35, 0.55) * (t[-1] - t[0]) + t[0]
+        keep = (t < t0) | (t >= t0 + 10.0)
+        return CartLog(t=t[keep], q=q[keep], gamma=g[keep], metadata=dict(log.metadata))
+    if defect == "time_offset":
+        return CartLog(t=t + 1.7e9 + rng.uniform(0.0, 1e6), q=q, gamma=g, metadata=dict(log.metadata))
+    if defect == "wrench_in_cart_frame":
+        c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
+        gb = np.column_stack([c * g[:, 0] + s * g[:, 1], -s * g[:, 0] + c * g[:, 1], g[:, 2]])
+        return CartLog(t=t, q=q, gamma=gb, metadata=dict(log.metadata))
+    raise ParameterError(f"unknown defect {defect!r}; known: {', '.join(DEFECTS)}")

@@ -23,6 +23,8 @@ def test_diagnose_json_and_plots(tmp_path, capsys):
     assert abs(d["effects"][0]["parameters"]["delay"] - h.effects[0].params["delay"]) < 0.03
     assert d["gap_after"] <= 0.5 * d["gap_before"]
     assert "RMS excess position error" in d["gap_metric"] and d["rms_before"] >= d["gap_before"]
+    assert "Delta BIC" in d["effects"][0]["reason"] and "ms" in d["effects"][0]["reason"]  # the delay's sign read out
+    assert all(v["reason"] for v in d["not_named"]) and isinstance(d["warnings"], list)
     for name in ("replay.png", "residuals.png"):
         assert os.path.getsize(os.path.join(out_dir, name)) > 10_000
 
@@ -43,3 +45,14 @@ def test_bad_log_exits_2_with_one_line(tmp_path, capsys):
     assert main(["diagnose", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "tau" in err[0]
+
+
+def test_wrench_in_the_cart_frame_exits_2_with_one_line(tmp_path, capsys):
+    from studies.testbeds.hidden_effects import defective_log
+
+    h = random_case(None, np.random.default_rng(9101), duration=30.0, rate=100.0, jitter=0.1)
+    path = str(tmp_path / "cart_frame.csv")
+    write_log(path, defective_log(h.measured, "wrench_in_cart_frame", np.random.default_rng(4)))
+    assert main(["diagnose", path]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cart frame" in err[0]

@@ -1,0 +1,149 @@
+"""diagnose on logs as they are recorded (issue 30 items 3 and 7, issue 31): streams, gaps, clocks, frames, size.
+
+Every log here is effect-free unless said otherwise: naming an effect on one is a false alarm.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from cart.diagnose import diagnose
+from cart.diagnose_checks import (
+    MASS_MIN,
+    WrenchFrameError,
+    cart_is_physical,
+    constrained_fit,
+    lateral_slip_ratio,
+)
+from cart.diagnose_prep import prepare_log
+from cart.errors import DiagnoseError
+from cart.jsonout import dumps_strict
+from cart.log_signals import lateral_displacements, local_poly, segment_breaks, signals_from_log, window_edges
+from cart.logs import CartLog, local_fit
+from studies.testbeds.hidden_effects import (
+    HiddenEffect,
+    defective_log,
+    multirate_log,
+    random_case,
+    random_cart,
+    simulate_hidden,
+)
+
+
+@pytest.fixture(scope="module")
+def nominal_log() -> CartLog:
+    """A 30 s effect-free log of the hidden-effect test bed (100 Hz, 10 % jitter)."""
+    return random_case(None, np.random.default_rng(9101), duration=30.0, rate=100.0, jitter=0.1).measured
+
+
+def test_chunked_local_poly_equals_the_one_shot_fit_and_never_crosses_a_gap():
+    rng = np.random.default_rng(1)
+    t = np.cumsum(rng.uniform(0.004, 0.012, 9000))
+    y = rng.standard_normal((9000, 2))
+    coef, scale, pinv, start, _ = local_fit(t, y, 0.15, 2)
+    v, d1, d2, lev = local_poly(t, y, 0.15, 2)
+    assert np.allclose(v, coef[:, 0], atol=1e-12) and np.allclose(d1, coef[:, 1] / scale, atol=1e-10)
+    assert np.allclose(lev, pinv[np.arange(9000), 0, np.arange(9000) - start], atol=1e-12)
+    # a step at a gap: with the break, neither side sees the other
+    t2 = np.r_[t[:4000], t[4000:] + 10.0]
+    y2 = np.r_[np.zeros(4000), np.ones(5000)][:, None]
+    assert segment_breaks(t2) == (4000,)
+    v2, d12, _, _ = local_poly(t2, y2, 0.15, 2, breaks=segment_breaks(t2))
+    assert np.allclose(v2[:, 0], y2[:, 0], atol=1e-9) and np.allclose(d12, 0.0, atol=1e-9)
+    edges = window_edges(t2, 0.3, (4000,))
+    assert 3999 in edges and 4000 in edges
+
+
+def test_held_pose_table_is_read_as_two_streams_and_names_nothing():
+    log, truth = multirate_log(np.random.default_rng(9200), "held_pose", duration=40.0)
+    assert np.mean(np.all(np.diff(log.q, axis=0) == 0.0, axis=1)) > 0.5  # most rows repeat the pose
+    rep = diagnose(log)
+    assert rep.names == [], rep.summary()
+    assert abs(rep.nominal["m"] - truth.m) < 0.15 * truth.m
+    assert any("multi-rate" in w for w in rep.warnings)
+
+
+def test_a_logging_gap_and_a_unix_clock_name_nothing_and_keep_the_log_time_axis(nominal_log):
+    rng = np.random.default_rng(3)
+    gap = diagnose(defective_log(nominal_log, "gap", rng))
+    assert gap.names == [], gap.summary()
+    shifted = defective_log(nominal_log, "time_offset", rng)
+    rep = diagnose(shifted)
+    assert rep.names == [], rep.summary()
+    assert rep.time_offset == pytest.approx(shifted.t[0])
+    assert all(w.t0 >= shifted.t[0] for w in rep.windows)
+
+
+def test_a_wrench_in_the_cart_frame_is_refused_as_a_frame_problem(nominal_log):
+    bad = defective_log(nominal_log, "wrench_in_cart_frame", np.random.default_rng(4))
+    with pytest.raises(WrenchFrameError, match="cart frame"):
+        diagnose(bad)
+    assert issubclass(WrenchFrameError, DiagnoseError)
+
+
+def test_constrained_fit_recovers_a_feasible_cart_and_bounds_an_infeasible_one():
+    rng = np.random.default_rng(5)
+    d = rng.standard_normal((300, 3, 6))
+    x_true = np.array([20.0, 6.0, 0.4, 2.0 + (36.0 + 0.16) / 20.0, 3.0, 1.0])
+    y = np.einsum("nrp,p->nr", d, x_true) + 0.01 * rng.standard_normal((300, 3))
+    zeros = np.zeros_like(d)
+    x, _, cov, m2ll = constrained_fit(d, y, zeros, zeros, 0.0, 0.0, x_true * 1.3, np.full(3, 1e-4))
+    assert np.allclose(x, x_true, rtol=1e-2) and np.isfinite(m2ll) and cov.shape == (6, 6)
+    x_neg = x_true * np.array([-1.0, 1.0, 1.0, 1.0, 1.0, 1.0])  # data of a negative mass
+    y_neg = np.einsum("nrp,p->nr", d, x_neg)
+    xb, _, _, _ = constrained_fit(d, y_neg, zeros, zeros, 0.0, 0.0, x_neg, np.full(3, 1e-4))
+    assert cart_is_physical(xb) and xb[0] >= MASS_MIN - 1e-9 and xb[4] >= 0.0 and xb[5] >= 0.0
+
+
+def test_a_log_whose_plain_fit_is_no_cart_gets_an_answer_with_a_warning(nominal_log):
+    flipped = CartLog(t=nominal_log.t, q=nominal_log.q, gamma=-nominal_log.gamma)  # force and motion disagree
+    rep = diagnose(flipped)
+    assert rep.nominal["m"] >= MASS_MIN - 1e-9 and rep.nominal["I"] > 0.0
+    assert any("not a cart" in w for w in rep.warnings)
+    json.loads(dumps_strict(rep.to_dict()))
+
+
+def test_lateral_slip_ratio_is_one_when_the_wheels_hold_and_large_when_they_slide(nominal_log):
+    for log, low in ((nominal_log, True), (_slip_log(), False)):
+        sig = signals_from_log(log)
+        edges = window_edges(sig.t, 0.3)
+        ratio = lateral_slip_ratio(sig, lateral_displacements(sig, edges), edges, None)
+        assert (ratio < 1.6) if low else (ratio > 2.0), ratio
+
+
+def _slip_log() -> CartLog:
+    rng = np.random.default_rng(9300)
+    p = random_cart(rng)
+    eff = (HiddenEffect("lateral_slip", {"compliance": 4e-3}),)
+    return simulate_hidden(p, eff, duration=30.0, rate=100.0, jitter=0.1, rng=rng).measured
+
+
+def test_lateral_slip_is_named_first_with_its_reason_and_every_other_candidate_has_one():
+    rep = diagnose(_slip_log())
+    assert rep.names[:1] == ["lateral_slip"], rep.summary()
+    assert "no-slip constraint" in rep.effects[0].reason and "Delta BIC" in rep.effects[0].reason
+    d = json.loads(dumps_strict(rep.to_dict()))
+    assert all(e["reason"] for e in d["effects"])
+    ranked = {c["name"] for c in d["candidates"]}
+    assert {v["name"] for v in d["not_named"]} == ranked - set(rep.names)
+    assert all(v["reason"] for v in d["not_named"])
+    assert "why: " in rep.summary() and "(1 windows)" not in rep.summary()
+
+
+def test_a_long_log_is_averaged_to_a_bounded_number_of_samples(monkeypatch, nominal_log):
+    import cart.diagnose_prep as prep
+
+    monkeypatch.setattr(prep, "MAX_SAMPLES", 1000)
+    n = len(nominal_log.t)
+    out = prepare_log(nominal_log)
+    # 3000 samples at 100 Hz: blocks of 3 would reach 1000, but never below about 50 Hz: blocks of 2
+    assert out.block == 2 and len(out.log.t) == (n + 1) // 2
+    pairs = 0.5 * (nominal_log.q[0:200:2, :2] + nominal_log.q[1:200:2, :2])
+    assert np.allclose(out.log.q[:100, :2], pairs)
+    assert out.log.t[0] == 0.0 and out.time_offset == pytest.approx(0.5 * (nominal_log.t[0] + nominal_log.t[1]))
+    assert any("averaged over blocks" in note for note in out.notes)
+    monkeypatch.setattr(prep, "MAX_SAMPLES", 10**6)
+    assert prepare_log(nominal_log).block == 1
