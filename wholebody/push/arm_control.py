@@ -55,6 +55,10 @@ class TorqueArmGains:
     #: moment of a lateral push at the handle's height; 0 = off. It leaves the planar push alone.
     tilt_stiffness: float = 0.0
     tilt_damping: float = 0.0
+    #: Cartesian stiffness (N/m) and damping (N s/m) pulling the hand's position toward the command's
+    #: ``hand_target`` (its velocity: the target's change over the period); 0 = off (pure wrench control)
+    cartesian_stiffness: float = 0.0
+    cartesian_damping: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -126,6 +130,7 @@ class TorqueArmLaw:
         self._v = v_new
         self._NT = null_space_projector_T(J, M) if self.gains.null_space else np.eye(M.shape[0])
         self._Jr = J[3:]
+        self._Jt = J[:3]
         self._t_end = t_end
 
     def torque(
@@ -135,8 +140,12 @@ class TorqueArmLaw:
         v: np.ndarray,
         bias: np.ndarray,
         tilt: tuple[np.ndarray, np.ndarray] | None = None,
+        hand: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> np.ndarray:
         """Return the joint torques at time `t` and state (q, v), within limits.
+
+        `hand`: (target position - hand position, target velocity - hand velocity), world frame, for the
+        Cartesian impedance (None: off).
 
         `bias`: the arm's bias forces there; `tilt`: (rotation error hand -> target, hand angular velocity), world
         frame, for the roll/pitch hold (None: off).
@@ -145,6 +154,9 @@ class TorqueArmLaw:
         q_plan = self._q_end - self._v * (self._t_end - t)
         ff = self._ff if g.feedforward == "command" else self._ff + bias
         tau = ff + self._NT @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
+        if hand is not None:
+            p_err, v_err = hand
+            tau = tau + self._Jt.T @ (g.cartesian_stiffness * p_err + g.cartesian_damping * v_err)
         if tilt is not None and (g.tilt_stiffness > 0.0 or g.tilt_damping > 0.0):
             err, omega = tilt
             n = g.tilt_stiffness * err - g.tilt_damping * omega

@@ -208,6 +208,8 @@ class MujocoPlant:
         ]
         self._qacc = np.zeros(self.scene.model.nv)
         self._quat = np.zeros(4)
+        self._vel6 = np.zeros(6)
+        self._target_prev: list[np.ndarray | None] = [None] * len(robots)
         self._rne = np.zeros(self.scene.model.nv)
         self._stats = _Stats(per_robot_err=[[0.0, 0.0] for _ in robots])
         self._theta_prev = float(cart_pose[2])
@@ -397,13 +399,14 @@ class MujocoPlant:
                 d.ctrl[r.wheel_actuators] = c.wheel_rates
         for k in range(self.n_sub):
             t = self.t + k * self.config.physics_dt
-            for r, c, law in zip(self.scene.robots, commands, self._laws):
+            for i, (r, c, law) in enumerate(zip(self.scene.robots, commands, self._laws)):
                 if r.arm_hold_actuators.size:
                     d.ctrl[r.arm_hold_actuators] = d.qfrc_bias[r.arm_dof]
                 if isinstance(law, TorqueArmLaw):
                     bias = self._arm_bias(r, law)
                     tilt = self._tilt(r, c) if law.gains.tilt_stiffness > 0.0 else None
-                    d.ctrl[r.arm_actuators] = law.torque(t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias, tilt)
+                    hand = self._hand_error(i, r, c, t_end - t) if law.gains.cartesian_stiffness > 0.0 else None
+                    d.ctrl[r.arm_actuators] = law.torque(t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias, tilt, hand)
                 if r.base == "planar":
                     yaw = float(d.qpos[r.base_qpos[2]])
                     cy, sy = math.cos(yaw), math.sin(yaw)
@@ -412,6 +415,7 @@ class MujocoPlant:
             mujoco.mj_step(m, d)
             self._track_slip()
         self.t = t_end
+        self._target_prev = [np.asarray(c.hand_target)[:3, 3].copy() for c in commands]
         self._after_period(commands)
         self._stats.wall += time.perf_counter() - wall0
         self._stats.sim += self.dt
@@ -429,6 +433,16 @@ class MujocoPlant:
         mujoco.mj_rne(m, d, 1, self._rne)
         d.qacc[:] = saved
         return self._rne[r.arm_dof]
+
+    def _hand_error(self, i: int, r: RobotIndex, c: RobotCommand, to_end: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return (hand target position - hand position, target velocity - hand velocity), world frame."""
+        d = self.scene.data
+        target = np.asarray(c.hand_target)[:3, 3]
+        prev = self._target_prev[i]
+        v_target = (target - prev) / self.dt if prev is not None else np.zeros(3)
+        mujoco.mj_objectVelocity(self.scene.model, d, mujoco.mjtObj.mjOBJ_SITE, r.hand_site, self._vel6, 0)
+        # the target is where the hand should be at the period's end: interpolate back along its velocity
+        return target - v_target * to_end - d.site_xpos[r.hand_site], v_target - self._vel6[3:]
 
     def _tilt(self, r: RobotIndex, c: RobotCommand) -> tuple[np.ndarray, np.ndarray]:
         """Return (rotation error from the hand to its target, the hand's angular velocity), world frame."""
