@@ -125,7 +125,7 @@ def _held(result: PushResult, which: int, spans: Sequence[Sequence[float]]) -> s
         inside |= (result.t >= a) & (result.t <= b)
     error = _errors(result)[which][inside]
     unit, factor = ("kg", 1.0) if which == 0 else ("cm", 100.0)
-    within = f"error within 1 {unit} for {100 * np.mean(error <= 1.0):.0f} % of it"
+    within = f"error {error.min():.2f}-{error.max():.2f} {unit}, within 1 {unit} for {100 * np.mean(error <= 1.0):.0f} % of it"
     std = None if result.param_std is None else factor * result.param_std[inside, which]
     if std is None or not np.all(np.isfinite(std)):
         return f" ({within})"
