@@ -57,6 +57,12 @@ ARM_MODES = {"ridgeback_iiwa": ARM_TORQUE, "wmra": ARM_VELOCITY}
 GRAVITY_VECTOR = np.array([0.0, 0.0, -mujoco_cart.GRAVITY])
 
 
+def arm_mode_of(mm) -> str:
+    """Return how a robot's arm is driven: its profile's ``arm_control`` if it has one, else `ARM_MODES` by name."""
+    mode = getattr(mm.profile, "arm_control", None)
+    return str(mode) if mode else ARM_MODES.get(mm.wb.robot.name, ARM_VELOCITY)
+
+
 class MujocoPlantError(WholeBodyError):
     """Bad input to the MuJoCo plant (command count or shape, grasp not on a handle, unknown arm mode)."""
 
@@ -182,11 +188,7 @@ class MujocoPlant:
         self.rng = np.random.default_rng(seed)
         self.n_sub = int(round(config.control_dt / config.physics_dt))
         robots = list(robots)
-        modes = (
-            list(arm_modes)
-            if arm_modes is not None
-            else [ARM_MODES.get(mm.wb.robot.name, ARM_VELOCITY) for mm in robots]
-        )
+        modes = list(arm_modes) if arm_modes is not None else [arm_mode_of(mm) for mm in robots]
         if len(modes) != len(robots) or any(m not in (ARM_TORQUE, ARM_VELOCITY) for m in modes):
             raise MujocoPlantError(f"arm_modes must give 'torque' or 'velocity' per robot, got {modes}")
         source: CartSource = cart_source(cart)
