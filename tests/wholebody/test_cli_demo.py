@@ -65,7 +65,7 @@ def test_demo_table_gives_the_com_in_cm_and_says_what_unobservable_means(tmp_pat
     assert "arm torque peak" in out and "(within the limits)" in out
     assert "plays when opened" in out
     table = (tmp_path / "comparison.md").read_text()
-    assert "CoM err [cm]" in table
+    assert "CoM err [cm]" in table and "with estimation: arm torque peak" in table
 
 
 # -- verdicts with their reasons -----------------------------------------------------------------------------------

@@ -393,7 +393,8 @@ def write_report(
     paths.append(log_path)
     table = out_dir / "comparison.md"
     note = unobservable_note(runs)
-    table.write_text(comparison_table(runs, markdown=True) + "\n" + (f"\n{note}\n" if note else ""))
+    verdicts = "\n".join(f"{label}: {torque_verdict(r)[0]}" for label, r in runs.items())
+    table.write_text(comparison_table(runs, markdown=True) + "\n" + (f"\n{note}\n" if note else "") + f"\n{verdicts}\n")
     paths.append(table)
     if html:
         paths.append(save_scene(main, out_dir / "scene.html"))
