@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots.profiles import RobotProfile
+from wholebody.contacts.handle import contact_grid
 from wholebody.contacts.placement import REACH_MIN_SIGMA
 from wholebody.errors import WholeBodyError
 from wholebody.motion.kinematics import WholeBody
@@ -121,7 +122,7 @@ def _reach_length(wb: WholeBody, prof: RobotProfile, p: Placement) -> float:
     y0, qa = prof.push_contact_y, p.arm
     pose = base_target(zero, zero, np.array([handle_point(y0)[0] + p.base_x, y0 + p.base_dy]))[0]
     R_b_ee = grasp_rotation(p.pitch, p.roll, prof.arms[0].tool_axis or "z")
-    ys = np.round(np.arange(-0.25, 0.2501, 0.025), 6)
+    ys = contact_grid()
     try:
         rm = reach_map(wb, lambda y: pose, lambda y: grasp_target(zero, zero, float(y), 0.0, R_b_ee)[0], ys, qa, y0)
     except WholeBodyError:

@@ -14,7 +14,7 @@ import robots
 from robots.checks import wheel_geometry
 from robots.profiles import RobotProfile
 from cart.simulate import MeasurementNoise
-from wholebody.contacts.handle import HandleSegment
+from wholebody.contacts.handle import HandleSegment, contact_grid
 from wholebody.errors import WholeBodyError
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, StepResult
 from wholebody.motion.bases import DifferentialDrive
@@ -426,7 +426,7 @@ def push_reach_map(robot: str | RobotProfile | robots.LoadedRobot):
         wb,
         lambda y: base_target(zero, zero, offset)[0],
         lambda y: grasp_target(zero, zero, float(y), 0.0, R)[0],
-        np.round(np.arange(-0.25, 0.2501, 0.025), 6),
+        contact_grid(),
         prof.push_arm_seed,
         0.0 if prof.tuned else prof.push_contact_y,
     )
