@@ -291,3 +291,39 @@ def test_paused_page_stands_still(cli_pages, kind, tmp_path):
     assert np.abs(early - late).mean() < 0.5, f"{kind}: a paused page moved"
     button, t = _clock(dump_dom(chromium(), html, "#pause", budget_ms=3000))
     assert "play" in button and t == 0.0
+
+
+def _wait_for(page, expression: str, timeout: float = 60.0) -> object:
+    """Poll a JavaScript expression until it is truthy (the browser runs in real time); return its value."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = page.evaluate(expression)
+        if value:
+            return value
+        time.sleep(0.2)
+    raise AssertionError(f"{expression} stayed false for {timeout:g} s")
+
+
+CLOCK = "parseFloat(((document.getElementById('cartpush-time') || {}).textContent || 't = 0').split(' ')[2])"
+BUTTON = "document.getElementById('cartpush-play').textContent"
+
+
+def test_pause_button_and_space_bar_stop_and_resume_the_page(cli_pages):
+    """A user's click on the pause button stops the page; the space bar resumes it (DevTools mouse and key events)."""
+    import time
+
+    from wholebody.viz.browser import DevToolsPage
+
+    with DevToolsPage(chromium(), cli_pages["push"]) as page:
+        _wait_for(page, f"{CLOCK} > 0.5")  # it plays by itself
+        assert "pause" in page.evaluate(BUTTON)
+        page.click("cartpush-play")
+        assert "play" in page.evaluate(BUTTON)
+        paused_at = page.evaluate(CLOCK)
+        time.sleep(1.0)
+        assert page.evaluate(CLOCK) == paused_at, "the clock moved while paused"
+        page.press(" ", "Space")
+        _wait_for(page, f"{CLOCK} > {paused_at} + 0.3")
+        assert "pause" in page.evaluate(BUTTON)

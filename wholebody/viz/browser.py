@@ -84,3 +84,121 @@ def dump_dom(browser: str, html: Path, fragment: str = "", budget_ms: int = 4000
     if not proc.stdout.strip():
         raise SceneError(f"chromium printed no DOM (exit {proc.returncode}): {proc.stderr[-2000:]}")
     return proc.stdout
+
+
+class DevToolsPage:
+    """A local page open in headless Chromium, driven as a user drives it (mouse clicks, key presses) over DevTools.
+
+    The browser runs in real time (no virtual-time budget). Use it as a context
+    manager; `evaluate` reads the page (JavaScript expression -> JSON value),
+    `click` presses and releases the mouse at the centre of an element, `press`
+    types a key. Raises `SceneError` when the browser does not come up.
+
+    >>> with DevToolsPage(find_chromium(), Path("scene.html")) as page:   # doctest: +SKIP
+    ...     page.click("cartpush-play")
+    """
+
+    def __init__(self, browser: str, html: Path, size: tuple[int, int] = (1024, 768), timeout: float = 60.0) -> None:
+        import asyncio
+
+        self._tmp = tempfile.TemporaryDirectory()
+        self._timeout = timeout
+        self._ids = 0
+        cmd = [
+            browser,
+            *HEADLESS_FLAGS,
+            f"--user-data-dir={self._tmp.name}",
+            f"--window-size={size[0]},{size[1]}",
+            "--remote-debugging-port=0",
+            Path(html).resolve().as_uri(),
+        ]
+        self._proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self._loop = asyncio.new_event_loop()
+        try:
+            self._ws = self._loop.run_until_complete(self._connect())
+        except BaseException:
+            self.close()
+            raise
+
+    async def _connect(self):
+        """Return the websocket of the page's DevTools target (polls DevToolsActivePort, then /json/list)."""
+        import asyncio
+        import json
+        import time
+        import urllib.request
+
+        from tornado.websocket import websocket_connect
+
+        port_file = Path(self._tmp.name) / "DevToolsActivePort"
+        deadline = time.monotonic() + self._timeout
+        while time.monotonic() < deadline:
+            if self._proc.poll() is not None:
+                raise SceneError(f"chromium exited with {self._proc.returncode} before DevTools came up")
+            if port_file.is_file() and port_file.read_text().strip():
+                port = int(port_file.read_text().split()[0])
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10) as resp:
+                    pages = [t for t in json.loads(resp.read()) if t.get("type") == "page"]
+                if pages:
+                    return await websocket_connect(pages[0]["webSocketDebuggerUrl"], max_message_size=1 << 26)
+            await asyncio.sleep(0.2)
+        raise SceneError(f"chromium's DevTools did not come up within {self._timeout:g} s")
+
+    def send(self, method: str, **params: object) -> dict:
+        """Send one DevTools command and return its result (raises `SceneError` on a protocol error)."""
+        import json
+
+        self._ids += 1
+        ident = self._ids
+
+        async def call() -> dict:
+            await self._ws.write_message(json.dumps({"id": ident, "method": method, "params": params}))
+            while True:
+                raw = await self._ws.read_message()
+                if raw is None:
+                    raise SceneError(f"DevTools closed the connection during {method}")
+                msg = json.loads(raw)
+                if msg.get("id") == ident:
+                    if "error" in msg:
+                        raise SceneError(f"DevTools {method}: {msg['error']}")
+                    return msg.get("result", {})
+
+        return self._loop.run_until_complete(call())
+
+    def evaluate(self, expression: str) -> object:
+        """Return the JSON value of a JavaScript expression evaluated in the page."""
+        result = self.send("Runtime.evaluate", expression=expression, returnByValue=True)
+        if "exceptionDetails" in result:
+            raise SceneError(f"the page raised evaluating {expression!r}: {result['exceptionDetails']}")
+        return result["result"].get("value")
+
+    def click(self, element_id: str) -> None:
+        """Press and release the left mouse button at the centre of the element `element_id`, as a user clicks."""
+        box = self.evaluate(
+            f"(function () {{ const r = document.getElementById({element_id!r}).getBoundingClientRect();"
+            " return [r.left + r.width / 2, r.top + r.height / 2]; })()"
+        )
+        x, y = (float(v) for v in box)
+        for kind in ("mousePressed", "mouseReleased"):
+            self.send("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left", clickCount=1)
+
+    def press(self, key: str = " ", code: str = "Space") -> None:
+        """Press and release a key (default the space bar) on the page."""
+        for kind in ("keyDown", "keyUp"):
+            self.send("Input.dispatchKeyEvent", type=kind, key=key, code=code, text=key if kind == "keyDown" else "")
+
+    def close(self) -> None:
+        """Close the connection, stop the browser and remove its profile."""
+        ws = getattr(self, "_ws", None)
+        if ws is not None:
+            ws.close()
+        if self._proc.poll() is None:
+            self._proc.kill()
+        self._proc.wait()
+        self._loop.close()
+        self._tmp.cleanup()
+
+    def __enter__(self) -> DevToolsPage:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
