@@ -51,6 +51,10 @@ class OnlineOptions:
     ``forgetting_s``: time constant of the data's exponential forgetting (inf: none);
     change detection: ``detect_changes``, ``change_window_s``, ``change_alpha`` (false-alarm
     probability of one test), ``min_change`` (relative mass change), ``buffer_s`` (onset search);
+    after a change the prior is re-centered on the estimate before it, with ``change_mass_rel_std``
+    (relative), ``change_com_std`` (m, at least the CoM's std before the change) and
+    ``change_rho_rel_std`` (relative, J / m): a load changes the mass more than the CoM and the
+    radius of gyration;
     ``observer_q_vel`` / ``observer_q_omega``: the state observer's process noise (EKFConfig);
     ``misfit_ratio``: residual ratio flagged as misfit; ``excited_ratio``: posterior / prior std
     above which a parameter counts as not excited.
@@ -70,6 +74,9 @@ class OnlineOptions:
     change_alpha: float = 1e-6
     min_change: float = 0.08
     buffer_s: float = 4.0
+    change_mass_rel_std: float = 1.0
+    change_com_std: float = 0.1
+    change_rho_rel_std: float = 0.25
     observer_q_vel: float = 1e-5
     observer_q_omega: float = 1e-5
     observer_input_noise: bool = True
@@ -443,9 +450,16 @@ class OnlineLSEstimator:
         if self._changes:
             self._changes[-1].mass_end = m_before
         p, prm = self.regression.p, self._params
-        std0 = self._prior0.std
         center = np.array([prm.m, prm.dx, prm.dy, prm.inertia_b / prm.m, max(p[4], 0.0), max(p[5], 0.0)])
-        std = np.r_[self.options.mass_rel_std * prm.m, std0[1:4], np.sqrt(np.maximum(np.diag(self._cov)[4:], 1e-12))]
+        o = self.options
+        post = self._physical_std(self._cov)
+        std = np.r_[
+            o.change_mass_rel_std * prm.m,
+            max(post[1], o.change_com_std),
+            max(post[2], o.change_com_std),
+            o.change_rho_rel_std * center[3],
+            np.sqrt(np.maximum(np.diag(self._cov)[4:], 1e-12)),
+        ]
         new = RecursiveRegression(PhysicalPrior(center, std))
         new.D, new.d, new.C = buf.read("D")[idx:].sum(0), buf.read("d")[idx:].sum(0), buf.read("C")[idx:].sum(0)
         new.solve(iterations=5)
