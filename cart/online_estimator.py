@@ -33,7 +33,13 @@ import numpy as np
 from cart.change_detection import ChangeDetector, RingBuffer
 from cart.dynamics import regressor
 from cart.ekf import CartEKF, EKFConfig
-from cart.online_regression import OnlineEstimatorError, PhysicalPrior, RecursiveRegression, StateVariableFilter
+from cart.online_regression import (
+    DT_REL_TOL,
+    OnlineEstimatorError,
+    PhysicalPrior,
+    RecursiveRegression,
+    StateVariableFilter,
+)
 from cart.params import CartParams
 
 #: Physical parameter names of :meth:`OnlineLSEstimator.unexcited`.
@@ -346,7 +352,7 @@ class OnlineLSEstimator:
         """
         from scipy.linalg import solve_discrete_lyapunov
 
-        if dt != self._gains_dt:
+        if not abs(dt - self._gains_dt) <= DT_REL_TOL * dt:
             ad, bd = self.filter.discretize(dt)
             p = solve_discrete_lyapunov(ad, np.outer(bd, bd))
             lag1 = ad @ p

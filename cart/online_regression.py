@@ -31,6 +31,8 @@ from cart.errors import CartError, NumericalError
 
 #: Names of the physical prior variables of :class:`PhysicalPrior`.
 PRIOR_NAMES = ("m", "dx", "dy", "rho", "c_v", "c_w")
+#: Relative change of the period below which the filter's discretization is reused (timestamps' rounding).
+DT_REL_TOL = 1e-6
 #: The prior is linearized at a mass of at least this share of its center (an estimate may run negative).
 MIN_MASS_SHARE = 0.05
 #: Largest share of a diagonal entry of the normal matrix that the noise correction removes.
@@ -62,8 +64,8 @@ class StateVariableFilter:
         self._bd = np.zeros(3)
 
     def discretize(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """Return (Ad, Bd) of the zero-order-hold discretization at period dt (cached)."""
-        if dt != self._dt:
+        """Return (Ad, Bd) of the zero-order-hold discretization at period dt (cached; kept for a dt equal up to rounding)."""
+        if not abs(dt - self._dt) <= DT_REL_TOL * dt:
             m = np.zeros((4, 4))
             m[:3, :3] = self.a * dt
             m[:3, 3] = self.b * dt
