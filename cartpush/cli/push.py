@@ -40,6 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "A progress bar shows on a terminal (never with --json or when stderr is not a terminal).\n\n"
             "Example:\n  cartpush push --trajectory 2 --contact optimal --json\n"
             "  cartpush push --robot wmra --trajectory 2 --json\n"
+            "  cartpush push --robot my_robot.toml --arms 2 --json   (a robot profile, docs/robots.md)\n"
             "  cartpush push --no-estimation --out report/ --html report/push.html"
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -47,7 +48,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--robot",
         default="ridgeback_iiwa",
-        help="the pushing robot: ridgeback_iiwa (holonomic base, default) or wmra (differential drive)",
+        metavar="NAME|PROFILE.toml",
+        help="the pushing robot: a registered name (ridgeback_iiwa: holonomic base, default; wmra: differential\n"
+        "drive) or a robot profile file (docs/robots.md)",
     )
     p.add_argument("--trajectory", type=int, default=2, help="paper trajectory: 1 (straight) or 2 (turns); default 2")
     p.add_argument("--arms", type=int, default=1, help="1 or 2 mobile manipulators (default 1)")
@@ -76,11 +79,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def config_from_args(args: argparse.Namespace):
     """Return the PushConfig of the parsed arguments (bad values raise WholeBodyError)."""
+    from robots.errors import RobotError
+    from robots.profiles import mobile_manipulators, profile
     from wholebody.push import PushConfig
-    from robots.profiles import mobile_manipulators
 
-    if args.robot not in mobile_manipulators():
-        raise WholeBodyError(f"--robot must be one of {', '.join(mobile_manipulators())}, got {args.robot!r}")
+    import robots
+
+    try:
+        prof = profile(args.robot)  # a registered name or a profile file
+        if prof.is_mobile_manipulator:
+            robots.load(prof)  # the profile checked against its URDF: one line naming the key (exit 2)
+    except RobotError as err:
+        raise WholeBodyError(f"--robot: {err}") from None
+    if not prof.is_mobile_manipulator:
+        raise WholeBodyError(
+            f"--robot must be a robot with an arm on a wheeled base ({', '.join(mobile_manipulators())} or a "
+            f"profile file), got {args.robot!r}"
+        )
     if args.contact not in ("fixed", "optimal"):
         raise WholeBodyError(f"--contact must be 'fixed' or 'optimal', got {args.contact!r}")
     if args.trajectory not in (1, 2):

@@ -47,7 +47,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("log", nargs="?", help="cart log (.csv or .csv.gz, LOG_FORMAT.md) or a ROS bag")
     source.add_argument("--scenario", type=int, metavar="N", help="Table I simulation test N (1..11)")
-    source.add_argument("--robot", metavar="NAME", help="a robot of `robots.available()`, or 'pushing'")
+    source.add_argument(
+        "--robot",
+        metavar="NAME|PROFILE.toml",
+        help="a robot of `robots.available()`, a robot profile file, or 'pushing'",
+    )
     parser.add_argument("--html", metavar="OUT.html", help="write a static page instead of serving")
     parser.add_argument(
         "--duration", type=float, default=30.0, metavar="S", help="simulated seconds for --scenario (default 30)"
