@@ -181,6 +181,12 @@ class DevToolsPage:
         for kind in ("mousePressed", "mouseReleased"):
             self.send("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left", clickCount=1)
 
+    def screenshot(self) -> bytes:
+        """Return a PNG screenshot of the page as it is now."""
+        import base64
+
+        return base64.b64decode(self.send("Page.captureScreenshot", format="png")["data"])
+
     def press(self, key: str = " ", code: str = "Space") -> None:
         """Press and release a key (default the space bar) on the page."""
         for kind in ("keyDown", "keyUp"):
