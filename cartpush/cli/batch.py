@@ -1,4 +1,5 @@
-"""`cartpush batch estimate|diagnose INPUTS... --out RESULTS.jsonl`: one job over many logs, locally or on Ray."""
+"""`cartpush batch estimate|diagnose INPUTS... --out RESULTS.jsonl`: one job over many logs, locally or on Ray;
+`cartpush batch push --robots ... --masses ... --trajectories ...`: a push campaign, one line per run."""
 
 from __future__ import annotations
 
@@ -21,7 +22,15 @@ Locally the logs run on --workers joblib processes (default 1: in this process).
 logs at the same paths. A progress bar shows on a terminal; the summary (counts, logs per minute)
 is printed at the end (--json: one JSON object).
 
+`batch push` runs a push campaign instead: every combination of --robots (registered names or robot
+profile files, docs/robots.md), --masses (true cart mass, kg) and --trajectories (1, 2) with the
+kinematic plant, one line per run: {"run": {"robot": ..., "mass": ..., "trajectory": ..., ...},
+"ok": true, "result": <cartpush push --json>, "seconds": ...}; resumable the same way; a summary table
+(tracking, peak torque against the limits, saturated time and the limit that bound most) at the end.
+
 Example:
+  cartpush batch push --robots ridgeback_iiwa wmra my_robot.toml --masses 15 20 40 --trajectories 1 2 \
+      --out push.jsonl --workers 2
   cartpush batch estimate logs/ --out results.jsonl --workers 2
   cartpush batch estimate 'runs/**/*.csv.gz' --out est.jsonl --job-args '--method ekf'
   cartpush batch diagnose logs/ --out diag.jsonl --ray auto --json
@@ -36,8 +45,15 @@ def register(subparsers) -> None:
         description=DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("job", choices=("estimate", "diagnose"), help="the command to run on every log")
-    p.add_argument("inputs", nargs="+", metavar="INPUT", help="log files, directories or glob patterns")
+    p.add_argument("job", choices=("estimate", "diagnose", "push"), help="the command to run on every log, or push")
+    p.add_argument("inputs", nargs="*", metavar="INPUT", help="log files, directories or glob patterns")
+    push = p.add_argument_group("batch push (a campaign: every robot x mass x trajectory)")
+    push.add_argument("--robots", nargs="+", metavar="NAME|PROFILE.toml", help="robots: names or profile files")
+    push.add_argument("--masses", nargs="+", type=float, metavar="KG", help="true cart masses (kg)")
+    push.add_argument("--trajectories", nargs="+", type=int, default=[2], metavar="N", help="1 and/or 2 (default 2)")
+    push.add_argument("--plant", default="kinematic", help="kinematic (default) or mujoco")
+    push.add_argument("--arms", type=int, default=1, help="1 or 2 robots per run (default 1)")
+    push.add_argument("--duration", type=float, default=30.0, help="trajectory duration in s (default 30)")
     p.add_argument(
         "--out",
         required=True,
@@ -89,6 +105,10 @@ def run(args: argparse.Namespace) -> int:
         raise BatchError(f"--workers must be at least 1, got {args.workers}")
     if args.workers is not None and args.workers > 4 * (os.cpu_count() or 1) and args.ray is None:
         raise BatchError(f"--workers {args.workers}: more than 4x this machine's {os.cpu_count()} CPUs")
+    if args.job == "push":
+        return _run_push(args)
+    if not args.inputs:
+        raise BatchError(f"batch {args.job} needs at least one INPUT (log files, directories or glob patterns)")
     try:
         job_argv = tuple(shlex.split(args.job_args))
     except ValueError as exc:
@@ -111,4 +131,33 @@ def run(args: argparse.Namespace) -> int:
     print(f"results: {summary['out']}")
     if summary["failed"]:
         print(f'{summary["failed"]} log(s) failed: see their "error" lines (a rerun retries them)')
+    return 0
+
+
+def _run_push(args: argparse.Namespace) -> int:
+    """Run a push campaign; print its summary table (or JSON); return 0 (failed runs are error lines)."""
+    from cart.jsonout import dumps_strict
+    from cartpush.batch import BatchError
+    from cartpush.batch.push_campaign import campaign, format_table, run_campaign
+
+    if args.inputs:
+        raise BatchError("batch push takes no INPUT logs: give --robots, --masses and --trajectories")
+    if not args.robots or not args.masses:
+        raise BatchError("batch push needs --robots NAME|PROFILE.toml ... and --masses KG ...")
+    if args.arms not in (1, 2):
+        raise BatchError(f"--arms must be 1 or 2, got {args.arms}")
+    if not 8.0 <= args.duration <= 600.0:
+        raise BatchError(f"--duration must be in [8, 600] s, got {args.duration}")
+    runs = campaign(args.robots, args.masses, args.trajectories, args.arms, args.plant, args.duration)
+    _term_is_interrupt()
+    summary = run_campaign(runs, args.out, workers=args.workers, ray_address=args.ray)
+    if args.json:
+        print(dumps_strict({"job": "push", **summary}))
+        return 0
+    print(format_table(summary["table"]))
+    print(
+        f"batch push: {summary['runs']} runs, {summary['skipped']} already done, {summary['ran']} run "
+        f"({summary['ok']} ok, {summary['failed']} failed) in {summary['seconds']:.1f} s "
+        f"({summary['backend']}, workers {summary['workers'] or 'cluster CPUs'}); results: {summary['out']}"
+    )
     return 0
