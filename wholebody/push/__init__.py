@@ -31,13 +31,13 @@ from wholebody.push.loop import (
     PushSetup,
     StepRecord,
     build_controller,
-    kinematic_plant,
     make_estimator,
     run_loop,
     run_push,
     unobservable_intervals,
 )
 from wholebody.push.plant import Measurement, Plant, RobotCommand, RobotReading
+from wholebody.push.plants import kinematic_plant, make_plant
 from wholebody.push.report import (
     DemoResult,
     build_scene,
@@ -80,6 +80,7 @@ __all__ = [
     "StepRecord",
     "build_controller",
     "kinematic_plant",
+    "make_plant",
     "run_loop",
     "BASE_OFFSET_X",
     "GRASP_PITCH",

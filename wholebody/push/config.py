@@ -18,6 +18,8 @@ from wholebody.errors import WholeBodyError
 
 #: How the contact points are chosen: held at `fixed_contact_y`, or re-planned from the estimate.
 ContactMode = Literal["fixed", "optimal"]
+#: What answers the controller: ideal servos and the exact cart model, or robots and cart in MuJoCo.
+PlantName = Literal["kinematic", "mujoco"]
 
 #: The simulated cart of the default scenario (paper Table I test 5: 20 kg, CoM (0.3, 0.15)); I scaled
 #: from the shopping cart of `robots` (1.7355 kg m^2 at 15 kg); viscous coefficient 4 N s/m.
@@ -84,6 +86,10 @@ class PushConfig:
     controller: CartControllerName = "kanayama"
     noise: MeasurementNoise = PUSH_SENSOR_NOISE
     seed: int = 0
+    #: the plant the controller drives (`wholebody.push.plants.make_plant`)
+    plant: PlantName = "kinematic"
+    #: MuJoCo plant: an MJCF cart file following docs/mujoco.md (None: the shopping cart built from true_params)
+    cart_model: str | None = None
     replan_period: float = 0.5
     replan_horizon: float = 3.0
     slide_speed: float = 0.05
@@ -100,6 +106,12 @@ class PushConfig:
             raise WholeBodyError("trajectory must be 1, 2 or an object with sample(t) -> (q, qd, qdd)")
         if self.n_arms not in (1, 2):
             raise WholeBodyError(f"arms must be 1 or 2, got {self.n_arms}")
+        if self.plant not in ("kinematic", "mujoco"):
+            raise WholeBodyError(f"plant must be 'kinematic' or 'mujoco', got {self.plant!r}")
+        if self.cart_model is not None and self.plant != "mujoco":
+            raise WholeBodyError("a cart model file needs the MuJoCo plant (plant='mujoco')")
+        if self.plant == "mujoco" and self.contact != "fixed":
+            raise WholeBodyError("the MuJoCo plant's grips are welds that cannot slide: use contact='fixed'")
         if self.contact not in ("fixed", "optimal"):
             raise WholeBodyError(f"contact must be 'fixed' or 'optimal', got {self.contact!r}")
         if not (self.dt > 0 and self.duration > 0 and self.initial_mass > 0):
@@ -224,3 +236,6 @@ class PushResult:
     #: (N, 2) the EKF's 1-sigma of the mass (kg) and of the CoM (m, norm over dx, dy) at t_k; NaN when the
     #: estimator gives no covariance
     param_std: np.ndarray | None = None
+    #: the plant's own diagnostics (`wholebody.push.plants.plant_report`): "plant", and for MuJoCo the cart's
+    #: true and effective mass, wrench error, grasp and wheel slip, real-time factor
+    plant_report: dict | None = None

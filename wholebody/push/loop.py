@@ -9,7 +9,7 @@ period (`StepRecord`) is written once; `run_push` stacks them into a `PushResult
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from types import SimpleNamespace
 from collections.abc import Sequence
 
@@ -25,7 +25,7 @@ from robots.profiles import profile
 from wholebody.contacts.handle import contact_grid
 from wholebody.errors import WholeBodyError
 from wholebody.push.controller import ControlDecision, PushController
-from wholebody.push.kinematic_plant import KinematicPlant
+from wholebody.push.plants import make_plant, plant_report, plant_truth
 from wholebody.push.plant import Measurement, Plant, RobotCommand
 from wholebody.push.robot import (
     TWO_ARM_BASE_SPREAD,
@@ -161,14 +161,6 @@ def build_controller(
     return PushSetup(PushController(config, controller, estimator, scheduler, mms), x0, q.copy(), qd.copy())
 
 
-def kinematic_plant(config: PushConfig, setup: PushSetup) -> KinematicPlant:
-    """Return the kinematic plant of `config` starting where `setup` holds the handle."""
-    robots_ = [(mm.wb, x, mm.ft_id) for mm, x in zip(setup.controller.robots, setup.robot_x0)]
-    return KinematicPlant(
-        robots_, setup.q0, setup.qd0, config.true_params, config.noise, config.dt, config.substeps, config.seed
-    )
-
-
 def record(
     plant: Plant,
     m: Measurement,
@@ -216,14 +208,18 @@ def run_push(
     ``progress``: show a progress bar on stderr (the CLI passes True only on a terminal without --json).
     """
     setup = build_controller(config, controller, estimator)
-    plant = kinematic_plant(config, setup)
-    return run_loop(config, setup.controller, plant, progress, progress_label)
+    plant = make_plant(config, setup)
+    result = run_loop(config, setup.controller, plant, progress, progress_label)
+    return replace(result, plant_report=plant_report(plant))
 
 
 def run_loop(
     config: PushConfig, ctrl: PushController, plant: Plant, progress: bool = False, progress_label: str = "push"
 ) -> PushResult:
-    """Return the result of measure -> ``ctrl.step`` -> ``plant.step`` over the run's duration."""
+    """Return the result of measure -> ``ctrl.step`` -> ``plant.step`` over the run's duration.
+
+    The estimate is judged against the plant's truth (`wholebody.push.plants.plant_truth`).
+    """
     traj = config.make_trajectory()
     n = int(round(config.duration / config.dt)) + 1
     records = []
@@ -239,7 +235,8 @@ def run_loop(
     # the F/T-measured wrench of period k arrives with the measurement at t_{k+1}: align it with its period
     H["gamma_measured"] = np.r_[H["gamma_measured"][1:], H["gamma_measured"][-1:]]
     mm = ctrl.robots[0]
-    return _result(config, H, mm.effort_limit, ctrl.estimator.params(), mm.wb.wheel_velocity_limit)
+    judged = replace(config, true_params=plant_truth(config, plant))
+    return _result(judged, H, mm.effort_limit, ctrl.estimator.params(), mm.wb.wheel_velocity_limit)
 
 
 def _result(
