@@ -40,6 +40,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "A progress bar shows on a terminal (never with --json or when stderr is not a terminal).\n\n"
             "Example:\n  cartpush push --trajectory 2 --contact optimal --json\n"
             "  cartpush push --robot wmra --trajectory 2 --json\n"
+            "  cartpush push --plant mujoco --trajectory 1 --json\n"
+            "  cartpush push --plant mujoco --cart-model my_cart.xml --json\n"
             "  cartpush push --robot my_robot.toml --arms 2 --json   (a robot profile, docs/robots.md)\n"
             "  cartpush push --no-estimation --out report/ --html report/push.html"
         ),
@@ -59,7 +61,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="freeze the parameters at the initial guess (wrong mass) instead of estimating them",
     )
-    p.add_argument("--contact", default="optimal", help="fixed (y=-0.2 m, or -0.2/+0.2 for 2 arms) or optimal")
+    p.add_argument(
+        "--plant",
+        default="kinematic",
+        choices=("kinematic", "mujoco"),
+        help="what answers the controller: kinematic (ideal servos, the exact cart model; default) or mujoco "
+        "(robots and cart in the MuJoCo physics engine; the grips are welds, so the contact is fixed)",
+    )
+    p.add_argument(
+        "--cart-model",
+        type=Path,
+        default=None,
+        metavar="FILE.xml",
+        help="with --plant mujoco: push this MJCF cart (the contract is in docs/mujoco.md) instead of the shopping cart",
+    )
+    p.add_argument(
+        "--contact",
+        default=None,
+        help="fixed (y=-0.2 m, or -0.2/+0.2 for 2 arms) or optimal (default optimal; fixed with --plant mujoco)",
+    )
     p.add_argument(
         "--contact-y",
         type=float,
@@ -96,6 +116,13 @@ def config_from_args(args: argparse.Namespace):
             f"--robot must be a robot with an arm on a wheeled base ({', '.join(mobile_manipulators())} or a "
             f"profile file), got {args.robot!r}"
         )
+    if args.contact is None:
+        args.contact = "fixed" if args.plant == "mujoco" else "optimal"
+    if args.cart_model is not None:
+        if args.plant != "mujoco":
+            raise WholeBodyError("--cart-model needs --plant mujoco")
+        if not args.cart_model.is_file():
+            raise WholeBodyError(f"--cart-model {args.cart_model}: no such file")
     if args.contact not in ("fixed", "optimal"):
         raise WholeBodyError(f"--contact must be 'fixed' or 'optimal', got {args.contact!r}")
     if args.trajectory not in (1, 2):
@@ -126,6 +153,8 @@ def config_from_args(args: argparse.Namespace):
         initial_mass=args.initial_mass,
         seed=args.seed,
         robot=args.robot,
+        plant=args.plant,
+        cart_model=None if args.cart_model is None else str(args.cart_model),
         **kwargs,
     )
 
@@ -158,6 +187,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         out = {k: metrics[k] for k in JSON_FIELDS}
         out.update({k: v for k, v in metrics.items() if k not in out})
+        if result.plant_report is not None:
+            out.update(result.plant_report)
         out["files"] = [str(p) for p in written]
         print(dumps_strict(out))
         return 0

@@ -1,0 +1,35 @@
+"""`cartpush push --plant mujoco`: the same controller against the physics engine, and its report."""
+
+from __future__ import annotations
+
+import json
+
+from cartpush.cli import main
+
+
+def test_push_on_the_mujoco_plant_reports_the_physics(capsys):
+    code = main(["push", "--plant", "mujoco", "--trajectory", "1", "--duration", "8", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert out["plant"] == "mujoco"
+    # the cart's mass the forward motion feels includes its wheels' spin inertia
+    assert out["cart_mass_effective_kg"] > out["cart_mass_kg"]
+    assert out["grasp_slip_max_m"] < 0.005
+    assert out["tracking_rms_mm"] < 20.0
+    for key in ("wrench_error_rms_n", "real_time_factor", "base_wheel_slip_max_m_s"):
+        assert key in out
+
+
+def test_kinematic_is_the_default_plant(capsys):
+    assert main(["push", "--trajectory", "1", "--duration", "8", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["plant"] == "kinematic"
+
+
+def test_a_cart_model_without_the_mujoco_plant_or_not_a_model_is_refused(capsys, tmp_path):
+    assert main(["push", "--cart-model", str(tmp_path / "c.xml")]) == 2
+    assert "--plant mujoco" in capsys.readouterr().err
+    bad = tmp_path / "c.xml"
+    bad.write_text("<mujoco><worldbody/></mujoco>")
+    assert main(["push", "--plant", "mujoco", "--cart-model", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cart" in err[0]
