@@ -50,7 +50,8 @@ PHYSICAL_NAMES = ("mass", "dx", "dy", "inertia", "sigma", "sigma_yaw")
 class OnlineOptions:
     """Settings of :class:`OnlineLSEstimator` (defaults: the push loop's sensors and the paper's carts).
 
-    ``cutoff_hz``: low-pass of both sides of the regression; ``wrench_std`` (force N, torque N m):
+    ``cutoff_hz``: low-pass of both sides of the regression; ``noise_subspace``: drop the directions
+    where the data power does not beat the regressor noise (else remove the noise power, clamped); ``wrench_std`` (force N, torque N m):
     white noise of the measured wrench, ``None`` = measured online (third differences);
     ``mass_rel_std``, ``com_std`` (m), ``rho_rel_std``, ``damping_rel_std``: the prior around the
     initial guess (damping std at least ``damping_min_std``); ``footprint`` (|dx|, |dy| limits, m);
@@ -67,6 +68,7 @@ class OnlineOptions:
     """
 
     cutoff_hz: float = 2.0
+    noise_subspace: bool = True
     wrench_std: tuple[float, float] | None = None
     mass_rel_std: float = 0.5
     com_std: float = 0.2
@@ -202,7 +204,7 @@ class OnlineLSEstimator:
         self.t = 0.0
         self._footprint = np.abs(_vector(options.footprint, 2, "footprint"))
         self._prior0 = make_prior(params0, options)
-        self.regression = RecursiveRegression(self._prior0)
+        self.regression = RecursiveRegression(self._prior0, options.noise_subspace)
         self.filter = StateVariableFilter(options.cutoff_hz, 6)
         self.detector = ChangeDetector(options.change_window_s, options.change_alpha, options.min_change)
         self._meas_std = meas_std
@@ -466,7 +468,7 @@ class OnlineLSEstimator:
             o.change_rho_rel_std * center[3],
             np.sqrt(np.maximum(np.diag(self._cov)[4:], 1e-12)),
         ]
-        new = RecursiveRegression(PhysicalPrior(center, std))
+        new = RecursiveRegression(PhysicalPrior(center, std), self.options.noise_subspace)
         new.D, new.d, new.C = buf.read("D")[idx:].sum(0), buf.read("d")[idx:].sum(0), buf.read("C")[idx:].sum(0)
         new.solve(iterations=5)
         self.regression = new

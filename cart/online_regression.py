@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm, solve_discrete_lyapunov
+from scipy.linalg import eigh, expm, solve_discrete_lyapunov
 
 from cart.errors import CartError, NumericalError
 
@@ -35,6 +35,8 @@ PRIOR_NAMES = ("m", "dx", "dy", "rho", "c_v", "c_w")
 DT_REL_TOL = 1e-6
 #: The prior is linearized at a mass of at least this share of its center (an estimate may run negative).
 MIN_MASS_SHARE = 0.05
+#: A direction of the regression is used when its data power exceeds the regressor-noise power by this share.
+SIGNAL_MARGIN = 1.0
 #: Largest share of a diagonal entry of the normal matrix that the noise correction removes.
 COMPENSATION_SHARE = 0.98
 
@@ -130,8 +132,10 @@ class RecursiveRegression:
     not decay, so an unexcited direction returns to (and stays at) the prior.
     """
 
-    def __init__(self, prior: PhysicalPrior) -> None:
+    def __init__(self, prior: PhysicalPrior, noise_subspace: bool = True) -> None:
         self.prior = prior
+        self.noise_subspace = bool(noise_subspace)
+        self.kept_directions = 0
         self.D = np.zeros((6, 6))
         self.d = np.zeros(6)
         self.C = np.zeros((6, 6))
@@ -151,9 +155,10 @@ class RecursiveRegression:
 
     def solve(self, iterations: int = 1) -> np.ndarray:
         """Return the MAP estimate after Gauss-Newton steps from the current one; sets H (the posterior information)."""
+        dd, dv = self.signal_part() if self.noise_subspace else (self.D - self.compensation(), self.d)
         for _ in range(iterations):
             r, jr = self.prior.residual(self.p)
-            h = self.D - self.compensation() + jr.T @ jr
+            h = dd + jr.T @ jr
             try:
                 chol = np.linalg.cholesky(h)
                 self.compensated = True
@@ -161,8 +166,9 @@ class RecursiveRegression:
                 h = self.D + jr.T @ jr
                 h += np.diag(1e-12 * np.diag(h))
                 chol = np.linalg.cholesky(h)
+                dv = self.d
                 self.compensated = False
-            g = h @ self.p - (self.d + jr.T @ (jr @ self.p - r))
+            g = h @ self.p - (dv + jr.T @ (jr @ self.p - r))
             step = np.linalg.solve(chol.T, np.linalg.solve(chol, g))
             if not np.all(np.isfinite(step)):
                 raise NumericalError("the online regression diverged (non-finite step)")
@@ -171,6 +177,26 @@ class RecursiveRegression:
             if float(np.abs(step[0])) <= 1e-9 * abs(float(self.p[0])):
                 break
         return self.p
+
+    def signal_part(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return (D', d'): the normal equations restricted to the directions where the signal beats the noise.
+
+        With the generalized eigenvectors D V = C V Lambda (V^T C V = I), a direction whose data power
+        is at most ``1 + SIGNAL_MARGIN`` times the regressor-noise power C carries no usable information:
+        it is dropped from both D and d (the prior then holds it). The others keep D - C (bias-compensated).
+        """
+        scale = np.maximum(np.diag(self.D), 1e-300)
+        c_reg = self.C + np.diag(1e-6 * scale + 1e-300)
+        try:
+            lam, v = eigh(self.D, c_reg)
+        except np.linalg.LinAlgError:
+            return self.D - self.compensation(), self.d
+        keep = lam > 1.0 + SIGNAL_MARGIN
+        cv = c_reg @ v[:, keep]
+        dd = (cv * (lam[keep] - 1.0)) @ cv.T
+        dv = cv @ (v[:, keep].T @ self.d)
+        self.kept_directions = int(keep.sum())
+        return dd, dv
 
     def compensation(self) -> np.ndarray:
         """Return the noise correction removed from D: C scaled so that at most COMPENSATION_SHARE of each diagonal goes.
