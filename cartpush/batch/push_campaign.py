@@ -1,7 +1,7 @@
 """Push campaigns: every combination of robots, cart masses and trajectories, one JSON line per run.
 
 ``cartpush batch push --robots NAME|PROFILE... --masses KG... --trajectories 1 2 --out RESULTS.jsonl``
-runs each combination with `wholebody.push.run_push` (the kinematic plant) on the batch engine's
+runs each combination with `wholebody.push.run_push` (on the kinematic or the MuJoCo plant) on the batch engine's
 workers (joblib processes or Ray tasks) and appends one line per run as it finishes::
 
     {"run": {"robot": ..., "mass": 20.0, "trajectory": 2, "arms": 1, "plant": "kinematic", ...},
@@ -106,10 +106,6 @@ class PushJob:
 
         run = PushRun(**json.loads(key))
         robots.load(run.robot)  # a profile its URDF contradicts: one line naming the key
-        if run.plant != "kinematic":
-            from wholebody.errors import WholeBodyError
-
-            raise WholeBodyError(f"plant {run.plant!r} is not available to batch push yet; use --plant kinematic")
         truth = replace(TRUE_CART, m=run.mass, I=TRUE_CART.I * run.mass / TRUE_CART.m)
         config = PushConfig(
             robot=run.robot,
@@ -118,6 +114,8 @@ class PushJob:
             duration=run.duration,
             seed=run.seed,
             true_params=truth,
+            plant=run.plant,
+            contact="fixed" if run.plant == "mujoco" else "optimal",  # the MuJoCo grips are welds: no sliding
         )
         return run_push(config).metrics.as_dict()
 

@@ -23,8 +23,8 @@ logs at the same paths. A progress bar shows on a terminal; the summary (counts,
 is printed at the end (--json: one JSON object).
 
 `batch push` runs a push campaign instead: every combination of --robots (registered names or robot
-profile files, docs/robots.md), --masses (true cart mass, kg) and --trajectories (1, 2) with the
-kinematic plant, one line per run: {"run": {"robot": ..., "mass": ..., "trajectory": ..., ...},
+profile files, docs/robots.md), --masses (true cart mass, kg) and --trajectories (1, 2) on --plant
+(kinematic, default, or mujoco), one line per run: {"run": {"robot": ..., "mass": ..., "trajectory": ..., ...},
 "ok": true, "result": <cartpush push --json>, "seconds": ...}; resumable the same way; a summary table
 (tracking, peak torque against the limits, saturated time and the limit that bound most) at the end.
 
