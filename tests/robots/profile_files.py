@@ -20,7 +20,9 @@ wheel_joints = ["wheel_left_joint", "wheel_right_joint"]
 joints = {arm}
 gripper_frame = "arm_tool_link"
 ft_frame = "wrist_ft_link"
-
+"""
+#: TIAGo's torso, held at 0.2 m when it is not one of the arm's joints.
+TORSO_LOCK = """
 [locked]
 torso_lift_joint = 0.2
 """
@@ -42,7 +44,10 @@ def write_profile(folder: Path, text: str, name: str = "robot.toml") -> Path:
 
 
 def tiago_profile(folder: Path, arm: list[str] | None = None, extra: str = "") -> Path:
-    """Return the path of TIAGo's profile written in `folder` (arm joints `arm`, default the 7 arm joints)."""
+    """Return the path of TIAGo's profile written in `folder` (arm joints `arm`, default the 7 arm joints; the
+    torso locked at 0.2 m unless it is one of them)."""
     need_example_robot_data()
-    joints = "[" + ", ".join(f'"{j}"' for j in (arm or TIAGO_ARM)) + "]"
-    return write_profile(folder, TIAGO.format(arm=joints) + extra, "tiago.toml")
+    arm = arm or TIAGO_ARM
+    joints = "[" + ", ".join(f'"{j}"' for j in arm) + "]"
+    lock = "" if "torso_lift_joint" in arm else TORSO_LOCK
+    return write_profile(folder, TIAGO.format(arm=joints) + lock + extra, "tiago.toml")

@@ -140,3 +140,20 @@ def test_wheel_map_rolls_without_slip_on_the_urdf_wheels(tiago):
             vel = pin.getVelocity(model, data, jid, pin.LOCAL_WORLD_ALIGNED)  # at the wheel centre
             contact_velocity = vel.linear + np.cross(vel.angular, np.array([0.0, 0.0, -r]))
             assert np.abs(contact_velocity).max() < 1e-9, (name, contact_velocity)
+
+
+def test_a_profile_builds_the_same_whole_body_model(tiago, tmp_path):
+    """TIAGo described by a profile file (torso in the arm) = the model built by hand above: same joints,
+    base, and combined Jacobian at random states (the profile path adds nothing and drops nothing)."""
+    import robots
+    from tests.robots.profile_files import tiago_profile
+    from wholebody.motion.kinematics import wholebody_for
+
+    wb = wholebody_for(robots.load(tiago_profile(tmp_path, arm=list(ARM_JOINTS))))
+    assert wb.arm_joints == tiago.arm_joints and wb.wheel_joints == tiago.wheel_joints
+    assert wb.base.track == pytest.approx(tiago.base.track) and wb.base.wheel_radius == pytest.approx(
+        tiago.base.wheel_radius
+    )
+    for x in random_states(tiago, 5, seed=11):
+        np.testing.assert_allclose(wb.combined_jacobian(x), tiago.combined_jacobian(x), atol=1e-12)
+        np.testing.assert_allclose(wb.ee_placement(x).homogeneous, tiago.ee_placement(x).homogeneous, atol=1e-12)
