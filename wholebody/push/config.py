@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal, Protocol
 from collections.abc import Sequence
 
@@ -96,8 +96,11 @@ class PushConfig:
     #: contact slide acceleration (m/s^2): the hand's speed along the handle changes smoothly
     slide_acceleration: float = 0.1
     arm_limits: ArmLimits = ArmLimits()
-    #: the pushing robot, a `robots.profiles` entry with an F/T sensor and a push posture
+    #: the pushing robot: a registered name or the path of a robot profile (.toml), see docs/robots.md
     robot: str = "ridgeback_iiwa"
+    #: the allocation keeps each joint torque |J^T w + g| this fraction below its URDF limit (room for the
+    #: dynamic terms); None = joint torques not bounded in the allocation
+    torque_margin: float | None = 0.05
 
     def __post_init__(self) -> None:
         if isinstance(self.trajectory, int) and self.trajectory not in (1, 2):
@@ -119,8 +122,8 @@ class PushConfig:
         from robots.profiles import profile
 
         prof = profile(self.robot)  # raises naming the known robots
-        if not (prof.is_mobile_manipulator and prof.ft_frame and prof.push_arm_seed):
-            raise WholeBodyError(f"robot {self.robot!r} cannot push the cart (no arm, F/T sensor or push posture)")
+        if not prof.is_mobile_manipulator:
+            raise WholeBodyError(f"robot {self.robot!r} cannot push the cart: its profile has no arm on a wheeled base")
         if self.fixed_contact_y is not None and len(self.fixed_contact_y) not in (1, 2):
             raise WholeBodyError("fixed_contact_y needs one value per arm")
 
@@ -128,7 +131,8 @@ class PushConfig:
         """Return the initial contact y per arm (fixed mode: the fixed points)."""
         from robots.profiles import profile
 
-        given = self.fixed_contact_y if self.fixed_contact_y is not None else (profile(self.robot).push_contact_y,)
+        y0 = profile(self.robot).push_contact_y
+        given = self.fixed_contact_y if self.fixed_contact_y is not None else (0.0 if y0 is None else y0,)
         ys = np.asarray(given, dtype=float)
         if self.n_arms == 2 and ys.size == 1:
             ys = np.array([-0.2, 0.2])
@@ -195,10 +199,13 @@ class PushMetrics:
     #: carried less information about it than the filter's random walk adds (`unobservable_intervals`)
     mass_unobservable_s: tuple[tuple[float, float], ...] = ()
     com_unobservable_s: tuple[tuple[float, float], ...] = ()
+    #: where the allocation saturated: per binding limit, total time, number of stretches, longest stretch
+    #: and first time (s) (`wholebody.contacts.allocation.saturation_summary`)
+    saturation: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         """Return the metrics as a JSON-ready dict (intervals as lists of [t0, t1])."""
-        return {k: _json_value(v) for k, v in self.__dict__.items()}
+        return {k: (v if k == "saturation" else _json_value(v)) for k, v in self.__dict__.items()}
 
 
 def _json_value(v: object) -> object:

@@ -66,6 +66,8 @@ class ControlDecision:
     wheel_rates: np.ndarray
     #: (n_arms,) hand target position error of the robot's measured state (m)
     grasp_error: np.ndarray
+    #: the limit that kept the allocation from the desired wrench (None when not saturated)
+    binding: str | None = None
 
 
 def param_std(estimator: ParameterEstimator) -> np.ndarray:
@@ -124,6 +126,10 @@ class PushController:
         gamma_d = np.asarray(self.cart_controller.gamma(m.t, q_hat, qd_hat, params_hat), dtype=float)  # eq. (26)
         ys, ydots = self.scheduler.update(m.t, params_hat, dt)
         self.allocator.set_points([handle_point(v) for v in ys])
+        if self.config.torque_margin is not None:  # |J^T w + g| <= tau_max at each arm's current configuration
+            self.allocator.set_torque_limits(
+                [mm.torque_constraint(q_hat) for mm in self.robots], margin=self.config.torque_margin
+            )
         alloc = self.allocator.solve(cart_model.generalized_to_body(q_hat, gamma_d), raise_on_infeasible=False)
         saturated = alloc.residual > 1e-6 * max(1.0, float(np.abs(gamma_d).max()))  # eq. (25)
         q_grasp = self._grasp_pose(q_hat, qd_hat, m.t)
@@ -148,6 +154,7 @@ class PushController:
             base_twist=np.array([c.base_twist for c in commands]),
             wheel_rates=np.array([c.wheel_rates for c in commands]),
             grasp_error=np.array([p[2] for p in parts]),
+            binding=alloc.binding if saturated else None,
         )
         return list(commands)
 

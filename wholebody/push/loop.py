@@ -15,26 +15,17 @@ from collections.abc import Sequence
 
 import numpy as np
 
-import robots
 from cart.control import make_controller
 from cart.ekf import CartEKF, EKFConfig
 from cart.estimation_metrics import estimation_errors
 from cart.params import CartParams
+from wholebody.contacts.allocation import saturation_spans, saturation_summary
 from wholebody.push.config import CartController, ParameterEstimator, PushConfig, PushMetrics, PushResult
-from robots.profiles import profile
-from wholebody.contacts.handle import contact_grid
-from wholebody.errors import WholeBodyError
 from wholebody.push.controller import ControlDecision, PushController
 from wholebody.push.plants import make_plant, plant_report, plant_truth
 from wholebody.push.plant import Measurement, Plant, RobotCommand
-from wholebody.push.robot import (
-    TWO_ARM_BASE_SPREAD,
-    MobileManipulator,
-    base_target,
-    grasp_rotation,
-    grasp_target,
-    handle_point,
-)
+from wholebody.push import robot as robot_mod
+from wholebody.push.robot import MobileManipulator
 from wholebody.push.scheduler import ContactScheduler
 
 
@@ -51,45 +42,13 @@ def make_robots(
     contact_y: np.ndarray,
     seeds: Sequence[np.ndarray | None] | None = None,
 ) -> list[MobileManipulator]:
-    """Return the mobile manipulators holding the handle at `contact_y` (two: bases spread apart).
-
-    Everything robot-specific (joints, grasp pitch, base place, seeds) comes from `robots.profiles`.
-    """
-    robot = robots.load(config.robot)
-    prof = profile(config.robot)
-    ys = contact_y
-    if prof.push_base_y is not None:  # the base stands at a fixed place behind the cart
-        if config.n_arms != 1:
-            raise WholeBodyError(f"robot {config.robot!r} pushes alone (its base stands at a fixed place); use 1 arm")
-        base_ys = [prof.push_base_y]
-    else:
-        base_ys = [ys[0]] if config.n_arms == 1 else [ys[0] - TWO_ARM_BASE_SPREAD, ys[1] + TWO_ARM_BASE_SPREAD]
-    R_b_ee = grasp_rotation(prof.grasp_pitch)
-    seeds = seeds if seeds is not None else [None] * len(ys)
-    return [MobileManipulator(robot, q_cart, y, by, R_b_ee, arm_seed=sd) for y, by, sd in zip(ys, base_ys, seeds)]
+    """Return the mobile manipulators holding the handle at `contact_y` (`wholebody.push.robot.make_robots`)."""
+    return robot_mod.make_robots(config.robot, q_cart, contact_y, seeds)
 
 
 def make_reach_map(config: PushConfig):
     """Return the `ReachMap` of a robot whose base stands at a fixed place behind the cart (None otherwise)."""
-    from wholebody.contacts.placement import reach_map
-    from wholebody.motion.kinematics import wholebody_for
-
-    prof = profile(config.robot)
-    if prof.push_base_y is None:  # the base follows the contact sideways: every handle point is held alike
-        return None
-    robot = robots.load(config.robot)
-    wb = wholebody_for(robot, base_input=prof.base_input)
-    R = grasp_rotation(prof.grasp_pitch)
-    zero = np.zeros(3)
-    offset = np.array([handle_point(0.0)[0] + prof.push_base_x, prof.push_base_y])
-    return reach_map(
-        wb,
-        lambda y: base_target(zero, zero, offset)[0],
-        lambda y: grasp_target(zero, zero, float(y), 0.0, R)[0],
-        contact_grid(),
-        prof.push_arm_seed,
-        0.0,
-    )
+    return robot_mod.push_reach_map(config.robot)
 
 
 def _iterations(n: int, progress: bool, label: str):
@@ -123,13 +82,16 @@ class StepRecord:
     wheel_rates: np.ndarray
     param_std: np.ndarray
     saturated: bool
+    binding: str | None
     base_ratio: np.ndarray
     wheel_ratio: np.ndarray
 
 
 def stack_records(records: Sequence[StepRecord]) -> dict[str, np.ndarray]:
     """Return each `StepRecord` field stacked over the periods (first axis: time)."""
-    return {f.name: np.array([getattr(r, f.name) for r in records]) for f in fields(StepRecord)}
+    out = {f.name: np.array([getattr(r, f.name) for r in records]) for f in fields(StepRecord) if f.name != "binding"}
+    out["binding"] = [r.binding for r in records]
+    return out
 
 
 @dataclass
@@ -191,6 +153,7 @@ def record(
         wheel_rates=d.wheel_rates,
         param_std=d.param_std,
         saturated=d.saturated,
+        binding=d.binding,
         base_ratio=np.array([np.max(np.abs(tw)[li > 0] / li[li > 0]) for tw, li in zip(d.base_twist, lim)]),
         wheel_ratio=np.array([np.max(np.abs(w) / mm.wb.wheel_velocity_limit) for w, mm in zip(d.wheel_rates, mms)]),
     )
@@ -254,7 +217,7 @@ def _result(
         effort_limit=effort_limit,
         wheel_velocity_limit=wheel_limit,
         metrics=_metrics(config, H, effort_limit, final),
-        **{k: v for k, v in hist.items() if k not in ("saturated", "base_ratio", "wheel_ratio")},
+        **{k: v for k, v in hist.items() if k not in ("saturated", "binding", "base_ratio", "wheel_ratio")},
     )
 
 
@@ -285,6 +248,7 @@ def _metrics(config: PushConfig, H: SimpleNamespace, effort_limit: np.ndarray, f
         base_twist_limit_ratio=float(H.base_ratio.max()),
         base_wheel_limit_ratio=float(H.wheel_ratio.max()),
         saturated_steps=int(np.sum(H.saturated)),
+        saturation=saturation_summary(saturation_spans(np.arange(len(H.binding)) * config.dt, H.binding, config.dt)),
         base_wheel_speed_rms_rad_s=float(np.sqrt(np.mean(wheels**2))),
         base_wheel_speed_max_rad_s=float(np.abs(wheels).max()),
         base_wheel_acceleration_max_rad_s2=float(np.abs(wheel_acc).max()),
