@@ -287,8 +287,8 @@ def scale_study(minutes: list[float], rate: float = 200.0, quiet: bool = False) 
             ).stdout
             rows.append({"minutes": mins, **json.loads(out.strip().splitlines()[-1])})
     if not quiet:
-        print("| log | samples | diagnose [s] | peak RSS [MB] | named | target (20 min) |")
-        print("|---|---|---|---|---|---|")
+        print("| log | samples | diagnose wall [s] | process CPU [s] | peak RSS [MB] | named | target (20 min) |")
+        print("|---|---|---|---|---|---|---|")
         for r in rows:
             print(
                 f"| {r['minutes']:g} min, {rate:g} Hz | {r['samples']} | {r['seconds']:.1f} | {r['cpu_seconds']:.1f} | "
