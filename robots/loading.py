@@ -47,6 +47,32 @@ class LoadedRobot:
     frames: dict[str, str] = field(default_factory=dict)
     profile: RobotProfile | None = None
 
+    def resolved_urdf(self) -> Path:
+        """Return a copy of the URDF with every ``package://`` URI replaced by the absolute path it resolves to.
+
+        For readers without package folders (MuJoCo's URDF compiler, placo); the copy is content-addressed in
+        the temporary folder. The URDF itself when it has no ``package://`` URI.
+        """
+        text = self.urdf.read_text(encoding="utf-8")
+        if "package://" not in text:
+            return self.urdf
+        dirs = package_search_dirs(self.profile.package_dirs if self.profile is not None else (), self.urdf)
+
+        def sub(m: re.Match) -> str:
+            found = resolve_package_uri(m.group(0), dirs)
+            return str(found) if found is not None else m.group(0)
+
+        resolved = re.sub(r"package://[^\"'<>\s]+", sub, text)
+        digest = hashlib.sha256(resolved.encode()).hexdigest()[:16]
+        path = Path(tempfile.gettempdir()) / "cartpush_urdf" / f"{self.name}_{digest}_resolved.urdf"
+        if not path.exists():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{self.name}_", suffix=".urdf", dir=path.parent)
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(resolved)
+            os.replace(tmp, path)
+        return path
+
     def frame_id(self, role_or_name: str) -> int:
         """Return the Pinocchio frame id of a role (``"ee"``) or a frame name."""
         name = self.frames.get(role_or_name, role_or_name)

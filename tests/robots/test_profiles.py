@@ -189,3 +189,14 @@ def test_not_toml_and_missing_file(tmp_path):
         robots.load(bad)
     with pytest.raises(ProfileError, match="file: not found"):
         robots.load(tmp_path / "nope.toml")
+
+
+def test_resolved_urdf_names_mesh_files(tmp_path):
+    r = robots.load(tiago_profile(tmp_path))
+    text = r.resolved_urdf().read_text()
+    assert "package://" not in text
+    import re
+
+    files = re.findall(r'filename="([^"]+)"', text)
+    assert len(files) > 20 and all(Path(f).is_file() for f in files)
+    assert robots.load("wmra").resolved_urdf() == robots.load("wmra").urdf  # nothing to resolve
