@@ -35,8 +35,8 @@ PRIOR_NAMES = ("m", "dx", "dy", "rho", "c_v", "c_w")
 DT_REL_TOL = 1e-6
 #: The prior is linearized at a mass of at least this share of its center (an estimate may run negative).
 MIN_MASS_SHARE = 0.05
-#: A direction of the regression is used when its data power exceeds the regressor-noise power by this share.
-SIGNAL_MARGIN = 1.0
+#: A direction of the regression is used when its data power is above (1 + this) times the regressor-noise power (10 dB).
+SIGNAL_MARGIN = 9.0
 #: Largest share of a diagonal entry of the normal matrix that the noise correction removes.
 COMPENSATION_SHARE = 0.98
 
