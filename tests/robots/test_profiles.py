@@ -197,6 +197,6 @@ def test_resolved_urdf_names_mesh_files(tmp_path):
     assert "package://" not in text
     import re
 
-    files = re.findall(r'filename="([^"]+)"', text)
+    files = re.findall(r'<mesh filename="([^"]+)"', text)
     assert len(files) > 20 and all(Path(f).is_file() for f in files)
     assert robots.load("wmra").resolved_urdf() == robots.load("wmra").urdf  # nothing to resolve
