@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Literal, Protocol
 from collections.abc import Sequence
 
@@ -15,6 +16,7 @@ from cart.simulate import MeasurementNoise
 from cart.trajectories import CartTrajectory, paper_trajectory
 from wholebody.contacts.allocation import ArmLimits
 from wholebody.errors import WholeBodyError
+from wholebody.push.geometry import DEFAULT_GEOMETRY, CartGeometry
 
 #: How the contact points are chosen: held at `fixed_contact_y`, or re-planned from the estimate.
 ContactMode = Literal["fixed", "optimal"]
@@ -90,6 +92,8 @@ class PushConfig:
     plant: PlantName = "kinematic"
     #: MuJoCo plant: an MJCF cart file following docs/mujoco.md (None: the shopping cart built from true_params)
     cart_model: str | None = None
+    #: where the hands may hold and how high {b} sits (None: the shopping cart's, or the cart file's)
+    geometry: CartGeometry | None = None
     replan_period: float = 0.5
     replan_horizon: float = 3.0
     slide_speed: float = 0.05
@@ -138,7 +142,20 @@ class PushConfig:
             ys = np.array([-0.2, 0.2])
         if self.n_arms == 1:
             ys = ys[:1]
+        geo = self.cart_geometry()
+        if geo is not DEFAULT_GEOMETRY:  # a cart of its own: the nearest places its handle offers
+            ys = np.array([geo.nearest(v) for v in ys])
+            if ys.size == 2 and abs(ys[1] - ys[0]) < 0.2:  # two hands need room: the outermost places
+                ys = geo.grid()[[0, -1]]
         return np.sort(ys)
+
+    def cart_geometry(self) -> CartGeometry:
+        """Return the cart geometry the controller is told: given, read from the cart file, or the default."""
+        if self.geometry is not None:
+            return self.geometry
+        if self.cart_model is not None:
+            return _file_geometry(self.cart_model)
+        return DEFAULT_GEOMETRY
 
     def initial_params(self) -> CartParams:
         """Return the controller's/estimator's initial guess (mass, CoM given; inertia scaled with the mass)."""
@@ -160,6 +177,14 @@ class PushConfig:
     def trajectory_label(self) -> str:
         """Return a short name of the trajectory ("Traj. 2", or the object's class name)."""
         return f"Traj. {self.trajectory}" if isinstance(self.trajectory, int) else type(self.trajectory).__name__
+
+
+@lru_cache(maxsize=8)
+def _file_geometry(path: str) -> CartGeometry:
+    """Return the geometry of a cart file, read once per path."""
+    from wholebody.push.geometry import geometry_from_cart_file
+
+    return geometry_from_cart_file(path)
 
 
 @dataclass(frozen=True)

@@ -101,8 +101,9 @@ class PushController:
         self.estimator = estimator
         self.scheduler = scheduler
         self.robots = list(robots)
+        self.geometry = config.cart_geometry()
         self.allocator = WrenchAllocator(
-            [handle_point(v) for v in scheduler.y], config.arm_limits, only_motion_directions=True
+            [handle_point(v, self.geometry) for v in scheduler.y], config.arm_limits, only_motion_directions=True
         )
         self._t_prev: float | None = None
         self._q_grasp: np.ndarray | None = None
@@ -125,7 +126,7 @@ class PushController:
         q_hat, qd_hat = x_hat[0:3], x_hat[3:6]
         gamma_d = np.asarray(self.cart_controller.gamma(m.t, q_hat, qd_hat, params_hat), dtype=float)  # eq. (26)
         ys, ydots = self.scheduler.update(m.t, params_hat, dt)
-        self.allocator.set_points([handle_point(v) for v in ys])
+        self.allocator.set_points([handle_point(v, self.geometry) for v in ys])
         if self.config.torque_margin is not None:  # |J^T w + g| <= tau_max at each arm's current configuration
             self.allocator.set_torque_limits(
                 [mm.torque_constraint(q_hat) for mm in self.robots], margin=self.config.torque_margin
@@ -185,7 +186,7 @@ class PushController:
     ) -> tuple[RobotCommand, tuple[np.ndarray, np.ndarray, float]]:
         """Return (the command of one robot, (arm torque, J^T w part, grasp error)) for one period."""
         dt = self.config.dt
-        target, vel = grasp_target(q, qd, y, ydot, mm.R_b_ee)
+        target, vel = grasp_target(q, qd, y, ydot, mm.R_b_ee, self.geometry)
         bpose, brates = base_target(q, qd, mm.base_offset_b)
         u = mm.tracker.step(mm.x, target, vel, bpose, brates, dt)
         R = _rot_z(q[2])

@@ -21,6 +21,7 @@ from cart.estimation_metrics import estimation_errors
 from cart.params import CartParams
 from wholebody.contacts.allocation import saturation_spans, saturation_summary
 from wholebody.push.config import CartController, ParameterEstimator, PushConfig, PushMetrics, PushResult
+from wholebody.push.geometry import DEFAULT_GEOMETRY
 from wholebody.push.controller import ControlDecision, PushController
 from wholebody.push.plants import make_plant, plant_report, plant_truth
 from wholebody.push.plant import Measurement, Plant, RobotCommand
@@ -43,12 +44,13 @@ def make_robots(
     seeds: Sequence[np.ndarray | None] | None = None,
 ) -> list[MobileManipulator]:
     """Return the mobile manipulators holding the handle at `contact_y` (`wholebody.push.robot.make_robots`)."""
-    return robot_mod.make_robots(config.robot, q_cart, contact_y, seeds)
+    return robot_mod.make_robots(config.robot, q_cart, contact_y, seeds, geometry=config.cart_geometry())
 
 
 def make_reach_map(config: PushConfig):
     """Return the `ReachMap` of a robot whose base stands at a fixed place behind the cart (None otherwise)."""
-    return robot_mod.push_reach_map(config.robot)
+    geo = config.cart_geometry()
+    return robot_mod.push_reach_map(config.robot, None if geo is DEFAULT_GEOMETRY else geo)
 
 
 def _iterations(n: int, progress: bool, label: str):

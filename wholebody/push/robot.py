@@ -14,7 +14,8 @@ import robots
 from robots.checks import wheel_geometry
 from robots.profiles import RobotProfile
 from cart.simulate import MeasurementNoise
-from wholebody.contacts.handle import HandleSegment, contact_grid
+from wholebody.contacts.handle import contact_grid
+from wholebody.push.geometry import DEFAULT_GEOMETRY, CartGeometry
 from wholebody.errors import WholeBodyError
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, StepResult
 from wholebody.motion.bases import DifferentialDrive
@@ -68,27 +69,29 @@ def grasp_rotation(pitch: float = GRASP_PITCH, roll: float = 0.0, tool_axis: str
     return R
 
 
-def cart_se3(q_cart: Sequence[float]) -> pin.SE3:
-    """Return T_s_b: the cart frame {b} in the world ({b} sits at wheel-axle height)."""
-    from robots.shopping_cart import CART_WHEEL_RADIUS
-
+def cart_se3(q_cart: Sequence[float], geometry: CartGeometry | None = None) -> pin.SE3:
+    """Return T_s_b: the cart frame {b} in the world, at the geometry's height (default: wheel-axle height)."""
     c, s = math.cos(q_cart[2]), math.sin(q_cart[2])
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return pin.SE3(R, np.array([q_cart[0], q_cart[1], CART_WHEEL_RADIUS]))
+    return pin.SE3(R, np.array([q_cart[0], q_cart[1], (geometry or DEFAULT_GEOMETRY).frame_height]))
 
 
-def handle_point(y: float) -> np.ndarray:
-    """Return the handle point with lateral coordinate y, in {b}."""
-    h = HandleSegment.default()
-    return np.array([h.start_b[0], y, h.start_b[2]])
+def handle_point(y: float, geometry: CartGeometry | None = None) -> np.ndarray:
+    """Return the handle point with lateral coordinate y, in {b} (default: the shopping cart's handle)."""
+    return (geometry or DEFAULT_GEOMETRY).point(y)
 
 
 def grasp_target(
-    q_cart: np.ndarray, qd_cart: np.ndarray, y: float, ydot: float, R_b_ee: np.ndarray
+    q_cart: np.ndarray,
+    qd_cart: np.ndarray,
+    y: float,
+    ydot: float,
+    R_b_ee: np.ndarray,
+    geometry: CartGeometry | None = None,
 ) -> tuple[pin.SE3, np.ndarray]:
     """Return (world pose of the grasp frame, its spatial velocity (v, w) world-aligned at the grasp point)."""
-    T_sb = cart_se3(q_cart)
-    p_b = handle_point(y)
+    T_sb = cart_se3(q_cart, geometry)
+    p_b = handle_point(y, geometry)
     T = T_sb * pin.SE3(R_b_ee, p_b)
     r = T_sb.rotation @ p_b
     om = qd_cart[2]
@@ -193,6 +196,7 @@ def grasp_configuration(
     base_y: float,
     R_b_ee: np.ndarray,
     seed: Sequence[float] | None = None,
+    geometry: CartGeometry | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return (base pose, arm joints) of the robot holding the handle at `contact_y` (m, in {b}).
 
@@ -200,9 +204,9 @@ def grasp_configuration(
     with orientation ``R_b_ee``; the arm comes from `solve_grasp_ik` seeded with `seed` (default: the
     profile's push posture). `prof` is a profile with its push settings filled (`push_profile`).
     """
-    offset = np.array([handle_point(contact_y)[0] + prof.push_base_x, base_y])
+    offset = np.array([handle_point(contact_y, geometry)[0] + prof.push_base_x, base_y])
     pose, _ = base_target(q_cart, np.zeros(3), offset)
-    target, _ = grasp_target(q_cart, np.zeros(3), contact_y, 0.0, R_b_ee)
+    target, _ = grasp_target(q_cart, np.zeros(3), contact_y, 0.0, R_b_ee, geometry)
     arm_seed = seed if seed is not None else _arm_of(prof, wb).push_seed
     qa = solve_grasp_ik(wb, pose, target, arm_seed)
     return pose, qa
@@ -326,8 +330,10 @@ class MobileManipulator:
         tracker: BodyTracker | None = None,
         arm_seed: Sequence[float] | None = None,
         arm: int = 0,
+        geometry: CartGeometry | None = None,
     ) -> None:
         prof = push_profile(robot)
+        self.geometry = geometry or DEFAULT_GEOMETRY
         self.profile = prof
         self.arm = prof.arms[arm]
         # a holonomic base takes a body twist; a differential drive takes wheel rates, so that its lateral
@@ -338,8 +344,10 @@ class MobileManipulator:
         self.R_b_ee = R_b_ee
         self.ee_id = self.wb.ee_frame_id
         self.ft_id = robot.frame_id(self.arm.sensor_frame)
-        self.base_offset_b = np.array([handle_point(contact_y)[0] + prof.push_base_x, base_y])
-        pose, qa = grasp_configuration(self.wb, prof, q_cart, contact_y, base_y, R_b_ee, arm_seed)
+        self.base_offset_b = np.array([handle_point(contact_y, self.geometry)[0] + prof.push_base_x, base_y])
+        pose, qa = grasp_configuration(
+            self.wb, prof, q_cart, contact_y, base_y, R_b_ee, arm_seed, geometry=self.geometry
+        )
         self.x = np.r_[pose, qa]
         self.tracker = tracker if tracker is not None else WholeBodyQPTracker(self.wb, qa)
         self.u = np.zeros(self.wb.n_u)
@@ -406,7 +414,7 @@ def push_grasp_rotation(prof: RobotProfile, arm: int = 0) -> np.ndarray:
     )
 
 
-def push_reach_map(robot: str | RobotProfile | robots.LoadedRobot):
+def push_reach_map(robot: str | RobotProfile | robots.LoadedRobot, geometry: CartGeometry | None = None):
     """Return the `ReachMap` along the handle of a robot whose base stands at a fixed place (None otherwise).
 
     The base stands at ``(handle x + push_base_x, push_base_y)`` in {b}; the continuation starts at y = 0
@@ -421,14 +429,16 @@ def push_reach_map(robot: str | RobotProfile | robots.LoadedRobot):
     wb = wholebody_for(loaded, base_input=prof.base_input)
     R = push_grasp_rotation(prof)
     zero = np.zeros(3)
-    offset = np.array([handle_point(0.0)[0] + prof.push_base_x, prof.push_base_y])
+    geo = geometry or DEFAULT_GEOMETRY
+    offset = np.array([handle_point(0.0, geo)[0] + prof.push_base_x, prof.push_base_y])
+    start = 0.0 if prof.tuned or prof.push_contact_y is None else prof.push_contact_y
     return reach_map(
         wb,
         lambda y: base_target(zero, zero, offset)[0],
-        lambda y: grasp_target(zero, zero, float(y), 0.0, R)[0],
-        contact_grid(),
+        lambda y: grasp_target(zero, zero, float(y), 0.0, R, geo)[0],
+        contact_grid() if geometry is None else geo.grid(),
         prof.push_arm_seed,
-        0.0 if prof.tuned else prof.push_contact_y,
+        geo.nearest(start),
     )
 
 
@@ -452,6 +462,7 @@ def make_robots(
     q_cart: np.ndarray,
     contact_y: Sequence[float],
     seeds: Sequence[Sequence[float] | None] | None = None,
+    geometry: CartGeometry | None = None,
 ) -> list[MobileManipulator]:
     """Return one mobile manipulator per contact, each holding the handle at its contact (bases spread apart).
 
@@ -467,13 +478,13 @@ def make_robots(
     out = []
     for y, by, sd in zip(contact_y, base_lateral_places(prof, contact_y), seeds):
         try:
-            out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=sd))
+            out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=sd, geometry=geometry))
         except WholeBodyError:
             from wholebody.push.posture import arm_posture_near
 
             wb = wholebody_for(loaded, base_input=prof.base_input)
             seed = arm_posture_near(wb, prof, q_cart, float(y), float(by), R_b_ee)
-            out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=seed))
+            out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=seed, geometry=geometry))
     return out
 
 

@@ -10,7 +10,7 @@ from cart.dynamics import inverse_dynamics
 from cart.params import CartParams
 from cart.trajectories import CartTrajectory
 from wholebody.contacts.allocation import WrenchAllocator
-from wholebody.contacts.handle import CONTACT_GRID_STEP, HandleSegment, contact_grid
+from wholebody.contacts.handle import CONTACT_GRID_STEP, contact_grid
 from wholebody.contacts.placement import ReachMap, effort_sweep
 from wholebody.errors import InfeasibleWrenchError
 from wholebody.push.config import PushConfig
@@ -49,10 +49,14 @@ class ContactScheduler:
         self.plan = self.y.copy()
         self.ydot = np.zeros_like(self.y)
         self.next_replan = 0.0
-        self.alloc = WrenchAllocator([handle_point(v) for v in self.y], config.arm_limits, only_motion_directions=True)
-        self.handle = HandleSegment.default()
+        self.geometry = config.cart_geometry()
+        self.alloc = WrenchAllocator(
+            [handle_point(v, self.geometry) for v in self.y], config.arm_limits, only_motion_directions=True
+        )
+        self.handle = self.geometry.handle
         n = config.n_arms
-        grid = contact_grid(CONTACT_GRID_STEP if n == 1 else 2 * CONTACT_GRID_STEP)
+        step = CONTACT_GRID_STEP if n == 1 else 2 * CONTACT_GRID_STEP
+        grid = contact_grid(step) if config.geometry is None and config.cart_model is None else self.geometry.grid(step)
         self.candidates = (
             [np.array([g]) for g in grid]
             if n == 1
@@ -88,7 +92,7 @@ class ContactScheduler:
         """
         if not self.candidates:
             return self.plan
-        pts = np.array([[handle_point(v) for v in cand] for cand in self.candidates])
+        pts = np.array([[handle_point(v, self.geometry) for v in cand] for cand in self.candidates])
         sweep = effort_sweep(self.alloc, pts, np.array(gammas))
         totals = np.zeros(len(self.candidates))
         for k in range(len(gammas)):  # the same summation order as one candidate at a time
