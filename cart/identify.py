@@ -651,15 +651,7 @@ def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | 
     when None). Raises :class:`IdentifiabilityError` when the log cannot say anything (too
     short, no motion above the noise); weakly excited parameters give warnings.
     """
-    if len(log) < 12:
-        raise IdentifiabilityError(
-            f"{log.source}: {len(log)} samples are too few to estimate anything (need a push of many samples)"
-        )
-    streams = split_streams(log) if streams is None else streams
-    if len(streams.pose.t) < 12 or len(streams.wrench.t) < 12:
-        raise IdentifiabilityError(
-            f"{log.source}: {len(streams.pose.t)} pose and {len(streams.wrench.t)} wrench samples are too few"
-        )
+    streams = _checked_streams(log, streams)
     grid = _uniform_grid(log, streams)
     lv = _noise_levels(log, streams)
     fc, warnings = _choose_cutoff(grid, lv.pos, lv.theta, attenuation)
@@ -708,6 +700,20 @@ def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | 
         grid_dt=grid.dt,
         fit_data={"t": grid.t[reg.keep][::step], "x": reg.x, "y": reg.y, "scale": scale, "step": step},
     )
+
+
+def _checked_streams(log: CartLog, streams: Streams | None) -> Streams:
+    """Return the log's pose and wrench streams; raise `IdentifiabilityError` when either is too short."""
+    if len(log) < 12:
+        raise IdentifiabilityError(
+            f"{log.source}: {len(log)} samples are too few to estimate anything (need a push of many samples)"
+        )
+    streams = split_streams(log) if streams is None else streams
+    if len(streams.pose.t) < 12 or len(streams.wrench.t) < 12:
+        raise IdentifiabilityError(
+            f"{log.source}: {len(streams.pose.t)} pose and {len(streams.wrench.t)} wrench samples are too few"
+        )
+    return streams
 
 
 def _excitation_warnings(p: np.ndarray, std: dict[str, object], inertia: float) -> list[str]:

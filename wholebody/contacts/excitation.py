@@ -490,12 +490,7 @@ def plan_contact_schedule(
     idx, best = _best_schedule(info, effort, budget, score, sweeps, exhaustive_limit)  # >= every fixed contact
     sched = ContactSchedule(bounds, cand[idx])
     total = float(sum(effort[k, j] for k, j in enumerate(idx)))
-
-    def std(I: np.ndarray) -> tuple[float, float]:
-        """Return the CoM std (dx, dy) of the information I."""
-        dx, dy = np.sqrt(np.diag(com_covariance(I, phi, P0)))
-        return float(dx), float(dy)
-
+    std = lambda I: _com_std(I, phi, P0)  # noqa: E731
     return SchedulePlan(
         sched,
         float(best),
@@ -508,6 +503,12 @@ def plan_contact_schedule(
         std(sum(info[k, j] for k, j in enumerate(idx))),
         std(info[:, j0].sum(axis=0)),
     )
+
+
+def _com_std(I: np.ndarray, phi: Sequence[float], P0: np.ndarray) -> tuple[float, float]:
+    """Return the CoM std (dx, dy) of the information I under the prior P0."""
+    dx, dy = np.sqrt(np.diag(com_covariance(I, phi, P0)))
+    return float(dx), float(dy)
 
 
 def schedule_points(
