@@ -13,28 +13,49 @@ Two runs per case (robot, trajectory):
   either with its generalized force Gamma_MM applied at {b}, or with the allocated hand wrench applied
   at the handle point (what a perfect arm would do): the cart's own response to the loop's wrenches.
 
-Prints one table; never asserts a time (the real-time factor depends on the machine and its load).
+Prints one table; never asserts a time (the real-time factor depends on the machine and its load: the
+closed loop also reports it over the process's CPU time, ``real_time_factor_cpu``, which a shared machine's
+load does not change).
+
+Prototypes of changes outside the plant (issue 28), as options: ``--grasp-torque-arm`` (the allocation's
+`GraspModel.torque_arm`: the yaw torque the hand may apply, instead of lateral force at the handle's height),
+``--force-feedback`` (the torque law's F/T loop gain, 0 = off), ``--no-estimation``, ``--arms 2``; a case's robot
+may be a profile file (``path.toml:2``, e.g. with another ``[push] base_x``); ``--until T`` runs the 30 s
+trajectory up to T s (a shorter ``--duration`` compresses the paper's trajectories).
 
     .venv/bin/python benchmarks/bench_mujoco_plant.py [--duration 30] [--cases ridgeback_iiwa:1,ridgeback_iiwa:2]
-        [--feedforward command|bias|dynamics] [--json]
+        [--feedforward command|bias|dynamics] [--force-feedback 2] [--grasp-torque-arm 0.1] [--arms 1]
+        [--no-estimation] [--seed 0] [--until T] [--closed-only] [--cart-only] [--json]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 
 import numpy as np
 
+from cart.trajectories import paper_trajectory
+from wholebody.contacts.allocation import ArmLimits, GraspModel
 from wholebody.push import PushConfig, build_controller, kinematic_plant
 from wholebody.push.arm_control import TorqueArmGains
 from wholebody.push.loop import run_loop
 from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantConfig
 
 
+#: run options besides robot, trajectory and duration (set by `main`): PushConfig fields, and ``until``
+OPTIONS: dict = {}
+
+
 def _config(robot: str, trajectory: int, duration: float) -> PushConfig:
-    return PushConfig(robot=robot, trajectory=trajectory, duration=duration, contact="fixed")
+    opts = dict(OPTIONS)
+    until = opts.pop("until", None)
+    traj: object = trajectory
+    if until is not None:  # the trajectory of `duration`, run up to `until`
+        traj, duration = paper_trajectory(trajectory, duration), until
+    return PushConfig(robot=robot, trajectory=traj, duration=duration, contact="fixed", **opts)
 
 
 def open_loop(robot: str, trajectory: int, duration: float, plant_config: MujocoPlantConfig) -> dict:
@@ -43,7 +64,7 @@ def open_loop(robot: str, trajectory: int, duration: float, plant_config: Mujoco
     setup = build_controller(cfg)
     kin = kinematic_plant(cfg, setup)
     commands = []
-    for _ in range(int(round(duration / cfg.dt))):
+    for _ in range(int(round(cfg.duration / cfg.dt))):
         cmds = setup.controller.step(kin.measure())
         commands.append(cmds)
         kin.step(cmds)
@@ -58,7 +79,7 @@ def open_loop(robot: str, trajectory: int, duration: float, plant_config: Mujoco
     rep = plant.report()
     return {
         "case": f"{robot} traj {trajectory} open loop",
-        "real_time_factor_plant": duration / wall,
+        "real_time_factor_plant": cfg.duration / wall,
         "grasp_slip_max_mm": 1000 * rep["grasp_slip_max_m"],
         "wrench_error_rms_n": rep["wrench_error_rms_n"],
         "hand_force_rms_n": rep["hand_force_rms_n"],
@@ -71,23 +92,34 @@ def closed_loop(robot: str, trajectory: int, duration: float, plant_config: Mujo
     """Return tracking, estimate and plant diagnostics of a closed-loop run on the MuJoCo plant."""
     cfg = _config(robot, trajectory, duration)
     setup = build_controller(cfg)
-    plant = MujocoPlant(setup.controller.robots, setup.q0, cfg.true_params, noise=cfg.noise, config=plant_config)
-    t0 = time.perf_counter()
+    plant = MujocoPlant(
+        setup.controller.robots, setup.q0, cfg.true_params, noise=cfg.noise, seed=cfg.seed, config=plant_config
+    )
+    t0, c0 = time.perf_counter(), time.process_time()
     res = run_loop(cfg, setup.controller, plant)
-    wall = time.perf_counter() - t0
-    rep = plant.report()
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    rep, m = plant.report(), res.metrics
+    err = np.hypot(*(res.q_true[:, :2] - res.q_desired[:, :2]).T)
+    lost = res.t[np.argmax(err > 0.05)] if (err > 0.05).any() else None
     return {
-        "case": f"{robot} traj {trajectory} closed loop",
-        "real_time_factor_loop": duration / wall,
+        "case": f"{robot} traj {trajectory} closed loop"
+        + (f" {cfg.n_arms} arms" if cfg.n_arms > 1 else "")
+        + ("" if cfg.estimation else " no estimation"),
+        "real_time_factor_loop": cfg.duration / wall,
+        "real_time_factor_cpu": cfg.duration / cpu,
         "real_time_factor_plant": rep["real_time_factor"],
-        "tracking_rms_mm": res.metrics.tracking_rms_mm,
-        "tracking_max_mm": res.metrics.tracking_max_mm,
-        "mass_final_kg": res.metrics.mass_final_kg,
+        "tracking_rms_mm": m.tracking_rms_mm,
+        "tracking_max_mm": m.tracking_max_mm,
+        "time_error_over_5cm_s": lost,
+        "mass_final_kg": m.mass_final_kg,
         "cart_mass_effective_kg": rep["cart_mass_effective_kg"],
+        "com_error_final_m": m.com_error_final_m,
         "grasp_slip_max_mm": 1000 * rep["grasp_slip_max_m"],
         "wrench_error_rms_n": rep["wrench_error_rms_n"],
         "hand_force_rms_n": rep["hand_force_rms_n"],
+        "wrench_error_pct": 100 * rep["wrench_error_rms_n"] / max(rep["hand_force_rms_n"], 1e-9),
         "arm_torque_limit_ratio": rep["arm_torque_limit_ratio"],
+        "base_wheel_limit_ratio": m.base_wheel_limit_ratio,
         "base_wheel_slip_max_m_s": rep["base_wheel_slip_max_m_s"],
     }
 
@@ -147,19 +179,41 @@ def _row(d: dict) -> str:
     return "  ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in d.items())
 
 
+def _set_options(args: argparse.Namespace) -> None:
+    """Fill `OPTIONS` from the command line (the PushConfig fields the cases share)."""
+    OPTIONS.clear()
+    OPTIONS.update(n_arms=args.arms, estimation=not args.no_estimation, seed=args.seed)
+    if args.grasp_torque_arm is not None:
+        limits = ArmLimits()
+        grasp = dataclasses.replace(limits.grasp or GraspModel(), torque_arm=args.grasp_torque_arm)
+        OPTIONS["arm_limits"] = dataclasses.replace(limits, grasp=grasp)
+    if args.until is not None:
+        OPTIONS["until"] = args.until
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--duration", type=float, default=30.0)
     parser.add_argument("--cases", default="ridgeback_iiwa:1,ridgeback_iiwa:2")
     parser.add_argument("--feedforward", default="command", choices=["command", "bias", "dynamics"])
+    parser.add_argument("--force-feedback", type=float, default=TorqueArmGains.force_feedback)
+    parser.add_argument("--grasp-torque-arm", type=float, default=None, help="allocation GraspModel.torque_arm (m)")
+    parser.add_argument("--arms", type=int, default=1)
+    parser.add_argument("--no-estimation", action="store_true")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--until", type=float, default=None, help="run the trajectory of --duration up to T s")
+    parser.add_argument("--closed-only", action="store_true", help="skip the open-loop replay")
     parser.add_argument("--cart-only", action="store_true", help="also push the cart alone (no robot)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
-    plant_config = MujocoPlantConfig(torque_gains=TorqueArmGains(feedforward=args.feedforward))
+    _set_options(args)
+    gains = TorqueArmGains(feedforward=args.feedforward, force_feedback=args.force_feedback)
+    plant_config = MujocoPlantConfig(torque_gains=gains)
     rows = []
     for case in filter(None, args.cases.split(",")):
-        robot, traj = case.split(":")
-        rows.append(open_loop(robot, int(traj), args.duration, plant_config))
+        robot, traj = case.rsplit(":", 1)
+        if not args.closed_only:
+            rows.append(open_loop(robot, int(traj), args.duration, plant_config))
         rows.append(closed_loop(robot, int(traj), args.duration, plant_config))
     if args.cart_only:
         for traj in (1, 2):

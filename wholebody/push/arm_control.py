@@ -4,7 +4,7 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
 
 - **Torque-controlled arm** (the iiwa, joint torque control): each physics step
 
-  ``tau = arm_torque + N^T (K (q_plan(t) - q) + D (v_plan - v))``, clipped to the effort limits,
+  ``tau = arm_torque + J^T K_f (w - w_f) + N^T (K (q_plan(t) - q) + D (v_plan - v))``, clipped to the effort limits,
 
   where ``arm_torque`` is the controller's command (the arm's bias forces from Pinocchio's RNEA at the
   measured state + ``J^T w`` of the allocated hand wrench ``w``), ``q_plan(t)`` the plan interpolated
@@ -12,7 +12,10 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   dynamically consistent null-space projector (``Jbar = M^-1 J^T (J M^-1 J^T)^-1``; ``J`` the hand's
   6 x n_arm Jacobian, ``M`` the arm's joint-space inertia, both refreshed once per control period).
   The joint impedance holds the posture (the elbow of a 7-joint arm) without pushing on the hand: the
-  hand's wrench stays the commanded ``J^T w`` while the hand moves with the handle it holds.
+  hand's wrench stays the commanded ``J^T w`` while the hand moves with the handle it holds. ``w_f`` is the
+  wrist F/T reading mapped to the grasp (world-aligned), read every physics step and low-passed (10 ms): the
+  force loop (``K_f = 2``) divides the arm's own task-space inertia that the cart feels (19 kg along x at the
+  push posture, as much as the cart) by ``1 + K_f``; ``K_f >= 4`` rings with the filter and the grasp.
 
 - **Velocity-controlled arm** (the WMRA's, joint velocity servos): once per control period, an
   admittance around the servos,
@@ -59,6 +62,11 @@ class TorqueArmGains:
     #: ``hand_target`` (its velocity: the target's change over the period); 0 = off (pure wrench control)
     cartesian_stiffness: float = 0.0
     cartesian_damping: float = 0.0
+    #: F/T force feedback: ``J^T K_f (w - w_f)`` with ``w_f`` the wrist F/T reading (at the grasp, world-aligned)
+    #: low-passed with time constant ``force_filter_tau`` (s), read every physics step; it divides the arm's own
+    #: task-space inertia and friction felt by the cart by ``1 + K_f``; 0 = off (open-loop J^T w)
+    force_feedback: float = 2.0
+    force_filter_tau: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -94,9 +102,14 @@ def damped_pinv(J: np.ndarray, damping: float) -> np.ndarray:
 class TorqueArmLaw:
     """The torque law of one arm (see the module docstring); `begin` once per period, `torque` each physics step."""
 
-    def __init__(self, effort_limit: np.ndarray, gains: TorqueArmGains = TorqueArmGains()) -> None:
+    def __init__(
+        self, effort_limit: np.ndarray, gains: TorqueArmGains = TorqueArmGains(), physics_dt: float = 0.002
+    ) -> None:
         self.limit = np.asarray(effort_limit, dtype=float)
         self.gains = gains
+        self._alpha = physics_dt / (gains.force_filter_tau + physics_dt)
+        self._w_d = np.zeros(6)
+        self._w_f: np.ndarray | None = None
         self._ff = np.zeros(self.limit.size)
         self._NT = np.eye(self.limit.size)
         self._q_end = np.zeros(self.limit.size)
@@ -122,6 +135,7 @@ class TorqueArmLaw:
         v_new = np.asarray(arm_velocity, dtype=float)
         self.a_plan = (v_new - self._v) / dt if self._started else np.zeros_like(v_new)
         self._started = True
+        self._w_d = np.asarray(hand_wrench, dtype=float)
         if self.gains.feedforward in ("bias", "dynamics"):
             self._ff = J.T @ np.asarray(hand_wrench, dtype=float)
         else:
@@ -129,6 +143,7 @@ class TorqueArmLaw:
         self._q_end = np.asarray(arm_position, dtype=float)
         self._v = v_new
         self._NT = null_space_projector_T(J, M) if self.gains.null_space else np.eye(M.shape[0])
+        self._J = J
         self._Jr = J[3:]
         self._Jt = J[:3]
         self._t_end = t_end
@@ -141,6 +156,7 @@ class TorqueArmLaw:
         bias: np.ndarray,
         tilt: tuple[np.ndarray, np.ndarray] | None = None,
         hand: tuple[np.ndarray, np.ndarray] | None = None,
+        wrench_measured: np.ndarray | None = None,
     ) -> np.ndarray:
         """Return the joint torques at time `t` and state (q, v), within limits.
 
@@ -148,7 +164,8 @@ class TorqueArmLaw:
         Cartesian impedance (None: off).
 
         `bias`: the arm's bias forces there; `tilt`: (rotation error hand -> target, hand angular velocity), world
-        frame, for the roll/pitch hold (None: off).
+        frame, for the roll/pitch hold (None: off); `wrench_measured`: the F/T reading at the grasp, world-aligned,
+        for the force feedback (None: off).
         """
         g = self.gains
         q_plan = self._q_end - self._v * (self._t_end - t)
@@ -157,6 +174,10 @@ class TorqueArmLaw:
         if hand is not None:
             p_err, v_err = hand
             tau = tau + self._Jt.T @ (g.cartesian_stiffness * p_err + g.cartesian_damping * v_err)
+        if wrench_measured is not None and g.force_feedback > 0.0:
+            w = np.asarray(wrench_measured, dtype=float)
+            self._w_f = w.copy() if self._w_f is None else self._w_f + self._alpha * (w - self._w_f)
+            tau = tau + self._J.T @ (g.force_feedback * (self._w_d - self._w_f))
         if tilt is not None and (g.tilt_stiffness > 0.0 or g.tilt_damping > 0.0):
             err, omega = tilt
             n = g.tilt_stiffness * err - g.tilt_damping * omega

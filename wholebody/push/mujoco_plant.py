@@ -186,6 +186,8 @@ class MujocoPlant:
         self.dt = float(config.control_dt)
         self.noise = noise
         self.rng = np.random.default_rng(seed)
+        #: the F/T noise of the arms' force loops (every physics step), apart from the sensing's
+        self._rng_loop = np.random.default_rng([0 if seed is None else seed, 1])
         self.n_sub = int(round(config.control_dt / config.physics_dt))
         robots = list(robots)
         modes = list(arm_modes) if arm_modes is not None else [arm_mode_of(mm) for mm in robots]
@@ -203,7 +205,7 @@ class MujocoPlant:
         self._robots = robots
         self._setups = setups
         self._laws = [
-            TorqueArmLaw(r.effort_limit, config.torque_gains)
+            TorqueArmLaw(r.effort_limit, config.torque_gains, config.physics_dt)
             if s.arm_mode == ARM_TORQUE
             else AdmittanceArmLaw(len(s.arm_joints), config.admittance)
             for r, s in zip(self.scene.robots, setups)
@@ -341,6 +343,12 @@ class MujocoPlant:
         o, p = d.site_xpos[r.ft_site], d.site_xpos[r.hand_site]
         return np.r_[f, n + np.cross(o - p, f)]
 
+    def _ft_at_grasp(self, i: int) -> np.ndarray:
+        """Return the F/T sensor's reading of this physics step (with its noise) as the hand's wrench at the grasp."""
+        n = self.noise
+        noise = np.r_[self._rng_loop.normal(0.0, n.force, 3), self._rng_loop.normal(0.0, n.torque, 3)]
+        return self._hand_wrench_world(i, self._sensor_wrench(i) + noise)
+
     def _ft_reading(self, i: int, noisy: bool) -> np.ndarray:
         w = self._sensor_wrench(i)
         if noisy:
@@ -408,7 +416,10 @@ class MujocoPlant:
                     bias = self._arm_bias(r, law)
                     tilt = self._tilt(r, c) if law.gains.tilt_stiffness > 0.0 else None
                     hand = self._hand_error(i, r, c, t_end - t) if law.gains.cartesian_stiffness > 0.0 else None
-                    d.ctrl[r.arm_actuators] = law.torque(t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias, tilt, hand)
+                    w_ft = self._ft_at_grasp(i) if law.gains.force_feedback > 0.0 else None
+                    d.ctrl[r.arm_actuators] = law.torque(
+                        t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias, tilt, hand, w_ft
+                    )
                 if r.base == "planar":
                     yaw = float(d.qpos[r.base_qpos[2]])
                     cy, sy = math.cos(yaw), math.sin(yaw)

@@ -109,8 +109,9 @@ def _weld_wrench_on_cart(plant: MujocoPlant) -> np.ndarray:
 
 def test_ft_sensor_equals_the_grasps_constraint_force_within_noise(setup):
     noise = MeasurementNoise(force=3.0, torque=0.3)
-    # the arm's own gravity compensation (the plant's bias forces) + J^T w of the allocated push
-    config = MujocoPlantConfig(torque_gains=TorqueArmGains(feedforward="bias"))
+    # the arm's own gravity compensation (the plant's bias forces) + J^T w of the allocated push, no F/T loop (its
+    # reaction to the sensor's noise shakes the gripper, whose inertia is beyond the sensor)
+    config = MujocoPlantConfig(torque_gains=TorqueArmGains(feedforward="bias", force_feedback=0.0))
     plant = _plant(setup, noise=noise, seed=3, config=config)
     push = np.array([25.0, -8.0, 0.0, 0.0, 0.0, 1.5])  # world-aligned at the grasp, on the cart
     errors_noisy, errors_clean = [], []
@@ -213,3 +214,29 @@ def test_wmra_rolls_on_its_wheels_with_the_cart_in_hand():
     assert x1[0] - x0[0] == pytest.approx(0.17 * 0.8, rel=0.25)
     rep = plant.report()
     assert 0.0 < rep["base_wheel_slip_max_m_s"] < 0.1  # the step to 1 rad/s spins the wheels up with some slip
+
+
+def test_ft_force_loop_adds_the_wrench_error_through_the_jacobian():
+    """The torque law's F/T loop: J^T K_f (w - w_f), w_f the low-passed reading; nothing when the reading is w."""
+    from wholebody.push.arm_control import TorqueArmLaw
+
+    rng = np.random.default_rng(1)
+    J = rng.normal(size=(6, 7))
+    A = rng.normal(size=(7, 7))
+    M = A @ A.T + 7 * np.eye(7)
+    w = np.array([30.0, -5.0, 0.0, 0.0, 0.0, 2.0])
+    q = np.zeros(7)
+
+    def torques(k_f, reading, steps=50):
+        law = TorqueArmLaw(np.full(7, 1e6), TorqueArmGains(stiffness=0.0, damping=0.0, force_feedback=k_f), 0.002)
+        law.begin(w, J.T @ w, q, q, J, M, t_end=0.01, dt=0.01)
+        taus = [law.torque(0.0, q, q, np.zeros(7), wrench_measured=reading) for _ in range(steps)]
+        return taus[0], taus[-1]
+
+    _, open_loop = torques(0.0, np.zeros(6))
+    np.testing.assert_allclose(open_loop, J.T @ w)  # off: the feed-forward alone
+    _, matched = torques(2.0, w)
+    np.testing.assert_allclose(matched, J.T @ w, atol=1e-9)  # the hand pushes as asked: no correction
+    first, settled = torques(2.0, 0.5 * w)  # the hand delivers half: the loop adds K_f times the shortfall
+    np.testing.assert_allclose(first, J.T @ w + J.T @ (2.0 * 0.5 * w), atol=1e-9)  # the filter starts at the reading
+    np.testing.assert_allclose(settled, J.T @ (2.0 * w), atol=1e-9)
