@@ -261,12 +261,16 @@ def shopping_cart(params: CartParams, rolling_friction: float = 1e-4, **override
             f"no chassis gives the cart a yaw inertia of {params.I:g} kg m^2 about its CoM "
             f"(wheels and the chassis offset alone give {params.I - izz:g})"
         )
-    # roll and pitch inertia of a box as long and wide as the basket (no planar effect)
-    ixx = m_c * (0.52**2 + 0.5**2) / 12.0
-    iyy = m_c * (0.85**2 + 0.5**2) / 12.0
+    return replace(geometry, chassis_mass=m_c, chassis_inertial=(m_c, (xc, yc, 0.45), _box_inertia(m_c, izz)))
+
+
+def _box_inertia(mass: float, izz: float) -> tuple[float, float, float]:
+    """Return (ixx, iyy, izz): roll and pitch of a box as long and wide as the basket (no planar effect), yaw izz."""
+    ixx = mass * (0.52**2 + 0.5**2) / 12.0
+    iyy = mass * (0.85**2 + 0.5**2) / 12.0
     iyy = max(iyy, izz - ixx + 1e-6) if izz > ixx + iyy else iyy  # triangle inequality of a rigid body
     ixx = max(ixx, izz - iyy + 1e-6)
-    return replace(geometry, chassis_mass=m_c, chassis_inertial=(m_c, (xc, yc, 0.45), (ixx, iyy, izz)))
+    return ixx, iyy, izz
 
 
 # --------------------------------------------------------------------------- model
