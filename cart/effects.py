@@ -34,7 +34,7 @@ N_NOMINAL = 6
 
 GRAVITY = 9.81
 
-#: Effect names of the project contract (DESIGN.md), in the order they are tried.
+#: Effect names of the project contract (docs/architecture.md), in the order they are tried.
 CONTRACT_NAMES = (
     "coulomb_friction",
     "caster_swivel",

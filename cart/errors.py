@@ -17,7 +17,7 @@ class CartError(CartpushError):
 
 
 class LogFormatError(CartError):
-    """A cart log violates LOG_FORMAT.md (names the file, the line and the problem)."""
+    """A cart log violates docs/log_format.md (names the file, the line and the problem)."""
 
 
 class ParameterError(CartError):

@@ -1,4 +1,4 @@
-"""Strict JSON output: NaN and +-Infinity become ``null`` (DESIGN.md: "JSON is strict")."""
+"""Strict JSON output: NaN and +-Infinity become ``null`` (docs/architecture.md: "JSON is strict")."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Read and write cart logs (LOG_FORMAT.md) and estimate velocities from the pose.
+"""Read and write cart logs (docs/log_format.md) and estimate velocities from the pose.
 
 A log is a CSV (or ``.csv.gz``) with ``# key: value`` metadata comments, one
 header line and one row per sample; see ``docs/cart.md`` for the columns.
@@ -272,7 +272,7 @@ def _log_from_columns(path: str, data: dict[str, np.ndarray], metadata: dict[str
 
 
 def read_log(path: str | os.PathLike) -> CartLog:
-    """Return the CartLog of a LOG_FORMAT.md file (.csv or .csv.gz); raise LogFormatError on bad input."""
+    """Return the CartLog of a docs/log_format.md file (.csv or .csv.gz); raise LogFormatError on bad input."""
     path = os.fspath(path)
     lines = _read_lines(path)
     metadata, i = _metadata(lines)
@@ -391,7 +391,7 @@ def plausibility_warnings(
 
 
 def write_log(path: str | os.PathLike, log: CartLog, wrap_theta: bool = False) -> None:
-    """Write ``log`` as LOG_FORMAT.md CSV (gzip-compressed if the name ends in .gz)."""
+    """Write ``log`` as docs/log_format.md CSV (gzip-compressed if the name ends in .gz)."""
     path = os.fspath(path)
     columns = list(REQUIRED_COLUMNS)
     theta = np.angle(np.exp(1j * log.q[:, 2])) if wrap_theta else log.q[:, 2]

@@ -7,7 +7,7 @@ fixed-step RK4 (``substeps`` per control period), under a controller callback
 supports discrete parameter changes (payload, paper test 11), a time-varying
 contact point and an ``extra_force(t, q, qd, params) -> generalized force`` hook
 for effects outside the nominal model. It returns the true and the measured
-log (LOG_FORMAT.md columns, velocities included).
+log (docs/log_format.md columns, velocities included).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Unit mistakes recognised from the physics of a pushed cart, refused with the fix named.
 
-LOG_FORMAT.md asks for SI units and radians. Three mistakes are common and silently give absurd
+docs/log_format.md asks for SI units and radians. Three mistakes are common and silently give absurd
 parameters (a 50 kg cart estimated at 0.06 kg from positions in millimetres); each shows in the
 kinematics of the pose stream, whatever the cart:
 

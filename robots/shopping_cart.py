@@ -1,6 +1,6 @@
 """A medium shopping cart (about 15 kg empty): fixed rear wheels, swivel casters in front.
 
-Frame `b` (LOG_FORMAT.md): origin at the midpoint of the fixed rear axle, x
+Frame `b` (docs/log_format.md): origin at the midpoint of the fixed rear axle, x
 forward, z up; the handle is behind it (negative x). Dimensions are estimates
 within the ranges of robots/README.md (no public drawing exists).
 """

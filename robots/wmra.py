@@ -1,4 +1,4 @@
-"""The USF wheelchair-mounted robotic arm (WMRA) as a URDF family (wmra_kinematics.md).
+"""The USF wheelchair-mounted robotic arm (WMRA) as a URDF family (the WMRA paper, docs/papers.md).
 
 The 7-DoF arm follows the paper's modified D-H table (Table I): all a = 0,
 alpha_{i-1} alternating -90/+90 deg, offsets d1..d7, theta_i = q_i with no

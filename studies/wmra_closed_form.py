@@ -1,4 +1,4 @@
-"""The WMRA paper's closed forms written out with numpy only (wmra_kinematics.md eq. 1-21).
+"""The WMRA paper's closed forms written out with numpy only (WMRA paper eq. 1-21, docs/papers.md).
 
 Independent of Pinocchio and of `wholebody.motion.kinematics`: used by the tests as the
 reference, and as readable documentation of the paper's model. Units: metres, radians.

@@ -11,7 +11,7 @@ import argparse
 from typing import Any
 
 DESCRIPTION = """\
-Turn a ROS recording into a cart log (LOG_FORMAT.md CSV): a ROS 1 .bag file, a ROS 2 bag
+Turn a ROS recording into a cart log (docs/log_format.md CSV): a ROS 1 .bag file, a ROS 2 bag
 folder (sqlite3 or MCAP storage) or a single .mcap file. No ROS installation is needed.
 
 The pose of the cart comes from --pose-topic (geometry_msgs/PoseStamped, TransformStamped,

@@ -21,7 +21,7 @@ EXAMPLE = """Examples:
   cartpush track sine --out sine_run.csv
 
 The end effector follows X = 90 t mm (line) or X = 90 t, Y = 1000 sin(0.1 t) mm (sine)
-from its initial pose, orientation held, 100 Hz for 60 s (wmra_kinematics.md §IV).
+from its initial pose, orientation held, 100 Hz for 60 s (WMRA paper §IV, docs/papers.md).
 --band R keeps the base origin within R metres of a centre sliding along world X at
 90 mm/s (paper §VI safety band)."""
 

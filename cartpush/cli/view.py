@@ -45,7 +45,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "view", help=HELP, description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument("log", nargs="?", help="cart log (.csv or .csv.gz, LOG_FORMAT.md) or a ROS bag")
+    source.add_argument("log", nargs="?", help="cart log (.csv or .csv.gz, docs/log_format.md) or a ROS bag")
     source.add_argument("--scenario", type=int, metavar="N", help="Table I simulation test N (1..11)")
     source.add_argument(
         "--robot",

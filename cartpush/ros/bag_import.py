@@ -1,5 +1,5 @@
 """Turn a ROS recording (ROS 1 ``.bag``, ROS 2 bag folder with sqlite3 or MCAP storage, ``.mcap``/``.db3`` file)
-into a cart log (LOG_FORMAT.md), with `rosbags` (pure Python, no ROS installation).
+into a cart log (docs/log_format.md), with `rosbags` (pure Python, no ROS installation).
 
 - :func:`list_bag`: what the bag holds (topics, types, counts, rates, the TF links).
 - :func:`import_bag`: the cart log and an :class:`ImportReport` saying what was done and dropped.
@@ -1142,7 +1142,7 @@ def _import_report(
 
 
 def _cart_log(report: ImportReport, t0_ns: int, cart: str, s: _Samples) -> CartLog:
-    """Return the cart log of an import, its metadata (LOG_FORMAT.md) taken from `report`."""
+    """Return the cart log of an import, its metadata (docs/log_format.md) taken from `report`."""
     metadata = {
         "source": "ROS bag",
         "bag": report.bag,

@@ -2,7 +2,7 @@
 
 :func:`simulate_hidden` integrates the cart (paper eq. 4, exact constraint,
 body-frame form of :func:`cart.model.forward_dynamics_fast`) with any of the
-contract effects of ``DESIGN.md`` switched on, with known parameters, under a
+contract effects of ``docs/architecture.md`` switched on, with known parameters, under a
 velocity-tracking controller following a random push/pull motion with turns
 (:func:`random_motion`); it samples the state at irregular times, adds
 measurement noise and applies the measurement-side effects (wrench bias, time

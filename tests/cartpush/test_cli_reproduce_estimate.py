@@ -80,7 +80,7 @@ def test_estimate_json_on_simulated_log(tmp_path, capsys):
     for method in ("ls", "ekf"):
         assert main(["estimate", str(path), "--method", method, "--mass-guess", "15", "--json"]) == 0
         out = json.loads(capsys.readouterr().out)
-        # the contract's fields (DESIGN.md), whatever the method
+        # the contract's fields (docs/architecture.md), whatever the method
         assert {"mass", "com", "inertia", "sigma", "sigma_yaw", "std", "nis_mean", "model_fits", "warnings"} <= set(out)
         assert set(out["std"]) == {"mass", "com", "inertia", "sigma", "sigma_yaw"}
         assert out["method"] == method

@@ -1,6 +1,6 @@
 """Contact frames on the cart handle and the grasp map (paper §II.C, eqs. 21–25).
 
-Frames (see DESIGN.md / LOG_FORMAT.md): {b} is the cart frame (origin at the
+Frames (see docs/log_format.md): {b} is the cart frame (origin at the
 fixed-axle midpoint, x forward, z up); a contact frame {a} has the orientation
 of {b} and its origin at the contact point ``p`` (coordinates in {b}).
 

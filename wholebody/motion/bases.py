@@ -2,7 +2,7 @@
 
 Planar pose ``(x, y, theta)`` in the world; body twist ``(vx, vy, wz)`` in the
 base frame (x forward, z up). Wheel rates are in rad/s, wheel increments in rad.
-Paper: wmra_kinematics.md eq. (4)-(12), (15).
+Paper: the WMRA paper (docs/papers.md), eq. (4)-(12), (15).
 """
 
 from __future__ import annotations
