@@ -27,7 +27,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "Example:\n  cartpush diagnose run.csv\n  cartpush diagnose run.csv.gz --json --out plots/",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("log", help="cart log (docs/log_format.md CSV, .csv or .csv.gz) or a ROS bag (with the topic options)")
+    p.add_argument(
+        "log", help="cart log (docs/log_format.md CSV, .csv or .csv.gz) or a ROS bag (with the topic options)"
+    )
     p.add_argument("--json", action="store_true", help="print JSON only")
     p.add_argument("--out", metavar="DIR", help="write replay.png and residuals.png into DIR")
     p.add_argument(
