@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from collections.abc import Sequence
 
 import mujoco
@@ -81,6 +81,9 @@ class MujocoPlantConfig:
     handle_tolerance: float = 0.02
     #: time (s) the scene settles (wheels onto the floor, casters, grasp) before t = 0, robots holding still
     settle_time: float = 0.2
+    #: False: with two or more torque-controlled arms on the cart their F/T loops are off (measured: two force loops
+    #: on one rigid cart leave the squeeze between the hands to drift; Traj. 2 diverges at 4.5 s with K_f = 2)
+    multi_arm_force_feedback: bool = False
 
     def __post_init__(self) -> None:
         if not (0 < self.physics_dt <= self.control_dt):
@@ -204,12 +207,7 @@ class MujocoPlant:
         )
         self._robots = robots
         self._setups = setups
-        self._laws = [
-            TorqueArmLaw(r.effort_limit, config.torque_gains, config.physics_dt)
-            if s.arm_mode == ARM_TORQUE
-            else AdmittanceArmLaw(len(s.arm_joints), config.admittance)
-            for r, s in zip(self.scene.robots, setups)
-        ]
+        self._laws = self._arm_laws(setups)
         self._qacc = np.zeros(self.scene.model.nv)
         self._quat = np.zeros(4)
         self._vel6 = np.zeros(6)
@@ -221,6 +219,7 @@ class MujocoPlant:
         self._base_yaw = [float(s.x[2]) for s in setups]
         self._yaw_prev = list(self._base_yaw)
         self._hand_clean = [np.zeros(6) for _ in robots]
+        self._base_int = [np.zeros(3) for _ in robots]
         self._settle()
         self._inertial = self._read_inertial()
         self.t = 0.0
@@ -229,6 +228,19 @@ class MujocoPlant:
         self._z = self._motion_capture()
 
     # ------------------------------------------------------------------ set-up
+
+    def _arm_laws(self, setups: Sequence[RobotSetup]) -> list[TorqueArmLaw | AdmittanceArmLaw]:
+        """Return each arm's law (torque or admittance); several torque arms lose their F/T loops (see the config)."""
+        config = self.config
+        torque_gains = config.torque_gains
+        if sum(s.arm_mode == ARM_TORQUE for s in setups) > 1 and not config.multi_arm_force_feedback:
+            torque_gains = replace(torque_gains, force_feedback=0.0)
+        return [
+            TorqueArmLaw(r.effort_limit, torque_gains, config.physics_dt)
+            if s.arm_mode == ARM_TORQUE
+            else AdmittanceArmLaw(len(s.arm_joints), config.admittance)
+            for r, s in zip(self.scene.robots, setups)
+        ]
 
     def _check_grasps(self, hands_b: list[np.ndarray], points: Sequence[Sequence[float]] | None, source) -> None:
         tol = self.config.handle_tolerance
@@ -421,10 +433,7 @@ class MujocoPlant:
                         t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias, tilt, hand, w_ft
                     )
                 if r.base == "planar":
-                    yaw = float(d.qpos[r.base_qpos[2]])
-                    cy, sy = math.cos(yaw), math.sin(yaw)
-                    tw = c.base_twist
-                    d.ctrl[r.base_actuators] = (cy * tw[0] - sy * tw[1], sy * tw[0] + cy * tw[1], tw[2])
+                    d.ctrl[r.base_actuators] = self._planar_base_rates(i, r, c.base_twist)
             mujoco.mj_step(m, d)
             self._track_slip()
         self.t = t_end
@@ -432,6 +441,19 @@ class MujocoPlant:
         self._after_period(commands)
         self._stats.wall += time.perf_counter() - wall0
         self._stats.sim += self.dt
+
+    def _planar_base_rates(self, i: int, r: RobotIndex, twist: np.ndarray) -> np.ndarray:
+        """Return the planar base's servo setpoints (world rates): the commanded body twist + the PI loop's integral."""
+        d, sv = self.scene.data, self.config.servos
+        yaw = float(d.qpos[r.base_qpos[2]])
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        rates = np.array([cy * twist[0] - sy * twist[1], sy * twist[0] + cy * twist[1], twist[2]])
+        if sv.base_integral > 0.0:
+            lim = sv.base_integral_limit
+            e = self._base_int[i] + self.config.physics_dt * (rates - d.qvel[r.base_dof])
+            self._base_int[i] = np.clip(e, -lim, lim)
+            rates = rates + sv.base_integral * self._base_int[i]
+        return rates
 
     def _arm_bias(self, r: RobotIndex, law: TorqueArmLaw) -> np.ndarray:
         """Return the arm's feed-forward besides J^T w: bias forces, or inverse dynamics (see `TorqueArmGains`)."""

@@ -61,6 +61,11 @@ class ServoGains:
     base_bandwidth: float = 40.0
     base_force_limit: float = 4000.0
     base_torque_limit: float = 2000.0
+    #: planar base: integral action (1/s) on the velocity error (a wheel drive's PI loop): the base does not fall
+    #: behind the commanded path while it accelerates (a P servo lags by acceleration / bandwidth, adding up over a
+    #: ramp: 2 cm over Traj. 2's start, enough to stretch the iiwa's elbow); bounded to `base_integral_limit` (m, rad)
+    base_integral: float = 10.0
+    base_integral_limit: float = 0.05
     #: differential drive wheels: kv (N m s/rad); force range = the wheel joint's effort limit
     wheel_kv: float = 60.0
     #: velocity-controlled arm joints: kv (N m s/rad); force range = the joint's effort limit
