@@ -240,3 +240,23 @@ def test_ft_force_loop_adds_the_wrench_error_through_the_jacobian():
     first, settled = torques(2.0, 0.5 * w)  # the hand delivers half: the loop adds K_f times the shortfall
     np.testing.assert_allclose(first, J.T @ w + J.T @ (2.0 * 0.5 * w), atol=1e-9)  # the filter starts at the reading
     np.testing.assert_allclose(settled, J.T @ (2.0 * w), atol=1e-9)
+
+
+def _base_lag(setup, integral: float) -> float:
+    """Return how far (m) the base falls behind the integral of its commanded forward speed over a 1 m/s^2 ramp."""
+    from wholebody.push.mujoco_scene import ServoGains
+
+    plant = _plant(setup, noise=QUIET, config=MujocoPlantConfig(servos=ServoGains(base_integral=integral)))
+    x0, travelled = plant.robot_states()[0][0], 0.0
+    for k in range(40):
+        v = 0.01 * (k + 1)  # 0.4 s at 1 m/s^2
+        plant.step([replace(_hold(plant), base_twist=np.array([v, 0.0, 0.0]))])
+        travelled += 0.01 * v
+    return travelled - (plant.robot_states()[0][0] - x0)
+
+
+def test_base_wheel_loop_integral_keeps_the_base_on_its_commanded_path(setup):
+    lag_p = _base_lag(setup, 0.0)
+    lag_pi = _base_lag(setup, 10.0)
+    assert lag_p > 0.005  # a velocity servo lags by acceleration / bandwidth, and that adds up over the ramp
+    assert abs(lag_pi) < 0.5 * lag_p
