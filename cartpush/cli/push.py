@@ -217,8 +217,21 @@ def print_summary(result) -> None:
     print(verdict)
     if over:
         print(f"cartpush push: warning: {verdict}", file=sys.stderr)
+    print(saturation_note(metrics.get("saturation") or {}))
     p = config.true_params
     print(
         f"grasp error max {1000 * metrics['grasp_error_max_m']:.2f} mm; final mass {metrics['mass_final_kg']:.2f} kg "
         f"(true {p.m:g} kg{'' if config.estimation else ', estimation off: the initial guess is kept'})"
+    )
+
+
+def saturation_note(saturation: dict) -> str:
+    """Return one line per limit that kept the allocation from the desired wrench: from when, how long in all,
+    in how many stretches (the longest), or that none did."""
+    if not saturation:
+        return "allocation never saturated: every desired cart wrench was produced within the limits"
+    rows = sorted(saturation.items(), key=lambda kv: -kv[1]["total_s"])
+    return "allocation saturated (the limit that bound, first at, total, stretches, longest):\n" + "\n".join(
+        f"  {k}: from t = {v['first_s']:.2f} s, {v['total_s']:.2f} s in {v['spans']} stretch(es), longest {v['longest_s']:.2f} s"
+        for k, v in rows
     )
