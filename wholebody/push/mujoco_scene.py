@@ -63,8 +63,10 @@ class ServoGains:
     base_torque_limit: float = 2000.0
     #: planar base: integral action (1/s) on the velocity error (a wheel drive's PI loop): the base does not fall
     #: behind the commanded path while it accelerates (a P servo lags by acceleration / bandwidth, adding up over a
-    #: ramp: 2 cm over Traj. 2's start, enough to stretch the iiwa's elbow); bounded to `base_integral_limit` (m, rad)
-    base_integral: float = 10.0
+    #: ramp: 2 cm over Traj. 2's start, enough to stretch the iiwa's elbow); bounded to `base_integral_limit` (m, rad).
+    #: Off by default: measured, 10/s keeps Traj. 2 closer through its first turn but does not stop its divergence,
+    #: and Traj. 1 without estimation then diverges at its final stop (docs/mujoco.md)
+    base_integral: float = 0.0
     base_integral_limit: float = 0.05
     #: differential drive wheels: kv (N m s/rad); force range = the wheel joint's effort limit
     wheel_kv: float = 60.0
