@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -50,7 +51,7 @@ class EstimateReport:
 
     method: str
     params: CartParams
-    std: dict[str, Any]
+    std: Mapping[str, Any]
     nis_mean: float
     model_fits: bool
     warnings: tuple[str, ...]
@@ -82,7 +83,7 @@ class EstimateReport:
         return out
 
 
-def not_identified(params: CartParams, std: dict[str, Any]) -> dict[str, str]:
+def not_identified(params: CartParams, std: Mapping[str, Any]) -> dict[str, str]:
     """Return parameter -> reason for the parameters whose std is larger than the object allows.
 
     Mass and inertia: std above ``MAX_RELATIVE_STD`` times the value. CoM: std above the body's half-size
@@ -159,11 +160,13 @@ def _innovation(log: CartLog, streams: Streams, params: CartParams, noise: dict[
 
 def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
     """Return the least-squares report (identify + EKF innovation check + segments)."""
-    from cart.identify import identify
+    from cart.identify import IdentifiabilityError, identify
     from cart.segments import find_segments
 
     res = identify(log, streams=streams)
     warnings = list(log.warnings) + streams.warnings() + list(res.warnings)
+    if res.wrench_noise is None:
+        raise IdentifiabilityError(f"{log.source}: the least-squares fit gave no wrench-noise model")
     f_noise, t_noise = res.wrench_noise
     noise = {"force": f_noise.low_frequency_std, "torque": t_noise.low_frequency_std}
     nis, rejected, note = _innovation(log, streams, res.params, noise)
@@ -231,7 +234,7 @@ def _segment_json(seg: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _ekf_bias(est_params: CartParams, est_std: dict[str, Any], ls) -> tuple[dict[str, float], list[str]]:
+def _ekf_bias(est_params: CartParams, est_std: Mapping[str, Any], ls) -> tuple[dict[str, float], list[str]]:
     """Return (EKF - LS differences, warnings naming the ones beyond ``EKF_BIAS_Z`` combined std)."""
     pairs = {
         "mass": (est_params.m, ls.params.m, est_std["mass"], ls.std["mass"], "kg"),

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TypedDict
 
 import numpy as np
 
@@ -77,6 +78,26 @@ class IdentifiabilityError(CartError):
     """The log does not excite the parameters enough for any estimate (says what is missing)."""
 
 
+class PhysicalStd(TypedDict):
+    """1-sigma std of the physical parameters (`Identification.std`)."""
+
+    mass: float
+    com: list[float]
+    inertia: float
+    sigma: float
+    sigma_yaw: float
+
+
+class FitData(TypedDict):
+    """The filtered regression ``x p = y`` (rows weighted by ``1 / scale^2``) at times ``t``, every ``step``-th row."""
+
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    scale: np.ndarray
+    step: int
+
+
 @dataclass(frozen=True)
 class Identification:
     """Result of :func:`identify`: parameters, 1-sigma std, fit diagnostics and warnings.
@@ -89,7 +110,7 @@ class Identification:
     """
 
     params: CartParams
-    std: dict[str, object]
+    std: PhysicalStd
     p: np.ndarray = field(repr=False)
     cov: np.ndarray = field(repr=False)
     cutoff_hz: float
@@ -104,7 +125,7 @@ class Identification:
     wrench_noise: tuple[AR1Noise, AR1Noise] | None = None
     offsets: dict[str, float] = field(default_factory=dict)
     grid_dt: float = float("nan")
-    fit_data: dict[str, np.ndarray] | None = field(default=None, repr=False)
+    fit_data: FitData | None = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)
@@ -390,7 +411,7 @@ def _jackknife_cov(x: np.ndarray, y: np.ndarray, wts: np.ndarray, noise: np.ndar
     return t_scale * (blocks - 1) / blocks * d.T @ d
 
 
-def _physical_std(p: np.ndarray, cov: np.ndarray) -> dict[str, object]:
+def _physical_std(p: np.ndarray, cov: np.ndarray) -> PhysicalStd:
     """Return the std of (m, dx, dy, I about the CoM, c_v, c_w) by linearising the phi -> physical map."""
     m, a, b, j = p[:4]
     jac = np.zeros((6, 6))
@@ -716,7 +737,7 @@ def _checked_streams(log: CartLog, streams: Streams | None) -> Streams:
     return streams
 
 
-def _excitation_warnings(p: np.ndarray, std: dict[str, object], inertia: float) -> list[str]:
+def _excitation_warnings(p: np.ndarray, std: PhysicalStd, inertia: float) -> list[str]:
     """Return warnings for parameters the log excites weakly (relative std above a half)."""
     m, a, b, j = p[:4]
     out = []

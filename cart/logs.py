@@ -260,7 +260,9 @@ def _log_from_columns(path: str, data: dict[str, np.ndarray], metadata: dict[str
     present = [c for c in VELOCITY_COLUMNS if c in data]
     if present:
         estimated = estimate_velocities(t, q) if len(present) < 3 else None
-        qd = np.column_stack([data[c] if c in data else estimated[:, k] for k, c in enumerate(VELOCITY_COLUMNS)])
+        qd = np.column_stack(
+            [data[c] if c in data or estimated is None else estimated[:, k] for k, c in enumerate(VELOCITY_COLUMNS)]
+        )
     contact = None
     if all(c in data for c in CONTACT_COLUMNS):
         contact = np.column_stack([data["contact_x"], data["contact_y"]])

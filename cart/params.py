@@ -24,7 +24,7 @@ MIN_MASS = 1e-6
 MIN_INERTIA = 1e-9
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class CartParams:
     """Physical cart parameters: mass, CoM (dx, dy) in {b}, inertia about the CoM, viscous coefficients.
 
@@ -36,12 +36,19 @@ class CartParams:
     dx: float
     dy: float
     I: float
-    sigma: float = 0.0
-    sigma_yaw: float | None = None
+    sigma: float
+    sigma_yaw: float
+
+    def __init__(
+        self, m: float, dx: float, dy: float, I: float, sigma: float = 0.0, sigma_yaw: float | None = None
+    ) -> None:
+        """Set the fields (``sigma_yaw=None``: equal to ``sigma``); raise ParameterError for unphysical values."""
+        for name, value in (("m", m), ("dx", dx), ("dy", dy), ("I", I), ("sigma", sigma)):
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "sigma_yaw", sigma if sigma_yaw is None else sigma_yaw)
+        self.__post_init__()
 
     def __post_init__(self) -> None:
-        if self.sigma_yaw is None:
-            object.__setattr__(self, "sigma_yaw", self.sigma)
         for name in ("m", "dx", "dy", "I", "sigma", "sigma_yaw"):
             value = getattr(self, name)
             if not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(float(value)):
@@ -74,7 +81,7 @@ class CartParams:
     @property
     def damping(self) -> tuple[float, float]:
         """Return the viscous coefficients (forward/lateral N s/m, yaw N m s/rad)."""
-        return self.sigma, float(self.sigma_yaw)
+        return self.sigma, self.sigma_yaw
 
     @classmethod
     def from_phi(cls, phi: np.ndarray, sigma: float = 0.0, sigma_yaw: float | None = None) -> CartParams:

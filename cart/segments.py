@@ -11,11 +11,14 @@ the change is kept when the two masses differ by more than ``CHANGE_Z`` combined
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cart.logs import CartLog
+
+if TYPE_CHECKING:
+    from cart.identify import FitData
 
 #: Combined std by which the masses of two sides must differ for a load change.
 CHANGE_Z = 5.0
@@ -84,7 +87,7 @@ def best_split(
     return float(0.5 * (t[idx[lo]] + t[idx[hi]]))
 
 
-def _sides_differ(data: dict[str, np.ndarray], tc: float, res) -> bool:
+def _sides_differ(data: FitData, tc: float, res) -> bool:
     """Return True when the masses of the regression's two sides differ enough to be worth estimating each.
 
     A quick screen on the whole log's filtered regression (its fit and covariance on each side, no

@@ -19,6 +19,7 @@ import importlib
 import sys
 import warnings
 from collections.abc import Sequence
+from typing import NoReturn
 
 from cart.errors import CartpushError
 
@@ -52,7 +53,7 @@ MAX_WARNINGS = 5
 class CliParser(argparse.ArgumentParser):
     """ArgumentParser whose usage errors are one line on stderr (exit code 2), like every other bad input."""
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         """Print ``PROG: error: message`` on one line and exit with code 2."""
         self.exit(2, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")
 
@@ -155,7 +156,7 @@ def _selected_command(argv: Sequence[str]) -> str | None:
     return None
 
 
-def _one_line(text: str) -> str:
+def _one_line(text: object) -> str:
     return " ".join(str(text).split())
 
 

@@ -170,7 +170,7 @@ def _write_outputs(out: str, results: list) -> None:
         notes = unobservable_notes(results)
         if notes:
             fh.write("\n" + "".join(f"- note: {line}\n" for line in notes))
-    colours = colormaps["tab20"].colors  # 20 distinct colours: no repeats for the 11 tests
+    colours = colormaps["tab20"](range(20))  # tab20's 20 distinct colours (RGBA): no repeats for the 11 tests
     fig = Figure(figsize=(13, 4.5), layout="constrained")
     axes = fig.subplots(1, 2, sharey=True)
     for i, r in enumerate(results):

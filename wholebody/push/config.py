@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Literal, Protocol
-from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -40,7 +39,7 @@ class ParameterEstimator(Protocol):
 
     x: np.ndarray
 
-    def step(self, gamma: Sequence[float], dt: float, z: Sequence[float]) -> float:
+    def step(self, gamma: np.ndarray, dt: float, z: np.ndarray) -> float:
         """Predict over dt under gamma, then update with z = (x, y, theta, vx, vy, omega)."""
 
     def params(self) -> CartParams:
@@ -233,7 +232,7 @@ class PushMetrics:
         return {k: (v if k == "saturation" else _json_value(v)) for k, v in self.__dict__.items()}
 
 
-def _json_value(v: object) -> object:
+def _json_value(v: float | tuple[tuple[float, float], ...]) -> int | float | list[list[float]]:
     """Return a metric as int, float or a list of [t0, t1] lists."""
     if isinstance(v, tuple):
         return [[float(a), float(b)] for a, b in v]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
 from types import SimpleNamespace
+from typing import Any
 from collections.abc import Sequence
 
 import numpy as np
@@ -89,9 +90,11 @@ class StepRecord:
     wheel_ratio: np.ndarray
 
 
-def stack_records(records: Sequence[StepRecord]) -> dict[str, np.ndarray]:
-    """Return each `StepRecord` field stacked over the periods (first axis: time)."""
-    out = {f.name: np.array([getattr(r, f.name) for r in records]) for f in fields(StepRecord) if f.name != "binding"}
+def stack_records(records: Sequence[StepRecord]) -> dict[str, Any]:
+    """Return each `StepRecord` field stacked over the periods (first axis: time); ``binding``: a list."""
+    out: dict[str, Any] = {
+        f.name: np.array([getattr(r, f.name) for r in records]) for f in fields(StepRecord) if f.name != "binding"
+    }
     out["binding"] = [r.binding for r in records]
     return out
 
@@ -206,7 +209,7 @@ def run_loop(
 
 def _result(
     config: PushConfig,
-    hist: dict[str, np.ndarray],
+    hist: dict[str, Any],
     effort_limit: np.ndarray,
     final: CartParams,
     wheel_limit: np.ndarray,

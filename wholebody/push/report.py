@@ -224,7 +224,9 @@ def _path_figure(runs: dict[str, PushResult]) -> Figure:
     pairs = (len(labels) - 1) // 2  # (cart, base) per run, last run first: list the first run first
     order = [0] + [k for j in reversed(range(pairs)) for k in (1 + 2 * j, 2 + 2 * j)]
     ax.legend([handles[k] for k in order], [labels[k] for k in order], fontsize=7, loc="best")
-    ax.set_xlabel("x [m]"), ax.set_ylabel("y [m]"), ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
     ax.set_title("paths (world frame); the carts differ by mm: see tracking_estimation.png", fontsize=9)
     return fig

@@ -177,6 +177,8 @@ class DevToolsPage:
             f"(function () {{ const r = document.getElementById({element_id!r}).getBoundingClientRect();"
             " return [r.left + r.width / 2, r.top + r.height / 2]; })()"
         )
+        if not isinstance(box, list) or len(box) != 2:
+            raise SceneError(f"the page gave no position for the element {element_id!r}, got {box!r}")
         x, y = (float(v) for v in box)
         for kind in ("mousePressed", "mouseReleased"):
             self.send("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left", clickCount=1)

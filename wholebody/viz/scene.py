@@ -25,6 +25,7 @@ import meshcat
 import meshcat.geometry as mg
 import meshcat.transformations as tf
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 import umsgpack
 from meshcat.animation import Animation, AnimationClip
@@ -387,7 +388,8 @@ class Scene:
             for stream in (self._server.stdout, self._server.stderr):
                 if stream is not None:
                     stream.close()
-            self.window.live.zmq_socket.close(linger=0)
+            if self.window.live is not None:  # the live window of the server started with it
+                self.window.live.zmq_socket.close(linger=0)
             self._server = None
 
     def __enter__(self) -> Scene:
@@ -619,7 +621,7 @@ class Scene:
 
     def _framing(self, names: Sequence[str], margin: float) -> Camera:
         """Return a camera seeing every frame of the robots `names` as displayed, `margin` m around them."""
-        pts = []
+        pts: list[np.ndarray] = []
         for name in names:
             robot = self._robot(name)
             pin.framesForwardKinematics(robot.model, robot.data, self._q[name])
@@ -654,7 +656,7 @@ class Scene:
     # -- animation -------------------------------------------------------------------
     def animate(
         self,
-        t: Sequence[float],
+        t: npt.ArrayLike,
         poses: Mapping[str, Any],
         q_joints: Mapping[str, Any] | None = None,
         wrenches: Mapping[str, tuple[Any, Any]] | None = None,
@@ -685,22 +687,22 @@ class Scene:
         playback runs in real time; beyond MAX_FRAMES frames only every k-th
         frame gets keys (three.js interpolates between them), so the page stays small.
         """
-        t = np.asarray(t, dtype=float).ravel()
-        frame_numbers, idx = _frame_schedule(t, fps)
+        times = np.asarray(t, dtype=float).ravel()
+        frame_numbers, idx = _frame_schedule(times, fps)
         keys = list(zip(frame_numbers.tolist(), idx))
         anim = Animation(default_framerate=fps)
         for name in follow:
             if name not in poses:
                 raise SceneError(f"follow: robot {name!r} is not animated; animated: {', '.join(poses)}")
         for name, traj in poses.items():
-            self._animate_robot(anim, keys, name, traj, (q_joints or {}).get(name), len(t))
+            self._animate_robot(anim, keys, name, traj, (q_joints or {}).get(name), len(times))
         if scale is None:
             norms = [np.linalg.norm(np.asarray(f, dtype=float), axis=-1) for _, f in (wrenches or {}).values()]
             scale = nice_scale(np.concatenate(norms)) if norms else FORCE_SCALE
         for name, (origins, forces) in (wrenches or {}).items():
-            self._animate_arrow(anim, keys, name, origins, forces, kind, scale, len(t))
+            self._animate_arrow(anim, keys, name, origins, forces, kind, scale, len(times))
         for path, pts in (markers or {}).items():
-            self._animate_marker(anim, keys, path, pts, len(t))
+            self._animate_marker(anim, keys, path, pts, len(times))
         self.viewer.set_animation(anim, play=play, repetitions=repetitions)
         self.follow = tuple(follow)
         self._fps = fps
@@ -926,6 +928,8 @@ def pushing_configuration(
     prof = profile(robot)
     if prof.push_arm_seed is None:
         raise SceneError(f"robot {robot!r} has no push posture in robots.profiles; it does not push the cart")
+    if prof.grasp_pitch is None:
+        raise SceneError(f"robot {robot!r} has no grasp pitch in robots.profiles; it does not push the cart")
     q_cart = np.asarray(cart_pose, dtype=float).ravel()
     if q_cart.shape != (3,) or not np.all(np.isfinite(q_cart)):
         raise SceneError(f"cart pose must be 3 finite numbers (x, y, theta), got {cart_pose!r}")
