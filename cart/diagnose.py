@@ -864,10 +864,15 @@ FRAME_MARGIN = 20.0
 FRAME_RATIO = 0.5
 #: ... and its forward misfit at most this many times the force noise's (a cart that fits, not an effect)
 FRAME_NOISE = 4.0
+#: a {b} reading better by this much (at the noise level), short of the refusal, is a warning
+FRAME_WARN = 10.0
 
 
-def _frame_check(sig: Signals, edges: np.ndarray) -> None:
+def _frame_check(sig: Signals, edges: np.ndarray, final: Fit | None = None) -> str | None:
     """Raise WrenchFrameError when the log's wrench reads as expressed in {b}, not {s} (LOG_FORMAT).
+
+    Return a warning (else None) when the {b} reading fits at the noise level and better by
+    FRAME_WARN but not decisively.
 
     The model is fitted to the wrench as logged and to (fx, fy) read in {b} and rotated into {s} by
     the heading, both times with a constant force in {s} (a floor slope) and a constant wrench in {b}
@@ -876,11 +881,14 @@ def _frame_check(sig: Signals, edges: np.ndarray) -> None:
     fits the forward row at the force noise's level (FRAME_NOISE: an unmodelled effect such as
     swivelling casters can make the {b} reading fit somewhat better, never at the noise level) and
     gives a physical cart, the log's wrench was written in the cart frame. Needs the heading to
-    turn by FRAME_MIN_TURN (otherwise the two readings agree).
+    turn by FRAME_MIN_TURN (otherwise the two readings agree). Run after the search: both readings
+    are fitted with the effects ``final`` named too (same model, same parameters), so that a real
+    effect such as a payload change, which can make the {b} reading fit the nominal model better,
+    is on the as-logged side as well.
     """
     th = sig.q_raw[:, 2]
     if float(np.ptp(th)) < FRAME_MIN_TURN:
-        return
+        return None
     c, s = np.cos(th), np.sin(th)
     g = sig.gamma_raw
     g_alt = np.column_stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1], g[:, 2]])
@@ -893,25 +901,28 @@ def _frame_check(sig: Signals, edges: np.ndarray) -> None:
         f_lat=-sq * g_alt[:, 0] + cq * g_alt[:, 1],
         extras=dict(keep),
     )
-    both = [(FloorSlope(), ()), (WrenchBias(), ())]
+    named = list(final.effects) if final is not None else []
+    both = named + [(e, ()) for e in (FloorSlope(), WrenchBias()) if e.name not in {n.name for n, _ in named}]
     as_logged = fit_model(replace(sig, extras=dict(keep)), edges, both)
     fit_alt = fit_model(alt, edges, both)
     better = as_logged.m2ll - fit_alt.m2ll
+    misfit = as_logged.rss[0]
     t_win = float(np.mean(np.diff(sig.t[edges])))
     noise_level = sig.sigma_force**2 * float(np.median(np.diff(sig.t))) * t_win  # white force noise over a window
     at_noise = fit_alt.rss[0] <= FRAME_NOISE * noise_level
-    if (
-        better > FRAME_MARGIN
-        and fit_alt.rss[0] < FRAME_RATIO * as_logged.rss[0]
-        and at_noise
-        and cart_is_physical(fit_alt.x)
-    ):
+    if better > FRAME_MARGIN and fit_alt.rss[0] < FRAME_RATIO * misfit and at_noise and cart_is_physical(fit_alt.x):
         raise WrenchFrameError(
             f"the wrench (fx, fy) looks expressed in the cart frame {{b}}, not in the world frame {{s}} that "
             f"LOG_FORMAT requires: read as {{b}} and rotated by theta, the model fits it far better "
             f"(-2 log L lower by {better:.0f}, m = {fit_alt.x[0]:.1f} kg instead of {as_logged.x[0]:.1f} kg); "
             "rotate fx, fy into {s} (fx_s = cos(theta) fx - sin(theta) fy, fy_s = sin(theta) fx + cos(theta) fy)"
         )
+    if better > FRAME_WARN and at_noise:
+        return (
+            f"the wrench (fx, fy) may be expressed in the cart frame {{b}} instead of {{s}}: read so, the model "
+            f"fits it better (-2 log L lower by {better:.0f}), though not decisively; check the logger's frame"
+        )
+    return None
 
 
 def _nominal_fit(sig: Signals, edges: np.ndarray, source: str) -> tuple[Fit, list[str]]:
@@ -1000,7 +1011,6 @@ def diagnose(
     sig, horizon, edges = _checked_signals(prep.log, horizon, window)
     cands = list(candidates) if candidates is not None else registered_effects()
     nominal, warnings = _nominal_fit(sig, edges, log.source)
-    _frame_check(sig, edges)
     rep0 = replay(sig, nominal.x, horizon=horizon)
     flagged = flag_starts(rep0)
     mask = flagged if np.any(flagged) else None
@@ -1008,6 +1018,8 @@ def diagnose(
     current, named, reasons, reps, first_scores, verdicts = _search(
         sig, edges, nominal, cands, (threshold, horizon, max_effects), (mask, rep0, slip_ratio)
     )
+    frame_note = _frame_check(sig, edges, current)
+    warnings += [frame_note] if frame_note else []
     return DiagnosisReport(
         effects=tuple(_named_effects(named, reasons, reps, flagged, horizon, prep.time_offset)),
         gap_before=rep0.gap(mask),

@@ -50,7 +50,7 @@ def test_bad_log_exits_2_with_one_line(tmp_path, capsys):
 def test_wrench_in_the_cart_frame_exits_2_with_one_line(tmp_path, capsys):
     from studies.testbeds.hidden_effects import defective_log
 
-    h = random_case(None, np.random.default_rng(9101), duration=30.0, rate=100.0, jitter=0.1)
+    h = random_case(None, np.random.default_rng(9103), duration=30.0, rate=100.0, jitter=0.1)
     path = str(tmp_path / "cart_frame.csv")
     write_log(path, defective_log(h.measured, "wrench_in_cart_frame", np.random.default_rng(4)))
     assert main(["diagnose", path]) == 2
