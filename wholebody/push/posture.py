@@ -35,6 +35,9 @@ BASE_Y_RANGE = (-0.6, 0.6)
 SEARCH_MARGIN = 0.2
 #: Weight of the base's lateral offset from its contact in the search (per m; the joint pull is 0.05 per half range).
 BASE_Y_WEIGHT = 0.5
+#: Weight of the base's distance behind the closest place (per m): a base close to the handle swings less
+#: sideways when the cart turns (a differential base must follow that swing with its wheels alone).
+BASE_X_WEIGHT = 0.3
 #: How many of the best placements of a fixed base are ranked by the handle length they reach.
 REACH_CANDIDATES = 4
 
@@ -57,7 +60,12 @@ class Placement:
     def score(self) -> float:
         """Return the ranking score: reachable handle length (m) + joint-limit margin (fraction of range) less
         any gravity load above half the limits."""
-        return self.reach + self.margin - max(0.0, self.gravity_ratio - 0.5)
+        return (
+            self.reach
+            + self.margin
+            - max(0.0, self.gravity_ratio - 0.5)
+            - BASE_X_WEIGHT * (BASE_X_RANGE[1] - self.base_x)
+        )
 
 
 def joint_margin(wb: WholeBody, q: np.ndarray) -> float:
@@ -106,7 +114,9 @@ def _search(
 
     def residual(z: np.ndarray) -> np.ndarray:
         err = pin.log6(wb.ee_placement(state(z)).actInv(target)).vector
-        return np.r_[10.0 * err, 0.05 * (z[2:] - mid) / half, BASE_Y_WEIGHT * z[1]]
+        return np.r_[
+            10.0 * err, 0.05 * (z[2:] - mid) / half, BASE_Y_WEIGHT * z[1], BASE_X_WEIGHT * (z[0] - BASE_X_RANGE[1])
+        ]
 
     z0 = np.clip(np.r_[bx0, 0.0, seed], lo + 1e-9, hi - 1e-9)
     sol = least_squares(residual, z0, bounds=(lo, hi), xtol=1e-10, ftol=1e-10, max_nfev=400)

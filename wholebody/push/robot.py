@@ -393,7 +393,8 @@ class MobileManipulator:
 
         ``J_a`` (6 x n_arm) is the ee Jacobian (world-aligned, arm columns) with its rows rotated into the
         cart frame of pose `q_cart` (a wrench in {a} is oriented like {b}); ``bias`` = rnea(q, v, 0): gravity
-        and the velocity terms of input `u` (default: the last command). `WrenchAllocator.set_torque_limits`
+        and the velocity terms of input `u` (default: the last command); the accelerations the whole-body QP
+        will command are not known yet (the allocation's margin covers them). `WrenchAllocator.set_torque_limits`
         takes them.
         """
         q, v = self.pin_state(self.u if u is None else u)
