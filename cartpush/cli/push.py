@@ -62,6 +62,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="freeze the parameters at the initial guess (wrong mass) instead of estimating them",
     )
     p.add_argument(
+        "--estimator",
+        default="online",
+        choices=("online", "ekf"),
+        help="the parameter estimator: online (recursive least squares with the wrench as the regression's output; "
+        "load changes and run-off reported; default) or ekf (the cart paper's EKF)",
+    )
+    p.add_argument(
         "--plant",
         default="kinematic",
         choices=("kinematic", "mujoco"),
@@ -154,6 +161,7 @@ def config_from_args(args: argparse.Namespace):
         seed=args.seed,
         robot=args.robot,
         plant=args.plant,
+        estimator=args.estimator,
         cart_model=None if args.cart_model is None else str(args.cart_model),
         **kwargs,
     )
@@ -189,6 +197,8 @@ def run(args: argparse.Namespace) -> int:
         out.update({k: v for k, v in metrics.items() if k not in out})
         if result.plant_report is not None:
             out.update(result.plant_report)
+        out["estimator"] = config.estimator if config.estimation else "none"
+        out.update(result.estimator_report or {})
         out["files"] = [str(p) for p in written]
         print(dumps_strict(out))
         return 0
@@ -213,6 +223,7 @@ def print_summary(result) -> None:
     print(comparison_table({"this run": result}))
     if config.estimation:
         print(unobservable_note({"this run": result}))
+        print(estimator_note(result.estimator_report or {}))
     verdict, over = torque_verdict(result)
     print(verdict)
     if over:
@@ -223,6 +234,28 @@ def print_summary(result) -> None:
         f"grasp error max {1000 * metrics['grasp_error_max_m']:.2f} mm; final mass {metrics['mass_final_kg']:.2f} kg "
         f"(true {p.m:g} kg{'' if config.estimation else ', estimation off: the initial guess is kept'})"
     )
+
+
+def estimator_note(report: dict) -> str:
+    """Return what the online estimator found: load changes (when, the new mass), run-off, unexcited parameters."""
+    if not report:
+        return "estimator: the cart paper's EKF (no load-change or run-off monitor)"
+    lines = [
+        f"load change at t = {c['t_change']:.2f} s (detected {c['t_detected']:.2f} s): mass "
+        f"{c['mass_before']:.2f} -> {c['mass_after']:.2f} kg"
+        for c in report.get("load_changes", [])
+    ] or ["no load change detected"]
+    flags = report.get("runoff_flags", [])
+    kinds = sorted({f["kind"] for f in flags})
+    lines.append(
+        f"run-off flagged {len(flags)} time(s) ({', '.join(kinds)}): those estimates were held, not used"
+        if flags
+        else "no run-off: every estimate was physically plausible and fitted the data"
+    )
+    unexcited = report.get("unexcited") or []
+    if unexcited:
+        lines.append(f"not excited by this motion (kept at the prior, std says so): {', '.join(unexcited)}")
+    return "\n".join(lines)
 
 
 def saturation_note(saturation: dict) -> str:

@@ -19,6 +19,8 @@ from wholebody.push.geometry import DEFAULT_GEOMETRY, CartGeometry
 
 #: How the contact points are chosen: held at `fixed_contact_y`, or re-planned from the estimate.
 ContactMode = Literal["fixed", "optimal"]
+#: The parameter estimator of the loop: the online least squares (`cart.online_estimator`) or the paper's EKF.
+EstimatorName = Literal["online", "ekf"]
 #: What answers the controller: ideal servos and the exact cart model, or robots and cart in MuJoCo.
 PlantName = Literal["kinematic", "mujoco"]
 
@@ -78,6 +80,8 @@ class PushConfig:
     substeps: int = 2
     n_arms: int = 1
     estimation: bool = True
+    #: which estimator runs when `estimation` is on (`wholebody.push.loop.make_estimator`)
+    estimator: EstimatorName = "online"
     contact: ContactMode = "optimal"
     #: fixed contact point(s) y (m); None = the robot's `push_contact_y` (two arms: -0.2, 0.2)
     fixed_contact_y: tuple[float, ...] | None = None
@@ -112,6 +116,8 @@ class PushConfig:
             raise WholeBodyError("trajectory must be 1, 2 or an object with sample(t) -> (q, qd, qdd)")
         if self.n_arms not in (1, 2):
             raise WholeBodyError(f"arms must be 1 or 2, got {self.n_arms}")
+        if self.estimator not in ("online", "ekf"):
+            raise WholeBodyError(f"estimator must be 'online' or 'ekf', got {self.estimator!r}")
         if self.plant not in ("kinematic", "mujoco"):
             raise WholeBodyError(f"plant must be 'kinematic' or 'mujoco', got {self.plant!r}")
         if self.cart_model is not None and self.plant != "mujoco":
@@ -270,3 +276,6 @@ class PushResult:
     #: the plant's own diagnostics (`wholebody.push.plants.plant_report`): "plant", and for MuJoCo the cart's
     #: true and effective mass, wrench error, grasp and wheel slip, real-time factor
     plant_report: dict | None = None
+    #: what the estimator says of its run (`cart.online_estimator.OnlineLSEstimator.report`): load changes
+    #: (time, new mass), run-off flags, parameters the motion did not excite; {} for the paper's EKF
+    estimator_report: dict | None = None

@@ -31,10 +31,18 @@ from wholebody.push.robot import MobileManipulator
 from wholebody.push.scheduler import ContactScheduler
 
 
-def make_estimator(config: PushConfig, q0: np.ndarray) -> CartEKF:
-    """Return the EKF (parameters frozen at the initial guess when estimation is off)."""
+def make_estimator(config: PushConfig, q0: np.ndarray) -> ParameterEstimator:
+    """Return the run's estimator: the online least squares (default) or the paper's EKF (`config.estimator`).
+
+    With estimation off, the paper's EKF with its parameters frozen at the initial guess (a state observer).
+    """
     p0 = config.initial_params()
-    ekf_config = EKFConfig.from_noise(config.noise.measurement_std(), estimate_params=config.estimation)
+    std = config.noise.measurement_std()
+    if config.estimation and config.estimator == "online":
+        from cart.online_estimator import make_online_estimator
+
+        return make_online_estimator(q0, p0, std, wrench_std=(config.noise.force, config.noise.torque))
+    ekf_config = EKFConfig.from_noise(std, estimate_params=config.estimation)
     return CartEKF(q0, np.zeros(3), p0.phi, p0.sigma, ekf_config)
 
 
@@ -178,7 +186,9 @@ def run_push(
     setup = build_controller(config, controller, estimator)
     plant = make_plant(config, setup)
     result = run_loop(config, setup.controller, plant, progress, progress_label)
-    return replace(result, plant_report=plant_report(plant))
+    return replace(
+        result, plant_report=plant_report(plant), estimator_report=estimator_report(setup.controller.estimator)
+    )
 
 
 def run_loop(
@@ -205,6 +215,12 @@ def run_loop(
     mm = ctrl.robots[0]
     judged = replace(config, true_params=plant_truth(config, plant))
     return _result(judged, H, mm.effort_limit, ctrl.estimator.params(), mm.wb.wheel_velocity_limit)
+
+
+def estimator_report(estimator: ParameterEstimator) -> dict:
+    """Return what the estimator says of its run: load changes, run-off flags, unexcited parameters (or {})."""
+    report = getattr(estimator, "report", None)
+    return dict(report()) if callable(report) else {}
 
 
 def _result(
