@@ -21,6 +21,7 @@ import numpy as np
 from cart.control import ControllerName, make_controller
 from cart.ekf import CartEKF, EKFConfig
 from cart.estimation_metrics import estimation_errors
+from cart.errors import ParameterError
 from cart.params import CartParams
 from cart.simulate import MeasurementNoise, ParameterChange, min_effort_gamma, simulate
 from cart.trajectories import UnicycleTrajectory, trajectory_1, trajectory_2
@@ -86,6 +87,8 @@ class TestRun:
     params_hat: np.ndarray  # (N, 4) m, dx, dy, I (about the CoM)
     nis: np.ndarray
     gamma: np.ndarray
+    #: load changes the estimator detected (`cart.online_estimator.LoadChange.as_dict`); () for the EKF
+    events: tuple[dict, ...] = ()
 
     @property
     def position_error(self) -> np.ndarray:
@@ -113,6 +116,9 @@ class TestResult:
     run_no_estimation: TestRun = field(repr=False)
     #: time-resolved estimation errors of the run with estimation (:func:`estimation_error_metrics`)
     estimation: dict = field(default_factory=dict)
+    #: the same test with the online estimator (`cart.online_estimator`) in place of the paper's EKF:
+    #: final mass error, its estimation errors and the load changes it detected (empty when not run)
+    online: dict = field(default_factory=dict)
 
     def as_json(self) -> dict:
         """Return the JSON object of `cartpush reproduce --json` for this test."""
@@ -126,6 +132,7 @@ class TestResult:
             "tracking_max_after_5s_mm": self.tracking_max_after_5s_mm,
             "tracking_max_after_5s_no_estimation_mm": self.tracking_max_after_5s_no_estimation_mm,
             **self.estimation,
+            **({"online": self.online} if self.online else {}),
         }
 
 
@@ -236,6 +243,26 @@ class EstimatingLoop:
         return applied
 
 
+class OnlineLoop(EstimatingLoop):
+    """Table I's closed loop with the online estimator in place of the paper's EKF (same controller, same wrench)."""
+
+    def __init__(self, *args, meas_std: np.ndarray, options: dict | None = None, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.meas_std = meas_std
+        self.options = dict(options or {})
+
+    def _filter(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray):  # type: ignore[override]
+        """Create the estimator at the first sample, else update it with the last wrench and this measurement."""
+        from cart.online_estimator import make_online_estimator
+
+        z = np.concatenate([q_meas, qd_meas])
+        if self.ekf is None:
+            self.ekf = make_online_estimator(z, self.guess, self.meas_std, **self.options)  # type: ignore[assignment]
+            return self.ekf
+        self.nis[self.k] = self.ekf.step(self.gamma_in, t - self.t_prev, z)
+        return self.ekf
+
+
 def run_test(
     test: Table1Test,
     estimate: bool = True,
@@ -245,8 +272,12 @@ def run_test(
     seed: int = 0,
     trajectory: UnicycleTrajectory | None = None,
     change_detection: bool = False,
+    estimator: str = "ekf",
 ) -> TestRun:
-    """Return the time series of one test, with or without parameter estimation."""
+    """Return the time series of one test, with or without parameter estimation.
+
+    ``estimator``: "ekf" (the paper's) or "online" (`cart.online_estimator`, used only when estimating).
+    """
     traj = trajectory or (trajectory_1(duration) if test.traj == 1 else trajectory_2(duration))
     ctrl = make_controller(controller, traj)
     truth = true_params(test)
@@ -256,9 +287,7 @@ def run_test(
         if tc < duration
     ]
     n = int(round(duration / dt)) + 1
-    loop = EstimatingLoop(
-        ctrl, guess_params(test), ekf_config(test.noise, estimate, change_detection), contact_point(test), n
-    )
+    loop = _loop(test, ctrl, n, estimate, estimator, change_detection)
     rng = np.random.default_rng(seed * 1000 + test.test)
     q0, _, _ = traj.sample(0.0)
     sim = simulate(
@@ -282,6 +311,19 @@ def run_test(
         params_hat=loop.params_hat,
         nis=loop.nis,
         gamma=sim.true.gamma,
+        events=tuple(e.as_dict() for e in getattr(loop.ekf, "events", ())),
+    )
+
+
+def _loop(test: Table1Test, ctrl, n: int, estimate: bool, estimator: str, change_detection: bool) -> EstimatingLoop:
+    """Return the estimating loop of a run: the paper's EKF, or the online estimator when estimating with it."""
+    if estimator not in ("ekf", "online"):
+        raise ParameterError(f"estimator must be 'ekf' or 'online', got {estimator!r}")
+    if estimate and estimator == "online":
+        std = MeasurementNoise.from_level(test.noise).measurement_std()
+        return OnlineLoop(ctrl, guess_params(test), ekf_config(test.noise), contact_point(test), n, meas_std=std)
+    return EstimatingLoop(
+        ctrl, guess_params(test), ekf_config(test.noise, estimate, change_detection), contact_point(test), n
     )
 
 
@@ -311,8 +353,20 @@ def _tracking_mm_after(run: TestRun, t0: float) -> tuple[float, float]:
     return 1e3 * float(np.sqrt(np.mean(err**2))), 1e3 * float(np.max(err))
 
 
-def table1_result(test: Table1Test, run: TestRun, run0: TestRun) -> TestResult:
-    """Return the Table I metrics of a test from its runs with (``run``) and without (``run0``) estimation."""
+def online_metrics(run: TestRun) -> dict:
+    """Return the online estimator's row of a test: final mass error, estimation errors, detected load changes."""
+    return {
+        "mass_error_final_kg": float(abs(run.params_hat[-1, 0] - run.params_true[-1, 0])),
+        **estimation_error_metrics(run),
+        "load_changes": list(run.events),
+    }
+
+
+def table1_result(test: Table1Test, run: TestRun, run0: TestRun, run_online: TestRun | None = None) -> TestResult:
+    """Return the Table I metrics of a test from its runs with (``run``) and without (``run0``) estimation.
+
+    ``run_online``: the same test with the online estimator, reported beside the paper's EKF.
+    """
     m_true = run.params_true[:, 0]
     com_err = float(np.hypot(*(run.params_hat[-1, 1:3] - run.params_true[-1, 1:3])))
     rms, mx = _tracking_mm_after(run, 5.0)
@@ -329,6 +383,7 @@ def table1_result(test: Table1Test, run: TestRun, run0: TestRun) -> TestResult:
         run=run,
         run_no_estimation=run0,
         estimation=estimation_error_metrics(run),
+        online={} if run_online is None else online_metrics(run_online),
     )
 
 
@@ -354,10 +409,11 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _run_job(job: tuple[Table1Test, bool, ControllerName, float, float, int, bool]) -> TestRun:
-    """Run one (test, estimate, ...) job of :func:`run_table1` (a worker process's task)."""
-    test, estimate, controller, duration, dt, seed, change_detection = job
-    return run_test(test, estimate, controller, duration, dt, seed, change_detection=change_detection and estimate)
+def _run_job(job: tuple[Table1Test, bool, ControllerName, float, float, int, bool, str]) -> TestRun:
+    """Run one (test, estimate, ..., estimator) job of :func:`run_table1` (a worker process's task)."""
+    test, estimate, controller, duration, dt, seed, change_detection, estimator = job
+    detect = change_detection and estimate and estimator == "ekf"
+    return run_test(test, estimate, controller, duration, dt, seed, change_detection=detect, estimator=estimator)
 
 
 def _run_jobs(jobs: Sequence[tuple], workers: int) -> Iterator[tuple[int, TestRun]]:
@@ -385,23 +441,29 @@ def run_table1(
     progress: Callable[[int], None] | None = None,
     change_detection: bool = False,
     workers: int | None = None,
+    online: bool = True,
 ) -> list[TestResult]:
     """Return the TestResult of every test, in the order of ``tests``.
 
-    The two runs of every test (with and without estimation) are independent
-    jobs, run on ``workers`` processes (None: :func:`default_workers`; 1: in this
-    process); every run has its own seeded noise, so the results do not depend
-    on ``workers``. ``progress(test)`` is called as each test's two runs are done.
+    The runs of every test (with and without estimation, and with the online estimator when ``online``) are
+    independent jobs, run on ``workers`` processes (None: :func:`default_workers`; 1: in this process); every
+    run has its own seeded noise, so the results do not depend on ``workers``. ``progress(test)`` is called
+    as each test's runs are done.
     """
+    kinds = [(True, "ekf"), (False, "ekf")] + ([(True, "online")] if online else [])
     jobs = [
-        (test, estimate, controller, duration, dt, seed, change_detection)
+        (test, estimate, controller, duration, dt, seed, change_detection, estimator)
         for test in tests
-        for estimate in (True, False)
+        for estimate, estimator in kinds
     ]
     runs: dict = {}
+    per = len(kinds)
     for i, run in _run_jobs(jobs, default_workers() if workers is None else int(workers)):
         runs[i] = run
-        pair = i - i % 2
-        if progress is not None and pair in runs and pair + 1 in runs:
-            progress(jobs[pair][0].test)
-    return [table1_result(test, runs[2 * k], runs[2 * k + 1]) for k, test in enumerate(tests)]
+        first = i - i % per
+        if progress is not None and all(first + j in runs for j in range(per)):
+            progress(jobs[first][0].test)
+    return [
+        table1_result(test, runs[per * k], runs[per * k + 1], runs[per * k + 2] if online else None)
+        for k, test in enumerate(tests)
+    ]

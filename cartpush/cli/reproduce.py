@@ -49,6 +49,9 @@ TABLE_COLUMNS = (
     ("tracking_rms_no_estimation_mm", "track RMS no est. [mm]", "{:.2f}"),
     ("tracking_max_after_5s_mm", "track max >5 s [mm]", "{:.2f}"),
     ("tracking_max_after_5s_no_estimation_mm", "track max >5 s no est. [mm]", "{:.2f}"),
+    ("online.mass_error_final_kg", "online: m err final [kg]", "{:.3f}"),
+    ("online.time_mass_within_1kg_s", "online: t m within 1 kg [s]", "{:.1f}"),
+    ("online.load_changes", "online: load changes [t s -> kg]", "{}"),
 )
 
 
@@ -108,6 +111,11 @@ def _select(spec: str | None):
 
 def _value(result, key: str):
     data = result.as_json()
+    if key.startswith("online."):  # the online estimator's row, beside the paper's EKF
+        value = data.get("online", {}).get(key.split(".", 1)[1])
+        if key.endswith("load_changes"):
+            return " ".join(f"{c['t_change']:.1f}->{c['mass_after']:.1f}" for c in value or []) or "-"
+        return value
     return data[key] if key in data else getattr(result, key)
 
 
@@ -263,7 +271,7 @@ def run(args: argparse.Namespace) -> int:
     for line in unobservable_notes(results):
         print("note: " + line)
     print(
-        f"controller {args.controller}, {len(tests)} tests x 2 runs on {workers} process"
+        f"controller {args.controller}, {len(tests)} tests x 3 runs (EKF, no estimation, online) on {workers} process"
         f"{'es' if workers > 1 else ''} in {wall:.1f} s" + (f"; figures and table in {args.out}" if args.out else "")
     )
     return 0

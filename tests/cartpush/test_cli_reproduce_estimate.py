@@ -29,9 +29,13 @@ def test_reproduce_json_fields_and_outputs(tmp_path, capsys):
             "com_error_max_after_5s_m",
             "time_mass_within_1kg_s",
             "time_com_within_1cm_s",
+            "online",
         }
     ]
     r = rows[0]
+    # the online estimator's row beside the paper's EKF: its errors and the load changes it found
+    assert {"mass_error_final_kg", "time_mass_within_1kg_s", "load_changes"} <= set(r["online"])
+    assert r["online"]["mass_error_final_kg"] < 1.0 and r["online"]["load_changes"] == []
     assert r["test"] == 4 and r["mass_error_final_kg"] < 0.5
     assert r["tracking_rms_no_estimation_mm"] > r["tracking_rms_mm"]
     # millimetres: the study's own run, recomputed independently from its poses
