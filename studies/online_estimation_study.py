@@ -27,8 +27,8 @@ from cart.control import make_controller
 from cart.online_estimator import make_online_estimator
 from cart.simulate import MeasurementNoise, ParameterChange, simulate
 from cart.table1 import (
+    OnlineLoop,
     TESTS,
-    EstimatingLoop,
     TestRun,
     contact_point,
     estimation_error_metrics,
@@ -78,23 +78,6 @@ def push_part(seeds: tuple[int, ...] = (0,)) -> dict:
 
 
 # --------------------------------------------------------------------------- Table I test 11
-class OnlineLoop(EstimatingLoop):
-    """Table I's closed loop with the online estimator in place of the paper's EKF (same controller, same wrench)."""
-
-    def __init__(self, *args, meas_std: np.ndarray, options: dict, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        self.meas_std = meas_std
-        self.options = options
-
-    def _filter(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray):
-        z = np.concatenate([q_meas, qd_meas])
-        if self.ekf is None:
-            self.ekf = make_online_estimator(z, self.guess, self.meas_std, **self.options)
-            return self.ekf
-        self.nis[self.k] = self.ekf.step(self.gamma_in, t - self.t_prev, z)
-        return self.ekf
-
-
 def run_test_online(test, seed: int = 0, duration: float = 30.0, dt: float = 0.01, **options):
     """Return (TestRun, estimator) of a Table I test with the online estimator (as ``cart.table1.run_test``)."""
     traj = trajectory_1(duration) if test.traj == 1 else trajectory_2(duration)
