@@ -246,6 +246,20 @@ def _shade(ax, spans: Sequence[Sequence[float]], colour: str, label: str) -> Non
         ax.axvspan(a, b, color=colour, alpha=0.12, lw=0, label=label if j == 0 else None)
 
 
+def _estimator_events(axes, r: PushResult, colour: str, label: str) -> None:
+    """Mark the load changes the estimator detected (solid: the change, dashed: its detection) and its run-off flags."""
+    report = r.estimator_report or {}
+    for j, c in enumerate(report.get("load_changes", [])):
+        for ax in axes:
+            ax.axvline(c["t_change"], color=colour, lw=1.2, label=f"load change found, {label}" if j == 0 else None)
+            ax.axvline(c["t_detected"], color=colour, lw=0.8, ls="--")
+    flags = report.get("runoff_flags", [])
+    for j, f in enumerate(flags):
+        axes[0].plot(
+            f["t"], 0.0, "x", color="r", ms=5, label=f"run-off flagged (estimate held), {label}" if j == 0 else None
+        )
+
+
 def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
     """Return tracking error [mm], mass error [kg], CoM error [cm] and hand force over time."""
     from matplotlib.figure import Figure
@@ -267,6 +281,7 @@ def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
             _shade(
                 axes[2], r.metrics.com_unobservable_s, c, f"CoM unobservable (1-sigma grows, estimate held), {label}"
             )
+            _estimator_events(axes[1:3], r, c, label)
     for a, band, unit in ((axes[1], 1.0, "1 kg"), (axes[2], 1.0, "1 cm")):
         a.axhspan(0.0, band, color="g", alpha=0.12, lw=0, label=f"within {unit}")
     metrics = [r.metrics for r in runs.values()]  # y range: the errors after 5 s (the start transient is clipped)
@@ -276,7 +291,7 @@ def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
     for a, lab in zip(axes, labels):
         a.set_ylabel(lab), a.grid(alpha=0.3), a.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.suptitle(
-        "errors over time (start transient clipped); dotted: the EKF's 1-sigma\nshaded: the 1-sigma grew for >= 1 s "
+        "errors over time (start transient clipped); dotted: the estimate's 1-sigma; vertical lines: load changes found\nshaded: the 1-sigma grew for >= 1 s "
         "(no new information from the pushes: the estimate is held, not updated; it may still be right)",
         fontsize=8,
     )
