@@ -56,7 +56,8 @@ class DemoResult:
 
 def describe(config: PushConfig) -> str:
     """Return a short label of a run configuration."""
-    est = "EKF" if config.estimation else f"no EKF (m={config.initial_mass:g})"
+    names = {"online": "online LS", "ekf": "EKF"}
+    est = names[config.estimator] if config.estimation else f"no estimation (m={config.initial_mass:g})"
     contact = (
         "optimal CP" if config.contact == "optimal" else f"fixed CP y={','.join(f'{v:g}' for v in config.contact_y0())}"
     )
@@ -88,7 +89,7 @@ def _spans(spans: Sequence[Sequence[float]]) -> str:
 def unobservable_note(runs: dict[str, PushResult]) -> str:
     """Return, per estimating run, the stretches where the mass / CoM were unobservable and what that meant.
 
-    A stretch is where the EKF's 1-sigma of the parameter grew for >= 1 s
+    A stretch is where the estimate's 1-sigma of the parameter grew for >= 1 s
     (`wholebody.push.loop.unobservable_intervals`): the pushes there carried no
     new information about it (steady motion), so the estimate was held by the
     filter's memory, not updated by the data. The note says how the 1-sigma
@@ -101,7 +102,7 @@ def unobservable_note(runs: dict[str, PushResult]) -> str:
             continue
         m = r.metrics
         lines.append(
-            f"{label}: unobservable (EKF 1-sigma growing >= 1 s: no new information from the pushes, the estimate "
+            f"{label}: unobservable (the estimate's 1-sigma growing >= 1 s: no new information from the pushes, the estimate "
             f"is held from earlier data, not updated): mass {_spans(m.mass_unobservable_s)}"
             f"{_held(r, 0, m.mass_unobservable_s)}; CoM {_spans(m.com_unobservable_s)}"
             f"{_held(r, 1, m.com_unobservable_s)}"
@@ -190,7 +191,7 @@ def push_figures(runs: dict[str, PushResult]) -> dict[str, Figure]:
 
     ``path``: the cart's path of each run and the base of robot 1 (dotted, same
     colour), the first run drawn on top; ``tracking_estimation``: tracking error
-    (mm), mass and CoM (cm) errors over time with the EKF's 1-sigma, the 1 kg /
+    (mm), mass and CoM (cm) errors over time with the estimate's 1-sigma, the 1 kg /
     1 cm bands and the stretches where the 1-sigma grew (no new information),
     hand force; ``arm_torques``: each joint's torque as a share of its limit,
     the limits at +-100 %, legend outside the axes.
@@ -233,7 +234,7 @@ def _path_figure(runs: dict[str, PushResult]) -> Figure:
 
 
 def _std_lines(axes, result: PushResult, colour: str, label: str) -> None:
-    """Draw the EKF's 1-sigma of the mass (kg) and of the CoM (cm) as dotted lines (`PushResult.param_std`)."""
+    """Draw the estimate's 1-sigma of the mass (kg) and of the CoM (cm) as dotted lines (`PushResult.param_std`)."""
     if result.param_std is None or not np.any(np.isfinite(result.param_std)):
         return
     axes[0].plot(result.t, result.param_std[:, 0], ":", color=colour, lw=1.0, label=f"1-sigma, {label}")
@@ -375,7 +376,7 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     scene.show_trace("desired", result.q_desired[:, :2], label="cyan line: the cart's desired path")
     t = result.t[idx]
     scene.add_readout("hand force |f|", "N", t, np.linalg.norm(forces, axis=1))
-    est = "EKF estimate" if result.config.estimation else "no EKF, fixed guess"
+    est = f"{result.config.estimator} estimate" if result.config.estimation else "no estimation, fixed guess"
     scene.add_readout(f"mass ({est}; true {p.m:g} kg)", "kg", t, phi[:, 0])
     scene.add_readout("CoM error", "cm", t, 100 * np.hypot(phi[:, 1] / phi[:, 0] - p.dx, phi[:, 2] / phi[:, 0] - p.dy))
     scene.animate(
@@ -418,10 +419,14 @@ def write_report(
     return paths
 
 
-def demo_configs(duration: float = 30.0) -> dict[str, PushConfig]:
-    """Return the demo's runs: Traj. 2, optimized contact, with and without estimation (initial mass 16 kg)."""
+def demo_configs(duration: float = 30.0, physics: bool = True) -> dict[str, PushConfig]:
+    """Return the demo's runs: Traj. 2, optimized contact, with and without estimation (initial mass 16 kg), and
+    (``physics``) the same controller against the MuJoCo plant on Traj. 1 (fixed grip: the grips are welds)."""
     base = PushConfig(trajectory=2, duration=duration, contact="optimal", estimation=True)
-    return {"with estimation": base, "without estimation": replace(base, estimation=False)}
+    runs = {"with estimation": base, "without estimation": replace(base, estimation=False)}
+    if physics:
+        runs["MuJoCo plant, Traj. 1"] = replace(base, trajectory=1, plant="mujoco", contact="fixed")
+    return runs
 
 
 def run_demo(
