@@ -39,7 +39,9 @@ class CartController(Protocol):
 class ParameterEstimator(Protocol):
     """State + parameter estimator fed with the applied wrench and the motion-capture measurement."""
 
-    x: np.ndarray
+    @property
+    def x(self) -> np.ndarray:
+        """Return the state estimate, first (x, y, theta, vx, vy, omega) (read only: an attribute or a property)."""
 
     def step(self, gamma: np.ndarray, dt: float, z: np.ndarray) -> float:
         """Predict over dt under gamma, then update with z = (x, y, theta, vx, vy, omega)."""
