@@ -23,7 +23,13 @@ NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 #: A code cell "plots" when it calls pyplot or a plotting function of the project.
 PLOTS = re.compile(r"\bplt\.|\bplot_\w*\(|\w+_figures\(|\.plot\(")
 #: Notebooks that show a Meshcat scene inline.
-WITH_SCENE = {"01_contact_planning", "05_multi_arm_allocation", "06_push_cart", "07_wmra_push"}
+WITH_SCENE = {
+    "01_contact_planning",
+    "05_multi_arm_allocation",
+    "06_push_cart",
+    "07_wmra_push",
+    "08_bring_your_own_robot",
+}
 
 
 def test_there_are_notebooks():
@@ -36,6 +42,7 @@ def test_there_are_notebooks():
         "05_multi_arm_allocation",
         "06_push_cart",
         "07_wmra_push",
+        "08_bring_your_own_robot",
     } <= names
 
 

@@ -72,11 +72,12 @@ def validate(args: argparse.Namespace) -> None:
 
 def build_scene(args: argparse.Namespace, serve: bool):
     """Return the scene the arguments ask for (a `wholebody.viz.Scene`)."""
-    from wholebody.viz import log_scene, pushing_scene, robot_scene
+    from wholebody.push.scenes import pushing_scene
+    from wholebody.viz import log_scene, robot_scene
 
     if args.scenario is not None:
         options.duration(args.duration, rate=100.0)
-        from wholebody.viz.scenarios import scenario_scene
+        from wholebody.push.scenes import scenario_scene
 
         return scenario_scene(args.scenario, duration=args.duration, serve=serve)
     if args.robot is not None:

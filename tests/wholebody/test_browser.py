@@ -31,7 +31,8 @@ import pytest
 from PIL import Image
 
 from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
-from wholebody.viz import Scene, pushing_scene
+from wholebody.push.scenes import pushing_scene
+from wholebody.viz import Scene
 from wholebody.viz.browser import dump_dom, find_chromium, screenshot
 
 WIDTH, HEIGHT = 1024, 768

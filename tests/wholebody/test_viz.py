@@ -17,7 +17,8 @@ from robots.errors import UnknownRobotError
 from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
 from cartpush.cli import main
 from wholebody.viz.scene import ARROW_HEAD
-from wholebody.viz import COM_MARKER_Z, Camera, Scene, SceneError, log_scene, pushing_configuration, pushing_scene
+from wholebody.push.scenes import pushing_configuration, pushing_scene
+from wholebody.viz import COM_MARKER_Z, Camera, Scene, SceneError, log_scene
 
 
 @pytest.fixture(scope="module")
@@ -190,7 +191,7 @@ def test_pushing_configuration_holds_handle_with_push_grasp(name, cart, contact_
 
 
 def test_pushing_configuration_refuses_a_robot_that_does_not_push():
-    with pytest.raises(SceneError, match="push posture"):
+    with pytest.raises(SceneError, match="does not push"):
         pushing_configuration(robot="shopping_cart")
     with pytest.raises(SceneError, match="3 finite numbers"):
         pushing_configuration((0.0, math.nan, 0.0))
@@ -393,7 +394,7 @@ def _robot_pixel_height(scene: Scene, name: str, height: int = 768) -> float:
 
 def test_scenario_page_frames_the_robot_not_the_whole_path():
     """`view --scenario 6`: the robot fills a quarter of the page's height at the first frame, and the camera follows."""
-    from wholebody.viz.scenarios import scenario_scene
+    from wholebody.push.scenes import scenario_scene
 
     with scenario_scene(6, duration=4.0) as sc:
         assert _robot_pixel_height(sc, "ridgeback_iiwa") > 0.25 * 768

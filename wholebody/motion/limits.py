@@ -183,7 +183,7 @@ class SafetyBandLimit(Limit):
         c_th, s_th = s.cos_sin
         p = s.x[:2] + ell * np.array([c_th, s_th])  # look-ahead point P
         # velocity of P: paper eq. (12) with (L2, L3) = (ell, 0), chained with the base input map
-        M = np.array([[c_th, -s_th, -ell * s_th], [s_th, c_th, ell * c_th]]).dot(s.wb._wheel_map)
+        M = np.array([[c_th, -s_th, -ell * s_th], [s_th, c_th, ell * c_th]]).dot(s.wb.twist_map)
         G = np.zeros((N.shape[0], self._n_u))
         G[:, self._n_arm :] = N.dot(M)
         h = self.band.gain * (self._inner - N.dot(p - c)) / s.dt + N.dot(cdot)

@@ -227,9 +227,9 @@ class BaseTask(Task):
             p = x[:2] + ell * np.array([c, sn])
             p_d = pose_d[:2] + ell * np.array([cd, sd])
             pdot_d = rates[:2] + ell * rates[2] * np.array([-sd, cd])
-            M = np.array([[c, -sn, -ell * sn], [sn, c, ell * c]]) @ s.wb._wheel_map
+            M = np.array([[c, -sn, -ell * sn], [sn, c, ell * c]]) @ s.wb.twist_map
             return M, pdot_d + self.gain * (p_d - p)
         e = np.array([pose_d[0] - x[0], pose_d[1] - x[1], (pose_d[2] - th + np.pi) % (2 * np.pi) - np.pi])
         w = rates + self.gain * e
         twist = np.array([c * w[0] + sn * w[1], -sn * w[0] + c * w[1], w[2]])  # world rates -> body twist
-        return s.wb._wheel_map, twist
+        return s.wb.twist_map, twist

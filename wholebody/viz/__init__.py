@@ -22,8 +22,6 @@ from wholebody.viz.scene import (
     cover_floor,
     frame_points,
     log_scene,
-    pushing_configuration,
-    pushing_scene,
     robot_scene,
 )
 
@@ -42,7 +40,5 @@ __all__ = [
     "cover_floor",
     "frame_points",
     "log_scene",
-    "pushing_configuration",
-    "pushing_scene",
     "robot_scene",
 ]

@@ -911,34 +911,6 @@ class Scene:
         return path
 
 
-def pushing_configuration(
-    cart_pose: Sequence[float] = (0.9, 0.0, 0.0), contact_y: float = 0.0, robot: str = "ridgeback_iiwa"
-) -> tuple[np.ndarray, np.ndarray]:
-    """Return (base planar pose, full q) of `robot` holding the cart's handle at `contact_y` (m, in {b}).
-
-    The grasp of the push loop (`wholebody.push.robot`): the base stands where the
-    robot's profile puts it behind the handle (`push_base_x`, `push_base_y`, else
-    behind the contact), the hand holds the bar at the profile's grasp pitch, and
-    the arm comes from `solve_grasp_ik` seeded with the profile's push posture.
-    """
-    from robots.profiles import profile
-    from wholebody.motion.kinematics import wholebody_for
-    from wholebody.push.robot import grasp_configuration, grasp_rotation
-
-    prof = profile(robot)
-    if prof.push_arm_seed is None:
-        raise SceneError(f"robot {robot!r} has no push posture in robots.profiles; it does not push the cart")
-    if prof.grasp_pitch is None:
-        raise SceneError(f"robot {robot!r} has no grasp pitch in robots.profiles; it does not push the cart")
-    q_cart = np.asarray(cart_pose, dtype=float).ravel()
-    if q_cart.shape != (3,) or not np.all(np.isfinite(q_cart)):
-        raise SceneError(f"cart pose must be 3 finite numbers (x, y, theta), got {cart_pose!r}")
-    wb = wholebody_for(robots.load(robot), base_input=prof.base_input)
-    base_y = contact_y if prof.push_base_y is None else prof.push_base_y
-    base, arm = grasp_configuration(wb, prof, q_cart, contact_y, base_y, grasp_rotation(prof.grasp_pitch))
-    return base, wb.to_pinocchio_q(np.r_[base, arm])
-
-
 def frame_points(points: np.ndarray, scene: Scene) -> None:
     """Frame `points` (N, 3) with the camera and cover them with the floor grid."""
     scene.set_camera(Camera.framing(points))
@@ -954,23 +926,17 @@ def cover_floor(points: np.ndarray, scene: Scene, border: float = 2.0) -> None:
 
 
 def robot_scene(name: str, serve: bool = False) -> Scene:
-    """Return a scene of one robot at the origin (neutral joints; the iiwa with a bent elbow)."""
+    """Return a scene of one robot at the origin (its profile's push posture when it has one, else neutral joints)."""
+    from robots.profiles import profile
+
     scene = Scene([name], serve=serve)
-    if name == "ridgeback_iiwa":
-        scene.set_robot_pose(name, (0.0, 0.0, 0.0), {"iiwa_joint_2": 0.6, "iiwa_joint_4": -1.4, "iiwa_joint_6": -0.8})
+    prof = profile(name)
+    if prof.push_arm_seed is not None and prof.arm_joints:  # its pushing posture, arm held up, not folded flat
+        scene.set_robot_pose(name, (0.0, 0.0, 0.0), dict(zip(prof.arm_joints, prof.push_arm_seed)))
     robot = scene.robots[name]
     pin.framesForwardKinematics(robot.model, robot.data, scene.robot_q(name))
     pts = np.array([f.translation for f in robot.data.oMf])
     scene.set_camera(Camera.framing(np.vstack((pts, pts.min(axis=0) - 0.4, pts.max(axis=0) + 0.4))))
-    return scene
-
-
-def pushing_scene(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), serve: bool = False) -> Scene:
-    """Return the Ridgeback + iiwa holding the middle of the cart's handle, the cart at planar pose `cart_pose`."""
-    scene = Scene(["ridgeback_iiwa", "shopping_cart"], serve=serve)
-    _, q = pushing_configuration(cart_pose)
-    scene.set_robot_q("ridgeback_iiwa", q)
-    scene.set_robot_pose("shopping_cart", cart_pose)
     return scene
 
 

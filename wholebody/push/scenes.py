@@ -1,12 +1,51 @@
-"""A Meshcat scene of one Table I test (`cartpush view --scenario N`): the study's run, animated."""
+"""Push scenes: the robot holding the cart's handle, and one Table I test animated (`cartpush view --scenario N`)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
+import robots
 from robots.shopping_cart import CART_HANDLE_Z_B, CART_WHEEL_RADIUS
 from cart.table1 import TESTS, contact_point, run_test
-from wholebody.viz import COM_MARKER_Z, Scene, SceneError, cart_to_world_traj, cover_floor, pushing_configuration
+from wholebody.viz import COM_MARKER_Z, Scene, SceneError, cart_to_world_traj, cover_floor
+
+
+def pushing_configuration(
+    cart_pose: Sequence[float] = (0.9, 0.0, 0.0), contact_y: float = 0.0, robot: str = "ridgeback_iiwa"
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return (base planar pose, full q) of `robot` holding the cart's handle at `contact_y` (m, in {b}).
+
+    The grasp of the push loop (`wholebody.push.robot`): the base stands where the
+    robot's profile puts it behind the handle (`push_base_x`, `push_base_y`, else
+    behind the contact), the hand holds the bar at the profile's grasp pitch, and
+    the arm comes from `solve_grasp_ik` seeded with the profile's push posture.
+    """
+    from robots.profiles import profile
+    from wholebody.motion.kinematics import wholebody_for
+    from wholebody.push.robot import grasp_configuration, push_grasp_rotation, push_profile
+
+    if not profile(robot).is_mobile_manipulator:
+        raise SceneError(f"robot {robot!r} has no arm on a wheeled base in its profile; it does not push the cart")
+    q_cart = np.asarray(cart_pose, dtype=float).ravel()
+    if q_cart.shape != (3,) or not np.all(np.isfinite(q_cart)):
+        raise SceneError(f"cart pose must be 3 finite numbers (x, y, theta), got {cart_pose!r}")
+    loaded = robots.load(robot)
+    prof = push_profile(loaded)  # tuned settings, or computed from the URDF (grasp, base place, posture)
+    wb = wholebody_for(loaded, base_input=prof.base_input)
+    base_y = contact_y if prof.push_base_y is None else prof.push_base_y
+    base, arm = grasp_configuration(wb, prof, q_cart, contact_y, base_y, push_grasp_rotation(prof))
+    return base, wb.to_pinocchio_q(np.r_[base, arm])
+
+
+def pushing_scene(cart_pose: Sequence[float] = (0.9, 0.0, 0.0), serve: bool = False) -> Scene:
+    """Return the Ridgeback + iiwa holding the middle of the cart's handle, the cart at planar pose `cart_pose`."""
+    scene = Scene(["ridgeback_iiwa", "shopping_cart"], serve=serve)
+    _, q = pushing_configuration(cart_pose)
+    scene.set_robot_q("ridgeback_iiwa", q)
+    scene.set_robot_pose("shopping_cart", cart_pose)
+    return scene
 
 
 def scenario_scene(test: int, duration: float = 30.0, serve: bool = False, fps: int = 30) -> Scene:
