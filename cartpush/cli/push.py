@@ -221,6 +221,21 @@ def print_summary(result) -> None:
     config, metrics = result.config, result.metrics.as_dict()
     print(describe(config))
     print(comparison_table({"this run": result}))
+    rep = result.plant_report or {}
+    if rep.get("plant") == "mujoco":
+        wheel = rep.get("base_wheel_slip_max_m_s")
+        print(
+            f"MuJoCo plant: cart {rep['cart_mass_kg']:.2f} kg ({rep['cart_mass_effective_kg']:.2f} kg with its wheels' "
+            f"spin), hand force {rep['hand_force_rms_n']:.2f} N RMS, measured minus allocated {rep['wrench_error_rms_n']:.2f} "
+            f"N RMS, grip slip max {1e3 * rep['grasp_slip_max_m']:.2f} mm"
+            + ("" if wheel is None else f", base wheel slip max {wheel:.3f} m/s")
+            + f", {rep['real_time_factor']:.1f}x real time"
+        )
+    if result.metrics.tracking_lost_at_s is not None:
+        print(
+            f"LOST THE CART at t = {result.metrics.tracking_lost_at_s:.2f} s: more than 25 cm from its desired place "
+            "(the numbers after that describe a failed push; see the plant's report: saturation, slip, torque)"
+        )
     if config.estimation:
         print(unobservable_note({"this run": result}))
         print(estimator_note(result.estimator_report or {}))

@@ -186,6 +186,10 @@ class PushConfig:
         return f"Traj. {self.trajectory}" if isinstance(self.trajectory, int) else type(self.trajectory).__name__
 
 
+#: a cart this far (m) from its desired place is lost: the run reports when (`PushMetrics.tracking_lost_at_s`)
+LOST_TRACKING_M = 0.25
+
+
 @lru_cache(maxsize=8)
 def _file_geometry(path: str) -> CartGeometry:
     """Return the geometry of a cart file, read once per path."""
@@ -231,6 +235,8 @@ class PushMetrics:
     #: carried less information about it than the filter's random walk adds (`unobservable_intervals`)
     mass_unobservable_s: tuple[tuple[float, float], ...] = ()
     com_unobservable_s: tuple[tuple[float, float], ...] = ()
+    #: first time (s) the cart is more than `LOST_TRACKING_M` from its desired place (None: never): the loop lost it
+    tracking_lost_at_s: float | None = None
     #: where the allocation saturated: per binding limit, total time, number of stretches, longest stretch
     #: and first time (s) (`wholebody.contacts.allocation.saturation_summary`)
     saturation: dict = field(default_factory=dict)
@@ -240,8 +246,10 @@ class PushMetrics:
         return {k: (v if k == "saturation" else _json_value(v)) for k, v in self.__dict__.items()}
 
 
-def _json_value(v: float | tuple[tuple[float, float], ...]) -> int | float | list[list[float]]:
-    """Return a metric as int, float or a list of [t0, t1] lists."""
+def _json_value(v: float | tuple[tuple[float, float], ...] | None) -> int | float | list[list[float]] | None:
+    """Return a metric as int, float, None or a list of [t0, t1] lists."""
+    if v is None:
+        return None
     if isinstance(v, tuple):
         return [[float(a), float(b)] for a, b in v]
     return int(v) if isinstance(v, (int, np.integer)) else float(v)

@@ -21,7 +21,14 @@ from cart.ekf import CartEKF, EKFConfig
 from cart.estimation_metrics import estimation_errors
 from cart.params import CartParams
 from wholebody.contacts.allocation import saturation_spans, saturation_summary
-from wholebody.push.config import CartController, ParameterEstimator, PushConfig, PushMetrics, PushResult
+from wholebody.push.config import (
+    LOST_TRACKING_M,
+    CartController,
+    ParameterEstimator,
+    PushConfig,
+    PushMetrics,
+    PushResult,
+)
 from wholebody.push.geometry import DEFAULT_GEOMETRY
 from wholebody.push.controller import ControlDecision, PushController
 from wholebody.push.plants import make_plant, plant_report, plant_truth
@@ -255,6 +262,7 @@ def _metrics(config: PushConfig, H: SimpleNamespace, effort_limit: np.ndarray, f
     return PushMetrics(
         tracking_rms_mm=float(1e3 * np.sqrt(np.mean(err**2))),
         tracking_max_mm=float(1e3 * err.max()),
+        tracking_lost_at_s=_lost_at(err, config.dt),
         arm_torque_rms_nm=float(np.sqrt(np.mean(tau**2))),
         arm_torque_peak_nm=float(np.abs(tau).max()),
         arm_push_torque_rms_nm=float(np.sqrt(np.mean(H.push_torque**2))),
@@ -277,6 +285,12 @@ def _metrics(config: PushConfig, H: SimpleNamespace, effort_limit: np.ndarray, f
         arm_torque_step_max_nm=float(np.abs(dtau).max()),
         **est,
     )
+
+
+def _lost_at(err: np.ndarray, dt: float) -> float | None:
+    """Return the first time (s) the tracking error exceeds `LOST_TRACKING_M`, or None."""
+    lost = np.flatnonzero(err > LOST_TRACKING_M)
+    return None if lost.size == 0 else round(float(lost[0] * dt), 3)
 
 
 def _estimation_metrics(config: PushConfig, H: SimpleNamespace, after: float = 5.0) -> dict:

@@ -68,3 +68,11 @@ def test_a_user_path_through_waypoints_is_pushed():
     assert np.hypot(*(r.q_true[-1, :2] - end[:2])) < 0.02  # the cart reached the last waypoint
     with pytest.raises(WholeBodyError, match="trajectory"):
         PushConfig(trajectory=3)
+
+
+def test_a_run_says_when_it_lost_the_cart():
+    from wholebody.push.loop import _lost_at
+
+    err = np.r_[np.zeros(100), np.linspace(0.0, 1.0, 101)]
+    assert _lost_at(err, 0.01) == pytest.approx(1.26)  # the first sample beyond 0.25 m
+    assert _lost_at(np.zeros(10), 0.01) is None
