@@ -17,17 +17,18 @@ profiles in this format (``robots/*.toml``); their tuned push settings are optio
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Literal, cast, overload
 
 from robots.errors import ProfileError
 
-try:  # Python >= 3.11
+if sys.version_info >= (3, 11):
     import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 #: Base kinematics: a differential drive (two driven wheels, left then right), a holonomic base with
 #: mecanum wheels, or none (a cart, a fixed arm).
@@ -135,7 +136,7 @@ class RobotProfile:
         return bool(self.arms) and self.base != "none"
 
     @property
-    def base_input(self) -> str:
+    def base_input(self) -> Literal["wheels", "twist"]:
         """Return the whole-body base input: a body twist for a holonomic base, wheel rates for a differential
         drive (its lateral velocity is then zero by construction, paper 2 eq. 11-21)."""
         return "twist" if self.base == "holonomic" else "wheels"
@@ -191,6 +192,12 @@ class _Reader:
         for k in table:
             if k not in allowed:
                 raise self.fail(f"{prefix}{k}", f"unknown key; valid keys here: {', '.join(allowed)}")
+
+    @overload
+    def string(self, table: Mapping, key: str, prefix: str = "", required: Literal[True] = True) -> str: ...
+
+    @overload
+    def string(self, table: Mapping, key: str, prefix: str = "", *, required: bool) -> str | None: ...
 
     def string(self, table: Mapping, key: str, prefix: str = "", required: bool = True) -> str | None:
         if key not in table:
@@ -269,7 +276,7 @@ def _arm(r: _Reader, i: int, table: object) -> ArmProfile:
     )
 
 
-def _base(r: _Reader, data: Mapping) -> tuple[str, tuple[str, ...]]:
+def _base(r: _Reader, data: Mapping) -> tuple[BaseType, tuple[str, ...]]:
     wheels = r.strings(data, "wheel_joints")
     base = data.get("base", "none" if not wheels else None)
     if base not in BASE_TYPES:
@@ -280,7 +287,7 @@ def _base(r: _Reader, data: Mapping) -> tuple[str, tuple[str, ...]]:
         raise r.fail("wheel_joints", f"a holonomic base needs at least 3 wheel joints, got {len(wheels)}")
     if base == "none" and wheels:
         raise r.fail("base", "is 'none' but wheel_joints are given; set base = 'differential' or 'holonomic'")
-    return base, wheels
+    return cast(BaseType, base), wheels  # checked against BASE_TYPES above
 
 
 def _push(r: _Reader, data: Mapping) -> dict:

@@ -58,7 +58,7 @@ def cylinder_inertial(mass: float, radius: float, length: float, com=(0.0, 0.0, 
 def combine(parts: list[Inertial]) -> Inertial:
     """Return the inertial of several rigid parts (parallel-axis theorem)."""
     m = sum(p.mass for p in parts)
-    c = sum(p.mass * np.asarray(p.com) for p in parts) / m
+    c = sum((p.mass * np.asarray(p.com) for p in parts), np.zeros(3)) / m
     inertia = np.zeros((3, 3))
     for p in parts:
         ip = np.array([[p.ixx, p.ixy, p.ixz], [p.ixy, p.iyy, p.iyz], [p.ixz, p.iyz, p.izz]])

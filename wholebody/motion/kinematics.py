@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from typing import Literal
 
 import numpy as np
+import numpy.typing as npt
 import pinocchio as pin
 
 from robots.checks import reference_configuration, wheel_geometry
@@ -107,18 +108,18 @@ class WholeBody:
         return self.model.joints[self.model.getJointId(name)]
 
     # ------------------------------------------------------------------ configuration
-    def as_state(self, x: Sequence[float]) -> np.ndarray:
+    def as_state(self, x: npt.ArrayLike) -> np.ndarray:
         """Return x as a float array of shape (3 + n_arm,), or raise `WholeBodyError`."""
         xa = np.asarray(x, dtype=float)
         if xa.shape != self._x_shape:
             raise WholeBodyError(f"state x must have shape {self._x_shape} (x, y, theta, arm joints), got {xa.shape}")
         return xa
 
-    def to_pinocchio_q(self, x: Sequence[float], wheel_angles: Sequence[float] | None = None) -> np.ndarray:
+    def to_pinocchio_q(self, x: npt.ArrayLike, wheel_angles: npt.ArrayLike | None = None) -> np.ndarray:
         """Return the Pinocchio configuration of reduced coordinates x (other joints neutral)."""
-        x = self.as_state(x)
+        xa = self.as_state(x)
         q = self._q_neutral.copy()
-        write_configuration(q, x, self._root_q, self.arm_idx_q)
+        write_configuration(q, xa, self._root_q, self.arm_idx_q)
         if wheel_angles is not None:
             a = np.asarray(wheel_angles, dtype=float)
             q[self.wheel_idx_q] = np.cos(a)
@@ -129,7 +130,7 @@ class WholeBody:
         """Return the 3 x n_base_input map from the base input to the body twist (vx, vy, wz)."""
         return np.eye(3) if self.base_input == "twist" else self.base.wheel_to_body_twist()
 
-    def body_twist(self, u: Sequence[float]) -> np.ndarray:
+    def body_twist(self, u: npt.ArrayLike) -> np.ndarray:
         """Return the base body twist (vx, vy, wz) of an input u (vy = 0 exactly for a differential drive)."""
         return self._wheel_map @ np.asarray(u, dtype=float)[self.n_arm :]
 
@@ -138,31 +139,31 @@ class WholeBody:
         """Return the arm joints' torque (force) limits from the URDF (N m or N)."""
         return self.model.effortLimit[self.arm_idx_v].copy()
 
-    def wheel_rates(self, u: Sequence[float]) -> np.ndarray:
+    def wheel_rates(self, u: npt.ArrayLike) -> np.ndarray:
         """Return the wheel rates (rad/s) implied by an input vector u."""
         ub = np.asarray(u, dtype=float)[self.n_arm :]
         return self.base.body_twist_to_wheels(ub) if self.base_input == "twist" else ub
 
-    def integrate(self, x: Sequence[float], u: Sequence[float], dt: float) -> np.ndarray:
+    def integrate(self, x: npt.ArrayLike, u: npt.ArrayLike, dt: float) -> np.ndarray:
         """Return x after applying input u for dt: arm joints linearly, the base by exact odometry (eq. 4-10)."""
-        u = np.asarray(u, dtype=float)
-        if u.shape != (self.n_u,):
-            raise WholeBodyError(f"input u must have shape ({self.n_u},) (arm rates, base input), got {u.shape}")
-        return integrate_state(self.as_state(x), u, float(dt), self._wheel_map, self.n_arm)
+        ua = np.asarray(u, dtype=float)
+        if ua.shape != (self.n_u,):
+            raise WholeBodyError(f"input u must have shape ({self.n_u},) (arm rates, base input), got {ua.shape}")
+        return integrate_state(self.as_state(x), ua, float(dt), self._wheel_map, self.n_arm)
 
     # ------------------------------------------------------------------ kinematics
-    def frame_placement(self, x: Sequence[float], frame: str | int | None = None) -> pin.SE3:
+    def frame_placement(self, x: npt.ArrayLike, frame: str | int | None = None) -> pin.SE3:
         """Return the world placement of a frame (default: the end effector), paper eq. (13)."""
         fid = self.ee_frame_id if frame is None else (frame if isinstance(frame, int) else self.robot.frame_id(frame))
         q = self.to_pinocchio_q(x)
         pin.framesForwardKinematics(self.model, self.data, q)
         return pin.SE3(self.data.oMf[fid])
 
-    def ee_placement(self, x: Sequence[float]) -> pin.SE3:
+    def ee_placement(self, x: npt.ArrayLike) -> pin.SE3:
         """Return the world placement of the end effector, paper eq. (13)."""
         return self.frame_placement(x)
 
-    def ee_and_jacobian(self, x: Sequence[float]) -> tuple[pin.SE3, np.ndarray]:
+    def ee_and_jacobian(self, x: npt.ArrayLike) -> tuple[pin.SE3, np.ndarray]:
         """Return (end-effector placement, combined Jacobian) with one kinematics pass.
 
         Writes x into a reused configuration buffer (wheel angles stay neutral) and makes one
@@ -176,7 +177,7 @@ class WholeBody:
         oMf = pin.updateFramePlacement(self.model, self.data, self.ee_frame_id)
         return oMf.copy(), J.dot(self._input_map)
 
-    def combined_jacobian(self, x: Sequence[float]) -> np.ndarray:
+    def combined_jacobian(self, x: npt.ArrayLike) -> np.ndarray:
         """Return the 6 x n_u Jacobian u -> end-effector (v, omega), world-aligned at the EE (paper eq. 21)."""
         return self.ee_and_jacobian(x)[1]
 
@@ -212,4 +213,6 @@ def base_for(robot: LoadedRobot, prof: RobotProfile) -> MobileBase:
     geo = wheel_geometry(prof, robot.model)
     if prof.base == "holonomic":
         return Omnidirectional(geo.radius, geo.positions)
+    if geo.separation is None:  # set by wheel_geometry for every differential base
+        raise WholeBodyError(f"robot {robot.name!r}: no wheel separation for a {prof.base!r} base")
     return DifferentialDrive(geo.separation, geo.radius)
