@@ -33,14 +33,22 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 import qpsolvers
 import scipy.sparse as sp
 
 from wholebody.contacts.handle import ContactSpec, grasp_matrices
 from wholebody.contacts.kernels import equality_optimum_effort
 from wholebody.errors import InfeasibleWrenchError, WholeBodyError
+
+if TYPE_CHECKING:
+    from proxsuite.proxqp.dense import QP as ProxQP
+
+#: closed-form KKT matrices (Kx, Kl, h_active) of an active set; None: a degenerate active set
+KKTEntry = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 #: Robotiq 2F-85 grip force range (N).
 GRIP_FORCE_RANGE = (20.0, 235.0)
@@ -183,7 +191,10 @@ class _Inequalities:
     """Rows ``c . w <= h`` over the stacked 6N wrench, each with a label naming the limit."""
 
     def __init__(self, n: int) -> None:
-        self.n, self.rows, self.rhs, self.labels = n, [], [], []
+        self.n = n
+        self.rows: list[np.ndarray] = []
+        self.rhs: list[float] = []
+        self.labels: list[str] = []
 
     def add(self, entries: dict[int, float], bound: float, label: str) -> None:
         c = np.zeros(6 * self.n)
@@ -207,6 +218,8 @@ class _Inequalities:
     def grasp(self, i: int, lim: ArmLimits) -> None:
         """Grip pull limit, friction cone and torque limits of arm i's `GraspModel` (normal load 2 Fg + fx)."""
         g = lim.grasp
+        if g is None:
+            raise WholeBodyError(f"arm{i} has no grasp model to bound")
         self.add(
             {6 * i: -1.0},
             g.pull_capacity,
@@ -254,7 +267,10 @@ def _torque_rows(
     ``|J^T w + g| <= (1 - margin) tau_max`` is ``+-J_j . w <= (1 - margin) tau_max_j -+ g_j`` per joint; a
     right-hand side below 0 (the bias alone breaks the limit) is held at 0 so that w = 0 stays feasible.
     """
-    rows, rhs, labels, over = [], [], [], []
+    rows: list[np.ndarray] = []
+    rhs: list[float] = []
+    labels: list[str] = []
+    over: list[str] = []
     for i, c in enumerate(constraints):
         if c is None:
             continue
@@ -289,6 +305,8 @@ def _inequalities(
         if lim.grasp is not None:
             out.grasp(i, lim)
         if torque_limits is not None:
+            if jacobians is None:
+                raise WholeBodyError("joint torque limits need the arms' Jacobians")
             out.joint_torques(i, jacobians[i], torque_limits[i])
     return out
 
@@ -306,38 +324,45 @@ class _DirectProxQP:
 
         self._proxqp = proxsuite.proxqp
         self.P, self.G, self.h = P, G, h
-        self.qp = None
+        self.qp: ProxQP | None = None
 
-    def _cold(self, A: np.ndarray, b: np.ndarray) -> None:
+    def _cold(self, A: np.ndarray, b: np.ndarray) -> ProxQP:
         nx = self.P.shape[0]
-        self.qp = self._proxqp.dense.QP(nx, A.shape[0], self.G.shape[0])
-        self.qp.settings.eps_abs = PROXQP_EPS_ABS
-        self.qp.settings.eps_rel = 0.0
-        self.qp.settings.verbose = False
-        self.qp.init(self.P, np.zeros(nx), A, b, self.G, np.full(len(self.h), -np.inf), self.h)
-        self.qp.solve()  # ProxQP crashes when asked to warm-start before its first solve
-        self.qp.settings.initial_guess = self._proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+        qp = self.qp = self._proxqp.dense.QP(nx, A.shape[0], self.G.shape[0])
+        qp.settings.eps_abs = PROXQP_EPS_ABS
+        qp.settings.eps_rel = 0.0
+        qp.settings.verbose = False
+        qp.init(self.P, np.zeros(nx), A, b, self.G, np.full(len(self.h), -np.inf), self.h)
+        qp.solve()  # ProxQP crashes when asked to warm-start before its first solve
+        qp.settings.initial_guess = self._proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+        return qp
 
-    def _solved(self) -> bool:
-        return self.qp.results.info.status == self._proxqp.QPSolverOutput.PROXQP_SOLVED
+    def _solved(self, qp: ProxQP) -> bool:
+        return qp.results.info.status == self._proxqp.QPSolverOutput.PROXQP_SOLVED
 
     def solve(self, A: np.ndarray, b: np.ndarray, new_A: bool) -> np.ndarray | None:
         """Return the solution for equality ``A x = b``, or None if ProxQP fails (cold as well as warm)."""
-        if self.qp is None or new_A:
-            self._cold(A, b)
+        qp = self.qp
+        if qp is None or new_A:
+            qp = self._cold(A, b)
         else:
-            self.qp.update(b=b)
-            self.qp.solve()
-            if not self._solved():
-                self._cold(A, b)
-        if not self._solved():
+            qp.update(b=b)
+            qp.solve()
+            if not self._solved(qp):
+                qp = self._cold(A, b)
+        if not self._solved(qp):
             self.qp = None
             return None
-        return self.qp.results.x.copy()
+        return qp.results.x.copy()
 
 
 class WrenchAllocator:
     """The wrench allocation QP for fixed limits, built once; `set_points` moves the contacts, `solve` per step."""
+
+    #: active set -> its closed-form KKT matrices (None: degenerate), cleared by `set_points`
+    _kkt_cache: dict[tuple[int, ...], KKTEntry | None]
+    #: qpsolvers' matrices (dense, or CSC for a sparse backend), built when first needed
+    _mats: dict[str, np.ndarray | sp.csc_matrix] | None
 
     def __init__(
         self,
@@ -449,7 +474,7 @@ class WrenchAllocator:
         """Return the current contacts (points in {b}, names)."""
         return [ContactSpec(tuple(p), name) for p, name in zip(self._points.tolist(), self._names)]
 
-    def set_points(self, points_b: Sequence[Sequence[float]]) -> None:
+    def set_points(self, points_b: Sequence[npt.ArrayLike]) -> None:
         """Move the contacts to points_b (N x 3 in {b}); the limits and the cost are unchanged."""
         pts = np.array(points_b, dtype=float)
         if pts.shape != (len(self._names), 3):
@@ -464,7 +489,7 @@ class WrenchAllocator:
         self._A_new = True  # the direct QP takes the new equality matrix at its next solve
         self._mats = None  # qpsolvers' matrices, built when first needed
 
-    def _qpsolvers_mats(self) -> dict:
+    def _qpsolvers_mats(self) -> dict[str, np.ndarray | sp.csc_matrix]:
         if self._mats is None:
             conv = sp.csc_matrix if self.solver in SPARSE_SOLVERS else (lambda M: M)
             relax_scale = 1e6 * max(1.0, float(np.max(np.diag(self.P))))
@@ -535,7 +560,7 @@ class WrenchAllocator:
             x = sol.x if sol.found else None
         return x if x is not None and np.isfinite(x).all() else None
 
-    def _kkt(self, active: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    def _kkt(self, active: tuple[int, ...]) -> KKTEntry | None:
         """Return (Kx, Kl, h_active) of the equality-constrained QP with rows ``active`` of Gin held tight.
 
         With ``A_eq = [A; G_active]``, ``b_eq = [b; h_active]`` and ``S = A_eq P^-1 A_eq^T`` (q = 0), the KKT
@@ -547,7 +572,7 @@ class WrenchAllocator:
             return self._kkt_cache[active]
         idx = list(active)
         Aeq = np.vstack([self.A, self.Gin[idx]])
-        entry = None
+        entry: KKTEntry | None = None
         if Aeq.shape[0] <= Aeq.shape[1]:
             Pinv_At = self._Pinv @ Aeq.T
             S = Aeq @ Pinv_At
@@ -619,7 +644,7 @@ class WrenchAllocator:
             taus = tuple(np.zeros(0) if c is None else c.torques(W[i]) for i, c in enumerate(self.torque_constraints))
         return AllocationResult(W, achieved, residual, effort, solver, taus)
 
-    def optimum(self, gamma_b: Sequence[float]) -> AllocationResult | None:
+    def optimum(self, gamma_b: npt.ArrayLike) -> AllocationResult | None:
         """Return the minimum-effort allocation of gamma_b, or None when the QP finds none (no closest-wrench QP).
 
         The same result as `solve` whenever gamma_b is achievable; for a search that only needs to know
@@ -627,16 +652,19 @@ class WrenchAllocator:
         """
         return self._solve(gamma_b, False, closest=False)
 
-    def solve(self, gamma_b: Sequence[float], raise_on_infeasible: bool = True) -> AllocationResult:
+    def solve(self, gamma_b: npt.ArrayLike, raise_on_infeasible: bool = True) -> AllocationResult:
         """Return the minimum-effort wrenches producing gamma_b = (fx, fy, tau) in {b}.
 
         Raises `InfeasibleWrenchError` (binding limit, closest achievable wrench)
         if no wrench within the limits produces it, unless ``raise_on_infeasible``
         is False: then the closest achievable allocation is returned.
         """
-        return self._solve(gamma_b, raise_on_infeasible, closest=True)
+        res = self._solve(gamma_b, raise_on_infeasible, closest=True)
+        if res is None:  # _solve with closest=True returns the closest allocation or raises
+            raise WholeBodyError(f"no allocation returned for cart wrench {gamma_b!r}")
+        return res
 
-    def _solve(self, gamma_b: Sequence[float], raise_on_infeasible: bool, closest: bool) -> AllocationResult | None:
+    def _solve(self, gamma_b: npt.ArrayLike, raise_on_infeasible: bool, closest: bool) -> AllocationResult | None:
         """`solve`; with ``closest=False`` None instead of the closest allocation of an unachievable wrench."""
         gamma = np.array(gamma_b, dtype=float).reshape(-1)
         values = gamma.tolist()
@@ -695,7 +723,7 @@ class WrenchAllocator:
 
 
 def allocate(
-    gamma_b: Sequence[float],
+    gamma_b: npt.ArrayLike,
     contacts: Sequence,
     limits: ArmLimits | Sequence[ArmLimits] = ArmLimits(),
     weights: EffortWeights = EffortWeights(),
@@ -739,8 +767,9 @@ class SaturationSpan:
         }
 
 
-def saturation_spans(t: Sequence[float], binding: Sequence[str | None], dt: float) -> tuple[SaturationSpan, ...]:
+def saturation_spans(t: npt.ArrayLike, binding: Sequence[str | None], dt: float) -> tuple[SaturationSpan, ...]:
     """Return the stretches of consecutive samples with the same binding limit (None: not saturated), in time order."""
+    t = np.asarray(t, dtype=float)
     spans: list[SaturationSpan] = []
     start = None
     for k, label in enumerate(list(binding) + [None]):
