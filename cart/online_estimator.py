@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from cart.change_detection import ChangeDetector, RingBuffer
 from cart.dynamics import regressor
@@ -130,7 +130,7 @@ class _Change:
     mass_end: float | None = None
 
 
-def _vector(value: Sequence[float], n: int, what: str) -> np.ndarray:
+def _vector(value: npt.ArrayLike, n: int, what: str) -> np.ndarray:
     """Return value as a finite float array of shape (n,); raise OnlineEstimatorError otherwise."""
     try:
         arr = np.asarray(value, dtype=float).reshape(-1)
@@ -188,16 +188,16 @@ class OnlineLSEstimator:
 
     def __init__(
         self,
-        q0: Sequence[float],
-        qd0: Sequence[float],
+        q0: npt.ArrayLike,
+        qd0: npt.ArrayLike,
         params0: CartParams,
-        meas_std: Sequence[float],
+        meas_std: npt.ArrayLike,
         options: OnlineOptions = OnlineOptions(),
     ) -> None:
-        q0, qd0 = _vector(q0, 3, "q0"), _vector(qd0, 3, "qd0")
-        meas_std = _vector(meas_std, 6, "meas_std")
-        if np.any(meas_std < 0.0):
-            raise OnlineEstimatorError(f"meas_std must be >= 0, got {meas_std.tolist()}")
+        q, qd = _vector(q0, 3, "q0"), _vector(qd0, 3, "qd0")
+        std = _vector(meas_std, 6, "meas_std")
+        if np.any(std < 0.0):
+            raise OnlineEstimatorError(f"meas_std must be >= 0, got {std.tolist()}")
         if not isinstance(params0, CartParams):
             raise OnlineEstimatorError(f"params0 must be CartParams, got {type(params0).__name__}")
         self.options = options
@@ -207,10 +207,10 @@ class OnlineLSEstimator:
         self.regression = RecursiveRegression(self._prior0, options.noise_subspace)
         self.filter = StateVariableFilter(options.cutoff_hz, 6)
         self.detector = ChangeDetector(options.change_window_s, options.change_alpha, options.min_change)
-        self._meas_std = meas_std
-        self._init_observer(q0, qd0, params0, meas_std)
-        self._z_prev = np.r_[q0, qd0]
-        self._theta = float(q0[2])
+        self._meas_std = std
+        self._init_observer(q, qd, params0, std)
+        self._z_prev = np.r_[q, qd]
+        self._theta = float(q[2])
         self._started = False
         self._gains_dt = -1.0
         self._noise = [0.0, 0.0, 0.0]  # EW weight sum, EW sums of d3^2 / 20 (force, torque)
@@ -300,13 +300,13 @@ class OnlineLSEstimator:
         }
 
     # -- step -------------------------------------------------------------------------------
-    def step(self, gamma: Sequence[float], dt: float, z: Sequence[float]) -> float:
+    def step(self, gamma: npt.ArrayLike, dt: float, z: npt.ArrayLike) -> float:
         """Fuse one period: gamma measured over the last dt, z at its end; return the observer's NIS.
 
         Raises :class:`OnlineEstimatorError` on a wrong shape, a non-finite value or dt <= 0.
         """
-        gamma = _vector(gamma, 3, "gamma")
-        z = _vector(z, 6, "z")
+        g = _vector(gamma, 3, "gamma")
+        zv = _vector(z, 6, "z")
         if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0.0):
             raise OnlineEstimatorError(f"dt must be positive and finite, got {dt!r}")
         dt = float(dt)
@@ -317,9 +317,9 @@ class OnlineLSEstimator:
         obs.sigma, obs.sigma_yaw = p.damping
         sf, st = self._wrench_var()
         self.nis = obs.step(
-            gamma, dt, z, gamma_cov=np.diag([sf, sf, st]) * dt if self.options.observer_input_noise else None
+            g, dt, zv, gamma_cov=np.diag([sf, sf, st]) * dt if self.options.observer_input_noise else None
         )
-        self._regression_step(gamma, dt, z)
+        self._regression_step(g, dt, zv)
         return self.nis
 
     # -- regression -------------------------------------------------------------------------
@@ -412,6 +412,12 @@ class OnlineLSEstimator:
         c[1, 5] = c[5, 1] = w2 * v * no
         return np.array([w1, w2]), c, np.array([g_out * var1, g_out * var2])
 
+    def _ring(self) -> RingBuffer:
+        """Return the regression samples' buffer (created at the first step)."""
+        if self._buffer is None:
+            raise OnlineEstimatorError("the regression buffer is read before the first step")
+        return self._buffer
+
     def _init_buffer(self, dt: float) -> None:
         size = max(int(math.ceil(self.options.buffer_s / dt)), 2)
         shapes = {"t": (), "m": (), "s": (4,), "info": (4, 4), "D": (6, 6), "d": (6,), "C": (6, 6)}
@@ -436,7 +442,7 @@ class OnlineLSEstimator:
         lam = math.exp(-dt / self.options.forgetting_s)
         reg.add(info, dvec, noise, lam)
         s = yw[:, :4].T @ r
-        self._buffer.push(t=self.t, m=float(p[0]), s=s, info=info[:4, :4], D=info, d=dvec, C=noise)
+        self._ring().push(t=self.t, m=float(p[0]), s=s, info=info[:4, :4], D=info, d=dvec, C=noise)
         if self.options.detect_changes and self._test_change(dt, s, info[:4, :4]):
             self._reset_for_change()
         else:
@@ -452,7 +458,7 @@ class OnlineLSEstimator:
 
     def _reset_for_change(self) -> None:
         """Restart mass / CoM / inertia from the prior widths and the samples after the onset; keep the damping."""
-        buf = self._buffer
+        buf = self._ring()
         idx = self.detector.onset(buf.read("s"), buf.read("info"), self._cov[:4, :4])
         t_change, m_before = float(buf.read("t")[idx]), float(buf.read("m")[idx])
         if self._changes:
@@ -521,7 +527,7 @@ class OnlineLSEstimator:
 
 
 def make_online_estimator(
-    q0: Sequence[float], params0: CartParams, noise_std: Sequence[float], **options
+    q0: npt.ArrayLike, params0: CartParams, noise_std: npt.ArrayLike, **options
 ) -> OnlineLSEstimator:
     """Return an :class:`OnlineLSEstimator` starting at rest at pose q0 (or q0 = 6-state) with the guess params0.
 

@@ -251,7 +251,7 @@ class OnlineLoop(EstimatingLoop):
         self.meas_std = meas_std
         self.options = dict(options or {})
 
-    def _filter(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray):  # type: ignore[override]
+    def _filter(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray):
         """Create the estimator at the first sample, else update it with the last wrench and this measurement."""
         from cart.online_estimator import make_online_estimator
 
