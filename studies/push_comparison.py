@@ -22,9 +22,9 @@ if TYPE_CHECKING:
     from wholebody.push import PushResult
 
 
-def study_configs(duration: float = 30.0) -> dict[str, PushConfig]:
+def study_configs(duration: float = 30.0, estimator: str = "online") -> dict[str, PushConfig]:
     """Return the comparison study of docs/push.md: estimation on/off x fixed/optimal contact, two arms, Traj. 1."""
-    base = PushConfig(trajectory=2, duration=duration)
+    base = PushConfig(trajectory=2, duration=duration, estimator=estimator)
     fixed = replace(base, contact="fixed", fixed_contact_y=(-0.2,))
     two = replace(base, n_arms=2, fixed_contact_y=(-0.2, 0.2))
     t1 = replace(base, trajectory=1)
@@ -65,14 +65,16 @@ ROBOT_COLUMNS = (
 )
 
 
-def robot_configs(duration: float = 30.0) -> dict[str, PushConfig]:
+def robot_configs(duration: float = 30.0, estimator: str = "online") -> dict[str, PushConfig]:
     """Return holonomic (Ridgeback) vs nonholonomic (WMRA) base, both trajectories, with/without estimation."""
     out = {}
     for robot in ("ridgeback_iiwa", "wmra"):
         for traj in (1, 2):
             for est in (True, False):
-                label = f"{robot} traj {traj} {'EKF' if est else 'no est.'}"
-                out[label] = PushConfig(robot=robot, trajectory=traj, estimation=est, duration=duration)
+                label = f"{robot} traj {traj} {estimator if est else 'no est.'}"
+                out[label] = PushConfig(
+                    robot=robot, trajectory=traj, estimation=est, duration=duration, estimator=estimator
+                )
     return out
 
 
@@ -90,7 +92,9 @@ def robot_table(results: dict[str, object]) -> str:
     return "\n".join(rows)
 
 
-def robot_results(duration: float = 30.0, workers: int = 4, progress: bool = False) -> dict[str, PushResult]:
+def robot_results(
+    duration: float = 30.0, workers: int = 4, progress: bool = False, estimator: str = "online"
+) -> dict[str, PushResult]:
     """Run `robot_configs` (in parallel processes) and return label -> result (with its time histories).
 
     ``progress``: a bar of finished runs on stderr (`wholebody.progress`).
@@ -99,7 +103,7 @@ def robot_results(duration: float = 30.0, workers: int = 4, progress: bool = Fal
 
     from wholebody.progress import progress_bar
 
-    cfgs = robot_configs(duration)
+    cfgs = robot_configs(duration, estimator)
     with ProcessPoolExecutor(workers) as pool:
         done = progress_bar(
             pool.map(run_push, cfgs.values()), desc="push runs", total=len(cfgs), unit="run", enabled=progress
@@ -107,9 +111,9 @@ def robot_results(duration: float = 30.0, workers: int = 4, progress: bool = Fal
         return dict(zip(cfgs, done))
 
 
-def run_robot_comparison(duration: float = 30.0, workers: int = 4) -> str:
+def run_robot_comparison(duration: float = 30.0, workers: int = 4, estimator: str = "online") -> str:
     """Run `robot_configs` (in parallel processes) and return its table."""
-    return robot_table(robot_results(duration, workers))
+    return robot_table(robot_results(duration, workers, estimator=estimator))
 
 
 #: Line style of each robot (colour) and estimation (solid = EKF, dashed = no estimation) in `robot_figures`.
@@ -218,16 +222,17 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--duration", type=float, default=30.0, help="seconds per run (default 30)")
     p.add_argument("--workers", type=int, default=4, help="parallel processes for --figures (default 4)")
+    p.add_argument("--estimator", default="online", choices=("online", "ekf"), help="the loop's estimator")
     args = p.parse_args(argv)
     from wholebody.progress import progress_bar, show_progress
 
     if args.figures is None:
-        cfgs = study_configs(args.duration)
+        cfgs = study_configs(args.duration, args.estimator)
         runs = {label: run_push(cfgs[label]) for label in progress_bar(cfgs, desc="push runs", unit="run")}
         print(comparison_table(runs, markdown=True))
         print(unobservable_note(runs))
         return 0
-    results = robot_results(args.duration, args.workers, progress=show_progress())
+    results = robot_results(args.duration, args.workers, progress=show_progress(), estimator=args.estimator)
     print(robot_table(results))
     for path in save_robot_figures(results, args.figures):
         print(f"wrote {path}")

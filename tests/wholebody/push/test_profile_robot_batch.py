@@ -59,3 +59,40 @@ def test_campaign_is_checked_before_any_run(tmp_path):
         campaign(["wmra"], [20], [1], plant="gazebo")
     with pytest.raises(BatchError, match="directory"):
         run_campaign(runs[:1], tmp_path)
+
+
+CAMPAIGN = ["--robots", "wmra", "ridgeback_iiwa", "--masses", "15", "25", "--trajectories", "1", "--duration", "8"]
+
+
+def test_two_robots_by_two_masses_on_two_workers_write_four_lines_and_a_rerun_runs_nothing(tmp_path, capsys):
+    out = tmp_path / "campaign.jsonl"
+    argv = ["batch", "push", *CAMPAIGN, "--workers", "2", "--out", str(out), "--json"]
+    assert main(argv) == 0
+    summary = json.loads(capsys.readouterr().out)
+    lines = [json.loads(x) for x in out.read_text().splitlines()]
+    assert len(lines) == 4 and all(r["ok"] for r in lines) and summary["workers"] == 2
+    assert {(r["run"]["robot"], r["run"]["mass"]) for r in lines} == {
+        (rb, m) for rb in ("wmra", "ridgeback_iiwa") for m in (15.0, 25.0)
+    }
+    assert main(argv) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["ran"] == 0 and again["skipped"] == 4
+    assert len(out.read_text().splitlines()) == 4
+
+
+def test_the_campaign_on_a_local_ray_cluster(tmp_path):
+    """The same campaign as Ray tasks (a local cluster: what `ray start --head` gives) writes the same lines."""
+    from tests.optional import require_module
+
+    ray = require_module("ray", "pip install 'cartpush[cluster]'")
+    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
+    try:
+        runs = campaign(["wmra", "ridgeback_iiwa"], [15.0, 25.0], [1], duration=8.0)
+        out = tmp_path / "ray.jsonl"
+        summary = run_campaign(runs, out, workers=None, ray_address="auto", progress=False)
+        assert summary["backend"] == "ray"
+        lines = [json.loads(x) for x in out.read_text().splitlines()]
+        assert len(lines) == 4 and all(r["ok"] for r in lines)
+        assert run_campaign(runs, out, workers=None, ray_address="auto", progress=False)["ran"] == 0
+    finally:
+        ray.shutdown()
