@@ -31,10 +31,12 @@ TOPICS = {"pose": "/mocap/cart", "wrench": "/ft_sensor/wrench"}
 
 
 def sample_config():
-    """Return the `PushConfig` of the sample push (16 s of Traj. 2, fixed contact y = -0.2 m, seed 0)."""
+    """Return the `PushConfig` of the sample push (16 s of Traj. 2, fixed contact y = -0.2 m, the paper's EKF, seed 0)."""
     from wholebody.push import PushConfig
 
-    return PushConfig(trajectory=2, duration=16.0, contact="fixed", fixed_contact_y=(-0.2,), estimation=True, seed=0)
+    return PushConfig(
+        trajectory=2, duration=16.0, contact="fixed", fixed_contact_y=(-0.2,), estimation=True, estimator="ekf", seed=0
+    )
 
 
 def sample_log():
