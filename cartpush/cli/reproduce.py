@@ -37,14 +37,14 @@ COLUMNS = (
 )
 
 #: Columns of the printed table and table.md/table.csv: (TestResult JSON key or attribute, header, format).
-#: Tracking errors in mm, CoM errors in m, masses in kg, times in s, as in the JSON fields.
+#: Tracking errors in mm, CoM errors in cm (the JSON keeps m), masses in kg, times in s.
 TABLE_COLUMNS = (
     ("test", "test", "{}"),
     ("mass_error_final_kg", "m err final [kg]", "{:.3f}"),
     ("mass_error_max_after_5s_kg", "m err max >5 s [kg]", "{:.2f}"),
     ("time_mass_within_1kg_s", "t m within 1 kg [s]", "{:.1f}"),
     ("mass_converged_s", "m conv. [s]", "{:.2f}"),
-    ("com_error_final_m", "CoM err final [m]", "{:.3f}"),
+    ("com_error_final_cm", "CoM err final [cm]", "{:.1f}"),
     ("tracking_rms_mm", "track RMS [mm]", "{:.2f}"),
     ("tracking_rms_no_estimation_mm", "track RMS no est. [mm]", "{:.2f}"),
     ("tracking_max_after_5s_mm", "track max >5 s [mm]", "{:.2f}"),
@@ -111,6 +111,8 @@ def _select(spec: str | None):
 
 def _value(result, key: str):
     data = result.as_json()
+    if key == "com_error_final_cm":  # human output: the CoM in cm (the JSON keeps com_error_final_m)
+        return 100.0 * data["com_error_final_m"]
     if key.startswith("online."):  # the online estimator's row, beside the paper's EKF
         value = data.get("online", {}).get(key.split(".", 1)[1])
         if key.endswith("load_changes"):

@@ -52,7 +52,7 @@ def test_reproduce_json_fields_and_outputs(tmp_path, capsys):
         assert (tmp_path / name).stat().st_size > 0
     md = (tmp_path / "table.md").read_text()
     assert "m err max >5 s [kg]" in md and "mass_error_final_kg" not in md
-    assert "track RMS [mm]" in md and "[m]" not in md.split("CoM err final [m]")[1].splitlines()[0]
+    assert "track RMS [mm]" in md and "[m]" not in md.split("CoM err final [cm]")[1].splitlines()[0]
     assert "test 4: Traj. 2, m guess 16 kg" in md
 
 
