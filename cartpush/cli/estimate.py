@@ -107,6 +107,18 @@ def result_for(log, args: argparse.Namespace) -> dict[str, Any]:
     return report_for(log, args).to_dict()
 
 
+def fit_verdict(out: dict[str, Any], nis_text: str) -> str:
+    """Return the fit verdict with its reason: the residual wrench against what the sensor noise explains."""
+    ratio = out.get("residual_ratio") or [None, None]
+    if None in ratio:
+        why = f"mean NIS {nis_text}"
+    else:
+        why = f"residual wrench {ratio[0]:.1f}x (force) and {ratio[1]:.1f}x (torque) what the sensor noise explains"
+    if out["model_fits"]:
+        return f"model fits yes: {why}"
+    return f"model fits NO: {why} (above the noise: an effect the model lacks; run `cartpush diagnose`)"
+
+
 def _print_table(path: str, log, out: dict[str, Any]) -> None:
     s, why = out["std"], out["not_identified"]
     print(f"log        {path} ({len(log)} samples, {log.t[-1] - log.t[0]:.2f} s; method {out['method']})")
@@ -133,7 +145,7 @@ def _print_table(path: str, log, out: dict[str, Any]) -> None:
     row("sigma_yaw", "sigma_yaw", out["sigma_yaw"], s["sigma_yaw"], "N m s/rad (yaw)", ".4f")
     nis = out["nis_mean"]
     nis_text = f"{nis:.2f}" if nis is not None else "n/a"
-    print(f"model fits {'yes' if out['model_fits'] else 'NO'} (mean NIS {nis_text}, ~6 when it fits)")
+    print(fit_verdict(out, nis_text))
     segs = out.get("segments") or []
     if len(segs) > 1:
         for k, g in enumerate(segs):
