@@ -111,12 +111,19 @@ class Fit:
     n_win: int
     cov: np.ndarray
     m2ll: float
-    sig: Signals
-    design: np.ndarray = field(repr=False, default=None)
+    #: the fit's (transformed) signals; None for a grid fit, which is scored but never replayed
+    sig: Signals | None
+    design: np.ndarray | None = field(repr=False, default=None)
     #: fits at the next-best grid points of a grid-only nonlinear parameter (replay-checked by ``diagnose``)
     alternatives: list[Fit] = field(repr=False, default_factory=list)
     #: True for a nominal fit whose parameters were bounded to a physical cart (:func:`constrained_fit`)
     constrained: bool = False
+
+    def signals(self) -> Signals:
+        """Return the fit's signals; raise DiagnoseError for a grid fit, which keeps none."""
+        if self.sig is None:
+            raise DiagnoseError("a grid fit keeps no signals to replay")
+        return self.sig
 
     @property
     def phi(self) -> np.ndarray:
@@ -182,16 +189,16 @@ def _solve(
 
 def _solve_many(problems: Sequence[tuple[np.ndarray, ...]], s2v: float, s2w: float) -> list[tuple]:
     """Return :func:`_solve` of each (d, y, lv, lw) in ``problems``, same-shaped ones solved as one batch."""
-    out: list[tuple | None] = [None] * len(problems)
+    out: dict[int, tuple] = {}
     groups: dict[tuple, list[int]] = {}
     for i, (d, _, _, _) in enumerate(problems):
         groups.setdefault(d.shape, []).append(i)
     for idx in groups.values():
-        stacked = [np.stack([problems[i][k] for i in idx]) for k in range(4)]
-        x, var_eq, cov, m2ll = _solve(*stacked, s2v, s2w)
+        d_s, y_s, lv_s, lw_s = (np.stack([problems[i][k] for i in idx]) for k in range(4))
+        x, var_eq, cov, m2ll = _solve(d_s, y_s, lv_s, lw_s, s2v, s2w)
         for j, i in enumerate(idx):
             out[i] = (x[j], var_eq[j], cov[j], float(m2ll[j]))
-    return out
+    return [out[i] for i in range(len(problems))]
 
 
 @dataclass
@@ -334,6 +341,8 @@ def fit_models(
             _advance(st, sol, it, freeze)
     out = []
     for st in states:
+        if st.solution is None:
+            raise DiagnoseError("a fit ended without a solution")
         x, rss, cov, m2ll = st.solution
         out.append(
             Fit(
@@ -552,7 +561,7 @@ def _fit_candidate(sig: Signals, edges: np.ndarray, current: Fit, effect: Effect
 
 def _replay_terms(fit: Fit) -> tuple[np.ndarray, np.ndarray | None]:
     """Return the effects' (forward force, yaw torque, lateral speed) (N, 3) and phi change (N, 4) for replay."""
-    sig = fit.sig
+    sig = fit.signals()
     extra = np.zeros((sig.n, 3))
     dphi = None
     a_s = sig.extras["base"][0]
@@ -683,7 +692,7 @@ def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon:
             why = "its fits give a non-positive or non-finite mass"
             continue
         extra, dphi = _replay_terms(tr.fit)
-        rep = replay(tr.fit.sig, tr.fit.x, extra, dphi, horizon=horizon)
+        rep = replay(tr.fit.signals(), tr.fit.x, extra, dphi, horizon=horizon)
         if not rep.finite:  # a blown-up replay = a failed candidate (infinite error)
             why = "the replay of its fit blows up (the fitted cart is not physical)"
             continue
@@ -782,13 +791,18 @@ def _choose_effect(
     last_gap = last.gap(mask)
     verdicts: list[Verdict] = []
     passed: list[Verdict] = []  # candidates passed over, for the chosen one's reason
-    chosen, reason = None, ""
+    chosen: _Named | None = None
+    reason = ""
     for ranked in order:
         name, dbic = ranked.best.effect.name, float(ranked.best.dbic)
         weak = _weak(dbic, threshold)
         if chosen is not None or weak:
             verdicts.append(
-                Verdict(name, dbic, weak or f"{chosen.trial.effect.name} was named before it in this round")
+                Verdict(
+                    name,
+                    dbic,
+                    weak or f"{chosen.trial.effect.name if chosen else ''} was named before it in this round",
+                )
             )
             continue
         cand, why = _best_replaying_variant(ranked.trials, threshold, horizon)
@@ -963,7 +977,8 @@ def _search(
     """
     threshold, horizon, max_effects = settings
     mask, rep0, slip_ratio = start
-    current, named, reps = nominal, [], [rep0]  # reps: the nominal replay and one after each named effect
+    named: list[_Named] = []
+    current, reps = nominal, [rep0]  # reps: the nominal replay and one after each named effect
     reasons: list[str] = []
     first_scores: list[tuple[str, float]] = []
     verdicts: dict[str, Verdict] = {}

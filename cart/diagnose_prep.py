@@ -61,8 +61,8 @@ def wrench_at_pose_times(tp: np.ndarray, tw: np.ndarray, gw: np.ndarray) -> np.n
     """
     tp = np.asarray(tp, float)
     mids = 0.5 * (tp[1:] + tp[:-1])
-    lo = np.searchsorted(tw, np.r_[-np.inf, mids], side="left")
-    hi = np.searchsorted(tw, np.r_[mids, np.inf], side="left")
+    lo = np.searchsorted(tw, np.concatenate([[-np.inf], mids]), side="left")
+    hi = np.searchsorted(tw, np.concatenate([mids, [np.inf]]), side="left")
     cum = np.vstack([np.zeros((1, gw.shape[1])), np.cumsum(gw, axis=0)])
     cnt = hi - lo
     out = np.column_stack([np.interp(tp, tw, gw[:, k]) for k in range(gw.shape[1])])

@@ -195,7 +195,7 @@ def _format_parameter(name: str, value: float, std: float | None) -> str:
     if value is None or not math.isfinite(value):
         return f"{name} = n/a [{unit}]"
     has_std = std is not None and math.isfinite(std) and std > 0.0
-    ref, digits = (std, 2) if has_std else (abs(value), 3)
+    ref, digits = (std, 2) if std is not None and has_std else (abs(value), 3)
     decimals = min(8, max(0, digits - 1 - int(math.floor(math.log10(ref))))) if ref > 0 else 2
     v = f"{value:.{decimals}f}"
     if float(v) == 0.0:
@@ -203,7 +203,7 @@ def _format_parameter(name: str, value: float, std: float | None) -> str:
     return f"{name} = {v} ± {std:.{decimals}f} [{unit}]" if has_std else f"{name} = {v} [{unit}]"
 
 
-def _clean(d: dict[str, float]) -> dict[str, float]:
+def _clean(d: dict[str, float]) -> dict[str, float | None]:
     """Return d with non-finite values replaced by None (valid JSON)."""
     return {k: (float(v) if v is not None and math.isfinite(float(v)) else None) for k, v in d.items()}
 
@@ -263,9 +263,10 @@ def effect_comment(name: str, params: dict[str, float]) -> str:
     return ""
 
 
-def _plot_replay_errors(ax, report: DiagnosisReport, mask: np.ndarray | None, horizon: float) -> None:
+def _plot_replay_errors(
+    ax, report: DiagnosisReport, rb: Replay, ra: Replay, mask: np.ndarray | None, horizon: float
+) -> None:
     """Draw the position error of non-overlapping replays before/after, the noise floor and the flagged windows."""
-    rb, ra = report.replay_before, report.replay_after
     for rep, colour, label in (
         (rb, "tab:red", "nominal model (before)"),
         (ra, "tab:blue", "with named effects (after)"),
@@ -295,9 +296,8 @@ def _plot_replay_errors(ax, report: DiagnosisReport, mask: np.ndarray | None, ho
     ax.legend(fontsize=8, loc="upper left")
 
 
-def _plot_zoom(zx, report: DiagnosisReport, w: DiscrepancyWindow, first: bool) -> None:
+def _plot_zoom(zx, report: DiagnosisReport, rb: Replay, ra: Replay, w: DiscrepancyWindow, first: bool) -> None:
     """Draw the measured path and the replays before/after from the worst start of flagged window ``w``."""
-    rb, ra = report.replay_before, report.replay_after
     starts = rb.starts + report.time_offset
     sel = np.flatnonzero((starts >= w.t0 - 1e-9) & (starts <= w.t1))
     k = int(sel[np.argmax(rb.chi2[sel])]) if len(sel) else int(np.argmin(np.abs(starts - w.t0)))
@@ -316,11 +316,10 @@ def _plot_zoom(zx, report: DiagnosisReport, w: DiscrepancyWindow, first: bool) -
         zx.legend(fontsize=7)
 
 
-def _residual_figure(report: DiagnosisReport):
+def _residual_figure(report: DiagnosisReport, rb: Replay, ra: Replay):
     """Return the figure of the per-replay RMS error and chi-square over time, before and after."""
     from matplotlib.figure import Figure
 
-    rb, ra = report.replay_before, report.replay_after
     tb, ta = rb.starts + report.time_offset, ra.starts + report.time_offset
     res = Figure(figsize=(12, 6), layout="constrained")
     axes = res.subplots(2, 1, sharex=True)
@@ -362,10 +361,10 @@ def diagnosis_figures(report: DiagnosisReport, max_zooms: int = 3) -> dict:
     fig = Figure(figsize=(12, 7.5 if windows else 4.5), layout="constrained")
     grid = fig.add_gridspec(2 if windows else 1, max(1, len(windows)), height_ratios=[1, 1.3] if windows else [1])
     horizon = float(rb.tau[-1] - rb.tau[0]) if len(rb.tau) > 1 else 1.0
-    _plot_replay_errors(fig.add_subplot(grid[0, :]), report, mask, horizon)
+    _plot_replay_errors(fig.add_subplot(grid[0, :]), report, rb, ra, mask, horizon)
     for j, w in enumerate(windows):
-        _plot_zoom(fig.add_subplot(grid[1, j]), report, w, j == 0)
-    return {"replay": fig, "residuals": _residual_figure(report)}
+        _plot_zoom(fig.add_subplot(grid[1, j]), report, rb, ra, w, j == 0)
+    return {"replay": fig, "residuals": _residual_figure(report, rb, ra)}
 
 
 def plot_diagnosis(report: DiagnosisReport, out_dir: str) -> list[str]:

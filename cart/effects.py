@@ -215,12 +215,12 @@ class Effect:
         """Return the signals corrected for this effect (default: unchanged)."""
         return sig
 
-    def columns(self, sig: Signals, nl: tuple[float, ...], phi: np.ndarray, base: np.ndarray) -> np.ndarray:
+    def columns(self, sig: Signals, nl: tuple[float, ...], phi: np.ndarray | None, base: np.ndarray) -> np.ndarray:
         """Return G (N, 3, len(param_names)): rows (forward force, yaw torque, lateral speed) per unit parameter."""
         return np.zeros((sig.n, 3, 0))
 
     def window_columns(
-        self, sig: Signals, nl: tuple[float, ...], phi: np.ndarray, base: np.ndarray, edges: np.ndarray
+        self, sig: Signals, nl: tuple[float, ...], phi: np.ndarray | None, base: np.ndarray, edges: np.ndarray
     ) -> np.ndarray:
         """Return the window integrals (windows, 3, k) of :meth:`columns` over the windows cut at ``edges``.
 
@@ -229,7 +229,7 @@ class Effect:
         return window_integrals(sig.t, self.columns(sig, nl, phi, base), edges)
 
     def offset(
-        self, sig: Signals, nl: tuple[float, ...], phi: np.ndarray, base: np.ndarray, theta: np.ndarray | None
+        self, sig: Signals, nl: tuple[float, ...], phi: np.ndarray | None, base: np.ndarray, theta: np.ndarray | None
     ) -> np.ndarray | None:
         """Return a term (N, 3) added to the rows besides ``G theta`` (a set-valued force), or None (default).
 
@@ -338,7 +338,7 @@ class CasterSwivel(Effect):
     """
 
     name = "caster_swivel"
-    param_names = ("force",)
+    param_names: tuple[str, ...] = ("force",)
     nl_names = ("distance",)
     set_valued = True
     log_scale = True
@@ -442,6 +442,10 @@ SWING_MODES: tuple[tuple[int, float], ...] = ((0, 1e-5),) + tuple(
 )
 
 
+#: stacked swing terms of a caster model: (swing ranges, Q, P, R, c0, b, S, n_ind), see `_swing_arrays`
+_SwingArrays = tuple[
+    tuple[tuple[int, int], ...], np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray
+]
 #: half window (s) of the local quadratic that gives the yaw rate driving the caster kinematics
 CASTER_OMEGA_WINDOW = 0.25
 
@@ -723,7 +727,7 @@ class SwivelCasterModel(CasterSwivel):
         sig.extras[key] = out
         return out
 
-    def _swing_arrays(self, sig: Signals, trail: float, base: np.ndarray) -> tuple[tuple, ...]:
+    def _swing_arrays(self, sig: Signals, trail: float, base: np.ndarray) -> _SwingArrays:
         """Return the swings' ranges and their normal-equation terms of :meth:`_swing_stats` stacked over the swings.
 
         (ranges, Q (S, C, 3, 3), P (S, C, 3), R (S, C, 3, 4), c0 (S,), b (S, 4), S (S, 4, 4), n_ind (S,)):
@@ -769,9 +773,10 @@ class SwivelCasterModel(CasterSwivel):
     def column_key(self, sig, nl):
         """Return the default key plus the current swing-mode weights (the columns depend on them)."""
         choice = self._choice(sig, float(nl[0]))
-        return Effect.column_key(self, sig, nl) + (
-            tuple((k, tuple(np.round(w, 4))) for k, w in sorted(choice.items())),
-        )
+        key = Effect.column_key(self, sig, nl)
+        if key is None:  # columns that use phi are not cached
+            return None
+        return key + (tuple((k, tuple(np.round(w, 4))) for k, w in sorted(choice.items())),)
 
     def _rows(self, sig: Signals, trail: float) -> np.ndarray:
         """Return the unit rows (N, 2, 3): natural swings, each chosen swing as its weighted mixture of combos."""
@@ -899,7 +904,7 @@ class PayloadChange(Effect):
     """A step of phi = [m, m dx, m dy, J] at an unknown time (a payload put in or taken out)."""
 
     name = "payload_change"
-    param_names = ("delta_m", "delta_m_dx", "delta_m_dy", "delta_J")
+    param_names: tuple[str, ...] = ("delta_m", "delta_m_dx", "delta_m_dy", "delta_J")
     nl_names = ("time",)
 
     #: most change times on the grid (a long log gets a coarser grid; the 1-D refinement follows)
