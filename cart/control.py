@@ -173,7 +173,9 @@ class KanayamaTracker:
         return np.array([c * fu, s * fu, tau])
 
 
-def make_controller(name: ControllerName, trajectory: CartTrajectory, **gains) -> object:
+def make_controller(
+    name: ControllerName, trajectory: CartTrajectory, **gains
+) -> FeedbackLinearizationLQR | KanayamaTracker:
     """Return the controller called ``name`` ("fl_lqr" or "kanayama") for ``trajectory``."""
     if name == "fl_lqr":
         return FeedbackLinearizationLQR(trajectory, **gains)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import glob
 import json
+import logging
 import os
 import stat
 import sys
@@ -93,12 +94,12 @@ def expand_inputs(inputs: Sequence[str]) -> list[str]:
     return out
 
 
-def done_paths(out: str | os.PathLike) -> set:
+def done_paths(out: str | os.PathLike) -> set[str]:
     """Return the (absolute) paths that have an ``ok: true`` line in the results file ``out`` (empty if none).
 
     Lines that are not JSON (a line cut by an interruption) are ignored.
     """
-    done = set()
+    done: set[str] = set()
     if not os.path.exists(out):
         return done
     with open(out, encoding="utf-8", errors="replace") as fh:
@@ -158,9 +159,9 @@ def _open_results(out: str | os.PathLike):
     try:
         needs_newline = False
         if os.path.getsize(out) if os.path.exists(out) else 0:
-            with open(out, "rb") as fh:
-                fh.seek(-1, os.SEEK_END)
-                needs_newline = fh.read(1) != b"\n"
+            with open(out, "rb") as last:
+                last.seek(-1, os.SEEK_END)
+                needs_newline = last.read(1) != b"\n"
         fh = open(out, "a", encoding="utf-8")
     except OSError as exc:
         raise BatchError(f"--out {out}: cannot write ({exc.strerror or exc})") from None
@@ -299,7 +300,7 @@ def _ray_connect(address: str, workers: int | None) -> int:
         raise BatchError("--ray needs the `ray` package: pip install 'cartpush[cluster]'") from None
     if not ray.is_initialized():
         try:
-            ray.init(address=address, logging_level="ERROR", log_to_driver=False)
+            ray.init(address=address, logging_level=logging.ERROR, log_to_driver=False)
         except Exception as exc:  # noqa: BLE001 - ConnectionError, RuntimeError, ...: one line
             raise BatchError(f"--ray {address}: cannot connect to the Ray cluster ({_one_line(exc)})") from None
     if workers is None:

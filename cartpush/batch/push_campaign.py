@@ -17,7 +17,7 @@ import os
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from cartpush.batch.engine import (
     BatchError,
@@ -27,6 +27,9 @@ from cartpush.batch.engine import (
     _results,
     _write_results,
 )
+
+if TYPE_CHECKING:
+    from wholebody.push.config import PlantName
 
 #: Plants a campaign can run on.
 PLANTS = ("kinematic", "mujoco")
@@ -40,7 +43,7 @@ class PushRun:
     mass: float
     trajectory: int
     arms: int = 1
-    plant: str = "kinematic"
+    plant: PlantName = "kinematic"
     duration: float = 30.0
     seed: int = 0
 
@@ -89,7 +92,7 @@ def campaign(
         if not prof.is_mobile_manipulator:
             raise BatchError(f"--robots: {r!r} has no arm on a wheeled base; it cannot push the cart")
     return [
-        PushRun(_robot_ref(r), float(m), int(t), arms, plant, duration, seed)
+        PushRun(_robot_ref(r), float(m), int(t), arms, cast("PlantName", plant), duration, seed)  # checked above
         for r in robots
         for m in masses
         for t in trajectories

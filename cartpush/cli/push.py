@@ -141,16 +141,16 @@ def config_from_args(args: argparse.Namespace):
     options.seed(args.seed)
     for v in args.contact_y or ():
         options.finite("--contact-y", v)
-    kwargs = {}
+    fixed_contact_y: tuple[float, ...] | None = None
     if args.contact_y is not None:
         ys = tuple(args.contact_y)
         if len(ys) != args.arms or any(abs(v) > 0.25 for v in ys):
             raise WholeBodyError(f"--contact-y needs {args.arms} value(s) within [-0.25, 0.25] m, got {list(ys)}")
         if len(ys) == 2 and abs(ys[1] - ys[0]) < 0.2:
             raise WholeBodyError("two contact points must be at least 0.2 m apart")
-        kwargs["fixed_contact_y"] = ys
+        fixed_contact_y = ys
     elif args.arms == 2:
-        kwargs["fixed_contact_y"] = (-0.2, 0.2)
+        fixed_contact_y = (-0.2, 0.2)
     return PushConfig(
         trajectory=args.trajectory,
         n_arms=args.arms,
@@ -163,7 +163,7 @@ def config_from_args(args: argparse.Namespace):
         plant=args.plant,
         estimator=args.estimator,
         cart_model=None if args.cart_model is None else str(args.cart_model),
-        **kwargs,
+        fixed_contact_y=fixed_contact_y,
     )
 
 

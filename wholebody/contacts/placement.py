@@ -27,6 +27,7 @@ from itertools import combinations
 from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import minimize, minimize_scalar
 
 from wholebody.contacts.allocation import AllocationResult, ArmLimits, EffortWeights, WrenchAllocator
@@ -380,8 +381,8 @@ def reach_map(
     wb,
     base_pose_of,
     target_of,
-    y_values: Sequence[float],
-    seed: Sequence[float],
+    y_values: npt.ArrayLike,
+    seed: npt.ArrayLike,
     y_start: float,
     joint_margin: float = REACH_JOINT_MARGIN,
     min_sigma: float = REACH_MIN_SIGMA,
@@ -438,9 +439,7 @@ def _hold_point(
     return qa, ""
 
 
-def _reach_branches(
-    wb, ys: np.ndarray, i0: int, seed: Sequence[float], hold
-) -> tuple[np.ndarray, np.ndarray, list[str]]:
+def _reach_branches(wb, ys: np.ndarray, i0: int, seed: npt.ArrayLike, hold) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Return (postures, joint margins, reasons) continuing `hold` from grid index i0 to both ends.
 
     Each direction starts from `seed`, seeds every point with the previous posture and stops at the first

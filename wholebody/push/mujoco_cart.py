@@ -26,6 +26,7 @@ every wheel (``m + sum J_spin / r^2``).
 from __future__ import annotations
 
 import math
+from typing import Any
 from dataclasses import dataclass, replace
 
 import mujoco
@@ -205,7 +206,7 @@ def _wheel_parts(c: MujocoCart) -> list[tuple[float, float, float, float]]:
     return parts
 
 
-def shopping_cart(params: CartParams, rolling_friction: float = 1e-4, **overrides: object) -> MujocoCart:
+def shopping_cart(params: CartParams, rolling_friction: float = 1e-4, **overrides: Any) -> MujocoCart:
     """Return the shopping cart of ``robots.shopping_cart`` whose whole body has the mass, CoM and inertia of `params`.
 
     Wheels, casters (trail, fork) and the handle bar are the shopping cart's; the chassis carries the
@@ -247,6 +248,7 @@ def shopping_cart(params: CartParams, rolling_friction: float = 1e-4, **override
         handle_width=HANDLE_WIDTH,
         timestep=0.002,
     )
+    # overrides: MujocoCart fields of several types (floats, tuples, None); `replace` rejects unknown names
     geometry = replace(geometry, **overrides) if overrides else geometry
     parts = np.array(_wheel_parts(geometry))
     m_c = params.m - parts[:, 0].sum()

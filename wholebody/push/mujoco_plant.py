@@ -176,7 +176,7 @@ class MujocoPlant:
     def __init__(
         self,
         robots: Sequence,
-        cart_pose: Sequence[float],
+        cart_pose: Sequence[float] | np.ndarray,
         cart: CartParams | mujoco_cart.MujocoCart | str | os.PathLike = TRUE_CART,
         grasp_points_b: Sequence[Sequence[float]] | None = None,
         noise: MeasurementNoise = PUSH_SENSOR_NOISE,

@@ -361,7 +361,7 @@ def robot_inertia(urdf: str) -> tuple[float, float]:
 
 def compose(
     cart_spec: mujoco.MjSpec,
-    cart_pose: Sequence[float],
+    cart_pose: Sequence[float] | np.ndarray,
     cart_z: float,
     setups: Sequence[RobotSetup],
     physics_dt: float,
@@ -464,7 +464,7 @@ def _index(model: mujoco.MjModel, s: RobotSetup, names: dict, i: int) -> RobotIn
     )
 
 
-def set_state(scene: Scene, cart_pose: Sequence[float], cart_z: float, xs: Sequence[np.ndarray]) -> None:
+def set_state(scene: Scene, cart_pose: Sequence[float] | np.ndarray, cart_z: float, xs: Sequence[np.ndarray]) -> None:
     """Reset the data: the cart at `cart_pose`, robot i's base and arm at ``xs[i]``; forward kinematics."""
     m, d = scene.model, scene.data
     mujoco.mj_resetData(m, d)

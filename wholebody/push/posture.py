@@ -123,13 +123,20 @@ def _search(
     return sol.x if np.linalg.norm(sol.fun[:6]) < 1e-3 else None
 
 
+def _contact_y(prof: RobotProfile) -> float:
+    """Return the profile's push contact point y (m); `push_profile` sets it before the posture search."""
+    if prof.push_contact_y is None:
+        raise WholeBodyError(f"robot {prof.name!r}: the push posture search needs the profile's contact_y")
+    return prof.push_contact_y
+
+
 def _reach_length(wb: WholeBody, prof: RobotProfile, p: Placement) -> float:
     """Return the length (m) of the handle an arm holds with margin from a placement's base pose (`reach_map`)."""
     from wholebody.contacts.placement import reach_map
     from wholebody.push.robot import base_target, grasp_rotation, grasp_target, handle_point
 
     zero = np.zeros(3)
-    y0, qa = prof.push_contact_y, p.arm
+    y0, qa = _contact_y(prof), p.arm
     pose = base_target(zero, zero, np.array([handle_point(y0)[0] + p.base_x, y0 + p.base_dy]))[0]
     R_b_ee = grasp_rotation(p.pitch, p.roll, prof.arms[0].tool_axis or "z")
     ys = contact_grid()
@@ -148,7 +155,7 @@ def _side_margin(
     from wholebody.push.robot import base_target, grasp_target, handle_point, solve_grasp_ik
 
     zero = np.zeros(3)
-    y0 = prof.push_contact_y
+    y0 = _contact_y(prof)
     pose = base_target(zero, zero, np.array([handle_point(y0)[0] + bx, y0 + dy]))[0]
     try:
         return joint_margin(wb, solve_grasp_ik(wb, pose, grasp_target(zero, zero, y0, 0.0, R_b_ee)[0], seed))
@@ -166,7 +173,7 @@ def _placement(wb: WholeBody, prof: RobotProfile, pitch: float, roll: float, axi
     """Return the best placement of one grasp orientation (two base seeds), or None if the arm cannot reach."""
     from wholebody.push.robot import base_target, grasp_rotation, grasp_target, handle_point, solve_grasp_ik
 
-    y0 = prof.push_contact_y
+    y0 = _contact_y(prof)
     R = grasp_rotation(pitch, roll, axis)
     mid = 0.5 * (wb.arm_lower + wb.arm_upper)
     best = None
@@ -221,7 +228,7 @@ def solve_push_placement(prof: RobotProfile, wbs: Sequence[WholeBody]) -> RobotP
         grasp_pitch=best.pitch,
         grasp_roll=best.roll,
         push_base_x=best.base_x,
-        push_base_y=(prof.push_contact_y + best.base_dy) if fixed_base else prof.push_base_y,
+        push_base_y=(_contact_y(prof) + best.base_dy) if fixed_base else prof.push_base_y,
         push_base_dy=0.0 if fixed_base else best.base_dy,
     )
 

@@ -6,6 +6,7 @@ import math
 from dataclasses import replace
 from collections.abc import Sequence
 from functools import lru_cache
+from typing import TypeVar
 
 import numpy as np
 import pinocchio as pin
@@ -23,6 +24,8 @@ from wholebody.motion.kinematics import WholeBody, wholebody_for
 from wholebody.motion.limits import WheelAccelerationLimit
 from wholebody.push.config import BodyTracker
 from wholebody.contacts.allocation import TorqueConstraint
+
+T = TypeVar("T")
 
 #: Grasp orientation in {b} at pitch 0: tool axis (ee z) along +x_b, fingers (ee x) along z_b, bar along ee y.
 R_B_EE0 = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]])
@@ -69,7 +72,7 @@ def grasp_rotation(pitch: float = GRASP_PITCH, roll: float = 0.0, tool_axis: str
     return R
 
 
-def cart_se3(q_cart: Sequence[float], geometry: CartGeometry | None = None) -> pin.SE3:
+def cart_se3(q_cart: Sequence[float] | np.ndarray, geometry: CartGeometry | None = None) -> pin.SE3:
     """Return T_s_b: the cart frame {b} in the world, at the geometry's height (default: wheel-axle height)."""
     c, s = math.cos(q_cart[2]), math.sin(q_cart[2])
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
@@ -141,7 +144,7 @@ class WholeBodyQPTracker:
             prof = push_profile(wb.robot)
             config = replace(
                 PUSH_CONTROLLER,
-                base_lookahead=prof.base_lookahead,
+                base_lookahead=_filled(prof, "base_lookahead", prof.base_lookahead),
                 wheel_acceleration_limit=prof.wheel_acceleration_limit,
             )
             if wb.base_input == "twist" and prof.wheel_acceleration_limit is not None:
@@ -168,7 +171,9 @@ class WholeBodyQPTracker:
         return res.u
 
 
-def solve_grasp_ik(wb: WholeBody, base_pose: np.ndarray, target: pin.SE3, seed: Sequence[float]) -> np.ndarray:
+def solve_grasp_ik(
+    wb: WholeBody, base_pose: np.ndarray, target: pin.SE3, seed: Sequence[float] | np.ndarray
+) -> np.ndarray:
     """Return arm joints placing the ee at target with the base at base_pose (bounded least squares)."""
     from scipy.optimize import least_squares
 
@@ -195,7 +200,7 @@ def grasp_configuration(
     contact_y: float,
     base_y: float,
     R_b_ee: np.ndarray,
-    seed: Sequence[float] | None = None,
+    seed: Sequence[float] | np.ndarray | None = None,
     geometry: CartGeometry | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return (base pose, arm joints) of the robot holding the handle at `contact_y` (m, in {b}).
@@ -253,7 +258,14 @@ def base_twist_limit(wb: WholeBody) -> tuple[float, float, float]:
             out.append(0.0)
             continue
         out.append(float(np.min(wb.wheel_velocity_limit[rates > 1e-12] / rates[rates > 1e-12])))
-    return tuple(out)
+    return (out[0], out[1], out[2])
+
+
+def _filled(prof: RobotProfile, key: str, value: T | None) -> T:
+    """Return a push setting of a profile filled by `push_profile`; raise `WholeBodyError` if it is not set."""
+    if value is None:
+        raise WholeBodyError(f"robot {prof.name!r}: push setting {key} is not set; take the profile from push_profile")
+    return value
 
 
 def push_profile(robot: robots.LoadedRobot | RobotProfile | str, arm: int = 0) -> RobotProfile:
@@ -328,7 +340,7 @@ class MobileManipulator:
         base_y: float,
         R_b_ee: np.ndarray,
         tracker: BodyTracker | None = None,
-        arm_seed: Sequence[float] | None = None,
+        arm_seed: Sequence[float] | np.ndarray | None = None,
         arm: int = 0,
         geometry: CartGeometry | None = None,
     ) -> None:
@@ -388,7 +400,7 @@ class MobileManipulator:
         pin.updateFramePlacements(self.model, self.data)
         return tau + push, push, pin.SE3(self.data.oMf[self.ee_id]), pin.SE3(self.data.oMf[self.ft_id])
 
-    def torque_constraint(self, q_cart: Sequence[float], u: np.ndarray | None = None) -> TorqueConstraint:
+    def torque_constraint(self, q_cart: Sequence[float] | np.ndarray, u: np.ndarray | None = None) -> TorqueConstraint:
         """Return this arm's joint-torque constraint on its hand wrench in {a}: |J_a^T w_a + bias| <= tau_max.
 
         ``J_a`` (6 x n_arm) is the ee Jacobian (world-aligned, arm columns) with its rows rotated into the
@@ -438,12 +450,12 @@ def push_reach_map(robot: str | RobotProfile | robots.LoadedRobot, geometry: Car
         lambda y: base_target(zero, zero, offset)[0],
         lambda y: grasp_target(zero, zero, float(y), 0.0, R, geo)[0],
         contact_grid() if geometry is None else geo.grid(),
-        prof.push_arm_seed,
+        _filled(prof, "push_seed", prof.push_arm_seed),
         geo.nearest(start),
     )
 
 
-def base_lateral_places(prof: RobotProfile, contact_y: Sequence[float]) -> list[float]:
+def base_lateral_places(prof: RobotProfile, contact_y: Sequence[float] | np.ndarray) -> list[float]:
     """Return each robot's base y in {b} for contacts `contact_y` (one robot per contact).
 
     A base with a fixed place (`push_base_y`) stands there when alone; two such robots stand behind their
@@ -454,15 +466,15 @@ def base_lateral_places(prof: RobotProfile, contact_y: Sequence[float]) -> list[
     if len(ys) == 1:
         return [prof.push_base_y if prof.push_base_y is not None else ys[0] + prof.push_base_dy]
     shift = [-TWO_ARM_BASE_SPREAD, TWO_ARM_BASE_SPREAD]
-    off = 0.0 if prof.push_base_y is None else prof.push_base_y - prof.push_contact_y
+    off = 0.0 if prof.push_base_y is None else prof.push_base_y - _filled(prof, "contact_y", prof.push_contact_y)
     return [y + off + prof.push_base_dy + d for y, d in zip(ys, shift)]
 
 
 def make_robots(
     robot: str | RobotProfile | robots.LoadedRobot,
     q_cart: np.ndarray,
-    contact_y: Sequence[float],
-    seeds: Sequence[Sequence[float] | None] | None = None,
+    contact_y: Sequence[float] | np.ndarray,
+    seeds: Sequence[Sequence[float] | np.ndarray | None] | None = None,
     geometry: CartGeometry | None = None,
 ) -> list[MobileManipulator]:
     """Return one mobile manipulator per contact, each holding the handle at its contact (bases spread apart).
@@ -474,10 +486,10 @@ def make_robots(
     loaded = robot if isinstance(robot, robots.LoadedRobot) else robots.load(robot)
     prof = push_profile(loaded)
     R_b_ee = push_grasp_rotation(prof)
-    seeds = list(seeds or ())[: len(contact_y)]
-    seeds += [None] * (len(contact_y) - len(seeds))
+    arm_seeds = list(seeds or ())[: len(contact_y)]
+    arm_seeds += [None] * (len(contact_y) - len(arm_seeds))
     out = []
-    for y, by, sd in zip(contact_y, base_lateral_places(prof, contact_y), seeds):
+    for y, by, sd in zip(contact_y, base_lateral_places(prof, contact_y), arm_seeds):
         try:
             out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=sd, geometry=geometry))
         except WholeBodyError:
