@@ -15,16 +15,20 @@ import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from collections.abc import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from cart.control import ControllerName, make_controller
 from cart.ekf import CartEKF, EKFConfig
 from cart.estimation_metrics import estimation_errors
-from cart.errors import ParameterError
+from cart.errors import CartError, ParameterError
 from cart.params import CartParams
 from cart.simulate import MeasurementNoise, ParameterChange, min_effort_gamma, simulate
 from cart.trajectories import UnicycleTrajectory, trajectory_1, trajectory_2
+
+if TYPE_CHECKING:
+    from cart.online_estimator import OnlineLSEstimator
 
 TRUE_MASS = 20.0
 #: Inertia about the CoM of the simulated cart: a 1.0 m x 0.6 m box of 20 kg.
@@ -173,6 +177,15 @@ def ekf_config(noise_level: float, estimate: bool = True, change_detection: bool
     return EKFConfig.from_noise(std, estimate_params=estimate, change_detection=change_detection, **PROCESS_NOISE)
 
 
+class LoopEstimator(Protocol):
+    """What the loop reads of its estimator each sample: the state estimate and the parameters."""
+
+    @property
+    def x(self) -> np.ndarray: ...
+
+    def params(self) -> CartParams: ...
+
+
 class EstimatingLoop:
     """Controller callback for :func:`cart.simulate.simulate`: EKF, then controller, then the applied wrench.
 
@@ -196,7 +209,8 @@ class EstimatingLoop:
         self.config = config
         self.contact = contact
         self.substeps = int(substeps)
-        self.ekf: CartEKF | None = None
+        #: the paper's EKF (the online estimator in `OnlineLoop`), created at the first sample
+        self.ekf: CartEKF | OnlineLSEstimator | None = None
         self.gamma_in = np.zeros(3)
         self.gamma_cov: np.ndarray | None = None
         self.t_prev = 0.0
@@ -204,22 +218,25 @@ class EstimatingLoop:
         self.params_hat = np.empty((n, 4))
         self.nis = np.full(n, np.nan)
 
-    def _filter(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray) -> CartEKF:
+    def _filter(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray) -> LoopEstimator:
         """Create the EKF at the first sample, else predict under ``gamma_in`` and fuse (q_meas, qd_meas)."""
         z = np.concatenate([q_meas, qd_meas])
-        if self.ekf is None:
+        ekf = self.ekf
+        if ekf is None:
             self.ekf = CartEKF(q_meas, qd_meas, self.guess.phi, self.guess.sigma, self.config)
             return self.ekf
+        if not isinstance(ekf, CartEKF):
+            raise CartError(f"{type(self).__name__} runs the paper's EKF, got a {type(ekf).__name__}")
         dt = t - self.t_prev
         cov = None if self.gamma_cov is None else self.gamma_cov * dt
         if self.substeps == 1:
-            self.nis[self.k] = self.ekf.step(self.gamma_in, dt, z, gamma_cov=cov)
+            self.nis[self.k] = ekf.step(self.gamma_in, dt, z, gamma_cov=cov)
         else:  # finer Euler prediction (same input held), one update
             h = dt / self.substeps
             for _ in range(self.substeps):
-                self.ekf.predict(self.gamma_in, h, gamma_cov=cov)
-            self.nis[self.k] = self.ekf.update(z)
-        return self.ekf
+                ekf.predict(self.gamma_in, h, gamma_cov=cov)
+            self.nis[self.k] = ekf.update(z)
+        return ekf
 
     def _record(self, params: CartParams) -> None:
         """Store the estimate of sample k."""
@@ -251,16 +268,19 @@ class OnlineLoop(EstimatingLoop):
         self.meas_std = meas_std
         self.options = dict(options or {})
 
-    def _filter(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray):
+    def _filter(self, t: float, q_meas: np.ndarray, qd_meas: np.ndarray) -> OnlineLSEstimator:
         """Create the estimator at the first sample, else update it with the last wrench and this measurement."""
-        from cart.online_estimator import make_online_estimator
+        from cart.online_estimator import OnlineLSEstimator, make_online_estimator
 
         z = np.concatenate([q_meas, qd_meas])
-        if self.ekf is None:
-            self.ekf = make_online_estimator(z, self.guess, self.meas_std, **self.options)  # type: ignore[assignment]
+        est = self.ekf
+        if est is None:
+            self.ekf = make_online_estimator(z, self.guess, self.meas_std, **self.options)
             return self.ekf
-        self.nis[self.k] = self.ekf.step(self.gamma_in, t - self.t_prev, z)
-        return self.ekf
+        if not isinstance(est, OnlineLSEstimator):
+            raise CartError(f"OnlineLoop runs the online estimator, got a {type(est).__name__}")
+        self.nis[self.k] = est.step(self.gamma_in, t - self.t_prev, z)
+        return est
 
 
 def run_test(
