@@ -36,7 +36,7 @@ from wholebody.push.loop import (
     run_push,
     unobservable_intervals,
 )
-from wholebody.push.plant import Measurement, Plant, RobotCommand, RobotReading
+from wholebody.push.plant import Measurement, Plant, RobotCommand, RobotReading, SimulatedPlant
 from wholebody.push.plants import kinematic_plant, make_plant
 from wholebody.push.report import (
     DemoResult,
@@ -73,6 +73,7 @@ __all__ = [
     "KinematicPlant",
     "Measurement",
     "Plant",
+    "SimulatedPlant",
     "PushController",
     "PushSetup",
     "RobotCommand",

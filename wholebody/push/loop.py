@@ -3,7 +3,7 @@
 The controller (`wholebody.push.controller.PushController`) holds the cart controller (eq. 26),
 the estimator (eq. 8-20), the contact scheduler and the allocation (eq. 25) and the robots'
 whole-body QPs; the plant answers its commands (`wholebody.push.kinematic_plant.KinematicPlant`:
-ideal servos and the exact cart model; or any `wholebody.push.plant.Plant`). The record of each
+ideal servos and the exact cart model; or any `wholebody.push.plant.SimulatedPlant`). The record of each
 period (`StepRecord`) is written once; `run_push` stacks them into a `PushResult` with its metrics.
 """
 
@@ -32,7 +32,7 @@ from wholebody.push.config import (
 from wholebody.push.geometry import DEFAULT_GEOMETRY
 from wholebody.push.controller import ControlDecision, PushController
 from wholebody.push.plants import make_plant, plant_report, plant_truth
-from wholebody.push.plant import Measurement, Plant, RobotCommand
+from wholebody.push.plant import Measurement, RobotCommand, SimulatedPlant
 from wholebody.push import robot as robot_mod
 from wholebody.push.robot import MobileManipulator
 from wholebody.push.scheduler import ContactScheduler
@@ -144,7 +144,7 @@ def build_controller(
 
 
 def record(
-    plant: Plant,
+    plant: SimulatedPlant,
     m: Measurement,
     d: ControlDecision,
     cmds: Sequence[RobotCommand],
@@ -152,7 +152,7 @@ def record(
     mms: Sequence[MobileManipulator],
 ) -> StepRecord:
     """Return the period's record: the plant's truth, the measurement and the controller's decision."""
-    q, qd = plant.cart_state()  # type: ignore[attr-defined]
+    q, qd = plant.cart_state()
     lim = [np.asarray(mm.profile.base_twist_limit) for mm in mms]
     return StepRecord(
         q_true=q,
@@ -160,14 +160,14 @@ def record(
         q_desired=q_desired,
         z_meas=m.z,
         gamma_desired=d.gamma_desired,
-        gamma_applied=plant.cart_wrench(cmds),  # type: ignore[attr-defined]
+        gamma_applied=plant.cart_wrench(cmds),
         gamma_measured=d.gamma_measured,
         phi_hat=d.params_hat.phi,
         contact_y=d.contact_y,
         wrenches=d.wrenches_ee,
         arm_torque=d.arm_torque,
         push_torque=d.push_torque,
-        robot_x=np.array(plant.robot_states()),  # type: ignore[attr-defined]
+        robot_x=np.array(plant.robot_states()),
         grasp_error=d.grasp_error,
         base_twist=d.base_twist,
         wheel_rates=d.wheel_rates,
@@ -199,7 +199,11 @@ def run_push(
 
 
 def run_loop(
-    config: PushConfig, ctrl: PushController, plant: Plant, progress: bool = False, progress_label: str = "push"
+    config: PushConfig,
+    ctrl: PushController,
+    plant: SimulatedPlant,
+    progress: bool = False,
+    progress_label: str = "push",
 ) -> PushResult:
     """Return the result of measure -> ``ctrl.step`` -> ``plant.step`` over the run's duration.
 

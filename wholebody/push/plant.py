@@ -84,3 +84,16 @@ class Plant(Protocol):
 
     def step(self, commands: Sequence[RobotCommand]) -> None:
         """Apply one command per robot for one control period and advance time by `dt`."""
+
+
+class SimulatedPlant(Plant, Protocol):
+    """A plant that also knows the truth a run is judged against (a simulation; real robots do not)."""
+
+    def cart_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the true cart pose and velocity."""
+
+    def cart_wrench(self, commands: Sequence[RobotCommand]) -> np.ndarray:
+        """Return the Gamma_MM the hands apply to the cart under `commands`."""
+
+    def robot_states(self) -> list[np.ndarray]:
+        """Return the true robot states x = [base pose, arm joints]."""

@@ -9,7 +9,7 @@ import numpy as np
 from cart.params import CartParams
 from wholebody.push.config import PushConfig
 from wholebody.push.kinematic_plant import KinematicPlant
-from wholebody.push.plant import Plant
+from wholebody.push.plant import Plant, SimulatedPlant
 
 if TYPE_CHECKING:
     from wholebody.push.loop import PushSetup
@@ -23,7 +23,7 @@ def kinematic_plant(config: PushConfig, setup: PushSetup) -> KinematicPlant:
     )
 
 
-def make_plant(config: PushConfig, setup: PushSetup) -> Plant:
+def make_plant(config: PushConfig, setup: PushSetup) -> SimulatedPlant:
     """Return the plant `config.plant` names, holding the cart where `setup`'s robots grasp it."""
     if config.plant == "kinematic":
         return kinematic_plant(config, setup)
