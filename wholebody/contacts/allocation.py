@@ -43,9 +43,10 @@ import scipy.sparse as sp
 from wholebody.contacts.handle import ContactSpec, grasp_matrices
 from wholebody.contacts.kernels import equality_optimum_effort
 from wholebody.errors import InfeasibleWrenchError, WholeBodyError
+from wholebody.qp import ProxQPSolver
 
 if TYPE_CHECKING:
-    from proxsuite.proxqp.dense import QP as ProxQP
+    pass
 
 #: closed-form KKT matrices (Kx, Kl, h_active) of an active set; None: a degenerate active set
 KKTEntry = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -311,51 +312,6 @@ def _inequalities(
     return out
 
 
-class _DirectProxQP:
-    """ProxQP's dense solver on one allocation QP: initialized once per equality matrix, then warm-started.
-
-    A new equality matrix (the contacts moved) re-initializes the QP (cold, scaled on the new matrix); a new
-    right-hand side only updates it and warm-starts from the previous solution. A warm start that fails is
-    retried cold, and a failed solve is never warm-started from.
-    """
-
-    def __init__(self, P: np.ndarray, G: np.ndarray, h: np.ndarray) -> None:
-        import proxsuite
-
-        self._proxqp = proxsuite.proxqp
-        self.P, self.G, self.h = P, G, h
-        self.qp: ProxQP | None = None
-
-    def _cold(self, A: np.ndarray, b: np.ndarray) -> ProxQP:
-        nx = self.P.shape[0]
-        qp = self.qp = self._proxqp.dense.QP(nx, A.shape[0], self.G.shape[0])
-        qp.settings.eps_abs = PROXQP_EPS_ABS
-        qp.settings.eps_rel = 0.0
-        qp.settings.verbose = False
-        qp.init(self.P, np.zeros(nx), A, b, self.G, np.full(len(self.h), -np.inf), self.h)
-        qp.solve()  # ProxQP crashes when asked to warm-start before its first solve
-        qp.settings.initial_guess = self._proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-        return qp
-
-    def _solved(self, qp: ProxQP) -> bool:
-        return qp.results.info.status == self._proxqp.QPSolverOutput.PROXQP_SOLVED
-
-    def solve(self, A: np.ndarray, b: np.ndarray, new_A: bool) -> np.ndarray | None:
-        """Return the solution for equality ``A x = b``, or None if ProxQP fails (cold as well as warm)."""
-        qp = self.qp
-        if qp is None or new_A:
-            qp = self._cold(A, b)
-        else:
-            qp.update(b=b)
-            qp.solve()
-            if not self._solved(qp):
-                qp = self._cold(A, b)
-        if not self._solved(qp):
-            self.qp = None
-            return None
-        return qp.results.x.copy()
-
-
 class WrenchAllocator:
     """The wrench allocation QP for fixed limits, built once; `set_points` moves the contacts, `solve` per step."""
 
@@ -397,7 +353,7 @@ class WrenchAllocator:
             if len(self.jacobians) != n or any(J.ndim != 2 or J.shape[0] != 6 for J in self.jacobians):
                 raise WholeBodyError("jacobians must be one (6 x n_joints) array per contact")
         self._build(torque_limits)
-        self._direct = _DirectProxQP(self.P, self.Gin, self.hin) if solver == "proxqp" and direct else None
+        self._direct = ProxQPSolver(PROXQP_EPS_ABS) if solver == "proxqp" and direct else None
         self.set_points([c.point_b for c in specs])
 
     # ------------------------------------------------------------------ build
@@ -412,6 +368,7 @@ class WrenchAllocator:
         self.Q = _effort_matrix(n, w, self.jacobians)
         reg = np.diag(np.tile(np.r_[[w.force] * 3, [w.torque] * 3], n)) * (1e-9 if self.jacobians is not None else 0.0)
         self.P = 2.0 * self.E.T @ (self.Q + reg) @ self.E
+        self._zero_cost = np.zeros(self.P.shape[0])
         self._Pinv = np.linalg.inv(self.P)
         self._Q_free = self.E.T @ self.Q @ self.E  # effort = x^T Q_free x on the free components
         self._active: tuple[int, ...] = ()  # active limits of the last QP solution (the shortcut's guess)
@@ -460,8 +417,8 @@ class WrenchAllocator:
         self._kkt_cache = {(): self._kkt_cache[()]} if hasattr(self, "_kkt_cache") else {}
         self._active = ()
         self._mats = None
-        if self._direct is not None:
-            self._direct = _DirectProxQP(self.P, self.Gin, self.hin)
+        if self._direct is not None:  # new inequalities: the next solve starts cold on them
+            self._direct.reset()
             self._A_new = True
 
     def _equality_batch(self, points_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -548,7 +505,7 @@ class WrenchAllocator:
     def _qp(self, b: np.ndarray) -> np.ndarray | None:
         """Return the QP solution for right-hand side b (None when the solver fails)."""
         if self._direct is not None:
-            x = self._direct.solve(self.A, b, self._A_new)
+            x = self._direct.solve_equality(self.P, self._zero_cost, self.A, b, self.Gin, self.hin, self._A_new)
             self._A_new = False
         else:
             m = self._qpsolvers_mats()

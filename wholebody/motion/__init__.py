@@ -39,7 +39,8 @@ from wholebody.motion.limits import (
     WheelAccelerationLimit,
     WheelVelocityLimit,
 )
-from wholebody.motion.qp import Limit, ProxQPSolver, QPSolution, QPWorkspace, SolverChoice, StepState, Task, solve_step
+from wholebody.motion.qp import Limit, QPSolution, QPWorkspace, SolverChoice, StepState, Task, solve_step
+from wholebody.qp import ProxQPSolver
 from wholebody.motion.tasks import BaseTask, DampingTask, EndEffectorTask, ManipulabilityTask, PostureTask
 from wholebody.motion.timing import (
     EndEffectorTiming,

@@ -35,11 +35,10 @@ from wholebody.motion.limits import (
     WheelAccelerationLimit,
     WheelVelocityLimit,
 )
+from wholebody.qp import DaqpSolver, ProxQPSolver
 from wholebody.motion.qp import (
-    DaqpSolver,
     DirectSolver,
     Limit,
-    ProxQPSolver,
     QPWorkspace,
     SolverChoice,
     StepState,
@@ -90,7 +89,7 @@ class ControllerConfig:
         singular_threshold: a step is flagged singular when sigma_min(J) is below this.
         residual_tolerance: a step is flagged saturated when ||J u - v_ref|| exceeds this.
         solver: a `qpsolvers` solver name. "daqp" (default) and "proxqp" are called directly
-            (`wholebody.motion.qp.DaqpSolver`: daqp's active-set solve of each step's QP, exact to rounding and
+            (`wholebody.qp.DaqpSolver`: daqp's active-set solve of each step's QP, exact to rounding and
             independent of earlier steps; `ProxQPSolver`: one dense ProxQP problem updated in place each step),
             any other through `qpsolvers`.
         solver_tolerance: absolute tolerance passed to proxqp (its default 1e-5 perturbs the

@@ -1,4 +1,4 @@
-"""The resolved-rate QP composed from tasks and limits (the mink/pink layout), and its solvers.
+"""The resolved-rate QP composed from tasks and limits (the mink/pink layout); its solvers are `wholebody.qp`.
 
 A `Task` contributes a quadratic cost ``1/2 u^T H u + c^T u`` over the input ``u = [arm rates, base input]``;
 a `Limit` contributes a box ``lb <= u <= ub`` and/or inequalities ``G u <= h``. `solve_step` sums the
@@ -20,19 +20,15 @@ import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
-import daqp
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-import qpsolvers
-from proxsuite import proxqp
 
-from wholebody.motion.kernels import clip_to_box, unconstrained_if_feasible
+from wholebody.motion.kernels import clip_to_box
 from wholebody.motion.kinematics import WholeBody
-
-_SOLVED = proxqp.QPSolverOutput.PROXQP_SOLVED
+from wholebody.qp import DaqpSolver, ProxQPSolver, solve_qpsolvers
 
 
 @dataclass
@@ -294,149 +290,8 @@ def _same_objects(a: Sequence[object], b: Sequence[object]) -> bool:
     return len(a) == len(b) and all(map(operator.is_, a, b))
 
 
-class ProxQPSolver:
-    """A dense ProxQP problem built once and updated in place each step (box constraints native).
-
-    With `warm_start` True each solve starts from the previous solution and keeps the first
-    preconditioner; the solution moves within the solver's tolerance (the QP's strong convexity is only
-    its damping, so along nearly free directions u moves by up to ~2e-3 while the cost stays within ~3e-7
-    relative and J u within ~6e-7 of the exact optimum on the recorded steps). With `warm_start` False every solve starts from ProxQP's equality-constrained
-    initial guess and recomputes the preconditioner, which reproduces a fresh `proxqp.dense.solve` to ~1e-10.
-    """
-
-    def __init__(self, tolerance: float, warm_start: bool = True) -> None:
-        self.tolerance = tolerance
-        self.warm_start = warm_start
-        self._qp: proxqp.dense.QP | None = None
-        self._n = self._m = -1
-
-    def reset(self) -> None:
-        """Forget the problem (the next solve builds it afresh)."""
-        self._qp = None
-
-    def _build(self, n: int, m: int) -> proxqp.dense.QP:
-        qp = proxqp.dense.QP(n, 0, m, True)
-        qp.settings.eps_abs = self.tolerance
-        qp.settings.eps_rel = 0.0
-        if self.warm_start:
-            qp.settings.initial_guess = proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-        return qp
-
-    def solve(
-        self,
-        H: np.ndarray,
-        c: np.ndarray,
-        G: np.ndarray | None,
-        h: np.ndarray | None,
-        lb: np.ndarray,
-        ub: np.ndarray,
-        G_changed: bool = True,
-    ) -> np.ndarray | None:
-        """Return the QP's solution, or None if ProxQP does not report it solved (or it is not finite).
-
-        `G_changed` False: G is the one of the previous solve (not passed to ProxQP again).
-        """
-        qp = self._qp
-        if qp is None or self._m != (0 if G is None else G.shape[0]) or self._n != c.shape[0]:
-            qp = self._init(H, c, G, h, lb, ub)
-        elif G is None:
-            qp.update(H=H, g=c, l_box=lb, u_box=ub, update_preconditioner=not self.warm_start)
-        elif G_changed:
-            qp.update(H=H, g=c, C=G, u=h, l_box=lb, u_box=ub, update_preconditioner=not self.warm_start)
-        else:
-            qp.update(H=H, g=c, u=h, l_box=lb, u_box=ub, update_preconditioner=not self.warm_start)
-        qp.solve()
-        if self._info.status != _SOLVED:  # NaN data never meets the residual tolerance: SOLVED means finite
-            self._qp = None  # do not warm start from a failed solve
-            return None
-        return self._x.copy()
-
-    def _init(
-        self, H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: np.ndarray | None, lb: np.ndarray, ub: np.ndarray
-    ) -> proxqp.dense.QP:
-        """Build and initialise the problem for the shapes of (c, G)."""
-        self._n, self._m = c.shape[0], 0 if G is None else G.shape[0]
-        qp = self._qp = self._build(self._n, self._m)
-        qp.init(H, c, None, None, G, None if G is None else np.full(self._m, -np.inf), h, lb, ub)
-        self._results = qp.results
-        self._info = self._results.info
-        self._x = self._results.x  # a view of the solution vector, sized once per problem
-        return qp
-
-
-class DaqpSolver:
-    """The step's QP solved exactly: the unconstrained minimiser when it satisfies every constraint, else daqp.
-
-    With H positive definite (the controller's damping makes it so), the minimiser ``u = -H^-1 c`` that
-    satisfies ``lb <= u <= ub`` and ``G u <= h`` exactly is the QP's solution: it is returned without calling a
-    solver (`kernels.unconstrained_if_feasible`; in free-space tracking most steps end here). Otherwise daqp (a
-    dual active-set solver) solves the QP, its data laid out as `qpsolvers` lays them out for daqp (the box as
-    daqp's simple bounds, then the rows of G with lower bound -1e30), so that it returns what
-    ``qpsolvers.solve_qp(..., solver="daqp")`` returns, without its per-call checks and copies. Each solve starts
-    from an empty active set: the step's input does not depend on earlier steps.
-    """
-
-    def __init__(self) -> None:
-        self._n = self._m = -1
-
-    def _size(self, n: int, m: int) -> None:
-        self._n, self._m = n, m
-        self._no_rows, self._no_rhs = np.zeros((0, n)), np.zeros(0)
-        self._upper, self._lower = np.empty(n + m), np.full(n + m, -1e30)
-        self._sense = np.zeros(n + m, dtype=np.intc)  # all inequalities; daqp reads it, never writes it
-
-    def solve(
-        self,
-        H: np.ndarray,
-        c: np.ndarray,
-        G: np.ndarray | None,
-        h: np.ndarray | None,
-        lb: np.ndarray,
-        ub: np.ndarray,
-        G_changed: bool = True,
-    ) -> np.ndarray | None:
-        """Return the QP's solution (a new array), or None if daqp does not report it solved (or it is not finite)."""
-        n, m = c.shape[0], 0 if G is None else G.shape[0]
-        if n != self._n or m != self._m:
-            self._size(n, m)
-        u, feasible = unconstrained_if_feasible(
-            H, c, self._no_rows if G is None else G, self._no_rhs if h is None else h, lb, ub
-        )
-        if feasible:
-            return u  # a NaN in the data fails the positive-definiteness or the feasibility test
-        if m == 0:
-            u, cost, flag, _ = daqp.solve(H, c, self._no_rows, ub, lb, self._sense)
-        else:
-            upper, lower = self._upper, self._lower
-            upper[:n], upper[n:], lower[:n] = ub, h, lb
-            u, cost, flag, _ = daqp.solve(H, c, np.ascontiguousarray(G), upper, lower, self._sense)
-        return u if flag > 0 and math.isfinite(cost) else None  # daqp reports NaN data solved: its cost is NaN
-
-
 #: The solvers `SolverChoice` calls directly (any other `qpsolvers` name goes through `qpsolvers.solve_qp`).
 DirectSolver = ProxQPSolver | DaqpSolver
-
-
-def solve_qpsolvers(
-    H: np.ndarray,
-    c: np.ndarray,
-    G: np.ndarray | None,
-    h: np.ndarray | None,
-    lb: np.ndarray,
-    ub: np.ndarray,
-    solver: str,
-    tolerance: float,
-) -> np.ndarray | None:
-    """Return the QP's solution by `qpsolvers.solve_qp(solver=...)`, or None if it fails or is not finite."""
-    # solver-specific keyword arguments, passed through by qpsolvers to the solver
-    options: dict[str, Any] = {"eps_abs": tolerance, "eps_rel": 0.0} if solver == "proxqp" else {}
-    try:
-        u = qpsolvers.solve_qp(H, c, G, h, lb=lb, ub=ub, solver=solver, **options)
-    except Exception:  # noqa: BLE001 - any solver failure is reported as None
-        return None
-    if u is None or not np.all(np.isfinite(u)):
-        return None
-    return u
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,8 @@ from tests.wholebody.motion.control_reference import CASES, REFERENCE, build, ca
 from wholebody.motion import qp as qp_module
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, pose_error
 from wholebody.motion.kinematics import wholebody_for
-from wholebody.motion.qp import DaqpSolver, Limit, Task, stack_objective
+from wholebody.motion.qp import Limit, Task, stack_objective
+from wholebody.qp import DaqpSolver
 
 DT = 0.01
 

@@ -18,7 +18,8 @@ from wholebody.motion.experiments import initial_state
 from tests.wholebody.motion.control_reference import CASES, REFERENCE, build, capture_qps
 from wholebody.motion.control import ControllerConfig, ResolvedRateController
 from wholebody.motion.kinematics import wholebody_for
-from wholebody.motion.qp import DaqpSolver, SolverChoice
+from wholebody.motion.qp import SolverChoice
+from wholebody.qp import DaqpSolver
 
 REF = np.load(REFERENCE)
 

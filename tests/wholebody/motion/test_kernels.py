@@ -12,7 +12,7 @@ from wholebody.errors import WholeBodyError
 from wholebody.motion import kernels as K
 from wholebody.motion.control import ResolvedRateController
 from wholebody.motion.kinematics import wholebody_for
-from wholebody.motion.qp import DaqpSolver
+from wholebody.qp import DaqpSolver
 from wholebody.motion.tasks import EndEffectorTask, PostureTask, pose_error
 
 RNG = np.random.default_rng(11)
@@ -101,7 +101,7 @@ def test_unconstrained_solution_taken_only_when_it_is_feasible():
 
 def test_daqp_solver_uses_the_shortcut_only_on_free_steps(monkeypatch):
     """A free QP never reaches daqp; a QP with a binding bound does, and its solution meets the KKT conditions."""
-    import wholebody.motion.qp as qp
+    import wholebody.qp.daqp as qp
 
     calls = []
     real = qp.daqp.solve
