@@ -16,6 +16,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+import robots
+
 from cart.control import make_controller
 from cart.ekf import CartEKF, EKFConfig
 from cart.estimation_metrics import estimation_errors
@@ -58,15 +60,20 @@ def make_robots(
     q_cart: np.ndarray,
     contact_y: np.ndarray,
     seeds: Sequence[np.ndarray | None] | None = None,
+    robot: robots.LoadedRobot | None = None,
 ) -> list[MobileManipulator]:
-    """Return the mobile manipulators holding the handle at `contact_y` (`wholebody.push.robot.make_robots`)."""
-    return robot_mod.make_robots(config.robot, q_cart, contact_y, seeds, geometry=config.cart_geometry())
+    """Return the mobile manipulators holding the handle at `contact_y` (`wholebody.push.robot.make_robots`).
+
+    ``robot``: the loaded `config.robot` when the caller has it (loaded once per run)."""
+    which = robot if robot is not None else config.robot
+    return robot_mod.make_robots(which, q_cart, contact_y, seeds, geometry=config.cart_geometry())
 
 
-def make_reach_map(config: PushConfig):
+def make_reach_map(config: PushConfig, robot: robots.LoadedRobot | None = None):
     """Return the `ReachMap` of a robot whose base stands at a fixed place behind the cart (None otherwise)."""
     geo = config.cart_geometry()
-    return robot_mod.push_reach_map(config.robot, None if geo is DEFAULT_GEOMETRY else geo)
+    which = robot if robot is not None else config.robot
+    return robot_mod.push_reach_map(which, None if geo is DEFAULT_GEOMETRY else geo)
 
 
 def _iterations(n: int, progress: bool, label: str):
@@ -135,10 +142,11 @@ def build_controller(
     controller = controller if controller is not None else make_controller(config.controller, traj)
     q, qd, _ = traj.sample(0.0)
     estimator = estimator if estimator is not None else make_estimator(config, q)
-    reach = make_reach_map(config)
+    robot = robots.load(config.robot)  # once per run: the reach map and the robots share it
+    reach = make_reach_map(config, robot)
     scheduler = ContactScheduler(config, traj, reach)
     seeds = None if reach is None else [reach.postures[reach.index(scheduler.y[0])]]
-    mms = make_robots(config, q, scheduler.y, seeds)
+    mms = make_robots(config, q, scheduler.y, seeds, robot)
     x0 = [mm.x.copy() for mm in mms]
     return PushSetup(PushController(config, controller, estimator, scheduler, mms), x0, q.copy(), qd.copy())
 
