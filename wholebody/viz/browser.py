@@ -6,7 +6,9 @@
 
 from __future__ import annotations
 
+import os
 import shutil
+import signal
 import subprocess
 import tempfile
 from pathlib import Path
@@ -50,7 +52,7 @@ def screenshot(
 
     A fresh browser profile is used unless `profile` is given. Raises `SceneError` when no screenshot was written.
     """
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:  # a profile Chromium may still write
         cmd = [
             browser,
             *HEADLESS_FLAGS,
@@ -71,7 +73,7 @@ def dump_dom(browser: str, html: Path, fragment: str = "", budget_ms: int = 4000
 
     Raises `SceneError` when Chromium printed nothing.
     """
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:  # a profile Chromium may still write
         cmd = [
             browser,
             *HEADLESS_FLAGS,
@@ -101,7 +103,7 @@ class DevToolsPage:
     def __init__(self, browser: str, html: Path, size: tuple[int, int] = (1024, 768), timeout: float = 60.0) -> None:
         import asyncio
 
-        self._tmp = tempfile.TemporaryDirectory()
+        self._tmp = tempfile.TemporaryDirectory(ignore_cleanup_errors=True)
         self._timeout = timeout
         self._ids = 0
         cmd = [
@@ -112,7 +114,9 @@ class DevToolsPage:
             "--remote-debugging-port=0",
             Path(html).resolve().as_uri(),
         ]
-        self._proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self._proc = subprocess.Popen(
+            cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+        )  # its own process group: close() stops Chromium's helper processes with it
         self._loop = asyncio.new_event_loop()
         try:
             self._ws = self._loop.run_until_complete(self._connect())
@@ -200,7 +204,10 @@ class DevToolsPage:
         if ws is not None:
             ws.close()
         if self._proc.poll() is None:
-            self._proc.kill()
+            try:  # the browser and its renderer/GPU helpers, which may still write into the profile
+                os.killpg(self._proc.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                self._proc.kill()
         self._proc.wait()
         self._loop.close()
         self._tmp.cleanup()
