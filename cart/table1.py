@@ -15,7 +15,7 @@ import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from collections.abc import Callable, Iterator, Sequence
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -298,6 +298,20 @@ def run_test(
 
     ``estimator``: "ekf" (the paper's) or "online" (`cart.online_estimator`, used only when estimating).
     """
+    make_loop = lambda ctrl, n: _loop(test, ctrl, n, estimate, estimator, change_detection)  # noqa: E731
+    return simulate_test(test, make_loop, controller, duration, dt, seed, trajectory)[0]
+
+
+def simulate_test(
+    test: Table1Test,
+    make_loop: Callable[[Any, int], EstimatingLoop],
+    controller: ControllerName = "fl_lqr",
+    duration: float = 30.0,
+    dt: float = 0.01,
+    seed: int = 0,
+    trajectory: UnicycleTrajectory | None = None,
+) -> tuple[TestRun, EstimatingLoop]:
+    """Return (the time series, the loop) of one test closed by ``make_loop(controller, n_samples)``."""
     traj = trajectory or (trajectory_1(duration) if test.traj == 1 else trajectory_2(duration))
     ctrl = make_controller(controller, traj)
     truth = true_params(test)
@@ -306,8 +320,7 @@ def run_test(
         for tc, mc in test.mass_changes
         if tc < duration
     ]
-    n = int(round(duration / dt)) + 1
-    loop = _loop(test, ctrl, n, estimate, estimator, change_detection)
+    loop = make_loop(ctrl, int(round(duration / dt)) + 1)
     rng = np.random.default_rng(seed * 1000 + test.test)
     q0, _, _ = traj.sample(0.0)
     sim = simulate(
@@ -322,17 +335,17 @@ def run_test(
         contact_point=contact_point(test),
         allocate=False,
     )
-    q_des = traj.poses(sim.true.t)
-    return TestRun(
+    run = TestRun(
         t=sim.true.t,
         q=sim.true.q,
-        q_desired=q_des,
+        q_desired=traj.poses(sim.true.t),
         params_true=sim.params_t,
         params_hat=loop.params_hat,
         nis=loop.nis,
         gamma=sim.true.gamma,
         events=tuple(e.as_dict() for e in getattr(loop.ekf, "events", ())),
     )
+    return run, loop
 
 
 def _loop(test: Table1Test, ctrl, n: int, estimate: bool, estimator: str, change_detection: bool) -> EstimatingLoop:

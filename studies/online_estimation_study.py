@@ -23,10 +23,11 @@ import math
 
 import numpy as np
 
-from cart.control import make_controller
 from cart.online_estimator import make_online_estimator
-from cart.simulate import MeasurementNoise, ParameterChange, simulate
+from cart.simulate import MeasurementNoise
 from cart.table1 import (
+    simulate_test,
+    ekf_config,
     OnlineLoop,
     TESTS,
     TestRun,
@@ -34,9 +35,7 @@ from cart.table1 import (
     estimation_error_metrics,
     guess_params,
     run_test,
-    true_params,
 )
-from cart.trajectories import trajectory_1, trajectory_2
 
 PUSH_METRICS = (
     "tracking_rms_mm",
@@ -79,39 +78,12 @@ def push_part(seeds: tuple[int, ...] = (0,)) -> dict:
 
 # --------------------------------------------------------------------------- Table I test 11
 def run_test_online(test, seed: int = 0, duration: float = 30.0, dt: float = 0.01, **options):
-    """Return (TestRun, estimator) of a Table I test with the online estimator (as ``cart.table1.run_test``)."""
-    traj = trajectory_1(duration) if test.traj == 1 else trajectory_2(duration)
-    ctrl = make_controller("fl_lqr", traj)
-    truth = true_params(test)
-    changes = [ParameterChange(tc, truth.with_mass(mc), conserve_momentum=False) for tc, mc in test.mass_changes]
-    n = int(round(duration / dt)) + 1
-    noise = MeasurementNoise.from_level(test.noise)
-    loop = OnlineLoop(
-        ctrl, guess_params(test), None, contact_point(test), n, meas_std=noise.measurement_std(), options=options
+    """Return (TestRun, estimator) of a Table I test with the online estimator (`cart.table1.simulate_test`)."""
+    std = MeasurementNoise.from_level(test.noise).measurement_std()
+    make_loop = lambda ctrl, n: OnlineLoop(  # noqa: E731
+        ctrl, guess_params(test), ekf_config(test.noise), contact_point(test), n, meas_std=std, options=options
     )
-    rng = np.random.default_rng(seed * 1000 + test.test)
-    q0, _, _ = traj.sample(0.0)
-    sim = simulate(
-        truth,
-        loop,
-        duration,
-        dt,
-        q0=q0,
-        noise=noise,
-        rng=rng,
-        changes=changes,
-        contact_point=contact_point(test),
-        allocate=False,
-    )
-    run = TestRun(
-        t=sim.true.t,
-        q=sim.true.q,
-        q_desired=traj.poses(sim.true.t),
-        params_true=sim.params_t,
-        params_hat=loop.params_hat,
-        nis=loop.nis,
-        gamma=sim.true.gamma,
-    )
+    run, loop = simulate_test(test, make_loop, duration=duration, dt=dt, seed=seed)
     return run, loop.ekf
 
 
