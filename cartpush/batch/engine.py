@@ -94,23 +94,26 @@ def expand_inputs(inputs: Sequence[str]) -> list[str]:
     return out
 
 
-def done_paths(out: str | os.PathLike) -> set[str]:
-    """Return the (absolute) paths that have an ``ok: true`` line in the results file ``out`` (empty if none).
+def ok_records(out: str | os.PathLike) -> Iterator[dict[str, Any]]:
+    """Yield the JSON objects of the results file ``out`` that say ``ok: true`` (none if it does not exist).
 
-    Lines that are not JSON (a line cut by an interruption) are ignored.
+    Lines that are not JSON (a line cut by an interruption) and foreign lines are skipped.
     """
-    done: set[str] = set()
     if not os.path.exists(out):
-        return done
+        return
     with open(out, encoding="utf-8", errors="replace") as fh:
         for line in fh:
             try:
                 rec = json.loads(line)
             except ValueError:
                 continue
-            if isinstance(rec, dict) and rec.get("ok") is True and isinstance(rec.get("path"), str):
-                done.add(os.path.abspath(rec["path"]))
-    return done
+            if isinstance(rec, dict) and rec.get("ok") is True:
+                yield rec
+
+
+def done_paths(out: str | os.PathLike) -> set[str]:
+    """Return the (absolute) paths that have an ``ok: true`` line in the results file ``out`` (empty if none)."""
+    return {os.path.abspath(r["path"]) for r in ok_records(out) if isinstance(r.get("path"), str)}
 
 
 class OutputPathError(BatchError):

@@ -20,6 +20,7 @@ from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Any, cast
 
 from cartpush.batch.engine import (
+    ok_records,
     BatchError,
     _check_workers,
     _open_results,
@@ -126,16 +127,11 @@ class PushJob:
 def done_runs(out: str | os.PathLike) -> set[str]:
     """Return the keys of the runs with an ``ok: true`` line in ``out`` (cut or foreign lines ignored)."""
     done: set[str] = set()
-    if not os.path.exists(out):
-        return done
-    with open(out, encoding="utf-8", errors="replace") as fh:
-        for line in fh:
-            try:
-                rec = json.loads(line)
-                if isinstance(rec, dict) and rec.get("ok") is True and isinstance(rec.get("run"), dict):
-                    done.add(PushRun(**rec["run"]).key())
-            except (ValueError, TypeError):
-                continue
+    for rec in ok_records(out):
+        try:
+            done.add(PushRun(**rec["run"]).key())
+        except (KeyError, TypeError, ValueError):  # not a run line, or one of another campaign's format
+            continue
     return done
 
 
