@@ -17,6 +17,26 @@ def vec(*xs: float) -> str:
     return " ".join(fmt(x) for x in xs)
 
 
+def matrix_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Return the rotation matrix of URDF ``rpy`` angles (fixed axes x, y, z: R = Rz(yaw) Ry(pitch) Rx(roll))."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def rpy_from_matrix(R: np.ndarray) -> tuple[float, float, float]:
+    """Return URDF ``rpy`` angles (roll, pitch, yaw) of a rotation matrix (the inverse of `matrix_from_rpy`)."""
+    pitch = float(np.arctan2(-R[2, 0], np.hypot(R[0, 0], R[1, 0])))
+    if np.hypot(R[0, 0], R[1, 0]) < 1e-9:  # gimbal lock: yaw and roll share one axis; put it all in roll
+        return float(np.arctan2(-R[1, 2], R[1, 1])), pitch, 0.0
+    return float(np.arctan2(R[2, 1], R[2, 2])), pitch, float(np.arctan2(R[1, 0], R[0, 0]))
+
+
 @dataclass(frozen=True)
 class Inertial:
     """A body's mass, CoM (in the link frame) and inertia about the CoM (link axes)."""

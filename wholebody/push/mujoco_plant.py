@@ -140,6 +140,8 @@ def _robot_setup(mm, T_b_hand: np.ndarray, arm_mode: str) -> RobotSetup:
         ee_link=frames[mm.ee_id].name,
         ft_link=frames[mm.ft_id].name,
         T_b_hand=T_b_hand,
+        package_dirs=tuple(str(d) for d in prof.package_dirs),
+        locked=tuple(prof.locked),
     )
 
 

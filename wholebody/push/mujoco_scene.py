@@ -22,17 +22,24 @@ would weigh 36 kg instead of 267), attached under the prefix ``r<i>/`` with:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import lru_cache
 
 import mujoco
 import numpy as np
 
 from wholebody.errors import WholeBodyError
+from wholebody.push.mujoco_urdf import MujocoUrdf, mujoco_urdf
 
 
 class SceneCompositionError(WholeBodyError):
     """A robot or cart that cannot be composed into a MuJoCo scene (missing frame, joint or body)."""
+
+
+class MujocoSceneWarning(UserWarning):
+    """A robot entered the scene changed: meshes MuJoCo cannot read replaced, a base without casters made planar."""
 
 
 #: Kinds of arm actuation: joint torque motors, or joint velocity servos.
@@ -94,6 +101,11 @@ class RobotSetup:
     ft_link: str
     #: (4, 4) the hand's pose in the cart frame {b} at the start (where the grasp site goes)
     T_b_hand: np.ndarray = field(default_factory=lambda: np.eye(4))
+    #: extra folders where the URDF's ``package://`` meshes resolve (the profile's ``package_dirs``)
+    package_dirs: tuple[str, ...] = ()
+    #: (joint, value) of the profile's locked joints; every movable joint outside the arm, the wheels and the
+    #: casters is held (made fixed) at its value here, or at 0
+    locked: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -127,6 +139,10 @@ class RobotIndex:
     tool_mass: float
     tool_com: np.ndarray
     effort_limit: np.ndarray
+    #: the meshes MuJoCo could not read and what replaced them (`mujoco_urdf.MujocoUrdf.replaced_meshes`)
+    replaced_meshes: tuple[str, ...] = ()
+    #: how the base is simulated ("wheels": driven wheels and supports on the floor; "planar": planar servos)
+    base_model: str = "planar"
 
 
 @dataclass
@@ -156,12 +172,24 @@ def yaw_quat(yaw: float) -> np.ndarray:
     return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
 
 
-def _urdf_spec(urdf: str) -> mujoco.MjSpec:
-    """Return the robot's URDF as a spec with fixed links kept as bodies."""
-    spec = mujoco.MjSpec.from_file(urdf)
+def _urdf_spec(urdf_text: str) -> mujoco.MjSpec:
+    """Return a robot's URDF text (`robot_urdf`) as a spec with fixed links kept as bodies, visuals discarded."""
+    try:
+        spec = mujoco.MjSpec.from_string(urdf_text)
+    except ValueError as exc:
+        raise SceneCompositionError(f"MuJoCo cannot read the URDF: {str(exc).splitlines()[0]}") from None
     spec.compiler.fusestatic = False
     spec.compiler.discardvisual = True
     return spec
+
+
+def _compile_urdf(urdf_text: str, robot: str) -> mujoco.MjModel:
+    try:
+        return _urdf_spec(urdf_text).compile()
+    except ValueError as exc:  # MuJoCo's compiler error
+        raise SceneCompositionError(
+            f"robot {robot!r}: its URDF does not compile in MuJoCo: {str(exc).splitlines()[0]}"
+        ) from None
 
 
 def _ancestors(model: mujoco.MjModel, body: int) -> list[int]:
@@ -179,15 +207,17 @@ def _body_id(model: mujoco.MjModel, name: str, robot: str) -> int:
     return bid
 
 
-def sensor_placement(urdf: str, ee_link: str, ft_link: str, robot: str) -> tuple[str, np.ndarray, float, np.ndarray]:
+def sensor_placement(
+    urdf_text: str, ee_link: str, ft_link: str, robot: str
+) -> tuple[str, np.ndarray, float, np.ndarray]:
     """Return (sensor body, F/T frame pose (4, 4) in it, tool mass, tool CoM in the F/T frame).
 
-    The sensor body is the first body on the hand's chain beyond the F/T link (the F/T link itself when
-    the hand is on it or it is the hand): MuJoCo's force sensor measures what that body's parent
-    transmits to its subtree, i.e. the hand's load plus the tool beyond the sensor.
+    The sensor body is the first body on the hand's chain beyond the F/T link, or the hand's own body when
+    the hand is at the F/T link or before it (TIAGo's ``arm_tool_link``, 8 mm before ``wrist_ft_link``):
+    MuJoCo's force sensor measures what that body's parent transmits to its subtree, i.e. the hand's
+    load plus the tool beyond the sensor. `urdf_text` is the robot's URDF as `robot_urdf` makes it.
     """
-    spec = _urdf_spec(urdf)
-    model = spec.compile()
+    model = _compile_urdf(urdf_text, robot)
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     mujoco.mj_comPos(model, data)
@@ -196,7 +226,7 @@ def sensor_placement(urdf: str, ee_link: str, ft_link: str, robot: str) -> tuple
     beyond = [b for b in _ancestors(model, ee) if b not in ft_chain]
     if beyond and int(model.body_parentid[beyond[-1]]) not in ft_chain:
         raise SceneCompositionError(f"robot {robot!r}: the hand {ee_link!r} is not beyond the F/T frame {ft_link!r}")
-    sensor = beyond[-1] if beyond else ft
+    sensor = beyond[-1] if beyond else ee
     subtree = [b for b in range(model.nbody) if sensor in _ancestors(model, b)]
     if any(model.body_jntnum[b] for b in subtree):
         raise SceneCompositionError(f"robot {robot!r}: a joint between the F/T frame {ft_link!r} and the hand")
@@ -215,43 +245,203 @@ def sensor_placement(urdf: str, ee_link: str, ft_link: str, robot: str) -> tuple
 # --------------------------------------------------------------------------- composition
 
 
-def _disable_collisions(spec: mujoco.MjSpec) -> None:
-    for g in spec.geoms:
-        if not g.name.endswith("_tyre"):
-            g.contype = 0
-            g.conaffinity = 0
+#: a geom whose lowest point is within this distance (m) of the floor (the driven wheels' lowest point) touches it
+FLOOR_TOLERANCE = 0.005
+#: radius (m) of the ball that stands for a support that is neither a wheel nor a sphere
+SUPPORT_BALL_RADIUS = 0.01
+#: suffix of the geoms that touch the floor (tyres and supports); every other robot geom collides with nothing
+CONTACT_SUFFIX = "_tyre"
 
 
-def _add_tyres(spec: mujoco.MjSpec, setup: RobotSetup, floor: tuple[int, int]) -> list[str]:
-    """Add a sphere tyre (the wheel's radius) to every wheel and caster wheel body; return the driven wheels' bodies."""
-    driven = []
-    model = spec.compile()
-    for j in range(model.njnt):
-        jname = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j)
-        body = int(model.jnt_bodyid[j])
-        bname = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body)
-        is_driven = jname in setup.wheel_joints
-        is_caster_wheel = "caster" in jname and "wheel" in jname
-        if not (is_driven or is_caster_wheel):
+@dataclass(frozen=True)
+class Support:
+    """A robot geom on the floor: a driven wheel, a free wheel (caster) or a ball (a fixed caster, a skid)."""
+
+    body: str
+    #: "driven", "wheel" (both: a sphere tyre with friction) or "ball" (a frictionless sphere)
+    kind: str
+    radius: float
+    #: (3,) the sphere's centre in the body frame
+    pos: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class RobotUrdf:
+    """A robot as MuJoCo takes it: its URDF text (`mujoco_urdf`), base model, floor contacts and notes."""
+
+    urdf: MujocoUrdf
+    #: "planar" (planar joints under servos) or "differential" (a free joint on driven wheels and supports)
+    base: str
+    supports: tuple[Support, ...] = ()
+    #: height (m) of the floor in the URDF root's frame (the driven wheels' lowest point)
+    floor_z: float = 0.0
+    notes: tuple[str, ...] = ()
+
+
+def _subtree_bodies(model: mujoco.MjModel, joints: Sequence[int]) -> set[int]:
+    """Return the bodies at or below the bodies of `joints`."""
+    tops = {int(model.jnt_bodyid[j]) for j in joints}
+    return {b for b in range(model.nbody) if tops & set(_ancestors(model, b))}
+
+
+def _lowest_z(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
+    """Return the world height of the lowest corner of geom `g`'s bounding box."""
+    centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
+    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
+    corners = data.geom_xpos[g] + (centre + signs * half) @ data.geom_xmat[g].reshape(3, 3).T
+    return float(corners[:, 2].min())
+
+
+def _driven_wheels(model: mujoco.MjModel, data: mujoco.MjData, wheel_joints: Sequence[int]) -> list[Support]:
+    """Return the driven wheels: a tyre of the wheel's cylinder radius, else of the axle's height above the root."""
+    out = []
+    for j in wheel_joints:
+        b = int(model.jnt_bodyid[j])
+        cyl = [
+            g
+            for g in range(model.ngeom)
+            if model.geom_bodyid[g] == b and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER
+        ]
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b)
+        if cyl:
+            out.append(Support(name, "driven", float(model.geom_size[cyl[0]][0]), tuple(model.geom_pos[cyl[0]])))
+        else:  # the profile's default wheel radius: the axle's height above the root link
+            radius = float(data.xanchor[j][2] - data.xpos[1][2])
+            out.append(
+                Support(name, "driven", radius, tuple(data.xmat[b].reshape(3, 3).T @ (data.xanchor[j] - data.xpos[b])))
+            )
+    return out
+
+
+def _support(model: mujoco.MjModel, data: mujoco.MjData, g: int, bottom: float) -> Support:
+    """Return the support geom `g` (on the floor) stands for: a wheel, its own sphere or a small ball."""
+    b = int(model.geom_bodyid[g])
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b)
+    rolls = any(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE for j in range(model.njnt) if model.jnt_bodyid[j] == b)
+    gtype = int(model.geom_type[g])
+    if rolls and gtype == mujoco.mjtGeom.mjGEOM_CYLINDER:
+        return Support(name, "wheel", float(model.geom_size[g][0]), tuple(model.geom_pos[g]))
+    if gtype == mujoco.mjtGeom.mjGEOM_SPHERE:
+        return Support(name, "ball", float(model.geom_size[g][0]), tuple(model.geom_pos[g]))
+    centre_w = np.array([data.geom_xpos[g][0], data.geom_xpos[g][1], bottom + SUPPORT_BALL_RADIUS])
+    pos = data.xmat[b].reshape(3, 3).T @ (centre_w - data.xpos[b])
+    return Support(name, "ball", SUPPORT_BALL_RADIUS, tuple(pos))
+
+
+def floor_contacts(
+    model: mujoco.MjModel, arm_joints: Sequence[str], wheel_joints: Sequence[str]
+) -> tuple[float, list[Support], list[int]]:
+    """Return (floor height, supports, their geoms): the driven wheels, then every geom on the floor.
+
+    At the model's reference configuration (qpos0: the locked joints are fixed at their values), the floor
+    is the driven wheels' lowest point; a geom outside the arm whose lowest point is within
+    `FLOOR_TOLERANCE` of it is a support (the geoms of the driven wheels excepted).
+    """
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    ids = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in (*arm_joints, *wheel_joints)}
+    wheels = [ids[n] for n in wheel_joints]
+    driven = _driven_wheels(model, data, wheels)
+    floor = float(
+        np.mean(
+            [
+                data.xpos[model.jnt_bodyid[j]][2]
+                + np.asarray(w.pos) @ data.xmat[model.jnt_bodyid[j]].reshape(3, 3)[2]
+                - w.radius
+                for j, w in zip(wheels, driven)
+            ]
+        )
+    )
+    skip = _subtree_bodies(model, [ids[n] for n in arm_joints]) | {int(model.jnt_bodyid[j]) for j in wheels}
+    supports, geoms = list(driven), []
+    for g in range(model.ngeom):
+        if int(model.geom_bodyid[g]) in skip:
             continue
-        geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == body]
-        cyl = [g for g in geoms if int(model.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_CYLINDER)]
-        if not cyl:
-            raise SceneCompositionError(f"robot {setup.name!r}: wheel {jname!r} has no cylinder to roll on")
-        radius = float(model.geom_size[cyl[0]][0])
-        spec.body(bname).add_geom(
-            name=f"{bname}_tyre",
+        bottom = _lowest_z(model, data, g)
+        if abs(bottom - floor) <= FLOOR_TOLERANCE:
+            supports.append(_support(model, data, g, bottom))
+            geoms.append(g)
+    return floor, supports, geoms
+
+
+@lru_cache(maxsize=16)
+def _robot_urdf(
+    urdf: str,
+    package_dirs: tuple[str, ...],
+    locked: tuple[tuple[str, float], ...],
+    arm: tuple[str, ...],
+    wheels: tuple[str, ...],
+    base: str,
+    robot: str,
+) -> RobotUrdf:
+    movable = arm + wheels
+    if base != "differential":
+        return RobotUrdf(mujoco_urdf(urdf, package_dirs, dict(locked), movable), "planar")
+    loose = _compile_urdf(mujoco_urdf(urdf, package_dirs).text, robot)  # every joint movable: which carry supports?
+    qpos = loose.qpos0.copy()
+    for name, value in locked:
+        j = mujoco.mj_name2id(loose, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if j >= 0:
+            qpos[loose.jnt_qposadr[j]] = value
+    loose.qpos0[:] = qpos
+    _, _, geoms = floor_contacts(loose, arm, wheels)
+    bodies = {int(loose.geom_bodyid[g]) for g in geoms}
+    carriers = {
+        mujoco.mj_id2name(loose, mujoco.mjtObj.mjOBJ_JOINT, j)
+        for j in range(loose.njnt)
+        if bodies & _subtree_bodies(loose, [j])
+    }
+    text = mujoco_urdf(urdf, package_dirs, dict(locked), movable + tuple(sorted(carriers)))
+    floor, supports, _ = floor_contacts(_compile_urdf(text.text, robot), arm, wheels)
+    if not any(s.kind != "driven" for s in supports):
+        note = (
+            f"robot {robot!r}: no caster or support of its differential base is on the floor (within "
+            f"{FLOOR_TOLERANCE} m of its wheels' lowest point): simulated as a planar base under velocity servos"
+        )
+        return RobotUrdf(text, "planar", (), 0.0, (note,))
+    return RobotUrdf(text, "differential", tuple(supports), floor)
+
+
+def robot_urdf(setup: RobotSetup) -> RobotUrdf:
+    """Return the robot as MuJoCo takes it (cached per URDF, folders, locked values, joints and base).
+
+    Every movable joint but the arm's, the wheels' and those that carry a floor contact (a caster's swivel
+    and wheel) is fixed at its locked value. A differential base rolls on its driven wheels and on every
+    other geom on the floor (`floor_contacts`); without any it becomes a planar base (a note says so).
+    """
+    return _robot_urdf(
+        setup.urdf,
+        tuple(setup.package_dirs),
+        tuple(setup.locked),
+        tuple(setup.arm_joints),
+        tuple(setup.wheel_joints),
+        setup.base,
+        setup.name,
+    )
+
+
+def _add_supports(spec: mujoco.MjSpec, supports: Sequence[Support], floor: tuple[int, int]) -> None:
+    """Add a sphere per support: tyres with friction on wheels, frictionless balls elsewhere."""
+    for k, s in enumerate(supports):
+        wheel = s.kind in ("driven", "wheel")
+        spec.body(s.body).add_geom(
+            name=f"{s.body}{'' if wheel else f'_ball{k}'}{CONTACT_SUFFIX}",
             type=mujoco.mjtGeom.mjGEOM_SPHERE,
-            size=[radius, 0, 0],
+            size=[s.radius, 0, 0],
+            pos=list(s.pos),
             mass=0.0,
             contype=floor[1],
             conaffinity=floor[0],
-            condim=3,
+            condim=3 if wheel else 1,
             friction=[1.0, 0.005, 0.0001],
         )
-        if is_driven:
-            driven.append(bname)
-    return driven
+
+
+def _disable_collisions(spec: mujoco.MjSpec) -> None:
+    for g in spec.geoms:
+        if not g.name.endswith(CONTACT_SUFFIX):
+            g.contype = 0
+            g.conaffinity = 0
 
 
 def _floor_bits(scene: mujoco.MjSpec) -> tuple[int, int]:
@@ -263,33 +453,54 @@ def _floor_bits(scene: mujoco.MjSpec) -> tuple[int, int]:
     return 1, 1
 
 
+def _warn(setup: RobotSetup, prepared: RobotUrdf) -> None:
+    replaced = prepared.urdf.replaced_meshes
+    if replaced:
+        warnings.warn(
+            f"robot {setup.name!r}: {len(replaced)} meshes MuJoCo cannot read replaced (mass and inertia kept "
+            f"from the URDF; robot geoms do not collide): " + "; ".join(replaced),
+            MujocoSceneWarning,
+            stacklevel=3,
+        )
+    for note in prepared.notes:
+        warnings.warn(note, MujocoSceneWarning, stacklevel=3)
+
+
 def _prepare_robot(scene: mujoco.MjSpec, setup: RobotSetup, i: int, floor: tuple[int, int]) -> dict:
     """Attach robot `i` to the scene (joints, tyres, sensor site, hand site); return the names to index later."""
     prefix = f"r{i}/"
-    spec = _urdf_spec(setup.urdf)
+    prepared = robot_urdf(setup)
+    _warn(setup, prepared)
+    spec = _urdf_spec(prepared.urdf.text)
     root = spec.worldbody.first_body()
     if root is None:
         raise SceneCompositionError(f"robot {setup.name!r}: its URDF has no link")
-    driven: list[str] = []
-    if setup.base == "planar":
+    if setup.base not in ("planar", "differential"):
+        raise SceneCompositionError(f"robot {setup.name!r}: base {setup.base!r} is neither 'planar' nor 'differential'")
+    if prepared.base == "planar":
         root.add_joint(name="base_x", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1, 0, 0])
         root.add_joint(name="base_y", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 1, 0])
         root.add_joint(name="base_yaw", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
-        base = "planar"
-    elif setup.base == "differential":
-        driven = _add_tyres(spec, setup, floor)
-        root.add_freejoint(name="base_free")
-        base = "differential"
     else:
-        raise SceneCompositionError(f"robot {setup.name!r}: base {setup.base!r} is neither 'planar' nor 'differential'")
-    _disable_collisions(spec)  # after the tyres were sized from the wheels' collision cylinders
+        _add_supports(spec, prepared.supports, floor)
+        root.pos = [0.0, 0.0, -prepared.floor_z]  # the wheels on the floor
+        root.add_freejoint(name="base_free")
+    _disable_collisions(spec)
     spec.compiler.discardvisual = False  # keep the (now collision-free) shapes for viewers
-    sensor_body, T_sf, tool_mass, tool_com = sensor_placement(setup.urdf, setup.ee_link, setup.ft_link, setup.name)
+    sensor_body, T_sf, tool_mass, tool_com = sensor_placement(
+        prepared.urdf.text, setup.ee_link, setup.ft_link, setup.name
+    )
     spec.body(sensor_body).add_site(name="ft", pos=T_sf[:3, 3], quat=quat_from_matrix(T_sf[:3, :3]), size=[0.01, 0, 0])
     spec.body(setup.ee_link).add_site(name="hand", size=[0.01, 0, 0])
     frame = scene.worldbody.add_frame()
     scene.attach(spec, prefix=prefix, frame=frame)
-    return {"prefix": prefix, "base": base, "driven": driven, "tool": (tool_mass, tool_com)}
+    return {
+        "prefix": prefix,
+        "base": prepared.base,
+        "tool": (tool_mass, tool_com),
+        "meshes": prepared.urdf.replaced_meshes,
+        "model": "wheels" if prepared.base == "differential" else "planar",
+    }
 
 
 def _add_robot_elements(
@@ -348,11 +559,11 @@ def _velocity_servo(scene: mujoco.MjSpec, joint: str, kv: float, limit: float | 
         act.forcerange = [-limit, limit]
 
 
-def robot_inertia(urdf: str) -> tuple[float, float]:
-    """Return (mass, yaw inertia about the root link's origin) of a robot at its zero configuration."""
+def robot_inertia(urdf_text: str, robot: str = "robot") -> tuple[float, float]:
+    """Return (mass, yaw inertia about the root link's origin) of a robot (URDF text, `robot_urdf`) at qpos0."""
     from wholebody.push.mujoco_cart import composite_inertia
 
-    model = _urdf_spec(urdf).compile()
+    model = _compile_urdf(urdf_text, robot)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     mass, com, izz = composite_inertia(model, data)
@@ -379,7 +590,7 @@ def compose(
     floor = _floor_bits(scene)
     names = [_prepare_robot(scene, s, i, floor) for i, s in enumerate(setups)]
     for i, (s, n) in enumerate(zip(setups, names)):
-        _add_robot_elements(scene, s, n, i, compliance, gains, robot_inertia(s.urdf))
+        _add_robot_elements(scene, s, n, i, compliance, gains, robot_inertia(robot_urdf(s).urdf.text, s.name))
     try:
         model = scene.compile()
     except ValueError as exc:  # MuJoCo's compiler error
@@ -461,6 +672,8 @@ def _index(model: mujoco.MjModel, s: RobotSetup, names: dict, i: int) -> RobotIn
         tool_mass=names["tool"][0],
         tool_com=np.asarray(names["tool"][1], dtype=float),
         effort_limit=limit,
+        replaced_meshes=tuple(names["meshes"]),
+        base_model=names["model"],
     )
 
 

@@ -48,8 +48,10 @@ def test_scene_keeps_the_robots_mass_and_the_carts_inertial(setup):
     plant = _plant(setup, noise=QUIET)
     m = plant.scene.model
     r = plant.scene.robots[0]
-    # MuJoCo's URDF import would fuse the fixed links into the world (36 kg): the scene keeps them
-    assert m.body_subtreemass[r.root_body] == pytest.approx(266.903, abs=1e-3)
+    # MuJoCo's URDF import would fuse the fixed links into the world (36 kg) and give links without <inertial>
+    # the mass of their geoms (267 kg): the scene keeps the URDF's masses, Pinocchio's 226.853 kg
+    total = pin.computeTotalMass(setup.controller.robots[0].wb.robot.model)
+    assert m.body_subtreemass[r.root_body] == pytest.approx(total, rel=1e-9) and total == pytest.approx(226.853)
     ci = plant.cart_inertial()
     assert ci.mass == pytest.approx(TRUE_CART.m, rel=1e-9)
     assert ci.com_b == pytest.approx((TRUE_CART.dx, TRUE_CART.dy), abs=2e-3)  # settled: casters trail
