@@ -420,7 +420,7 @@ def robot_urdf(setup: RobotSetup) -> RobotUrdf:
     )
 
 
-def _add_supports(spec: mujoco.MjSpec, supports: Sequence[Support], floor: tuple[int, int]) -> None:
+def _add_supports(spec: mujoco.MjSpec, supports: Sequence[Support], floor: tuple[int, int, int]) -> None:
     """Add a sphere per support: tyres with friction on wheels, frictionless balls elsewhere."""
     for k, s in enumerate(supports):
         wheel = s.kind in ("driven", "wheel")
@@ -434,6 +434,7 @@ def _add_supports(spec: mujoco.MjSpec, supports: Sequence[Support], floor: tuple
             conaffinity=floor[0],
             condim=3 if wheel else 1,
             friction=[1.0, 0.005, 0.0001],
+            priority=0 if wheel else floor[2] + 1,  # a contact takes the larger condim unless a geom has priority
         )
 
 
@@ -444,21 +445,24 @@ def _disable_collisions(spec: mujoco.MjSpec) -> None:
             g.conaffinity = 0
 
 
-def _floor_bits(scene: mujoco.MjSpec) -> tuple[int, int]:
-    """Return (contype, conaffinity) of the scene's floor plane; add one at z = 0 if there is none."""
+def _floor_bits(scene: mujoco.MjSpec) -> tuple[int, int, int]:
+    """Return (contype, conaffinity, priority) of the scene's floor plane; add one at z = 0 if there is none."""
     for g in scene.worldbody.geoms:
         if g.type == mujoco.mjtGeom.mjGEOM_PLANE:
-            return int(g.contype), int(g.conaffinity)
+            return int(g.contype), int(g.conaffinity), int(g.priority)
     scene.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], contype=1, conaffinity=1)
-    return 1, 1
+    return 1, 1, 0
 
 
 def _warn(setup: RobotSetup, prepared: RobotUrdf) -> None:
+    """Warn of the meshes replaced (`RobotIndex.replaced_meshes` has the details) and of a base made planar."""
     replaced = prepared.urdf.replaced_meshes
     if replaced:
+        reasons = sorted({m.reason for m in replaced})
+        files = ", ".join(f"{m.link} ({m.mesh.rsplit('/', 1)[-1]})" for m in replaced)
         warnings.warn(
-            f"robot {setup.name!r}: {len(replaced)} meshes MuJoCo cannot read replaced (mass and inertia kept "
-            f"from the URDF; robot geoms do not collide): " + "; ".join(replaced),
+            f"robot {setup.name!r}: {len(replaced)} meshes MuJoCo cannot read ({'; '.join(reasons)}) replaced by "
+            f"boxes with their links' inertia (the URDF's mass and inertia are kept; robot geoms do not collide): {files}",
             MujocoSceneWarning,
             stacklevel=3,
         )
@@ -466,7 +470,7 @@ def _warn(setup: RobotSetup, prepared: RobotUrdf) -> None:
         warnings.warn(note, MujocoSceneWarning, stacklevel=3)
 
 
-def _prepare_robot(scene: mujoco.MjSpec, setup: RobotSetup, i: int, floor: tuple[int, int]) -> dict:
+def _prepare_robot(scene: mujoco.MjSpec, setup: RobotSetup, i: int, floor: tuple[int, int, int]) -> dict:
     """Attach robot `i` to the scene (joints, tyres, sensor site, hand site); return the names to index later."""
     prefix = f"r{i}/"
     prepared = robot_urdf(setup)
@@ -498,7 +502,7 @@ def _prepare_robot(scene: mujoco.MjSpec, setup: RobotSetup, i: int, floor: tuple
         "prefix": prefix,
         "base": prepared.base,
         "tool": (tool_mass, tool_com),
-        "meshes": prepared.urdf.replaced_meshes,
+        "meshes": tuple(str(m) for m in prepared.urdf.replaced_meshes),
         "model": "wheels" if prepared.base == "differential" else "planar",
     }
 

@@ -41,12 +41,28 @@ MOVABLE = ("revolute", "continuous", "prismatic")
 
 
 @dataclass(frozen=True)
+class ReplacedMesh:
+    """A mesh MuJoCo cannot read and what stands for it."""
+
+    link: str
+    #: the mesh's file name as the URDF gives it
+    mesh: str
+    #: why MuJoCo cannot read it ("not found", "MuJoCo does not read .dae meshes")
+    reason: str
+    #: "box a x b x c m" (the link's equivalent box) or "dropped (the link has no mass)"
+    replacement: str
+
+    def __str__(self) -> str:
+        return f"{self.link}: {self.mesh} ({self.reason}) -> {self.replacement}"
+
+
+@dataclass(frozen=True)
 class MujocoUrdf:
     """URDF text MuJoCo compiles, and what was changed to make it so."""
 
     text: str
-    #: "link: mesh (why) -> box a x b x c m" (or "-> dropped") per mesh MuJoCo cannot read
-    replaced_meshes: tuple[str, ...] = ()
+    #: the meshes MuJoCo cannot read, each with what stands for it
+    replaced_meshes: tuple[ReplacedMesh, ...] = ()
     #: links whose inertia tensor was made physical
     fixed_inertias: tuple[str, ...] = ()
     #: "joint = value" per movable joint made fixed
@@ -154,7 +170,7 @@ def resolve_mesh(filename: str, urdf: Path, dirs: Sequence[str]) -> Path | None:
     return path if path.is_file() else None
 
 
-def _fix_meshes(root: ET.Element, urdf: Path, dirs: Sequence[str]) -> list[str]:
+def _fix_meshes(root: ET.Element, urdf: Path, dirs: Sequence[str]) -> list[ReplacedMesh]:
     """Point readable meshes at absolute paths; replace the others by the link's equivalent box; return them."""
     replaced = []
     for link in root.findall("link"):
@@ -173,13 +189,13 @@ def _fix_meshes(root: ET.Element, urdf: Path, dirs: Sequence[str]) -> list[str]:
                 box = equivalent_box(link)
                 if box is None:
                     link.remove(shape)
-                    replaced.append(f"{link.get('name')}: {name} ({why}) -> dropped (the link has no mass)")
+                    replaced.append(ReplacedMesh(str(link.get("name")), name, why, "dropped (the link has no mass)"))
                     continue
                 geometry.remove(mesh)
                 ET.SubElement(geometry, "box", size=vec(*box[1]))
                 _set_origin(shape, box[0])
                 sides = " x ".join(f"{s:.3f}" for s in box[1])
-                replaced.append(f"{link.get('name')}: {name} ({why}) -> box {sides} m")
+                replaced.append(ReplacedMesh(str(link.get("name")), name, why, f"box {sides} m"))
     return replaced
 
 

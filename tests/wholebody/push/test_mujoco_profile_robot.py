@@ -1,0 +1,169 @@
+"""Robots known only by a profile file enter the MuJoCo plant: TIAGo from example-robot-data (COLLADA meshes MuJoCo
+cannot read, a torso held by the profile, fixed ball casters), and the URDF rewriting that makes any robot compile."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import robots
+from robots.checks import reference_configuration
+from robots.urdf_text import matrix_from_rpy
+from tests.robots.profile_files import tiago_profile
+from wholebody.push import PushConfig, build_controller
+from wholebody.push.mujoco_plant import MujocoPlant
+from wholebody.push.cart_file import cart_source
+from wholebody.push.config import TRUE_CART
+from wholebody.push.mujoco_scene import ARM_TORQUE, ARM_VELOCITY, MujocoSceneWarning, RobotSetup, compose
+from wholebody.push.mujoco_urdf import equivalent_box, mujoco_urdf, physical_inertia
+
+ARM = tuple(f"arm_{i}_joint" for i in range(1, 8))
+
+
+@pytest.fixture(scope="module")
+def tiago(tmp_path_factory):
+    path = tiago_profile(tmp_path_factory.mktemp("tiago"))
+    return str(path), robots.load(str(path))
+
+
+def _tiago_scene(loaded, x):
+    prof = loaded.profile
+    setup = RobotSetup(
+        name="tiago",
+        urdf=str(loaded.urdf),
+        base="differential",
+        arm_joints=ARM,
+        wheel_joints=tuple(prof.wheel_joints),
+        x=x,
+        arm_mode=ARM_VELOCITY,
+        ee_link="arm_tool_link",
+        ft_link="wrist_ft_link",
+        package_dirs=tuple(str(d) for d in prof.package_dirs),
+        locked=tuple(prof.locked),
+    )
+    cart = cart_source(TRUE_CART)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        scene = compose(cart.spec(), (2.0, 0.0, 0.0), cart.z, [setup], 0.002)
+    return scene, [w for w in caught if issubclass(w.category, MujocoSceneWarning)]
+
+
+def test_tiago_composes_with_its_meshes_replaced_its_mass_and_its_torso_kept(tiago):
+    _, loaded = tiago
+    x = np.r_[0.3, -0.1, 0.4, 0.2, -0.5, 0.1, 1.2, -0.3, 0.4, 0.2]  # base pose, 7 arm joints
+    scene, caught = _tiago_scene(loaded, x)
+    m, d, r = scene.model, scene.data, scene.robots[0]
+    # the COLLADA collision meshes are replaced, said in a warning and on the robot's index
+    assert r.replaced_meshes and all(".dae" in s and "box" in s for s in r.replaced_meshes)
+    assert len(caught) == 1 and "arm_1_collision.dae" in str(caught[0].message)
+    # the URDF's mass, as Pinocchio sums it
+    bodies = [b for b in range(m.nbody) if mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b).startswith("r0/")]
+    assert m.body_mass[bodies].sum() == pytest.approx(pin.computeTotalMass(loaded.model), rel=1e-6)
+    # the torso held at the profile's 0.2 m: the hand where Pinocchio puts it (torso locked, same base and arm)
+    q = reference_configuration(loaded.profile, loaded.model)
+    q[:4] = (x[0], x[1], math.cos(x[2]), math.sin(x[2]))
+    for name, v in zip(ARM, x[3:]):
+        q[loaded.model.joints[loaded.model.getJointId(name)].idx_q] = v
+    pin.framesForwardKinematics(loaded.model, loaded.data, q)
+    hand = loaded.data.oMf[loaded.model.getFrameId("arm_tool_link")]
+    np.testing.assert_allclose(d.site_xpos[r.hand_site], hand.translation, atol=1e-9)
+    np.testing.assert_allclose(d.site_xmat[r.hand_site].reshape(3, 3), hand.rotation, atol=1e-9)
+    # only the arm, the wheels and the base move; the F/T sensor holds the hand and the tool beyond its frame
+    assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "r0/torso_lift_joint") < 0
+    assert mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, m.site_bodyid[r.ft_site]) == "r0/arm_tool_link"
+    assert r.tool_mass == pytest.approx(0.3)
+
+
+def test_tiago_stands_on_its_wheels_and_casters(tiago):
+    _, loaded = tiago
+    scene, _ = _tiago_scene(loaded, np.r_[0.0, 0.0, 0.0, 0.2, -0.5, 0.1, 1.2, -0.3, 0.4, 0.2])
+    m, d, r = scene.model, scene.data, scene.robots[0]
+    assert r.base == "differential" and r.base_model == "wheels" and r.wheel_radius == pytest.approx(0.0985)
+    z0 = float(d.qpos[r.base_qpos[2]])
+    d.eq_active[r.weld] = 0  # no cart in hand: the robot alone on the floor, arm and wheels held by their servos
+    for _ in range(250):
+        mujoco.mj_step(m, d)
+    touching = {
+        mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, int(c.geom[i])) for c in d.contact[: d.ncon] for i in (0, 1)
+    }
+    assert {"r0/wheel_left_link_tyre", "r0/wheel_right_link_tyre"} <= touching
+    assert sum("caster" in str(n) for n in touching) >= 3  # a two-wheel base rests on its casters
+    assert abs(float(d.qpos[r.base_qpos[2]]) - z0) < 2e-3  # neither sinking nor tipping
+
+
+@pytest.mark.filterwarnings("ignore::wholebody.push.mujoco_scene.MujocoSceneWarning")
+def test_a_short_mujoco_push_with_tiagos_profile(tiago):
+    """Traj. 1's first 1.5 s on the MuJoCo plant, the arm torque-controlled: the cart follows, the hand holds, the
+    base rolls with it. (Its arm on velocity servos, the default for an arm no profile key names, diverges: its
+    3 N m wrist and 1 N m joint friction saturate the admittance loop; docs/mujoco.md.)"""
+    path, _ = tiago
+    config = PushConfig(robot=path, trajectory=1, plant="mujoco", contact="fixed")
+    setup = build_controller(config)
+    plant = MujocoPlant(setup.controller.robots, setup.q0, config.true_params, arm_modes=[ARM_TORQUE])
+    traj = config.make_trajectory()
+    base0, errors = plant.robot_states()[0][:2].copy(), []
+    for _ in range(150):
+        m = plant.measure()
+        errors.append(np.hypot(*(m.cart_pose[:2] - traj.sample(m.t)[0][:2])))
+        plant.step(setup.controller.step(m))
+    report = plant.report()
+    cart, _ = plant.cart_state()
+    moved = np.hypot(*(traj.sample(1.5)[0][:2] - traj.sample(0.0)[0][:2]))
+    assert moved > 0.05 and max(errors) < 0.02  # the cart moved and followed the plan
+    assert report["grasp_slip_max_m"] < 0.005 and report["base_wheel_slip_max_m_s"] is not None
+    base_moved = np.hypot(*(plant.robot_states()[0][:2] - base0))
+    assert base_moved == pytest.approx(moved, abs=0.02)  # the base rolled along with the cart
+
+
+URDF = """<robot name="r">
+  <link name="a"><inertial><origin xyz="0.1 0 0" rpy="0 0 0.5"/><mass value="2"/>
+    <inertia ixx="0.02" ixy="0" ixz="0" iyy="0.05" iyz="0" izz="0.06"/></inertial>
+    <visual><geometry><mesh filename="a.dae"/></geometry></visual>
+    <collision><geometry><mesh filename="missing.stl"/></geometry></collision></link>
+  <link name="b"><collision><geometry><mesh filename="b.stl"/></geometry></collision></link>
+  <link name="c"><inertial><mass value="1e-6"/>
+    <inertia ixx="2e-8" ixy="6e-8" ixz="1e-8" iyy="3e-8" iyz="1e-8" izz="4e-8"/></inertial></link>
+  <joint name="ab" type="prismatic"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
+    <limit lower="0" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="bc" type="revolute"><parent link="b"/><child link="c"/><origin xyz="0 0 1"/><axis xyz="0 1 0"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+</robot>"""
+
+
+def test_the_urdf_rewriting_replaces_meshes_fixes_inertias_and_locks_joints(tmp_path):
+    (tmp_path / "a.dae").write_text("<COLLADA/>")
+    path = tmp_path / "r.urdf"
+    path.write_text(URDF)
+    out = mujoco_urdf(path, locked={"ab": 0.3, "bc": 0.5})
+    assert len(out.replaced_meshes) == 3  # a.dae (format), missing.stl (not found), b.stl (not found; b massless)
+    assert [m.reason for m in out.replaced_meshes] == ["MuJoCo does not read .dae meshes", "not found", "not found"]
+    assert "dropped" in out.replaced_meshes[2].replacement and out.fixed_inertias == ("c",)
+    assert out.fixed_joints == ("ab = 0.3", "bc = 0.5")
+    model = mujoco.MjSpec.from_string(out.text)
+    model.compiler.fusestatic = False
+    compiled = model.compile()
+    d = mujoco.MjData(compiled)
+    mujoco.mj_kinematics(compiled, d)
+    c = mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_BODY, "c")
+    np.testing.assert_allclose(d.xpos[c], [0, 0, 1.3], atol=1e-12)  # 0.3 m up the slide, then 1 m
+    np.testing.assert_allclose(d.xmat[c].reshape(3, 3)[:, 0], [math.cos(0.5), 0, -math.sin(0.5)], atol=1e-12)
+    assert compiled.body_mass.sum() == pytest.approx(2.0 + 1e-6)  # b has no <inertial>: massless, as in Pinocchio
+
+
+def test_the_equivalent_box_has_the_links_inertia():
+    import xml.etree.ElementTree as ET
+
+    T, sides = equivalent_box(ET.fromstring(URDF).find("link"))
+    a, b, c = sides
+    moments = 2.0 / 12.0 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
+    Rz = matrix_from_rpy(0.0, 0.0, 0.5)  # the inertial's frame in the link's
+    expected = Rz @ np.diag([0.02, 0.05, 0.06]) @ Rz.T
+    np.testing.assert_allclose(T[:3, :3] @ np.diag(moments) @ T[:3, :3].T, expected, atol=1e-12)
+    assert T[:3, 3] == pytest.approx([0.1, 0, 0])
+    assert physical_inertia(np.diag([1.0, 1.0, 3.0])) == pytest.approx(np.eye(3) * 5 / 3)
+    assert physical_inertia(np.diag([1.0, 2.0, 2.5])) is None
