@@ -177,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
     from cart.jsonout import dumps_strict
     from wholebody.push import run_push
     from wholebody.progress import show_progress
-    from wholebody.push.report import describe, push_log, save_figures, save_scene
+    from wholebody.push.report import cart_lateral_speed, describe, push_log, save_figures, save_scene, what_happened
 
     result = run_push(config, progress=show_progress(args.json))
     written = []
@@ -199,10 +199,13 @@ def run(args: argparse.Namespace) -> int:
             out.update(result.plant_report)
         out["estimator"] = config.estimator if config.estimation else "none"
         out.update(result.estimator_report or {})
+        out["cart_lateral_slip_max_m_s"] = float(abs(cart_lateral_speed(result)).max())
+        out["what_happened"] = what_happened(result)
         out["files"] = [str(p) for p in written]
         print(dumps_strict(out))
         return 0
     print_summary(result)
+    print("what happened:\n" + "\n".join(f"  {line}" for line in what_happened(result)))
     for p in written:
         print(f"wrote {p}")
     if args.html is not None:

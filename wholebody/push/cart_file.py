@@ -143,24 +143,39 @@ def _check_cart_body(path: Path, model: mujoco.MjModel) -> int:
     return bid
 
 
+def _moving_link(model: mujoco.MjModel, body: int, cart: int) -> str | None:
+    """Return why a handle site's body does not move with ``cart`` (None when it is ``cart`` or fixed to it)."""
+    b = body
+    while b != cart:
+        if b == 0:
+            return "not on 'cart'"
+        if int(model.body_jntnum[b]) > 0:
+            joint = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, int(model.body_jntadr[b])) or "unnamed"
+            return f"which moves relative to 'cart' (joint {joint!r})"
+        b = int(model.body_parentid[b])
+    return None
+
+
 def _handle_sites(path: Path, model: mujoco.MjModel, cart: int) -> tuple[HandleSite, ...]:
-    """Return the handle sites of body ``cart`` in {b}; raise on a handle site elsewhere or of another shape."""
+    """Return the handle sites of body ``cart`` (or of a body fixed to it) in {b}; raise on others or other shapes."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)  # at qpos0: a site's pose in {b} through any fixed child bodies
+    R_cart, p_cart = data.xmat[cart].reshape(3, 3), data.xpos[cart]
     handles = []
     for s in range(model.nsite):
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or ""
         if not (name == HANDLE_PREFIX or name.startswith(HANDLE_PREFIX + "_")):
             continue
-        if int(model.site_bodyid[s]) != cart:
+        why = _moving_link(model, int(model.site_bodyid[s]), cart)
+        if why is not None:
             owner = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.site_bodyid[s]))
-            raise CartFileError(f"cart file {path}: handle site {name!r} is on body {owner!r}, not on 'cart'")
-        pos = np.asarray(model.site_pos[s], dtype=float)
+            raise CartFileError(f"cart file {path}: handle site {name!r} is on body {owner!r}, {why}")
+        pos = R_cart.T @ (data.site_xpos[s] - p_cart)
         kind = int(model.site_type[s])
         if kind == int(mujoco.mjtGeom.mjGEOM_SPHERE):
             handles.append(HandleSite(name, pos.copy(), pos.copy()))
-        elif kind == int(mujoco.mjtGeom.mjGEOM_CAPSULE):
-            R = np.zeros(9)
-            mujoco.mju_quat2Mat(R, np.asarray(model.site_quat[s], dtype=float))
-            axis = R.reshape(3, 3)[:, 2] * float(model.site_size[s][1])
+        elif kind in (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_CYLINDER)):
+            axis = R_cart.T @ data.site_xmat[s].reshape(3, 3)[:, 2] * float(model.site_size[s][1])
             handles.append(HandleSite(name, pos - axis, pos + axis))
         else:
             raise CartFileError(
@@ -174,10 +189,10 @@ def _handle_sites(path: Path, model: mujoco.MjModel, cart: int) -> tuple[HandleS
 def load_cart_file(path: str | os.PathLike) -> CartSource:
     """Return the `CartSource` of an MJCF cart file, or raise `CartFileError` naming what breaks the contract."""
     p = Path(path)
-    spec, model = _read(p)
+    _, model = _read(p)
     cart = _check_cart_body(p, model)
     handles = _handle_sites(p, model, cart)
-    z = float(spec.body(mujoco_cart.CART_BODY).pos[2])
+    z = float(model.body_pos[cart][2])  # compiled: a <frame> around the body counts
     if not math.isfinite(z):
         raise CartFileError(f"cart file {p}: body 'cart' has no finite pos")
     return CartSource(label=str(p), make_spec=lambda: mujoco.MjSpec.from_file(str(p)), z=z, handles=handles)

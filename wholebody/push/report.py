@@ -7,6 +7,7 @@ comparison table, and a report directory (figures, ``scene.html``, ``push_log.cs
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -16,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from cart.logs import CartLog, write_log
-from wholebody.push.config import PushConfig, PushResult
+from wholebody.push.config import LOST_TRACKING_M, PushConfig, PushResult
 from wholebody.push.loop import run_push
 
 if TYPE_CHECKING:
@@ -463,3 +464,95 @@ def run_demo(
                 "`cartpush estimate push_log.csv`, `cartpush view push_log.csv`"
             )
     return DemoResult(runs=runs, table=table, out_dir=Path(out_dir), seconds=seconds)
+
+
+#: lateral speed (m/s) of {b}'s origin above which a run says the cart slid sideways (the cart model has none)
+LATERAL_SLIP_M_S = 0.05
+#: the online estimator's residual ratio above which the nominal cart model misfits the data
+MISFIT_RATIO = 2.0
+
+
+def cart_lateral_speed(result: PushResult) -> np.ndarray:
+    """Return the true lateral speed (m/s) of {b}'s origin over time (the no-slip constraint's violation)."""
+    th = result.q_true[:, 2]
+    return -np.sin(th) * result.qd_true[:, 0] + np.cos(th) * result.qd_true[:, 1]
+
+
+def what_happened(result: PushResult) -> list[str]:
+    """Return plain sentences on how the run went: tracked or lost, saturation, torque limits, slip, model fit.
+
+    The first sentence is the outcome; the others say what the arms could not do (the allocation's binding
+    limits, torques at their limits), whether the cart slid sideways (the no-slip model broken), how far the
+    grips slipped (MuJoCo), and whether the estimator's model fitted the data. When the cart was lost, the
+    binding limits and the slip are those before the loss (what led to it); what came after is a failed push.
+    """
+    m, rep = result.metrics, result.plant_report or {}
+    t_end = m.tracking_lost_at_s if m.tracking_lost_at_s is not None else math.inf
+    lines = [_outcome(result)] + _saturation(m.saturation or {}, t_end)
+    if m.arm_torque_limit_ratio > 1.0:
+        lines.append(f"arm torque at {m.arm_torque_limit_ratio:.2f} x its limit (commanded)")
+    if rep.get("arm_torque_saturated_steps"):
+        lines.append(f"arm torques clipped at their limits in {rep['arm_torque_saturated_steps']} physics steps")
+    lines.append(_lateral_slip(result, t_end))
+    if rep.get("grasp_slip_max_m") is not None:
+        lines.append(f"grip slip at most {1e3 * rep['grasp_slip_max_m']:.2f} mm")
+    if rep.get("base_wheel_slip_max_m_s") is not None:
+        lines.append(f"base wheel slip at most {rep['base_wheel_slip_max_m_s']:.3f} m/s")
+    lines.append(_fit(result))
+    return lines
+
+
+def _saturation(saturation: dict, t_end: float) -> list[str]:
+    """Return one sentence per allocation limit that bound before `t_end` (the loss), one for those after."""
+    rows = sorted(saturation.items(), key=lambda kv: -kv[1]["total_s"])
+    lines = [
+        f"saturated: {k} from t = {v['first_s']:.2f} s ({v['total_s']:.2f} s in all): the arms could not give the "
+        "wrench the cart needed"
+        for k, v in rows
+        if v["first_s"] < t_end
+    ]
+    after = [k for k, v in rows if v["first_s"] >= t_end]
+    return lines + ([f"after the loss also saturated: {', '.join(after)}"] if after else [])
+
+
+def _lateral_slip(result: PushResult, t_end: float) -> str:
+    """Return whether {b} slid sideways faster than `LATERAL_SLIP_M_S` before `t_end`: when, how fast, how long."""
+    inside = result.t < t_end
+    if not inside.any():
+        return "lateral slip: not measured (the cart was lost at the start)"
+    lat = np.abs(cart_lateral_speed(result))[inside]
+    k, slid = int(np.argmax(lat)), float(np.sum(lat > LATERAL_SLIP_M_S) * result.config.dt)
+    when = " before the loss" if math.isfinite(t_end) else ""
+    if slid == 0:
+        return f"no lateral slip of the cart{when} (at most {lat[k]:.3f} m/s)"
+    return (
+        f"slip: the cart slid sideways{when} at up to {lat[k]:.2f} m/s (t = {result.t[k]:.2f} s), faster than "
+        f"{LATERAL_SLIP_M_S:g} m/s for {slid:.2f} s in all (its model assumes no lateral slip)"
+    )
+
+
+def _outcome(result: PushResult) -> str:
+    """Return 'tracked: ...' or 'LOST the cart at t = ...' (with the tracking RMS up to then)."""
+    m, t_lost = result.metrics, result.metrics.tracking_lost_at_s
+    if t_lost is None:
+        return f"tracked: {m.tracking_rms_mm:.1f} mm RMS, {m.tracking_max_mm:.1f} mm max"
+    err = np.hypot(*(result.q_true[:, :2] - result.q_desired[:, :2]).T)[result.t < t_lost]
+    before = f"{1e3 * float(np.sqrt(np.mean(err**2))):.1f} mm RMS before" if err.size else "from the start"
+    return (
+        f"LOST the cart at t = {t_lost:.2f} s (more than {100 * LOST_TRACKING_M:g} cm from its desired place; {before})"
+    )
+
+
+def _fit(result: PushResult) -> str:
+    """Return whether the estimator's cart model fitted the data (residual ratio, misfit flags) and its mass."""
+    est, truth = result.estimator_report or {}, result.config.true_params
+    mass = f"mass estimate {result.metrics.mass_final_kg:.1f} kg (truth {truth.m:.1f} kg)"
+    ratios = [r for r in est.get("residual_ratio") or () if r is not None]
+    if not result.config.estimation or not ratios:
+        return mass
+    flags = [f["t"] for f in est.get("runoff_flags") or () if f.get("kind") == "misfit"]
+    flagged = f", flagged {len(flags)} time(s) from t = {min(flags):.2f} s" if flags else ""
+    worst = max(ratios)
+    if worst > MISFIT_RATIO:
+        return f"misfit: the cart model does not explain the pushes (final residual ratio {worst:.1f} > {MISFIT_RATIO:g}{flagged}); {mass}"
+    return f"the cart model fits the pushes (final residual ratio {worst:.2f}{flagged}); {mass}"

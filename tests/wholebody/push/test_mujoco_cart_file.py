@@ -36,12 +36,28 @@ def _write(tmp_path, body: str, floor: bool = True) -> str:
             "handle site 'handle_left' is neither a point",
         ),
         (
-            GOOD_BODY.format(sites='<body name="bar" pos="-0.15 0 0.9"><site name="handle"/></body>'),
-            "handle site 'handle' is on body 'bar', not on 'cart'",
+            GOOD_BODY.format(
+                sites='<body name="bar" pos="-0.15 0 0.9"><joint name="hinge" axis="0 1 0"/><geom size="0.02"/>'
+                '<site name="handle"/></body>'
+            ),
+            "handle site 'handle' is on body 'bar', which moves relative to 'cart' \\(joint 'hinge'\\)",
+        ),
+        (
+            GOOD_BODY.format(sites=BAR.replace('name="handle"', 'name="bar"'))
+            + '<body name="post" pos="1 1 0"><geom size="0.05"/><site name="handle"/></body>',
+            "handle site 'handle' is on body 'post', not on 'cart'",
         ),
         ("<body name='cart'><freejoint/><geom type='nonsense'/></body>", "not a valid MuJoCo model"),
     ],
-    ids=["no_cart_body", "no_free_joint", "no_handle_site", "handle_not_point_or_bar", "handle_elsewhere", "bad_mjcf"],
+    ids=[
+        "no_cart_body",
+        "no_free_joint",
+        "no_handle_site",
+        "handle_not_point_or_bar",
+        "handle_on_moving_child",
+        "handle_elsewhere",
+        "bad_mjcf",
+    ],
 )
 def test_each_break_of_the_contract_gets_its_message(tmp_path, body, message):
     with pytest.raises(CartFileError, match=message) as info:
