@@ -2,14 +2,17 @@
 
 The cart comes as a spec whose root holds a body ``cart`` with a free joint (:mod:`.mujoco_cart` or a
 cart file checked by :mod:`.cart_file`); it is the scene's root, so its options, defaults and floor
-stay its own (a plane floor at z = 0 is added when it has none). Each robot is its URDF, imported with
+stay its own (a plane floor at z = 0 is added when it has none). Each robot is its URDF as
+`wholebody.push.mujoco_urdf` rewrites it for MuJoCo (meshes resolved, those MuJoCo cannot read replaced
+by boxes with their links' inertia and reported, the profile's locked joints fixed), imported with
 ``fusestatic`` off (MuJoCo would otherwise fuse every fixed link into the world: the Ridgeback + iiwa
-would weigh 36 kg instead of 267), attached under the prefix ``r<i>/`` with:
+would weigh 36 kg instead of 226.9), attached under the prefix ``r<i>/`` with:
 
 - the base: an omnidirectional base gets a planar joint set (slide x, slide y, hinge z) under velocity
   servos (its mecanum rollers are not simulated); a differential base gets a free joint, sphere tyres
-  on its driven wheels and casters (they touch the floor, nothing else of the robot collides), and
-  velocity servos on its two wheel joints;
+  on its driven wheels and free wheels (casters) and frictionless balls on its other geoms on the floor
+  (fixed ball casters; `floor_contacts`; nothing else of the robot collides), and velocity servos on its
+  two wheel joints; with nothing on the floor but its wheels it becomes a planar base (a warning says so);
 - the arm: motors (joint torques within the URDF's effort limits) for a torque-controlled arm,
   velocity servos for a velocity-controlled one (:mod:`.arm_control` decides which);
 - the F/T sensor: force and torque sensors at a site placed at the profile's F/T frame, on the first

@@ -167,3 +167,55 @@ def test_the_equivalent_box_has_the_links_inertia():
     assert T[:3, 3] == pytest.approx([0.1, 0, 0])
     assert physical_inertia(np.diag([1.0, 1.0, 3.0])) == pytest.approx(np.eye(3) * 5 / 3)
     assert physical_inertia(np.diag([1.0, 2.0, 2.5])) is None
+
+
+def _two_wheeler(tmp_path, caster: bool) -> str:
+    """Return the path of a two-wheeled base with a one-joint arm, with or without a ball caster under its nose."""
+    from robots.urdf_text import Inertial, Shape, joint, link, robot
+
+    wheel = (Shape("cylinder", (0.1, 0.04), rpy=(math.pi / 2, 0, 0)),)
+    parts = [
+        link("root"),
+        link("base", Inertial(20.0, (0, 0, 0), 0.5, 0.5, 0.5), (Shape("box", (0.5, 0.4, 0.1)),)),
+        joint("root_base", "fixed", "root", "base", xyz=(0, 0, 0.2)),
+        link("wheel_l", Inertial(1.0, (0, 0, 0), 0.003, 0.005, 0.003), wheel),
+        link("wheel_r", Inertial(1.0, (0, 0, 0), 0.003, 0.005, 0.003), wheel),
+        joint("wl", "continuous", "base", "wheel_l", xyz=(0, 0.25, -0.1), axis=(0, 1, 0), limit=(0, 0, 10, 10)),
+        joint("wr", "continuous", "base", "wheel_r", xyz=(0, -0.25, -0.1), axis=(0, 1, 0), limit=(0, 0, 10, 10)),
+        link("arm", Inertial(2.0, (0.2, 0, 0), 0.01, 0.03, 0.03), (Shape("box", (0.4, 0.05, 0.05), xyz=(0.2, 0, 0)),)),
+        joint("a1", "revolute", "base", "arm", xyz=(0, 0, 0.3), axis=(0, 0, 1), limit=(-2, 2, 50, 1)),
+        link("hand", Inertial(0.5, (0, 0, 0), 0.001, 0.001, 0.001)),
+        joint("a_hand", "fixed", "arm", "hand", xyz=(0.4, 0, 0)),
+    ]
+    if caster:
+        parts += [
+            link("ball", None, (Shape("sphere", (0.05,)),)),
+            joint("b", "fixed", "base", "ball", xyz=(0.2, 0, -0.15)),
+        ]
+    path = tmp_path / f"two_wheeler_{caster}.urdf"
+    path.write_text(robot("two_wheeler", "".join(parts)))
+    return str(path)
+
+
+@pytest.mark.parametrize("caster", [True, False])
+def test_a_differential_base_rolls_on_its_wheels_and_what_else_is_on_the_floor(tmp_path, caster):
+    setup = RobotSetup(
+        name="two_wheeler",
+        urdf=_two_wheeler(tmp_path, caster),
+        base="differential",
+        arm_joints=("a1",),
+        wheel_joints=("wl", "wr"),
+        x=np.zeros(4),
+        arm_mode=ARM_TORQUE,
+        ee_link="hand",
+        ft_link="hand",
+    )
+    cart = cart_source(TRUE_CART)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        r = compose(cart.spec(), (2.0, 0.0, 0.0), cart.z, [setup], 0.002).robots[0]
+    notes = [str(w.message) for w in caught if issubclass(w.category, MujocoSceneWarning)]
+    if caster:  # on its wheels and the ball; a base without anything else on the floor would tip over
+        assert (r.base, r.base_model, r.wheel_radius, notes) == ("differential", "wheels", pytest.approx(0.1), [])
+    else:
+        assert (r.base, r.base_model) == ("planar", "planar") and "planar base under velocity servos" in notes[0]
