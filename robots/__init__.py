@@ -16,7 +16,7 @@ from __future__ import annotations
 from robots.errors import ProfileError, RobotError, UnknownRobotError
 from robots.loading import DATA_DIR, LoadedRobot, available, load, urdf_path
 from robots.profiles import ArmProfile, RobotProfile, parse_profile, profile, read_profile
-from robots.registry import register, resolve, unregister
+from robots.registry import example_profile, examples, register, resolve, unregister
 from robots.ridgeback_iiwa import ridgeback_iiwa_urdf
 from robots.shopping_cart import shopping_cart_urdf
 from robots.wmra import WmraBuild, wmra_urdf
@@ -31,6 +31,8 @@ __all__ = [
     "UnknownRobotError",
     "WmraBuild",
     "available",
+    "example_profile",
+    "examples",
     "load",
     "parse_profile",
     "profile",

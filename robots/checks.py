@@ -81,6 +81,7 @@ def check_profile(prof: RobotProfile, model: pin.Model) -> None:
         _frame(prof, model, f"arms[{i}].gripper_frame", arm.gripper_frame)
         if arm.ft_frame is not None:
             _frame(prof, model, f"arms[{i}].ft_frame", arm.ft_frame)
+    _check_arms_apart(prof, model)
     for name, value in prof.locked:
         j = _joint(prof, model, f"locked.{name}", name)
         if name in used:
@@ -91,6 +92,21 @@ def check_profile(prof: RobotProfile, model: pin.Model) -> None:
                 raise ProfileError(src, f"locked.{name}", f"{value:g} is outside the joint's limits [{lo:g}, {hi:g}]")
     for role, frame in prof.frames:
         _frame(prof, model, f"frames.{role}", frame)
+
+
+def _check_arms_apart(prof: RobotProfile, model: pin.Model) -> None:
+    """Raise `ProfileError` when one arm's joint carries another arm's gripper frame (a joint two arms share)."""
+    for i, arm in enumerate(prof.arms):
+        carried = set(model.supports[model.frames[model.getFrameId(arm.gripper_frame)].parentJoint])
+        for k, other in enumerate(prof.arms):
+            shared = [n for n in other.joints if k != i and model.getJointId(n) in carried]
+            if shared:
+                raise ProfileError(
+                    prof.source or prof.name,
+                    f"arms[{i}].gripper_frame",
+                    f"{arm.gripper_frame!r} moves with arms[{k}]'s joint {shared[0]!r}: a joint that carries two "
+                    "hands is not supported; hold it in [locked] (or list only the joints of each arm's own chain)",
+                )
 
 
 def reference_configuration(prof: RobotProfile, model: pin.Model) -> np.ndarray:

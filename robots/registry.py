@@ -17,6 +17,8 @@ from robots.errors import ProfileError, UnknownRobotError
 from robots.profiles import RobotProfile, read_profile
 
 DATA_DIR = Path(__file__).resolve().parent
+#: Example profiles of robots from other packages (``robots/examples/*.toml``), read by path, never registered.
+EXAMPLES_DIR = DATA_DIR / "examples"
 
 _LOCK = threading.Lock()
 _REGISTRY: dict[str, RobotProfile] = {}
@@ -82,6 +84,23 @@ def unregister(name: str) -> None:
         if name in _BUILTIN:
             raise ProfileError(name, "name", f"{name!r} is a built-in robot and cannot be removed")
         _REGISTRY.pop(name, None)
+
+
+def examples() -> tuple[str, ...]:
+    """Return the names of the example profiles shipped in ``robots/examples`` (`example_profile` gives their paths)."""
+    return tuple(sorted(p.stem for p in EXAMPLES_DIR.glob("*.toml")))
+
+
+def example_profile(name: str) -> Path:
+    """Return the path of an example profile (``robots/examples/NAME.toml``), e.g. ``"tiago_dual"`` (TIAGo++).
+
+    Examples describe robots of other packages (example-robot-data); they are not registered, so that the
+    package works without them: pass the path wherever a robot is taken.
+    """
+    path = EXAMPLES_DIR / f"{name}.toml"
+    if not path.is_file():
+        raise UnknownRobotError(f"no example profile {name!r}; examples: {', '.join(examples())}")
+    return path
 
 
 def is_profile_path(text: str | Path) -> bool:

@@ -10,6 +10,14 @@ from cartpush.cli import options
 HANDLE_WIDTH = 0.5
 
 
+#: Why `--robot` does not apply here (one line, exit 2).
+ROBOT_NOT_TAKEN = (
+    "--robot {robot}: plan-contacts plans for hands bounded by --max-force and --max-torque, not for a robot: "
+    "a robot's joint torque limits depend on the posture its arms hold the handle in; "
+    "`cartpush push --robot {robot}` plans its contacts with every joint torque bounded"
+)
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `plan-contacts` subcommand."""
     p = subparsers.add_parser(
@@ -33,6 +41,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="cart wrench in {b}: forces in N, torque in N m",
     )
     p.add_argument("--arms", type=int, default=1, help="number of arms (default 1)")
+    p.add_argument(
+        "--robot",
+        default=None,
+        metavar="NAME|PROFILE.toml",
+        help="not taken: the plan is for hands bounded by --max-force/--max-torque; a robot's joint torque limits "
+        "depend on its posture and are honoured by `cartpush push --robot` (exit 2 naming why)",
+    )
     p.add_argument(
         "--handle-width", type=float, default=HANDLE_WIDTH, help=f"handle length in m (default {HANDLE_WIDTH})"
     )
@@ -82,6 +97,8 @@ def _check_options(args: argparse.Namespace) -> None:
     options.finite("--max-torque", args.max_torque, positive=True, maximum=1e7)
     if not 1 <= args.arms <= 8:
         raise options.OptionError(f"--arms must be between 1 and 8, got {args.arms}")
+    if args.robot is not None:
+        raise options.OptionError(ROBOT_NOT_TAKEN.format(robot=args.robot))
 
 
 def _plan(args: argparse.Namespace):

@@ -19,6 +19,7 @@ EXAMPLE = """Examples:
   cartpush track line
   cartpush track sine --robot ridgeback_iiwa --band 0.7 --json
   cartpush track sine --out sine_run.csv
+  cartpush track line --robot my_robot.toml   (a robot profile: its first arm tracks, docs/robots.md)
 
 The end effector follows X = 90 t mm (line) or X = 90 t, Y = 1000 sin(0.1 t) mm (sine)
 from its initial pose, orientation held, 100 Hz for 60 s (WMRA paper §IV, docs/papers.md).
@@ -30,13 +31,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `track` subcommand."""
     p = subparsers.add_parser(
         "track",
-        help="track the paper's straight-line or sinusoidal end-effector path (WMRA or Ridgeback+iiwa)",
+        help="track the paper's straight-line or sinusoidal end-effector path (WMRA, Ridgeback+iiwa or a profile)",
         description="Resolved-rate QP tracking of an end-effector path by a mobile manipulator; prints "
         "position/orientation errors and joint-limit margins.\n\n" + EXAMPLE,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("path", choices=PATHS, help="line: 90 mm/s along X; sine: plus 1 m sin(0.1 t) along Y")
-    p.add_argument("--robot", default="wmra", choices=("wmra", "ridgeback_iiwa"), help="robot (default wmra)")
+    p.add_argument(
+        "--robot",
+        default="wmra",
+        metavar="NAME|PROFILE.toml",
+        help="a robot name (wmra, ridgeback_iiwa, ...) or a robot profile file (docs/robots.md); default wmra",
+    )
     p.add_argument(
         "--band",
         type=float,
@@ -107,6 +113,27 @@ def _check_options(args: argparse.Namespace) -> None:
         raise options.OptionError(f"--duration x --rate must give at least one step, got {args.duration * rate:g}")
     if args.out is not None:
         options.writable_file(args.out)
+    check_robot(args.robot)
+
+
+def check_robot(robot: str) -> None:
+    """Raise `options.OptionError` (one line) unless `robot` names a mobile manipulator: a registered robot or a
+    profile file with an arm on a wheeled base, checked against its URDF."""
+    import robots
+    from robots.errors import RobotError
+    from robots.profiles import mobile_manipulators, profile
+
+    try:
+        prof = profile(robot)
+        if prof.is_mobile_manipulator:
+            robots.load(prof)  # the profile checked against its URDF: one line naming the key
+    except RobotError as err:
+        raise options.OptionError(f"--robot: {err}") from None
+    if not prof.is_mobile_manipulator:
+        raise options.OptionError(
+            f"--robot {robot}: {prof.name!r} has no arm on a wheeled base, so it cannot track an end-effector "
+            f"path; give {', '.join(mobile_manipulators())} or a profile with [[arms]] and wheel_joints"
+        )
 
 
 def _run_experiment(args: argparse.Namespace):

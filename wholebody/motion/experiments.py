@@ -37,9 +37,16 @@ IIWA_INITIAL_ARM_DEG = (0.0, 45.0, 0.0, -90.0, 0.0, 45.0, 0.0)
 
 
 def initial_state(wb: WholeBody) -> np.ndarray:
-    """Return the experiments' initial reduced state [0, 0, 0, arm q] of a shipped robot."""
-    deg = WMRA_INITIAL_ARM_DEG if wb.robot.name == "wmra" else IIWA_INITIAL_ARM_DEG
-    return np.r_[0.0, 0.0, 0.0, np.radians(deg)]
+    """Return the experiments' initial reduced state [0, 0, 0, arm q]: the paper's posture of a shipped robot;
+    for a robot of a profile its first arm's `push_seed`, else the middle of each arm joint's range."""
+    if wb.robot.name == "wmra":
+        return np.r_[0.0, 0.0, 0.0, np.radians(WMRA_INITIAL_ARM_DEG)]
+    if wb.robot.name == "ridgeback_iiwa":
+        return np.r_[0.0, 0.0, 0.0, np.radians(IIWA_INITIAL_ARM_DEG)]
+    prof = wb.robot.profile
+    seed = prof.push_arm_seed if prof is not None else None
+    arm = np.asarray(seed, dtype=float) if seed is not None else 0.5 * (wb.arm_lower + wb.arm_upper)
+    return np.r_[0.0, 0.0, 0.0, arm]
 
 
 def path_function(path: str) -> Callable[[float], tuple[np.ndarray, np.ndarray]]:
@@ -239,15 +246,14 @@ def run_tracking(
     """Return the result of tracking the paper's `path` for `duration` s at `rate` Hz (paper §IV).
 
     Args:
-        robot: "wmra" (differential drive, wheel-rate input) or "ridgeback_iiwa" (mecanum, twist input).
+        robot: "wmra" (differential drive, wheel-rate input), "ridgeback_iiwa" (mecanum, twist input), or any
+            registered robot or profile file (.toml) with an arm on a wheeled base (its first arm tracks).
         path: "line" or "sine".
         band_radius: safety band radius (m) around the moving band centre, or None (base free).
         config: controller options (default `ControllerConfig()`).
         wb, x0: whole-body model and initial state (defaults: the shipped robot, `initial_state`).
         progress: called with the step index after every step (e.g. a progress bar).
     """
-    if robot not in ("wmra", "ridgeback_iiwa"):
-        raise WholeBodyError(f"unknown robot {robot!r}; valid: wmra, ridgeback_iiwa")
     if not (duration > 0 and rate > 0):
         raise WholeBodyError("duration and rate must be positive")
     f = path_function(path)

@@ -102,6 +102,11 @@ class WholeBody:
         S[self._root_v : self._root_v + 3, self.n_arm :] = self._wheel_map
         return S
 
+    @property
+    def input_map(self) -> np.ndarray:
+        """Return the nv x n_u map S from the input u to the Pinocchio velocity (arm joints, planar root)."""
+        return self._input_map
+
     def _joint(self, name: str) -> pin.JointModel:
         if not self.model.existJointName(name):
             raise WholeBodyError(f"robot {self.robot.name!r} has no joint {name!r}")
@@ -177,16 +182,28 @@ class WholeBody:
         oMf = pin.updateFramePlacement(self.model, self.data, self.ee_frame_id)
         return oMf.copy(), J.dot(self._input_map)
 
+    def frame_and_jacobian(self, x: npt.ArrayLike, frame_id: int) -> tuple[pin.SE3, np.ndarray]:
+        """Return (placement, 6 x n_u combined Jacobian) of any frame, e.g. a second hand (`ee_and_jacobian` alike)."""
+        q = self._q_work
+        write_configuration(q, self.as_state(x), self._root_q, self.arm_idx_q)
+        J = pin.computeFrameJacobian(self.model, self.data, q, frame_id, pin.LOCAL_WORLD_ALIGNED)
+        oMf = pin.updateFramePlacement(self.model, self.data, frame_id)
+        return oMf.copy(), J.dot(self._input_map)
+
     def combined_jacobian(self, x: npt.ArrayLike) -> np.ndarray:
         """Return the 6 x n_u Jacobian u -> end-effector (v, omega), world-aligned at the EE (paper eq. 21)."""
         return self.ee_and_jacobian(x)[1]
 
 
-def wholebody_for(robot: LoadedRobot, base_input: BaseInput | None = "wheels", arm: int = 0) -> WholeBody:
+def wholebody_for(
+    robot: LoadedRobot, base_input: BaseInput | None = "wheels", arm: int | Sequence[int] = 0
+) -> WholeBody:
     """Return the `WholeBody` of a loaded robot with its arm number `arm`, built from its profile.
 
     ``base_input``: "wheels" (wheel rates, the default), "twist" (holonomic bases), or None = the profile's
     (`RobotProfile.base_input`: a body twist for a holonomic base, wheel rates for a differential drive).
+    ``arm``: one arm, or several (one base driving them all): their joints in that order in x and u, the
+    end effector the first one's gripper frame (`frame_and_jacobian` gives the others').
     """
     prof = robot.profile
     if prof is None or not prof.is_mobile_manipulator:
@@ -194,15 +211,16 @@ def wholebody_for(robot: LoadedRobot, base_input: BaseInput | None = "wheels", a
             f"no whole-body model for robot {robot.name!r} (no arm on a wheeled base in its profile); "
             f"use {' or '.join(repr(n) for n in mobile_manipulators())} or a profile with [[arms]] and wheel_joints"
         )
-    if not 0 <= arm < len(prof.arms):
-        raise WholeBodyError(f"robot {robot.name!r} has {len(prof.arms)} arm(s) in its profile; arm {arm} asked")
-    a = prof.arms[arm]
+    which = [arm] if isinstance(arm, int) else list(arm)
+    if not which or any(not 0 <= i < len(prof.arms) for i in which) or len(set(which)) != len(which):
+        raise WholeBodyError(f"robot {robot.name!r} has {len(prof.arms)} arm(s) in its profile; arm(s) {arm} asked")
+    arms = [prof.arms[i] for i in which]
     return WholeBody(
         robot,
         base_for(robot, prof),
-        a.joints,
+        [j for a in arms for j in a.joints],
         prof.wheel_joints,
-        ee_frame=a.gripper_frame,
+        ee_frame=arms[0].gripper_frame,
         base_input=prof.base_input if base_input is None else base_input,
     )
 

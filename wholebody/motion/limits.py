@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from wholebody.errors import WholeBodyError
 from wholebody.motion.kernels import intersect_position_box
@@ -188,3 +189,64 @@ class SafetyBandLimit(Limit):
         G[:, self._n_arm :] = N.dot(M)
         h = self.band.gain * (self._inner - N.dot(p - c)) / s.dt + N.dot(cdot)
         return G, (np.maximum(h, 0.0) if relax else h)
+
+
+class JointTorqueLimit(Limit):
+    """|tau| <= fraction x effort limit on the arm joints, with the joint torques the step's input asks for:
+
+    tau = (M_a / dt + dh_a/dv) (S u - v_prev) + h_a(q, v_prev) + sum_k J_k^T w_k, linear in u (M_a: the arm rows
+    of the joint-space inertia, S: input -> Pinocchio velocity, h: Pinocchio's nonlinear effects, linearised
+    about the last input with `computeRNEADerivatives`, w_k: the wrench
+    hand k applies, world-aligned at frame k, set in `wrenches` before each step). The acceleration a hand
+    task asks for then never drives a joint past its URDF effort. Relaxable: when the QP has no solution
+    with it (the bias alone beyond a limit, a position limit closing in), the step is solved without it.
+    """
+
+    relaxable = True
+    #: share of a joint's effort its braking curve toward a position limit counts on (the rest: gravity, the hand)
+    BRAKING_SHARE = 0.5
+
+    def __init__(self, wb: WholeBody, fraction: float = 1.0, margin: float = 0.0) -> None:
+        if not 0.0 < fraction <= 1.0:
+            raise WholeBodyError(f"torque limit fraction must be in (0, 1], got {fraction}")
+        self.wb, self.limit = wb, fraction * wb.arm_effort_limit
+        self.data = wb.model.createData()
+        self.lower, self.upper = wb.arm_lower + margin, wb.arm_upper - margin
+        self._lb, self._ub = np.full(wb.n_u, -np.inf), np.full(wb.n_u, np.inf)
+        #: (frame id, wrench [f, n] world-aligned at the frame) of every hand for the coming step
+        self.wrenches: list[tuple[int, np.ndarray]] = []
+
+    def box(self, s: StepState) -> tuple[np.ndarray, np.ndarray]:
+        """Return each arm joint's speed toward its position limits (shrunk by `margin`) from which it still stops
+        there decelerating at BRAKING_SHARE x effort / inertia per period (a discrete braking curve): so that a
+        position limit never asks for a stop the torque limit cannot give."""
+        wb, n = self.wb, self.wb.n_arm
+        M = pin.crba(wb.model, self.data, wb.to_pinocchio_q(s.x))
+        rows = wb.arm_idx_v
+        a = self.BRAKING_SHARE * self.limit / np.maximum(M[rows, rows], 1e-9)
+        step = a * s.dt * s.dt
+        q = s.x[3 : 3 + n]
+        for d, out, sign in ((self.upper - q, self._ub, 1.0), (q - self.lower, self._lb, -1.0)):
+            k = np.sqrt(0.25 + 2.0 * np.maximum(d, 0.0) / step) - 0.5  # periods of braking the distance allows
+            out[:n] = sign * k * a * s.dt
+        return self._lb, self._ub
+
+    def inequality(self, s: StepState, relax: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
+        if relax:
+            return None
+        wb, model, data = self.wb, self.wb.model, self.data
+        q = wb.to_pinocchio_q(s.x)
+        S = wb.input_map
+        u_prev = np.zeros(wb.n_u) if s.u_prev is None else s.u_prev
+        v_prev = S @ u_prev
+        M = pin.crba(model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        rows = wb.arm_idx_v
+        # velocity terms to first order about the last input: h(v) ~ h(v_prev) + dh/dv (v - v_prev)
+        pin.computeRNEADerivatives(model, data, q, v_prev, np.zeros(model.nv))
+        Ma = (M[rows] / s.dt + data.dtau_dv[rows]) @ S
+        bias = pin.nonLinearEffects(model, data, q, v_prev)[rows] - Ma @ u_prev
+        for fid, w in self.wrenches:
+            J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
+            bias = bias + J[:, rows].T @ w
+        return np.vstack([Ma, -Ma]), np.r_[self.limit - bias, self.limit + bias]

@@ -14,7 +14,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from wholebody.errors import WholeBodyError
-from wholebody.motion.kernels import add_scaled_difference, add_weighted_gram, pose_difference
+from wholebody.motion.kernels import add_scaled_difference, add_weighted_gram, pose_difference, reference_twist
 from wholebody.motion.kinematics import WholeBody
 from wholebody.motion.qp import StepState, Task
 
@@ -233,3 +233,39 @@ class BaseTask(Task):
         w = rates + self.gain * e
         twist = np.array([c * w[0] + sn * w[1], -sn * w[0] + c * w[1], w[2]])  # world rates -> body twist
         return s.wb.twist_map, twist
+
+
+class FrameTask(Task):
+    """weight ||J_f u - v_ref||^2 for another frame than the end effector (a second hand), with its own target.
+
+    Set `target` (SE3) and `target_velocity` (feed-forward twist, world-aligned) before each step; v_ref is
+    gain x pose error + feed-forward, clipped like the end-effector task's (`reference_twist`). Off while
+    `target` is None. `position_error` holds the last step's error (m).
+    """
+
+    def __init__(
+        self, wb: WholeBody, frame_id: int, weight: float, gain: float, max_linear: float, max_angular: float
+    ) -> None:
+        self.wb, self.frame_id = wb, frame_id
+        self.weights = np.full(6, float(weight))
+        self.gain, self.max_linear, self.max_angular = gain, max_linear, max_angular
+        self.target: pin.SE3 | None = None
+        self.target_velocity = np.zeros(6)
+        self.position_error = 0.0
+
+    def objective(self, s: StepState) -> tuple[np.ndarray | None, np.ndarray | None]:
+        if self.target is None:
+            return None, None
+        n = s.wb.n_u
+        H, c = np.zeros((n, n)), np.zeros(n)
+        self.add_objective(s, H, c)
+        return H, c
+
+    def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
+        if self.target is None:
+            return
+        T, J = self.wb.frame_and_jacobian(s.x, self.frame_id)
+        v_ref, self.position_error, _ = reference_twist(
+            pose_error(T, self.target), self.gain, self.target_velocity, self.max_linear, self.max_angular
+        )
+        add_weighted_gram(J, self.weights, v_ref, H, c)

@@ -135,6 +135,11 @@ class PushConfig:
         prof = profile(self.robot)  # raises naming the known robots
         if not prof.is_mobile_manipulator:
             raise WholeBodyError(f"robot {self.robot!r} cannot push the cart: its profile has no arm on a wheeled base")
+        if self.plant == "mujoco" and 1 < self.n_arms <= len(prof.arms):  # one base, several arms
+            raise WholeBodyError(
+                f"the MuJoCo plant drives one arm per robot; robot {prof.name!r} pushes with its {self.n_arms} arms "
+                "on the kinematic plant (plant='kinematic', --plant kinematic) or with one (n_arms=1, --arms 1)"
+            )
         if self.fixed_contact_y is not None and len(self.fixed_contact_y) not in (1, 2):
             raise WholeBodyError("fixed_contact_y needs one value per arm")
 

@@ -94,8 +94,10 @@ class PushController:
         scheduler: ContactScheduler,
         robots: Sequence[MobileManipulator],
     ) -> None:
-        if len(robots) != config.n_arms:
-            raise WholeBodyError(f"{len(robots)} robots given for {config.n_arms} arms")
+        if sum(mm.n_hands for mm in robots) != config.n_arms:
+            raise WholeBodyError(
+                f"{len(robots)} robots holding {sum(mm.n_hands for mm in robots)} hands given for {config.n_arms} arms"
+            )
         self.config = config
         self.cart_controller = cart_controller
         self.estimator = estimator
@@ -129,17 +131,18 @@ class PushController:
         self.allocator.set_points([handle_point(v, self.geometry) for v in ys])
         if self.config.torque_margin is not None:  # |J^T w + g| <= tau_max at each arm's current configuration
             self.allocator.set_torque_limits(
-                [mm.torque_constraint(q_hat) for mm in self.robots], margin=self.config.torque_margin
+                [c for mm in self.robots for c in mm.torque_constraints(q_hat)], margin=self.config.torque_margin
             )
         alloc = self.allocator.solve(cart_model.generalized_to_body(q_hat, gamma_d), raise_on_infeasible=False)
         saturated = alloc.residual > 1e-6 * max(1.0, float(np.abs(gamma_d).max()))  # eq. (25)
         q_grasp = self._grasp_pose(q_hat, qd_hat, m.t)
-        commands, parts = zip(
+        commands, per_robot = zip(
             *(
                 self._robot_command(mm, q_grasp, qd_hat, y, yd, w)
-                for mm, y, yd, w in zip(self.robots, ys, ydots, alloc.wrenches_ee)
+                for mm, y, yd, w in zip(self.robots, *self._by_robot(ys, ydots, alloc.wrenches_ee))
             )
         )
+        parts = [p for ps in per_robot for p in ps]  # one (torque, J^T w, grasp error) per hand
         self.last = ControlDecision(
             t=m.t,
             params_hat=params_hat,
@@ -150,8 +153,8 @@ class PushController:
             contact_y=np.array(ys, dtype=float),
             wrenches_ee=np.array(alloc.wrenches_ee, dtype=float),
             saturated=bool(saturated),
-            arm_torque=np.array([p[0] for p in parts]),
-            push_torque=np.array([p[1] for p in parts]),
+            arm_torque=hand_rows([p[0] for p in parts]),
+            push_torque=hand_rows([p[1] for p in parts]),
             base_twist=np.array([c.base_twist for c in commands]),
             wheel_rates=np.array([c.wheel_rates for c in commands]),
             grasp_error=np.array([p[2] for p in parts]),
@@ -177,33 +180,64 @@ class PushController:
         """Return Gamma_MM of the F/T readings, through each robot's measured F/T frame (eq. 23-24)."""
         gamma = np.zeros(3)
         for mm, r in zip(self.robots, m.robots):
-            oMft = mm.wb.frame_placement(mm.x, mm.ft_id)
-            gamma += ft_to_cart_gamma(pin.Force(r.ft[:3], r.ft[3:]), oMft, m.cart_pose)
+            for ft_id, ft in zip(mm.ft_ids, np.reshape(r.ft, (-1, 6))):  # one reading per hand
+                oMft = mm.wb.frame_placement(mm.x, ft_id)
+                gamma += ft_to_cart_gamma(pin.Force(ft[:3], ft[3:]), oMft, m.cart_pose)
         return gamma
 
+    def _by_robot(
+        self, ys: np.ndarray, ydots: np.ndarray, wrenches: Sequence[np.ndarray] | np.ndarray
+    ) -> tuple[list, list, list]:
+        """Return the contacts, their rates and the hand wrenches per robot: a robot with one hand gets its
+        own (y, ydot, wrench), one with several (one base, `MobileManipulator.n_hands` arms) arrays of them."""
+        edges = np.cumsum([0] + [mm.n_hands for mm in self.robots])
+        cut = [slice(a, b) if b - a > 1 else a for a, b in zip(edges[:-1], edges[1:])]
+        return [ys[c] for c in cut], [ydots[c] for c in cut], [np.asarray(wrenches)[c] for c in cut]
+
     def _robot_command(
-        self, mm: MobileManipulator, q: np.ndarray, qd: np.ndarray, y: float, ydot: float, wrench_a: np.ndarray
-    ) -> tuple[RobotCommand, tuple[np.ndarray, np.ndarray, float]]:
-        """Return (the command of one robot, (arm torque, J^T w part, grasp error)) for one period."""
+        self,
+        mm: MobileManipulator,
+        q: np.ndarray,
+        qd: np.ndarray,
+        y: float | np.ndarray,
+        ydot: float | np.ndarray,
+        wrench_a: np.ndarray,
+    ) -> tuple[RobotCommand, list[tuple[np.ndarray, np.ndarray, float]]]:
+        """Return (the command of one robot, per hand (arm torque, J^T w part, grasp error)) for one period.
+
+        A robot with several hands (`_by_robot`: arrays of contacts and wrenches) gets one command: its arms'
+        joints in turn, one hand wrench and one hand target per hand (rows).
+        """
         dt = self.config.dt
-        target, vel = grasp_target(q, qd, y, ydot, mm.R_b_ee, self.geometry)
+        ys, yds, ws = np.atleast_1d(y), np.atleast_1d(ydot), np.reshape(wrench_a, (-1, 6))
+        targets = [grasp_target(q, qd, v, vd, R, self.geometry) for v, vd, R in zip(ys, yds, mm.grasp_rotations)]
+        (target, vel), more = targets[0], {"more_targets": targets[1:]} if len(targets) > 1 else {}
         bpose, brates = base_target(q, qd, mm.base_offset_b)
-        u = mm.tracker.step(mm.x, target, vel, bpose, brates, dt)
         R = _rot_z(q[2])
-        w_world = np.concatenate([R @ wrench_a[:3], R @ wrench_a[3:]])
-        tau, push, oMee, _ = mm.torques(u, mm.u, dt, w_world)
+        w_world = [np.concatenate([R @ w[:3], R @ w[3:]]) for w in ws]
+        mm.set_hand_wrenches(w_world)  # the QP keeps the joint torques within their limits
+        u = mm.tracker.step(mm.x, target, vel, bpose, brates, dt, **more)
+        taus, pushes, hands = mm.hand_torques(u, mm.u, dt, w_world)
         mm.u = u
         n = mm.wb.n_arm
+        one = len(targets) == 1
         cmd = RobotCommand(
             arm_velocity=u[:n].copy(),
             arm_position=mm.x[3:] + dt * u[:n],
-            arm_torque=tau,
+            arm_torque=np.concatenate(taus),
             base_twist=mm.body_twist(u),
             wheel_rates=mm.wb.wheel_rates(u),
-            hand_wrench=w_world,
-            hand_target=target.homogeneous,
+            hand_wrench=w_world[0] if one else np.array(w_world),
+            hand_target=target.homogeneous if one else np.array([T.homogeneous for T, _ in targets]),
         )
-        return cmd, (tau, push, float(np.linalg.norm(oMee.translation - target.translation)))
+        errors = [float(np.linalg.norm(P.translation - T.translation)) for P, (T, _) in zip(hands, targets)]
+        return cmd, list(zip(taus, pushes, errors))
+
+
+def hand_rows(rows: Sequence[np.ndarray]) -> np.ndarray:
+    """Return per-hand joint vectors as the rows of one array, zero-padded where the arms' joint counts differ."""
+    width = max(len(r) for r in rows)
+    return np.array([np.pad(np.asarray(r, dtype=float), (0, width - len(r))) for r in rows])
 
 
 def _rot_z(theta: float) -> np.ndarray:

@@ -35,12 +35,15 @@ def hands_to_cart_gamma(q_cart: np.ndarray, hands: Sequence[tuple[np.ndarray, np
 class KinematicPlant:
     """Robots on ideal servos and the exact cart model (`cart.simulate.rk4_step`), one control period per step.
 
-    ``robots``: one (WholeBody, initial state x = [base pose, arm joints], F/T frame id) per robot.
+    ``robots``: one (WholeBody, initial state x = [base pose, arm joints], F/T frame id) per robot; a robot
+    holding the handle with several hands (one base, several arms) gives ((hand frame id, F/T frame id), ...)
+    instead of the F/T frame id: its commands then carry one hand wrench per hand (rows), its readings one F/T
+    reading per hand (rows).
     """
 
     def __init__(
         self,
-        robots: Sequence[tuple[WholeBody, np.ndarray, int]],
+        robots: Sequence[tuple[WholeBody, np.ndarray, int | Sequence[tuple[int, int]]]],
         q_cart: np.ndarray,
         qd_cart: np.ndarray,
         params: CartParams,
@@ -57,13 +60,13 @@ class KinematicPlant:
         self.noise = noise
         self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
         self.wbs = [wb for wb, _, _ in robots]
-        self.ft_ids = [fid for _, _, fid in robots]
+        self.hands = [[(wb.ee_frame_id, f)] if isinstance(f, int) else list(f) for wb, _, f in robots]
         self.x = [np.array(x, dtype=float) for _, x, _ in robots]
         self.u = [np.zeros(wb.n_u) for wb in self.wbs]
         self.q = np.array(q_cart, dtype=float)
         self.qd = np.array(qd_cart, dtype=float)
         self.t = 0.0
-        self._ft = [np.zeros(6) for _ in self.wbs]
+        self._ft = [np.zeros(6) if len(h) == 1 else np.zeros((len(h), 6)) for h in self.hands]
         self._z = self._motion_capture()
 
     def _motion_capture(self) -> np.ndarray:
@@ -86,7 +89,11 @@ class KinematicPlant:
 
     def cart_wrench(self, commands: Sequence[RobotCommand]) -> np.ndarray:
         """Return the Gamma_MM the hands apply under `commands` (each hand's wrench at its current position)."""
-        hands = [(wb.ee_placement(x).translation, c.hand_wrench) for wb, x, c in zip(self.wbs, self.x, commands)]
+        hands = [
+            (wb.frame_placement(x, ee).translation, w)
+            for wb, x, c, ids in zip(self.wbs, self.x, commands, self.hands)
+            for (ee, _), w in zip(ids, np.reshape(c.hand_wrench, (-1, 6)))
+        ]
         return hands_to_cart_gamma(self.q, hands)
 
     def step(self, commands: Sequence[RobotCommand]) -> None:
@@ -99,9 +106,12 @@ class KinematicPlant:
             u = np.r_[c.arm_velocity, base_u]
             self.x[i] = wb.integrate(self.x[i], u, self.dt)
             self.u[i] = u
-            oMee, oMft = wb.ee_placement(self.x[i]), wb.frame_placement(self.x[i], self.ft_ids[i])
-            reading = ft_measurement(c.hand_wrench, oMee, oMft, self.rng, self.noise)  # at the period's end
-            self._ft[i] = np.r_[reading.linear, reading.angular]
+            ft = []
+            for (ee, fid), w in zip(self.hands[i], np.reshape(c.hand_wrench, (-1, 6))):
+                oMee, oMft = wb.frame_placement(self.x[i], ee), wb.frame_placement(self.x[i], fid)
+                reading = ft_measurement(w, oMee, oMft, self.rng, self.noise)  # at the period's end
+                ft.append(np.r_[reading.linear, reading.angular])
+            self._ft[i] = ft[0] if len(ft) == 1 else np.array(ft)
         h = self.dt / self.substeps
         for j in range(self.substeps):
             self.q, self.qd = rk4_step(self.t + j * h, self.q, self.qd, gamma, self.params, h)

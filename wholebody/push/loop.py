@@ -66,13 +66,19 @@ def make_robots(
 
     ``robot``: the loaded `config.robot` when the caller has it (loaded once per run)."""
     which = robot if robot is not None else config.robot
-    return robot_mod.make_robots(which, q_cart, contact_y, seeds, geometry=config.cart_geometry())
+    return robot_mod.make_robots(
+        which, q_cart, contact_y, seeds, geometry=config.cart_geometry(), placement_y=config.contact_y0()
+    )
 
 
 def make_reach_map(config: PushConfig, robot: robots.LoadedRobot | None = None):
-    """Return the `ReachMap` of a robot whose base stands at a fixed place behind the cart (None otherwise)."""
+    """Return the `ReachMap` of a robot whose base stands at a fixed place behind the cart (None otherwise); one
+    per hand (a tuple) for one base holding the handle with several arms."""
     geo = config.cart_geometry()
     which = robot if robot is not None else config.robot
+    if robot_mod.arms_per_robot(robots.profile(config.robot), config.n_arms) > 1:  # one base, several arms:
+        loaded = which if isinstance(which, robots.LoadedRobot) else robots.load(which)  # one map per hand
+        return robot_mod.multi_arm_reach_maps(loaded, config.contact_y0(), None if geo is DEFAULT_GEOMETRY else geo)
     return robot_mod.push_reach_map(which, None if geo is DEFAULT_GEOMETRY else geo)
 
 
@@ -145,7 +151,7 @@ def build_controller(
     robot = robots.load(config.robot)  # once per run: the reach map and the robots share it
     reach = make_reach_map(config, robot)
     scheduler = ContactScheduler(config, traj, reach)
-    seeds = None if reach is None else [reach.postures[reach.index(scheduler.y[0])]]
+    seeds = None if reach is None or isinstance(reach, tuple) else [reach.postures[reach.index(scheduler.y[0])]]
     mms = make_robots(config, q, scheduler.y, seeds, robot)
     x0 = [mm.x.copy() for mm in mms]
     return PushSetup(PushController(config, controller, estimator, scheduler, mms), x0, q.copy(), qd.copy())
@@ -233,7 +239,17 @@ def run_loop(
     H["gamma_measured"] = np.r_[H["gamma_measured"][1:], H["gamma_measured"][-1:]]
     mm = ctrl.robots[0]
     judged = replace(config, true_params=plant_truth(config, plant))
-    return _result(judged, H, mm.effort_limit, ctrl.estimator.params(), mm.wb.wheel_velocity_limit)
+    return _result(judged, H, effort_limits(ctrl.robots), ctrl.estimator.params(), mm.wb.wheel_velocity_limit)
+
+
+def effort_limits(mms: Sequence[MobileManipulator]) -> np.ndarray:
+    """Return the arms' joint torque limits: (n_joints,) when every hand's arm has the same, else one row per
+    hand (n_hands, n_joints), padded with inf where the arms' joint counts differ (the rows of `arm_torque`)."""
+    rows = [mm.effort_limit[c] for mm in mms for c in mm.hand_cols]
+    if all(r.shape == rows[0].shape and np.array_equal(r, rows[0]) for r in rows):
+        return rows[0]
+    width = max(len(r) for r in rows)
+    return np.array([np.pad(r, (0, width - len(r)), constant_values=np.inf) for r in rows])
 
 
 def estimator_report(estimator: ParameterEstimator) -> dict:

@@ -17,7 +17,10 @@ if TYPE_CHECKING:
 
 def kinematic_plant(config: PushConfig, setup: PushSetup) -> KinematicPlant:
     """Return the kinematic plant of `config` starting where `setup` holds the handle."""
-    robots_ = [(mm.wb, x, mm.ft_id) for mm, x in zip(setup.controller.robots, setup.robot_x0)]
+    robots_ = [
+        (mm.wb, x, mm.ft_id if mm.n_hands == 1 else list(zip(mm.hand_ids, mm.ft_ids)))
+        for mm, x in zip(setup.controller.robots, setup.robot_x0)
+    ]
     return KinematicPlant(
         robots_, setup.q0, setup.qd0, config.true_params, config.noise, config.dt, config.substeps, config.seed
     )

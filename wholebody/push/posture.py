@@ -255,3 +255,116 @@ def arm_posture_near(
         f"robot {prof.name!r}: the arm cannot hold the handle at y = {contact_y:.3f} m with its base at "
         f"y = {base_y:.3f} m; fix the contact points or give [push] base_x in its profile"
     )
+
+
+# ---------------------------------------------------------------------------------------------- one base, several arms
+@dataclass(frozen=True)
+class MultiArmPlacement:
+    """Where one base stands for several of its arms to hold the handle, each at its own contact point.
+
+    ``arms``: the profile's arms in the order of the contacts (lowest y first); ``rolls`` and ``postures``
+    per arm in that order; the base stands at (handle x + ``base_x``, ``base_y``) in {b}.
+    """
+
+    arms: tuple[int, ...]
+    contact_y: tuple[float, ...]
+    pitch: float
+    rolls: tuple[float, ...]
+    base_x: float
+    base_y: float
+    postures: tuple[np.ndarray, ...]
+    #: ranking score: the smallest joint-limit margin less gravity load and distance behind the handle
+    score: float
+
+
+def arms_by_side(wbs: Sequence[WholeBody]) -> tuple[int, ...]:
+    """Return the arms' indices ordered by the lateral place (y in the base frame) of their first joint."""
+    ys = []
+    for wb in wbs:
+        q = wb.to_pinocchio_q(np.r_[0.0, 0.0, 0.0, np.clip(np.zeros(wb.n_arm), wb.arm_lower, wb.arm_upper)])
+        pin.forwardKinematics(wb.model, wb.data, q)
+        ys.append(float(wb.data.oMi[wb.model.getJointId(wb.arm_joints[0])].translation[1]))
+    return tuple(int(i) for i in np.argsort(ys, kind="stable"))
+
+
+def _arm_searches(
+    wb: WholeBody, prof: RobotProfile, pitch: float, axis: str, contact_y: float
+) -> list[tuple[float, np.ndarray]]:
+    """Return (roll, [bx, dy, q...]) of every roll whose search reaches `contact_y` (the base's y fixed)."""
+    from wholebody.push.robot import grasp_rotation
+
+    rolls = ROLLS if prof.grasp_roll is None else (prof.grasp_roll,)
+    mid = 0.5 * (wb.arm_lower + wb.arm_upper)
+    out = []
+    for roll in rolls:
+        z = _search(wb, prof, grasp_rotation(pitch, roll, axis), contact_y, mid, -0.6)
+        if z is not None:
+            out.append((roll, z))
+    return out
+
+
+def _joint_placement(
+    wbs: Sequence[WholeBody], prof: RobotProfile, pitch: float, per_arm: list[tuple[float, np.ndarray]], ys, axes
+) -> MultiArmPlacement | None:
+    """Return the placement of the arms' grasps from one base x (each arm's own best x, and their mean), or None."""
+    from wholebody.push.robot import base_target, grasp_rotation, grasp_target, handle_point, solve_grasp_ik
+
+    zero = np.zeros(3)
+    by = float(np.mean(ys))
+    best = None
+    xs = [float(z[0]) for _, z in per_arm] if prof.push_base_x is None else [prof.push_base_x]
+    for bx in sorted(set(xs + [float(np.mean(xs))])):
+        pose = base_target(zero, zero, np.array([handle_point(by)[0] + bx, by]))[0]
+        qs = []
+        for wb, (roll, z), y, axis in zip(wbs, per_arm, ys, axes):
+            try:
+                qa = solve_grasp_ik(
+                    wb, pose, grasp_target(zero, zero, y, 0.0, grasp_rotation(pitch, roll, axis))[0], z[2:]
+                )
+            except WholeBodyError:
+                break
+            if arm_sigma(wb, np.r_[pose, qa]) >= REACH_MIN_SIGMA:
+                qs.append(qa)
+        if len(qs) != len(wbs):
+            continue
+        grav = max(gravity_ratio(wb, np.r_[pose, qa]) for wb, qa in zip(wbs, qs))
+        margin = min(joint_margin(wb, qa) for wb, qa in zip(wbs, qs))
+        score = margin - max(0.0, grav - 0.5) - BASE_X_WEIGHT * (BASE_X_RANGE[1] - bx)
+        if best is None or score > best.score:
+            rolls = tuple(r for r, _ in per_arm)
+            best = MultiArmPlacement((), tuple(ys), pitch, rolls, bx, by, tuple(qs), score)
+    return best
+
+
+def solve_multi_arm_placement(
+    prof: RobotProfile, wbs: Sequence[WholeBody], contact_y: Sequence[float]
+) -> MultiArmPlacement:
+    """Return where one base stands for its first ``len(contact_y)`` arms to hold the handle at `contact_y`.
+
+    The arms take the contacts by side (the arm mounted furthest right the lowest y); the base stands centred
+    between the contacts. Per grasp pitch, each arm's best roll and base x come from the single-arm search
+    (`_search`, the base's y fixed); then one base x for all (each arm's, and their mean) and the exact grasp
+    IK of every arm from it, ranked by the smallest joint-limit margin less gravity load and distance. `prof`:
+    the profile with its tool axes filled and its own (not computed) base x. Raises `WholeBodyError`.
+    """
+    n = len(contact_y)
+    order = arms_by_side(wbs[:n])
+    ys = sorted(float(v) for v in contact_y)
+    fixed = replace(prof, push_base_y=float(np.mean(ys)))
+    axes = [prof.arms[i].tool_axis or "z" for i in order]
+    best = None
+    for pitch in PITCHES if prof.grasp_pitch is None else (prof.grasp_pitch,):
+        per_arm = []
+        for i, y, axis in zip(order, ys, axes):
+            found = _arm_searches(wbs[i], fixed, pitch, axis, y)
+            if found:
+                per_arm.append(max(found, key=lambda rz: joint_margin(wbs[i], rz[1][2:]) + BASE_X_WEIGHT * rz[1][0]))
+        p = _joint_placement([wbs[i] for i in order], fixed, pitch, per_arm, ys, axes) if len(per_arm) == n else None
+        if p is not None and (best is None or p.score > best.score):
+            best = p
+    if best is None:
+        raise WholeBodyError(
+            f"robot {prof.name!r}: its arms cannot hold the handle at y = {', '.join(f'{v:.2f}' for v in ys)} m "
+            "from one base behind it; give other contact points (--contact-y) or [push] base_x in its profile"
+        )
+    return replace(best, arms=order)

@@ -21,7 +21,9 @@ from wholebody.errors import WholeBodyError
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, StepResult
 from wholebody.motion.bases import DifferentialDrive
 from wholebody.motion.kinematics import WholeBody, wholebody_for
-from wholebody.motion.limits import WheelAccelerationLimit
+from wholebody.motion.limits import JointTorqueLimit, WheelAccelerationLimit
+from wholebody.motion.qp import Limit
+from wholebody.motion.tasks import FrameTask
 from wholebody.push.config import BodyTracker
 from wholebody.contacts.allocation import TorqueConstraint
 
@@ -41,6 +43,9 @@ DIFFERENTIAL_LOOKAHEAD = 0.3
 DEFAULT_RIM_ACCELERATION = 2.5
 #: Contact point y (m) of a fixed contact when the profile gives none.
 DEFAULT_CONTACT_Y = 0.0
+#: Share of each arm joint's URDF effort the whole-body QP's torque limit allows (`JointTorqueLimit`): the rest
+#: covers the velocity terms' change over one period, which the QP's linear torque model takes at the last input.
+TORQUE_LIMIT_FRACTION = 0.98
 
 
 def _axis_rotation(axis: str) -> np.ndarray:
@@ -138,8 +143,14 @@ class WholeBodyQPTracker:
     differential drive, on the body twist (wheel radius x limit per second) of a holonomic base.
     """
 
-    def __init__(self, wb: WholeBody, q_nominal: np.ndarray, config: ControllerConfig | None = None) -> None:
-        extra = []
+    def __init__(
+        self,
+        wb: WholeBody,
+        q_nominal: np.ndarray,
+        config: ControllerConfig | None = None,
+        hand_frames: Sequence[int] = (),
+    ) -> None:
+        extra: list[Limit] = []
         if config is None:  # the robot's own base tracker and wheel limits (its profile)
             prof = push_profile(wb.robot)
             config = replace(
@@ -149,7 +160,17 @@ class WholeBodyQPTracker:
             )
             if wb.base_input == "twist" and prof.wheel_acceleration_limit is not None:
                 extra.append(WheelAccelerationLimit(wb, prof.wheel_acceleration_limit * wb.base.wheel_radius))
-        self.controller = ResolvedRateController(wb, config, posture=q_nominal, extra_limits=extra)
+        #: the arm joints' torques the step asks for stay within their URDF efforts (`set_hand_wrenches`)
+        self.torque_limit = JointTorqueLimit(wb, TORQUE_LIMIT_FRACTION, config.limit_margin)
+        extra.append(self.torque_limit)
+        c = config
+        #: one task per further hand (`hand_frames`: their frame ids), with the first hand's weight and gain
+        self.hands = [
+            FrameTask(wb, f, c.position_weight, c.gain, c.max_linear_speed, c.max_angular_speed) for f in hand_frames
+        ]
+        self.controller = ResolvedRateController(
+            wb, config, posture=q_nominal, extra_limits=extra, extra_tasks=self.hands
+        )
         self.last: StepResult | None = None
 
     def step(
@@ -160,8 +181,14 @@ class WholeBodyQPTracker:
         base_target: np.ndarray,
         base_velocity: np.ndarray,
         dt: float,
+        more_targets: Sequence[tuple[pin.SE3, np.ndarray]] = (),
     ) -> np.ndarray:
-        """Return u = [arm rates (n_arm), base input] for one period."""
+        """Return u = [arm rates (n_arm), base input] for one period; `more_targets`: (pose, twist) of each
+        further hand (`hand_frames`), tracked in the same QP."""
+        if len(more_targets) != len(self.hands):
+            raise WholeBodyError(f"{len(more_targets)} further hand targets for {len(self.hands)} further hands")
+        for task, (T, v) in zip(self.hands, more_targets):
+            task.target, task.target_velocity = T, np.asarray(v, dtype=float)
         res = self.controller.step(
             x, target, target_velocity, dt, base_target=base_target, base_target_velocity=base_velocity
         )
@@ -325,50 +352,95 @@ def _push_profile(prof: RobotProfile, urdf: str, key: _LoadedKey) -> RobotProfil
 
 
 class MobileManipulator:
-    """One mobile manipulator holding the handle with one of its arms (any profile: joints, frames, base).
+    """One mobile manipulator holding the handle with one of its arms, or with several (one base driving them).
 
-    State ``x`` = [base pose, arm joints]; ``base_offset_b`` is where its base stays, in {b}
-    (behind the handle, laterally at ``base_y``); the arm starts from the grasp IK. ``arm`` picks the
-    profile's arm; the push settings come from `push_profile`.
+    State ``x`` = [base pose, arm joints (each arm's in turn)]; ``base_offset_b`` is where its base stays, in
+    {b} (behind the handle, laterally at ``base_y``); the arms start from the grasp IK. ``arm`` picks the
+    profile's arm, or a sequence of arms whose hands hold ``contact_y`` (one each, in that order) with grasp
+    rotations ``R_b_ee`` (one, or one per hand); the push settings come from `push_profile` (``base_x``:
+    the base's x relative to the handle instead of the profile's).
     """
 
     def __init__(
         self,
         robot: robots.LoadedRobot,
         q_cart: np.ndarray,
-        contact_y: float,
+        contact_y: float | Sequence[float] | np.ndarray,
         base_y: float,
-        R_b_ee: np.ndarray,
+        R_b_ee: np.ndarray | Sequence[np.ndarray],
         tracker: BodyTracker | None = None,
-        arm_seed: Sequence[float] | np.ndarray | None = None,
-        arm: int = 0,
+        arm_seed: Sequence[float] | np.ndarray | Sequence[Sequence[float] | None] | None = None,
+        arm: int | Sequence[int] = 0,
         geometry: CartGeometry | None = None,
+        base_x: float | None = None,
     ) -> None:
         prof = push_profile(robot)
+        if base_x is not None:  # a place of its own (several arms: `multi_arm_placement`)
+            prof = replace(prof, push_base_x=base_x)
         self.geometry = geometry or DEFAULT_GEOMETRY
         self.profile = prof
-        self.arm = prof.arms[arm]
+        #: the profile's arms this robot drives, one per hand, in the order of the hands (and of x, u)
+        self.arms = (arm,) if isinstance(arm, int) else tuple(int(i) for i in arm)
+        self.arm = prof.arms[self.arms[0]]
+        ys = np.atleast_1d(np.asarray(contact_y, dtype=float))
+        Rs = [np.asarray(R_b_ee)] if np.ndim(R_b_ee) == 2 else [np.asarray(R) for R in R_b_ee]
+        if not len(ys) == len(Rs) == len(self.arms):
+            raise WholeBodyError(f"{len(ys)} contacts and {len(Rs)} grasps for {len(self.arms)} arm(s)")
         # a holonomic base takes a body twist; a differential drive takes wheel rates, so that its lateral
         # velocity is zero by construction (combined Jacobian of paper 2, eq. 11-21)
         self.wb = wholebody_for(robot, base_input=prof.base_input, arm=arm)
         self.model = self.wb.model
         self.data = self.model.createData()
-        self.R_b_ee = R_b_ee
+        self.R_b_ee, self.grasp_rotations = Rs[0], Rs
         self.ee_id = self.wb.ee_frame_id
-        self.ft_id = robot.frame_id(self.arm.sensor_frame)
-        self.base_offset_b = np.array([handle_point(contact_y, self.geometry)[0] + prof.push_base_x, base_y])
-        pose, qa = grasp_configuration(
-            self.wb, prof, q_cart, contact_y, base_y, R_b_ee, arm_seed, geometry=self.geometry
-        )
+        self.hand_ids = [robot.frame_id(prof.arms[i].gripper_frame) for i in self.arms]
+        self.ft_ids = [robot.frame_id(prof.arms[i].sensor_frame) for i in self.arms]
+        self.ft_id = self.ft_ids[0]
+        edges = np.cumsum([0] + [len(prof.arms[i].joints) for i in self.arms])
+        #: each hand's arm joints: a slice of the arm part of x (and of u)
+        self.hand_cols = [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
+        self.base_offset_b = np.array([handle_point(float(ys.mean()), self.geometry)[0] + prof.push_base_x, base_y])
+        pose, qa = self._grasp(robot, q_cart, ys, base_y, arm_seed)
         self.x = np.r_[pose, qa]
-        self.tracker = tracker if tracker is not None else WholeBodyQPTracker(self.wb, qa)
+        self.tracker = (
+            tracker if tracker is not None else WholeBodyQPTracker(self.wb, qa, hand_frames=self.hand_ids[1:])
+        )
         self.u = np.zeros(self.wb.n_u)
-        #: the arm joints' torque limits from the URDF (N m; N for a prismatic joint)
+        #: the arm joints' torque limits from the URDF (N m; N for a prismatic joint), every arm's in turn
         self.effort_limit = self.wb.arm_effort_limit
+
+    def _grasp(self, robot, q_cart, ys, base_y, seeds) -> tuple[np.ndarray, np.ndarray]:
+        """Return (base pose, arm joints of every hand) holding the handle at `ys` from the base at `base_y`."""
+        if len(self.arms) == 1:
+            return grasp_configuration(
+                self.wb, self.profile, q_cart, float(ys[0]), base_y, self.R_b_ee, seeds, geometry=self.geometry
+            )
+        pose, _ = base_target(q_cart, np.zeros(3), self.base_offset_b)
+        seeds = list(seeds) if seeds is not None else [None] * len(self.arms)
+        parts = []
+        for i, y, R, seed in zip(self.arms, ys, self.grasp_rotations, seeds):
+            wb = wholebody_for(robot, base_input=self.profile.base_input, arm=i)
+            target, _ = grasp_target(q_cart, np.zeros(3), float(y), 0.0, R, self.geometry)
+            seed = seed if seed is not None else self.profile.arms[i].push_seed
+            parts.append(
+                solve_grasp_ik(wb, pose, target, 0.5 * (wb.arm_lower + wb.arm_upper) if seed is None else seed)
+            )
+        return pose, np.concatenate(parts)
+
+    def set_hand_wrenches(self, wrenches_world: Sequence[np.ndarray]) -> None:
+        """Tell the whole-body QP's torque limit the wrench each hand applies in the coming period (world-aligned)."""
+        limit = getattr(self.tracker, "torque_limit", None)
+        if isinstance(limit, JointTorqueLimit):
+            limit.wrenches = list(zip(self.hand_ids, (np.asarray(w, dtype=float) for w in wrenches_world)))
+
+    @property
+    def n_hands(self) -> int:
+        """Return how many hands this robot holds the handle with."""
+        return len(self.arms)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
-        """Return the arm's joint names (base to tip)."""
+        """Return the arm joints' names (base to tip, every arm's in turn)."""
         return self.wb.arm_joints
 
     def body_twist(self, u: np.ndarray) -> np.ndarray:
@@ -383,39 +455,62 @@ class MobileManipulator:
         v[self.wb.arm_idx_v] = u[: self.wb.n_arm]
         return q, v
 
-    def torques(
-        self, u: np.ndarray, u_prev: np.ndarray, dt: float, wrench_world: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, pin.SE3, pin.SE3]:
-        """Return (arm torques, push part J^T w, ee placement, F/T sensor placement).
+    def hand_torques(
+        self, u: np.ndarray, u_prev: np.ndarray, dt: float, wrenches_world: Sequence[np.ndarray]
+    ) -> tuple[list[np.ndarray], list[np.ndarray], list[pin.SE3]]:
+        """Return per hand (arm torques, push part J^T w, hand placement).
 
-        tau = rnea(q, v, a)[arm] + J_arm^T w with w = [f; n] world-aligned at the ee (the wrench the hand
-        applies to the cart; the cart pushes back with -w).
+        tau = rnea(q, v, a)[arms] + sum_h J_h^T w_h with w_h = [f; n] world-aligned at hand h (the wrench it
+        applies to the cart; the cart pushes back with -w), split into each hand's arm joints.
         """
         q, v = self.pin_state(u)
         _, v_prev = self.pin_state(u_prev)
-        a = (v - v_prev) / dt
-        tau = pin.rnea(self.model, self.data, q, v, a)[self.wb.arm_idx_v]
-        J = pin.computeFrameJacobian(self.model, self.data, q, self.ee_id, pin.LOCAL_WORLD_ALIGNED)
-        push = J[:, self.wb.arm_idx_v].T @ wrench_world
+        tau = pin.rnea(self.model, self.data, q, v, (v - v_prev) / dt)[self.wb.arm_idx_v]
+        push = np.zeros(self.wb.n_arm)
+        for fid, w in zip(self.hand_ids, wrenches_world):
+            J = pin.computeFrameJacobian(self.model, self.data, q, fid, pin.LOCAL_WORLD_ALIGNED)
+            push += J[:, self.wb.arm_idx_v].T @ w
         pin.updateFramePlacements(self.model, self.data)
-        return tau + push, push, pin.SE3(self.data.oMf[self.ee_id]), pin.SE3(self.data.oMf[self.ft_id])
+        total = tau + push
+        hands = [pin.SE3(self.data.oMf[f]) for f in self.hand_ids]
+        return [total[c] for c in self.hand_cols], [push[c] for c in self.hand_cols], hands
 
-    def torque_constraint(self, q_cart: Sequence[float] | np.ndarray, u: np.ndarray | None = None) -> TorqueConstraint:
-        """Return this arm's joint-torque constraint on its hand wrench in {a}: |J_a^T w_a + bias| <= tau_max.
+    def torques(
+        self, u: np.ndarray, u_prev: np.ndarray, dt: float, wrench_world: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, pin.SE3, pin.SE3]:
+        """Return (arm torques, push part J^T w, ee placement, F/T sensor placement) of the first hand's wrench
+        (`hand_torques` for every hand)."""
+        taus, pushes, hands = self.hand_torques(u, u_prev, dt, [wrench_world])
+        return taus[0], pushes[0], hands[0], pin.SE3(self.data.oMf[self.ft_id])
 
-        ``J_a`` (6 x n_arm) is the ee Jacobian (world-aligned, arm columns) with its rows rotated into the
-        cart frame of pose `q_cart` (a wrench in {a} is oriented like {b}); ``bias`` = rnea(q, v, 0): gravity
-        and the velocity terms of input `u` (default: the last command); the accelerations the whole-body QP
-        will command are not known yet (the allocation's margin covers them). `WrenchAllocator.set_torque_limits`
-        takes them.
+    def torque_constraints(
+        self, q_cart: Sequence[float] | np.ndarray, u: np.ndarray | None = None
+    ) -> list[TorqueConstraint]:
+        """Return each hand's joint-torque constraint on its wrench in {a}: |J_a^T w_a + bias| <= tau_max.
+
+        ``J_a`` (6 x the hand's arm joints) is the hand Jacobian (world-aligned, its arm's columns) with its rows
+        rotated into the cart frame of pose `q_cart` (a wrench in {a} is oriented like {b}); ``bias`` =
+        rnea(q, v, 0): gravity and the velocity terms of input `u` (default: the last command); the accelerations
+        the whole-body QP will command are not known yet (the allocation's margin covers them). Arms share no
+        joint (`robots.checks`), so each hand's constraint is its own. `WrenchAllocator.set_torque_limits` takes them.
         """
         q, v = self.pin_state(self.u if u is None else u)
         bias = pin.rnea(self.model, self.data, q, v, np.zeros(self.model.nv))[self.wb.arm_idx_v]
-        J = pin.computeFrameJacobian(self.model, self.data, q, self.ee_id, pin.LOCAL_WORLD_ALIGNED)
         c, s = math.cos(q_cart[2]), math.sin(q_cart[2])
         Rt = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # R_sb^T
-        Ja = J[:, self.wb.arm_idx_v]
-        return TorqueConstraint(np.vstack([Rt @ Ja[:3], Rt @ Ja[3:]]), bias, self.effort_limit, self.joint_names)
+        out = []
+        for fid, cols in zip(self.hand_ids, self.hand_cols):
+            J = pin.computeFrameJacobian(self.model, self.data, q, fid, pin.LOCAL_WORLD_ALIGNED)
+            Ja = J[:, self.wb.arm_idx_v[cols]]
+            names = self.joint_names[cols]
+            out.append(
+                TorqueConstraint(np.vstack([Rt @ Ja[:3], Rt @ Ja[3:]]), bias[cols], self.effort_limit[cols], names)
+            )
+        return out
+
+    def torque_constraint(self, q_cart: Sequence[float] | np.ndarray, u: np.ndarray | None = None) -> TorqueConstraint:
+        """Return the first hand's joint-torque constraint (`torque_constraints`)."""
+        return self.torque_constraints(q_cart, u)[0]
 
 
 def push_grasp_rotation(prof: RobotProfile, arm: int = 0) -> np.ndarray:
@@ -470,14 +565,97 @@ def base_lateral_places(prof: RobotProfile, contact_y: Sequence[float] | np.ndar
     return [y + off + prof.push_base_dy + d for y, d in zip(ys, shift)]
 
 
+def arms_per_robot(prof: RobotProfile, n_arms: int) -> int:
+    """Return how many arms each robot pushes with when `n_arms` hands hold the handle: all of them on one
+    base when its profile lists that many arms, else one each (robots side by side)."""
+    return n_arms if n_arms > 1 and len(prof.arms) >= n_arms else 1
+
+
+def multi_arm_placement(robot: robots.LoadedRobot, contact_y: Sequence[float] | np.ndarray):
+    """Return the `wholebody.push.posture.MultiArmPlacement` of a robot holding the handle at `contact_y` with
+    its first ``len(contact_y)`` arms (grasp, base place, postures by IK; cached per profile and contacts)."""
+    return _multi_arm_placement(robot.profile, str(robot.urdf), tuple(float(v) for v in contact_y), _LoadedKey(robot))
+
+
+@lru_cache(maxsize=32)
+def _multi_arm_placement(prof: RobotProfile | None, urdf: str, contact_y: tuple[float, ...], key: _LoadedKey):
+    from wholebody.push.posture import solve_multi_arm_placement
+
+    filled = push_profile(key.robot)
+    assert prof is not None  # push_profile raised otherwise
+    wbs = [wholebody_for(key.robot, base_input=prof.base_input, arm=i) for i in range(len(contact_y))]
+    return solve_multi_arm_placement(replace(prof, arms=filled.arms), wbs, contact_y)
+
+
+def multi_arm_reach_maps(robot: robots.LoadedRobot, contact_y: Sequence[float] | np.ndarray, geometry=None) -> tuple:
+    """Return one `ReachMap` per hand (in the order of the contacts) of a robot holding the handle at `contact_y`
+    with several arms: which handle points each arm holds with margin from the base place `multi_arm_placement`
+    found (cached per profile, contacts and geometry)."""
+    key = (str(robot.urdf), tuple(float(v) for v in contact_y), geometry)
+    return _multi_arm_reach(robot.profile, key, _LoadedKey(robot))
+
+
+@lru_cache(maxsize=32)
+def _multi_arm_reach(prof: RobotProfile | None, key: tuple, loaded: _LoadedKey) -> tuple:
+    from wholebody.contacts.placement import reach_map
+
+    _, contact_y, geometry = key
+    robot, filled = loaded.robot, push_profile(loaded.robot)
+    pl = multi_arm_placement(robot, contact_y)
+    geo = geometry or DEFAULT_GEOMETRY
+    zero = np.zeros(3)
+    pose = base_target(
+        zero, zero, np.array([handle_point(float(np.mean(pl.contact_y)), geo)[0] + pl.base_x, pl.base_y])
+    )[0]
+    grid = contact_grid() if geometry is None else geo.grid()
+    maps = []
+    for i, roll, q, y in zip(pl.arms, pl.rolls, pl.postures, pl.contact_y):
+        wb = wholebody_for(robot, base_input=filled.base_input, arm=i)
+        R = grasp_rotation(pl.pitch, roll, filled.arms[i].tool_axis or "z")
+
+        def target(v: float, R: np.ndarray = R) -> pin.SE3:
+            return grasp_target(zero, zero, float(v), 0.0, R, geo)[0]
+
+        maps.append(reach_map(wb, lambda v: pose, target, grid, q, geo.nearest(y)))
+    return tuple(maps)
+
+
+def _multi_arm_robot(
+    loaded: robots.LoadedRobot,
+    q_cart: np.ndarray,
+    contact_y: Sequence[float] | np.ndarray,
+    geometry: CartGeometry | None,
+    placement_y: Sequence[float] | np.ndarray | None = None,
+) -> MobileManipulator:
+    """Return one robot holding the handle at every contact, one arm each, from the base place, grasp and postures
+    `multi_arm_placement` finds for the contacts `placement_y` (default: `contact_y`)."""
+    prof = push_profile(loaded)
+    pl = multi_arm_placement(loaded, contact_y if placement_y is None else placement_y)
+    Rs = [grasp_rotation(pl.pitch, r, prof.arms[i].tool_axis or "z") for i, r in zip(pl.arms, pl.rolls)]
+    return MobileManipulator(
+        loaded,
+        q_cart,
+        np.sort(np.asarray(contact_y, dtype=float)),  # the arms take the contacts by side, lowest y first
+        pl.base_y,
+        Rs,
+        arm_seed=pl.postures,
+        arm=pl.arms,
+        geometry=geometry,
+        base_x=pl.base_x,
+    )
+
+
 def make_robots(
     robot: str | RobotProfile | robots.LoadedRobot,
     q_cart: np.ndarray,
     contact_y: Sequence[float] | np.ndarray,
     seeds: Sequence[Sequence[float] | np.ndarray | None] | None = None,
     geometry: CartGeometry | None = None,
+    placement_y: Sequence[float] | np.ndarray | None = None,
 ) -> list[MobileManipulator]:
-    """Return one mobile manipulator per contact, each holding the handle at its contact (bases spread apart).
+    """Return one mobile manipulator per contact, each holding the handle at its contact (bases spread apart);
+    one robot holding every contact when its profile has an arm for each (`arms_per_robot`), placed for the
+    contacts `placement_y` (default `contact_y`).
 
     Everything robot-specific (joints, grasp, base place, seeds) comes from the robot's profile
     (`push_profile`); a posture the IK cannot reach from the place found for one robot is searched again
@@ -485,6 +663,8 @@ def make_robots(
     """
     loaded = robot if isinstance(robot, robots.LoadedRobot) else robots.load(robot)
     prof = push_profile(loaded)
+    if arms_per_robot(prof, len(contact_y)) > 1:  # one base, its arms each at a contact
+        return [_multi_arm_robot(loaded, q_cart, contact_y, geometry, placement_y)]
     R_b_ee = push_grasp_rotation(prof)
     arm_seeds = list(seeds or ())[: len(contact_y)]
     arm_seeds += [None] * (len(contact_y) - len(arm_seeds))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -28,23 +29,32 @@ class ContactScheduler:
     holds with margin are candidates, and a plan whose static joint torques exceed the effortLimit is avoided.
     """
 
-    def __init__(self, config: PushConfig, trajectory: CartTrajectory, reach: ReachMap | None = None) -> None:
+    def __init__(
+        self, config: PushConfig, trajectory: CartTrajectory, reach: ReachMap | Sequence[ReachMap] | None = None
+    ) -> None:
         self.config = config
         self.trajectory = trajectory
+        #: one map for every contact, or one per contact (one base holding the handle with several arms)
         self.reach = reach
         self.y = config.contact_y0().copy()
+        self._maps = [] if reach is None else list(reach) if isinstance(reach, Sequence) else [reach] * len(self.y)
         if reach is not None:
-            if config.contact == "fixed" and not all(reach.is_reachable(v) for v in self.y):
-                i = reach.index(float(self.y[0]))
-                ok = reach.y[reach.reachable]
+            if config.contact == "fixed" and not all(r.is_reachable(v) for r, v in zip(self._maps, self.y)):
+                bad = next(k for k, (r, v) in enumerate(zip(self._maps, self.y)) if not r.is_reachable(v))
+                rm = self._maps[bad]
+                i = rm.index(float(self.y[bad]))
+                ok = rm.y[rm.reachable]
                 span = f"[{ok.min():.3f}, {ok.max():.3f}] m" if ok.size else "nowhere"
                 raise InfeasibleWrenchError(
-                    f"robot {config.robot!r} cannot hold the handle at y = {self.y[0]:.3f} m with margin "
-                    f"({reach.reason[i] or 'outside the reachable span'}); it reaches {span}",
+                    f"robot {config.robot!r} cannot hold the handle at y = {self.y[bad]:.3f} m with margin "
+                    f"({rm.reason[i] or 'outside the reachable span'}); it reaches {span}",
                     binding="reach",
                 )
             self.y = np.array(
-                [reach.nearest_reachable(float(v)) if not reach.is_reachable(v) else float(v) for v in self.y]
+                [
+                    r.nearest_reachable(float(v)) if not r.is_reachable(v) else float(v)
+                    for r, v in zip(self._maps, self.y)
+                ]
             )
         self.plan = self.y.copy()
         self.ydot = np.zeros_like(self.y)
@@ -63,7 +73,7 @@ class ContactScheduler:
             else [np.array([a, b]) for a in grid for b in grid if b - a >= 0.2 - 1e-9]
         )
         if reach is not None:
-            self.candidates = [c for c in self.candidates if all(reach.is_reachable(v) for v in c)]
+            self.candidates = [c for c in self.candidates if all(r.is_reachable(v) for r, v in zip(self._maps, c))]
         self.y_lo = min(float(c.min()) for c in self.candidates) if self.candidates else float(grid[0])
         self.y_hi = max(float(c.max()) for c in self.candidates) if self.candidates else float(grid[-1])
 
@@ -99,12 +109,7 @@ class ContactScheduler:
             totals = totals + (sweep.effort[:, k] + 1e6 * sweep.residual[:, k] ** 2)
             if self.reach is not None:
                 over = (
-                    np.array(
-                        [
-                            self.reach.torque_ratio(float(c[0]), sweep.wrenches_ee[m, k, 0])
-                            for m, c in enumerate(self.candidates)
-                        ]
-                    )
+                    np.array([self._torque_ratio(c, sweep.wrenches_ee[m, k]) for m, c in enumerate(self.candidates)])
                     - STATIC_TORQUE_FRACTION
                 )
                 totals = totals + 1e6 * np.maximum(0.0, over) ** 2
@@ -113,6 +118,13 @@ class ContactScheduler:
             if total < best_v - 1e-9:
                 best, best_v = cand, total
         return best
+
+    def _torque_ratio(self, c: np.ndarray, wrenches: np.ndarray) -> float:
+        """Return the largest static |tau| / limit of a candidate's wrenches: of its first contact with one map for
+        every contact, of every contact with one map per contact (one base, several arms)."""
+        if not isinstance(self.reach, Sequence):
+            return self._maps[0].torque_ratio(float(c[0]), wrenches[0])
+        return max(r.torque_ratio(float(v), w) for r, v, w in zip(self._maps, c, wrenches))
 
     def update(self, t: float, params: CartParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Return (contact y per arm, their rates) after one period."""

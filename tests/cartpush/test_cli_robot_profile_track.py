@@ -1,0 +1,75 @@
+"""`--robot PROFILE.toml` on `track` (a differential and a holonomic base described only by a profile file) and on
+`plan-contacts` (not taken: one line naming why, exit 2)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import robots
+from cartpush.cli.app import main
+from tests.robots.profile_files import write_profile
+
+#: the shipped URDFs described anew by the keys a new user writes (no [push] table)
+DIFFERENTIAL = """\
+name = "my_wheelchair"
+urdf = "{urdf}"
+base = "differential"
+wheel_joints = ["wheel_left_joint", "wheel_right_joint"]
+[[arms]]
+joints = [{arm}]
+gripper_frame = "ee"
+"""
+HOLONOMIC = """\
+name = "my_mecanum"
+urdf = "{urdf}"
+base = "holonomic"
+wheel_joints = ["front_left_wheel_joint", "front_right_wheel_joint", "rear_left_wheel_joint", "rear_right_wheel_joint"]
+wheel_radius = 0.0759
+[[arms]]
+joints = [{arm}]
+gripper_frame = "ee"
+"""
+
+
+def _profile(tmp_path, text: str, urdf: str, joint: str) -> str:
+    arm = ", ".join(f'"{joint}{i}"' for i in range(1, 8))
+    return str(write_profile(tmp_path, text.format(urdf=robots.DATA_DIR / urdf, arm=arm)))
+
+
+@pytest.mark.parametrize(
+    ("text", "urdf", "joint", "name"),
+    [
+        (DIFFERENTIAL, "wmra.urdf", "arm_joint", "my_wheelchair"),
+        (HOLONOMIC, "ridgeback_iiwa.urdf", "iiwa_joint_", "my_mecanum"),
+    ],
+)
+def test_track_takes_a_profile_file(tmp_path, capsys, text, urdf, joint, name):
+    path = _profile(tmp_path, text, urdf, joint)
+    assert main(["track", "line", "--robot", path, "--duration", "3", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["robot"] == name and out["steps"] == 300 and out["solver_failures"] == 0
+    assert out["rms_position_error_m"] < 0.005  # the hand follows 90 mm/s along X from a mid-range posture
+    assert out["max_wheel_speed_ratio"] <= 1.0 + 1e-9 and out["max_joint_speed_ratio"] <= 1.0 + 1e-9
+
+
+def test_track_names_a_robot_that_cannot_track(capsys):
+    assert main(["track", "line", "--robot", "shopping_cart", "--duration", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "no arm on a wheeled base" in err
+
+
+def test_track_with_a_bad_profile_is_one_line(tmp_path, capsys):
+    path = _profile(
+        tmp_path, DIFFERENTIAL.replace('gripper_frame = "ee"', 'gripper_frame = "hand"'), "wmra.urdf", "arm_joint"
+    )
+    assert main(["track", "line", "--robot", path, "--duration", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "arms[0].gripper_frame" in err and "'hand'" in err
+
+
+def test_plan_contacts_says_why_it_takes_no_robot(capsys):
+    assert main(["plan-contacts", "--wrench", "40", "0", "-2", "--robot", "my_robot.toml"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--max-force" in err and "cartpush push --robot my_robot.toml" in err
