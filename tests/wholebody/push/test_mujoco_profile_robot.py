@@ -97,6 +97,35 @@ def test_tiago_stands_on_its_wheels_and_casters(tiago):
 
 
 @pytest.mark.filterwarnings("ignore::wholebody.push.mujoco_scene.MujocoSceneWarning")
+def test_tiagos_ft_sensor_reads_the_grasps_constraint_force(tiago):
+    """TIAGo's hand frame comes before its F/T frame: the sensor on the hand's body reads what holds the handle."""
+    from cart.simulate import MeasurementNoise
+    from tests.wholebody.push.test_mujoco_plant import _weld_wrench_on_cart
+    from wholebody.push.arm_control import TorqueArmGains
+    from wholebody.push.mujoco_plant import MujocoPlantConfig
+    from wholebody.push.plant import RobotCommand
+
+    config = PushConfig(robot=tiago[0], trajectory=1, plant="mujoco", contact="fixed")
+    setup = build_controller(config)
+    gains = MujocoPlantConfig(torque_gains=TorqueArmGains(feedforward="bias", force_feedback=0.0))
+    plant = MujocoPlant(
+        setup.controller.robots, setup.q0, TRUE_CART, noise=MeasurementNoise(), config=gains, arm_modes=[ARM_TORQUE]
+    )
+    push = np.array([12.0, -4.0, 0.0, 0.0, 0.0, 0.5])  # world-aligned at the grasp, on the cart
+    errors = []
+    for _ in range(40):
+        q = plant.measure().robots[0].q_arm
+        z = np.zeros(q.size)
+        plant.step([RobotCommand(z, q.copy(), z, np.zeros(3), np.zeros(2), push)])
+        d, r = plant.scene.data, plant.scene.robots[0]
+        mujoco.mj_forward(plant.scene.model, d)
+        w = plant._hand_wrench_world(0, plant._sensor_wrench(0))
+        arm = d.site_xpos[r.hand_site] - d.xpos[plant.scene.cart_body]
+        errors.append(np.r_[w[:3], w[3:] + np.cross(arm, w[:3])] - _weld_wrench_on_cart(plant))
+    assert np.abs(np.array(errors)[:, :3]).max() < 1.0  # up to the 0.3 kg tool's inertia beyond the sensor
+
+
+@pytest.mark.filterwarnings("ignore::wholebody.push.mujoco_scene.MujocoSceneWarning")
 def test_a_short_mujoco_push_with_tiagos_profile(tiago):
     """Traj. 1's first 1.5 s on the MuJoCo plant, the arm torque-controlled: the cart follows, the hand holds, the
     base rolls with it. (Its arm on velocity servos, the default for an arm no profile key names, diverges: its
