@@ -6,6 +6,7 @@ on a body fixed to the cart, a bar given by its axis, degrees) and the run's pla
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 from pathlib import Path
 
@@ -98,3 +99,15 @@ def test_handles_on_a_body_fixed_to_the_cart_and_bars_by_axis_in_degrees(tmp_pat
     assert ends[0] == pytest.approx([-0.45, 0.0, 0.8]) and ends[1] == pytest.approx([0.05, 0.0, 0.8])
     assert grip.start_b.tolist() == pytest.approx([-0.2, 0.1, 0.85])  # (0.1, 0) in the yawed body: +y of the cart
     assert tube.is_bar and abs(tube.end_b[1] - tube.start_b[1]) == pytest.approx(0.4)
+
+
+def test_push_json_says_what_happened(capsys):
+    """The kinematic plant's cart cannot slip sideways (its model's constraint): the run says so, and it tracked."""
+    from cartpush.cli import main
+
+    assert main(["push", "--trajectory", "1", "--duration", "8", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["cart_lateral_slip_max_m_s"] < 1e-6
+    lines = out["what_happened"]
+    assert lines[0].startswith("tracked:") and f"{out['tracking_rms_mm']:.1f} mm RMS" in lines[0]
+    assert any(line.startswith("no lateral slip") for line in lines)
