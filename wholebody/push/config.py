@@ -280,7 +280,7 @@ class PushResult:
     push_torque: np.ndarray  # (N, n_arms, 7) the J^T w part
     robot_x: np.ndarray  # (N, n_arms, 10) base pose + arm joints
     grasp_error: np.ndarray  # (N, n_arms) ee position error w.r.t. the handle point
-    effort_limit: np.ndarray  # (7,)
+    effort_limit: np.ndarray  # (n_joints,), or (n_arms, n_joints) when the hands' arms differ (`loop.effort_limits`)
     metrics: PushMetrics
     base_twist: np.ndarray | None = None  # (N, n_arms, 3) base body twist (vx, vy, wz)
     wheel_rates: np.ndarray | None = None  # (N, n_arms, n_wheels) rad/s
@@ -294,3 +294,6 @@ class PushResult:
     #: what the estimator says of its run (`cart.online_estimator.OnlineLSEstimator.report`): load changes
     #: (time, new mass), run-off flags, parameters the motion did not excite; {} for the paper's EKF
     estimator_report: dict | None = None
+    #: the profile's arms each robot drives, in the order of its state's arm joints (one base with several arms:
+    #: more than one; `wholebody.push.robot.MobileManipulator.arms`)
+    robot_arms: tuple[int, ...] = (0,)

@@ -239,7 +239,8 @@ def run_loop(
     H["gamma_measured"] = np.r_[H["gamma_measured"][1:], H["gamma_measured"][-1:]]
     mm = ctrl.robots[0]
     judged = replace(config, true_params=plant_truth(config, plant))
-    return _result(judged, H, effort_limits(ctrl.robots), ctrl.estimator.params(), mm.wb.wheel_velocity_limit)
+    res = _result(judged, H, effort_limits(ctrl.robots), ctrl.estimator.params(), mm.wb.wheel_velocity_limit)
+    return replace(res, robot_arms=mm.arms)
 
 
 def effort_limits(mms: Sequence[MobileManipulator]) -> np.ndarray:

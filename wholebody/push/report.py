@@ -142,9 +142,10 @@ def torque_verdict(result: PushResult) -> tuple[str, bool]:
     simulated arm produced torques a real one cannot, so the run overstates what
     the robot can push.
     """
-    ratio = np.abs(result.arm_torque) / result.effort_limit
+    lim = np.broadcast_to(result.effort_limit, result.arm_torque.shape[1:])  # one row per hand when arms differ
+    ratio = np.abs(result.arm_torque) / lim
     k, arm, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
-    peak, tau, limit = float(ratio[k, arm, j]), float(result.arm_torque[k, arm, j]), float(result.effort_limit[j])
+    peak, tau, limit = float(ratio[k, arm, j]), float(result.arm_torque[k, arm, j]), float(lim[arm, j])
     where = f"joint {j + 1}{f' of arm {arm + 1}' if ratio.shape[1] > 1 else ''}"
     head = (
         f"arm torque peak {peak:.2f} x effortLimit: {where} at {abs(tau):.1f} of {limit:g} N m, t = {result.t[k]:.1f} s"
@@ -312,9 +313,10 @@ def _torque_figure(runs: dict[str, PushResult]) -> Figure:
     fig = Figure(figsize=(8.5, 3 * len(runs)), layout="constrained")
     axes = fig.subplots(len(runs), 1, sharex=True, squeeze=False)
     for a, (label, r) in zip(axes[:, 0], runs.items()):
-        ratio = 100 * r.arm_torque[:, 0, :] / r.effort_limit
+        lim = np.broadcast_to(r.effort_limit, r.arm_torque.shape[1:])[0]  # the first hand's arm
+        ratio = 100 * r.arm_torque[:, 0, :] / lim
         for j in range(ratio.shape[1]):
-            a.plot(r.t, ratio[:, j], lw=0.8, label=f"joint {j + 1} (limit {r.effort_limit[j]:g} N m)")
+            a.plot(r.t, ratio[:, j], lw=0.8, label=f"joint {j + 1} (limit {lim[j]:g} N m)")
         a.axhline(100, color="k", ls=":", lw=1.2, label="effort limit (+-100 %)")
         a.axhline(-100, color="k", ls=":", lw=1.2)
         peak = float(np.max(np.abs(ratio)))
@@ -358,7 +360,7 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     from wholebody.viz import COM_MARKER_Z, Scene
 
     name = result.config.robot  # the robot that ran (Ridgeback + iiwa or WMRA); to_pinocchio_q ignores base_input
-    wb = wholebody_for(robots.load(name))
+    wb = wholebody_for(robots.load(name), arm=list(result.robot_arms))  # its state holds these arms' joints
     step = max(1, int(round(1.0 / (fps * result.config.dt))))
     idx = np.arange(0, len(result.t), step)
     qj = np.array([wb.to_pinocchio_q(result.robot_x[i, 0])[4:] for i in idx])

@@ -62,3 +62,20 @@ def test_the_mujoco_plant_refuses_one_base_with_two_arms(tiago_dual, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "one arm per robot" in err and "--plant kinematic" in err
+
+
+def test_arms_of_different_lengths_get_padded_rows():
+    """Per-hand torque rows and limits stay one array when a robot's arms have different joint counts."""
+    from types import SimpleNamespace
+
+    from wholebody.push.controller import hand_rows
+    from wholebody.push.loop import effort_limits
+
+    mm = SimpleNamespace(effort_limit=np.array([40.0, 20.0, 3.0, 50.0, 10.0]), hand_cols=[slice(0, 3), slice(3, 5)])
+    lim = effort_limits([mm])
+    np.testing.assert_array_equal(lim, [[40.0, 20.0, 3.0], [50.0, 10.0, np.inf]])
+    tau = hand_rows([np.array([4.0, -2.0, 0.3]), np.array([-5.0, 1.0])])
+    np.testing.assert_array_equal(tau, [[4.0, -2.0, 0.3], [-5.0, 1.0, 0.0]])
+    assert np.max(np.abs(tau) / lim) == pytest.approx(0.1)  # the padded joint never binds
+    same = SimpleNamespace(effort_limit=np.array([40.0, 20.0, 40.0, 20.0]), hand_cols=[slice(0, 2), slice(2, 4)])
+    np.testing.assert_array_equal(effort_limits([same]), [40.0, 20.0])  # alike arms: one row, as one arm's
