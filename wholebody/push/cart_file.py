@@ -186,6 +186,25 @@ def _handle_sites(path: Path, model: mujoco.MjModel, cart: int) -> tuple[HandleS
     return tuple(handles)
 
 
+#: handle sites within this distance (m) along x of the rearmost one are the rear group (`rear_handles`)
+REAR_DEPTH = 0.10
+#: a bar whose ends are at least this far apart along y runs across the cart (held anywhere along it)
+ACROSS_MIN_M = 0.05
+
+
+def rear_handles(handles: tuple[HandleSite, ...]) -> tuple[HandleSite, ...]:
+    """Return the handle sites a robot pushing from behind holds: the rear group, its widest cross bar if any.
+
+    The rear group is the sites whose rearmost point is within `REAR_DEPTH` of the rearmost site's (a bed's
+    foot-end bar or a basket's front grip is left out). A bar in it running across the cart (along y) is held
+    anywhere along it; otherwise the group's sites are grip points.
+    """
+    xs = [min(float(h.start_b[0]), float(h.end_b[0])) for h in handles]
+    rear = tuple(h for h, x in zip(handles, xs) if x <= min(xs) + REAR_DEPTH)
+    across = [h for h in rear if h.is_bar and abs(float(h.end_b[1] - h.start_b[1])) >= ACROSS_MIN_M]
+    return (max(across, key=lambda h: abs(float(h.end_b[1] - h.start_b[1]))),) if across else rear
+
+
 def load_cart_file(path: str | os.PathLike) -> CartSource:
     """Return the `CartSource` of an MJCF cart file, or raise `CartFileError` naming what breaks the contract."""
     p = Path(path)

@@ -71,19 +71,16 @@ DEFAULT_GEOMETRY = CartGeometry()
 def geometry_from_cart_file(path: str | os.PathLike) -> CartGeometry:
     """Return the geometry of an MJCF cart file: its `handle*` sites (docs/mujoco.md) and the height of {b}.
 
-    One bar site: held anywhere along it. Point sites (or several sites): point grips at their y, on the
-    line through their mean x and z. Raises `wholebody.push.cart_file.CartFileError` for a broken file.
+    The sites a robot pushing from behind holds (`cart_file.rear_handles`): a bar across the cart is held
+    anywhere along it; other sites (points, bars along x or z) are point grips at their y, on the line
+    through their mean x and z. Raises `wholebody.push.cart_file.CartFileError` for a broken file.
     """
-    from wholebody.push.cart_file import load_cart_file
+    from wholebody.push.cart_file import load_cart_file, rear_handles
 
     source = load_cart_file(path)
-    sites = list(source.handles)
-    bars = [s for s in sites if s.is_bar]
-    if len(sites) == 1 and bars:
-        s = bars[0]
-        a, b = np.asarray(s.start_b, dtype=float), np.asarray(s.end_b, dtype=float)
-        if abs(b[1] - a[1]) < 0.05:
-            raise WholeBodyError(f"cart file {path}: handle bar {s.name!r} must run across the cart (along y)")
+    sites = list(rear_handles(source.handles))
+    if len(sites) == 1 and abs(float(sites[0].end_b[1] - sites[0].start_b[1])) >= 0.05:
+        a, b = np.asarray(sites[0].start_b, dtype=float), np.asarray(sites[0].end_b, dtype=float)
         return CartGeometry(HandleSegment(tuple(a), tuple(b)), float(source.z))
     pts = np.array([0.5 * (np.asarray(s.start_b) + np.asarray(s.end_b)) for s in sites], dtype=float)
     x, z = float(pts[:, 0].mean()), float(pts[:, 2].mean())

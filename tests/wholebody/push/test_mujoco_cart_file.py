@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from wholebody.push import PushConfig, build_controller, mujoco_cart
@@ -15,6 +17,7 @@ GOOD_BODY = """
       <geom type="box" size="0.4 0.25 0.05" mass="12"/>
       {sites}
     </body>"""
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples" / "carts"
 BAR = '<site name="handle" type="capsule" size="0.015" fromto="-0.15 -0.25 0.9 -0.15 0.25 0.9"/>'
 
 
@@ -97,3 +100,32 @@ def test_a_conforming_file_without_floor_is_pushed_and_reports_its_truth(tmp_pat
     # rolling radius from the axle's height over the (added) floor: soft contacts sink by about a millimetre
     assert ci.mass_effective == pytest.approx(TRUE_CART.m + 4 * 0.35 / 2, rel=0.01)
     assert plant.scene.model.ngeom > 0 and plant.cart_state()[0][2] == pytest.approx(0.0, abs=1e-3)  # stands still
+
+
+def test_the_robot_holds_the_rear_handles(tmp_path):
+    """A bar at each end (a bed's head and foot), a grip at the front, grips along x: the rear ones are held."""
+    from wholebody.push.geometry import geometry_from_cart_file
+
+    front = '<site name="handle_foot" type="capsule" size="0.015" fromto="1.9 -0.4 0.5 1.9 0.4 0.5"/>'
+    seat = '<site name="handle_seat" pos="-0.1 0 0.7"/>'  # a grip point near the bar: the bar wins
+    geo = geometry_from_cart_file(_write(tmp_path, GOOD_BODY.format(sites=BAR + front + seat)))
+    assert geo.grips is None and geo.y_range == pytest.approx((-0.25, 0.25))
+    assert geo.point(0.0) == pytest.approx([-0.15, 0.0, 0.9])
+    tubes = "".join(  # a wheelchair's push handles as short tubes pointing back (capsules along x)
+        f'<site name="handle_{s}" type="capsule" size="0.015" fromto="-0.05 {y} 0.6 -0.15 {y} 0.6"/>'
+        for s, y in (("left", 0.21), ("right", -0.21))
+    )
+    geo = geometry_from_cart_file(_write(tmp_path, GOOD_BODY.format(sites=tubes + front)))
+    assert geo.grips == pytest.approx((0.21, -0.21)) and geo.point(0.21) == pytest.approx([-0.1, 0.21, 0.6])
+
+
+def test_a_bed_with_a_bar_at_each_end_is_held_at_the_head(tmp_path):
+    """The hand starts at the head bar (not refused as 1 m from it, the two bars' mean)."""
+    xml = (EXAMPLES / "hospital_bed.xml").read_text()
+    foot = '<site name="handle_foot" type="capsule" size="0.016" fromto="1.92 -0.40 0.40 1.92 0.40 0.40"/>'
+    path = tmp_path / "bed.xml"
+    path.write_text(xml.replace('<geom name="footboard"', foot + '<geom name="footboard"'))
+    config = PushConfig(plant="mujoco", contact="fixed", cart_model=str(path), duration=1.0)
+    setup = build_controller(config)
+    plant = MujocoPlant(setup.controller.robots, setup.q0, path)
+    assert plant.cart_inertial().mass > 240.0
