@@ -343,6 +343,9 @@ def floor_contacts(
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     ids = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in (*arm_joints, *wheel_joints)}
+    missing = [n for n, j in ids.items() if j < 0]
+    if missing:
+        raise SceneCompositionError(f"no movable joint {missing[0]!r} in the robot's URDF (an arm or wheel joint)")
     wheels = [ids[n] for n in wheel_joints]
     driven = _driven_wheels(model, data, wheels)
     floor = float(
