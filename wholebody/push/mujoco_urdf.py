@@ -12,9 +12,9 @@ no COLLADA (``.dae``). This module rewrites the URDF text (the file itself is ne
   only their inertia matters. Each replacement is listed (`MujocoUrdf.replaced_meshes`);
 - a link without ``<inertial>`` gets an explicit zero one (URDF semantics, Pinocchio's: massless;
   MuJoCo would otherwise give it the mass of its geoms at the density of water);
-- an inertia tensor that is not physical (a negative principal moment, or one above the sum of the
-  other two: MuJoCo refuses both) gets its principal moments clipped at zero, then balanced to their
-  mean if still not physical (MuJoCo's ``balanceinertia``); its link is listed (`MujocoUrdf.fixed_inertias`);
+- an inertia tensor MuJoCo refuses (a principal moment <= 0, a thin rod's included, or one above the sum of
+  the other two) gets its principal moments clipped at 1e-6 of the largest, then balanced to their mean if
+  still not physical (MuJoCo's ``balanceinertia``); its link is listed (`MujocoUrdf.fixed_inertias`);
 - with `locked` given, every movable joint outside `free` becomes a fixed joint at its locked value
   (0 when not listed), its motion folded into the joint's origin: the rigid robot Pinocchio's locked
   joints give (a torso held at 0.2 m, a head, fingers).
@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from robots.checks import package_search_dirs, resolve_package_uri
-from robots.urdf_text import fmt, matrix_from_rpy, rpy_from_matrix, vec
+from robots.urdf_text import matrix_from_rpy, rpy_from_matrix, vec
 
 #: mesh formats MuJoCo's compiler reads
 MUJOCO_MESH_SUFFIXES = (".stl", ".obj", ".msh")
@@ -94,16 +94,18 @@ def _inertia_matrix(inertia: ET.Element) -> np.ndarray:
 
 
 def physical_inertia(inertia: np.ndarray) -> np.ndarray | None:
-    """Return a physical inertia tensor near `inertia`, or None when `inertia` is physical already.
+    """Return a physical inertia tensor near `inertia`, or None when MuJoCo takes `inertia` as it is.
 
-    Physical: principal moments >= 0 and each at most the sum of the other two. The moments are clipped at
-    zero, then set to their mean if the triangle inequality still fails (MuJoCo's ``balanceinertia``).
+    MuJoCo takes a zero tensor, or principal moments > 0 (here at least 1e-6 of the largest and 1e-12 kg m^2: a
+    thin rod's zero moment is refused) each at most the sum of the other two. Otherwise the moments are clipped at that floor, then set to
+    their mean if the triangle inequality still fails (MuJoCo's ``balanceinertia``).
     """
     w, V = np.linalg.eigh(0.5 * (inertia + inertia.T))
-    tol = 1e-12 * max(1.0, float(np.abs(w).max()))
-    if w.min() >= -tol and w[0] + w[1] >= w[2] - tol:
+    scale = float(np.abs(w).max())
+    floor = max(1e-6 * scale, 1e-12)  # above the precision of MuJoCo's own eigen-decomposition
+    if scale == 0.0 or (w.min() >= floor and w[0] + w[1] >= w[2] * (1.0 - 1e-12)):
         return None
-    w = np.clip(w, 0.0, None)
+    w = np.clip(w, floor, None)
     if w[0] + w[1] < w[2]:
         w = np.full(3, w.mean())
     return V @ np.diag(w) @ V.T
@@ -132,7 +134,7 @@ def _fix_inertials(root: ET.Element) -> list[str]:
                 "iyz": (1, 2),
                 "izz": (2, 2),
             }.items():
-                inertia.set(k, fmt(float(better[i, j])))
+                inertia.set(k, repr(float(better[i, j])))  # not `fmt`: it rounds to 1e-12
             fixed.append(str(link.get("name")))
     return fixed
 

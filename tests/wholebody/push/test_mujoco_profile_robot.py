@@ -14,7 +14,7 @@ import pytest
 import robots
 from robots.checks import reference_configuration
 from robots.urdf_text import matrix_from_rpy
-from tests.robots.profile_files import tiago_profile
+from tests.robots.profile_files import need_example_robot_data, tiago_profile
 from wholebody.push import PushConfig, build_controller
 from wholebody.push.mujoco_plant import MujocoPlant
 from wholebody.push.cart_file import cart_source
@@ -195,7 +195,8 @@ def test_the_equivalent_box_has_the_links_inertia():
     np.testing.assert_allclose(T[:3, :3] @ np.diag(moments) @ T[:3, :3].T, expected, atol=1e-12)
     assert T[:3, 3] == pytest.approx([0.1, 0, 0])
     assert physical_inertia(np.diag([1.0, 1.0, 3.0])) == pytest.approx(np.eye(3) * 5 / 3)
-    assert physical_inertia(np.diag([1.0, 2.0, 2.5])) is None
+    assert physical_inertia(np.diag([1.0, 2.0, 2.5])) is None and physical_inertia(np.zeros((3, 3))) is None
+    assert np.diag(physical_inertia(np.diag([1.0, 1.0, 0.0]))) == pytest.approx([1.0, 1.0, 1e-6])  # a thin rod
 
 
 def _two_wheeler(tmp_path, caster: bool) -> str:
@@ -248,3 +249,24 @@ def test_a_differential_base_rolls_on_its_wheels_and_what_else_is_on_the_floor(t
         assert (r.base, r.base_model, r.wheel_radius, notes) == ("differential", "wheels", pytest.approx(0.1), [])
     else:
         assert (r.base, r.base_model) == ("planar", "planar") and "planar base under velocity servos" in notes[0]
+
+
+def test_every_example_robot_data_urdf_compiles_in_mujoco():
+    """Robots we did not write: every URDF example-robot-data installs (COLLADA meshes, invalid inertias) compiles."""
+    from pathlib import Path
+
+    from robots.checks import package_search_dirs
+
+    need_example_robot_data()
+    share = [Path(d) / "example-robot-data" for d in package_search_dirs((), Path(__file__))]
+    files = sorted(f for d in share if d.is_dir() for f in d.glob("robots/*/robots/*.urdf"))
+    assert len(files) >= 10
+    failed = {}
+    for f in files:
+        spec = mujoco.MjSpec.from_string(mujoco_urdf(f, locked={}).text)
+        spec.compiler.fusestatic = False
+        try:
+            spec.compile()
+        except ValueError as exc:
+            failed[f.name] = str(exc).splitlines()[0]
+    assert not failed
