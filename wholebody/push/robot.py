@@ -152,7 +152,7 @@ class WholeBodyQPTracker:
     ) -> None:
         extra: list[Limit] = []
         if config is None:  # the robot's own base tracker and wheel limits (its profile)
-            prof = push_profile(wb.robot)
+            prof = filled_profile(wb.robot)
             config = replace(
                 PUSH_CONTROLLER,
                 base_lookahead=_filled(prof, "base_lookahead", prof.base_lookahead),
@@ -324,6 +324,30 @@ class _LoadedKey:
 
 @lru_cache(maxsize=32)
 def _push_profile(prof: RobotProfile, urdf: str, key: _LoadedKey) -> RobotProfile:
+    out = _filled_profile(prof, urdf, key)
+    if out.tuned:
+        return replace(
+            out,
+            grasp_pitch=GRASP_PITCH if out.grasp_pitch is None else out.grasp_pitch,
+            grasp_roll=out.grasp_roll or 0.0,
+        )
+    from wholebody.push.posture import solve_push_placement
+
+    wbs = [wholebody_for(key.robot, base_input=prof.base_input, arm=i) for i in range(len(prof.arms))]
+    return solve_push_placement(out, wbs)
+
+
+def filled_profile(robot: robots.LoadedRobot) -> RobotProfile:
+    """Return the robot's profile with the push settings that need no IK filled (`push_profile` without the
+    placement search): tool axes, base twist limits, the base tracker's look-ahead, the fixed contact and the
+    wheel acceleration limit. Cached per profile and URDF."""
+    if robot.profile is None:
+        raise WholeBodyError(f"robot {robot.name!r} was built without a profile; load it with robots.load(...)")
+    return _filled_profile(robot.profile, str(robot.urdf), _LoadedKey(robot))
+
+
+@lru_cache(maxsize=32)
+def _filled_profile(prof: RobotProfile, urdf: str, key: _LoadedKey) -> RobotProfile:
     if not prof.is_mobile_manipulator:
         raise WholeBodyError(f"robot {prof.name!r} cannot push the cart: its profile has no arm on a wheeled base")
     robot = key.robot
@@ -340,15 +364,7 @@ def _push_profile(prof: RobotProfile, urdf: str, key: _LoadedKey) -> RobotProfil
     )
     if not out.tuned and out.wheel_acceleration_limit is None:  # rim acceleration 2.5 m/s^2 (Ridgeback's)
         out = replace(out, wheel_acceleration_limit=DEFAULT_RIM_ACCELERATION / wheel_geometry(out, robot.model).radius)
-    if out.tuned:
-        return replace(
-            out,
-            grasp_pitch=GRASP_PITCH if out.grasp_pitch is None else out.grasp_pitch,
-            grasp_roll=out.grasp_roll or 0.0,
-        )
-    from wholebody.push.posture import solve_push_placement
-
-    return solve_push_placement(out, wbs)
+    return out
 
 
 class MobileManipulator:
@@ -374,8 +390,9 @@ class MobileManipulator:
         geometry: CartGeometry | None = None,
         base_x: float | None = None,
     ) -> None:
-        prof = push_profile(robot)
-        if base_x is not None:  # a place of its own (several arms: `multi_arm_placement`)
+        several = not isinstance(arm, int) and len(arm) > 1  # their grasps and place: `multi_arm_placement`
+        prof = filled_profile(robot) if several and base_x is not None else push_profile(robot)
+        if base_x is not None:  # a place of its own
             prof = replace(prof, push_base_x=base_x)
         self.geometry = geometry or DEFAULT_GEOMETRY
         self.profile = prof
@@ -581,8 +598,8 @@ def multi_arm_placement(robot: robots.LoadedRobot, contact_y: Sequence[float] | 
 def _multi_arm_placement(prof: RobotProfile | None, urdf: str, contact_y: tuple[float, ...], key: _LoadedKey):
     from wholebody.push.posture import solve_multi_arm_placement
 
-    filled = push_profile(key.robot)
-    assert prof is not None  # push_profile raised otherwise
+    filled = filled_profile(key.robot)
+    assert prof is not None  # filled_profile raised otherwise
     wbs = [wholebody_for(key.robot, base_input=prof.base_input, arm=i) for i in range(len(contact_y))]
     return solve_multi_arm_placement(replace(prof, arms=filled.arms), wbs, contact_y)
 
@@ -600,7 +617,7 @@ def _multi_arm_reach(prof: RobotProfile | None, key: tuple, loaded: _LoadedKey) 
     from wholebody.contacts.placement import reach_map
 
     _, contact_y, geometry = key
-    robot, filled = loaded.robot, push_profile(loaded.robot)
+    robot, filled = loaded.robot, filled_profile(loaded.robot)
     pl = multi_arm_placement(robot, contact_y)
     geo = geometry or DEFAULT_GEOMETRY
     zero = np.zeros(3)
@@ -629,7 +646,7 @@ def _multi_arm_robot(
 ) -> MobileManipulator:
     """Return one robot holding the handle at every contact, one arm each, from the base place, grasp and postures
     `multi_arm_placement` finds for the contacts `placement_y` (default: `contact_y`)."""
-    prof = push_profile(loaded)
+    prof = filled_profile(loaded)
     pl = multi_arm_placement(loaded, contact_y if placement_y is None else placement_y)
     Rs = [grasp_rotation(pl.pitch, r, prof.arms[i].tool_axis or "z") for i, r in zip(pl.arms, pl.rolls)]
     return MobileManipulator(
@@ -662,9 +679,9 @@ def make_robots(
     (`wholebody.push.placement.arm_posture_near`).
     """
     loaded = robot if isinstance(robot, robots.LoadedRobot) else robots.load(robot)
-    prof = push_profile(loaded)
-    if arms_per_robot(prof, len(contact_y)) > 1:  # one base, its arms each at a contact
+    if arms_per_robot(filled_profile(loaded), len(contact_y)) > 1:  # one base, its arms each at a contact
         return [_multi_arm_robot(loaded, q_cart, contact_y, geometry, placement_y)]
+    prof = push_profile(loaded)
     R_b_ee = push_grasp_rotation(prof)
     arm_seeds = list(seeds or ())[: len(contact_y)]
     arm_seeds += [None] * (len(contact_y) - len(arm_seeds))
