@@ -57,6 +57,7 @@ from cart.log_signals import (
 )
 from cart.logs import CartLog
 from cart.diagnose_checks import (
+    MASS_MIN,
     SLIP_RATIO,
     WrenchFrameError,
     cart_is_physical,
@@ -93,8 +94,11 @@ ROW_NAMES = ("forward force", "yaw torque", "lateral displacement")
 #: ``Signals.extras`` key of the mask of the windows that lie within one contiguous segment
 KEEP_KEY = ("motion", "keep_windows")
 
-#: grid points of a candidate fitted as one batch (bounds the working memory of long logs)
+#: grid points of a candidate fitted as one batch (bounds the working memory of long logs) ...
 QUICK_BATCH = 16
+#: ... and at most this many grid points x samples per batch (a transformed candidate, such as a
+#: time_delay, keeps its own copy of the signals per grid point)
+QUICK_BATCH_SAMPLES = 100_000
 
 #: runners-up of a grid-only nonlinear parameter fitted in full and replayed before an effect is named
 GRID_ALTERNATIVES = 3
@@ -268,12 +272,28 @@ def _design(st: _FitState, edges: np.ndarray) -> tuple[np.ndarray, ...]:
         if g is None:
             g = e.window_columns(sig, nl, st.phi, a_s, edges)
             if ck is not None:
-                sig.extras[ck] = g
+                _cache_columns(sig, ck, g)
         g_w.append(g)
         lo = e.noise_loadings(sig, nl, edges, lv_b, lw_b)
         lv.append(lo[0] if lo is not None else np.zeros_like(g))
         lw.append(lo[1] if lo is not None else np.zeros_like(g))
     return _kept(sig, (np.concatenate(g_w, axis=2), y_fit, np.concatenate(lv, axis=2), np.concatenate(lw, axis=2)))
+
+
+#: bytes of window columns the fits keep (oldest dropped first): bounded however long the log
+COLUMN_CACHE_BYTES = 64 * 2**20
+
+
+def _cache_columns(sig: Signals, key: tuple, g: np.ndarray) -> None:
+    """Keep an effect's window columns in ``sig.extras`` under ``key``, dropping the oldest beyond COLUMN_CACHE_BYTES."""
+    order = sig.extras.setdefault("cols_order", [])
+    sig.extras[key] = g
+    order.append((key, g.nbytes))
+    total = sum(b for _, b in order)
+    while total > COLUMN_CACHE_BYTES and len(order) > 1:
+        old, nb = order.pop(0)
+        sig.extras.pop(old, None)
+        total -= nb
 
 
 def _kept(sig: Signals, rows: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
@@ -429,14 +449,15 @@ class _Search:
         it_grid = 3 if (self.effect.uses_phi or self.effect.set_valued) else 1
         ref = list(self.current.thetas) + list(theta_tail)
         out: list[Fit] = []
-        for c0 in range(0, len(nls), QUICK_BATCH):  # bounded memory: a batch of grid points at a time
+        batch = max(1, min(QUICK_BATCH, QUICK_BATCH_SAMPLES // self.sig.n))
+        for c0 in range(0, len(nls), batch):  # bounded memory: a batch of grid points at a time
             part = fit_models(
                 self.sig,
                 self.edges,
-                [self.current.effects + [(self.effect, nl)] for nl in nls[c0 : c0 + QUICK_BATCH]],
+                [self.current.effects + [(self.effect, nl)] for nl in nls[c0 : c0 + batch]],
                 self.current.phi,
                 max_iter=it_grid,
-                theta_refs=[ref] * len(nls[c0 : c0 + QUICK_BATCH]),
+                theta_refs=[ref] * len(nls[c0 : c0 + batch]),
                 freeze=self.named,
             )
             for f in part:  # grid fits are scored, never replayed: drop their (possibly shifted) signals
@@ -870,73 +891,140 @@ def _discrepancy_windows(
     return windows
 
 
-#: heading range (rad) from which a wrench logged in the cart frame can be told from one in {s}
-FRAME_MIN_TURN = 0.5
-#: -2 log-likelihood margin by which the cart-frame reading must fit better to refuse the log
+#: -2 log L + k ln n margin (BIC) by which a {b} reading must explain the log better to refuse it
 FRAME_MARGIN = 20.0
-#: ... the largest share of the forward row's misfit variance it may leave
-FRAME_RATIO = 0.5
-#: ... and its forward misfit at most this many times the force noise's (a cart that fits, not an effect)
-FRAME_NOISE = 4.0
-#: a {b} reading better by this much (at the noise level), short of the refusal, is a warning
+#: a {b} reading better by this much (BIC), short of the refusal, is a warning
 FRAME_WARN = 10.0
+#: the two readings are told apart when their plain fits' BIC differ by this much ("strong" evidence)
+FRAME_TOLD = 6.0
 
 
-def _frame_check(sig: Signals, edges: np.ndarray, final: Fit | None = None) -> str | None:
-    """Raise WrenchFrameError when the log's wrench reads as expressed in {b}, not {s} (LOG_FORMAT).
-
-    Return a warning (else None) when the {b} reading fits at the noise level and better by
-    FRAME_WARN but not decisively.
-
-    The model is fitted to the wrench as logged and to (fx, fy) read in {b} and rotated into {s} by
-    the heading, both times with a constant force in {s} (a floor slope) and a constant wrench in {b}
-    (a bias), so that neither reading wins by absorbing one of those. When the {b} reading fits
-    better by FRAME_MARGIN (same parameters), leaves at most FRAME_RATIO of the forward row's misfit,
-    fits the forward row at the force noise's level (FRAME_NOISE: an unmodelled effect such as
-    swivelling casters can make the {b} reading fit somewhat better, never at the noise level) and
-    gives a physical cart, the log's wrench was written in the cart frame. Needs the heading to
-    turn by FRAME_MIN_TURN (otherwise the two readings agree). Run after the search: both readings
-    are fitted with the effects ``final`` named too (same model, same parameters), so that a real
-    effect such as a payload change, which can make the {b} reading fit the nominal model better,
-    is on the as-logged side as well.
-    """
+def _cart_frame_signals(sig: Signals, keep: dict) -> Signals:
+    """Return the signals with (fx, fy) read as expressed in {b} and rotated into {s} by the heading."""
     th = sig.q_raw[:, 2]
-    if float(np.ptp(th)) < FRAME_MIN_TURN:
-        return None
     c, s = np.cos(th), np.sin(th)
     g = sig.gamma_raw
     g_alt = np.column_stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1], g[:, 2]])
     cq, sq = np.cos(sig.q[:, 2]), np.sin(sig.q[:, 2])
-    keep = {k: v for k, v in sig.extras.items() if k in (KEEP_KEY, "noise_dv")}
-    alt = replace(
+    return replace(
         sig,
         gamma_raw=g_alt,
         f_fwd=cq * g_alt[:, 0] + sq * g_alt[:, 1],
         f_lat=-sq * g_alt[:, 0] + cq * g_alt[:, 1],
         extras=dict(keep),
     )
+
+
+@dataclass(frozen=True)
+class _FrameFits:
+    """The model fitted to both readings of the wrench: as logged ({s}) and read in {b}, each plain (with a
+    slope and a bias) and with the named effects, and the {b} reading without the named effects (``b_bare``:
+    plain, less a named slope or bias).
+
+    The readings are different data, so no single likelihood compares them without bias when the cart
+    turns little: a reading that turns force into the lateral channel (free: the wheels take any lateral
+    force) gets a smaller mass, and the full likelihood, which carries m^2 times the acceleration noise,
+    favours it (by 33 for the wrong frame on a log that hardly turns); the likelihood of the equation noise
+    alone (what is left beyond the pose noise's predicted share) leans the other way as far as that share
+    is mispredicted. :meth:`margin` is the smaller of the two: a reading is preferred only when both agree.
+    """
+
+    s_plain: Fit
+    b_plain: Fit
+    s_named: Fit
+    b_named: Fit
+    b_bare: Fit
+    ln_n: float
+
+    def bics(self, fit: Fit) -> np.ndarray:
+        """Return the fit's BIC (-2 log L + k ln(3 n)) and that of its equation noise, n ln(V_fwd V_yaw) + k ln(3 n)."""
+        eq = fit.n_win * float(np.sum(np.log(np.maximum(fit.rss[:2], 1e-300))))
+        return np.array([fit.m2ll, eq]) + fit.n_params * self.ln_n
+
+    def margin(self, worse: Fit, better: Fit) -> float:
+        """Return by how much ``better`` beats ``worse`` in both BICs (the smaller margin; < 0: not in both)."""
+        return float(np.min(self.bics(worse) - self.bics(better)))
+
+    @property
+    def b_best(self) -> Fit:
+        """Return the {b} reading that beats the {s} reading by more (plain or with the named effects)."""
+        return max((self.b_plain, self.b_named), key=lambda f: self.margin(self.s_named, f))
+
+
+def _frame_fits(sig: Signals, edges: np.ndarray, final: Fit | None) -> _FrameFits:
+    """Return the model fitted to the wrench as logged and read in {b}, plain and with ``final``'s effects.
+
+    Every fit carries a constant force in {s} (a floor slope) and a constant wrench in {b} (a bias), so
+    that neither reading wins by absorbing one of those.
+    """
+    keep = {k: v for k, v in sig.extras.items() if k in (KEEP_KEY, "noise_dv")}
+    as_logged, alt = replace(sig, extras=dict(keep)), _cart_frame_signals(sig, keep)
     named = list(final.effects) if final is not None else []
-    both = named + [(e, ()) for e in (FloorSlope(), WrenchBias()) if e.name not in {n.name for n, _ in named}]
-    as_logged = fit_model(replace(sig, extras=dict(keep)), edges, both)
-    fit_alt = fit_model(alt, edges, both)
-    better = as_logged.m2ll - fit_alt.m2ll
-    misfit = as_logged.rss[0]
-    t_win = float(np.mean(np.diff(sig.t[edges])))
-    noise_level = sig.sigma_force**2 * float(np.median(np.diff(sig.t))) * t_win  # white force noise over a window
-    at_noise = fit_alt.rss[0] <= FRAME_NOISE * noise_level
-    if better > FRAME_MARGIN and fit_alt.rss[0] < FRAME_RATIO * misfit and at_noise and cart_is_physical(fit_alt.x):
+    base: list[tuple[Effect, tuple[float, ...]]] = [(e, ()) for e in (FloorSlope(), WrenchBias())]
+    rest = [(e, th) for e, th in base if e.name not in {n.name for n, _ in named}]
+    s_plain, b_plain = fit_model(as_logged, edges, base), fit_model(alt, edges, base)
+    s_named = fit_model(as_logged, edges, named + rest) if named else s_plain
+    b_named = fit_model(alt, edges, named + rest) if named else b_plain
+    b_bare = fit_model(alt, edges, rest) if len(rest) < len(base) else b_plain
+    ln_n = math.log(3 * _n_windows(sig, len(edges) - 1))
+    return _FrameFits(s_plain, b_plain, s_named, b_named, b_bare, ln_n)
+
+
+def _frame_check(
+    sig: Signals, edges: np.ndarray, final: Fit | None = None, threshold: float = 10.0
+) -> tuple[str | None, bool]:
+    """Return (a warning or None, whether the named effects are withdrawn); raise WrenchFrameError when the
+    log's wrench reads as expressed in {b}, not in {s} (LOG_FORMAT).
+
+    The frame is part of the model: the wrench as logged (with the effects the search named) and read in
+    {b} (plain or with the same effects) are compared by BIC, full and of the equation noise
+    (:class:`_FrameFits`; a reading is better by the smaller of its two margins). A {b} reading better by
+    FRAME_MARGIN that is a cart (m > MASS_MIN; a physical one unless the reading as logged is not either):
+    refused. Named effects that do not beat the {b} reading without them by the naming threshold in either
+    BIC stand for the frame as well as for themselves: withdrawn, with a warning. A {b} reading better by
+    FRAME_WARN: a warning. Plain readings that neither beats by FRAME_TOLD but that give masses 3 std apart:
+    the frame cannot be checked on this log (a warning).
+    """
+    ff = _frame_fits(sig, edges, final)
+    best = ff.b_best
+    favours_b = ff.margin(ff.s_named, best)
+    plausible = best.x[0] > MASS_MIN and (cart_is_physical(best.x) or not cart_is_physical(ff.s_named.x))
+    if favours_b > FRAME_MARGIN and plausible:
         raise WrenchFrameError(
             f"the wrench (fx, fy) looks expressed in the cart frame {{b}}, not in the world frame {{s}} that "
             f"LOG_FORMAT requires: read as {{b}} and rotated by theta, the model fits it far better "
-            f"(-2 log L lower by {better:.0f}, m = {fit_alt.x[0]:.1f} kg instead of {as_logged.x[0]:.1f} kg); "
+            f"(BIC lower by {favours_b:.0f}, m = {best.x[0]:.1f} kg instead of {ff.s_named.x[0]:.1f} kg); "
             "rotate fx, fy into {s} (fx_s = cos(theta) fx - sin(theta) fy, fy_s = sin(theta) fx + cos(theta) fy)"
         )
-    if better > FRAME_WARN and at_noise:
+    names = ", ".join(e.name for e, _ in (final.effects if final is not None else []))
+    effects_vs_b = -ff.margin(ff.s_named, ff.b_bare)  # how far the effects beat the {b} reading in one BIC at least
+    if names and effects_vs_b < threshold and cart_is_physical(ff.b_bare.x):
+        return (
+            f"nothing named: {names} would explain the log as logged, but read in the cart frame {{b}} the "
+            f"nominal model alone explains it about as well (BIC {effects_vs_b:.0f} short of the threshold "
+            f"{threshold:g}): the effects may stand for a wrench logged in {{b}}; check the logger's frame"
+        ), True
+    if favours_b > FRAME_WARN:
         return (
             f"the wrench (fx, fy) may be expressed in the cart frame {{b}} instead of {{s}}: read so, the model "
-            f"fits it better (-2 log L lower by {better:.0f}), though not decisively; check the logger's frame"
-        )
-    return None
+            f"fits it better (BIC lower by {favours_b:.0f}{'' if plausible else ', though as no physical cart'}); "
+            "check the logger's frame"
+        ), False
+    return _frame_undecided(ff), False
+
+
+def _frame_undecided(ff: _FrameFits) -> str | None:
+    """Return a warning when neither plain reading beats the other by FRAME_TOLD but their masses are 3 std apart."""
+    told = max(ff.margin(ff.s_plain, ff.b_plain), ff.margin(ff.b_plain, ff.s_plain))
+    m_s, m_b = float(ff.s_plain.x[0]), float(ff.b_plain.x[0])
+    sd = math.sqrt(max(float(ff.s_plain.cov[0, 0]) + float(ff.b_plain.cov[0, 0]), 1e-300))
+    if told >= FRAME_TOLD or abs(m_s - m_b) <= 3.0 * sd:
+        return None
+    return (
+        f"the wrench's frame cannot be checked on this log: read as logged ({{s}}) and in the cart frame {{b}} "
+        f"the model fits about alike but gives m = {m_s:.1f} and {m_b:.1f} kg (the cart turns too little to "
+        "tell them apart); make sure fx, fy are in {s}"
+    )
 
 
 def _nominal_fit(sig: Signals, edges: np.ndarray, source: str) -> tuple[Fit, list[str]]:
@@ -1033,8 +1121,10 @@ def diagnose(
     current, named, reasons, reps, first_scores, verdicts = _search(
         sig, edges, nominal, cands, (threshold, horizon, max_effects), (mask, rep0, slip_ratio)
     )
-    frame_note = _frame_check(sig, edges, current)
+    frame_note, withdraw = _frame_check(sig, edges, current, threshold)
     warnings += [frame_note] if frame_note else []
+    if withdraw:
+        current, named, reasons, reps = nominal, [], [], [rep0]
     return DiagnosisReport(
         effects=tuple(_named_effects(named, reasons, reps, flagged, horizon, prep.time_offset)),
         gap_before=rep0.gap(mask),

@@ -26,6 +26,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from cart.caster_lanes import CasterLanes, caster_lanes
 from cart.dynamics import regressor
 from cart.log_signals import Signals, derivative_gain, local_poly, window_integrals
 
@@ -446,6 +447,8 @@ SWING_MODES: tuple[tuple[int, float], ...] = ((0, 1e-5),) + tuple(
 _SwingArrays = tuple[
     tuple[tuple[int, int], ...], np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray
 ]
+#: a caster model's lanes for one axle and trail: natural alpha, alpha' (N, 2), the swings, every lane on each swing
+_Lanes = tuple[np.ndarray, np.ndarray, list[tuple[int, int]], list[np.ndarray], list[np.ndarray]]
 #: half window (s) of the local quadratic that gives the yaw rate driving the caster kinematics
 CASTER_OMEGA_WINDOW = 0.25
 
@@ -470,56 +473,8 @@ def kinematic_yaw_rate(sig: Signals) -> np.ndarray:
     return cached
 
 
-def _swivel_angles(
-    out: np.ndarray,
-    psi: np.ndarray,
-    decay: np.ndarray,
-    yaw_step: np.ndarray,
-    side: np.ndarray,
-    lim: np.ndarray,
-    chunk: int = 1024,
-) -> None:
-    """Fill ``out`` (n, ...) with the swivel angles of :func:`caster_kinematics`, starting trailing (alpha = 0).
-
-    Per sample the angle b = alpha - psi relative to the swivel axis's direction of travel decays as
-    tan(b / 2) -> tan(b / 2) exp(-R dt / e) (exact rolling) and is clamped to at least the lane's
-    misalignment from leading (|b| <= ``lim``; side 0: the side it is on, +-1: forced). The state is
-    carried as the projective pair (p, q), tan(b / 2) = p / q: the decay scales p, the change of the
-    reference direction (psi_i - yaw_i - psi_{i+1}) rotates (q, p) by half of it -- no trigonometric
-    function per step (the angles are recovered per chunk: alpha_i = 2 atan2(p, q) + psi_i - yaw_i).
-    """
-    n = len(yaw_step)
-    shape = out.shape[1:]
-    half = 0.5 * (psi[:-1] - yaw_step[:-1, None, None, None, None] - psi[1:])  # (n-1, nx, 1, 2, 1)
-    cs, sn = np.cos(half), np.sin(half)
-    b0 = -psi[0]  # alpha = 0 at the start
-    p = np.broadcast_to(np.sin(0.5 * b0), shape).copy()
-    q = np.broadcast_to(np.cos(0.5 * b0), shape).copy()
-    tl = np.tan(0.5 * lim)  # |b| > lim  <=>  |p| > tan(lim / 2) |q|
-    forced = side != 0.0
-    buf_p = np.empty((min(chunk, n),) + shape)
-    buf_q = np.empty_like(buf_p)
-    for c0 in range(0, n, chunk):
-        c1 = min(c0 + chunk, n)
-        for i in range(c0, c1):
-            far = np.abs(p) > tl * np.abs(q)
-            if far.any():
-                sgn = np.where(forced, side, np.sign(p * q))
-                p = np.where(far, sgn * tl, p)
-                q = np.where(far, 1.0, q)
-            p = p * decay[i]
-            buf_p[i - c0], buf_q[i - c0] = p, q
-            if i + 1 < n:
-                p, q = p * cs[i] + q * sn[i], q * cs[i] - p * sn[i]
-                if i % 32 == 0:  # keep the pair of order one
-                    scale = np.abs(p) + np.abs(q)
-                    p, q = p / scale, q / scale
-        k = c1 - c0
-        out[c0:c1] = 2.0 * np.arctan2(buf_p[:k], buf_q[:k]) + psi[c0:c1] - yaw_step[c0:c1, None, None, None, None]
-
-
-def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
-    """Return swivel angles alpha and rates alpha', (N, len(axles), len(trails), 2 casters, len(SWING_MODES)).
+def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[float]) -> CasterLanes:
+    """Return the swivel angles and rates of the modelled casters for these axle positions x trails (cached).
 
     Casters at (x, +-CASTER_HALF_TRACK) in {b} with trail e; the wheel rolls
     along alpha and does not slide sideways:
@@ -532,44 +487,17 @@ def caster_kinematics(sig: Signals, axles: Sequence[float], trails: Sequence[flo
     too small to measure (noise in omega decides it in the data), so each
     :data:`SWING_MODES` lane keeps the caster at least ``misalignment`` away
     from leading, on the natural side (0) or forced to one side (+-1); the
-    fit picks a mode per swing (:class:`SwivelCasterModel`). Cached.
+    fit picks a mode per swing (:class:`SwivelCasterModel`). Streamed
+    (:func:`cart.caster_lanes.caster_lanes`): the natural lane along the log, every lane on the swings.
     """
     key = ("motion", "caster_kin", tuple(axles), tuple(trails))
     cached = sig.extras.get(key)
-    if cached is not None:
-        return cached
-    nx, nt, nm = len(axles), len(trails), len(SWING_MODES)
-    xs = np.asarray(axles, float)[:, None, None, None]
-    ys = np.array([CASTER_HALF_TRACK, -CASTER_HALF_TRACK])[None, None, :, None]
-    es = np.asarray(trails, float)[None, :, None, None]
-    side = np.array([m[0] for m in SWING_MODES], float)[None, None, None, :]
-    lim = math.pi - np.array([m[1] for m in SWING_MODES])[None, None, None, :]
-    v, t = sig.v, sig.t
-    om = kinematic_yaw_rate(sig)
-    vm = np.concatenate([[v[0]], 0.5 * (v[1:] + v[:-1])])
-    omm = np.concatenate([[om[0]], 0.5 * (om[1:] + om[:-1])])
-    dt = np.concatenate([[0.0], np.diff(t)])
-    n = sig.n
-    alpha = np.empty((n, nx, nt, 2, nm), np.float32)  # stored in single precision: ~1e-7 rad, half the memory
-    al = np.zeros((nx, nt, 2, nm))  # the casters start trailing
-    px = vm[:, None, None, None, None] - omm[:, None, None, None, None] * ys[None]  # (n, 1, 1, 2, 1)
-    py = omm[:, None, None, None, None] * xs[None]  # (n, nx, 1, 1, 1)
-    psi_all = np.arctan2(py, px)  # (n, nx, 1, 2, 1)
-    speed = np.hypot(px, py)
-    forced = side != 0
-    # the rolling decay of every sample at once
-    decay_all = np.exp(-(speed * dt[:, None, None, None, None]) / es[None])  # (n, nx, nt, 2, 1)
-    _swivel_angles(alpha, psi_all, decay_all, omm * dt, np.broadcast_to(np.where(forced, side, 0.0), al.shape), lim)
-    rate = np.empty_like(alpha)
-    for c0 in range(0, n, 2048):  # chunks: the full-size float64 temporaries would dominate the memory
-        sl = slice(c0, min(c0 + 2048, n))
-        a = alpha[sl].astype(float)
-        qx = v[sl, None, None, None, None] - om[sl, None, None, None, None] * ys[None]
-        qy = om[sl, None, None, None, None] * xs[None]
-        rate[sl] = (-qx * np.sin(a) + qy * np.cos(a)) / es[None] - om[sl, None, None, None, None]
-    out = (alpha, rate)
-    sig.extras[key] = out
-    return out
+    if cached is None:
+        cached = caster_lanes(
+            sig.t, sig.v, kinematic_yaw_rate(sig), tuple(axles), tuple(trails), SWING_MODES, CASTER_HALF_TRACK
+        )
+        sig.extras[key] = cached
+    return cached
 
 
 class SwivelCasterModel(CasterSwivel):
@@ -634,28 +562,25 @@ class SwivelCasterModel(CasterSwivel):
         """Return the trail bounds in metres."""
         return [(self.TRAILS[0], self.TRAILS[-1])]
 
-    def _lanes(self, sig: Signals, trail: float) -> tuple[np.ndarray, np.ndarray]:
-        """Return alpha, alpha' (N, 2, modes; single precision views) for this axle and ``trail`` (grid: one shared pass)."""
+    def _lanes(self, sig: Signals, trail: float) -> _Lanes:
+        """Return the natural alpha, alpha' (N, 2; single precision views), the swings and every lane on them
+        (L, 2, modes per swing) for this axle and ``trail`` (grid: one shared pass)."""
         if trail in self.TRAILS and self.axle_x in self.AXLES:
-            alpha, rate = caster_kinematics(sig, self.AXLES, self.TRAILS)
+            lanes = caster_kinematics(sig, self.AXLES, self.TRAILS)
             i, j = self.AXLES.index(self.axle_x), self.TRAILS.index(trail)
-            return alpha[:, i, j], rate[:, i, j]
-        alpha, rate = caster_kinematics(sig, (self.axle_x,), (trail,))
-        return alpha[:, 0, 0], rate[:, 0, 0]
+        else:
+            lanes, i, j = caster_kinematics(sig, (self.axle_x,), (trail,)), 0, 0
+        return (
+            lanes.alpha0[:, i, j],
+            lanes.rate0[:, i, j],
+            lanes.swings[(i, j)],
+            lanes.swing_alpha[(i, j)],
+            lanes.swing_rate[(i, j)],
+        )
 
     def _swings(self, sig: Signals, trail: float) -> list[tuple[int, int]]:
         """Return sample ranges [i0, i1) where the swing modes disagree (swings from a leading caster)."""
-        key = ("motion", "caster_swings", self.axle_x, trail)
-        cached = sig.extras.get(key)
-        if cached is not None:
-            return cached
-        alpha = self._lanes(sig, trail)[0]
-        diff = np.abs(np.sin(0.5 * (alpha - alpha[:, :, :1])))
-        on = np.max(diff, axis=(1, 2)) > 0.02
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(int), [0]])))
-        out = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
-        sig.extras[key] = out
-        return out
+        return self._lanes(sig, trail)[2]
 
     def _unit_rows(self, alpha: np.ndarray, rate: np.ndarray, trail: float) -> np.ndarray:
         """Return -dE/d(c1, c2, damping) (..., 2 rows: forward, yaw; 3 params) summed over the casters (last axis)."""
@@ -692,24 +617,24 @@ class SwivelCasterModel(CasterSwivel):
         mkey = ("motion", "caster_swing_units", self.axle_x, trail)
         motion = sig.extras.get(mkey)
         if motion is None:
-            alpha, rate = self._lanes(sig, trail)
+            _, _, swings, s_alpha, s_rate = self._lanes(sig, trail)
             c1, c2 = self.COMBO_LANES
             motion = []
-            for i0, i1 in self._swings(sig, trail):
-                al = np.stack([alpha[i0:i1, 0, c1], alpha[i0:i1, 1, c2]], axis=-1)  # (L, combos, 2 casters)
-                ra = np.stack([rate[i0:i1, 0, c1], rate[i0:i1, 1, c2]], axis=-1)
+            for (i0, i1), alpha, rate in zip(swings, s_alpha, s_rate):
+                al = np.stack([alpha[:, 0, c1], alpha[:, 1, c2]], axis=-1)  # (L, combos, 2 casters)
+                ra = np.stack([rate[:, 0, c1], rate[:, 1, c2]], axis=-1)
                 u = self._unit_rows(al, ra, trail)  # (L, combos, 2 rows, 3 params)
                 n_c = u.shape[1]
                 uc = u.transpose(1, 0, 2, 3).reshape(n_c, -1, 3)  # (combos, L * 2, 3): sums over samples and rows
                 uwc = (u * w[None, None, :, None]).transpose(1, 0, 2, 3).reshape(n_c, -1, 3)
                 bb = base[i0:i1, :2, :4].reshape(-1, 4)  # (L * 2, 4)
                 wr = np.tile(w, i1 - i0)[:, None]
-                motion.append(
-                    ((i0, i1), u, uwc, uwc.transpose(0, 2, 1) @ uc, uwc.transpose(0, 2, 1) @ bb, (bb * wr).T @ bb)
-                )
+                # U kept in single precision (the angles are): it is most of what a long log's caster fits keep
+                q, rr = uwc.transpose(0, 2, 1) @ uc, uwc.transpose(0, 2, 1) @ bb
+                motion.append(((i0, i1), u.astype(np.float32), q, rr, (bb * wr).T @ bb))
             sig.extras[mkey] = motion
         out = []
-        for (i0, i1), u, uwc, q, rr, ss in motion:
+        for (i0, i1), u, q, rr, ss in motion:
             y = np.column_stack([sig.f_fwd[i0:i1], sig.tau[i0:i1]])  # (L, 2)
             bw = (base[i0:i1, :2, :4] * w[None, :, None]).reshape(-1, 4)
             out.append(
@@ -717,7 +642,7 @@ class SwivelCasterModel(CasterSwivel):
                     (i0, i1),
                     u,
                     q,
-                    uwc.transpose(0, 2, 1) @ y.reshape(-1),
+                    np.einsum("lcrk,lr->ck", u, y * w, dtype=float),
                     rr,
                     float(np.sum(y * y * w)),
                     bw.T @ y.reshape(-1),
@@ -783,10 +708,10 @@ class SwivelCasterModel(CasterSwivel):
         nkey = ("motion", "caster_rows", self.axle_x, trail)
         rows = sig.extras.get(nkey)
         if rows is None:
-            alpha, rate = self._lanes(sig, trail)
-            rows = self._unit_rows(alpha[:, :, 0], rate[:, :, 0], trail)
+            alpha, rate = self._lanes(sig, trail)[:2]
+            rows = self._unit_rows(alpha, rate, trail).astype(np.float32)  # single precision, as the angles
             sig.extras[nkey] = rows
-        rows = rows.copy()
+        rows = rows.astype(float)
         choice = self._choice(sig, trail)
         if choice:
             for st in sig.extras.get(("caster_swing_stats", self.axle_x, trail), []):
@@ -797,17 +722,19 @@ class SwivelCasterModel(CasterSwivel):
 
     def _hold_capacity(self, sig: Signals, trail: float) -> np.ndarray:
         """Return sum |sin alpha| / e (N,) per unit torque: the casters' most likely swing per chosen swing."""
-        alpha = self._lanes(sig, trail)[0]
+        alpha, _, swings, s_alpha, _ = self._lanes(sig, trail)
         nkey = ("motion", "caster_hold_natural", self.axle_x, trail)
         natural = sig.extras.get(nkey)
         if natural is None:
-            natural = np.sum(np.abs(np.sin(alpha[:, :, 0])), axis=1) / trail
+            natural = np.sum(np.abs(np.sin(alpha)), axis=1) / trail
             sig.extras[nkey] = natural
         cap = natural.copy()
         c1, c2 = self.COMBO_LANES
+        lanes = dict(zip(swings, s_alpha))
         for (i0, i1), wts in self._choice(sig, trail).items():
             c = int(np.argmax(wts))
-            cap[i0:i1] = (np.abs(np.sin(alpha[i0:i1, 0, c1[c]])) + np.abs(np.sin(alpha[i0:i1, 1, c2[c]]))) / trail
+            al = lanes[(i0, i1)]
+            cap[i0:i1] = (np.abs(np.sin(al[:, 0, c1[c]])) + np.abs(np.sin(al[:, 1, c2[c]]))) / trail
         return cap
 
     def columns(self, sig, nl, phi, base):

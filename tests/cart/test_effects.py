@@ -204,7 +204,7 @@ def test_caster_kinematics_match_the_test_bed_casters_and_the_columns_their_forc
     sig = signals_from_log(_log_of(t, xy[:, 0], xy[:, 1], th), half_window=0.05)
     model = fx.SwivelCasterModel(0.8)
     e = model.TRAILS[8]
-    alpha, rate = model._lanes(sig, e)
+    alpha = model._lanes(sig, e)[0]  # the natural lane (N, 2 casters)
     # independent: fine Euler steps of SwivelCasters with the same speeds (the kinematic yaw rate of the model)
     omk = fx.kinematic_yaw_rate(sig)
     cas = SwivelCasters(
@@ -221,13 +221,13 @@ def test_caster_kinematics_match_the_test_bed_casters_and_the_columns_their_forc
                 vv = (1 - u) * sig.v[k] + u * sig.v[k + 1]
                 ww = (1 - u) * omk[k] + u * omk[k + 1]
                 al = al + 0.01 / 20 * cas.rates(vv, ww, al)
-    d = np.angle(np.exp(1j * (alpha[:, :, 0] - ref)))
+    d = np.angle(np.exp(1j * (alpha - ref)))
     assert np.percentile(np.abs(d), 95) < 0.05, np.percentile(np.abs(d), 95)
-    assert np.max(np.abs(np.angle(np.exp(1j * alpha[t > 12, :, 0])))) > 2.5  # swung round: trailing backwards
+    assert np.max(np.abs(np.angle(np.exp(1j * alpha[t > 12])))) > 2.5  # swung round: trailing backwards
     # columns per unit sharp torque = -(generalized force of the test bed's casters with torque 1, eps 0.2)
     g = model.columns(sig, (e,), None, None)
     for k in range(0, len(t), 37):
-        e_f, _, e_t, _ = cas.terms(sig.v[k], omk[k], alpha[k, :, 0])
+        e_f, _, e_t, _ = cas.terms(sig.v[k], omk[k], alpha[k])
         assert g[k, 0, 0] == pytest.approx(-e_f, abs=1e-6 + 1e-6 * abs(e_f))
         assert g[k, 1, 0] == pytest.approx(-e_t, abs=1e-6 + 1e-6 * abs(e_t))
 
@@ -262,3 +262,48 @@ def test_local_mean_matches_a_loop():
     for i in range(0, 300, 17):
         sel = np.abs(t - t[i]) <= 0.05 + 1e-12
         np.testing.assert_allclose(got[i], y[sel].mean(axis=0), rtol=1e-10)
+
+
+def test_caster_lanes_streamed_in_chunks_equal_one_pass_and_keep_only_the_swings(monkeypatch):
+    # the caster pass steps the log in chunks, the state carried over; a chunk of 64 samples must give what
+    # one chunk gives, and the lanes kept on the swings must be the full lanes there (all kept when every
+    # sample counts as a swing)
+    import cart.caster_lanes as cl
+    from cart.effects import CASTER_HALF_TRACK, SWING_MODES
+
+    t = np.arange(0.0, 14.0, 0.01)
+    v = 0.5 * np.sin(2 * np.pi * t / 14.0)  # one reversal at t = 7, straight: the casters reach leading
+    om = np.full_like(t, 1e-4)
+    args = (t, v, om, (0.5, 1.1), (0.02, 0.05), SWING_MODES, CASTER_HALF_TRACK)
+    monkeypatch.setattr(cl, "CHUNK", len(t) + 1)
+    one = cl.caster_lanes(*args)
+    monkeypatch.setattr(cl, "SWING_SPLIT", -1.0)
+    full = cl.caster_lanes(*args)
+    monkeypatch.setattr(cl, "SWING_SPLIT", 0.02)
+    monkeypatch.setattr(cl, "CHUNK", 64)
+    lanes = cl.caster_lanes(*args)
+    assert np.array_equal(lanes.alpha0, one.alpha0) and np.array_equal(lanes.rate0, one.rate0)
+    assert lanes.swings == one.swings and any(lanes.swings.values())
+    for key, ranges in lanes.swings.items():
+        assert full.swings[key] == [(0, len(t))]
+        for (i0, i1), a, r in zip(ranges, lanes.swing_alpha[key], lanes.swing_rate[key]):
+            assert np.array_equal(a, full.swing_alpha[key][0][i0:i1])
+            assert np.array_equal(r, full.swing_rate[key][0][i0:i1])
+        assert np.array_equal(lanes.alpha0[:, key[0], key[1]], full.swing_alpha[key][0][:, :, 0])
+    kept = lanes.alpha0.nbytes + sum(a.nbytes for v_ in lanes.swing_alpha.values() for a in v_)
+    every = full.alpha0.nbytes + sum(a.nbytes for v_ in full.swing_alpha.values() for a in v_)
+    assert kept < 0.5 * every  # the swings are a part of the log: most lanes are not kept
+
+
+def test_the_column_cache_of_the_fits_is_bounded(monkeypatch):
+    import cart.diagnose as dg
+    from cart.log_signals import Signals
+
+    sig = Signals.__new__(Signals)
+    object.__setattr__(sig, "extras", {})
+    monkeypatch.setattr(dg, "COLUMN_CACHE_BYTES", 10_000)
+    for k in range(50):
+        dg._cache_columns(sig, ("cols", k), np.zeros(250))  # 2000 bytes each
+    cols = [k for k in sig.extras if isinstance(k, tuple) and k[0] == "cols"]
+    assert sum(sig.extras[k].nbytes for k in cols) <= 10_000
+    assert ("cols", 49) in sig.extras and ("cols", 0) not in sig.extras
