@@ -210,6 +210,8 @@ class JointTorqueLimit(Limit):
         if not 0.0 < fraction <= 1.0:
             raise WholeBodyError(f"torque limit fraction must be in (0, 1], got {fraction}")
         self.wb, self.limit = wb, fraction * wb.arm_effort_limit
+        #: joints with an effort limit (a URDF without one gives 0 or inf: that joint is not bounded)
+        self.bounded = np.isfinite(self.limit) & (self.limit > 0)
         self.data = wb.model.createData()
         self.lower, self.upper = wb.arm_lower + margin, wb.arm_upper - margin
         self._lb, self._ub = np.full(wb.n_u, -np.inf), np.full(wb.n_u, np.inf)
@@ -223,16 +225,16 @@ class JointTorqueLimit(Limit):
         wb, n = self.wb, self.wb.n_arm
         M = pin.crba(wb.model, self.data, wb.to_pinocchio_q(s.x))
         rows = wb.arm_idx_v
-        a = self.BRAKING_SHARE * self.limit / np.maximum(M[rows, rows], 1e-9)
+        a = self.BRAKING_SHARE * np.where(self.bounded, self.limit, 1.0) / np.maximum(M[rows, rows], 1e-9)
         step = a * s.dt * s.dt
         q = s.x[3 : 3 + n]
         for d, out, sign in ((self.upper - q, self._ub, 1.0), (q - self.lower, self._lb, -1.0)):
             k = np.sqrt(0.25 + 2.0 * np.maximum(d, 0.0) / step) - 0.5  # periods of braking the distance allows
-            out[:n] = sign * k * a * s.dt
+            out[:n] = np.where(self.bounded, sign * k * a * s.dt, sign * np.inf)
         return self._lb, self._ub
 
     def inequality(self, s: StepState, relax: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
-        if relax:
+        if relax or not self.bounded.any():
             return None
         wb, model, data = self.wb, self.wb.model, self.data
         q = wb.to_pinocchio_q(s.x)
@@ -241,7 +243,7 @@ class JointTorqueLimit(Limit):
         v_prev = S @ u_prev
         M = pin.crba(model, data, q)
         M = np.triu(M) + np.triu(M, 1).T
-        rows = wb.arm_idx_v
+        rows = wb.arm_idx_v[self.bounded]
         # velocity terms to first order about the last input: h(v) ~ h(v_prev) + dh/dv (v - v_prev)
         pin.computeRNEADerivatives(model, data, q, v_prev, np.zeros(model.nv))
         Ma = (M[rows] / s.dt + data.dtau_dv[rows]) @ S
@@ -249,4 +251,5 @@ class JointTorqueLimit(Limit):
         for fid, w in self.wrenches:
             J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
             bias = bias + J[:, rows].T @ w
-        return np.vstack([Ma, -Ma]), np.r_[self.limit - bias, self.limit + bias]
+        lim = self.limit[self.bounded]
+        return np.vstack([Ma, -Ma]), np.r_[lim - bias, lim + bias]
