@@ -77,6 +77,8 @@ def make_reach_map(config: PushConfig, robot: robots.LoadedRobot | None = None):
     geo = config.cart_geometry()
     which = robot if robot is not None else config.robot
     if robot_mod.arms_per_robot(robots.profile(config.robot), config.n_arms) > 1:  # one base, several arms:
+        if config.contact == "fixed":  # the placement holds the fixed contacts: nothing to plan
+            return None
         loaded = which if isinstance(which, robots.LoadedRobot) else robots.load(which)  # one map per hand
         return robot_mod.multi_arm_reach_maps(loaded, config.contact_y0(), None if geo is DEFAULT_GEOMETRY else geo)
     return robot_mod.push_reach_map(which, None if geo is DEFAULT_GEOMETRY else geo)

@@ -297,9 +297,10 @@ def _arm_searches(
     mid = 0.5 * (wb.arm_lower + wb.arm_upper)
     out = []
     for roll in rolls:
-        z = _search(wb, prof, grasp_rotation(pitch, roll, axis), contact_y, mid, -0.6)
-        if z is not None:
-            out.append((roll, z))
+        R = grasp_rotation(pitch, roll, axis)
+        found = [z for z in (_search(wb, prof, R, contact_y, mid, bx0) for bx0 in (-0.6, -0.9)) if z is not None]
+        if found:  # the two base seeds of the one-arm search; the larger joint-limit margin
+            out.append((roll, max(found, key=lambda z: joint_margin(wb, z[2:]))))
     return out
 
 
