@@ -221,7 +221,7 @@ def _segment_json(seg: dict[str, Any]) -> dict[str, Any]:
     p, s = seg["params"], seg["std"]
     unknown = not_identified(p, s)
     val = {"mass": p.m, "com": [p.dx, p.dy], "inertia": p.I}
-    out = {"t0": seg["t0"], "t1": seg["t1"]}
+    out = {"t0": seg["t0"], "t0_range": seg.get("t0_range"), "t1": seg["t1"]}
     out.update({k: (None if k in unknown else v) for k, v in val.items()})
     out.update(
         sigma=p.sigma,

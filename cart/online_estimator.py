@@ -32,7 +32,7 @@ import numpy.typing as npt
 
 from cart.change_detection import ChangeDetector, RingBuffer
 from cart.dynamics import regressor
-from cart.ekf import CartEKF, EKFConfig
+from cart.ekf import CartEKF, EKFConfig, chi2_isf
 from cart.online_regression import (
     DT_REL_TOL,
     OnlineEstimatorError,
@@ -64,7 +64,11 @@ class OnlineOptions:
     radius of gyration;
     ``observer_q_vel`` / ``observer_q_omega``: the state observer's process noise (EKFConfig);
     ``misfit_ratio``: residual ratio flagged as misfit; ``excited_ratio``: posterior / prior std
-    above which a parameter counts as not excited.
+    above which a parameter counts as not excited;
+    ``impulse_alpha``: false-alarm probability of the impulse test (the state observer's NIS: a jump of
+    velocity the wrench does not explain, as when a load dropped in exchanges momentum with the cart, or a
+    bump); after an impulse the regression skips ``impulse_settle_cycles`` periods of the cut-off (the
+    filtered signals carry the jump that long) and a change found right after it is dated at the impulse.
     """
 
     cutoff_hz: float = 2.0
@@ -91,6 +95,8 @@ class OnlineOptions:
     misfit_ratio: float = 2.0
     excited_ratio: float = 0.9
     noise_time_s: float = 5.0
+    impulse_alpha: float = 1e-9
+    impulse_settle_cycles: float = 1.5
 
 
 @dataclass(frozen=True)
@@ -224,6 +230,9 @@ class OnlineLSEstimator:
         self._active: set[str] = set()
         self._buffer: RingBuffer | None = None
         self.nis = float("nan")
+        self._impulse_nis = chi2_isf(options.impulse_alpha, 2)
+        self._impulse_t = -math.inf
+        self.impulses: list[float] = []
 
     def _init_observer(self, q0: np.ndarray, qd0: np.ndarray, params0: CartParams, meas_std: np.ndarray) -> None:
         """Create the state observer: the paper's EKF with the parameters frozen (overwritten every step)."""
@@ -319,8 +328,33 @@ class OnlineLSEstimator:
         self.nis = obs.step(
             g, dt, zv, gamma_cov=np.diag([sf, sf, st]) * dt if self.options.observer_input_noise else None
         )
-        self._regression_step(g, dt, zv)
+        impulse = self.options.detect_changes and self._started
+        impulse = impulse and self._impulse_statistic(g, dt, zv) > self._impulse_nis
+        if impulse:
+            if self.t - self._impulse_t > self._settle_s():
+                self.impulses.append(self.t)
+            self._impulse_t = self.t
+        self._regression_step(g, dt, zv, impulse)
         return self.nis
+
+    def _impulse_statistic(self, gamma: np.ndarray, dt: float, z: np.ndarray) -> float:
+        """Return the normalized jump of forward speed and yaw rate over one period beyond what the wrench explains.
+
+        Chi-square with 2 dof without an impulse (the motion capture's velocity noise, at least 1 mm/s and
+        1 mrad/s); the wrench's share is predicted with the current estimate (small over one period).
+        """
+        zp, prm = self._z_prev, self._params
+        c, s = math.cos(float(z[2])), math.sin(float(z[2]))
+        v_prev = c * zp[3] + s * zp[4]
+        dv = c * z[3] + s * z[4] - v_prev - (c * gamma[0] + s * gamma[1] - prm.sigma * v_prev) / prm.m * dt
+        dw = z[5] - zp[5] - (gamma[2] - prm.sigma_yaw * zp[5]) / prm.inertia_b * dt
+        ms = self._meas_std
+        var_v, var_w = max(ms[3] ** 2 + ms[4] ** 2, 1e-6), max(2.0 * ms[5] ** 2, 1e-6)
+        return float(dv * dv / var_v + dw * dw / var_w)
+
+    def _settle_s(self) -> float:
+        """Return how long (s) the filtered signals carry an impulse: ``impulse_settle_cycles`` cut-off periods."""
+        return self.options.impulse_settle_cycles / self.options.cutoff_hz
 
     # -- regression -------------------------------------------------------------------------
     def _filter_inputs(self, gamma: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -423,9 +457,19 @@ class OnlineLSEstimator:
         shapes = {"t": (), "m": (), "s": (4,), "info": (4, 4), "D": (6, 6), "d": (6,), "C": (6, 6)}
         self._buffer = RingBuffer(size, shapes)
 
-    def _regression_step(self, gamma: np.ndarray, dt: float, z: np.ndarray) -> None:
-        """Filter, accumulate one regression sample, test for a change, solve, check plausibility."""
+    def _regression_step(self, gamma: np.ndarray, dt: float, z: np.ndarray, impulse: bool = False) -> None:
+        """Filter, accumulate one regression sample, test for a change, solve, check plausibility.
+
+        ``impulse``: the velocity jumped this period (:meth:`_impulse_statistic`); the filter restarts from the
+        motion after the jump (the model has no impulse: filtered, the jump would read as a huge acceleration
+        without force for a cut-off period) and the sample is skipped.
+        """
         u = self._filter_inputs(gamma, z)
+        if impulse:
+            u[:3] = z[3:6]
+            self.filter.reset(u)
+            self._update_noise(float(u[4]), float(u[5]), dt)
+            return
         if not self._started:
             self.filter.reset(u)
             self._init_buffer(dt)
@@ -461,6 +505,8 @@ class OnlineLSEstimator:
         buf = self._ring()
         idx = self.detector.onset(buf.read("s"), buf.read("info"), self._cov[:4, :4])
         t_change, m_before = float(buf.read("t")[idx]), float(buf.read("m")[idx])
+        if self.impulses and 0.0 <= t_change - self._impulse_t <= 2.0 * self._settle_s():
+            t_change = self.impulses[-1]  # the first sample after an impulse: the load came with it
         if self._changes:
             self._changes[-1].mass_end = m_before
         p, prm = self.regression.p, self._params

@@ -63,6 +63,10 @@ class Table1Test:
     noise: float
     vary_cp: bool
     mass_changes: tuple[tuple[float, float], ...] = ()
+    #: A load added is picked up at rest (dropped in: the cart's momentum is shared, its velocity drops by
+    #: m_old / m_new); a load removed leaves with the cart's velocity (lifted out). False: the velocity is
+    #: continuous at every change (the load comes and goes moving with the cart; the paper does not say).
+    momentum_exchange: bool = False
 
 
 TESTS: tuple[Table1Test, ...] = (
@@ -315,9 +319,10 @@ def simulate_test(
     traj = trajectory or (trajectory_1(duration) if test.traj == 1 else trajectory_2(duration))
     ctrl = make_controller(controller, traj)
     truth = true_params(test)
+    masses = [truth.m, *(mc for _, mc in test.mass_changes)]
     changes = [
-        ParameterChange(tc, truth.with_mass(mc), conserve_momentum=False)
-        for tc, mc in test.mass_changes
+        ParameterChange(tc, truth.with_mass(mc), conserve_momentum=test.momentum_exchange and mc > m_old)
+        for (tc, mc), m_old in zip(test.mass_changes, masses)
         if tc < duration
     ]
     loop = make_loop(ctrl, int(round(duration / dt)) + 1)

@@ -39,6 +39,7 @@ import math
 import os
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
+from collections.abc import Callable
 
 import numpy as np
 
@@ -374,8 +375,18 @@ def _swivel_addresses(model: mujoco.MjModel) -> list[int]:
     ]
 
 
-def _run(model: mujoco.MjModel, data: mujoco.MjData, tracker: _Tracker, n_steps: int, samples: np.ndarray) -> _Record:
-    """Step the pushed cart ``n_steps`` physics steps; return the clean record at the step indices ``samples``."""
+def _run(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    tracker: _Tracker,
+    n_steps: int,
+    samples: np.ndarray,
+    on_step: Callable[[int], None] | None = None,
+) -> _Record:
+    """Step the pushed cart ``n_steps`` physics steps; return the clean record at the step indices ``samples``.
+
+    ``on_step(i)`` (optional) runs before step ``i`` (e.g. a load put in or taken out, :mod:`.mujoco_loads`).
+    """
     chassis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, CART_BODY)
     dt = model.opt.timestep
     is_sample = np.zeros(n_steps, dtype=bool)
@@ -386,6 +397,8 @@ def _run(model: mujoco.MjModel, data: mujoco.MjData, tracker: _Tracker, n_steps:
     hx, hy = tracker.handle
     heading, s_meas, k = _Unwrap(), 0.0, 0
     for i in range(n_steps):
+        if on_step is not None:
+            on_step(i)
         mujoco.mj_step1(model, data)  # kinematics and CoM of the current state (xipos used by xfrc_applied)
         x, y, th, vx, vy, omega = _planar_state(qpos, qvel)
         th_unwrapped = heading.update(th)

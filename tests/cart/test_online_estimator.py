@@ -92,7 +92,7 @@ def test_load_change_detected_within_one_second():
 
 def test_no_change_detected_without_one(turning_log):
     est = _run(turning_log, make_online_estimator(turning_log.q[0], GUESS, MOCAP.measurement_std()), 4, 3.0, 0.3)
-    assert est.events == ()
+    assert est.events == () and est.impulses == []
 
 
 def test_runoff_flagged_and_params_held():
@@ -153,3 +153,21 @@ def test_bad_construction_raises():
         make_online_estimator([0.0, 0.0, 0.0], GUESS, MOCAP.measurement_std(), no_such_option=1)
     with pytest.raises(OnlineEstimatorError):
         make_online_estimator([0.0, 0.0, 0.0], GUESS, MOCAP.measurement_std(), cutoff_hz=-1.0)
+
+
+def test_a_load_dropped_in_is_an_impulse_dated_and_learnt_at_once():
+    """A 10 kg load picked up at rest at 12 s (the cart's velocity drops by 1/3, no wrench does it).
+
+    The impulse is found in the period it happens, the filter restarts after it (filtered, the jump would read
+    as a huge deceleration without force: a mass near zero), and the change is dated at the impulse.
+    """
+    new = TRUTH.with_mass(30.0)
+    sim = _sim(30.0, True, changes=[ParameterChange(12.0, new, conserve_momentum=True)])
+    log = sim.measured
+    est = _run(log, make_online_estimator(log.q[0], GUESS, MOCAP.measurement_std()), 1, 3.0, 0.3)
+    assert len(est.impulses) == 1 and abs(est.impulses[0] - 12.0) <= 0.02
+    assert len(est.events) == 1
+    ev = est.events[0]
+    assert ev.t_change == est.impulses[0] and ev.t_detected <= 13.0
+    assert abs(ev.mass_after - 30.0) < 0.05 * 30.0
+    assert abs(est.params().m - 30.0) < 1.0
