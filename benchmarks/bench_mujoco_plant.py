@@ -118,7 +118,7 @@ def closed_loop(robot: str, trajectory: int, duration: float, plant_config: Mujo
         "wrench_error_rms_n": rep["wrench_error_rms_n"],
         "hand_force_rms_n": rep["hand_force_rms_n"],
         "wrench_error_pct": 100 * rep["wrench_error_rms_n"] / max(rep["hand_force_rms_n"], 1e-9),
-        "arm_torque_limit_ratio": rep["arm_torque_limit_ratio"],
+        "plant_arm_torque_limit_ratio": rep["plant_arm_torque_limit_ratio"],
         "base_wheel_limit_ratio": m.base_wheel_limit_ratio,
         "base_wheel_slip_max_m_s": rep["base_wheel_slip_max_m_s"],
     }

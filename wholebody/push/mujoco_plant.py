@@ -572,7 +572,7 @@ class MujocoPlant:
             "hand_force_rms_n": math.sqrt(st.force_sq / n),
             "grasp_slip_max_m": st.slip_max,
             "base_wheel_slip_max_m_s": st.wheel_slip_max if differential else None,
-            "arm_torque_limit_ratio": st.arm_force_peak_ratio,
+            "plant_arm_torque_limit_ratio": st.arm_force_peak_ratio,
             "arm_torque_saturated_steps": int(st.arm_saturated),
             "real_time_factor": st.sim / st.wall if st.wall > 0 else None,
             "physics_dt_s": self.config.physics_dt,

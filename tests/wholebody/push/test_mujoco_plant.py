@@ -170,7 +170,7 @@ def test_closed_loop_run_reports_its_diagnostics(setup):
         assert key in rep
     assert rep["base_wheel_slip_max_m_s"] is None  # the Ridgeback's base is planar
     assert 0.0 < rep["grasp_slip_max_m"] < 5e-3
-    assert rep["arm_torque_limit_ratio"] < 1.0
+    assert rep["plant_arm_torque_limit_ratio"] < 1.0
     assert res.metrics.tracking_max_mm < 20.0
     # the cart moved along the trajectory's start (Traj. 2 accelerates from rest after 1 s)
     q, qd = plant.cart_state()
@@ -262,3 +262,11 @@ def test_base_wheel_loop_integral_keeps_the_base_on_its_commanded_path(setup):
     lag_pi = _base_lag(setup, 10.0)
     assert lag_p > 0.005  # a velocity servo lags by acceleration / bandwidth, and that adds up over the ramp
     assert abs(lag_pi) < 0.5 * lag_p
+
+
+def test_plant_report_keeps_the_controllers_torque_ratio(setup):
+    """The plant's torque ratio has its own key: merged into `push --json` it cannot overwrite the controller's."""
+    fresh = build_controller(CONFIG)
+    plant = MujocoPlant(fresh.controller.robots, fresh.q0, CONFIG.true_params, noise=CONFIG.noise, seed=CONFIG.seed)
+    rep = plant.report()
+    assert "plant_arm_torque_limit_ratio" in rep and "arm_torque_limit_ratio" not in rep
