@@ -50,6 +50,7 @@ _TOP_KEYS = (
     "locked",
     "frames",
     "push",
+    "arm_control",
 )
 _ARM_KEYS = ("joints", "gripper_frame", "ft_frame", "tool_axis", "push_seed")
 _PUSH_KEYS = (
@@ -126,6 +127,9 @@ class RobotProfile:
     wheel_acceleration_limit: float | None = None
     #: look-ahead distance (m) of a differential base's tracker; None = 0.3 m differential, 0 holonomic
     base_lookahead: float | None = None
+    #: how a physics plant drives the arms: "torque" (joint torques: the arm applies its wrench through its
+    #: dynamics) or "velocity" (joint velocity servos with an admittance); None = the plant's default
+    arm_control: Literal["torque", "velocity"] | None = None
     #: whether the push settings came from the profile (True) or still need the IK (False)
     tuned: bool = field(default=False, compare=False)
 
@@ -337,12 +341,16 @@ def parse_profile(data: Mapping, base_dir: Path, source: object = "<profile>") -
     if positions and len(positions) != len(wheels):
         raise r.fail("wheel_positions", f"gives {len(positions)} positions for {len(wheels)} wheel joints")
     push = _push(r, data)
+    arm_control = r.string(data, "arm_control", required=False)
+    if arm_control not in (None, "torque", "velocity"):
+        raise r.fail("arm_control", f"must be 'torque' or 'velocity', got {arm_control!r}")
     urdf = Path(urdf_text) if urdf_text.startswith("package://") else _resolve_path(urdf_text, base_dir)
     return RobotProfile(
         name=name,
         urdf=urdf,
         base=base,
         package_dirs=tuple(_resolve_path(p, base_dir) for p in r.strings(data, "package_dirs")),
+        arm_control=cast(Literal["torque", "velocity"] | None, arm_control),
         wheel_joints=wheels,
         wheel_radius=r.number(data, "wheel_radius", positive=True),
         wheel_separation=r.number(data, "wheel_separation", positive=True),
