@@ -48,6 +48,7 @@ from cart.effects import (
 from cart.errors import DiagnoseError
 from cart.log_signals import (
     Signals,
+    cache_bounded,
     lateral_displacements,
     signals_from_log,
     velocity_change_noise,
@@ -272,7 +273,7 @@ def _design(st: _FitState, edges: np.ndarray) -> tuple[np.ndarray, ...]:
         if g is None:
             g = e.window_columns(sig, nl, st.phi, a_s, edges)
             if ck is not None:
-                _cache_columns(sig, ck, g)
+                cache_bounded(sig, "cols", ck, g, COLUMN_CACHE_BYTES)
         g_w.append(g)
         lo = e.noise_loadings(sig, nl, edges, lv_b, lw_b)
         lv.append(lo[0] if lo is not None else np.zeros_like(g))
@@ -282,18 +283,6 @@ def _design(st: _FitState, edges: np.ndarray) -> tuple[np.ndarray, ...]:
 
 #: bytes of window columns the fits keep (oldest dropped first): bounded however long the log
 COLUMN_CACHE_BYTES = 64 * 2**20
-
-
-def _cache_columns(sig: Signals, key: tuple, g: np.ndarray) -> None:
-    """Keep an effect's window columns in ``sig.extras`` under ``key``, dropping the oldest beyond COLUMN_CACHE_BYTES."""
-    order = sig.extras.setdefault("cols_order", [])
-    sig.extras[key] = g
-    order.append((key, g.nbytes))
-    total = sum(b for _, b in order)
-    while total > COLUMN_CACHE_BYTES and len(order) > 1:
-        old, nb = order.pop(0)
-        sig.extras.pop(old, None)
-        total -= nb
 
 
 def _kept(sig: Signals, rows: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:

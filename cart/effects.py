@@ -28,7 +28,7 @@ import numpy as np
 
 from cart.caster_lanes import CasterLanes, caster_lanes
 from cart.dynamics import regressor
-from cart.log_signals import Signals, derivative_gain, local_poly, window_integrals
+from cart.log_signals import Signals, cache_bounded, derivative_gain, local_poly, window_integrals
 
 #: Nominal parameters x = [m, m dx, m dy, J, sigma, sigma_yaw] (two viscous coefficients).
 N_NOMINAL = 6
@@ -449,6 +449,8 @@ _SwingArrays = tuple[
 ]
 #: a caster model's lanes for one axle and trail: natural alpha, alpha' (N, 2), the swings, every lane on each swing
 _Lanes = tuple[np.ndarray, np.ndarray, list[tuple[int, int]], list[np.ndarray], list[np.ndarray]]
+#: bytes of the mass step's window integrals kept over its change times (oldest dropped first)
+STEP_CACHE_BYTES = 32 * 2**20
 #: half window (s) of the local quadratic that gives the yaw rate driving the caster kinematics
 CASTER_OMEGA_WINDOW = 0.25
 
@@ -593,14 +595,24 @@ class SwivelCasterModel(CasterSwivel):
             out[..., 1, k] = -np.sum(unit * lever, axis=-1)
         return out
 
+    def _units(self, sig: Signals, trail: float, swing: int, combos: np.ndarray | None = None) -> np.ndarray:
+        """Return the unit rows (L, combos, 2 rows, 3 params) of the mode combinations (all: None) on one swing."""
+        alpha, rate = self._lanes(sig, trail)[3][swing], self._lanes(sig, trail)[4][swing]
+        c1, c2 = self.COMBO_LANES
+        if combos is not None:
+            c1, c2 = c1[combos], c2[combos]
+        al = np.stack([alpha[:, 0, c1], alpha[:, 1, c2]], axis=-1)  # (L, combos, 2 casters)
+        ra = np.stack([rate[:, 0, c1], rate[:, 1, c2]], axis=-1)
+        return self._unit_rows(al, ra, trail)
+
     def _choice(self, sig: Signals, trail: float) -> dict[tuple[int, int], np.ndarray]:
         """Return the current weights of the mode combinations per swing ({(i0, i1): (combos,)}; empty: natural)."""
         return sig.extras.get(("caster_choice", self.axle_x, trail), {})
 
     def _swing_stats(self, sig: Signals, trail: float, base: np.ndarray) -> list[tuple]:
-        """Return per swing ((i0, i1), U, Q, P, R, c0, b, S): unit rows and weighted normal equations of the combos.
+        """Return per swing ((i0, i1), k, Q, P, R, c0, b, S): its index and the weighted normal equations of the combos.
 
-        U_c (L, combos, 2 rows, 3 params) are the unit rows of combination c;
+        U_c (L, combos, 2 rows, 3 params) are the unit rows of combination c (:meth:`_units`, not kept);
         with W = diag(1/sigma_force^2, 1/sigma_torque^2), y the measured forward
         force and torque and B their nominal phi columns: Q_c = sum U_c' W U_c,
         P_c = sum U_c' W y, R_c = sum U_c' W B, c0 = sum y' W y, b = sum B' W y,
@@ -617,32 +629,26 @@ class SwivelCasterModel(CasterSwivel):
         mkey = ("motion", "caster_swing_units", self.axle_x, trail)
         motion = sig.extras.get(mkey)
         if motion is None:
-            _, _, swings, s_alpha, s_rate = self._lanes(sig, trail)
-            c1, c2 = self.COMBO_LANES
             motion = []
-            for (i0, i1), alpha, rate in zip(swings, s_alpha, s_rate):
-                al = np.stack([alpha[:, 0, c1], alpha[:, 1, c2]], axis=-1)  # (L, combos, 2 casters)
-                ra = np.stack([rate[:, 0, c1], rate[:, 1, c2]], axis=-1)
-                u = self._unit_rows(al, ra, trail)  # (L, combos, 2 rows, 3 params)
+            for k, (i0, i1) in enumerate(self._swings(sig, trail)):
+                u = self._units(sig, trail, k)  # (L, combos, 2 rows, 3 params), recomputed from the lanes when needed
                 n_c = u.shape[1]
                 uc = u.transpose(1, 0, 2, 3).reshape(n_c, -1, 3)  # (combos, L * 2, 3): sums over samples and rows
                 uwc = (u * w[None, None, :, None]).transpose(1, 0, 2, 3).reshape(n_c, -1, 3)
                 bb = base[i0:i1, :2, :4].reshape(-1, 4)  # (L * 2, 4)
                 wr = np.tile(w, i1 - i0)[:, None]
-                # U kept in single precision (the angles are): it is most of what a long log's caster fits keep
-                q, rr = uwc.transpose(0, 2, 1) @ uc, uwc.transpose(0, 2, 1) @ bb
-                motion.append(((i0, i1), u.astype(np.float32), q, rr, (bb * wr).T @ bb))
+                motion.append(((i0, i1), uwc.transpose(0, 2, 1) @ uc, uwc.transpose(0, 2, 1) @ bb, (bb * wr).T @ bb))
             sig.extras[mkey] = motion
         out = []
-        for (i0, i1), u, q, rr, ss in motion:
+        for k, ((i0, i1), q, rr, ss) in enumerate(motion):
             y = np.column_stack([sig.f_fwd[i0:i1], sig.tau[i0:i1]])  # (L, 2)
             bw = (base[i0:i1, :2, :4] * w[None, :, None]).reshape(-1, 4)
             out.append(
                 (
                     (i0, i1),
-                    u,
+                    k,
                     q,
-                    np.einsum("lcrk,lr->ck", u, y * w, dtype=float),
+                    np.einsum("lcrk,lr->ck", self._units(sig, trail, k), y * w),
                     rr,
                     float(np.sum(y * y * w)),
                     bw.T @ y.reshape(-1),
@@ -705,19 +711,16 @@ class SwivelCasterModel(CasterSwivel):
 
     def _rows(self, sig: Signals, trail: float) -> np.ndarray:
         """Return the unit rows (N, 2, 3): natural swings, each chosen swing as its weighted mixture of combos."""
-        nkey = ("motion", "caster_rows", self.axle_x, trail)
-        rows = sig.extras.get(nkey)
-        if rows is None:
-            alpha, rate = self._lanes(sig, trail)[:2]
-            rows = self._unit_rows(alpha, rate, trail).astype(np.float32)  # single precision, as the angles
-            sig.extras[nkey] = rows
-        rows = rows.astype(float)
+        alpha, rate = self._lanes(sig, trail)[:2]
+        rows = self._unit_rows(alpha, rate, trail)  # not kept: the lanes are, and the fits keep their columns
         choice = self._choice(sig, trail)
         if choice:
             for st in sig.extras.get(("caster_swing_stats", self.axle_x, trail), []):
                 wts = choice.get(st[0])
                 if wts is not None:
-                    rows[st[0][0] : st[0][1]] = np.tensordot(wts, st[1], axes=(0, 1))  # (L, rows, params)
+                    used = np.flatnonzero(wts > 0.0)  # the combinations the swing's mixture holds
+                    u = self._units(sig, trail, st[1], used)
+                    rows[st[0][0] : st[0][1]] = np.tensordot(wts[used], u, axes=(0, 1))  # (L, rows, params)
         return rows
 
     def _hold_capacity(self, sig: Signals, trail: float) -> np.ndarray:
@@ -932,7 +935,7 @@ class PayloadMassStep(PayloadChange):
         stepped = sig.extras.get(key)
         if stepped is None:
             stepped = window_integrals(sig.t, PayloadChange.columns(self, sig, nl, phi, base), edges)
-            sig.extras[key] = stepped
+            cache_bounded(sig, "phi_step_windows", key, stepped, STEP_CACHE_BYTES)
         u = np.asarray(phi[:4], float) / float(phi[0])
         return (stepped @ u)[:, :, None]
 

@@ -256,6 +256,22 @@ def window_keep(edges: np.ndarray, breaks: tuple[int, ...] | None = None) -> np.
     return keep
 
 
+def cache_bounded(sig: Signals, group: str, key: tuple, value: np.ndarray, budget: int) -> None:
+    """Keep ``value`` in ``sig.extras`` under ``key``; drop the oldest entries of ``group`` beyond ``budget`` bytes.
+
+    For caches whose entries grow with the log (one per grid point or per swing choice): their memory
+    stays bounded however long the log is (a dropped entry is recomputed when asked for again).
+    """
+    order = sig.extras.setdefault(("bounded", group), [])
+    sig.extras[key] = value
+    order.append((key, value.nbytes))
+    total = sum(b for _, b in order)
+    while total > budget and len(order) > 1:
+        old, nb = order.pop(0)
+        sig.extras.pop(old, None)
+        total -= nb
+
+
 def window_integrals(t: np.ndarray, y: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """Return the trapezoid integrals of y (N, ...) over [t[e_k], t[e_{k+1}]], shape (len(edges)-1, ...).
 

@@ -295,15 +295,15 @@ def test_caster_lanes_streamed_in_chunks_equal_one_pass_and_keep_only_the_swings
     assert kept < 0.5 * every  # the swings are a part of the log: most lanes are not kept
 
 
-def test_the_column_cache_of_the_fits_is_bounded(monkeypatch):
-    import cart.diagnose as dg
-    from cart.log_signals import Signals
+def test_the_caches_that_grow_with_the_log_are_bounded():
+    from cart.log_signals import Signals, cache_bounded
 
     sig = Signals.__new__(Signals)
     object.__setattr__(sig, "extras", {})
-    monkeypatch.setattr(dg, "COLUMN_CACHE_BYTES", 10_000)
     for k in range(50):
-        dg._cache_columns(sig, ("cols", k), np.zeros(250))  # 2000 bytes each
+        cache_bounded(sig, "cols", ("cols", k), np.zeros(250), 10_000)  # 2000 bytes each
+        cache_bounded(sig, "other", ("other", k), np.zeros(10), 10_000)
     cols = [k for k in sig.extras if isinstance(k, tuple) and k[0] == "cols"]
-    assert sum(sig.extras[k].nbytes for k in cols) <= 10_000
+    assert sum(sig.extras[k].nbytes for k in cols) <= 10_000 and len(cols) == 5
     assert ("cols", 49) in sig.extras and ("cols", 0) not in sig.extras
+    assert all(("other", k) in sig.extras for k in range(50))  # groups are bounded apart
