@@ -68,7 +68,8 @@ class OnlineOptions:
     ``impulse_alpha``: false-alarm probability of the impulse test (the state observer's NIS: a jump of
     velocity the wrench does not explain, as when a load dropped in exchanges momentum with the cart, or a
     bump); after an impulse the regression skips ``impulse_settle_cycles`` periods of the cut-off (the
-    filtered signals carry the jump that long) and a change found right after it is dated at the impulse.
+    filtered signals carry the jump that long); a change found after an impulse (its onset at most twice that
+    before it, or earlier) is dated at the impulse.
     """
 
     cutoff_hz: float = 2.0
@@ -505,8 +506,8 @@ class OnlineLSEstimator:
         buf = self._ring()
         idx = self.detector.onset(buf.read("s"), buf.read("info"), self._cov[:4, :4])
         t_change, m_before = float(buf.read("t")[idx]), float(buf.read("m")[idx])
-        if self.impulses and 0.0 <= t_change - self._impulse_t <= 2.0 * self._settle_s():
-            t_change = self.impulses[-1]  # the first sample after an impulse: the load came with it
+        if self.impulses and self.impulses[-1] >= t_change - 2.0 * self._settle_s():
+            t_change = self.impulses[-1]  # a velocity jump near or after the onset: the load came with it
         if self._changes:
             self._changes[-1].mass_end = m_before
         p, prm = self.regression.p, self._params

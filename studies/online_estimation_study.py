@@ -1,6 +1,6 @@
 """Study of the online estimator (issue 27): push runs, Table I test 11, load changes on an independent simulator.
 
-Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loads|all] [--json]
+Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loads|push_loads|all] [--json]
 
 1. ``push``: ``run_push(PushConfig(trajectory=1|2))`` with the paper's EKF (the loop's default,
    ``make_estimator``) and with :class:`cart.online_estimator.OnlineLSEstimator` (built like
@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -76,6 +77,53 @@ def push_part(seeds: tuple[int, ...] = (0,)) -> dict:
     return out
 
 
+def push_load_run(trajectory: int, factor: float, t_change: float = 12.0, momentum: bool = True, seed: int = 0) -> dict:
+    """Return what the online estimator says of a closed-loop push (kinematic plant) whose load changes mid-run.
+
+    At ``t_change`` the plant's cart becomes ``true_params.with_mass(factor m)`` (CoM and radius of gyration
+    kept); with ``momentum`` and a load added, the load is picked up at rest (the velocity scaled by
+    m_old / m_new, as ``cart.simulate.ParameterChange``). The push loop itself knows no load changes: the
+    plant is switched from here.
+    """
+    from wholebody.push.config import PushConfig
+    from wholebody.push.loop import build_controller, run_loop
+    from wholebody.push.plants import kinematic_plant
+
+    cfg = PushConfig(trajectory=trajectory, seed=seed)
+    q0 = cfg.make_trajectory().sample(0.0)[0]
+    est = make_online_estimator(q0, cfg.initial_params(), cfg.noise.measurement_std())
+    setup = build_controller(cfg, None, est)
+    plant = kinematic_plant(cfg, setup)
+    new = cfg.true_params.with_mass(factor * cfg.true_params.m)
+    step = plant.step
+
+    def switching_step(cmds) -> None:
+        if plant.params is not new and plant.t + 1e-9 >= t_change:
+            if momentum and new.m > plant.params.m:
+                plant.qd = plant.qd * (plant.params.m / new.m)
+            plant.params = new
+        step(cmds)
+
+    plant.step = switching_step  # type: ignore[method-assign]
+    res = run_loop(replace(cfg, true_params=new), setup.controller, plant)
+    return {
+        "trajectory": trajectory,
+        "mass_before": cfg.true_params.m,
+        "mass_after": new.m,
+        "t_change": t_change,
+        "momentum": momentum,
+        "events": [e.as_dict() for e in est.events],
+        "impulses": list(est.impulses),
+        "final_mass": est.params().m,
+        "tracking_rms_mm": float(res.metrics.tracking_rms_mm),
+    }
+
+
+def push_loads_part() -> list[dict]:
+    """Return :func:`push_load_run` for a load added (dropped in) and one removed (lifted out), both trajectories."""
+    return [push_load_run(traj, factor) for traj in (1, 2) for factor in (1.5, 0.7)]
+
+
 # --------------------------------------------------------------------------- Table I test 11
 def run_test_online(test, seed: int = 0, duration: float = 30.0, dt: float = 0.01, **options):
     """Return (TestRun, estimator) of a Table I test with the online estimator (`cart.table1.simulate_test`)."""
@@ -98,8 +146,6 @@ def table1_part(test_index: int = 10, seed: int = 0) -> dict:
     Also the same test with the load dropped in from rest (``momentum_exchange``: the cart's velocity drops
     when a load is added) under ``physical``, and the oracle bounds of :func:`observable_bound` for both.
     """
-    from dataclasses import replace
-
     out: dict = {}
     for variant, test in (
         ("paper", TESTS[test_index]),
@@ -238,7 +284,7 @@ def loads_part(seeds: tuple[int, ...] = (0, 1, 2, 3, 4, 5), t_change: float = 15
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("push", "table1", "loads", "all"), default="all")
+    parser.add_argument("--part", choices=("push", "table1", "loads", "push_loads", "all"), default="all")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args()
     out = {}
@@ -248,6 +294,8 @@ def main() -> None:
         out["table1_test11"] = table1_part()
     if args.part in ("loads", "all"):
         out["loads"] = loads_part()
+    if args.part in ("push_loads", "all"):
+        out["push_loads"] = push_loads_part()
     if args.json:
         print(json.dumps(out, default=float))
         return
@@ -267,6 +315,16 @@ def main() -> None:
             "(forward acceleration only)"
         )
         print("online events:", t11["online"]["report"]["load_changes"], "impulses:", t11["online"]["impulses"])
+    for row in out.get("push_loads", []):
+        ev = ", ".join(
+            f"t {e['t_change']:.2f}/{e['t_detected']:.2f} s, {e['mass_before']:.1f}->{e['mass_after']:.1f} kg"
+            for e in row["events"]
+        )
+        print(
+            f"push traj {row['trajectory']} {row['mass_before']:.0f} -> {row['mass_after']:.0f} kg at "
+            f"{row['t_change']:.0f} s: final {row['final_mass']:.2f} kg, impulses {row['impulses']}, events {ev}, "
+            f"tracking {row['tracking_rms_mm']:.2f} mm"
+        )
     for row in out.get("loads", []):
         print(
             f"rigid seed {row['seed']} load {row['kind']:4s} {row['mass_before']:.1f} -> {row['mass_after']:.1f} kg:"

@@ -171,3 +171,22 @@ def test_a_load_dropped_in_is_an_impulse_dated_and_learnt_at_once():
     assert ev.t_change == est.impulses[0] and ev.t_detected <= 13.0
     assert abs(ev.mass_after - 30.0) < 0.05 * 30.0
     assert abs(est.params().m - 30.0) < 1.0
+
+
+def test_table1_test11_with_the_load_dropped_in_is_within_1kg_for_24s():
+    """README: Table I test 11 with momentum exchange (load dropped in at 10 s): impulse at 10.00 s, >= 24 s within 1 kg."""
+    from dataclasses import replace
+
+    from cart.table1 import OnlineLoop, TESTS, contact_point, ekf_config, estimation_error_metrics, guess_params
+    from cart.table1 import simulate_test
+
+    test = replace(TESTS[10], momentum_exchange=True)
+    std = MeasurementNoise.from_level(test.noise).measurement_std()
+
+    def make_loop(ctrl, n):
+        return OnlineLoop(ctrl, guess_params(test), ekf_config(test.noise), contact_point(test), n, meas_std=std)
+
+    run, loop = simulate_test(test, make_loop)
+    assert loop.ekf.impulses == [pytest.approx(10.0, abs=0.015)]
+    assert run.events[0]["t_change"] == pytest.approx(10.0, abs=0.015)
+    assert estimation_error_metrics(run)["time_mass_within_1kg_s"] >= 24.0
