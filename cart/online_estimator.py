@@ -301,10 +301,11 @@ class OnlineLSEstimator:
         return frozenset(self._active)
 
     def report(self) -> dict:
-        """Return what the loop reports: events, flags, unexcited parameters, residual ratio (JSON-ready)."""
+        """Return what the loop reports: events, flags, impulses, unexcited parameters, residual ratio (JSON-ready)."""
         return {
             "load_changes": [e.as_dict() for e in self.events],
             "runoff_flags": [f.as_dict() for f in self.flags],
+            "impulses": [float(t) for t in self.impulses],
             "unexcited": list(self.unexcited()),
             "residual_ratio": [None if r != r else float(r) for r in self.residual_ratio],
         }

@@ -358,6 +358,7 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     from wholebody.motion.kinematics import wholebody_for
     from wholebody.push.robot import cart_se3, handle_point
     from wholebody.viz import COM_MARKER_Z, Scene
+    from wholebody.viz.scene import add_estimator_events
 
     name = result.config.robot  # the robot that ran (Ridgeback + iiwa or WMRA); to_pinocchio_q ignores base_input
     wb = wholebody_for(robots.load(name), arm=list(result.robot_arms))  # its state holds these arms' joints
@@ -382,6 +383,7 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     est = f"{result.config.estimator} estimate" if result.config.estimation else "no estimation, fixed guess"
     scene.add_readout(f"mass ({est}; true {p.m:g} kg)", "kg", t, phi[:, 0])
     scene.add_readout("CoM error", "cm", t, 100 * np.hypot(phi[:, 1] / phi[:, 0] - p.dx, phi[:, 2] / phi[:, 0] - p.dy))
+    add_estimator_events(scene, result.estimator_report, t)
     scene.animate(
         result.t[idx],
         {name: result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},

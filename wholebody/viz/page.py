@@ -14,6 +14,7 @@ import base64
 import gzip
 import html as _html
 import json
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,13 +54,12 @@ class Readout:
         """Return the readout as plain lists (times relative to the first sample, rounded)."""
         t = np.asarray(self.t, float)
         v = np.asarray(self.values, float)
-        keep = np.isfinite(v)
         return {
             "label": self.label,
             "unit": self.unit,
             "digits": int(self.digits),
-            "t": [round(float(x), 3) for x in (t - t[0])[keep]],
-            "v": [round(float(x), self.digits + 2) for x in v[keep]],
+            "t": [round(float(x), 3) for x in t - t[0]],
+            "v": [round(float(x), self.digits + 2) if math.isfinite(x) else None for x in v],  # null: shown as "-"
         }
 
 
@@ -108,7 +108,7 @@ _ANIMATION_JS = """(function () {
     if (clock) clock.textContent = "t = " + t.toFixed(1) + " / " + anim.duration.toFixed(1) + " s";
     readouts.forEach(function (r, i) {
       const v = sample(r, t);
-      if (readoutNodes[i]) readoutNodes[i].textContent = r.label + ": " + (isFinite(v) ? v.toFixed(r.digits) : "-") + " " + r.unit;
+      if (readoutNodes[i]) readoutNodes[i].textContent = r.label + ": " + (Number.isFinite(v) ? v.toFixed(r.digits) : "-") + " " + r.unit;
     });
   }
   function seek(t) {

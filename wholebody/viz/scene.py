@@ -645,6 +645,28 @@ class Scene:
             raise SceneError(f"readout {label!r}: t and values must have the same length, got {t.shape}, {v.shape}")
         self._readouts.append(Readout(label, unit, t, v, digits))
 
+    def add_event_readout(
+        self,
+        label: str,
+        unit: str,
+        t: Any,
+        event_times: Sequence[float],
+        event_values: Sequence[float],
+        digits: int = 1,
+    ) -> None:
+        """Show ``label: value unit`` live: the value of the latest event at the page's time ("-" before the first).
+
+        E.g. the load changes an estimator detected (detection times, new masses) on the time samples ``t``.
+        """
+        t = np.asarray(t, dtype=float).ravel()
+        times, vals = np.asarray(event_times, dtype=float).ravel(), np.asarray(event_values, dtype=float).ravel()
+        if times.shape != vals.shape:
+            raise SceneError(f"event readout {label!r}: {len(times)} times for {len(vals)} values")
+        order = np.argsort(times, kind="stable")
+        idx = np.searchsorted(times[order], t, side="right") - 1
+        values = np.where(idx >= 0, vals[order][np.maximum(idx, 0)] if len(vals) else np.nan, np.nan)
+        self.add_readout(label, unit, t, values, digits)
+
     def _legend_arrow(self, kind: str, scale: float, torque: bool = False, clipped: bool = False) -> None:
         shape, text = LEGEND_TEXT[kind]
         clip = f"; at most {ARROW_MAX:g} m" if clipped else ""
@@ -909,6 +931,31 @@ class Scene:
         path = Path(path)
         path.write_text(self.static_html(controls=controls), encoding="utf-8")
         return path
+
+
+def add_estimator_events(scene: Scene, report: Mapping[str, Any] | None, t: Any) -> None:
+    """Add read-outs of what an online estimator reported (`cart.online_estimator.OnlineLSEstimator.report`).
+
+    The detected load changes (``load detected at t: new mass``, from each change's detection time) and the
+    run-off episodes flagged so far (a count, from each flag's time); nothing for an estimator that reports none.
+    """
+    report = report or {}
+    changes = list(report.get("load_changes") or [])
+    flags = list(report.get("runoff_flags") or [])
+    if changes:
+        times = [c["t_detected"] for c in changes]
+        scene.add_event_readout("load change detected (new mass)", "kg", t, times, [c["mass_after"] for c in changes])
+        scene.add_event_readout("  ... its onset", "s", t, times, [c["t_change"] for c in changes], digits=2)
+    if flags:
+        kinds = sorted({f["kind"] for f in flags})
+        scene.add_event_readout(
+            f"run-off flags so far ({', '.join(kinds)})",
+            "",
+            t,
+            [f["t"] for f in flags],
+            [float(k) for k in range(1, len(flags) + 1)],
+            0,
+        )
 
 
 def frame_points(points: np.ndarray, scene: Scene) -> None:
