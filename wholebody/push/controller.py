@@ -127,6 +127,7 @@ class PushController:
         x_hat = np.array(self.estimator.x[:6], dtype=float)
         q_hat, qd_hat = x_hat[0:3], x_hat[3:6]
         gamma_d = np.asarray(self.cart_controller.gamma(m.t, q_hat, qd_hat, params_hat), dtype=float)  # eq. (26)
+        gamma_d = bounded_demand(gamma_d, self.config.n_arms * self.config.arm_limits.max_force)
         ys, ydots = self.scheduler.update(m.t, params_hat, dt)
         self.allocator.set_points([handle_point(v, self.geometry) for v in ys])
         if self.config.torque_margin is not None:  # |J^T w + g| <= tau_max at each arm's current configuration
@@ -238,6 +239,22 @@ def hand_rows(rows: Sequence[np.ndarray]) -> np.ndarray:
     """Return per-hand joint vectors as the rows of one array, zero-padded where the arms' joint counts differ."""
     width = max(len(r) for r in rows)
     return np.array([np.pad(np.asarray(r, dtype=float), (0, width - len(r))) for r in rows])
+
+
+#: A demand this many times what the hands can push (N, N m at 1 m) is scaled down to it before the allocation.
+DEMAND_BOUND_FACTOR = 10.0
+
+
+def bounded_demand(gamma: np.ndarray, hand_force: float) -> np.ndarray:
+    """Return Gamma_d scaled down (direction kept) to `DEMAND_BOUND_FACTOR` x the hands' total force `hand_force`
+    (torque in N m at a 1 m arm), and zero when it is not finite: after a lost cart or a diverged estimate the cart
+    controller (eq. 26) can ask 1e13 N, which the allocation's solvers cannot take; any demand past the bound
+    saturates the allocation either way."""
+    if not np.all(np.isfinite(gamma)):
+        return np.zeros_like(gamma)
+    bound = DEMAND_BOUND_FACTOR * hand_force
+    peak = float(np.abs(gamma).max())
+    return gamma * (bound / peak) if peak > bound else gamma
 
 
 def _rot_z(theta: float) -> np.ndarray:

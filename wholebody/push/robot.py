@@ -687,15 +687,33 @@ def make_robots(
     arm_seeds += [None] * (len(contact_y) - len(arm_seeds))
     out = []
     for y, by, sd in zip(contact_y, base_lateral_places(prof, contact_y), arm_seeds):
+        bx = side_by_side_base_x(loaded, prof, float(by) - float(y)) if len(contact_y) > 1 else None
         try:
-            out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=sd, geometry=geometry))
+            out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=sd, geometry=geometry, base_x=bx))
         except WholeBodyError:
             from wholebody.push.posture import arm_posture_near
 
             wb = wholebody_for(loaded, base_input=prof.base_input)
-            seed = arm_posture_near(wb, prof, q_cart, float(y), float(by), R_b_ee)
-            out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=seed, geometry=geometry))
+            seed = arm_posture_near(
+                wb, replace(prof, push_base_x=bx or prof.push_base_x), q_cart, float(y), float(by), R_b_ee
+            )
+            out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=seed, geometry=geometry, base_x=bx))
     return out
+
+
+def side_by_side_base_x(loaded: robots.LoadedRobot, prof: RobotProfile, lateral: float) -> float:
+    """Return the base x (relative to the handle, in {b}) of a robot whose base stands `lateral` m beside its contact
+    (two robots side by side): the arm's first joint as far from the handle, in the plane, as when the base stands
+    right behind its contact (`push_base_x`), so that the arm is no more stretched than the one-arm push posture."""
+    wb = wholebody_for(loaded, base_input=prof.base_input)
+    data = wb.model.createData()
+    pin.forwardKinematics(wb.model, data, wb.to_pinocchio_q(np.zeros(3 + wb.n_arm)))
+    mount = data.oMi[wb.model.getJointId(wb.arm_joints[0])].translation  # in the base frame (base at the origin)
+    base_x = prof.push_base_x if prof.push_base_x is not None else BASE_OFFSET_X
+    reach = abs(base_x + mount[0])
+    if abs(lateral) >= reach:
+        return base_x
+    return float(-math.sqrt(reach**2 - lateral**2) - mount[0])
 
 
 def ft_measurement(

@@ -1,0 +1,33 @@
+"""Two robots side by side stand as far from the handle (arm mount to hand, in the plane) as one robot alone: their
+arms are no more stretched than the one-arm push posture (two arms on MuJoCo lost the cart on Traj. 1 when they were)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from wholebody.push import PushConfig
+from wholebody.push.loop import build_controller
+
+
+def _mount_to_hand(mm) -> float:
+    wb = mm.wb
+    data = wb.model.createData()
+    pin.forwardKinematics(wb.model, data, wb.to_pinocchio_q(mm.x))
+    pin.updateFramePlacements(wb.model, data)
+    mount = data.oMi[wb.model.getJointId(wb.arm_joints[0])].translation
+    hand = data.oMf[mm.ee_id].translation
+    return float(np.linalg.norm((hand - mount)[:2]))
+
+
+@pytest.mark.parametrize("plant", ["kinematic", "mujoco"])
+def test_side_by_side_arms_reach_like_one(plant):
+    contact = "fixed" if plant == "mujoco" else "optimal"
+    one = build_controller(PushConfig(trajectory=1, n_arms=1, plant=plant, contact=contact)).controller.robots
+    two = build_controller(PushConfig(trajectory=1, n_arms=2, plant=plant, contact=contact)).controller.robots
+    assert len(two) == 2
+    alone = _mount_to_hand(one[0])
+    for mm in two:
+        assert abs(mm.base_offset_b[1]) > 0.3  # the bases stand beside their contacts (at +-0.2 m)
+        assert _mount_to_hand(mm) == pytest.approx(alone, abs=0.01)
