@@ -34,7 +34,7 @@ from studies.testbeds import mujoco_cart as mc
 try:  # optional dependency, as in mujoco_cart
     import mujoco
 
-    from wholebody.push.mujoco_cart import subtree_bodies, yaw_of
+    from wholebody.push.mujoco_cart import composite_inertia, yaw_of
 except ImportError:  # pragma: no cover
     mujoco = None  # type: ignore[assignment]
 
@@ -128,17 +128,8 @@ class _Load:
         """Return the cart's composite truth now (the load included when it rides on the cart)."""
         model, data = self.model, self.data
         mujoco.mj_forward(model, data)
-        ids = subtree_bodies(model, self.cart_body)
-        if self.on_cart:
-            ids = np.r_[ids, self.body]
-        masses = np.asarray(model.body_mass[ids], dtype=float)
-        pos = np.asarray(data.xipos[ids], dtype=float)
-        mass = float(masses.sum())
-        com = (masses[:, None] * pos).sum(axis=0) / mass
-        rot = np.asarray(data.ximat[ids], dtype=float).reshape(-1, 3, 3)
-        izz_own = np.einsum("nj,nj->n", rot[:, 2, :] ** 2, np.asarray(model.body_inertia[ids], dtype=float))
-        d = pos[:, :2] - com[:2]
-        inertia = float(izz_own.sum() + (masses * (d**2).sum(axis=1)).sum())
+        extra = (self.body,) if self.on_cart else ()
+        mass, com, inertia = composite_inertia(model, data, self.cart_body, extra)
         th = yaw_of(data.xquat[self.cart_body])
         rel = com[:2] - data.xpos[self.cart_body][:2]
         c, s = math.cos(th), math.sin(th)

@@ -26,6 +26,7 @@ every wheel (``m + sum J_spin / r^2``).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 from dataclasses import dataclass, replace
 
@@ -434,15 +435,17 @@ def subtree_bodies(model: mujoco.MjModel, root: int) -> np.ndarray:
 
 
 def composite_inertia(
-    model: mujoco.MjModel, data: mujoco.MjData, root: int | None = None
+    model: mujoco.MjModel, data: mujoco.MjData, root: int | None = None, extra: Sequence[int] = ()
 ) -> tuple[float, np.ndarray, float]:
     """Return (mass, CoM in {s}, yaw inertia about the vertical axis through the CoM) of a subtree.
 
     ``root``: the subtree's body id (None: every body but the world). The yaw inertia sums every body's
     own inertia rotated to {s} (``ximat diag(body_inertia) ximat^T``, its zz entry) and the parallel-axis
-    term ``m_i ((x_i - x_c)^2 + (y_i - y_c)^2)``. Needs ``data`` after ``mj_forward`` (or a step).
+    term ``m_i ((x_i - x_c)^2 + (y_i - y_c)^2)``. ``extra``: more bodies counted with the subtree (a load welded
+    on, not its child). Needs ``data`` after ``mj_forward`` (or a step).
     """
     ids = np.arange(1, model.nbody) if root is None else subtree_bodies(model, root)
+    ids = np.r_[ids, np.asarray(extra, dtype=int)]
     masses = np.asarray(model.body_mass[ids], dtype=float)
     pos = np.asarray(data.xipos[ids], dtype=float)
     mass = float(masses.sum())
