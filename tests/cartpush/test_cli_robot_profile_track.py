@@ -9,7 +9,7 @@ import pytest
 
 import robots
 from cartpush.cli.app import main
-from tests.robots.profile_files import write_profile
+from tests.robots.profile_files import UNTUNED_RIDGEBACK, write_profile
 
 #: the shipped URDFs described anew by the keys a new user writes (no [push] table)
 DIFFERENTIAL = """\
@@ -17,16 +17,6 @@ name = "my_wheelchair"
 urdf = "{urdf}"
 base = "differential"
 wheel_joints = ["wheel_left_joint", "wheel_right_joint"]
-[[arms]]
-joints = [{arm}]
-gripper_frame = "ee"
-"""
-HOLONOMIC = """\
-name = "my_mecanum"
-urdf = "{urdf}"
-base = "holonomic"
-wheel_joints = ["front_left_wheel_joint", "front_right_wheel_joint", "rear_left_wheel_joint", "rear_right_wheel_joint"]
-wheel_radius = 0.0759
 [[arms]]
 joints = [{arm}]
 gripper_frame = "ee"
@@ -42,7 +32,7 @@ def _profile(tmp_path, text: str, urdf: str, joint: str) -> str:
     ("text", "urdf", "joint", "name"),
     [
         (DIFFERENTIAL, "wmra.urdf", "arm_joint", "my_wheelchair"),
-        (HOLONOMIC, "ridgeback_iiwa.urdf", "iiwa_joint_", "my_mecanum"),
+        (UNTUNED_RIDGEBACK, "ridgeback_iiwa.urdf", "iiwa_joint_", "untuned_rb"),
     ],
 )
 def test_track_takes_a_profile_file(tmp_path, capsys, text, urdf, joint, name):

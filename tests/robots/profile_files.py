@@ -21,6 +21,19 @@ joints = {arm}
 gripper_frame = "arm_tool_link"
 ft_frame = "wrist_ft_link"
 """
+#: the Ridgeback + iiwa described only by the keys a new user writes (no [push] table, no push_seed); format with
+#: ``urdf`` and ``arm`` (the quoted joint names)
+UNTUNED_RIDGEBACK = """\
+name = "untuned_rb"
+urdf = "{urdf}"
+base = "holonomic"
+wheel_joints = ["front_left_wheel_joint", "front_right_wheel_joint", "rear_left_wheel_joint", "rear_right_wheel_joint"]
+wheel_radius = 0.0759
+[[arms]]
+joints = [{arm}]
+gripper_frame = "ee"
+ft_frame = "ft_sensor"
+"""
 #: TIAGo's torso, held at 0.2 m when it is not one of the arm's joints.
 TORSO_LOCK = """
 [locked]

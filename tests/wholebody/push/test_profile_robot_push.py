@@ -10,21 +10,8 @@ import numpy as np
 import pytest
 
 import robots
-from tests.robots.profile_files import tiago_profile, write_profile
+from tests.robots.profile_files import UNTUNED_RIDGEBACK, tiago_profile, write_profile
 from wholebody.push import TRUE_CART, PushConfig, run_push
-
-#: the Ridgeback + iiwa described only by the keys a new user writes (no [push] table, no push_seed)
-UNTUNED = """\
-name = "untuned_rb"
-urdf = "{urdf}"
-base = "holonomic"
-wheel_joints = ["front_left_wheel_joint", "front_right_wheel_joint", "rear_left_wheel_joint", "rear_right_wheel_joint"]
-wheel_radius = 0.0759
-[[arms]]
-joints = [{arm}]
-gripper_frame = "ee"
-ft_frame = "ft_sensor"
-"""
 
 
 def limits_hold(res) -> float:
@@ -70,7 +57,7 @@ def test_a_profile_without_tuned_push_settings_pushes_with_one_and_two_arms(tmp_
     from cartpush.cli.app import main
 
     joints = ", ".join(f'"iiwa_joint_{i}"' for i in range(1, 8))
-    path = write_profile(tmp_path, UNTUNED.format(urdf=robots.DATA_DIR / "ridgeback_iiwa.urdf", arm=joints))
+    path = write_profile(tmp_path, UNTUNED_RIDGEBACK.format(urdf=robots.DATA_DIR / "ridgeback_iiwa.urdf", arm=joints))
     argv = ["push", "--robot", str(path), "--arms", str(arms), "--trajectory", "2", "--duration", "8", "--json"]
     assert main(argv) == 0
     out = json.loads(capsys.readouterr().out)
