@@ -95,6 +95,21 @@ def test_no_change_detected_without_one(turning_log):
     assert est.events == () and est.impulses == []
 
 
+def test_a_guess_far_from_a_heavy_cart_is_no_impulse():
+    """A 16 kg guess for a 90 kg cart pushed hard predicts 5x its speed changes: the impulse test allows for the
+    estimate's own uncertainty, so it does not fire (it did, at 0.13 s, and the restart sent the mass to 220 kg)."""
+    heavy = CartParams(90.0, 0.3, 0.1, 12.0, 4.0)
+
+    def ctrl(t, q, qd):
+        f = 250.0 if t < 1.0 else 120.0 * math.sin(0.9 * t) + 60.0  # a hard push from rest, then pushes and pulls
+        return np.array([f * math.cos(q[2]), f * math.sin(q[2]), 8.0 * math.sin(1.3 * t)])
+
+    log = simulate(heavy, ctrl, 8.0, noise=MOCAP, rng=np.random.default_rng(3), substeps=2).measured
+    est = _run(log, make_online_estimator(log.q[0], GUESS, MOCAP.measurement_std()), 5, 3.0, 0.3)
+    assert est.impulses == []
+    assert abs(est.params().m - 90.0) < 9.0
+
+
 def test_runoff_flagged_and_params_held():
     """A wrench that does not fit the cart (a large constant lateral torque offset) is flagged, never given as a CoM outside."""
     log = _sim(15.0, True).measured
