@@ -200,12 +200,7 @@ class BaseTask(Task):
         self.weight, self.gain, self.lookahead = weight, gain, lookahead
 
     def objective(self, s: StepState) -> tuple[np.ndarray | None, np.ndarray | None]:
-        if s.base_target is None:
-            return None, None
-        n = s.wb.n_u
-        H, c = np.zeros((n, n)), np.zeros(n)
-        self.add_objective(s, H, c)
-        return H, c
+        return (None, None) if s.base_target is None else _added_objective(self, s)
 
     def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
         if s.base_target is None:
@@ -254,12 +249,7 @@ class FrameTask(Task):
         self.position_error = 0.0
 
     def objective(self, s: StepState) -> tuple[np.ndarray | None, np.ndarray | None]:
-        if self.target is None:
-            return None, None
-        n = s.wb.n_u
-        H, c = np.zeros((n, n)), np.zeros(n)
-        self.add_objective(s, H, c)
-        return H, c
+        return (None, None) if self.target is None else _added_objective(self, s)
 
     def add_objective(self, s: StepState, H: np.ndarray, c: np.ndarray) -> None:
         if self.target is None:
@@ -269,3 +259,11 @@ class FrameTask(Task):
             pose_error(T, self.target), self.gain, self.target_velocity, self.max_linear, self.max_angular
         )
         add_weighted_gram(J, self.weights, v_ref, H, c)
+
+
+def _added_objective(task: Task, s: StepState) -> tuple[np.ndarray, np.ndarray]:
+    """Return (H, c) of a task that writes its cost with `add_objective` (summed into zeros)."""
+    n = s.wb.n_u
+    H, c = np.zeros((n, n)), np.zeros(n)
+    task.add_objective(s, H, c)
+    return H, c
