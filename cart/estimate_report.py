@@ -164,24 +164,27 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
     from cart.segments import find_segments
 
     res = identify(log, streams=streams)
-    warnings = list(log.warnings) + streams.warnings() + list(res.warnings)
     if res.wrench_noise is None:
         raise IdentifiabilityError(f"{log.source}: the least-squares fit gave no wrench-noise model")
+    segments, seg_notes = find_segments(log, streams, res)
+    split = len(segments) > 1
+    # a load change: one cart cannot fit the whole log, so the verdict is the segments' (each its own fit)
+    whole = [w for w in res.warnings if not (split and w.startswith("the model does not fit"))]
+    warnings = list(log.warnings) + streams.warnings() + whole
     f_noise, t_noise = res.wrench_noise
     noise = {"force": f_noise.low_frequency_std, "torque": t_noise.low_frequency_std}
     nis, rejected, note = _innovation(log, streams, res.params, noise)
     warnings += [note] if note else []
     fits = res.model_fits
-    if math.isfinite(nis) and nis > NIS_MISFIT and fits:
+    if math.isfinite(nis) and nis > NIS_MISFIT and fits and not split:
         fits = False
         warnings.append(f"the EKF's innovations do not fit (mean NIS {nis:.1f}, ~6 expected); run `cartpush diagnose`")
-    segments, seg_notes = find_segments(log, streams, res)
     warnings += seg_notes
     params, std = res.params, res.std
-    if len(segments) > 1:
+    if split:
         last = segments[-1]
         params, std = last["params"], last["std"]
-        fits = fits and all(s["model_fits"] for s in segments)
+        fits = all(s["model_fits"] for s in segments)
     fields = {
         "residual_ratio": list(res.residual_ratio),
         "cutoff_hz": res.cutoff_hz,

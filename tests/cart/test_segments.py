@@ -38,6 +38,16 @@ def test_a_light_cart_losing_40_percent_gives_two_segments():
     assert segs[0]["t0_range"] is None
 
 
+def test_a_log_split_in_segments_that_each_fit_fits():
+    # one cart cannot fit the whole log across a load change: the verdict is the segments', and the whole-log
+    # "does not fit" warning is not repeated beside them
+    log, _, _ = _load_case(3000)  # 30 % of the mass taken off mid-log: no one cart fits it whole
+    rep = estimate_log(log)
+    assert len(rep.segments) == 2 and all(s["model_fits"] for s in rep.segments)
+    assert rep.model_fits
+    assert not any(w.startswith("the model does not fit") for w in rep.warnings)
+
+
 def test_a_change_while_cruising_is_dated_with_the_stretch_that_cannot_tell():
     # the load comes at the end of an acceleration, then 4 s of cruise: any split in the cruise fits alike
     log, tc, truth = _load_case(3012)
