@@ -39,6 +39,10 @@ PLAUSIBLE_HEADING = 6 * math.pi  # |theta| of a wrapped or slowly unwrapped head
 PLAUSIBLE_MEDIAN_DT = 0.5  # s
 #: Share of rows repeating the previous pose above which a table holds a slower pose stream (cart.streams).
 HELD_POSE_SHARE = 0.2
+_EMPTY_CELL_FIX = (
+    f"(every row needs all of {', '.join(REQUIRED_COLUMNS)}: two sensor streams merged with empty cells? "
+    "repeat each stream's last sample on the rows where it has none, or drop those rows)"
+)
 
 
 @dataclass(frozen=True)
@@ -173,6 +177,12 @@ def _header_columns(path: str, line: str, header_line: int) -> tuple[list[str], 
     """Return (header, the columns the reader uses); raise LogFormatError for missing, duplicate or lone columns."""
     header = [h.strip() for h in line.split(",")]
     missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    for sep, name in ((";", "semicolons"), ("\t", "tabs"), (None, "spaces")):
+        if missing and all(c in [h.strip() for h in line.split(sep)] for c in REQUIRED_COLUMNS):
+            raise LogFormatError(
+                f"{path}: line {header_line}: the columns are separated by {name}; the log format is "
+                "comma-separated with a decimal point: write it with ',' between fields"
+            )
     if missing:
         raise LogFormatError(
             f"{path}: line {header_line}: missing required column(s) {', '.join(missing)} (header is {line.strip()!r})"
@@ -194,15 +204,30 @@ def _parse_value(path: str, lineno: int, name: str, text: str) -> float:
     try:
         value = float(text)
     except ValueError:
+        if not text:
+            raise LogFormatError(f"{path}: line {lineno}: column {name}: empty value {_EMPTY_CELL_FIX}") from None
         raise LogFormatError(f"{path}: line {lineno}: column {name}: non-numeric value {text!r}") from None
     if not -MAX_ABS_VALUE <= value <= MAX_ABS_VALUE:
         if not math.isfinite(value):
-            raise LogFormatError(f"{path}: line {lineno}: column {name}: non-finite value {text!r}")
+            raise LogFormatError(
+                f"{path}: line {lineno}: column {name}: non-finite value {text!r}"
+                + (f" {_EMPTY_CELL_FIX}" if math.isnan(value) else "")
+            )
         raise LogFormatError(
             f"{path}: line {lineno}: column {name}: value {text} is out of range "
-            f"(|value| > {MAX_ABS_VALUE:g} in SI units)"
+            f"(|value| > {MAX_ABS_VALUE:g} in SI units){_epoch_hint(name, value)}"
         )
     return value
+
+
+def _epoch_hint(name: str, value: float) -> str:
+    """Return the conversion for a time beyond ``MAX_ABS_VALUE``: a Unix time in ms, us or ns ('' otherwise)."""
+    if name != "t" or value <= 0:
+        return ""
+    for unit, factor in (("milliseconds", 1e3), ("microseconds", 1e6), ("nanoseconds", 1e9)):
+        if value / factor <= 1e11:  # a Unix time in s is ~1.7e9 until the year 5000
+            return f"; t looks like a Unix time in {unit}: divide t by {factor:g} (LOG_FORMAT: seconds)"
+    return ""
 
 
 def _parse_rows_fast(body: list[str], header: list[str], wanted: list[str]) -> np.ndarray | None:
@@ -244,16 +269,29 @@ def _parse_rows(path: str, body: list[str], header: list[str], wanted: list[str]
     return rows
 
 
+def _check_time_order(path: str, t: np.ndarray, header_line: int) -> None:
+    """Raise LogFormatError at the first time that is not strictly increasing, naming how many and the fix."""
+    steps = np.diff(t)
+    bad = np.flatnonzero(steps <= 0.0)
+    if not bad.size:
+        return
+    r = int(bad[0]) + 1
+    back, same = int(np.sum(steps < 0.0)), int(np.sum(steps == 0.0))
+    what = "equal to" if t[r] == t[r - 1] else "before"
+    counts = ", ".join(
+        text for n, text in ((back, f"{back} step(s) back in time"), (same, f"{same} repeated time(s)")) if n
+    )
+    raise LogFormatError(
+        f"{path}: line {header_line + 1 + r}: time {float(t[r])!r} is {what} the previous time "
+        f"{float(t[r - 1])!r} ({counts}); t must be strictly increasing: sort the rows by t and keep one "
+        "row per time"
+    )
+
+
 def _log_from_columns(path: str, data: dict[str, np.ndarray], metadata: dict[str, str], header_line: int) -> CartLog:
     """Return the CartLog of the parsed columns (heading unwrapped, missing velocity columns estimated) with notes."""
     t = data["t"]
-    bad = np.nonzero(np.diff(t) <= 0.0)[0]
-    if bad.size:
-        r = int(bad[0]) + 1
-        raise LogFormatError(
-            f"{path}: line {header_line + 1 + r}: time {t[r]!r} is not strictly greater than "
-            f"the previous time {t[r - 1]!r}"
-        )
+    _check_time_order(path, t, header_line)
     q = np.column_stack([data["x"], data["y"], np.unwrap(data["theta"])])
     gamma = np.column_stack([data["fx"], data["fy"], data["tau"]])
     qd = None

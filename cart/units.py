@@ -4,8 +4,9 @@ docs/log_format.md asks for SI units and radians. Three mistakes are common and 
 parameters (a 50 kg cart estimated at 0.06 kg from positions in millimetres); each shows in the
 kinematics of the pose stream, whatever the cart:
 
-- time in milliseconds: the pose's median sample interval is beyond ``MAX_POSE_PERIOD`` (motion
-  capture runs at 10 Hz or more);
+- time in milliseconds (or micro-, nanoseconds): the pose's median sample interval is beyond
+  ``MAX_POSE_PERIOD`` (motion capture runs at 10 Hz or more); the unit named is the one that brings it
+  below;
 - positions in millimetres (or centimetres): the cart's typical speed (the 90th percentile over
   0.1 s windows, so a glitch does not count) is beyond ``MAX_TYPICAL_SPEED``;
 - heading in degrees: the heading turns about 57 times faster than the direction of travel (a cart
@@ -70,6 +71,14 @@ def _heading_fit(t: np.ndarray, q: np.ndarray, w: int) -> tuple[float, float]:
     return float(np.median(np.abs(np.sin(psi - th)))), float(np.median(np.abs(np.sin(psi - np.radians(th)))))
 
 
+def _time_unit(period: float) -> tuple[str, float]:
+    """Return the time unit (name, factor to seconds) that brings the pose period to ``MAX_POSE_PERIOD`` or less."""
+    for unit, factor in (("milliseconds", 1e3), ("microseconds", 1e6)):
+        if period / factor <= MAX_POSE_PERIOD:
+            return unit, factor
+    return "nanoseconds", 1e9
+
+
 def check_units(streams: Streams, source: str = "<memory>") -> None:
     """Raise :class:`UnitsError` when the pose stream's kinematics say time, positions or heading are not SI."""
     t, q = streams.pose.t, streams.pose.values
@@ -77,9 +86,10 @@ def check_units(streams: Streams, source: str = "<memory>") -> None:
         return
     period = float(np.median(np.diff(t)))
     if period > MAX_POSE_PERIOD:
+        unit, factor = _time_unit(period)
         raise UnitsError(
-            f"{source}: the pose is sampled every {period:.4g} s (median): time looks like milliseconds; "
-            "divide t by 1000 (LOG_FORMAT: seconds)"
+            f"{source}: the pose is sampled every {period:.4g} s (median): time looks like {unit}; "
+            f"divide t by {factor:g} (LOG_FORMAT: seconds)"
         )
     w = _windows(t, 0.1)
     if len(t) <= 3 * w:
