@@ -1,18 +1,24 @@
-"""Physically consistent cart parameters: the least-squares estimate constrained to m > 0 and I > 0.
+"""Physically consistent cart parameters: the least-squares estimate constrained to a physical body.
 
 The regression of paper eq. 4 is linear in ``p = [m, m dx, m dy, J, c_v, c_w]`` with
 ``J = I + m (dx^2 + dy^2)`` (paper §II.B), and nothing in it stops ``J`` falling below
-``m (dx^2 + dy^2)`` (a negative inertia about the CoM) on a weakly excited log. Like the
-log-Cholesky parameterisation of rigid-body inertia (Rucker & Wensing 2022), the parameters are
-written ``m = exp(u0)``, ``I = exp(u3)``, ``dx``, ``dy``, ``c_v``, ``c_w`` free, so every ``u`` is a
-physical body; :func:`constrained_fit` minimises the least-squares cost ``(p(u) - p_hat)^T W
-(p(u) - p_hat)`` (``W`` the inverse covariance of the unconstrained estimate) over ``u`` by
-Levenberg-Marquardt. On a log whose estimate is already physical it returns it unchanged.
+``m (dx^2 + dy^2)`` (a negative inertia about the CoM) on a weakly excited log. In ``p`` the
+physical bodies (``m > 0``, ``I > 0``; dampings ``c_v, c_w >= 0``) form a convex cone:
+``m J - (m dx)^2 - (m dy)^2 >= 0`` is a rotated second-order cone, the planar case of the
+positive-semidefinite pseudo-inertia of Wensing, Kim & Slotine (2018) that the log-Cholesky
+parameterisation of Rucker & Wensing (2022) spans. :func:`constrained_fit` minimises the
+least-squares cost ``(p - p_hat)^T W (p - p_hat)`` (``W`` the inverse covariance of the
+unconstrained estimate) over that cone, in coordinates whitened by the covariance (an
+interior-point trust-region method, ``scipy.optimize.minimize(method="trust-constr")``): the
+problem is convex, so the minimum found is the global one however ill-conditioned ``W`` is (a cart
+that never turns leaves the CoM and the yaw damping nearly collinear). :func:`p_of_u` maps the
+log-Cholesky-style coordinates ``u = [log m, dx, dy, log I, c_v, c_w]`` to ``p``.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
@@ -23,49 +29,65 @@ def p_of_u(u: np.ndarray) -> np.ndarray:
     return np.array([m, m * dx, m * dy, inertia + m * (dx * dx + dy * dy), u[4], u[5]])
 
 
-def _jacobian(u: np.ndarray) -> np.ndarray:
-    """Return dp/du (6, 6)."""
-    m, dx, dy, inertia = math.exp(u[0]), u[1], u[2], math.exp(u[3])
-    jac = np.zeros((6, 6))
-    jac[:, 0] = [m, m * dx, m * dy, m * (dx * dx + dy * dy), 0.0, 0.0]
-    jac[1, 1], jac[3, 1] = m, 2.0 * m * dx
-    jac[2, 2], jac[3, 2] = m, 2.0 * m * dy
-    jac[3, 3] = inertia
-    jac[4, 4] = jac[5, 5] = 1.0
+def _physical_margins(p: np.ndarray) -> np.ndarray:
+    """Return [m J - (m dx)^2 - (m dy)^2, m, c_v, c_w]: all >= 0 for a physical body."""
+    m, a, b, j, cv, cw = p
+    return np.array([m * j - a * a - b * b, m, cv, cw])
+
+
+def _margin_jacobian(p: np.ndarray) -> np.ndarray:
+    """Return d(margins)/dp (4, 6)."""
+    m, a, b, j = p[:4]
+    jac = np.zeros((4, 6))
+    jac[0, :4] = [j, -2.0 * a, -2.0 * b, m]
+    jac[1, 0] = jac[2, 4] = jac[3, 5] = 1.0
     return jac
 
 
+def _made_physical(p: np.ndarray, i_min: float) -> np.ndarray:
+    """Return ``p`` with the mass and dampings at least 0 (mass > 0) and the inertia about the CoM at least i_min."""
+    p = p.copy()
+    p[0] = max(p[0], 1e-9)
+    p[4], p[5] = max(p[4], 0.0), max(p[5], 0.0)
+    inertia = p[3] - (p[1] ** 2 + p[2] ** 2) / p[0]
+    if inertia < i_min:
+        p[3] += i_min - inertia
+    return p
+
+
 def constrained_fit(p_hat: np.ndarray, cov: np.ndarray, min_inertia_share: float = 1e-3) -> np.ndarray:
-    """Return the physical p (m > 0, I about the CoM > 0) closest to ``p_hat`` in the metric of ``cov``.
+    """Return the physical p (m > 0, I about the CoM > 0, c_v, c_w >= 0) closest to ``p_hat`` in the metric of ``cov``.
 
-    ``p_hat`` (6,): the unconstrained estimate with covariance ``cov`` (6, 6). Starts from p_hat with the
-    mass and the CoM inertia raised to positive values (``min_inertia_share`` of J, at least).
+    ``p_hat`` (6,): the unconstrained estimate with covariance ``cov`` (6, 6). A physical ``p_hat`` is
+    returned unchanged. Otherwise ``p = p_hat + L z`` with ``L L^T = cov`` and ``|z|^2`` is minimised
+    subject to the margins of :func:`_physical_margins`; the inertia about the CoM is then raised to at
+    least ``min_inertia_share`` of the std of J (a boundary point, not exactly 0).
     """
+    from scipy import optimize  # lazy: scipy.optimize costs start-up time
+
     p_hat = np.asarray(p_hat, float)
-    w = np.linalg.pinv(cov)
-    m0 = max(p_hat[0], 1e-3 * abs(p_hat[0]) + 1e-9)
-    dx, dy = p_hat[1] / m0, p_hat[2] / m0
-    i0 = max(p_hat[3] - m0 * (dx * dx + dy * dy), min_inertia_share * max(abs(p_hat[3]), 1e-9))
-    u = np.array([math.log(m0), dx, dy, math.log(i0), p_hat[4], p_hat[5]])
-
-    def cost(v: np.ndarray) -> float:
-        d = p_of_u(v) - p_hat
-        return float(d @ w @ d)
-
-    lam, f = 1e-3, cost(u)
-    for _ in range(100):
-        jac = _jacobian(u)
-        d = p_of_u(u) - p_hat
-        h = jac.T @ w @ jac
-        g = jac.T @ w @ d
-        step = np.linalg.solve(h + lam * np.diag(np.diag(h) + 1e-12), -g)
-        trial = u + step
-        if np.all(np.abs(trial[[0, 3]]) < 700) and (f_new := cost(trial)) < f:
-            u, f, lam = trial, f_new, lam * 0.3
-            if np.max(np.abs(step)) < 1e-10:
-                break
-        else:
-            lam *= 10.0
-            if lam > 1e12:
-                break
-    return p_of_u(u)
+    margins = _physical_margins(p_hat)
+    if margins[0] > 0 and margins[1] > 0 and min(margins[2:]) >= 0:
+        return p_hat.copy()
+    cov = 0.5 * (np.asarray(cov, float) + np.asarray(cov, float).T)
+    lam, vec = np.linalg.eigh(cov)
+    whiten = vec * np.sqrt(np.maximum(lam, max(float(lam.max()), 1e-300) * 1e-16))
+    cons = optimize.NonlinearConstraint(
+        lambda z: _physical_margins(p_hat + whiten @ z),
+        0.0,
+        np.inf,
+        jac=lambda z: _margin_jacobian(p_hat + whiten @ z) @ whiten,
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # trust-constr notes its own internal choices
+        res = optimize.minimize(
+            lambda z: float(z @ z),
+            np.zeros(6),
+            jac=lambda z: 2.0 * z,
+            hess=lambda z: 2.0 * np.eye(6),
+            method="trust-constr",
+            constraints=[cons],
+            options={"maxiter": 3000, "gtol": 1e-12, "xtol": 1e-14},
+        )
+    i_min = min_inertia_share * max(math.sqrt(max(cov[3, 3], 0.0)), 1e-9)
+    return _made_physical(p_hat + whiten @ res.x, i_min)
