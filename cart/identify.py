@@ -43,6 +43,7 @@ from typing import TypedDict
 
 import numpy as np
 
+from cart import identify_casters as casters_model
 from cart._kernels_identify import butter_lowpass_sos, sosfiltfilt, student_t_quantile
 from cart.dynamics import regressor
 from cart.errors import CartError
@@ -126,6 +127,7 @@ class Identification:
     offsets: dict[str, float] = field(default_factory=dict)
     grid_dt: float = float("nan")
     fit_data: FitData | None = field(default=None, repr=False)
+    casters: casters_model.Casters | None = None
 
 
 @dataclass(frozen=True)
@@ -665,6 +667,87 @@ def _model_uncertainty(
     return cov, coulomb, fits
 
 
+def _caster_geometry(
+    grid: _Grid, sos: np.ndarray, reg: _Regression, noise: np.ndarray, v: np.ndarray, om: np.ndarray
+) -> tuple[float, float, np.ndarray | None]:
+    """Return (axle, trail, filtered columns on the kept rows or None) of the least weighted residual.
+
+    The geometries of :mod:`cart.identify_casters` are searched on the first ``SEARCH_SAMPLES`` grid samples,
+    with the nominal fit's (Huber) row weights held, regressor noise compensated as in :func:`_wls`; the
+    columns are returned when the search saw the whole grid.
+    """
+    n = min(len(grid.t), casters_model.SEARCH_SAMPLES)
+    keep, n_c = reg.keep[:n], casters_model.N_COLUMNS
+    k = int(keep.sum())
+    x0, y0 = reg.x[:k], reg.y[:k]
+    pad = np.pad(noise, ((0, 0), (0, x0.shape[-1] + n_c - noise.shape[1])))
+    _, scale, w = _wls(x0, y0, pad[:, : x0.shape[-1]])
+    wts = w / scale**2
+    alpha, rate = casters_model.lanes(grid.t[:n], v[:n], om[:n], casters_model.AXLES, casters_model.TRAILS)
+    best, where, cols_best = math.inf, (casters_model.AXLES[0], casters_model.TRAILS[0]), None
+    for i, axle in enumerate(casters_model.AXLES):
+        units = [
+            casters_model.unit_rows(alpha[:, i, j], rate[:, i, j], om[:n], axle, e)
+            for j, e in enumerate(casters_model.TRAILS)
+        ]
+        filtered = _filtfilt(sos, np.concatenate([u.reshape(n, -1) for u in units], axis=1))[keep]
+        for j, e in enumerate(casters_model.TRAILS):
+            cols = filtered[:, 2 * n_c * j : 2 * n_c * (j + 1)].reshape(k, 2, n_c)
+            x = np.concatenate([x0, cols], axis=-1)
+            a, b = _normal(x, y0, wts)
+            p = np.linalg.lstsq(a - _noise_correction(wts, pad), b, rcond=None)[0]
+            ssr = float(np.sum(wts * (y0 - _predict(x, p)) ** 2))
+            if ssr < best:
+                best, where, cols_best = ssr, (axle, e), cols
+    return where[0], where[1], (cols_best if n == len(grid.t) else None)
+
+
+def _with_casters(
+    grid: _Grid, sos: np.ndarray, reg: _Regression, noise: np.ndarray
+) -> tuple[_Regression, float, float]:
+    """Return (the regression with the caster columns of the best geometry appended, axle, trail)."""
+    _, v, om, _, _ = _kinematics(grid.q, grid.dt, sos)
+    axle, trail, cols = _caster_geometry(grid, sos, reg, noise, v, om)
+    if cols is None:
+        full = casters_model.columns(grid.t, v, om, axle, trail)
+        cols = _filtfilt(sos, full.reshape(len(grid.t), -1)).reshape(full.shape)[reg.keep]
+    x = np.concatenate([reg.x, cols], axis=-1)
+    return _Regression(x=x, y=reg.y, v=reg.v, om=reg.om, keep=reg.keep, y_raw=reg.y_raw), axle, trail
+
+
+def _caster_fit(
+    grid: _Grid, sos: np.ndarray, full: _Regression, noise: np.ndarray, step: int, lag: int
+) -> tuple[
+    _Regression, _Regression, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None, casters_model.Casters
+]:
+    """Return (full and decimated regressions with the caster columns, their fit, the caster model's test).
+
+    The fit is None unless the three caster torques are jointly significant beyond a Coulomb-like forward
+    force and yaw torque (rolling resistance, dry friction: tested with those columns in the fit too, so
+    that a dry-friction sliding object is not read as casters): Wald test on their covariance,
+    :func:`cart.identify_casters.wald_threshold`.
+    """
+    ext, axle, trail = _with_casters(grid, sos, full, noise)
+    reg = _every(ext, step)
+    threshold = casters_model.wald_threshold()
+    k = casters_model.N_COLUMNS
+    # the HAC covariance rests on about rows / lag independent rows; with n_p parameters fitted it is low by
+    # n_eff / (n_eff - n_p) (degrees of freedom), and with n_eff <= n_p it says nothing
+    n_eff, n_p = len(reg.y) / max(lag, 1), reg.x.shape[-1] + 2
+    if n_eff <= n_p:
+        return ext, reg, None, casters_model.Casters(axle, trail, 0.0, math.inf, False)
+    threshold = threshold * n_eff / (n_eff - n_p)
+    try:
+        eps = (0.05 * float(np.std(reg.v)) + 1e-12, 0.05 * float(np.std(reg.om)) + 1e-12)
+        pt, covt, _, _ = _fit(_with_coulomb_columns(reg.x, reg.v, reg.om, eps), reg.y, noise, lag)
+        tail, cc = pt[-2 - k : -2], covt[-2 - k : -2, -2 - k : -2]
+        wald = float(tail @ np.linalg.pinv(cc) @ tail) if np.all(np.isfinite(cc)) else 0.0
+        fit = _fit(reg.x, reg.y, noise, lag) if wald > threshold else None
+    except np.linalg.LinAlgError:
+        return ext, reg, None, casters_model.Casters(axle, trail, 0.0, threshold, False)
+    return ext, reg, fit, casters_model.Casters(axle, trail, wald, threshold, fit is not None)
+
+
 def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | None = None) -> Identification:
     """Return the filtered-regressor least-squares estimate of the cart's parameters on a whole log.
 
@@ -692,6 +775,14 @@ def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | 
         raise IdentifiabilityError(
             f"{log.source}: the least-squares problem is singular ({exc}): the log does not excite the parameters"
         ) from None
+    ext, ext_reg, ext_fit, casters = _caster_fit(grid, sos, full, noise, step, lag)
+    if ext_fit is not None:
+        full, reg, (p, cov, scale, r) = ext, ext_reg, ext_fit
+        warnings.append(
+            f"the casters' swivel resistance is modelled (swivel axes about {casters.axle:.2g} m ahead of the axle, "
+            f"trail about {100 * casters.trail:.2g} cm; Wald {casters.wald:.0f} > {casters.threshold:.0f}): "
+            "without it the casters' swings read as mass"
+        )
     f_noise, t_noise, out_gain = _wrench_noise(full, p, grid.dt, sos)
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(lv, out_gain, sv, so, p, r, reg.y)
@@ -720,6 +811,7 @@ def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | 
         offsets={"forward": float(p[6]), "fx": float(p[7]), "fy": float(p[8]), "torque": float(p[9])},
         grid_dt=grid.dt,
         fit_data={"t": grid.t[reg.keep][::step], "x": reg.x, "y": reg.y, "scale": scale, "step": step},
+        casters=casters,
     )
 
 

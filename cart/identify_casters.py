@@ -1,0 +1,159 @@
+"""Swivelling casters in the filtered regression of :mod:`cart.identify`: their swivel resistance as columns.
+
+A cart on two fixed wheels and two swivelling casters (the paper's cart, Fig. 1) obeys paper eq. 4 only
+while the casters trail their swivel axes. Whenever the direction in which a swivel axis moves changes
+(a start, a stop with a turn, a reversal, the start or end of a turn) the casters swing round, and the
+swivel bearing's friction and the wheel's scrub on the floor resist the swing. Each caster is a light fork:
+its torque balance about the swivel axis makes the floor push the wheel sideways with ``T / e`` (``T`` the
+resisting torque, ``e`` the trail), which the cart feels at the swivel axis, plus the bearing's own torque.
+These swings happen exactly when the cart accelerates, so the force they need is read as mass: a
+physics-engine cart (MuJoCo, ``studies.testbeds.mujoco_cart``) reads 1-11 % heavy without them.
+
+The swivel angles follow from the cart's motion alone (no-slip rolling of each caster wheel,
+:func:`cart.caster_lanes.caster_lanes`): ``alpha' = -(R / e) sin(alpha - psi) - omega`` with ``(R cos psi,
+R sin psi) = (v - omega y, omega x)`` the velocity of the swivel axis at ``(x, y)`` in {b}. The resisting
+torque has three linear parameters: bearing friction ``tanh(alpha' / eps)`` (Coulomb, regularised) and
+damping ``alpha'``, and the wheel's scrub ``tanh((alpha' + omega) / eps)`` (torsional friction against
+the wheel's yaw rate in the world, felt by the cart only through the sideways force). The geometry (axle
+position ``x`` of the swivel axes, trail ``e``) enters nonlinearly and is searched on a grid (least
+weighted residual); the casters' half-track matters little and is fixed.
+
+The columns are kept only when the three torques are jointly significant (Wald test, the grid search
+counted by a Bonferroni factor) and the model then reads them as one more cause of the wrench; on a cart
+without casters (or one whose casters hardly swing) the nominal fit is unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+#: Swivel-axis positions x (m, along {b} x) and trails e (m) searched: carts from a trolley to a hospital bed.
+AXLES: tuple[float, ...] = tuple(float(x) for x in np.geomspace(0.35, 1.6, 4))
+TRAILS: tuple[float, ...] = tuple(float(e) for e in np.geomspace(0.018, 0.06, 3))
+#: Lateral offset (m) of the two modelled casters (their exact value matters little: it enters the yaw lever only).
+HALF_TRACK = 0.25
+#: Significance of the caster columns (Wald test, three dof, Bonferroni over the grid).
+ALPHA = 1e-3
+#: Grid samples on which the geometry is searched (the first ones; the chosen geometry then runs on all).
+SEARCH_SAMPLES = 24_000
+#: Regularisation of the Coulomb columns: this share of the RMS of the rate they act on.
+EPS_SHARE = 0.05
+N_COLUMNS = 3
+
+
+@dataclass(frozen=True)
+class Casters:
+    """The caster model's test in a fit: best geometry, Wald statistic, its threshold (:func:`wald_threshold`), kept."""
+
+    axle: float
+    trail: float
+    wald: float
+    threshold: float
+    kept: bool
+
+
+def chi2_3_isf(alpha: float) -> float:
+    """Return x with P(X > x) = alpha for a chi-square of three dof (Q(x) = erfc(sqrt(x/2)) + sqrt(2x/pi) e^(-x/2))."""
+    from cart._kernels_identify import bisect_increasing
+
+    def minus_log_q(x: float) -> float:
+        q = math.erfc(math.sqrt(0.5 * x)) + math.sqrt(2.0 * x / math.pi) * math.exp(-0.5 * x)
+        return -math.log(max(q, 1e-300))
+
+    return bisect_increasing(minus_log_q, -math.log(alpha), 1e-10)
+
+
+def wald_threshold() -> float:
+    """Return the Wald threshold of the caster columns: three dof at ALPHA over the number of geometries searched."""
+    return chi2_3_isf(ALPHA / (len(AXLES) * len(TRAILS)))
+
+
+def unit_rows(alpha: np.ndarray, rate: np.ndarray, om: np.ndarray, axle: float, trail: float) -> np.ndarray:
+    """Return the wrench (n, 2 rows: forward, yaw; 3 columns) each unit resisting torque needs, summed over the casters.
+
+    ``alpha``, ``rate`` (n, 2): swivel angles and rates of the two casters at ``(axle, +-HALF_TRACK)``; ``om``
+    (n,) the cart's yaw rate. A resisting torque ``T`` in the bearing needs the sideways force ``T / e`` at the
+    swivel axis and the torque ``T`` itself; the wheel's scrub needs the force only.
+    """
+    ys = np.array([HALF_TRACK, -HALF_TRACK])
+    arm = (axle * np.cos(alpha) + ys * np.sin(alpha)) / trail
+    side = np.sin(alpha) / trail
+    wheel_rate = rate + om[:, None]
+    eps_b = EPS_SHARE * float(np.sqrt(np.mean(rate**2))) + 1e-12
+    eps_w = EPS_SHARE * float(np.sqrt(np.mean(wheel_rate**2))) + 1e-12
+    out = np.empty((len(om), 2, N_COLUMNS))
+    for k, (unit, own) in enumerate(
+        ((np.tanh(rate / eps_b), 1.0), (rate, 1.0), (np.tanh(wheel_rate / eps_w), 0.0)),
+    ):
+        out[:, 0, k] = -np.sum(unit * side, axis=1)
+        out[:, 1, k] = -np.sum(unit * (own - arm), axis=1)
+    return out
+
+
+def _prefix_products(m: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """Return P_i = m_i m_(i-1) ... m_0 of 2x2 matrices given by their entries (m00, m01, m10, m11), each (n, ...).
+
+    Doubling (Hillis-Steele) scan: log2(n) vectorised passes instead of n small steps. Each product is
+    scaled to a largest entry of one: the matrices act on a projective state (only the direction of
+    (p, q) matters).
+    """
+    a00, a01, a10, a11 = (np.array(x, dtype=float) for x in m)
+    d = 1
+    while d < len(a00):
+        b00, b01, b10, b11 = a00[:-d], a01[:-d], a10[:-d], a11[:-d]
+        c00 = a00[d:] * b00 + a01[d:] * b10
+        c01 = a00[d:] * b01 + a01[d:] * b11
+        c10 = a10[d:] * b00 + a11[d:] * b10
+        c11 = a10[d:] * b01 + a11[d:] * b11
+        scale = np.maximum(np.maximum(np.abs(c00), np.abs(c01)), np.maximum(np.abs(c10), np.abs(c11))) + 1e-300
+        a00[d:], a01[d:], a10[d:], a11[d:] = c00 / scale, c01 / scale, c10 / scale, c11 / scale
+        d *= 2
+    return a00, a01, a10, a11
+
+
+def lanes(
+    t: np.ndarray, v: np.ndarray, om: np.ndarray, axles: tuple[float, ...], trails: tuple[float, ...]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return the swivel angles and rates (n, axles, trails, 2 casters) of casters at (x, +-HALF_TRACK), trail e.
+
+    The natural lane of :func:`cart.caster_lanes.caster_lanes` (the casters start trailing; no forced swing
+    side): per sample, ``tan(b / 2)`` of the misalignment ``b = alpha - psi`` decays exactly by
+    ``exp(-R dt / e)`` and turns with the swivel axis's direction. Each step is a linear map of the
+    projective pair (p, q), ``tan(b / 2) = p / q``, so the whole lane is a prefix product
+    (:func:`_prefix_products`) rather than a loop over samples.
+    """
+    xs = np.asarray(axles, float)[:, None, None]
+    ys = np.array([HALF_TRACK, -HALF_TRACK])[None, None, :]
+    es = np.asarray(trails, float)[None, :, None]
+    vm = np.concatenate([[v[0]], 0.5 * (v[1:] + v[:-1])])[:, None, None, None]
+    omm = np.concatenate([[om[0]], 0.5 * (om[1:] + om[:-1])])[:, None, None, None]
+    dt = np.concatenate([[0.0], np.diff(t)])[:, None, None, None]
+    px, py = vm - omm * ys, omm * xs
+    psi = np.arctan2(py, px)  # (n, axles, 1, 2)
+    decay = np.exp(-np.hypot(px, py) * dt / es)  # (n, axles, trails, 2)
+    yaw = omm * dt
+    half = 0.5 * (psi[:-1] - yaw[:-1] - psi[1:])
+    c, s = np.cos(half), np.sin(half)
+    # A_0 = D_0 (p *= decay); A_i = D_i R_(i-1), R: (p, q) -> (c p + s q, c q - s p)
+    ones = np.ones_like(decay)
+    m00 = decay * np.concatenate([ones[:1], np.broadcast_to(c, decay[1:].shape)])
+    m01 = decay * np.concatenate([0.0 * ones[:1], np.broadcast_to(s, decay[1:].shape)])
+    m10 = np.concatenate([0.0 * ones[:1], -np.broadcast_to(s, decay[1:].shape)])
+    m11 = np.concatenate([ones[:1], np.broadcast_to(c, decay[1:].shape)])
+    p00, p01, p10, p11 = _prefix_products((m00, m01, m10, m11))
+    s0, c0 = np.sin(-0.5 * psi[0]), np.cos(-0.5 * psi[0])  # the casters start trailing: b = -psi
+    p, q = p00 * s0 + p01 * c0, p10 * s0 + p11 * c0
+    alpha = 2.0 * np.arctan2(p, q) + psi - yaw
+    qx, qy = v[:, None, None, None] - om[:, None, None, None] * ys, om[:, None, None, None] * xs
+    rate = (-qx * np.sin(alpha) + qy * np.cos(alpha)) / es - om[:, None, None, None]
+    return alpha, rate
+
+
+def columns(t: np.ndarray, v: np.ndarray, om: np.ndarray, axle: float, trail: float) -> np.ndarray:
+    """Return the caster columns (n, 2, 3) of one geometry along the whole grid (unfiltered)."""
+    alpha, rate = lanes(t, v, om, (axle,), (trail,))
+    return unit_rows(alpha[:, 0, 0], rate[:, 0, 0], om, axle, trail)
