@@ -10,8 +10,9 @@
    the velocity and heading; the same filter on the wrench), with a prior on the physical
    parameters that an unexcited direction keeps, and bias compensation of the pose noise;
 2. *load changes*: a GLR test on the regression's residuals
-   (:class:`cart.change_detection.ChangeDetector`); on a detection the information on
-   mass, CoM and inertia is reset to the samples after the estimated onset (the damping keeps
+   (:class:`cart.change_detection.ChangeDetector`), confirmed by the masses fitted on each side of the
+   estimated onset (a misfitting model moves the residuals, not the mass); on a confirmed detection the
+   information on mass, CoM and inertia is reset to the samples after the onset (the damping keeps
    what it learnt), and the change is recorded in :attr:`OnlineLSEstimator.events`;
 3. *plausibility and run-off*: mass > 0, inertia about the CoM > 0, CoM inside the footprint,
    residual ratio (a windowed innovation test of the regression); each episode is recorded in
@@ -69,7 +70,10 @@ class OnlineOptions:
     velocity the wrench does not explain, as when a load dropped in exchanges momentum with the cart, or a
     bump); after an impulse the regression skips ``impulse_settle_cycles`` periods of the cut-off (the
     filtered signals carry the jump that long); a change found after an impulse (its onset at most twice that
-    before it, or earlier) is dated at the impulse.
+    before it, or earlier) is dated at the impulse;
+    ``confirm_sigma``: a detection made while the model misfits (residual ratio at the onset above
+    ``misfit_ratio``) is a load change only when the masses fitted on each side of the onset differ by this
+    many stds of their difference, scaled up by that ratio (:meth:`OnlineLSEstimator._confirmed`).
     """
 
     cutoff_hz: float = 2.0
@@ -98,6 +102,7 @@ class OnlineOptions:
     noise_time_s: float = 5.0
     impulse_alpha: float = 1e-9
     impulse_settle_cycles: float = 1.5
+    confirm_sigma: float = 3.0
 
 
 @dataclass(frozen=True)
@@ -463,7 +468,7 @@ class OnlineLSEstimator:
 
     def _init_buffer(self, dt: float) -> None:
         size = max(int(math.ceil(self.options.buffer_s / dt)), 2)
-        shapes = {"t": (), "m": (), "s": (4,), "info": (4, 4), "D": (6, 6), "d": (6,), "C": (6, 6)}
+        shapes = {"t": (), "m": (), "k": (), "s": (4,), "info": (4, 4), "D": (6, 6), "d": (6,), "C": (6, 6)}
         self._buffer = RingBuffer(size, shapes)
 
     def _regression_step(self, gamma: np.ndarray, dt: float, z: np.ndarray, impulse: bool = False) -> None:
@@ -495,7 +500,8 @@ class OnlineLSEstimator:
         lam = math.exp(-dt / self.options.forgetting_s)
         reg.add(info, dvec, noise, lam)
         s = yw[:, :4].T @ r
-        self._ring().push(t=self.t, m=float(p[0]), s=s, info=info[:4, :4], D=info, d=dvec, C=noise)
+        misfit = max([1.0, *(r for r in self.residual_ratio if r == r)])
+        self._ring().push(t=self.t, m=float(p[0]), k=misfit, s=s, info=info[:4, :4], D=info, d=dvec, C=noise)
         if self.options.detect_changes and self._test_change(dt, s, info[:4, :4]):
             self._reset_for_change()
         else:
@@ -532,11 +538,59 @@ class OnlineLSEstimator:
         new = RecursiveRegression(PhysicalPrior(center, std), self.options.noise_subspace)
         new.D, new.d, new.C = buf.read("D")[idx:].sum(0), buf.read("d")[idx:].sum(0), buf.read("C")[idx:].sum(0)
         new.solve(iterations=5)
+        self.detector.restart()
+        if not self._confirmed(new, self._fit_before(idx), float(buf.read("k")[idx])):
+            self.regression.solve(1)
+            self._cov = self.regression.covariance()
+            return
         self.regression = new
         self._cov = new.covariance()
         self._changes.append(_Change(t_change, self.t, m_before, self.detector.statistic))
-        self.detector.restart()
         buf.clear()
+
+    def _fit_before(self, idx: int) -> tuple[float, float]:
+        """Return (mass, std) fitted on the samples before the onset ``idx`` alone (the regression's own prior)."""
+        buf, reg = self._ring(), self.regression
+        before = RecursiveRegression(reg.prior, reg.noise_subspace)
+        before.D = reg.D - buf.read("D")[idx:].sum(0)
+        before.d = reg.d - buf.read("d")[idx:].sum(0)
+        before.C = reg.C - buf.read("C")[idx:].sum(0)
+        before.solve(iterations=5)
+        return float(before.p[0]), float(self._physical_std(before.covariance())[0])
+
+    def _confirmed(self, new: RecursiveRegression, before: tuple[float, float], misfit: float) -> bool:
+        """Return whether the two sides of the onset confirm a load change: their masses differ.
+
+        Each side is fitted on its own samples (``new``: after the onset, from its re-centered prior;
+        ``before``: (mass, std) before it); ``misfit``: the residual ratio at the onset (before the change
+        could raise it). The GLR statistic also grows when the model misfits (a real cart's casters
+        swivelling at a turn or a start): the residuals change while the mass does not. A change is
+        confirmed when the samples after the onset excite the mass (posterior / prior std at most
+        ``excited_ratio``), their estimate is plausible (:meth:`_implausible`: a misfit may fit a negative
+        mass) and the two masses differ by ``min_change`` of the mass before; when the model misfitted at
+        the onset (``misfit`` above ``misfit_ratio``: the GLR's chi-square does not hold), also by
+        ``confirm_sigma`` times the std of their difference scaled up by ``misfit`` (the misfit the stds
+        do not contain). Otherwise the detection is flagged ``change_not_confirmed`` and the estimate goes
+        on with all its samples.
+        """
+        m_new, (m_old, std_old) = float(new.p[0]), before
+        std_new = float(self._physical_std(new.covariance())[0])
+        excited = std_new <= self.options.excited_ratio * new.prior.std[0]
+        diff = abs(m_new - m_old)
+        ok = excited and diff >= self.options.min_change * abs(m_old) and not self._implausible(new.p)
+        std = math.hypot(std_new, std_old) * misfit
+        if misfit > self.options.misfit_ratio:
+            ok = ok and diff >= self.options.confirm_sigma * std
+        if not ok:
+            self._flags.append(
+                RunoffFlag(
+                    self.t,
+                    "change_not_confirmed",
+                    f"GLR {self.detector.statistic:.1f}: mass {m_old:.4g} kg before, {m_new:.4g} kg after, "
+                    f"difference's std {std:.2g} kg" + ("" if excited else " (not excited)"),
+                )
+            )
+        return ok
 
     # -- plausibility -----------------------------------------------------------------------
     def _flag(self, kind: str, on: bool, detail: str) -> None:
@@ -561,24 +615,35 @@ class OnlineLSEstimator:
         worst = max(self.residual_ratio)
         self._flag("misfit", worst > self.options.misfit_ratio, f"residual ratio {worst:.2f}")
 
-    def _update_params(self) -> None:
-        """Set the controller's parameters: the estimate when plausible, else the last plausible one (flagged).
+    def _implausible(self, p: np.ndarray) -> dict[str, str]:
+        """Return what is implausible in p = [m, m dx, m dy, J, c_v, c_w] (kind -> what was seen; empty: plausible).
 
-        Plausible: mass above 5 % of the prior's, inertia about the CoM positive, CoM inside the footprint.
+        Plausible: mass above 5 % of the prior's, CoM inside the footprint, inertia about the CoM positive.
         """
-        m, a, b, j, cv, cw = self.regression.p.tolist()
-        m0 = self._prior0.center[0]
-        bad_m = m <= 0.05 * m0
-        self._flag("nonpositive_mass", bad_m, f"mass {m:.4g} kg")
-        mp = max(m, 0.05 * m0)
+        m, a, b, j = p[:4].tolist()
+        m_min = 0.05 * float(self._prior0.center[0])
+        mp = max(m, m_min)
         dx, dy = a / mp, b / mp
-        fx, fy = self._footprint
-        outside = abs(dx) > fx or abs(dy) > fy
-        self._flag("com_outside_footprint", outside, f"CoM ({dx:.3g}, {dy:.3g}) m")
         inertia = j - (a * a + b * b) / mp
-        self._flag("nonpositive_inertia", inertia <= 0.0, f"inertia about the CoM {inertia:.4g} kg m^2")
-        if not (bad_m or outside or inertia <= 0.0):
-            self._params = CartParams(mp, dx, dy, inertia, max(cv, 0.0), max(cw, 0.0))
+        fx, fy = self._footprint
+        out = {}
+        if m <= m_min:
+            out["nonpositive_mass"] = f"mass {m:.4g} kg"
+        if abs(dx) > fx or abs(dy) > fy:
+            out["com_outside_footprint"] = f"CoM ({dx:.3g}, {dy:.3g}) m"
+        if inertia <= 0.0:
+            out["nonpositive_inertia"] = f"inertia about the CoM {inertia:.4g} kg m^2"
+        return out
+
+    def _update_params(self) -> None:
+        """Set the controller's parameters: the estimate when plausible, else the last plausible one (flagged)."""
+        p = self.regression.p
+        bad = self._implausible(p)
+        for kind in ("nonpositive_mass", "com_outside_footprint", "nonpositive_inertia"):
+            self._flag(kind, kind in bad, bad.get(kind, ""))
+        if not bad:
+            m, a, b, j, cv, cw = p.tolist()
+            self._params = CartParams(m, a / m, b / m, j - (a * a + b * b) / m, max(cv, 0.0), max(cw, 0.0))
 
 
 def make_online_estimator(
