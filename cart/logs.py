@@ -281,10 +281,15 @@ def _check_time_order(path: str, t: np.ndarray, header_line: int) -> None:
     counts = ", ".join(
         text for n, text in ((back, f"{back} step(s) back in time"), (same, f"{same} repeated time(s)")) if n
     )
+    fix = "sort the rows by t and keep one row per time"
+    if same > 0.05 * len(t) and float(np.max(np.abs(t))) > 1e6:
+        fix = (
+            f"t reaches {float(np.max(np.abs(t))):.4g} s but is written with too few digits to tell the samples "
+            "apart (a Unix time?): write t with more significant digits, or subtract the start time"
+        )
     raise LogFormatError(
         f"{path}: line {header_line + 1 + r}: time {float(t[r])!r} is {what} the previous time "
-        f"{float(t[r - 1])!r} ({counts}); t must be strictly increasing: sort the rows by t and keep one "
-        "row per time"
+        f"{float(t[r - 1])!r} ({counts}); t must be strictly increasing: {fix}"
     )
 
 
@@ -319,6 +324,8 @@ def read_log(path: str | os.PathLike) -> CartLog:
     if i >= len(lines):
         raise LogFormatError(f"{path}: the file is empty (no header line)")
     header_line = i + 1
+    if '"' in lines[i]:  # CSV quoting ("t","x",... or "0.1","2.0",...): the quotes are not part of the values
+        lines = lines[:i] + [line.replace('"', "") for line in lines[i:]]
     header, wanted = _header_columns(path, lines[i], header_line)
     body = lines[i + 1 :]
     while body and not body[-1].strip():

@@ -8,6 +8,9 @@ or the faster one is averaged (a row per pose sample). :func:`split_streams` und
 - held pose rows (x, y, theta exactly equal to the previous row) are dropped when they make a
   fifth of the rows or more (a multi-rate table); the pose is then timed at the middle of the
   interval in which it first appeared (it arrived after the previous row);
+- a pose interpolated linearly between motion-capture samples (at least a fifth of the rows on the
+  straight line through their neighbours, in short runs) is a multi-rate table as well: one row per
+  straight piece, the middle one, is kept;
 - in a single-rate table, a run of repeated poses during which the cart moved (the pose jumps at
   the run's end) is a dropout: the repeated rows are dropped, the interval becomes a gap;
 - wrench rows repeated in every channel over at least ``STUCK_SECONDS`` (and 5 rows) are a stuck
@@ -34,6 +37,10 @@ STUCK_SECONDS = 0.25
 DROPOUT_PERIODS = 2.5
 #: A pose sample this many robust residual scales from its running median is a glitch.
 GLITCH_SCALE = 12.0
+#: A row whose slope changes by less than this share of the typical change lies on its neighbours' line.
+LINE_TOLERANCE = 1e-2
+#: Longest median run of on-the-line rows of a pose interpolated between motion-capture samples.
+MAX_PIECE_ROWS = 50
 
 
 @dataclass(frozen=True)
@@ -75,6 +82,7 @@ class Streams:
     stuck: tuple[tuple[float, float], ...]
     glitches: tuple[float, ...]
     multi_rate: bool
+    interpolated: bool = False
 
     @property
     def pose_hz(self) -> float:
@@ -101,7 +109,13 @@ class Streams:
     def warnings(self) -> list[str]:
         """Return plain-language notes on what was found (held rows, stuck sensor, glitches)."""
         out = []
-        if self.multi_rate:
+        if self.interpolated:
+            out.append(
+                f"multi-rate table: the pose is interpolated linearly between motion-capture samples on "
+                f"{self.held_rows} rows; one row per straight piece kept (pose at {self.pose_hz:.4g} Hz, "
+                f"wrench at {self.wrench_hz:.4g} Hz, used as separate streams)"
+            )
+        elif self.multi_rate:
             out.append(
                 f"multi-rate table: {self.held_rows} rows repeat the previous pose; pose at {self.pose_hz:.4g} Hz "
                 f"and wrench at {self.wrench_hz:.4g} Hz used as separate streams"
@@ -140,6 +154,42 @@ def _runs(same: np.ndarray) -> list[tuple[int, int]]:
 def _repeats(v: np.ndarray) -> np.ndarray:
     """Return (n-1,) booleans: row i+1 equals row i in every column."""
     return np.all(v[1:] == v[:-1], axis=1)
+
+
+def _on_line(t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Return (n,) booleans: rows 1..n-2 whose pose lies on the straight line through both neighbours.
+
+    The slope changes by less than ``LINE_TOLERANCE`` of its typical change (90th percentile, at least
+    the rounding of float64 values) in every column: exact up to the rounding of the written values
+    (6 decimals are enough), which a measured pose never is in all three columns at once.
+    """
+    dt = np.diff(t)
+    slope = np.diff(q, axis=0) / dt[:, None]
+    change = np.abs(np.diff(slope, axis=0))
+    rounding = 1e-9 * (np.max(np.abs(q), axis=0) + 1.0) / float(np.median(dt))  # a noise-free line is one run
+    typical = np.maximum(np.percentile(change, 90, axis=0), rounding)
+    out = np.zeros(len(t), dtype=bool)
+    out[1:-1] = np.all(change <= LINE_TOLERANCE * typical, axis=1)
+    return out
+
+
+def _interpolated_pose(log: CartLog) -> Stream | None:
+    """Return the pose stream of a table whose pose was linearly interpolated to the rows' times, else None.
+
+    Such a table (a logger interpolating motion capture to the F/T times) holds straight pieces between
+    the motion-capture samples: at least ``HELD_SHARE`` of the rows lie on the line through their
+    neighbours, in runs no longer than ``MAX_PIECE_ROWS`` (a cart cruising in a straight line at constant
+    speed on a noise-free pose makes long runs instead). One row per piece, the middle one, is kept.
+    """
+    t, q = log.t, log.q
+    if len(t) < 10:
+        return None
+    line = _on_line(t, q)
+    runs = _runs(line[1:]) if line.sum() >= HELD_SHARE * len(t) else []
+    if not runs or np.median([last - first + 1 for first, last in runs]) > MAX_PIECE_ROWS:
+        return None
+    rows = np.array([(first + last) // 2 for first, last in runs])
+    return Stream(t[rows], q[rows], rows)
 
 
 def _pose_stream(log: CartLog) -> tuple[Stream, int, bool]:
@@ -219,7 +269,11 @@ def _dropouts(stream: Stream) -> tuple[tuple[float, float], ...]:
 
 def split_streams(log: CartLog) -> Streams:
     """Return the pose and wrench streams of ``log`` (held rows, dropouts, glitches, stuck wrench handled)."""
-    pose, held, multi = _pose_stream(log)
+    pieces = _interpolated_pose(log) if _repeats(log.q).sum() < HELD_SHARE * len(log.t) else None
+    if pieces is not None:
+        pose, held, multi = pieces, len(log.t) - len(pieces.t), True
+    else:
+        pose, held, multi = _pose_stream(log)
     bad = _glitches(pose)
     glitch_t = tuple(float(x) for x in pose.t[bad])
     if bad.any():
@@ -243,4 +297,5 @@ def split_streams(log: CartLog) -> Streams:
         stuck=tuple(stuck),
         glitches=glitch_t,
         multi_rate=multi,
+        interpolated=pieces is not None,
     )

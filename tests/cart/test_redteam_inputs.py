@@ -97,3 +97,21 @@ def test_unix_time_in_seconds_is_read(tmp_path):
     write_log(path, CartLog(t=log.t + 1.7e9, q=log.q, gamma=log.gamma))
     back = read_log(path)
     assert len(back) == len(log) and np.allclose(np.diff(back.t), 0.01, atol=1e-6)
+
+
+def test_a_unix_time_written_with_too_few_digits_is_named(tmp_path):
+    path = tmp_path / "epoch7.csv"
+    _write_rows(path, [f"{1.7e9 + 0.01 * k:.7g},{0.005 * k},0,0,1,0,0" for k in range(40)])
+    with pytest.raises(LogFormatError, match="too few digits to tell the samples apart .*subtract the start time"):
+        read_log(path)
+
+
+def test_csv_quoting_is_read(tmp_path):
+    log = _push()
+    plain = tmp_path / "plain.csv"
+    write_log(plain, log)
+    lines = plain.read_text().splitlines()
+    quoted = tmp_path / "quoted.csv"
+    quoted.write_text("\n".join(",".join(f'"{v}"' for v in line.split(",")) for line in lines) + "\n")
+    back = read_log(quoted)
+    np.testing.assert_array_equal(back.q, read_log(plain).q)
