@@ -669,8 +669,8 @@ def _model_uncertainty(
 
 def _caster_geometry(
     grid: _Grid, sos: np.ndarray, reg: _Regression, noise: np.ndarray, v: np.ndarray, om: np.ndarray
-) -> tuple[float, float, np.ndarray | None]:
-    """Return (axle, trail, filtered columns on the kept rows or None) of the least weighted residual.
+) -> tuple[float, float, tuple[np.ndarray, float] | None]:
+    """Return (axle, trail, (filtered columns on the kept rows, half-turns) or None) of the least weighted residual.
 
     The geometries of :mod:`cart.identify_casters` are searched on the first ``SEARCH_SAMPLES`` grid samples,
     with the nominal fit's (Huber) row weights held, regressor noise compensated as in :func:`_wls`; the
@@ -684,59 +684,79 @@ def _caster_geometry(
     _, scale, w = _wls(x0, y0, pad[:, : x0.shape[-1]])
     wts = w / scale**2
     alpha, rate = casters_model.lanes(grid.t[:n], v[:n], om[:n], casters_model.AXLES, casters_model.TRAILS)
-    best, where, cols_best = math.inf, (casters_model.AXLES[0], casters_model.TRAILS[0]), None
+    best, where, cols_best = math.inf, (0, 0), x0[:, :, :0]
     for i, axle in enumerate(casters_model.AXLES):
         units = [
-            casters_model.unit_rows(alpha[:, i, j], rate[:, i, j], om[:n], axle, e)
+            casters_model.unit_rows(alpha[:, i, j], rate[:, i, j], v[:n], om[:n], axle, e)
             for j, e in enumerate(casters_model.TRAILS)
         ]
         filtered = _filtfilt(sos, np.concatenate([u.reshape(n, -1) for u in units], axis=1))[keep]
-        for j, e in enumerate(casters_model.TRAILS):
+        for j in range(len(casters_model.TRAILS)):
             cols = filtered[:, 2 * n_c * j : 2 * n_c * (j + 1)].reshape(k, 2, n_c)
             x = np.concatenate([x0, cols], axis=-1)
             a, b = _normal(x, y0, wts)
             p = np.linalg.lstsq(a - _noise_correction(wts, pad), b, rcond=None)[0]
             ssr = float(np.sum(wts * (y0 - _predict(x, p)) ** 2))
             if ssr < best:
-                best, where, cols_best = ssr, (axle, e), cols
-    return where[0], where[1], (cols_best if n == len(grid.t) else None)
+                best, where, cols_best = ssr, (i, j), cols
+    axle, trail = casters_model.AXLES[where[0]], casters_model.TRAILS[where[1]]
+    if n < len(grid.t):
+        return axle, trail, None
+    return axle, trail, (cols_best, casters_model.half_turns(alpha[:, where[0], where[1]]))
 
 
 def _with_casters(
-    grid: _Grid, sos: np.ndarray, reg: _Regression, noise: np.ndarray
-) -> tuple[_Regression, float, float]:
-    """Return (the regression with the caster columns of the best geometry appended, axle, trail)."""
+    grid: _Grid, sos: np.ndarray, reg: _Regression, noise: np.ndarray, given: casters_model.Casters | None = None
+) -> tuple[_Regression, float, float, float]:
+    """Return (the regression with the caster columns appended, axle, trail, half-turns): ``given`` or the best."""
     _, v, om, _, _ = _kinematics(grid.q, grid.dt, sos)
-    axle, trail, cols = _caster_geometry(grid, sos, reg, noise, v, om)
-    if cols is None:
-        full = casters_model.columns(grid.t, v, om, axle, trail)
+    if given is None:
+        axle, trail, found = _caster_geometry(grid, sos, reg, noise, v, om)
+    else:
+        axle, trail, found = given.axle, given.trail, None
+    if found is None:
+        full, turns = casters_model.columns(grid.t, v, om, axle, trail)
         cols = _filtfilt(sos, full.reshape(len(grid.t), -1)).reshape(full.shape)[reg.keep]
+    else:
+        cols, turns = found
     x = np.concatenate([reg.x, cols], axis=-1)
-    return _Regression(x=x, y=reg.y, v=reg.v, om=reg.om, keep=reg.keep, y_raw=reg.y_raw), axle, trail
+    return _Regression(x=x, y=reg.y, v=reg.v, om=reg.om, keep=reg.keep, y_raw=reg.y_raw), axle, trail, turns
 
 
 def _caster_fit(
-    grid: _Grid, sos: np.ndarray, full: _Regression, noise: np.ndarray, step: int, lag: int
+    grid: _Grid,
+    sos: np.ndarray,
+    full: _Regression,
+    noise: np.ndarray,
+    step_lag: tuple[int, int],
+    given: casters_model.Casters | None = None,
 ) -> tuple[
     _Regression, _Regression, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None, casters_model.Casters
 ]:
     """Return (full and decimated regressions with the caster columns, their fit, the caster model's test).
 
-    The fit is None unless the three caster torques are jointly significant beyond a Coulomb-like forward
-    force and yaw torque (rolling resistance, dry friction: tested with those columns in the fit too, so
-    that a dry-friction sliding object is not read as casters): Wald test on their covariance,
-    :func:`cart.identify_casters.wald_threshold`.
+    The fit is None unless the log swings the modelled casters round (``MIN_HALF_TURNS``) and the three
+    caster torques are jointly significant beyond a Coulomb-like forward force and yaw torque (rolling
+    resistance, dry friction: tested with those columns in the fit too, so that a dry-friction sliding
+    object is not read as casters): Wald test on their covariance, :func:`cart.identify_casters.wald_threshold`,
+    corrected for the degrees of freedom the fit uses. ``given``: a caster model already established for
+    this cart (e.g. on the whole log, for a segment of it): its geometry is used and kept without a new test.
     """
-    ext, axle, trail = _with_casters(grid, sos, full, noise)
+    step, lag = step_lag
+    ext, axle, trail, turns = _with_casters(grid, sos, full, noise, given)
     reg = _every(ext, step)
-    threshold = casters_model.wald_threshold()
+    if given is not None:
+        try:
+            return ext, reg, _fit(reg.x, reg.y, noise, lag), given
+        except np.linalg.LinAlgError:
+            return ext, reg, None, casters_model.Casters(axle, trail, 0.0, math.inf, False, turns)
     k = casters_model.N_COLUMNS
-    # the HAC covariance rests on about rows / lag independent rows; with n_p parameters fitted it is low by
-    # n_eff / (n_eff - n_p) (degrees of freedom), and with n_eff <= n_p it says nothing
-    n_eff, n_p = len(reg.y) / max(lag, 1), reg.x.shape[-1] + 2
-    if n_eff <= n_p:
-        return ext, reg, None, casters_model.Casters(axle, trail, 0.0, math.inf, False)
-    threshold = threshold * n_eff / (n_eff - n_p)
+    # the rows are band-limited to the cut-off fc: about 2 fc T = 4 rows / lag of them are independent; the
+    # HAC covariance of n_p fitted parameters is low by n_eff / (n_eff - n_p) (degrees of freedom)
+    n_eff, n_p = 4.0 * len(reg.y) / max(lag, 1), reg.x.shape[-1] + 2
+    if n_eff <= n_p or turns < casters_model.MIN_HALF_TURNS:
+        return ext, reg, None, casters_model.Casters(axle, trail, 0.0, math.inf, False, turns)
+    threshold = casters_model.wald_threshold() * n_eff / (n_eff - n_p)
     try:
         eps = (0.05 * float(np.std(reg.v)) + 1e-12, 0.05 * float(np.std(reg.om)) + 1e-12)
         pt, covt, _, _ = _fit(_with_coulomb_columns(reg.x, reg.v, reg.om, eps), reg.y, noise, lag)
@@ -744,15 +764,22 @@ def _caster_fit(
         wald = float(tail @ np.linalg.pinv(cc) @ tail) if np.all(np.isfinite(cc)) else 0.0
         fit = _fit(reg.x, reg.y, noise, lag) if wald > threshold else None
     except np.linalg.LinAlgError:
-        return ext, reg, None, casters_model.Casters(axle, trail, 0.0, threshold, False)
-    return ext, reg, fit, casters_model.Casters(axle, trail, wald, threshold, fit is not None)
+        return ext, reg, None, casters_model.Casters(axle, trail, 0.0, threshold, False, turns)
+    return ext, reg, fit, casters_model.Casters(axle, trail, wald, threshold, fit is not None, turns)
 
 
-def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | None = None) -> Identification:
+def identify(
+    log: CartLog,
+    attenuation: float = ATTENUATION,
+    streams: Streams | None = None,
+    casters: casters_model.Casters | None = None,
+) -> Identification:
     """Return the filtered-regressor least-squares estimate of the cart's parameters on a whole log.
 
     ``streams``: the log's pose and wrench streams (:func:`cart.streams.split_streams`, computed here
-    when None). Raises :class:`IdentifiabilityError` when the log cannot say anything (too
+    when None). ``casters``: a caster model kept on a longer log of the same cart (``Identification.casters``;
+    a segment of it): its geometry is used without a new search or test (:mod:`cart.identify_casters`).
+    Raises :class:`IdentifiabilityError` when the log cannot say anything (too
     short, no motion above the noise); weakly excited parameters give warnings.
     """
     streams = _checked_streams(log, streams)
@@ -775,7 +802,7 @@ def identify(log: CartLog, attenuation: float = ATTENUATION, streams: Streams | 
         raise IdentifiabilityError(
             f"{log.source}: the least-squares problem is singular ({exc}): the log does not excite the parameters"
         ) from None
-    ext, ext_reg, ext_fit, casters = _caster_fit(grid, sos, full, noise, step, lag)
+    ext, ext_reg, ext_fit, casters = _caster_fit(grid, sos, full, noise, (step, lag), casters)
     if ext_fit is not None:
         full, reg, (p, cov, scale, r) = ext, ext_reg, ext_fit
         warnings.append(

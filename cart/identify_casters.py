@@ -40,57 +40,60 @@ HALF_TRACK = 0.25
 ALPHA = 1e-3
 #: Grid samples on which the geometry is searched (the first ones; the chosen geometry then runs on all).
 SEARCH_SAMPLES = 24_000
+#: Least swivelling (half-turns per caster) along the log for the caster model to be tested: a log that never
+#: swings the casters round cannot tell their resistance from any other misfit.
+MIN_HALF_TURNS = 1.0
 #: Regularisation of the Coulomb columns: this share of the RMS of the rate they act on.
 EPS_SHARE = 0.05
-N_COLUMNS = 3
+N_COLUMNS = 4
 
 
 @dataclass(frozen=True)
 class Casters:
-    """The caster model's test in a fit: best geometry, Wald statistic, its threshold (:func:`wald_threshold`), kept."""
+    """The caster model's test in a fit: best geometry, Wald statistic, its threshold (:func:`wald_threshold`), kept,
+    and how far the modelled casters swivel along the log (:func:`half_turns`)."""
 
     axle: float
     trail: float
     wald: float
     threshold: float
     kept: bool
-
-
-def chi2_3_isf(alpha: float) -> float:
-    """Return x with P(X > x) = alpha for a chi-square of three dof (Q(x) = erfc(sqrt(x/2)) + sqrt(2x/pi) e^(-x/2))."""
-    from cart._kernels_identify import bisect_increasing
-
-    def minus_log_q(x: float) -> float:
-        q = math.erfc(math.sqrt(0.5 * x)) + math.sqrt(2.0 * x / math.pi) * math.exp(-0.5 * x)
-        return -math.log(max(q, 1e-300))
-
-    return bisect_increasing(minus_log_q, -math.log(alpha), 1e-10)
+    half_turns: float = 0.0
 
 
 def wald_threshold() -> float:
-    """Return the Wald threshold of the caster columns: three dof at ALPHA over the number of geometries searched."""
-    return chi2_3_isf(ALPHA / (len(AXLES) * len(TRAILS)))
+    """Return the Wald threshold of the caster columns: N_COLUMNS dof at ALPHA over the number of geometries searched."""
+    from cart.ekf import chi2_isf
+
+    return chi2_isf(ALPHA / (len(AXLES) * len(TRAILS)), N_COLUMNS)
 
 
-def unit_rows(alpha: np.ndarray, rate: np.ndarray, om: np.ndarray, axle: float, trail: float) -> np.ndarray:
-    """Return the wrench (n, 2 rows: forward, yaw; 3 columns) each unit resisting torque needs, summed over the casters.
+def unit_rows(
+    alpha: np.ndarray, rate: np.ndarray, v: np.ndarray, om: np.ndarray, axle: float, trail: float
+) -> np.ndarray:
+    """Return the wrench (n, 2 rows: forward, yaw; 4 columns) each unit of resistance needs, summed over the casters.
 
-    ``alpha``, ``rate`` (n, 2): swivel angles and rates of the two casters at ``(axle, +-HALF_TRACK)``; ``om``
-    (n,) the cart's yaw rate. A resisting torque ``T`` in the bearing needs the sideways force ``T / e`` at the
-    swivel axis and the torque ``T`` itself; the wheel's scrub needs the force only.
+    ``alpha``, ``rate`` (n, 2): swivel angles and rates of the two casters at ``(axle, +-HALF_TRACK)``; ``v``,
+    ``om`` (n,) the cart's forward speed and yaw rate. A resisting torque ``T`` in the bearing needs the
+    sideways force ``T / e`` at the swivel axis and the torque ``T`` itself; the wheel's scrub needs the force
+    only. The caster wheel's rolling resistance (a force ``f`` against its rolling, along its heading, through
+    the swivel axis) needs ``f`` along the heading at the swivel axis.
     """
     ys = np.array([HALF_TRACK, -HALF_TRACK])
     arm = (axle * np.cos(alpha) + ys * np.sin(alpha)) / trail
     side = np.sin(alpha) / trail
     wheel_rate = rate + om[:, None]
-    eps_b = EPS_SHARE * float(np.sqrt(np.mean(rate**2))) + 1e-12
-    eps_w = EPS_SHARE * float(np.sqrt(np.mean(wheel_rate**2))) + 1e-12
+    rolling = (v[:, None] - om[:, None] * ys) * np.cos(alpha) + om[:, None] * axle * np.sin(alpha)
+    eps = [EPS_SHARE * float(np.sqrt(np.mean(r**2))) + 1e-12 for r in (rate, wheel_rate, rolling)]
     out = np.empty((len(om), 2, N_COLUMNS))
     for k, (unit, own) in enumerate(
-        ((np.tanh(rate / eps_b), 1.0), (rate, 1.0), (np.tanh(wheel_rate / eps_w), 0.0)),
+        ((np.tanh(rate / eps[0]), 1.0), (rate, 1.0), (np.tanh(wheel_rate / eps[1]), 0.0)),
     ):
         out[:, 0, k] = -np.sum(unit * side, axis=1)
         out[:, 1, k] = -np.sum(unit * (own - arm), axis=1)
+    roll = np.tanh(rolling / eps[2])
+    out[:, 0, 3] = np.sum(roll * np.cos(alpha), axis=1)
+    out[:, 1, 3] = np.sum(roll * (axle * np.sin(alpha) - ys * np.cos(alpha)), axis=1)
     return out
 
 
@@ -153,7 +156,12 @@ def lanes(
     return alpha, rate
 
 
-def columns(t: np.ndarray, v: np.ndarray, om: np.ndarray, axle: float, trail: float) -> np.ndarray:
-    """Return the caster columns (n, 2, 3) of one geometry along the whole grid (unfiltered)."""
+def columns(t: np.ndarray, v: np.ndarray, om: np.ndarray, axle: float, trail: float) -> tuple[np.ndarray, float]:
+    """Return (the caster columns (n, 2, 3) of one geometry along the whole grid (unfiltered), :func:`half_turns`)."""
     alpha, rate = lanes(t, v, om, (axle,), (trail,))
-    return unit_rows(alpha[:, 0, 0], rate[:, 0, 0], om, axle, trail)
+    return unit_rows(alpha[:, 0, 0], rate[:, 0, 0], v, om, axle, trail), half_turns(alpha[:, 0, 0])
+
+
+def half_turns(alpha: np.ndarray) -> float:
+    """Return how far the casters swivel along the log, in half-turns (pi) per caster: sum |d alpha| / (pi casters)."""
+    return float(np.sum(np.abs(np.diff(alpha, axis=0))) / (math.pi * alpha.shape[-1]))

@@ -197,8 +197,9 @@ def _split(
     if not (z >= CHANGE_Z and identified >= IDENTIFIED_Z and abs(ml - mr) >= MIN_RELATIVE_CHANGE * max(ml, mr)):
         return here
     try:
-        left = identify(slice_log(log, t0, tc - guard))
-        right = identify(slice_log(log, tc + guard, t1))
+        casters = res.casters if res.casters is not None and res.casters.kept else None  # the same cart's casters
+        left = identify(slice_log(log, t0, tc - guard), casters=casters)
+        right = identify(slice_log(log, tc + guard, t1), casters=casters)
     except (IdentifiabilityError, np.linalg.LinAlgError):
         return here
     return _split(log, left, t0, tc, depth - 1, t0_range) + _split(log, right, tc, t1, depth - 1, (lo, hi))

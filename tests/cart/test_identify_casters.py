@@ -38,27 +38,24 @@ def test_the_scanned_lanes_equal_the_stepped_ones():
     assert np.ptp(alpha) > 2.0  # the casters did swing round
 
 
-def test_a_trailing_caster_in_a_straight_push_stays_trailing_and_needs_no_force():
+def test_a_trailing_caster_in_a_straight_push_stays_trailing_and_only_rolls():
     t = 0.01 * np.arange(500)
     v, om = np.full(500, 0.5), np.zeros(500)
     alpha, rate = icm.lanes(t, v, om, (0.6,), (0.03,))
     assert np.max(np.abs(alpha)) < 1e-9 and np.max(np.abs(rate)) < 1e-9
-    assert np.max(np.abs(icm.columns(t, v, om, 0.6, 0.03))) < 1e-9
+    cols, turns = icm.columns(t, v, om, 0.6, 0.03)
+    assert np.max(np.abs(cols[:, :, :3])) < 1e-9 and turns < 1e-9  # no swivel: no swivel resistance
+    # rolling resistance of both casters straight back, no yaw torque (they sit symmetrically)
+    assert np.allclose(cols[50:, 0, 3], 2.0) and np.allclose(cols[50:, 1, 3], 0.0)
 
 
 def test_a_resisting_torque_takes_work_from_the_pusher():
     """The wrench each unit of resisting torque needs does positive work on the cart (it is dissipated)."""
     t, v, om = _motion()
-    cols = icm.columns(t, v, om, 0.7, 0.03)
+    cols, _ = icm.columns(t, v, om, 0.7, 0.03)
     power = cols[:, 0, :] * v[:, None] + cols[:, 1, :] * om[:, None]
     assert np.all(power[:, 0] >= -1e-9) and np.all(power[:, 1] >= -1e-9)  # bearing friction and damping
-    assert np.sum(power[:, 2]) > 0.0  # the wheel's scrub, on the whole
-
-
-def test_the_three_dof_chi_square_quantile():
-    # P(X > 7.814728) = 0.05 and P(X > 16.26624) = 0.001 for three dof
-    assert icm.chi2_3_isf(0.05) == pytest.approx(7.814728, rel=1e-6)
-    assert icm.chi2_3_isf(1e-3) == pytest.approx(16.26624, rel=1e-6)
+    assert np.sum(power[:, 2]) > 0.0 and np.sum(power[:, 3]) > 0.0  # the wheel's scrub and rolling, on the whole
 
 
 def test_a_cart_without_casters_keeps_the_nominal_fit():
