@@ -779,6 +779,24 @@ def _weak(dbic: float, threshold: float) -> str:
     return "" if dbic > threshold else f"evidence too weak: Delta BIC {dbic:.1f} <= {threshold:g}"
 
 
+def _logging_timing(trial: _Trial, resolution: float) -> str:
+    """Return why a time_delay within one sample interval of the log is not named ('' when it is beyond).
+
+    A table that averages the F/T over each pose interval (centred half an interval earlier) or holds a
+    sample until the next one shifts the wrench by up to one sample interval: the logging's own timing,
+    not a delay of the set-up. The delay must exceed the interval by 2 of its stds.
+    """
+    delay = float(trial.fit.effects[-1][1][0])
+    std = float(trial.nl_std[0]) if trial.nl_std and np.isfinite(trial.nl_std[0]) else 0.0
+    if abs(delay) - 2.0 * std > resolution:
+        return ""
+    return (
+        f"its delay ({1e3 * delay:.1f} +- {1e3 * std:.1f} ms) is within one sample interval of the log "
+        f"({1e3 * resolution:.1f} ms): the logging's own timing (a wrench averaged over or held for an "
+        "interval), not a delay of the set-up"
+    )
+
+
 def _choose_effect(
     results: Sequence[_Ranked],
     threshold: float,
@@ -787,13 +805,15 @@ def _choose_effect(
     last: Replay,
     named: Sequence[str],
     slip_ratio: float,
+    resolution: float = 0.0,
 ) -> _Round:
     """Return the round's choice: the best significant candidate whose replay stays finite and that shrinks the gap.
 
     Every effect must close at least MIN_SHRINK of the gap the nominal model (or the named
     effects) leave. When the {b} origin slides sideways
     (``slip_ratio`` > SLIP_RATIO) ``lateral_slip`` is tried first (it must then not widen the gap):
-    no other term of the model can stand in for a broken no-slip constraint.
+    no other term of the model can stand in for a broken no-slip constraint. A time_delay within
+    ``resolution`` (the log's median sample interval) is the logging's timing (:func:`_logging_timing`).
     """
     first = not named
     slip_rule = first and slip_ratio > SLIP_RATIO
@@ -818,6 +838,8 @@ def _choose_effect(
         cand, why = _best_replaying_variant(ranked.trials, threshold, horizon)
         gap = cand.replay.gap(mask) if cand is not None else float("nan")
         why = why if cand is None else _gap_objection(first, slip_rule and name == "lateral_slip", last_gap, gap)
+        if not why and cand is not None and name == "time_delay":
+            why = _logging_timing(cand.trial, resolution)
         if why:
             verdicts.append(Verdict(name, dbic, why))
             passed.append(verdicts[-1])
@@ -1066,7 +1088,8 @@ def _search(
             break
         if round_ == 0:
             first_scores = [(r.best.effect.name, float(r.best.dbic)) for r in results]
-        rnd = _choose_effect(results, threshold, horizon, mask, reps[-1], names, slip_ratio)
+        resolution = float(np.median(np.diff(sig.t)))
+        rnd = _choose_effect(results, threshold, horizon, mask, reps[-1], names, slip_ratio, resolution)
         for v in rnd.verdicts:  # the reasons of every round, the first round's Delta BIC
             old = verdicts.get(v.name)
             if old is None:
