@@ -336,6 +336,26 @@ def read_log(path: str | os.PathLike) -> CartLog:
     return _log_from_columns(path, {name: rows[:, k] for k, name in enumerate(wanted)}, metadata, header_line)
 
 
+def _rolls_along_heading(log: CartLog, span: float = 0.1) -> bool:
+    """Return True when the cart travels along its heading read in radians (forwards or backwards, eq. 3).
+
+    Over windows of ``span`` seconds in which the cart moves beyond ten typical pose steps, the median
+    |sin(travel direction - heading)| is below 0.3: the heading is in radians, however many turns it makes.
+    """
+    t, q = log.t, log.q
+    med = float(np.median(np.diff(t)))
+    w = max(1, int(math.ceil(span / med))) if med > 0 else 1
+    if len(t) <= w + 10:
+        return False
+    d = q[w:, :2] - q[:-w, :2]
+    moving = np.hypot(d[:, 0], d[:, 1]) > 10.0 * np.median(np.abs(np.diff(q[:, :2], axis=0))) + 1e-12
+    if moving.sum() < 10:
+        return False
+    psi = np.arctan2(d[moving, 1], d[moving, 0])
+    heading = 0.5 * (q[w:, 2] + q[:-w, 2])[moving]
+    return float(np.median(np.abs(np.sin(psi - heading)))) < 0.3
+
+
 def _heading_notes(log: CartLog, dt: np.ndarray, raw_theta: np.ndarray | None, where) -> list[str]:
     """Return the notes on the heading: steps too fast for a cart, or more than three turns (degrees?)."""
     notes = []
@@ -350,7 +370,7 @@ def _heading_notes(log: CartLog, dt: np.ndarray, raw_theta: np.ndarray | None, w
             f"{bad.size} such step(s); if theta is in degrees, convert it to radians"
         )
     raw = theta if raw_theta is None else np.asarray(raw_theta, dtype=float)
-    if float(np.max(np.abs(raw))) > PLAUSIBLE_HEADING and not bad.size:
+    if float(np.max(np.abs(raw))) > PLAUSIBLE_HEADING and not bad.size and not _rolls_along_heading(log):
         notes.append(
             f"heading reaches {float(np.max(np.abs(raw))):.4g} rad (more than three turns); if theta is in "
             f"degrees, convert it to radians"

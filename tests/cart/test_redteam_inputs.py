@@ -115,3 +115,16 @@ def test_csv_quoting_is_read(tmp_path):
     quoted.write_text("\n".join(",".join(f'"{v}"' for v in line.split(",")) for line in lines) + "\n")
     back = read_log(quoted)
     np.testing.assert_array_equal(back.q, read_log(plain).q)
+
+
+def test_a_cart_that_circles_many_times_is_not_told_its_heading_is_in_degrees(tmp_path):
+    t = np.arange(0.0, 120.0, 0.01)
+    heading = 0.4 * t  # 7.6 turns, unwrapped, in radians
+    x = np.cumsum(0.5 * np.cos(heading)) * 0.01
+    y = np.cumsum(0.5 * np.sin(heading)) * 0.01
+    g = np.column_stack([5.0 + np.sin(t), np.cos(t), 0.3 * np.sin(2 * t)])
+    path = tmp_path / "circles.csv"
+    write_log(path, CartLog(t=t, q=np.column_stack([x, y, heading]), gamma=g))
+    assert not any("degrees" in w for w in read_log(path).warnings)
+    write_log(path, CartLog(t=t, q=np.column_stack([x, y, np.degrees(heading)]), gamma=g))
+    assert any("degrees" in w for w in read_log(path).warnings)
