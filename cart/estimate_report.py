@@ -196,6 +196,7 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
             "grid_dt": res.grid_dt,
         },
         "wrench_offsets": res.offsets,
+        "caster_swivel": _caster_json(res.casters),
         "samples_used": res.samples_used,
         "gaps": res.gaps,
         "rejected_samples": rejected,
@@ -213,6 +214,20 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
         streams=streams,
         segments=tuple(_segment_json(s) for s in segments),
     )
+
+
+def _caster_json(casters) -> dict[str, Any] | None:
+    """Return the caster model's test (:mod:`cart.identify_casters`): kept, geometry, Wald and its threshold."""
+    if casters is None:
+        return None
+    return {
+        "kept": casters.kept,
+        "axle": casters.axle,
+        "trail": casters.trail,
+        "wald": casters.wald,
+        "threshold": casters.threshold if math.isfinite(casters.threshold) else None,
+        "half_turns": casters.half_turns,
+    }
 
 
 def _unknown_notes(unknown: dict[str, str]) -> list[str]:

@@ -566,12 +566,61 @@ def generate(n: int, seed0: int, out_dir: str | os.PathLike, **overrides: Any) -
         fh.write("\n")
 
 
+#: Effects switched off in :func:`mass_bias` (MujocoCart overrides): the caster swivel's bearing friction and
+#: damping, the wheels' rolling and torsional (scrub) friction on the floor, both.
+BIAS_VARIANTS: dict[str, dict[str, Any]] = {
+    "all effects": {},
+    "no swivel friction": {"swivel_damping": 0.0, "swivel_frictionloss": 0.0},
+    "no rolling/torsional friction": {"rolling_friction": 0.0, "torsional_friction": 0.0},
+    "neither": {
+        "swivel_damping": 0.0,
+        "swivel_frictionloss": 0.0,
+        "rolling_friction": 0.0,
+        "torsional_friction": 0.0,
+    },
+}
+
+
+def mass_bias(seeds: range, variant: dict[str, Any], casters: bool = True) -> dict[str, float]:
+    """Return the mass error of ``estimate``'s least squares against the effective forward mass over ``seeds``.
+
+    ``variant``: :class:`MujocoCart` overrides (:data:`BIAS_VARIANTS`); ``casters`` False fits without the
+    caster columns (:mod:`cart.identify_casters`). Keys: mean, min, max (%), and the logs where they are kept.
+    """
+    from cart import identify_casters
+    from cart.identify import identify
+
+    errors, kept = [], 0
+    saved = identify_casters.MIN_HALF_TURNS
+    try:
+        identify_casters.MIN_HALF_TURNS = saved if casters else math.inf
+        for seed in seeds:
+            log, info = simulate(random_case(seed, **variant))
+            res = identify(log)
+            errors.append(100.0 * (res.params.m / info["m_effective_forward_incl_wheel_spin"] - 1.0))
+            kept += int(res.casters is not None and res.casters.kept)
+    finally:
+        identify_casters.MIN_HALF_TURNS = saved
+    e = np.array(errors)
+    return {"mean_pct": float(e.mean()), "min_pct": float(e.min()), "max_pct": float(e.max()), "casters_kept": kept}
+
+
 if __name__ == "__main__":  # pragma: no cover
     import argparse
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("n", type=int)
-    parser.add_argument("out_dir")
+    parser.add_argument("out_dir", nargs="?")
     parser.add_argument("--seed0", type=int, default=0)
+    parser.add_argument(
+        "--mass-bias", action="store_true", help="the mass error on n carts with effects switched off (no logs written)"
+    )
     args = parser.parse_args()
-    generate(args.n, args.seed0, args.out_dir)
+    if args.mass_bias:
+        for name, variant in BIAS_VARIANTS.items():
+            for with_casters in (False, True):
+                row = mass_bias(range(args.seed0, args.seed0 + args.n), variant, with_casters)
+                label = "with caster columns" if with_casters else "nominal model"
+                print(json.dumps({"variant": name, "fit": label, **row}), flush=True)
+    else:
+        generate(args.n, args.seed0, args.out_dir)

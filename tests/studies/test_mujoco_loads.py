@@ -70,6 +70,7 @@ def test_estimate_splits_a_mujoco_log_at_the_load_and_not_the_same_cart_without(
     log, truth = ml.simulate_with_load(case, load)
     segs = estimate_log(log).segments
     assert len(segs) == 2 and abs(segs[1]["t0"] - load.t) < 1.0
-    assert abs(segs[1]["mass"] / truth["after"]["m_effective_forward_incl_wheel_spin"] - 1) < 0.1
+    # the after-segment reuses the whole log's caster model (alone it is too short to test it: +4.9 % without it)
+    assert abs(segs[1]["mass"] / truth["after"]["m_effective_forward_incl_wheel_spin"] - 1) < 0.025
     log0, _ = ml.simulate_with_load(case, replace(load, kind="none_in"))
     assert len(estimate_log(log0).segments) == 1
