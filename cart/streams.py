@@ -9,8 +9,8 @@ or the faster one is averaged (a row per pose sample). :func:`split_streams` und
   fifth of the rows or more (a multi-rate table); the pose is then timed at the middle of the
   interval in which it first appeared (it arrived after the previous row);
 - a pose interpolated linearly between motion-capture samples (at least a fifth of the rows on the
-  straight line through their neighbours, in short runs) is a multi-rate table as well: one row per
-  straight piece, the middle one, is kept;
+  straight line through their neighbours, in short runs) is a multi-rate table as well: the
+  motion-capture samples are recovered as the corners between the straight pieces;
 - in a single-rate table, a run of repeated poses during which the cart moved (the pose jumps at
   the run's end) is a dropout: the repeated rows are dropped, the interval becomes a gap;
 - wrench rows repeated in every channel over at least ``STUCK_SECONDS`` (and 5 rows) are a stuck
@@ -112,7 +112,7 @@ class Streams:
         if self.interpolated:
             out.append(
                 f"multi-rate table: the pose is interpolated linearly between motion-capture samples on "
-                f"{self.held_rows} rows; one row per straight piece kept (pose at {self.pose_hz:.4g} Hz, "
+                f"{self.held_rows} rows; its samples recovered as the corners between straight pieces (pose at {self.pose_hz:.4g} Hz, "
                 f"wrench at {self.wrench_hz:.4g} Hz, used as separate streams)"
             )
         elif self.multi_rate:
@@ -179,7 +179,8 @@ def _interpolated_pose(log: CartLog) -> Stream | None:
     Such a table (a logger interpolating motion capture to the F/T times) holds straight pieces between
     the motion-capture samples: at least ``HELD_SHARE`` of the rows lie on the line through their
     neighbours, in runs no longer than ``MAX_PIECE_ROWS`` (a cart cruising in a straight line at constant
-    speed on a noise-free pose makes long runs instead). One row per piece, the middle one, is kept.
+    speed on a noise-free pose makes long runs instead). The motion-capture samples are recovered as
+    the corners between consecutive pieces (:func:`_corners`).
     """
     t, q = log.t, log.q
     if len(t) < 10:
@@ -188,8 +189,31 @@ def _interpolated_pose(log: CartLog) -> Stream | None:
     runs = _runs(line[1:]) if line.sum() >= HELD_SHARE * len(t) else []
     if not runs or np.median([last - first + 1 for first, last in runs]) > MAX_PIECE_ROWS:
         return None
-    rows = np.array([(first + last) // 2 for first, last in runs])
-    return Stream(t[rows], q[rows], rows)
+    return _corners(t, q, runs)
+
+
+def _corners(t: np.ndarray, q: np.ndarray, runs: list[tuple[int, int]]) -> Stream:
+    """Return the corners of a piecewise-linear pose: where the lines of consecutive straight pieces meet.
+
+    ``runs``: (first, last) rows lying inside each piece. Two pieces separated by exactly two rows (the
+    last row of one, the first of the next) meet at one motion-capture sample; its time is where the two
+    lines cross in the column whose slope changes most (relative to its typical change), its pose the
+    first line at that time. ``rows`` holds the row before each corner.
+    """
+    a1 = np.array([last for _, last in runs[:-1]])
+    b0 = np.array([first for first, _ in runs[1:]])
+    ok = b0 - a1 == 3
+    a1, b0 = a1[ok], b0[ok]
+    ta, tb = t[a1 + 1], t[b0 - 1]
+    s_a = (q[a1 + 1] - q[a1]) / (ta - t[a1])[:, None]
+    s_b = (q[b0] - q[b0 - 1]) / (t[b0] - tb)[:, None]
+    change = s_a - s_b
+    col = np.argmax(np.abs(change) / (np.median(np.abs(change), axis=0) + 1e-300), axis=1)
+    k = np.arange(len(a1))
+    gap = q[b0 - 1, col] - q[a1 + 1, col] - s_b[k, col] * (tb - ta)  # line B minus line A at ta
+    tc = np.clip(ta + gap / change[k, col], ta, tb)
+    qc = q[a1 + 1] + s_a * (tc - ta)[:, None]
+    return Stream(tc, qc, a1 + 1)
 
 
 def _pose_stream(log: CartLog) -> tuple[Stream, int, bool]:

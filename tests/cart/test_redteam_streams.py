@@ -22,7 +22,7 @@ def _motion(t: np.ndarray) -> np.ndarray:
 
 def _interpolated(
     ft_hz: float = 500.0, mocap_hz: float = 120.0, seconds: float = 20.0, decimals: int | None = None
-) -> CartLog:
+) -> tuple[CartLog, np.ndarray]:
     rng = np.random.default_rng(4)
     t = np.arange(0.0, seconds, 1.0 / ft_hz) + rng.normal(0.0, 2e-5, int(round(seconds * ft_hz)))
     t_m = np.arange(0.0, seconds, 1.0 / mocap_hz) + 0.3 / mocap_hz
@@ -34,12 +34,15 @@ def _interpolated(
     t = t[rows]
     if decimals is not None:  # written with a fixed number of decimals
         t, q = np.round(t, decimals), np.round(q, decimals)
-    return CartLog(t=t, q=q, gamma=rng.standard_normal((len(t), 3)))
+    return CartLog(t=t, q=q, gamma=rng.standard_normal((len(t), 3))), t_m
 
 
 @pytest.mark.parametrize("decimals", [None, 6])
 def test_an_interpolated_pose_is_read_at_its_own_samples(decimals):
-    st = split_streams(_interpolated(decimals=decimals))
+    log, t_m = _interpolated(decimals=decimals)
+    st = split_streams(log)
+    near = np.abs(t_m[:, None] - st.pose.t[None, :]).min(axis=0)
+    assert len(st.pose.t) > 0.98 * len(t_m) and np.max(near) < (1e-9 if decimals is None else 1e-4)
     assert st.multi_rate and st.interpolated and not st.glitches
     assert 110 < st.pose_hz < 130 and 495 < st.wrench_hz < 505
     assert any(t0 < 8.2 < t1 for t0, t1 in st.dropouts)  # the dropout is a gap, not a straight piece of motion
