@@ -95,11 +95,15 @@ class Streams:
         return 1.0 / self.wrench.period
 
     def to_dict(self) -> dict[str, object]:
-        """Return the JSON fields ``{pose_hz, wrench_hz, held_rows, dropouts, stuck, glitches}``."""
+        """Return the JSON fields ``{pose_hz, wrench_hz, held_rows, interpolated, dropouts, stuck, glitches}``.
+
+        ``held_rows``: the rows that are no pose sample of their own (held, or interpolated when
+        ``interpolated``)."""
         return {
             "pose_hz": self.pose_hz,
             "wrench_hz": self.wrench_hz,
             "held_rows": self.held_rows,
+            "interpolated": self.interpolated,
             "dropouts": len(self.dropouts),
             "dropout_s": float(sum(t1 - t0 for t0, t1 in self.dropouts)),
             "stuck_wrench_s": float(sum(t1 - t0 for t0, t1 in self.stuck)),

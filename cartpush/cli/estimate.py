@@ -125,7 +125,8 @@ def _print_table(path: str, log, out: dict[str, Any]) -> None:
     st = out.get("streams")
     if st and (st["held_rows"] or st["dropouts"] or st["glitches"] or st["stuck_wrench_s"]):
         print(
-            f"streams    pose {st['pose_hz']:.4g} Hz, wrench {st['wrench_hz']:.4g} Hz, {st['held_rows']} held rows, "
+            f"streams    pose {st['pose_hz']:.4g} Hz, wrench {st['wrench_hz']:.4g} Hz, {st['held_rows']} "
+            f"{'interpolated' if st.get('interpolated') else 'held'} rows, "
             f"{st['dropouts']} dropouts, {st['glitches']} glitches, stuck wrench {st['stuck_wrench_s']:.3g} s"
         )
 
