@@ -160,20 +160,19 @@ def _repeats(v: np.ndarray) -> np.ndarray:
     return np.all(v[1:] == v[:-1], axis=1)
 
 
-def _on_line(t: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Return (n,) booleans: rows 1..n-2 whose pose lies on the straight line through both neighbours.
+def _slope_change(t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Return (n,) the change of slope at rows 1..n-2 relative to its typical change (inf at the ends).
 
-    The slope changes by less than ``LINE_TOLERANCE`` of its typical change (90th percentile, at least
-    the rounding of float64 values) in every column: exact up to the rounding of the written values
-    (6 decimals are enough), which a measured pose never is in all three columns at once.
+    Per column the change over the 90th percentile of changes (at least the rounding of float64
+    values: a noise-free straight line is one run); the largest over x, y and theta.
     """
     dt = np.diff(t)
     slope = np.diff(q, axis=0) / dt[:, None]
     change = np.abs(np.diff(slope, axis=0))
-    rounding = 1e-9 * (np.max(np.abs(q), axis=0) + 1.0) / float(np.median(dt))  # a noise-free line is one run
+    rounding = 1e-9 * (np.max(np.abs(q), axis=0) + 1.0) / float(np.median(dt))
     typical = np.maximum(np.percentile(change, 90, axis=0), rounding)
-    out = np.zeros(len(t), dtype=bool)
-    out[1:-1] = np.all(change <= LINE_TOLERANCE * typical, axis=1)
+    out = np.full(len(t), np.inf)
+    out[1:-1] = np.max(change / typical, axis=1)
     return out
 
 
@@ -181,16 +180,23 @@ def _interpolated_pose(log: CartLog) -> Stream | None:
     """Return the pose stream of a table whose pose was linearly interpolated to the rows' times, else None.
 
     Such a table (a logger interpolating motion capture to the F/T times) holds straight pieces between
-    the motion-capture samples: at least ``HELD_SHARE`` of the rows lie on the line through their
-    neighbours, in runs no longer than ``MAX_PIECE_ROWS`` (a cart cruising in a straight line at constant
-    speed on a noise-free pose makes long runs instead). The motion-capture samples are recovered as
-    the corners between consecutive pieces (:func:`_corners`).
+    the motion-capture samples. Its slope changes are two-valued: at the rounding of the written values
+    inside a piece (6 decimals are enough) and at the size of the motion-capture noise at the corners.
+    The table is one when at least ``HELD_SHARE`` of the rows are on the line through their neighbours
+    (change below ``LINE_TOLERANCE``), fewer than a tenth as many lie between that and ten times it (a
+    smooth, noise-free pose has changes of every size instead), and the runs are no longer than
+    ``MAX_PIECE_ROWS`` (a straight cruise at constant speed makes long runs). The motion-capture samples
+    are recovered as the corners between consecutive pieces (:func:`_corners`).
     """
     t, q = log.t, log.q
     if len(t) < 10:
         return None
-    line = _on_line(t, q)
-    runs = _runs(line[1:]) if line.sum() >= HELD_SHARE * len(t) else []
+    r = _slope_change(t, q)
+    line = r <= LINE_TOLERANCE
+    between = int(np.sum((r > LINE_TOLERANCE) & (r <= 10.0 * LINE_TOLERANCE)))
+    if line.sum() < HELD_SHARE * len(t) or between >= 0.1 * line.sum():
+        return None
+    runs = _runs(line[1:])
     if not runs or np.median([last - first + 1 for first, last in runs]) > MAX_PIECE_ROWS:
         return None
     return _corners(t, q, runs)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cart import table1
 from cart.logs import CartLog
 from cart.streams import split_streams
 
@@ -55,6 +56,8 @@ def test_a_measured_pose_and_a_noise_free_cruise_are_not_interpolated_tables():
     noisy = CartLog(t=t, q=_motion(t) + rng.normal(0.0, 1e-3, (len(t), 3)), gamma=rng.standard_normal((len(t), 3)))
     cruise_q = np.column_stack([0.5 * t, 0.2 * t + 1.0, 0.0 * t + 0.38])  # straight at constant speed
     cruise = CartLog(t=t, q=cruise_q, gamma=rng.standard_normal((len(t), 3)))
-    for log in (noisy, cruise):
+    run = table1.run_test(table1.TESTS[5], True, duration=30.0)  # noise-free, smooth: changes of every size
+    smooth = CartLog(t=run.t, q=run.q, gamma=run.gamma)
+    for log in (noisy, cruise, smooth):
         st = split_streams(log)
-        assert not st.interpolated and st.held_rows == 0 and len(st.pose.t) == len(t)
+        assert not st.interpolated and st.held_rows == 0 and len(st.pose.t) == len(log.t)
