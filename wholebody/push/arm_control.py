@@ -4,18 +4,27 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
 
 - **Torque-controlled arm** (the iiwa, joint torque control): each physics step
 
-  ``tau = arm_torque + J^T K_f (w - w_f) + N^T (K (q_plan(t) - q) + D (v_plan - v))``, clipped to the effort limits,
+  ``tau = b(q, v) + J^T w + J^T K_f (e + K_i int e) + N^T (K (q_plan(t) - q) + D (v_plan - v))``, clipped to the
+  effort limits, with ``e = w - w_f``,
 
-  where ``arm_torque`` is the controller's command (the arm's bias forces from Pinocchio's RNEA at the
-  measured state + ``J^T w`` of the allocated hand wrench ``w``), ``q_plan(t)`` the plan interpolated
-  over the period (``arm_position - arm_velocity (t_end - t)``) and ``N^T = I - J^T Jbar^T`` the
-  dynamically consistent null-space projector (``Jbar = M^-1 J^T (J M^-1 J^T)^-1``; ``J`` the hand's
-  6 x n_arm Jacobian, ``M`` the arm's joint-space inertia, both refreshed once per control period).
-  The joint impedance holds the posture (the elbow of a 7-joint arm) without pushing on the hand: the
-  hand's wrench stays the commanded ``J^T w`` while the hand moves with the handle it holds. ``w_f`` is the
-  wrist F/T reading mapped to the grasp (world-aligned), read every physics step and low-passed (10 ms): the
-  force loop (``K_f = 2``) divides the arm's own task-space inertia that the cart feels (19 kg along x at the
-  push posture, as much as the cart) by ``1 + K_f``; ``K_f >= 4`` rings with the filter and the grasp.
+  where ``b`` are the arm's bias forces (gravity, Coriolis) at the state of the step (see `TorqueArmGains.feedforward`
+  for the other feed-forwards), ``w`` the allocated hand wrench, ``q_plan(t)`` the plan interpolated over the period
+  (``arm_position - arm_velocity (t_end - t)``) and ``N^T = I - J^T Jbar^T`` the dynamically consistent null-space
+  projector (``Jbar = M^-1 J^T (J M^-1 J^T)^-1``; ``J`` the hand's 6 x n_arm Jacobian, ``M`` the arm's joint-space
+  inertia, both refreshed once per control period). The joint impedance holds the posture (the elbow of a 7-joint
+  arm) without pushing on the hand: the hand's wrench stays the commanded ``J^T w`` while the hand moves with the
+  handle it holds.
+
+  The force loop (PI, ``K_f = 3`` on the force rows and 1 on the moment rows, ``K_i = 5 /s``) cancels what the arm's own dynamics take from the push: the
+  cart feels the arm's task-space inertia (19 kg along x at the push posture, as much as the cart) whenever the
+  hand accelerates relative to the base. Its measured wrench ``w_f`` is the hand's wrench at the grasp
+  (world-aligned), low-passed (5 ms), fused from two sensors (a complementary filter): the arm's joint-side
+  estimate ``w_j = -(J J^T)^-1 J tau_ext``, ``tau_ext = (M qdd)_arm + b - tau_joint`` (the external joint torque
+  from the joint torque sensors, accelerations and model, as a torque-sensing arm estimates it; free of the F/T's
+  noise) plus the slow part (0.5 s) of the wrist F/T reading minus ``w_j`` (the F/T's accuracy at low frequency:
+  it removes the model's slow errors, payload and friction). Fed back directly, the F/T's white noise (3 N per
+  sample at 500 Hz) would be pushed into the cart ``K_f`` times over. The loop's gain is bounded by its one-step
+  delay: measured, ``K_f = 6`` rings at 20-50 Hz. The integral stops while the torques saturate (anti-windup).
 
 - **Velocity-controlled arm** (the WMRA's, joint velocity servos): once per control period, an
   admittance around the servos,
@@ -45,11 +54,11 @@ class TorqueArmGains:
     #: joint stiffness (N m/rad) and damping (N m s/rad)
     stiffness: float = 200.0
     damping: float = 20.0
-    #: "command": the feed-forward is the command's ``arm_torque`` (the controller's RNEA + J^T w);
-    #: "bias": the arm's bias forces (gravity, Coriolis) at the measured state, every physics step, + J^T w
-    #: of the command's ``hand_wrench``; "dynamics": the arm's inverse dynamics at the measured state with
-    #: the base's measured acceleration and the plan's arm acceleration, every physics step, + J^T w
-    feedforward: str = "command"
+    #: "bias" (default): the arm's bias forces (gravity, Coriolis) at the state of each physics step + J^T w of the
+    #: command's ``hand_wrench`` (an arm's own gravity compensation); "command": the command's ``arm_torque`` (the
+    #: controller's RNEA at the period's start + J^T w, held over the period); "dynamics": the arm's inverse
+    #: dynamics at the state of each step with the base's measured acceleration and the plan's arm acceleration + J^T w
+    feedforward: str = "bias"
     #: True: the impedance acts in the hand's null space only; False: on every joint (it then also damps the
     #: hand's motion relative to the plan)
     null_space: bool = True
@@ -62,11 +71,21 @@ class TorqueArmGains:
     #: ``hand_target`` (its velocity: the target's change over the period); 0 = off (pure wrench control)
     cartesian_stiffness: float = 0.0
     cartesian_damping: float = 0.0
-    #: F/T force feedback: ``J^T K_f (w - w_f)`` with ``w_f`` the wrist F/T reading (at the grasp, world-aligned)
-    #: low-passed with time constant ``force_filter_tau`` (s), read every physics step; it divides the arm's own
-    #: task-space inertia and friction felt by the cart by ``1 + K_f``; 0 = off (open-loop J^T w)
-    force_feedback: float = 2.0
-    force_filter_tau: float = 0.01
+    #: force loop: ``J^T K_f (e + K_i int e)``, ``e = w - w_f``, ``w_f`` the measured hand wrench (at the grasp,
+    #: world-aligned) low-passed with time constant ``force_filter_tau`` (s), every physics step; it divides the
+    #: arm's own task-space inertia and friction felt by the cart by ``1 + K_f`` and removes their slow part
+    #: (``K_i``, 1/s); ``force_feedback`` 0 = off (open-loop J^T w)
+    force_feedback: float = 3.0
+    #: the loop's gain on the moment rows (``K_f`` stands for the force rows): the wrist's rotational task-space
+    #: inertia (0.3-0.6 kg m^2 for the iiwa, 0.004 for TIAGo) is too small to filter the loop's one-step delay;
+    #: measured, TIAGo's moment loop at 3 drives its 3 N m wrist to 10x its limit
+    moment_feedback: float = 1.0
+    force_integral: float = 5.0
+    force_filter_tau: float = 0.005
+    #: time constant (s) of the F/T's part in the measured wrench: the loop takes the arm's joint-side estimate
+    #: (`TorqueArmLaw.joint_torque_sample`) plus the reading's difference to it low-passed with this time constant;
+    #: 0 = the F/T reading alone (its noise then enters the loop)
+    fusion_tau: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -108,8 +127,16 @@ class TorqueArmLaw:
         self.limit = np.asarray(effort_limit, dtype=float)
         self.gains = gains
         self._alpha = physics_dt / (gains.force_filter_tau + physics_dt)
+        self._dt = physics_dt
         self._w_d = np.zeros(6)
         self._w_f: np.ndarray | None = None
+        self._integral = np.zeros(6)
+        self._saturated = False
+        #: the joint-side wrench estimate of the last step and the low-passed F/T minus it
+        self._w_joint: np.ndarray | None = None
+        self._ft_offset = np.zeros(6)
+        self._Jt_pinv = np.zeros((6, self.limit.size))
+        self._gain = np.r_[np.full(3, gains.force_feedback), np.full(3, gains.moment_feedback)]
         self._ff = np.zeros(self.limit.size)
         self._NT = np.eye(self.limit.size)
         self._q_end = np.zeros(self.limit.size)
@@ -144,6 +171,7 @@ class TorqueArmLaw:
         self._v = v_new
         self._NT = null_space_projector_T(J, M) if self.gains.null_space else np.eye(M.shape[0])
         self._J = J
+        self._Jt_pinv = np.linalg.solve(J @ J.T + 1e-9 * np.eye(J.shape[0]), J)
         self._Jr = J[3:]
         self._Jt = J[:3]
         self._t_end = t_end
@@ -165,7 +193,7 @@ class TorqueArmLaw:
 
         `bias`: the arm's bias forces there; `tilt`: (rotation error hand -> target, hand angular velocity), world
         frame, for the roll/pitch hold (None: off); `wrench_measured`: the F/T reading at the grasp, world-aligned,
-        for the force feedback (None: off).
+        for the force loop (None: off).
         """
         g = self.gains
         q_plan = self._q_end - self._v * (self._t_end - t)
@@ -175,9 +203,7 @@ class TorqueArmLaw:
             p_err, v_err = hand
             tau = tau + self._Jt.T @ (g.cartesian_stiffness * p_err + g.cartesian_damping * v_err)
         if wrench_measured is not None and g.force_feedback > 0.0:
-            w = np.asarray(wrench_measured, dtype=float)
-            self._w_f = w.copy() if self._w_f is None else self._w_f + self._alpha * (w - self._w_f)
-            tau = tau + self._J.T @ (g.force_feedback * (self._w_d - self._w_f))
+            tau = tau + self._J.T @ self._force_loop(np.asarray(wrench_measured, dtype=float))
         if tilt is not None and (g.tilt_stiffness > 0.0 or g.tilt_damping > 0.0):
             err, omega = tilt
             n = g.tilt_stiffness * err - g.tilt_damping * omega
@@ -185,10 +211,39 @@ class TorqueArmLaw:
             tau = tau + self._Jr.T @ n
         ratio = float(np.max(np.abs(tau) / self.limit))
         self.peak_ratio = max(self.peak_ratio, ratio)
+        self._saturated = ratio > 1.0
         if ratio > 1.0:
             self.saturated_steps += 1
             tau = np.clip(tau, -self.limit, self.limit)
         return tau
+
+    def joint_torque_sample(self, tau_ext: np.ndarray) -> None:
+        """Take the arm's external joint torque over the last physics step (``J^T`` of the cart's wrench on the hand).
+
+        ``tau_ext = (M qdd)_arm + b - tau_joint``: what the joint torque sensors, the accelerations and the model
+        say the rest of the world applied to the arm (the caller computes it). The hand's wrench on the cart is
+        the least-squares ``w_j = -(J J^T)^-1 J tau_ext``.
+        """
+        self._w_joint = -self._Jt_pinv @ np.asarray(tau_ext, dtype=float)
+
+    def _measured_wrench(self, ft: np.ndarray) -> np.ndarray:
+        """Return the hand's wrench the loop sees: the joint-side estimate + the F/T's slow part (or the F/T alone)."""
+        g = self.gains
+        if g.fusion_tau <= 0.0 or self._w_joint is None:
+            return ft
+        self._ft_offset += min(self._dt / g.fusion_tau, 1.0) * (ft - self._w_joint - self._ft_offset)
+        return self._w_joint + self._ft_offset
+
+    def _force_loop(self, ft: np.ndarray) -> np.ndarray:
+        """Return the loop's task-space wrench ``K (e + K_i int e)``, ``e = w - w_f`` (integral held while saturated);
+        ``K`` is ``K_f`` on the force rows, ``moment_feedback`` on the moment rows."""
+        g = self.gains
+        w = self._measured_wrench(ft)
+        self._w_f = w.copy() if self._w_f is None else self._w_f + self._alpha * (w - self._w_f)
+        e = self._w_d - self._w_f
+        if g.force_integral > 0.0 and not self._saturated:
+            self._integral += self._dt * e
+        return self._gain * (e + g.force_integral * self._integral)
 
 
 class AdmittanceArmLaw:

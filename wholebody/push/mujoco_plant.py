@@ -12,7 +12,8 @@ for one control period:
   its casters: its nonholonomic constraint and its wheel slip are physical (the largest slip speed is
   reported);
 - arms: `wholebody.push.arm_control` (torque law for a torque-controlled arm, admittance around
-  velocity servos for a velocity-controlled one);
+  velocity servos for a velocity-controlled one); a torque-controlled arm's force loop also gets, every physics
+  step, its external joint torque (joint torques, accelerations and the model: :meth:`MujocoPlant._joint_samples`);
 - sensing (:meth:`MujocoPlant.measure`): motion capture of the ``cart`` body (with the noise model of
   the kinematic plant, `cart.simulate.MeasurementNoise`), joint and base states, and each wrist F/T
   sensor (MuJoCo force and torque sensors at the F/T frame, the static load of the tool beyond the
@@ -216,6 +217,8 @@ class MujocoPlant:
         self._vel6 = np.zeros(6)
         self._target_prev: list[np.ndarray | None] = [None] * len(robots)
         self._rne = np.zeros(self.scene.model.nv)
+        self._mdv = np.zeros(self.scene.model.nv)
+        self._joint_frc = np.zeros(self.scene.model.nv)
         self._stats = _Stats(per_robot_err=[[0.0, 0.0] for _ in robots])
         self._theta_prev = float(cart_pose[2])
         self._theta = float(cart_pose[2])
@@ -439,6 +442,7 @@ class MujocoPlant:
                 if r.base == "planar":
                     d.ctrl[r.base_actuators] = self._planar_base_rates(i, r, c.base_twist)
             mujoco.mj_step(m, d)
+            self._joint_samples()
             self._track_slip()
             for i in range(len(self.scene.robots)):
                 self._hand_sum[i] += self._hand_wrench_world(i, self._sensor_wrench(i))
@@ -447,6 +451,36 @@ class MujocoPlant:
         self._after_period(commands)
         self._stats.wall += time.perf_counter() - wall0
         self._stats.sim += self.dt
+
+    def _joint_samples(self) -> None:
+        """Give each torque law with a fused force loop its arm's external joint torque over the last physics step.
+
+        ``tau_ext = (M qdd)_arm + b_arm - tau_joint``: the joints' accelerations (the engine's; a real arm
+        differentiates its encoders) through the model (the whole robot's inertia rows of the arm: the base's
+        acceleration included) minus the joints' own torque as output-side joint torque sensors read it (motor,
+        passive damping, friction and limit forces): the weld's (and any contact's) torque on the arm, exact here
+        (no joint-torque noise is modelled).
+        """
+        m, d = self.scene.model, self.scene.data
+        laws = [
+            (r, law)
+            for r, law in zip(self.scene.robots, self._laws)
+            if isinstance(law, TorqueArmLaw) and law.gains.fusion_tau > 0.0 and law.gains.force_feedback > 0.0
+        ]
+        if not laws:
+            return
+        # d.qM, qfrc_*, efc_* are the step's state (mj_step integrates after them)
+        mujoco.mj_mulM(m, d, self._mdv, d.qacc)
+        internal = (d.efc_type == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF) | (
+            d.efc_type == mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT
+        )
+        self._joint_frc[:] = 0.0
+        if internal.any():
+            mujoco.mj_mulJacTVec(m, d, self._joint_frc, np.where(internal, d.efc_force, 0.0))
+        for r, law in laws:
+            a = r.arm_dof
+            joint = d.qfrc_actuator[a] + d.qfrc_passive[a] + self._joint_frc[a]
+            law.joint_torque_sample(self._mdv[a] + d.qfrc_bias[a] - joint)
 
     def _planar_base_rates(self, i: int, r: RobotIndex, twist: np.ndarray) -> np.ndarray:
         """Return the planar base's servo setpoints (world rates): the commanded body twist + the PI loop's integral."""

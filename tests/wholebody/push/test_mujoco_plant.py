@@ -230,7 +230,10 @@ def test_ft_force_loop_adds_the_wrench_error_through_the_jacobian():
     q = np.zeros(7)
 
     def torques(k_f, reading, steps=50):
-        law = TorqueArmLaw(np.full(7, 1e6), TorqueArmGains(stiffness=0.0, damping=0.0, force_feedback=k_f), 0.002)
+        gains = TorqueArmGains(
+            stiffness=0.0, damping=0.0, force_feedback=k_f, moment_feedback=k_f, force_integral=0.0, fusion_tau=0.0
+        )
+        law = TorqueArmLaw(np.full(7, 1e6), gains, 0.002)
         law.begin(w, J.T @ w, q, q, J, M, t_end=0.01, dt=0.01)
         taus = [law.torque(0.0, q, q, np.zeros(7), wrench_measured=reading) for _ in range(steps)]
         return taus[0], taus[-1]

@@ -1,0 +1,107 @@
+"""The torque law applies the allocated wrench: physics of the held hand (the iiwa on the Ridgeback, MuJoCo plant).
+
+The cart is held still (a viscous clamp on its free joint: a 10 N push moves it at 0.1 mm/s) so the hand's wrench on
+it is what the arm makes of the command; the period-mean of the noise-free F/T (what the cart integrates) is
+compared with the allocated wrench.
+
+- **Sensor noise** (base at rest, F/T with the loop's 3 N per sample): the fused loop passes the F/T's noise only
+  through its slow part, a first-order filter of time constant ``T = fusion_tau``: per axis ``sigma sqrt(dt /
+  (2 T))`` = 0.13 N (``dt`` the physics step). The F/T fed back directly (10 ms filter, ``K_f = 2``) pushes its
+  noise, filtered to ``sigma sqrt(dt / (2 tau))`` = 0.9 N per axis, into the cart ``K_f`` times over.
+- **Moving base** (the base accelerates toward the cart at 0.5 m/s^2 for 0.6 s, no noise): the arm folds, its
+  links' momentum takes about 2 N from the forward push open loop; the proportional loop divides that by
+  ``1 + K_f``, its integral removes the rest as ``exp(-K_i K_f t / (1 + K_f))``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from cart.simulate import MeasurementNoise
+from wholebody.push import PushConfig, build_controller
+from wholebody.push.arm_control import TorqueArmGains
+from wholebody.push.config import TRUE_CART
+from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantConfig
+from wholebody.push.plant import RobotCommand
+
+PUSH = np.array([10.0, 0.0, -5.0, 0.0, 0.0, 0.0])  # world-aligned at the grasp: forward and down
+#: the F/T fed straight into a proportional loop (no joint-side estimate, no integral)
+FT_ONLY = TorqueArmGains(force_feedback=2.0, force_integral=0.0, force_filter_tau=0.01, fusion_tau=0.0)
+
+
+@pytest.fixture(scope="module")
+def setup():
+    return build_controller(PushConfig(trajectory=1, duration=2.0, contact="fixed"))
+
+
+def _held_cart_plant(setup, gains: TorqueArmGains, noise: MeasurementNoise) -> MujocoPlant:
+    plant = MujocoPlant(
+        setup.controller.robots, setup.q0, TRUE_CART, noise=noise, config=MujocoPlantConfig(torque_gains=gains)
+    )
+    c = plant.scene.cart_dof  # a viscous clamp on the cart's free joint: 1e5 N s/m, under 10 N 0.1 mm/s
+    plant.scene.model.dof_damping[c : c + 6] = 1e5
+    return plant
+
+
+def _push(plant: MujocoPlant, base_acceleration: float, duration: float) -> np.ndarray:
+    """Return the period-mean hand force minus the allocated one (n_periods, 3) while the base accelerates along x."""
+    first = plant.measure().robots[0]
+    n = first.q_arm.size
+    errors = []
+    for k in range(int(round(duration / plant.dt))):
+        r = plant.measure().robots[0]
+        v = base_acceleration * (k + 1) * plant.dt
+        cmd = RobotCommand(
+            arm_velocity=np.zeros(n),
+            arm_position=r.q_arm.copy(),  # the null-space posture follows the arm: no pull on the hand
+            arm_torque=np.zeros(n),
+            base_twist=np.array([v, 0.0, 0.0]),
+            wheel_rates=np.zeros(4),
+            hand_wrench=PUSH,
+        )
+        plant.step([cmd])
+        errors.append(plant._hand_clean[0][:3] - PUSH[:3])
+    return np.array(errors)
+
+
+def _rms(e: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+
+
+def test_fused_force_loop_keeps_the_sensor_noise_out_of_the_push(setup):
+    sigma = 3.0
+    noise = MeasurementNoise(force=sigma, torque=0.1 * sigma)
+    dt = MujocoPlantConfig().physics_dt
+    gains = TorqueArmGains()
+    fused = _rms(_push(_held_cart_plant(setup, gains, noise), 0.0, 1.0)[20:])
+    direct = _rms(_push(_held_cart_plant(setup, FT_ONLY, noise), 0.0, 1.0)[20:])
+    # what passes the fusion's slow F/T part, per axis, over three axes; twice for the torque noise's share
+    passed = math.sqrt(3.0) * sigma * math.sqrt(dt / (2.0 * gains.fusion_tau))
+    assert fused < 2.0 * passed
+    # the F/T fed back directly: its filtered noise, K_f / (1 + K_f) of it on the cart, far above
+    direct_floor = math.sqrt(3.0) * sigma * math.sqrt(dt / (2.0 * FT_ONLY.force_filter_tau)) * 2.0 / 3.0
+    assert direct > 0.5 * direct_floor > 2.0 * passed
+
+
+def test_force_loop_cancels_the_arms_own_dynamics_when_the_base_moves(setup):
+    quiet = MeasurementNoise()
+    gains = TorqueArmGains()
+    # the first 0.1 s: the base servo's start (the commanded speed steps up each period)
+    err = _push(_held_cart_plant(setup, gains, quiet), 0.5, 0.6)[10:, 0]
+    open_loop = np.mean(
+        np.abs(_push(_held_cart_plant(setup, replace(gains, force_feedback=0.0), quiet), 0.5, 0.6)[10:, 0])
+    )
+    # open loop the arm's links, accelerating as the arm folds, take newtons from the forward push
+    assert open_loop > 0.1 * PUSH[0]
+    # the proportional loop divides that by 1 + K_f; its integral removes the rest, as exp(-K_i K_f t / (1 + K_f))
+    # (0.32 at 0.3 s)
+    k_f = gains.force_feedback
+    assert np.mean(np.abs(err[:20])) < open_loop / (1.0 + k_f)
+    assert np.mean(np.abs(err[20:])) < 0.5 * open_loop / (1.0 + k_f)
+    # the F/T fed back directly with no integral keeps the proportional loop's share
+    direct = _push(_held_cart_plant(setup, FT_ONLY, quiet), 0.5, 0.6)[30:, 0]
+    assert np.mean(np.abs(direct)) > 0.5 * open_loop / (1.0 + k_f)
