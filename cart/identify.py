@@ -669,12 +669,12 @@ def _model_uncertainty(
 
 def _caster_geometry(
     grid: _Grid, sos: np.ndarray, reg: _Regression, noise: np.ndarray, v: np.ndarray, om: np.ndarray
-) -> tuple[float, float, tuple[np.ndarray, float] | None]:
-    """Return (axle, trail, (filtered columns on the kept rows, half-turns) or None) of the least weighted residual.
+) -> tuple[float, float, np.ndarray, float]:
+    """Return (axle, trail, filtered columns on the first kept rows, half-turns) of the least weighted residual.
 
-    The geometries of :mod:`cart.identify_casters` are searched on the first ``SEARCH_SAMPLES`` grid samples,
-    with the nominal fit's (Huber) row weights held, regressor noise compensated as in :func:`_wls`; the
-    columns are returned when the search saw the whole grid.
+    The geometries of :mod:`cart.identify_casters` are searched on the first ``SEARCH_SAMPLES`` grid samples
+    (the columns returned are those rows'), with the nominal fit's (Huber) row weights held, regressor noise
+    compensated as in :func:`_wls`.
     """
     n = min(len(grid.t), casters_model.SEARCH_SAMPLES)
     keep, n_c = reg.keep[:n], casters_model.N_COLUMNS
@@ -699,28 +699,32 @@ def _caster_geometry(
             ssr = float(np.sum(wts * (y0 - _predict(x, p)) ** 2))
             if ssr < best:
                 best, where, cols_best = ssr, (i, j), cols
-    axle, trail = casters_model.AXLES[where[0]], casters_model.TRAILS[where[1]]
-    if n < len(grid.t):
-        return axle, trail, None
-    return axle, trail, (cols_best, casters_model.half_turns(alpha[:, where[0], where[1]]))
+    turns = casters_model.half_turns(alpha[:, where[0], where[1]])
+    return casters_model.AXLES[where[0]], casters_model.TRAILS[where[1]], cols_best, turns
 
 
-def _with_casters(
-    grid: _Grid, sos: np.ndarray, reg: _Regression, noise: np.ndarray, given: casters_model.Casters | None = None
-) -> tuple[_Regression, float, float, float]:
-    """Return (the regression with the caster columns appended, axle, trail, half-turns): ``given`` or the best."""
-    _, v, om, _, _ = _kinematics(grid.q, grid.dt, sos)
-    if given is None:
-        axle, trail, found = _caster_geometry(grid, sos, reg, noise, v, om)
-    else:
-        axle, trail, found = given.axle, given.trail, None
-    if found is None:
-        full, turns = casters_model.columns(grid.t, v, om, axle, trail)
-        cols = _filtfilt(sos, full.reshape(len(grid.t), -1)).reshape(full.shape)[reg.keep]
-    else:
-        cols, turns = found
-    x = np.concatenate([reg.x, cols], axis=-1)
-    return _Regression(x=x, y=reg.y, v=reg.v, om=reg.om, keep=reg.keep, y_raw=reg.y_raw), axle, trail, turns
+def _with_columns(reg: _Regression, cols: np.ndarray, rows: int | None = None) -> _Regression:
+    """Return the first ``rows`` (None: all) rows of the regression with the columns ``cols`` appended."""
+    k = len(reg.y) if rows is None else rows
+    return _Regression(
+        x=np.concatenate([reg.x[:k], cols], axis=-1),
+        y=reg.y[:k],
+        v=reg.v[:k],
+        om=reg.om[:k],
+        keep=reg.keep,
+        y_raw=reg.y_raw[:k],
+    )
+
+
+def _full_columns(
+    grid: _Grid, sos: np.ndarray, keep: np.ndarray, vo: tuple[np.ndarray, np.ndarray], axle: float, trail: float
+) -> tuple[np.ndarray, float]:
+    """Return (the filtered caster columns of one geometry on the kept rows of the whole grid, half-turns)."""
+    full, turns = casters_model.columns(grid.t, vo[0], vo[1], axle, trail)
+    return _filtfilt(sos, full.reshape(len(grid.t), -1)).reshape(full.shape)[keep], turns
+
+
+_CasterFit = tuple[_Regression, _Regression, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
 
 
 def _caster_fit(
@@ -730,42 +734,58 @@ def _caster_fit(
     noise: np.ndarray,
     step_lag: tuple[int, int],
     given: casters_model.Casters | None = None,
-) -> tuple[
-    _Regression, _Regression, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None, casters_model.Casters
-]:
-    """Return (full and decimated regressions with the caster columns, their fit, the caster model's test).
+) -> tuple[_CasterFit | None, casters_model.Casters]:
+    """Return ((full and decimated regressions with the caster columns, their fit) or None, the caster model's test).
 
-    The fit is None unless the log swings the modelled casters round (``MIN_HALF_TURNS``) and the three
-    caster torques are jointly significant beyond a Coulomb-like forward force and yaw torque (rolling
+    None unless the log swings the modelled casters round (``MIN_HALF_TURNS``) and the four caster
+    coefficients are jointly significant beyond a Coulomb-like forward force and yaw torque (rolling
     resistance, dry friction: tested with those columns in the fit too, so that a dry-friction sliding
     object is not read as casters): Wald test on their covariance, :func:`cart.identify_casters.wald_threshold`,
-    corrected for the degrees of freedom the fit uses. ``given``: a caster model already established for
-    this cart (e.g. on the whole log, for a segment of it): its geometry is used and kept without a new test.
+    corrected for the degrees of freedom the fit uses; searched and tested on the first ``SEARCH_SAMPLES``
+    grid samples (a long log pays for the whole-log columns only when they are kept). ``given``: a caster
+    model already established for this cart (e.g. on the whole log, for a segment of it): its geometry is
+    used and kept without a new test.
     """
     step, lag = step_lag
-    ext, axle, trail, turns = _with_casters(grid, sos, full, noise, given)
+    _, v, om, _, _ = _kinematics(grid.q, grid.dt, sos)
+    if given is None:
+        axle, trail, cols, turns = _caster_geometry(grid, sos, full, noise, v, om)
+        casters = _caster_test(_with_columns(full, cols, len(cols)), noise, lag * step, (axle, trail, turns))
+        if not casters.kept:
+            return None, casters
+        if len(cols) < len(full.y):
+            cols, _ = _full_columns(grid, sos, full.keep, (v, om), axle, trail)
+    else:
+        casters = given
+        cols, _ = _full_columns(grid, sos, full.keep, (v, om), given.axle, given.trail)
+    ext = _with_columns(full, cols)
     reg = _every(ext, step)
-    if given is not None:
-        try:
-            return ext, reg, _fit(reg.x, reg.y, noise, lag), given
-        except np.linalg.LinAlgError:
-            return ext, reg, None, casters_model.Casters(axle, trail, 0.0, math.inf, False, turns)
+    try:
+        return (ext, reg, _fit(reg.x, reg.y, noise, lag)), casters
+    except np.linalg.LinAlgError:
+        return None, casters_model.Casters(casters.axle, casters.trail, 0.0, math.inf, False, casters.half_turns)
+
+
+def _caster_test(
+    reg: _Regression, noise: np.ndarray, lag: int, found: tuple[float, float, float]
+) -> casters_model.Casters:
+    """Return the caster model's test on the regression ``reg`` whose last columns are the casters' (see `_caster_fit`)."""
+    axle, trail, turns = found
     k = casters_model.N_COLUMNS
     # the rows are band-limited to the cut-off fc: about 2 fc T = 4 rows / lag of them are independent; the
     # HAC covariance of n_p fitted parameters is low by n_eff / (n_eff - n_p) (degrees of freedom)
     n_eff, n_p = 4.0 * len(reg.y) / max(lag, 1), reg.x.shape[-1] + 2
     if n_eff <= n_p or turns < casters_model.MIN_HALF_TURNS:
-        return ext, reg, None, casters_model.Casters(axle, trail, 0.0, math.inf, False, turns)
+        return casters_model.Casters(axle, trail, 0.0, math.inf, False, turns)
     threshold = casters_model.wald_threshold() * n_eff / (n_eff - n_p)
     try:
         eps = (0.05 * float(np.std(reg.v)) + 1e-12, 0.05 * float(np.std(reg.om)) + 1e-12)
         pt, covt, _, _ = _fit(_with_coulomb_columns(reg.x, reg.v, reg.om, eps), reg.y, noise, lag)
-        tail, cc = pt[-2 - k : -2], covt[-2 - k : -2, -2 - k : -2]
-        wald = float(tail @ np.linalg.pinv(cc) @ tail) if np.all(np.isfinite(cc)) else 0.0
-        fit = _fit(reg.x, reg.y, noise, lag) if wald > threshold else None
     except np.linalg.LinAlgError:
-        return ext, reg, None, casters_model.Casters(axle, trail, 0.0, threshold, False, turns)
-    return ext, reg, fit, casters_model.Casters(axle, trail, wald, threshold, fit is not None, turns)
+        return casters_model.Casters(axle, trail, 0.0, threshold, False, turns)
+    tail, cc = pt[-2 - k : -2], covt[-2 - k : -2, -2 - k : -2]
+    wald = float(tail @ np.linalg.pinv(cc) @ tail) if np.all(np.isfinite(cc)) else 0.0
+    return casters_model.Casters(axle, trail, wald, threshold, wald > threshold, turns)
 
 
 def identify(
@@ -802,9 +822,9 @@ def identify(
         raise IdentifiabilityError(
             f"{log.source}: the least-squares problem is singular ({exc}): the log does not excite the parameters"
         ) from None
-    ext, ext_reg, ext_fit, casters = _caster_fit(grid, sos, full, noise, (step, lag), casters)
+    ext_fit, casters = _caster_fit(grid, sos, full, noise, (step, lag), casters)
     if ext_fit is not None:
-        full, reg, (p, cov, scale, r) = ext, ext_reg, ext_fit
+        full, reg, (p, cov, scale, r) = ext_fit
         warnings.append(
             f"the casters' swivel resistance is modelled (swivel axes about {casters.axle:.2g} m ahead of the axle, "
             f"trail about {100 * casters.trail:.2g} cm; Wald {casters.wald:.0f} > {casters.threshold:.0f}): "

@@ -39,7 +39,7 @@ HALF_TRACK = 0.25
 #: Significance of the caster columns (Wald test, three dof, Bonferroni over the grid).
 ALPHA = 1e-3
 #: Grid samples on which the geometry is searched (the first ones; the chosen geometry then runs on all).
-SEARCH_SAMPLES = 24_000
+SEARCH_SAMPLES = 12_000
 #: Least swivelling (half-turns per caster) along the log for the caster model to be tested: a log that never
 #: swings the casters round cannot tell their resistance from any other misfit.
 MIN_HALF_TURNS = 1.0

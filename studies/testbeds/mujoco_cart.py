@@ -566,8 +566,9 @@ def generate(n: int, seed0: int, out_dir: str | os.PathLike, **overrides: Any) -
         fh.write("\n")
 
 
-#: Effects switched off in :func:`mass_bias` (MujocoCart overrides): the caster swivel's bearing friction and
-#: damping, the wheels' rolling and torsional (scrub) friction on the floor, both.
+#: Variants of :func:`mass_bias` (:func:`random_case` overrides): the caster swivel's bearing friction and
+#: damping off, the wheels' rolling and torsional (scrub) friction on the floor off, both; a stiffer contact;
+#: no sensor noise.
 BIAS_VARIANTS: dict[str, dict[str, Any]] = {
     "all effects": {},
     "no swivel friction": {"swivel_damping": 0.0, "swivel_frictionloss": 0.0},
@@ -578,6 +579,8 @@ BIAS_VARIANTS: dict[str, dict[str, Any]] = {
         "rolling_friction": 0.0,
         "torsional_friction": 0.0,
     },
+    "stiffer contact": {"solref": (0.005, 1.0)},
+    "no sensor noise": {"force_noise": 0.0, "torque_noise": 0.0, "position_noise": 1e-6, "theta_noise": 1e-6},
 }
 
 
