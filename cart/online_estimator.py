@@ -17,7 +17,8 @@
 3. *plausibility and run-off*: mass > 0, inertia about the CoM > 0, CoM inside the footprint,
    residual ratio (a windowed innovation test of the regression); each episode is recorded in
    :attr:`OnlineLSEstimator.flags` and the controller receives the estimate projected on the
-   plausible set;
+   plausible set, its CoM pulled from the prior only as far as the misfit-deflated information allows
+   (the stds are scaled up by the residual ratio);
 4. the *state* ``x`` (pose, velocity) for the controller: the paper's EKF (:class:`cart.ekf.CartEKF`,
    eq. 8-20) with its parameters frozen and overwritten every step by the regression's estimate
    (a state observer only: the wrench enters as its input, never the parameters' update).
@@ -73,7 +74,9 @@ class OnlineOptions:
     before it, or earlier) is dated at the impulse;
     ``confirm_sigma``: a detection made while the model misfits (residual ratio at the onset above
     ``misfit_ratio``) is a load change only when the masses fitted on each side of the onset differ by this
-    many stds of their difference, scaled up by that ratio (:meth:`OnlineLSEstimator._confirmed`).
+    many stds of their difference, scaled up by that ratio (:meth:`OnlineLSEstimator._confirmed`);
+    ``deflate_com``: the CoM given to the controller moves from the prior by the estimate's move deflated by the
+    model's misfit (:meth:`OnlineLSEstimator._com_to_use`).
     """
 
     cutoff_hz: float = 2.0
@@ -103,6 +106,7 @@ class OnlineOptions:
     impulse_alpha: float = 1e-9
     impulse_settle_cycles: float = 1.5
     confirm_sigma: float = 3.0
+    deflate_com: bool = True
 
 
 @dataclass(frozen=True)
@@ -265,9 +269,7 @@ class OnlineLSEstimator:
 
         The regression's covariance, scaled up by the residual ratio when the model misfits.
         """
-        std = self._physical_std(self._cov)
-        scale = max([1.0, *(r for r in self.residual_ratio if r == r)])
-        std = std * scale
+        std = self._physical_std(self._cov) * self._misfit_scale()
         return {
             "mass": float(std[0]),
             "com": [float(std[1]), float(std[2])],
@@ -281,10 +283,24 @@ class OnlineLSEstimator:
         return np.sqrt(np.maximum(np.diag(jac @ cov @ jac.T), 0.0))
 
     def unexcited(self) -> tuple[str, ...]:
-        """Return the parameters the motion has not excited: posterior std above ``excited_ratio`` of the prior's."""
-        post = self._physical_std(self._cov)
+        """Return the parameters the motion has not excited: posterior std above ``excited_ratio`` of the prior's.
+
+        The posterior std is scaled up by the residual ratio when the model misfits (as :meth:`params_std`):
+        what a misfitting model seems to identify is not known better than the prior says.
+        """
+        post = self._physical_std(self._cov) * self._misfit_scale()
         prior = self._physical_std(self.regression.prior_covariance())
         return tuple(n for n, a, b in zip(PHYSICAL_NAMES, post, prior) if a > self.options.excited_ratio * b)
+
+    def _misfit_scale(self) -> float:
+        """Return the factor (at least 1) by which the stds are scaled up: the largest residual ratio so far.
+
+        The residual test's windowed ratio (:meth:`_check_misfit`), also before it is reported.
+        """
+        mf = self._misfit
+        if mf[0] <= 0.0:
+            return 1.0
+        return max(1.0, math.sqrt(max(mf[1], mf[2]) / mf[0]))
 
     @property
     def events(self) -> tuple[LoadChange, ...]:
@@ -643,7 +659,30 @@ class OnlineLSEstimator:
             self._flag(kind, kind in bad, bad.get(kind, ""))
         if not bad:
             m, a, b, j, cv, cw = p.tolist()
-            self._params = CartParams(m, a / m, b / m, j - (a * a + b * b) / m, max(cv, 0.0), max(cw, 0.0))
+            dx, dy = self._com_to_use(a / m, b / m)
+            self._params = CartParams(m, dx, dy, j - (a * a + b * b) / m, max(cv, 0.0), max(cw, 0.0))
+
+    def _com_to_use(self, dx: float, dy: float) -> tuple[float, float]:
+        """Return the CoM given to the controller: the estimate's pull from the prior, deflated by the misfit.
+
+        The regression weighs its samples by their noise model; when the model misfits (residual ratio
+        kappa > 1, :meth:`_misfit_scale`: a real cart's casters in the yaw row), its data carry kappa^2 less
+        information than it assumes. Per coordinate, with r = (posterior std / prior std)^2 the prior's share
+        of the information, the posterior mean with the data's information divided by kappa^2 moves from the
+        prior by 1 / (1 - r + r kappa^2) of the estimate's move: a coordinate the data fix (r small) keeps
+        its estimate, one they hardly excite stays near the prior (never worse than the prior). The
+        regression keeps its estimate (``deflate_com``); the inertia about the CoM stays the estimate's.
+        """
+        kappa = self._misfit_scale()
+        if not self.options.deflate_com or kappa <= 1.0:
+            return dx, dy
+        post = self._physical_std(self._cov)[1:3]
+        prior = self.regression.prior
+        out = []
+        for i, est in ((1, dx), (2, dy)):
+            r = min(float(post[i - 1] / prior.std[i]) ** 2, 1.0)
+            out.append(float(prior.center[i]) + (est - float(prior.center[i])) / (1.0 - r + r * kappa * kappa))
+        return out[0], out[1]
 
 
 def make_online_estimator(
