@@ -105,3 +105,54 @@ def test_force_loop_cancels_the_arms_own_dynamics_when_the_base_moves(setup):
     # the F/T fed back directly with no integral keeps the proportional loop's share
     direct = _push(_held_cart_plant(setup, FT_ONLY, quiet), 0.5, 0.6)[30:, 0]
     assert np.mean(np.abs(direct)) > 0.5 * open_loop / (1.0 + k_f)
+
+
+def _law(gains: TorqueArmGains, limit: float = 1e6):
+    from wholebody.push.arm_control import TorqueArmLaw
+
+    rng = np.random.default_rng(2)
+    J = rng.normal(size=(6, 7))
+    A = rng.normal(size=(7, 7))
+    law = TorqueArmLaw(np.full(7, limit), replace(gains, stiffness=0.0, damping=0.0), 0.002)
+    w = np.array([20.0, -4.0, 2.0, 0.0, 0.0, 1.0])
+    law.begin(w, np.zeros(7), np.zeros(7), np.zeros(7), J, A @ A.T + 7 * np.eye(7), t_end=0.01, dt=0.01)
+    return law, J, w
+
+
+def _loop_wrench(law, J, reading, steps: int) -> np.ndarray:
+    """Return the loop's task-space wrench after `steps` physics steps with a constant reading (bias 0)."""
+    z = np.zeros(7)
+    for _ in range(steps):
+        tau = law.torque(0.0, z, z, z, wrench_measured=reading)
+    return np.linalg.lstsq(J.T, tau, rcond=None)[0]
+
+
+def test_integral_grows_with_the_shortfall_and_holds_while_the_torques_saturate():
+    gains = TorqueArmGains(fusion_tau=0.0)
+    k = np.r_[np.full(3, gains.force_feedback), np.full(3, gains.moment_feedback)]
+    law, J, w = _law(gains)
+    out = _loop_wrench(law, J, 0.5 * w, 500)  # 1 s of a hand delivering half the wrench
+    # feed-forward w + K (e + K_i * 1 s * e), e = w / 2
+    np.testing.assert_allclose(out, w + k * (0.5 * w) * (1.0 + gains.force_integral * 1.0), rtol=1e-2, atol=1e-6)
+    tight, J, w = _law(gains, limit=1e-3)  # every step saturates: the integral stops after the first
+    _loop_wrench(tight, J, 0.5 * w, 500)
+    assert tight.saturated_steps == 500
+    np.testing.assert_allclose(tight._integral, 0.002 * 0.5 * w)
+
+
+def test_fused_wrench_is_the_joint_estimate_with_the_ft_slow_part():
+    gains = TorqueArmGains(force_integral=0.0)
+    law, J, w = _law(gains)
+    truth = 0.5 * w
+    tau_ext = -J.T @ truth  # the cart pushes back on the hand
+    rng = np.random.default_rng(3)
+    sigma, bias = 3.0, np.array([2.0, 0.0, -2.0, 0.0, 2.0, 0.0])  # F/T noise, and an offset the joint side lacks
+    seen = []
+    for _ in range(2500):  # 5 s = 10 fusion time constants
+        law.joint_torque_sample(tau_ext)
+        seen.append(law._measured_wrench(truth + bias + rng.normal(0.0, sigma, 6)))
+    seen = np.array(seen)[500:]
+    # the slow part of the F/T carries its offset; its noise passes as a first-order filter's: sigma sqrt(dt / 2T)
+    passed = sigma * math.sqrt(0.002 / (2.0 * gains.fusion_tau))
+    np.testing.assert_allclose(seen.mean(axis=0), truth + bias, atol=3.0 * passed)
+    assert np.std(seen, axis=0) == pytest.approx(np.full(6, passed), rel=0.35)
