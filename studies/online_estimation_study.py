@@ -1,6 +1,6 @@
 """Study of the online estimator (issue 27): push runs, Table I test 11, load changes on an independent simulator.
 
-Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loads|push_loads|all] [--json]
+Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loads|push_loads|mujoco|all] [--json]
 
 1. ``push``: ``run_push(PushConfig(trajectory=1|2))`` with the paper's EKF (the loop's default,
    ``make_estimator``) and with :class:`cart.online_estimator.OnlineLSEstimator` (built like
@@ -12,6 +12,11 @@ Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loa
 3. ``loads``: logs of the independent simulator ``studies.testbeds.rigid_sim`` with a load put in
    or taken out mid-log (the simulation restarted from the state at the change with the new cart;
    no momentum exchange) and logs without one; the online estimator runs over each log.
+4. ``push_loads``: closed-loop pushes on the kinematic plant whose load is dropped in or lifted out at 12 s.
+5. ``mujoco`` (not in ``all``: needs MuJoCo): closed-loop pushes on the MuJoCo plant (Ridgeback + iiwa, the
+   default cart, no load change) with the online estimator as the loop builds it and with its CoM not
+   deflated by the misfit (``deflate_com=False``): CoM and mass errors, load changes reported (all spurious),
+   run-off flags by kind.
 """
 
 from __future__ import annotations
@@ -65,6 +70,38 @@ def push_run(trajectory: int, online: bool, seed: int = 0, **options) -> dict:
         out["report"] = est.report()
         out["params_std"] = est.params_std()
     return out
+
+
+def mujoco_run(trajectory: int, **options) -> dict:
+    """Return the metrics of one closed-loop push on the MuJoCo plant with the online estimator (``options``)."""
+    from collections import Counter
+
+    from wholebody.push.config import PushConfig
+    from wholebody.push.loop import run_push
+
+    cfg = PushConfig(trajectory=trajectory, plant="mujoco", contact="fixed")
+    q0 = cfg.make_trajectory().sample(0.0)[0]
+    noise = cfg.noise
+    est = make_online_estimator(
+        q0, cfg.initial_params(), noise.measurement_std(), wrench_std=(noise.force, noise.torque), **options
+    )
+    res = run_push(cfg, estimator=est)
+    m = res.metrics
+    return {
+        "trajectory": trajectory,
+        "options": options,
+        **{k: float(getattr(m, k)) for k in PUSH_METRICS},
+        "tracking_lost_at_s": m.tracking_lost_at_s,
+        "mass_final_kg": float(m.mass_final_kg),
+        "cart_mass_effective_kg": (res.plant_report or {}).get("cart_mass_effective_kg"),
+        "load_changes": [e.as_dict() for e in est.events],
+        "runoff_flags": dict(Counter(f.kind for f in est.flags)),
+    }
+
+
+def mujoco_part() -> list[dict]:
+    """Return :func:`mujoco_run` for Traj. 1 and 2, with the CoM deflated by the misfit (default) and without."""
+    return [mujoco_run(traj, **opts) for traj in (1, 2) for opts in ({}, {"deflate_com": False})]
 
 
 def push_part(seeds: tuple[int, ...] = (0,)) -> dict:
@@ -284,7 +321,7 @@ def loads_part(seeds: tuple[int, ...] = (0, 1, 2, 3, 4, 5), t_change: float = 15
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("push", "table1", "loads", "push_loads", "all"), default="all")
+    parser.add_argument("--part", choices=("push", "table1", "loads", "push_loads", "mujoco", "all"), default="all")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args()
     out = {}
@@ -296,9 +333,20 @@ def main() -> None:
         out["loads"] = loads_part()
     if args.part in ("push_loads", "all"):
         out["push_loads"] = push_loads_part()
+    if args.part == "mujoco":
+        out["mujoco"] = mujoco_part()
     if args.json:
         print(json.dumps(out, default=float))
         return
+    for row in out.get("mujoco", []):
+        print(
+            f"mujoco traj {row['trajectory']} {row['options'] or 'default'}: CoM final "
+            f"{100 * row['com_error_final_m']:.1f} cm, max after 5 s {100 * row['com_error_max_after_5s_m']:.1f} cm; "
+            f"mass {row['mass_final_kg']:.2f} kg (effective {row['cart_mass_effective_kg']:.2f}), max error after 5 s "
+            f"{row['mass_error_max_after_5s_kg']:.2f} kg; tracking {row['tracking_rms_mm']:.2f} mm, lost at "
+            f"{row['tracking_lost_at_s']}; load changes {[round(e['t_detected'], 2) for e in row['load_changes']]}; "
+            f"flags {row['runoff_flags']}"
+        )
     for key, runs in out.get("push", {}).items():
         for est, m in runs.items():
             print(key, f"{est:12s}", " ".join(f"{k}={m[k]:.4g}" for k in PUSH_METRICS))
