@@ -15,6 +15,7 @@ from cart.simulate import MeasurementNoise
 from cart.trajectories import CartTrajectory, paper_trajectory
 from wholebody.contacts.allocation import ArmLimits
 from wholebody.errors import WholeBodyError
+from wholebody.push.base_settings import BasePlanSettings
 from wholebody.push.geometry import DEFAULT_GEOMETRY, CartGeometry
 
 #: How the contact points are chosen: held at `fixed_contact_y`, or re-planned from the estimate.
@@ -110,6 +111,9 @@ class PushConfig:
     #: the allocation keeps each joint torque |J^T w + g| this fraction below its URDF limit (room for the
     #: dynamic terms); None = joint torques not bounded in the allocation
     torque_margin: float | None = 0.05
+    #: plan each holonomic base's place ahead over the desired motion within its wheel speeds, heading free
+    #: (`wholebody.push.base_plan`); None = each base held rigidly behind its contact
+    base_plan: BasePlanSettings | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.trajectory, int) and self.trajectory not in (1, 2):

@@ -31,6 +31,8 @@ from wholebody.push.config import CartController, ParameterEstimator, PushConfig
 from wholebody.push.plant import Measurement, RobotCommand
 from wholebody.push.robot import MobileManipulator, base_target, ft_to_cart_gamma, grasp_target, handle_point
 from wholebody.push.scheduler import ContactScheduler
+from wholebody.motion.tasks import BaseTask, PostureTask
+from wholebody.push.base_plan import BasePlan
 
 
 #: time constant (s) of the filter between the cart estimate and the pose the hands hold (`PushController._grasp_pose`)
@@ -111,6 +113,24 @@ class PushController:
         self._q_grasp: np.ndarray | None = None
         self._t_grasp: float | None = None
         self.last: ControlDecision | None = None
+        #: per robot: its base plan (`wholebody.push.base_plan`) when `PushConfig.base_plan` is set, else None
+        edges = np.cumsum([0] + [mm.n_hands for mm in self.robots])
+        self.base_plans = [self._base_plan(mm, float(scheduler.y[a])) for mm, a in zip(self.robots, edges[:-1])]
+        #: per robot: its QP's own (posture weight, posture, base weight, base gain), restored outside a plan's windows
+        self._own_terms: dict[int, tuple[float, np.ndarray | None, float, float]] = {}
+
+    def _base_plan(self, mm: MobileManipulator, contact_y: float) -> BasePlan | None:
+        """Return robot `mm`'s base plan over the desired motion (None: not asked for, several hands, not holonomic),
+        and guard its elbow (`BasePlanSettings.elbow_guard`)."""
+        settings = self.config.base_plan
+        if settings is None or mm.n_hands != 1 or not mm.wb.base.holonomic:
+            return None
+        from wholebody.push.base_plan import guard_elbow, plan_base
+
+        plan = plan_base(mm, self.config.make_trajectory(), float(contact_y), settings)
+        if settings.elbow_guard is not None:
+            guard_elbow(mm, settings.elbow_guard)
+        return plan
 
     def step(self, m: Measurement) -> list[RobotCommand]:
         """Return one command per robot for the period starting at ``m.t`` (see the module docstring)."""
@@ -139,8 +159,10 @@ class PushController:
         q_grasp = self._grasp_pose(q_hat, qd_hat, m.t)
         commands, per_robot = zip(
             *(
-                self._robot_command(mm, q_grasp, qd_hat, y, yd, w)
-                for mm, y, yd, w in zip(self.robots, *self._by_robot(ys, ydots, alloc.wrenches_ee))
+                self._robot_command(mm, q_grasp, qd_hat, y, yd, w, m.t, plan)
+                for mm, y, yd, w, plan in zip(
+                    self.robots, *self._by_robot(ys, ydots, alloc.wrenches_ee), self.base_plans
+                )
             )
         )
         parts = [p for ps in per_robot for p in ps]  # one (torque, J^T w, grasp error) per hand
@@ -177,6 +199,27 @@ class PushController:
         self._t_grasp = t
         return self._q_grasp
 
+    def _follow_plan(self, mm: MobileManipulator, posture: np.ndarray | None) -> None:
+        """Inside a base plan's window (`posture` given) pull robot `mm`'s base to the plan with
+        `BasePlanSettings.base_weight`, `base_gain` and its arm to the plan's `posture` with `posture_weight`;
+        outside (None) give the whole-body QP its own base and posture terms back."""
+        ctrl, settings = getattr(mm.tracker, "controller", None), self.config.base_plan
+        tasks = getattr(ctrl, "tasks", ())
+        pt = next((k for k in tasks if isinstance(k, PostureTask)), None)
+        bt = next((k for k in tasks if isinstance(k, BaseTask)), None)
+        if ctrl is None or settings is None or pt is None or bt is None:
+            return
+        own = self._own_terms.setdefault(id(mm), (pt.weight, pt.posture, bt.weight, bt.gain))
+        if posture is None:
+            if pt.weight != own[0]:
+                pt.weight, bt.weight, bt.gain = own[0], own[2], own[3]
+                ctrl.posture = own[1]  # resets the QP's constant Hessian
+            return
+        if pt.weight != settings.posture_weight:
+            pt.weight, bt.weight, bt.gain = settings.posture_weight, settings.base_weight, settings.base_gain
+            ctrl.posture = posture
+        pt.posture = posture
+
     def _measured_gamma(self, m: Measurement) -> np.ndarray:
         """Return Gamma_MM of the F/T readings, through each robot's measured F/T frame (eq. 23-24)."""
         gamma = np.zeros(3)
@@ -203,17 +246,24 @@ class PushController:
         y: float | np.ndarray,
         ydot: float | np.ndarray,
         wrench_a: np.ndarray,
+        t: float = 0.0,
+        plan: BasePlan | None = None,
     ) -> tuple[RobotCommand, list[tuple[np.ndarray, np.ndarray, float]]]:
         """Return (the command of one robot, per hand (arm torque, J^T w part, grasp error)) for one period.
 
         A robot with several hands (`_by_robot`: arrays of contacts and wrenches) gets one command: its arms'
-        joints in turn, one hand wrench and one hand target per hand (rows).
+        joints in turn, one hand wrench and one hand target per hand (rows). With a base `plan` the base follows
+        the plan's place at time t and the arm its posture (`_follow_plan`).
         """
         dt = self.config.dt
         ys, yds, ws = np.atleast_1d(y), np.atleast_1d(ydot), np.reshape(wrench_a, (-1, 6))
         targets = [grasp_target(q, qd, v, vd, R, self.geometry) for v, vd, R in zip(ys, yds, mm.grasp_rotations)]
         (target, vel), more = targets[0], {"more_targets": targets[1:]} if len(targets) > 1 else {}
-        bpose, brates = base_target(q, qd, mm.base_offset_b)
+        if plan is None:
+            bpose, brates = base_target(q, qd, mm.base_offset_b)
+        else:
+            bpose, brates = plan.target(t, q, qd, mm.base_offset_b)
+            self._follow_plan(mm, plan.posture(t))
         R = _rot_z(q[2])
         w_world = [np.concatenate([R @ w[:3], R @ w[3:]]) for w in ws]
         mm.set_hand_wrenches(w_world)  # the QP keeps the joint torques within their limits

@@ -1,0 +1,329 @@
+"""A holonomic base's place behind the cart, planned ahead over the desired motion within its wheel speeds.
+
+Held rigidly behind the handle, a mecanum base cannot follow the paper's Traj. 2 through its turns (0.8 m/s,
+1.05 rad/s): its rim speed |vx| + |vy| + (lx + ly)|omega| reaches 2.5 m/s against a 1.1 m/s limit, the base
+falls behind and the arm straightens. Where the rigid place asks too much, `plan_base` finds a path of the
+base (x, y, heading per knot of `BasePlanSettings.step` s) over the known desired cart motion that
+
+    min  rho + w_a sum_k |(p_{k+1} - 2 p_k + p_{k-1}) / h^2|^2 h
+    s.t. |H R(theta_k+1/2)^T (p_{k+1} - p_k) / h| <= margin * wheel limit    (each wheel, both signs)
+         r_min <= |mount_k - wrist_k| <= rho                                 (the arm's horizontal stretch)
+         heading_k . (wrist_k - mount_k) >= cos(max_reach_angle) |wrist_k - mount_k|
+         x of each footprint corner in {b} <= handle x + front_reach         (the base stays behind the cart)
+
+with ``mount`` the arm's first joint axis and ``wrist`` the wrist centre of the grasp on the desired cart, and
+the window's first two and last two knots at the rigid place (the plan joins the rigid reference). The heading
+is free: the base lets it lag the cart's (the arm's seven joints absorb the difference), which leaves the wheels
+the speed to translate. The arm's posture along the plan comes from the grasp IK, knot by knot
+(`wholebody.push.robot.solve_grasp_ik`), and the whole-body QP pulls the arm to it (`BasePlan.posture`).
+The base's place is kept relative to the cart (`BasePlan.target`): the plan follows the cart where it is.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from scipy.optimize import minimize
+from scipy.optimize._numdiff import approx_derivative
+
+from wholebody.errors import WholeBodyError
+from wholebody.push.base_settings import BasePlanSettings
+from wholebody.push.robot import MobileManipulator, base_target, grasp_target, handle_point, solve_grasp_ik
+
+
+@dataclass(frozen=True)
+class ArmReach:
+    """The arm's geometry the plan needs: mount (x, y) in the base frame, wrist centre (x, y) in {b}, footprint."""
+
+    mount: np.ndarray
+    wrist_b: np.ndarray
+    #: (4, 2) corners of the base's collision boxes' planar bounding box, in the base frame
+    footprint: np.ndarray
+    nominal: float
+
+
+def arm_reach(mm: MobileManipulator, contact_y: float) -> ArmReach:
+    """Return the `ArmReach` of robot `mm` holding the handle at `contact_y` (its state's grasp, base at rest).
+
+    The wrist centre is the origin of the arm's last-but-one joint; it moves rigidly with the hand, so its place
+    in {b} follows from the grasp. The footprint bounds the collision boxes on the base's planar joint.
+    """
+    wb = mm.wb
+    data = wb.model.createData()
+    pin.forwardKinematics(wb.model, data, wb.to_pinocchio_q(mm.x))
+    pin.updateFramePlacements(wb.model, data)
+    ids = [wb.model.getJointId(n) for n in wb.arm_joints]
+    c, s = math.cos(mm.x[2]), math.sin(mm.x[2])
+    base = pin.SE3(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([mm.x[0], mm.x[1], 0.0]))
+    mount = base.actInv(data.oMi[ids[0]]).translation[:2]
+    wrist_hand = data.oMf[mm.ee_id].actInv(data.oMi[ids[-2]].translation)
+    wrist_b = handle_point(contact_y, mm.geometry) + mm.R_b_ee @ wrist_hand
+    nominal = float(np.linalg.norm(wrist_b[:2] - (mm.base_offset_b + mount)))
+    return ArmReach(mount, wrist_b[:2], _footprint(mm), nominal)
+
+
+def _footprint(mm: MobileManipulator) -> np.ndarray:
+    """Return the planar bounding box (4 corners, base frame) of the boxes fixed to the base's planar joint."""
+    pts = []
+    for g in getattr(mm.wb.robot, "collision_model", pin.GeometryModel()).geometryObjects:
+        half = getattr(g.geometry, "halfSide", None)
+        if g.parentJoint != 1 or half is None:
+            continue
+        for sx in (-1.0, 1.0):
+            for sy in (-1.0, 1.0):
+                pts.append((g.placement.rotation @ (half * np.array([sx, sy, 0.0])) + g.placement.translation)[:2])
+    if not pts:
+        return np.zeros((4, 2))
+    lo, hi = np.min(pts, axis=0), np.max(pts, axis=0)
+    return np.array([[hi[0], hi[1]], [hi[0], lo[1]], [lo[0], hi[1]], [lo[0], lo[1]]])
+
+
+def _rot(th: np.ndarray) -> np.ndarray:
+    """Return the (k, 2, 2) planar rotations of the headings `th`."""
+    c, s = np.cos(th), np.sin(th)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+def rim_rates(poses: np.ndarray, h: float, H: np.ndarray) -> np.ndarray:
+    """Return the wheel rates (k, n_wheels) of the segments between consecutive poses (k + 1, 3) h apart:
+    H @ body twist, the twist at the segment's mean heading."""
+    d = np.diff(poses, axis=0) / h
+    th = 0.5 * (poses[1:, 2] + poses[:-1, 2])
+    c, s = np.cos(th), np.sin(th)
+    return np.c_[c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]] @ H.T
+
+
+def rigid_poses(cart: np.ndarray, offset_b: np.ndarray) -> np.ndarray:
+    """Return the base poses (k, 3) rigidly at `offset_b` (x, y in {b}) behind the cart poses `cart` (k, 3)."""
+    return np.c_[cart[:, :2] + np.einsum("kij,j->ki", _rot(cart[:, 2]), offset_b), cart[:, 2]]
+
+
+def wheel_windows(t: np.ndarray, rates: np.ndarray, limit: np.ndarray, s: BasePlanSettings) -> list[tuple[int, int]]:
+    """Return the knot ranges [i0, i1] to plan: where the rigid place's wheel rates `rates` (len(t) - 1, n) pass
+    `speed_margin` x `limit`, widened by `lead` before and `tail` after, merged when they overlap."""
+    over = np.flatnonzero(np.any(np.abs(rates) > s.speed_margin * limit, axis=1))
+    out: list[tuple[int, int]] = []
+    lead, tail = int(round(s.lead / s.step)), int(round(s.tail / s.step))
+    for k in over:
+        i0, i1 = max(0, int(k) - lead), min(len(t) - 1, int(k) + 1 + tail)
+        if out and i0 <= out[-1][1]:
+            out[-1] = (out[-1][0], i1)
+        else:
+            out.append((i0, i1))
+    return out
+
+
+def plan_window(
+    cart: np.ndarray,
+    nominal: np.ndarray,
+    reach: ArmReach,
+    H: np.ndarray,
+    limit: np.ndarray,
+    s: BasePlanSettings,
+    front_x: float | None,
+) -> tuple[np.ndarray, float]:
+    """Return (base poses (k, 3), largest mount-wrist distance rho) over one window of desired cart poses `cart`
+    (k, 3) (module docstring); the first and last two knots stay at the rigid `nominal` poses."""
+    n, h = len(cart), s.step
+    wrist = cart[:, :2] + np.einsum("kij,j->ki", _rot(cart[:, 2]), reach.wrist_b)
+    nv = n - 4
+
+    def poses(z: np.ndarray) -> np.ndarray:
+        return np.vstack([nominal[:2], z[:-1].reshape(nv, 3), nominal[-2:]])
+
+    def objective(z: np.ndarray) -> float:
+        a = np.diff(poses(z), 2, axis=0) / h**2
+        return float(z[-1] + s.weight_acceleration * np.sum(a**2) * h)
+
+    def constraints(z: np.ndarray) -> np.ndarray:
+        P, rho = poses(z), z[-1]
+        r = rim_rates(P, h, H).ravel()
+        lim = np.tile(s.speed_margin * limit, n - 1)
+        v = wrist - (P[:, :2] + np.einsum("kij,j->ki", _rot(P[:, 2]), reach.mount))
+        d = np.linalg.norm(v, axis=1)
+        head = np.c_[np.cos(P[:, 2]), np.sin(P[:, 2])]
+        out = [lim - r, lim + r, rho - d, d - s.min_reach_fraction * reach.nominal]
+        out.append(np.sum(head * v, axis=1) - math.cos(s.max_reach_angle) * d)
+        if front_x is not None:
+            corners = P[:, None, :2] + np.einsum("kij,cj->kci", _rot(P[:, 2]), reach.footprint) - cart[:, None, :2]
+            xb = np.cos(cart[:, 2])[:, None] * corners[..., 0] + np.sin(cart[:, 2])[:, None] * corners[..., 1]
+            out.append((front_x - xb).ravel())
+        return np.concatenate(out)
+
+    z0 = np.r_[nominal[2:-2].ravel(), reach.nominal]
+    sparsity = _sparsity(constraints, z0, nv)
+    res = minimize(
+        objective,
+        z0,
+        jac=lambda z: approx_derivative(objective, z),
+        constraints=[{"type": "ineq", "fun": constraints, "jac": lambda z: _jac(constraints, z, sparsity)}],
+        method="SLSQP",
+        options={"maxiter": s.max_iterations, "ftol": 1e-9},
+    )
+    if np.min(constraints(res.x)) < -1e-3:  # rad/s, m: within the solver's tolerance
+        raise WholeBodyError(f"the base plan breaks its limits by {-np.min(constraints(res.x)):.3g} ({res.message})")
+    return poses(res.x), float(res.x[-1])
+
+
+def _sparsity(fun, z0: np.ndarray, nv: int) -> np.ndarray:
+    """Return the constraints' Jacobian pattern: each row depends on the poses of neighbouring knots and on rho."""
+    rng = np.random.default_rng(0)
+    J = np.zeros((len(fun(z0)), len(z0)), dtype=bool)
+    for _ in range(2):  # two random points: a structural zero is zero at both
+        z = z0 + 1e-3 * rng.standard_normal(len(z0))
+        J |= np.abs(approx_derivative(fun, z)) > 0
+    return J
+
+
+def _jac(fun, z: np.ndarray, sparsity: np.ndarray) -> np.ndarray:
+    """Return the dense Jacobian of `fun` at z by grouped finite differences over its sparsity pattern."""
+    return np.asarray(approx_derivative(fun, z, sparsity=sparsity).toarray())
+
+
+@dataclass(frozen=True)
+class BasePlan:
+    """The planned base place relative to the desired cart, and the arm's posture along it (`plan_base`)."""
+
+    #: knot times (s) of the planned windows, one array per window
+    times: tuple[np.ndarray, ...]
+    #: per window (k, 3): the base's (x, y) in {b} and its heading minus the cart's
+    relative: tuple[np.ndarray, ...]
+    #: per window (k, n_arm): the grasp IK's arm postures along the plan
+    postures: tuple[np.ndarray, ...]
+    #: per window: the largest horizontal mount-wrist distance of the plan (m) and the grasp's nominal one
+    stretch: tuple[float, ...]
+    nominal_stretch: float
+
+    def _window(self, t: float) -> int | None:
+        for i, ts in enumerate(self.times):
+            if ts[0] <= t <= ts[-1]:
+                return i
+        return None
+
+    def target(self, t: float, q: np.ndarray, qd: np.ndarray, offset_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return (pose, world rates) of the base at time t for the cart at pose q with rates qd: the plan's place
+        relative to the cart inside a window, the rigid place `offset_b` outside (`robot.base_target`)."""
+        i = self._window(t)
+        if i is None:
+            return base_target(q, qd, offset_b)
+        ts, rel = self.times[i], self.relative[i]
+        o = np.array([np.interp(t, ts, rel[:, j]) for j in range(3)])
+        k = min(int(np.searchsorted(ts, t, side="right")) - 1, len(ts) - 2)
+        od = (rel[k + 1] - rel[k]) / (ts[k + 1] - ts[k])
+        c, s = math.cos(q[2]), math.sin(q[2])
+        R = np.array([[c, -s], [s, c]])
+        Ro = R @ o[:2]
+        rates = np.r_[qd[:2] + qd[2] * np.array([-Ro[1], Ro[0]]) + R @ od[:2], qd[2] + od[2]]
+        return np.r_[q[:2] + Ro, q[2] + o[2]], rates
+
+    def posture(self, t: float) -> np.ndarray | None:
+        """Return the arm posture of the plan at time t (None outside its windows)."""
+        i = self._window(t)
+        if i is None:
+            return None
+        ts, qs = self.times[i], self.postures[i]
+        return np.array([np.interp(t, ts, qs[:, j]) for j in range(qs.shape[1])])
+
+
+def plan_base(
+    mm: MobileManipulator, trajectory, contact_y: float, settings: BasePlanSettings | None = None
+) -> BasePlan:
+    """Return the `BasePlan` of holonomic robot `mm` (one hand, at `contact_y`) over the desired cart motion
+    `trajectory` (``duration``, ``sample(t)``): planned windows where the rigid place breaks the wheel limits."""
+    s = settings or BasePlanSettings()
+    if not mm.wb.base.holonomic or mm.n_hands != 1:
+        raise WholeBodyError("the base plan is for a holonomic base holding the handle with one hand")
+    reach = arm_reach(mm, contact_y)
+    H = mm.wb.base.twist_to_wheels()
+    limit = np.asarray(mm.wb.wheel_velocity_limit, dtype=float)
+    t = np.arange(0.0, float(trajectory.duration) + 0.5 * s.step, s.step)
+    cart = np.array([trajectory.sample(float(v))[0] for v in t])
+    cart[:, 2] = np.unwrap(cart[:, 2])
+    nominal = rigid_poses(cart, mm.base_offset_b)
+    front = None if s.front_reach is None else float(handle_point(contact_y, mm.geometry)[0]) + s.front_reach
+    out: tuple[list, list, list, list] = ([], [], [], [])
+    for i0, i1 in wheel_windows(t, rim_rates(nominal, s.step, H), limit, s):
+        P, rho = plan_window(cart[i0 : i1 + 1], nominal[i0 : i1 + 1], reach, H, limit, s, front)
+        C = cart[i0 : i1 + 1]
+        rel = np.einsum("kji,kj->ki", _rot(C[:, 2]), P[:, :2] - C[:, :2])
+        out[0].append(t[i0 : i1 + 1])
+        out[1].append(np.c_[rel, P[:, 2] - C[:, 2]])
+        out[2].append(_postures(mm, C, P, contact_y))
+        out[3].append(rho)
+    return BasePlan(tuple(out[0]), tuple(out[1]), tuple(out[2]), tuple(out[3]), reach.nominal)
+
+
+def _postures(mm: MobileManipulator, cart: np.ndarray, poses: np.ndarray, contact_y: float) -> np.ndarray:
+    """Return the grasp's arm postures along the plan: each continued from the one before by `_continued_ik`
+    (from the robot's grasp posture), the bounded least squares `solve_grasp_ik` where that does not converge."""
+    qa = mm.x[3:].copy()
+    out = []
+    for q, p in zip(cart, poses):
+        target, _ = grasp_target(q, np.zeros(3), contact_y, 0.0, mm.R_b_ee, mm.geometry)
+        step = _continued_ik(mm, p, target, qa)
+        if step is None:
+            try:
+                step = solve_grasp_ik(mm.wb, p, target, qa)
+            except WholeBodyError:  # a branch the last posture cannot continue: again from the grasp posture
+                step = solve_grasp_ik(mm.wb, p, target, mm.x[3:])
+        qa = step
+        out.append(qa.copy())
+    return np.array(out)
+
+
+def _continued_ik(
+    mm: MobileManipulator, base_pose: np.ndarray, target: pin.SE3, seed: np.ndarray, iterations: int = 20
+) -> np.ndarray | None:
+    """Return arm joints putting the hand at `target` from `base_pose`, by Gauss-Newton steps (Pinocchio's frame
+    Jacobian) from `seed` within the joint limits; None when it does not converge to 1e-9 (log6 norm)."""
+    wb = mm.wb
+    data = wb.model.createData()
+    lo, hi = wb.arm_lower + 0.02, wb.arm_upper - 0.02
+    qa = np.clip(seed, lo, hi)
+    for _ in range(iterations):
+        q = wb.to_pinocchio_q(np.r_[base_pose, qa])
+        pin.forwardKinematics(wb.model, data, q)
+        pin.updateFramePlacements(wb.model, data)
+        err = pin.log6(data.oMf[mm.ee_id].actInv(target)).vector
+        if np.linalg.norm(err) < 1e-9:
+            return qa
+        J = pin.computeFrameJacobian(wb.model, data, q, mm.ee_id, pin.LOCAL)[:, wb.arm_idx_v]
+        qa = np.clip(qa + np.linalg.lstsq(J, err, rcond=None)[0], lo, hi)
+    return None
+
+
+def elbow_joint(mm: MobileManipulator) -> int:
+    """Return the index (in the arm's joints) of the elbow: the joint that changes the distance from the arm's second
+    joint (the shoulder) to its last-but-one (the wrist centre) most at the robot's grasp posture."""
+    wb = mm.wb
+    data = wb.model.createData()
+    ids = [wb.model.getJointId(n) for n in wb.arm_joints]
+
+    def stretch(x: np.ndarray) -> float:
+        pin.forwardKinematics(wb.model, data, wb.to_pinocchio_q(x))
+        return float(np.linalg.norm(data.oMi[ids[-2]].translation - data.oMi[ids[1]].translation))
+
+    d0, eps = stretch(mm.x), 1e-6
+    gains = [abs(stretch(mm.x + eps * np.eye(len(mm.x))[3 + j]) - d0) for j in range(len(ids))]
+    return int(np.argmax(gains))
+
+
+def guard_elbow(mm: MobileManipulator, guard: float) -> int | None:
+    """Keep robot `mm`'s elbow (`elbow_joint`) `guard` rad away from straight on the side its grasp posture bends
+    it, through the whole-body QP's joint position limit (the arm never passes the stretched singularity).
+    Return the joint's index, or None when the tracker has no such limit."""
+    from wholebody.motion.limits import JointPositionLimit
+
+    limits = getattr(getattr(mm.tracker, "controller", None), "limits", ())
+    limit = next((k for k in limits if isinstance(k, JointPositionLimit)), None)
+    if limit is None:
+        return None
+    j = elbow_joint(mm)
+    if mm.x[3 + j] >= 0.0:
+        limit.lower[j] = max(limit.lower[j], guard)
+    else:
+        limit.upper[j] = min(limit.upper[j], -guard)
+    return j
