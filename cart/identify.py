@@ -749,6 +749,8 @@ def _caster_fit(
     step, lag = step_lag
     _, v, om, _, _ = _kinematics(grid.q, grid.dt, sos)
     if given is None:
+        if int(full.keep[: casters_model.SEARCH_SAMPLES].sum()) < 8 * casters_model.N_COLUMNS:  # nothing to search on
+            return None, casters_model.Casters(casters_model.AXLES[0], casters_model.TRAILS[0], 0.0, math.inf, False)
         axle, trail, cols, turns = _caster_geometry(grid, sos, full, noise, v, om)
         casters = _caster_test(_with_columns(full, cols, len(cols)), noise, lag * step, (axle, trail, turns))
         if not casters.kept:
