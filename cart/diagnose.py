@@ -713,6 +713,8 @@ def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon:
 
 #: a named effect must close at least this share of the gap the nominal model (or the named effects) leave
 MIN_SHRINK = 0.1
+#: A wrench_bias smaller than this share of the RMS applied forward force and torque is a sensor's offset.
+OFFSET_SHARE = 0.2
 
 
 @dataclass(frozen=True)
@@ -797,6 +799,23 @@ def _logging_timing(trial: _Trial, resolution: float) -> str:
     )
 
 
+def _sensor_offset(trial: _Trial, push: tuple[float, float]) -> str:
+    """Return why a wrench_bias small against the push is not named ('' when it is not small).
+
+    An F/T sensor carries an offset after taring (a few tenths of a newton); effect-free logs have one, and a
+    long log makes it significant. A bias is named when its forward force or its torque reaches
+    ``OFFSET_SHARE`` of the RMS forward force or torque applied over the log (``push``: N, N m).
+    """
+    fx, tau = (float(v) for v in trial.fit.thetas[-1][:2])
+    share = max(abs(fx) / max(push[0], 1e-12), abs(tau) / max(push[1], 1e-12))
+    if share >= OFFSET_SHARE:
+        return ""
+    return (
+        f"its size (fx {fx:.3g} N, tau {tau:.3g} N m) is {share:.2f} of the push (RMS {push[0]:.3g} N, "
+        f"{push[1]:.3g} N m), below {OFFSET_SHARE:g}: an F/T sensor's offset after taring, not a bias of the set-up"
+    )
+
+
 def _choose_effect(
     results: Sequence[_Ranked],
     threshold: float,
@@ -806,6 +825,7 @@ def _choose_effect(
     named: Sequence[str],
     slip_ratio: float,
     resolution: float = 0.0,
+    push: tuple[float, float] = (0.0, 0.0),
 ) -> _Round:
     """Return the round's choice: the best significant candidate whose replay stays finite and that shrinks the gap.
 
@@ -813,7 +833,9 @@ def _choose_effect(
     effects) leave. When the {b} origin slides sideways
     (``slip_ratio`` > SLIP_RATIO) ``lateral_slip`` is tried first (it must then not widen the gap):
     no other term of the model can stand in for a broken no-slip constraint. A time_delay within
-    ``resolution`` (the log's median sample interval) is the logging's timing (:func:`_logging_timing`).
+    ``resolution`` (the log's median sample interval) is the logging's timing (:func:`_logging_timing`);
+    a wrench_bias below ``OFFSET_SHARE`` of the ``push`` (RMS forward force, torque) is a sensor's offset
+    (:func:`_sensor_offset`).
     """
     first = not named
     slip_rule = first and slip_ratio > SLIP_RATIO
@@ -840,6 +862,8 @@ def _choose_effect(
         why = why if cand is None else _gap_objection(first, slip_rule and name == "lateral_slip", last_gap, gap)
         if not why and cand is not None and name == "time_delay":
             why = _logging_timing(cand.trial, resolution)
+        if not why and cand is not None and name == "wrench_bias":
+            why = _sensor_offset(cand.trial, push)
         if why:
             verdicts.append(Verdict(name, dbic, why))
             passed.append(verdicts[-1])
@@ -1089,7 +1113,8 @@ def _search(
         if round_ == 0:
             first_scores = [(r.best.effect.name, float(r.best.dbic)) for r in results]
         resolution = float(np.median(np.diff(sig.t)))
-        rnd = _choose_effect(results, threshold, horizon, mask, reps[-1], names, slip_ratio, resolution)
+        push = (float(np.sqrt(np.mean(sig.f_fwd**2))), float(np.sqrt(np.mean(sig.tau**2))))
+        rnd = _choose_effect(results, threshold, horizon, mask, reps[-1], names, slip_ratio, resolution, push)
         for v in rnd.verdicts:  # the reasons of every round, the first round's Delta BIC
             old = verdicts.get(v.name)
             if old is None:
