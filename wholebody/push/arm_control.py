@@ -4,19 +4,20 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
 
 - **Torque-controlled arm** (the iiwa, joint torque control): each physics step
 
-  ``tau = b(q, v) + J^T w + J^T K_f (e + K_i int e) + N^T (K (q_plan(t) - q) + D (v_plan - v))``, clipped to the
-  effort limits, with ``e = w - w_f``,
+  ``tau = arm_torque + b(q, v) - b_0 + J^T K (e + K_i int e) + N^T (K_q (q_plan(t) - q) + D (v_plan - v))``,
+  clipped to the effort limits, with ``e = w - w_f``,
 
-  where ``b`` are the arm's bias forces (gravity, Coriolis) at the state of the step (see `TorqueArmGains.feedforward`
-  for the other feed-forwards), ``w`` the allocated hand wrench, ``q_plan(t)`` the plan interpolated over the period
-  (``arm_position - arm_velocity (t_end - t)``) and ``N^T = I - J^T Jbar^T`` the dynamically consistent null-space
+  where ``arm_torque`` is the controller's command (Pinocchio's RNEA with the plan's velocities and accelerations
+  + ``J^T w`` of the allocated hand wrench ``w``), its bias forces refreshed every step (``b`` the arm's bias
+  forces at the step's state, ``b_0`` at the period's start; see `TorqueArmGains.feedforward` for the others),
+  ``q_plan(t)`` the plan interpolated over the period (``arm_position - arm_velocity (t_end - t)``) and ``N^T = I - J^T Jbar^T`` the dynamically consistent null-space
   projector (``Jbar = M^-1 J^T (J M^-1 J^T)^-1``; ``J`` the hand's 6 x n_arm Jacobian, ``M`` the arm's joint-space
   inertia, both refreshed once per control period). The joint impedance holds the posture (the elbow of a 7-joint
   arm) without pushing on the hand: the hand's wrench stays the commanded ``J^T w`` while the hand moves with the
   handle it holds.
 
-  The force loop (PI, ``K_f = 3`` on the force rows and 1 on the moment rows, ``K_i = 5 /s``) cancels what the arm's own dynamics take from the push: the
-  cart feels the arm's task-space inertia (19 kg along x at the push posture, as much as the cart) whenever the
+  The force loop (PI, ``K = 3`` on the force rows and 1 on the moment rows, ``K_i = 5 /s``) cancels what the
+  arm's own dynamics take from the push: the cart feels the arm's task-space inertia (19 kg along x at the push posture, as much as the cart) whenever the
   hand accelerates relative to the base. Its measured wrench ``w_f`` is the hand's wrench at the grasp
   (world-aligned), low-passed (5 ms), fused from two sensors (a complementary filter): the arm's joint-side
   estimate ``w_j = -(J J^T)^-1 J tau_ext``, ``tau_ext = (M qdd)_arm + b - tau_joint`` (the external joint torque
@@ -54,11 +55,14 @@ class TorqueArmGains:
     #: joint stiffness (N m/rad) and damping (N m s/rad)
     stiffness: float = 200.0
     damping: float = 20.0
-    #: "bias" (default): the arm's bias forces (gravity, Coriolis) at the state of each physics step + J^T w of the
-    #: command's ``hand_wrench`` (an arm's own gravity compensation); "command": the command's ``arm_torque`` (the
-    #: controller's RNEA at the period's start + J^T w, held over the period); "dynamics": the arm's inverse
-    #: dynamics at the state of each step with the base's measured acceleration and the plan's arm acceleration + J^T w
-    feedforward: str = "bias"
+    #: "refreshed" (default): the command's ``arm_torque`` (the controller's RNEA with the plan's velocities and
+    #: accelerations + J^T w) with its bias forces refreshed every physics step (+ b(q, v) - b at the period's
+    #: start); "command": the command's ``arm_torque`` held over the period; "bias": the arm's bias forces at the
+    #: state of each step + J^T w of the command's ``hand_wrench`` (no plan acceleration: measured, the iiwa then
+    #: drifts to its straight-elbow singularity pushing the 90 kg wheelchair of examples/carts on Traj. 1);
+    #: "dynamics": the arm's inverse dynamics at the state of each step with the base's measured acceleration and
+    #: the plan's arm acceleration + J^T w
+    feedforward: str = "refreshed"
     #: True: the impedance acts in the hand's null space only; False: on every joint (it then also damps the
     #: hand's motion relative to the plan)
     null_space: bool = True
@@ -138,6 +142,7 @@ class TorqueArmLaw:
         self._Jt_pinv = np.zeros((6, self.limit.size))
         self._gain = np.r_[np.full(3, gains.force_feedback), np.full(3, gains.moment_feedback)]
         self._ff = np.zeros(self.limit.size)
+        self._bias0: np.ndarray | None = None
         self._NT = np.eye(self.limit.size)
         self._q_end = np.zeros(self.limit.size)
         self._v = np.zeros(self.limit.size)
@@ -168,6 +173,7 @@ class TorqueArmLaw:
         else:
             self._ff = np.asarray(arm_torque, dtype=float)
         self._q_end = np.asarray(arm_position, dtype=float)
+        self._bias0 = None
         self._v = v_new
         self._NT = null_space_projector_T(J, M) if self.gains.null_space else np.eye(M.shape[0])
         self._J = J
@@ -197,7 +203,12 @@ class TorqueArmLaw:
         """
         g = self.gains
         q_plan = self._q_end - self._v * (self._t_end - t)
-        ff = self._ff if g.feedforward == "command" else self._ff + bias
+        if g.feedforward == "refreshed":
+            if self._bias0 is None:  # the bias forces at the period's start, inside the command's torque
+                self._bias0 = np.asarray(bias, dtype=float).copy()
+            ff = self._ff + bias - self._bias0
+        else:
+            ff = self._ff if g.feedforward == "command" else self._ff + bias
         tau = ff + self._NT @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
         if hand is not None:
             p_err, v_err = hand

@@ -30,7 +30,11 @@ from wholebody.push.plant import RobotCommand
 
 PUSH = np.array([10.0, 0.0, -5.0, 0.0, 0.0, 0.0])  # world-aligned at the grasp: forward and down
 #: the F/T fed straight into a proportional loop (no joint-side estimate, no integral)
-FT_ONLY = TorqueArmGains(force_feedback=2.0, force_integral=0.0, force_filter_tau=0.01, fusion_tau=0.0)
+FT_ONLY = TorqueArmGains(
+    feedforward="bias", force_feedback=2.0, force_integral=0.0, force_filter_tau=0.01, fusion_tau=0.0
+)
+#: the loop under test: the plant's bias forces as feed-forward (the commands here carry no arm_torque)
+LOOP = TorqueArmGains(feedforward="bias")
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +80,7 @@ def test_fused_force_loop_keeps_the_sensor_noise_out_of_the_push(setup):
     sigma = 3.0
     noise = MeasurementNoise(force=sigma, torque=0.1 * sigma)
     dt = MujocoPlantConfig().physics_dt
-    gains = TorqueArmGains()
+    gains = LOOP
     fused = _rms(_push(_held_cart_plant(setup, gains, noise), 0.0, 1.0)[20:])
     direct = _rms(_push(_held_cart_plant(setup, FT_ONLY, noise), 0.0, 1.0)[20:])
     # what passes the fusion's slow F/T part, per axis, over three axes; twice for the torque noise's share
@@ -89,7 +93,7 @@ def test_fused_force_loop_keeps_the_sensor_noise_out_of_the_push(setup):
 
 def test_force_loop_cancels_the_arms_own_dynamics_when_the_base_moves(setup):
     quiet = MeasurementNoise()
-    gains = TorqueArmGains()
+    gains = LOOP
     # the first 0.1 s: the base servo's start (the commanded speed steps up each period)
     err = _push(_held_cart_plant(setup, gains, quiet), 0.5, 0.6)[10:, 0]
     open_loop = np.mean(
@@ -128,7 +132,7 @@ def _loop_wrench(law, J, reading, steps: int) -> np.ndarray:
 
 
 def test_integral_grows_with_the_shortfall_and_holds_while_the_torques_saturate():
-    gains = TorqueArmGains(fusion_tau=0.0)
+    gains = replace(LOOP, fusion_tau=0.0)
     k = np.r_[np.full(3, gains.force_feedback), np.full(3, gains.moment_feedback)]
     law, J, w = _law(gains)
     out = _loop_wrench(law, J, 0.5 * w, 500)  # 1 s of a hand delivering half the wrench
@@ -141,7 +145,7 @@ def test_integral_grows_with_the_shortfall_and_holds_while_the_torques_saturate(
 
 
 def test_fused_wrench_is_the_joint_estimate_with_the_ft_slow_part():
-    gains = TorqueArmGains(force_integral=0.0)
+    gains = replace(LOOP, force_integral=0.0)
     law, J, w = _law(gains)
     truth = 0.5 * w
     tau_ext = -J.T @ truth  # the cart pushes back on the hand
