@@ -4,12 +4,13 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
 
 - **Torque-controlled arm** (the iiwa, joint torque control): each physics step
 
-  ``tau = arm_torque + b(q, v) - b_0 + J^T K (e + K_i int e) + N^T (K_q (q_plan(t) - q) + D (v_plan - v))``,
-  clipped to the effort limits, with ``e = w - w_f``,
+  ``tau = J^T w + b(q, v) + LP(arm_torque - J^T w - b_0) + J^T K (e + K_i int e) + N^T (K_q (q_plan(t) - q) +
+  D (v_plan - v))``, clipped to the effort limits, with ``e = w - w_f``,
 
-  where ``arm_torque`` is the controller's command (Pinocchio's RNEA with the plan's velocities and accelerations
-  + ``J^T w`` of the allocated hand wrench ``w``), its bias forces refreshed every step (``b`` the arm's bias
-  forces at the step's state, ``b_0`` at the period's start; see `TorqueArmGains.feedforward` for the others),
+  where ``w`` is the allocated hand wrench, ``b`` the arm's bias forces at the step's state, ``arm_torque`` the
+  controller's command (Pinocchio's RNEA with the plan's velocities and accelerations + ``J^T w``), ``b_0`` the
+  bias forces at the period's start and ``LP`` a low-pass over the periods (0.1 s; see
+  `TorqueArmGains.feedforward` for the other feed-forwards),
   ``q_plan(t)`` the plan interpolated over the period (``arm_position - arm_velocity (t_end - t)``) and ``N^T = I - J^T Jbar^T`` the dynamically consistent null-space
   projector (``Jbar = M^-1 J^T (J M^-1 J^T)^-1``; ``J`` the hand's 6 x n_arm Jacobian, ``M`` the arm's joint-space
   inertia, both refreshed once per control period). The joint impedance holds the posture (the elbow of a 7-joint
@@ -55,14 +56,18 @@ class TorqueArmGains:
     #: joint stiffness (N m/rad) and damping (N m s/rad)
     stiffness: float = 200.0
     damping: float = 20.0
-    #: "refreshed" (default): the command's ``arm_torque`` (the controller's RNEA with the plan's velocities and
-    #: accelerations + J^T w) with its bias forces refreshed every physics step (+ b(q, v) - b at the period's
-    #: start); "command": the command's ``arm_torque`` held over the period; "bias": the arm's bias forces at the
-    #: state of each step + J^T w of the command's ``hand_wrench`` (no plan acceleration: measured, the iiwa then
-    #: drifts to its straight-elbow singularity pushing the 90 kg wheelchair of examples/carts on Traj. 1);
-    #: "dynamics": the arm's inverse dynamics at the state of each step with the base's measured acceleration and
-    #: the plan's arm acceleration + J^T w
-    feedforward: str = "refreshed"
+    #: "smoothed" (default): J^T w + the arm's bias forces at the state of each physics step + the command's plan
+    #: term (``arm_torque - J^T w - b_0``: the controller's RNEA with the plan's accelerations minus the bias forces
+    #: at the period's start) low-passed with ``plan_filter_tau``; "refreshed": the command's ``arm_torque`` with
+    #: its bias forces refreshed every step (+ b(q, v) - b_0); "command": the command's ``arm_torque`` held over
+    #: the period; "bias": the bias forces + J^T w, no plan term; "dynamics": the arm's inverse dynamics at the
+    #: state of each step with the base's measured acceleration and the plan's arm acceleration + J^T w.
+    #: Measured (Traj. 1): without a plan term the iiwa drifts to its straight-elbow singularity pushing the 90 kg
+    #: wheelchair of examples/carts (lost at 25.9 s); with the raw plan term ("refreshed") the plan's acceleration,
+    #: a difference of 100 Hz velocity commands, puts its jitter into the push (wrench error 20 % against 12 %)
+    feedforward: str = "smoothed"
+    #: time constant (s) of the plan term's low-pass (mode "smoothed"): ten control periods
+    plan_filter_tau: float = 0.1
     #: True: the impedance acts in the hand's null space only; False: on every joint (it then also damps the
     #: hand's motion relative to the plan)
     null_space: bool = True
@@ -143,6 +148,11 @@ class TorqueArmLaw:
         self._gain = np.r_[np.full(3, gains.force_feedback), np.full(3, gains.moment_feedback)]
         self._ff = np.zeros(self.limit.size)
         self._bias0: np.ndarray | None = None
+        #: the command's plan term (arm_torque - J^T w - b_0), low-passed over the periods (mode "smoothed")
+        self._plan: np.ndarray | None = None
+        self._Jw = np.zeros(self.limit.size)
+        self._arm_torque = np.zeros(self.limit.size)
+        self._period = 0.01
         self._NT = np.eye(self.limit.size)
         self._q_end = np.zeros(self.limit.size)
         self._v = np.zeros(self.limit.size)
@@ -174,6 +184,9 @@ class TorqueArmLaw:
             self._ff = np.asarray(arm_torque, dtype=float)
         self._q_end = np.asarray(arm_position, dtype=float)
         self._bias0 = None
+        self._arm_torque = np.asarray(arm_torque, dtype=float)
+        self._Jw = J.T @ np.asarray(hand_wrench, dtype=float)
+        self._period = dt
         self._v = v_new
         self._NT = null_space_projector_T(J, M) if self.gains.null_space else np.eye(M.shape[0])
         self._J = J
@@ -203,10 +216,11 @@ class TorqueArmLaw:
         """
         g = self.gains
         q_plan = self._q_end - self._v * (self._t_end - t)
-        if g.feedforward == "refreshed":
-            if self._bias0 is None:  # the bias forces at the period's start, inside the command's torque
+        if g.feedforward in ("refreshed", "smoothed"):
+            if self._bias0 is None:  # the period's first step: the bias forces inside the command's torque
                 self._bias0 = np.asarray(bias, dtype=float).copy()
-            ff = self._ff + bias - self._bias0
+                self._plan = self._plan_term(g, self._bias0)
+            ff = self._ff + bias - self._bias0 if g.feedforward == "refreshed" else self._Jw + bias + self._plan
         else:
             ff = self._ff if g.feedforward == "command" else self._ff + bias
         tau = ff + self._NT @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
@@ -227,6 +241,12 @@ class TorqueArmLaw:
             self.saturated_steps += 1
             tau = np.clip(tau, -self.limit, self.limit)
         return tau
+
+    def _plan_term(self, g: TorqueArmGains, bias0: np.ndarray) -> np.ndarray:
+        """Return the command's plan term ``arm_torque - J^T w - b_0`` (its planned inertial torque), low-passed."""
+        d = self._arm_torque - self._Jw - bias0
+        a = self._period / (g.plan_filter_tau + self._period)
+        return d if self._plan is None else self._plan + a * (d - self._plan)
 
     def joint_torque_sample(self, tau_ext: np.ndarray) -> None:
         """Take the arm's external joint torque over the last physics step (``J^T`` of the cart's wrench on the hand).
