@@ -62,9 +62,10 @@ class TorqueArmGains:
     #: its bias forces refreshed every step (+ b(q, v) - b_0); "command": the command's ``arm_torque`` held over
     #: the period; "bias": the bias forces + J^T w, no plan term; "dynamics": the arm's inverse dynamics at the
     #: state of each step with the base's measured acceleration and the plan's arm acceleration + J^T w.
-    #: Measured (Traj. 1): without a plan term the iiwa drifts to its straight-elbow singularity pushing the 90 kg
-    #: wheelchair of examples/carts (lost at 25.9 s); with the raw plan term ("refreshed") the plan's acceleration,
-    #: a difference of 100 Hz velocity commands, puts its jitter into the push (wrench error 20 % against 12 %)
+    #: Measured (Traj. 1, examples/carts/wheelchair.xml, seeds 0/1/2): without a plan term the iiwa drifts to its
+    #: straight-elbow singularity and the 90 kg wheelchair is lost at 25.9/25.7/11.5 s; "smoothed": tracked (4.8 mm
+    #: RMS)/25.1/11.6 s. With the raw plan term ("refreshed") the plan's acceleration, a difference of 100 Hz
+    #: velocity commands, puts its jitter into the push (default cart: wrench error 20 % against 12 %)
     feedforward: str = "smoothed"
     #: time constant (s) of the plan term's low-pass (mode "smoothed"): ten control periods
     plan_filter_tau: float = 0.1
