@@ -24,7 +24,7 @@ may be a profile file (``path.toml:2``, e.g. with another ``[push] base_x``); ``
 trajectory up to T s (a shorter ``--duration`` compresses the paper's trajectories).
 
     .venv/bin/python benchmarks/bench_mujoco_plant.py [--duration 30] [--cases ridgeback_iiwa:1,ridgeback_iiwa:2]
-        [--feedforward command|bias|dynamics] [--force-feedback 2] [--grasp-torque-arm 0.1] [--arms 1]
+        [--feedforward smoothed|refreshed|command|bias|dynamics] [--force-feedback 3] [--grasp-torque-arm 0.1] [--arms 1]
         [--no-estimation] [--seed 0] [--until T] [--closed-only] [--cart-only] [--json]
 """
 
@@ -195,7 +195,11 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--duration", type=float, default=30.0)
     parser.add_argument("--cases", default="ridgeback_iiwa:1,ridgeback_iiwa:2")
-    parser.add_argument("--feedforward", default="command", choices=["command", "bias", "dynamics"])
+    parser.add_argument(
+        "--feedforward",
+        default=TorqueArmGains.feedforward,
+        choices=["smoothed", "refreshed", "command", "bias", "dynamics"],
+    )
     parser.add_argument("--force-feedback", type=float, default=TorqueArmGains.force_feedback)
     parser.add_argument("--grasp-torque-arm", type=float, default=None, help="allocation GraspModel.torque_arm (m)")
     parser.add_argument("--arms", type=int, default=1)
