@@ -65,6 +65,8 @@ class EstimateReport:
         if name in self.not_identified:
             return None
         p = self.params
+        if name == "com":
+            return com_value(p, self.not_identified)
         return {"mass": p.m, "com": [p.dx, p.dy], "inertia": p.I, "sigma": p.sigma, "sigma_yaw": p.sigma_yaw}[name]
 
     def to_dict(self) -> dict[str, Any]:
@@ -83,12 +85,23 @@ class EstimateReport:
         return out
 
 
+def com_scale(params: CartParams, std: Mapping[str, Any]) -> float:
+    """Return the std (m) of a CoM coordinate known only to lie within the body: the most the log must beat.
+
+    A CoM spread uniformly over a body of half-size ``h`` has std ``h / sqrt(3)``; the body's half-size is a
+    uniform bar's, ``sqrt(3)`` radii of gyration, from the largest inertia the log allows (the estimate plus 2
+    std) and at most ``MAX_HALF_SIZE``: the scale is ``min(sqrt((I + 2 std_I) / m), MAX_HALF_SIZE / sqrt(3))``.
+    """
+    i_upper = params.I + 2.0 * std["inertia"]
+    return min(MAX_HALF_SIZE / math.sqrt(3.0), math.sqrt(max(i_upper, 0.0) / params.m))
+
+
 def not_identified(params: CartParams, std: Mapping[str, Any]) -> dict[str, str]:
     """Return parameter -> reason for the parameters whose std is larger than the object allows.
 
-    Mass and inertia: std above ``MAX_RELATIVE_STD`` times the value. CoM: std above the body's half-size
-    (sqrt(3) radii of gyration, a uniform bar's half-length, from the inertia plus 2 std; at most
-    ``MAX_HALF_SIZE``).
+    Mass and inertia: std above ``MAX_RELATIVE_STD`` times the value. Each CoM coordinate (``dx``, ``dy``)
+    on its own: std above :func:`com_scale` (the log says less about it than that the CoM lies within the
+    body); ``com`` too when neither is identified.
     """
     out: dict[str, str] = {}
     if std["mass"] > MAX_RELATIVE_STD * params.m:
@@ -97,15 +110,25 @@ def not_identified(params: CartParams, std: Mapping[str, Any]) -> dict[str, str]
         out["inertia"] = (
             f"std {std['inertia']:.3g} kg m^2 for {params.I:.3g} kg m^2: little yaw acceleration above the noise"
         )
-    i_upper = params.I + 2.0 * std["inertia"]  # the largest inertia the log allows
-    half = min(MAX_HALF_SIZE, math.sqrt(3.0 * i_upper / params.m))
-    s_com = max(std["com"])
-    if s_com > max(half, 1e-3):
-        out["com"] = (
-            f"std {s_com:.3g} m, larger than the body (half-size about {half:.3g} m): the cart does not turn "
-            "enough above the noise"
-        )
+    scale = max(com_scale(params, std), 1e-3)
+    for name, s_k, why in zip(
+        ("dx", "dy"), std["com"], ("the cart does not turn enough", "the cart does not turn or accelerate enough")
+    ):
+        if s_k > scale:
+            out[name] = (
+                f"std {s_k:.3g} m, more than a CoM known only to lie within the body ({scale:.3g} m): {why} "
+                "above the noise"
+            )
+    if "dx" in out and "dy" in out:
+        out["com"] = f"dx: {out['dx']}; dy: {out['dy']}"
     return out
+
+
+def com_value(params: CartParams, unknown: Mapping[str, str]) -> list[float | None] | None:
+    """Return the JSON CoM: [dx, dy] with a coordinate not identified as None; None when neither is."""
+    if "com" in unknown:
+        return None
+    return [None if "dx" in unknown else params.dx, None if "dy" in unknown else params.dy]
 
 
 def check_log(log: CartLog, streams: Streams) -> CartLog:
@@ -231,16 +254,18 @@ def _caster_json(casters) -> dict[str, Any] | None:
 
 
 def _unknown_notes(unknown: dict[str, str]) -> list[str]:
-    return [f"{name} not identified: {why}" for name, why in unknown.items()]
+    """Return the warnings naming the parameters not identified (the CoM's coordinates each, not twice)."""
+    return [f"{name} not identified: {why}" for name, why in unknown.items() if name != "com"]
 
 
 def _segment_json(seg: dict[str, Any]) -> dict[str, Any]:
     """Return the JSON entry of one segment."""
     p, s = seg["params"], seg["std"]
     unknown = not_identified(p, s)
-    val = {"mass": p.m, "com": [p.dx, p.dy], "inertia": p.I}
+    val = {"mass": p.m, "inertia": p.I}
     out = {"t0": seg["t0"], "t0_range": seg.get("t0_range"), "t1": seg["t1"]}
     out.update({k: (None if k in unknown else v) for k, v in val.items()})
+    out["com"] = com_value(p, unknown)
     out.update(
         sigma=p.sigma,
         sigma_yaw=p.sigma_yaw,

@@ -595,18 +595,28 @@ def _wrench_noise(reg: _Regression, p: np.ndarray, dt: float, sos: np.ndarray) -
     return models[0], models[1], gains
 
 
-def _physical(p: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    """Return p with [m, m dx, m dy, J] made physical (:func:`cart.physical.constrained_fit`) and a note if changed."""
+def _physical(p: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Return (p with [m, m dx, m dy, J] made physical (:func:`cart.physical.constrained_fit`), its covariance, a note).
+
+    The projection's move ``d`` is a misfit of the unconstrained fit that its covariance did not cover (a
+    log that never turns leaves the CoM and the yaw damping nearly collinear, and the fit can land far
+    outside the physical bodies with a small std): the covariance is widened by ``d d^T`` so that every
+    reported std covers at least the distance the projection moved that parameter.
+    """
     m, a, b, j = p[:4]
     if m > 0 and j - (a * a + b * b) / m > 1e-6 * abs(j):
-        return p, []
+        return p, cov, []
     fixed = p.copy()
     fixed[:6] = constrained_fit(p[:6], cov[:6, :6])
+    move = np.zeros(len(p))
+    move[:6] = fixed[:6] - p[:6]
+    cov = cov + np.outer(move, move)
     inertia = j - (a * a + b * b) / m if m > 0 else float("nan")
-    return fixed, [
+    note = (
         f"the unconstrained fit is not a physical body (m = {m:.3g} kg, I about the CoM = {inertia:.3g} kg m^2); "
-        "the closest physical parameters (m > 0, I > 0) are reported"
-    ]
+        "the closest physical parameters (m > 0, I > 0) are reported, their std widened by the distance moved"
+    )
+    return fixed, cov, [note]
 
 
 def _residual_ratio(
@@ -824,6 +834,7 @@ def identify(
         raise IdentifiabilityError(
             f"{log.source}: the least-squares problem is singular ({exc}): the log does not excite the parameters"
         ) from None
+    _check_independent_rows(log, reg, lag, (fc, grid.dt))
     ext_fit, casters = _caster_fit(grid, sos, full, noise, (step, lag), casters)
     if ext_fit is not None:
         full, reg, (p, cov, scale, r) = ext_fit
@@ -836,7 +847,7 @@ def identify(
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(lv, out_gain, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings)
-    p, note = _physical(p, cov)
+    p, cov, note = _physical(p, cov)
     warnings += note
     params, inertia = _physical_params(log, p, cov)
     std = _physical_std(p, cov)
@@ -862,6 +873,24 @@ def identify(
         fit_data={"t": grid.t[reg.keep][::step], "x": reg.x, "y": reg.y, "scale": scale, "step": step},
         casters=casters,
     )
+
+
+def _check_independent_rows(log: CartLog, reg: _Regression, lag: int, fc_dt: tuple[float, float]) -> None:
+    """Raise `IdentifiabilityError` when the kept rows hold no more independent samples than there are parameters.
+
+    The rows are band-limited to the cut-off ``fc``: about ``2 fc T = 4 rows / lag`` of them are independent
+    (as in :func:`_caster_test`; ``fc_dt``: the cut-off and the grid's step). With no more of them than parameters the fit interpolates the wrench and
+    its covariance (HAC, jackknife) has no degrees of freedom left: every std it gives is meaningless.
+    """
+    fc, dt = fc_dt
+    n_eff, n_p = 4.0 * len(reg.y) / max(lag, 1), reg.x.shape[-1]
+    if n_eff <= n_p:
+        seconds = float(reg.keep.sum()) * dt
+        raise IdentifiabilityError(
+            f"{log.source}: the rows kept away from the log's ends and gaps ({int(reg.keep.sum())} grid samples, "
+            f"about {seconds:.3g} s) hold about {n_eff:.2g} independent samples at the cut-off {fc:.3g} Hz for "
+            f"{n_p} parameters: nothing can be identified (log longer stretches without gaps)"
+        )
 
 
 def _checked_streams(log: CartLog, streams: Streams | None) -> Streams:

@@ -163,5 +163,10 @@ def columns(t: np.ndarray, v: np.ndarray, om: np.ndarray, axle: float, trail: fl
 
 
 def half_turns(alpha: np.ndarray) -> float:
-    """Return how far the casters swivel along the log, in half-turns (pi) per caster: sum |d alpha| / (pi casters)."""
-    return float(np.sum(np.abs(np.diff(alpha, axis=0))) / (math.pi * alpha.shape[-1]))
+    """Return how far the casters swivel along the log, in half-turns (pi) per caster: sum |d alpha| / (pi casters).
+
+    Each step's change is wrapped to (-pi, pi]: ``alpha`` comes from ``2 atan2(p, q)`` of a projective pair and
+    jumps by a whole turn when the pair changes sign, which is no swing.
+    """
+    step = np.angle(np.exp(1j * np.diff(alpha, axis=0)))
+    return float(np.sum(np.abs(step)) / (math.pi * alpha.shape[-1]))

@@ -139,8 +139,8 @@ def _print_table(path: str, log, out: dict[str, Any]) -> None:
     com = out["com"] or [None, None]
     row("mass", "mass", out["mass"], s["mass"], "kg", ".3f")
     cm = [None if v is None else 100.0 * v for v in com]  # one unit for the CoM in human output: cm
-    row("CoM dx", "com", cm[0], 100.0 * s["com"][0], "cm  (in the cart frame {b})", ".2f")
-    row("CoM dy", "com", cm[1], 100.0 * s["com"][1], "cm", ".2f")
+    row("CoM dx", "dx", cm[0], 100.0 * s["com"][0], "cm  (in the cart frame {b})", ".2f")
+    row("CoM dy", "dy", cm[1], 100.0 * s["com"][1], "cm", ".2f")
     row("inertia", "inertia", out["inertia"], s["inertia"], "kg m^2 (about the CoM)", ".4f")
     row("sigma", "sigma", out["sigma"], s["sigma"], "N s/m (forward/lateral)", ".4f")
     row("sigma_yaw", "sigma_yaw", out["sigma_yaw"], s["sigma_yaw"], "N m s/rad (yaw)", ".4f")
