@@ -413,6 +413,26 @@ def _jackknife_cov(x: np.ndarray, y: np.ndarray, wts: np.ndarray, noise: np.ndar
     return t_scale * (blocks - 1) / blocks * d.T @ d
 
 
+def _held_out_ssr(x: np.ndarray, y: np.ndarray, wts: np.ndarray, noise: np.ndarray, blocks: int) -> float:
+    """Return the weighted squared error of each of ``blocks`` contiguous stretches predicted by the fit on the others.
+
+    Cross-validation by blocks (as in :func:`_jackknife_cov`): columns nearly collinear with the others fit
+    the log's misfit rather than an effect and predict a held-out stretch worse, however large their Wald
+    statistic.
+    """
+    k = x.shape[0]
+    edges = np.linspace(0, k, blocks + 1).astype(int)
+    spans = list(zip(edges[:-1], edges[1:]))
+    ab = [_normal(x[i0:i1], y[i0:i1], wts[i0:i1]) for i0, i1 in spans]
+    a_blocks = [a_i - _noise_correction(wts[i0:i1], noise) for (a_i, _), (i0, i1) in zip(ab, spans)]
+    a_all, b_all = sum(a_blocks), sum(b for _, b in ab)
+    total = 0.0
+    for (i0, i1), a_i, (_, b_i) in zip(spans, a_blocks, ab):
+        p = np.linalg.lstsq(a_all - a_i, b_all - b_i, rcond=None)[0]
+        total += float(np.sum(wts[i0:i1] * (y[i0:i1] - _predict(x[i0:i1], p)) ** 2))
+    return total
+
+
 def _physical_std(p: np.ndarray, cov: np.ndarray) -> PhysicalStd:
     """Return the std of (m, dx, dy, I about the CoM, c_v, c_w) by linearising the phi -> physical map."""
     m, a, b, j = p[:4]
@@ -797,7 +817,23 @@ def _caster_test(
         return casters_model.Casters(axle, trail, 0.0, threshold, False, turns)
     tail, cc = pt[-2 - k : -2], covt[-2 - k : -2, -2 - k : -2]
     wald = float(tail @ np.linalg.pinv(cc) @ tail) if np.all(np.isfinite(cc)) else 0.0
-    return casters_model.Casters(axle, trail, wald, threshold, wald > threshold, turns)
+    return casters_model.Casters(axle, trail, wald, threshold, wald > threshold and _predicts_better(reg, eps), turns)
+
+
+def _predicts_better(reg: _Regression, eps: tuple[float, float]) -> bool:
+    """Return whether the caster columns (the last ones of ``reg``) predict held-out stretches of the log better.
+
+    Both models carry the Coulomb-like columns (:func:`_with_coulomb_columns`) and the nominal fit's Huber
+    weights; :func:`_held_out_ssr` over ``JACKKNIFE_BLOCKS`` stretches.
+    """
+    k = casters_model.N_COLUMNS
+    ext = _with_coulomb_columns(reg.x, reg.v, reg.om, eps)
+    base = _with_coulomb_columns(reg.x[:, :, :-k], reg.v, reg.om, eps)
+    zero = np.zeros((2, ext.shape[-1]))
+    _, scale, w = _wls(base, reg.y, zero[:, : base.shape[-1]])
+    wts = w / scale**2
+    with_casters = _held_out_ssr(ext, reg.y, wts, zero, JACKKNIFE_BLOCKS)
+    return with_casters < _held_out_ssr(base, reg.y, wts, zero[:, : base.shape[-1]], JACKKNIFE_BLOCKS)
 
 
 def identify(
