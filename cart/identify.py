@@ -414,7 +414,7 @@ def _jackknife_cov(x: np.ndarray, y: np.ndarray, wts: np.ndarray, noise: np.ndar
 
 
 def _held_out_ssr(x: np.ndarray, y: np.ndarray, wts: np.ndarray, noise: np.ndarray, blocks: int) -> float:
-    """Return the weighted squared error of each of ``blocks`` contiguous stretches predicted by the fit on the others.
+    """Return the weighted squared error summed over ``blocks`` contiguous stretches, each predicted by the others' fit.
 
     Cross-validation by blocks (as in :func:`_jackknife_cov`): columns nearly collinear with the others fit
     the log's misfit rather than an effect and predict a held-out stretch worse, however large their Wald
@@ -914,9 +914,10 @@ def identify(
 def _check_independent_rows(log: CartLog, reg: _Regression, lag: int, fc_dt: tuple[float, float]) -> None:
     """Raise `IdentifiabilityError` when the kept rows hold no more independent samples than there are parameters.
 
-    The rows are band-limited to the cut-off ``fc``: about ``2 fc T = 4 rows / lag`` of them are independent
-    (as in :func:`_caster_test`; ``fc_dt``: the cut-off and the grid's step). With no more of them than parameters the fit interpolates the wrench and
-    its covariance (HAC, jackknife) has no degrees of freedom left: every std it gives is meaningless.
+    ``fc_dt``: the cut-off and the grid's step. The rows are band-limited to the cut-off: about
+    ``2 fc T = 4 rows / lag`` of them are independent (as in :func:`_caster_test`). With no more of them than
+    parameters the fit interpolates the wrench and its covariance (HAC, jackknife) has no degrees of freedom
+    left: every std it gives is meaningless.
     """
     fc, dt = fc_dt
     n_eff, n_p = 4.0 * len(reg.y) / max(lag, 1), reg.x.shape[-1]
