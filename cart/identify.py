@@ -854,31 +854,15 @@ def identify(
     grid = _uniform_grid(log, streams)
     lv = _noise_levels(log, streams)
     fc, warnings = _choose_cutoff(grid, lv.pos, lv.theta, attenuation)
-    fs = 1.0 / grid.dt
-    sos = butter_lowpass_sos(4, fc / (fs / 2.0))
-    reg = _regression(log, grid, fc, sos)
-    lag = int(math.ceil(2.0 * fs / fc))
-    acc_gain, _ = _noise_gains(len(grid.t), grid.dt, sos)
-    sv, so = lv.pos * acc_gain, lv.theta * acc_gain  # acceleration noise of the regressor
-    # white parts of the regressor entries: vdot in (row 1, m) and (row 2, m dy), omegadot in (1, m dy), (2, J)
-    noise = np.array([[sv * sv, 0.0, so * so, 0.0, 0.0, 0.0], [0.0, 0.0, sv * sv, so * so, 0.0, 0.0]])
-    full, step = reg, _decimation(len(reg.y), fs, fc)
+    sos, reg, lag, (sv, so), noise = _filtered_regression(log, grid, fc, lv)
+    full, step = reg, _decimation(len(reg.y), 1.0 / grid.dt, fc)
     reg, lag = _every(reg, step), int(math.ceil(lag / step))
-    try:
-        p, cov, scale, r = _fit(reg.x, reg.y, noise, lag)
-    except np.linalg.LinAlgError as exc:
-        raise IdentifiabilityError(
-            f"{log.source}: the least-squares problem is singular ({exc}): the log does not excite the parameters"
-        ) from None
+    p, cov, scale, r = _fit_or_raise(log, reg, noise, lag)
     _check_independent_rows(log, reg, lag, (fc, grid.dt))
     ext_fit, casters = _caster_fit(grid, sos, full, noise, (step, lag), casters)
     if ext_fit is not None:
         full, reg, (p, cov, scale, r) = ext_fit
-        warnings.append(
-            f"the casters' swivel resistance is modelled (swivel axes about {casters.axle:.2g} m ahead of the axle, "
-            f"trail about {100 * casters.trail:.2g} cm; Wald {casters.wald:.0f} > {casters.threshold:.0f}): "
-            "without it the casters' swings read as mass"
-        )
+        warnings.append(_caster_warning(casters))
     f_noise, t_noise, out_gain = _wrench_noise(full, p, grid.dt, sos)
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(lv, out_gain, sv, so, p, r, reg.y)
@@ -908,6 +892,45 @@ def identify(
         grid_dt=grid.dt,
         fit_data={"t": grid.t[reg.keep][::step], "x": reg.x, "y": reg.y, "scale": scale, "step": step},
         casters=casters,
+    )
+
+
+def _filtered_regression(
+    log: CartLog, grid: _Grid, fc: float, lv: _Noise
+) -> tuple[np.ndarray, _Regression, int, tuple[float, float], np.ndarray]:
+    """Return (sos, regression, lag, (sv, so), noise): the low-passed regression at cut-off ``fc`` and its noise.
+
+    ``sv``, ``so``: the acceleration noise of the regressor; ``noise``: the white parts of the regressor
+    entries (vdot in (row 1, m) and (row 2, m dy), omegadot in (1, m dy), (2, J)).
+    """
+    fs = 1.0 / grid.dt
+    sos = butter_lowpass_sos(4, fc / (fs / 2.0))
+    reg = _regression(log, grid, fc, sos)
+    lag = int(math.ceil(2.0 * fs / fc))
+    acc_gain, _ = _noise_gains(len(grid.t), grid.dt, sos)
+    sv, so = lv.pos * acc_gain, lv.theta * acc_gain
+    noise = np.array([[sv * sv, 0.0, so * so, 0.0, 0.0, 0.0], [0.0, 0.0, sv * sv, so * so, 0.0, 0.0]])
+    return sos, reg, lag, (sv, so), noise
+
+
+def _fit_or_raise(
+    log: CartLog, reg: _Regression, noise: np.ndarray, lag: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return `_fit` of the regression; `IdentifiabilityError` when its least-squares problem is singular."""
+    try:
+        return _fit(reg.x, reg.y, noise, lag)
+    except np.linalg.LinAlgError as exc:
+        raise IdentifiabilityError(
+            f"{log.source}: the least-squares problem is singular ({exc}): the log does not excite the parameters"
+        ) from None
+
+
+def _caster_warning(casters: casters_model.Casters) -> str:
+    """Return the warning that says the casters' swivel resistance is modelled, and where they are."""
+    return (
+        f"the casters' swivel resistance is modelled (swivel axes about {casters.axle:.2g} m ahead of the axle, "
+        f"trail about {100 * casters.trail:.2g} cm; Wald {casters.wald:.0f} > {casters.threshold:.0f}): "
+        "without it the casters' swings read as mass"
     )
 
 
