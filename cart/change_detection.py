@@ -80,12 +80,21 @@ class ChangeDetector:
         self._filled = 0.0
 
     def update(
-        self, dt: float, s: np.ndarray, info: np.ndarray, p_cov: np.ndarray, ridge: np.ndarray, mass: float
+        self,
+        dt: float,
+        s: np.ndarray,
+        info: np.ndarray,
+        p_cov: np.ndarray,
+        ridge: np.ndarray,
+        mass: float,
+        misfit: float = 1.0,
     ) -> bool:
         """Add one sample's score ``s`` (4,) and information ``info`` (4, 4); return whether a change is declared.
 
         ``p_cov``: covariance of the inertial estimate (4, 4); ``ridge``: information added to
-        ``A`` when estimating the change (the prior's, so an unexcited direction gives no change).
+        ``A`` when estimating the change (the prior's, so an unexcited direction gives no change);
+        ``misfit``: residual ratio of the model (at least 1): the residuals, hence the scores, are that many
+        times larger than the noise model says, and their covariance is scaled by its square.
         """
         lam = math.exp(-dt / self.window_s)
         self._s = lam * self._s + s
@@ -94,7 +103,7 @@ class ChangeDetector:
         self._filled += dt
         if self._filled < self.window_s:
             return False
-        cov = self._a2 + self._a @ p_cov @ self._a
+        cov = (self._a2 + self._a @ p_cov @ self._a) * max(misfit, 1.0) ** 2
         cov += np.diag(1e-12 * np.diag(cov) + 1e-300)
         try:
             self.statistic = float(self._s @ np.linalg.solve(cov, self._s))

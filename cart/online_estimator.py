@@ -516,7 +516,7 @@ class OnlineLSEstimator:
         lam = math.exp(-dt / self.options.forgetting_s)
         reg.add(info, dvec, noise, lam)
         s = yw[:, :4].T @ r
-        misfit = max([1.0, *(r for r in self.residual_ratio if r == r)])
+        misfit = self._misfit_scale()  # the residual ratio, also before the test reports it
         self._ring().push(t=self.t, m=float(p[0]), k=misfit, s=s, info=info[:4, :4], D=info, d=dvec, C=noise)
         if self.options.detect_changes and self._test_change(dt, s, info[:4, :4]):
             self._reset_for_change()
@@ -526,10 +526,19 @@ class OnlineLSEstimator:
         self._update_params()
 
     def _test_change(self, dt: float, s: np.ndarray, info: np.ndarray) -> bool:
-        """Return whether the GLR test declares a change of mass / CoM / inertia at this sample."""
+        """Return whether the GLR test declares a change of mass / CoM / inertia at this sample.
+
+        The test's chi-square holds when the residuals are as large as the noise model says; a model that
+        misfits by the residual ratio kappa (:meth:`_misfit_scale`) has scores kappa times larger without any
+        change, so their covariance is scaled by kappa^2, with kappa taken one test window back (before a
+        change there could raise it).
+        """
         _, jr = self.regression.prior.residual(self.regression.p)
         ridge = (jr.T @ jr)[:4, :4]
-        return self.detector.update(dt, s, info, self._cov[:4, :4], ridge, float(self.regression.p[0]))
+        k = self._ring().read("k")
+        kappa = float(k[max(len(k) - 1 - int(self.options.change_window_s / dt), 0)])
+        p = float(self.regression.p[0])
+        return self.detector.update(dt, s, info, self._cov[:4, :4], ridge, p, kappa)
 
     def _reset_for_change(self) -> None:
         """Restart mass / CoM / inertia from the prior widths and the samples after the onset; keep the damping."""

@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from cart.change_detection import ChangeDetector
 from cart.online_estimator import OnlineLSEstimator, make_online_estimator
 from tests.cart.test_online_estimator import GUESS, MOCAP, TRUTH, _run, _sim
 
@@ -31,20 +32,53 @@ def misfit_log():
 
 
 def test_a_misfit_is_no_load_change(misfit_log):
-    """The GLR fires on the misfit's residuals; the two sides of its onset do not confirm a mass change: no load
-    change is reported, each detection is flagged, and the mass stays within 1.5 kg."""
+    """The residual test flags the misfit; no load change is reported and the mass stays within 1.5 kg."""
     est = _run(misfit_log, make_online_estimator(misfit_log.q[0], GUESS, MOCAP.measurement_std()), 1, 3.0, 0.3)
     kinds = [f.kind for f in est.flags]
     assert est.events == ()
-    assert "change_not_confirmed" in kinds and "misfit" in kinds
+    assert "misfit" in kinds
     assert abs(est.params().m - TRUTH.m) < 1.5
 
 
-def test_without_the_confirmation_the_misfit_resets(misfit_log, monkeypatch):
-    """The same log with every GLR detection accepted: load changes are reported (what the test above rules out)."""
+def _glr_without_misfit(monkeypatch) -> None:
+    """Make the GLR test ignore the model's residual ratio (its chi-square as if the model fitted)."""
+    update = ChangeDetector.update
+    monkeypatch.setattr(ChangeDetector, "update", lambda self, *a: update(self, *a[:6], misfit=1.0))
+
+
+def test_the_glr_scaled_by_the_misfit_does_not_fire_on_it(misfit_log, monkeypatch):
+    """Every GLR detection accepted (no confirmation): the test whose score covariance is scaled by the squared
+    residual ratio reports no load change on the misfit's residuals."""
+    monkeypatch.setattr(OnlineLSEstimator, "_confirmed", lambda self, new, before, misfit: True)
+    est = _run(misfit_log, make_online_estimator(misfit_log.q[0], GUESS, MOCAP.measurement_std()), 1, 3.0, 0.3)
+    assert est.events == ()
+
+
+def test_the_confirmation_rejects_what_the_unscaled_glr_finds(misfit_log, monkeypatch):
+    """The GLR as if the model fitted fires on the misfit; the two sides of each onset do not confirm a mass
+    change: every detection is flagged and none is reported. Accepting every detection too resets (load changes
+    reported: what the two tests above rule out)."""
+    _glr_without_misfit(monkeypatch)
+    est = _run(misfit_log, make_online_estimator(misfit_log.q[0], GUESS, MOCAP.measurement_std()), 1, 3.0, 0.3)
+    assert est.events == ()
+    assert "change_not_confirmed" in [f.kind for f in est.flags]
     monkeypatch.setattr(OnlineLSEstimator, "_confirmed", lambda self, new, before, misfit: True)
     est = _run(misfit_log, make_online_estimator(misfit_log.q[0], GUESS, MOCAP.measurement_std()), 1, 3.0, 0.3)
     assert len(est.events) >= 1
+
+
+def test_the_detector_scales_its_chi_square_by_the_misfit():
+    """Residuals three times the noise model's, no change: the unscaled GLR passes its threshold, scaled by 3^2 it
+    does not."""
+    fired = {1.0: False, 3.0: False}
+    for misfit in fired:
+        det = ChangeDetector(window_s=1.5, alpha=1e-6, min_change=0.0)
+        local = np.random.default_rng(1)
+        for _ in range(600):
+            phi = local.standard_normal((2, 4))
+            r = 3.0 * local.standard_normal(2)
+            fired[misfit] |= det.update(0.01, phi.T @ r, phi.T @ phi, np.zeros((4, 4)), np.eye(4), 20.0, misfit)
+    assert fired == {1.0: True, 3.0: False}
 
 
 @pytest.mark.parametrize("deflate", [True, False])
