@@ -95,6 +95,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="Y",
         help="fixed contact point(s) y on the handle in m, within [-0.25, 0.25]",
     )
+    p.add_argument(
+        "--base-plan",
+        action="store_true",
+        help="plan a holonomic one-arm base's place ahead within its wheel limits where the rigid place behind\n"
+        "the handle breaks them (wholebody/push/base_plan.py; planning Traj. 2 takes 30-60 s)",
+    )
     p.add_argument("--duration", type=float, default=30.0, help="trajectory duration in s (default 30)")
     p.add_argument("--initial-mass", type=float, default=16.0, help="initial mass estimate in kg (default 16)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
@@ -109,6 +115,7 @@ def config_from_args(args: argparse.Namespace):
     from robots.errors import RobotError
     from robots.profiles import mobile_manipulators, profile
     from wholebody.push import PushConfig
+    from wholebody.push.base_settings import BasePlanSettings
 
     import robots
 
@@ -164,6 +171,7 @@ def config_from_args(args: argparse.Namespace):
         estimator=args.estimator,
         cart_model=None if args.cart_model is None else str(args.cart_model),
         fixed_contact_y=fixed_contact_y,
+        base_plan=BasePlanSettings() if args.base_plan else None,
     )
 
 

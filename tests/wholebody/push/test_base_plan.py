@@ -92,3 +92,17 @@ def test_plan_postures_hold_the_handle_with_a_bent_elbow(robot_and_plan):
         stretch = np.linalg.norm(data.oMi[ids[-2]].translation - data.oMi[ids[1]].translation)
         assert stretch < 0.97 * full
         assert abs(qa[j]) > 0.5
+
+
+def test_cli_base_plan_flag_sets_the_plan():
+    """`cartpush push --base-plan` asks the loop for the base plan with its default settings; without it, none."""
+    import argparse
+
+    from cartpush.cli import push
+
+    parser = argparse.ArgumentParser()
+    push.register(parser.add_subparsers())
+    on = push.config_from_args(parser.parse_args(["push", "--base-plan"]))
+    off = push.config_from_args(parser.parse_args(["push"]))
+    assert on.base_plan == BasePlanSettings()
+    assert off.base_plan is None
