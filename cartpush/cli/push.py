@@ -1,4 +1,4 @@
-"""`cartpush push`: the closed loop — a mobile manipulator (Ridgeback + iiwa, or the WMRA) pushes the cart, the EKF closes it."""
+"""`cartpush push`: the closed loop — a mobile manipulator (Ridgeback + iiwa, the WMRA, a profile robot) pushes the cart, the estimator closes it."""
 
 from __future__ import annotations
 
@@ -22,18 +22,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `push` subcommand."""
     p = subparsers.add_parser(
         "push",
-        help="simulate the mobile manipulator(s) pushing the cart with the EKF in the loop",
+        help="simulate the mobile manipulator(s) pushing the cart with the parameter estimate in the loop",
         description=(
             "Simulate a mobile manipulator (default the Ridgeback + iiwa 14) pushing the shopping cart along Traj. 1 or 2 of the cart\n"
-            "paper: cart controller (with the EKF's estimate) -> wrench allocation QP -> arm torques\n"
+            "paper: cart controller (with the online estimate) -> wrench allocation QP -> arm torques\n"
             "(Pinocchio, checked against the iiwa's limits) -> whole-body tracking of the handle ->\n"
-            "exact cart dynamics -> noisy motion capture and F/T sensing -> EKF. True cart 20 kg,\n"
+            "cart dynamics (or --plant mujoco) -> noisy motion capture and F/T sensing -> estimator. True cart 20 kg,\n"
             "CoM (30, 15) cm in the cart frame; the estimator starts at 16 kg, CoM (30, 0) cm.\n\n"
             "With --robot wmra the wheelchair-mounted arm pushes: its differential-drive base never slides\n"
             "sideways (wheel-rate input), follows the cart with a look-ahead point, and the contact is\n"
             "chosen only where the arm holds it with margin from the wheelchair's place behind the cart.\n\n"
             "Tracking errors are in mm, CoM errors in cm (--json keeps its fields' units: *_mm, *_m); under the\n"
-            "table (and as mass_unobservable_s / com_unobservable_s in --json) the stretches where the EKF's\n"
+            "table (and as mass_unobservable_s / com_unobservable_s in --json) the stretches where the estimate's\n"
             "1-sigma of the mass or CoM grew (no new information: the estimate is held, not updated), then the\n"
             "arm torque against its limits (a warning on stderr when over). The --html page plays when opened\n"
             "(pause button and legend in its bottom-left corner).\n"
