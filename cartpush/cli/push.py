@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from cartpush.cli import options
 from wholebody.errors import WholeBodyError
+
+if TYPE_CHECKING:
+    from wholebody.contacts.allocation import ArmLimits
 
 JSON_FIELDS = (
     "tracking_rms_mm",
@@ -101,6 +106,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="plan a holonomic one-arm base's place ahead within its wheel limits where the rigid place behind\n"
         "the handle breaks them (wholebody/push/base_plan.py; planning Traj. 2 takes 30-60 s)",
     )
+    p.add_argument(
+        "--grip-torque-arm",
+        type=float,
+        default=None,
+        metavar="M",
+        help="the yaw, roll and pitch torque one hand may apply per N of normal load, in m (the allocation's\n"
+        "GraspModel.torque_arm; default 0.02: 4 N m at the 2F-85's 200 N squeeze). A firmer grip (0.1) makes\n"
+        "the cart's yaw torque at the wrist instead of with lateral force at the handle's height",
+    )
     p.add_argument("--duration", type=float, default=30.0, help="trajectory duration in s (default 30)")
     p.add_argument("--initial-mass", type=float, default=16.0, help="initial mass estimate in kg (default 16)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
@@ -172,7 +186,19 @@ def config_from_args(args: argparse.Namespace):
         cart_model=None if args.cart_model is None else str(args.cart_model),
         fixed_contact_y=fixed_contact_y,
         base_plan=BasePlanSettings() if args.base_plan else None,
+        arm_limits=_arm_limits(args.grip_torque_arm),
     )
+
+
+def _arm_limits(torque_arm: float | None) -> ArmLimits:
+    """Return the arms' limits with the grip's torque arm (m) of ``--grip-torque-arm`` (None: the defaults)."""
+    from wholebody.contacts.allocation import ArmLimits, GraspModel
+
+    limits = ArmLimits()
+    if torque_arm is None:
+        return limits
+    options.finite("--grip-torque-arm", torque_arm, positive=True, maximum=0.5, why="m of torque per N of grip")
+    return dataclasses.replace(limits, grasp=dataclasses.replace(limits.grasp or GraspModel(), torque_arm=torque_arm))
 
 
 def run(args: argparse.Namespace) -> int:

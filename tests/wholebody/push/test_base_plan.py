@@ -106,3 +106,24 @@ def test_cli_base_plan_flag_sets_the_plan():
     off = push.config_from_args(parser.parse_args(["push"]))
     assert on.base_plan == BasePlanSettings()
     assert off.base_plan is None
+
+
+def test_cli_grip_torque_arm_reaches_the_allocation():
+    """`--grip-torque-arm M` sets the allocation's GraspModel.torque_arm; a bad value is an OptionError (exit 2)."""
+    import argparse
+
+    import pytest
+
+    from cartpush.cli import push
+    from cartpush.cli.options import OptionError
+    from wholebody.contacts.allocation import ArmLimits
+
+    parser = argparse.ArgumentParser()
+    push.register(parser.add_subparsers())
+    firm = push.config_from_args(parser.parse_args(["push", "--grip-torque-arm", "0.1"]))
+    default = push.config_from_args(parser.parse_args(["push"]))
+    assert firm.arm_limits.grasp is not None and firm.arm_limits.grasp.torque_arm == 0.1
+    assert default.arm_limits == ArmLimits()
+    for bad in ("-0.1", "nan", "2"):
+        with pytest.raises(OptionError, match="--grip-torque-arm"):
+            push.config_from_args(parser.parse_args(["push", "--grip-torque-arm", bad]))
