@@ -31,14 +31,13 @@ trajectory up to T s (a shorter ``--duration`` compresses the paper's trajectori
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import time
 
 import numpy as np
 
 from cart.trajectories import paper_trajectory
-from wholebody.contacts.allocation import ArmLimits, GraspModel
+from wholebody.contacts.allocation import ArmLimits
 from wholebody.push import PushConfig, build_controller, kinematic_plant
 from wholebody.push.arm_control import TorqueArmGains
 from wholebody.push.loop import run_loop
@@ -184,9 +183,7 @@ def _set_options(args: argparse.Namespace) -> None:
     OPTIONS.clear()
     OPTIONS.update(n_arms=args.arms, estimation=not args.no_estimation, seed=args.seed)
     if args.grasp_torque_arm is not None:
-        limits = ArmLimits()
-        grasp = dataclasses.replace(limits.grasp or GraspModel(), torque_arm=args.grasp_torque_arm)
-        OPTIONS["arm_limits"] = dataclasses.replace(limits, grasp=grasp)
+        OPTIONS["arm_limits"] = ArmLimits().with_torque_arm(args.grasp_torque_arm)
     if args.until is not None:
         OPTIONS["until"] = args.until
 

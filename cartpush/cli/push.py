@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -192,13 +191,12 @@ def config_from_args(args: argparse.Namespace):
 
 def _arm_limits(torque_arm: float | None) -> ArmLimits:
     """Return the arms' limits with the grip's torque arm (m) of ``--grip-torque-arm`` (None: the defaults)."""
-    from wholebody.contacts.allocation import ArmLimits, GraspModel
+    from wholebody.contacts.allocation import ArmLimits
 
-    limits = ArmLimits()
     if torque_arm is None:
-        return limits
+        return ArmLimits()
     options.finite("--grip-torque-arm", torque_arm, positive=True, maximum=0.5, why="m of torque per N of grip")
-    return dataclasses.replace(limits, grasp=dataclasses.replace(limits.grasp or GraspModel(), torque_arm=torque_arm))
+    return ArmLimits().with_torque_arm(torque_arm)
 
 
 def run(args: argparse.Namespace) -> int:

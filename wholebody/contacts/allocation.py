@@ -109,6 +109,10 @@ class ArmLimits:
         if not (self.max_force > 0.0 and self.max_torque >= 0.0):
             raise WholeBodyError("arm limits need max_force > 0 and max_torque >= 0")
 
+    def with_torque_arm(self, torque_arm: float) -> ArmLimits:
+        """Return these limits with the grasp's ``torque_arm`` (m) replaced (the default grasp when there is none)."""
+        return replace(self, grasp=replace(self.grasp or GraspModel(), torque_arm=torque_arm))
+
 
 @dataclass(frozen=True)
 class EffortWeights:
