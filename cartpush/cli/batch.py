@@ -11,6 +11,8 @@ DESCRIPTION = """\
 Run `estimate` or `diagnose` over many logs and write one JSON line per log to RESULTS.jsonl
 as each finishes: {"path": ..., "ok": true, "result": <the command's --json output>, "seconds": ...}
 or {"path": ..., "ok": false, "error": "one line"}. A bad log is an error line, not a crash.
+Exit code 0 when every log run succeeded, 3 when any failed (a summary line on stderr names how many),
+2 for bad options or an unusable --out (nothing runs).
 
 INPUTS: files, directories (their *.csv and *.csv.gz, sorted) or glob patterns ('runs/**/*.csv.gz').
 A rerun with the same --out skips the logs already done (ok true) and retries the failed ones, so an
@@ -97,7 +99,7 @@ def _term_is_interrupt() -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the batch; print the summary; return 0 (failed logs are error lines in the results, counted)."""
+    """Run the batch; print the summary; return 0, or ``FAILED_EXIT`` when any log failed (its error line is kept)."""
     from cart.jsonout import dumps_strict
     from cartpush.batch import BatchError, CommandJob, expand_inputs, run_batch
 
@@ -121,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
     summary = {"job": args.job, **summary}
     if args.json:
         print(dumps_strict(summary))
-        return 0
+        return _exit_code(f"batch {args.job}", summary["failed"], summary["ran"])
     rate = f"{summary['logs_per_min']:.1f} logs/min" if summary["logs_per_min"] else "-"
     print(
         f"batch {args.job}: {summary['inputs']} logs, {summary['skipped']} already done, {summary['ran']} run "
@@ -129,13 +131,30 @@ def run(args: argparse.Namespace) -> int:
         f"{summary['backend']}, workers {summary['workers'] or 'cluster CPUs'})"
     )
     print(f"results: {summary['out']}")
-    if summary["failed"]:
-        print(f'{summary["failed"]} log(s) failed: see their "error" lines (a rerun retries them)')
-    return 0
+    return _exit_code(f"batch {args.job}", summary["failed"], summary["ran"])
+
+
+#: Exit code of a batch in which at least one log (or push run) failed; its error line is in the results.
+FAILED_EXIT = 3
+
+
+def _exit_code(what: str, failed: int, ran: int) -> int:
+    """Return 0 when nothing failed, else ``FAILED_EXIT`` after one summary line on stderr."""
+    import sys
+
+    if not failed:
+        return 0
+    share = "all" if failed == ran else ("most" if 2 * failed > ran else "some")
+    print(
+        f"{what}: {failed} of {ran} failed ({share}): see their \"error\" lines (a rerun retries them); "
+        f"exit code {FAILED_EXIT}",
+        file=sys.stderr,
+    )
+    return FAILED_EXIT
 
 
 def _run_push(args: argparse.Namespace) -> int:
-    """Run a push campaign; print its summary table (or JSON); return 0 (failed runs are error lines)."""
+    """Run a push campaign; print its summary table (or JSON); return 0, or ``FAILED_EXIT`` when any run failed."""
     from cart.jsonout import dumps_strict
     from cartpush.batch import BatchError
     from cartpush.batch.push_campaign import campaign, format_table, run_campaign
@@ -153,11 +172,11 @@ def _run_push(args: argparse.Namespace) -> int:
     summary = run_campaign(runs, args.out, workers=args.workers, ray_address=args.ray)
     if args.json:
         print(dumps_strict({"job": "push", **summary}))
-        return 0
+        return _exit_code("batch push", summary["failed"], summary["ran"])
     print(format_table(summary["table"]))
     print(
         f"batch push: {summary['runs']} runs, {summary['skipped']} already done, {summary['ran']} run "
         f"({summary['ok']} ok, {summary['failed']} failed) in {summary['seconds']:.1f} s "
         f"({summary['backend']}, workers {summary['workers'] or 'cluster CPUs'}); results: {summary['out']}"
     )
-    return 0
+    return _exit_code("batch push", summary["failed"], summary["ran"])

@@ -75,10 +75,13 @@ def test_expand_inputs(logs, tmp_path):
 
 @pytest.mark.parametrize("workers", [1, 2])
 def test_local_workers_match_one_by_one(logs, reference, tmp_path, workers, capsys):
-    """The CLI on 1 and 2 joblib workers writes the command's --json result per log; the bad log is an error line."""
+    """The CLI on 1 and 2 joblib workers writes the command's --json result per log; the bad log is an error line
+    and makes the exit code FAILED_EXIT (3) with a summary line on stderr."""
     out = tmp_path / "results.jsonl"
-    assert main(["batch", "estimate", logs["dir"], "--out", str(out), "--workers", str(workers), "--json"]) == 0
-    summary = json.loads(capsys.readouterr().out)
+    assert main(["batch", "estimate", logs["dir"], "--out", str(out), "--workers", str(workers), "--json"]) == 3
+    captured = capsys.readouterr()
+    assert "1 of 4 failed" in captured.err and "exit code 3" in captured.err
+    summary = json.loads(captured.out)
     assert summary["ran"] == N_GOOD + 1 and summary["ok"] == N_GOOD and summary["failed"] == 1
     assert summary["backend"] == "joblib" and summary["logs_per_min"] > 0
     _check_same(_lines(out), logs, reference)
@@ -151,3 +154,12 @@ def test_diagnose_job_and_bad_options(logs, tmp_path, capsys):
     assert "--threshold" in capsys.readouterr().err
     assert main(["batch", "estimate", logs["bad"], "--out", str(tmp_path), "--json"]) == 2
     assert main(["batch", "estimate", logs["bad"], "--out", str(out), "--workers", "0"]) == 2
+
+
+def test_exit_code_only_when_a_log_failed(logs, tmp_path, capsys):
+    """Good logs only: exit 0 and no failure line; all logs failing: exit 3 with "all" in the summary line."""
+    out = tmp_path / "good.jsonl"
+    assert main(["batch", "estimate", *logs["good"], "--out", str(out)]) == 0
+    assert "failed (" not in capsys.readouterr().err
+    assert main(["batch", "estimate", logs["bad"], "--out", str(tmp_path / "bad.jsonl")]) == 3
+    assert "1 of 1 failed (all)" in capsys.readouterr().err

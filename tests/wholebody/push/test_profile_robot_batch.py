@@ -22,7 +22,7 @@ def test_campaign_lines_resume_and_a_broken_profile_is_an_error_line(tmp_path, c
     out = tmp_path / "push.jsonl"
     argv = ["batch", "push", "--robots", "wmra", str(bad), "--masses", "20", "--trajectories", "1"]
     argv += ["--duration", "8", "--out", str(out), "--json"]
-    assert main(argv) == 0
+    assert main(argv) == 3  # one run failed: FAILED_EXIT
     summary = json.loads(capsys.readouterr().out)
     assert summary["runs"] == 2 and summary["ok"] == 1 and summary["failed"] == 1
     lines = [json.loads(x) for x in out.read_text().splitlines()]
@@ -40,7 +40,7 @@ def test_campaign_lines_resume_and_a_broken_profile_is_an_error_line(tmp_path, c
     failed = next(r for r in lines if not r["ok"])
     assert failed["run"]["robot"] == str(bad) and "urdf: file" in failed["error"] and "\n" not in failed["error"]
     # a rerun skips the done run and retries the failed one
-    assert main(argv) == 0
+    assert main(argv) == 3  # the retried run fails again
     again = json.loads(capsys.readouterr().out)
     assert again["skipped"] == 1 and again["ran"] == 1 and again["failed"] == 1
     assert done_runs(out) == {PushRun("wmra", 20.0, 1, duration=8.0).key()}
