@@ -146,7 +146,7 @@ def _exit_code(what: str, failed: int, ran: int) -> int:
         return 0
     share = "all" if failed == ran else ("most" if 2 * failed > ran else "some")
     print(
-        f"{what}: {failed} of {ran} failed ({share}): see their \"error\" lines (a rerun retries them); "
+        f'{what}: {failed} of {ran} failed ({share}): see their "error" lines (a rerun retries them); '
         f"exit code {FAILED_EXIT}",
         file=sys.stderr,
     )
