@@ -50,8 +50,11 @@ def test_demo_json_reports_mm_and_unobservable_stretches(tmp_path, capsys):
     assert {p.name for p in tmp_path.iterdir()} >= {
         "path.png",
         "tracking_estimation.png",
+        "estimate.png",
+        "hand_wrenches.png",
         "arm_torques.png",
         "scene.html",
+        "scene_mujoco.html",
         "push_log.csv",
         "comparison.md",
     }
@@ -64,6 +67,9 @@ def test_demo_table_gives_the_com_in_cm_and_says_what_unobservable_means(tmp_pat
     assert "the estimate is held from earlier data, not updated" in out
     assert "arm torque peak" in out and "(within the limits)" in out
     assert "plays when opened" in out
+    physics = next(line for line in out.splitlines() if "MuJoCo plant, Traj. 1: " in line and "real time" in line)
+    assert "measured minus allocated" in physics and "grip slip max" in physics
+    assert "scene_mujoco.html: the MuJoCo run" in out
     table = (tmp_path / "comparison.md").read_text()
     assert "CoM err [cm]" in table and "with estimation: arm torque peak" in table
 

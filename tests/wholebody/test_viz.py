@@ -206,7 +206,7 @@ def test_bad_input_raises_project_errors():
         with pytest.raises(SceneError):
             sc.set_robot_pose("ridgeback_iiwa", (0.0, 0.0, 0.0))
         with pytest.raises(SceneError):
-            sc.show_wrench("a", (0, 0, 0), (1, 0), kind="measured")
+            sc.show_wrench("a", (0, 0, 0), (1, 0), kind="sensed")
         with pytest.raises(SceneError):
             sc.show_trace("a", [(0, 0)])
         with pytest.raises(SceneError):

@@ -195,12 +195,21 @@ def push_figures(runs: dict[str, PushResult]) -> dict[str, Figure]:
     colour), the first run drawn on top; ``tracking_estimation``: tracking error
     (mm), mass and CoM (cm) errors over time with the estimate's 1-sigma, the 1 kg /
     1 cm bands and the stretches where the 1-sigma grew (no new information),
-    hand force; ``arm_torques``: each joint's torque as a share of its limit,
-    the limits at +-100 %, legend outside the axes.
+    hand force; ``estimate``: the estimated mass and CoM with their 1-sigma band
+    against the plant's truth, the detected load changes and run-off flags marked
+    (`_estimate_figure`); ``hand_wrenches``: the cart wrench the hands were
+    allocated against the one they produced (the first MuJoCo run's, else the
+    first run's; `_wrench_figure`); ``arm_torques``: each joint's torque as a share
+    of its limit, the limits at +-100 %, legend outside the axes. A lost cart's
+    loss time is marked on the time plots.
     """
+    physics = [label for label, r in runs.items() if _is_physics(r)]
+    shown = physics[0] if physics else next(iter(runs))
     return {
         "path": _path_figure(runs),
         "tracking_estimation": _estimation_figure(runs),
+        "estimate": _estimate_figure(runs),
+        "hand_wrenches": _wrench_figure(runs[shown], shown),
         "arm_torques": _torque_figure(runs),
     }
 
@@ -302,6 +311,171 @@ def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
     return fig
 
 
+def _is_physics(result: PushResult) -> bool:
+    """Return whether the run's plant was the MuJoCo physics engine."""
+    return (result.plant_report or {}).get("plant") == "mujoco"
+
+
+def _mark_loss(ax, result: PushResult, label: bool = True) -> None:
+    """Shade the time after the cart was lost (`PushMetrics.tracking_lost_at_s`): a failed push, not a result."""
+    t_lost = result.metrics.tracking_lost_at_s
+    if t_lost is not None:
+        ax.axvspan(
+            t_lost, result.t[-1], color="r", alpha=0.08, lw=0, label="cart lost (a failed push)" if label else None
+        )
+        ax.axvline(t_lost, color="r", lw=1.0)
+
+
+def _in_b(result: PushResult, gamma: np.ndarray) -> np.ndarray:
+    """Return cart wrenches (fx, fy in {s}, tau) with the force in the cart frame {b} (forward, lateral)."""
+    c, s = np.cos(result.q_true[:, 2]), np.sin(result.q_true[:, 2])
+    return np.column_stack([c * gamma[:, 0] + s * gamma[:, 1], -s * gamma[:, 0] + c * gamma[:, 1], gamma[:, 2]])
+
+
+def allocated_cart_wrench(result: PushResult) -> np.ndarray:
+    """Return the cart wrench the allocation asked of the hands (N, 3): fx, fy in {b}, tau about {b}'s origin.
+
+    Each hand's wrench [f, n] is in its {a}, aligned with {b}, at its handle point p (the grasp map of eq. 23-24):
+    Gamma = sum (f_x, f_y, n_z + p_x f_y - p_y f_x).
+    """
+    from wholebody.push.robot import handle_point
+
+    geometry = result.config.cart_geometry()
+    out = np.zeros((len(result.t), 3))
+    for k in range(result.wrenches.shape[1]):
+        p = np.array([handle_point(float(y), geometry) for y in result.contact_y[:, k]])
+        w = result.wrenches[:, k]
+        out += np.column_stack([w[:, 0], w[:, 1], w[:, 5] + p[:, 0] * w[:, 1] - p[:, 1] * w[:, 0]])
+    return out
+
+
+def produced_cart_wrench(result: PushResult) -> np.ndarray:
+    """Return the cart wrench the hands produced in each period (N, 3): fx, fy in {b}, tau about {b}'s origin.
+
+    The MuJoCo plant reports the noise-free F/T wrench of the period that has just ended
+    (`MujocoPlant.cart_wrench`): it is aligned with the allocation of the period before. The kinematic plant
+    applies the allocated wrench itself.
+    """
+    gamma = result.gamma_applied
+    if _is_physics(result):
+        gamma = np.r_[gamma[1:], gamma[-1:]]
+    return _in_b(result, gamma)
+
+
+def _wrench_figure(result: PushResult, label: str) -> Figure:
+    """Return the cart wrench over time: the controller's desired (eq. 26), the hands' allocated (eq. 25) and
+    what they produced (MuJoCo: the F/T sensors; the kinematic plant: the allocation itself)."""
+    from matplotlib.figure import Figure
+
+    desired, allocated, produced = (
+        _in_b(result, result.gamma_desired),
+        allocated_cart_wrench(result),
+        produced_cart_wrench(result),
+    )
+    source = (
+        "measured by the F/T sensors (MuJoCo, noise-free)"
+        if _is_physics(result)
+        else "produced (kinematic plant: exact)"
+    )
+    fig = Figure(figsize=(7.5, 7.5), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    names = ("forward force f_x in {b} [N]", "lateral force f_y in {b} [N]", "yaw torque about {b} [N m]")
+    for j, (ax, name) in enumerate(zip(axes, names)):
+        ax.plot(result.t, desired[:, j], ":", color="k", lw=1.0, label="desired by the cart controller (eq. 26)")
+        ax.plot(result.t, allocated[:, j], "-", color="C2", lw=1.6, label="allocated to the hands (eq. 25)")
+        ax.plot(result.t, produced[:, j], "-", color="C0", lw=0.8, label=source)
+        _mark_loss(ax, result, label=j == 0)
+        ax.set_ylabel(name, fontsize=8), ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    before = result.t < (result.metrics.tracking_lost_at_s or math.inf)
+    err = np.linalg.norm((produced - allocated)[before, :2], axis=1)
+    force = np.linalg.norm(allocated[before, :2], axis=1)
+    rms = lambda v: float(np.sqrt(np.mean(v**2))) if v.size else math.nan
+    fig.suptitle(
+        f"{label}: hand wrenches on the cart; produced minus allocated force {rms(err):.2f} N RMS against "
+        f"{rms(force):.2f} N RMS allocated{' (before the loss)' if not before.all() else ''}",
+        fontsize=8,
+    )
+    axes[-1].set_xlabel("t [s]")
+    return fig
+
+
+def _estimate_series(result: PushResult) -> tuple[np.ndarray, np.ndarray]:
+    """Return the estimate (N, 3): mass [kg], CoM x, y in {b} [cm], and its 1-sigma (N, 3) (NaN when none)."""
+    phi = result.phi_hat
+    m = np.where(np.abs(phi[:, 0]) > 1e-9, phi[:, 0], np.nan)
+    est = np.column_stack([phi[:, 0], 100 * phi[:, 1] / m, 100 * phi[:, 2] / m])
+    std = np.full_like(est, np.nan)
+    if result.param_std is not None:
+        std = np.column_stack([result.param_std[:, 0], 100 * result.param_std[:, 1], 100 * result.param_std[:, 1]])
+    return est, std
+
+
+def _estimate_events(axes, result: PushResult, est: np.ndarray, colour: str, label: str) -> None:
+    """Mark the detected load changes (solid: onset, dashed: detection) and the run-off flags (x on the estimate)."""
+    report = result.estimator_report or {}
+    for j, c in enumerate(report.get("load_changes", [])):
+        for ax in axes:
+            ax.axvline(c["t_change"], color=colour, lw=1.2, label=f"load change found, {label}" if j == 0 else None)
+            ax.axvline(c["t_detected"], color=colour, lw=0.8, ls="--")
+    flags = report.get("runoff_flags", [])
+    kinds = ", ".join(sorted({f["kind"] for f in flags}))
+    for j, f in enumerate(flags):
+        k = min(int(np.searchsorted(result.t, f["t"])), len(result.t) - 1)
+        for i, ax in enumerate(axes):
+            ax.plot(
+                f["t"], est[k, i], "x", color="r", ms=6, label=f"run-off flagged ({kinds}), {label}" if j == 0 else None
+            )
+
+
+def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
+    """Return the estimated mass and CoM (x, y in {b}) over time with their 1-sigma band against the plant's truth.
+
+    The truth is what each run's estimate is judged against (`wholebody.push.plants.plant_truth`: the MuJoCo
+    cart's effective mass); the y range covers the truth and the estimates before any loss of the cart.
+    """
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.5, 8.5), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    lows, highs = [np.inf] * 3, [-np.inf] * 3
+    for i, (label, r) in enumerate(runs.items()):
+        c, ls = _style(i)
+        est, std = _estimate_series(r)
+        p = r.config.true_params
+        before = r.t < (r.metrics.tracking_lost_at_s or math.inf)
+        for j, (ax, truth) in enumerate(zip(axes, (p.m, 100 * p.dx, 100 * p.dy))):
+            ax.plot(r.t, est[:, j], ls, color=c, lw=1.2, label=f"estimate, {label}")
+            if r.config.estimation and np.any(np.isfinite(std[:, j])):
+                ax.fill_between(
+                    r.t,
+                    est[:, j] - std[:, j],
+                    est[:, j] + std[:, j],
+                    color=c,
+                    alpha=0.15,
+                    lw=0,
+                    label=f"+-1-sigma, {label}",
+                )
+            ax.axhline(truth, color=c, ls=(0, (6, 3)), lw=1.0, alpha=0.8, label=f"truth, {label}")
+            _mark_loss(ax, r, label=j == 0 and i == 0)
+            seen = np.r_[est[before, j], truth]
+            lows[j], highs[j] = min(lows[j], np.nanmin(seen)), max(highs[j], np.nanmax(seen))
+        if r.config.estimation:
+            _estimate_events(axes, r, est, c, label)
+    for ax, lo, hi, name in zip(axes, lows, highs, ("mass [kg]", "CoM x in {b} [cm]", "CoM y in {b} [cm]")):
+        pad = max(0.1 * (hi - lo), 1.0)
+        ax.set_ylim(lo - pad, hi + pad)
+        ax.set_ylabel(name), ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.suptitle(
+        "the estimate (band: its 1-sigma; the CoM's is the norm over x and y) against the truth (dashed);\n"
+        "vertical lines: load changes found (dashed: when detected); x: run-off flagged (estimate held)",
+        fontsize=8,
+    )
+    axes[-1].set_xlabel("t [s]")
+    return fig
+
+
 def _torque_figure(runs: dict[str, PushResult]) -> Figure:
     """Return each arm joint's torque as a share of its limit (one panel per run), the limits at +-100 %.
 
@@ -345,18 +519,120 @@ def save_figures(runs: dict[str, PushResult], out_dir: Path) -> list[Path]:
     return save_figure_dict(push_figures(runs), out_dir)
 
 
+#: the page's legend line on the cart's casters (`caster_swivel`), and its swatch's colour (the forks' grey)
+CASTER_LEGEND = "casters: swivel as rolling without side slip turns them (from the cart's true motion)"
+CASTER_COLOR = 0x808080
+#: a caster turns through at most this fraction of a radian per integration step of `caster_swivel`
+_SWIVEL_STEP = 0.2
+
+
+def caster_swivel(q: np.ndarray, qd: np.ndarray, dt: float, pivots_b: np.ndarray, trail: float) -> np.ndarray:
+    """Return each trailing caster's swivel angle (N, n_casters), rad, 0 = wheel behind its pivot (pushed forward).
+
+    A caster whose wheel trails its swivel axis by ``trail`` rolls without sliding sideways: with the pivot's
+    velocity v_p in {b} (v_b + omega x p), the fork turns at psi_dot = (-v_px sin psi + v_py cos psi) / trail -
+    omega: it settles where its wheel's contact point moves along the wheel, and swings round when the cart
+    reverses. Integrated from psi = 0 over the cart's poses ``q`` and velocities ``qd`` in {s} (N, 3),
+    sub-stepped so that no step turns it by more than `_SWIVEL_STEP` rad. The MuJoCo plant simulates its casters
+    but does not report their angles: the page draws this model of them for either plant.
+    """
+    c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
+    vb = np.column_stack([c * qd[:, 0] + s * qd[:, 1], -s * qd[:, 0] + c * qd[:, 1]])
+    w = qd[:, 2]
+    psi = np.zeros((len(q), len(pivots_b)))
+    for j, (px, py) in enumerate(np.asarray(pivots_b, dtype=float)):
+        vp = np.column_stack([vb[:, 0] - w * py, vb[:, 1] + w * px])
+        a = 0.0
+        for k in range(1, len(q)):
+            rate = (np.hypot(*vp[k - 1]) / trail) + abs(w[k - 1])
+            n = max(1, math.ceil(rate * dt / _SWIVEL_STEP))
+            for _ in range(n):
+                a += dt / n * ((-vp[k - 1, 0] * math.sin(a) + vp[k - 1, 1] * math.cos(a)) / trail - w[k - 1])
+            psi[k, j] = a
+    return psi
+
+
+def _cart_joints(result: PushResult, idx: np.ndarray) -> np.ndarray:
+    """Return the shopping cart model's joint configuration (len(idx), nq - 4): the casters swivel, wheels still."""
+    import pinocchio as pin
+
+    import robots
+    from robots.shopping_cart import CART_CASTER_TRAIL, CART_FRONT_HALF_TRACK, CART_WHEELBASE
+
+    model = robots.load("shopping_cart").model
+    x = CART_WHEELBASE + CART_CASTER_TRAIL
+    psi = caster_swivel(
+        result.q_true,
+        result.qd_true,
+        result.config.dt,
+        np.array([[x, CART_FRONT_HALF_TRACK], [x, -CART_FRONT_HALF_TRACK]]),
+        CART_CASTER_TRAIL,
+    )[idx]
+    q = np.tile(pin.neutral(model)[4:], (len(idx), 1))
+    for j, side in enumerate(("left", "right")):
+        k = model.joints[model.getJointId(f"caster_{side}_swivel")].idx_q - 4
+        q[:, k], q[:, k + 1] = np.cos(psi[:, j]), np.sin(psi[:, j])
+    return q
+
+
+#: a physics run's measured hand force arrow starts this far (m) above the allocated one's origin (the legend says so)
+MEASURED_ARROW_RAISE = 0.06
+
+
+def _hand_arrows(result: PushResult, idx: np.ndarray) -> tuple[dict, dict]:
+    """Return the page's force arrows (name -> (world origins, forces)) and their kinds.
+
+    The kinematic plant applies the allocated wrench: one arrow, the hand's force. A MuJoCo run's one hand:
+    the horizontal force the allocation asked for (green) and the one its F/T sensor measured (blue)."""
+    from wholebody.push.robot import cart_se3, handle_point
+
+    geometry = result.config.cart_geometry()
+    poses = [cart_se3(result.q_true[i]) for i in idx]
+    origins = np.array([T.act(handle_point(result.contact_y[i, 0], geometry)) for T, i in zip(poses, idx)])
+    forces = np.array([T.rotation @ result.wrenches[i, 0, :3] for T, i in zip(poses, idx)])
+    if not _is_physics(result) or result.wrenches.shape[1] != 1:
+        return {"hand": (origins, forces)}, {"hand": "allocated" if _is_physics(result) else "applied"}
+    th = result.q_true[idx, 2]
+    measured = produced_cart_wrench(result)[idx]
+    c, s = np.cos(th), np.sin(th)
+    world = np.column_stack([c * measured[:, 0] - s * measured[:, 1], s * measured[:, 0] + c * measured[:, 1], 0 * c])
+    horizontal = forces * np.array([1.0, 1.0, 0.0])
+    above = origins + np.array([0.0, 0.0, MEASURED_ARROW_RAISE])  # both visible where they agree
+    kinds = {"hand": "measured", "allocated": "allocated"}
+    return {"hand": (above, world), "allocated": (origins, horizontal)}, kinds
+
+
+def _physics_readouts(scene: Scene, result: PushResult, idx: np.ndarray) -> None:
+    """Add a MuJoCo run's read-outs: the hand force allocated and measured, the grip slip, when the cart was lost."""
+    t = result.t[idx]
+    allocated, produced = allocated_cart_wrench(result)[idx], produced_cart_wrench(result)[idx]
+    if _is_physics(result):
+        scene.add_readout("MuJoCo plant: cart force allocated |f|", "N", t, np.linalg.norm(allocated[:, :2], axis=1))
+        scene.add_readout("  ... measured by the F/T sensors |f|", "N", t, np.linalg.norm(produced[:, :2], axis=1))
+    else:
+        scene.add_readout("hand force |f|", "N", t, np.linalg.norm(result.wrenches[idx, 0, :3], axis=1))
+    err = np.hypot(*(result.q_true[idx, :2] - result.q_desired[idx, :2]).T)
+    scene.add_readout("cart off its desired place", "mm", t, 1e3 * err)
+    t_lost = result.metrics.tracking_lost_at_s
+    if t_lost is not None:
+        label = f"cart LOST (over {100 * LOST_TRACKING_M:g} cm off) at t"
+        scene.add_event_readout(label, "s", t, [t_lost], [t_lost], 2)
+
+
 def build_scene(result: PushResult, fps: int = 10) -> Scene:
     """Return a Meshcat scene animating the run: robot 1, the cart, the hand force, the true and estimated CoM.
 
     The page plays when opened (pause button and legend bottom left; ``#t=<s>``
     opens it paused at a time), starts on the robot holding the cart, and its
     camera follows the robot and the cart (`wholebody.viz.Scene.animate`). It
-    shows the hand force (N), the mass estimate and the CoM error (cm) live.
+    shows the hand force (N; a MuJoCo run: allocated and measured), the mass estimate with its 1-sigma and the
+    CoM error (cm) live, the casters swivelling as the cart's motion turns them (`caster_swivel`), and when the
+    cart was lost.
     """
     import robots
     from robots.shopping_cart import CART_WHEEL_RADIUS
     from wholebody.motion.kinematics import wholebody_for
-    from wholebody.push.robot import cart_se3, handle_point
+    from wholebody.push.robot import cart_se3
     from wholebody.viz import COM_MARKER_Z, Scene
     from wholebody.viz.scene import add_estimator_events
 
@@ -366,8 +642,6 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     idx = np.arange(0, len(result.t), step)
     qj = np.array([wb.to_pinocchio_q(result.robot_x[i, 0])[4:] for i in idx])
     poses = [cart_se3(result.q_true[i]) for i in idx]
-    origins = np.array([T.act(handle_point(result.contact_y[i, 0])) for T, i in zip(poses, idx)])
-    forces = np.array([T.rotation @ result.wrenches[i, 0, :3] for T, i in zip(poses, idx)])
     z = COM_MARKER_Z - CART_WHEEL_RADIUS  # markers at COM_MARKER_Z above the floor, as Scene.show_com draws them
     p = result.config.true_params
     phi = result.phi_hat[idx]
@@ -379,20 +653,30 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     scene.show_com((p.dx, p.dy), (phi[0, 1] / phi[0, 0], phi[0, 2] / phi[0, 0]))
     scene.show_trace("desired", result.q_desired[:, :2], label="cyan line: the cart's desired path")
     t = result.t[idx]
-    scene.add_readout("hand force |f|", "N", t, np.linalg.norm(forces, axis=1))
+    _physics_readouts(scene, result, idx)
     est = f"{result.config.estimator} estimate" if result.config.estimation else "no estimation, fixed guess"
     scene.add_readout(f"mass ({est}; true {p.m:g} kg)", "kg", t, phi[:, 0])
+    if result.config.estimation and result.param_std is not None and np.all(np.isfinite(result.param_std[idx, 0])):
+        scene.add_readout("  ... its 1-sigma", "kg", t, result.param_std[idx, 0], digits=2)
     scene.add_readout("CoM error", "cm", t, 100 * np.hypot(phi[:, 1] / phi[:, 0] - p.dx, phi[:, 2] / phi[:, 0] - p.dy))
     add_estimator_events(scene, result.estimator_report, t)
+    arrows, kinds = _hand_arrows(result, idx)
     scene.animate(
         result.t[idx],
         {name: result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},
-        q_joints={name: qj},
-        wrenches={"hand": (origins, forces)},
+        q_joints={name: qj, "shopping_cart": _cart_joints(result, idx)},
+        wrenches=arrows,
+        kind=kinds,
         markers={"com/com_true": com_true, "com/com_est": com_est},
         fps=fps,
         follow=(name, "shopping_cart"),
     )
+    scene.add_legend("casters", CASTER_COLOR, "line", CASTER_LEGEND)
+    if "allocated" in arrows:  # the measured arrow's legend line says where it starts
+        e = scene.legend_entry("arrow_measured")
+        scene.add_legend(
+            "arrow_measured", e.color, e.shape, f"{e.text}; drawn {100 * MEASURED_ARROW_RAISE:g} cm higher"
+        )
     scene.frame_robots(margin=0.6)  # the first frame: the robot holding the cart; the camera then follows them
     return scene
 
@@ -421,7 +705,30 @@ def write_report(
     paths.append(table)
     if html:
         paths.append(save_scene(main, out_dir / "scene.html"))
+        physics = next((r for r in runs.values() if _is_physics(r) and r is not main), None)
+        if physics is not None:
+            paths.append(save_scene(physics, out_dir / PHYSICS_PAGE))
     return paths
+
+
+#: the report directory's page of its first MuJoCo run (when that run is not the one `scene.html` shows)
+PHYSICS_PAGE = "scene_mujoco.html"
+
+
+def physics_note(label: str, result: PushResult) -> str:
+    """Return what a MuJoCo run's plant reports, in one line: the cart's mass, wrench error, slips, speed, and the
+    run's outcome (`what_happened`'s first sentence); '' for another plant."""
+    rep = result.plant_report or {}
+    if not _is_physics(result):
+        return ""
+    wheel = rep.get("base_wheel_slip_max_m_s")
+    return (
+        f"{label}: {what_happened(result)[0]}; cart {rep['cart_mass_kg']:.2f} kg ({rep['cart_mass_effective_kg']:.2f} kg "
+        f"with its wheels' spin), hand force {rep['hand_force_rms_n']:.2f} N RMS, measured minus allocated "
+        f"{rep['wrench_error_rms_n']:.2f} N RMS, grip slip max {1e3 * rep['grasp_slip_max_m']:.2f} mm"
+        + ("" if wheel is None else f", base wheel slip max {wheel:.3f} m/s")
+        + f", {rep['real_time_factor']:.1f}x real time"
+    )
 
 
 def demo_configs(duration: float = 30.0, physics: bool = True) -> dict[str, PushConfig]:
@@ -437,7 +744,7 @@ def demo_configs(duration: float = 30.0, physics: bool = True) -> dict[str, Push
 def run_demo(
     out_dir: Path, duration: float = 30.0, html: bool = True, verbose: bool = True, progress: bool = False
 ) -> DemoResult:
-    """Run the demo's two pushes, print the comparison table and write the report directory.
+    """Run the demo's pushes (`demo_configs`), print the comparison table and write the report directory.
 
     ``progress``: a bar per run on stderr (the CLI passes True only on a terminal without --json).
     """
@@ -450,23 +757,7 @@ def run_demo(
     write_report(runs, Path(out_dir), html=html)
     seconds = time.perf_counter() - t0
     if verbose:
-        print(
-            f"Push loop, {describe(runs['with estimation'].config)} vs without estimation "
-            f"(true cart m={runs['with estimation'].config.true_params.m:g} kg, CoM "
-            f"({100 * runs['with estimation'].config.true_params.dx:g}, "
-            f"{100 * runs['with estimation'].config.true_params.dy:g}) cm):"
-        )
-        print(table)
-        print(unobservable_note(runs))
-        for label, run in runs.items():
-            print(f"{label}: {torque_verdict(run)[0]}")
-        print(f"report: {Path(out_dir).resolve()}  ({seconds:.1f} s)")
-        if html:
-            print(
-                "  scene.html plays when opened (pause: the button in its bottom-left corner or the space bar; "
-                "scene.html#t=12 opens it paused at 12 s); push_log.csv is the run's log: "
-                "`cartpush estimate push_log.csv`, `cartpush view push_log.csv`"
-            )
+        _print_demo(runs, table, Path(out_dir), seconds, html)
     return DemoResult(runs=runs, table=table, out_dir=Path(out_dir), seconds=seconds)
 
 
@@ -560,3 +851,30 @@ def _fit(result: PushResult) -> str:
     if worst > MISFIT_RATIO:
         return f"misfit: the cart model does not explain the pushes (final residual ratio {worst:.1f} > {MISFIT_RATIO:g}{flagged}); {mass}"
     return f"the cart model fits the pushes (final residual ratio {worst:.2f}{flagged}); {mass}"
+
+
+def _print_demo(runs: dict[str, PushResult], table: str, out_dir: Path, seconds: float, html: bool) -> None:
+    """Print the demo's table, notes and verdicts, the MuJoCo run's plant report and where its pages are."""
+    cfg = runs["with estimation"].config
+    p = cfg.true_params
+    others = ", ".join(label for label in runs if label != "with estimation")
+    print(f"Push loop, {describe(cfg)} vs {others} (true cart m={p.m:g} kg, CoM ({100 * p.dx:g}, {100 * p.dy:g}) cm):")
+    print(table)
+    print(unobservable_note(runs))
+    for label, run in runs.items():
+        print(f"{label}: {torque_verdict(run)[0]}")
+        if _is_physics(run):
+            print(physics_note(label, run))
+    print(f"report: {out_dir.resolve()}  ({seconds:.1f} s)")
+    if not html:
+        return
+    print(
+        "  scene.html plays when opened (pause: the button in its bottom-left corner or the space bar; "
+        "scene.html#t=12 opens it paused at 12 s); push_log.csv is the run's log: "
+        "`cartpush estimate push_log.csv`, `cartpush view push_log.csv`"
+    )
+    if any(_is_physics(r) for r in runs.values()):
+        print(
+            f"  {PHYSICS_PAGE}: the MuJoCo run (the hand force the allocation asked for and the one its F/T sensor "
+            f"measured, the casters swivelling); {out_dir.resolve() / PHYSICS_PAGE}"
+        )

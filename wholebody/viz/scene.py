@@ -44,6 +44,8 @@ from wholebody.viz.page import LegendEntry, Readout, compressed_iframe, nice_sca
 COLORS = {
     "applied": 0x1565C0,  # blue: wrench the manipulator applies
     "desired": 0x2E7D32,  # green: wrench the planner/controller asked for
+    "measured": 0x1565C0,  # blue: a physics run's hand force from its F/T sensor
+    "allocated": 0x2E7D32,  # green: the hand force the allocation asked for
     "contact": 0x111111,
     "com_true": 0x1F3FBF,
     "com_est": 0xE040FB,
@@ -70,11 +72,17 @@ DEFAULT_CART_POSE = (0.9, 0.0, 0.0)
 LEGEND_TEXT = {
     "applied": ("arrow", "blue arrow: force the hand applies"),
     "desired": ("arrow", "green arrow: force the controller asked for"),
+    "measured": ("arrow", "blue arrow: the hand's horizontal force its F/T sensor measured"),
+    "allocated": ("arrow", "green arrow: the horizontal force the allocation asked of the hand"),
     "torque": ("arrow", "thin vertical arrow: yaw torque, up = counter-clockwise"),
     "contact": ("dot", "black dot: contact point on the handle"),
     "com_true": ("sphere", "blue sphere (large, see-through): the cart's true CoM"),
     "com_est": ("sphere", "magenta sphere (small): the estimated CoM"),
 }
+
+#: the kinds of force arrow (`LEGEND_TEXT`): what the hand applied or was asked for, a physics run's measured
+#: and allocated hand force
+ARROW_KINDS = ("applied", "desired", "measured", "allocated")
 
 
 class _OnTopMesh(mg.Mesh):
@@ -476,8 +484,8 @@ class Scene:
         raise SceneError(f"frame must be 'world' or 'b', got {frame!r}")
 
     def _arrow_node(self, name: str, kind: str, radius: float, head: float) -> Any:
-        if kind not in ("applied", "desired"):
-            raise SceneError(f"wrench kind must be 'applied' or 'desired', got {kind!r}")
+        if kind not in ARROW_KINDS:
+            raise SceneError(f"wrench kind must be one of {', '.join(map(repr, ARROW_KINDS))}, got {kind!r}")
         node = self.viewer["wrenches"][kind][name]
         shaft_rot = tf.rotation_matrix(-math.pi / 2, [0, 0, 1])  # meshcat cylinders lie along y
         node["shaft"]["geom"].set_object(_OnTopMesh(mg.Cylinder(1.0, radius), COLORS[kind]))
@@ -634,6 +642,12 @@ class Scene:
         """Add (or replace) the legend line `key` of the page: a `shape` swatch in `color` and `text`."""
         self._legend[key] = LegendEntry(int(color), shape, text)
 
+    def legend_entry(self, key: str) -> LegendEntry:
+        """Return the legend line `key` (e.g. ``"arrow_applied"``); SceneError when the page has none."""
+        if key not in self._legend:
+            raise SceneError(f"no legend line {key!r}; the page has {', '.join(self._legend) or 'none'}")
+        return self._legend[key]
+
     def legend(self) -> list[LegendEntry]:
         """Return the page's legend lines, in the order they were first added."""
         return list(self._legend.values())
@@ -682,7 +696,7 @@ class Scene:
         poses: Mapping[str, Any],
         q_joints: Mapping[str, Any] | None = None,
         wrenches: Mapping[str, tuple[Any, Any]] | None = None,
-        kind: str = "applied",
+        kind: str | Mapping[str, str] = "applied",
         markers: Mapping[str, Any] | None = None,
         scale: float | None = None,
         fps: int = 30,
@@ -702,7 +716,8 @@ class Scene:
         most `ARROW_MAX` m long (the legend says when some were clipped).
 
         poses: robot name -> (N, 3) planar poses. q_joints: robot name -> (N, nq-4).
-        wrenches: arrow name -> ((N, 3) world origins, (N, 2|3) forces).
+        wrenches: arrow name -> ((N, 3) world origins, (N, 2|3) forces); `kind`: their colour and legend
+        (`LEGEND_TEXT`), one for all or arrow name -> kind (``"applied"`` for the others).
         markers: node path under /meshcat (e.g. ``"com/com_est"``, made by
         `show_com` / `show_contact`) -> (N, 3) world positions. Samples are
         resampled at `fps` (latest sample at or before each frame time) so
@@ -722,7 +737,8 @@ class Scene:
             norms = [np.linalg.norm(np.asarray(f, dtype=float), axis=-1) for _, f in (wrenches or {}).values()]
             scale = nice_scale(np.concatenate(norms)) if norms else FORCE_SCALE
         for name, (origins, forces) in (wrenches or {}).items():
-            self._animate_arrow(anim, keys, name, origins, forces, kind, scale, len(times))
+            k = kind if isinstance(kind, str) else kind.get(name, "applied")
+            self._animate_arrow(anim, keys, name, origins, forces, k, scale, len(times))
         for path, pts in (markers or {}).items():
             self._animate_marker(anim, keys, path, pts, len(times))
         self.viewer.set_animation(anim, play=play, repetitions=repetitions)
