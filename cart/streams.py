@@ -6,8 +6,12 @@ A real set-up records motion capture (the pose, 100-250 Hz) and an F/T sensor (t
 or the faster one is averaged (a row per pose sample). :func:`split_streams` undoes the table:
 
 - held pose rows (x, y, theta exactly equal to the previous row) are dropped when they make a
-  fifth of the rows or more (a multi-rate table); the pose is then timed at the middle of the
-  interval in which it first appeared (it arrived after the previous row);
+  fifth of the rows or more, or when short repeats (one or two rows) make ``MIN_HELD_SHARE`` of the
+  rows or more about as often where the stream changes fast as where it changes slowly (two sensors at
+  close rates, e.g. F/T at 120 Hz and motion capture at 100 Hz: a sixth of the rows; a finely quantised
+  single-rate stream repeats only where it barely changes): a multi-rate table; the pose is then timed
+  at the middle of the interval in which it first appeared (it arrived after the previous row). The
+  wrench is held the same way when it is the slower stream;
 - a pose interpolated linearly between motion-capture samples (at least a fifth of the rows on the
   straight line through their neighbours, in short runs) is a multi-rate table as well: the
   motion-capture samples are recovered as the corners between the straight pieces;
@@ -23,6 +27,7 @@ The estimator (:mod:`cart.identify`) then samples each stream at its own instant
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +36,9 @@ from cart.logs import CartLog
 
 #: Share of rows repeating the previous pose above which the table is a multi-rate (held-pose) table.
 HELD_SHARE = 0.2
+#: Share of rows repeating the previous one in short runs above which a stream is held at a slower rate
+#: (when the repeats do not cluster where the stream barely changes: :func:`held_rows`).
+MIN_HELD_SHARE = 0.01
 #: A wrench frozen in all channels this long (s) is a stuck sensor.
 STUCK_SECONDS = 0.25
 #: Gaps in a stream longer than this many of its median periods are dropouts.
@@ -83,6 +91,8 @@ class Streams:
     glitches: tuple[float, ...]
     multi_rate: bool
     interpolated: bool = False
+    wrench_held_rows: int = 0
+    wrench_missing_rows: int = 0
 
     @property
     def pose_hz(self) -> float:
@@ -95,14 +105,18 @@ class Streams:
         return 1.0 / self.wrench.period
 
     def to_dict(self) -> dict[str, object]:
-        """Return the JSON fields ``{pose_hz, wrench_hz, held_rows, interpolated, dropouts, stuck, glitches}``.
+        """Return the JSON fields ``{pose_hz, wrench_hz, held_rows, wrench_held_rows, wrench_missing_rows,
+        interpolated, dropouts, stuck, glitches}``.
 
         ``held_rows``: the rows that are no pose sample of their own (held, or interpolated when
-        ``interpolated``)."""
+        ``interpolated``); ``wrench_held_rows`` the same for the wrench; ``wrench_missing_rows``: isolated
+        all-zero wrench rows taken as missing samples."""
         return {
             "pose_hz": self.pose_hz,
             "wrench_hz": self.wrench_hz,
             "held_rows": self.held_rows,
+            "wrench_held_rows": self.wrench_held_rows,
+            "wrench_missing_rows": self.wrench_missing_rows,
             "interpolated": self.interpolated,
             "dropouts": len(self.dropouts),
             "dropout_s": float(sum(t1 - t0 for t0, t1 in self.dropouts)),
@@ -123,6 +137,16 @@ class Streams:
             out.append(
                 f"multi-rate table: {self.held_rows} rows repeat the previous pose; pose at {self.pose_hz:.4g} Hz "
                 f"and wrench at {self.wrench_hz:.4g} Hz used as separate streams"
+            )
+        if self.wrench_held_rows:
+            out.append(
+                f"multi-rate table: {self.wrench_held_rows} rows repeat the previous wrench; wrench at "
+                f"{self.wrench_hz:.4g} Hz and pose at {self.pose_hz:.4g} Hz used as separate streams"
+            )
+        if self.wrench_missing_rows:
+            out.append(
+                f"{self.wrench_missing_rows} isolated rows have a wrench of exactly zero in every channel: "
+                "taken as missing F/T samples"
             )
         for t0, t1 in self.stuck:
             out.append(
@@ -226,6 +250,45 @@ def _corners(t: np.ndarray, q: np.ndarray, runs: list[tuple[int, int]]) -> Strea
     return Stream(tc, qc, a1 + 1)
 
 
+def _activity(v: np.ndarray, half: int = 2) -> np.ndarray:
+    """Return (n-1,) how fast the stream changes around each step: the largest change over 2 half + 1 rows
+    per column, over the column's median such change."""
+    n = len(v)
+    lo = np.clip(np.arange(1, n) - half, 0, n - 1)
+    hi = np.clip(np.arange(1, n) + half, 0, n - 1)
+    change = np.abs(v[hi] - v[lo])
+    return np.max(change / (np.median(change, axis=0) + 1e-300), axis=1)
+
+
+def held_rows(v: np.ndarray) -> bool:
+    """Return True when the stream ``v`` (n, k) is held between the samples of a slower sensor.
+
+    The rows repeating the previous one in runs of typical length (at most twice the median run plus
+    one: longer runs are dropouts or a standstill) make ``MIN_HELD_SHARE`` of the rows or more, and they
+    are not concentrated where the stream changes slowly: among the steps where it changes faster than
+    its median (over about four distinct samples), their share is at least half their share among the
+    others. A held stream repeats at the sensors' rate ratio whatever the motion (F/T at 500 Hz and
+    motion capture at 120 Hz: three rows in four; at 120 and 100 Hz: one in six); a quantised single-rate
+    stream repeats only where it barely moves.
+    """
+    n = len(v)
+    same = _repeats(v)
+    runs = _runs(same)
+    if n < 20 or not runs:
+        return False
+    longest = 2 * float(np.median([last - first + 1 for first, last in runs])) + 1
+    short = np.zeros(n - 1, dtype=bool)
+    for first, last in runs:
+        if last - first + 1 <= longest:
+            short[first - 1 : last] = True
+    if short.sum() < max(MIN_HELD_SHARE * n, 10):
+        return False
+    fast = _activity(v, int(math.ceil(2.0 * n / max(n - int(same.sum()), 1)))) > 1.0
+    if fast.sum() < 10 or (~fast).sum() < 10:
+        return bool(short.sum() >= HELD_SHARE * n)
+    return bool(np.mean(short[fast]) >= 0.5 * np.mean(short[~fast]))
+
+
 def _pose_stream(log: CartLog) -> tuple[Stream, int, bool]:
     """Return (pose stream, held rows, multi-rate) with held rows and dropout repeats removed."""
     t, q = log.t, log.q
@@ -233,7 +296,7 @@ def _pose_stream(log: CartLog) -> tuple[Stream, int, bool]:
     same = _repeats(q)
     held = int(same.sum())
     keep = np.ones(n, dtype=bool)
-    if n > 3 and held >= HELD_SHARE * n:
+    if n > 3 and held_rows(q):
         keep[1:] = ~same
         rows = np.flatnonzero(keep)
         tp = t[rows].copy()
@@ -301,9 +364,49 @@ def _dropouts(stream: Stream) -> tuple[tuple[float, float], ...]:
     return tuple((float(stream.t[i]), float(stream.t[i + 1])) for i in big)
 
 
+def _isolated_zeros(g: np.ndarray) -> np.ndarray:
+    """Return (n,) booleans: rows whose wrench is exactly zero in every channel in runs of one or two rows
+    between non-zero rows (a logger that writes 0 where no F/T sample arrived; a noisy sensor never reads
+    exactly zero in all channels, and a noise-free one at rest stays at zero for long runs)."""
+    zero = np.all(g == 0.0, axis=1)
+    out = np.zeros(len(g), dtype=bool)
+    d = np.diff(np.r_[0, zero.astype(np.int8), 0])
+    for s0, s1 in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+        if s1 - s0 <= 2 and s0 > 0 and s1 < len(g):
+            out[s0:s1] = True
+    return out if out.sum() >= max(MIN_HELD_SHARE * len(g), 10) else np.zeros(len(g), dtype=bool)
+
+
+def _wrench_stream(t: np.ndarray, g: np.ndarray) -> tuple[Stream, list[tuple[float, float]], int, int]:
+    """Return (wrench stream, stuck intervals, held rows, missing rows) of the table's wrench columns.
+
+    Held rows (a slower F/T sensor, :func:`held_rows`) are dropped and each sample is timed at the middle
+    of the interval in which it first appeared; isolated all-zero rows (:func:`_isolated_zeros`) are
+    missing samples; a frozen wrench (:func:`_stuck`) is excluded.
+    """
+    keep = np.ones(len(t), dtype=bool)
+    held = 0
+    if held_rows(g):  # the wrench is the slower, held stream
+        same = _repeats(g)
+        keep[1:] = ~same
+        held = int(same.sum())
+    missing = _isolated_zeros(g)
+    keep &= ~missing
+    stuck = []
+    for first, last in _stuck(t, g):
+        keep[first : last + 1] = False
+        stuck.append((float(t[first - 1]), float(t[last])))
+    rows = np.flatnonzero(keep)
+    tw = t[rows].copy()
+    if held:
+        prev = np.maximum(rows - 1, 0)
+        tw[rows > 0] = 0.5 * (t[prev] + t[rows])[rows > 0]  # the sample arrived after the previous row
+    return Stream(tw, g[rows], rows), stuck, held, int(missing.sum())
+
+
 def split_streams(log: CartLog) -> Streams:
     """Return the pose and wrench streams of ``log`` (held rows, dropouts, glitches, stuck wrench handled)."""
-    pieces = _interpolated_pose(log) if _repeats(log.q).sum() < HELD_SHARE * len(log.t) else None
+    pieces = _interpolated_pose(log) if not held_rows(log.q) else None
     if pieces is not None:
         pose, held, multi = pieces, len(log.t) - len(pieces.t), True
     else:
@@ -312,17 +415,7 @@ def split_streams(log: CartLog) -> Streams:
     glitch_t = tuple(float(x) for x in pose.t[bad])
     if bad.any():
         pose = Stream(pose.t[~bad], pose.values[~bad], pose.rows[~bad])
-    t, g = log.t, log.gamma
-    keep = np.ones(len(t), dtype=bool)
-    same = _repeats(g)
-    if len(t) > 3 and same.sum() >= HELD_SHARE * len(t):  # the wrench is the slower, held stream
-        keep[1:] = ~same
-    stuck = []
-    for first, last in _stuck(t, g):
-        keep[first : last + 1] = False
-        stuck.append((float(t[first - 1]), float(t[last])))
-    rows = np.flatnonzero(keep)
-    wrench = Stream(t[rows], g[rows], rows)
+    wrench, stuck, wrench_held, missing = _wrench_stream(log.t, log.gamma)
     return Streams(
         pose=pose,
         wrench=wrench,
@@ -332,4 +425,6 @@ def split_streams(log: CartLog) -> Streams:
         glitches=glitch_t,
         multi_rate=multi,
         interpolated=pieces is not None,
+        wrench_held_rows=wrench_held,
+        wrench_missing_rows=missing,
     )
