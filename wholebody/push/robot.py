@@ -683,7 +683,8 @@ def make_robots(
         return [_multi_arm_robot(loaded, q_cart, contact_y, geometry, placement_y)]
     prof = push_profile(loaded)
     R_b_ee = push_grasp_rotation(prof)
-    arm_seeds = list(seeds or ())[: len(contact_y)]
+    # a seed holding NaN (a reach map's posture at a point it does not reach) is no seed
+    arm_seeds = [sd if sd is None or np.all(np.isfinite(sd)) else None for sd in list(seeds or ())[: len(contact_y)]]
     arm_seeds += [None] * (len(contact_y) - len(arm_seeds))
     out = []
     for y, by, sd in zip(contact_y, base_lateral_places(prof, contact_y), arm_seeds):

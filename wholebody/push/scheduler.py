@@ -22,6 +22,16 @@ from wholebody.push.robot import handle_point
 STATIC_TORQUE_FRACTION = 0.8
 
 
+def side_by_side(reach: ReachMap | Sequence[ReachMap], contact_y: np.ndarray) -> bool:
+    """Return True when one robot's `ReachMap` stands for several robots side by side, one contact each.
+
+    The map is the reach of one robot standing at its own place behind the cart; robots side by side stand
+    behind their own contacts (`wholebody.push.robot.base_lateral_places`), so it does not say which of their
+    contacts they hold: each robot's grasp IK does (`wholebody.push.robot.make_robots` raises when it fails).
+    """
+    return not isinstance(reach, Sequence) and len(contact_y) > 1
+
+
 class ContactScheduler:
     """Contact points on the handle: fixed, or re-planned from the estimate and slid towards the plan.
 
@@ -38,7 +48,7 @@ class ContactScheduler:
         self.reach = reach
         self.y = config.contact_y0().copy()
         self._maps = [] if reach is None else list(reach) if isinstance(reach, Sequence) else [reach] * len(self.y)
-        if reach is not None:
+        if reach is not None and not (config.contact == "fixed" and side_by_side(reach, self.y)):
             if config.contact == "fixed" and not all(r.is_reachable(v) for r, v in zip(self._maps, self.y)):
                 bad = next(k for k, (r, v) in enumerate(zip(self._maps, self.y)) if not r.is_reachable(v))
                 rm = self._maps[bad]

@@ -31,3 +31,19 @@ def test_side_by_side_arms_reach_like_one(plant):
     for mm in two:
         assert abs(mm.base_offset_b[1]) > 0.3  # the bases stand beside their contacts (at +-0.2 m)
         assert _mount_to_hand(mm) == pytest.approx(alone, abs=0.01)
+
+
+def test_two_robots_with_a_fixed_base_place_hold_fixed_contacts_beyond_one_robots_reach():
+    """One WMRA (its base at a fixed place, arm on its left) holds y in [-0.125, 0.25] m; two side by side stand
+    behind their own contacts and hold the MuJoCo plant's fixed y = -0.2 / +0.2 m (the single robot's reach map
+    refused the first before)."""
+    from wholebody.push.robot import grasp_target
+
+    cfg = PushConfig(trajectory=1, robot="wmra", n_arms=2, plant="mujoco", contact="fixed")
+    ctrl = build_controller(cfg).controller
+    assert np.allclose(ctrl.scheduler.y, [-0.2, 0.2])
+    q0 = cfg.make_trajectory().sample(0.0)[0]
+    for mm, y in zip(ctrl.robots, ctrl.scheduler.y):
+        target, _ = grasp_target(q0, np.zeros(3), float(y), 0.0, mm.R_b_ee)
+        assert np.linalg.norm(mm.wb.ee_placement(mm.x).translation - target.translation) < 1e-4
+        assert abs(mm.base_offset_b[1] - y) < 0.5  # each base behind its own contact
