@@ -1,79 +1,152 @@
-"""Both plants x both robots x Traj. 1 and 2 x with and without estimation: the table of docs/push.md.
+"""Both plants x both robots x one and two robots x Traj. 1 and 2 x with and without estimation: docs/push.md's table.
 
-python -m studies.plant_table [--duration 30] [--workers 2]
+PYTHONPATH=. .venv/bin/python -m studies.plant_table --workers 1 [--duration 30] [--arms 1 2]
+    [--plants kinematic mujoco] [--robots ridgeback_iiwa wmra] [--base-plan] [--grip-torque-arm M]
+
+The kinematic plant holds the optimal contact, the MuJoCo plant a fixed grip (y = -0.2 m; two robots -0.2 / +0.2 m,
+as `cartpush push --arms 2`). A run that loses the cart (more than 25 cm from its desired place) is reported with
+the time of the loss and its figures before it (`wholebody.push.report.before_loss`); its whole-run grip and wheel
+slips are left out. A configuration the robots cannot take (a fixed contact out of reach) gets its one-line reason.
 """
 
 from __future__ import annotations
 
 import argparse
 import itertools
+import math
+import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 
+import numpy as np
+
+from wholebody.contacts.allocation import ArmLimits
 from wholebody.push import PushConfig, run_push
+from wholebody.push.base_settings import BasePlanSettings
+from wholebody.push.report import base_lateral_speed, before_loss
 
 ROBOTS = ("ridgeback_iiwa", "wmra")
+PLANTS = ("kinematic", "mujoco")
+#: the two hands' fixed contacts on the handle (m), as `cartpush push --arms 2`
+TWO_CONTACTS = (-0.2, 0.2)
 
 
-def one(case: tuple[str, str, int, bool, float]) -> dict:
-    """Return the row of one run (an error message in place of numbers when it cannot run)."""
-    plant, robot, traj, est, duration = case
-    contact = "fixed" if plant == "mujoco" else "optimal"
-    row = {"plant": plant, "robot": robot, "traj": traj, "estimation": est}
-    try:
-        r = run_push(
-            PushConfig(trajectory=traj, duration=duration, plant=plant, robot=robot, estimation=est, contact=contact)
+@dataclass(frozen=True)
+class Case:
+    """One row: the plant, the robot and how many, the trajectory, estimation on or off, and the shared options."""
+
+    plant: str
+    robot: str
+    arms: int
+    traj: int
+    estimation: bool
+    duration: float = 30.0
+    base_plan: bool = False
+    grip_torque_arm: float | None = None
+
+    def config(self) -> PushConfig:
+        """Return the run's configuration."""
+        limits = ArmLimits() if self.grip_torque_arm is None else ArmLimits().with_torque_arm(self.grip_torque_arm)
+        return PushConfig(
+            trajectory=self.traj,
+            duration=self.duration,
+            plant="mujoco" if self.plant == "mujoco" else "kinematic",
+            robot=self.robot,
+            n_arms=self.arms,
+            estimation=self.estimation,
+            contact="fixed" if self.plant == "mujoco" else "optimal",
+            fixed_contact_y=TWO_CONTACTS if self.arms == 2 and self.plant == "mujoco" else None,
+            base_plan=BasePlanSettings() if self.base_plan else None,
+            arm_limits=limits,
         )
-    except Exception as exc:  # a study: report what stopped the run
-        return {**row, "error": f"{type(exc).__name__}: {exc}"[:80]}
-    m, rep = r.metrics, r.plant_report or {}
+
+
+def one(case: Case) -> dict:
+    """Return the row of one run (its one-line reason in place of numbers when it cannot run)."""
+    row = {"case": case}
+    t0 = time.process_time()
+    try:
+        r = run_push(case.config())
+    except Exception as exc:  # a study: report what stopped the run, in one line
+        return {**row, "error": f"{type(exc).__name__}: {exc}".splitlines()[0][:160]}
+    rep, b = r.plant_report or {}, before_loss(r)
+    lost = b["tracking_lost_at_s"] is not None
+    slip = rep.get("grasp_slip_max_m")
     return {
         **row,
-        "track_rms_mm": m.tracking_rms_mm,
-        "mass_err_kg": m.mass_error_final_kg,
-        "com_err_cm": 100 * m.com_error_final_m,
-        "tau_ratio": m.arm_torque_limit_ratio,
-        "wrench_err": rep.get("wrench_error_rms_n"),
-        "hand_f_rms": rep.get("hand_force_rms_n", m.ee_force_rms_n),
-        "slip_mm": None if rep.get("grasp_slip_max_m") is None else 1e3 * rep["grasp_slip_max_m"],
-        "wheel_slip": rep.get("base_wheel_slip_max_m_s"),
+        **b,
+        "physics": rep.get("plant") == "mujoco",
+        "grip_slip_mm": None if lost or slip is None else 1e3 * slip,
+        "wheel_slip": None if lost else rep.get("base_wheel_slip_max_m_s"),
+        "base_lateral": float(np.abs(base_lateral_speed(r)[r.t < b["valid_until_s"] + 1e-9]).max()),
         "rtf": rep.get("real_time_factor"),
+        "cpu_s": time.process_time() - t0,
     }
 
 
-def _f(v, fmt: str) -> str:
-    return "-" if v is None else fmt.format(v)
+def _f(v: float | None, fmt: str) -> str:
+    return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else fmt.format(v)
+
+
+HEAD = (
+    "| plant | robot | arms | traj | estimation | lost at (s) | track RMS / max [mm] | mass err [kg] | CoM err [cm] "
+    "| tau/limit | wrench err / hand F RMS [N] | grip slip [mm] | wheel slip [m/s] | base lateral max [m/s] "
+    "| real time x |"
+)
+
+
+def _row(r: dict) -> str:
+    """Return one markdown row."""
+    c: Case = r["case"]
+    lead = f"| {c.plant} | {c.robot} | {c.arms} | {c.traj} | {'on' if c.estimation else 'off'} |"
+    if "error" in r:
+        return lead + f" cannot run: {r['error'].replace('|', '/')} |" + " |" * 9
+    wrench = f"{r['wrench_error_rms_n']:.2f} / {r['hand_force_rms_n']:.2f}" if r["physics"] else "-"
+    return lead + " ".join(
+        (
+            f" {_f(r['tracking_lost_at_s'], '{:.2f}')} |",
+            f"{r['tracking_rms_mm']:.1f} / {r['tracking_max_mm']:.1f} |",
+            f"{r['mass_error_kg']:.2f} |",
+            f"{100 * r['com_error_m']:.1f} |",
+            f"{r['arm_torque_limit_ratio']:.2f} |",
+            f"{wrench} |",
+            f"{_f(r['grip_slip_mm'], '{:.2f}')} |",
+            f"{_f(r['wheel_slip'], '{:.3f}')} |",
+            f"{r['base_lateral']:.3f} |",
+            f"{_f(r['rtf'], '{:.1f}')} |",
+        )
+    )
 
 
 def table(rows: list[dict]) -> str:
-    """Return the markdown table of the rows."""
-    head = "| plant | robot | traj | estimation | track RMS [mm] | mass err [kg] | CoM err [cm] | tau/limit | wrench err / hand F RMS [N] | grip slip [mm] | wheel slip [m/s] | real time x |"
-    out = [head, "|" + "---|" * 12]
-    for r in rows:
-        if "error" in r:
-            out.append(f"| {r['plant']} | {r['robot']} | {r['traj']} | {r['estimation']} | {r['error']} |" + " |" * 7)
-            continue
-        we = "-" if r["wrench_err"] is None else f"{r['wrench_err']:.2f} / {r['hand_f_rms']:.2f}"
-        out.append(
-            f"| {r['plant']} | {r['robot']} | {r['traj']} | {'on' if r['estimation'] else 'off'} | "
-            f"{_f(r['track_rms_mm'], '{:.1f}')} | {_f(r['mass_err_kg'], '{:.2f}')} | {_f(r['com_err_cm'], '{:.1f}')} | "
-            f"{_f(r['tau_ratio'], '{:.2f}')} | {we} | {_f(r['slip_mm'], '{:.2f}')} | {_f(r['wheel_slip'], '{:.3f}')} | "
-            f"{_f(r['rtf'], '{:.1f}')} |"
-        )
-    return "\n".join(out)
+    """Return the markdown table of the rows (a lost run's figures are those before the loss)."""
+    return "\n".join([HEAD, "|" + "---|" * HEAD.count(" | ") + "---|"] + [_row(r) for r in rows])
+
+
+def cases(a: argparse.Namespace) -> list[Case]:
+    """Return the table's runs in its row order."""
+    return [
+        Case(p, rb, n, t, e, a.duration, a.base_plan, a.grip_torque_arm)
+        for p, rb, n, t, e in itertools.product(a.plants, a.robots, a.arms, (1, 2), (True, False))
+    ]
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--duration", type=float, default=30.0)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--arms", type=int, nargs="+", default=[1, 2], choices=(1, 2))
+    ap.add_argument("--plants", nargs="+", default=list(PLANTS), choices=PLANTS)
+    ap.add_argument("--robots", nargs="+", default=list(ROBOTS), choices=ROBOTS)
+    ap.add_argument("--base-plan", action="store_true", help="as cartpush push --base-plan (30-60 s of planning a run)")
+    ap.add_argument("--grip-torque-arm", type=float, default=None, metavar="M", help="as cartpush push")
     a = ap.parse_args()
-    cases = [
-        (p, rb, t, e, a.duration)
-        for p, rb, t, e in itertools.product(("kinematic", "mujoco"), ROBOTS, (1, 2), (True, False))
-    ]
+    t0 = time.process_time()
     with ProcessPoolExecutor(a.workers) as pool:
-        rows = list(pool.map(one, cases))
+        rows = list(pool.map(one, cases(a)))
     print(table(rows))
+    cpu = time.process_time() - t0 + sum(r.get("cpu_s", 0.0) for r in rows)
+    print(f"\n{len(rows)} runs, {cpu:.0f} s CPU in the runs and this process")
 
 
 if __name__ == "__main__":

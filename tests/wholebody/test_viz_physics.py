@@ -11,6 +11,8 @@ import pytest
 
 from wholebody.push import PushConfig, run_push
 from wholebody.push.report import (
+    base_lateral_speed,
+    before_loss,
     _in_b,
     allocated_cart_wrench,
     build_scene,
@@ -116,3 +118,28 @@ def test_the_physics_page_draws_allocated_and_measured_force_and_swivelling_cast
     # the kinematic plant applies the allocation: one arrow, the hand's force
     plain = build_scene(kinematic, fps=5).animation_keys()
     assert "/meshcat/wrenches/applied/hand" in plain and not any("measured" in k for k in plain)
+
+
+def test_before_loss_reports_the_push_up_to_the_loss(physics):
+    whole = before_loss(physics)
+    if physics.metrics.tracking_lost_at_s is None:
+        assert whole["tracking_rms_mm"] == pytest.approx(physics.metrics.tracking_rms_mm, rel=1e-9)
+        assert whole["arm_torque_limit_ratio"] == pytest.approx(physics.metrics.arm_torque_limit_ratio, rel=1e-9)
+    lost = replace(physics, metrics=replace(physics.metrics, tracking_lost_at_s=5.0))
+    b = before_loss(lost)
+    keep = physics.t < 5.0
+    err = np.hypot(*(physics.q_true[keep, :2] - physics.q_desired[keep, :2]).T)
+    assert b["tracking_lost_at_s"] == 5.0 and b["valid_until_s"] == pytest.approx(4.99)
+    assert b["tracking_rms_mm"] == pytest.approx(1e3 * np.sqrt(np.mean(err**2)), rel=1e-9)
+    k = int(np.flatnonzero(keep)[-1])
+    assert b["mass_error_kg"] == pytest.approx(abs(physics.phi_hat[k, 0] - physics.config.true_params.m))
+    assert b["tracking_max_mm"] <= whole["tracking_max_mm"] + 1e-9
+
+
+def test_base_lateral_speed_is_the_sideways_motion_in_the_bases_frame(physics):
+    n, th, v = len(physics.t), 0.5, 0.3
+    x = physics.robot_x.copy()
+    side = np.array([-math.sin(th), math.cos(th)])  # the base's y axis in the world
+    x[:, 0, :2] = np.outer(physics.t, v * side + 0.8 * np.array([math.cos(th), math.sin(th)]))
+    x[:, 0, 2] = th
+    assert base_lateral_speed(replace(physics, robot_x=x))[:, 0] == pytest.approx(np.full(n, v))

@@ -878,3 +878,50 @@ def _print_demo(runs: dict[str, PushResult], table: str, out_dir: Path, seconds:
             f"  {PHYSICS_PAGE}: the MuJoCo run (the hand force the allocation asked for and the one its F/T sensor "
             f"measured, the casters swivelling); {out_dir.resolve() / PHYSICS_PAGE}"
         )
+
+
+def before_loss(result: PushResult) -> dict:
+    """Return the run's figures up to the loss of the cart, or over the whole run when it was never lost.
+
+    A lost cart (`PushMetrics.tracking_lost_at_s`) makes every whole-run figure describe a failed push: this
+    returns ``tracking_lost_at_s`` and, over t < that time, the tracking RMS and max (mm), the mass and CoM errors
+    of the estimate at that time (kg, m), the peak arm torque over its limit, and the hand force allocated and
+    the cart wrench's measured-minus-allocated force (RMS, N; `produced_cart_wrench`). ``valid_until_s`` is the
+    end of the span they cover.
+    """
+    t_lost = result.metrics.tracking_lost_at_s
+    keep = result.t < (t_lost if t_lost is not None else math.inf)
+    if not keep.any():
+        keep[0] = True
+    k = int(np.flatnonzero(keep)[-1])
+    err = np.hypot(*(result.q_true[keep, :2] - result.q_desired[keep, :2]).T)
+    mass_error, com_error = _errors(result)
+    lim = np.broadcast_to(result.effort_limit, result.arm_torque.shape[1:])
+    allocated = allocated_cart_wrench(result)[keep, :2]
+    produced = produced_cart_wrench(result)[keep, :2]
+    rms = lambda v: float(np.sqrt(np.mean(np.sum(v**2, axis=1))))
+    return {
+        "tracking_lost_at_s": t_lost,
+        "valid_until_s": float(result.t[k]),
+        "tracking_rms_mm": float(1e3 * np.sqrt(np.mean(err**2))),
+        "tracking_max_mm": float(1e3 * err.max()),
+        "mass_error_kg": float(mass_error[k]),
+        "com_error_m": float(com_error[k] / 100.0),
+        "arm_torque_limit_ratio": float(np.max(np.abs(result.arm_torque[keep]) / lim)),
+        "hand_force_rms_n": rms(allocated),
+        "wrench_error_rms_n": rms(produced - allocated),
+    }
+
+
+def base_lateral_speed(result: PushResult) -> np.ndarray:
+    """Return each robot's base speed sideways in its own frame (N, n_robots), m/s, from its recorded poses.
+
+    A differential base (the WMRA) cannot move sideways: on the MuJoCo plant this is its wheels' physical side
+    slip; a holonomic base's is its commanded sideways motion. Central differences of the true planar poses.
+    """
+    pose = result.robot_x[:, :, :3]
+    if len(result.t) < 2:
+        return np.zeros(pose.shape[:2])
+    v = np.gradient(pose[:, :, :2], result.config.dt, axis=0)
+    th = pose[:, :, 2]
+    return -np.sin(th) * v[:, :, 0] + np.cos(th) * v[:, :, 1]

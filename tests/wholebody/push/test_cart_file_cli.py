@@ -1,0 +1,51 @@
+"""`cartpush push --plant mujoco --cart-model FILE`: each break of the cart-file contract (docs/mujoco.md) stops the
+command with one line naming what is missing, exit 2, before any physics runs."""
+
+from __future__ import annotations
+
+import pytest
+
+from cartpush.cli import main
+
+BODY = """
+    <body name="cart" pos="0 0 0.1">
+      <freejoint/>
+      <geom type="box" size="0.4 0.25 0.05" mass="12"/>
+      {sites}
+    </body>"""
+BAR = '<site name="handle" type="capsule" size="0.015" fromto="-0.15 -0.25 0.9 -0.15 0.25 0.9"/>'
+BREAKS = {
+    "no_cart_body": (BODY.replace('name="cart"', 'name="trolley"').format(sites=BAR), "no body named 'cart'"),
+    "no_free_joint": (
+        BODY.replace("<freejoint/>", '<joint type="slide" axis="1 0 0"/>').format(sites=BAR),
+        "body 'cart' has no free joint",
+    ),
+    "no_handle_site": (
+        BODY.format(sites='<site name="grip" pos="-0.15 0 0.9"/>'),
+        "no site named 'handle' or 'handle_*'",
+    ),
+    "handle_a_box": (
+        BODY.format(sites='<site name="handle_left" type="box" size="0.02 0.02 0.02" pos="-0.15 0 0.9"/>'),
+        "handle site 'handle_left' is neither a point",
+    ),
+    "handle_on_a_hinge": (
+        BODY.format(
+            sites='<body name="bar" pos="-0.15 0 0.9"><joint name="hinge" axis="0 1 0"/><geom size="0.02"/>'
+            '<site name="handle"/></body>'
+        ),
+        "which moves relative to 'cart' (joint 'hinge')",
+    ),
+    "not_mjcf": ("<body name='cart'><freejoint/><geom type='nonsense'/></body>", "not a valid MuJoCo model"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BREAKS))
+def test_each_break_of_the_contract_stops_the_push_with_one_line(tmp_path, capsys, name):
+    body, message = BREAKS[name]
+    path = tmp_path / f"{name}.xml"
+    path.write_text(f'<mujoco><worldbody><geom name="ground" type="plane" size="0 0 1"/>{body}</worldbody></mujoco>')
+    code = main(["push", "--plant", "mujoco", "--cart-model", str(path), "--duration", "8", "--json"])
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert code == 2 and captured.out == ""
+    assert len(lines) == 1 and message in lines[0] and str(path) in lines[0], lines
