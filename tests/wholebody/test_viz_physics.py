@@ -143,3 +143,17 @@ def test_base_lateral_speed_is_the_sideways_motion_in_the_bases_frame(physics):
     x[:, 0, :2] = np.outer(physics.t, v * side + 0.8 * np.array([math.cos(th), math.sin(th)]))
     x[:, 0, 2] = th
     assert base_lateral_speed(replace(physics, robot_x=x))[:, 0] == pytest.approx(np.full(n, v))
+
+
+def test_the_table_marks_a_lost_run_and_gives_its_figures_before_the_loss(physics):
+    from wholebody.push.report import comparison_table
+
+    lost = replace(physics, metrics=replace(physics.metrics, tracking_lost_at_s=5.0))
+    lines = comparison_table({"this run": lost}).splitlines()
+    assert len(lines) == 3 and "(whole run: a failed push)" in lines[1]
+    before = lines[2].split()
+    assert " ".join(before[:8]) == "this run before the loss at 5.00 s"
+    assert float(before[8]) == pytest.approx(before_loss(lost)["tracking_rms_mm"], abs=0.006)
+    assert len(comparison_table({"this run": physics}).splitlines()) == 2 + (
+        physics.metrics.tracking_lost_at_s is not None
+    )

@@ -66,13 +66,36 @@ def describe(config: PushConfig) -> str:
     return f"{robot}Traj.{config.trajectory} {config.n_arms} arm{'s' if config.n_arms > 1 else ''}, {est}, {contact}"
 
 
-def comparison_table(runs: dict[str, PushResult], markdown: bool = False) -> str:
-    """Return the metrics of several runs as a text (or Markdown) table, one row per run."""
-    heads = ["run"] + [h for _, h, _, _ in TABLE_COLUMNS]
-    rows = [
-        [label] + [fmt.format(factor * r.metrics.as_dict()[k]) for k, _, fmt, factor in TABLE_COLUMNS]
-        for label, r in runs.items()
+#: the `before_loss` figure shown in a lost run's second row, per `TABLE_COLUMNS` key (the others: "-")
+BEFORE_LOSS_COLUMNS = {
+    "tracking_rms_mm": "tracking_rms_mm",
+    "tracking_max_mm": "tracking_max_mm",
+    "arm_torque_limit_ratio": "arm_torque_limit_ratio",
+    "mass_error_final_kg": "mass_error_kg",
+    "com_error_final_m": "com_error_m",
+}
+
+
+def _table_rows(label: str, r: PushResult) -> list[list[str]]:
+    """Return a run's table row; a lost run's is marked as the whole run's and followed by its row before the loss."""
+    metrics = r.metrics.as_dict()
+    row = [fmt.format(factor * metrics[k]) for k, _, fmt, factor in TABLE_COLUMNS]
+    t_lost = r.metrics.tracking_lost_at_s
+    if t_lost is None:
+        return [[label] + row]
+    b = before_loss(r)
+    before = [
+        fmt.format(factor * b[BEFORE_LOSS_COLUMNS[k]]) if k in BEFORE_LOSS_COLUMNS else "-"
+        for k, _, fmt, factor in TABLE_COLUMNS
     ]
+    return [[f"{label} (whole run: a failed push)"] + row, [f"{label} before the loss at {t_lost:.2f} s"] + before]
+
+
+def comparison_table(runs: dict[str, PushResult], markdown: bool = False) -> str:
+    """Return the metrics of several runs as a text (or Markdown) table, one row per run (two for a lost run:
+    the whole run, marked as a failed push, and the figures before the loss, `before_loss`)."""
+    heads = ["run"] + [h for _, h, _, _ in TABLE_COLUMNS]
+    rows = [row for label, r in runs.items() for row in _table_rows(label, r)]
     if markdown:
         lines = ["| " + " | ".join(heads) + " |", "|" + "|".join("---" for _ in heads) + "|"]
         lines += ["| " + " | ".join(row) + " |" for row in rows]
