@@ -816,7 +816,7 @@ def _caster_test(
     except np.linalg.LinAlgError:
         return casters_model.Casters(axle, trail, 0.0, threshold, False, turns)
     tail, cc = pt[-2 - k : -2], covt[-2 - k : -2, -2 - k : -2]
-    wald = float(tail @ np.linalg.pinv(cc) @ tail) if np.all(np.isfinite(cc)) else 0.0
+    wald = casters_model.resisting_statistic(tail, cc)
     return casters_model.Casters(axle, trail, wald, threshold, wald > threshold and _predicts_better(reg, eps), turns)
 
 

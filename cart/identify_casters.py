@@ -18,9 +18,13 @@ the wheel's yaw rate in the world, felt by the cart only through the sideways fo
 position ``x`` of the swivel axes, trail ``e``) enters nonlinearly and is searched on a grid (least
 weighted residual); the casters' half-track matters little and is fixed.
 
-The columns are kept only when the three torques are jointly significant (Wald test, the grid search
-counted by a Bonferroni factor) and the model then reads them as one more cause of the wrench; on a cart
-without casters (or one whose casters hardly swing) the nominal fit is unchanged.
+The columns are kept only when the four resistances are jointly significant *as resistances*: each
+coefficient (bearing friction, damping, scrub, rolling resistance) opposes the motion it acts on, so it is
+non-negative, and the test (:func:`resisting_statistic`) is the likelihood ratio of the sign-constrained fit
+against none (a one-sided Wald test, whose chi-bar-squared null distribution lies below the chi-squared one,
+so the chi-squared threshold with the grid search's Bonferroni factor stays conservative). On a cart without
+casters (or one whose casters hardly swing) the nominal fit is unchanged: there the free coefficients take
+either sign and a joint fit of noise with the wrong signs is no caster.
 """
 
 from __future__ import annotations
@@ -66,6 +70,27 @@ def wald_threshold() -> float:
     from cart.ekf import chi2_isf
 
     return chi2_isf(ALPHA / (len(AXLES) * len(TRAILS)), N_COLUMNS)
+
+
+def resisting_statistic(coef: np.ndarray, cov: np.ndarray) -> float:
+    """Return the one-sided Wald statistic of resistances ``coef`` (k,) with covariance ``cov`` (k, k).
+
+    ``coef' P coef - min_{p >= 0} (coef - p)' P (coef - p)`` with ``P = cov^-1``: the likelihood ratio of the
+    best non-negative (resisting) coefficients against zero (Kudo 1963; Silvapulle and Sen, *Constrained
+    Statistical Inference*, 2005, ch. 3). Equal to the plain Wald statistic when every coefficient is
+    positive; coefficients that assist the motion count for nothing.
+    """
+    from scipy.optimize import nnls
+
+    if not np.all(np.isfinite(cov)) or not np.all(np.isfinite(coef)):
+        return 0.0
+    prec = np.linalg.pinv(cov)
+    prec = 0.5 * (prec + prec.T)
+    w, vec = np.linalg.eigh(prec)
+    root = (vec * np.sqrt(np.clip(w, 0.0, None))) @ vec.T  # root' root = P
+    target = root @ coef
+    _, residual = nnls(root, target)
+    return float(target @ target - residual**2)
 
 
 def unit_rows(
