@@ -42,6 +42,7 @@ import scipy.sparse as sp
 
 from wholebody.contacts.handle import ContactSpec, grasp_matrices
 from wholebody.contacts.kernels import equality_optimum_effort
+from wholebody.contacts.support import CartLoad, SupportPolygon, tip_rows
 from wholebody.errors import InfeasibleWrenchError, WholeBodyError
 from wholebody.qp import ProxQPSolver
 
@@ -382,6 +383,8 @@ class WrenchAllocator:
         self.torque_constraints: tuple[TorqueConstraint | None, ...] = ()
         #: arms' joints whose bias torque alone exceeds its limit at the last `set_torque_limits`
         self.bias_over_limit: tuple[str, ...] = ()
+        self._torque_part: tuple[np.ndarray, np.ndarray, list[str]] | None = None
+        self._tip_part: tuple[np.ndarray, np.ndarray, list[str]] | None = None
         self._set_inequalities(*self._static)
         col = {int(k): j for j, k in enumerate(self.free)}  # stacked-wrench index -> free-variable index
         self._fx_cols = np.array([col[6 * i] for i in range(n)])
@@ -414,10 +417,34 @@ class WrenchAllocator:
         if not 0.0 <= margin < 1.0:
             raise WholeBodyError(f"torque margin must be in [0, 1), got {margin}")
         rows, rhs, labels, over = _torque_rows(n, constraints, margin)
-        G0, h0, l0 = self._static
         self.torque_constraints = tuple(constraints)
         self.bias_over_limit = tuple(over)
-        self._set_inequalities(np.vstack([G0, rows @ self.E]), np.r_[h0, rhs], l0 + labels)
+        self._torque_part = (rows @ self.E, rhs, labels)
+        self._stack_inequalities()
+
+    def set_tip_bound(self, support: SupportPolygon | None, load: CartLoad | None = None) -> None:
+        """Keep every support contact of the cart loaded (`wholebody.contacts.support.tip_rows`), or drop the bound.
+
+        ``support``: the cart's floor contacts (None: no bound); ``load``: its estimated mass, CoM and CoM
+        acceleration now. Uses the current contact points: call it after `set_points`, every control step. A
+        planar arm (`ArmLimits.planar`) can only push sideways less; a spatial one may also press down on the
+        handle to hold the cart on the edge it would roll over.
+        """
+        if support is None or load is None:
+            self._tip_part = None
+        else:
+            rows, rhs, labels = tip_rows(support, load, self._points)
+            self._tip_part = (rows @ self.E, rhs, labels)
+        self._stack_inequalities()
+
+    def _stack_inequalities(self) -> None:
+        """Take the static limit rows, the joint-torque rows and the tip-over rows as the QP's inequalities."""
+        parts = [p for p in (self._static, self._torque_part, self._tip_part) if p is not None]
+        self._set_inequalities(
+            np.vstack([p[0] for p in parts]),
+            np.concatenate([p[1] for p in parts]),
+            [lab for p in parts for lab in p[2]],
+        )
         self._kkt_cache = {(): self._kkt_cache[()]} if hasattr(self, "_kkt_cache") else {}
         self._active = ()
         self._mats = None
