@@ -409,13 +409,13 @@ def _wrench_figure(result: PushResult, label: str) -> Figure:
         ax.plot(result.t, produced[:, j], "-", color="C0", lw=0.8, label=source)
         _mark_loss(ax, result, label=j == 0)
         ax.set_ylabel(name, fontsize=8), ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=7)
     before = result.t < (result.metrics.tracking_lost_at_s or math.inf)
     err = np.linalg.norm((produced - allocated)[before, :2], axis=1)
     force = np.linalg.norm(allocated[before, :2], axis=1)
     rms = lambda v: float(np.sqrt(np.mean(v**2))) if v.size else math.nan
     fig.suptitle(
-        f"{label}: hand wrenches on the cart; produced minus allocated force {rms(err):.2f} N RMS against "
+        f"{label}: hand wrenches on the cart\nproduced minus allocated force {rms(err):.2f} N RMS against "
         f"{rms(force):.2f} N RMS allocated{' (before the loss)' if not before.all() else ''}",
         fontsize=8,
     )
@@ -489,7 +489,7 @@ def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
         pad = max(0.1 * (hi - lo), 1.0)
         ax.set_ylim(lo - pad, hi + pad)
         ax.set_ylabel(name), ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=6)
     fig.suptitle(
         "the estimate (band: its 1-sigma; the CoM's is the norm over x and y) against the truth (dashed);\n"
         "vertical lines: load changes found (dashed: when detected); x: run-off flagged (estimate held)",
