@@ -157,3 +157,27 @@ def test_the_table_marks_a_lost_run_and_gives_its_figures_before_the_loss(physic
     assert len(comparison_table({"this run": physics}).splitlines()) == 2 + (
         physics.metrics.tracking_lost_at_s is not None
     )
+
+
+@pytest.mark.parametrize("name, pivot, trail", [("shopping_cart", (0.78, 0.2), 0.03), ("wmra", None, 0.04)])
+def test_every_caster_of_a_model_swivels_by_its_own_pivot_and_trail(name, pivot, trail):
+    import pinocchio as pin
+
+    import robots
+    from wholebody.push.report import swivel_casters
+
+    model = robots.load(name).model
+    q, qd = _turning(0.5, 0.4)
+    rest = np.tile(pin.neutral(model)[4:], (len(q), 1))
+    out = swivel_casters(model, rest, q, qd, DT)
+    jid = model.getJointId("caster_left_swivel")
+    k = model.idx_qs[jid] - 4
+    p = np.asarray(model.jointPlacements[jid].translation[:2]) if pivot is None else np.array(pivot)
+    expected = caster_swivel(q, qd, DT, p[None, :], trail)[:, 0]
+    np.testing.assert_allclose(np.arctan2(out[:, k + 1], out[:, k]), np.angle(np.exp(1j * expected)), atol=1e-9)
+    assert np.ptp(expected) > 0.3  # it turned
+    others = np.ones(rest.shape[1], dtype=bool)
+    for side in ("left", "right"):
+        j = model.idx_qs[model.getJointId(f"caster_{side}_swivel")] - 4
+        others[j : j + 2] = False
+    np.testing.assert_array_equal(out[:, others], rest[:, others])  # nothing else moved

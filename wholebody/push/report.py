@@ -543,7 +543,7 @@ def save_figures(runs: dict[str, PushResult], out_dir: Path) -> list[Path]:
 
 
 #: the page's legend line on the cart's casters (`caster_swivel`), and its swatch's colour (the forks' grey)
-CASTER_LEGEND = "casters: swivel as rolling without side slip turns them (from the cart's true motion)"
+CASTER_LEGEND = "casters: swivel as rolling without side slip turns them (from the true motion of cart and base)"
 CASTER_COLOR = 0x808080
 #: a caster turns through at most this fraction of a radian per integration step of `caster_swivel`
 _SWIVEL_STEP = 0.2
@@ -575,27 +575,46 @@ def caster_swivel(q: np.ndarray, qd: np.ndarray, dt: float, pivots_b: np.ndarray
     return psi
 
 
+def swivel_casters(model, q_rest: np.ndarray, poses: np.ndarray, velocities: np.ndarray, dt: float) -> np.ndarray:
+    """Return the joint configurations ``q_rest`` (N, nq - 4) of a planar-rooted model with its casters swivelled.
+
+    Every joint named ``caster_*_swivel`` (a continuous joint on the root body) is turned by `caster_swivel` over
+    the root's poses and velocities in {s} (N, 3); its pivot is the joint's place on the root, its trail the
+    distance its wheel's joint sits behind it. Other joints are left as given.
+    """
+    q = np.array(q_rest, dtype=float, copy=True)
+    for jid in range(1, model.njoints):
+        name = model.names[jid]
+        if not (name.startswith("caster_") and name.endswith("_swivel")) or model.nqs[jid] != 2:
+            continue
+        wheel = next((c for c in range(jid + 1, model.njoints) if model.parents[c] == jid), None)
+        trail = -float(model.jointPlacements[wheel].translation[0]) if wheel is not None else 0.0
+        if trail <= 0.0:
+            continue
+        pivot = np.asarray(model.jointPlacements[jid].translation[:2], dtype=float)
+        psi = caster_swivel(poses, velocities, dt, pivot[None, :], trail)[:, 0]
+        k = model.idx_qs[jid] - 4
+        q[:, k], q[:, k + 1] = np.cos(psi), np.sin(psi)
+    return q
+
+
+def _planar_velocities(poses: np.ndarray, dt: float) -> np.ndarray:
+    """Return velocities (N, 3) in {s} of planar poses (N, 3) sampled every dt (central differences, yaw unwrapped)."""
+    if len(poses) < 2:
+        return np.zeros_like(poses)
+    p = np.column_stack([poses[:, :2], np.unwrap(poses[:, 2])])
+    return np.gradient(p, dt, axis=0)
+
+
 def _cart_joints(result: PushResult, idx: np.ndarray) -> np.ndarray:
     """Return the shopping cart model's joint configuration (len(idx), nq - 4): the casters swivel, wheels still."""
     import pinocchio as pin
 
     import robots
-    from robots.shopping_cart import CART_CASTER_TRAIL, CART_FRONT_HALF_TRACK, CART_WHEELBASE
 
     model = robots.load("shopping_cart").model
-    x = CART_WHEELBASE + CART_CASTER_TRAIL
-    psi = caster_swivel(
-        result.q_true,
-        result.qd_true,
-        result.config.dt,
-        np.array([[x, CART_FRONT_HALF_TRACK], [x, -CART_FRONT_HALF_TRACK]]),
-        CART_CASTER_TRAIL,
-    )[idx]
-    q = np.tile(pin.neutral(model)[4:], (len(idx), 1))
-    for j, side in enumerate(("left", "right")):
-        k = model.joints[model.getJointId(f"caster_{side}_swivel")].idx_q - 4
-        q[:, k], q[:, k + 1] = np.cos(psi[:, j]), np.sin(psi[:, j])
-    return q
+    rest = np.tile(pin.neutral(model)[4:], (len(result.t), 1))
+    return swivel_casters(model, rest, result.q_true, result.qd_true, result.config.dt)[idx]
 
 
 #: a physics run's measured hand force arrow starts this far (m) above the allocated one's origin (the legend says so)
@@ -649,8 +668,8 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     opens it paused at a time), starts on the robot holding the cart, and its
     camera follows the robot and the cart (`wholebody.viz.Scene.animate`). It
     shows the hand force (N; a MuJoCo run: allocated and measured), the mass estimate with its 1-sigma and the
-    CoM error (cm) live, the casters swivelling as the cart's motion turns them (`caster_swivel`), and when the
-    cart was lost.
+    CoM error (cm) live, the cart's and the robot's casters swivelling as their motion turns them
+    (`swivel_casters`), and when the cart was lost.
     """
     import robots
     from robots.shopping_cart import CART_WHEEL_RADIUS
@@ -663,7 +682,9 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     wb = wholebody_for(robots.load(name), arm=list(result.robot_arms))  # its state holds these arms' joints
     step = max(1, int(round(1.0 / (fps * result.config.dt))))
     idx = np.arange(0, len(result.t), step)
-    qj = np.array([wb.to_pinocchio_q(result.robot_x[i, 0])[4:] for i in idx])
+    base = result.robot_x[:, 0, :3]
+    rest = np.array([wb.to_pinocchio_q(x)[4:] for x in result.robot_x[:, 0]])
+    qj = swivel_casters(wb.robot.model, rest, base, _planar_velocities(base, result.config.dt), result.config.dt)[idx]
     poses = [cart_se3(result.q_true[i]) for i in idx]
     z = COM_MARKER_Z - CART_WHEEL_RADIUS  # markers at COM_MARKER_Z above the floor, as Scene.show_com draws them
     p = result.config.true_params
