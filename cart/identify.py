@@ -47,6 +47,7 @@ from cart import identify_casters as casters_model
 from cart._kernels_identify import butter_lowpass_sos, sosfiltfilt, student_t_quantile
 from cart.dynamics import regressor
 from cart.errors import CartError
+from cart.log_signals import filter_support_keep
 from cart.logs import CartLog
 from cart.noise_model import AR1Noise, fit_ar1
 from cart.params import CartParams
@@ -324,15 +325,8 @@ def _with_coulomb_columns(x: np.ndarray, v: np.ndarray, om: np.ndarray, eps: tup
 
 
 def _keep_mask(grid: _Grid, fc: float) -> np.ndarray:
-    """Return the grid samples away from the ends and from gaps by about one filter settling time."""
-    margin = int(math.ceil(2.0 / (fc * grid.dt)))
-    bad = ~grid.valid
-    bad[:margin] = True
-    bad[-margin:] = True
-    if np.any(~grid.valid):
-        kernel = np.ones(2 * margin + 1)
-        bad |= np.convolve((~grid.valid).astype(float), kernel, mode="same") > 0
-    return ~bad
+    """Return the grid samples away from the ends (one filter settling time) and from gaps (the filter's reach)."""
+    return filter_support_keep(grid.valid, fc, grid.dt)
 
 
 def _noise_correction(wts: np.ndarray, noise: np.ndarray) -> np.ndarray:

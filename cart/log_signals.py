@@ -8,6 +8,7 @@ the wrench are estimated from the residuals of the same fits.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -318,3 +319,66 @@ def velocity_change_noise(sig: Signals, edges: np.ndarray, replicates: int = 4, 
         acc_v.append(window_integrals(sig.t, c * d2[:, 0] + s * d2[:, 1], edges)[keep])
         acc_w.append(window_integrals(sig.t, d2[:, 2], edges)[keep])
     return float(np.mean(np.concatenate(acc_v) ** 2)), float(np.mean(np.concatenate(acc_w) ** 2))
+
+
+def _support_tail(fc: float, dt: float) -> np.ndarray:
+    """Return tail[d]: the share of the pipeline filter's weight at least d samples to one side.
+
+    The filter is the estimator's: a 4th-order Butterworth low-pass at ``fc`` run forwards and backwards,
+    then differentiated twice (the accelerations of :mod:`cart.identify`, whose impulse response is the
+    longest of its signals); its absolute impulse response, both sides summed to one.
+    """
+    half = int(math.ceil(6.0 / (fc * dt)))
+    pulse = np.zeros(2 * half + 1)
+    pulse[half] = 1.0
+    acc = np.abs(_filtered_acceleration(pulse, fc, dt))
+    return np.r_[np.cumsum(acc[half:][::-1])[::-1], 0.0] / float(acc.sum())
+
+
+def _filtered_acceleration(y: np.ndarray, fc: float, dt: float) -> np.ndarray:
+    """Return the second derivative of ``y`` low-passed forwards and backwards (4th-order Butterworth at fc)."""
+    from cart._kernels_identify import butter_lowpass_sos, sosfiltfilt
+
+    sos = butter_lowpass_sos(4, min(fc * 2.0 * dt, 0.99))
+    return np.gradient(np.gradient(sosfiltfilt(sos, y, padlen=0), dt), dt)
+
+
+def _gap_reach(length: int, fc: float, dt: float, end: int, tolerance: float) -> int:
+    """Return how many samples beyond a gap of ``length`` samples its linear fill moves the filtered acceleration
+    by more than ``tolerance`` of the acceleration the cart has there (at most ``end``).
+
+    The pose is filled linearly across a gap; under a constant acceleration ``a`` the fill is off by
+    ``a (s - s0)(s1 - s) / 2`` inside it, and the filter spreads that error out (:func:`_filtered_acceleration`).
+    """
+    pad = 2 * end
+    s = np.arange(length + 1) * dt
+    err = np.zeros(length + 1 + 2 * pad)
+    err[pad : pad + length + 1] = 0.5 * s * (s[-1] - s)
+    beyond = np.abs(_filtered_acceleration(err, fc, dt))[pad + length + 1 :]
+    above = np.flatnonzero(beyond > tolerance)
+    return min(int(above[-1]) + 1 if len(above) else 0, end)
+
+
+def filter_support_keep(valid: np.ndarray, fc: float, dt: float) -> np.ndarray:
+    """Return the samples of a uniform grid whose filtered values the missing stretches do not reach.
+
+    The log's ends are trimmed by ``ceil(2 / (fc dt))`` samples (the filter's settling), which leaves a share
+    ``tolerance`` of its weight (:func:`_support_tail`, about 1 %) beyond the end. A stretch of missing samples
+    (``~valid``, filled linearly) is trimmed on each side by the distance beyond which its fill moves the
+    filtered acceleration by less than that share of the cart's acceleration (:func:`_gap_reach`): a long gap
+    as much as an end, a short dropout much less (its fill error grows with the square of its length).
+    """
+    end = int(math.ceil(2.0 / (fc * dt)))
+    tail = _support_tail(fc, dt)
+    tolerance = float(tail[min(end, len(tail) - 1)])
+    bad = ~valid
+    bad[:end] = True
+    bad[-end:] = True
+    d = np.diff(np.r_[0, (~valid).astype(np.int8), 0])
+    reach: dict[int, int] = {}
+    for s0, s1 in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+        length = int(s1 - s0) + 1  # the fill spans the gap and its two edge intervals
+        if length not in reach:
+            reach[length] = _gap_reach(length, fc, dt, end, tolerance)
+        bad[max(s0 - reach[length], 0) : s1 + reach[length]] = True
+    return ~bad
