@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 from cartpush.cli import options
 from wholebody.errors import WholeBodyError
 
 if TYPE_CHECKING:
     from wholebody.contacts.allocation import ArmLimits
+    from wholebody.push.base_settings import BasePlanSettings
 
 JSON_FIELDS = (
     "tracking_rms_mm",
@@ -101,9 +102,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--base-plan",
-        action="store_true",
+        nargs="?",
+        const="on",
+        default="auto",
+        choices=("auto", "on", "off"),
         help="plan a holonomic one-arm base's place ahead within its wheel limits where the rigid place behind\n"
-        "the handle breaks them (wholebody/push/base_plan.py; planning Traj. 2 takes 30-60 s)",
+        "the handle breaks them (wholebody/push/base_plan.py; Traj. 2: about 7 s CPU). auto (default): with\n"
+        "--plant mujoco only; --base-plan alone: on",
+    )
+    p.add_argument(
+        "--tip-bound",
+        nargs="?",
+        const="on",
+        default="auto",
+        choices=("auto", "on", "off"),
+        help="keep every wheel of the cart loaded: the allocation pushes sideways only as hard as the cart stands\n"
+        "and may press down on the handle (wholebody/contacts/support.py). auto (default): with --plant mujoco only",
     )
     p.add_argument(
         "--grip-torque-arm",
@@ -111,7 +125,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         metavar="M",
         help="the yaw, roll and pitch torque one hand may apply per N of normal load, in m (the allocation's\n"
-        "GraspModel.torque_arm; default 0.02: 4 N m at the 2F-85's 200 N squeeze). A firmer grip (0.1) makes\n"
+        "GraspModel.torque_arm; default 0.02: 6 N m at the grip's 2 x 150 N squeeze). A firmer grip (0.1) makes\n"
         "the cart's yaw torque at the wrist instead of with lateral force at the handle's height",
     )
     p.add_argument("--duration", type=float, default=30.0, help="trajectory duration in s (default 30)")
@@ -128,7 +142,6 @@ def config_from_args(args: argparse.Namespace):
     from robots.errors import RobotError
     from robots.profiles import mobile_manipulators, profile
     from wholebody.push import PushConfig
-    from wholebody.push.base_settings import BasePlanSettings
 
     import robots
 
@@ -184,19 +197,29 @@ def config_from_args(args: argparse.Namespace):
         estimator=args.estimator,
         cart_model=None if args.cart_model is None else str(args.cart_model),
         fixed_contact_y=fixed_contact_y,
-        base_plan=BasePlanSettings() if args.base_plan else None,
+        base_plan=_base_plan(args.base_plan),
+        tip_bound="auto" if args.tip_bound == "auto" else args.tip_bound == "on",
         arm_limits=_arm_limits(args.grip_torque_arm),
     )
 
 
+def _base_plan(choice: str) -> BasePlanSettings | Literal["auto"] | None:
+    """Return `PushConfig.base_plan` of ``--base-plan auto|on|off``."""
+    from wholebody.push.base_settings import BasePlanSettings
+
+    if choice == "auto":
+        return "auto"
+    return BasePlanSettings() if choice == "on" else None
+
+
 def _arm_limits(torque_arm: float | None) -> ArmLimits:
-    """Return the arms' limits with the grip's torque arm (m) of ``--grip-torque-arm`` (None: the defaults)."""
-    from wholebody.contacts.allocation import ArmLimits
+    """Return the arms' limits with the grip's torque arm (m) of ``--grip-torque-arm`` (None: the loop's defaults)."""
+    from wholebody.push.config import PUSH_ARM_LIMITS
 
     if torque_arm is None:
-        return ArmLimits()
+        return PUSH_ARM_LIMITS
     options.finite("--grip-torque-arm", torque_arm, positive=True, maximum=0.5, why="m of torque per N of grip")
-    return ArmLimits().with_torque_arm(torque_arm)
+    return PUSH_ARM_LIMITS.with_torque_arm(torque_arm)
 
 
 def run(args: argparse.Namespace) -> int:

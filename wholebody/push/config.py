@@ -13,7 +13,8 @@ from cart.control import ControllerName as CartControllerName
 from cart.params import CartParams
 from cart.simulate import MeasurementNoise
 from cart.trajectories import CartTrajectory, paper_trajectory
-from wholebody.contacts.allocation import ArmLimits
+from wholebody.contacts.allocation import ArmLimits, GraspModel
+from wholebody.contacts.support import SupportPolygon
 from wholebody.errors import WholeBodyError
 from wholebody.push.base_settings import BasePlanSettings
 from wholebody.push.geometry import DEFAULT_GEOMETRY, CartGeometry
@@ -71,6 +72,10 @@ class BodyTracker(Protocol):
 PUSH_SENSOR_NOISE = MeasurementNoise(position=0.003, theta=0.003, velocity=0.01, omega=0.01, force=3.0, torque=0.3)
 
 
+#: the push loop's hand limits: `ArmLimits` with a 150 N grip (`PushConfig.arm_limits`)
+PUSH_ARM_LIMITS = ArmLimits(grasp=GraspModel(grip_force=150.0))
+
+
 @dataclass(frozen=True)
 class PushConfig:
     """One closed-loop run: trajectory, robots, contact mode, estimator, truth, noise, seed."""
@@ -105,15 +110,31 @@ class PushConfig:
     slide_speed: float = 0.05
     #: contact slide acceleration (m/s^2): the hand's speed along the handle changes smoothly
     slide_acceleration: float = 0.1
-    arm_limits: ArmLimits = ArmLimits()
+    #: each hand's limits; the grasp squeezes 150 N per finger (the 2F-85 holds 20-235 N): one hand then makes
+    #: 6 N m of yaw torque at its 0.02 m torque arm, and MuJoCo Traj. 2 holds its second turn with seeds 0-2
+    #: (at 100 N, only seed 0; docs/mujoco.md "Why Traj. 2 diverges")
+    arm_limits: ArmLimits = PUSH_ARM_LIMITS
     #: the pushing robot: a registered name or the path of a robot profile (.toml), see docs/robots.md
     robot: str = "ridgeback_iiwa"
     #: the allocation keeps each joint torque |J^T w + g| this fraction below its URDF limit (room for the
     #: dynamic terms); None = joint torques not bounded in the allocation
     torque_margin: float | None = 0.05
     #: plan each holonomic base's place ahead over the desired motion within its wheel speeds, heading free
-    #: (`wholebody.push.base_plan`); None = each base held rigidly behind its contact
-    base_plan: BasePlanSettings | None = None
+    #: (`wholebody.push.base_plan`); None = each base held rigidly behind its contact; "auto" = planned on the
+    #: MuJoCo plant, whose wheels have their limits (`plan_settings`), not on the kinematic one
+    base_plan: BasePlanSettings | Literal["auto"] | None = "auto"
+    #: keep every wheel of the cart loaded (`wholebody.contacts.support`): the allocation bounds the hands' moments
+    #: about the cart's support edges and lets the hands press down on the handle (spatial hand wrenches); False =
+    #: planar hand wrenches, pushed sideways as hard as the allocation likes; "auto" = on the MuJoCo plant, whose
+    #: cart can tip (`tip_on`), not on the kinematic one, whose rigid planar cart cannot (and whose sliding
+    #: contact's scheduler does not know the bound: Traj. 2 with it is lost in the second turn, docs/mujoco.md)
+    tip_bound: bool | Literal["auto"] = "auto"
+    #: the bound takes the estimate's mass and CoM less this many of their 1-sigma. 0: the estimate as it is (the
+    #: online estimator's 1-sigma of the CoM along x stays about 0.3 m until a turn excites it, and 1 sigma then
+    #: forbids braking: MuJoCo Traj. 1 lost at its stop, docs/mujoco.md)
+    tip_std_factor: float = 0.0
+    #: the cart's floor contacts for that bound (None: the default cart's, or the cart file's wheels)
+    support: SupportPolygon | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.trajectory, int) and self.trajectory not in (1, 2):
@@ -144,6 +165,10 @@ class PushConfig:
                 f"the MuJoCo plant drives one arm per robot; robot {prof.name!r} pushes with its {self.n_arms} arms "
                 "on the kinematic plant (plant='kinematic', --plant kinematic) or with one (n_arms=1, --arms 1)"
             )
+        if not (self.base_plan is None or self.base_plan == "auto" or isinstance(self.base_plan, BasePlanSettings)):
+            raise WholeBodyError(f"base_plan must be BasePlanSettings, 'auto' or None, got {self.base_plan!r}")
+        if not (self.tip_bound in (True, False, "auto") and self.tip_std_factor >= 0.0):
+            raise WholeBodyError("tip_bound must be True, False or 'auto' and tip_std_factor >= 0")
         if self.fixed_contact_y is not None and len(self.fixed_contact_y) not in (1, 2):
             raise WholeBodyError("fixed_contact_y needs one value per arm")
 
@@ -172,6 +197,26 @@ class PushConfig:
         if self.cart_model is not None:
             return _file_geometry(self.cart_model)
         return DEFAULT_GEOMETRY
+
+    def plan_settings(self) -> BasePlanSettings | None:
+        """Return the base plan's settings this run uses: given, None, or for "auto" the defaults on the MuJoCo plant."""
+        if self.base_plan == "auto":
+            return BasePlanSettings() if self.plant == "mujoco" else None
+        return self.base_plan
+
+    def tip_on(self) -> bool:
+        """Return whether the allocation keeps the cart's wheels loaded: given, or for "auto" on the MuJoCo plant."""
+        return self.plant == "mujoco" if self.tip_bound == "auto" else bool(self.tip_bound)
+
+    def support_polygon(self) -> SupportPolygon | None:
+        """Return the cart's support for the tip-over bound: given, the cart file's wheels, or the default cart's."""
+        if self.support is not None:
+            return self.support
+        from wholebody.push.tip_support import cart_file_support, shopping_cart_support
+
+        if self.cart_model is not None:
+            return cart_file_support(self.cart_model, self.cart_geometry())
+        return shopping_cart_support(self.cart_geometry())
 
     def initial_params(self) -> CartParams:
         """Return the controller's/estimator's initial guess (mass, CoM given; inertia scaled with the mass)."""

@@ -17,7 +17,7 @@ object drives the kinematic plant, the MuJoCo plant or real robots.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from collections.abc import Sequence
 
 import numpy as np
@@ -33,6 +33,7 @@ from wholebody.push.robot import MobileManipulator, base_target, ft_to_cart_gamm
 from wholebody.push.scheduler import ContactScheduler
 from wholebody.motion.tasks import BaseTask, PostureTask
 from wholebody.push.base_plan import BasePlan
+from wholebody.push.tip_support import cart_load
 
 
 #: time constant (s) of the filter between the cart estimate and the pose the hands hold (`PushController._grasp_pose`)
@@ -106,8 +107,11 @@ class PushController:
         self.scheduler = scheduler
         self.robots = list(robots)
         self.geometry = config.cart_geometry()
+        #: the cart's floor contacts the allocation keeps loaded (None: no tip-over bound)
+        self.support = config.support_polygon() if config.tip_on() else None
+        limits = config.arm_limits if self.support is None else replace(config.arm_limits, planar=False)
         self.allocator = WrenchAllocator(
-            [handle_point(v, self.geometry) for v in scheduler.y], config.arm_limits, only_motion_directions=True
+            [handle_point(v, self.geometry) for v in scheduler.y], limits, only_motion_directions=True
         )
         self._t_prev: float | None = None
         self._q_grasp: np.ndarray | None = None
@@ -122,7 +126,7 @@ class PushController:
     def _base_plan(self, mm: MobileManipulator, contact_y: float) -> BasePlan | None:
         """Return robot `mm`'s base plan over the desired motion (None: not asked for, several hands, not holonomic),
         and guard its elbow (`BasePlanSettings.elbow_guard`)."""
-        settings = self.config.base_plan
+        settings = self.config.plan_settings()
         if settings is None or mm.n_hands != 1 or not mm.wb.base.holonomic:
             return None
         from wholebody.push.base_plan import guard_elbow, plan_base
@@ -154,6 +158,11 @@ class PushController:
             self.allocator.set_torque_limits(
                 [c for mm in self.robots for c in mm.torque_constraints(q_hat)], margin=self.config.torque_margin
             )
+        if self.support is not None:  # every wheel stays loaded
+            std_of = getattr(self.estimator, "params_std", None)
+            std = std_of() if std_of is not None else None
+            load = cart_load(q_hat, qd_hat, gamma_d, params_hat, std, self.config.tip_std_factor)
+            self.allocator.set_tip_bound(self.support, load)
         alloc = self.allocator.solve(cart_model.generalized_to_body(q_hat, gamma_d), raise_on_infeasible=False)
         saturated = alloc.residual > 1e-6 * max(1.0, float(np.abs(gamma_d).max()))  # eq. (25)
         q_grasp = self._grasp_pose(q_hat, qd_hat, m.t)
@@ -203,7 +212,7 @@ class PushController:
         """Inside a base plan's window (`posture` given) pull robot `mm`'s base to the plan with
         `BasePlanSettings.base_weight`, `base_gain` and its arm to the plan's `posture` with `posture_weight`;
         outside (None) give the whole-body QP its own base and posture terms back."""
-        ctrl, settings = getattr(mm.tracker, "controller", None), self.config.base_plan
+        ctrl, settings = getattr(mm.tracker, "controller", None), self.config.plan_settings()
         tasks = getattr(ctrl, "tasks", ())
         pt = next((k for k in tasks if isinstance(k, PostureTask)), None)
         bt = next((k for k in tasks if isinstance(k, BaseTask)), None)

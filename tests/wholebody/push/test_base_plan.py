@@ -95,17 +95,22 @@ def test_plan_postures_hold_the_handle_with_a_bent_elbow(robot_and_plan):
 
 
 def test_cli_base_plan_flag_sets_the_plan():
-    """`cartpush push --base-plan` asks the loop for the base plan with its default settings; without it, none."""
+    """`cartpush push --base-plan` asks the loop for the base plan with its default settings; `off`, none; without
+    it, "auto": planned on the MuJoCo plant only."""
     import argparse
+    from dataclasses import replace
 
     from cartpush.cli import push
 
     parser = argparse.ArgumentParser()
     push.register(parser.add_subparsers())
     on = push.config_from_args(parser.parse_args(["push", "--base-plan"]))
-    off = push.config_from_args(parser.parse_args(["push"]))
+    off = push.config_from_args(parser.parse_args(["push", "--base-plan", "off"]))
+    auto = push.config_from_args(parser.parse_args(["push"]))
     assert on.base_plan == BasePlanSettings()
-    assert off.base_plan is None
+    assert off.base_plan is None and off.plan_settings() is None
+    assert auto.base_plan == "auto" and auto.plan_settings() is None  # the kinematic plant
+    assert replace(auto, plant="mujoco", contact="fixed").plan_settings() == BasePlanSettings()
 
 
 def test_cli_grip_torque_arm_reaches_the_allocation():
@@ -117,13 +122,15 @@ def test_cli_grip_torque_arm_reaches_the_allocation():
     from cartpush.cli import push
     from cartpush.cli.options import OptionError
     from wholebody.contacts.allocation import ArmLimits
+    from wholebody.push import PushConfig
 
     parser = argparse.ArgumentParser()
     push.register(parser.add_subparsers())
     firm = push.config_from_args(parser.parse_args(["push", "--grip-torque-arm", "0.1"]))
     default = push.config_from_args(parser.parse_args(["push"]))
     assert firm.arm_limits.grasp is not None and firm.arm_limits.grasp.torque_arm == 0.1
-    assert default.arm_limits == ArmLimits()
+    assert default.arm_limits == PushConfig().arm_limits != ArmLimits()  # the loop's 150 N grip
+    assert firm.arm_limits.grasp.grip_force == 150.0
     for bad in ("-0.1", "nan", "2"):
         with pytest.raises(OptionError, match="--grip-torque-arm"):
             push.config_from_args(parser.parse_args(["push", "--grip-torque-arm", bad]))
