@@ -25,7 +25,7 @@ from cart.errors import CartError, LogFormatError
 from cart.logs import CartLog, read_log
 from cart.params import CartParams
 from cart.streams import Streams, box_average, split_streams
-from cart.units import check_units
+from cart.units import check_units, check_wrench_frame
 
 #: Mean NIS above which the EKF's innovations do not fit the 6-dof measurement (about 6 expected).
 NIS_MISFIT = 18.0
@@ -187,6 +187,7 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
     from cart.segments import find_segments
 
     res = identify(log, streams=streams)
+    check_wrench_frame(log, res.residual_ratio, res.model_fits)
     if res.wrench_noise is None:
         raise IdentifiabilityError(f"{log.source}: the least-squares fit gave no wrench-noise model")
     segments, seg_notes = find_segments(log, streams, res)

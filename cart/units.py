@@ -10,7 +10,10 @@ kinematics of the pose stream, whatever the cart:
 - positions in millimetres (or centimetres): the cart's typical speed (the 90th percentile over
   0.1 s windows, so a glitch does not count) is beyond ``MAX_TYPICAL_SPEED``;
 - heading in degrees: the heading turns about 57 times faster than the direction of travel (a cart
-  rolls along its heading: paper eq. 3), or its typical yaw rate is beyond ``MAX_TYPICAL_YAW_RATE``.
+  rolls along its heading: paper eq. 3), or its typical yaw rate is beyond ``MAX_TYPICAL_YAW_RATE``;
+- a wrench in the cart frame {b} instead of the world frame {s} (:func:`check_wrench_frame`): on a log
+  the model does not fit, read in {b} and rotated by theta the forward row's residual variance drops below
+  ``FRAME_VARIANCE_SHARE`` of its value as written.
 
 :func:`check_units` raises :class:`UnitsError` (exit code 2 on the command line) naming the fix.
 """
@@ -18,10 +21,12 @@ kinematics of the pose stream, whatever the cart:
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from cart.errors import CartError
+from cart.logs import CartLog
 from cart.streams import Streams
 
 MAX_POSE_PERIOD = 0.5  # s
@@ -29,6 +34,10 @@ MAX_TYPICAL_SPEED = 8.0  # m/s, 90th percentile: no pushed cart moves that fast 
 MAX_TYPICAL_YAW_RATE = 12.0  # rad/s, 90th percentile
 #: Share of moving, turning windows whose heading rate / travel-direction rate is near 180 / pi.
 DEGREE_SHARE = 0.6
+
+
+#: Share of the forward residual variance below which the wrench read in {b} fits so much better that it is in {b}.
+FRAME_VARIANCE_SHARE = 0.5
 
 
 class UnitsError(CartError):
@@ -111,4 +120,38 @@ def check_units(streams: Streams, source: str = "<memory>") -> None:
         raise UnitsError(
             f"{source}: the heading turns {'at ' + format(yaw_rate, '.4g') + ' rad/s typically' if yaw_rate > MAX_TYPICAL_YAW_RATE else 'about 57 times faster than the direction of travel'}: "
             "theta looks like degrees; multiply theta by pi/180 (LOG_FORMAT: radians)"
+        )
+
+
+def _wrench_from_cart_frame(log: CartLog) -> CartLog:
+    """Return ``log`` with (fx, fy) read as in the cart frame {b} and rotated by theta into {s}."""
+    c, s = np.cos(log.q[:, 2]), np.sin(log.q[:, 2])
+    g = log.gamma
+    return replace(log, gamma=np.column_stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1], g[:, 2]]))
+
+
+def check_wrench_frame(log: CartLog, ratio: tuple[float, float], fits: bool) -> None:
+    """Raise :class:`UnitsError` when the log's wrench is in the cart frame {b} rather than the world frame {s}.
+
+    ``ratio``, ``fits``: the least-squares fit's residual ratio (forward, yaw) and verdict on the log as written
+    (:func:`cart.identify.identify`). Only a log the model does not fit is checked: read in {b} and rotated
+    by theta, the forward row's residual variance (its ratio to the noise, squared) must drop below
+    ``FRAME_VARIANCE_SHARE`` of the written reading's for the log to be refused. A cart that hardly turns
+    reads alike in both frames and is never refused; the torque is the same in both.
+    """
+    from cart.identify import identify
+
+    if fits or not all(math.isfinite(r) for r in ratio):
+        return
+    try:
+        other = identify(_wrench_from_cart_frame(log))
+    except CartError:
+        return
+    if other.residual_ratio[0] ** 2 < FRAME_VARIANCE_SHARE * ratio[0] ** 2:
+        raise UnitsError(
+            f"{log.source}: the wrench (fx, fy) looks expressed in the cart frame {{b}}, not in the world frame "
+            f"{{s}} that LOG_FORMAT requires: read as {{b}} and rotated by theta, the forward residual is "
+            f"{other.residual_ratio[0]:.3g}x the noise instead of {ratio[0]:.3g}x (m = {other.params.m:.4g} kg so read); "
+            "rotate fx, fy into {s} (fx_s = cos(theta) fx - sin(theta) fy, "
+            "fy_s = sin(theta) fx + cos(theta) fy)"
         )
