@@ -35,6 +35,7 @@ import numpy.typing as npt
 from cart.change_detection import ChangeDetector, RingBuffer
 from cart.dynamics import regressor
 from cart.ekf import CartEKF, EKFConfig, chi2_isf
+from cart.online_casters import CasterBank, Nuisance
 from cart.online_regression import (
     DT_REL_TOL,
     OnlineEstimatorError,
@@ -107,6 +108,7 @@ class OnlineOptions:
     impulse_settle_cycles: float = 1.5
     confirm_sigma: float = 3.0
     deflate_com: bool = True
+    casters: bool = True
 
 
 @dataclass(frozen=True)
@@ -243,6 +245,7 @@ class OnlineLSEstimator:
         self._impulse_nis = chi2_isf(options.impulse_alpha, 2)
         self._impulse_t = -math.inf
         self.impulses: list[float] = []
+        self.casters = CasterBank(StateVariableFilter(options.cutoff_hz, 96)) if options.casters else None
 
     def _init_observer(self, q0: np.ndarray, qd0: np.ndarray, params0: CartParams, meas_std: np.ndarray) -> None:
         """Create the state observer: the paper's EKF with the parameters frozen (overwritten every step)."""
@@ -485,6 +488,9 @@ class OnlineLSEstimator:
     def _init_buffer(self, dt: float) -> None:
         size = max(int(math.ceil(self.options.buffer_s / dt)), 2)
         shapes = {"t": (), "m": (), "k": (), "s": (4,), "info": (4, 4), "D": (6, 6), "d": (6,), "C": (6, 6)}
+        if self.casters is not None:
+            g = self.casters.n_geo
+            shapes.update({"xc": (g, 6, 4), "xi": (g, 4, 4), "xd": (g, 4)})
         self._buffer = RingBuffer(size, shapes)
 
     def _regression_step(self, gamma: np.ndarray, dt: float, z: np.ndarray, impulse: bool = False) -> None:
@@ -498,10 +504,15 @@ class OnlineLSEstimator:
         if impulse:
             u[:3] = z[3:6]
             self.filter.reset(u)
+            if self.casters is not None:
+                self.casters.restart(self._caster_raw(u, dt))
             self._update_noise(float(u[4]), float(u[5]), dt)
             return
+        raw = self._caster_raw(u, dt) if self.casters is not None else None
         if not self._started:
             self.filter.reset(u)
+            if self.casters is not None and raw is not None:
+                self.casters.restart(raw)
             self._init_buffer(dt)
             self._started = True
         Y, y = self._regression_row(self.filter.step(u, dt))
@@ -510,6 +521,8 @@ class OnlineLSEstimator:
         reg = self.regression
         p = reg.p
         r = y - Y @ p
+        extra = self._caster_sample(Y, y, w, r, raw, dt, expected) if raw is not None else {}
+        r = r - extra.pop("fit", np.zeros(2))
         self._check_misfit(Y, r, expected, dt)
         yw = Y * w[:, None]
         info, dvec = yw.T @ Y, yw.T @ y
@@ -517,13 +530,51 @@ class OnlineLSEstimator:
         reg.add(info, dvec, noise, lam)
         s = yw[:, :4].T @ r
         misfit = self._misfit_scale()  # the residual ratio, also before the test reports it
-        self._ring().push(t=self.t, m=float(p[0]), k=misfit, s=s, info=info[:4, :4], D=info, d=dvec, C=noise)
+        self._ring().push(t=self.t, m=float(p[0]), k=misfit, s=s, info=info[:4, :4], D=info, d=dvec, C=noise, **extra)
+        if self.casters is not None:
+            self.casters.choose(reg.p, self._cov, misfit, self.options.misfit_ratio)
+            reg.nuisance = self.casters.nuisance()
         if self.options.detect_changes and self._test_change(dt, s, info[:4, :4]):
             self._reset_for_change()
         else:
             reg.solve(1)
             self._cov = reg.covariance()
         self._update_params()
+
+    def _caster_raw(self, u: np.ndarray, dt: float) -> np.ndarray:
+        """Return the caster bank's raw columns for the period's filter input u (mean velocity, mid heading)."""
+        bank = self.casters
+        assert bank is not None
+        c, s = math.cos(float(u[3])), math.sin(float(u[3]))
+        return bank.raw_columns(c * float(u[0]) + s * float(u[1]), float(u[2]), dt)
+
+    def _caster_sample(
+        self,
+        Y: np.ndarray,
+        y: np.ndarray,
+        w: np.ndarray,
+        r: np.ndarray,
+        raw: np.ndarray,
+        dt: float,
+        expected: np.ndarray,
+    ) -> dict[str, np.ndarray]:
+        """Filter the caster columns, compare the models on this sample (prequential), add it to the sums.
+
+        Returns the sample's increments for the buffer (``xc``, ``xi``, ``xd``) and, when the columns are on,
+        their a-priori share of the wrench (``fit``: the active geometry's fit on the samples before this one).
+        """
+        bank, reg = self.casters, self.regression
+        assert bank is not None
+        cols = bank.filtered(raw, dt)
+        pred = expected + np.einsum("ij,jk,ik->i", Y, self._cov, Y)
+        bank.compare(r, w, cols, reg.p, dt, pred)
+        out = {}
+        if reg.nuisance is not None and bank.active is not None:
+            out["fit"] = cols[bank.active] @ reg.nuisance.fit(reg.p)
+        inc = bank.increments(Y, y, w, cols)
+        bank.add(inc)
+        out.update(xc=inc[0], xi=inc[1], xd=inc[2])
+        return out
 
     def _test_change(self, dt: float, s: np.ndarray, info: np.ndarray) -> bool:
         """Return whether the GLR test declares a change of mass / CoM / inertia at this sample.
@@ -562,6 +613,10 @@ class OnlineLSEstimator:
         ]
         new = RecursiveRegression(PhysicalPrior(center, std), self.options.noise_subspace)
         new.D, new.d, new.C = buf.read("D")[idx:].sum(0), buf.read("d")[idx:].sum(0), buf.read("C")[idx:].sum(0)
+        after = self._caster_sums(idx, new.D)
+        if after is not None and self.casters is not None and self.casters.active is not None:
+            g = self.casters.active
+            new.nuisance = Nuisance(after[0][g], after[1][g], after[2][g])
         new.solve(iterations=5)
         self.detector.restart()
         if not self._confirmed(new, self._fit_before(idx), float(buf.read("k")[idx])):
@@ -570,8 +625,29 @@ class OnlineLSEstimator:
             return
         self.regression = new
         self._cov = new.covariance()
+        if after is not None and self.casters is not None:
+            self.casters.cross, self.casters.info, self.casters.dvec = after
+            new.nuisance = self.casters.nuisance()
         self._changes.append(_Change(t_change, self.t, m_before, self.detector.statistic))
         buf.clear()
+
+    def _caster_sums(
+        self, idx: int, d_after: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Return the caster columns' sums (cross, info, dvec) over the buffered samples from ``idx`` (None: off).
+
+        ``d_after``: the regression's normal matrix of those samples; when given, the casters' fit on the samples
+        before ``idx`` is carried over as a prior (:meth:`CasterBank.carried`).
+        """
+        if self.casters is None:
+            return None
+        buf = self._ring()
+        after = (buf.read("xc")[idx:].sum(0), buf.read("xi")[idx:].sum(0), buf.read("xd")[idx:].sum(0))
+        if d_after is None:
+            return after
+        reg = self.regression
+        _, jr = reg.prior.residual(reg.p)
+        return self.casters.carried(after, reg.D - d_after + jr.T @ jr, reg.p)
 
     def _fit_before(self, idx: int) -> tuple[float, float]:
         """Return (mass, std) fitted on the samples before the onset ``idx`` alone (the regression's own prior)."""
@@ -580,6 +656,12 @@ class OnlineLSEstimator:
         before.D = reg.D - buf.read("D")[idx:].sum(0)
         before.d = reg.d - buf.read("d")[idx:].sum(0)
         before.C = reg.C - buf.read("C")[idx:].sum(0)
+        after = self._caster_sums(idx)
+        if after is not None and self.casters is not None and self.casters.active is not None:
+            g, bank = self.casters.active, self.casters
+            before.nuisance = Nuisance(
+                bank.cross[g] - after[0][g], bank.info[g] - after[1][g], bank.dvec[g] - after[2][g]
+            )
         before.solve(iterations=5)
         return float(before.p[0]), float(self._physical_std(before.covariance())[0])
 
@@ -602,7 +684,8 @@ class OnlineLSEstimator:
         std_new = float(self._physical_std(new.covariance())[0])
         excited = std_new <= self.options.excited_ratio * new.prior.std[0]
         diff = abs(m_new - m_old)
-        ok = excited and diff >= self.options.min_change * abs(m_old) and not self._implausible(new.p)
+        bad = self._implausible(new.p)
+        ok = excited and diff >= self.options.min_change * abs(m_old) and not bad
         std = math.hypot(std_new, std_old) * misfit
         if misfit > self.options.misfit_ratio:
             ok = ok and diff >= self.options.confirm_sigma * std
@@ -612,7 +695,9 @@ class OnlineLSEstimator:
                     self.t,
                     "change_not_confirmed",
                     f"GLR {self.detector.statistic:.1f}: mass {m_old:.4g} kg before, {m_new:.4g} kg after, "
-                    f"difference's std {std:.2g} kg" + ("" if excited else " (not excited)"),
+                    f"difference's std {std:.2g} kg"
+                    + ("" if excited else " (not excited)")
+                    + "".join(f" ({v})" for v in bad.values()),
                 )
             )
         return ok

@@ -28,6 +28,7 @@ import numpy as np
 from scipy.linalg import eigh, expm, solve_discrete_lyapunov
 
 from cart.errors import CartError, NumericalError
+from cart.online_casters import Nuisance
 
 #: Names of the physical prior variables of :class:`PhysicalPrior`.
 PRIOR_NAMES = ("m", "dx", "dy", "rho", "c_v", "c_w")
@@ -142,7 +143,18 @@ class RecursiveRegression:
         self.p = prior.p()
         self.H = np.eye(6)
         self.compensated = True
+        self.nuisance: Nuisance | None = None
+        self.data_weight = 1.0
         self.solve(iterations=3)
+
+    def normal(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the data's normal equations (D, d) of p, with the nuisance columns eliminated when set.
+
+        Both are scaled by ``data_weight`` (1: the noise model's weights; 1 / kappa^2: a model that misfits by
+        the residual ratio kappa, whose data carry kappa^2 less information than the noise model says).
+        """
+        d_mat, d_vec = (self.D, self.d) if self.nuisance is None else self.nuisance.eliminate(self.D, self.d)
+        return d_mat * self.data_weight, d_vec * self.data_weight
 
     def add(self, info: np.ndarray, dvec: np.ndarray, noise: np.ndarray, lam: float) -> None:
         """Accumulate one sample: ``info = Y^T W Y`` (6, 6), ``dvec = Y^T W y`` (6,), regressor-noise power (6, 6)."""
@@ -155,7 +167,8 @@ class RecursiveRegression:
 
     def solve(self, iterations: int = 1) -> np.ndarray:
         """Return the MAP estimate after Gauss-Newton steps from the current one; sets H (the posterior information)."""
-        dd, dv = self.signal_part() if self.noise_subspace else (self.D - self.compensation(), self.d)
+        d_mat, d_vec = self.normal()
+        dd, dv = self.signal_part(d_mat, d_vec) if self.noise_subspace else (d_mat - self.compensation(d_mat), d_vec)
         for _ in range(iterations):
             r, jr = self.prior.residual(self.p)
             h = dd + jr.T @ jr
@@ -163,10 +176,10 @@ class RecursiveRegression:
                 chol = np.linalg.cholesky(h)
                 self.compensated = True
             except np.linalg.LinAlgError:  # the noise correction overshoots on little data: drop it
-                h = self.D + jr.T @ jr
+                h = d_mat + jr.T @ jr
                 h += np.diag(1e-12 * np.diag(h))
                 chol = np.linalg.cholesky(h)
-                dv = self.d
+                dv = d_vec
                 self.compensated = False
             g = h @ self.p - (dv + jr.T @ (jr @ self.p - r))
             step = np.linalg.solve(chol.T, np.linalg.solve(chol, g))
@@ -178,35 +191,36 @@ class RecursiveRegression:
                 break
         return self.p
 
-    def signal_part(self) -> tuple[np.ndarray, np.ndarray]:
+    def signal_part(self, d_mat: np.ndarray, d_vec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return (D', d'): the normal equations restricted to the directions where the signal beats the noise.
 
         With the generalized eigenvectors D V = C V Lambda (V^T C V = I), a direction whose data power
         is at most ``1 + SIGNAL_MARGIN`` times the regressor-noise power C carries no usable information:
         it is dropped from both D and d (the prior then holds it). The others keep D - C (bias-compensated).
         """
-        scale = np.maximum(np.diag(self.D), 1e-300)
-        c_reg = self.C + np.diag(1e-6 * scale + 1e-300)
+        scale = np.maximum(np.diag(d_mat), 1e-300)
+        c_reg = self.C * self.data_weight + np.diag(1e-6 * scale + 1e-300)
         try:
-            lam, v = eigh(self.D, c_reg)
+            lam, v = eigh(d_mat, c_reg)
         except np.linalg.LinAlgError:
-            return self.D - self.compensation(), self.d
+            return d_mat - self.compensation(d_mat), d_vec
         keep = lam > 1.0 + SIGNAL_MARGIN
         cv = c_reg @ v[:, keep]
         dd = (cv * (lam[keep] - 1.0)) @ cv.T
-        dv = cv @ (v[:, keep].T @ self.d)
+        dv = cv @ (v[:, keep].T @ d_vec)
         self.kept_directions = int(keep.sum())
         return dd, dv
 
-    def compensation(self) -> np.ndarray:
+    def compensation(self, d_mat: np.ndarray | None = None) -> np.ndarray:
         """Return the noise correction removed from D: C scaled so that at most COMPENSATION_SHARE of each diagonal goes.
 
         On little data the regressor-noise power in D fluctuates around its expectation C; removing
         all of it could leave a direction with negative information.
         """
-        c_diag = np.diag(self.C)
-        scale = np.sqrt(np.minimum(1.0, COMPENSATION_SHARE * np.diag(self.D) / np.maximum(c_diag, 1e-300)))
-        return self.C * np.outer(scale, scale)
+        c_diag = np.diag(self.C) * self.data_weight
+        d_diag = np.diag(self.D if d_mat is None else d_mat)
+        scale = np.sqrt(np.minimum(1.0, COMPENSATION_SHARE * d_diag / np.maximum(c_diag, 1e-300)))
+        return self.C * self.data_weight * np.outer(scale, scale)
 
     def covariance(self) -> np.ndarray:
         """Return the posterior covariance of p (the inverse of the last information matrix H)."""
