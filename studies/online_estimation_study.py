@@ -59,8 +59,8 @@ def push_run(trajectory: int, online: bool, seed: int = 0, **options) -> dict:
     from wholebody.push.config import PushConfig
     from wholebody.push.loop import run_push
 
-    cfg = PushConfig(trajectory=trajectory, seed=seed)
-    est = None
+    cfg = PushConfig(trajectory=trajectory, seed=seed, estimator="online" if online else "ekf")
+    est = None  # the paper's EKF: the loop's make_estimator with estimator="ekf" (its default is the online one)
     if online:
         q0 = cfg.make_trajectory().sample(0.0)[0]
         est = make_online_estimator(q0, cfg.initial_params(), cfg.noise.measurement_std(), **options)
