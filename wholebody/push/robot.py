@@ -35,8 +35,11 @@ R_B_EE0 = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]])
 GRASP_PITCH = 0.8
 #: Base origin relative to its contact point, in {b} (x behind the handle), and base yaw relative to the cart.
 BASE_OFFSET_X = -0.65
-#: Lateral offset (m) of each base beyond its contact when two robots push side by side (bases are 0.79 m wide).
+#: Lateral offset (m) of each base beyond its contact when two robots push side by side and the URDF gives no box
+#: fixed to the base (`side_by_side_spread`).
 TWO_ARM_BASE_SPREAD = 0.25
+#: Clearance (m) between the footprints of two robots pushing side by side (`side_by_side_spread`).
+BASE_CLEARANCE = 0.1
 #: Look-ahead (m) of a differential base's tracker when its profile gives none (paper 2 section VI).
 DIFFERENTIAL_LOOKAHEAD = 0.3
 #: Rim acceleration (m/s^2) a profile without tuned push settings gets as its wheel acceleration limit.
@@ -567,17 +570,19 @@ def push_reach_map(robot: str | RobotProfile | robots.LoadedRobot, geometry: Car
     )
 
 
-def base_lateral_places(prof: RobotProfile, contact_y: Sequence[float] | np.ndarray) -> list[float]:
+def base_lateral_places(
+    prof: RobotProfile, contact_y: Sequence[float] | np.ndarray, spread: float = TWO_ARM_BASE_SPREAD
+) -> list[float]:
     """Return each robot's base y in {b} for contacts `contact_y` (one robot per contact).
 
     A base with a fixed place (`push_base_y`) stands there when alone; two such robots stand behind their
-    own contacts, shifted apart by `TWO_ARM_BASE_SPREAD` each. A base that follows its contact stands
+    own contacts, shifted apart by `spread` each (`side_by_side_spread`). A base that follows its contact stands
     `push_base_dy` beside it (two of them: spread apart as well).
     """
     ys = [float(v) for v in contact_y]
     if len(ys) == 1:
         return [prof.push_base_y if prof.push_base_y is not None else ys[0] + prof.push_base_dy]
-    shift = [-TWO_ARM_BASE_SPREAD, TWO_ARM_BASE_SPREAD]
+    shift = [-spread, spread]
     off = 0.0 if prof.push_base_y is None else prof.push_base_y - _filled(prof, "contact_y", prof.push_contact_y)
     return [y + off + prof.push_base_dy + d for y, d in zip(ys, shift)]
 
@@ -687,7 +692,8 @@ def make_robots(
     arm_seeds = [sd if sd is None or np.all(np.isfinite(sd)) else None for sd in list(seeds or ())[: len(contact_y)]]
     arm_seeds += [None] * (len(contact_y) - len(arm_seeds))
     out = []
-    for y, by, sd in zip(contact_y, base_lateral_places(prof, contact_y), arm_seeds):
+    places = base_lateral_places(prof, contact_y, side_by_side_spread(loaded, contact_y))
+    for y, by, sd in zip(contact_y, places, arm_seeds):
         bx = side_by_side_base_x(loaded, prof, float(by) - float(y)) if len(contact_y) > 1 else None
         try:
             out.append(MobileManipulator(loaded, q_cart, y, by, R_b_ee, arm_seed=sd, geometry=geometry, base_x=bx))
@@ -702,19 +708,51 @@ def make_robots(
     return out
 
 
+def base_footprint_width(loaded: robots.LoadedRobot) -> float:
+    """Return the width (m, along the base's y) of the collision boxes fixed to the base's planar joint (0: none)."""
+    ys = [
+        (g.placement.rotation @ (g.geometry.halfSide * np.array([sx, sy, 0.0])) + g.placement.translation)[1]
+        for g in loaded.collision_model.geometryObjects
+        if g.parentJoint == 1 and getattr(g.geometry, "halfSide", None) is not None
+        for sx in (-1.0, 1.0)
+        for sy in (-1.0, 1.0)
+    ]
+    return float(max(ys) - min(ys)) if ys else 0.0
+
+
+def side_by_side_spread(loaded: robots.LoadedRobot, contact_y: Sequence[float] | np.ndarray) -> float:
+    """Return how far (m) each of two robots side by side stands beyond its one-robot place beside its contact: half
+    of what the two bases' footprints (`base_footprint_width`) and `BASE_CLEARANCE` need beyond the contacts'
+    separation (Ridgeback, 0.79 m wide, at contacts 0.4 m apart: 0.25 m; the 0.6 m wide WMRA: 0.15 m); no less than
+    0, `TWO_ARM_BASE_SPREAD` when the URDF gives no base box."""
+    width = base_footprint_width(loaded)
+    if width <= 0.0:
+        return TWO_ARM_BASE_SPREAD
+    separation = float(np.ptp(np.asarray(contact_y, dtype=float)))
+    return max(0.0, 0.5 * (width + BASE_CLEARANCE - separation))
+
+
 def side_by_side_base_x(loaded: robots.LoadedRobot, prof: RobotProfile, lateral: float) -> float:
     """Return the base x (relative to the handle, in {b}) of a robot whose base stands `lateral` m beside its contact
-    (two robots side by side): the arm's first joint as far from the handle, in the plane, as when the base stands
-    right behind its contact (`push_base_x`), so that the arm is no more stretched than the one-arm push posture."""
+    (two robots side by side): the arm's first joint as far from the handle, in the plane, as when the robot pushes
+    alone (base `push_base_x` behind the handle, beside its contact as `base_lateral_places` puts one robot), so that
+    the arm is no more stretched than the one-arm push posture. The mount's own lateral place on the base counts
+    (the WMRA's arm is mounted 0.23 m left of its axle's centre)."""
     wb = wholebody_for(loaded, base_input=prof.base_input)
     data = wb.model.createData()
     pin.forwardKinematics(wb.model, data, wb.to_pinocchio_q(np.zeros(3 + wb.n_arm)))
     mount = data.oMi[wb.model.getJointId(wb.arm_joints[0])].translation  # in the base frame (base at the origin)
     base_x = prof.push_base_x if prof.push_base_x is not None else BASE_OFFSET_X
-    reach = abs(base_x + mount[0])
-    if abs(lateral) >= reach:
+    alone = (
+        prof.push_base_dy
+        if prof.push_base_y is None
+        else prof.push_base_y - _filled(prof, "contact_y", prof.push_contact_y)
+    )
+    reach = math.hypot(base_x + mount[0], alone + mount[1])
+    side = lateral + mount[1]  # the mount beside the contact
+    if abs(side) >= reach:
         return base_x
-    return float(-math.sqrt(reach**2 - lateral**2) - mount[0])
+    return float(-math.sqrt(reach**2 - side**2) - mount[0])
 
 
 def ft_measurement(

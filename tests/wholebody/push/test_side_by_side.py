@@ -47,3 +47,22 @@ def test_two_robots_with_a_fixed_base_place_hold_fixed_contacts_beyond_one_robot
         target, _ = grasp_target(q0, np.zeros(3), float(y), 0.0, mm.R_b_ee)
         assert np.linalg.norm(mm.wb.ee_placement(mm.x).translation - target.translation) < 1e-4
         assert abs(mm.base_offset_b[1] - y) < 0.5  # each base behind its own contact
+
+
+@pytest.mark.parametrize("robot", ["ridgeback_iiwa", "wmra"])
+def test_side_by_side_bases_stand_clear_and_no_farther_apart_than_needed(robot):
+    """The bases' footprints keep `BASE_CLEARANCE` between them and stand no farther apart (the 0.6 m wide WMRA stood
+    0.9 m apart, as the 0.79 m Ridgebacks, its arm then at a joint limit in Traj. 2's first turn); each arm's mount
+    is as far from its hand as when the robot pushes alone, the mount's place on the base counted (the WMRA's arm
+    sits 0.23 m left of its axle's centre)."""
+    import robots
+    from wholebody.push.robot import BASE_CLEARANCE, base_footprint_width
+
+    one = build_controller(PushConfig(trajectory=1, n_arms=1, plant="mujoco", contact="fixed", robot=robot))
+    two = build_controller(PushConfig(trajectory=1, n_arms=2, plant="mujoco", contact="fixed", robot=robot))
+    mms = two.controller.robots
+    gap = mms[1].base_offset_b[1] - mms[0].base_offset_b[1]
+    assert gap == pytest.approx(base_footprint_width(robots.load(robot)) + BASE_CLEARANCE, abs=1e-9)
+    alone = _mount_to_hand(one.controller.robots[0])
+    for mm in mms:
+        assert _mount_to_hand(mm) == pytest.approx(alone, abs=0.01)
