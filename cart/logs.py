@@ -293,8 +293,22 @@ def _check_time_order(path: str, t: np.ndarray, header_line: int) -> None:
     )
 
 
+def _without_repeated_rows(data: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], int]:
+    """Return the columns without rows that repeat the previous row in every column (time included), and how many.
+
+    A row written twice (a logger flushing the same sample again) carries no new sample: dropping it is
+    exact. Rows at the same time with different values stay (:func:`_check_time_order` refuses them).
+    """
+    cols = np.column_stack(list(data.values()))
+    again = np.r_[False, np.all(cols[1:] == cols[:-1], axis=1)]
+    if not again.any() or int((~again).sum()) < 3:  # too few distinct rows: refused as they are
+        return data, 0
+    return {name: v[~again] for name, v in data.items()}, int(again.sum())
+
+
 def _log_from_columns(path: str, data: dict[str, np.ndarray], metadata: dict[str, str], header_line: int) -> CartLog:
     """Return the CartLog of the parsed columns (heading unwrapped, missing velocity columns estimated) with notes."""
+    data, repeated = _without_repeated_rows(data)
     t = data["t"]
     _check_time_order(path, t, header_line)
     q = np.column_stack([data["x"], data["y"], np.unwrap(data["theta"])])
@@ -311,6 +325,8 @@ def _log_from_columns(path: str, data: dict[str, np.ndarray], metadata: dict[str
         contact = np.column_stack([data["contact_x"], data["contact_y"]])
     log = CartLog(t=t, q=q, gamma=gamma, qd=qd, contact_b=contact, metadata=metadata, source=path)
     notes = plausibility_warnings(log, raw_theta=data["theta"], first_line=header_line + 1)
+    if repeated:
+        notes.insert(0, f"{repeated} row(s) repeat the previous row exactly, time included: dropped (written twice)")
     if notes:
         object.__setattr__(log, "warnings", tuple(notes))
     return log
