@@ -59,3 +59,21 @@ def test_the_loop_does_not_tip_the_cart_in_traj2s_second_turn() -> None:
 
     assert worst(False) > 20.0  # N m past the holding moment: it would tip
     assert worst(True) < 1.0
+
+
+def test_tip_bound_auto_is_on_with_the_mujoco_plant_and_the_cli_sets_it() -> None:
+    import argparse
+
+    from cartpush.cli import push
+
+    assert not PushConfig().tip_on()  # the kinematic plant's rigid planar cart cannot tip
+    assert PushConfig(plant="mujoco", contact="fixed").tip_on()
+    assert (
+        PushConfig(tip_bound=True).tip_on()
+        and not PushConfig(plant="mujoco", contact="fixed", tip_bound=False).tip_on()
+    )
+    parser = argparse.ArgumentParser()
+    push.register(parser.add_subparsers())
+    assert push.config_from_args(parser.parse_args(["push", "--tip-bound", "off"])).tip_bound is False
+    assert push.config_from_args(parser.parse_args(["push", "--tip-bound"])).tip_bound is True
+    assert push.config_from_args(parser.parse_args(["push"])).tip_bound == "auto"
