@@ -88,11 +88,36 @@ def _time_unit(period: float) -> tuple[str, float]:
     return "nanoseconds", 1e9
 
 
+#: Heading range (rad) over which a pushed cart's world-frame wrench cannot keep a column exactly constant.
+MIN_TURN_FOR_CONSTANT = 0.5
+
+
+def _constant_wrench_column(streams: Streams, source: str) -> None:
+    """Raise :class:`UnitsError` when a wrench column is exactly constant over the log while the cart turns.
+
+    A sensor's reading is never exactly constant (noise); a world-frame force that keeps one component
+    constant while the heading turns by ``MIN_TURN_FOR_CONSTANT`` or more is not a push: the column was not
+    recorded (a sensor with fewer axes, or a column filled with a constant).
+    """
+    g = streams.wrench.values
+    if len(g) < 5 or float(np.ptp(streams.pose.values[:, 2])) < MIN_TURN_FOR_CONSTANT:
+        return
+    for k, name in enumerate(("fx", "fy", "tau")):
+        if float(np.ptp(g[:, k])) == 0.0:
+            raise UnitsError(
+                f"{source}: column {name} is {float(g[0, k]):g} on every row while the cart turns by "
+                f"{float(np.ptp(streams.pose.values[:, 2])):.3g} rad: it was not recorded (a sensor with fewer "
+                "axes?); LOG_FORMAT needs fx, fy (world frame) and tau measured"
+            )
+
+
 def check_units(streams: Streams, source: str = "<memory>") -> None:
-    """Raise :class:`UnitsError` when the pose stream's kinematics say time, positions or heading are not SI."""
+    """Raise :class:`UnitsError` when the pose stream's kinematics say time, positions or heading are not SI,
+    or a wrench column was not recorded (:func:`_constant_wrench_column`)."""
     t, q = streams.pose.t, streams.pose.values
     if len(t) < 5:
         return
+    _constant_wrench_column(streams, source)
     period = float(np.median(np.diff(t)))
     if period > MAX_POSE_PERIOD:
         unit, factor = _time_unit(period)

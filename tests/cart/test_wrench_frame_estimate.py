@@ -1,4 +1,5 @@
-"""Issue 30: a wrench written in the cart frame {b} is refused by `estimate` (exit 2), as by `diagnose`.
+"""Issue 30: a wrench written in the cart frame {b} is refused by `estimate` (exit 2), as by `diagnose`; so is a
+wrench column that was not recorded (constant on every row while the cart turns).
 
 rigid_sim seed 19 (35.73 kg) with (fx, fy) in {b}: `estimate` answered 29.98 +- 19.47 kg with exit 0 (the
 model did not fit, the forward residual 5.5x the noise; read in {b} and rotated, 0.76x and 35.88 kg).
@@ -28,3 +29,17 @@ def test_a_wrench_in_the_cart_frame_is_refused_with_the_rotation_named():
     assert ok.model_fits and abs(ok.params.m / truth["m"] - 1) < 0.02
     with pytest.raises(UnitsError, match=r"cart frame \{b\}.*cos\(theta\) fx - sin\(theta\) fy"):
         estimate_log(_in_cart_frame(log))
+
+
+def test_a_wrench_column_that_was_not_recorded_is_refused():
+    """fy written as 0 on every row of a turning push: 27.87 +- 15.86 kg for 35.73 with exit 0 before."""
+    log, _ = rigid_sim.simulate(rigid_sim.random_case(19, duration=40.0, rate_hz=100.0))
+    g = log.gamma.copy()
+    g[:, 1] = 0.0
+    with pytest.raises(UnitsError, match="column fy is 0 on every row while the cart turns"):
+        estimate_log(replace(log, gamma=g))
+    straight = replace(log, q=np.column_stack([log.q[:, 0], 0.0 * log.t, 0.0 * log.t + 0.2]), gamma=g, qd=None)
+    from cart.streams import split_streams
+    from cart.units import check_units
+
+    check_units(split_streams(straight))  # a cart that does not turn may push along one axis only
