@@ -26,6 +26,7 @@ import pinocchio as pin
 from cart import model as cart_model
 from cart.params import CartParams
 from wholebody.contacts.allocation import WrenchAllocator
+from wholebody.contacts.support import CartLoad
 from wholebody.errors import WholeBodyError
 from wholebody.push.config import CartController, ParameterEstimator, PushConfig
 from wholebody.push.plant import Measurement, RobotCommand
@@ -159,10 +160,7 @@ class PushController:
                 [c for mm in self.robots for c in mm.torque_constraints(q_hat)], margin=self.config.torque_margin
             )
         if self.support is not None:  # every wheel stays loaded
-            std_of = getattr(self.estimator, "params_std", None)
-            std = std_of() if std_of is not None else None
-            load = cart_load(q_hat, qd_hat, gamma_d, params_hat, std, self.config.tip_std_factor)
-            self.allocator.set_tip_bound(self.support, load)
+            self.allocator.set_tip_bound(self.support, self._cart_load(q_hat, qd_hat, gamma_d, params_hat))
         alloc = self.allocator.solve(cart_model.generalized_to_body(q_hat, gamma_d), raise_on_infeasible=False)
         saturated = alloc.residual > 1e-6 * max(1.0, float(np.abs(gamma_d).max()))  # eq. (25)
         q_grasp = self._grasp_pose(q_hat, qd_hat, m.t)
@@ -193,6 +191,14 @@ class PushController:
             binding=alloc.binding if saturated else None,
         )
         return list(commands)
+
+    def _cart_load(self, q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: CartParams) -> CartLoad:
+        """Return the cart's load on its wheels under the desired wrench (`tip_support.cart_load`), with the
+        estimator's 1-sigma when `PushConfig.tip_std_factor` asks for a margin."""
+        factor = self.config.tip_std_factor
+        std_of = getattr(self.estimator, "params_std", None)
+        std = std_of() if std_of is not None and factor > 0.0 else None
+        return cart_load(q, qd, gamma, params, std, factor)
 
     def _grasp_pose(self, q_hat: np.ndarray, qd_hat: np.ndarray, t: float) -> np.ndarray:
         """Return the cart pose the hands hold: the estimate, predicted with its velocity and corrected with
