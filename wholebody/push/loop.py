@@ -9,6 +9,7 @@ period (`StepRecord`) is written once; `run_push` stacks them into a `PushResult
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields, replace
 from types import SimpleNamespace
 from typing import Any
@@ -50,9 +51,25 @@ def make_estimator(config: PushConfig, q0: np.ndarray) -> ParameterEstimator:
     if config.estimation and config.estimator == "online":
         from cart.online_estimator import make_online_estimator
 
-        return make_online_estimator(q0, p0, std, wrench_std=(config.noise.force, config.noise.torque))
+        return make_online_estimator(q0, p0, std, wrench_std=summed_wrench_std(config))
     ekf_config = EKFConfig.from_noise(std, estimate_params=config.estimation)
     return CartEKF(q0, np.zeros(3), p0.phi, p0.sigma, ekf_config)
+
+
+def summed_wrench_std(config: PushConfig) -> tuple[float, float]:
+    """Return the white-noise std (forward force N, yaw torque N m) of the wrench the estimator sees.
+
+    One hand: its sensor's (``config.noise``). Several hands: their readings, each with the sensor's noise at the
+    hand, are summed about {b}'s origin, so the force noise adds up over the hands and each hand's force noise
+    also reaches the torque through the hand's lever arm (the handle point of its first contact, x and y in {b}):
+    ``var_f = n sf^2``, ``var_tau = sum (st^2 + (x^2 + y^2) sf^2)``.
+    """
+    sf, st = config.noise.force, config.noise.torque
+    ys = config.contact_y0()
+    if len(ys) <= 1:
+        return sf, st
+    pts = [config.cart_geometry().point(float(y))[:2] for y in ys]
+    return math.sqrt(len(ys)) * sf, math.sqrt(sum(st * st + float(p @ p) * sf * sf for p in pts))
 
 
 def make_robots(
