@@ -3,7 +3,10 @@
 The filtered regression of :mod:`cart.identify` (paper eq. 4, linear in the parameters) is split in two
 at every candidate instant; the split that lowers the weighted residual sum of squares most is the
 candidate change (cumulative sums of the normal equations: one pass over the log; Coulomb-like columns
-added, so that rolling resistance, which grows with the load, is not taken for mass). The change is kept
+added, so that rolling resistance, which grows with the load, is not taken for mass). A load put on a moving
+cart at rest takes its share of the cart's momentum with no force at the handle: each candidate is also
+fitted with that exchange (:func:`exchange_ssr`, no extra parameter), and the better of the two counts
+(a load lifted out, or put in at the cart's speed, exchanges nothing). The change is kept
 when the two sides' masses, fitted on the whole log's filtered regression away from the change (regressor
 noise compensated; std the larger of Newey-West and a block jackknife, so a misfit that varies along the
 log counts while one common to both sides cancels), differ by more than ``CHANGE_Z`` combined std and by
@@ -56,7 +59,13 @@ def slice_log(log: CartLog, t0: float, t1: float) -> CartLog:
 
 
 def best_split(
-    t: np.ndarray, x: np.ndarray, y: np.ndarray, scale: np.ndarray, min_len: float, tol: float = 0.0
+    t: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    scale: np.ndarray,
+    min_len: float,
+    tol: float = 0.0,
+    impulse: tuple[np.ndarray, int] | None = None,
 ) -> tuple[float, float, float] | None:
     """Return (time, earliest, latest) of the split of the regression ``x p = y`` into two fits of least residual.
 
@@ -64,6 +73,9 @@ def best_split(
     least ``min_len`` s from either end (None when the log is too short). Splits whose residual is within
     ``tol`` of the least (the regression cannot tell them apart: the cart stands still or cruises) are
     alike: the time is the middle of that stretch around the best one, earliest and latest its ends.
+    ``impulse``: the filtered unit impulse on the rows and its half-width (:func:`impulse_response`): each
+    candidate's residual is then the lesser of the plain split's and the momentum exchange's
+    (:func:`exchange_ssr`).
     """
     ok = np.flatnonzero((t - t[0] >= min_len) & (t[-1] - t >= min_len))
     if len(ok) == 0:
@@ -88,6 +100,12 @@ def best_split(
     left = ssr(a, b, c)
     right = ssr(a_all - a, b_all - b, c_all - c)
     total = left + right
+    if impulse is not None:
+        normal = (a, b, a_all, b_all, c_all)
+        exchange = [
+            exchange_ssr(xs, ys, momentum_rows(x[i]) * sw[:, None], i, normal, j, impulse) for j, i in enumerate(idx)
+        ]
+        total = np.minimum(total, exchange)
     k = int(np.argmin(total))
     near = total <= total[k] + tol
     lo, hi = k, k
@@ -96,6 +114,76 @@ def best_split(
     while hi < len(near) - 1 and near[hi + 1]:
         hi += 1
     return float(0.5 * (t[idx[lo]] + t[idx[hi]])), float(t[idx[lo]]), float(t[idx[hi]])
+
+
+def impulse_response(res: Identification) -> tuple[np.ndarray, int]:
+    """Return (h, half): the filtered regression's response to a unit step of velocity, on ``res``'s fit rows.
+
+    The zero-phase low-pass of :func:`cart.identify.identify` applied to a unit impulse of acceleration
+    (a step of 1 in velocity over one grid sample, 1 / dt there), sampled at the fit rows (every ``step``-th
+    grid sample) and centred: ``h[half + r]`` is the response ``r`` rows from the step. It spans three
+    periods of the cut-off each side (the filter's response is negligible beyond).
+    """
+    from cart._kernels_identify import butter_lowpass_sos
+    from cart.identify import _filtfilt
+
+    data = res.fit_data
+    assert data is not None
+    step = int(data["step"])
+    half = int(math.ceil(3.0 / (res.cutoff_hz * res.grid_dt)))
+    half += (-half) % step
+    unit = np.zeros(2 * half + 1)
+    unit[half] = 1.0 / res.grid_dt
+    sos = butter_lowpass_sos(4, res.cutoff_hz * 2.0 * res.grid_dt)
+    return _filtfilt(sos, unit)[::step], half // step
+
+
+def momentum_rows(x_row: np.ndarray) -> np.ndarray:
+    """Return the momentum coordinates ``g`` (2, P) of one row of the regression (its v and w columns).
+
+    Forward ``g . p = m v - m dy w``, yaw ``-m dy v + J w``: the integrals of the acceleration columns of the
+    regressor (paper eq. 4: vdot and -wdot in the forward row, -vdot and wdot in the yaw row).
+    """
+    g = np.zeros_like(x_row)
+    v, om = x_row[0, 4], x_row[1, 5]
+    g[0, 0], g[0, 2], g[1, 2], g[1, 3] = v, -om, -v, om
+    return g
+
+
+def exchange_ssr(
+    xs: np.ndarray,
+    ys: np.ndarray,
+    g: np.ndarray,
+    i: int,
+    normal: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    j: int,
+    impulse: tuple[np.ndarray, int],
+) -> float:
+    """Return the residual of the split after row ``i`` when the load came in at rest (inf when the mass fell).
+
+    A load of zero velocity put on the cart shares the cart's momentum: the momentum coordinates
+    ``g . p`` (:func:`momentum_rows`) are continuous while the velocity drops, so the filtered regression
+    sees no force for the velocity's step: the prediction near the split gains ``(p_R - p_L) . g h(t - t_i)``
+    (``h`` :func:`impulse_response`). No parameter is added: the two sides' own parameters set the exchange.
+    ``xs``, ``ys`` the weighted rows, ``g`` row ``i``'s momentum coordinates weighted as its rows, ``normal``
+    the cumulative normal equations at the candidates (``a``, ``b`` and the whole log's), ``j`` this candidate.
+    """
+    a, b, a_all, b_all, c_all = normal
+    h, half = impulse
+    n_p = xs.shape[-1]
+    lo, hi = max(0, i - half), min(len(xs), i + half + 1)
+    corr = h[lo - i + half : hi - i + half, None, None] * g[None]
+    xw, yw = xs[lo:hi], ys[lo:hi]
+    on_left = (np.arange(lo, hi) <= i)[:, None, None]
+    plain = np.concatenate([np.where(on_left, xw, 0.0), np.where(on_left, 0.0, xw)], axis=-1).reshape(-1, 2 * n_p)
+    moved = np.concatenate([np.where(on_left, xw, 0.0) - corr, np.where(on_left, 0.0, xw) + corr], axis=-1)
+    moved = moved.reshape(-1, 2 * n_p)
+    m = np.zeros((2 * n_p, 2 * n_p))
+    m[:n_p, :n_p], m[n_p:, n_p:] = a[j], a_all - a[j]
+    m += moved.T @ moved - plain.T @ plain
+    v = np.r_[b[j], b_all - b[j]] + (moved - plain).T @ yw.reshape(-1)
+    sol = np.linalg.solve(m + 1e-12 * np.trace(a_all) / n_p * np.eye(2 * n_p), v)
+    return float(c_all - v @ sol) if sol[n_p] > sol[0] else math.inf
 
 
 def _with_coulomb(x: np.ndarray) -> np.ndarray:
@@ -188,7 +276,8 @@ def _split(
         return here
     min_len = max(MIN_SEGMENT_S, 10.0 / res.cutoff_hz)
     lag = 2.0 / (res.cutoff_hz * res.grid_dt)  # samples per independent residual (the filter's memory)
-    split = best_split(data["t"], _with_coulomb(data["x"]), data["y"], data["scale"], min_len, tol=lag)
+    x = _with_coulomb(data["x"])
+    split = best_split(data["t"], x, data["y"], data["scale"], min_len, tol=lag, impulse=impulse_response(res))
     if split is None:
         return here
     tc, lo, hi = split
