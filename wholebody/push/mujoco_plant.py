@@ -70,6 +70,19 @@ class MujocoPlantError(WholeBodyError):
 
 
 @dataclass(frozen=True)
+class JointTorqueNoise:
+    """Errors of a torque-sensing arm's external joint torque (`MujocoPlant._joint_samples`), per joint, as
+    fractions of the joint's effort limit: white noise on every physics step's sample and an offset drawn once per
+    run (a strain-gauge joint torque sensor's noise and its zero and model error; the engine's torques are exact).
+
+    Assumed, not measured on an arm: 0.1 % and 1 % of the limit (the iiwa's first joint: 0.32 and 3.2 N m).
+    """
+
+    white: float = 0.001
+    offset: float = 0.01
+
+
+@dataclass(frozen=True)
 class MujocoPlantConfig:
     """Rates, grasp compliance, servo gains and arm laws of the MuJoCo plant."""
 
@@ -83,6 +96,8 @@ class MujocoPlantConfig:
     handle_tolerance: float = 0.02
     #: time (s) the scene settles (wheels onto the floor, casters, grasp) before t = 0, robots holding still
     settle_time: float = 0.2
+    #: the errors of the torque-controlled arms' external joint torque (`JointTorqueNoise`; zeros: exact)
+    joint_torque_noise: JointTorqueNoise = JointTorqueNoise()
     #: False: with two or more torque-controlled arms on the cart their F/T loops are off (measured: two force loops
     #: on one rigid cart leave the squeeze between the hands to drift; Traj. 2 diverges at 4.5 s with K_f = 2)
     multi_arm_force_feedback: bool = False
@@ -195,6 +210,8 @@ class MujocoPlant:
         self.rng = np.random.default_rng(seed)
         #: the F/T noise of the arms' force loops (every physics step), apart from the sensing's
         self._rng_loop = np.random.default_rng([0 if seed is None else seed, 1])
+        #: the joint torque sensing's noise (every physics step), apart from the F/T's
+        self._rng_joint = np.random.default_rng([0 if seed is None else seed, 2])
         self.n_sub = int(round(config.control_dt / config.physics_dt))
         robots = list(robots)
         modes = list(arm_modes) if arm_modes is not None else [arm_mode_of(mm) for mm in robots]
@@ -212,6 +229,15 @@ class MujocoPlant:
         self._robots = robots
         self._setups = setups
         self._laws = self._arm_laws(setups)
+        jn = config.joint_torque_noise
+        #: per robot: (white noise std, offset) of its external joint torque, N m per joint
+        self._joint_noise = [
+            (
+                jn.white * r.effort_limit,
+                self._rng_joint.normal(0.0, 1.0, r.effort_limit.size) * jn.offset * r.effort_limit,
+            )
+            for r in self.scene.robots
+        ]
         self._qacc = np.zeros(self.scene.model.nv)
         self._quat = np.zeros(4)
         self._vel6 = np.zeros(6)
@@ -458,13 +484,13 @@ class MujocoPlant:
         ``tau_ext = (M qdd)_arm + b_arm - tau_joint``: the joints' accelerations (the engine's; a real arm
         differentiates its encoders) through the model (the whole robot's inertia rows of the arm: the base's
         acceleration included) minus the joints' own torque as output-side joint torque sensors read it (motor,
-        passive damping, friction and limit forces): the weld's (and any contact's) torque on the arm, exact here
-        (no joint-torque noise is modelled).
+        passive damping, friction and limit forces): the weld's (and any contact's) torque on the arm, plus the
+        sensing's errors (`JointTorqueNoise`: white noise and a per-run offset per joint).
         """
         m, d = self.scene.model, self.scene.data
         laws = [
-            (r, law)
-            for r, law in zip(self.scene.robots, self._laws)
+            (i, (r, law))
+            for i, (r, law) in enumerate(zip(self.scene.robots, self._laws))
             if isinstance(law, TorqueArmLaw) and law.gains.fusion_tau > 0.0 and law.gains.force_feedback > 0.0
         ]
         if not laws:
@@ -477,10 +503,12 @@ class MujocoPlant:
         self._joint_frc[:] = 0.0
         if internal.any():
             mujoco.mj_mulJacTVec(m, d, self._joint_frc, np.where(internal, d.efc_force, 0.0))
-        for r, law in laws:
+        for i, (r, law) in laws:
             a = r.arm_dof
             joint = d.qfrc_actuator[a] + d.qfrc_passive[a] + self._joint_frc[a]
-            law.joint_torque_sample(self._mdv[a] + d.qfrc_bias[a] - joint)
+            white, offset = self._joint_noise[i]
+            noise = offset + white * self._rng_joint.normal(0.0, 1.0, white.size)
+            law.joint_torque_sample(self._mdv[a] + d.qfrc_bias[a] - joint + noise)
 
     def _planar_base_rates(self, i: int, r: RobotIndex, twist: np.ndarray) -> np.ndarray:
         """Return the planar base's servo setpoints (world rates): the commanded body twist + the PI loop's integral."""

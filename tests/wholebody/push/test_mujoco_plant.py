@@ -14,7 +14,7 @@ from cart.simulate import MeasurementNoise
 from wholebody.push import PushConfig, build_controller
 from wholebody.push.arm_control import TorqueArmGains, null_space_projector_T
 from wholebody.push.config import TRUE_CART
-from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantConfig, MujocoPlantError
+from wholebody.push.mujoco_plant import JointTorqueNoise, MujocoPlant, MujocoPlantConfig, MujocoPlantError
 from wholebody.push.plant import RobotCommand
 
 CONFIG = PushConfig(trajectory=2, duration=2.0, contact="fixed")
@@ -73,7 +73,8 @@ def test_pinocchio_gravity_equals_mujocos_bias_forces(setup):
 def _released(setup, arm_torque_of) -> float:
     """Return the largest arm joint motion (rad) over 1 s with the grasp released and torques `arm_torque_of(x)`."""
     gains = TorqueArmGains(stiffness=0.0, damping=0.0, feedforward="command")
-    plant = _plant(setup, noise=QUIET, config=MujocoPlantConfig(torque_gains=gains))
+    exact = JointTorqueNoise(0.0, 0.0)  # the force loop in free space would move the arm with the sensing's noise
+    plant = _plant(setup, noise=QUIET, config=MujocoPlantConfig(torque_gains=gains, joint_torque_noise=exact))
     r = plant.scene.robots[0]
     plant.scene.data.eq_active[r.weld] = 0  # the hand lets go of the handle
     q0 = plant.measure().robots[0].q_arm.copy()

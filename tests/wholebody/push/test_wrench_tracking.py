@@ -25,7 +25,7 @@ from cart.simulate import MeasurementNoise
 from wholebody.push import PushConfig, build_controller
 from wholebody.push.arm_control import TorqueArmGains
 from wholebody.push.config import TRUE_CART
-from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantConfig
+from wholebody.push.mujoco_plant import JointTorqueNoise, MujocoPlant, MujocoPlantConfig
 from wholebody.push.plant import RobotCommand
 
 PUSH = np.array([10.0, 0.0, -5.0, 0.0, 0.0, 0.0])  # world-aligned at the grasp: forward and down
@@ -42,10 +42,12 @@ def setup():
     return build_controller(PushConfig(trajectory=1, duration=2.0, contact="fixed"))
 
 
-def _held_cart_plant(setup, gains: TorqueArmGains, noise: MeasurementNoise) -> MujocoPlant:
-    plant = MujocoPlant(
-        setup.controller.robots, setup.q0, TRUE_CART, noise=noise, config=MujocoPlantConfig(torque_gains=gains)
-    )
+def _held_cart_plant(
+    setup, gains: TorqueArmGains, noise: MeasurementNoise, joint_noise: JointTorqueNoise = JointTorqueNoise(0.0, 0.0)
+) -> MujocoPlant:
+    """Return the plant with the cart clamped; the joint torque sensing exact unless `joint_noise` says otherwise."""
+    config = MujocoPlantConfig(torque_gains=gains, joint_torque_noise=joint_noise)
+    plant = MujocoPlant(setup.controller.robots, setup.q0, TRUE_CART, noise=noise, config=config)
     c = plant.scene.cart_dof  # a viscous clamp on the cart's free joint: 1e5 N s/m, under 10 N 0.1 mm/s
     plant.scene.model.dof_damping[c : c + 6] = 1e5
     return plant
@@ -111,15 +113,18 @@ def test_force_loop_cancels_the_arms_own_dynamics_when_the_base_moves(setup):
     assert np.mean(np.abs(direct)) > 0.5 * open_loop / (1.0 + k_f)
 
 
+def _law_inertia() -> np.ndarray:
+    A = np.random.default_rng(7).normal(size=(7, 7))
+    return A @ A.T + 7 * np.eye(7)
+
+
 def _law(gains: TorqueArmGains, limit: float = 1e6):
     from wholebody.push.arm_control import TorqueArmLaw
 
-    rng = np.random.default_rng(2)
-    J = rng.normal(size=(6, 7))
-    A = rng.normal(size=(7, 7))
+    J = np.random.default_rng(2).normal(size=(6, 7))
     law = TorqueArmLaw(np.full(7, limit), replace(gains, stiffness=0.0, damping=0.0), 0.002)
     w = np.array([20.0, -4.0, 2.0, 0.0, 0.0, 1.0])
-    law.begin(w, np.zeros(7), np.zeros(7), np.zeros(7), J, A @ A.T + 7 * np.eye(7), t_end=0.01, dt=0.01)
+    law.begin(w, np.zeros(7), np.zeros(7), np.zeros(7), J, _law_inertia(), t_end=0.01, dt=0.01)
     return law, J, w
 
 
@@ -152,7 +157,7 @@ def test_fused_wrench_is_the_joint_estimate_with_the_ft_slow_part():
     rng = np.random.default_rng(3)
     sigma, bias = 3.0, np.array([2.0, 0.0, -2.0, 0.0, 2.0, 0.0])  # F/T noise, and an offset the joint side lacks
     seen = []
-    for _ in range(2500):  # 5 s = 10 fusion time constants
+    for _ in range(10500):  # 21 s = 42 fusion time constants: the noise's std is measured within 15 %
         law.joint_torque_sample(tau_ext)
         seen.append(law._measured_wrench(truth + bias + rng.normal(0.0, sigma, 6)))
     seen = np.array(seen)[500:]
@@ -160,3 +165,82 @@ def test_fused_wrench_is_the_joint_estimate_with_the_ft_slow_part():
     passed = sigma * math.sqrt(0.002 / (2.0 * gains.fusion_tau))
     np.testing.assert_allclose(seen.mean(axis=0), truth + bias, atol=3.0 * passed)
     assert np.std(seen, axis=0) == pytest.approx(np.full(6, passed), rel=0.35)
+
+
+def test_fusion_starts_from_the_running_mean_of_the_readings():
+    # a joint torque sensor's offset (the engine is exact; `JointTorqueNoise` adds one): the F/T's slow part must
+    # take it out from the first samples on, not only after a few fusion time constants
+    gains = replace(LOOP, force_integral=0.0)
+    law, J, w = _law(gains)
+    truth = 0.5 * w
+    offset = np.array([5.0, -3.0, 2.0, 0.5, 0.0, -0.5])  # the joint side's error, as a hand wrench
+    rng = np.random.default_rng(4)
+    diffs = []
+    for _ in range(50):  # 0.1 s, a fifth of fusion_tau
+        law.joint_torque_sample(-J.T @ (truth + offset))
+        ft = truth + rng.normal(0.0, 3.0, 6)
+        diffs.append(ft - (truth + offset))
+        seen = law._measured_wrench(ft)
+    # the fused wrench is the joint estimate plus the mean of the F/T's differences so far: the offset is gone
+    # within the F/T's noise over 50 samples (3 / sqrt(50) = 0.42 N per axis)
+    np.testing.assert_allclose(seen, truth + offset + np.mean(diffs, axis=0), atol=1e-9)
+    assert np.abs(seen - truth).max() < 2.0
+    # a first-order filter from zero would still carry most of the offset: (1 - dt / T)^50 = 0.82 of it
+
+
+def test_weighted_joint_estimate_is_exact_and_passes_less_sensor_noise():
+    from wholebody.push.arm_control import wrench_estimator
+
+    rng = np.random.default_rng(5)
+    J = rng.normal(size=(6, 7)) * np.r_[1.0, 1.0, 0.6, 0.6, 0.3, 0.1, 0.1]  # a wrist's short lever arms
+    limit = np.array([320.0, 320.0, 176.0, 176.0, 110.0, 40.0, 40.0])  # the iiwa 14's
+    w = np.array([20.0, -4.0, 2.0, 0.5, 0.0, 1.0])
+    for E in (wrench_estimator(J), wrench_estimator(J, limit)):
+        np.testing.assert_allclose(E @ (J.T @ w), w, atol=1e-6)
+    # noise in proportion to each joint's range: the weighted least squares is the minimum-variance estimate
+    cov = np.diag((1e-3 * limit) ** 2)
+    plain, weighted = (np.trace(E @ cov @ E.T) for E in (wrench_estimator(J), wrench_estimator(J, limit)))
+    assert weighted < 0.9 * plain
+
+
+def test_plan_term_acts_in_the_hands_null_space_only():
+    from wholebody.push.arm_control import null_space_projector_T
+
+    plan = np.random.default_rng(6).normal(size=7) * 5.0  # the command's planned inertial torque beyond J^T w
+    taus = {}
+    for in_null in (True, False):
+        law, J, w = _law(TorqueArmGains(feedforward="refreshed", plan_null_space=in_null, force_feedback=0.0))
+        z = np.zeros(7)
+        M = _law_inertia()
+        law.begin(w, J.T @ w + plan, z, z, J, M, t_end=0.01, dt=0.01)  # bias forces zero here
+        taus[in_null] = law.torque(0.0, z, z, z)
+
+    def hand_force(tau):  # the held hand's force from joint torques: (J M^-1 J^T)^-1 J M^-1 tau
+        return np.linalg.solve(J @ np.linalg.solve(M, J.T), J @ np.linalg.solve(M, tau))
+
+    # in the null space the hand feels J^T w only; in full, the plan's task-space part on top
+    np.testing.assert_allclose(taus[True], J.T @ w + null_space_projector_T(J, M) @ plan, atol=1e-9)
+    np.testing.assert_allclose(hand_force(taus[True]), w, atol=1e-6)
+    assert np.abs(hand_force(taus[False]) - w).max() > 0.1
+
+
+@pytest.mark.parametrize("space", ["joint", "hand"])
+def test_joint_space_fusion_keeps_a_joint_torque_offset_out_as_the_arm_moves(space):
+    gains = TorqueArmGains(fusion_space=space, force_integral=0.0)
+    law, J, w = _law(gains)
+    offset = np.array([3.0, -2.0, 1.0, 0.5, -0.5, 0.2, 0.1])  # each joint torque sensor's zero error (N m)
+    truth = 0.5 * w
+    for _ in range(500):  # 1 s = 2 fusion time constants at this posture, exact F/T
+        law.joint_torque_sample(-J.T @ truth + offset)
+        law._measured_wrench(truth)
+    # the arm moves on (another Jacobian): the joint offset maps to another hand wrench
+    J2 = J + 0.3 * np.random.default_rng(8).normal(size=J.shape)
+    z = np.zeros(7)
+    law.begin(w, z, z, z, J2, _law_inertia(), t_end=0.02, dt=0.01)
+    law.joint_torque_sample(-J2.T @ truth + offset)
+    seen = law._measured_wrench(truth)
+    moved = np.abs(seen - truth).max()
+    if space == "joint":  # the offsets were learnt per joint: none left
+        assert moved < 1e-6
+    else:  # what the hand-space correction learnt at the old posture no longer fits
+        assert moved > 0.1
