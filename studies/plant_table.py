@@ -1,7 +1,8 @@
 """Both plants x both robots x one and two robots x Traj. 1 and 2 x with and without estimation: docs/push.md's table.
 
 PYTHONPATH=. .venv/bin/python -m studies.plant_table --workers 1 [--duration 30] [--arms 1 2]
-    [--plants kinematic mujoco] [--robots ridgeback_iiwa wmra] [--base-plan] [--grip-torque-arm M]
+    [--plants kinematic mujoco] [--robots ridgeback_iiwa wmra] [--base-plan auto|on|off]
+    [--tip-bound auto|on|off] [--grip-torque-arm M]
 
 The kinematic plant holds the optimal contact, the MuJoCo plant a fixed grip (y = -0.2 m; two robots -0.2 / +0.2 m,
 as `cartpush push --arms 2`). A run that loses the cart (more than 25 cm from its desired place) is reported with
@@ -20,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wholebody.contacts.allocation import ArmLimits
 from wholebody.push import PushConfig, run_push
+from wholebody.push.config import PUSH_ARM_LIMITS
 from wholebody.push.base_settings import BasePlanSettings
 from wholebody.push.report import base_lateral_speed, before_loss
 
@@ -41,12 +42,15 @@ class Case:
     traj: int
     estimation: bool
     duration: float = 30.0
-    base_plan: bool = False
+    base_plan: str = "auto"
+    tip_bound: str = "auto"
     grip_torque_arm: float | None = None
 
     def config(self) -> PushConfig:
         """Return the run's configuration."""
-        limits = ArmLimits() if self.grip_torque_arm is None else ArmLimits().with_torque_arm(self.grip_torque_arm)
+        limits = (
+            PUSH_ARM_LIMITS if self.grip_torque_arm is None else PUSH_ARM_LIMITS.with_torque_arm(self.grip_torque_arm)
+        )
         return PushConfig(
             trajectory=self.traj,
             duration=self.duration,
@@ -56,7 +60,8 @@ class Case:
             estimation=self.estimation,
             contact="fixed" if self.plant == "mujoco" else "optimal",
             fixed_contact_y=TWO_CONTACTS if self.arms == 2 and self.plant == "mujoco" else None,
-            base_plan=BasePlanSettings() if self.base_plan else None,
+            base_plan="auto" if self.base_plan == "auto" else (BasePlanSettings() if self.base_plan == "on" else None),
+            tip_bound="auto" if self.tip_bound == "auto" else self.tip_bound == "on",
             arm_limits=limits,
         )
 
@@ -126,7 +131,7 @@ def table(rows: list[dict]) -> str:
 def cases(a: argparse.Namespace) -> list[Case]:
     """Return the table's runs in its row order."""
     return [
-        Case(p, rb, n, t, e, a.duration, a.base_plan, a.grip_torque_arm)
+        Case(p, rb, n, t, e, a.duration, a.base_plan, a.tip_bound, a.grip_torque_arm)
         for p, rb, n, t, e in itertools.product(a.plants, a.robots, a.arms, (1, 2), (True, False))
     ]
 
@@ -138,7 +143,8 @@ def main() -> None:
     ap.add_argument("--arms", type=int, nargs="+", default=[1, 2], choices=(1, 2))
     ap.add_argument("--plants", nargs="+", default=list(PLANTS), choices=PLANTS)
     ap.add_argument("--robots", nargs="+", default=list(ROBOTS), choices=ROBOTS)
-    ap.add_argument("--base-plan", action="store_true", help="as cartpush push --base-plan (30-60 s of planning a run)")
+    for flag in ("--base-plan", "--tip-bound"):
+        ap.add_argument(flag, default="auto", choices=("auto", "on", "off"), help="as cartpush push (default auto)")
     ap.add_argument("--grip-torque-arm", type=float, default=None, metavar="M", help="as cartpush push")
     a = ap.parse_args()
     t0 = time.process_time()
