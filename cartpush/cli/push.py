@@ -232,7 +232,16 @@ def run(args: argparse.Namespace) -> int:
     from cart.jsonout import dumps_strict
     from wholebody.push import run_push
     from wholebody.progress import show_progress
-    from wholebody.push.report import cart_lateral_speed, describe, push_log, save_figures, save_scene, what_happened
+    from wholebody.push.report import (
+        base_lateral_speed,
+        before_loss,
+        cart_lateral_speed,
+        describe,
+        push_log,
+        save_figures,
+        save_scene,
+        what_happened,
+    )
 
     result = run_push(config, progress=show_progress(args.json))
     written = []
@@ -255,6 +264,9 @@ def run(args: argparse.Namespace) -> int:
         out["estimator"] = config.estimator if config.estimation else "none"
         out.update(result.estimator_report or {})
         out["cart_lateral_slip_max_m_s"] = float(abs(cart_lateral_speed(result)).max())
+        out["base_lateral_speed_measured_max_m_s"] = float(abs(base_lateral_speed(result)).max())
+        if result.metrics.tracking_lost_at_s is not None:
+            out["before_loss"] = before_loss(result)
         out["what_happened"] = what_happened(result)
         out["files"] = [str(p) for p in written]
         print(dumps_strict(out))

@@ -111,3 +111,14 @@ def test_push_json_says_what_happened(capsys):
     lines = out["what_happened"]
     assert lines[0].startswith("tracked:") and f"{out['tracking_rms_mm']:.1f} mm RMS" in lines[0]
     assert any(line.startswith("no lateral slip") for line in lines)
+
+
+def test_push_json_reports_the_bases_measured_side_speed(capsys):
+    """The WMRA's wheels cannot slide sideways on the kinematic plant: its base's side speed from its true poses is
+    (numerically) zero; a run that kept the cart carries no ``before_loss``."""
+    from cartpush.cli import main
+
+    assert main(["push", "--robot", "wmra", "--trajectory", "2", "--duration", "9", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert 0.0 <= out["base_lateral_speed_measured_max_m_s"] < 2e-3
+    assert out["tracking_lost_at_s"] is None and "before_loss" not in out
