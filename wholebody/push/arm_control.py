@@ -34,7 +34,8 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
 - **Velocity-controlled arm** (the WMRA's, joint velocity servos): once per control period, an
   admittance around the servos,
 
-  ``qdot_set = J^+ (J qdot + A (w - w_meas + K_i int(w - w_meas))) + N (arm_velocity + k_q (arm_position - q))``,
+  ``qdot_set = J^+ (J qdot + A (w - w_meas + K_i int(w - w_meas))) + J^T w / k_v
+  + N (arm_velocity + k_q (arm_position - q))``,
 
   with ``A = diag(a_f I3, a_n I3)`` (m/s per N, rad/s per N m), ``J^+`` a damped pseudo-inverse, ``N =
   I - J^+ J`` and ``w_meas`` the F/T reading mapped to the hand (world-aligned at the grasp). The hand
@@ -42,7 +43,11 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   the servo's velocity error there is ``A (...)`` and its force the push (a damping force controller
   whose loop gain is ``A`` times the servo's task-space damping); where the hand pushes less than
   allocated it moves into the handle, and the other way round. The drives' integral action holds the
-  arm's static load (the plant feeds each joint its bias forces).
+  arm's static load (the plant feeds each joint its bias forces). ``J^T w / k_v`` feeds the push forward
+  through the servos (``k_v`` their damping, N m s/rad): their torque ``k_v (qdot_set - qdot)`` holds
+  ``J^T w`` at once, and the admittance corrects what the arm's own dynamics take from it. Without it the
+  admittance alone makes the push: its loop gain ``A k_v (J J^T)^-1`` is about 0.2 for the WMRA
+  (``a_f`` 0.001 m/s per N, ``k_v`` 80), so the hand delivers about a third of the allocated force.
 """
 
 from __future__ import annotations
@@ -130,6 +135,10 @@ class AdmittanceGains:
     max_speed: float = 0.3
     #: damping of the pseudo-inverse (m^2)
     pinv_damping: float = 1e-4
+    #: the joint velocity servos' damping k_v (N m s/rad): the push J^T w goes forward as their velocity offset
+    #: J^T w / k_v; None = the MuJoCo plant's own servos' (`ServoGains.arm_kv`), 0 = no feed-forward (the admittance
+    #: alone makes the push)
+    servo_kv: float | None = None
 
 
 def null_space_projector_T(J: np.ndarray, M: np.ndarray) -> np.ndarray:
@@ -363,4 +372,5 @@ class AdmittanceArmLaw:
         plan = np.asarray(arm_velocity, dtype=float) + g.posture_gain * (np.asarray(arm_position) - q)
         # the hand moves with the handle it holds: in task space the servo follows the measured motion plus the
         # admittance (its velocity error is then the push), in the null space the plan
-        return Jp @ (J @ np.asarray(v, dtype=float) + twist) + N @ plan
+        ff = J.T @ np.asarray(wrench, dtype=float) / g.servo_kv if g.servo_kv else np.zeros(self.n)
+        return Jp @ (J @ np.asarray(v, dtype=float) + twist) + ff + N @ plan

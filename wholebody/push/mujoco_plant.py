@@ -266,12 +266,15 @@ class MujocoPlant:
         """Return each arm's law (torque or admittance); several torque arms lose their F/T loops (see the config)."""
         config = self.config
         torque_gains = config.torque_gains
+        admittance = config.admittance  # the push fed forward through the servos the scene builds (their k_v)
+        if admittance.servo_kv is None:
+            admittance = replace(admittance, servo_kv=config.servos.arm_kv)
         if sum(s.arm_mode == ARM_TORQUE for s in setups) > 1 and not config.multi_arm_force_feedback:
             torque_gains = replace(torque_gains, force_feedback=0.0)
         return [
             TorqueArmLaw(r.effort_limit, torque_gains, config.physics_dt)
             if s.arm_mode == ARM_TORQUE
-            else AdmittanceArmLaw(len(s.arm_joints), config.admittance)
+            else AdmittanceArmLaw(len(s.arm_joints), admittance)
             for r, s in zip(self.scene.robots, setups)
         ]
 
