@@ -124,15 +124,18 @@ def plan_window(
     limit: np.ndarray,
     s: BasePlanSettings,
     front_x: float | None,
+    free_end: bool = False,
 ) -> tuple[np.ndarray, float]:
     """Return (base poses (k, 3), largest mount-wrist distance rho) over one window of desired cart poses `cart`
-    (k, 3) (module docstring); the first and last two knots stay at the rigid `nominal` poses."""
+    (k, 3) (module docstring); the first two knots stay at the rigid `nominal` poses, and so do the last two
+    unless `free_end` (a window the run's end cuts: the base need not be back at its rigid place there)."""
     n, h = len(cart), s.step
     wrist = cart[:, :2] + np.einsum("kij,j->ki", _rot(cart[:, 2]), reach.wrist_b)
-    nv = n - 4
+    tail = 0 if free_end else 2
+    nv = n - 2 - tail
 
     def poses(z: np.ndarray) -> np.ndarray:
-        return np.vstack([nominal[:2], z[:-1].reshape(nv, 3), nominal[-2:]])
+        return np.vstack([nominal[:2], z[:-1].reshape(nv, 3), nominal[n - tail :]])
 
     def objective(z: np.ndarray) -> float:
         a = np.diff(poses(z), 2, axis=0) / h**2
@@ -153,7 +156,7 @@ def plan_window(
             out.append((front_x - xb).ravel())
         return np.concatenate(out)
 
-    z0 = np.r_[nominal[2:-2].ravel(), reach.nominal]
+    z0 = np.r_[nominal[2 : n - tail].ravel(), reach.nominal]
     sparsity = _sparsity(constraints, z0, nv)
     res = minimize(
         objective,
@@ -246,7 +249,7 @@ def plan_base(
     front = None if s.front_reach is None else float(handle_point(contact_y, mm.geometry)[0]) + s.front_reach
     out: tuple[list, list, list, list] = ([], [], [], [])
     for i0, i1 in wheel_windows(t, rim_rates(nominal, s.step, H), limit, s):
-        P, rho = plan_window(cart[i0 : i1 + 1], nominal[i0 : i1 + 1], reach, H, limit, s, front)
+        P, rho = plan_window(cart[i0 : i1 + 1], nominal[i0 : i1 + 1], reach, H, limit, s, front, i1 == len(t) - 1)
         C = cart[i0 : i1 + 1]
         rel = np.einsum("kji,kj->ki", _rot(C[:, 2]), P[:, :2] - C[:, :2])
         out[0].append(t[i0 : i1 + 1])

@@ -229,15 +229,8 @@ class MujocoPlant:
         self._robots = robots
         self._setups = setups
         self._laws = self._arm_laws(setups)
-        jn = config.joint_torque_noise
         #: per robot: (white noise std, offset) of its external joint torque, N m per joint
-        self._joint_noise = [
-            (
-                jn.white * r.effort_limit,
-                self._rng_joint.normal(0.0, 1.0, r.effort_limit.size) * jn.offset * r.effort_limit,
-            )
-            for r in self.scene.robots
-        ]
+        self._joint_noise = self._draw_joint_noise()
         self._qacc = np.zeros(self.scene.model.nv)
         self._quat = np.zeros(4)
         self._vel6 = np.zeros(6)
@@ -253,11 +246,26 @@ class MujocoPlant:
         self._hand_clean = [np.zeros(6) for _ in robots]
         self._hand_sum = [np.zeros(6) for _ in robots]
         self._base_int = [np.zeros(3) for _ in robots]
+        self._start()
+
+    def _draw_joint_noise(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Return each robot's joint torque sensing noise: (white std per step, offset drawn once), N m per joint."""
+        jn = self.config.joint_torque_noise
+        return [
+            (
+                jn.white * r.effort_limit,
+                self._rng_joint.normal(0.0, 1.0, r.effort_limit.size) * jn.offset * r.effort_limit,
+            )
+            for r in self.scene.robots
+        ]
+
+    def _start(self) -> None:
+        """Settle the scene, read the cart's inertial truth and take the first F/T and motion-capture readings."""
         self._settle()
         self._inertial = self._read_inertial()
         self.t = 0.0
         self.scene.data.time = 0.0
-        self._ft = [self._ft_reading(i, noisy=True) for i in range(len(robots))]
+        self._ft = [self._ft_reading(i, noisy=True) for i in range(len(self._robots))]
         self._z = self._motion_capture()
 
     # ------------------------------------------------------------------ set-up

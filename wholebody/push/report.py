@@ -676,7 +676,6 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     from wholebody.motion.kinematics import wholebody_for
     from wholebody.push.robot import cart_se3
     from wholebody.viz import COM_MARKER_Z, Scene
-    from wholebody.viz.scene import add_estimator_events
 
     name = result.config.robot  # the robot that ran (Ridgeback + iiwa or WMRA); to_pinocchio_q ignores base_input
     wb = wholebody_for(robots.load(name), arm=list(result.robot_arms))  # its state holds these arms' joints
@@ -696,14 +695,8 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     scene = Scene([name, "shopping_cart"], floor=(x0, x1, y0, y1))
     scene.show_com((p.dx, p.dy), (phi[0, 1] / phi[0, 0], phi[0, 2] / phi[0, 0]))
     scene.show_trace("desired", result.q_desired[:, :2], label="cyan line: the cart's desired path")
-    t = result.t[idx]
     _physics_readouts(scene, result, idx)
-    est = f"{result.config.estimator} estimate" if result.config.estimation else "no estimation, fixed guess"
-    scene.add_readout(f"mass ({est}; true {p.m:g} kg)", "kg", t, phi[:, 0])
-    if result.config.estimation and result.param_std is not None and np.all(np.isfinite(result.param_std[idx, 0])):
-        scene.add_readout("  ... its 1-sigma", "kg", t, result.param_std[idx, 0], digits=2)
-    scene.add_readout("CoM error", "cm", t, 100 * np.hypot(phi[:, 1] / phi[:, 0] - p.dx, phi[:, 2] / phi[:, 0] - p.dy))
-    add_estimator_events(scene, result.estimator_report, t)
+    _estimate_readouts(scene, result, idx)
     arrows, kinds = _hand_arrows(result, idx)
     scene.animate(
         result.t[idx],
@@ -723,6 +716,19 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
         )
     scene.frame_robots(margin=0.6)  # the first frame: the robot holding the cart; the camera then follows them
     return scene
+
+
+def _estimate_readouts(scene, result: PushResult, idx: np.ndarray) -> None:
+    """Add the page's live mass estimate (with its 1-sigma), CoM error and the estimator's events."""
+    from wholebody.viz.scene import add_estimator_events
+
+    p, t, phi = result.config.true_params, result.t[idx], result.phi_hat[idx]
+    est = f"{result.config.estimator} estimate" if result.config.estimation else "no estimation, fixed guess"
+    scene.add_readout(f"mass ({est}; true {p.m:g} kg)", "kg", t, phi[:, 0])
+    if result.config.estimation and result.param_std is not None and np.all(np.isfinite(result.param_std[idx, 0])):
+        scene.add_readout("  ... its 1-sigma", "kg", t, result.param_std[idx, 0], digits=2)
+    scene.add_readout("CoM error", "cm", t, 100 * np.hypot(phi[:, 1] / phi[:, 0] - p.dx, phi[:, 2] / phi[:, 0] - p.dy))
+    add_estimator_events(scene, result.estimator_report, t)
 
 
 def save_scene(result: PushResult, path: Path, fps: int = 10) -> Path:

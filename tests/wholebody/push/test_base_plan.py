@@ -75,6 +75,22 @@ def test_plan_keeps_the_wheels_within_their_limit(robot_and_plan):
     assert np.all(rim_speed(base, SETTINGS.step, half_span(mm)) <= rim_limit + slack + 1e-6)
 
 
+def test_a_run_that_ends_in_the_turn_plans_to_its_end_within_the_wheel_limits(robot_and_plan):
+    """The run's end cuts the window: its last knots are free (the rigid place there breaks the wheel limits)."""
+    mm, _ = robot_and_plan
+    cut = UnicycleTrajectory(duration=8.5, stop_start=13.0, turns=(Turn(7.0, 3.0, math.pi / 2),))
+    plan = plan_base(mm, cut, CONTACT_Y, SETTINGS)
+    assert len(plan.times) == 1 and plan.times[0][-1] == pytest.approx(8.4)
+    cart = np.array([cut.sample(float(t))[0] for t in plan.times[0]])
+    rel, c, s = plan.relative[0], np.cos(cart[:, 2]), np.sin(cart[:, 2])
+    base = np.c_[cart[:, 0] + c * rel[:, 0] - s * rel[:, 1], cart[:, 1] + s * rel[:, 0] + c * rel[:, 1]]
+    base = np.c_[base, cart[:, 2] + rel[:, 2]]
+    rim_limit = mm.wb.base.wheel_radius * float(np.min(mm.wb.wheel_velocity_limit))
+    d = np.diff(base, axis=0)
+    slack = math.sqrt(2.0) * np.linalg.norm(d[:, :2], axis=1) / SETTINGS.step * np.abs(d[:, 2]) / 2.0
+    assert np.all(rim_speed(base, SETTINGS.step, half_span(mm)) <= rim_limit + slack + 1e-6)
+
+
 def test_plan_postures_hold_the_handle_with_a_bent_elbow(robot_and_plan):
     mm, plan = robot_and_plan
     cart, base = world_poses(plan, 0)
