@@ -641,6 +641,8 @@ class _Named:
 
     trial: _Trial
     replay: Replay
+    #: which effect of ``trial.fit`` this is (-1: the last; a pair's first effect is reported from the joint fit)
+    slot: int = -1
 
 
 def _checked_signals(log: CartLog, horizon: float | None, window: float | None) -> tuple[Signals, float, np.ndarray]:
@@ -886,10 +888,11 @@ def _named_effects(
     out: list[NamedEffect] = []
     for i, (nm, why) in enumerate(zip(named, reasons)):
         e, fit = nm.trial.effect, nm.trial.fit
-        th = fit.thetas[-1]
-        k0 = N_NOMINAL + sum(len(ee.param_names) for ee, _ in fit.effects[:-1])
+        slot = nm.slot % len(fit.effects)
+        th = fit.thetas[slot]
+        k0 = N_NOMINAL + sum(len(ee.param_names) for ee, _ in fit.effects[:slot])
         cov = fit.cov[k0 : k0 + len(th), k0 : k0 + len(th)] if len(th) else np.zeros((0, 0))
-        params, std = e.describe(th, fit.effects[-1][1], cov, nm.trial.nl_std, fit.phi)
+        params, std = e.describe(th, fit.effects[slot][1], cov, nm.trial.nl_std, fit.phi)
         if "time" in params and params["time"] is not None:
             params["time"] = float(params["time"]) + offset
         better = flagged & (reps[i + 1].chi2 < 0.5 * reps[i].chi2)
@@ -1085,35 +1088,145 @@ def _nominal_fit(sig: Signals, edges: np.ndarray, source: str) -> tuple[Fit, lis
     return fit, [warn]
 
 
-def _search(
+@dataclass(frozen=True)
+class _Pair:
+    """Two effects fitted jointly: the first alone, the second given the first (its fit holds both), the evidence.
+
+    ``dbic``: Delta BIC of the pair over the nominal model; ``drops``: the Delta BIC lost by dropping
+    the first, the second (each must exceed the threshold: each effect is needed given the other).
+    """
+
+    first: _Named
+    second: _Named
+    dbic: float
+    drops: tuple[float, float]
+
+    @property
+    def names(self) -> frozenset[str]:
+        """Return the names of the two effects."""
+        return frozenset((self.first.trial.effect.name, self.second.trial.effect.name))
+
+
+def _replayed(trial: _Trial, horizon: float) -> _Named | None:
+    """Return ``trial`` with the replay of its fit, or None when the replay blows up."""
+    extra, dphi = _replay_terms(trial.fit)
+    rep = replay(trial.fit.signals(), trial.fit.x, extra, dphi, horizon=horizon)
+    return _Named(trial, rep) if rep.finite else None
+
+
+def _own_objection(nm: _Named, resolution: float, push: tuple[float, float]) -> str:
+    """Return why an effect's own size rules it out (a delay within the logging's timing, a sensor's offset)."""
+    name = nm.trial.effect.name
+    if name == "time_delay":
+        return _logging_timing(nm.trial, resolution)
+    if name == "wrench_bias":
+        return _sensor_offset(nm.trial, push)
+    return ""
+
+
+def _pairs_from(
+    sig: Signals, edges: np.ndarray, first: _Named, alone: dict[str, tuple[float, float]], ctx: tuple, gap0: float
+) -> list[_Pair]:
+    """Return the pairs of ``first`` with each other candidate that pass the drop-one and replay rules.
+
+    ``alone``: each candidate's Delta BIC over the nominal model and its replay gap alone (inf when it
+    does not replay); dropping either effect must lose more than the threshold and widen the replay gap.
+    ``ctx``: (candidates, threshold,
+    horizon, mask, resolution, push); ``gap0``: the nominal replay's gap, which the pair must shrink by MIN_SHRINK.
+    """
+    cands, threshold, horizon, mask, resolution, push = ctx
+    a = first.trial
+    out: list[_Pair] = []
+    for ranked in _rank_candidates(sig, edges, a.fit, cands, [a.effect.name]):
+        b_name = ranked.best.effect.name
+        second, _ = _best_replaying_variant(ranked.trials, threshold, horizon)
+        if second is None or _own_objection(second, resolution, push):
+            continue
+        dbic = float(a.dbic + second.trial.dbic)
+        drop_first = dbic - alone.get(b_name, (-math.inf, math.inf))[0]
+        gap = second.replay.gap(mask)  # dropping either effect must widen the replay
+        wider = gap < min(first.replay.gap(mask), alone.get(b_name, (0.0, math.inf))[1])
+        if drop_first > threshold and wider and gap <= (1.0 - MIN_SHRINK) * gap0:
+            out.append(_Pair(first, second, dbic, (drop_first, float(second.trial.dbic))))
+    return out
+
+
+def _joint_pairs(sig: Signals, edges: np.ndarray, results: Sequence[_Ranked], ctx: tuple, rep0: Replay) -> list[_Pair]:
+    """Return every pair of candidates fitted jointly in which each is needed given the other, best first.
+
+    Add-one/drop-one over pairs: one at a time, an effect whose force the nominal model absorbs
+    (Coulomb friction into the viscous damping; a floor slope on a cart that hardly turns reads as a
+    constant force, like a wrench bias) can lose to a stand-in or widen the replay on its own, and only
+    the joint fit shows both. The first of each pair is a candidate significant over the nominal model.
+    """
+    threshold, horizon, mask, resolution, push = ctx[1:]
+    alone: dict[str, tuple[float, float]] = {}
+    singles: dict[str, _Named | None] = {}
+    for r in results:
+        if np.isfinite(r.best.dbic):
+            singles[r.best.effect.name] = nm = _replayed(r.best, horizon)
+            alone[r.best.effect.name] = (float(r.best.dbic), nm.replay.gap(mask) if nm else math.inf)
+    pairs: list[_Pair] = []
+    for ranked in results:
+        if not ranked.best.dbic > threshold:
+            continue
+        first = singles.get(ranked.best.effect.name)
+        if first is None or _own_objection(first, resolution, push):
+            continue
+        pairs += _pairs_from(sig, edges, first, alone, ctx, rep0.gap(mask))
+    return sorted(pairs, key=lambda p: -p.dbic)
+
+
+def _pair_reasons(
+    pair: _Pair, pairs: Sequence[_Pair], greedy: tuple[Sequence[str], float], ctx: tuple, gap0: float
+) -> list[str]:
+    """Return why each effect of ``pair`` was named, with the pairs the log cannot tell from it (``gap0``: nominal)."""
+    threshold = ctx[1]
+    g_names, g_dbic = greedy
+    one = ", ".join(g_names) if g_names else "no effect"
+    close = [p for p in pairs if p.names != pair.names and pair.dbic - p.dbic <= threshold]
+    alike = "; ".join(sorted({" + ".join(sorted(p.names)) + f" (Delta BIC {p.dbic:.1f})" for p in close}))
+    out = []
+    for i, nm in enumerate((pair.first, pair.second)):
+        other = (pair.second if i == 0 else pair.first).trial.effect.name
+        text = (
+            f"fitted jointly with {other}: Delta BIC {pair.dbic:.1f} over the nominal model, against "
+            f"{g_dbic:.1f} for {one} named one at a time; dropping it loses Delta BIC {pair.drops[i]:.1f}; "
+            f"replay gap {_mm(gap0)} -> {_mm(pair.second.replay.gap(ctx[3]))} with both"
+        )
+        if alike:
+            text += f"; indistinguishable on this log from {alike}"
+        out.append(text)
+    return out
+
+
+def _rounds(
     sig: Signals,
     edges: np.ndarray,
-    nominal: Fit,
+    state: tuple[Fit, list[_Named], list[str], list[Replay]],
     cands: Sequence[Effect],
     settings: tuple[float, float, int],
     start: tuple[np.ndarray | None, Replay, float],
-) -> tuple[Fit, list[_Named], list[str], list[Replay], list[tuple[str, float]], dict[str, Verdict]]:
-    """Return the search's outcome: final fit, named effects, their reasons, replays, first-round scores, verdicts.
+    verdicts: dict[str, Verdict],
+) -> list[_Ranked]:
+    """Name effects one at a time from ``state`` (updated in place) until none is named; return round 1's ranking.
 
     ``settings``: (threshold, horizon, max_effects); ``start``: (mask of flagged starts, nominal replay,
-    lateral slip ratio). Rounds until no candidate is named or ``max_effects`` are.
+    lateral slip ratio); ``verdicts`` collects why the others were not named.
     """
     threshold, horizon, max_effects = settings
-    mask, rep0, slip_ratio = start
-    named: list[_Named] = []
-    current, reps = nominal, [rep0]  # reps: the nominal replay and one after each named effect
-    reasons: list[str] = []
-    first_scores: list[tuple[str, float]] = []
-    verdicts: dict[str, Verdict] = {}
-    for round_ in range(max_effects):
+    mask, _, slip_ratio = start
+    current, named, reasons, reps = state
+    first: list[_Ranked] = []
+    resolution = float(np.median(np.diff(sig.t)))
+    push = (float(np.sqrt(np.mean(sig.f_fwd**2))), float(np.sqrt(np.mean(sig.tau**2))))
+    while len(named) < max_effects:
+        round_ = len(named)
         names = [nm.trial.effect.name for nm in named]
         results = _rank_candidates(sig, edges, current, cands, names)
         if not results:
             break
-        if round_ == 0:
-            first_scores = [(r.best.effect.name, float(r.best.dbic)) for r in results]
-        resolution = float(np.median(np.diff(sig.t)))
-        push = (float(np.sqrt(np.mean(sig.f_fwd**2))), float(np.sqrt(np.mean(sig.tau**2))))
+        first = first or results
         rnd = _choose_effect(results, threshold, horizon, mask, reps[-1], names, slip_ratio, resolution, push)
         for v in rnd.verdicts:  # the reasons of every round, the first round's Delta BIC
             old = verdicts.get(v.name)
@@ -1128,7 +1241,66 @@ def _search(
         verdicts.pop(rnd.chosen.trial.effect.name, None)
         reps.append(rnd.chosen.replay)
         current = rnd.chosen.trial.fit
-    return current, named, reasons, reps, first_scores, verdicts
+        state = (current, named, reasons, reps)
+    return first
+
+
+def _search(
+    sig: Signals,
+    edges: np.ndarray,
+    nominal: Fit,
+    cands: Sequence[Effect],
+    settings: tuple[float, float, int],
+    start: tuple[np.ndarray | None, Replay, float],
+) -> tuple[Fit, list[_Named], list[str], list[Replay], list[tuple[str, float]], dict[str, Verdict]]:
+    """Return the search's outcome: final fit, named effects, their reasons, replays, first-round scores, verdicts.
+
+    ``settings``: (threshold, horizon, max_effects); ``start``: (mask of flagged starts, nominal replay,
+    lateral slip ratio). Effects are named one at a time (:func:`_rounds`); then every pair fitted
+    jointly (:func:`_joint_pairs`, each effect needed given the other) is compared with them: the best
+    pair, with the rounds that go on from it, replaces them when its Delta BIC beats theirs by the
+    threshold and its replay gap is at most MIN_SHRINK wider.
+    """
+    threshold, horizon, max_effects = settings
+    mask, rep0, slip_ratio = start
+    verdicts: dict[str, Verdict] = {}
+    named: list[_Named] = []
+    reasons: list[str] = []
+    reps = [rep0]  # the nominal replay and one after each named effect
+    results = _rounds(sig, edges, (nominal, named, reasons, reps), cands, settings, start, verdicts)
+    first_scores = [(r.best.effect.name, float(r.best.dbic)) for r in results]
+    current = named[-1].trial.fit if named else nominal
+    slip_first = bool(named) and named[0].trial.effect.name == "lateral_slip" and slip_ratio > SLIP_RATIO
+    if max_effects < 2 or slip_first or not results:
+        return current, named, reasons, reps, first_scores, verdicts
+    resolution = float(np.median(np.diff(sig.t)))
+    push = (float(np.sqrt(np.mean(sig.f_fwd**2))), float(np.sqrt(np.mean(sig.tau**2))))
+    ctx = (cands, threshold, horizon, mask, resolution, push)
+    pairs = _joint_pairs(sig, edges, results, ctx, rep0)
+    g_names = [nm.trial.effect.name for nm in named]
+    g_dbic = float(sum(nm.trial.dbic for nm in named))
+    if not pairs or pairs[0].names == set(g_names):
+        return current, named, reasons, reps, first_scores, verdicts
+    best = pairs[0]
+    joint = best.second.trial.fit  # the first effect reported from the joint fit, its evidence what dropping it costs
+    first = _Named(replace(best.first.trial, fit=joint, dbic=best.drops[0]), best.first.replay, len(joint.effects) - 2)
+    p_named, p_reps = [first, best.second], [rep0, best.first.replay, best.second.replay]
+    p_reasons = _pair_reasons(best, pairs, (g_names, g_dbic), ctx, rep0.gap(mask))
+    p_verdicts = {k: v for k, v in verdicts.items() if k not in best.names}
+    _rounds(sig, edges, (joint, p_named, p_reasons, p_reps), cands, settings, start, p_verdicts)
+    p_dbic = best.dbic + sum(float(nm.trial.dbic) for nm in p_named[2:])
+    if p_dbic <= g_dbic + threshold or p_reps[-1].gap(mask) > (1.0 + MIN_SHRINK) * reps[-1].gap(mask):
+        return current, named, reasons, reps, first_scores, verdicts
+    p_names = " + ".join(nm.trial.effect.name for nm in p_named)
+    for nm in named:
+        if nm.trial.effect.name not in {n.trial.effect.name for n in p_named}:
+            p_verdicts[nm.trial.effect.name] = Verdict(
+                nm.trial.effect.name,
+                float(nm.trial.dbic),
+                f"named one at a time, but {p_names} explain the log better (Delta BIC {p_dbic:.1f} against "
+                f"{g_dbic:.1f}; replay gap {_mm(p_reps[-1].gap(mask))} against {_mm(reps[-1].gap(mask))})",
+            )
+    return p_named[-1].trial.fit, p_named, p_reasons, p_reps, first_scores, p_verdicts
 
 
 def diagnose(

@@ -319,3 +319,24 @@ def test_an_effect_that_does_not_shrink_the_nominal_gap_is_not_named():
     assert rep.gap_before == 0.0
     assert not rep.names
     assert rep.gap_after == rep.gap_before
+
+
+def _two_effect_log(seed: int):
+    """A cart log with Coulomb friction and a floor slope whose force, one at a time, a wrench bias absorbs."""
+    from cart.params import CartParams
+    from studies.testbeds.hidden_effects import HiddenEffect, simulate_hidden
+
+    params = CartParams(m=36.2, dx=0.145, dy=-0.038, I=5.39, sigma=1.98, sigma_yaw=1.98)
+    effects = (
+        HiddenEffect("floor_slope", {"angle": 0.0387, "direction": -0.761}),
+        HiddenEffect("coulomb_friction", {"force": 14.6, "torque": 1.81}),
+    )
+    rng = np.random.default_rng(seed)
+    return simulate_hidden(params, effects, duration=40.0, rate=100.0, jitter=0.1, rng=rng).measured
+
+
+def test_two_effects_that_one_at_a_time_lose_to_a_stand_in_are_named_jointly():
+    rep = diagnose(_two_effect_log(4))
+    assert {"floor_slope", "coulomb_friction"} <= set(rep.names) and "wrench_bias" not in rep.names, rep.names
+    assert all("fitted jointly with" in e.reason for e in rep.effects[:2])
+    assert rep.gap_after < 0.5 * rep.gap_before
