@@ -17,6 +17,7 @@ import pytest
 from cart import identify_casters as icm
 from cart.estimate_report import estimate_log
 from cart.identify import IdentifiabilityError, _physical, _physical_std
+from cart.segments import slice_log
 from studies.testbeds import log_recorders as lr
 from studies.testbeds import rigid_sim
 from tests.cart.test_redteam_physical import COV, P_HAT
@@ -48,11 +49,16 @@ def test_a_straight_push_reports_dy_and_the_mass_but_not_dx(straight):
 
 
 def test_a_log_with_fewer_independent_rows_than_parameters_is_refused(straight):
-    # 500 Hz F/T with the 120 Hz pose held, three dropouts: the low cut-off's settling margins around the
-    # gaps leave well under a second of rows (about one independent sample for ten parameters)
+    # 500 Hz F/T with the 120 Hz pose held, three dropouts (0.78 s): each gap costs only its fill's reach through
+    # the filter, the 40 s log is answered; its first 2.5 s keep about 1.3 s of rows (about 8 independent samples
+    # at the cut-off for ten parameters) and are refused
     rec = lr.record(rigid_sim.random_case(401, duration=40.0), seed=401)
+    log = lr.held_pose_table(rec)
+    out = estimate_log(log).to_dict()
+    m_true = rigid_sim.random_case(401, duration=40.0).cart.m
+    assert out["streams"]["dropouts"] == 3 and abs(out["mass"] - m_true) < 3 * out["std"]["mass"]
     with pytest.raises(IdentifiabilityError, match="independent samples"):
-        estimate_log(lr.held_pose_table(rec))
+        estimate_log(slice_log(log, log.t[0], log.t[0] + 2.5))
 
 
 def test_the_projection_onto_physical_bodies_widens_the_std_by_its_move():
