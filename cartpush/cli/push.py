@@ -286,21 +286,14 @@ def print_summary(result) -> None:
     """Print the run's table, what the unobservable stretches meant, and the limit verdicts (over-limit: stderr too)."""
     import sys
 
-    from wholebody.push.report import comparison_table, describe, torque_verdict, unobservable_note
+    from wholebody.push.report import comparison_table, describe, physics_note, torque_verdict, unobservable_note
 
     config, metrics = result.config, result.metrics.as_dict()
     print(describe(config))
     print(comparison_table({"this run": result}))
-    rep = result.plant_report or {}
-    if rep.get("plant") == "mujoco":
-        wheel = rep.get("base_wheel_slip_max_m_s")
-        print(
-            f"MuJoCo plant: cart {rep['cart_mass_kg']:.2f} kg ({rep['cart_mass_effective_kg']:.2f} kg with its wheels' "
-            f"spin), hand force {rep['hand_force_rms_n']:.2f} N RMS, measured minus allocated {rep['wrench_error_rms_n']:.2f} "
-            f"N RMS, grip slip max {1e3 * rep['grasp_slip_max_m']:.2f} mm"
-            + ("" if wheel is None else f", base wheel slip max {wheel:.3f} m/s")
-            + f", {rep['real_time_factor']:.1f}x real time"
-        )
+    note = physics_note("MuJoCo plant", result)
+    if note:
+        print(note)
     if result.metrics.tracking_lost_at_s is not None:
         print(
             f"LOST THE CART at t = {result.metrics.tracking_lost_at_s:.2f} s: more than 25 cm from its desired place "

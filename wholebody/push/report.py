@@ -281,14 +281,20 @@ def _shade(ax, spans: Sequence[Sequence[float]], colour: str, label: str) -> Non
         ax.axvspan(a, b, color=colour, alpha=0.12, lw=0, label=label if j == 0 else None)
 
 
-def _estimator_events(axes, r: PushResult, colour: str, label: str) -> None:
-    """Mark the load changes the estimator detected (solid: the change, dashed: its detection) and its run-off flags."""
+def _load_change_lines(axes, r: PushResult, colour: str, label: str) -> list[dict]:
+    """Draw each detected load change on every axis (solid: its onset, dashed: its detection); return the run-off
+    flags of the run's estimator report."""
     report = r.estimator_report or {}
     for j, c in enumerate(report.get("load_changes", [])):
         for ax in axes:
             ax.axvline(c["t_change"], color=colour, lw=1.2, label=f"load change found, {label}" if j == 0 else None)
             ax.axvline(c["t_detected"], color=colour, lw=0.8, ls="--")
-    flags = report.get("runoff_flags", [])
+    return list(report.get("runoff_flags", []))
+
+
+def _estimator_events(axes, r: PushResult, colour: str, label: str) -> None:
+    """Mark the load changes the estimator detected (solid: the change, dashed: its detection) and its run-off flags."""
+    flags = _load_change_lines(axes, r, colour, label)
     for j, f in enumerate(flags):
         axes[0].plot(
             f["t"], 0.0, "x", color="r", ms=5, label=f"run-off flagged (estimate held), {label}" if j == 0 else None
@@ -436,12 +442,7 @@ def _estimate_series(result: PushResult) -> tuple[np.ndarray, np.ndarray]:
 
 def _estimate_events(axes, result: PushResult, est: np.ndarray, colour: str, label: str) -> None:
     """Mark the detected load changes (solid: onset, dashed: detection) and the run-off flags (x on the estimate)."""
-    report = result.estimator_report or {}
-    for j, c in enumerate(report.get("load_changes", [])):
-        for ax in axes:
-            ax.axvline(c["t_change"], color=colour, lw=1.2, label=f"load change found, {label}" if j == 0 else None)
-            ax.axvline(c["t_detected"], color=colour, lw=0.8, ls="--")
-    flags = report.get("runoff_flags", [])
+    flags = _load_change_lines(axes, result, colour, label)
     kinds = ", ".join(sorted({f["kind"] for f in flags}))
     for j, f in enumerate(flags):
         k = min(int(np.searchsorted(result.t, f["t"])), len(result.t) - 1)
