@@ -80,8 +80,6 @@ def resisting_statistic(coef: np.ndarray, cov: np.ndarray) -> float:
     Statistical Inference*, 2005, ch. 3). Equal to the plain Wald statistic when every coefficient is
     positive; coefficients that assist the motion count for nothing.
     """
-    from scipy.optimize import nnls
-
     if not np.all(np.isfinite(cov)) or not np.all(np.isfinite(coef)):
         return 0.0
     prec = np.linalg.pinv(cov)
@@ -89,8 +87,21 @@ def resisting_statistic(coef: np.ndarray, cov: np.ndarray) -> float:
     w, vec = np.linalg.eigh(prec)
     root = (vec * np.sqrt(np.clip(w, 0.0, None))) @ vec.T  # root' root = P
     target = root @ coef
-    _, residual = nnls(root, target)
-    return float(target @ target - residual**2)
+    return float(target @ target - _nonnegative_residual(root, target) ** 2)
+
+
+def _nonnegative_residual(A: np.ndarray, b: np.ndarray) -> float:
+    """Return ``min_{p >= 0} |A p - b|`` for the few (<= 8) columns of ``A``: the best of the unconstrained fits on
+    each subset of columns whose coefficients are all non-negative (the optimum is one of them: its free set's
+    fit; exact, and no scipy.optimize import on the estimate path)."""
+    best = float(np.linalg.norm(b))
+    k = A.shape[1]
+    for mask in range(1, 2**k):
+        cols = [j for j in range(k) if mask >> j & 1]
+        p, *_ = np.linalg.lstsq(A[:, cols], b, rcond=None)
+        if np.all(p >= 0.0):
+            best = min(best, float(np.linalg.norm(A[:, cols] @ p - b)))
+    return best
 
 
 def unit_rows(

@@ -121,3 +121,15 @@ def test_a_turning_cart_without_casters_from_a_naive_logger_keeps_the_nominal_fi
     fit = identify(log_recorders.held_pose_table(rec))
     assert fit.casters is not None and fit.casters.half_turns > icm.MIN_HALF_TURNS
     assert not fit.casters.kept and fit.casters.wald < fit.casters.threshold
+
+
+def test_the_nonnegative_fit_matches_scipy_nnls():
+    """The one-sided statistic's non-negative least squares (subset enumeration) against scipy's active-set NNLS."""
+    from scipy.optimize import nnls
+
+    from cart.identify_casters import _nonnegative_residual
+
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        A, b = rng.normal(size=(4, 4)), rng.normal(size=4)
+        assert _nonnegative_residual(A, b) == pytest.approx(nnls(A, b)[1], abs=1e-9)

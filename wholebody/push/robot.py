@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import replace
 from collections.abc import Sequence
@@ -709,14 +710,16 @@ def make_robots(
 
 
 def base_footprint_width(loaded: robots.LoadedRobot) -> float:
-    """Return the width (m, along the base's y) of the collision boxes fixed to the base's planar joint (0: none)."""
-    ys = [
-        (g.placement.rotation @ (g.geometry.halfSide * np.array([sx, sy, 0.0])) + g.placement.translation)[1]
-        for g in loaded.collision_model.geometryObjects
-        if g.parentJoint == 1 and getattr(g.geometry, "halfSide", None) is not None
-        for sx in (-1.0, 1.0)
-        for sy in (-1.0, 1.0)
-    ]
+    """Return the width (m, along the base's y) of the collision geometry fixed to the base's planar joint (each
+    geometry's local bounding box, meshes and cylinders included: TIAGo's base is a mesh; 0: none)."""
+    ys = []
+    for g in loaded.collision_model.geometryObjects:
+        if g.parentJoint != 1:
+            continue
+        g.geometry.computeLocalAABB()
+        lo, hi = np.asarray(g.geometry.aabb_local.min_), np.asarray(g.geometry.aabb_local.max_)
+        corners = np.array(list(itertools.product(*zip(lo, hi))))
+        ys.extend((corners @ g.placement.rotation.T + g.placement.translation)[:, 1])
     return float(max(ys) - min(ys)) if ys else 0.0
 
 
