@@ -40,9 +40,9 @@ def rim_speed(poses: np.ndarray, h: float, half_span: float) -> np.ndarray:
     return np.abs(vx) + np.abs(vy) + half_span * np.abs(d[:, 2])
 
 
-def world_poses(plan: BasePlan, i: int) -> tuple[np.ndarray, np.ndarray]:
-    """Return (cart poses, base poses) of window i of the plan, in the world."""
-    cart = np.array([FIRST_TURN.sample(float(t))[0] for t in plan.times[i]])
+def world_poses(plan: BasePlan, i: int, trajectory=FIRST_TURN) -> tuple[np.ndarray, np.ndarray]:
+    """Return (cart poses, base poses) of window i of the plan of `trajectory`, in the world."""
+    cart = np.array([trajectory.sample(float(t))[0] for t in plan.times[i]])
     cart[:, 2] = np.unwrap(cart[:, 2])
     rel = plan.relative[i]
     c, s = np.cos(cart[:, 2]), np.sin(cart[:, 2])
@@ -66,7 +66,11 @@ def test_rigid_place_breaks_the_wheel_limit_in_the_turn(robot_and_plan):
 def test_plan_keeps_the_wheels_within_their_limit(robot_and_plan):
     mm, plan = robot_and_plan
     assert len(plan.times) == 1 and plan.times[0][0] <= 7.0 and plan.times[0][-1] >= 10.0
-    _, base = world_poses(plan, 0)
+    assert_within_the_wheel_limit(mm, world_poses(plan, 0)[1])
+
+
+def assert_within_the_wheel_limit(mm, base: np.ndarray) -> None:
+    """Assert every segment of the base poses (k, 3) keeps its mecanum rims within their speed limit."""
     rim_limit = mm.wb.base.wheel_radius * float(np.min(mm.wb.wheel_velocity_limit))
     # the plan bounds each segment at its mean heading; at its start heading the body twist is turned by half the
     # segment's heading change, which moves |vx| + |vy| by at most sqrt(2) |v| |dtheta| / 2
@@ -81,14 +85,7 @@ def test_a_run_that_ends_in_the_turn_plans_to_its_end_within_the_wheel_limits(ro
     cut = UnicycleTrajectory(duration=8.5, stop_start=13.0, turns=(Turn(7.0, 3.0, math.pi / 2),))
     plan = plan_base(mm, cut, CONTACT_Y, SETTINGS)
     assert len(plan.times) == 1 and plan.times[0][-1] == pytest.approx(8.4)
-    cart = np.array([cut.sample(float(t))[0] for t in plan.times[0]])
-    rel, c, s = plan.relative[0], np.cos(cart[:, 2]), np.sin(cart[:, 2])
-    base = np.c_[cart[:, 0] + c * rel[:, 0] - s * rel[:, 1], cart[:, 1] + s * rel[:, 0] + c * rel[:, 1]]
-    base = np.c_[base, cart[:, 2] + rel[:, 2]]
-    rim_limit = mm.wb.base.wheel_radius * float(np.min(mm.wb.wheel_velocity_limit))
-    d = np.diff(base, axis=0)
-    slack = math.sqrt(2.0) * np.linalg.norm(d[:, :2], axis=1) / SETTINGS.step * np.abs(d[:, 2]) / 2.0
-    assert np.all(rim_speed(base, SETTINGS.step, half_span(mm)) <= rim_limit + slack + 1e-6)
+    assert_within_the_wheel_limit(mm, world_poses(plan, 0, cut)[1])
 
 
 def test_plan_postures_hold_the_handle_with_a_bent_elbow(robot_and_plan):
