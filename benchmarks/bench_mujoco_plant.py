@@ -54,7 +54,8 @@ def _config(robot: str, trajectory: int, duration: float) -> PushConfig:
     traj: object = trajectory
     if until is not None:  # the trajectory of `duration`, run up to `until`
         traj, duration = paper_trajectory(trajectory, duration), until
-    return PushConfig(robot=robot, trajectory=traj, duration=duration, contact="fixed", **opts)
+    # plant="mujoco": the controller's MuJoCo defaults (base plan, tip-over bound), as `cartpush push --plant mujoco`
+    return PushConfig(robot=robot, trajectory=traj, duration=duration, plant="mujoco", contact="fixed", **opts)
 
 
 def open_loop(robot: str, trajectory: int, duration: float, plant_config: MujocoPlantConfig) -> dict:
