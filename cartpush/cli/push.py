@@ -100,23 +100,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="Y",
         help="fixed contact point(s) y on the handle in m, within [-0.25, 0.25]",
     )
-    p.add_argument(
+    _auto_on_off(
+        p,
         "--base-plan",
-        nargs="?",
-        const="on",
-        default="auto",
-        choices=("auto", "on", "off"),
-        help="plan a holonomic one-arm base's place ahead within its wheel limits where the rigid place behind\n"
+        "plan a holonomic one-arm base's place ahead within its wheel limits where the rigid place behind\n"
         "the handle breaks them (wholebody/push/base_plan.py; Traj. 2: about 7 s CPU). auto (default): with\n"
         "--plant mujoco only; --base-plan alone: on",
     )
-    p.add_argument(
+    _auto_on_off(
+        p,
         "--tip-bound",
-        nargs="?",
-        const="on",
-        default="auto",
-        choices=("auto", "on", "off"),
-        help="keep every wheel of the cart loaded: the allocation pushes sideways only as hard as the cart stands\n"
+        "keep every wheel of the cart loaded: the allocation pushes sideways only as hard as the cart stands\n"
         "and may press down on the handle (wholebody/contacts/support.py). auto (default): with --plant mujoco only",
     )
     p.add_argument(
@@ -201,6 +195,11 @@ def config_from_args(args: argparse.Namespace):
         tip_bound="auto" if args.tip_bound == "auto" else args.tip_bound == "on",
         arm_limits=_arm_limits(args.grip_torque_arm),
     )
+
+
+def _auto_on_off(p: argparse.ArgumentParser, flag: str, help: str) -> None:
+    """Add option ``flag`` taking auto (the default), on (also the flag alone) or off."""
+    p.add_argument(flag, nargs="?", const="on", default="auto", choices=("auto", "on", "off"), help=help)
 
 
 def _base_plan(choice: str) -> BasePlanSettings | Literal["auto"] | None:
