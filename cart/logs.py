@@ -269,8 +269,11 @@ def _parse_rows(path: str, body: list[str], header: list[str], wanted: list[str]
     return rows
 
 
-def _check_time_order(path: str, t: np.ndarray, header_line: int) -> None:
-    """Raise LogFormatError at the first time that is not strictly increasing, naming how many and the fix."""
+def _check_time_order(path: str, t: np.ndarray, line_of: np.ndarray) -> None:
+    """Raise LogFormatError at the first time that is not strictly increasing, naming how many and the fix.
+
+    ``line_of``: the file line of each sample (rows dropped before this check keep their neighbours' lines).
+    """
     steps = np.diff(t)
     bad = np.flatnonzero(steps <= 0.0)
     if not bad.size:
@@ -288,13 +291,13 @@ def _check_time_order(path: str, t: np.ndarray, header_line: int) -> None:
             "apart (a Unix time?): write t with more significant digits, or subtract the start time"
         )
     raise LogFormatError(
-        f"{path}: line {header_line + 1 + r}: time {float(t[r])!r} is {what} the previous time "
+        f"{path}: line {int(line_of[r])}: time {float(t[r])!r} is {what} the previous time "
         f"{float(t[r - 1])!r} ({counts}); t must be strictly increasing: {fix}"
     )
 
 
-def _without_repeated_rows(data: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], int]:
-    """Return the columns without rows that repeat the previous row in every column (time included), and how many.
+def _without_repeated_rows(data: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Return the columns without rows that repeat the previous row in every column (time included), and the kept rows.
 
     A row written twice (a logger flushing the same sample again) carries no new sample: dropping it is
     exact. Rows at the same time with different values stay (:func:`_check_time_order` refuses them).
@@ -302,15 +305,18 @@ def _without_repeated_rows(data: dict[str, np.ndarray]) -> tuple[dict[str, np.nd
     cols = np.column_stack(list(data.values()))
     again = np.r_[False, np.all(cols[1:] == cols[:-1], axis=1)]
     if not again.any() or int((~again).sum()) < 3:  # too few distinct rows: refused as they are
-        return data, 0
-    return {name: v[~again] for name, v in data.items()}, int(again.sum())
+        return data, np.arange(len(cols))
+    return {name: v[~again] for name, v in data.items()}, np.flatnonzero(~again)
 
 
 def _log_from_columns(path: str, data: dict[str, np.ndarray], metadata: dict[str, str], header_line: int) -> CartLog:
     """Return the CartLog of the parsed columns (heading unwrapped, missing velocity columns estimated) with notes."""
-    data, repeated = _without_repeated_rows(data)
+    n_rows = len(data["t"])
+    data, kept = _without_repeated_rows(data)
+    repeated = n_rows - len(kept)
+    line_of = header_line + 1 + kept  # the file line of each kept row
     t = data["t"]
-    _check_time_order(path, t, header_line)
+    _check_time_order(path, t, line_of)
     q = np.column_stack([data["x"], data["y"], np.unwrap(data["theta"])])
     gamma = np.column_stack([data["fx"], data["fy"], data["tau"]])
     qd = None
@@ -324,7 +330,7 @@ def _log_from_columns(path: str, data: dict[str, np.ndarray], metadata: dict[str
     if all(c in data for c in CONTACT_COLUMNS):
         contact = np.column_stack([data["contact_x"], data["contact_y"]])
     log = CartLog(t=t, q=q, gamma=gamma, qd=qd, contact_b=contact, metadata=metadata, source=path)
-    notes = plausibility_warnings(log, raw_theta=data["theta"], first_line=header_line + 1)
+    notes = plausibility_warnings(log, raw_theta=data["theta"], first_line=header_line + 1, line_of=line_of)
     if repeated:
         notes.insert(0, f"{repeated} row(s) repeat the previous row exactly, time included: dropped (written twice)")
     if notes:
@@ -429,7 +435,7 @@ def _motion_notes(log: CartLog, med: float, where) -> list[str]:
 
 
 def plausibility_warnings(
-    log: CartLog, raw_theta: np.ndarray | None = None, first_line: int | None = None
+    log: CartLog, raw_theta: np.ndarray | None = None, first_line: int | None = None, line_of: np.ndarray | None = None
 ) -> list[str]:
     """Return plain-language notes on what looks implausible for a pushed cart (empty when nothing does).
 
@@ -441,13 +447,16 @@ def plausibility_warnings(
     ``PLAUSIBLE_MEDIAN_DT`` (milliseconds?), a wrench that is zero throughout.
     Never rejects: a 1 kg block at 1 cm/s and a 150 kg bed are valid carts.
     ``raw_theta``: the heading as logged (before unwrapping); ``first_line``:
-    the file line of sample 0, to name lines instead of sample indices.
+    the file line of sample 0, to name lines instead of sample indices; ``line_of``: the file line of
+    every sample (when rows were dropped on reading), which takes precedence.
     """
     notes: list[str] = []
     if len(log.t) < 2:
         return notes
 
     def where(i: int) -> str:
+        if line_of is not None:
+            return f"line {int(line_of[i])}"
         return f"line {first_line + i}" if first_line is not None else f"sample {i}"
 
     dt = np.diff(log.t)

@@ -4,6 +4,8 @@ values are still refused."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -44,3 +46,25 @@ def test_rows_at_one_time_with_different_values_are_refused(tmp_path):
     path.write_text("\n".join(lines[: head + 1] + body) + "\n")
     with pytest.raises(LogFormatError, match="equal to the previous time"):
         read_log(path)
+
+
+def test_notes_after_a_dropped_row_name_the_file_lines(tmp_path):
+    lines, head, _ = _lines(tmp_path)
+    body = lines[head + 1 :]
+    body.insert(21, body[20])  # written twice: dropped
+    fields = body[151].split(",")
+    fields[1] = "9.0"  # a 9 m jump on this row
+    body[151] = ",".join(fields)
+    fields = body[171].split(",")
+    fields[0] = "0.005"  # back in time on this row
+    body[171] = ",".join(fields)
+    path = tmp_path / "twice_glitch.csv"
+    path.write_text("\n".join(lines[: head + 1] + body) + "\n")
+    with pytest.raises(LogFormatError, match=f"line {head + 2 + 171}: time 0.005"):
+        read_log(path)
+    body[171] = lines[head + 1 + 170]
+    path.write_text("\n".join(lines[: head + 1] + body) + "\n")
+    notes = " ".join(read_log(path).warnings)
+    named = [int(k) for k in re.findall(r"around line (\d+)", notes)]
+    jump = head + 2 + 151  # the glitch's file line; a 0.05 s window (5 rows) ends on it or starts there
+    assert named and named[0] in (jump, jump + 5), notes
