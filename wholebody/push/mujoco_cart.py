@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from typing import Any
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
@@ -551,3 +551,93 @@ def truth(cart: MujocoCart) -> dict[str, float]:
     model, data = build(cart)
     settle(model, data, cart)
     return truth_from_state(model, data)
+
+
+# --------------------------------------------------------------------------- the cart's joints over a run
+
+
+#: the joint types a cart's own moving parts may have (a free joint makes a body of its own), as named here
+JOINT_KINDS = {
+    int(mujoco.mjtJoint.mjJNT_HINGE): "hinge",
+    int(mujoco.mjtJoint.mjJNT_SLIDE): "slide",
+    int(mujoco.mjtJoint.mjJNT_BALL): "ball",
+}
+#: qpos entries per joint kind (a ball joint: its quaternion w, x, y, z)
+JOINT_NQ = {"hinge": 1, "slide": 1, "ball": 4}
+
+
+def joint_label(model: mujoco.MjModel, joint: int) -> str:
+    """Return a joint's name, or ``<body>_joint<k>`` (its k-th joint) for an unnamed one."""
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
+    if name:
+        return name
+    body = int(model.jnt_bodyid[joint])
+    body_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or f"body{body}"
+    return f"{body_name}_joint{joint - int(model.body_jntadr[body])}"
+
+
+def subtree_joints(model: mujoco.MjModel, root: int) -> list[tuple[str, str, int]]:
+    """Return (label, kind, qpos address) of every hinge, slide and ball joint below body ``root``, in body order.
+
+    These are a cart's own moving parts: caster swivels, wheel axles, a wobbling stem. The order (bodies by id,
+    each body's joints in turn) is the same in the cart file compiled alone and in a scene the robots were
+    attached to, so a page can replay them on a model built from the file (`wholebody.viz.mjcf`).
+    """
+    out = []
+    for b in subtree_bodies(model, root):
+        for j in range(int(model.body_jntadr[b]), int(model.body_jntadr[b] + model.body_jntnum[b])):
+            kind = JOINT_KINDS.get(int(model.jnt_type[j]))
+            if kind is not None:
+                out.append((joint_label(model, j), kind, int(model.jnt_qposadr[j])))
+    return out
+
+
+@dataclass
+class CartJointRecord:
+    """The cart's own joints (caster swivels, wheel spins, ...) sampled once per control period, for the page.
+
+    ``names``/``kinds`` from `subtree_joints`; ``t`` (s) and ``q`` (the joints' qpos entries, in order) grow by
+    `record`. A report's reader sees only `to_dict` (the joints and the sample count); a page reads `series`.
+    """
+
+    names: tuple[str, ...]
+    kinds: tuple[str, ...]
+    addresses: tuple[int, ...]
+    t: list[float] = field(default_factory=list)
+    q: list[np.ndarray] = field(default_factory=list)
+
+    @staticmethod
+    def of(model: mujoco.MjModel, body: str = CART_BODY) -> CartJointRecord:
+        """Return an empty record of the joints below body ``body`` of ``model``."""
+        bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+        joints = subtree_joints(model, bid)
+        return CartJointRecord(
+            tuple(n for n, _, _ in joints), tuple(k for _, k, _ in joints), tuple(a for _, _, a in joints)
+        )
+
+    def record(self, t: float, data: mujoco.MjData) -> None:
+        """Append the joints' positions at time ``t`` (s) from ``data.qpos``."""
+        self.t.append(float(t))
+        self.q.append(np.concatenate([data.qpos[a : a + JOINT_NQ[k]] for a, k in zip(self.addresses, self.kinds)]))
+
+    def series(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return (t (N,), q (N, n_q)) of the samples so far."""
+        width = sum(JOINT_NQ[k] for k in self.kinds)
+        q = np.array(self.q, dtype=float).reshape(len(self.q), width)
+        return np.array(self.t, dtype=float), q
+
+    def to_dict(self) -> dict:
+        """Return what a JSON report shows of the record: the joints and the number of samples."""
+        return {"joints": list(self.names), "samples": len(self.t)}
+
+
+#: the default cart's joints (`mjcf`) under their names in the shopping cart's URDF (`robots.shopping_cart`), which
+#: a page draws for it: same places, axes and zero angles (casters trailing)
+URDF_JOINTS = {
+    "axle_left": "rear_left_wheel_joint",
+    "axle_right": "rear_right_wheel_joint",
+    "swivel_left": "caster_left_swivel",
+    "swivel_right": "caster_right_swivel",
+    "caster_axle_left": "caster_left_wheel_joint",
+    "caster_axle_right": "caster_right_wheel_joint",
+}

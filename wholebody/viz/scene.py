@@ -336,22 +336,25 @@ class Scene:
 
     def __init__(
         self,
-        robot_names: Sequence[str] = ("ridgeback_iiwa", "shopping_cart"),
+        robot_names: Sequence[str | robots.LoadedRobot] = ("ridgeback_iiwa", "shopping_cart"),
         serve: bool = False,
         camera: Camera | None = None,
         floor: tuple[float, float, float, float] = FLOOR,
     ) -> None:
         """Load the robots (each under its own node `/meshcat/<name>`); optionally start a server.
 
-        Robots stand at the origin, except the cart next to another robot:
-        it stands ahead of it at `DEFAULT_CART_POSE`. Without `camera` the page's
+        A robot is a `robots.load` name or a model loaded already (`robots.LoadedRobot`, shown under its
+        ``name``; e.g. a cart file's cart, `wholebody.viz.mjcf.cart_robot`). The first robot with a frame ``b``
+        is the scene's cart (`Scene.cart`; the shopping cart's {b}). Robots stand at the origin, except the cart
+        next to another robot: it stands ahead of it at `DEFAULT_CART_POSE`. Without `camera` the page's
         camera frames every robot as displayed when the page is written
         (`set_camera` or `frame_robots` fix it). `floor` (xmin, xmax, ymin,
         ymax) is drawn as a 0.5 m grid of short segments instead of Meshcat's
         20 m grid (whose long lines software renderers drop when they pass
         behind the camera); Meshcat's axes at the origin are hidden.
         """
-        names = list(robot_names)
+        entries = list(robot_names)
+        names = [e if isinstance(e, str) else e.name for e in entries]
         if len(set(names)) != len(names):
             raise SceneError(f"robot names must be unique, got {names}")
         self._server = None
@@ -370,15 +373,15 @@ class Scene:
         self._readouts: list[Readout] = []
         self._autoplay = True
         try:
-            for name in names:
-                robot = robots.load(name)  # raises UnknownRobotError for bad names
+            for name, entry in zip(names, entries):
+                robot = robots.load(entry) if isinstance(entry, str) else entry  # UnknownRobotError for bad names
                 viz = MeshcatVisualizer(
                     robot.model, None, robot.visual_model, data=robot.data, visual_data=robot.visual_data
                 )
                 viz.initViewer(viewer=self.viewer)
                 viz.loadViewerModel(rootNodeName=name)
                 self.robots[name], self._viz[name] = robot, viz
-                pose = DEFAULT_CART_POSE if name == "shopping_cart" and len(names) > 1 else (0.0, 0.0, 0.0)
+                pose = DEFAULT_CART_POSE if robot.model.existFrame("b") and len(names) > 1 else (0.0, 0.0, 0.0)
                 self.set_robot_pose(name, pose)
             if camera is not None:
                 self.set_camera(camera)
@@ -449,13 +452,43 @@ class Scene:
         pin.framesForwardKinematics(robot.model, robot.data, self._q[name])
         return robot.data.oMf[robot.frame_id(role)].translation.copy()
 
-    def cart_to_world(self, points_b: Any, cart: str = "shopping_cart") -> np.ndarray:
-        """Return world positions (N, 3) of points given in the cart frame {b} (2-D points lie at the handle height)."""
-        q = self._q[self._robot(cart).name]
-        p = _points3(points_b, CART_HANDLE_Z_B)
+    @property
+    def cart(self) -> str | None:
+        """Return the name of the scene's cart: its first robot with a frame ``b`` ({b}); None without one."""
+        return next((name for name, r in self.robots.items() if r.model.existFrame("b")), None)
+
+    def cart_heights(self, cart: str | None = None) -> tuple[float, float]:
+        """Return (height of {b} above the floor, height of the handle above {b}) of the cart (default `cart`).
+
+        From the cart model's frames ``b`` and ``handle`` at rest (no ``handle`` frame: the shopping cart's).
+        """
+        robot = self._robot(self._cart_name(cart))
+        data = robot.model.createData()
+        pin.framesForwardKinematics(robot.model, data, pin.neutral(robot.model))
+        z_b = float(data.oMf[robot.model.getFrameId("b")].translation[2])
+        handle = robot.frames.get("handle", "handle")
+        if not robot.model.existFrame(handle):
+            return z_b, CART_HANDLE_Z_B
+        return z_b, float(data.oMf[robot.model.getFrameId(handle)].translation[2]) - z_b
+
+    def _cart_name(self, cart: str | None) -> str:
+        name = cart if cart is not None else self.cart
+        if name is None:
+            raise SceneError(f"scene has no cart (a robot with a frame 'b'); robots: {', '.join(self.robots)}")
+        return name
+
+    def cart_to_world(self, points_b: Any, cart: str | None = None) -> np.ndarray:
+        """Return world positions (N, 3) of points given in the cart frame {b} (2-D points lie at the handle height).
+
+        `cart`: the robot whose {b} they are in (default: the scene's `cart`).
+        """
+        name = self._cart_name(cart)
+        q = self._q[self._robot(name).name]
+        z_b, z_handle = self.cart_heights(name)
+        p = _points3(points_b, z_handle)
         c, s = q[2], q[3]
         rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return p @ rot.T + np.array([q[0], q[1], CART_WHEEL_RADIUS])
+        return p @ rot.T + np.array([q[0], q[1], z_b])
 
     # -- overlays --------------------------------------------------------------------
     def show_contact(
@@ -534,7 +567,7 @@ class Scene:
         wrenches_ee: Any,
         name: str = "arm",
         scale: float = FORCE_SCALE,
-        cart: str = "shopping_cart",
+        cart: str | None = None,
     ) -> np.ndarray:
         """Draw planned contact points (N, 2|3) in the cart frame {b} and each hand's wrench (N, 6) as arrows.
 
@@ -547,7 +580,7 @@ class Scene:
         w = np.atleast_2d(np.asarray(wrenches_ee, dtype=float))
         if w.shape != (len(pts), 6) or not np.all(np.isfinite(w)):
             raise SceneError(f"wrenches_ee must be finite, shape ({len(pts)}, 6), got {w.shape}")
-        q = self._q[self._robot(cart).name]
+        q = self._q[self._robot(self._cart_name(cart)).name]
         rot = np.array([[q[2], -q[3], 0.0], [q[3], q[2], 0.0], [0.0, 0.0, 1.0]])
         world = self.show_contact(name, pts, frame="b")
         for i, (p, wi) in enumerate(zip(world, w)):
@@ -562,7 +595,7 @@ class Scene:
         the estimate has converged. The legend says which is which.
         """
         pts = np.vstack((_points3(true_b, 0.0), _points3(est_b, 0.0)))[:, :2]
-        world = self.cart_to_world(np.column_stack((pts, np.full(2, COM_MARKER_Z - CART_WHEEL_RADIUS))))
+        world = self.cart_to_world(np.column_stack((pts, np.full(2, COM_MARKER_Z - self.cart_heights()[0]))))
         materials = {
             "com_true": (1.6 * radius, mg.MeshLambertMaterial(color=COLORS["com_true"], opacity=0.4, depthWrite=False)),
             "com_est": (0.8 * radius, mg.MeshLambertMaterial(color=COLORS["com_est"])),
