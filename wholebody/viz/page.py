@@ -63,6 +63,139 @@ class Readout:
         }
 
 
+#: the kinds of time mark a chart draws: (SVG colour, dash pattern, what the legend under the chart calls it)
+MARKS = {
+    "change": ("#e65100", "", "load change"),
+    "detected": ("#e65100", "4 3", "its detection"),
+    "runoff": ("#d50000", "", "run-off flag"),
+    "lost": ("#d50000", "2 2", "cart lost"),
+}
+#: chart colours: the estimate and its band (the CoM marker's magenta), the truth (the true CoM's blue)
+CHART_ESTIMATE, CHART_TRUTH = "#c51bd8", "#1f3fbf"
+#: most points of a chart's polylines (longer series are decimated)
+CHART_POINTS = 600
+#: a chart's size and margins (px): the plot spans x from CHART_LEFT to CHART_WIDTH - CHART_RIGHT
+CHART_WIDTH, CHART_HEIGHT, CHART_LEFT, CHART_RIGHT = 300, 86, 44, 6
+
+
+@dataclass(frozen=True)
+class Chart:
+    """A small time plot on an animated page: an estimate with its band (+-1 std) against the truth, time marks
+    (`MARKS`: load changes, run-off flags, the loss of the cart) and a cursor at the page's time.
+
+    ``t``, ``estimate``, ``std`` and ``truth`` are samples (N,); ``std``/``truth`` may be None; NaN values are gaps.
+    ``marks``: (time, kind) pairs. The y range covers the truth and the estimate from ``settle`` s after the start
+    (the start transient may leave it) to ``until`` (a lost cart's estimate may run off); the band is clipped to it.
+    """
+
+    title: str
+    unit: str
+    t: np.ndarray
+    estimate: np.ndarray
+    std: np.ndarray | None = None
+    truth: np.ndarray | None = None
+    marks: tuple[tuple[float, str], ...] = ()
+    settle: float = 0.0
+    until: float = math.inf
+
+    def y_range(self) -> tuple[float, float]:
+        """Return the plotted (low, high) values: the truth and the settled estimate, padded by 10 % (at least 1e-3)."""
+        t = np.asarray(self.t, float)
+        keep = (t >= t[0] + self.settle) & (t <= self.until)
+        keep = keep if keep.any() else np.ones(len(t), bool)
+        seen = [np.asarray(self.estimate, float)[keep]]
+        if self.truth is not None:
+            seen.append(np.asarray(self.truth, float))
+        v = np.concatenate(seen)
+        v = v[np.isfinite(v)]
+        lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 1.0)
+        pad = max(0.1 * (hi - lo), 1e-3, 0.02 * max(abs(lo), abs(hi)))
+        return lo - pad, hi + pad
+
+    def cursor_span(self) -> dict:
+        """Return what the page's script needs to place the cursor: the chart's time span (s) and x pixel range."""
+        t = np.asarray(self.t, float)
+        return {"span": max(float(t[-1] - t[0]), 1e-9), "x0": CHART_LEFT, "x1": CHART_WIDTH - CHART_RIGHT}
+
+
+def _polyline(x: np.ndarray, y: np.ndarray) -> list[str]:
+    """Return SVG point lists of the finite runs of (x, y), decimated to at most `CHART_POINTS` points."""
+    stride = max(1, int(math.ceil(len(x) / CHART_POINTS)))
+    x, y = x[::stride], y[::stride]
+    runs, current = [], []
+    for a, b in zip(x, y):
+        if math.isfinite(a) and math.isfinite(b):
+            current.append(f"{a:.1f},{b:.1f}")
+        elif current:
+            runs.append(" ".join(current))
+            current = []
+    if current:
+        runs.append(" ".join(current))
+    return runs
+
+
+def chart_svg(chart: Chart, index: int) -> str:
+    """Return the chart as inline SVG (`Chart`); its cursor line has the id ``cartpush-cursor-<index>``."""
+    width, height = CHART_WIDTH, CHART_HEIGHT
+    left, right, top, bottom = CHART_LEFT, width - CHART_RIGHT, 16, height - 14
+    t = np.asarray(chart.t, float)
+    t0, t1 = float(t[0]), float(t[-1]) if t[-1] > t[0] else float(t[0]) + 1.0
+    lo, hi = chart.y_range()
+    X = lambda v: left + (np.asarray(v, float) - t0) / (t1 - t0) * (right - left)  # noqa: E731
+    Y = lambda v: bottom - (np.clip(np.asarray(v, float), lo, hi) - lo) / (hi - lo) * (bottom - top)  # noqa: E731
+    parts = [f'<rect x="{left}" y="{top}" width="{right - left}" height="{bottom - top}" fill="#fff" stroke="#999"/>']
+    est = np.asarray(chart.estimate, float)
+    if chart.std is not None:
+        std = np.asarray(chart.std, float)
+        ok = np.isfinite(est) & np.isfinite(std)
+        if ok.any():
+            upper, lower = (
+                _polyline(X(t[ok]), Y(est[ok] + std[ok])),
+                _polyline(X(t[ok])[::-1], Y(est[ok] - std[ok])[::-1]),
+            )
+            parts.append(f'<polygon points="{upper[0]} {lower[0]}" fill="{CHART_ESTIMATE}" fill-opacity="0.2"/>')
+    if chart.truth is not None:
+        for run in _polyline(X(t), Y(chart.truth)):
+            parts.append(
+                f'<polyline points="{run}" fill="none" stroke="{CHART_TRUTH}" stroke-width="1.5" stroke-dasharray="6 3"/>'
+            )
+    for run in _polyline(X(t), Y(est)):
+        parts.append(f'<polyline points="{run}" fill="none" stroke="{CHART_ESTIMATE}" stroke-width="1.5"/>')
+    for when, kind in chart.marks:
+        colour, dash, _ = MARKS[kind]
+        x = float(X(when))
+        parts.append(
+            f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{top}" y2="{bottom}" stroke="{colour}" stroke-width="1.3" stroke-dasharray="{dash}"/>'
+        )
+    parts.append(
+        f'<line id="cartpush-cursor-{index}" x1="{left}" x2="{left}" y1="{top}" y2="{bottom}" stroke="#111" stroke-width="2"/>'
+    )
+    digits = max(0, 2 - int(math.floor(math.log10(max(hi - lo, 1e-9)))))
+    text = 'font-size="10" fill="#111"'
+    parts += [
+        f'<text x="{left - 3}" y="{top + 8}" text-anchor="end" {text}>{hi:.{digits}f}</text>',
+        f'<text x="{left - 3}" y="{bottom}" text-anchor="end" {text}>{lo:.{digits}f}</text>',
+        f'<text x="{left}" y="{height - 2}" {text}>{t0 - t0:.0f} s</text>',
+        f'<text x="{right}" y="{height - 2}" text-anchor="end" {text}>{t1 - t0:.0f} s</text>',
+        f'<text x="{left}" y="11" {text} font-weight="bold">{_html.escape(chart.title)} [{_html.escape(chart.unit)}]</text>',
+    ]
+    return f'<svg width="{width}" height="{height}" xmlns="http://www.w3.org/2000/svg">{"".join(parts)}</svg>'
+
+
+def charts_html(charts: Sequence[Chart]) -> str:
+    """Return the charts' panel (bottom right): each chart, then one key to the lines and marks they use."""
+    if not charts:
+        return ""
+    kinds = sorted({kind for c in charts for _, kind in c.marks}, key=list(MARKS).index)
+    key = [
+        f'<span style="color: {CHART_ESTIMATE}">&#9644; estimate</span>',
+        f'<span style="color: {CHART_ESTIMATE}; opacity: 0.5">&#9608; +-1 sigma</span>',
+        f'<span style="color: {CHART_TRUTH}">- - truth</span>',
+    ] + [f'<span style="color: {MARKS[k][0]}">| {MARKS[k][2]}</span>' for k in kinds]
+    body = "".join(f"<div>{chart_svg(c, i)}</div>" for i, c in enumerate(charts))
+    return f'<div id="cartpush-charts">{body}<div class="cp-key">{" &nbsp;".join(key)}</div></div>'
+
+
 def camera_js(camera: Camera) -> str:
     """Return JavaScript that points the viewer's camera from `camera.eye` at `camera.target`.
 
@@ -92,6 +225,8 @@ _ANIMATION_JS = """(function () {
   const clock = document.getElementById("cartpush-time");
   const readouts = __READOUTS__;
   const readoutNodes = readouts.map(function (r, i) { return document.getElementById("cartpush-readout-" + i); });
+  const charts = __CHARTS__;
+  const cursors = charts.map(function (c, i) { return document.getElementById("cartpush-cursor-" + i); });
   function sample(r, t) {
     let lo = 0, hi = r.t.length - 1;
     if (hi < 0) return NaN;
@@ -109,6 +244,10 @@ _ANIMATION_JS = """(function () {
     readouts.forEach(function (r, i) {
       const v = sample(r, t);
       if (readoutNodes[i]) readoutNodes[i].textContent = r.label + ": " + (Number.isFinite(v) ? v.toFixed(r.digits) : "-") + " " + r.unit;
+    });
+    charts.forEach(function (c, i) {
+      const x = c.x0 + Math.max(0, Math.min(1, t / c.span)) * (c.x1 - c.x0);
+      if (cursors[i]) { cursors[i].setAttribute("x1", x.toFixed(1)); cursors[i].setAttribute("x2", x.toFixed(1)); }
     });
   }
   function seek(t) {
@@ -169,14 +308,16 @@ _ANIMATION_JS = """(function () {
 """
 
 
-def animation_js(follow: Sequence[str], autoplay: bool = True, readouts: Sequence[Readout] = ()) -> str:
+def animation_js(
+    follow: Sequence[str], autoplay: bool = True, readouts: Sequence[Readout] = (), charts: Sequence[Chart] = ()
+) -> str:
     """Return JavaScript for an animated page: autoplay and loop, pause button, seek by URL hash, camera follow.
 
     * The page plays when opened (`autoplay`) and loops; ``#pause`` opens it
       paused at the start, ``#t=12.5`` paused at 12.5 s, ``#t=3&play`` plays
       from 3 s (``#play`` plays a page built with ``autoplay=False``).
     * The overlay's button (id ``cartpush-play``) and the space bar pause and
-      resume; the time and the `readouts` update every frame.
+      resume; the time, the `readouts` and the cursors of the `charts` update every frame.
     * The GUI's time scrubber seeks even while paused.
     * When `follow` names nodes (``"/meshcat/<robot>"``), the camera and its
       orbit target move with the mean world position of those nodes, keeping
@@ -184,9 +325,11 @@ def animation_js(follow: Sequence[str], autoplay: bool = True, readouts: Sequenc
     """
     paths = "[" + ", ".join("[" + ", ".join(f'"{part}"' for part in p.split("/") if part) + "]" for p in follow) + "]"
     data = json.dumps([r.as_json() for r in readouts], separators=(",", ":"))
+    cursors = json.dumps([c.cursor_span() for c in charts], separators=(",", ":"))
     return (
         _ANIMATION_JS.replace("__LOOP__", str(_LOOP_REPEAT))
         .replace("__READOUTS__", data)
+        .replace("__CHARTS__", cursors)
         .replace("__FOLLOW__", paths)
         .replace("__AUTOPLAY__", "true" if autoplay else "false")
     )
@@ -226,6 +369,10 @@ _OVERLAY_CSS = (
     " border-radius: 4px; z-index: 10;}"
     " .cp-swatch {display: inline-block; vertical-align: middle;}"
     " #cartpush-play {font: 12px 'DejaVu Sans', sans-serif; min-width: 70px; margin-right: 6px;}"
+    " #cartpush-charts {position: absolute; right: 8px; bottom: 8px; padding: 4px 6px;"
+    " font: 11px/1.4 'DejaVu Sans', sans-serif; background: rgba(255, 255, 255, 0.85); border-radius: 4px; z-index: 10;}"
+    " #cartpush-charts svg {font-family: 'DejaVu Sans', sans-serif; display: block;}"
+    " .cp-key {max-width: 300px;}"
 )
 
 
@@ -238,19 +385,21 @@ def static_html(
     legend: Sequence[LegendEntry] = (),
     autoplay: bool = True,
     readouts: Sequence[Readout] = (),
+    charts: Sequence[Chart] = (),
 ) -> str:
     """Return a self-contained HTML page (viewer JavaScript inlined) replaying `commands`, then setting `camera`.
 
     An `animated` page gets `animation_js` (plays on open unless `autoplay` is
     False, pause button, ``#t=<s>`` seeks, camera following the nodes `follow`)
-    and the overlay shows the player, the `readouts` and the `legend`.
+    and the overlay shows the player, the `readouts` and the `legend`; its `charts` (bottom right) plot
+    estimates over time with a cursor at the page's time.
     """
     js = _VIEWER_JS.read_text(encoding="utf-8")
     calls = "".join(
         f'viewer.handle_command_bytearray(b64("{base64.b64encode(c).decode("ascii")}"));\n' for c in commands
     )
     hide = "" if controls else ".dg.main, .dg.ac {display: none !important;}"
-    script = animation_js(follow or (), autoplay, readouts) if animated else ""
+    script = animation_js(follow or (), autoplay, readouts, charts) if animated else ""
     return f"""<!DOCTYPE html>
 <html>
 <head><meta charset="utf-8"><title>cartpush scene</title>
@@ -259,6 +408,7 @@ def static_html(
 <body>
 <div id="meshcat-pane"></div>
 {overlay_html(legend, animated, readouts)}
+{charts_html(charts) if animated else ""}
 <script>
 {js}
 </script>
@@ -305,7 +455,9 @@ def nice_scale(
     """Return the largest of `choices` (m per unit) drawing the median of |values| at most `typical` m long.
 
     A median push force of 3.5 N gets 0.05 m/N (17.5 cm; 10 N = 50 cm); the
-    rare large forces are clipped by the caller (`Scene.animate`).
+    rare large forces are clipped by the caller (`Scene.animate`). Forces too large for every choice (a
+    hospital bed's 40 N) get the largest 1-2-5 x 10^k below them (0.005 m/N: 10 N = 5 cm), a number the
+    legend can say plainly.
     """
     v = np.abs(np.asarray(values, dtype=float))
     v = v[np.isfinite(v)]
@@ -313,4 +465,6 @@ def nice_scale(
     for s in choices:
         if s * p50 <= typical:
             return float(s)
-    return typical / p50
+    raw = typical / p50
+    decade = 10.0 ** math.floor(math.log10(raw))
+    return float(max(m * decade for m in (1.0, 2.0, 5.0) if m * decade <= raw * (1 + 1e-12)))

@@ -38,7 +38,7 @@ import robots
 from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
 from wholebody.errors import SceneError
 from wholebody.motion.bases import planar_pose_matrix
-from wholebody.viz.page import LegendEntry, Readout, compressed_iframe, nice_scale, static_html
+from wholebody.viz.page import MARKS, Chart, LegendEntry, Readout, compressed_iframe, nice_scale, static_html
 
 #: Colours (0xRRGGBB) of the overlays.
 COLORS = {
@@ -371,6 +371,7 @@ class Scene:
         self._camera: Camera | None = None
         self._legend: dict[str, LegendEntry] = {}
         self._readouts: list[Readout] = []
+        self._charts: list[Chart] = []
         self._autoplay = True
         try:
             for name, entry in zip(names, entries):
@@ -692,6 +693,35 @@ class Scene:
             raise SceneError(f"readout {label!r}: t and values must have the same length, got {t.shape}, {v.shape}")
         self._readouts.append(Readout(label, unit, t, v, digits))
 
+    def add_chart(
+        self,
+        title: str,
+        unit: str,
+        t: Any,
+        estimate: Any,
+        std: Any = None,
+        truth: Any = None,
+        marks: Sequence[tuple[float, str]] = (),
+        settle: float = 0.0,
+        until: float = math.inf,
+    ) -> Chart:
+        """Plot an estimate over time on the animated page (bottom right), with its band (+-`std`) against the
+        `truth` (a number or samples), time marks ((t, kind), kinds of `wholebody.viz.page.MARKS`) and a cursor at
+        the page's time; the y range covers the truth and the estimate from `settle` s after the start to `until`.
+        Return the chart."""
+        t = np.asarray(t, dtype=float).ravel()
+        est = np.asarray(estimate, dtype=float).ravel()
+        if len(t) < 2 or est.shape != t.shape or not np.all(np.isfinite(t)):
+            raise SceneError(f"chart {title!r}: t must be finite, at least 2 samples, as many as the estimate")
+        band = None if std is None else np.broadcast_to(np.asarray(std, dtype=float), t.shape).copy()
+        true = None if truth is None else np.broadcast_to(np.asarray(truth, dtype=float), t.shape).copy()
+        bad = [kind for _, kind in marks if kind not in MARKS]
+        if bad:
+            raise SceneError(f"chart {title!r}: unknown mark kinds {bad}; kinds: {', '.join(MARKS)}")
+        chart = Chart(title, unit, t, est, band, true, tuple((float(a), k) for a, k in marks), settle, until)
+        self._charts.append(chart)
+        return chart
+
     def add_event_readout(
         self,
         label: str,
@@ -961,6 +991,7 @@ class Scene:
             legend=self.legend(),
             autoplay=self._autoplay,
             readouts=self._readouts,
+            charts=self._charts,
         )
 
     def iframe(self, height: int = 420, controls: bool = True) -> str:

@@ -1,0 +1,50 @@
+"""A push run's page charts: the cart's estimated mass and CoM with their band against the truth, over time.
+
+`estimate_charts` adds to a `Scene` one chart per parameter (`Scene.add_chart`, bottom right of the page): the
+estimate the controller used at each period (``PushResult.phi_hat``), its +-1-sigma band (``param_std``: the mass's,
+and for the CoM the norm over x and y), the truth it is judged against (``config.true_params``: on the MuJoCo plant
+the cart's effective mass and its CoM read from the engine, `wholebody.push.plants.plant_truth`), the load changes
+the estimator found (onset and detection), its run-off flags, and when the cart was lost. A cursor follows the
+page's time.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from wholebody.viz.scene import Scene
+
+#: the charts' y range leaves out the estimate's first seconds (the figures' "after 5 s" metrics do the same)
+SETTLE_S = 5.0
+
+
+def estimate_marks(result: Any) -> list[tuple[float, str]]:
+    """Return the chart marks of a run: each load change's onset and detection, run-off flags, the loss of the cart."""
+    report = result.estimator_report or {}
+    marks = [(c["t_change"], "change") for c in report.get("load_changes") or ()]
+    marks += [(c["t_detected"], "detected") for c in report.get("load_changes") or ()]
+    marks += [(f["t"], "runoff") for f in report.get("runoff_flags") or ()]
+    if result.metrics.tracking_lost_at_s is not None:
+        marks.append((result.metrics.tracking_lost_at_s, "lost"))
+    return marks
+
+
+def estimate_charts(scene: Scene, result: Any) -> None:
+    """Add the run's mass, CoM x and CoM y charts to the page (see the module doc)."""
+    p, phi, t = result.config.true_params, result.phi_hat, result.t
+    m = np.where(np.abs(phi[:, 0]) > 1e-9, phi[:, 0], np.nan)
+    std = result.param_std if result.config.estimation and result.param_std is not None else None
+    name = "estimate" if result.config.estimation else "fixed guess (no estimation)"
+    marks = estimate_marks(result)
+    lost = result.metrics.tracking_lost_at_s
+    until = math.inf if lost is None else float(lost)
+    series = (
+        (f"mass, {name}", "kg", phi[:, 0], None if std is None else std[:, 0], p.m),
+        (f"CoM x in {{b}}, {name}", "cm", 100 * phi[:, 1] / m, None if std is None else 100 * std[:, 1], 100 * p.dx),
+        (f"CoM y in {{b}}, {name}", "cm", 100 * phi[:, 2] / m, None if std is None else 100 * std[:, 1], 100 * p.dy),
+    )
+    for title, unit, estimate, band, truth in series:
+        scene.add_chart(title, unit, t, estimate, band, truth, marks, settle=SETTLE_S, until=until)
