@@ -36,6 +36,31 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+#: what each file of the demo's report directory shows, in the order they are listed after the run
+REPORT_FILES = {
+    "scene.html": "the run with estimation, animated in Meshcat: open it in a browser (works offline)",
+    "scene_mujoco.html": "the MuJoCo run, animated: the hand force allocated and measured, the cart's casters",
+    "estimate.png": "the mass and CoM estimates with their 1-sigma band against the truth; load changes, run-off flags",
+    "tracking_estimation.png": "tracking, mass and CoM errors and the hand force over time",
+    "hand_wrenches.png": "the cart wrench desired, allocated to the hands and measured (the MuJoCo run)",
+    "path.png": "the paths of the cart and of the robot's base",
+    "arm_torques.png": "each arm joint's torque against its limit",
+    "comparison.md": "the table above, the unobservable stretches and the torque verdicts",
+    "push_log.csv": "the first run's log: cartpush estimate push_log.csv, cartpush view push_log.csv",
+}
+
+
+def report_listing(out_dir: Path) -> list[str]:
+    """Return one line per file of the report directory that `REPORT_FILES` describes (pages with their full path)."""
+    lines = []
+    for name, what in REPORT_FILES.items():
+        path = out_dir / name
+        if path.is_file():
+            where = str(path.resolve()) if path.suffix == ".html" else name
+            lines.append(f"  {where}: {what}")
+    return lines
+
+
 def robot_summary() -> list[dict]:
     """Return one dict per available robot: name, nq, nv, mass_kg, frame."""
     import pinocchio as pin
@@ -79,6 +104,8 @@ def run(args: argparse.Namespace) -> int:
     from wholebody.push.report import run_demo
 
     demo = run_demo(args.out, duration=args.duration, verbose=not args.json, progress=show_progress(args.json))
+    if not args.json:
+        print("what to open:\n" + "\n".join(report_listing(demo.out_dir)))
     if args.json:
         runs = {label: {**run.metrics.as_dict(), **(run.plant_report or {})} for label, run in demo.runs.items()}
         print(dumps_strict({"robots": rows, "runs": runs, "report_dir": str(demo.out_dir.resolve())}))

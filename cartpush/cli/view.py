@@ -11,12 +11,14 @@ from pathlib import Path
 from cartpush.cli import options
 from cartpush.cli.import_bag import add_topic_options, topic_options
 
-HELP = "show a cart log, a Table I test or a robot in Meshcat"
+HELP = "show a cart log, a Table I test, a robot or a cart file in Meshcat"
 DESCRIPTION = """\
 Show a scene in Meshcat: a cart log (animated cart, force arrow, path), a
 Table I simulation test 1..11 (robot pushing the cart, force, contact point,
-true vs estimated CoM), or one robot (`--robot`; `--robot pushing` shows the
-Ridgeback + iiwa holding the cart's handle).
+true vs estimated CoM), one robot (`--robot`; `--robot pushing` shows the
+Ridgeback + iiwa holding the cart's handle), or a MuJoCo cart file
+(`--cart-model`: the cart `push --plant mujoco --cart-model` pushes, drawn
+from the file's own bodies, with its handle sites).
 
 Without --html it serves the scene on localhost, prints the URL and keeps
 serving until Ctrl-C. With --html it writes a self-contained page (opens
@@ -29,6 +31,7 @@ Examples:
   cartpush view --robot ridgeback_iiwa
   cartpush view --scenario 6 --html test6.html
   cartpush view run.csv --html run.html
+  cartpush view --cart-model examples/carts/hospital_bed.xml --html bed.html
 """
 
 
@@ -51,6 +54,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--robot",
         metavar="NAME|PROFILE.toml",
         help="a robot of `robots.available()`, a robot profile file, or 'pushing'",
+    )
+    source.add_argument(
+        "--cart-model",
+        metavar="FILE.xml",
+        help="a MuJoCo cart file (the contract is in docs/mujoco.md), drawn from its own bodies and handle sites",
     )
     parser.add_argument("--html", metavar="OUT.html", help="write a static page instead of serving")
     parser.add_argument(
@@ -84,6 +92,10 @@ def build_scene(args: argparse.Namespace, serve: bool):
         if args.robot == "pushing":
             return pushing_scene(serve=serve)
         return robot_scene(args.robot, serve=serve)
+    if args.cart_model is not None:
+        from wholebody.viz.mjcf import cart_file_scene
+
+        return cart_file_scene(args.cart_model, serve=serve)
     from cartpush.ros import load_any
 
     log = load_any(args.log, **topic_options(args))

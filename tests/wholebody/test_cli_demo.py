@@ -122,3 +122,16 @@ def test_plan_contacts_infeasible_names_the_limit_and_rounds_the_closest_wrench(
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "e-" not in err
     assert "grip pull limit" in err and "--grip-force" in err and "fx -100.00 N, fy 0.00 N, tau 0.00 N m" in err
+
+
+def test_demo_says_what_each_file_of_its_report_shows(tmp_path):
+    """After the run the demo lists the report's files with what each shows, the pages by their full path."""
+    from cartpush.cli.demo import REPORT_FILES, report_listing
+
+    for name in ("scene.html", "estimate.png", "unrelated.txt"):
+        (tmp_path / name).write_text("x")
+    lines = report_listing(tmp_path)
+    assert lines == [
+        f"  {(tmp_path / 'scene.html').resolve()}: {REPORT_FILES['scene.html']}",
+        f"  estimate.png: {REPORT_FILES['estimate.png']}",
+    ]

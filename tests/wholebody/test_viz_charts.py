@@ -25,12 +25,12 @@ def _points(svg: str, colour: str, tag: str = "polyline") -> list[np.ndarray]:
 
 
 def test_a_chart_maps_time_and_value_onto_its_plot():
-    """A ramp from 10 to 20 over 0-10 s against a truth of 15: the ramp's ends at the plot's corners (padded
-    y range), the truth at its middle, a mark at 5 s in the middle column, the cursor at the left edge."""
+    """A ramp from 10 to 20 over 0-10 s against a truth of 15: the ramp's ends at the plot's left and right edges,
+    the truth at its middle, a load change at 5 s in the middle column, the cursor at the left edge."""
     t = np.linspace(0.0, 10.0, 101)
     chart = Chart("mass", "kg", t, 10.0 + t, np.full(101, 0.5), np.full(101, 15.0), ((5.0, "change"),))
     lo, hi = chart.y_range()
-    assert (lo, hi) == pytest.approx((9.0, 21.0))  # 10 % of the 10 kg span either side
+    assert (lo, hi) == pytest.approx((8.4, 21.6))  # the ramp +- its 0.5 kg std, 10 % of that 11 kg either side
     svg = chart_svg(chart, 0)
     (ramp,) = _points(svg, "#c51bd8")
     right, top, bottom = CHART_WIDTH - CHART_RIGHT, 16, CHART_HEIGHT - 14
@@ -47,6 +47,8 @@ def test_a_chart_maps_time_and_value_onto_its_plot():
 
 
 def test_the_y_range_leaves_out_the_start_and_what_follows_a_loss():
+    """An estimate at 100 for 2 s, then 20, then -50 after a loss at 15 s, against a truth of 21: the range is
+    20-21 padded."""
     t = np.linspace(0.0, 20.0, 201)
     est = np.where(t < 2.0, 100.0, np.where(t > 15.0, -50.0, 20.0))
     chart = Chart("m", "kg", t, est, None, np.full(201, 21.0), settle=5.0, until=15.0)
@@ -146,3 +148,16 @@ def test_the_cursor_follows_the_page_time_in_a_browser(tmp_path):
         xs.append(int(np.argmax(dark)))
     plot = CHART_WIDTH - CHART_LEFT - CHART_RIGHT
     assert xs[1] - xs[0] == pytest.approx(0.6 * plot, abs=3)
+
+
+def test_run_off_flags_are_ticks_and_a_loss_shades_the_rest_of_the_run():
+    t = np.linspace(0.0, 10.0, 101)
+    svg = chart_svg(Chart("m", "kg", t, 20.0 + 0 * t, marks=((2.0, "runoff"), (6.0, "lost"))), 0)
+    top, right = 16, CHART_WIDTH - CHART_RIGHT
+    tick = re.search(r'<line x1="([0-9.]+)" x2="[0-9.]+" y1="([0-9.]+)" y2="([0-9.]+)" stroke="#d50000"[^>]*""/>', svg)
+    assert float(tick.group(2)) == top and float(tick.group(3)) == top + 7  # a tick along the top
+    shade = re.search(r'<rect x="([0-9.]+)" y="16" width="([0-9.]+)"[^>]*fill="#d50000"', svg)
+    x6 = CHART_LEFT + 0.6 * (right - CHART_LEFT)
+    assert float(shade.group(1)) == pytest.approx(x6, abs=0.06) and float(shade.group(2)) == pytest.approx(
+        right - x6, abs=0.1
+    )

@@ -214,3 +214,20 @@ def test_the_record_reports_only_its_joints_and_length_in_json():
         '"caster_axle_right"], "samples": 3}}'
     )
     assert record.series()[1].shape == (3, 6)
+
+
+def test_cli_view_draws_a_cart_file_and_refuses_a_broken_one(tmp_path, capsys):
+    from cartpush.cli import main
+
+    out = tmp_path / "bed.html"
+    assert main(["view", "--cart-model", str(CARTS / "hospital_bed.xml"), "--html", str(out)]) == 0
+    page = out.read_text()
+    assert "handle sites" in page and out.stat().st_size > 500_000
+    broken = tmp_path / "broken.xml"
+    broken.write_text(
+        '<mujoco><worldbody><body name="crate"><freejoint/><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    capsys.readouterr()
+    assert main(["view", "--cart-model", str(broken), "--html", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "no body named 'cart'" in err and err.count("\n") == 1

@@ -212,3 +212,21 @@ def cart_file_robot(path: str | Path, name: str = "cart") -> MjcfCart:
     from wholebody.push.cart_file import load_cart_file
 
     return cart_robot(load_cart_file(path).spec().compile(), name=name, source=path)
+
+
+#: the legend line of a cart file's scene on its handle sites
+HANDLE_LEGEND = "bars and points named handle*: the file's handle sites, where hands may hold"
+
+
+def cart_file_scene(path: str | Path, serve: bool = False) -> Any:
+    """Return a `wholebody.viz.Scene` of a cart file's cart (`cart_file_robot`) at the origin, framed by the camera."""
+    from wholebody.viz.scene import Scene
+
+    cart = cart_file_robot(path)
+    scene = Scene([cart.robot], serve=serve)
+    handles = [g for g in cart.robot.visual_model.geometryObjects if g.name.startswith("handle")]
+    if handles:
+        rgba = np.clip(np.asarray(handles[0].meshColor[:3], dtype=float), 0.0, 1.0)
+        scene.add_legend("handles", int("".join(f"{int(round(255 * c)):02x}" for c in rgba), 16), "line", HANDLE_LEGEND)
+    scene.frame_robots(margin=0.4)
+    return scene

@@ -67,7 +67,7 @@ class Readout:
 MARKS = {
     "change": ("#e65100", "", "load change"),
     "detected": ("#e65100", "4 3", "its detection"),
-    "runoff": ("#d50000", "", "run-off flag"),
+    "runoff": ("#d50000", "", "run-off flag (tick)"),
     "lost": ("#d50000", "2 2", "cart lost"),
 }
 #: chart colours: the estimate and its band (the CoM marker's magenta), the truth (the true CoM's blue)
@@ -84,8 +84,10 @@ class Chart:
     (`MARKS`: load changes, run-off flags, the loss of the cart) and a cursor at the page's time.
 
     ``t``, ``estimate``, ``std`` and ``truth`` are samples (N,); ``std``/``truth`` may be None; NaN values are gaps.
-    ``marks``: (time, kind) pairs. The y range covers the truth and the estimate from ``settle`` s after the start
-    (the start transient may leave it) to ``until`` (a lost cart's estimate may run off); the band is clipped to it.
+    ``marks``: (time, kind) pairs: load changes are lines across the plot, run-off flags ticks along its top (a run
+    may raise dozens), the loss of the cart shades the rest of the run. The y range covers the truth and the
+    estimate +- its median std from ``settle`` s after the start (the start transient may leave it) to ``until`` (a
+    lost cart's estimate may run off); the band is clipped to it.
     """
 
     title: str
@@ -103,7 +105,11 @@ class Chart:
         t = np.asarray(self.t, float)
         keep = (t >= t[0] + self.settle) & (t <= self.until)
         keep = keep if keep.any() else np.ones(len(t), bool)
-        seen = [np.asarray(self.estimate, float)[keep]]
+        est = np.asarray(self.estimate, float)[keep]
+        std = np.asarray(self.std, float)[keep] if self.std is not None else np.zeros(0)
+        std = std[np.isfinite(std)]
+        width = float(np.median(std)) if std.size else 0.0
+        seen = [est - width, est + width]
         if self.truth is not None:
             seen.append(np.asarray(self.truth, float))
         v = np.concatenate(seen)
@@ -134,6 +140,24 @@ def _polyline(x: np.ndarray, y: np.ndarray) -> list[str]:
     return runs
 
 
+def _mark_svg(kind: str, x: float, top: float, bottom: float, right: float) -> list[str]:
+    """Return the SVG of a time mark at x: a line across the plot, a tick along its top (a run-off flag), or a
+    line and the rest of the run shaded (the loss of the cart)."""
+    colour, dash, _ = MARKS[kind]
+    end = top + 7 if kind == "runoff" else bottom
+    line = (
+        f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{top}" y2="{end}" stroke="{colour}" stroke-width="1.3" '
+        f'stroke-dasharray="{dash}"/>'
+    )
+    if kind != "lost":
+        return [line]
+    return [
+        f'<rect x="{x:.1f}" y="{top}" width="{right - x:.1f}" height="{bottom - top}" fill="{colour}" '
+        'fill-opacity="0.12"/>',
+        line,
+    ]
+
+
 def chart_svg(chart: Chart, index: int) -> str:
     """Return the chart as inline SVG (`Chart`); its cursor line has the id ``cartpush-cursor-<index>``."""
     width, height = CHART_WIDTH, CHART_HEIGHT
@@ -162,11 +186,7 @@ def chart_svg(chart: Chart, index: int) -> str:
     for run in _polyline(X(t), Y(est)):
         parts.append(f'<polyline points="{run}" fill="none" stroke="{CHART_ESTIMATE}" stroke-width="1.5"/>')
     for when, kind in chart.marks:
-        colour, dash, _ = MARKS[kind]
-        x = float(X(when))
-        parts.append(
-            f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{top}" y2="{bottom}" stroke="{colour}" stroke-width="1.3" stroke-dasharray="{dash}"/>'
-        )
+        parts += _mark_svg(kind, float(X(min(max(when, t0), t1))), top, bottom, right)
     parts.append(
         f'<line id="cartpush-cursor-{index}" x1="{left}" x2="{left}" y1="{top}" y2="{bottom}" stroke="#111" stroke-width="2"/>'
     )
