@@ -54,6 +54,9 @@ def test_the_y_range_leaves_out_the_start_and_what_follows_a_loss():
     chart = Chart("m", "kg", t, est, None, np.full(201, 21.0), settle=5.0, until=15.0)
     lo, hi = chart.y_range()
     assert 19.0 < lo < 20.0 and 21.0 < hi < 22.0
+    # an unexcited parameter's std (100) widens the range by at most the span the lines cover (1.05: 5 % of 21)
+    wide = Chart("m", "kg", t, est, np.full(201, 100.0), np.full(201, 21.0), settle=5.0, until=15.0).y_range()
+    assert wide == pytest.approx((20.0 - 1.05 - 0.441, 21.0 + 1.05 + 0.441))  # padded by 2 % of 22.05
 
 
 def test_gaps_split_the_estimate_and_long_series_are_decimated():

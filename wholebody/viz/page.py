@@ -101,20 +101,21 @@ class Chart:
     until: float = math.inf
 
     def y_range(self) -> tuple[float, float]:
-        """Return the plotted (low, high) values: the truth and the settled estimate, padded by 10 % (at least 1e-3)."""
+        """Return the plotted (low, high) values: the truth and the settled estimate, widened by the estimate's
+        median std up to the span they cover (a band of an unexcited parameter would flatten the lines), padded by
+        10 % (at least 1e-3)."""
         t = np.asarray(self.t, float)
         keep = (t >= t[0] + self.settle) & (t <= self.until)
         keep = keep if keep.any() else np.ones(len(t), bool)
-        est = np.asarray(self.estimate, float)[keep]
-        std = np.asarray(self.std, float)[keep] if self.std is not None else np.zeros(0)
-        std = std[np.isfinite(std)]
-        width = float(np.median(std)) if std.size else 0.0
-        seen = [est - width, est + width]
+        v = np.asarray(self.estimate, float)[keep]
         if self.truth is not None:
-            seen.append(np.asarray(self.truth, float))
-        v = np.concatenate(seen)
+            v = np.r_[v, np.asarray(self.truth, float)]
         v = v[np.isfinite(v)]
         lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 1.0)
+        std = np.asarray(self.std, float)[keep] if self.std is not None else np.zeros(0)
+        std = std[np.isfinite(std)]
+        width = min(float(np.median(std)), max(hi - lo, 0.05 * max(abs(lo), abs(hi)))) if std.size else 0.0
+        lo, hi = lo - width, hi + width
         pad = max(0.1 * (hi - lo), 1e-3, 0.02 * max(abs(lo), abs(hi)))
         return lo - pad, hi + pad
 
