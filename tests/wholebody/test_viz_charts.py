@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import re
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -164,3 +165,29 @@ def test_run_off_flags_are_ticks_and_a_loss_shades_the_rest_of_the_run():
     assert float(shade.group(1)) == pytest.approx(x6, abs=0.06) and float(shade.group(2)) == pytest.approx(
         right - x6, abs=0.1
     )
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="needs headless Chromium: apt-get install chromium")
+def test_a_click_on_the_legend_line_folds_the_legend_away(tmp_path):
+    """The legend is open when the page opens; a click on its 'legend' line folds it (its entries are hidden) and
+    the player stays."""
+    from wholebody.viz.browser import DevToolsPage
+
+    t = np.linspace(0.0, 4.0, 41)
+    with Scene(["shopping_cart"]) as scene:
+        scene.show_trace("path", np.column_stack([t, 0 * t]), label="cyan line: a path")
+        scene.animate(t, {"shopping_cart": np.column_stack([0.1 * t, 0 * t, 0 * t])}, fps=10, play=False)
+        page = scene.save_html(tmp_path / "page.html", controls=False)
+    assert CHROMIUM is not None
+    with DevToolsPage(CHROMIUM, page) as browser:
+        for _ in range(200):  # until the page has loaded (real time)
+            if browser.evaluate("!!document.getElementById('cartpush-legend')"):
+                break
+            time.sleep(0.05)
+        shown = "document.querySelector('#cartpush-legend .cp-row').checkVisibility()"
+        assert browser.evaluate("document.getElementById('cartpush-legend').open") is True
+        assert browser.evaluate(shown) is True
+        browser.click("cartpush-legend-toggle")
+        assert browser.evaluate("document.getElementById('cartpush-legend').open") is False
+        assert browser.evaluate(shown) is False
+        assert browser.evaluate("document.getElementById('cartpush-play').getBoundingClientRect().height") > 5

@@ -365,7 +365,10 @@ _SWATCH = {
 
 
 def overlay_html(legend: Sequence[LegendEntry], animated: bool, readouts: Sequence[Readout] = ()) -> str:
-    """Return the overlay (bottom left): player and read-outs of an animated page, then the legend; '' when empty."""
+    """Return the overlay (bottom left): player and read-outs of an animated page, then the legend; '' when empty.
+
+    The legend is a ``<details>`` block (open; a click on its "legend" line folds it away to free the view).
+    """
     rows = []
     if animated:
         rows.append(
@@ -373,11 +376,18 @@ def overlay_html(legend: Sequence[LegendEntry], animated: bool, readouts: Sequen
             '<span id="cartpush-time">t = 0.0 s</span></div>'
         )
         rows += [f'<div class="cp-row" id="cartpush-readout-{i}"></div>' for i in range(len(readouts))]
+    entries = []
     for e in legend:
         style = _SWATCH.get(e.shape, _SWATCH["line"])
-        rows.append(
+        entries.append(
             f'<div class="cp-row"><span class="cp-swatch" style="{style} background: #{e.color:06x}"></span>'
             f"{_html.escape(e.text)}</div>"
+        )
+    if entries:
+        rows.append(
+            '<details id="cartpush-legend" open><summary id="cartpush-legend-toggle">legend</summary>'
+            + "".join(entries)
+            + "</details>"
         )
     if not rows:
         return ""
@@ -389,6 +399,7 @@ _OVERLAY_CSS = (
     " font: 12px/1.45 'DejaVu Sans', sans-serif; color: #111; background: rgba(255, 255, 255, 0.85);"
     " border-radius: 4px; z-index: 10;}"
     " .cp-swatch {display: inline-block; vertical-align: middle;}"
+    " #cartpush-legend summary {cursor: pointer; color: #555;}"
     " #cartpush-play {font: 12px 'DejaVu Sans', sans-serif; min-width: 70px; margin-right: 6px;}"
     " #cartpush-charts {position: absolute; right: 8px; bottom: 8px; padding: 4px 6px;"
     " font: 11px/1.4 'DejaVu Sans', sans-serif; background: rgba(255, 255, 255, 0.85); border-radius: 4px; z-index: 10;}"
