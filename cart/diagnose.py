@@ -935,6 +935,93 @@ FRAME_MARGIN = 20.0
 FRAME_WARN = 10.0
 #: the two readings are told apart when their plain fits' BIC differ by this much ("strong" evidence)
 FRAME_TOLD = 6.0
+#: how many of its std the frame mixture must lie from 0 ({s}) for the wrench not to read as in {s}
+FRAME_MIX_Z = 4.0
+#: the frame mixture's std beyond which the log has no power to tell {s} from {b} (the cart turns too
+#: little): lam = 1 must lie FRAME_MIX_Z std from 0 with a std to spare
+FRAME_MIX_POWER = 1.0 / (FRAME_MIX_Z + 1.0)
+
+
+class _FrameMix(Effect):
+    """The wrench read as a mixture of its two frames: true forward force (1 - lam) f_fwd^s + lam f_fwd^b.
+
+    ``d`` = f_fwd^s - f_fwd^b (the forward force as logged minus read in {b} and rotated by theta), so that
+    ``f_fwd^s = A x + lam d``: lam = 0 is the wrench in {s} (LOG_FORMAT), lam = 1 in {b}. Linear, nested
+    in both readings; only a heading that varies along the log (paper eq. 3: the forward direction turns)
+    separates the column from the push itself.
+    """
+
+    name = "frame_mix"
+    param_names = ("lam",)
+
+    def __init__(self, d: np.ndarray) -> None:
+        self._d = d
+
+    def column_key(self, sig, nl):
+        """Return None: the column is data, not cached."""
+        return None
+
+    def columns(self, sig, nl, phi, base):
+        """Return G: d in the forward row."""
+        g = np.zeros((sig.n, 3, 1))
+        g[:, 0, 0] = self._d
+        return g
+
+
+@dataclass(frozen=True)
+class _FrameMixTest:
+    """The frame mixture lam fitted with the named effects, its std inflated for correlated residuals."""
+
+    lam: float
+    std: float
+    rho: float
+
+    @property
+    def has_power(self) -> bool:
+        """Return True when the log separates lam = 0 from lam = 1 (std at most FRAME_MIX_POWER)."""
+        return self.std <= FRAME_MIX_POWER
+
+    @property
+    def not_s(self) -> bool:
+        """Return True when lam lies more than FRAME_MIX_Z std from 0: the wrench does not read as in {s}."""
+        return self.lam > FRAME_MIX_Z * self.std
+
+    @property
+    def may_be_b(self) -> bool:
+        """Return True when lam lies far from 0 and within 3 std of 1 (far from both: a misfit, no frame)."""
+        return self.not_s and abs(self.lam - 1.0) <= 3.0 * self.std
+
+    @property
+    def is_b(self) -> bool:
+        """Return True when the wrench reads as in {b}: lam far from 0, within 3 std of 1, with power."""
+        return self.has_power and self.may_be_b
+
+    def text(self) -> str:
+        """Return 'lam = 0.97 +- 0.05' for the messages."""
+        return f"frame mixture lam = {self.lam:.2f} +- {self.std:.2f} (0: {{s}}, 1: {{b}})"
+
+
+def _frame_mixture(
+    as_logged: Signals, alt: Signals, edges: np.ndarray, effects: list[tuple[Effect, tuple[float, ...]]]
+) -> _FrameMixTest:
+    """Return the frame mixture test: lam of :class:`_FrameMix` fitted with ``effects`` (the named ones).
+
+    The fit's std assumes independent window residuals; a model that misses something leaves residuals
+    correlated from window to window (lag-1 correlation rho > 0), and the std is inflated by
+    sqrt((1 + rho) / (1 - rho)) (the AR(1) variance factor), so a misfit that happens to lean on the
+    column is not read as a frame.
+    """
+    eff = list(effects) + [(_FrameMix(as_logged.f_fwd - alt.f_fwd), ())]
+    fit = fit_model(replace(as_logged, extras=dict(as_logged.extras)), edges, eff)
+    st = _start_fit(fit.signals(), edges, eff, fit.phi, fit.thetas, 1)
+    st.phi = fit.phi
+    d, y, _, _ = _design(st, edges)
+    x = np.concatenate([fit.x] + [np.atleast_1d(th) for th in fit.thetas])
+    r = (y - d @ x)[:, 0]
+    rho = float(np.sum(r[1:] * r[:-1]) / max(float(np.sum(r * r)), 1e-300)) if len(r) > 2 else 0.0
+    rho = min(rho, 0.95)
+    inflate = math.sqrt(max(1.0, (1.0 + rho) / (1.0 - rho)))
+    return _FrameMixTest(float(fit.thetas[-1][0]), inflate * math.sqrt(max(float(fit.cov[-1, -1]), 0.0)), rho)
 
 
 def _cart_frame_signals(sig: Signals, keep: dict) -> Signals:
@@ -973,6 +1060,7 @@ class _FrameFits:
     b_named: Fit
     b_bare: Fit
     ln_n: float
+    mix: _FrameMixTest
 
     def bics(self, fit: Fit) -> np.ndarray:
         """Return the fit's BIC (-2 log L + k ln(3 n)) and that of its equation noise, n ln(V_fwd V_yaw) + k ln(3 n)."""
@@ -1005,7 +1093,8 @@ def _frame_fits(sig: Signals, edges: np.ndarray, final: Fit | None) -> _FrameFit
     b_named = fit_model(alt, edges, named + rest) if named else b_plain
     b_bare = fit_model(alt, edges, rest) if len(rest) < len(base) else b_plain
     ln_n = math.log(3 * _n_windows(sig, len(edges) - 1))
-    return _FrameFits(s_plain, b_plain, s_named, b_named, b_bare, ln_n)
+    mix = _frame_mixture(as_logged, alt, edges, named + rest)
+    return _FrameFits(s_plain, b_plain, s_named, b_named, b_bare, ln_n, mix)
 
 
 def _frame_check(
@@ -1014,41 +1103,41 @@ def _frame_check(
     """Return (a warning or None, whether the named effects are withdrawn); raise WrenchFrameError when the
     log's wrench reads as expressed in {b}, not in {s} (LOG_FORMAT).
 
-    The frame is part of the model: the wrench as logged (with the effects the search named) and read in
-    {b} (plain or with the same effects) are compared by BIC, full and of the equation noise
-    (:class:`_FrameFits`; a reading is better by the smaller of its two margins). A {b} reading better by
-    FRAME_MARGIN that is a cart (m > MASS_MIN; a physical one unless the reading as logged is not either):
-    refused. Named effects that do not beat the {b} reading without them by the naming threshold in either
-    BIC stand for the frame as well as for themselves: withdrawn, with a warning. A {b} reading better by
-    FRAME_WARN: a warning. Plain readings that neither beats by FRAME_TOLD but that give masses 3 std apart:
-    the frame cannot be checked on this log (a warning).
+    The frame is decided by the frame mixture (:class:`_FrameMix`, fitted with the named effects): lam
+    more than FRAME_MIX_Z std from 0, within 3 std of 1, with power (std <= FRAME_MIX_POWER) and a {b}
+    reading that is a cart (m > MASS_MIN; a physical one unless the reading as logged is not either):
+    refused. Named effects that do not beat the {b} reading without them by the naming threshold in
+    either BIC (:class:`_FrameFits`), on a log whose lam may be that of {b}, stand for the frame as well
+    as for themselves: withdrawn, with a warning. lam far from 0 and near 1 without the power to refuse:
+    a warning. lam far from both 0 and 1 is a misfit the named effects leave, not a frame: no warning. A
+    log without the power to tell the frames whose plain readings give masses 3 std apart: a warning
+    that the frame cannot be checked.
     """
     ff = _frame_fits(sig, edges, final)
-    best = ff.b_best
-    favours_b = ff.margin(ff.s_named, best)
+    mix, best = ff.mix, ff.b_best
     plausible = best.x[0] > MASS_MIN and (cart_is_physical(best.x) or not cart_is_physical(ff.s_named.x))
-    if favours_b > FRAME_MARGIN and plausible:
+    if mix.is_b and plausible:
         raise WrenchFrameError(
             f"the wrench (fx, fy) looks expressed in the cart frame {{b}}, not in the world frame {{s}} that "
-            f"LOG_FORMAT requires: read as {{b}} and rotated by theta, the model fits it far better "
-            f"(BIC lower by {favours_b:.0f}, m = {best.x[0]:.1f} kg instead of {ff.s_named.x[0]:.1f} kg); "
-            "rotate fx, fy into {s} (fx_s = cos(theta) fx - sin(theta) fy, fy_s = sin(theta) fx + cos(theta) fy)"
+            f"LOG_FORMAT requires: read as a mix of the two, {mix.text()} (m = {best.x[0]:.1f} kg read in {{b}}, "
+            f"{ff.s_named.x[0]:.1f} kg as logged); rotate fx, fy into {{s}} "
+            "(fx_s = cos(theta) fx - sin(theta) fy, fy_s = sin(theta) fx + cos(theta) fy)"
         )
     names = ", ".join(e.name for e, _ in (final.effects if final is not None else []))
     effects_vs_b = -ff.margin(ff.s_named, ff.b_bare)  # how far the effects beat the {b} reading in one BIC at least
-    if names and effects_vs_b < threshold and cart_is_physical(ff.b_bare.x):
+    if names and mix.may_be_b and effects_vs_b < threshold and cart_is_physical(ff.b_bare.x):
         return (
             f"nothing named: {names} would explain the log as logged, but read in the cart frame {{b}} the "
             f"nominal model alone explains it about as well (BIC {effects_vs_b:.0f} short of the threshold "
-            f"{threshold:g}): the effects may stand for a wrench logged in {{b}}; check the logger's frame"
+            f"{threshold:g}; {mix.text()}): the effects may stand for a wrench logged in {{b}}; check the "
+            "logger's frame"
         ), True
-    if favours_b > FRAME_WARN:
+    if mix.may_be_b:
         return (
-            f"the wrench (fx, fy) may be expressed in the cart frame {{b}} instead of {{s}}: read so, the model "
-            f"fits it better (BIC lower by {favours_b:.0f}{'' if plausible else ', though as no physical cart'}); "
-            "check the logger's frame"
+            f"the wrench (fx, fy) may be expressed in the cart frame {{b}} instead of {{s}}: {mix.text()}; the "
+            "cart turns too little to be sure; check the logger's frame"
         ), False
-    return _frame_undecided(ff), False
+    return (None if mix.has_power else _frame_undecided(ff)), False
 
 
 def _frame_undecided(ff: _FrameFits) -> str | None:
@@ -1070,6 +1159,15 @@ def _nominal_fit(sig: Signals, edges: np.ndarray, source: str) -> tuple[Fit, lis
     nominal = fit_model(sig, edges, [])
     if cart_is_physical(nominal.x):
         return nominal, []
+    power = sig.f_fwd * sig.v + sig.tau * sig.omega  # the push's power on the cart (no lateral motion, eq. 3)
+    work = float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(sig.t)))
+    if nominal.x[0] <= 0.0 and work < 0.0:
+        raise DiagnoseError(
+            f"{source}: the nominal fit gives no positive mass (m = {nominal.x[0]:.3g} kg) and the logged wrench "
+            f"does {work:.4g} J of work on the cart (a passive cart is pushed with positive work): the wrench's "
+            "sign looks flipped (the sensor's reading of the force on the robot?); negate fx, fy and tau "
+            "(LOG_FORMAT: the wrench applied to the cart)"
+        )
     a_s, a_w, y_w = sig.extras["base"]
     lv, lw = nominal_loadings(a_w.shape[0])
     d, y, lv, lw = _kept(sig, (a_w, y_w, lv, lw))

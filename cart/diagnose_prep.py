@@ -76,6 +76,10 @@ def _merge_streams(log: CartLog, notes: list[str]) -> CartLog:
     st = _split(log)
     if st is None:
         return log
+    from cart.units import check_declared_units, check_units
+
+    check_declared_units(log.metadata, log.source)
+    check_units(st, log.source)  # time in ms, positions in mm, heading in degrees: refused as `estimate` does
     clean = (
         not st.multi_rate
         and len(st.pose.t) == len(log.t)

@@ -21,11 +21,11 @@ from typing import Any
 
 import numpy as np
 
-from cart.errors import CartError, LogFormatError
+from cart.errors import CartError, LogFormatError, ParameterError
 from cart.logs import CartLog, read_log
 from cart.params import CartParams
 from cart.streams import Streams, box_average, split_streams
-from cart.units import check_units, check_wrench_frame
+from cart.units import check_declared_units, check_units, check_wrench_frame
 
 #: Mean NIS above which the EKF's innovations do not fit the 6-dof measurement (about 6 expected).
 NIS_MISFIT = 18.0
@@ -181,12 +181,50 @@ def _innovation(log: CartLog, streams: Streams, params: CartParams, noise: dict[
     return (float(np.mean(means)) if means else float("nan")), int(sum(r for _, r in runs)), ""
 
 
+def push_work(streams: Streams) -> float:
+    """Return the work (J) the logged wrench does on the cart: the integral of fx vx + fy vy + tau omega.
+
+    A passive cart (paper eq. 4: inertia and dissipation) takes the work that changes its kinetic energy
+    and what its resistance dissipates: over a push that starts and ends near rest, the work is positive.
+    Velocities from the pose stream (local polynomial fits), the wrench interpolated onto its times.
+    """
+    from cart.logs import estimate_velocities
+
+    t, q = streams.pose.t, streams.pose.values
+    if len(t) < 5:
+        return 0.0
+    qd = estimate_velocities(t, q)
+    g = np.column_stack([np.interp(t, streams.wrench.t, streams.wrench.values[:, k]) for k in range(3)])
+    power = np.sum(g * qd, axis=1)
+    return float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(t)))
+
+
+def _no_mass_error(log: CartLog, streams: Streams, exc: Exception) -> CartError:
+    """Return the error for a log whose fit gives no positive mass: a flipped wrench sign when the push
+    does negative work on the cart (:func:`push_work`), otherwise a push that does not match the motion."""
+    work = push_work(streams)
+    if work < 0.0:
+        return CartError(
+            f"{log.source}: the fit gives no positive mass and the logged wrench does {work:.4g} J of work on "
+            "the cart (a passive cart is pushed with positive work): the wrench's sign looks flipped (the "
+            "sensor's reading of the force on the robot?); negate fx, fy and tau (LOG_FORMAT: the wrench "
+            "applied to the cart)"
+        )
+    return CartError(
+        f"{log.source}: the fit gives no positive mass ({exc}): the wrench does not match the motion "
+        "(check the columns' order, frames and units against LOG_FORMAT)"
+    )
+
+
 def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
     """Return the least-squares report (identify + EKF innovation check + segments)."""
     from cart.identify import IdentifiabilityError, identify
     from cart.segments import find_segments
 
-    res = identify(log, streams=streams)
+    try:
+        res = identify(log, streams=streams)
+    except ParameterError as exc:
+        raise _no_mass_error(log, streams, exc) from None
     check_wrench_frame(log, res.residual_ratio, res.model_fits)
     if res.wrench_noise is None:
         raise IdentifiabilityError(f"{log.source}: the least-squares fit gave no wrench-noise model")
@@ -379,6 +417,7 @@ def estimate_log(
         raise CartError(f"--sigma-guess must be a non-negative number, got {sigma_guess}")
     if not isinstance(log, CartLog):
         log = read_log(log)
+    check_declared_units(log.metadata, log.source)
     streams = split_streams(log)
     check_units(streams, log.source)
     if method == "ls":

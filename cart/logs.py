@@ -17,6 +17,7 @@ from __future__ import annotations
 import gzip
 import math
 import os
+import re
 import warnings
 import zlib
 from dataclasses import dataclass, field
@@ -173,9 +174,30 @@ def _metadata(lines: list[str]) -> tuple[dict[str, str], int]:
     return metadata, i
 
 
+_UNIT_IN_NAME = re.compile(r"^\s*([^\[\(]*?)\s*[\[\(]\s*([^\]\)]*?)\s*[\]\)]\s*$")
+
+
+def _column_name(cell: str) -> tuple[str, str]:
+    """Return (name, unit) of a header cell: case folded, a unit in brackets split off ("X [mm]" -> "x", "mm")."""
+    match = _UNIT_IN_NAME.match(cell)
+    if match:
+        return match.group(1).strip().lower(), match.group(2)
+    return cell.strip().lower(), ""
+
+
+def header_units(line: str) -> str:
+    """Return the units a header line states in brackets ("x: mm, theta: deg"), '' when it states none."""
+    named = [_column_name(c) for c in line.split(",")]
+    return ", ".join(f"{name}: {unit}" for name, unit in named if unit)
+
+
 def _header_columns(path: str, line: str, header_line: int) -> tuple[list[str], list[str]]:
-    """Return (header, the columns the reader uses); raise LogFormatError for missing, duplicate or lone columns."""
-    header = [h.strip() for h in line.split(",")]
+    """Return (header, the columns the reader uses); raise LogFormatError for missing, duplicate or lone columns.
+
+    Names are matched without regard to case, and a unit in brackets after a name ("t [s]", "x (m)") is
+    split off (:func:`header_units`; the units are checked by :func:`cart.units.check_declared_units`).
+    """
+    header = [_column_name(h)[0] for h in line.split(",")]
     missing = [c for c in REQUIRED_COLUMNS if c not in header]
     for sep, name in ((";", "semicolons"), ("\t", "tabs"), (None, "spaces")):
         if missing and all(c in [h.strip() for h in line.split(sep)] for c in REQUIRED_COLUMNS):
@@ -252,15 +274,15 @@ def _parse_rows_fast(body: list[str], header: list[str], wanted: list[str]) -> n
     return rows if np.all(np.abs(rows) <= MAX_ABS_VALUE) else None
 
 
-def _parse_rows(path: str, body: list[str], header: list[str], wanted: list[str], first_line: int) -> np.ndarray:
-    """Return the values (rows, len(wanted)) of the data lines; ``first_line``: the file line of ``body[0]``."""
+def _parse_rows(path: str, body: list[str], header: list[str], wanted: list[str], line_of: np.ndarray) -> np.ndarray:
+    """Return the values (rows, len(wanted)) of the data lines; ``line_of``: the file line of each."""
     fast = _parse_rows_fast(body, header, wanted)
     if fast is not None:
         return fast
     col = {c: header.index(c) for c in wanted}
     rows = np.empty((len(body), len(wanted)))
     for r, line in enumerate(body):
-        lineno = first_line + r
+        lineno = int(line_of[r])
         fields = line.split(",")
         if len(fields) != len(header):
             raise LogFormatError(f"{path}: line {lineno}: expected {len(header)} fields, found {len(fields)}")
@@ -309,12 +331,17 @@ def _without_repeated_rows(data: dict[str, np.ndarray]) -> tuple[dict[str, np.nd
     return {name: v[~again] for name, v in data.items()}, np.flatnonzero(~again)
 
 
-def _log_from_columns(path: str, data: dict[str, np.ndarray], metadata: dict[str, str], header_line: int) -> CartLog:
-    """Return the CartLog of the parsed columns (heading unwrapped, missing velocity columns estimated) with notes."""
+def _log_from_columns(
+    path: str, data: dict[str, np.ndarray], metadata: dict[str, str], row_lines: np.ndarray
+) -> CartLog:
+    """Return the CartLog of the parsed columns (heading unwrapped, missing velocity columns estimated) with notes.
+
+    ``row_lines``: the file line of each row.
+    """
     n_rows = len(data["t"])
     data, kept = _without_repeated_rows(data)
     repeated = n_rows - len(kept)
-    line_of = header_line + 1 + kept  # the file line of each kept row
+    line_of = row_lines[kept]  # the file line of each kept row
     t = data["t"]
     _check_time_order(path, t, line_of)
     q = np.column_stack([data["x"], data["y"], np.unwrap(data["theta"])])
@@ -330,7 +357,7 @@ def _log_from_columns(path: str, data: dict[str, np.ndarray], metadata: dict[str
     if all(c in data for c in CONTACT_COLUMNS):
         contact = np.column_stack([data["contact_x"], data["contact_y"]])
     log = CartLog(t=t, q=q, gamma=gamma, qd=qd, contact_b=contact, metadata=metadata, source=path)
-    notes = plausibility_warnings(log, raw_theta=data["theta"], first_line=header_line + 1, line_of=line_of)
+    notes = plausibility_warnings(log, raw_theta=data["theta"], line_of=line_of)
     if repeated:
         notes.insert(0, f"{repeated} row(s) repeat the previous row exactly, time included: dropped (written twice)")
     if notes:
@@ -349,13 +376,21 @@ def read_log(path: str | os.PathLike) -> CartLog:
     if '"' in lines[i]:  # CSV quoting ("t","x",... or "0.1","2.0",...): the quotes are not part of the values
         lines = lines[:i] + [line.replace('"', "") for line in lines[i:]]
     header, wanted = _header_columns(path, lines[i], header_line)
-    body = lines[i + 1 :]
-    while body and not body[-1].strip():
-        body.pop()  # trailing newlines are not rows
-    rows = _parse_rows(path, body, header, wanted, header_line + 1)
+    units = header_units(lines[i])
+    if units:
+        metadata["units (header)"] = units
+    # blank lines and comment lines among the rows are not rows (a marker a recorder wrote, a flush)
+    line_of = np.array([k + 1 for k in range(i + 1, len(lines)) if lines[k].strip() and lines[k][0] != "#"], int)
+    body = [lines[k - 1] for k in line_of]
+    comments = sum(1 for k in range(i + 1, len(lines)) if lines[k].startswith("#"))
+    rows = _parse_rows(path, body, header, wanted, line_of)
     if len(body) < 3:
         raise LogFormatError(f"{path}: only {len(body)} data row(s); a log needs at least 3")
-    return _log_from_columns(path, {name: rows[:, k] for k, name in enumerate(wanted)}, metadata, header_line)
+    log = _log_from_columns(path, {name: rows[:, k] for k, name in enumerate(wanted)}, metadata, line_of)
+    if comments:
+        note = f"{comments} comment line(s) among the rows ('#' ...): skipped, they are not samples"
+        object.__setattr__(log, "warnings", (note, *log.warnings))
+    return log
 
 
 def _rolls_along_heading(log: CartLog, span: float = 0.1) -> bool:

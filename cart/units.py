@@ -7,8 +7,11 @@ kinematics of the pose stream, whatever the cart:
 - time in milliseconds (or micro-, nanoseconds): the pose's median sample interval is beyond
   ``MAX_POSE_PERIOD`` (motion capture runs at 10 Hz or more); the unit named is the one that brings it
   below;
-- positions in millimetres (or centimetres): the cart's typical speed (the 90th percentile over
-  0.1 s windows, so a glitch does not count) is beyond ``MAX_TYPICAL_SPEED``;
+- positions in millimetres (or centimetres, inches): the cart's typical speed (the 90th percentile over
+  0.1 s windows, so a glitch does not count) is beyond ``MAX_TYPICAL_SPEED``; with a pose sampled
+  faster than ``MIN_POSE_PERIOD`` (no motion capture does) that is time in minutes;
+- forces in lbf (or kgf): invisible in the data (every parameter scales by one factor); a unit the
+  log's metadata or header declares is checked (:func:`check_declared_units`);
 - heading in degrees: the heading turns about 57 times faster than the direction of travel (a cart
   rolls along its heading: paper eq. 3), or its typical yaw rate is beyond ``MAX_TYPICAL_YAW_RATE``;
 - a wrench in the cart frame {b} instead of the world frame {s} (:func:`check_wrench_frame`): on a log
@@ -21,6 +24,7 @@ kinematics of the pose stream, whatever the cart:
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -30,6 +34,7 @@ from cart.logs import CartLog
 from cart.streams import Streams
 
 MAX_POSE_PERIOD = 0.5  # s
+MIN_POSE_PERIOD = 1e-3  # s: no motion capture samples the pose faster than 1 kHz
 MAX_TYPICAL_SPEED = 8.0  # m/s, 90th percentile: no pushed cart moves that fast most of the time
 MAX_TYPICAL_YAW_RATE = 12.0  # rad/s, 90th percentile
 #: Share of moving, turning windows whose heading rate / travel-direction rate is near 180 / pi.
@@ -132,9 +137,14 @@ def check_units(streams: Streams, source: str = "<memory>") -> None:
     speed = np.hypot(*((q[w:, :2] - q[:-w, :2]) / span[:, None]).T)
     typical = float(np.percentile(speed, 90))
     if typical > MAX_TYPICAL_SPEED or float(np.percentile(speed, 98)) > 2.5 * MAX_TYPICAL_SPEED:
+        if period < MIN_POSE_PERIOD <= 60.0 * period:  # a pose faster than motion capture runs, at 60x the speed
+            raise UnitsError(
+                f"{source}: the pose is sampled every {period:.3g} s and the cart moves at {typical:.4g} m/s "
+                "typically: time looks like minutes; multiply t by 60 (LOG_FORMAT: seconds)"
+            )
         raise UnitsError(
-            f"{source}: the cart's typical speed is {typical:.4g} m/s: positions look like millimetres "
-            f"(or centimetres); divide x, y by 1000 (or 100) (LOG_FORMAT: metres)"
+            f"{source}: the cart's typical speed is {typical:.4g} m/s: positions look like millimetres, "
+            "centimetres or inches; divide x, y by 1000 or 100, or multiply them by 0.0254 (LOG_FORMAT: metres)"
         )
     yaw_rate = float(np.percentile(np.abs(q[w:, 2] - q[:-w, 2]) / span, 90))
     share = _travel_vs_heading(t, q, w)
@@ -144,8 +154,61 @@ def check_units(streams: Streams, source: str = "<memory>") -> None:
     if yaw_rate > MAX_TYPICAL_YAW_RATE or share > DEGREE_SHARE:
         raise UnitsError(
             f"{source}: the heading turns {'at ' + format(yaw_rate, '.4g') + ' rad/s typically' if yaw_rate > MAX_TYPICAL_YAW_RATE else 'about 57 times faster than the direction of travel'}: "
-            "theta looks like degrees; multiply theta by pi/180 (LOG_FORMAT: radians)"
+            "theta looks like degrees (or gradians); multiply theta by pi/180 (or pi/200) (LOG_FORMAT: radians)"
         )
+
+
+#: Units a log's metadata may declare that LOG_FORMAT does not use: token -> (quantity, columns, factor to SI).
+NON_SI_UNITS: dict[str, tuple[str, str, float]] = {
+    "lbf": ("force", "fx, fy", 4.4482216),
+    "lb": ("force", "fx, fy", 4.4482216),
+    "lbs": ("force", "fx, fy", 4.4482216),
+    "pound": ("force", "fx, fy", 4.4482216),
+    "pounds": ("force", "fx, fy", 4.4482216),
+    "kgf": ("force", "fx, fy", 9.80665),
+    "kn": ("force", "fx, fy", 1000.0),
+    "mn": ("force", "fx, fy", 1e-3),
+    "mm": ("length", "x, y", 1e-3),
+    "cm": ("length", "x, y", 1e-2),
+    "inch": ("length", "x, y", 0.0254),
+    "inches": ("length", "x, y", 0.0254),
+    "ft": ("length", "x, y", 0.3048),
+    "feet": ("length", "x, y", 0.3048),
+    "deg": ("angle", "theta", math.pi / 180.0),
+    "degree": ("angle", "theta", math.pi / 180.0),
+    "degrees": ("angle", "theta", math.pi / 180.0),
+    "grad": ("angle", "theta", math.pi / 200.0),
+    "gon": ("angle", "theta", math.pi / 200.0),
+    "ms": ("time", "t", 1e-3),
+    "us": ("time", "t", 1e-6),
+    "ns": ("time", "t", 1e-9),
+    "min": ("time", "t", 60.0),
+    "minutes": ("time", "t", 60.0),
+}
+
+
+def check_declared_units(metadata: dict[str, str], source: str = "<memory>") -> None:
+    """Raise :class:`UnitsError` when a ``# ...unit...: value`` metadata line declares a unit LOG_FORMAT does not use.
+
+    A force scale cannot be seen in the data: forces in lbf (or kgf) scale the mass, the inertia and the
+    dampings by one factor and leave every kinematic check and the model's fit unchanged (a 50 kg cart
+    reads as 11.2 kg). What the log says of its own units is then the only evidence: a metadata key that
+    contains "unit" (``units``, ``force_unit``, ``fx_units``, ...) whose value names a unit of
+    ``NON_SI_UNITS`` as a word is refused with the conversion named. Other metadata is free text.
+    """
+    for key, value in metadata.items():
+        if "unit" not in key.lower():
+            continue
+        words = re.findall(r"[a-z]+", value.lower().replace("\u00b5s", "us").replace("\u00b0", " deg "))
+        for word in words:
+            if word in NON_SI_UNITS:
+                quantity, columns, factor = NON_SI_UNITS[word]
+                raise UnitsError(
+                    f"{source}: the metadata line '# {key}: {value}' declares {quantity} in {word}; LOG_FORMAT "
+                    f"needs SI units and radians: multiply {columns} by {factor:.8g}"
+                    + (" (and tau into N m)" if quantity in ("force", "length") else "")
+                    + " and remove or correct that line"
+                )
 
 
 def _wrench_from_cart_frame(log: CartLog) -> CartLog:
