@@ -55,6 +55,8 @@ class Case:
     expect: tuple = (2,)
     timeout: float = 90.0
     result: dict = field(default_factory=dict)
+    #: the cart's true mass (kg) when the log has one: an answer (exit 0) off by more than MASS_TOLERANCE is wrong
+    truth_mass: float | None = None
 
 
 # -- logs ---------------------------------------------------------------------------------------
@@ -115,7 +117,7 @@ def malformed_logs(d: Path) -> dict:
         bad[10] = ",".join(f)
         put(name, "\n".join(bad) + "\n")
     bad = list(lines)
-    bad[20] = bad[19]
+    bad[20] = bad[19].rsplit(",", 1)[0] + ",9.5"  # the time of the row before, another value
     put("repeated_time", "\n".join(bad) + "\n")
     put("decreasing_time", "\n".join([lines[0]] + lines[1:][::-1]) + "\n")
     bad = list(lines)
@@ -195,6 +197,125 @@ def odd_logs(d: Path) -> dict:
     bom = d / "odd_bom.csv"
     bom.write_bytes(b"\xef\xbb\xbf" + out["nominal"].read_bytes())
     out["bom"] = bom
+    return out
+
+
+#: relative mass error beyond which an answered (exit 0) recorder log counts as a wrong number
+MASS_TOLERANCE = 0.15
+
+
+def _recorder_base(seed: int = 7):
+    """Return (HiddenLog) of an effect-free 40 s push at 100 Hz with turns (the hidden-effect test bed)."""
+    sys.path.insert(0, str(ROOT))
+    from studies.testbeds.hidden_effects import random_case
+
+    return random_case(None, np.random.default_rng(seed), duration=40.0, rate=100.0, with_velocities=False)
+
+
+def _text_rows(t, q, g, fmt: str = "{:.9g}") -> list:
+    return [",".join(fmt.format(v) for v in (t[k], *q[k], *g[k])) for k in range(len(t))]
+
+
+def _recorder_text(d: Path, put, t, q, g) -> None:
+    """Write the text-level recorder variants (separators, encodings, line ends, headers, rows)."""
+    rows = _text_rows(t, q, g)
+    body = "\n".join([HEADER] + rows) + "\n"
+    put("crlf", body.replace("\n", "\r\n"))
+    put("bom_crlf", b"\xef\xbb\xbf" + body.replace("\n", "\r\n").encode())
+    put("cr_only", body.replace("\n", "\r"))
+    put("header_spaces", body.replace(HEADER, "t, x, y, theta, fx, fy, tau", 1))
+    put("header_upper", body.replace(HEADER, HEADER.upper(), 1))
+    put("header_units", body.replace(HEADER, "t [s],x [m],y [m],theta [rad],fx [N],fy [N],tau [Nm]", 1))
+    put("trailing_comma", "\n".join([HEADER + ","] + [r + "," for r in rows]) + "\n")
+    put("blank_line_inside", "\n".join([HEADER] + rows[:100] + [""] + rows[100:]) + "\n")
+    put("comment_inside", "\n".join([HEADER] + rows[:100] + ["# marker: lap 2"] + rows[100:]) + "\n")
+    put(
+        "decimal_comma_semicolon",
+        "\n".join([HEADER.replace(",", ";")] + [r.replace(",", ";").replace(".", ",") for r in rows]) + "\n",
+    )
+    put("whitespace_only", "   \n\n  \n", truth=False)
+    put("one_row", "\n".join([HEADER, rows[0]]) + "\n", truth=False)
+    nan_row = ",".join([rows[200].split(",")[0]] + ["nan"] * 6)
+    put("nan_row", "\n".join([HEADER] + rows[:200] + [nan_row] + rows[201:]) + "\n")
+    inf_row = rows[300].rsplit(",", 1)[0] + ",inf"
+    put("inf_in_tau", "\n".join([HEADER] + rows[:300] + [inf_row] + rows[301:]) + "\n")
+    swap = list(rows)
+    swap[500], swap[501] = swap[501], swap[500]
+    put("two_rows_swapped", "\n".join([HEADER] + swap) + "\n")
+    order = ["t", "fx", "fy", "tau", "x", "y", "theta"]
+    idx = [HEADER.split(",").index(c) for c in order]
+    put(
+        "columns_reordered",
+        "\n".join([",".join(order)] + [",".join(r.split(",")[i] for i in idx) for r in rows]) + "\n",
+    )
+    put("extra_columns", "\n".join([HEADER + ",battery,mode"] + [r + ",24.1,push" for r in rows]) + "\n")
+    put(
+        "quoted_numbers",
+        "\n".join(['"' + HEADER.replace(",", '","') + '"'] + ['"' + r.replace(",", '","') + '"' for r in rows]) + "\n",
+    )
+    put("few_digits", "\n".join([HEADER] + _text_rows(t, q, g, "{:.4g}")) + "\n")
+    put("ros_time_ns_float", "\n".join([HEADER] + _text_rows(t * 1e9 + 1.7e18, q, g, "{:.19g}")) + "\n")
+
+
+def recorder_logs(d: Path) -> dict:
+    """Return name -> (path, true mass or None) of logs as a user's recorder writes them (issue 30 red team).
+
+    Every log is the same effect-free push written another way: an answer (exit 0) must give the cart's
+    mass within MASS_TOLERANCE, or the log must be refused (exit 2). ``None``: no answer is possible
+    (one row, no rows) or the log is not the push (``huge_20min`` repeats it, with jumps).
+    """
+    base = _recorder_base()
+    m_true = float(base.params.m)
+    t, q, g = base.measured.t, base.measured.q, base.measured.gamma
+    out: dict = {}
+
+    def put(name, data, suffix=".csv", truth=True):
+        path = d / f"rec_{name}{suffix}"
+        path.write_bytes(data if isinstance(data, bytes) else data.encode())
+        out[name] = (path, m_true if truth else None)
+
+    def put_log(name, tt, qq, gg, truth=True, **kw):
+        path = d / f"rec_{name}.csv"
+        write_log(path, CartLog(t=tt, q=qq, gamma=gg, **kw))
+        out[name] = (path, m_true if truth else None)
+
+    put_log("clean", t, q, g)
+    _recorder_text(d, put, t, q, g)
+    half = len(t) // 2
+    put_log("time_reset_midway", np.r_[t[:half], t[half:] - t[half]], q, g)
+    put_log("time_in_ms", t * 1e3, q, g)
+    put_log("time_in_us", t * 1e6, q, g)
+    put_log("time_in_minutes", t / 60.0, q, g)
+    put_log("positions_cm", t, q * [100.0, 100.0, 1.0], g)
+    put_log("positions_inches", t, q * [39.37, 39.37, 1.0], g)
+    put_log("heading_degrees", t, q * [1.0, 1.0, 180.0 / math.pi], g)
+    put_log("heading_gradians", t, q * [1.0, 1.0, 200.0 / math.pi], g)
+    put_log("wrench_sign_flipped", t, q, -g)
+    put_log("forces_lbf_declared", t, q, g / 4.4482216, metadata={"units": "fx fy lbf, tau lbf ft"})
+    put_log("positions_mm_heading_deg", t, q * [1000.0, 1000.0, 180.0 / math.pi], g)
+    gaps = np.ones(len(t), bool)
+    for k in (800, 1800, 2800):
+        gaps[k : k + 50] = False
+    put_log("gaps_half_second", t[gaps], q[gaps], g[gaps])
+    jit = t + np.random.default_rng(3).normal(0.0, 0.002, len(t))
+    put_log("jitter_2ms_sorted", np.sort(jit), q, g)
+    held = q.copy()
+    held[1::2] = held[::2][: len(held[1::2])]
+    put_log("held_pose_every_other_row", t, held, g)
+    put_log("wrench_lag_half_second", t, q, np.r_[g[50:], np.repeat(g[-1:], 50, axis=0)])
+    cart = (lambda c, s_: np.column_stack([c * g[:, 0] + s_ * g[:, 1], -s_ * g[:, 0] + c * g[:, 1], g[:, 2]]))(
+        np.cos(q[:, 2]), np.sin(q[:, 2])
+    )
+    put_log("wrench_in_cart_frame", t, q, cart)
+    put_log("map_offset", t, q + [634_512.3, 5_432_101.7, 0.0], g)
+    put_log("heading_wrapped_pi", t, np.column_stack([q[:, :2], np.angle(np.exp(1j * q[:, 2]))]), g)
+    put_log("heading_offset_2pi_x5", t, q + [0.0, 0.0, 10 * math.pi], g)
+    put_log("unix_seconds", t + 1.732e9, q, g)
+    tl = np.arange(0.0, 1200.0, 0.005)
+    reps = int(math.ceil(len(tl) / len(t)))
+    huge = CartLog(t=tl, q=np.tile(q, (reps, 1))[: len(tl)], gamma=np.tile(g, (reps, 1))[: len(tl)])
+    write_log(d / "rec_huge_20min.csv.gz", huge)
+    out["huge_20min"] = (d / "rec_huge_20min.csv.gz", None)
     return out
 
 
@@ -337,6 +458,13 @@ def build_cases(d: Path) -> list:
         ),
     ]
     cases += [Case(name, "valid request", argv, (0,), timeout=180) for name, argv in good]
+    for name, (path, m_true) in recorder_logs(d).items():
+        for cmd in ("estimate", "diagnose"):
+            cases.append(
+                Case(
+                    f"recorder/{cmd}/{name}", "recorder log", [cmd, str(path), "--json"], (0, 2), 240, truth_mass=m_true
+                )
+            )
     return cases
 
 
@@ -346,6 +474,30 @@ def _strict_json(text: str):
         raise ValueError(f"non-strict constant {name}")
 
     return json.loads(text, parse_constant=refuse)
+
+
+def _answer_mass(obj) -> tuple[float | None, float]:
+    """Return (mass, its std) an answer gives: estimate's ``mass``, diagnose's final (or nominal) model ``m``."""
+    if not isinstance(obj, dict):
+        return None, 0.0
+    if isinstance(obj.get("mass"), (int, float)):
+        std = obj.get("std", {}).get("mass") if isinstance(obj.get("std"), dict) else None
+        return float(obj["mass"]), float(std) if isinstance(std, (int, float)) else 0.0
+    for key in ("final_model", "nominal"):
+        model = obj.get(key)
+        if isinstance(model, dict) and isinstance(model.get("m"), (int, float)):
+            std = model.get("m_std")
+            return float(model["m"]), float(std) if isinstance(std, (int, float)) else 0.0
+    return None, 0.0
+
+
+def _wrong_mass(case: Case, obj) -> bool:
+    """Return True when a log of known mass was answered (exit 0) with a mass off by more than MASS_TOLERANCE
+    and 3 of its std (or with none); logs without a known mass are not judged."""
+    if case.truth_mass is None:
+        return False
+    m, std = _answer_mass(obj)
+    return m is None or abs(m - case.truth_mass) > max(MASS_TOLERANCE * case.truth_mass, 3.0 * std)
 
 
 def run_case(case: Case, cwd: Path) -> Case:
@@ -373,11 +525,13 @@ def run_case(case: Case, cwd: Path) -> Case:
     if proc.returncode == 2:
         errors = [ln for ln in err_lines if ": error:" in ln]
         r["multiline_error"] = not (len(err_lines) == 1 and len(errors) == 1)
+    r["wrong_number"] = False
     if "--json" in case.argv and proc.returncode == 0:
         try:
             obj = _strict_json(proc.stdout)
             if isinstance(obj, dict) and obj.get("warnings"):
                 r["warnings"] += [str(w) for w in obj["warnings"]]
+            r["wrong_number"] = _wrong_mass(case, obj)
         except ValueError as exc:
             r["invalid_json"] = True
             r["json_error"] = str(exc)[:200]
@@ -407,7 +561,7 @@ def main() -> None:
     finally:
         if not args.keep:
             shutil.rmtree(d, ignore_errors=True)
-    metrics = ("traceback", "wrong_code", "invalid_json", "multiline_error", "hang")
+    metrics = ("traceback", "wrong_code", "invalid_json", "multiline_error", "hang", "wrong_number")
     classes = sorted({c.klass for c in cases})
     table = {k: {m: sum(bool(c.result.get(m)) for c in cases if c.klass == k) for m in metrics} for k in classes}
     for k in classes:
