@@ -231,3 +231,35 @@ def test_cli_view_draws_a_cart_file_and_refuses_a_broken_one(tmp_path, capsys):
     assert main(["view", "--cart-model", str(broken), "--html", str(out)]) == 2
     err = capsys.readouterr().err
     assert "no body named 'cart'" in err and err.count("\n") == 1
+
+
+def test_a_mujoco_run_draws_the_robots_recorded_casters_and_wheels_over_its_state():
+    """The WMRA's joints the plant recorded (scene names `r0/...`) replace the page's: a caster stuck at 0.3 rad,
+    a wheel turning; joints the record lacks keep the state's values; no record: None (the trail model)."""
+    import robots
+    from wholebody.viz.push_cart import recorded_robot_joints
+
+    model = robots.load("wmra").model
+    result = _result()
+    idx = np.arange(0, 200, 10)
+    rest = np.tile(pin.neutral(model)[4:], (len(idx), 1))
+    arm = model.joints[model.getJointId("arm_joint3")].idx_q - 4
+    rest[:, arm] = 0.7  # from the robot's state
+    assert recorded_robot_joints(result, model, rest, idx) is None
+    t_rec = np.r_[result.t, result.t[-1] + 0.01]
+    record = mujoco_cart.CartJointRecord(("r0/caster_left_swivel", "r0/wheel_right_joint"), ("hinge", "hinge"), (0, 1))
+    for k, tk in enumerate(t_rec):
+        record.t.append(float(tk))
+        record.q.append(np.array([0.3, 2.0 * tk]))
+    result.plant_report = {"plant": "mujoco", "robot_joints": [record]}
+    q = recorded_robot_joints(result, model, rest, idx)
+    caster = model.joints[model.getJointId("caster_left_swivel")].idx_q - 4
+    wheel = model.joints[model.getJointId("wheel_right_joint")].idx_q - 4
+    np.testing.assert_allclose(np.arctan2(q[:, caster + 1], q[:, caster]), 0.3, atol=1e-12)
+    np.testing.assert_allclose(
+        np.arctan2(q[:, wheel + 1], q[:, wheel]), np.angle(np.exp(2j * result.t[idx])), atol=1e-9
+    )
+    assert np.all(q[:, arm] == 0.7)
+    others = np.ones(q.shape[1], bool)
+    others[[caster, caster + 1, wheel, wheel + 1]] = False
+    np.testing.assert_array_equal(q[:, others], rest[:, others])

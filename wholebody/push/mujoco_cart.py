@@ -607,9 +607,10 @@ class CartJointRecord:
     q: list[np.ndarray] = field(default_factory=list)
 
     @staticmethod
-    def of(model: mujoco.MjModel, body: str = CART_BODY) -> CartJointRecord:
-        """Return an empty record of the joints below body ``body`` of ``model``."""
-        bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+    def of(model: mujoco.MjModel, body: str | int = CART_BODY) -> CartJointRecord:
+        """Return an empty record of the joints below body ``body`` (a name or an id) of ``model``: the cart's, or a
+        robot's from its root body (its names carry the scene's robot prefix, ``r0/``)."""
+        bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body) if isinstance(body, str) else int(body)
         joints = subtree_joints(model, bid)
         return CartJointRecord(
             tuple(n for n, _, _ in joints), tuple(k for _, k, _ in joints), tuple(a for _, _, a in joints)

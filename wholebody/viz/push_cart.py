@@ -7,6 +7,8 @@
   plant's joints did (recorded, mapped by `wholebody.push.mujoco_cart.URDF_JOINTS`); on the kinematic plant (no
   casters simulated) the casters swivel as rolling without side slip turns them
   (`wholebody.push.report.swivel_casters`) and the wheels stay still.
+- The robot (`robot_joints`): on the MuJoCo plant its casters, wheels and arm as the plant's joints were (the plant
+  report's ``robot_joints``); without a record its casters by the trail model over its base's true motion.
 """
 
 from __future__ import annotations
@@ -51,14 +53,20 @@ def recorded_rows(t_record: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def urdf_joints_from_record(
-    model: pin.Model, names: tuple[str, ...], kinds: tuple[str, ...], q: np.ndarray, name_map: dict[str, str]
+    model: pin.Model,
+    names: tuple[str, ...],
+    kinds: tuple[str, ...],
+    q: np.ndarray,
+    name_map: dict[str, str],
+    base: np.ndarray | None = None,
 ) -> np.ndarray:
     """Return configurations (N, nq - 4) of a planar-rooted URDF model whose joints `name_map` names for recorded
-    hinge joints (a continuous joint gets cos, sin of the angle; a revolute one the angle); others stay neutral."""
+    hinge joints (a continuous joint gets cos, sin of the angle; a revolute one the angle); the others as in
+    `base` (N, nq - 4), neutral without it."""
     from wholebody.push.mujoco_cart import JOINT_NQ
 
     q = np.atleast_2d(np.asarray(q, dtype=float))
-    out = np.tile(pin.neutral(model)[4:], (len(q), 1))
+    out = np.tile(pin.neutral(model)[4:], (len(q), 1)) if base is None else np.array(base, dtype=float)
     col = 0
     for name, kind in zip(names, kinds):
         target = name_map.get(name)
@@ -104,3 +112,34 @@ def run_cart(result: Any, idx: np.ndarray, name: str = "cart") -> RunCart:
     model = robots.load("shopping_cart").model
     joints = urdf_joints_from_record(model, record.names, record.kinds, rows, URDF_JOINTS)
     return RunCart("shopping_cart", "shopping_cart", joints, "recorded")
+
+
+def robot_joints(result: Any, model: pin.Model, rest: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Return robot 1's joint configurations (len(idx), nq - 4) for the page from `rest` (N, nq - 4: its state over
+    the run): the joints the MuJoCo plant recorded (`recorded_robot_joints`), else its casters swivelled by the trail
+    model over its base's true motion (`wholebody.push.report.swivel_casters`: the kinematic plant has no casters)."""
+    from wholebody.push.report import swivel_casters
+
+    recorded = recorded_robot_joints(result, model, np.asarray(rest, dtype=float)[idx], idx)
+    if recorded is not None:
+        return recorded
+    base = np.asarray(result.robot_x, dtype=float)[:, 0, :3]
+    dt = float(result.config.dt)
+    unwrapped = np.column_stack([base[:, :2], np.unwrap(base[:, 2])])
+    velocities = np.gradient(unwrapped, dt, axis=0) if len(base) > 1 else np.zeros_like(base)
+    return swivel_casters(model, rest, base, velocities, dt)[idx]
+
+
+def recorded_robot_joints(result: Any, model: pin.Model, rest: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
+    """Return robot 1's joint configurations at samples `idx` with every joint the MuJoCo plant recorded of it
+    (the plant report's ``robot_joints``: casters, wheels, arm; matched by name without the scene's ``r0/``
+    prefix) over `rest` (its configurations at `idx` from its state); None when the run recorded none (the page
+    then swivels its casters by the trail model, `wholebody.push.report.swivel_casters`)."""
+    records = (result.plant_report or {}).get("robot_joints") or []
+    if not records or len(records[0].t) == 0:
+        return None
+    record = records[0]
+    t_record, q_record = record.series()
+    rows = q_record[recorded_rows(t_record, result.t[idx])]
+    name_map = {name: name.split("/", 1)[-1] for name in record.names}
+    return urdf_joints_from_record(model, record.names, record.kinds, rows, name_map, base=rest)
