@@ -44,6 +44,7 @@ from cart.online_regression import (
     StateVariableFilter,
 )
 from cart.params import CartParams
+from cart.window_changes import WindowChange, WindowChangeDetector
 
 #: Physical parameter names of :meth:`OnlineLSEstimator.unexcited`.
 PHYSICAL_NAMES = ("mass", "dx", "dy", "inertia", "sigma", "sigma_yaw")
@@ -77,7 +78,10 @@ class OnlineOptions:
     ``misfit_ratio``) is a load change only when the masses fitted on each side of the onset differ by this
     many stds of their difference, scaled up by that ratio (:meth:`OnlineLSEstimator._confirmed`);
     ``deflate_com``: the CoM given to the controller moves from the prior by the estimate's move deflated by the
-    model's misfit (:meth:`OnlineLSEstimator._com_to_use`).
+    model's misfit (:meth:`OnlineLSEstimator._com_to_use`);
+    ``window_changes``: every ``window_every_s`` s the offline segment search on the last ``window_s`` s of the
+    loop's own log since the last change (:class:`cart.window_changes.WindowChangeDetector`); a change it finds
+    restarts the parameters from the fit after it.
     """
 
     cutoff_hz: float = 2.0
@@ -109,21 +113,26 @@ class OnlineOptions:
     confirm_sigma: float = 3.0
     deflate_com: bool = True
     casters: bool = True
+    window_changes: bool = True
+    window_every_s: float = 2.0
+    window_s: float = 30.0
 
 
 @dataclass(frozen=True)
 class LoadChange:
-    """A detected load change: estimated onset, detection time (s), mass before and after (kg), GLR statistic."""
+    """A detected load change: estimated onset, detection time (s), mass before and after (kg), GLR statistic
+    (0 for a change the window search found), and the test that found it (``glr`` or ``window``)."""
 
     t_change: float
     t_detected: float
     mass_before: float
     mass_after: float
     statistic: float
+    method: str = "glr"
 
     def as_dict(self) -> dict:
         """Return the change as a JSON-ready dict."""
-        return {k: float(v) for k, v in self.__dict__.items()}
+        return {k: v if isinstance(v, str) else float(v) for k, v in self.__dict__.items()}
 
 
 @dataclass(frozen=True)
@@ -146,6 +155,8 @@ class _Change:
     mass_before: float
     statistic: float
     mass_end: float | None = None
+    method: str = "glr"
+    window_index: int | None = None  # the change's index in the window search's list (its onset is refined)
 
 
 def _vector(value: npt.ArrayLike, n: int, what: str) -> np.ndarray:
@@ -246,6 +257,11 @@ class OnlineLSEstimator:
         self._impulse_t = -math.inf
         self.impulses: list[float] = []
         self.casters = CasterBank(StateVariableFilter(options.cutoff_hz, 96)) if options.casters else None
+        self.window = (
+            WindowChangeDetector(0.0, np.r_[q, qd], options.window_every_s, options.window_s)
+            if options.window_changes
+            else None
+        )
 
     def _init_observer(self, q0: np.ndarray, qd0: np.ndarray, params0: CartParams, meas_std: np.ndarray) -> None:
         """Create the state observer: the paper's EKF with the parameters frozen (overwritten every step)."""
@@ -307,11 +323,20 @@ class OnlineLSEstimator:
 
     @property
     def events(self) -> tuple[LoadChange, ...]:
-        """Return the load changes detected so far (mass after: the estimate now, or before the next change)."""
+        """Return the load changes detected so far.
+
+        Mass after: before the next change, the mass then; for the last change, the online estimate now or the
+        window search's latest fit of the data after it (:attr:`cart.window_changes.WindowChangeDetector.fit`,
+        the offline estimate on at least ``MIN_SEGMENT_S`` of them), whichever has the smaller std.
+        """
         out = []
+        fit = self.window.fit if self.window is not None else None
+        now = float(self.regression.p[0])
+        if fit is not None and fit.std["mass"] < self.params_std()["mass"]:
+            now = float(fit.params.m)
         for c in self._changes:
-            after = c.mass_end if c.mass_end is not None else float(self.regression.p[0])
-            out.append(LoadChange(c.t_change, c.t_detected, c.mass_before, after, c.statistic))
+            after = c.mass_end if c.mass_end is not None else now
+            out.append(LoadChange(c.t_change, c.t_detected, c.mass_before, after, c.statistic, c.method))
         return tuple(out)
 
     @property
@@ -361,6 +386,14 @@ class OnlineLSEstimator:
                 self.impulses.append(self.t)
             self._impulse_t = self.t
         self._regression_step(g, dt, zv, impulse)
+        if self.window is not None:
+            self.window.add(self.t, g, zv)
+            change = self.window.check()
+            if change is not None:
+                self._restart_from_window(change)
+            for c in self._changes:
+                if c.window_index is not None:
+                    c.t_change = self.window.changes[c.window_index].t_change
         return self.nis
 
     def _impulse_statistic(self, gamma: np.ndarray, dt: float, z: np.ndarray) -> float:
@@ -596,7 +629,8 @@ class OnlineLSEstimator:
         buf = self._ring()
         idx = self.detector.onset(buf.read("s"), buf.read("info"), self._cov[:4, :4])
         t_change, m_before = float(buf.read("t")[idx]), float(buf.read("m")[idx])
-        if self.impulses and self.impulses[-1] >= t_change - 2.0 * self._settle_s():
+        dated = bool(self.impulses) and self.impulses[-1] >= t_change - 2.0 * self._settle_s()
+        if dated:
             t_change = self.impulses[-1]  # a velocity jump near or after the onset: the load came with it
         if self._changes:
             self._changes[-1].mass_end = m_before
@@ -629,7 +663,49 @@ class OnlineLSEstimator:
             self.casters.cross, self.casters.info, self.casters.dvec = after
             new.nuisance = self.casters.nuisance()
         self._changes.append(_Change(t_change, self.t, m_before, self.detector.statistic))
+        if self.window is not None:
+            before = self._params.with_mass(m_before) if m_before > 0.0 else self._params
+            seen = WindowChange(t_change, (t_change, t_change), self.t, before, self._params, {})
+            self._changes[-1].window_index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated)
         buf.clear()
+
+    def _restart_from_window(self, change: WindowChange) -> None:
+        """Restart the parameters from the window search's fit after ``change`` (its estimate and std as the prior).
+
+        The fit holds the samples after the change, so the regression starts with no data of its own; the
+        casters' fit so far is carried as a prior (:meth:`CasterBank.carried`), the GLR window and its buffer
+        restart.
+        """
+        a, sd = change.after, change.after_std
+        rho = a.inertia_b / a.m
+        center = np.array([a.m, a.dx, a.dy, rho, max(a.sigma, 0.0), max(a.sigma_yaw, 0.0)])
+        floor = 1e-6 * np.maximum(np.abs(center), 1e-3)
+        std = np.maximum(np.array([sd["mass"], *sd["com"], sd["inertia"] / a.m, sd["sigma"], sd["sigma_yaw"]]), floor)
+        reg = self.regression
+        if self.casters is not None:
+            _, jr = reg.prior.residual(reg.p)
+            zero = (
+                np.zeros_like(self.casters.cross),
+                np.zeros_like(self.casters.info),
+                np.zeros_like(self.casters.dvec),
+            )
+            self.casters.cross, self.casters.info, self.casters.dvec = self.casters.carried(
+                zero, reg.D + jr.T @ jr, reg.p
+            )
+        new = RecursiveRegression(PhysicalPrior(center, std), self.options.noise_subspace)
+        new.nuisance = self.casters.nuisance() if self.casters is not None else None
+        new.solve(iterations=3)
+        self.regression, self._cov = new, new.covariance()
+        if self._changes:
+            self._changes[-1].mass_end = change.before.m
+        index = len(self.window.changes) - 1 if self.window is not None else None
+        self._changes.append(
+            _Change(change.t_change, change.t_detected, change.before.m, 0.0, method="window", window_index=index)
+        )
+        self.detector.restart()
+        if self._buffer is not None:
+            self._buffer.clear()
+        self._update_params()
 
     def _caster_sums(
         self, idx: int, d_after: np.ndarray | None = None

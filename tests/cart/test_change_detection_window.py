@@ -1,0 +1,88 @@
+"""Tests of the online window search for load changes (cart/window_changes.py) and its use by the online estimator."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cart.online_estimator import make_online_estimator
+from cart.params import CartParams
+from cart.simulate import MeasurementNoise, ParameterChange, simulate
+from cart.window_changes import LogWindow, WindowChangeDetector
+
+TRUTH = CartParams(20.0, 0.3, 0.15, 2.3, 4.0)
+GUESS = CartParams(16.0, 0.3, 0.0, 1.85, 4.0)
+MOCAP = MeasurementNoise(position=0.003, theta=0.003, velocity=0.01, omega=0.01)
+
+
+def _ctrl(t, q, qd):
+    f = 12.0 * math.sin(0.9 * t) + 6.0 * math.sin(2.3 * t) + 4.0
+    tau = 3.0 * math.sin(1.3 * t) + 1.5 * math.sin(3.1 * t)
+    return np.array([f * math.cos(q[2]), f * math.sin(q[2]), tau])
+
+
+def _log(changes=(), duration: float = 36.0, seed: int = 0):
+    sim = simulate(TRUTH, _ctrl, duration, noise=MOCAP, rng=np.random.default_rng(seed), changes=changes, substeps=2)
+    return sim.measured
+
+
+def _replay(log, seed: int = 1, **options):
+    """Feed the log to a fresh online estimator with 3 N / 0.3 N m of white wrench noise added."""
+    est = make_online_estimator(log.q[0], GUESS, MOCAP.measurement_std(), **options)
+    rng = np.random.default_rng(seed)
+    z = np.hstack([log.q, log.qd])
+    g = log.gamma + rng.standard_normal(log.gamma.shape) * np.array([3.0, 3.0, 0.3])
+    for k in range(1, len(log.t)):
+        est.step(g[k - 1], log.t[k] - log.t[k - 1], z[k])
+    return est
+
+
+@pytest.fixture(scope="module")
+def removed_log():
+    """8 kg of the 20 kg lifted out at 14 s (no momentum exchange)."""
+    return _log([ParameterChange(14.0, TRUTH.with_mass(12.0), conserve_momentum=False)])
+
+
+def test_log_window_pairs_each_wrench_with_the_time_it_starts_and_unwraps_the_heading():
+    win = LogWindow(0.0, np.array([0.0, 0.0, 3.1, 0.0, 0.0, 0.0]))
+    win.add(0.01, np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, -3.1, 0.0, 0.0, 0.0]))
+    win.add(0.02, np.array([2.0, 0.0, 0.0]), np.array([0.0, 0.0, -3.0, 0.0, 0.0, 0.0]))
+    log = win.log(0.0)
+    assert log.t.tolist() == [0.0, 0.01]  # the last row's wrench is not known yet
+    assert log.gamma[:, 0].tolist() == [1.0, 2.0]
+    assert log.q[1, 2] == pytest.approx(3.1 + (2.0 * math.pi - 6.2))
+    win.drop_before(0.01)
+    assert win.log(0.0).t.tolist() == [0.01]
+
+
+def test_the_window_search_waits_for_two_segments_of_data_and_checks_at_its_period():
+    det = WindowChangeDetector(0.0, np.zeros(6), every_s=2.0, window_s=30.0)
+    for k in range(1, 800):  # 8 s at rest: too short for a split, and nothing moves (no fit)
+        det.add(0.01 * k, np.zeros(3), np.zeros(6))
+        assert det.check() is None
+    assert det.checks == 0 and det.fit is None
+
+
+def test_a_load_lifted_out_is_found_by_the_window_search_dated_and_weighed(removed_log):
+    # the GLR and impulse tests off: the window search alone
+    est = _replay(removed_log, detect_changes=False)
+    assert len(est.events) == 1
+    ev = est.events[0]
+    assert ev.method == "window" and ev.t_detected > ev.t_change
+    assert abs(ev.t_change - 14.0) < 1.0
+    assert abs(ev.mass_after - 12.0) < 0.05 * 12.0
+    assert abs(ev.mass_before - 20.0) < 0.05 * 20.0
+    assert abs(est.params().m - 12.0) < 0.05 * 12.0
+
+
+def test_without_the_window_search_the_same_estimator_finds_nothing(removed_log):
+    est = _replay(removed_log, detect_changes=False, window_changes=False)
+    assert est.events == ()
+
+
+def test_no_window_change_on_a_log_without_one():
+    est = _replay(_log(seed=3), seed=4, detect_changes=False)
+    assert est.events == () and est.window is not None and est.window.checks >= 10
+    assert est.window.fit is not None and abs(est.window.fit.params.m - TRUTH.m) < 0.05 * TRUTH.m
