@@ -16,7 +16,9 @@ estimate under a Gaussian prior on the *physical* parameters
 the last estimate. A direction the motion does not excite keeps the prior's
 value and variance (a straight push leaves ``dx`` and ``J`` at the guess).
 The known power of the differentiated pose noise is removed from the normal
-matrix (bias-compensated least squares, as in ``identify``).
+matrix (bias-compensated least squares, as in ``identify``). An optional identifiability gate
+(``excitation_margin``, off by default) leaves to the prior every direction the data know less
+well than the prior does: a model misfit biases a weakly excited direction most.
 """
 
 from __future__ import annotations
@@ -38,6 +40,10 @@ DT_REL_TOL = 1e-6
 MIN_MASS_SHARE = 0.05
 #: A direction of the regression is used when its data power is above (1 + this) times the regressor-noise power (10 dB).
 SIGNAL_MARGIN = 9.0
+#: The identifiability gate's margin for an estimate from the initial guess (``excitation_margin`` of
+#: :class:`RecursiveRegression`): a direction of the data is used only beyond the prior's information in it, by this
+#: many prior units (soft threshold, :meth:`RecursiveRegression.excited_part`).
+EXCITATION_MARGIN = 1.0
 #: Largest share of a diagonal entry of the normal matrix that the noise correction removes.
 COMPENSATION_SHARE = 0.98
 
@@ -133,9 +139,12 @@ class RecursiveRegression:
     not decay, so an unexcited direction returns to (and stays at) the prior.
     """
 
-    def __init__(self, prior: PhysicalPrior, noise_subspace: bool = True) -> None:
+    def __init__(self, prior: PhysicalPrior, noise_subspace: bool = True, excitation_margin: float = 0.0) -> None:
+        if not (math.isfinite(excitation_margin) and excitation_margin >= 0.0):
+            raise OnlineEstimatorError(f"excitation_margin must be >= 0 and finite, got {excitation_margin}")
         self.prior = prior
         self.noise_subspace = bool(noise_subspace)
+        self.excitation_margin = float(excitation_margin)
         self.kept_directions = 0
         self.D = np.zeros((6, 6))
         self.d = np.zeros(6)
@@ -145,6 +154,7 @@ class RecursiveRegression:
         self.compensated = True
         self.nuisance: Nuisance | None = None
         self.data_weight = 1.0
+        self.excitation = np.zeros(6)
         self.solve(iterations=3)
 
     def normal(self) -> tuple[np.ndarray, np.ndarray]:
@@ -168,18 +178,19 @@ class RecursiveRegression:
     def solve(self, iterations: int = 1) -> np.ndarray:
         """Return the MAP estimate after Gauss-Newton steps from the current one; sets H (the posterior information)."""
         d_mat, d_vec = self.normal()
-        dd, dv = self.signal_part(d_mat, d_vec) if self.noise_subspace else (d_mat - self.compensation(d_mat), d_vec)
+        sd, sv = self.signal_part(d_mat, d_vec) if self.noise_subspace else (d_mat - self.compensation(d_mat), d_vec)
         for _ in range(iterations):
             r, jr = self.prior.residual(self.p)
+            dd, dv = self.excited_part(sd, sv, jr)
             h = dd + jr.T @ jr
             try:
                 chol = np.linalg.cholesky(h)
                 self.compensated = True
             except np.linalg.LinAlgError:  # the noise correction overshoots on little data: drop it
-                h = d_mat + jr.T @ jr
+                dd, dv = self.excited_part(d_mat, d_vec, jr)
+                h = dd + jr.T @ jr
                 h += np.diag(1e-12 * np.diag(h))
                 chol = np.linalg.cholesky(h)
-                dv = d_vec
                 self.compensated = False
             g = h @ self.p - (dv + jr.T @ (jr @ self.p - r))
             step = np.linalg.solve(chol.T, np.linalg.solve(chol, g))
@@ -190,6 +201,28 @@ class RecursiveRegression:
             if float(np.abs(step[0])) <= 1e-9 * abs(float(self.p[0])):
                 break
         return self.p
+
+    def excited_part(self, dd: np.ndarray, dv: np.ndarray, jr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return (D', d'): the normal equations with each direction's information less ``excitation_margin`` prior units.
+
+        In the prior's whitened coordinates u = J_r p (J_r: the prior residual's Jacobian at the estimate, whose
+        information J_r^T J_r is the prior's), the data's information has eigenvalues mu (in units of the prior's)
+        along eigenvectors e. Each keeps max(mu - margin, 0) of its information and the data's
+        estimate along it (d' is scaled alike): a direction the motion excites less than the prior knows it keeps
+        the prior's value and std (a straight push's dx, the yaw rate's corrections on a real cart, whose model
+        misfit biases a weak direction most), one it excites well loses a prior unit of information (continuous,
+        no switching). ``excitation`` holds mu after each solve (zeros with the gate off, margin 0).
+        """
+        margin = self.excitation_margin
+        if margin <= 0.0:
+            return dd, dv
+        l_inv = np.linalg.inv(jr)
+        dw = l_inv.T @ dd @ l_inv
+        mu, e = np.linalg.eigh(0.5 * (dw + dw.T))
+        self.excitation = mu
+        keep = np.where(mu > margin, 1.0 - margin / np.maximum(mu, 1e-300), 0.0)
+        ej = e.T @ jr
+        return (ej.T * (mu * keep)) @ ej, ej.T @ (keep * (e.T @ (l_inv.T @ dv)))
 
     def signal_part(self, d_mat: np.ndarray, d_vec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return (D', d'): the normal equations restricted to the directions where the signal beats the noise.

@@ -1,0 +1,68 @@
+"""Tests of the recursive regression's identifiability gate (issue 27 item 2: never worse than the prior)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import cart.online_regression as reg_mod
+from cart.online_regression import PhysicalPrior, RecursiveRegression
+
+#: Prior around the guess (m, dx, dy, rho, c_v, c_w) and the data's own answer, 0.25 m off in dx.
+PRIOR = PhysicalPrior(np.array([16.0, 0.3, 0.0, 0.12, 4.0, 1.0]), np.array([8.0, 0.2, 0.2, 0.06, 2.0, 1.0]))
+DATA = np.array([20.0, 20.0 * 0.05, 20.0 * 0.15, 2.3, 4.0, 1.0])  # p = [m, m dx, m dy, J, c_v, c_w]
+
+
+def _fit(dx_info: float, margin: float = reg_mod.EXCITATION_MARGIN) -> RecursiveRegression:
+    """Return the regression solved on normal equations that know p well except m dx (``dx_info`` prior units)."""
+    prior_info_a = 1.0 / (DATA[0] * PRIOR.std[1]) ** 2  # the prior's information on m dx near the data's mass
+    info = np.array([1e4, dx_info * prior_info_a, 1e4, 1e4, 1e4, 1e4])
+    reg = RecursiveRegression(PRIOR, excitation_margin=margin)
+    reg.D = np.diag(info)
+    reg.d = reg.D @ DATA
+    reg.solve(iterations=20)
+    return reg
+
+
+def _dx_and_std(reg: RecursiveRegression) -> tuple[float, float]:
+    p = reg.p
+    jac = np.array([-p[1] / p[0] ** 2, 1.0 / p[0], 0.0, 0.0, 0.0, 0.0])  # d(dx) / dp
+    return float(p[1] / p[0]), float(np.sqrt(jac @ reg.covariance() @ jac))
+
+
+def test_a_direction_the_data_know_less_than_the_prior_keeps_the_prior_and_its_std():
+    """Data with half the prior's information on dx (and 0.25 m off) leave dx and its std at the prior's."""
+    reg = _fit(0.5)
+    dx, std = _dx_and_std(reg)
+    assert dx == pytest.approx(0.3, abs=1e-6)
+    assert std == pytest.approx(0.2, rel=0.01)
+    assert reg.p[0] == pytest.approx(20.0, rel=1e-3)  # the excited mass is the data's
+    assert reg.p[2] / reg.p[0] == pytest.approx(0.15, abs=1e-3)
+
+
+def test_without_the_gate_the_weak_direction_moves():
+    """The same data without the margin (the default): dx moves a third of the way to the data's 0.05 m."""
+    dx, std = _dx_and_std(_fit(0.5, margin=0.0))
+    assert dx < 0.3 - 0.05
+    assert std < 0.2 * 0.9
+
+
+def test_a_well_excited_direction_is_the_datas():
+    """Fifty prior units of information: dx within 1 cm of the data's, std about a seventh of the prior's."""
+    dx, std = _dx_and_std(_fit(50.0))
+    assert dx == pytest.approx(0.05, abs=0.01)
+    assert std < 0.2 / 6.0
+
+
+@pytest.mark.parametrize("mu", [0.9, 1.0, 1.1, 1.5, 3.0])
+def test_the_gate_is_continuous(mu):
+    """Around the margin (one prior unit) dx leaves the prior continuously: (mu - 1) / mu of the plain posterior's pull."""
+    dx, _ = _dx_and_std(_fit(mu))
+    left = max(mu - 1.0, 0.0)
+    expected = 0.3 + (0.05 - 0.3) * left / (1.0 + left)
+    assert dx == pytest.approx(expected, abs=0.01)
+
+
+def test_a_bad_margin_raises():
+    with pytest.raises(reg_mod.OnlineEstimatorError):
+        RecursiveRegression(PRIOR, excitation_margin=-1.0)
