@@ -4,8 +4,11 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
 
 - **Torque-controlled arm** (the iiwa, joint torque control): each physics step
 
-  ``tau = J^T w + b(q, v) + N^T LP(arm_torque - J^T w - b_0) + J^T K (e + K_i int e) + N^T (K_q (q_plan(t) - q) +
-  D (v_plan - v))``, clipped to the effort limits, with ``e = w - w_f``,
+  ``tau = J^T w + b(q, v) + s [N^T LP(arm_torque - J^T w - b_0) + J^T K (e + K_i int e) + N^T (K_q (q_plan(t) - q) +
+  D (v_plan - v))]``, with ``e = w - w_f`` and ``s`` in [0, 1] the torque budget (`torque_budget`): the task part
+  ``J^T w + b`` whole, the rest scaled down together so that no joint asks beyond its effort limit (a clip would
+  bend the hand's wrench; the task part alone beyond a limit is clipped and counted: the allocation's torque rows
+  bound it),
 
   where ``w`` is the allocated hand wrench, ``b`` the arm's bias forces at the step's state, ``arm_torque`` the
   controller's command (Pinocchio's RNEA with the plan's velocities and accelerations + ``J^T w``), ``b_0`` the
@@ -29,7 +32,9 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   friction; `TorqueArmGains.fusion_space` "joint" instead takes the slow part of ``tau_ext + J^T w_FT``, each
   joint torque's error, off ``tau_ext``: it stays removed as the arm moves). Fed back directly,
   the F/T's white noise (3 N per sample at 500 Hz) would be pushed into the cart ``K_f`` times over. The loop's gain is bounded by its one-step
-  delay: measured, ``K_f = 6`` rings at 20-50 Hz. The integral stops while the torques saturate (anti-windup).
+  delay: measured, ``K_f = 6`` rings at 20-50 Hz. The integral stops while the budget scales the loop down or a
+  torque is clipped (anti-windup). `TorqueArmGains.reference_model` (off by default) compares ``w_f`` with the
+  allocated wrench as the measurement sees it (one step late, low-passed) instead of ``w``.
 
 - **Velocity-controlled arm** (the WMRA's, joint velocity servos): once per control period, an
   admittance around the servos,
@@ -118,6 +123,13 @@ class TorqueArmGains:
     #: True: the joint-side estimate weighs each joint's torque by 1 / effort_limit^2 (a weighted least squares:
     #: a joint torque sensor's noise scales with its range); False: unweighted
     weighted_estimate: bool = True
+    #: True: the loop compares the measured wrench with the allocated one passed through what the measurement sees of
+    #: it (one physics step late, low-passed with ``force_filter_tau``: `TorqueArmLaw.reference`), so a jump of the
+    #: allocation between periods, which ``J^T w`` delivers at once, meets no proportional kick; False: the
+    #: allocated wrench itself (a jump ``dw`` then gets ``K dw`` on top of ``J^T dw`` until the measurement sees it).
+    #: Measured (docs/mujoco.md "Arm laws"): Traj. 2 seed 0's wrench error 16.9 -> 10.1 % of the hand force, but
+    #: seed 2 lost at 19.4 s (tracked without it), so it is off
+    reference_model: bool = False
 
 
 @dataclass(frozen=True)
@@ -166,6 +178,27 @@ def damped_pinv(J: np.ndarray, damping: float) -> np.ndarray:
     return J.T @ np.linalg.inv(J @ J.T + damping * np.eye(J.shape[0]))
 
 
+def torque_budget(task: np.ndarray, extra: np.ndarray, limit: np.ndarray) -> float:
+    """Return the largest ``s`` in [0, 1] with ``|task + s extra| <= limit`` on every joint (0 if `task` exceeds one).
+
+    The torque law's priority: the task part (``J^T w`` + the bias forces: the allocated wrench and the arm's
+    weight) first, the feedback and posture terms scaled down together to what the limits leave, so the request
+    stays within them without a clip that would bend the hand's wrench. A task part beyond a limit is the
+    allocation's (its torque rows, `WrenchAllocator.set_torque_limits`).
+    """
+    room_hi = limit - task
+    room_lo = -limit - task
+    if np.any(room_hi < 0.0) or np.any(room_lo > 0.0):
+        return 0.0
+    scale = 1.0
+    up, down = extra > 0.0, extra < 0.0
+    if np.any(up):
+        scale = min(scale, float(np.min(room_hi[up] / extra[up])))
+    if np.any(down):
+        scale = min(scale, float(np.min(room_lo[down] / extra[down])))
+    return max(scale, 0.0)
+
+
 class TorqueArmLaw:
     """The torque law of one arm (see the module docstring); `begin` once per period, `torque` each physics step."""
 
@@ -200,8 +233,18 @@ class TorqueArmLaw:
         self._q_end = np.zeros(self.limit.size)
         self._v = np.zeros(self.limit.size)
         self._t_end = 0.0
+        #: the law's request against the limits, before any clip: the peak over all joints, per joint, and the task
+        #: part's (``J^T w + b``) peak; physics steps whose request exceeds a limit (then clipped: the task part
+        #: alone exceeds it) and steps where the budget scaled the feedback down
         self.peak_ratio = 0.0
+        self.peak_joint_ratio = np.zeros(self.limit.size)
+        self.peak_task_ratio = 0.0
         self.saturated_steps = 0
+        self.scaled_steps = 0
+        self.saturated_now = False
+        #: the loop's reference: the allocated wrench as the measurement sees it (`reference`)
+        self._w_ref: np.ndarray | None = None
+        self._w_d_prev: np.ndarray | None = None
         self.a_plan = np.zeros(self.limit.size)
         self._started = False
 
@@ -248,7 +291,7 @@ class TorqueArmLaw:
         hand: tuple[np.ndarray, np.ndarray] | None = None,
         wrench_measured: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Return the joint torques at time `t` and state (q, v), within limits.
+        """Return the joint torques at time `t` and state (q, v), within limits (`torque_budget`).
 
         `hand`: (target position - hand position, target velocity - hand velocity), world frame, for the
         Cartesian impedance (None: off).
@@ -258,32 +301,54 @@ class TorqueArmLaw:
         for the force loop (None: off).
         """
         g = self.gains
+        task, plan = self._feedforward(g, bias)
         q_plan = self._q_end - self._v * (self._t_end - t)
-        if g.feedforward in ("refreshed", "smoothed"):
-            if self._bias0 is None:  # the period's first step: the bias forces inside the command's torque
-                self._bias0 = np.asarray(bias, dtype=float).copy()
-                self._plan = self._plan_term(g, self._bias0)
-            ff = self._Jw + bias + self._plan_ff(g, bias)
-        else:
-            ff = self._ff if g.feedforward == "command" else self._ff + bias
-        tau = ff + self._NT @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
+        posture = plan + self._NT @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
+        loop = np.zeros(self.limit.size)  # the hand's feedback: what bends its wrench when scaled
         if hand is not None:
             p_err, v_err = hand
-            tau = tau + self._Jt.T @ (g.cartesian_stiffness * p_err + g.cartesian_damping * v_err)
+            loop = loop + self._Jt.T @ (g.cartesian_stiffness * p_err + g.cartesian_damping * v_err)
         if wrench_measured is not None and g.force_feedback > 0.0:
-            tau = tau + self._J.T @ self._force_loop(np.asarray(wrench_measured, dtype=float))
+            loop = loop + self._J.T @ self._force_loop(np.asarray(wrench_measured, dtype=float))
         if tilt is not None and (g.tilt_stiffness > 0.0 or g.tilt_damping > 0.0):
             err, omega = tilt
             n = g.tilt_stiffness * err - g.tilt_damping * omega
             n[2] = 0.0  # roll and pitch only: the yaw torque is the allocation's
-            tau = tau + self._Jr.T @ n
-        ratio = float(np.max(np.abs(tau) / self.limit))
-        self.peak_ratio = max(self.peak_ratio, ratio)
-        self._saturated = ratio > 1.0
-        if ratio > 1.0:
-            self.saturated_steps += 1
+            loop = loop + self._Jr.T @ n
+        s_loop = torque_budget(task, loop, self.limit)
+        tau = task + s_loop * loop
+        # the posture last, each joint within the room the hand's terms leave it (a box projection: the posture is
+        # the arm's own, and the joints that have room keep all of theirs)
+        held = np.clip(tau + posture, -self.limit, self.limit) if s_loop > 0.0 else tau + posture
+        self._record(task, held, s_loop, bool(np.any(held != tau + posture)))
+        tau = held
+        if self.saturated_now:
             tau = np.clip(tau, -self.limit, self.limit)
         return tau
+
+    def _feedforward(self, g: TorqueArmGains, bias: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return the feed-forward as (task part ``J^T w + b``, plan part; `TorqueArmGains.feedforward`).
+
+        Modes "command" and "dynamics" hold the planned inertial torque inside the task part.
+        """
+        if g.feedforward in ("refreshed", "smoothed"):
+            if self._bias0 is None:  # the period's first step: the bias forces inside the command's torque
+                self._bias0 = np.asarray(bias, dtype=float).copy()
+                self._plan = self._plan_term(g, self._bias0)
+            return self._Jw + bias, self._plan_ff(g, bias)
+        zero = np.zeros(self.limit.size)
+        return (self._ff, zero) if g.feedforward == "command" else (self._ff + bias, zero)
+
+    def _record(self, task: np.ndarray, tau: np.ndarray, loop_scale: float, posture_held: bool) -> None:
+        """Keep the step's request against the limits: peaks (all joints, per joint, task part) and counts."""
+        ratio = np.abs(tau) / self.limit
+        self.peak_joint_ratio = np.maximum(self.peak_joint_ratio, ratio)
+        self.peak_ratio = max(self.peak_ratio, float(np.max(ratio)))
+        self.peak_task_ratio = max(self.peak_task_ratio, float(np.max(np.abs(task) / self.limit)))
+        self.saturated_now = bool(np.any(ratio > 1.0 + 1e-9))
+        self._saturated = loop_scale < 1.0 or self.saturated_now
+        self.saturated_steps += int(self.saturated_now)
+        self.scaled_steps += int(loop_scale < 1.0 or posture_held)
 
     def _plan_ff(self, g: TorqueArmGains, bias: np.ndarray) -> np.ndarray:
         """Return the feed-forward's plan part besides ``J^T w + b``: ``arm_torque - J^T w - b_0`` raw ("refreshed")
@@ -326,13 +391,30 @@ class TorqueArmLaw:
         self._ft_offset += gain * (ft - self._w_joint - self._ft_offset)
         return self._w_joint + self._ft_offset
 
+    def reference(self) -> np.ndarray:
+        """Return the force loop's reference: the allocated wrench as the loop's measurement sees it.
+
+        `TorqueArmGains.reference_model`: the measured wrench of a physics step is the hand's response to the
+        previous step's torque, low-passed (``force_filter_tau``); the reference is the allocated wrench through
+        the same one-step delay and low-pass. ``J^T w`` delivers a jump of the allocation at once; compared with
+        the jump itself the loop would add ``K`` times it before the measurement sees the hand respond (a kick of
+        ``K + 1`` times the jump for one or two steps: 1.4 times it in the period mean, measured on Traj. 2's
+        50-130 N jumps of the downward press). Call once per physics step.
+        """
+        if not self.gains.reference_model:
+            return self._w_d
+        prev = self._w_d if self._w_d_prev is None else self._w_d_prev
+        self._w_ref = prev.copy() if self._w_ref is None else self._w_ref + self._alpha * (prev - self._w_ref)
+        self._w_d_prev = self._w_d.copy()
+        return self._w_ref
+
     def _force_loop(self, ft: np.ndarray) -> np.ndarray:
         """Return the loop's task-space wrench ``K (e + K_i int e)``, ``e = w - w_f`` (integral held while saturated);
         ``K`` is ``K_f`` on the force rows, ``moment_feedback`` on the moment rows."""
         g = self.gains
         w = self._measured_wrench(ft)
         self._w_f = w.copy() if self._w_f is None else self._w_f + self._alpha * (w - self._w_f)
-        e = self._w_d - self._w_f
+        e = self.reference() - self._w_f
         if g.force_integral > 0.0 and not self._saturated:
             self._integral += self._dt * e
         return self._gain * (e + g.force_integral * self._integral)

@@ -138,6 +138,11 @@ class _Stats:
     sim: float = 0.0
     arm_force_peak_ratio: float = 0.0
     arm_saturated: int = 0
+    #: torque-controlled arms: the peak of the law's task part (J^T w + b) / limit, steps whose feedback the torque
+    #: budget scaled down, and per robot the peak request / limit of each joint
+    arm_task_peak_ratio: float = 0.0
+    arm_scaled: int = 0
+    joint_peak_ratio: dict = field(default_factory=dict)
     per_robot_err: list = field(default_factory=list)
 
 
@@ -611,6 +616,9 @@ class MujocoPlant:
             if isinstance(law, TorqueArmLaw):
                 st.arm_force_peak_ratio = max(st.arm_force_peak_ratio, law.peak_ratio)
                 st.arm_saturated = max(st.arm_saturated, law.saturated_steps)
+                st.arm_task_peak_ratio = max(st.arm_task_peak_ratio, law.peak_task_ratio)
+                st.arm_scaled = max(st.arm_scaled, law.scaled_steps)
+                st.joint_peak_ratio[i] = law.peak_joint_ratio
             else:
                 ratio = np.max(np.abs(d.actuator_force[r.arm_actuators]) / r.effort_limit)
                 st.arm_force_peak_ratio = max(st.arm_force_peak_ratio, float(ratio))
@@ -647,6 +655,11 @@ class MujocoPlant:
             "base_wheel_slip_max_m_s": st.wheel_slip_max if differential else None,
             "plant_arm_torque_limit_ratio": st.arm_force_peak_ratio,
             "arm_torque_saturated_steps": int(st.arm_saturated),
+            "plant_arm_task_torque_limit_ratio": st.arm_task_peak_ratio,
+            "plant_arm_torque_scaled_steps": int(st.arm_scaled),
+            "plant_arm_joint_torque_limit_ratio": {
+                str(i): [round(float(x), 4) for x in r] for i, r in sorted(st.joint_peak_ratio.items())
+            },
             "real_time_factor": st.sim / st.wall if st.wall > 0 else None,
             "physics_dt_s": self.config.physics_dt,
             "control_dt_s": self.config.control_dt,
