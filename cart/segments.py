@@ -3,10 +3,14 @@
 The filtered regression of :mod:`cart.identify` (paper eq. 4, linear in the parameters) is split in two
 at every candidate instant; the split that lowers the weighted residual sum of squares most is the
 candidate change (cumulative sums of the normal equations: one pass over the log; Coulomb-like columns
-added, so that rolling resistance, which grows with the load, is not taken for mass). A load put on a moving
-cart at rest takes its share of the cart's momentum with no force at the handle: each candidate is also
-fitted with that exchange (:func:`exchange_ssr`, no extra parameter), and the better of the two counts
-(a load lifted out, or put in at the cart's speed, exchanges nothing). The change is kept
+added, so that rolling resistance, which grows with the load, is not taken for mass). The regression is
+low-passed zero-phase, so the rows within the filter's reach of a change mix the two carts: the split model
+predicts ``filt(Y p(t))`` with ``p(t)`` switching at the split (each side's regressor filtered after it is
+switched, :func:`_switched_rows`) rather than ``p_side filt(Y)``, so the filtered tail of a motion that the
+change cuts counts for the change's time. A load put on a moving cart at rest takes its share of the cart's
+momentum with no force at the handle: each candidate is also fitted with that exchange
+(:func:`exchange_corrections`, no extra parameter), and the better of the two counts (a load lifted out, or
+put in at the cart's speed, exchanges nothing). The change is kept
 when the two sides' masses, fitted on the whole log's filtered regression away from the change (regressor
 noise compensated; std the larger of Newey-West and a block jackknife, so a misfit that varies along the
 log counts while one common to both sides cancels), differ by more than ``CHANGE_Z`` combined std and by
@@ -19,7 +23,7 @@ only known to lie in a stretch: the middle is reported, the stretch as ``t0_rang
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -40,6 +44,8 @@ MIN_RELATIVE_CHANGE = 0.05
 MIN_SEGMENT_S = 5.0
 MAX_DEPTH = 2
 _CANDIDATES = 400
+#: Rows per period of the cut-off the split search keeps (the filtered regression is band-limited).
+_ROWS_PER_PERIOD = 10.0
 #: Columns of the cart's dynamics in the filtered regression ([m, m dx, m dy, J, c_v, c_w]); the rest are nuisance.
 N_DYNAMIC = 6
 
@@ -58,6 +64,110 @@ def slice_log(log: CartLog, t0: float, t1: float) -> CartLog:
     )
 
 
+#: Cumulative normal equations of a split search: ``a``, ``b`` at each candidate, and the whole log's ``a``, ``b``, ``c``.
+_Normal = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]
+
+
+class SplitKernels(NamedTuple):
+    """The zero-phase low-pass on the split search's rows (every ``step`` grid samples), ``half`` rows each side.
+
+    ``k`` (2 half + 1,): the filter's response at the rows to a unit impulse of the sampled signal (sums to 1:
+    ``filt(u)_r = sum_j k[half + r - j] u_j`` for a band-limited ``u``); ``h``: its response to a unit step of
+    velocity (the acceleration impulse ``1 / dt``): centred, symmetric, its sum times the rows' period one.
+    """
+
+    k: np.ndarray
+    h: np.ndarray
+    half: int
+
+
+def split_kernels(res: Identification, step: int) -> SplitKernels:
+    """Return the :class:`SplitKernels` of ``res``'s low-pass on rows ``step`` grid samples apart.
+
+    Three periods of the cut-off each side (the filter's response is negligible beyond).
+    """
+    from cart._kernels_identify import butter_lowpass_sos
+    from cart.identify import _filtfilt
+
+    half = int(math.ceil(3.0 / (res.cutoff_hz * res.grid_dt)))
+    half += (-half) % step
+    unit = np.zeros(2 * half + 1)
+    unit[half] = 1.0
+    sos = butter_lowpass_sos(4, res.cutoff_hz * 2.0 * res.grid_dt)
+    resp = _filtfilt(sos, unit)[::step]
+    return SplitKernels(k=resp / resp.sum(), h=resp / res.grid_dt, half=half // step)
+
+
+def _switched_rows(xs: np.ndarray, idx: np.ndarray, k: np.ndarray, half: int) -> np.ndarray:
+    """Return ``filt(x 1[r > i])`` on the rows ``i - half .. i + half`` of each candidate ``i`` (n, 2 half + 1, ...).
+
+    The filtered regression of a cart whose parameters switch after row ``i``: the right side's regressor is
+    the low-passed regressor switched on at ``i`` (it rises over the filter's reach, not at once), the left
+    side's the rest.
+    """
+    n_w = 2 * half + 1
+    a = np.arange(n_w)[:, None] - np.arange(2 * half)[None, :] - 1  # row i - half + a, source i + 1 + b
+    kmat = np.where((a >= 0) & (a <= 2 * half), k[np.clip(a, 0, 2 * half)], 0.0)
+    src = np.stack([xs[i + 1 : i + 1 + 2 * half] for i in idx])  # (n, 2 half, 2, P)
+    return np.einsum("ab,nbkp->nakp", kmat, src)
+
+
+def _window_ssr(
+    ys: np.ndarray, idx: np.ndarray, outside: tuple[np.ndarray, ...], rows: np.ndarray, c_all: float, put_in: bool
+) -> np.ndarray:
+    """Return each candidate's residual when the rows within ``half`` of its split take the regressors ``rows``.
+
+    ``rows`` (n, 2 half + 1, 2, 2P): the window's rows of each candidate ``idx``, the left side's parameters'
+    columns then the right side's; ``outside``: the normal equations (``a``, ``b`` left, ``a``, ``b`` right)
+    of the rows outside the window, which are each side's own. ``put_in``: a candidate whose right side's
+    mass is not above the left's (the momentum exchange of a load put in) gets ``inf``.
+    """
+    a_left, b_left, a_right, b_right = outside
+    n, half, n_p = len(idx), rows.shape[1] // 2, a_left.shape[-1]
+    win = idx[:, None] + np.arange(-half, half + 1)[None, :]
+    flat, yv = rows.reshape(n, -1, 2 * n_p), ys[win].reshape(n, -1)
+    m = np.einsum("nri,nrj->nij", flat, flat)
+    m[:, :n_p, :n_p] += a_left
+    m[:, n_p:, n_p:] += a_right
+    v = np.concatenate([b_left, b_right], axis=-1) + np.einsum("nri,nr->ni", flat, yv)
+    ridge = 1e-12 * float(np.trace(a_left[-1] + a_right[-1])) / n_p * np.eye(2 * n_p)
+    sol = np.linalg.solve(m + ridge, v[..., None])[..., 0]
+    out = c_all - np.einsum("ni,ni->n", v, sol)
+    return np.where(sol[:, n_p] > sol[:, 0], out, math.inf) if put_in else out
+
+
+def _split_residuals(
+    x: np.ndarray, y: np.ndarray, scale: np.ndarray, idx: np.ndarray, kernels: SplitKernels | None, exchange: bool
+) -> np.ndarray:
+    """Return the weighted residual of the split after each candidate row ``idx`` (see :func:`best_split`)."""
+    sw = 1.0 / scale
+    xs, ys = x * sw[None, :, None], y * sw[None, :]
+    a, b, a_all, b_all, c_all = _cumulative_normal(xs, ys, idx)
+    if kernels is None:
+        p_dim = x.shape[-1]
+        ridge = 1e-12 * np.trace(a_all) / p_dim * np.eye(p_dim)
+
+        def ssr(aa: np.ndarray, bb: np.ndarray, cc: np.ndarray) -> np.ndarray:
+            sol = np.linalg.solve(aa + ridge, bb[..., None])[..., 0]
+            return cc - np.einsum("kj,kj->k", bb, sol)
+
+        cuts = zip(np.r_[0, idx[:-1] + 1], idx + 1)
+        c = np.cumsum([ys[i0:i1].reshape(-1) @ ys[i0:i1].reshape(-1) for i0, i1 in cuts])
+        return ssr(a, b, c) + ssr(a_all - a, b_all - b, c_all - c)
+    half = kernels.half
+    a_left, b_left = _cumulative_normal(xs, ys, idx - half - 1)[:2]
+    a_to, b_to = _cumulative_normal(xs, ys, idx + half)[:2]
+    outside = (a_left, b_left, a_all[None] - a_to, b_all[None] - b_to)
+    right = _switched_rows(xs, idx, kernels.k, half)
+    rows = np.concatenate([xs[idx[:, None] + np.arange(-half, half + 1)[None, :]] - right, right], axis=-1)
+    switched = _window_ssr(ys, idx, outside, rows, c_all, False)
+    if not exchange:
+        return switched
+    corr = exchange_corrections(x, idx, sw, kernels)
+    moved = rows + np.concatenate([-corr, corr], axis=-1)
+    return np.minimum(switched, _window_ssr(ys, idx, outside, moved, c_all, True))
+
+
 def best_split(
     t: np.ndarray,
     x: np.ndarray,
@@ -65,7 +175,8 @@ def best_split(
     scale: np.ndarray,
     min_len: float,
     tol: float = 0.0,
-    impulse: tuple[np.ndarray, int] | None = None,
+    kernels: SplitKernels | None = None,
+    exchange: bool = True,
 ) -> tuple[float, float, float] | None:
     """Return (time, earliest, latest) of the split of the regression ``x p = y`` into two fits of least residual.
 
@@ -73,39 +184,18 @@ def best_split(
     least ``min_len`` s from either end (None when the log is too short). Splits whose residual is within
     ``tol`` of the least (the regression cannot tell them apart: the cart stands still or cruises) are
     alike: the time is the middle of that stretch around the best one, earliest and latest its ends.
-    ``impulse``: the filtered unit impulse on the rows and its half-width (:func:`impulse_response`): each
-    candidate's residual is then the lesser of the plain split's and the momentum exchange's
-    (:func:`exchange_ssr`).
+    ``kernels`` (:func:`split_kernels`): the split model is the filtered regression of a cart whose
+    parameters switch at the split (:func:`_switched_rows`: the rows within the filter's reach mix the two
+    carts) and, with ``exchange``, each candidate's residual is the lesser of that and the momentum
+    exchange's (:func:`exchange_corrections`); None: the rows are split at the candidate as they are.
     """
+    reach = 0 if kernels is None else 2 * kernels.half + 1
     ok = np.flatnonzero((t - t[0] >= min_len) & (t[-1] - t >= min_len))
+    ok = ok[(ok >= reach) & (ok < len(t) - reach)]
     if len(ok) == 0:
         return None
     idx = ok[:: max(1, len(ok) // _CANDIDATES)]
-    sw = 1.0 / scale
-    xs, ys = x * sw[None, :, None], y * sw[None, :]
-    edges = np.r_[0, idx + 1]
-    blocks = [(xs[i0:i1].reshape(-1, x.shape[-1]), ys[i0:i1].reshape(-1)) for i0, i1 in zip(edges[:-1], edges[1:])]
-    tail = (xs[edges[-1] :].reshape(-1, x.shape[-1]), ys[edges[-1] :].reshape(-1))
-    a = np.cumsum([xb.T @ xb for xb, _ in blocks], axis=0)
-    b = np.cumsum([xb.T @ yb for xb, yb in blocks], axis=0)
-    c = np.cumsum([yb @ yb for _, yb in blocks])
-    a_all, b_all, c_all = a[-1] + tail[0].T @ tail[0], b[-1] + tail[0].T @ tail[1], c[-1] + tail[1] @ tail[1]
-    p_dim = x.shape[-1]
-    ridge = 1e-12 * np.trace(a_all) / p_dim * np.eye(p_dim)
-
-    def ssr(aa: np.ndarray, bb: np.ndarray, cc: np.ndarray) -> np.ndarray:
-        sol = np.linalg.solve(aa + ridge, bb[..., None])[..., 0]
-        return cc - np.einsum("kj,kj->k", bb, sol)
-
-    left = ssr(a, b, c)
-    right = ssr(a_all - a, b_all - b, c_all - c)
-    total = left + right
-    if impulse is not None:
-        normal = (a, b, a_all, b_all, c_all)
-        exchange = [
-            exchange_ssr(xs, ys, momentum_rows(x[i]) * sw[:, None], i, normal, j, impulse) for j, i in enumerate(idx)
-        ]
-        total = np.minimum(total, exchange)
+    total = _split_residuals(x, y, scale, idx, kernels, exchange)
     k = int(np.argmin(total))
     near = total <= total[k] + tol
     lo, hi = k, k
@@ -116,26 +206,29 @@ def best_split(
     return float(0.5 * (t[idx[lo]] + t[idx[hi]])), float(t[idx[lo]]), float(t[idx[hi]])
 
 
-def impulse_response(res: Identification) -> tuple[np.ndarray, int]:
-    """Return (h, half): the filtered regression's response to a unit step of velocity, on ``res``'s fit rows.
+def _cumulative_normal(xs: np.ndarray, ys: np.ndarray, idx: np.ndarray) -> _Normal:
+    """Return the normal equations of the rows up to each candidate (``a``, ``b``) and of the whole log's
+    (``a``, ``b``, ``c``)."""
+    edges = np.r_[0, idx + 1]
+    p_dim = xs.shape[-1]
+    blocks = [(xs[i0:i1].reshape(-1, p_dim), ys[i0:i1].reshape(-1)) for i0, i1 in zip(edges[:-1], edges[1:])]
+    a = np.cumsum([xb.T @ xb for xb, _ in blocks], axis=0)
+    b = np.cumsum([xb.T @ yb for xb, yb in blocks], axis=0)
+    xf, yf = xs.reshape(-1, p_dim), ys.reshape(-1)
+    return a, b, xf.T @ xf, xf.T @ yf, float(yf @ yf)
 
-    The zero-phase low-pass of :func:`cart.identify.identify` applied to a unit impulse of acceleration
-    (a step of 1 in velocity over one grid sample, 1 / dt there), sampled at the fit rows (every ``step``-th
-    grid sample) and centred: ``h[half + r]`` is the response ``r`` rows from the step. It spans three
-    periods of the cut-off each side (the filter's response is negligible beyond).
+
+def exchange_corrections(x: np.ndarray, idx: np.ndarray, sw: np.ndarray, kernels: SplitKernels) -> np.ndarray:
+    """Return, for each candidate ``i``, the momentum exchange's change of the rows within ``half`` of it.
+
+    A load of zero velocity put on the cart shares the cart's momentum: the momentum coordinates
+    ``g . p`` (:func:`momentum_rows`) are continuous while the velocity drops, so the filtered regression
+    sees no force for the velocity's step: the prediction near the split gains ``(p_R - p_L) . g h(t - t_i)``
+    (``h`` the filtered velocity step, :class:`SplitKernels`). No parameter is added: the two sides' own
+    parameters set the exchange. ``sw`` the rows' weights (1 / scale).
     """
-    from cart._kernels_identify import butter_lowpass_sos
-    from cart.identify import _filtfilt
-
-    data = res.fit_data
-    assert data is not None
-    step = int(data["step"])
-    half = int(math.ceil(3.0 / (res.cutoff_hz * res.grid_dt)))
-    half += (-half) % step
-    unit = np.zeros(2 * half + 1)
-    unit[half] = 1.0 / res.grid_dt
-    sos = butter_lowpass_sos(4, res.cutoff_hz * 2.0 * res.grid_dt)
-    return _filtfilt(sos, unit)[::step], half // step
+    g = np.stack([momentum_rows(x[i]) * sw[:, None] for i in idx])  # (n, 2, P)
+    return kernels.h[None, :, None, None] * g[:, None]
 
 
 def momentum_rows(x_row: np.ndarray) -> np.ndarray:
@@ -148,42 +241,6 @@ def momentum_rows(x_row: np.ndarray) -> np.ndarray:
     v, om = x_row[0, 4], x_row[1, 5]
     g[0, 0], g[0, 2], g[1, 2], g[1, 3] = v, -om, -v, om
     return g
-
-
-def exchange_ssr(
-    xs: np.ndarray,
-    ys: np.ndarray,
-    g: np.ndarray,
-    i: int,
-    normal: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    j: int,
-    impulse: tuple[np.ndarray, int],
-) -> float:
-    """Return the residual of the split after row ``i`` when the load came in at rest (inf when the mass fell).
-
-    A load of zero velocity put on the cart shares the cart's momentum: the momentum coordinates
-    ``g . p`` (:func:`momentum_rows`) are continuous while the velocity drops, so the filtered regression
-    sees no force for the velocity's step: the prediction near the split gains ``(p_R - p_L) . g h(t - t_i)``
-    (``h`` :func:`impulse_response`). No parameter is added: the two sides' own parameters set the exchange.
-    ``xs``, ``ys`` the weighted rows, ``g`` row ``i``'s momentum coordinates weighted as its rows, ``normal``
-    the cumulative normal equations at the candidates (``a``, ``b`` and the whole log's), ``j`` this candidate.
-    """
-    a, b, a_all, b_all, c_all = normal
-    h, half = impulse
-    n_p = xs.shape[-1]
-    lo, hi = max(0, i - half), min(len(xs), i + half + 1)
-    corr = h[lo - i + half : hi - i + half, None, None] * g[None]
-    xw, yw = xs[lo:hi], ys[lo:hi]
-    on_left = (np.arange(lo, hi) <= i)[:, None, None]
-    plain = np.concatenate([np.where(on_left, xw, 0.0), np.where(on_left, 0.0, xw)], axis=-1).reshape(-1, 2 * n_p)
-    moved = np.concatenate([np.where(on_left, xw, 0.0) - corr, np.where(on_left, 0.0, xw) + corr], axis=-1)
-    moved = moved.reshape(-1, 2 * n_p)
-    m = np.zeros((2 * n_p, 2 * n_p))
-    m[:n_p, :n_p], m[n_p:, n_p:] = a[j], a_all - a[j]
-    m += moved.T @ moved - plain.T @ plain
-    v = np.r_[b[j], b_all - b[j]] + (moved - plain).T @ yw.reshape(-1)
-    sol = np.linalg.solve(m + 1e-12 * np.trace(a_all) / n_p * np.eye(2 * n_p), v)
-    return float(c_all - v @ sol) if sol[n_p] > sol[0] else math.inf
 
 
 def _with_coulomb(x: np.ndarray) -> np.ndarray:
@@ -276,8 +333,11 @@ def _split(
         return here
     min_len = max(MIN_SEGMENT_S, 10.0 / res.cutoff_hz)
     lag = 2.0 / (res.cutoff_hz * res.grid_dt)  # samples per independent residual (the filter's memory)
-    x = _with_coulomb(data["x"])
-    split = best_split(data["t"], x, data["y"], data["scale"], min_len, tol=lag, impulse=impulse_response(res))
+    every = max(1, int(1.0 / (_ROWS_PER_PERIOD * res.cutoff_hz * res.grid_dt * data["step"])))
+    x = _with_coulomb(data["x"])[::every]
+    kernels = split_kernels(res, data["step"] * every)
+    rows_lag = lag / (data["step"] * every)  # rows per independent residual
+    split = best_split(data["t"][::every], x, data["y"][::every], data["scale"], min_len, rows_lag, kernels)
     if split is None:
         return here
     tc, lo, hi = split

@@ -46,11 +46,12 @@ def test_the_exchange_fits_a_drop_better_than_a_plain_split_there():
     t = data["t"]
     min_len = max(segments.MIN_SEGMENT_S, 10.0 / res.cutoff_hz)
     lag = 2.0 / (res.cutoff_hz * res.grid_dt)
-    plain = segments.best_split(t, x, data["y"], data["scale"], min_len, tol=lag)
-    both = segments.best_split(t, x, data["y"], data["scale"], min_len, tol=lag, impulse=segments.impulse_response(res))
+    kernels = segments.split_kernels(res, data["step"])
+    plain = segments.best_split(t, x, data["y"], data["scale"], min_len, lag, kernels, exchange=False)
+    both = segments.best_split(t, x, data["y"], data["scale"], min_len, lag, kernels)
     assert plain is not None and both is not None
     assert abs(both[0] - load.t) < abs(plain[0] - load.t)
-    h, half = segments.impulse_response(res)
     # the filtered step of velocity: centred, symmetric, and its integral one velocity step
+    h, half = kernels.h, kernels.half
     assert np.argmax(h) == half and np.allclose(h, h[::-1], atol=1e-3 * h.max())
     assert abs(h.sum() * res.grid_dt * data["step"] - 1.0) < 0.02
