@@ -18,6 +18,7 @@ from wholebody.contacts.support import SupportPolygon
 from wholebody.errors import WholeBodyError
 from wholebody.push.base_settings import BasePlanSettings
 from wholebody.push.geometry import DEFAULT_GEOMETRY, CartGeometry
+from wholebody.push.reference_clock import TimeScaling
 
 #: How the contact points are chosen: held at `fixed_contact_y`, or re-planned from the estimate.
 ContactMode = Literal["fixed", "optimal"]
@@ -135,6 +136,10 @@ class PushConfig:
     tip_std_factor: float = 0.0
     #: the cart's floor contacts for that bound (None: the default cart's, or the cart file's wheels)
     support: SupportPolygon | None = None
+    #: slow the desired motion down while the allocation cannot give its wrench (`wholebody.push.reference_clock`):
+    #: the cart follows the desired path later instead of being lost; None = the desired timing however it saturates;
+    #: "auto" = on the MuJoCo plant (whose arms, grips and cart have the limits that bind), not on the kinematic one
+    time_scaling: TimeScaling | Literal["auto"] | None = "auto"
 
     def __post_init__(self) -> None:
         if isinstance(self.trajectory, int) and self.trajectory not in (1, 2):
@@ -169,6 +174,8 @@ class PushConfig:
             raise WholeBodyError(f"base_plan must be BasePlanSettings, 'auto' or None, got {self.base_plan!r}")
         if not (self.tip_bound in (True, False, "auto") and self.tip_std_factor >= 0.0):
             raise WholeBodyError("tip_bound must be True, False or 'auto' and tip_std_factor >= 0")
+        if not (self.time_scaling is None or self.time_scaling == "auto" or isinstance(self.time_scaling, TimeScaling)):
+            raise WholeBodyError(f"time_scaling must be TimeScaling, 'auto' or None, got {self.time_scaling!r}")
         if self.fixed_contact_y is not None and len(self.fixed_contact_y) not in (1, 2):
             raise WholeBodyError("fixed_contact_y needs one value per arm")
 
@@ -203,6 +210,12 @@ class PushConfig:
         if self.base_plan == "auto":
             return BasePlanSettings() if self.plant == "mujoco" else None
         return self.base_plan
+
+    def scaling_settings(self) -> TimeScaling | None:
+        """Return the reference's time scaling this run uses: given, None, or for "auto" the defaults on the MuJoCo plant."""
+        if self.time_scaling == "auto":
+            return TimeScaling() if self.plant == "mujoco" else None
+        return self.time_scaling
 
     def tip_on(self) -> bool:
         """Return whether the allocation keeps the cart's wheels loaded: given, or for "auto" on the MuJoCo plant."""
@@ -294,6 +307,12 @@ class PushMetrics:
     #: where the allocation saturated: per binding limit, total time, number of stretches, longest stretch
     #: and first time (s) (`wholebody.contacts.allocation.saturation_summary`)
     saturation: dict = field(default_factory=dict)
+    #: the slowest rate of the reference's time (`wholebody.push.reference_clock`; 1: never slowed), the time
+    #: (s) it ran slower than the desired motion, and how far (s) behind the desired motion it ends; the tracking
+    #: error is measured against this reference (the one the controller followed)
+    reference_time_scale_min: float = 1.0
+    reference_slowed_s: float = 0.0
+    reference_delay_s: float = 0.0
 
     def as_dict(self) -> dict:
         """Return the metrics as a JSON-ready dict (intervals as lists of [t0, t1])."""
@@ -346,3 +365,6 @@ class PushResult:
     #: the profile's arms each robot drives, in the order of its state's arm joints (one base with several arms:
     #: more than one; `wholebody.push.robot.MobileManipulator.arms`)
     robot_arms: tuple[int, ...] = (0,)
+    #: (N,) the reference time s at t_k and its rate ds/dt (`wholebody.push.reference_clock`); q_desired = q_d(s)
+    reference_time: np.ndarray | None = None
+    reference_rate: np.ndarray | None = None

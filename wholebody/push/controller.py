@@ -25,7 +25,7 @@ import pinocchio as pin
 
 from cart import model as cart_model
 from cart.params import CartParams
-from wholebody.contacts.allocation import WrenchAllocator
+from wholebody.contacts.allocation import AllocationResult, WrenchAllocator
 from wholebody.contacts.support import CartLoad
 from wholebody.errors import WholeBodyError
 from wholebody.push.config import CartController, ParameterEstimator, PushConfig
@@ -34,8 +34,12 @@ from wholebody.push.robot import MobileManipulator, base_target, ft_to_cart_gamm
 from wholebody.push.scheduler import ContactScheduler
 from wholebody.motion.tasks import BaseTask, PostureTask
 from wholebody.push.base_plan import BasePlan
+from wholebody.push.reference_clock import ReferenceClock, admissible_rate, deficit
 from wholebody.push.tip_support import cart_load
 
+
+#: allocations per period with the tip-over bound when the allocation saturates (`PushController._allocate`)
+TIP_LOAD_PASSES = 3
 
 #: time constant (s) of the filter between the cart estimate and the pose the hands hold (`PushController._grasp_pose`)
 GRASP_FILTER_TAU = 0.1
@@ -72,6 +76,10 @@ class ControlDecision:
     grasp_error: np.ndarray
     #: the limit that kept the allocation from the desired wrench (None when not saturated)
     binding: str | None = None
+    #: the reference time s the controller followed this period and its rate ds/dt (`ReferenceClock`; s = t, 1
+    #: without time scaling)
+    reference_time: float = 0.0
+    reference_rate: float = 1.0
 
 
 def param_std(estimator: ParameterEstimator) -> np.ndarray:
@@ -87,7 +95,8 @@ class PushController:
     """Closed-loop push controller of one or two mobile manipulators holding the cart's handle.
 
     ``robots`` are the controller's models of the robots (Pinocchio model, whole-body QP tracker,
-    grasp geometry); their states are overwritten from each measurement.
+    grasp geometry); their states are overwritten from each measurement. ``clock``: the reference's time scaling
+    (`wholebody.push.reference_clock`), shared with the cart controller's `ScaledReference`; None: s = t.
     """
 
     def __init__(
@@ -97,6 +106,7 @@ class PushController:
         estimator: ParameterEstimator,
         scheduler: ContactScheduler,
         robots: Sequence[MobileManipulator],
+        clock: ReferenceClock | None = None,
     ) -> None:
         if sum(mm.n_hands for mm in robots) != config.n_arms:
             raise WholeBodyError(
@@ -107,6 +117,8 @@ class PushController:
         self.estimator = estimator
         self.scheduler = scheduler
         self.robots = list(robots)
+        self.clock = clock
+        self.trajectory = config.make_trajectory()
         self.geometry = config.cart_geometry()
         #: the cart's floor contacts the allocation keeps loaded (None: no tip-over bound)
         self.support = config.support_polygon() if config.tip_on() else None
@@ -151,22 +163,15 @@ class PushController:
         params_hat = self.estimator.params()
         x_hat = np.array(self.estimator.x[:6], dtype=float)
         q_hat, qd_hat = x_hat[0:3], x_hat[3:6]
-        gamma_d = np.asarray(self.cart_controller.gamma(m.t, q_hat, qd_hat, params_hat), dtype=float)  # eq. (26)
-        gamma_d = bounded_demand(gamma_d, self.config.n_arms * self.config.arm_limits.max_force)
-        ys, ydots = self.scheduler.update(m.t, params_hat, dt)
-        self.allocator.set_points([handle_point(v, self.geometry) for v in ys])
-        if self.config.torque_margin is not None:  # |J^T w + g| <= tau_max at each arm's current configuration
-            self.allocator.set_torque_limits(
-                [c for mm in self.robots for c in mm.torque_constraints(q_hat)], margin=self.config.torque_margin
-            )
-        if self.support is not None:  # every wheel stays loaded
-            self.allocator.set_tip_bound(self.support, self._cart_load(q_hat, qd_hat, gamma_d, params_hat))
-        alloc = self.allocator.solve(cart_model.generalized_to_body(q_hat, gamma_d), raise_on_infeasible=False)
+        s, rate, gamma_d = self._demand(m.t, q_hat, qd_hat, params_hat)
+        ys, ydots = self.scheduler.update(s, params_hat, dt)
+        alloc = self._allocate(q_hat, qd_hat, gamma_d, params_hat, ys)
         saturated = alloc.residual > 1e-6 * max(1.0, float(np.abs(gamma_d).max()))  # eq. (25)
+        self._advance_clock(s, cart_model.generalized_to_body(q_hat, gamma_d), alloc.gamma_achieved, params_hat)
         q_grasp = self._grasp_pose(q_hat, qd_hat, m.t)
         commands, per_robot = zip(
             *(
-                self._robot_command(mm, q_grasp, qd_hat, y, yd, w, m.t, plan)
+                self._robot_command(mm, q_grasp, qd_hat, y, yd, w, s, plan)
                 for mm, y, yd, w, plan in zip(
                     self.robots, *self._by_robot(ys, ydots, alloc.wrenches_ee), self.base_plans
                 )
@@ -189,8 +194,86 @@ class PushController:
             wheel_rates=np.array([c.wheel_rates for c in commands]),
             grasp_error=np.array([p[2] for p in parts]),
             binding=alloc.binding if saturated else None,
+            reference_time=s,
+            reference_rate=rate,
         )
         return list(commands)
+
+    def _advance_clock(self, s: float, gamma_b: np.ndarray, achieved: np.ndarray, params: CartParams) -> None:
+        """Set the reference's rate for the next period from this one's allocation (`ReferenceClock.advance`): the
+        share of the demand it left out, the desired path speed at s, the hands' force over the estimated mass."""
+        if self.clock is None:
+            return
+        self._look_ahead(s, params)
+        rows = self.allocator.rows
+        _, qd, qdd = self.trajectory.sample(s)
+        share = deficit(np.asarray(gamma_b)[rows], np.asarray(achieved)[rows], float(qd[:2] @ qdd[:2]) < 0.0)
+        path_speed = float(np.hypot(*qd[:2]))
+        force = self.config.n_arms * self.config.arm_limits.max_force
+        accel = force / params.m if params.m > 0 else float("inf")
+        self.clock.advance(share, self.config.dt, path_speed, accel)
+
+    def _look_ahead(self, s: float, params: CartParams) -> None:
+        """Every `TimeScaling.check_period` of reference time: the largest rate whose feed-forward over the horizon
+        the arms can give (`reference_clock.admissible_rate`), with the allocation's limits as they are now and the
+        tip-over bound under each sample's motion. The allocator's own tip rows are put back afterwards."""
+        clock = self.clock
+        settings = clock.settings if clock is not None else None
+        if clock is None or settings is None or settings.horizon <= 0 or s - clock.checked_at < settings.check_period:
+            return
+        clock.checked_at = s
+        saved = self.allocator._tip_part
+
+        def achievable(row: np.ndarray) -> bool:
+            if self.support is not None:
+                state = np.array([row[3], 0.0, row[4]])
+                self.allocator.set_tip_bound(self.support, cart_load(np.zeros(3), state, row[:3], params, None, 0.0))
+            return self.allocator.optimum(row[:3]) is not None
+
+        clock.admissible = admissible_rate(self.trajectory, s, 1.0, settings, params, achievable)
+        if self.support is not None:
+            self.allocator._tip_part = saved
+            self.allocator._stack_inequalities()
+
+    def _demand(self, t: float, q: np.ndarray, qd: np.ndarray, params: CartParams) -> tuple[float, float, np.ndarray]:
+        """Return the reference time s at time t, its rate (`ReferenceClock`; t and 1 without one) and the desired
+        wrench Gamma_d of the cart controller (eq. 26) at s, bounded (`bounded_demand`)."""
+        s, rate = (t, 1.0) if self.clock is None else (self.clock.time(t), self.clock.rate)
+        gamma = np.asarray(self.cart_controller.gamma(s, q, qd, params), dtype=float)  # eq. (26)
+        return s, rate, bounded_demand(gamma, self.config.n_arms * self.config.arm_limits.max_force)
+
+    def _allocate(
+        self, q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: CartParams, ys: np.ndarray
+    ) -> AllocationResult:
+        """Return the allocation (eq. 25) of the desired wrench `gamma` ({s}) at the contacts `ys` under the arms'
+        limits (their joint torques at the arms' current configuration) and, with the tip-over bound, every wheel
+        loaded under the cart's inertia.
+
+        The inertia the bound counts is the cart's acceleration under the wrench the hands will give: the desired
+        one when the allocation gives it; when it saturates, the acceleration of a wrench the arms cannot give
+        is not the cart's (a turn asked past the arms' torque asks a yaw acceleration whose CoM swing tips the cart
+        on paper, and the bound then forbids the very sideways push that would turn it): the load is then taken
+        under the achieved wrench, up to `TIP_LOAD_PASSES` times while the achieved wrench still moves.
+        """
+        self.allocator.set_points([handle_point(v, self.geometry) for v in ys])
+        if self.config.torque_margin is not None:  # |J^T w + g| <= tau_max at each arm's current configuration
+            self.allocator.set_torque_limits(
+                [c for mm in self.robots for c in mm.torque_constraints(q)], margin=self.config.torque_margin
+            )
+        gamma_b = cart_model.generalized_to_body(q, gamma)
+        if self.support is None:
+            return self.allocator.solve(gamma_b, raise_on_infeasible=False)
+        load_gamma = gamma
+        for _ in range(TIP_LOAD_PASSES):
+            self.allocator.set_tip_bound(self.support, self._cart_load(q, qd, load_gamma, params))
+            alloc = self.allocator.solve(gamma_b, raise_on_infeasible=False)
+            if alloc.residual <= 1e-6 * max(1.0, float(np.abs(gamma).max())):
+                return alloc
+            given = _body_to_generalized(q, alloc.gamma_achieved)
+            if np.allclose(given, load_gamma, rtol=1e-3, atol=1e-3):
+                return alloc
+            load_gamma = given
+        return alloc
 
     def _cart_load(self, q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: CartParams) -> CartLoad:
         """Return the cart's load on its wheels under the desired wrench (`tip_support.cart_load`), with the
@@ -320,6 +403,12 @@ def bounded_demand(gamma: np.ndarray, hand_force: float) -> np.ndarray:
     bound = DEMAND_BOUND_FACTOR * hand_force
     peak = float(np.abs(gamma).max())
     return gamma * (bound / peak) if peak > bound else gamma
+
+
+def _body_to_generalized(q: np.ndarray, gamma_b: np.ndarray) -> np.ndarray:
+    """Return the generalized force (fx, fy in {s}, tau) of a body wrench (f_forward, f_lateral, tau) at pose q."""
+    c, s = np.cos(q[2]), np.sin(q[2])
+    return np.array([c * gamma_b[0] - s * gamma_b[1], s * gamma_b[0] + c * gamma_b[1], gamma_b[2]])
 
 
 def _rot_z(theta: float) -> np.ndarray:

@@ -36,6 +36,7 @@ from wholebody.push.geometry import DEFAULT_GEOMETRY
 from wholebody.push.controller import ControlDecision, PushController
 from wholebody.push.plants import make_plant, plant_report, plant_truth
 from wholebody.push.plant import Measurement, RobotCommand, SimulatedPlant
+from wholebody.push.reference_clock import ReferenceClock, ScaledReference
 from wholebody.push import robot as robot_mod
 from wholebody.push.robot import MobileManipulator
 from wholebody.push.scheduler import ContactScheduler
@@ -135,6 +136,8 @@ class StepRecord:
     binding: str | None
     base_ratio: np.ndarray
     wheel_ratio: np.ndarray
+    reference_time: float
+    reference_rate: float
 
 
 def stack_records(records: Sequence[StepRecord]) -> dict[str, Any]:
@@ -162,9 +165,15 @@ def build_controller(
     controller: CartController | None = None,
     estimator: ParameterEstimator | None = None,
 ) -> PushSetup:
-    """Return the push controller of `config` and the robots' initial grasp states at the trajectory's start."""
+    """Return the push controller of `config` and the robots' initial grasp states at the trajectory's start.
+
+    With time scaling (`PushConfig.scaling_settings`) the cart controller made here tracks the desired motion on
+    the run's `ReferenceClock` (`ScaledReference`); a given `controller` is asked at the reference time."""
     traj = config.make_trajectory()
-    controller = controller if controller is not None else make_controller(config.controller, traj)
+    scaling = config.scaling_settings()
+    clock = None if scaling is None else ReferenceClock(scaling)
+    if controller is None:
+        controller = make_controller(config.controller, traj if clock is None else ScaledReference(traj, clock))
     q, qd, _ = traj.sample(0.0)
     estimator = estimator if estimator is not None else make_estimator(config, q)
     robot = robots.load(config.robot)  # once per run: the reach map and the robots share it
@@ -173,7 +182,8 @@ def build_controller(
     seeds = None if reach is None or isinstance(reach, tuple) else [reach.postures[reach.index(scheduler.y[0])]]
     mms = make_robots(config, q, scheduler.y, seeds, robot)
     x0 = [mm.x.copy() for mm in mms]
-    return PushSetup(PushController(config, controller, estimator, scheduler, mms), x0, q.copy(), qd.copy())
+    ctrl = PushController(config, controller, estimator, scheduler, mms, clock)
+    return PushSetup(ctrl, x0, q.copy(), qd.copy())
 
 
 def record(
@@ -209,6 +219,8 @@ def record(
         binding=d.binding,
         base_ratio=np.array([np.max(np.abs(tw)[li > 0] / li[li > 0]) for tw, li in zip(d.base_twist, lim)]),
         wheel_ratio=np.array([np.max(np.abs(w) / mm.wb.wheel_velocity_limit) for w, mm in zip(d.wheel_rates, mms)]),
+        reference_time=d.reference_time,
+        reference_rate=d.reference_rate,
     )
 
 
@@ -240,7 +252,8 @@ def run_loop(
 ) -> PushResult:
     """Return the result of measure -> ``ctrl.step`` -> ``plant.step`` over the run's duration.
 
-    The estimate is judged against the plant's truth (`wholebody.push.plants.plant_truth`).
+    The estimate is judged against the plant's truth (`wholebody.push.plants.plant_truth`); the tracking against
+    the reference the controller followed (the desired motion at the reference time, `wholebody.push.reference_clock`).
     """
     traj = config.make_trajectory()
     n = int(round(config.duration / config.dt)) + 1
@@ -249,7 +262,7 @@ def run_loop(
         m = plant.measure()
         cmds = ctrl.step(m)
         assert ctrl.last is not None
-        records.append(record(plant, m, ctrl.last, cmds, traj.sample(m.t)[0], ctrl.robots))
+        records.append(record(plant, m, ctrl.last, cmds, traj.sample(ctrl.last.reference_time)[0], ctrl.robots))
         if k == n - 1:
             break
         plant.step(cmds)
@@ -326,6 +339,9 @@ def _metrics(config: PushConfig, H: SimpleNamespace, effort_limit: np.ndarray, f
         base_wheel_limit_ratio=float(H.wheel_ratio.max()),
         saturated_steps=int(np.sum(H.saturated)),
         saturation=saturation_summary(saturation_spans(np.arange(len(H.binding)) * config.dt, H.binding, config.dt)),
+        reference_time_scale_min=float(H.reference_rate.min()),
+        reference_slowed_s=float(np.sum(H.reference_rate < 1.0) * config.dt),
+        reference_delay_s=float(max(0.0, (len(H.reference_time) - 1) * config.dt - H.reference_time[-1])),
         base_wheel_speed_rms_rad_s=float(np.sqrt(np.mean(wheels**2))),
         base_wheel_speed_max_rad_s=float(np.abs(wheels).max()),
         base_wheel_acceleration_max_rad_s2=float(np.abs(wheel_acc).max()),

@@ -834,7 +834,7 @@ def what_happened(result: PushResult) -> list[str]:
     """
     m, rep = result.metrics, result.plant_report or {}
     t_end = m.tracking_lost_at_s if m.tracking_lost_at_s is not None else math.inf
-    lines = [_outcome(result)] + _saturation(m.saturation or {}, t_end)
+    lines = [_outcome(result)] + _saturation(m.saturation or {}, t_end) + _slowed(result)
     if m.arm_torque_limit_ratio > 1.0:
         lines.append(f"arm torque at {m.arm_torque_limit_ratio:.2f} x its limit (commanded)")
     if rep.get("arm_torque_saturated_steps"):
@@ -859,6 +859,19 @@ def _saturation(saturation: dict, t_end: float) -> list[str]:
     ]
     after = [k for k, v in rows if v["first_s"] >= t_end]
     return lines + ([f"after the loss also saturated: {', '.join(after)}"] if after else [])
+
+
+def _slowed(result: PushResult) -> list[str]:
+    """Return how far the reference was slowed (`wholebody.push.reference_clock`), or nothing when it never was."""
+    m, rate = result.metrics, result.reference_rate
+    if rate is None or m.reference_slowed_s <= 0.0:
+        return []
+    k = int(np.argmin(rate))
+    return [
+        f"saturation: reference slowed to {100 * m.reference_time_scale_min:.0f} % of the desired speed (t = "
+        f"{result.t[k]:.2f} s), slower for {m.reference_slowed_s:.2f} s in all; it ends {m.reference_delay_s:.2f} s "
+        "behind the desired timing (the tracking error is against the slowed reference)"
+    ]
 
 
 def _lateral_slip(result: PushResult, t_end: float) -> str:

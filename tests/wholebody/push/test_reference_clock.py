@@ -1,0 +1,122 @@
+"""The reference's time scaling: a saturating push slows its reference down instead of losing the cart."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from cart.trajectories import trajectory_1
+from wholebody.contacts.allocation import ArmLimits
+from wholebody.push import PushConfig, run_push
+from wholebody.push.config import PUSH_ARM_LIMITS
+from cart.trajectories import trajectory_2
+from wholebody.push.config import TRUE_CART
+from wholebody.push.reference_clock import (
+    ReferenceClock,
+    ScaledReference,
+    TimeScaling,
+    admissible_rate,
+    deficit,
+    planned_wrenches,
+)
+from wholebody.push.report import what_happened
+
+
+def test_without_a_deficit_the_reference_time_is_the_run_time_exactly():
+    clock = ReferenceClock(TimeScaling())
+    ref = ScaledReference(trajectory_1(10.0), clock)
+    for k in range(300):
+        t = 0.01 * k
+        assert clock.time(t) == t
+        for a, b in zip(ref.sample(t), trajectory_1(10.0).sample(t)):
+            assert np.array_equal(a, b)
+        clock.advance(deficit(np.array([50.0, 2.0]), np.array([50.0, 2.0])), 0.01, 0.8, 5.0)
+    assert clock.rate == 1.0 and clock.delay == 0.0
+
+
+def test_a_deficit_slows_the_reference_within_the_brake_bound_and_it_recovers():
+    settings = TimeScaling()
+    clock = ReferenceClock(settings)
+    dt, speed, accel = 0.01, 0.8, 0.4
+    braked = ReferenceClock(settings)
+    rates = []
+    for _ in range(100):  # half the demand cannot be given for 1 s
+        clock.advance(0.5, dt, speed, 10 * accel)
+        braked.advance(0.5, dt, speed, accel)
+        rates.append(braked.rate)
+    assert settings.rate_min <= clock.rate < 0.5
+    # the slowing is the reference's deceleration along the path: within brake_share of what the force gives
+    bound = settings.brake_share * accel / speed
+    assert np.diff(np.r_[1.0, rates]) / dt == pytest.approx(np.full(100, -bound))
+    assert clock.delay > 0.3
+    for _ in range(1000):  # then the whole wrench: back to the desired speed, the delay kept
+        clock.advance(0.0, dt, speed, accel)
+    delay = clock.delay
+    assert clock.rate == 1.0 and clock.rate_dot == 0.0
+    assert clock.time(20.0) == pytest.approx(20.0 - delay)
+    s = clock.time(20.0)
+    q, qd, qdd = ScaledReference(trajectory_1(30.0), clock).sample(s)
+    assert np.array_equal(qd, trajectory_1(30.0).sample(s)[1])
+
+
+def test_a_missing_push_counts_a_missing_brake_on_a_braking_path_holds_the_rate():
+    assert deficit(np.array([40.0, 1.0]), np.array([30.0, 1.0])) == pytest.approx(0.25, rel=1e-3)
+    # the desired motion brakes and the arms could not brake as hard: hold (slowing asks more braking)
+    assert np.isnan(deficit(np.array([-40.0, 1.0]), np.array([-30.0, 1.0]), path_braking=True))
+    assert deficit(np.array([-40.0, 1.0]), np.array([-30.0, 1.0])) == pytest.approx(0.25, rel=1e-3)
+    # a push given in full or more while the torque is missing: slow down (a turn the arms cannot make)
+    assert deficit(np.array([6.8, 12.9]), np.array([9.1, 11.3])) == pytest.approx(0.19, abs=0.01)
+    clock = ReferenceClock(TimeScaling(), rate=0.5)
+    clock.advance(float("nan"), 0.01, 0.8, 5.0)
+    assert clock.rate == 0.5 and clock.rate_dot == 0.0 and clock.delay == pytest.approx(0.005)
+
+
+def test_the_scaled_reference_is_the_time_derivative_of_the_slowed_path():
+    clock = ReferenceClock(TimeScaling())
+    traj = trajectory_1(30.0)
+    ref = ScaledReference(traj, clock)
+    clock.rate, clock.rate_dot = 0.6, -0.3
+    s, h = 2.3, 1e-5
+    q, qd, qdd = ref.sample(s)
+    r = clock.rate
+    # d/dt q(s(t)) = q'(s) r;  d/dt (q'(s) r) = q''(s) r^2 + q'(s) r_dot
+    fd = (traj.sample(s + h * r)[0] - traj.sample(s - h * r)[0]) / (2 * h)
+    assert qd == pytest.approx(fd, abs=1e-6)
+    v1 = traj.sample(s + h * r)[1] * (r + h * clock.rate_dot)
+    v0 = traj.sample(s - h * r)[1] * (r - h * clock.rate_dot)
+    assert qdd == pytest.approx((v1 - v0) / (2 * h), abs=1e-4)
+
+
+def test_a_saturating_push_slows_its_reference_instead_of_losing_the_cart():
+    # one hand that pushes at most 5 N: Traj. 1's 0.4 m/s^2 ramp asks 8 N of the 20 kg cart
+    weak = ArmLimits(max_force=5.0, grasp=PUSH_ARM_LIMITS.grasp)
+    config = PushConfig(trajectory=1, duration=6.0, arm_limits=weak)
+    assert config.scaling_settings() is None  # the kinematic plant's default: the desired timing
+    lost = run_push(config).metrics
+    assert lost.tracking_lost_at_s is not None and lost.reference_time_scale_min == 1.0
+    result = run_push(replace(config, time_scaling=TimeScaling()))
+    m = result.metrics
+    assert m.tracking_lost_at_s is None and m.tracking_rms_mm < 20.0
+    assert m.saturated_steps > 0 and m.reference_time_scale_min < 0.9 and m.reference_delay_s > 0.5
+    assert result.reference_time is not None and result.reference_time[-1] == pytest.approx(6.0 - m.reference_delay_s)
+    # the tracking is against the slowed reference: q_desired is the desired motion at the reference time
+    assert np.allclose(result.q_desired, [trajectory_1(6.0).sample(s)[0] for s in result.reference_time])
+    lines = what_happened(result)
+    assert lines[0].startswith("tracked:")
+    assert any(line.startswith("saturation: reference slowed to") for line in lines)
+
+
+def test_the_look_ahead_takes_the_fastest_rate_whose_turn_torque_the_arms_give():
+    settings = TimeScaling(horizon=1.5)
+    traj = trajectory_2(30.0)
+    full = max(abs(row[2]) for row in planned_wrenches(traj, 7.0, 1.0, settings, TRUE_CART))
+    half = max(abs(row[2]) for row in planned_wrenches(traj, 7.0, 0.5, settings, TRUE_CART))
+    assert 0.0 < half < 0.5 * full  # the turn's torque falls at least as fast as the rate
+    limit = 0.7 * full  # arms that give 70 % of the full-speed turn's torque
+    rate = admissible_rate(traj, 7.0, 1.0, settings, TRUE_CART, lambda row: abs(row[2]) <= limit)
+    assert rate < 1.0 and rate in settings.rate_grid
+    faster = [r for r in settings.rate_grid if r > rate]
+    assert all(max(abs(w[2]) for w in planned_wrenches(traj, 7.0, r, settings, TRUE_CART)) > limit for r in faster)
+    assert admissible_rate(traj, 7.0, 1.0, settings, TRUE_CART, lambda row: False) == settings.rate_min

@@ -1,0 +1,182 @@
+"""Online time scaling of the desired cart motion: the reference slows down while the arms cannot give its wrench.
+
+A cart too heavy for the hands' bounds (force, grip torque, joint torques, the tip-over bound) cannot follow the
+desired motion q_d(t) at its speed: the allocation (eq. 25) saturates, the cart falls behind and the feedback asks
+ever more. Following Dahl and Nielsen ("Torque-limited path following by online trajectory time scaling", IEEE
+Trans. Robotics and Automation 6(5), 1990), the path stays the desired one and only its timing changes: the
+reference is q_d(s) with the reference time s advancing at the rate r = ds/dt in [r_min, 1],
+
+    q_ref = q_d(s),   qd_ref = q_d'(s) r,   qdd_ref = q_d''(s) r^2 + q_d'(s) r_dot,
+
+which the cart controller (eq. 26) tracks as it would q_d(t). The inertial demand scales with r^2 (the turn's
+yaw acceleration and the CoM's swing out of it, which the tip-over bound counts): when the allocation gives only
+part of the desired wrench (its residual, a share d of the demand) the rate heads for r (1 - d) with time constant
+`TimeScaling.tau_down` (fast: the error a missing turn leaves grows quickly); when it gives all of it, back to 1. The rate's change is the reference's own acceleration along
+the path (q_d' r_dot): its slowing is kept within `TimeScaling.brake_share` of what the hands' force gives the
+estimated mass (toppra-style: the admissible path acceleration from the estimated dynamics; Pham and Pham,
+"A new approach to time-optimal path parameterization based on reachability analysis", IEEE T-RO 34(3), 2018).
+While r = 1 the reference time is the run's time exactly (s = t).
+
+The reaction comes after the cart has fallen behind, and a turn's demand grows with the error it leaves. So the
+clock also looks ahead (`planned_wrenches`, `admissible_rate`): the feed-forward wrench of the desired motion
+over the next `TimeScaling.horizon` seconds at rate r (cart paper eq. 4 with the estimated parameters: v r,
+vdot r^2, omega r, omegadot r^2), grown by `TimeScaling.feedback_share` for the feedback, must be one the arms
+can give (the allocation's limits at their current configuration, the tip-over bound under that motion's load);
+the rate heads for the largest such r on a grid, as for a deficit. This is the admissible-velocity test of
+time-optimal path parameterization, at the few rates of the grid and along the horizon only. It is off by default
+(`TimeScaling.horizon` 0): its tip-over test counts the CoM at the handle's height and finds turns the arms make.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from wholebody.errors import WholeBodyError
+
+
+#: a rate within this of 1 is 1 (within 1 % of the desired speed): the reference is back on it, its delay kept
+RATE_SNAP = 1e-2
+
+
+@dataclass(frozen=True)
+class TimeScaling:
+    """How fast the reference slows and recovers (module docstring)."""
+
+    #: the slowest rate (share of the desired speed) the reference may take
+    rate_min: float = 0.1
+    #: time constant (s) of the rate's approach to its target while the allocation saturates
+    tau_down: float = 0.1
+    #: time constant (s) of its return to 1 once the allocation gives the whole wrench
+    tau_up: float = 1.5
+    #: share of the hands' total force the reference's slowing may ask of the estimated mass
+    brake_share: float = 0.5
+    #: the allocation's residual, as a share of the demand, below which it counts as giving the whole wrench
+    deficit_tol: float = 0.02
+    #: how far ahead (s) the desired motion's feed-forward wrench must be one the arms can give, and how often (s,
+    #: of reference time) that is checked (`admissible_rate`). 0: no look-ahead (the default: with 1.5 the default
+    #: MuJoCo Traj. 2 is slowed to 80 % in its turns, which the arms make at full speed; docs/mujoco.md)
+    horizon: float = 0.0
+    horizon_samples: int = 7
+    check_period: float = 0.1
+    #: the feed-forward checked is grown by this share: room for the feedback
+    feedback_share: float = 0.0
+    #: the rates tried, from the top, when the feed-forward at the current target is not one the arms can give
+    rate_grid: tuple[float, ...] = (1.0, 0.8, 0.6, 0.45, 0.3, 0.2)
+
+    def __post_init__(self) -> None:
+        if not (0.0 < self.rate_min <= 1.0 and self.tau_down > 0 and self.tau_up > 0 and 0 < self.brake_share <= 1):
+            raise WholeBodyError("time scaling: rate_min in (0, 1], tau_down, tau_up > 0, brake_share in (0, 1]")
+
+
+@dataclass
+class ReferenceClock:
+    """The reference time s and its rate r (`TimeScaling`): ``time(t)`` = s, ``advance`` after each period."""
+
+    settings: TimeScaling
+    #: the run's time minus the reference time (s): how far the reference is behind the desired motion
+    delay: float = 0.0
+    rate: float = 1.0
+    rate_dot: float = 0.0
+    #: the largest rate whose feed-forward over the horizon the arms can give (`admissible_rate`), and when (run
+    #: time, s) it was last checked
+    admissible: float = 1.0
+    checked_at: float = -math.inf
+
+    def time(self, t: float) -> float:
+        """Return the reference time s at the run's time t (t itself until the reference first slows)."""
+        return t - self.delay if self.delay != 0.0 else t
+
+    def advance(self, deficit: float, dt: float, path_speed: float, accel_bound: float) -> None:
+        """Set the rate of the next period from this period's allocation `deficit` (residual / demand, in [0, 1];
+        NaN: the arms could not brake as hard as asked, and the rate is held, `deficit`).
+
+        ``path_speed``: |q_d'(s)| of the forward motion (m/s); ``accel_bound``: the hands' total force over the
+        estimated mass (m/s^2), which bounds the slowing: r_dot >= -brake_share accel_bound / path_speed.
+        """
+        s = self.settings
+        if math.isnan(deficit):  # a braking deficit: slowing would ask more braking; hold the rate
+            self.rate_dot = 0.0
+            self.delay += (1.0 - self.rate) * dt
+            return
+        slowing = deficit > s.deficit_tol or self.admissible < self.rate
+        target = min(self.rate * (1.0 - max(deficit, 0.0)), self.admissible) if slowing else self.admissible
+        tau = s.tau_down if slowing else s.tau_up
+        step = (target - self.rate) * min(1.0, dt / tau)
+        if path_speed > 1e-9 and math.isfinite(accel_bound):
+            step = max(step, -s.brake_share * accel_bound / path_speed * dt)
+        new = min(1.0, max(s.rate_min, self.rate + step))
+        if not slowing and new > 1.0 - RATE_SNAP:  # the approach to 1 is asymptotic: it ends
+            new = 1.0
+        self.rate_dot = (new - self.rate) / dt
+        self.rate = new
+        self.delay += (1.0 - new) * dt
+
+
+class ScaledReference:
+    """A desired cart motion read on a `ReferenceClock`: ``sample(s)`` = q_d(s), q_d'(s) r, q_d'' r^2 + q_d' r_dot.
+
+    The cart controller holds it as its trajectory and is asked at the reference time s (`ReferenceClock.time`).
+    """
+
+    def __init__(self, trajectory, clock: ReferenceClock) -> None:
+        self.trajectory = trajectory
+        self.clock = clock
+
+    @property
+    def duration(self) -> float:
+        """Return the desired motion's duration (s, in reference time)."""
+        return float(self.trajectory.duration)
+
+    def sample(self, s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return (q, qd, qdd) of the reference at reference time s with the clock's current rate."""
+        q, qd, qdd = self.trajectory.sample(s)
+        r, rd = self.clock.rate, self.clock.rate_dot
+        if r == 1.0 and rd == 0.0:
+            return q, qd, qdd
+        return q, qd * r, qdd * (r * r) + qd * rd
+
+
+def deficit(gamma_desired: np.ndarray, gamma_achieved: np.ndarray, path_braking: bool = False) -> float:
+    """Return the share of the desired body wrench (the allocation's rows: fx, tau or fx, fy, tau) the allocation
+    left out, in [0, 1]. NaN while the desired motion brakes (`path_braking`: its speed along the path falls at the
+    reference time) and the arms could not brake as hard as asked (fx < 0 missing): slowing the reference, which
+    asks more braking (q_d' r_dot), would not help."""
+    missing = np.asarray(gamma_desired, dtype=float) - np.asarray(gamma_achieved, dtype=float)
+    demand = float(np.linalg.norm(gamma_desired))
+    if demand <= 1e-9:
+        return 0.0
+    share = min(1.0, float(np.linalg.norm(missing)) / demand)
+    braking = path_braking and gamma_desired[0] < 0.0 and missing[0] < 0.0
+    return math.nan if share > 0.0 and braking else share
+
+
+def planned_wrenches(trajectory, s: float, rate: float, settings: TimeScaling, params) -> list[np.ndarray]:
+    """Return the body wrenches (f_forward, 0, tau) the desired motion needs over the horizon at `rate`, with the
+    estimated parameters (`cart.dynamics.inverse_dynamics`, paper eq. 4) and the feedback's share on top; each
+    with the state (v, omega) it is needed at: ``[(wrench, v, omega), ...]`` as rows (f, 0, tau, v, omega)."""
+    from cart.dynamics import inverse_dynamics
+
+    m, a, b, j = params.phi
+    c_v, c_w = params.damping
+    grow = 1.0 + settings.feedback_share
+    out = []
+    for h in np.linspace(0.0, settings.horizon, settings.horizon_samples):
+        q, qd, qdd = trajectory.sample(s + rate * float(h))
+        c, sn = math.cos(q[2]), math.sin(q[2])
+        v, vdot = rate * (c * qd[0] + sn * qd[1]), rate * rate * (c * qdd[0] + sn * qdd[1])
+        om, omdot = rate * qd[2], rate * rate * qdd[2]
+        fu, tau = inverse_dynamics(v, om, vdot, omdot, m, a, b, j, c_v, c_w)
+        out.append(np.array([grow * fu, 0.0, grow * tau, v, om]))
+    return out
+
+
+def admissible_rate(trajectory, s: float, top: float, settings: TimeScaling, params, achievable) -> float:
+    """Return the largest rate of `TimeScaling.rate_grid` (at most `top`; else `rate_min`) whose feed-forward over the
+    horizon (`planned_wrenches`) is, at every sample, ``achievable(row)`` (the caller's allocation test)."""
+    for r in [v for v in settings.rate_grid if v <= top + 1e-12]:
+        if all(achievable(row) for row in planned_wrenches(trajectory, s, r, settings, params)):
+            return r
+    return settings.rate_min
