@@ -5,6 +5,8 @@ No physics here: a law on a random 6 x 7 Jacobian and inertia, fed states and re
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -29,7 +31,9 @@ def _law(gains: TorqueArmGains, w: np.ndarray, limit: np.ndarray = LIMIT) -> tup
 
 def test_budget_keeps_the_task_part_and_scales_the_hands_feedback_into_the_limits():
     w = np.array([20.0, -5.0, -40.0, 0.0, 0.0, 2.0])
-    gains = TorqueArmGains(feedforward="bias", force_integral=0.0, fusion_tau=0.0, stiffness=0.0, damping=0.0)
+    gains = TorqueArmGains(
+        feedforward="bias", force_integral=0.0, fusion_tau=0.0, stiffness=0.0, damping=0.0, budget=True
+    )
     law, J = _law(gains, w)
     free, _ = _law(gains, w, limit=np.full(7, 1e9))  # the same law without limits
     bias = 0.6 * LIMIT * np.array([1.0, -1.0, 0.5, 0.5, 0.0, 0.0, 0.0])  # the arm's weight: most of two joints
@@ -47,11 +51,16 @@ def test_budget_keeps_the_task_part_and_scales_the_hands_feedback_into_the_limit
     np.testing.assert_allclose(tau, task + s * (asked - task), atol=1e-9)
     np.testing.assert_allclose(law.peak_task_ratio, np.max(np.abs(task) / LIMIT))
     np.testing.assert_allclose(law.peak_joint_ratio, np.abs(tau) / LIMIT)
+    clipped, _ = _law(replace(gains, budget=False), w)  # the default: the sum clipped, each joint's full effort
+    np.testing.assert_allclose(
+        clipped.torque(0.0, z, z, bias, wrench_measured=reading), np.clip(asked, -LIMIT, LIMIT), atol=1e-9
+    )
+    assert clipped.peak_ratio > 1.0 and clipped.saturated_steps == 1
 
 
 def test_posture_takes_the_room_the_hands_terms_leave_each_joint():
     w = np.array([20.0, -5.0, -40.0, 0.0, 0.0, 2.0])
-    law, J = _law(TorqueArmGains(feedforward="bias", null_space=False), w)
+    law, J = _law(TorqueArmGains(feedforward="bias", null_space=False, budget=True), w)
     q = np.full(7, 0.4)  # 0.4 rad from the plan: the joint impedance asks 80 N m on every joint
     z = np.zeros(7)
     tau = law.torque(0.0, q, z, z)
@@ -71,7 +80,7 @@ def test_budget_is_zero_when_the_task_part_alone_exceeds_a_limit():
 
 def test_law_counts_a_clip_when_the_task_part_exceeds():
     w = np.array([0.0, 0.0, -50.0, 0.0, 0.0, 0.0])
-    law, J = _law(TorqueArmGains(feedforward="bias", force_feedback=0.0), w, limit=np.full(7, 1e-3))
+    law, J = _law(TorqueArmGains(feedforward="bias", force_feedback=0.0, budget=True), w, limit=np.full(7, 1e-3))
     z = np.zeros(7)
     tau = law.torque(0.0, z, z, z)
     assert np.all(np.abs(tau) <= 1e-3 + 1e-12)
