@@ -64,3 +64,30 @@ def test_no_change_no_segments(seed):
     # without the regressor-noise compensation); 4002 is a light (6 kg) cart
     log, _, _ = _load_case(seed, change=False)
     assert len(estimate_log(log).segments) == 1
+
+
+def test_the_split_model_is_the_filtered_regression_of_a_switching_cart():
+    # y = filt(x p(t)), p switching at t_c, x within the filter's band: the switched-rows model (filt of each
+    # side's regressor) fits it at the true split, where splitting the filtered rows as they are leaves the
+    # mixed rows' residual
+    from types import SimpleNamespace
+
+    from cart import segments
+    from cart._kernels_identify import butter_lowpass_sos
+    from cart.identify import _filtfilt
+
+    dt, fc, n = 0.01, 1.0, 4000
+    rng = np.random.default_rng(0)
+    sos = butter_lowpass_sos(4, fc * 2.0 * dt)
+    raw = _filtfilt(butter_lowpass_sos(2, 0.3 * 2.0 * dt), rng.standard_normal((n, 2, 2)))  # (k, 2 rows, 2 params)
+    i_c = 2345
+    p = np.where((np.arange(n) <= i_c)[:, None], [1.0, 0.5], [1.6, 0.5])  # the first parameter grows by 60 %
+    y = _filtfilt(sos, np.einsum("krp,kp->kr", raw, p))
+    x = _filtfilt(sos, raw.reshape(n, -1)).reshape(raw.shape)
+    kernels = segments.split_kernels(SimpleNamespace(cutoff_hz=fc, grid_dt=dt), 1)
+    idx = np.arange(1000, 3000)
+    switched = segments._split_residuals(x, y, np.ones(2), idx, kernels, exchange=False)
+    plain = segments._split_residuals(x, y, np.ones(2), idx, None, exchange=False)
+    at = int(np.argmin(switched))
+    assert idx[at] == i_c
+    assert switched[at] < 1e-2 * plain.min()
