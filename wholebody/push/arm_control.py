@@ -126,7 +126,7 @@ class TorqueArmGains:
     #: allocation between periods, which ``J^T w`` delivers at once, meets no proportional kick; False: the
     #: allocated wrench itself (a jump ``dw`` then gets ``K dw`` on top of ``J^T dw`` until the measurement sees it).
     #: Measured (docs/mujoco.md "Arm laws"): Traj. 2 seed 0's wrench error 16.9 -> 10.1 % of the hand force, but
-    #: seed 2 lost at 19.4 s (tracked without it), so it is off
+    #: seed 2 lost at 18.5 s (tracked without it), so it is off
     reference_model: bool = False
     #: True: the law's request stays within the effort limits (`torque_budget`: the task part whole, the hand's
     #: feedback scaled as one, the posture clipped per joint into the room left); False: the sum is clipped per joint
