@@ -1154,14 +1154,23 @@ def _frame_undecided(ff: _FrameFits) -> str | None:
     )
 
 
+def _push_work(sig: Signals) -> float:
+    """Return the work (J) of the push on the cart: the integral of f_fwd v + tau omega (no lateral motion, eq. 3).
+
+    A passive cart takes the work that changes its kinetic energy and what its resistance dissipates: over
+    a push that starts and ends near rest it is positive.
+    """
+    power = sig.f_fwd * sig.v + sig.tau * sig.omega
+    return float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(sig.t)))
+
+
 def _nominal_fit(sig: Signals, edges: np.ndarray, source: str) -> tuple[Fit, list[str]]:
     """Return the nominal fit, bounded to a physical cart when the plain fit is not one, and the warnings."""
     nominal = fit_model(sig, edges, [])
     if cart_is_physical(nominal.x):
         return nominal, []
-    power = sig.f_fwd * sig.v + sig.tau * sig.omega  # the push's power on the cart (no lateral motion, eq. 3)
-    work = float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(sig.t)))
-    if nominal.x[0] <= 0.0 and work < 0.0:
+    work, work_b = _push_work(sig), _push_work(_cart_frame_signals(sig, {}))
+    if nominal.x[0] <= 0.0 and work < 0.0 and work_b < 0.0:  # read in {b} it is no push either: not a frame
         raise DiagnoseError(
             f"{source}: the nominal fit gives no positive mass (m = {nominal.x[0]:.3g} kg) and the logged wrench "
             f"does {work:.4g} J of work on the cart (a passive cart is pushed with positive work): the wrench's "

@@ -181,8 +181,9 @@ def _innovation(log: CartLog, streams: Streams, params: CartParams, noise: dict[
     return (float(np.mean(means)) if means else float("nan")), int(sum(r for _, r in runs)), ""
 
 
-def push_work(streams: Streams) -> float:
-    """Return the work (J) the logged wrench does on the cart: the integral of fx vx + fy vy + tau omega.
+def push_work(streams: Streams, cart_frame: bool = False) -> float:
+    """Return the work (J) the logged wrench does on the cart: the integral of fx vx + fy vy + tau omega
+    (``cart_frame``: with (fx, fy) read in {b} and rotated into {s} by the heading).
 
     A passive cart (paper eq. 4: inertia and dissipation) takes the work that changes its kinetic energy
     and what its resistance dissipates: over a push that starts and ends near rest, the work is positive.
@@ -195,15 +196,19 @@ def push_work(streams: Streams) -> float:
         return 0.0
     qd = estimate_velocities(t, q)
     g = np.column_stack([np.interp(t, streams.wrench.t, streams.wrench.values[:, k]) for k in range(3)])
+    if cart_frame:
+        c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
+        g = np.column_stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1], g[:, 2]])
     power = np.sum(g * qd, axis=1)
     return float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(t)))
 
 
 def _no_mass_error(log: CartLog, streams: Streams, exc: Exception) -> CartError:
     """Return the error for a log whose fit gives no positive mass: a flipped wrench sign when the push
-    does negative work on the cart (:func:`push_work`), otherwise a push that does not match the motion."""
+    does negative work on the cart read in either frame (:func:`push_work`), otherwise a push that does
+    not match the motion."""
     work = push_work(streams)
-    if work < 0.0:
+    if work < 0.0 and push_work(streams, cart_frame=True) < 0.0:  # read in {b} it is no push either
         return CartError(
             f"{log.source}: the fit gives no positive mass and the logged wrench does {work:.4g} J of work on "
             "the cart (a passive cart is pushed with positive work): the wrench's sign looks flipped (the "
