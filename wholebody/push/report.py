@@ -834,7 +834,7 @@ def what_happened(result: PushResult) -> list[str]:
     """
     m, rep = result.metrics, result.plant_report or {}
     t_end = m.tracking_lost_at_s if m.tracking_lost_at_s is not None else math.inf
-    lines = [_outcome(result)] + _saturation(m.saturation or {}, t_end) + _slowed(result)
+    lines = [_outcome(result)] + _saturation(m.saturation or {}, t_end) + _slowed(result, t_end)
     if m.arm_torque_limit_ratio > 1.0:
         lines.append(f"arm torque at {m.arm_torque_limit_ratio:.2f} x its limit (commanded)")
     if rep.get("arm_torque_saturated_steps"):
@@ -861,16 +861,23 @@ def _saturation(saturation: dict, t_end: float) -> list[str]:
     return lines + ([f"after the loss also saturated: {', '.join(after)}"] if after else [])
 
 
-def _slowed(result: PushResult) -> list[str]:
-    """Return how far the reference was slowed (`wholebody.push.reference_clock`), or nothing when it never was."""
-    m, rate = result.metrics, result.reference_rate
-    if rate is None or m.reference_slowed_s <= 0.0:
+def _slowed(result: PushResult, t_end: float) -> list[str]:
+    """Return how far the reference was slowed before `t_end` (the loss; `wholebody.push.reference_clock`), or
+    nothing when it never was: its slowest rate (when), the time below the desired speed, how far behind it was."""
+    rate, s = result.reference_rate, result.reference_time
+    if rate is None or s is None:
         return []
-    k = int(np.argmin(rate))
+    inside = np.flatnonzero((result.t < t_end) & (rate < 1.0))
+    if inside.size == 0:
+        return []
+    k = int(inside[np.argmin(rate[inside])])
+    last = int(np.flatnonzero(result.t < t_end)[-1])
+    when = " before the loss" if math.isfinite(t_end) else ""
+    ends = "was" if math.isfinite(t_end) else "ends"
     return [
-        f"saturation: reference slowed to {100 * m.reference_time_scale_min:.0f} % of the desired speed (t = "
-        f"{result.t[k]:.2f} s), slower for {m.reference_slowed_s:.2f} s in all; it ends {m.reference_delay_s:.2f} s "
-        "behind the desired timing (the tracking error is against the slowed reference)"
+        f"saturation: reference slowed{when} to {100 * rate[k]:.0f} % of the desired speed (t = {result.t[k]:.2f} s), "
+        f"slower for {inside.size * result.config.dt:.2f} s in all; it {ends} {result.t[last] - s[last]:.2f} s behind "
+        "the desired timing (the tracking error is against the slowed reference)"
     ]
 
 

@@ -106,6 +106,13 @@ def test_a_saturating_push_slows_its_reference_instead_of_losing_the_cart():
     lines = what_happened(result)
     assert lines[0].startswith("tracked:")
     assert any(line.startswith("saturation: reference slowed to") for line in lines)
+    # a run lost later: the sentence says what the reference did before the loss
+    first = float(result.t[int(np.argmax(result.reference_rate < 1.0))])
+    lost = replace(result, metrics=replace(m, tracking_lost_at_s=first + 0.5))
+    said = [line for line in what_happened(lost) if line.startswith("saturation: reference slowed before the loss")]
+    assert len(said) == 1 and "slower for 0.50 s in all" in said[0]
+    never = replace(result, metrics=replace(m, tracking_lost_at_s=first))
+    assert not any("reference slowed" in line for line in what_happened(never))
 
 
 def test_the_look_ahead_takes_the_fastest_rate_whose_turn_torque_the_arms_give():
