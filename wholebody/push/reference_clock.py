@@ -48,7 +48,7 @@ class TimeScaling:
     #: the slowest rate (share of the desired speed) the reference may take
     rate_min: float = 0.1
     #: time constant (s) of the rate's approach to its target while the allocation saturates
-    tau_down: float = 0.1
+    tau_down: float = 0.3
     #: time constant (s) of its return to 1 once the allocation gives the whole wrench
     tau_up: float = 1.5
     #: share of the hands' total force the reference's slowing may ask of the estimated mass
