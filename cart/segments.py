@@ -187,7 +187,10 @@ def best_split(
     ``kernels`` (:func:`split_kernels`): the split model is the filtered regression of a cart whose
     parameters switch at the split (:func:`_switched_rows`: the rows within the filter's reach mix the two
     carts) and, with ``exchange``, each candidate's residual is the lesser of that and the momentum
-    exchange's (:func:`exchange_corrections`); None: the rows are split at the candidate as they are.
+    exchange's (:func:`exchange_corrections`); None: the rows are split at the candidate as they are. With
+    ``kernels`` the split is sought within the stretch the plain split finds, widened by the filter's reach:
+    the switched rows near a split add a term ``(p_R - p_L) filt(Y 1[t > t_c])`` that can fit a local misfit
+    (a caster event) far from the change when the two sides differ much.
     """
     reach = 0 if kernels is None else 2 * kernels.half + 1
     ok = np.flatnonzero((t - t[0] >= min_len) & (t[-1] - t >= min_len))
@@ -196,6 +199,16 @@ def best_split(
         return None
     idx = ok[:: max(1, len(ok) // _CANDIDATES)]
     total = _split_residuals(x, y, scale, idx, kernels, exchange)
+    if kernels is not None:  # within the plain split's stretch, widened by the filter's reach
+        lo, hi = _near(_split_residuals(x, y, scale, idx, None, False), tol)
+        reach_t = kernels.half * float(np.median(np.diff(t)))
+        total = np.where((t[idx] >= t[idx[lo]] - reach_t) & (t[idx] <= t[idx[hi]] + reach_t), total, np.inf)
+    lo, hi = _near(total, tol)
+    return float(0.5 * (t[idx[lo]] + t[idx[hi]])), float(t[idx[lo]]), float(t[idx[hi]])
+
+
+def _near(total: np.ndarray, tol: float) -> tuple[int, int]:
+    """Return the first and last candidate of the stretch around the least ``total`` within ``tol`` of it."""
     k = int(np.argmin(total))
     near = total <= total[k] + tol
     lo, hi = k, k
@@ -203,7 +216,7 @@ def best_split(
         lo -= 1
     while hi < len(near) - 1 and near[hi + 1]:
         hi += 1
-    return float(0.5 * (t[idx[lo]] + t[idx[hi]])), float(t[idx[lo]]), float(t[idx[hi]])
+    return lo, hi
 
 
 def _cumulative_normal(xs: np.ndarray, ys: np.ndarray, idx: np.ndarray) -> _Normal:

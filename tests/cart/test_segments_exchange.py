@@ -55,3 +55,15 @@ def test_the_exchange_fits_a_drop_better_than_a_plain_split_there():
     h, half = kernels.h, kernels.half
     assert np.argmax(h) == half and np.allclose(h, h[::-1], atol=1e-3 * h.max())
     assert abs(h.sum() * res.grid_dt * data["step"] - 1.0) < 0.02
+
+
+def test_a_load_lifted_out_is_dated_at_the_change_not_at_a_caster_event():
+    # 70.6 -> 49.2 kg lifted out while cruising; the switched rows near a split fit a caster event at 15.55 s
+    # (one candidate wide) when sought over the whole log; within the plain split's stretch it is dated
+    case, load = ml.random_load_case(209)
+    assert load.kind == "out"
+    log, truth = ml.simulate_with_load(case, load)
+    segs = estimate_log(log).segments
+    assert len(segs) == 2
+    assert abs(segs[1]["t0"] - load.t) < 1.0
+    assert abs(segs[1]["mass"] / truth["after"]["m_effective_forward_incl_wheel_spin"] - 1) < 0.05
