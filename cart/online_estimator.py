@@ -666,7 +666,9 @@ class OnlineLSEstimator:
         if self.window is not None:
             before = self._params.with_mass(m_before) if m_before > 0.0 else self._params
             seen = WindowChange(t_change, (t_change, t_change), self.t, before, self._params, {})
-            self._changes[-1].window_index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated)
+            # the GLR onset is kept as found (the window's search of it moves it further from the truth on
+            # rigid_sim seed 0 and MuJoCo seed 103); only the window restarts after it
+            self._changes[-1].window_index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated=True)
         buf.clear()
 
     def _restart_from_window(self, change: WindowChange) -> None:
