@@ -270,6 +270,11 @@ class MujocoPlant:
         self._inertial = self._read_inertial()
         self.t = 0.0
         self.scene.data.time = 0.0
+        #: the cart's own joints (casters, wheels) and each robot's, from t = 0 once per control period, for the page
+        self.cart_joints = mujoco_cart.CartJointRecord.of(self.scene.model)
+        self.robot_joints = [mujoco_cart.CartJointRecord.of(self.scene.model, r.root_body) for r in self.scene.robots]
+        for record in [self.cart_joints, *self.robot_joints]:
+            record.record(0.0, self.scene.data)
         self._ft = [self._ft_reading(i, noisy=True) for i in range(len(self._robots))]
         self._z = self._motion_capture()
 
@@ -624,6 +629,8 @@ class MujocoPlant:
                 st.arm_force_peak_ratio = max(st.arm_force_peak_ratio, float(ratio))
         st.n += 1
         self._z = self._motion_capture()
+        for record in [self.cart_joints, *self.robot_joints]:
+            record.record(self.t, d)
 
     def _wheel_slip(self, r: RobotIndex) -> float:
         """Return the largest horizontal slip speed (m/s) of the robot's driven wheels' contact points."""
@@ -664,4 +671,6 @@ class MujocoPlant:
             "physics_dt_s": self.config.physics_dt,
             "control_dt_s": self.config.control_dt,
             "cart_source": self.cart_source.label,
+            "cart_joints": self.cart_joints,
+            "robot_joints": self.robot_joints,
         }
