@@ -543,8 +543,7 @@ def save_figures(runs: dict[str, PushResult], out_dir: Path) -> list[Path]:
     return save_figure_dict(push_figures(runs), out_dir)
 
 
-#: the page's legend line on the cart's casters (`caster_swivel`), and its swatch's colour (the forks' grey)
-CASTER_LEGEND = "casters: swivel as rolling without side slip turns them (from the true motion of cart and base)"
+#: the colour of the page's legend line on the cart's casters (the forks' grey; `wholebody.viz.push_cart`)
 CASTER_COLOR = 0x808080
 #: a caster turns through at most this fraction of a radian per integration step of `caster_swivel`
 _SWIVEL_STEP = 0.2
@@ -557,8 +556,9 @@ def caster_swivel(q: np.ndarray, qd: np.ndarray, dt: float, pivots_b: np.ndarray
     velocity v_p in {b} (v_b + omega x p), the fork turns at psi_dot = (-v_px sin psi + v_py cos psi) / trail -
     omega: it settles where its wheel's contact point moves along the wheel, and swings round when the cart
     reverses. Integrated from psi = 0 over the cart's poses ``q`` and velocities ``qd`` in {s} (N, 3),
-    sub-stepped so that no step turns it by more than `_SWIVEL_STEP` rad. The MuJoCo plant simulates its casters
-    but does not report their angles: the page draws this model of them for either plant.
+    sub-stepped so that no step turns it by more than `_SWIVEL_STEP` rad. The page draws this model of the casters
+    the kinematic plant moves (it simulates none); a MuJoCo run's cart and robot are drawn with the plant's own
+    joint angles (`wholebody.viz.push_cart`).
     """
     c, s = np.cos(q[:, 2]), np.sin(q[:, 2])
     vb = np.column_stack([c * qd[:, 0] + s * qd[:, 1], -s * qd[:, 0] + c * qd[:, 1]])
@@ -599,25 +599,6 @@ def swivel_casters(model, q_rest: np.ndarray, poses: np.ndarray, velocities: np.
     return q
 
 
-def _planar_velocities(poses: np.ndarray, dt: float) -> np.ndarray:
-    """Return velocities (N, 3) in {s} of planar poses (N, 3) sampled every dt (central differences, yaw unwrapped)."""
-    if len(poses) < 2:
-        return np.zeros_like(poses)
-    p = np.column_stack([poses[:, :2], np.unwrap(poses[:, 2])])
-    return np.gradient(p, dt, axis=0)
-
-
-def _cart_joints(result: PushResult, idx: np.ndarray) -> np.ndarray:
-    """Return the shopping cart model's joint configuration (len(idx), nq - 4): the casters swivel, wheels still."""
-    import pinocchio as pin
-
-    import robots
-
-    model = robots.load("shopping_cart").model
-    rest = np.tile(pin.neutral(model)[4:], (len(result.t), 1))
-    return swivel_casters(model, rest, result.q_true, result.qd_true, result.config.dt)[idx]
-
-
 #: a physics run's measured hand force arrow starts this far (m) above the allocated one's origin (the legend says so)
 MEASURED_ARROW_RAISE = 0.06
 
@@ -630,7 +611,7 @@ def _hand_arrows(result: PushResult, idx: np.ndarray) -> tuple[dict, dict]:
     from wholebody.push.robot import cart_se3, handle_point
 
     geometry = result.config.cart_geometry()
-    poses = [cart_se3(result.q_true[i]) for i in idx]
+    poses = [cart_se3(result.q_true[i], geometry) for i in idx]
     origins = np.array([T.act(handle_point(result.contact_y[i, 0], geometry)) for T, i in zip(poses, idx)])
     forces = np.array([T.rotation @ result.wrenches[i, 0, :3] for T, i in zip(poses, idx)])
     if not _is_physics(result) or result.wrenches.shape[1] != 1:
@@ -669,22 +650,23 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     opens it paused at a time), starts on the robot holding the cart, and its
     camera follows the robot and the cart (`wholebody.viz.Scene.animate`). It
     shows the hand force (N; a MuJoCo run: allocated and measured), the mass estimate with its 1-sigma and the
-    CoM error (cm) live, the cart's and the robot's casters swivelling as their motion turns them
-    (`swivel_casters`), and when the cart was lost.
+    CoM error (cm) live, the cart (a cart file's own bodies) and the robot with their casters and wheels as the
+    MuJoCo plant turned them or, on the kinematic plant, as their motion turns them (`swivel_casters`;
+    `wholebody.viz.push_cart`), and when the cart was lost.
     """
     import robots
     from robots.shopping_cart import CART_WHEEL_RADIUS
     from wholebody.motion.kinematics import wholebody_for
     from wholebody.push.robot import cart_se3
     from wholebody.viz import COM_MARKER_Z, Scene
+    from wholebody.viz.push_cart import robot_joints, run_cart
 
     name = result.config.robot  # the robot that ran (Ridgeback + iiwa or WMRA); to_pinocchio_q ignores base_input
     wb = wholebody_for(robots.load(name), arm=list(result.robot_arms))  # its state holds these arms' joints
     step = max(1, int(round(1.0 / (fps * result.config.dt))))
     idx = np.arange(0, len(result.t), step)
-    base = result.robot_x[:, 0, :3]
     rest = np.array([wb.to_pinocchio_q(x)[4:] for x in result.robot_x[:, 0]])
-    qj = swivel_casters(wb.robot.model, rest, base, _planar_velocities(base, result.config.dt), result.config.dt)[idx]
+    qj = robot_joints(result, wb.robot.model, rest, idx)  # as the MuJoCo plant recorded them, else the trail model
     poses = [cart_se3(result.q_true[i]) for i in idx]
     z = COM_MARKER_Z - CART_WHEEL_RADIUS  # markers at COM_MARKER_Z above the floor, as Scene.show_com draws them
     p = result.config.true_params
@@ -693,7 +675,8 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     com_est = np.array([T.act(np.array([f[1] / f[0], f[2] / f[0], z])) for T, f in zip(poses, phi)])
     x0, x1 = result.q_true[:, 0].min() - 2, result.q_true[:, 0].max() + 2
     y0, y1 = result.q_true[:, 1].min() - 2, result.q_true[:, 1].max() + 2
-    scene = Scene([name, "shopping_cart"], floor=(x0, x1, y0, y1))
+    cart = run_cart(result, idx)
+    scene = Scene([name, cart.robot], floor=(x0, x1, y0, y1))
     scene.show_com((p.dx, p.dy), (phi[0, 1] / phi[0, 0], phi[0, 2] / phi[0, 0]))
     scene.show_trace("desired", result.q_desired[:, :2], label="cyan line: the cart's desired path")
     _physics_readouts(scene, result, idx)
@@ -701,15 +684,15 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     arrows, kinds = _hand_arrows(result, idx)
     scene.animate(
         result.t[idx],
-        {name: result.robot_x[idx, 0, :3], "shopping_cart": result.q_true[idx]},
-        q_joints={name: qj, "shopping_cart": _cart_joints(result, idx)},
+        {name: result.robot_x[idx, 0, :3], cart.name: result.q_true[idx]},
+        q_joints={name: qj, cart.name: cart.joints},
         wrenches=arrows,
         kind=kinds,
         markers={"com/com_true": com_true, "com/com_est": com_est},
         fps=fps,
-        follow=(name, "shopping_cart"),
+        follow=(name, cart.name),
     )
-    scene.add_legend("casters", CASTER_COLOR, "line", CASTER_LEGEND)
+    scene.add_legend("casters", CASTER_COLOR, "line", cart.legend)
     if "allocated" in arrows:  # the measured arrow's legend line says where it starts
         e = scene.legend_entry("arrow_measured")
         scene.add_legend(
@@ -720,7 +703,9 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
 
 
 def _estimate_readouts(scene, result: PushResult, idx: np.ndarray) -> None:
-    """Add the page's live mass estimate (with its 1-sigma), CoM error and the estimator's events."""
+    """Add the page's live mass estimate (with its 1-sigma), CoM error, the estimator's events and the charts of
+    the estimate with its band against the truth over time (`wholebody.viz.push_charts`)."""
+    from wholebody.viz.push_charts import estimate_charts
     from wholebody.viz.scene import add_estimator_events
 
     p, t, phi = result.config.true_params, result.t[idx], result.phi_hat[idx]
@@ -730,6 +715,7 @@ def _estimate_readouts(scene, result: PushResult, idx: np.ndarray) -> None:
         scene.add_readout("  ... its 1-sigma", "kg", t, result.param_std[idx, 0], digits=2)
     scene.add_readout("CoM error", "cm", t, 100 * np.hypot(phi[:, 1] / phi[:, 0] - p.dx, phi[:, 2] / phi[:, 0] - p.dy))
     add_estimator_events(scene, result.estimator_report, t)
+    estimate_charts(scene, result)
 
 
 def save_scene(result: PushResult, path: Path, fps: int = 10) -> Path:
