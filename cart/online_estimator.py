@@ -81,7 +81,10 @@ class OnlineOptions:
     model's misfit (:meth:`OnlineLSEstimator._com_to_use`);
     ``window_changes``: every ``window_every_s`` s the offline segment search on the last ``window_s`` s of the
     loop's own log since the last change (:class:`cart.window_changes.WindowChangeDetector`); a change it finds
-    restarts the parameters from the fit after it.
+    restarts the parameters from the fit after it;
+    ``excitation_margin``: the identifiability gate of the regression from the initial guess (prior units; 0: off,
+    :data:`cart.online_regression.EXCITATION_MARGIN` the suggested value;
+    :meth:`cart.online_regression.RecursiveRegression.excited_part`).
     """
 
     cutoff_hz: float = 2.0
@@ -116,6 +119,7 @@ class OnlineOptions:
     window_changes: bool = True
     window_every_s: float = 2.0
     window_s: float = 30.0
+    excitation_margin: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -233,7 +237,7 @@ class OnlineLSEstimator:
         self.t = 0.0
         self._footprint = np.abs(_vector(options.footprint, 2, "footprint"))
         self._prior0 = make_prior(params0, options)
-        self.regression = RecursiveRegression(self._prior0, options.noise_subspace)
+        self.regression = RecursiveRegression(self._prior0, options.noise_subspace, options.excitation_margin)
         self.filter = StateVariableFilter(options.cutoff_hz, 6)
         self.detector = ChangeDetector(options.change_window_s, options.change_alpha, options.min_change)
         self._meas_std = std

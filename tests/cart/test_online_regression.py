@@ -66,3 +66,14 @@ def test_the_gate_is_continuous(mu):
 def test_a_bad_margin_raises():
     with pytest.raises(reg_mod.OnlineEstimatorError):
         RecursiveRegression(PRIOR, excitation_margin=-1.0)
+
+
+def test_the_online_estimator_passes_its_excitation_margin_to_the_regression():
+    from cart.online_estimator import make_online_estimator
+    from cart.params import CartParams
+
+    guess = CartParams(16.0, 0.3, 0.0, 2.0, 1.0, 1.0)
+    std = [0.005, 0.005, 0.01, 0.02, 0.02, 0.02]
+    gated = make_online_estimator(np.zeros(3), guess, std, excitation_margin=1.0)
+    assert gated.regression.excitation_margin == 1.0
+    assert make_online_estimator(np.zeros(3), guess, std).regression.excitation_margin == 0.0
