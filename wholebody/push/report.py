@@ -857,6 +857,8 @@ def _slowed(result: PushResult, t_end: float) -> list[str]:
     if inside.size == 0:
         return []
     k = int(inside[np.argmin(rate[inside])])
+    if rate[k] >= 0.995:  # slowed by less than the sentence's precision (it would read "to 100 %")
+        return []
     last = int(np.flatnonzero(result.t < t_end)[-1])
     when = " before the loss" if math.isfinite(t_end) else ""
     ends = "was" if math.isfinite(t_end) else "ends"

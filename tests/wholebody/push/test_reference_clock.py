@@ -127,3 +127,14 @@ def test_the_look_ahead_takes_the_fastest_rate_whose_turn_torque_the_arms_give()
     faster = [r for r in settings.rate_grid if r > rate]
     assert all(max(abs(w[2]) for w in planned_wrenches(traj, 7.0, r, settings, TRUE_CART)) > limit for r in faster)
     assert admissible_rate(traj, 7.0, 1.0, settings, TRUE_CART, lambda row: False) == settings.rate_min
+
+
+def test_a_reference_slowed_by_less_than_half_a_percent_is_not_called_saturation():
+    result = run_push(PushConfig(trajectory=1, duration=1.0))
+    rate = np.ones_like(result.t)
+    rate[len(rate) // 2] = 0.999
+    barely = replace(result, reference_rate=rate, reference_time=result.t.copy())
+    assert not any("reference slowed" in line for line in what_happened(barely))
+    rate[len(rate) // 2] = 0.9
+    slowed = replace(result, reference_rate=rate, reference_time=result.t.copy())
+    assert any(line.startswith("saturation: reference slowed to 90 %") for line in what_happened(slowed))
