@@ -31,8 +31,9 @@ placements and wrenches at once (the vectorized effort sweep of
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -436,6 +437,16 @@ class WrenchAllocator:
             rows, rhs, labels = tip_rows(support, load, self._points)
             self._tip_part = (rows @ self.E, rhs, labels)
         self._stack_inequalities()
+
+    @contextmanager
+    def tip_bound_kept(self) -> Iterator[None]:
+        """Within: `set_tip_bound` may be called for probes (a motion ahead); after: the tip-over rows as before."""
+        saved = self._tip_part
+        try:
+            yield
+        finally:
+            self._tip_part = saved
+            self._stack_inequalities()
 
     def _stack_inequalities(self) -> None:
         """Take the static limit rows, the joint-torque rows and the tip-over rows as the QP's inequalities."""

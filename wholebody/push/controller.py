@@ -17,6 +17,7 @@ object drives the kinematic plant, the MuJoCo plant or real robots.
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass, replace
 from collections.abc import Sequence
 
@@ -222,7 +223,6 @@ class PushController:
         if clock is None or settings is None or settings.horizon <= 0 or s - clock.checked_at < settings.check_period:
             return
         clock.checked_at = s
-        saved = self.allocator._tip_part
 
         def achievable(row: np.ndarray) -> bool:
             if self.support is not None:
@@ -230,10 +230,8 @@ class PushController:
                 self.allocator.set_tip_bound(self.support, cart_load(np.zeros(3), state, row[:3], params, None, 0.0))
             return self.allocator.optimum(row[:3]) is not None
 
-        clock.admissible = admissible_rate(self.trajectory, s, 1.0, settings, params, achievable)
-        if self.support is not None:
-            self.allocator._tip_part = saved
-            self.allocator._stack_inequalities()
+        with self.allocator.tip_bound_kept() if self.support is not None else nullcontext():
+            clock.admissible = admissible_rate(self.trajectory, s, 1.0, settings, params, achievable)
 
     def _demand(self, t: float, q: np.ndarray, qd: np.ndarray, params: CartParams) -> tuple[float, float, np.ndarray]:
         """Return the reference time s at time t, its rate (`ReferenceClock`; t and 1 without one) and the desired

@@ -129,3 +129,15 @@ def test_allocation_presses_down_to_turn_the_cart_without_tipping_it() -> None:
     assert min_normal_load(res.wrenches_ee[0], HANDLE[0], COM, 0.5, (0.0, 0.0)) >= -1e-6
     alloc.set_tip_bound(None)
     assert alloc.solve(gamma).wrenches_ee[0] == pytest.approx(free.wrenches_ee[0], abs=1e-6)
+
+
+def test_probes_of_the_tip_bound_leave_the_allocators_own_bound_as_it_was() -> None:
+    limits = ArmLimits(grasp=GraspModel(), planar=False)
+    gamma = np.array([3.0, 0.0, -10.0])
+    alloc = WrenchAllocator([tuple(HANDLE[0])], limits, only_motion_directions=True)
+    alloc.set_tip_bound(support(), CartLoad(MASS, COM))
+    bounded = alloc.solve(gamma).wrenches_ee[0]
+    with alloc.tip_bound_kept():
+        alloc.set_tip_bound(None)  # a probe without the bound: the cart-tipping answer
+        assert min_normal_load(alloc.solve(gamma).wrenches_ee[0], HANDLE[0], COM, 0.5, (0.0, 0.0)) < 0.0
+    assert alloc.solve(gamma).wrenches_ee[0] == pytest.approx(bounded, abs=1e-6)
