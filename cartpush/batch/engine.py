@@ -120,6 +120,22 @@ class OutputPathError(BatchError):
     """``--out`` cannot take the results: one of the input logs, a device or FIFO, a directory, not writable."""
 
 
+#: directories whose entries are devices or views of open descriptors (``/dev/stdout``, ``/proc/self/fd/1``)
+DEVICE_DIRS = ("/dev", "/proc")
+
+
+def _device_path(out: str) -> bool:
+    """Return True when ``out``, as written or once its links are followed, lies under a device directory.
+
+    ``/dev/stdout`` follows to whatever the shell redirected it to (a terminal, a pipe, even a regular
+    file): the path names a stream, not a results file a rerun could resume from.
+    """
+    for p in (os.path.abspath(out), os.path.realpath(out)):
+        if any(p == d or p.startswith(d + os.sep) for d in DEVICE_DIRS):
+            return True
+    return False
+
+
 def check_output(out: str | os.PathLike, paths: Sequence[str]) -> None:
     """Raise OutputPathError unless ``out`` is a writable regular file (or can be created) that is no input log.
 
@@ -129,6 +145,8 @@ def check_output(out: str | os.PathLike, paths: Sequence[str]) -> None:
     out = os.fspath(out)
     if os.path.isdir(out):
         raise OutputPathError(f"--out {out}: is a directory, give a .jsonl file")
+    if _device_path(out):
+        raise OutputPathError(f"--out {out}: is a device (a path under /dev or /proc); give a .jsonl file")
     if os.path.exists(out):
         st = os.stat(out)
         if not stat.S_ISREG(st.st_mode):

@@ -41,6 +41,20 @@ def test_out_that_is_a_device_is_refused(log_file, device):
         run_batch(_never_called, [str(log_file)], device)
 
 
+@pytest.mark.parametrize("device", ["/dev/stdout", "/dev/stderr", "/proc/self/fd/1"])
+def test_out_that_names_a_stream_is_refused_whatever_it_is_redirected_to(log_file, device):
+    # run under pytest's capture, /dev/stdout may lead to a regular (temporary) file: still refused
+    with pytest.raises(OutputPathError, match="a device"):
+        run_batch(_never_called, [str(log_file)], device)
+
+
+def test_a_link_to_a_device_is_refused(log_file, tmp_path):
+    link = tmp_path / "results.jsonl"
+    os.symlink("/dev/null", link)
+    with pytest.raises(OutputPathError, match="a device"):
+        check_output(link, [str(log_file)])
+
+
 def test_out_that_is_a_directory_or_in_a_missing_directory_is_refused(log_file, tmp_path):
     with pytest.raises(OutputPathError, match="is a directory"):
         check_output(tmp_path, [str(log_file)])
