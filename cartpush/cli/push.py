@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 from cartpush.cli import options
+from cartpush.errors import OptionError
 from wholebody.errors import WholeBodyError
 
 if TYPE_CHECKING:
     from wholebody.contacts.allocation import ArmLimits
     from wholebody.push.base_settings import BasePlanSettings
+    from wholebody.push.load_change import LoadChange
 
 JSON_FIELDS = (
     "tracking_rms_mm",
@@ -48,6 +51,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "  cartpush push --plant mujoco --trajectory 1 --json\n"
             "  cartpush push --plant mujoco --cart-model my_cart.xml --json\n"
             "  cartpush push --robot my_robot.toml --arms 2 --json   (a robot profile, docs/robots.md)\n"
+            "  cartpush push --trajectory 1 --load-change 12:+10 --json   (10 kg put in at 12 s)\n"
             "  cartpush push --no-estimation --out report/ --html report/push.html"
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -122,6 +126,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "GraspModel.torque_arm; default 0.02: 6 N m at the grip's 2 x 150 N squeeze). A firmer grip (0.1) makes\n"
         "the cart's yaw torque at the wrist instead of with lateral force at the handle's height",
     )
+    p.add_argument(
+        "--load-change",
+        action="append",
+        default=None,
+        metavar="T:+M[@X,Y]",
+        help="put M kg into the cart at T s (-M: take M kg out), at (X, Y) m in the cart frame {b} (default: at its\n"
+        "centre of mass); repeatable. A load put in takes the cart's momentum (docs/push.md); --json gives\n"
+        "load_changes_true beside the estimator's load_changes, and what_happened says whether each was found",
+    )
     p.add_argument("--duration", type=float, default=30.0, help="trajectory duration in s (default 30)")
     p.add_argument("--initial-mass", type=float, default=16.0, help="initial mass estimate in kg (default 16)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
@@ -194,7 +207,28 @@ def config_from_args(args: argparse.Namespace):
         base_plan=_base_plan(args.base_plan),
         tip_bound="auto" if args.tip_bound == "auto" else args.tip_bound == "on",
         arm_limits=_arm_limits(args.grip_torque_arm),
+        load_changes=tuple(parse_load_change(v) for v in args.load_change or ()),
     )
+
+
+def parse_load_change(text: str) -> LoadChange:
+    """Return the `LoadChange` of ``--load-change T:+M[@X,Y]`` (T s, M kg, X, Y m); raise OptionError naming the
+    option otherwise."""
+    from wholebody.push.load_change import LoadChange
+
+    usage = f"--load-change takes T:+M or T:-M[@X,Y] (s, kg, m in the cart frame), got {text!r}"
+    when, sep, rest = text.partition(":")
+    mass, at, place = rest.partition("@")
+    xy = place.split(",") if at else []
+    if not sep or (at and len(xy) != 2):
+        raise OptionError(usage)
+    try:
+        values = [float(v) for v in (when, mass, *xy)]
+    except ValueError:
+        raise OptionError(usage) from None
+    if not all(math.isfinite(v) for v in values) or values[1] == 0.0:
+        raise OptionError(usage)
+    return LoadChange(values[0], values[1], (values[2], values[3]) if xy else None)
 
 
 def _auto_on_off(p: argparse.ArgumentParser, flag: str, help: str) -> None:
@@ -236,6 +270,7 @@ def run(args: argparse.Namespace) -> int:
         before_loss,
         cart_lateral_speed,
         describe,
+        match_load_changes,
         push_log,
         save_figures,
         save_scene,
@@ -262,6 +297,8 @@ def run(args: argparse.Namespace) -> int:
             out.update(result.plant_report)
         out["estimator"] = config.estimator if config.estimation else "none"
         out.update(result.estimator_report or {})
+        if config.load_changes:
+            out["load_changes_true"] = match_load_changes(result)
         out["cart_lateral_slip_max_m_s"] = float(abs(cart_lateral_speed(result)).max())
         out["base_lateral_speed_measured_max_m_s"] = float(abs(base_lateral_speed(result)).max())
         if result.metrics.tracking_lost_at_s is not None:
@@ -306,10 +343,10 @@ def print_summary(result) -> None:
     if over:
         print(f"cartpush push: warning: {verdict}", file=sys.stderr)
     print(saturation_note(metrics.get("saturation") or {}))
-    p = config.true_params
+    true_mass = float(result.truth()[-1, 0])
     print(
         f"grasp error max {1000 * metrics['grasp_error_max_m']:.2f} mm; final mass {metrics['mass_final_kg']:.2f} kg "
-        f"(true {p.m:g} kg{'' if config.estimation else ', estimation off: the initial guess is kept'})"
+        f"(true {true_mass:g} kg{'' if config.estimation else ', estimation off: the initial guess is kept'})"
     )
 
 

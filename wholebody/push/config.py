@@ -18,6 +18,7 @@ from wholebody.contacts.support import SupportPolygon
 from wholebody.errors import WholeBodyError
 from wholebody.push.base_settings import BasePlanSettings
 from wholebody.push.geometry import DEFAULT_GEOMETRY, CartGeometry
+from wholebody.push.load_change import LoadChange, check_changes
 from wholebody.push.reference_clock import TimeScaling
 
 #: How the contact points are chosen: held at `fixed_contact_y`, or re-planned from the estimate.
@@ -140,6 +141,9 @@ class PushConfig:
     #: the cart follows the desired path later instead of being lost; None = the desired timing however it saturates;
     #: "auto" = on the MuJoCo plant (whose arms, grips and cart have the limits that bind), not on the kinematic one
     time_scaling: TimeScaling | Literal["auto"] | None = "auto"
+    #: loads put into the cart or taken out of it during the run (`wholebody.push.load_change`): the plant's cart
+    #: changes at each, the estimate is judged against the truth at each instant
+    load_changes: tuple[LoadChange, ...] = ()
 
     def __post_init__(self) -> None:
         if isinstance(self.trajectory, int) and self.trajectory not in (1, 2):
@@ -178,6 +182,10 @@ class PushConfig:
             raise WholeBodyError(f"time_scaling must be TimeScaling, 'auto' or None, got {self.time_scaling!r}")
         if self.fixed_contact_y is not None and len(self.fixed_contact_y) not in (1, 2):
             raise WholeBodyError("fixed_contact_y needs one value per arm")
+        if not all(isinstance(c, LoadChange) for c in self.load_changes):
+            raise WholeBodyError("load_changes must be a tuple of LoadChange")
+        # a cart file's masses are the plant's to check (`MujocoPlant`); the times are checked here
+        check_changes(self.true_params if self.cart_model is None else None, self.load_changes, self.duration)
 
     def contact_y0(self) -> np.ndarray:
         """Return the initial contact y per arm (fixed mode: the fixed points)."""
@@ -368,3 +376,16 @@ class PushResult:
     #: (N,) the reference time s at t_k and its rate ds/dt (`wholebody.push.reference_clock`); q_desired = q_d(s)
     reference_time: np.ndarray | None = None
     reference_rate: np.ndarray | None = None
+    #: (N, 5) the truth the estimate is judged against at t_k: m, dx, dy, I, sigma (`wholebody.push.load_change`:
+    #: it steps at each load change); None: ``config.true_params`` throughout
+    params_true: np.ndarray | None = None
+    #: the load changes the plant made (`PushConfig.load_changes`), each with the time it took effect and the
+    #: truth's mass before and after (on the MuJoCo plant the effective mass): JSON-ready dicts
+    load_changes_true: tuple[dict, ...] = ()
+
+    def truth(self) -> np.ndarray:
+        """Return (N, 5) m, dx, dy, I, sigma of the truth at each t_k (`params_true`, or the constant truth)."""
+        if self.params_true is not None:
+            return self.params_true
+        p = self.config.true_params
+        return np.tile([p.m, p.dx, p.dy, p.I, p.sigma], (len(self.t), 1))

@@ -16,6 +16,7 @@ from cart.params import CartParams
 from cart.simulate import MeasurementNoise, rk4_step
 from wholebody.errors import WholeBodyError
 from wholebody.motion.kinematics import WholeBody
+from wholebody.push.load_change import LoadChange, params_after, velocity_after
 from wholebody.push.plant import Measurement, RobotCommand, RobotReading
 from wholebody.push.robot import ft_measurement
 
@@ -39,6 +40,9 @@ class KinematicPlant:
     holding the handle with several hands (one base, several arms) gives ((hand frame id, F/T frame id), ...)
     instead of the F/T frame id: its commands then carry one hand wrench per hand (rows), its readings one F/T
     reading per hand (rows).
+
+    ``load_changes``: loads put in or taken out (`wholebody.push.load_change`), each at the first period starting at
+    or after its time: the cart's parameters compose with the load and its velocity takes the load's impulse.
     """
 
     def __init__(
@@ -51,6 +55,7 @@ class KinematicPlant:
         dt: float,
         substeps: int = 2,
         seed: int | np.random.Generator = 0,
+        load_changes: Sequence[LoadChange] = (),
     ) -> None:
         if dt <= 0 or substeps < 1:
             raise WholeBodyError(f"dt must be > 0 and substeps >= 1, got {dt}, {substeps}")
@@ -66,6 +71,9 @@ class KinematicPlant:
         self.q = np.array(q_cart, dtype=float)
         self.qd = np.array(qd_cart, dtype=float)
         self.t = 0.0
+        self._pending = sorted(load_changes, key=lambda c: c.t)
+        #: [(time it took effect, cart parameters from then on)], the first at t = 0
+        self.truth_log: list[tuple[float, CartParams]] = [(0.0, params)]
         self._ft = [np.zeros(6) if len(h) == 1 else np.zeros((len(h), 6)) for h in self.hands]
         self._z = self._motion_capture()
 
@@ -112,11 +120,24 @@ class KinematicPlant:
                 reading = ft_measurement(w, oMee, oMft, self.rng, self.noise)  # at the period's end
                 ft.append(np.r_[reading.linear, reading.angular])
             self._ft[i] = ft[0] if len(ft) == 1 else np.array(ft)
+        self._apply_load_changes()
         h = self.dt / self.substeps
         for j in range(self.substeps):
             self.q, self.qd = rk4_step(self.t + j * h, self.q, self.qd, gamma, self.params, h)
         self.t += self.dt
         self._z = self._motion_capture()
+
+    def _apply_load_changes(self) -> None:
+        """Put in or take out the loads due at this period's start: new parameters, the load's impulse."""
+        while self._pending and self._pending[0].t <= self.t + 1e-9:
+            new = params_after(self.params, self._pending.pop(0))
+            self.qd = velocity_after(self.q, self.qd, self.params, new)
+            self.params = new
+            self.truth_log.append((round(self.t, 9), new))
+
+    def truth_schedule(self) -> list[tuple[float, CartParams]]:
+        """Return [(t, the cart's parameters from t on)] so far, the first at t = 0."""
+        return list(self.truth_log)
 
     def cart_state(self) -> tuple[np.ndarray, np.ndarray]:
         """Return the true cart pose and velocity (for metrics; a controller never reads it)."""

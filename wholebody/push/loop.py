@@ -34,7 +34,8 @@ from wholebody.push.config import (
 )
 from wholebody.push.geometry import DEFAULT_GEOMETRY
 from wholebody.push.controller import ControlDecision, PushController
-from wholebody.push.plants import make_plant, plant_report, plant_truth
+from wholebody.push.load_change import params_series
+from wholebody.push.plants import make_plant, plant_report, plant_truth_schedule
 from wholebody.push.plant import Measurement, RobotCommand, SimulatedPlant
 from wholebody.push.reference_clock import ReferenceClock, ScaledReference
 from wholebody.push import robot as robot_mod
@@ -270,9 +271,27 @@ def run_loop(
     # the F/T-measured wrench of period k arrives with the measurement at t_{k+1}: align it with its period
     H["gamma_measured"] = np.r_[H["gamma_measured"][1:], H["gamma_measured"][-1:]]
     mm = ctrl.robots[0]
-    judged = replace(config, true_params=plant_truth(config, plant))
+    schedule = plant_truth_schedule(config, plant)
+    H["params_true"] = params_series(schedule, np.arange(len(records)) * config.dt)
+    judged = replace(config, true_params=schedule[0][1])
     res = _result(judged, H, effort_limits(ctrl.robots), ctrl.estimator.params(), mm.wb.wheel_velocity_limit)
-    return replace(res, robot_arms=mm.arms)
+    return replace(res, robot_arms=mm.arms, load_changes_true=true_changes(config, schedule))
+
+
+def true_changes(config: PushConfig, schedule: Sequence[tuple[float, CartParams]]) -> tuple[dict, ...]:
+    """Return each load change the plant made (`PushConfig.load_changes`, in time order) with the time it took
+    effect and the truth before and after it (`plant_truth_schedule`), JSON-ready."""
+    changes = sorted(config.load_changes, key=lambda c: c.t)
+    return tuple(
+        {
+            **c.as_dict(),
+            "t_applied": float(t),
+            "mass_before_kg": float(before.m),
+            "mass_after_kg": float(after.m),
+            "com_after_m": [float(after.dx), float(after.dy)],
+        }
+        for c, (_, before), (t, after) in zip(changes, schedule[:-1], schedule[1:])
+    )
 
 
 def effort_limits(mms: Sequence[MobileManipulator]) -> np.ndarray:
@@ -315,7 +334,7 @@ def _metrics(config: PushConfig, H: SimpleNamespace, effort_limit: np.ndarray, f
     tau = H.arm_torque
     f = np.linalg.norm(H.wrenches[:, :, :3], axis=2)
     tz = np.linalg.norm(H.wrenches[:, :, 3:], axis=2)
-    truth = config.true_params
+    truth = _final_truth(config, H)
     wheels = H.wheel_rates
     wheel_acc = np.diff(wheels, axis=0) / config.dt if wheels.shape[0] > 1 else np.zeros(1)
     dtau = np.diff(tau, axis=0) if tau.shape[0] > 1 else np.zeros(1)
@@ -357,15 +376,27 @@ def _lost_at(err: np.ndarray, dt: float) -> float | None:
     return None if lost.size == 0 else round(float(lost[0] * dt), 3)
 
 
+def _final_truth(config: PushConfig, H: SimpleNamespace) -> CartParams:
+    """Return the truth at the run's end: after the last load change (`params_true`), else the config's."""
+    truth = getattr(H, "params_true", None)
+    if truth is None:
+        return config.true_params
+    m, dx, dy, inertia, sigma = (float(v) for v in truth[-1])
+    return CartParams(m, dx, dy, inertia, sigma, config.true_params.sigma_yaw)
+
+
 def _estimation_metrics(config: PushConfig, H: SimpleNamespace, after: float = 5.0) -> dict:
-    """Return time-resolved estimation errors (`cart.estimation_metrics`) and the unobservable stretches."""
-    truth = config.true_params
+    """Return time-resolved estimation errors (`cart.estimation_metrics`) against the truth at each instant
+    (`PushResult.params_true`: it steps at each load change) and the unobservable stretches."""
+    p = config.true_params
+    truth = getattr(H, "params_true", None)
+    m_true, com_true = (p.m, np.array([p.dx, p.dy])) if truth is None else (truth[:, 0], truth[:, 1:3])
     t = np.arange(H.phi_hat.shape[0]) * config.dt
     m = H.phi_hat[:, 0]
     m_safe = np.where(np.abs(m) > 1e-9, m, np.nan)
     com = H.phi_hat[:, 1:3] / m_safe[:, None]
     return dict(
-        **estimation_errors(t, m, com, truth.m, np.array([truth.dx, truth.dy]), after),
+        **estimation_errors(t, m, com, m_true, com_true, after),
         mass_unobservable_s=unobservable_intervals(t, H.param_std[:, 0]) if config.estimation else (),
         com_unobservable_s=unobservable_intervals(t, H.param_std[:, 1]) if config.estimation else (),
     )

@@ -457,6 +457,47 @@ def composite_inertia(
     return mass, com, inertia
 
 
+def add_point_mass(model: mujoco.MjModel, body: int, mass: float, point: Sequence[float]) -> None:
+    """Put a point mass (kg; negative: take it out) at ``point`` in the body's frame into the body's inertial.
+
+    The body's inertia about its frame's origin, ``R diag(I) R^T + m (|c|^2 1 - c c^T)``, gains the point's
+    ``m_l (|p|^2 1 - p p^T)``; the sum is taken back about the new centre of mass and diagonalised into
+    ``body_mass``, ``body_ipos``, ``body_iquat``, ``body_inertia`` (the engine reads them at every step; the
+    compiler's same-frame and simple-body shortcuts are turned off for the body; call ``mj_setConst`` for the
+    derived constants such as ``body_subtreemass``). Raises `CartModelError` when the body
+    left has no mass or breaks a rigid body's inertia (more taken out than is there, or from where it is not).
+    """
+    p = np.asarray(point, dtype=float)
+    m0, c0 = float(model.body_mass[body]), np.asarray(model.body_ipos[body], dtype=float)
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(model.body_iquat[body], dtype=float))
+    R = rot.reshape(3, 3)
+    inertia_o = R @ np.diag(model.body_inertia[body]) @ R.T + _shifted(m0, c0) + _shifted(mass, p)
+    m1 = m0 + mass
+    if m1 <= 1e-9:
+        raise CartModelError(f"taking {-mass:g} kg out of body {body}: it holds {m0:g} kg")
+    c1 = (m0 * c0 + mass * p) / m1
+    vals, vecs = np.linalg.eigh(inertia_o - _shifted(m1, c1))
+    if vals.min() <= 1e-12 or vals.max() > vals.sum() - vals.max() + 1e-9:
+        raise CartModelError(f"taking {-mass:g} kg out at {np.round(p, 3)} leaves body {body} no rigid inertia")
+    if np.linalg.det(vecs) < 0.0:
+        vecs[:, 0] = -vecs[:, 0]
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, vecs.reshape(-1))
+    model.body_mass[body], model.body_ipos[body] = m1, c1
+    model.body_iquat[body], model.body_inertia[body] = quat, vals
+    # the compiler's shortcuts for an inertial frame on the body's frame, or a diagonal mass matrix, no longer hold
+    model.body_sameframe[body] = mujoco.mjtSameFrame.mjSAMEFRAME_NONE
+    if model.body_simple[body]:
+        model.body_simple[body] = 0
+        model.dof_simplenum[model.body_dofadr[body] : model.body_dofadr[body] + model.body_dofnum[body]] = 0
+
+
+def _shifted(mass: float, c: np.ndarray) -> np.ndarray:
+    """Return the inertia a point mass at ``c`` adds about the origin: m (|c|^2 1 - c c^T)."""
+    return mass * (float(c @ c) * np.eye(3) - np.outer(c, c))
+
+
 def _spin_inertia(model: mujoco.MjModel, body: int, joint: int) -> float:
     """Return the inertia (kg m^2) of ``body`` about the axis of its hinge ``joint``, through its CoM."""
     axis = np.asarray(model.jnt_axis[joint], dtype=float)  # in the body frame

@@ -41,6 +41,7 @@ from wholebody.errors import WholeBodyError
 from wholebody.push import mujoco_cart
 from wholebody.push.arm_control import AdmittanceArmLaw, AdmittanceGains, TorqueArmGains, TorqueArmLaw
 from wholebody.push.config import PUSH_SENSOR_NOISE, TRUE_CART
+from wholebody.push.load_change import LoadChange, check_changes
 from wholebody.push.mujoco_scene import (
     ARM_TORQUE,
     ARM_VELOCITY,
@@ -194,6 +195,8 @@ class MujocoPlant:
         seed: seed of the noise.
         config: rates, compliance, gains (`MujocoPlantConfig`).
         arm_modes: "torque" or "velocity" per robot; None: `ARM_MODES` by robot name.
+        load_changes: loads put in or taken out (`wholebody.push.load_change`), each at the first control period
+            starting at or after its time (:meth:`_apply_load_changes`).
     """
 
     def __init__(
@@ -206,6 +209,7 @@ class MujocoPlant:
         seed: int = 0,
         config: MujocoPlantConfig = MujocoPlantConfig(),
         arm_modes: Sequence[str] | None = None,
+        load_changes: Sequence[LoadChange] = (),
     ) -> None:
         from wholebody.push.cart_file import CartSource, cart_source
 
@@ -251,7 +255,12 @@ class MujocoPlant:
         self._hand_clean = [np.zeros(6) for _ in robots]
         self._hand_sum = [np.zeros(6) for _ in robots]
         self._base_int = [np.zeros(3) for _ in robots]
+        self._pending = sorted(load_changes, key=lambda c: c.t)
         self._start()
+        #: [(time it took effect, the cart's inertial truth from then on)], the first at t = 0
+        self.inertial_log: list[tuple[float, CartInertial]] = [(0.0, self._inertial)]
+        i0 = self._inertial
+        check_changes(CartParams(i0.mass, *i0.com_b, i0.inertia), self._pending, math.inf)
 
     def _draw_joint_noise(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """Return each robot's joint torque sensing noise: (white std per step, offset drawn once), N m per joint."""
@@ -457,6 +466,7 @@ class MujocoPlant:
         if len(commands) != len(self.scene.robots):
             raise MujocoPlantError(f"{len(commands)} commands for {len(self.scene.robots)} robots")
         wall0 = time.perf_counter()
+        self._apply_load_changes()
         m, d = self.scene.model, self.scene.data
         t_end = self.t + self.dt
         for i, (r, c, law) in enumerate(zip(self.scene.robots, commands, self._laws)):
@@ -498,6 +508,28 @@ class MujocoPlant:
         self._after_period(commands)
         self._stats.wall += time.perf_counter() - wall0
         self._stats.sim += self.dt
+
+    def _apply_load_changes(self) -> None:
+        """Put in or take out the loads due at this period's start (`mujoco_cart.add_point_mass` on the cart body, at
+        the height of its centre of mass); a load put in at rest takes its share of the momentum: M_new v+ = M_old v-
+        over the whole scene (no impulse from outside: the wheels' contacts act in the steps after)."""
+        m, d, cart = self.scene.model, self.scene.data, self.scene.cart_body
+        while self._pending and self._pending[0].t <= self.t + 1e-9:
+            change = self._pending.pop(0)
+            x, y = self._inertial.com_b if change.xy is None else change.xy
+            M_old = np.zeros((m.nv, m.nv))
+            mujoco.mj_forward(m, d)
+            mujoco.mj_fullM(m, d, M_old)
+            mujoco_cart.add_point_mass(m, cart, change.mass, (x, y, float(m.body_ipos[cart][2])))
+            mujoco.mj_setConst(m, mujoco.MjData(m))  # body_subtreemass and the other derived constants
+            mujoco.mj_forward(m, d)
+            if change.mass > 0.0:
+                M_new = np.zeros((m.nv, m.nv))
+                mujoco.mj_fullM(m, d, M_new)
+                d.qvel[:] = np.linalg.solve(M_new, M_old @ d.qvel)
+                mujoco.mj_forward(m, d)
+            self._inertial = self._read_inertial()
+            self.inertial_log.append((round(self.t, 9), self._inertial))
 
     def _joint_samples(self) -> None:
         """Give each torque law with a fused force loop its arm's external joint torque over the last physics step.

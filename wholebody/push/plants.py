@@ -22,7 +22,15 @@ def kinematic_plant(config: PushConfig, setup: PushSetup) -> KinematicPlant:
         for mm, x in zip(setup.controller.robots, setup.robot_x0)
     ]
     return KinematicPlant(
-        robots_, setup.q0, setup.qd0, config.true_params, config.noise, config.dt, config.substeps, config.seed
+        robots_,
+        setup.q0,
+        setup.qd0,
+        config.true_params,
+        config.noise,
+        config.dt,
+        config.substeps,
+        config.seed,
+        config.load_changes,
     )
 
 
@@ -33,7 +41,14 @@ def make_plant(config: PushConfig, setup: PushSetup) -> SimulatedPlant:
     from wholebody.push.mujoco_plant import MujocoPlant
 
     cart: Any = config.cart_model if config.cart_model is not None else config.true_params
-    return MujocoPlant(setup.controller.robots, setup.q0, cart, noise=config.noise, seed=config.seed)
+    return MujocoPlant(
+        setup.controller.robots,
+        setup.q0,
+        cart,
+        noise=config.noise,
+        seed=config.seed,
+        load_changes=config.load_changes,
+    )
 
 
 def plant_truth(config: PushConfig, plant: Plant) -> CartParams:
@@ -46,9 +61,25 @@ def plant_truth(config: PushConfig, plant: Plant) -> CartParams:
     inertial = getattr(plant, "cart_inertial", None)
     if inertial is None:
         return config.true_params
-    c = inertial()
+    return _inertial_params(inertial(), config.true_params.sigma)
+
+
+def _inertial_params(c: Any, sigma: float) -> CartParams:
+    """Return the `CartParams` of a MuJoCo cart's `CartInertial`: effective mass, CoM, yaw inertia."""
     dx, dy = (float(v) for v in np.asarray(c.com_b, dtype=float)[:2])
-    return CartParams(float(c.mass_effective), dx, dy, float(c.inertia), config.true_params.sigma)
+    return CartParams(float(c.mass_effective), dx, dy, float(c.inertia), sigma)
+
+
+def plant_truth_schedule(config: PushConfig, plant: Plant) -> list[tuple[float, CartParams]]:
+    """Return [(t, the truth from t on)], the first at t = 0: `plant_truth`, stepping at each load change the plant
+    made (the kinematic plant's parameters; the MuJoCo cart's inertial read from the engine after each)."""
+    schedule = getattr(plant, "truth_schedule", None)
+    if schedule is not None:
+        return list(schedule())
+    log = getattr(plant, "inertial_log", None)
+    if log is not None:
+        return [(t, _inertial_params(c, config.true_params.sigma)) for t, c in log]
+    return [(0.0, plant_truth(config, plant))]
 
 
 def plant_report(plant: Plant) -> dict:

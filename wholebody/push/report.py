@@ -135,10 +135,11 @@ def unobservable_note(runs: dict[str, PushResult]) -> str:
 
 
 def _errors(result: PushResult) -> tuple[np.ndarray, np.ndarray]:
-    """Return the mass error (kg) and the CoM error (cm) of the run's estimate over time."""
-    p, phi = result.config.true_params, result.phi_hat
+    """Return the mass error (kg) and the CoM error (cm) of the run's estimate over time (against the truth at
+    each instant, `PushResult.truth`)."""
+    p, phi = result.truth(), result.phi_hat
     m = phi[:, 0]
-    return np.abs(m - p.m), 100 * np.hypot(phi[:, 1] / m - p.dx, phi[:, 2] / m - p.dy)
+    return np.abs(m - p[:, 0]), 100 * np.hypot(phi[:, 1] / m - p[:, 1], phi[:, 2] / m - p[:, 2])
 
 
 def _held(result: PushResult, which: int, spans: Sequence[Sequence[float]]) -> str:
@@ -455,8 +456,9 @@ def _estimate_events(axes, result: PushResult, est: np.ndarray, colour: str, lab
 def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
     """Return the estimated mass and CoM (x, y in {b}) over time with their 1-sigma band against the plant's truth.
 
-    The truth is what each run's estimate is judged against (`wholebody.push.plants.plant_truth`: the MuJoCo
-    cart's effective mass); the y range covers the truth and the estimates before any loss of the cart.
+    The truth is what each run's estimate is judged against at each instant (`PushResult.truth`: a step at each
+    load change the plant made, dotted lines; on the MuJoCo plant the cart's effective mass); the y range covers
+    the truth and the estimates before any loss of the cart.
     """
     from matplotlib.figure import Figure
 
@@ -466,9 +468,9 @@ def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
     for i, (label, r) in enumerate(runs.items()):
         c, ls = _style(i)
         est, std = _estimate_series(r)
-        p = r.config.true_params
+        p = r.truth()
         before = r.t < (r.metrics.tracking_lost_at_s or math.inf)
-        for j, (ax, truth) in enumerate(zip(axes, (p.m, 100 * p.dx, 100 * p.dy))):
+        for j, (ax, truth) in enumerate(zip(axes, (p[:, 0], 100 * p[:, 1], 100 * p[:, 2]))):
             ax.plot(r.t, est[:, j], ls, color=c, lw=1.2, label=f"estimate, {label}")
             if r.config.estimation and np.any(np.isfinite(std[:, j])):
                 ax.fill_between(
@@ -480,7 +482,10 @@ def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
                     lw=0,
                     label=f"+-1-sigma, {label}",
                 )
-            ax.axhline(truth, color=c, ls=(0, (6, 3)), lw=1.0, alpha=0.8, label=f"truth, {label}")
+            ax.plot(r.t, truth, color=c, ls=(0, (6, 3)), lw=1.0, alpha=0.8, label=f"truth, {label}")
+            for k, change in enumerate(r.load_changes_true):
+                tag = f"load put in / taken out (truth), {label}" if j == 0 and k == 0 else None
+                ax.axvline(change["t_applied"], color=c, ls=":", lw=1.0, label=tag)
             _mark_loss(ax, r, label=j == 0 and i == 0)
             seen = np.r_[est[before, j], truth]
             lows[j], highs[j] = min(lows[j], np.nanmin(seen)), max(highs[j], np.nanmax(seen))
@@ -493,7 +498,7 @@ def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
     fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=6)
     fig.suptitle(
         "the estimate (band: its 1-sigma; the CoM's is the norm over x and y) against the truth (dashed);\n"
-        "vertical lines: load changes found (dashed: when detected); x: run-off flagged (estimate held)",
+        "vertical lines: load changes found (dashed: when detected; dotted: made); x: run-off flagged (estimate held)",
         fontsize=8,
     )
     axes[-1].set_xlabel("t [s]")
@@ -671,7 +676,8 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     z = COM_MARKER_Z - CART_WHEEL_RADIUS  # markers at COM_MARKER_Z above the floor, as Scene.show_com draws them
     p = result.config.true_params
     phi = result.phi_hat[idx]
-    com_true = np.array([T.act(np.array([p.dx, p.dy, z])) for T in poses])
+    truth = result.truth()[idx]
+    com_true = np.array([T.act(np.array([c[1], c[2], z])) for T, c in zip(poses, truth)])
     com_est = np.array([T.act(np.array([f[1] / f[0], f[2] / f[0], z])) for T, f in zip(poses, phi)])
     x0, x1 = result.q_true[:, 0].min() - 2, result.q_true[:, 0].max() + 2
     y0, y1 = result.q_true[:, 1].min() - 2, result.q_true[:, 1].max() + 2
@@ -708,12 +714,14 @@ def _estimate_readouts(scene, result: PushResult, idx: np.ndarray) -> None:
     from wholebody.viz.push_charts import estimate_charts
     from wholebody.viz.scene import add_estimator_events
 
-    p, t, phi = result.config.true_params, result.t[idx], result.phi_hat[idx]
+    p, t, phi = result.truth()[idx], result.t[idx], result.phi_hat[idx]
     est = f"{result.config.estimator} estimate" if result.config.estimation else "no estimation, fixed guess"
-    scene.add_readout(f"mass ({est}; true {p.m:g} kg)", "kg", t, phi[:, 0])
+    masses = [f"{m:g}" for m in (p[0, 0], *(c["mass_after_kg"] for c in result.load_changes_true))]
+    scene.add_readout(f"mass ({est}; true {' -> '.join(masses)} kg)", "kg", t, phi[:, 0])
     if result.config.estimation and result.param_std is not None and np.all(np.isfinite(result.param_std[idx, 0])):
         scene.add_readout("  ... its 1-sigma", "kg", t, result.param_std[idx, 0], digits=2)
-    scene.add_readout("CoM error", "cm", t, 100 * np.hypot(phi[:, 1] / phi[:, 0] - p.dx, phi[:, 2] / phi[:, 0] - p.dy))
+    com_error = 100 * np.hypot(phi[:, 1] / phi[:, 0] - p[:, 1], phi[:, 2] / phi[:, 0] - p[:, 2])
+    scene.add_readout("CoM error", "cm", t, com_error)
     add_estimator_events(scene, result.estimator_report, t)
     estimate_charts(scene, result)
 
@@ -830,8 +838,71 @@ def what_happened(result: PushResult) -> list[str]:
         lines.append(f"grip slip at most {1e3 * rep['grasp_slip_max_m']:.2f} mm")
     if rep.get("base_wheel_slip_max_m_s") is not None:
         lines.append(f"base wheel slip at most {rep['base_wheel_slip_max_m_s']:.3f} m/s")
+    lines += load_change_lines(result)
     lines.append(_fit(result))
     return lines
+
+
+def match_load_changes(result: PushResult) -> list[dict]:
+    """Return each load change the plant made (`PushResult.load_changes_true`) with what the estimator found of it.
+
+    A true change is found by the first change the estimator reported (``load_changes`` of its report) detected after
+    it and before the next true change (or the run's end), dated from 1 s before it on: ``found``, the estimator's
+    onset ``t_change_est`` and ``t_detected`` (s), ``time_error_s`` (onset minus the true time), ``mass_after_est_kg``
+    and its error (kg, % of the true mass after; the truth's mass: on the MuJoCo plant the effective mass)."""
+    reported = sorted((result.estimator_report or {}).get("load_changes") or (), key=lambda c: c["t_detected"])
+    true = list(result.load_changes_true)
+    ends = [c["t_applied"] for c in true[1:]] + [math.inf]
+    out = []
+    for c, end in zip(true, ends):
+        t0 = c["t_applied"]
+        hit = next((e for e in reported if t0 <= e["t_detected"] < end and e["t_change"] >= t0 - 1.0), None)
+        row = {**c, "found": hit is not None}
+        if hit is not None:
+            err = hit["mass_after"] - c["mass_after_kg"]
+            row.update(
+                t_change_est=hit["t_change"],
+                t_detected=hit["t_detected"],
+                time_error_s=hit["t_change"] - t0,
+                mass_after_est_kg=hit["mass_after"],
+                mass_after_error_kg=err,
+                mass_after_error_pct=100.0 * err / c["mass_after_kg"],
+            )
+        out.append(row)
+    return out
+
+
+def load_change_lines(result: PushResult) -> list[str]:
+    """Return one sentence per load change the plant made (found or not: when, the mass after) and one naming the
+    changes the estimator reported where none was made (none without load changes and reports)."""
+    rows = match_load_changes(result)
+    lines = []
+    for r in rows:
+        what = (
+            f"load {'put in' if r['mass_kg'] > 0 else 'taken out'} ({r['mass_kg']:+g} kg) at {r['t_applied']:.2f} s, "
+            f"truth {r['mass_before_kg']:.1f} -> {r['mass_after_kg']:.1f} kg"
+        )
+        if not r["found"]:
+            lines.append(f"{what}: NOT found by the estimator (its mass ends at {result.metrics.mass_final_kg:.1f} kg)")
+            continue
+        lines.append(
+            f"{what}: found, dated {r['t_change_est']:.2f} s ({r['time_error_s']:+.2f} s), detected "
+            f"{r['t_detected']:.2f} s, weighed {r['mass_after_est_kg']:.1f} kg ({r['mass_after_error_kg']:+.1f} kg, "
+            f"{r['mass_after_error_pct']:+.1f} %)"
+        )
+    used = {r["t_detected"] for r in rows if r["found"]}
+    extra = [
+        e["t_change"] for e in (result.estimator_report or {}).get("load_changes") or () if e["t_detected"] not in used
+    ]
+    if extra and rows:
+        lines.append(f"the estimator also reported load changes where none was made: t = {_times(extra)} s")
+    elif extra:
+        lines.append(f"no load was put in or taken out; the estimator reported changes at t = {_times(extra)} s")
+    return lines
+
+
+def _times(ts: Sequence[float]) -> str:
+    return ", ".join(f"{t:.2f}" for t in ts)
 
 
 def _saturation(saturation: dict, t_end: float) -> list[str]:
@@ -899,8 +970,8 @@ def _outcome(result: PushResult) -> str:
 
 def _fit(result: PushResult) -> str:
     """Return whether the estimator's cart model fitted the data (residual ratio, misfit flags) and its mass."""
-    est, truth = result.estimator_report or {}, result.config.true_params
-    mass = f"mass estimate {result.metrics.mass_final_kg:.1f} kg (truth {truth.m:.1f} kg)"
+    est, truth = result.estimator_report or {}, result.truth()[-1]
+    mass = f"mass estimate {result.metrics.mass_final_kg:.1f} kg (truth {truth[0]:.1f} kg)"
     ratios = [r for r in est.get("residual_ratio") or () if r is not None]
     if not result.config.estimation or not ratios:
         return mass

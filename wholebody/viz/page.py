@@ -65,6 +65,7 @@ class Readout:
 
 #: the kinds of time mark a chart draws: (SVG colour, dash pattern, what the legend under the chart calls it)
 MARKS = {
+    "made": ("#1f3fbf", "2 2", "load put in / taken out (truth)"),
     "change": ("#e65100", "", "load change"),
     "detected": ("#e65100", "4 3", "its detection"),
     "runoff": ("#d50000", "", "run-off flag (tick)"),

@@ -1,0 +1,182 @@
+"""Load changes in the push loop (`wholebody.push.load_change`): the cart's parameters compose with the load, a load
+put in takes the cart's momentum, both plants change their cart, the run is judged against the truth at each instant
+and its figures, page and what_happened show the step."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+
+from cart import model
+from cart.estimation_metrics import estimation_errors
+from cart.params import CartParams
+from wholebody.errors import WholeBodyError
+from wholebody.push import PushConfig, run_push
+from wholebody.push import mujoco_cart
+from wholebody.push.config import TRUE_CART
+from wholebody.push.load_change import LoadChange, params_after, params_series, truth_schedule, velocity_after
+from wholebody.push.report import load_change_lines, match_load_changes, push_figures
+
+CART = CartParams(20.0, 0.3, 0.15, 2.3, 4.0)
+
+
+def test_a_point_mass_composes_by_the_parallel_axis_theorem_and_taking_it_out_undoes_it():
+    after = params_after(CART, LoadChange(5.0, 10.0, (0.6, -0.15)))
+    assert after.m == pytest.approx(30.0) and (after.dx, after.dy) == pytest.approx((0.4, 0.05))
+    # about the new CoM: the cart's I + its offset (0.1, 0.1), the load's offset (0.2, 0.2)
+    assert after.I == pytest.approx(2.3 + 20.0 * 0.02 + 10.0 * 0.08)
+    back = params_after(after, LoadChange(6.0, -10.0, (0.6, -0.15)))
+    assert (back.m, back.dx, back.dy, back.I) == pytest.approx((20.0, 0.3, 0.15, 2.3))
+    at_com = params_after(CART, LoadChange(5.0, 10.0))  # no place: at the CoM, which stays
+    assert (at_com.dx, at_com.dy, at_com.I) == pytest.approx((0.3, 0.15, 2.3))
+
+
+@pytest.mark.parametrize(
+    "change", [LoadChange(5.0, -20.0), LoadChange(5.0, -25.0), LoadChange(5.0, -10.0, (1.5, 0.0))], ids=str
+)
+def test_taking_out_more_than_the_cart_holds_is_refused(change):
+    with pytest.raises(WholeBodyError, match="more than"):
+        params_after(CART, change)
+
+
+def test_a_load_put_in_takes_the_momentum_the_wheels_allow_and_one_taken_out_leaves_the_velocity():
+    """The impulse keeps N^T M qd (N: the motions the no-slip constraint allows, paper eq. 3) and the constraint;
+    it dissipates energy (a perfectly inelastic catch)."""
+    q, qd = np.array([1.0, 2.0, 0.7]), np.array([0.5 * math.cos(0.7), 0.5 * math.sin(0.7), 0.3])
+    new = params_after(CART, LoadChange(1.0, 15.0, (0.6, -0.2)))
+    after = velocity_after(q, qd, CART, new)
+    free = np.array([[math.cos(0.7), 0.0], [math.sin(0.7), 0.0], [0.0, 1.0]])  # forward speed, yaw rate
+    np.testing.assert_allclose(free.T @ model.mass_matrix(q, new) @ after, free.T @ model.mass_matrix(q, CART) @ qd)
+    assert model.lateral_speed(q, after) == pytest.approx(0.0, abs=1e-12)
+    energy = lambda v, p: 0.5 * v @ model.mass_matrix(q, p) @ v  # noqa: E731
+    assert energy(after, new) < energy(qd, CART)
+    assert np.array_equal(velocity_after(q, after, new, CART), after)
+
+
+def test_the_truth_steps_at_each_change():
+    changes = (LoadChange(8.0, -5.0), LoadChange(4.0, 10.0))
+    schedule = truth_schedule(CART, changes)
+    assert [(t, p.m) for t, p in schedule] == [(0.0, 20.0), (4.0, 30.0), (8.0, 25.0)]
+    series = params_series(schedule, np.array([0.0, 3.99, 4.0, 7.0, 8.0, 9.0]))
+    np.testing.assert_allclose(series[:, 0], [20.0, 20.0, 30.0, 30.0, 25.0, 25.0])
+
+
+def test_a_config_refuses_a_change_outside_the_run_or_heavier_than_the_cart():
+    with pytest.raises(WholeBodyError, match="outside the run"):
+        PushConfig(duration=10.0, load_changes=(LoadChange(12.0, 10.0),))
+    with pytest.raises(WholeBodyError, match="more than"):
+        PushConfig(load_changes=(LoadChange(5.0, 10.0), LoadChange(6.0, -35.0)))
+
+
+@pytest.fixture(scope="module")
+def loaded_run():
+    """Traj. 1 for 10 s on the kinematic plant, 10 kg put in at 5 s ahead of the CoM."""
+    config = PushConfig(trajectory=1, duration=10.0, load_changes=(LoadChange(5.0, 10.0, (0.5, 0.0)),))
+    return run_push(config)
+
+
+def test_the_kinematic_plant_changes_its_cart_and_the_run_is_judged_against_the_truth_at_each_instant(loaded_run):
+    r = loaded_run
+    k = int(round(5.0 / r.config.dt))
+    after = params_after(TRUE_CART, LoadChange(5.0, 10.0, (0.5, 0.0)))
+    np.testing.assert_allclose(r.truth()[k - 1, :3], [20.0, 0.3, 0.15])
+    np.testing.assert_allclose(r.truth()[k:, :4], np.tile([after.m, after.dx, after.dy, after.I], (len(r.t) - k, 1)))
+    assert r.config.true_params == TRUE_CART  # the cart at the start; the truth over time is `truth()`
+    (c,) = r.load_changes_true
+    assert c["t_applied"] == pytest.approx(5.0) and (c["mass_before_kg"], c["mass_after_kg"]) == (20.0, 30.0)
+    # the cart slows at the catch: its speed drops by about the mass ratio (the yaw rate takes a little)
+    speed = np.hypot(r.qd_true[:, 0], r.qd_true[:, 1])
+    assert speed[k + 1] < 0.8 * speed[k]
+    m = r.phi_hat[:, 0]
+    want = estimation_errors(r.t, m, r.phi_hat[:, 1:3] / m[:, None], r.truth()[:, 0], r.truth()[:, 1:3])
+    assert r.metrics.mass_error_max_after_5s_kg == pytest.approx(want["mass_error_max_after_5s_kg"])
+    assert r.metrics.mass_error_final_kg == pytest.approx(abs(m[-1] - 30.0), abs=0.05)
+
+
+def test_the_figure_and_the_page_draw_the_truth_as_a_step(loaded_run):
+    from wholebody.viz import Scene
+    from wholebody.viz.push_charts import estimate_charts, estimate_marks
+
+    r = loaded_run
+    with Scene(["shopping_cart"]) as scene:
+        estimate_charts(scene, r)
+        mass = scene._charts[0]
+    assert mass.truth is not None and mass.truth[0] == 20.0 and mass.truth[-1] == 30.0
+    assert float(r.t[np.argmax(mass.truth > 25.0)]) == pytest.approx(5.0)
+    assert (pytest.approx(5.0), "made") in estimate_marks(r)
+    fig = push_figures({"run": r})["estimate"]
+    (line,) = [ln for ln in fig.axes[0].get_lines() if ln.get_label() == "truth, run"]
+    y = np.asarray(line.get_ydata())
+    assert y[0] == 20.0 and y[-1] == 30.0 and np.count_nonzero(np.diff(y)) == 1
+
+
+def test_what_happened_says_whether_each_change_was_found(loaded_run):
+    found = {"t_change": 5.02, "t_detected": 5.3, "mass_before": 20.1, "mass_after": 29.4, "statistic": 30.0}
+    early = {"t_change": 2.0, "t_detected": 2.5, "mass_before": 20.0, "mass_after": 22.0, "statistic": 20.0}
+    report = {**(loaded_run.estimator_report or {}), "load_changes": [early, found]}
+    (row,) = match_load_changes(replace(loaded_run, estimator_report=report))
+    assert row["found"] and row["time_error_s"] == pytest.approx(0.02)
+    assert row["mass_after_error_kg"] == pytest.approx(-0.6) and row["mass_after_error_pct"] == pytest.approx(-2.0)
+    lines = load_change_lines(replace(loaded_run, estimator_report=report))
+    assert "found, dated 5.02 s (+0.02 s)" in lines[0] and "where none was made: t = 2.00" in lines[1]
+    missed = load_change_lines(replace(loaded_run, estimator_report={**report, "load_changes": [early]}))
+    assert "NOT found" in missed[0]
+
+
+def test_a_point_mass_in_a_mujoco_body_composes_and_taking_it_out_restores_the_body():
+    m, d = mujoco_cart.build(mujoco_cart.shopping_cart(TRUE_CART))
+    mujoco.mj_forward(m, d)
+    body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, mujoco_cart.CART_BODY)
+    before = mujoco_cart.composite_inertia(m, d, body)
+    keep = [np.array(getattr(m, f)[body]) for f in ("body_mass", "body_ipos", "body_inertia")]
+    mujoco_cart.add_point_mass(m, body, 10.0, (0.6, -0.15, 0.3))
+    mujoco.mj_forward(m, d)
+    mass, com, izz = mujoco_cart.composite_inertia(m, d, body)
+    assert mass == pytest.approx(before[0] + 10.0)
+    np.testing.assert_allclose(com[:2], (before[0] * before[1][:2] + 10.0 * np.array([0.6, -0.15])) / mass)
+    shift = lambda c, mm: mm * float(np.sum((c[:2] - com[:2]) ** 2))  # noqa: E731
+    assert izz == pytest.approx(before[2] + shift(before[1], before[0]) + shift(np.array([0.6, -0.15]), 10.0))
+    mujoco_cart.add_point_mass(m, body, -10.0, (0.6, -0.15, 0.3))
+    for f, v in zip(("body_mass", "body_ipos"), keep):
+        np.testing.assert_allclose(getattr(m, f)[body], v, atol=1e-12)
+    assert sorted(m.body_inertia[body]) == pytest.approx(sorted(keep[2]))
+    with pytest.raises(WholeBodyError):
+        mujoco_cart.add_point_mass(m, body, -1000.0, (0.3, 0.0, 0.3))
+
+
+def test_the_mujoco_plant_changes_its_cart_and_keeps_the_momentum_of_a_load_put_in():
+    from wholebody.push.loop import build_controller
+    from wholebody.push.plants import make_plant, plant_truth_schedule
+
+    config = PushConfig(
+        trajectory=1, plant="mujoco", contact="fixed", load_changes=(LoadChange(0.01, 10.0, (0.5, 0.0)),)
+    )
+    plant = make_plant(config, build_controller(config))
+    m, d = plant.scene.model, plant.scene.data
+    d.qvel[plant.scene.cart_dof] = 0.5
+    mujoco.mj_forward(m, d)
+    M_old, v_old = np.zeros((m.nv, m.nv)), d.qvel.copy()
+    mujoco.mj_fullM(m, d, M_old)
+    plant.t = 0.01
+    plant._apply_load_changes()
+    M_new = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, M_new)
+    np.testing.assert_allclose(M_new @ d.qvel, M_old @ v_old, atol=1e-9)
+    assert d.qvel[plant.scene.cart_dof] < 0.5 * 0.75  # 20.7 -> 30.7 kg: the forward speed drops about a third
+    (_, before), (t, after) = plant_truth_schedule(config, plant)
+    assert t == pytest.approx(0.01) and after.m == pytest.approx(before.m + 10.0)  # the effective mass
+    (_, rigid0), (_, rigid1) = plant.inertial_log
+    assert rigid1.com_b[0] == pytest.approx((rigid0.mass * rigid0.com_b[0] + 10.0 * 0.5) / rigid1.mass, abs=1e-3)
+
+
+@pytest.mark.parametrize("bad", ["12", "12:+0", "x:+10", "12:+10@0.4", "40:+10", "12:-25", "12:+10@1,2,3"])
+def test_a_bad_load_change_is_one_line_and_exit_2(bad, capsys):
+    from cartpush.cli import main
+
+    assert main(["push", "--load-change", bad, "--json"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and ("load change" in err or "--load-change" in err)
