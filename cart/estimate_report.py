@@ -230,7 +230,7 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
         res = identify(log, streams=streams)
     except ParameterError as exc:
         raise _no_mass_error(log, streams, exc) from None
-    check_wrench_frame(log, res.residual_ratio, res.model_fits)
+    check_wrench_frame(log.source, res.residual_ratio, res.cart_frame)
     if res.wrench_noise is None:
         raise IdentifiabilityError(f"{log.source}: the least-squares fit gave no wrench-noise model")
     segments, seg_notes = find_segments(log, streams, res)

@@ -38,7 +38,7 @@ filtering):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TypedDict
 
 import numpy as np
@@ -69,9 +69,11 @@ HAC_DIRECT = 2_000_000
 #: Grid samples beyond which the cut-off is chosen on CUTOFF_CHUNKS evenly spaced stretches of the log.
 CUTOFF_SAMPLES = 24_000
 CUTOFF_CHUNKS = 4
-#: Rows of the filtered regression beyond which they are decimated to DECIMATED_OVERSAMPLING per cut-off period.
+#: Rows of the filtered regression beyond which they are decimated to DECIMATED_OVERSAMPLING per cut-off period:
+#: at 4 rows per period the decimated rows' Nyquist frequency is 2 fc, where the forward-backward 4th-order
+#: Butterworth passes |H|^2 = 1 / (1 + 2^8) (-48 dB) of what would alias.
 DECIMATE_ABOVE = 60_000
-DECIMATED_OVERSAMPLING = 10.0
+DECIMATED_OVERSAMPLING = 4.0
 #: Rows of the raw residual the wrench noise model is fitted on (the first ones: the noise is stationary).
 NOISE_ROWS = 60_000
 
@@ -129,6 +131,9 @@ class Identification:
     grid_dt: float = float("nan")
     fit_data: FitData | None = field(default=None, repr=False)
     casters: casters_model.Casters | None = None
+    #: on a log the model does not fit: (forward residual ratio, mass) of the same regression with the wrench
+    #: (fx, fy) read in the cart frame {b} (:func:`_cart_frame_reading`); None when the model fits
+    cart_frame: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -509,6 +514,8 @@ class _Regression:
     om: np.ndarray
     keep: np.ndarray
     y_raw: np.ndarray
+    #: v and omega on every grid sample (the caster lanes run along the whole grid)
+    vo_grid: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def _regression(log: CartLog, grid: _Grid, fc: float, sos: np.ndarray) -> _Regression:
@@ -523,7 +530,7 @@ def _regression(log: CartLog, grid: _Grid, fc: float, sos: np.ndarray) -> _Regre
     x, y = x[keep], y[keep]
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         raise IdentifiabilityError(f"{log.source}: the filtered log is not finite (values out of range)")
-    return _Regression(x=x, y=y, v=v[keep], om=om[keep], keep=keep, y_raw=y_raw[keep])
+    return _Regression(x=x, y=y, v=v[keep], om=om[keep], keep=keep, y_raw=y_raw[keep], vo_grid=(v, om))
 
 
 def _coulomb_check(
@@ -591,9 +598,7 @@ def _every(reg: _Regression, step: int) -> _Regression:
     """Return every ``step``-th row of the regression (``keep``, the grid mask, unchanged)."""
     if step == 1:
         return reg
-    return _Regression(
-        x=reg.x[::step], y=reg.y[::step], v=reg.v[::step], om=reg.om[::step], keep=reg.keep, y_raw=reg.y_raw[::step]
-    )
+    return replace(reg, x=reg.x[::step], y=reg.y[::step], v=reg.v[::step], om=reg.om[::step], y_raw=reg.y_raw[::step])
 
 
 def _wrench_noise(reg: _Regression, p: np.ndarray, dt: float, sos: np.ndarray) -> tuple[AR1Noise, AR1Noise, np.ndarray]:
@@ -730,13 +735,8 @@ def _caster_geometry(
 def _with_columns(reg: _Regression, cols: np.ndarray, rows: int | None = None) -> _Regression:
     """Return the first ``rows`` (None: all) rows of the regression with the columns ``cols`` appended."""
     k = len(reg.y) if rows is None else rows
-    return _Regression(
-        x=np.concatenate([reg.x[:k], cols], axis=-1),
-        y=reg.y[:k],
-        v=reg.v[:k],
-        om=reg.om[:k],
-        keep=reg.keep,
-        y_raw=reg.y_raw[:k],
+    return replace(
+        reg, x=np.concatenate([reg.x[:k], cols], axis=-1), y=reg.y[:k], v=reg.v[:k], om=reg.om[:k], y_raw=reg.y_raw[:k]
     )
 
 
@@ -771,7 +771,7 @@ def _caster_fit(
     used and kept without a new test.
     """
     step, lag = step_lag
-    _, v, om, _, _ = _kinematics(grid.q, grid.dt, sos)
+    v, om = full.vo_grid if full.vo_grid is not None else _kinematics(grid.q, grid.dt, sos)[1:3]
     if given is None:
         if int(full.keep[: casters_model.SEARCH_SAMPLES].sum()) < 8 * casters_model.N_COLUMNS:  # nothing to search on
             return None, casters_model.Casters(casters_model.AXLES[0], casters_model.TRAILS[0], 0.0, math.inf, False)
@@ -851,16 +851,18 @@ def identify(
     sos, reg, lag, (sv, so), noise = _filtered_regression(log, grid, fc, lv)
     full, step = reg, _decimation(len(reg.y), 1.0 / grid.dt, fc)
     reg, lag = _every(reg, step), int(math.ceil(lag / step))
-    p, cov, scale, r = _fit_or_raise(log, reg, noise, lag)
     _check_independent_rows(log, reg, lag, (fc, grid.dt))
     ext_fit, casters = _caster_fit(grid, sos, full, noise, (step, lag), casters)
     if ext_fit is not None:
         full, reg, (p, cov, scale, r) = ext_fit
         warnings.append(_caster_warning(casters))
+    else:
+        p, cov, scale, r = _fit_or_raise(log, reg, noise, lag)
     f_noise, t_noise, out_gain = _wrench_noise(full, p, grid.dt, sos)
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(lv, out_gain, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings)
+    cart_frame = None if fits else _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
     p, cov, note = _physical(p, cov)
     warnings += note
     params, inertia = _physical_params(log, p, cov)
@@ -886,7 +888,32 @@ def identify(
         grid_dt=grid.dt,
         fit_data={"t": grid.t[reg.keep][::step], "x": reg.x, "y": reg.y, "scale": scale, "step": step},
         casters=casters,
+        cart_frame=cart_frame,
     )
+
+
+def _cart_frame_reading(
+    grid: _Grid, sos: np.ndarray, full_step: tuple[_Regression, int], noise: np.ndarray, lv_acc: tuple
+) -> tuple[float, float]:
+    """Return (forward residual ratio, mass) of the regression ``full`` with the wrench read in the cart frame {b}.
+
+    The regressor comes from the pose and is the same in both readings; read in {b}, the forward force
+    is fx itself. The rows' y is filtered and fitted as in :func:`_wls` (every ``step``-th row), the wrench
+    noise measured on that fit's residual (:func:`_wrench_noise`) and the ratio taken as
+    :func:`_residual_ratio`. ``lv_acc``: the log's noise levels and the regressor's acceleration noise (sv, so).
+    """
+    full, step = full_step
+    lv, sv, so = lv_acc
+    y_raw, y = full.y_raw.copy(), full.y.copy()  # the torque row is the same in both readings
+    y_raw[:, 0] = grid.gamma[full.keep, 0]
+    y[:, 0] = _filtfilt(sos, grid.gamma[:, 0])[full.keep]
+    alt = replace(full, y=y, y_raw=y_raw)
+    reg = _every(alt, step)
+    p, _, _ = _wls(reg.x, reg.y, np.pad(noise, ((0, 0), (0, reg.x.shape[-1] - noise.shape[1]))))
+    f_noise, t_noise, out_gain = _wrench_noise(alt, p, grid.dt, sos)
+    lv_b = replace(lv, force=f_noise.sigma, torque=t_noise.sigma)
+    ratio, _ = _residual_ratio(lv_b, out_gain, sv, so, p, reg.y - _predict(reg.x, p), reg.y)
+    return float(ratio[0]), float(p[0])
 
 
 def _filtered_regression(

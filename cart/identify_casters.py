@@ -133,25 +133,56 @@ def unit_rows(
     return out
 
 
+#: samples per block of :func:`_prefix_products` (a doubling scan within blocks, then one across the block totals)
+SCAN_BLOCK = 64
+
+
+def _doubling_scan(a: list[np.ndarray]) -> None:
+    """Turn the entries a = [m00, m01, m10, m11], each (blocks, n, ...), in place into their prefix products.
+
+    Doubling (Hillis-Steele) scan along axis 1 of arrays shaped (blocks, n, ...): log2(n) vectorised passes.
+    Each product is scaled to a largest entry of one: the matrices act on a projective state (only the
+    direction of (p, q) matters).
+    """
+    a00, a01, a10, a11 = a
+    d = 1
+    while d < a00.shape[1]:
+        b00, b01, b10, b11 = a00[:, :-d], a01[:, :-d], a10[:, :-d], a11[:, :-d]
+        c00 = a00[:, d:] * b00 + a01[:, d:] * b10
+        c01 = a00[:, d:] * b01 + a01[:, d:] * b11
+        c10 = a10[:, d:] * b00 + a11[:, d:] * b10
+        c11 = a10[:, d:] * b01 + a11[:, d:] * b11
+        scale = np.maximum(np.maximum(np.abs(c00), np.abs(c01)), np.maximum(np.abs(c10), np.abs(c11))) + 1e-300
+        a00[:, d:], a01[:, d:], a10[:, d:], a11[:, d:] = c00 / scale, c01 / scale, c10 / scale, c11 / scale
+        d *= 2
+
+
 def _prefix_products(m: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
     """Return P_i = m_i m_(i-1) ... m_0 of 2x2 matrices given by their entries (m00, m01, m10, m11), each (n, ...).
 
-    Doubling (Hillis-Steele) scan: log2(n) vectorised passes instead of n small steps. Each product is
-    scaled to a largest entry of one: the matrices act on a projective state (only the direction of
-    (p, q) matters).
+    Blocked scan, linear in n: a doubling scan (:func:`_doubling_scan`) within blocks of ``SCAN_BLOCK``
+    samples, the prefix products of the blocks' totals (the same function, on n / SCAN_BLOCK of them), and
+    each block's prefixes times the product of all blocks before it. Products are scaled (projective state).
     """
-    a00, a01, a10, a11 = (np.array(x, dtype=float) for x in m)
-    d = 1
-    while d < len(a00):
-        b00, b01, b10, b11 = a00[:-d], a01[:-d], a10[:-d], a11[:-d]
-        c00 = a00[d:] * b00 + a01[d:] * b10
-        c01 = a00[d:] * b01 + a01[d:] * b11
-        c10 = a10[d:] * b00 + a11[d:] * b10
-        c11 = a10[d:] * b01 + a11[d:] * b11
+    n = len(m[0])
+    nb = -(-n // SCAN_BLOCK)
+    rest = np.shape(m[0])[1:]
+    pad = nb * SCAN_BLOCK - n
+    eye = (1.0, 0.0, 0.0, 1.0)
+    a = [
+        np.concatenate([np.asarray(x, float), np.full((pad, *rest), e)]).reshape(nb, SCAN_BLOCK, *rest)
+        for x, e in zip(m, eye)
+    ]
+    _doubling_scan(a)
+    if nb > 1:  # E_b: the product of blocks 0..b; block b + 1's prefixes are multiplied by it on the right
+        e00, e01, e10, e11 = _prefix_products(tuple(x[:, -1] for x in a))
+        b00, b01, b10, b11 = (x[:-1, None] for x in (e00, e01, e10, e11))
+        a00, a01, a10, a11 = (x[1:] for x in a)
+        c00, c01 = a00 * b00 + a01 * b10, a00 * b01 + a01 * b11
+        c10, c11 = a10 * b00 + a11 * b10, a10 * b01 + a11 * b11
         scale = np.maximum(np.maximum(np.abs(c00), np.abs(c01)), np.maximum(np.abs(c10), np.abs(c11))) + 1e-300
-        a00[d:], a01[d:], a10[d:], a11[d:] = c00 / scale, c01 / scale, c10 / scale, c11 / scale
-        d *= 2
-    return a00, a01, a10, a11
+        a[0][1:], a[1][1:], a[2][1:], a[3][1:] = c00 / scale, c01 / scale, c10 / scale, c11 / scale
+    return tuple(x.reshape(nb * SCAN_BLOCK, *rest)[:n] for x in a)
 
 
 def lanes(

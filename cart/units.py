@@ -25,12 +25,10 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import replace
 
 import numpy as np
 
 from cart.errors import CartError
-from cart.logs import CartLog
 from cart.streams import Streams
 
 MAX_POSE_PERIOD = 0.5  # s
@@ -211,35 +209,24 @@ def check_declared_units(metadata: dict[str, str], source: str = "<memory>") -> 
                 )
 
 
-def _wrench_from_cart_frame(log: CartLog) -> CartLog:
-    """Return ``log`` with (fx, fy) read as in the cart frame {b} and rotated by theta into {s}."""
-    c, s = np.cos(log.q[:, 2]), np.sin(log.q[:, 2])
-    g = log.gamma
-    return replace(log, gamma=np.column_stack([c * g[:, 0] - s * g[:, 1], s * g[:, 0] + c * g[:, 1], g[:, 2]]))
-
-
-def check_wrench_frame(log: CartLog, ratio: tuple[float, float], fits: bool) -> None:
+def check_wrench_frame(source: str, ratio: tuple[float, float], cart_frame: tuple[float, float] | None) -> None:
     """Raise :class:`UnitsError` when the log's wrench is in the cart frame {b} rather than the world frame {s}.
 
-    ``ratio``, ``fits``: the least-squares fit's residual ratio (forward, yaw) and verdict on the log as written
-    (:func:`cart.identify.identify`). Only a log the model does not fit is checked: read in {b} and rotated
-    by theta, the forward row's residual variance (its ratio to the noise, squared) must drop below
+    ``ratio``: the least-squares fit's residual ratio (forward, yaw) on the log as written; ``cart_frame``:
+    (forward residual ratio, mass) of the same regression with (fx, fy) read in {b}, None when the model fits
+    (``Identification.cart_frame``, :func:`cart.identify.identify`). Only a log the model does not fit is
+    checked: read in {b}, the forward row's residual variance (its ratio to the noise, squared) must drop below
     ``FRAME_VARIANCE_SHARE`` of the written reading's for the log to be refused. A cart that hardly turns
     reads alike in both frames and is never refused; the torque is the same in both.
     """
-    from cart.identify import identify
-
-    if fits or not all(math.isfinite(r) for r in ratio):
+    if cart_frame is None or not all(math.isfinite(r) for r in (*ratio, *cart_frame)):
         return
-    try:
-        other = identify(_wrench_from_cart_frame(log))
-    except CartError:
-        return
-    if other.residual_ratio[0] ** 2 < FRAME_VARIANCE_SHARE * ratio[0] ** 2:
+    other, m_other = cart_frame
+    if other**2 < FRAME_VARIANCE_SHARE * ratio[0] ** 2:
         raise UnitsError(
-            f"{log.source}: the wrench (fx, fy) looks expressed in the cart frame {{b}}, not in the world frame "
+            f"{source}: the wrench (fx, fy) looks expressed in the cart frame {{b}}, not in the world frame "
             f"{{s}} that LOG_FORMAT requires: read as {{b}} and rotated by theta, the forward residual is "
-            f"{other.residual_ratio[0]:.3g}x the noise instead of {ratio[0]:.3g}x (m = {other.params.m:.4g} kg so read); "
+            f"{other:.3g}x the noise instead of {ratio[0]:.3g}x (m = {m_other:.4g} kg so read); "
             "rotate fx, fy into {s} (fx_s = cos(theta) fx - sin(theta) fy, "
             "fy_s = sin(theta) fx + cos(theta) fy)"
         )

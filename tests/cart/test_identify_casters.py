@@ -133,3 +133,21 @@ def test_the_nonnegative_fit_matches_scipy_nnls():
     for _ in range(200):
         A, b = rng.normal(size=(4, 4)), rng.normal(size=4)
         assert _nonnegative_residual(A, b) == pytest.approx(nnls(A, b)[1], abs=1e-9)
+
+
+@pytest.mark.parametrize("n", [1, 63, 64, 65, 1000])
+def test_the_blocked_prefix_products_are_the_sample_by_sample_products(n):
+    """The blocked scan (doubling within SCAN_BLOCK samples, then across blocks) gives m_i ... m_0 up to scale."""
+    from cart.identify_casters import _prefix_products
+
+    rng = np.random.default_rng(n)
+    ang, dec = rng.uniform(-0.4, 0.4, (n, 3)), rng.uniform(0.8, 1.0, (n, 3))
+    m = (dec * np.cos(ang), dec * np.sin(ang), -np.sin(ang), np.cos(ang))
+    got = np.stack(_prefix_products(m), axis=-1).reshape(n, 3, 2, 2)
+    acc = np.tile(np.eye(2), (3, 1, 1))
+    for i in range(n):
+        mi = np.stack([m[0][i], m[1][i], m[2][i], m[3][i]], axis=-1).reshape(3, 2, 2)
+        acc = mi @ acc
+        acc /= np.abs(acc).max(axis=(1, 2), keepdims=True)
+        g = got[i] / np.abs(got[i]).max(axis=(1, 2), keepdims=True)
+        assert np.allclose(g, acc, atol=1e-10), i
