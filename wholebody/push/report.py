@@ -63,7 +63,9 @@ def describe(config: PushConfig) -> str:
         "optimal CP" if config.contact == "optimal" else f"fixed CP y={','.join(f'{v:g}' for v in config.contact_y0())}"
     )
     robot = "" if config.robot == "ridgeback_iiwa" else f"{config.robot}, "
-    return f"{robot}Traj.{config.trajectory} {config.n_arms} arm{'s' if config.n_arms > 1 else ''}, {est}, {contact}"
+    loads = "".join(f", load {c.mass:+g} kg at {c.t:g} s" for c in sorted(config.load_changes, key=lambda c: c.t))
+    arms = f"{config.n_arms} arm{'s' if config.n_arms > 1 else ''}"
+    return f"{robot}Traj.{config.trajectory} {arms}, {est}, {contact}{loads}"
 
 
 #: the `before_loss` figure shown in a lost run's second row, per `TABLE_COLUMNS` key (the others: "-")
@@ -202,6 +204,10 @@ def push_log(result: PushResult) -> CartLog:
         "true_params": f"m={p.m} dx={p.dx} dy={p.dy} I={p.I:.4f} sigma={p.sigma}",
         "initial_mass": repr(c.initial_mass),
     }
+    if result.load_changes_true:  # the truth a log's offline estimate (`cartpush estimate`) can be judged against
+        meta["load_changes"] = "; ".join(
+            f"t={r['t_applied']:g} mass={r['mass_kg']:+g} -> m={r['mass_after_kg']:g}" for r in result.load_changes_true
+        )
     return CartLog(
         t=result.t,
         q=result.z_meas[:, :3],

@@ -19,7 +19,7 @@ from wholebody.push import PushConfig, run_push
 from wholebody.push import mujoco_cart
 from wholebody.push.config import TRUE_CART
 from wholebody.push.load_change import LoadChange, params_after, params_series, truth_schedule, velocity_after
-from wholebody.push.report import load_change_lines, match_load_changes, push_figures
+from wholebody.push.report import describe, load_change_lines, match_load_changes, push_figures, push_log
 
 CART = CartParams(20.0, 0.3, 0.15, 2.3, 4.0)
 
@@ -125,6 +125,8 @@ def test_what_happened_says_whether_each_change_was_found(loaded_run):
     assert "found, dated 5.02 s (+0.02 s)" in lines[0] and "where none was made: t = 2.00" in lines[1]
     missed = load_change_lines(replace(loaded_run, estimator_report={**report, "load_changes": [early]}))
     assert "NOT found" in missed[0]
+    assert describe(loaded_run.config).endswith("load +10 kg at 5 s")
+    assert push_log(loaded_run).metadata["load_changes"] == "t=5 mass=+10 -> m=30"
 
 
 def test_a_point_mass_in_a_mujoco_body_composes_and_taking_it_out_restores_the_body():
