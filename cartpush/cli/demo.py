@@ -31,6 +31,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--out", type=Path, default=Path("cartpush_report"), help="report directory (default: ./cartpush_report)"
     )
     p.add_argument("--duration", type=float, default=30.0, help="seconds of each run to simulate (default 30)")
+    p.add_argument(
+        "--load-change",
+        action="append",
+        default=None,
+        metavar="T:+M[@X,Y]",
+        help="put M kg into the cart at T s (-M: take it out) in every run, as cartpush push --load-change",
+    )
     p.add_argument("--robots-only", action="store_true", help="only list the robot models")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
     p.set_defaults(func=run)
@@ -88,6 +95,11 @@ def run(args: argparse.Namespace) -> int:
     from cart.jsonout import dumps_strict
 
     options.duration(args.duration, minimum=8.0, why="Traj. 2 needs it", rate=1000.0)
+    from cartpush.cli.push import parse_load_change
+    from wholebody.push.load_change import check_changes
+
+    loads = tuple(parse_load_change(v) for v in args.load_change or ())
+    check_changes(None, loads, args.duration)
     if not args.robots_only:
         options.writable_dir(args.out)
     rows = robot_summary()
@@ -103,10 +115,22 @@ def run(args: argparse.Namespace) -> int:
     from wholebody.progress import show_progress
     from wholebody.push.report import run_demo
 
-    demo = run_demo(args.out, duration=args.duration, verbose=not args.json, progress=show_progress(args.json))
+    demo = run_demo(
+        args.out, duration=args.duration, verbose=not args.json, progress=show_progress(args.json), load_changes=loads
+    )
     if not args.json:
         print("what to open:\n" + "\n".join(report_listing(demo.out_dir)))
     if args.json:
-        runs = {label: {**run.metrics.as_dict(), **(run.plant_report or {})} for label, run in demo.runs.items()}
+        runs = {label: _run_json(run) for label, run in demo.runs.items()}
         print(dumps_strict({"robots": rows, "runs": runs, "report_dir": str(demo.out_dir.resolve())}))
     return 0
+
+
+def _run_json(run) -> dict:
+    """Return a demo run's JSON: its metrics, the plant's report and, with load changes, what was found of each."""
+    from wholebody.push.report import match_load_changes
+
+    out = {**run.metrics.as_dict(), **(run.plant_report or {})}
+    if run.config.load_changes:
+        out["load_changes_true"] = match_load_changes(run)
+    return out

@@ -18,6 +18,7 @@ import numpy as np
 
 from cart.logs import CartLog, write_log
 from wholebody.push.config import LOST_TRACKING_M, PushConfig, PushResult
+from wholebody.push.load_change import LoadChange
 from wholebody.push.loop import run_push
 
 if TYPE_CHECKING:
@@ -782,10 +783,13 @@ def physics_note(label: str, result: PushResult) -> str:
     )
 
 
-def demo_configs(duration: float = 30.0, physics: bool = True) -> dict[str, PushConfig]:
+def demo_configs(
+    duration: float = 30.0, physics: bool = True, load_changes: tuple[LoadChange, ...] = ()
+) -> dict[str, PushConfig]:
     """Return the demo's runs: Traj. 2, optimized contact, with and without estimation (initial mass 16 kg), and
-    (``physics``) the same controller against the MuJoCo plant on Traj. 1 (fixed grip: the grips are welds)."""
-    base = PushConfig(trajectory=2, duration=duration, contact="optimal", estimation=True)
+    (``physics``) the same controller against the MuJoCo plant on Traj. 1 (fixed grip: the grips are welds); each
+    with the `load_changes` given."""
+    base = PushConfig(trajectory=2, duration=duration, contact="optimal", estimation=True, load_changes=load_changes)
     runs = {"with estimation": base, "without estimation": replace(base, estimation=False)}
     if physics:
         runs["MuJoCo plant, Traj. 1"] = replace(base, trajectory=1, plant="mujoco", contact="fixed")
@@ -793,16 +797,22 @@ def demo_configs(duration: float = 30.0, physics: bool = True) -> dict[str, Push
 
 
 def run_demo(
-    out_dir: Path, duration: float = 30.0, html: bool = True, verbose: bool = True, progress: bool = False
+    out_dir: Path,
+    duration: float = 30.0,
+    html: bool = True,
+    verbose: bool = True,
+    progress: bool = False,
+    load_changes: tuple[LoadChange, ...] = (),
 ) -> DemoResult:
     """Run the demo's pushes (`demo_configs`), print the comparison table and write the report directory.
 
-    ``progress``: a bar per run on stderr (the CLI passes True only on a terminal without --json).
+    ``progress``: a bar per run on stderr (the CLI passes True only on a terminal without --json);
+    ``load_changes``: loads put in or taken out in every run (`wholebody.push.load_change`).
     """
     t0 = time.perf_counter()
     runs = {
         label: run_push(cfg, progress=progress, progress_label=f"demo: {label}")
-        for label, cfg in demo_configs(duration).items()
+        for label, cfg in demo_configs(duration, load_changes=load_changes).items()
     }
     table = comparison_table(runs)
     write_report(runs, Path(out_dir), html=html)
@@ -999,6 +1009,8 @@ def _print_demo(runs: dict[str, PushResult], table: str, out_dir: Path, seconds:
     print(unobservable_note(runs))
     for label, run in runs.items():
         print(f"{label}: {torque_verdict(run)[0]}")
+        for line in load_change_lines(run) if run.config.load_changes else ():
+            print(f"{label}: {line}")
         if _is_physics(run):
             print(physics_note(label, run))
     print(f"report: {out_dir.resolve()}  ({seconds:.1f} s)")

@@ -182,3 +182,13 @@ def test_a_bad_load_change_is_one_line_and_exit_2(bad, capsys):
     assert main(["push", "--load-change", bad, "--json"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and ("load change" in err or "--load-change" in err)
+
+
+def test_the_demo_puts_the_loads_into_every_run_and_refuses_a_bad_one(tmp_path, capsys):
+    from cartpush.cli import main
+    from wholebody.push.report import demo_configs
+
+    loads = (LoadChange(5.0, 10.0),)
+    assert all(c.load_changes == loads for c in demo_configs(10.0, load_changes=loads).values())
+    assert main(["demo", "--duration", "10", "--load-change", "12:+10", "--out", str(tmp_path)]) == 2
+    assert "outside the run (0, 10) s" in capsys.readouterr().err
