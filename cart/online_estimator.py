@@ -336,7 +336,7 @@ class OnlineLSEstimator:
         out = []
         fit = self.window.fit if self.window is not None else None
         now = float(self.regression.p[0])
-        if fit is not None and fit.std["mass"] < self.params_std()["mass"]:
+        if fit is not None:
             now = float(fit.params.m)
         for c in self._changes:
             after = c.mass_end if c.mass_end is not None else now
@@ -636,8 +636,6 @@ class OnlineLSEstimator:
         dated = bool(self.impulses) and self.impulses[-1] >= t_change - 2.0 * self._settle_s()
         if dated:
             t_change = self.impulses[-1]  # a velocity jump near or after the onset: the load came with it
-        if self._changes:
-            self._changes[-1].mass_end = m_before
         p, prm = self.regression.p, self._params
         center = np.array([prm.m, prm.dx, prm.dy, prm.inertia_b / prm.m, max(p[4], 0.0), max(p[5], 0.0)])
         o = self.options
@@ -666,6 +664,8 @@ class OnlineLSEstimator:
         if after is not None and self.casters is not None:
             self.casters.cross, self.casters.info, self.casters.dvec = after
             new.nuisance = self.casters.nuisance()
+        if self._changes:
+            self._changes[-1].mass_end = m_before
         self._changes.append(_Change(t_change, self.t, m_before, self.detector.statistic))
         if self.window is not None:
             before = self._params.with_mass(m_before) if m_before > 0.0 else self._params
