@@ -329,9 +329,10 @@ class OnlineLSEstimator:
     def events(self) -> tuple[LoadChange, ...]:
         """Return the load changes detected so far.
 
-        Mass after: before the next change, the mass then; for the last change, the online estimate now or the
-        window search's latest fit of the data after it (:attr:`cart.window_changes.WindowChangeDetector.fit`,
-        the offline estimate on at least ``MIN_SEGMENT_S`` of them), whichever has the smaller std.
+        Mass after: before the next change, the mass then; for the last change, the window search's latest fit
+        of the data after it (:attr:`cart.window_changes.WindowChangeDetector.fit`, the offline estimate on at
+        least ``MIN_SEGMENT_S`` of them, whatever the online std says: on a misfitting cart the online
+        regression's posterior std is not the fit's robust one), or the online estimate before there is one.
         """
         out = []
         fit = self.window.fit if self.window is not None else None

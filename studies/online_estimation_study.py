@@ -1,7 +1,7 @@
 """Study of the online estimator (issue 27): push runs, Table I test 11, load changes on an independent simulator.
 
-Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loads|push_loads|mujoco|mujoco_loads|all]
-[--json]
+Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loads|push_loads|mujoco|mujoco_loads|
+rigid_loads|all] [--seeds N ...] [--json]
 
 1. ``push``: ``run_push(PushConfig(trajectory=1|2))`` with the paper's EKF (the loop's default,
    ``make_estimator``) and with :class:`cart.online_estimator.OnlineLSEstimator` (built like
@@ -22,6 +22,11 @@ Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loa
    (``studies.testbeds.mujoco_loads``, seeds 100-105 and 300-309, each with its change and without) replayed
    through the online estimator; a change counts when it is the only one reported, its onset within 1 s and its
    mass after within 5 % of the effective mass after.
+7. ``rigid_loads`` (not in ``all``: slow): the independent simulator's load-change logs as
+   ``studies.testbeds.log_recorders --load-changes`` draws them (seeds 7000-7009 by default, each with its change
+   and without), replayed through the online estimator and judged like ``mujoco_loads`` against the rigid mass.
+
+``--seeds`` replaces the seeds of ``mujoco_loads`` / ``rigid_loads``.
 """
 
 from __future__ import annotations
@@ -324,6 +329,67 @@ def loads_part(seeds: tuple[int, ...] = (0, 1, 2, 3, 4, 5), t_change: float = 15
     return out
 
 
+def replay_online(log, guess, meas_std, **options):
+    """Return the online estimator (``make_online_estimator`` with ``options``) after it has run over ``log``."""
+    est = make_online_estimator(np.r_[log.q[0], log.qd[0]], guess, meas_std, **options)
+    z = np.hstack([log.q, log.qd])
+    for k in range(1, len(log.t)):
+        est.step(log.gamma[k - 1], log.t[k] - log.t[k - 1], z[k])
+    return est
+
+
+def judge_change(events: list[dict], t_change: float | None, mass_after: float) -> bool:
+    """Return issue 27's verdict on one log: no change reported on a log without one; else exactly one change,
+    its onset within 1 s of ``t_change`` and its mass after within 5 % of ``mass_after``."""
+    if t_change is None:
+        return not events
+    return (
+        len(events) == 1
+        and abs(events[0]["t_change"] - t_change) < 1.0
+        and abs(events[0]["mass_after"] / mass_after - 1) < 0.05
+    )
+
+
+def rigid_load_run(seed: int, change: bool = True, **options) -> dict:
+    """Return what the online estimator reports over one log of ``studies.testbeds.log_recorders
+    --load-changes``' draw (rigid_sim, 40-60 s, the mass and yaw inertia times 0.6, 0.7, 1.4 or 1.6 at 35-65 %
+    of the log, load at the CoM, velocities carried on; ``change`` False: the same cart without it), with the
+    velocity columns (the loop has them) and no time jitter; judged by :func:`judge_change`.
+
+    Guess: 80 % of the mass and of the yaw inertia, the true dx, dy = 0, damping 1 (as :func:`mujoco_load_run`).
+    """
+    from cart.params import CartParams
+    from studies.testbeds import rigid_sim
+
+    rng = np.random.default_rng(seed)
+    dur = float(rng.uniform(40, 60))
+    tc = float(rng.uniform(0.35, 0.65) * dur)
+    fac = float(rng.choice([0.6, 0.7, 1.4, 1.6]))
+    load = {"load_time": tc, "load_factor": fac} if change else {}
+    case = rigid_sim.random_case(seed, duration=dur, vel_std=0.005, jitter=0.0, **load)
+    log, _ = rigid_sim.simulate(case)
+    cart = case.cart
+    guess = CartParams(0.8 * cart.m, cart.dx, 0.0, 0.8 * cart.I, 1.0, 1.0)
+    std = [case.pos_std, case.pos_std, case.theta_std, case.vel_std, case.vel_std, case.omega_std]
+    est = replay_online(log, guess, std, **options)
+    events = [e.as_dict() for e in est.events]
+    m_after = cart.m * fac if change else cart.m
+    return {
+        "seed": seed,
+        "t_change": tc if change else None,
+        "mass_before": cart.m,
+        "mass_after": m_after,
+        "events": events,
+        "ok": judge_change(events, tc if change else None, m_after),
+        "final_mass": est.params().m,
+    }
+
+
+def rigid_loads_part(seeds: tuple[int, ...] = tuple(range(7000, 7010)), **options) -> list[dict]:
+    """Return :func:`rigid_load_run` for each seed with its change and without it."""
+    return [rigid_load_run(seed, change, **options) for seed in seeds for change in (True, False)]
+
+
 def mujoco_load_run(seed: int, kind: str, **options) -> dict:
     """Return what the online estimator reports over one log of the MuJoCo load test bed (``kind``: the seed's
     change, or ``none_`` + it: the same cart without a change); judged as issue 27 asks: one change, its onset
@@ -339,23 +405,11 @@ def mujoco_load_run(seed: int, kind: str, **options) -> dict:
     b = truth["before"]
     guess = CartParams(0.8 * b["m"], b["dx"], 0.0, 0.8 * b["I_about_com"], 1.0, 1.0)
     pos, vel = case.position_noise, case.velocity_noise
-    est = make_online_estimator(
-        np.r_[log.q[0], log.qd[0]], guess, [pos, pos, case.theta_noise, vel, vel, case.omega_noise], **options
-    )
-    z = np.hstack([log.q, log.qd])
-    for k in range(1, len(log.t)):
-        est.step(log.gamma[k - 1], log.t[k] - log.t[k - 1], z[k])
+    est = replay_online(log, guess, [pos, pos, case.theta_noise, vel, vel, case.omega_noise], **options)
     events = [e.as_dict() for e in est.events]
     m_eff = truth["after"]["m_effective_forward_incl_wheel_spin"]
     tc = truth["t_change"]
-    if tc is None:
-        ok = not events
-    else:
-        ok = (
-            len(events) == 1
-            and abs(events[0]["t_change"] - tc) < 1.0
-            and abs(events[0]["mass_after"] / m_eff - 1) < 0.05
-        )
+    ok = judge_change(events, tc, m_eff)
     return {
         "seed": seed,
         "kind": kind,
@@ -381,8 +435,11 @@ def mujoco_loads_part(seeds: tuple[int, ...] = (*range(100, 106), *range(300, 31
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--part", choices=("push", "table1", "loads", "push_loads", "mujoco", "mujoco_loads", "all"), default="all"
+        "--part",
+        choices=("push", "table1", "loads", "push_loads", "mujoco", "mujoco_loads", "rigid_loads", "all"),
+        default="all",
     )
+    parser.add_argument("--seeds", type=int, nargs="+", help="seeds of mujoco_loads / rigid_loads (default: theirs)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args()
     out = {}
@@ -397,7 +454,9 @@ def main() -> None:
     if args.part == "mujoco":
         out["mujoco"] = mujoco_part()
     if args.part == "mujoco_loads":
-        out["mujoco_loads"] = mujoco_loads_part()
+        out["mujoco_loads"] = mujoco_loads_part(*([tuple(args.seeds)] if args.seeds else []))
+    if args.part == "rigid_loads":
+        out["rigid_loads"] = rigid_loads_part(*([tuple(args.seeds)] if args.seeds else []))
     if args.json:
         print(json.dumps(out, default=float))
         return
@@ -452,6 +511,23 @@ def main() -> None:
         print(
             f"changes within 1 s and 5 %: {sum(r['ok'] for r in ch)} of {len(ch)}; logs without a change and no "
             f"change reported: {sum(r['ok'] for r in rows if r['t_change'] is None)} of {len(rows) - len(ch)}"
+        )
+    rigid = out.get("rigid_loads", [])
+    for row in rigid:
+        ev = ", ".join(
+            f"{e['t_change']:.2f} / {e['t_detected']:.2f} s ({e['method']}), {e['mass_after']:.1f} kg"
+            for e in row["events"]
+        )
+        tc = "-" if row["t_change"] is None else f"{row['t_change']:.2f} s"
+        print(
+            f"rigid load seed {row['seed']} change {tc}, {row['mass_before']:.1f} -> {row['mass_after']:.1f} kg: "
+            f"reported [{ev}] {'ok' if row['ok'] else 'MISS'}"
+        )
+    if rigid:
+        ch = [r for r in rigid if r["t_change"] is not None]
+        print(
+            f"rigid: changes within 1 s and 5 %: {sum(r['ok'] for r in ch)} of {len(ch)}; logs without a change and "
+            f"no change reported: {sum(r['ok'] for r in rigid if r['t_change'] is None)} of {len(rigid) - len(ch)}"
         )
     for row in out.get("loads", []):
         print(
