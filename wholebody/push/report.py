@@ -725,6 +725,8 @@ def _estimate_readouts(scene, result: PushResult, idx: np.ndarray) -> None:
     est = f"{result.config.estimator} estimate" if result.config.estimation else "no estimation, fixed guess"
     masses = [f"{m:g}" for m in (p[0, 0], *(c["mass_after_kg"] for c in result.load_changes_true))]
     scene.add_readout(f"mass ({est}; true {' -> '.join(masses)} kg)", "kg", t, phi[:, 0])
+    if result.load_changes_true:  # the truth steps: show it live beside the estimate
+        scene.add_readout("  ... true mass now (loads put in / taken out)", "kg", t, p[:, 0])
     if result.config.estimation and result.param_std is not None and np.all(np.isfinite(result.param_std[idx, 0])):
         scene.add_readout("  ... its 1-sigma", "kg", t, result.param_std[idx, 0], digits=2)
     com_error = 100 * np.hypot(phi[:, 1] / phi[:, 0] - p[:, 1], phi[:, 2] / phi[:, 0] - p[:, 2])

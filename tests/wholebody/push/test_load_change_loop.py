@@ -19,7 +19,7 @@ from wholebody.push import PushConfig, run_push
 from wholebody.push import mujoco_cart
 from wholebody.push.config import TRUE_CART
 from wholebody.push.load_change import LoadChange, params_after, params_series, truth_schedule, velocity_after
-from wholebody.push.report import describe, load_change_lines, match_load_changes, push_figures, push_log
+from wholebody.push.report import build_scene, describe, load_change_lines, match_load_changes, push_figures, push_log
 
 CART = CartParams(20.0, 0.3, 0.15, 2.3, 4.0)
 
@@ -108,6 +108,11 @@ def test_the_figure_and_the_page_draw_the_truth_as_a_step(loaded_run):
     assert mass.truth is not None and mass.truth[0] == 20.0 and mass.truth[-1] == 30.0
     assert float(r.t[np.argmax(mass.truth > 25.0)]) == pytest.approx(5.0)
     assert (pytest.approx(5.0), "made") in estimate_marks(r)
+    with build_scene(r) as scene:  # the page's read-outs: the truth's masses, and the true mass live
+        readouts = {ro.label: ro for ro in scene._readouts}
+    assert any("true 20 -> 30 kg" in label for label in readouts)
+    now = readouts["  ... true mass now (loads put in / taken out)"].values
+    assert now[0] == 20.0 and now[-1] == 30.0
     fig = push_figures({"run": r})["estimate"]
     (line,) = [ln for ln in fig.axes[0].get_lines() if ln.get_label() == "truth, run"]
     y = np.asarray(line.get_ydata())
