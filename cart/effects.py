@@ -29,6 +29,7 @@ import numpy as np
 from cart.caster_lanes import CasterLanes, caster_lanes
 from cart.dynamics import regressor
 from cart.log_signals import Signals, cache_bounded, derivative_gain, local_poly, window_integrals
+from cart.noise_model import fit_ar1
 
 #: Nominal parameters x = [m, m dx, m dy, J, sigma, sigma_yaw] (two viscous coefficients).
 N_NOMINAL = 6
@@ -108,6 +109,33 @@ def static_hold(sig: Signals, r: np.ndarray, cap) -> np.ndarray | None:
     out = np.zeros((sig.n, 3))
     out[:, 0] = np.where(rest, np.clip(r, -cap, cap), 0.0)
     return out
+
+
+#: a forward force at rest counts as a hold only beyond this many stds of the sensor noise's local mean
+HOLD_NOISE_Z = 2.0
+
+
+def mean_noise_std(sig: Signals, r: np.ndarray, half_window: float) -> float:
+    """Return the std the forward force's noise gives its mean over +-``half_window`` s (cached per signals).
+
+    The noise is the log's own: the AR(1) model (:func:`cart.noise_model.fit_ar1`) of the unexplained forward
+    force ``r`` while the cart moves (at rest ``r`` may hold a real force). A coloured F/T noise keeps its power
+    at low frequencies: its local mean over n samples has variance sigma^2 / n^2 sum_(i, j) a^|i - j|, far
+    above the white-noise sigma^2 / n.
+    """
+    key = ("hold_noise", float(half_window))
+    cached = sig.extras.get(key)
+    if cached is not None:
+        return float(cached)
+    dt = float(np.median(np.diff(sig.t))) if sig.n > 1 else 1.0
+    moving = np.abs(sig.v) >= stop_threshold(sig)
+    src = r[moving] if np.sum(moving) > 100 else r
+    model = fit_ar1(src - np.median(src), dt)
+    n = max(1, int(round(2.0 * half_window / dt)) + 1)
+    k = np.arange(1, n)
+    var = model.sigma**2 / n**2 * (n + 2.0 * float(np.sum((n - k) * model.a**k)))
+    sig.extras[key] = math.sqrt(max(var, 0.0))
+    return float(sig.extras[key])
 
 
 def local_mean(t: np.ndarray, y: np.ndarray, half_window: float) -> np.ndarray:
@@ -384,10 +412,18 @@ class CasterSwivel(Effect):
         """Return None: the columns at rest depend on phi and on the current force estimate (no caching)."""
         return None
 
-    def _held(self, sig: Signals, phi: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Return (r, r smoothed over +-0.1 s): the forward force the nominal model leaves unexplained."""
+    #: half window (s) of the smoothed unexplained force that decides a hold
+    HOLD_SMOOTH = 0.1
+
+    def _held(self, sig: Signals, phi: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """Return (r, r smoothed over +-HOLD_SMOOTH s, the least smoothed force that is a hold).
+
+        r: the forward force the nominal model leaves unexplained. A smoothed force within HOLD_NOISE_Z stds
+        of what the sensor's (coloured) noise gives it (:func:`mean_noise_std`) is no evidence of a hold: the
+        casters are not credited with the noise of a cart at rest.
+        """
         r = forward_residual(sig, phi, base)
-        return r, local_mean(sig.t, r, 0.1)
+        return r, local_mean(sig.t, r, self.HOLD_SMOOTH), HOLD_NOISE_Z * mean_noise_std(sig, r, self.HOLD_SMOOTH)
 
     def columns(self, sig, nl, phi, base):
         """Return G: tanh(v / v0) g(s / d) while moving; at rest, g sign(r) where the hold exceeds F g (active set).
@@ -407,8 +443,8 @@ class CasterSwivel(Effect):
         rest = ~moving & (prof > 1e-6)
         if phi is not None and base is not None and np.any(rest):
             f_ref = float(sig.extras.get(("caster_force_ref", self.shape, float(nl[0])), 0.0))
-            _, rs = self._held(sig, phi, base)
-            over = rest & (np.abs(rs) > self.HOLD_LIMIT * f_ref * prof)
+            _, rs, least = self._held(sig, phi, base)
+            over = rest & (np.abs(rs) > np.maximum(self.HOLD_LIMIT * f_ref * prof, least))
             g[:, 0, 0] = np.where(over, np.sign(rs) * prof, g[:, 0, 0])
         return g
 
@@ -422,9 +458,10 @@ class CasterSwivel(Effect):
         cap = f_ref * self.profile(sig, nl)
         if not np.any(rest & (cap > 0)):
             return None
-        r, rs = self._held(sig, phi, base)
+        r, rs, least = self._held(sig, phi, base)
         out = np.zeros((sig.n, 3))
-        out[:, 0] = np.where(rest & (cap > 0) & (np.abs(rs) <= self.HOLD_LIMIT * cap), r, 0.0)
+        held = rest & (cap > 0) & (np.abs(rs) <= self.HOLD_LIMIT * cap) & (np.abs(rs) > least)
+        out[:, 0] = np.where(held, r, 0.0)
         return out
 
     def describe(self, theta, nl, cov, nl_std, phi):
