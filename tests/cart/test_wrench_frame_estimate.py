@@ -43,3 +43,21 @@ def test_a_wrench_column_that_was_not_recorded_is_refused():
     from cart.units import check_units
 
     check_units(split_streams(straight))  # a cart that does not turn may push along one axis only
+
+
+def test_the_cart_frame_reading_is_a_refit_not_a_second_identify(monkeypatch):
+    """The {b} reading refits the same regression: `estimate` runs `identify` once on a log the model misfits."""
+    import cart.identify as identify_module
+
+    log, _ = rigid_sim.simulate(rigid_sim.random_case(19, duration=40.0, rate_hz=100.0))
+    calls = []
+    real = identify_module.identify
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(identify_module, "identify", counted)
+    with pytest.raises(UnitsError, match=r"cart frame \{b\}"):
+        estimate_log(_in_cart_frame(log))
+    assert len(calls) == 1
