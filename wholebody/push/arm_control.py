@@ -5,8 +5,9 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
 - **Torque-controlled arm** (the iiwa, joint torque control): each physics step
 
   ``tau = J^T w + b(q, v) + N^T LP(arm_torque - J^T w - b_0) + J^T K (e + K_i int e) + N^T (K_q (q_plan(t) - q) +
-  D (v_plan - v))``, clipped to the effort limits (`TorqueArmGains.budget`: within them by `torque_budget`
-  instead), with ``e = w - w_f``,
+  D (v_plan - v))``, clipped to the effort limits (`TorqueArmGains.budget`: within them by priority instead,
+  `TorqueArmLaw._prioritized`: the task part, then the hand's feedback as the closest wrench that fits,
+  `fit_in_limits`, then the posture), with ``e = w - w_f``,
 
   where ``w`` is the allocated hand wrench, ``b`` the arm's bias forces at the step's state, ``arm_torque`` the
   controller's command (Pinocchio's RNEA with the plan's velocities and accelerations + ``J^T w``), ``b_0`` the
@@ -22,16 +23,18 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   arm's own dynamics take from the push: the cart feels the arm's task-space inertia (19 kg along x at the push posture, as much as the cart) whenever the
   hand accelerates relative to the base. Its measured wrench ``w_f`` is the hand's wrench at the grasp
   (world-aligned), low-passed (5 ms), fused from two sensors (a complementary filter): the arm's joint-side
-  estimate ``w_j = -E tau_ext``, ``tau_ext = (M qdd)_arm + b - tau_joint`` (the external joint torque
+  estimate ``w_j = -E tau_ext + F w_FT``, ``tau_ext = (M qdd)_arm + b - tau_joint`` (the external joint torque
   from the joint torque sensors, accelerations and model, as a torque-sensing arm estimates it; free of the F/T's
-  noise), ``E = (J W J^T)^-1 J W`` the weighted least squares (``W = diag(1 / limit^2)``: a joint torque
-  sensor's noise scales with its range), plus the slow part (0.5 s) of the wrist F/T reading minus it (the
+  noise), ``E = (J W J^T + R)^-1 J W``, ``F = (J W J^T + R)^-1 R`` the weighted least squares of the joint torques
+  and the F/T's forces (``W = diag(1 / sigma_tau^2)``, a joint torque sensor's noise in proportion to its range;
+  ``R`` the F/T's: where the joints see the hand, ``F`` is small; along a direction they do not see, a straight
+  elbow's, the F/T's reading; `fused_estimator`), plus the slow part (0.5 s) of the wrist F/T reading minus it (the
   F/T's accuracy at low frequency: it removes the sensors' offsets, the model's slow errors, payload and
   friction; `TorqueArmGains.fusion_space` "joint" instead takes the slow part of ``tau_ext + J^T w_FT``, each
   joint torque's error, off ``tau_ext``: it stays removed as the arm moves). Fed back directly,
   the F/T's white noise (3 N per sample at 500 Hz) would be pushed into the cart ``K_f`` times over. The loop's gain is bounded by its one-step
   delay: measured, ``K_f = 6`` rings at 20-50 Hz. The integral stops while a torque is clipped or the budget
-  scales the loop down (anti-windup). `TorqueArmGains.reference_model` (off by default) compares ``w_f`` with the
+  trims the loop (anti-windup). `TorqueArmGains.reference_model` (off by default) compares ``w_f`` with the
   allocated wrench as the measurement sees it (one step late, low-passed) instead of ``w``.
 
 - **Velocity-controlled arm** (the WMRA's, joint velocity servos): once per control period, an
@@ -55,8 +58,10 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import daqp
 import numpy as np
 
 
@@ -121,19 +126,32 @@ class TorqueArmGains:
     #: True: the joint-side estimate weighs each joint's torque by 1 / effort_limit^2 (a weighted least squares:
     #: a joint torque sensor's noise scales with its range); False: unweighted
     weighted_estimate: bool = True
+    #: the joint torque sensors' white noise per sample, as a fraction of each joint's effort limit, and the wrist
+    #: F/T's (N, N m per sample): the joint-side estimate is the weighted least-squares wrench of both samples
+    #: (`fused_estimator`), so where the joint torques do not see the hand's wrench (a straight elbow: a push along
+    #: the arm loads no joint) it takes the F/T's reading instead of the joint torques' noise and offsets divided by a
+    #: vanishing singular value (the 90 kg wheelchair, Traj. 1, joint side alone: thousands of N at a straight elbow,
+    #: the law's request 62-126 times a limit). The F/T's moments are left out (``inf``): at the grasp they carry its
+    #: force noise times the lever from the sensor and the tool's inertia (with 0.3 N m: Traj. 2 seed 0's wrench error
+    #: 53 %). None: the joint torques alone (`wrench_estimator`). Measured with `reference_model`: docs/mujoco.md
+    #: "Arm laws"
+    joint_torque_noise: float = 0.001
+    ft_noise: tuple[float, float] | None = (3.0, math.inf)
     #: True: the loop compares the measured wrench with the allocated one passed through what the measurement sees of
     #: it (one physics step late, low-passed with ``force_filter_tau``: `TorqueArmLaw.reference`), so a jump of the
     #: allocation between periods, which ``J^T w`` delivers at once, meets no proportional kick; False: the
     #: allocated wrench itself (a jump ``dw`` then gets ``K dw`` on top of ``J^T dw`` until the measurement sees it).
-    #: Measured (docs/mujoco.md "Arm laws"): Traj. 2 seed 0's wrench error 16.9 -> 10.1 % of the hand force, but
-    #: seed 2 lost at 18.5 s (tracked without it), so it is off
-    reference_model: bool = False
-    #: True: the law's request stays within the effort limits (`torque_budget`: the task part whole, the hand's
-    #: feedback scaled as one, the posture clipped per joint into the room left); False: the sum is clipped per joint
-    #: (each joint's full effort). Measured (docs/mujoco.md "Arm laws"): the budget holds Traj. 2's request within
-    #: the limits (seeds 0-2: 1.00/0.59/1.00 against 1.39/0.59/1.94) but loses the 90 kg wheelchair on seeds 1 and 2
-    #: (12.7 s, 11.1 s; tracked at 20.0 and 36.7 mm RMS with the clip): a cart that needs more than the arm has
-    #: wants every joint's full effort, so it is off
+    #: Measured (`cartpush push --plant mujoco --trajectory 2 --json --seed S`, S = 0/1/2, with the fused estimate):
+    #: wrench error 10.1/11.1/18.5 % of the hand force, the request 0.89/0.63/0.52 of a limit; without both (the
+    #: joint side alone, no reference model): 16.9/15.9/32.1 %, 1.39/0.59/2.29
+    reference_model: bool = True
+    #: True: the law's request stays within the effort limits by priority (`TorqueArmLaw._prioritized`: the task
+    #: part whole when it fits, else the closest wrench that does; the hand's feedback the closest wrench that fits in
+    #: the room left, `fit_in_limits`; the posture clipped per joint into what remains); False: the sum is clipped per
+    #: joint (each joint's full effort). Measured (Traj. 1, examples/carts/wheelchair.xml, seeds 0/1/2, with the fused
+    #: estimate, without the reference model): lost at 23.0/23.7/23.6 s, where the clip tracks all three: the
+    #: wheelchair needs more than the arm has, and the posture, last, leaves the elbow to straighten and fold the other
+    #: way (the posture before the feedback: tracked at 52 mm, wrench error 119 %), so it is off
     budget: bool = False
 
 
@@ -178,6 +196,24 @@ def wrench_estimator(J: np.ndarray, effort_limit: np.ndarray | None = None) -> n
     return np.linalg.solve(JW @ J.T + reg * np.eye(J.shape[0]), JW)
 
 
+def fused_estimator(J: np.ndarray, sigma_tau: np.ndarray, sigma_ft: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return (E, F) with ``w = E tau + F w_ft``: the weighted least-squares wrench of one joint torque sample
+    ``tau = J^T w + n_tau`` and one F/T sample ``w_ft = w + n_ft`` (white noises of standard deviations `sigma_tau`
+    per joint, `sigma_ft` per wrench axis; the Gaussian maximum-likelihood estimate):
+
+    ``w = (J W J^T + R)^-1 (J W tau + R w_ft)``, ``W = diag(sigma_tau^-2)``, ``R = diag(sigma_ft^-2)``.
+
+    Where ``J`` is well conditioned the joint torques decide (their noise reaches the hand far smaller than the
+    F/T's); along a direction the joints do not see (``J^T`` loses rank at a straight elbow) the F/T does, and the
+    estimate stays bounded where the joint side alone (`wrench_estimator`) divides the joint torques' noise and
+    offsets by a vanishing singular value.
+    """
+    W = 1.0 / np.asarray(sigma_tau, dtype=float) ** 2
+    R = np.diag(1.0 / np.asarray(sigma_ft, dtype=float) ** 2)  # an infinite sigma: that axis's F/T left out
+    A = (J * W) @ J.T + R
+    return np.linalg.solve(A, J * W), np.linalg.solve(A, R)
+
+
 def damped_pinv(J: np.ndarray, damping: float) -> np.ndarray:
     """Return J^T (J J^T + damping I)^-1."""
     return J.T @ np.linalg.inv(J @ J.T + damping * np.eye(J.shape[0]))
@@ -204,6 +240,30 @@ def torque_budget(task: np.ndarray, extra: np.ndarray, limit: np.ndarray) -> flo
     return max(scale, 0.0)
 
 
+def fit_in_limits(A: np.ndarray, x: np.ndarray, base: np.ndarray, limit: np.ndarray) -> np.ndarray | None:
+    """Return the ``x'`` closest to `x` with ``|base + A x'| <= limit`` on every joint (`x` itself when it fits), or
+    None when `base` alone exceeds a limit.
+
+    A box-constrained least squares (daqp): ``min |diag(1/limit) A (x' - x)|^2`` (each joint's torque change relative
+    to its range; a ridge of 1e-9 of the mean curvature makes directions ``A`` does not see keep ``x``). With ``A =
+    J^T`` and ``x`` a hand wrench, ``A x'`` stays a hand wrench (a per-joint clip, the same least squares without
+    that constraint, adds torques in the hand's null space and bends the wrench by whatever the clipped joints
+    held); where a uniform scale ``s x`` (`torque_budget`) drops all of ``x`` as soon as one joint has no room, the
+    fit keeps the axes the other joints can still give. Solver failure: the uniform scale.
+    """
+    if np.all(np.abs(base + A @ x) <= limit):
+        return x
+    if np.any(np.abs(base) > limit):
+        return None
+    D = A / limit[:, None]
+    H = D.T @ D
+    H += 1e-9 * float(np.trace(H)) / H.shape[0] * np.eye(H.shape[0])
+    sol, _, flag, _ = daqp.solve(H, -H @ x, np.ascontiguousarray(A), limit - base, -limit - base)
+    if flag < 1:
+        return torque_budget(base, A @ x, limit) * x
+    return np.asarray(sol, dtype=float)
+
+
 class TorqueArmLaw:
     """The torque law of one arm (see the module docstring); `begin` once per period, `torque` each physics step."""
 
@@ -226,6 +286,7 @@ class TorqueArmLaw:
         self._tau_ext: np.ndarray | None = None
         self._tau_offset = np.zeros(self.limit.size)
         self._Jt_pinv = np.zeros((6, self.limit.size))
+        self._E_ft = np.zeros((6, 6))
         self._gain = np.r_[np.full(3, gains.force_feedback), np.full(3, gains.moment_feedback)]
         self._ff = np.zeros(self.limit.size)
         self._bias0: np.ndarray | None = None
@@ -281,7 +342,7 @@ class TorqueArmLaw:
         self._v = v_new
         self._NT = null_space_projector_T(J, M) if self.gains.null_space else np.eye(M.shape[0])
         self._J = J
-        self._Jt_pinv = wrench_estimator(J, self.limit if self.gains.weighted_estimate else None)
+        self._Jt_pinv, self._E_ft = self._estimator(J)
         self._Jr = J[3:]
         self._Jt = J[:3]
         self._t_end = t_end
@@ -309,35 +370,57 @@ class TorqueArmLaw:
         task, plan = self._feedforward(g, bias)
         q_plan = self._q_end - self._v * (self._t_end - t)
         impedance = self._NT @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
-        hand_terms = []  # the hand's feedback: what bends its wrench when clipped
-        if hand is not None:
-            p_err, v_err = hand
-            hand_terms.append(self._Jt.T @ (g.cartesian_stiffness * p_err + g.cartesian_damping * v_err))
-        if wrench_measured is not None and g.force_feedback > 0.0:
-            hand_terms.append(self._J.T @ self._force_loop(np.asarray(wrench_measured, dtype=float)))
-        if tilt is not None and (g.tilt_stiffness > 0.0 or g.tilt_damping > 0.0):
-            err, omega = tilt
-            n = g.tilt_stiffness * err - g.tilt_damping * omega
-            n[2] = 0.0  # roll and pitch only: the yaw torque is the allocation's
-            hand_terms.append(self._Jr.T @ n)
+        u = self._hand_feedback(g, hand, wrench_measured, tilt)
+        posture = plan + impedance
         if g.budget:
-            loop = np.sum(hand_terms, axis=0) if hand_terms else np.zeros(self.limit.size)
-            s_loop = torque_budget(task, loop, self.limit)
-            tau = task + s_loop * loop
-            # the posture last, each joint within the room the hand's terms leave it (a box projection: the posture
-            # is the arm's own, and the joints that have room keep all of theirs)
-            posture = plan + impedance
-            held = np.clip(tau + posture, -self.limit, self.limit) if s_loop > 0.0 else tau + posture
-            self._record(task, held, s_loop, bool(np.any(held != tau + posture)))
-            tau = held
+            tau = self._prioritized(task, u, posture)
         else:
-            tau = task + plan + impedance
-            for term in hand_terms:
-                tau = tau + term
-            self._record(task, tau, 1.0, False)
+            tau = task + self._J.T @ u + posture
+            self._record(task, tau, False, False)
         if self.saturated_now:
             tau = np.clip(tau, -self.limit, self.limit)
         return tau
+
+    def _hand_feedback(
+        self,
+        g: TorqueArmGains,
+        hand: tuple[np.ndarray, np.ndarray] | None,
+        wrench_measured: np.ndarray | None,
+        tilt: tuple[np.ndarray, np.ndarray] | None,
+    ) -> np.ndarray:
+        """Return the hand's feedback wrench (world-aligned at the grasp; the arm applies ``J^T`` of it): the
+        Cartesian impedance's force, the force loop's wrench and the tilt hold's roll and pitch moments."""
+        u = np.zeros(6)
+        if hand is not None:
+            p_err, v_err = hand
+            u[:3] += g.cartesian_stiffness * p_err + g.cartesian_damping * v_err
+        if wrench_measured is not None and g.force_feedback > 0.0:
+            u += self._force_loop(np.asarray(wrench_measured, dtype=float))
+        if tilt is not None and (g.tilt_stiffness > 0.0 or g.tilt_damping > 0.0):
+            err, omega = tilt
+            n = g.tilt_stiffness * err - g.tilt_damping * omega
+            u[3:5] += n[:2]  # roll and pitch only: the yaw torque is the allocation's
+        return u
+
+    def _prioritized(self, task: np.ndarray, u: np.ndarray, posture: np.ndarray) -> np.ndarray:
+        """Return the law's torque within the effort limits, by priority (`TorqueArmGains.budget`, `fit_in_limits`).
+
+        1. the task part ``J^T w + b``: whole if it fits, else the allocated wrench bent to the closest that fits
+           (clipped only when the bias forces alone exceed a limit);
+        2. the hand's feedback ``J^T u``: the wrench closest to ``u`` that fits in the room the task part leaves;
+        3. the posture (plan term and joint impedance) clipped per joint into the room left.
+        """
+        L, Jt = self.limit, self._J.T
+        base = task - self._Jw  # the task part besides J^T w: the bias forces (and the plan's, modes "command"...)
+        w_fit = fit_in_limits(Jt, self._w_d, base, L)
+        task_fit = np.clip(task, -L, L) if w_fit is None else base + Jt @ w_fit
+        u_fit = fit_in_limits(Jt, u, task_fit, L)
+        u_fit = np.zeros(6) if u_fit is None else u_fit
+        tau = task_fit + Jt @ u_fit
+        held = np.clip(tau + posture, -L, L)
+        trimmed = w_fit is not self._w_d or u_fit is not u
+        self._record(task, held, trimmed, bool(np.any(held != tau + posture)))
+        return held
 
     def _feedforward(self, g: TorqueArmGains, bias: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return the feed-forward as (task part ``J^T w + b``, plan part; `TorqueArmGains.feedforward`).
@@ -352,16 +435,19 @@ class TorqueArmLaw:
         zero = np.zeros(self.limit.size)
         return (self._ff, zero) if g.feedforward == "command" else (self._ff + bias, zero)
 
-    def _record(self, task: np.ndarray, tau: np.ndarray, loop_scale: float, posture_held: bool) -> None:
-        """Keep the step's request against the limits: peaks (all joints, per joint, task part) and counts."""
+    def _record(self, task: np.ndarray, tau: np.ndarray, trimmed: bool, posture_held: bool) -> None:
+        """Keep the step's request against the limits: peaks (all joints, per joint, task part) and counts.
+
+        `trimmed`: the budget bent the allocated wrench or the hand's feedback to fit (the integral then holds).
+        """
         ratio = np.abs(tau) / self.limit
         self.peak_joint_ratio = np.maximum(self.peak_joint_ratio, ratio)
         self.peak_ratio = max(self.peak_ratio, float(np.max(ratio)))
         self.peak_task_ratio = max(self.peak_task_ratio, float(np.max(np.abs(task) / self.limit)))
         self.saturated_now = bool(np.any(ratio > 1.0))
-        self._saturated = loop_scale < 1.0 or self.saturated_now
+        self._saturated = trimmed or self.saturated_now
         self.saturated_steps += int(self.saturated_now)
-        self.scaled_steps += int(loop_scale < 1.0 or posture_held)
+        self.scaled_steps += int(trimmed or posture_held)
 
     def _plan_ff(self, g: TorqueArmGains, bias: np.ndarray) -> np.ndarray:
         """Return the feed-forward's plan part besides ``J^T w + b``: ``arm_torque - J^T w - b_0`` raw ("refreshed")
@@ -381,7 +467,7 @@ class TorqueArmLaw:
 
         ``tau_ext = (M qdd)_arm + b - tau_joint``: what the joint torque sensors, the accelerations and the model
         say the rest of the world applied to the arm (the caller computes it). The hand's wrench on the cart is
-        the least-squares ``w_j = -(J J^T)^-1 J tau_ext``.
+        the weighted least squares of it and the F/T's reading (`joint_estimate`).
         """
         self._tau_ext = np.asarray(tau_ext, dtype=float)
         self._w_joint = -self._Jt_pinv @ self._tau_ext
@@ -400,9 +486,26 @@ class TorqueArmLaw:
         gain = max(min(self._dt / g.fusion_tau, 1.0), 1.0 / self._n_fused)
         if g.fusion_space == "joint":
             self._tau_offset += gain * (self._tau_ext + self._J.T @ ft - self._tau_offset)
-            return -self._Jt_pinv @ (self._tau_ext - self._tau_offset)
-        self._ft_offset += gain * (ft - self._w_joint - self._ft_offset)
-        return self._w_joint + self._ft_offset
+            return self._E_ft @ ft - self._Jt_pinv @ (self._tau_ext - self._tau_offset)
+        w_joint = self.joint_estimate(ft)
+        self._ft_offset += gain * (ft - w_joint - self._ft_offset)
+        return w_joint + self._ft_offset
+
+    def joint_estimate(self, ft: np.ndarray) -> np.ndarray:
+        """Return the hand's wrench from the last joint torque sample and the F/T's reading `ft` of the same step:
+        ``w_j = -E tau_ext + F w_FT`` (`fused_estimator`; ``F = 0`` and ``E`` `wrench_estimator`'s without
+        `TorqueArmGains.ft_noise`)."""
+        assert self._w_joint is not None
+        return self._w_joint + self._E_ft @ ft
+
+    def _estimator(self, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return the joint-side estimate's matrices (E, F): ``w_j = -E tau_ext + F w_FT`` (`TorqueArmGains.ft_noise`)."""
+        g = self.gains
+        if g.ft_noise is None:
+            return wrench_estimator(J, self.limit if g.weighted_estimate else None), np.zeros((6, 6))
+        scale = self.limit if g.weighted_estimate else np.full(self.limit.size, float(np.mean(self.limit)))
+        sigma_ft = np.r_[np.full(3, g.ft_noise[0]), np.full(3, g.ft_noise[1])]
+        return fused_estimator(J, g.joint_torque_noise * scale, sigma_ft)
 
     def reference(self) -> np.ndarray:
         """Return the force loop's reference: the allocated wrench as the loop's measurement sees it.

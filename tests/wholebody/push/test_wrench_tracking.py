@@ -122,7 +122,9 @@ def _law(gains: TorqueArmGains, limit: float = 1e6):
     from wholebody.push.arm_control import TorqueArmLaw
 
     J = np.random.default_rng(2).normal(size=(6, 7))
-    law = TorqueArmLaw(np.full(7, limit), replace(gains, stiffness=0.0, damping=0.0), 0.002)
+    # the joint side alone (ft_noise None): a joint torque sensor's noise scales with its range, and these limits
+    # stand for "no limit" (with them the fused estimate would be the F/T's; test_arm_control tests the fusion)
+    law = TorqueArmLaw(np.full(7, limit), replace(gains, stiffness=0.0, damping=0.0, ft_noise=None), 0.002)
     w = np.array([20.0, -4.0, 2.0, 0.0, 0.0, 1.0])
     law.begin(w, np.zeros(7), np.zeros(7), np.zeros(7), J, _law_inertia(), t_end=0.01, dt=0.01)
     return law, J, w
