@@ -867,7 +867,9 @@ def match_load_changes(result: PushResult) -> list[dict]:
     A true change is found by the first change the estimator reported (``load_changes`` of its report) detected after
     it and before the next true change (or the run's end), dated from 1 s before it on: ``found``, the estimator's
     onset ``t_change_est`` and ``t_detected`` (s), ``time_error_s`` (onset minus the true time), ``mass_after_est_kg``
-    and its error (kg, % of the true mass after; the truth's mass: on the MuJoCo plant the effective mass)."""
+    and its error (kg, % of the true mass after; the truth's mass: on the MuJoCo plant the effective mass); found or
+    not, ``mass_settled_kg`` and ``mass_settled_error_pct``: the loop's estimate just before the next change (or at
+    the run's end) against the mass after."""
     reported = sorted((result.estimator_report or {}).get("load_changes") or (), key=lambda c: c["t_detected"])
     true = list(result.load_changes_true)
     ends = [c["t_applied"] for c in true[1:]] + [math.inf]
@@ -875,7 +877,13 @@ def match_load_changes(result: PushResult) -> list[dict]:
     for c, end in zip(true, ends):
         t0 = c["t_applied"]
         hit = next((e for e in reported if t0 <= e["t_detected"] < end and e["t_change"] >= t0 - 1.0), None)
-        row = {**c, "found": hit is not None}
+        settled = float(result.phi_hat[int(np.searchsorted(result.t, end - 1e-9)) - 1, 0])
+        row = {
+            **c,
+            "found": hit is not None,
+            "mass_settled_kg": settled,
+            "mass_settled_error_pct": 100.0 * (settled - c["mass_after_kg"]) / c["mass_after_kg"],
+        }
         if hit is not None:
             err = hit["mass_after"] - c["mass_after_kg"]
             row.update(
@@ -900,13 +908,14 @@ def load_change_lines(result: PushResult) -> list[str]:
             f"load {'put in' if r['mass_kg'] > 0 else 'taken out'} ({r['mass_kg']:+g} kg) at {r['t_applied']:.2f} s, "
             f"truth {r['mass_before_kg']:.1f} -> {r['mass_after_kg']:.1f} kg"
         )
+        settled = f"the estimate {r['mass_settled_kg']:.1f} kg ({r['mass_settled_error_pct']:+.1f} %) before the next change or the end"
         if not r["found"]:
-            lines.append(f"{what}: NOT found by the estimator (its mass ends at {result.metrics.mass_final_kg:.1f} kg)")
+            lines.append(f"{what}: NOT found by the estimator; {settled}")
             continue
         lines.append(
             f"{what}: found, dated {r['t_change_est']:.2f} s ({r['time_error_s']:+.2f} s), detected "
             f"{r['t_detected']:.2f} s, weighed {r['mass_after_est_kg']:.1f} kg ({r['mass_after_error_kg']:+.1f} kg, "
-            f"{r['mass_after_error_pct']:+.1f} %)"
+            f"{r['mass_after_error_pct']:+.1f} %); {settled}"
         )
     used = {r["t_detected"] for r in rows if r["found"]}
     extra = [

@@ -126,6 +126,10 @@ def test_what_happened_says_whether_each_change_was_found(loaded_run):
     (row,) = match_load_changes(replace(loaded_run, estimator_report=report))
     assert row["found"] and row["time_error_s"] == pytest.approx(0.02)
     assert row["mass_after_error_kg"] == pytest.approx(-0.6) and row["mass_after_error_pct"] == pytest.approx(-2.0)
+    settled = loaded_run.phi_hat[-1, 0]  # the only change: the estimate at the run's end
+    assert row["mass_settled_kg"] == settled and row["mass_settled_error_pct"] == pytest.approx(
+        100 * (settled / 30 - 1)
+    )
     lines = load_change_lines(replace(loaded_run, estimator_report=report))
     assert "found, dated 5.02 s (+0.02 s)" in lines[0] and "where none was made: t = 2.00" in lines[1]
     missed = load_change_lines(replace(loaded_run, estimator_report={**report, "load_changes": [early]}))
