@@ -10,7 +10,8 @@ switched, :func:`_switched_rows`) rather than ``p_side filt(Y)``, so the filtere
 change cuts counts for the change's time. A load put on a moving cart at rest takes its share of the cart's
 momentum with no force at the handle: each candidate is also fitted with that exchange
 (:func:`exchange_corrections`, no extra parameter), and the better of the two counts (a load lifted out, or
-put in at the cart's speed, exchanges nothing). The change is kept
+put in at the cart's speed, exchanges nothing). The two sides share the F/T offsets and the casters'
+resistances (:func:`shared_columns`). The change is kept
 when the two sides' masses, fitted on the whole log's filtered regression away from the change (regressor
 noise compensated; std the larger of Newey-West and a block jackknife, so a misfit that varies along the
 log counts while one common to both sides cancels), differ by more than ``CHANGE_Z`` combined std and by
@@ -32,8 +33,9 @@ from cart.logs import CartLog
 if TYPE_CHECKING:
     from cart.identify import Identification
 
-#: Combined std by which the masses of two sides must differ for a load change (:func:`change_z`; on 112 logs
-#: without a change, of the independent simulator, the MuJoCo cart and the validation set, z stayed below 2.4).
+#: Combined std by which the masses of two sides must differ for a load change (:func:`change_z`; no change is
+#: reported on the change-free logs of the independent simulator, the MuJoCo cart and the validation set,
+#: docs/estimation.md "Load changes").
 CHANGE_Z = 3.5
 #: Each side's mass must be this many of its std (a side that does not excite the mass, e.g. a cart turning
 #: in place then standing, says nothing about a change).
@@ -48,6 +50,18 @@ _CANDIDATES = 400
 _ROWS_PER_PERIOD = 10.0
 #: Columns of the cart's dynamics in the filtered regression ([m, m dx, m dy, J, c_v, c_w]); the rest are nuisance.
 N_DYNAMIC = 6
+
+
+def shared_columns(p_dim: int) -> np.ndarray:
+    """Return the columns of the split search's regression (``p_dim`` wide) that both sides of a split share.
+
+    The columns between the cart's dynamics (``N_DYNAMIC``) and the two Coulomb-like ones of
+    :func:`_with_coulomb`: the F/T sensor's offsets, which are the sensor's, and the casters' swivel resistances
+    (:mod:`cart.identify_casters`), which are the cart's: a load on the deck changes the mass, CoM, inertia and
+    rolling resistance, not these. Free on each side they let a split far from the change fit a caster event
+    with one side's caster coefficients (MuJoCo 211, 311: loads lifted out while cruising, dated 5.9 and 1.9 s off).
+    """
+    return np.arange(N_DYNAMIC, p_dim - 2)
 
 
 def slice_log(log: CartLog, t0: float, t1: float) -> CartLog:
@@ -112,15 +126,39 @@ def _switched_rows(xs: np.ndarray, idx: np.ndarray, k: np.ndarray, half: int) ->
     return np.einsum("ab,nbkp->nakp", kmat, src)
 
 
+def _shared_map(p_dim: int, shared: np.ndarray) -> np.ndarray:
+    """Return ``T`` (2 p_dim, q): both sides' parameters ``[p_L, p_R] = T q``, the ``shared`` columns' alike."""
+    free = np.setdiff1d(np.arange(p_dim), shared)
+    t = np.zeros((2 * p_dim, p_dim + len(free)))
+    t[:p_dim, :p_dim] = np.eye(p_dim)
+    t[p_dim + shared, shared] = 1.0
+    t[p_dim + free, p_dim + np.arange(len(free))] = 1.0
+    return t
+
+
+def _solve_split(m: np.ndarray, v: np.ndarray, t: np.ndarray, c_all: float) -> tuple[np.ndarray, np.ndarray]:
+    """Return (residual, both sides' parameters) of the normal equations ``m``, ``v`` in [p_L, p_R] with ``T``."""
+    mq, vq = t.T @ m @ t, v @ t
+    ridge = 1e-12 * float(np.trace(mq[-1])) / mq.shape[-1] * np.eye(mq.shape[-1])
+    sol = np.linalg.solve(mq + ridge, vq[..., None])[..., 0]
+    return c_all - np.einsum("ni,ni->n", vq, sol), sol @ t.T
+
+
 def _window_ssr(
-    ys: np.ndarray, idx: np.ndarray, outside: tuple[np.ndarray, ...], rows: np.ndarray, c_all: float, put_in: bool
+    ys: np.ndarray,
+    idx: np.ndarray,
+    outside: tuple[np.ndarray, ...],
+    rows: np.ndarray,
+    c_all: float,
+    put_in: bool,
+    t: np.ndarray,
 ) -> np.ndarray:
     """Return each candidate's residual when the rows within ``half`` of its split take the regressors ``rows``.
 
     ``rows`` (n, 2 half + 1, 2, 2P): the window's rows of each candidate ``idx``, the left side's parameters'
     columns then the right side's; ``outside``: the normal equations (``a``, ``b`` left, ``a``, ``b`` right)
-    of the rows outside the window, which are each side's own. ``put_in``: a candidate whose right side's
-    mass is not above the left's (the momentum exchange of a load put in) gets ``inf``.
+    of the rows outside the window, which are each side's own; ``t`` (:func:`_shared_map`). ``put_in``: a
+    candidate whose right side's mass is not above the left's (the momentum exchange of a load put in) gets ``inf``.
     """
     a_left, b_left, a_right, b_right = outside
     n, half, n_p = len(idx), rows.shape[1] // 2, a_left.shape[-1]
@@ -130,42 +168,50 @@ def _window_ssr(
     m[:, :n_p, :n_p] += a_left
     m[:, n_p:, n_p:] += a_right
     v = np.concatenate([b_left, b_right], axis=-1) + np.einsum("nri,nr->ni", flat, yv)
-    ridge = 1e-12 * float(np.trace(a_left[-1] + a_right[-1])) / n_p * np.eye(2 * n_p)
-    sol = np.linalg.solve(m + ridge, v[..., None])[..., 0]
-    out = c_all - np.einsum("ni,ni->n", v, sol)
+    out, sol = _solve_split(m, v, t, c_all)
     return np.where(sol[:, n_p] > sol[:, 0], out, math.inf) if put_in else out
 
 
 def _split_residuals(
-    x: np.ndarray, y: np.ndarray, scale: np.ndarray, idx: np.ndarray, kernels: SplitKernels | None, exchange: bool
+    x: np.ndarray,
+    y: np.ndarray,
+    scale: np.ndarray,
+    idx: np.ndarray,
+    kernels: SplitKernels | None,
+    exchange: bool,
+    shared: np.ndarray | None = None,
+    filtered: bool = True,
 ) -> np.ndarray:
-    """Return the weighted residual of the split after each candidate row ``idx`` (see :func:`best_split`)."""
+    """Return the weighted residual of the split after each candidate row ``idx`` (see :func:`best_split`).
+
+    ``filtered`` False: the window's rows are split at the candidate as they are (the plain split, with the
+    exchange when ``exchange``) instead of :func:`_switched_rows`.
+    """
     sw = 1.0 / scale
     xs, ys = x * sw[None, :, None], y * sw[None, :]
+    p_dim = x.shape[-1]
+    t = _shared_map(p_dim, np.zeros(0, dtype=int) if shared is None else shared)
     a, b, a_all, b_all, c_all = _cumulative_normal(xs, ys, idx)
     if kernels is None:
-        p_dim = x.shape[-1]
-        ridge = 1e-12 * np.trace(a_all) / p_dim * np.eye(p_dim)
-
-        def ssr(aa: np.ndarray, bb: np.ndarray, cc: np.ndarray) -> np.ndarray:
-            sol = np.linalg.solve(aa + ridge, bb[..., None])[..., 0]
-            return cc - np.einsum("kj,kj->k", bb, sol)
-
-        cuts = zip(np.r_[0, idx[:-1] + 1], idx + 1)
-        c = np.cumsum([ys[i0:i1].reshape(-1) @ ys[i0:i1].reshape(-1) for i0, i1 in cuts])
-        return ssr(a, b, c) + ssr(a_all - a, b_all - b, c_all - c)
+        m = np.zeros((len(idx), 2 * p_dim, 2 * p_dim))
+        m[:, :p_dim, :p_dim], m[:, p_dim:, p_dim:] = a, a_all[None] - a
+        return _solve_split(m, np.concatenate([b, b_all[None] - b], axis=-1), t, c_all)[0]
     half = kernels.half
     a_left, b_left = _cumulative_normal(xs, ys, idx - half - 1)[:2]
     a_to, b_to = _cumulative_normal(xs, ys, idx + half)[:2]
     outside = (a_left, b_left, a_all[None] - a_to, b_all[None] - b_to)
-    right = _switched_rows(xs, idx, kernels.k, half)
+    if filtered:
+        right = _switched_rows(xs, idx, kernels.k, half)
+    else:
+        win_rows = xs[idx[:, None] + np.arange(-half, half + 1)[None, :]]
+        right = win_rows * (np.arange(-half, half + 1) > 0)[None, :, None, None]
     rows = np.concatenate([xs[idx[:, None] + np.arange(-half, half + 1)[None, :]] - right, right], axis=-1)
-    switched = _window_ssr(ys, idx, outside, rows, c_all, False)
+    switched = _window_ssr(ys, idx, outside, rows, c_all, False, t)
     if not exchange:
         return switched
     corr = exchange_corrections(x, idx, sw, kernels)
     moved = rows + np.concatenate([-corr, corr], axis=-1)
-    return np.minimum(switched, _window_ssr(ys, idx, outside, moved, c_all, True))
+    return np.minimum(switched, _window_ssr(ys, idx, outside, moved, c_all, True, t))
 
 
 def best_split(
@@ -177,6 +223,7 @@ def best_split(
     tol: float = 0.0,
     kernels: SplitKernels | None = None,
     exchange: bool = True,
+    shared: np.ndarray | None = None,
 ) -> tuple[float, float, float] | None:
     """Return (time, earliest, latest) of the split of the regression ``x p = y`` into two fits of least residual.
 
@@ -188,9 +235,11 @@ def best_split(
     parameters switch at the split (:func:`_switched_rows`: the rows within the filter's reach mix the two
     carts) and, with ``exchange``, each candidate's residual is the lesser of that and the momentum
     exchange's (:func:`exchange_corrections`); None: the rows are split at the candidate as they are. With
-    ``kernels`` the split is sought within the stretch the plain split finds, widened by the filter's reach:
-    the switched rows near a split add a term ``(p_R - p_L) filt(Y 1[t > t_c])`` that can fit a local misfit
-    (a caster event) far from the change when the two sides differ much.
+    ``kernels`` the split is sought within the stretch the plain split finds (the rows split as they are,
+    with the exchange too: a put-in's drop of velocity is otherwise a force the plain split has not got),
+    widened by the filter's reach: the switched rows near a split add a term ``(p_R - p_L) filt(Y 1[t > t_c])``
+    that can fit a local misfit (a caster event) far from the change when the two sides differ much.
+    ``shared``: columns whose parameter both sides share (:func:`shared_columns`); None: each side has all its own.
     """
     reach = 0 if kernels is None else 2 * kernels.half + 1
     ok = np.flatnonzero((t - t[0] >= min_len) & (t[-1] - t >= min_len))
@@ -198,9 +247,9 @@ def best_split(
     if len(ok) == 0:
         return None
     idx = ok[:: max(1, len(ok) // _CANDIDATES)]
-    total = _split_residuals(x, y, scale, idx, kernels, exchange)
+    total = _split_residuals(x, y, scale, idx, kernels, exchange, shared)
     if kernels is not None:  # within the plain split's stretch, widened by the filter's reach
-        lo, hi = _near(_split_residuals(x, y, scale, idx, None, False), tol)
+        lo, hi = _near(_split_residuals(x, y, scale, idx, kernels, exchange, shared, filtered=False), tol)
         reach_t = kernels.half * float(np.median(np.diff(t)))
         total = np.where((t[idx] >= t[idx[lo]] - reach_t) & (t[idx] <= t[idx[hi]] + reach_t), total, np.inf)
     lo, hi = _near(total, tol)
@@ -295,26 +344,73 @@ def change_z(res: Identification, tc: float, guard: float) -> tuple[float, float
     ``tc`` left out (the zero-phase filter mixes the two sides there, and a load dropped in gives the cart an
     impulse the model has not got). ``z`` is the mass difference over its std, each side's the larger of its
     Newey-West and block-jackknife std (:func:`cart.identify._fit`: misfit that varies along a side counts;
-    the Newey-West std alone reached z = 4.2 on logs without a change, the larger one 2.4).
+    the Newey-West std alone reached z = 4.2 on logs without a change), the lesser of two fits: each side
+    with all its own parameters, and with the columns both sides share (:func:`shared_columns`: sensor
+    offsets, caster resistances) held at the two sides' joint fit (:func:`_shared_parameters`), as in the
+    split search. The first is weak where caster columns and mass trade on a short side, the second
+    overconfident where the casters' share of the load is not the same on both sides (their scrub grows with
+    the load) and it leaves out the shared parameters' own uncertainty: a change must show in both. The
+    masses are the first fit's.
     """
-    from cart.identify import _fit
-
     data = res.fit_data
     assert data is not None
     lag = int(math.ceil(2.0 / (res.cutoff_hz * res.grid_dt * data["step"])))
     t = data["t"]
     noise = regressor_noise(res)
+    sides = ((t < tc - guard), (t >= tc + guard))
+    if min(int(side.sum()) for side in sides) < 4 * lag:
+        return 0.0, math.nan, math.nan, 0.0
+    x = _with_coulomb(data["x"])
+    shared = shared_columns(x.shape[-1])
+    try:
+        (ml, vl), (mr, vr) = _side_masses(x, data["y"], sides, noise, lag)
+        p_sh = _shared_parameters(x, data["y"], data["scale"], sides, noise, shared)
+        y_free = data["y"] - np.einsum("krp,p->kr", x[..., shared], p_sh)
+        (jl, wl), (jr, wr) = _side_masses(np.delete(x, shared, axis=-1), y_free, sides, noise, lag)
+    except np.linalg.LinAlgError:
+        return 0.0, math.nan, math.nan, 0.0
+    z = min(abs(ml - mr) / math.sqrt(vl + vr), abs(jl - jr) / math.sqrt(wl + wr))
+    return z, ml, mr, min(ml / math.sqrt(vl), mr / math.sqrt(vr))
+
+
+def _side_masses(
+    x: np.ndarray, y: np.ndarray, sides: tuple[np.ndarray, ...], noise: np.ndarray, lag: int
+) -> list[tuple[float, float]]:
+    """Return (mass, its variance) of each side's own fit (:func:`cart.identify._fit`) of the regression ``x``, ``y``."""
+    from cart.identify import _fit
+
     out = []
-    for side in ((t < tc - guard), (t >= tc + guard)):
-        if int(side.sum()) < 4 * lag:
-            return 0.0, math.nan, math.nan, 0.0
-        try:
-            p, cov, _, _ = _fit(_with_coulomb(data["x"][side]), data["y"][side], noise, lag)
-        except np.linalg.LinAlgError:
-            return 0.0, math.nan, math.nan, 0.0
+    for side in sides:
+        p, cov, _, _ = _fit(x[side], y[side], noise, lag)
         out.append((float(p[0]), max(float(cov[0, 0]), 1e-300)))
-    (ml, vl), (mr, vr) = out
-    return abs(ml - mr) / math.sqrt(vl + vr), ml, mr, min(ml / math.sqrt(vl), mr / math.sqrt(vr))
+    return out
+
+
+def _shared_parameters(
+    x: np.ndarray,
+    y: np.ndarray,
+    scale: np.ndarray,
+    sides: tuple[np.ndarray, ...],
+    noise: np.ndarray,
+    shared: np.ndarray,
+) -> np.ndarray:
+    """Return the ``shared`` columns' parameters of the two sides' joint weighted least-squares fit.
+
+    Each side has its own parameters for the other columns; the regressor noise (``noise`` (2, n), of the
+    first columns, :func:`regressor_noise`) is removed from each side's own normal matrix.
+    """
+    p_dim = x.shape[-1]
+    t = _shared_map(p_dim, shared)
+    w = 1.0 / scale**2
+    noise = np.pad(noise, ((0, 0), (0, p_dim - noise.shape[1])))
+    m, v = np.zeros((2 * p_dim, 2 * p_dim)), np.zeros(2 * p_dim)
+    for k, side in enumerate(sides):
+        xs, ys = x[side] * np.sqrt(w)[None, :, None], y[side] * np.sqrt(w)[None, :]
+        block = slice(k * p_dim, (k + 1) * p_dim)
+        m[block, block] = np.einsum("nri,nrj->ij", xs, xs) - np.diag(int(side.sum()) * (w @ noise))
+        v[block] = np.einsum("nri,nr->i", xs, ys)
+    sol = np.linalg.solve(t.T @ m @ t, t.T @ v)
+    return (t @ sol)[shared]
 
 
 def _summary(res, t0: float, t1: float, t0_range: tuple[float, float] | None = None) -> dict[str, Any]:
@@ -336,7 +432,8 @@ def _split(
 
     A change is kept when the two sides' mass difference (:func:`change_z`) is at least ``CHANGE_Z`` std and
     ``MIN_RELATIVE_CHANGE`` of the larger mass, each side's mass at least ``IDENTIFIED_Z`` of its std; each
-    side is then identified on its own, ``guard`` s (one period of the cut-off) away from the change.
+    side is then identified on its own, ``guard`` s (one period of the cut-off) away from the change, and
+    those estimates (the ones reported) must differ by ``MIN_RELATIVE_CHANGE`` too.
     """
     from cart.identify import IdentifiabilityError, identify
 
@@ -350,7 +447,10 @@ def _split(
     x = _with_coulomb(data["x"])[::every]
     kernels = split_kernels(res, data["step"] * every)
     rows_lag = lag / (data["step"] * every)  # rows per independent residual
-    split = best_split(data["t"][::every], x, data["y"][::every], data["scale"], min_len, rows_lag, kernels)
+    shared = shared_columns(x.shape[-1])
+    split = best_split(
+        data["t"][::every], x, data["y"][::every], data["scale"], min_len, rows_lag, kernels, shared=shared
+    )
     if split is None:
         return here
     tc, lo, hi = split
@@ -364,6 +464,8 @@ def _split(
         right = identify(slice_log(log, tc + guard, t1), casters=casters)
     except (IdentifiabilityError, np.linalg.LinAlgError):
         return here
+    if abs(left.params.m - right.params.m) < MIN_RELATIVE_CHANGE * max(left.params.m, right.params.m):
+        return here  # the sides' own estimates, which are reported, must show the change too
     return _split(log, left, t0, tc, depth - 1, t0_range) + _split(log, right, tc, t1, depth - 1, (lo, hi))
 
 

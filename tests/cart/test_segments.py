@@ -91,3 +91,32 @@ def test_the_split_model_is_the_filtered_regression_of_a_switching_cart():
     at = int(np.argmin(switched))
     assert idx[at] == i_c
     assert switched[at] < 1e-2 * plain.min()
+
+
+def test_a_split_with_shared_columns_is_the_joint_least_squares_fit():
+    # the split's residual with columns both sides share is that of one least-squares fit of the joint design
+    # (each side's own columns zero on the other side's rows, the shared ones on every row)
+    from cart import segments
+
+    rng = np.random.default_rng(1)
+    n, p_dim = 300, 5
+    x = rng.standard_normal((n, 2, p_dim))
+    y = rng.standard_normal((n, 2))
+    scale = np.array([1.0, 2.0])
+    idx = np.array([80, 150, 220])
+    shared = np.array([2, 3])
+    free = np.array([0, 1, 4])
+    got = segments._split_residuals(x, y, scale, idx, None, exchange=False, shared=shared)
+    alone = segments._split_residuals(x, y, scale, idx, None, exchange=False)
+    xs, ys = (x / scale[None, :, None]), (y / scale[None, :])
+    for i, want_shared, want_alone in zip(idx, got, alone):
+        right = (np.arange(n) > i)[:, None, None]
+        left_cols = np.where(right, 0.0, xs)
+        left_cols[..., shared] = xs[..., shared]  # the shared parameters act on every row
+        joint = np.concatenate([left_cols, np.where(right, xs[..., free], 0.0)], axis=-1)
+        both = np.concatenate([np.where(right, 0.0, xs), np.where(right, xs, 0.0)], axis=-1)
+        for design, want in ((joint, want_shared), (both, want_alone)):
+            a = design.reshape(-1, design.shape[-1])
+            r = ys.reshape(-1) - a @ np.linalg.lstsq(a, ys.reshape(-1), rcond=None)[0]
+            assert abs(r @ r - want) < 1e-6 * (r @ r)
+    assert np.all(got >= alone - 1e-9)  # fewer parameters: never a smaller residual
