@@ -159,7 +159,11 @@ class CasterBank:
         self.dvec += inc[2]
 
     def carried(
-        self, after: tuple[np.ndarray, ...], h_before: np.ndarray, p: np.ndarray
+        self,
+        after: tuple[np.ndarray, ...],
+        h_before: np.ndarray,
+        p: np.ndarray,
+        before: tuple[np.ndarray, ...] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return the sums for a restart on the samples ``after`` (cross, info, dvec per geometry) with what the
         samples before taught about the casters kept as a prior.
@@ -167,8 +171,11 @@ class CasterBank:
         A load change restarts the inertial parameters, not the casters: their fit on the samples before
         (given p, the estimate then) becomes a Gaussian prior with the information the samples before hold
         about them once p is accounted for (``h_before``: p's information (6, 6) from those samples and the prior).
+        ``before``: the sums of the samples before (default: the bank's sums less ``after``).
         """
-        cross_b, info_b, dvec_b = (s - a for s, a in zip((self.cross, self.info, self.dvec), after))
+        if before is None:
+            before = tuple(s - a for s, a in zip((self.cross, self.info, self.dvec), after))
+        cross_b, info_b, dvec_b = before
         ridge = (RIDGE_SHARE * np.einsum("gkk->gk", info_b) + 1e-12)[:, :, None] * np.eye(N_COLUMNS)
         c_old = np.linalg.solve(info_b + ridge, (dvec_b - np.einsum("gik,i->gk", cross_b, p))[:, :, None])
         schur = info_b - np.einsum("gik,gil->gkl", cross_b, np.linalg.solve(h_before, cross_b))

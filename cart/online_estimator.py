@@ -41,6 +41,7 @@ from cart.online_regression import (
     OnlineEstimatorError,
     PhysicalPrior,
     RecursiveRegression,
+    ResidualWindow,
     StateVariableFilter,
 )
 from cart.params import CartParams
@@ -84,7 +85,11 @@ class OnlineOptions:
     restarts the parameters from the fit after it;
     ``excitation_margin``: the identifiability gate of the regression from the initial guess (prior units; 0: off,
     :data:`cart.online_regression.EXCITATION_MARGIN` the suggested value;
-    :meth:`cart.online_regression.RecursiveRegression.excited_part`).
+    :meth:`cart.online_regression.RecursiveRegression.excited_part`);
+    ``misfit_weights``: each sample enters the regression with weight 1 / kappa^2, kappa the model's residual ratio
+    over ``misfit_weight_s`` (``None``: the misfit test's window, 2 ``change_window_s``) at the current estimate
+    (:meth:`OnlineLSEstimator._sample_deflation`): a misfitting stretch teaches a weak direction no more than the
+    prior knows; after a load change the samples after its onset are reweighted against their own fit.
     """
 
     cutoff_hz: float = 2.0
@@ -120,6 +125,8 @@ class OnlineOptions:
     window_every_s: float = 2.0
     window_s: float = 30.0
     excitation_margin: float = 0.0
+    misfit_weights: bool = True
+    misfit_weight_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -251,6 +258,7 @@ class OnlineLSEstimator:
         self._cov = self.regression.covariance()
         self._params = params0
         self._misfit = [0.0, 0.0, 0.0]  # EW weight, EW sums of normalized squared residuals (rows)
+        self._local = ResidualWindow(options.misfit_weight_s or 2.0 * options.change_window_s)
         self.residual_ratio = (float("nan"), float("nan"))
         self._changes: list[_Change] = []
         self._flags: list[RunoffFlag] = []
@@ -494,6 +502,10 @@ class OnlineLSEstimator:
             return floor_f, floor_t
         return max(n[1] / n[0], floor_f), max(n[2] / n[0], floor_t)
 
+    def _noise_known(self, dt: float) -> bool:
+        """Return whether the wrench noise is known: given, or measured over at least one cut-off period."""
+        return self.options.wrench_std is not None or self._noise[0] * dt * self.options.cutoff_hz >= 1.0
+
     def _weights(self, dt: float, v: float, om: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (row weights (2,), regressor-noise power (6, 6), expected filtered residual variance (2,)).
 
@@ -525,7 +537,10 @@ class OnlineLSEstimator:
 
     def _init_buffer(self, dt: float) -> None:
         size = max(int(math.ceil(self.options.buffer_s / dt)), 2)
-        shapes = {"t": (), "m": (), "k": (), "s": (4,), "info": (4, 4), "D": (6, 6), "d": (6,), "C": (6, 6)}
+        shapes = {"t": (), "m": (), "k": (), "wd": (), "s": (4,), "info": (4, 4), "D": (6, 6), "d": (6,), "C": (6, 6)}
+        shapes.update(
+            {"Y": (2, 6), "y": (2,), "e": (2,), "nk": ()}
+        )  # rows, wrench less the casters' share, noise variance
         if self.casters is not None:
             g = self.casters.n_geo
             shapes.update({"xc": (g, 6, 4), "xi": (g, 4, 4), "xd": (g, 4)})
@@ -559,16 +574,21 @@ class OnlineLSEstimator:
         reg = self.regression
         p = reg.p
         r = y - Y @ p
-        extra = self._caster_sample(Y, y, w, r, raw, dt, expected) if raw is not None else {}
-        r = r - extra.pop("fit", np.zeros(2))
+        deflate = self._sample_deflation()
+        extra = self._caster_sample(Y, y, w, r, raw, dt, expected, deflate) if raw is not None else {}
+        share = extra.pop("fit", np.zeros(2))
+        r = r - share
         self._check_misfit(Y, r, expected, dt)
+        known = self._noise_known(dt)  # the residual window is relative to the noise model: only once it is known
+        if known:
+            self._local.add(Y, y - share, expected, dt)
         yw = Y * w[:, None]
         info, dvec = yw.T @ Y, yw.T @ y
-        lam = math.exp(-dt / self.options.forgetting_s)
-        reg.add(info, dvec, noise, lam)
         s = yw[:, :4].T @ r
+        lam = math.exp(-dt / self.options.forgetting_s)
+        reg.add(info * deflate, dvec * deflate, noise * deflate, lam)
         misfit = self._misfit_scale()  # the residual ratio, also before the test reports it
-        self._ring().push(t=self.t, m=float(p[0]), k=misfit, s=s, info=info[:4, :4], D=info, d=dvec, C=noise, **extra)
+        self._record(p, misfit, deflate, s, info, dvec, noise, extra, (Y, y - share, expected), known)
         if self.casters is not None:
             self.casters.choose(reg.p, self._cov, misfit, self.options.misfit_ratio)
             reg.nuisance = self.casters.nuisance()
@@ -578,6 +598,53 @@ class OnlineLSEstimator:
             reg.solve(1)
             self._cov = reg.covariance()
         self._update_params()
+
+    def _record(
+        self,
+        p: np.ndarray,
+        misfit: float,
+        deflate: float,
+        s: np.ndarray,
+        info: np.ndarray,
+        dvec: np.ndarray,
+        noise: np.ndarray,
+        extra: dict[str, np.ndarray],
+        row: tuple[np.ndarray, np.ndarray, np.ndarray],
+        known: bool,
+    ) -> None:
+        """Store one sample in the buffer: its increments at full weight and the weight it entered with (``wd``),
+        its row (Y, wrench less the casters' share, noise variance) and whether the noise was known then."""
+        rows, y, e = row
+        self._ring().push(
+            t=self.t,
+            m=float(p[0]),
+            k=misfit,
+            wd=deflate,
+            s=s,
+            info=info[:4, :4],
+            D=info,
+            d=dvec,
+            C=noise,
+            Y=rows,
+            y=y,
+            e=e,
+            nk=float(known),
+            **extra,
+        )
+
+    def _sample_deflation(self) -> float:
+        """Return the weight (at most 1) of this sample's information: 1 / kappa^2, kappa the model's residual ratio.
+
+        Feasible weighted least squares with a local scale: the row weights come from the noise model, and a model
+        that misfits by kappa (the residual power of the current estimate over the misfit test's window,
+        :class:`cart.online_regression.ResidualWindow`) has residuals kappa times larger than that model says. Its
+        samples carry kappa^2 less information: what a misfitting stretch (a real cart's casters swinging round at
+        a start) seems to say about a weakly excited direction does not outweigh the prior. A model that fits
+        (kappa <= 1) keeps the noise model's weights. ``misfit_weights=False``: always 1.
+        """
+        if not self.options.misfit_weights:
+            return 1.0
+        return 1.0 / max(1.0, self._local.ratio2(self.regression.p, self.regression.H))
 
     def _caster_raw(self, u: np.ndarray, dt: float) -> np.ndarray:
         """Return the caster bank's raw columns for the period's filter input u (mean velocity, mid heading)."""
@@ -595,6 +662,7 @@ class OnlineLSEstimator:
         raw: np.ndarray,
         dt: float,
         expected: np.ndarray,
+        deflate: float = 1.0,
     ) -> dict[str, np.ndarray]:
         """Filter the caster columns, compare the models on this sample (prequential), add it to the sums.
 
@@ -610,7 +678,7 @@ class OnlineLSEstimator:
         if reg.nuisance is not None and bank.active is not None:
             out["fit"] = cols[bank.active] @ reg.nuisance.fit(reg.p)
         inc = bank.increments(Y, y, w, cols)
-        bank.add(inc)
+        bank.add(tuple(a * deflate for a in inc))
         out.update(xc=inc[0], xi=inc[1], xd=inc[2])
         return out
 
@@ -648,20 +716,15 @@ class OnlineLSEstimator:
             o.change_rho_rel_std * center[3],
             np.sqrt(np.maximum(np.diag(self._cov)[4:], 1e-12)),
         ]
-        new = RecursiveRegression(PhysicalPrior(center, std), self.options.noise_subspace)
-        new.D, new.d, new.C = buf.read("D")[idx:].sum(0), buf.read("d")[idx:].sum(0), buf.read("C")[idx:].sum(0)
-        after = self._caster_sums(idx, new.D)
-        if after is not None and self.casters is not None and self.casters.active is not None:
-            g = self.casters.active
-            new.nuisance = Nuisance(after[0][g], after[1][g], after[2][g])
-        new.solve(iterations=5)
+        full, new, after, local = self._fit_after(idx, PhysicalPrior(center, std))
         self.detector.restart()
-        if not self._confirmed(new, self._fit_before(idx), float(buf.read("k")[idx])):
+        if not self._confirmed(full, self._fit_before(idx), float(buf.read("k")[idx])):
             self.regression.solve(1)
             self._cov = self.regression.covariance()
             return
         self.regression = new
         self._cov = new.covariance()
+        self._local = local  # the residuals of the samples after the onset
         if after is not None and self.casters is not None:
             self.casters.cross, self.casters.info, self.casters.dvec = after
             new.nuisance = self.casters.nuisance()
@@ -703,6 +766,7 @@ class OnlineLSEstimator:
         new.nuisance = self.casters.nuisance() if self.casters is not None else None
         new.solve(iterations=3)
         self.regression, self._cov = new, new.covariance()
+        self._local.clear()
         if self._changes:
             self._changes[-1].mass_end = change.before.m
         index = len(self.window.changes) - 1 if self.window is not None else None
@@ -714,32 +778,95 @@ class OnlineLSEstimator:
             self._buffer.clear()
         self._update_params()
 
-    def _caster_sums(
-        self, idx: int, d_after: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """Return the caster columns' sums (cross, info, dvec) over the buffered samples from ``idx`` (None: off).
-
-        ``d_after``: the regression's normal matrix of those samples; when given, the casters' fit on the samples
-        before ``idx`` is carried over as a prior (:meth:`CasterBank.carried`).
-        """
-        if self.casters is None:
-            return None
+    def _weighted_sum(self, key: str, idx: int) -> np.ndarray:
+        """Return the sum of the buffered samples' ``key`` from ``idx``, each at the weight it entered the regression with."""
         buf = self._ring()
-        after = (buf.read("xc")[idx:].sum(0), buf.read("xi")[idx:].sum(0), buf.read("xd")[idx:].sum(0))
-        if d_after is None:
-            return after
+        rows, wd = buf.read(key)[idx:], buf.read("wd")[idx:]
+        return np.tensordot(wd, rows, axes=1)
+
+    def _fit_after(
+        self, idx: int, prior: PhysicalPrior
+    ) -> tuple[RecursiveRegression, RecursiveRegression, tuple[np.ndarray, ...] | None, ResidualWindow]:
+        """Return the fits of the samples from the onset ``idx`` under ``prior`` (at full weight; reweighted), the
+        reweighted fit's caster sums and the residual window of those samples.
+
+        The samples entered the regression weighted by the residual ratio of the estimate *before* the change
+        (:meth:`_sample_deflation`), which the change itself raised. They are fitted at full weight first (what
+        the confirmation tests, :meth:`_confirmed`), then reweighted by their own residual ratio against that fit
+        (one step of iteratively reweighted least squares, :meth:`_refit_weights`): what still misfits after the
+        change (the transient after a load's drop) keeps a small weight in the estimate that goes on.
+        The casters' fit on the samples before the onset is carried over as a prior (:meth:`CasterBank.carried`).
+        """
         reg = self.regression
+        d_before = reg.D - self._weighted_sum("D", idx)
         _, jr = reg.prior.residual(reg.p)
-        return self.casters.carried(after, reg.D - d_after + jr.T @ jr, reg.p)
+        weights = np.ones(len(self._ring().read("t")) - idx)
+        full, after = self._weighted_fit(idx, prior, weights, d_before + jr.T @ jr)
+        new = full
+        if self.options.misfit_weights:
+            weights = self._refit_weights(idx, full)
+            new, after = self._weighted_fit(idx, prior, weights, d_before + jr.T @ jr)
+        return full, new, after, self._window_from(idx)
+
+    def _weighted_fit(
+        self, idx: int, prior: PhysicalPrior, weights: np.ndarray, info_before: np.ndarray
+    ) -> tuple[RecursiveRegression, tuple[np.ndarray, ...] | None]:
+        """Return the fit of the samples from ``idx`` with ``weights`` under ``prior`` and its caster sums
+        (the casters' fit on the samples before, whose information with the prior is ``info_before``, carried)."""
+        buf = self._ring()
+        new = RecursiveRegression(prior, self.options.noise_subspace)
+        new.D, new.d, new.C = (np.tensordot(weights, buf.read(k)[idx:], axes=1) for k in ("D", "d", "C"))
+        after = None
+        if self.casters is not None:
+            bank, keys = self.casters, ("xc", "xi", "xd")
+            sums = tuple(np.tensordot(weights, buf.read(k)[idx:], axes=1) for k in keys)
+            before = tuple(b - self._weighted_sum(k, idx) for b, k in zip((bank.cross, bank.info, bank.dvec), keys))
+            after = bank.carried(sums, info_before, self.regression.p, before)
+            if self.casters.active is not None:
+                g = self.casters.active
+                new.nuisance = Nuisance(after[0][g], after[1][g], after[2][g])
+        new.solve(iterations=5)
+        return new, after
+
+    def _refit_weights(self, idx: int, fit: RecursiveRegression) -> np.ndarray:
+        """Return the weights of the samples from ``idx`` by their own misfit against ``fit``: 1 / max(1, q), q the
+        squared residual ratio smoothed forwards and backwards over one cut-off period (the filtered residuals'
+        correlation time), so that a transient (the filter's restart after a load's drop) weighs only itself."""
+        buf = self._ring()
+        t, rows, y, e, known = (buf.read(k)[idx:] for k in ("t", "Y", "y", "e", "nk"))
+        r = y - np.einsum("nij,j->ni", rows, fit.p)
+        q = np.max(r * r / e, axis=1)
+        lam = np.exp(-np.diff(t) * self.options.cutoff_hz)
+        n = len(t)
+        smooth = np.zeros((2, n))
+        for sweep, order in ((0, range(n)), (1, range(n - 1, -1, -1))):
+            acc = [0.0, 0.0]
+            for k in order:
+                j = k - 1 if sweep == 0 else k  # the gap to the previous sample of the sweep
+                decay = float(lam[j]) if 0 <= j < n - 1 else 0.0
+                acc = [decay * acc[0] + 1.0, decay * acc[1] + float(q[k])]
+                smooth[sweep, k] = acc[1] / acc[0]
+        ratio = 0.5 * (smooth[0] + smooth[1])
+        return np.where(known > 0.0, 1.0 / np.maximum(1.0, ratio), 1.0)
+
+    def _window_from(self, idx: int) -> ResidualWindow:
+        """Return the residual window of the samples from ``idx``."""
+        buf = self._ring()
+        t, rows, y, e, known = (buf.read(k)[idx:] for k in ("t", "Y", "y", "e", "nk"))
+        window = ResidualWindow(self._local.time_s)
+        for k in range(len(t)):
+            if known[k]:
+                window.add(rows[k], y[k], e[k], float(t[k] - t[k - 1]) if k else math.inf)
+        return window
 
     def _fit_before(self, idx: int) -> tuple[float, float]:
         """Return (mass, std) fitted on the samples before the onset ``idx`` alone (the regression's own prior)."""
-        buf, reg = self._ring(), self.regression
+        reg = self.regression
         before = RecursiveRegression(reg.prior, reg.noise_subspace)
-        before.D = reg.D - buf.read("D")[idx:].sum(0)
-        before.d = reg.d - buf.read("d")[idx:].sum(0)
-        before.C = reg.C - buf.read("C")[idx:].sum(0)
-        after = self._caster_sums(idx)
+        before.D = reg.D - self._weighted_sum("D", idx)
+        before.d = reg.d - self._weighted_sum("d", idx)
+        before.C = reg.C - self._weighted_sum("C", idx)
+        after = tuple(self._weighted_sum(k, idx) for k in ("xc", "xi", "xd")) if self.casters is not None else None
         if after is not None and self.casters is not None and self.casters.active is not None:
             g, bank = self.casters.active, self.casters
             before.nuisance = Nuisance(

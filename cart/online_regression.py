@@ -263,3 +263,49 @@ class RecursiveRegression:
         """Return the covariance of p under the prior alone, linearized at the current estimate."""
         _, jr = self.prior.residual(self.p)
         return np.linalg.inv(jr.T @ jr)
+
+
+class ResidualWindow:
+    """Exponentially weighted residual power of the regression's rows, evaluated at any estimate p.
+
+    Per row i the window keeps ``sum lam^(n-k) [y_i^2, y_i Y_i, Y_i^T Y_i] / e_i`` (``e_i``: the row's noise
+    variance), so ``ratio2(p)``, the windowed mean of ``(y_i - Y_i p)^2 / e_i`` (largest row), is the residual
+    power of the *current* estimate over the window: the model's misfit, not the estimate's past errors (a guess
+    far off that the data have since corrected raises nothing).
+    """
+
+    def __init__(self, time_s: float) -> None:
+        if not (math.isfinite(time_s) and time_s > 0.0):
+            raise OnlineEstimatorError(f"the residual window needs a positive time constant, got {time_s}")
+        self.time_s = float(time_s)
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget every sample."""
+        self.weight = 0.0
+        self.yy = np.zeros(2)
+        self.yY = np.zeros((2, 6))
+        self.YY = np.zeros((2, 6, 6))
+
+    def add(self, rows: np.ndarray, y: np.ndarray, e: np.ndarray, dt: float) -> None:
+        """Add one sample: rows Y (2, 6), outputs y (2,), noise variances e (2,), after a period dt."""
+        lam = math.exp(-dt / self.time_s)
+        self.weight = lam * self.weight + 1.0
+        self.yy = lam * self.yy + y * y / e
+        self.yY = lam * self.yY + rows * (y / e)[:, None]
+        self.YY = lam * self.YY + np.einsum("ri,rj->rij", rows, rows) / e[:, None, None]
+
+    def ratio2(self, p: np.ndarray, info: np.ndarray | None = None) -> float:
+        """Return the squared residual ratio over the window (largest row; 1 before any sample).
+
+        At p, or with ``info`` (the information (6, 6) behind p) at the estimate the window's samples would give
+        added to it at full weight: the model's misfit once the window has had its say (an estimate the data are
+        still correcting, or that weighted samples left behind, raises nothing by itself).
+        """
+        if self.weight <= 0.0:
+            return 1.0
+        if info is not None:
+            a = info + self.YY.sum(0)
+            p = np.linalg.solve(a + np.diag(1e-12 * np.diag(a) + 1e-300), info @ p + self.yY.sum(0))
+        power = self.yy - 2.0 * self.yY @ p + np.einsum("i,rij,j->r", p, self.YY, p)
+        return float(np.max(power)) / self.weight

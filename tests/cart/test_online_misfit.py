@@ -85,9 +85,10 @@ def test_the_detector_scales_its_chi_square_by_the_misfit():
 def test_the_com_given_to_the_controller_is_no_worse_than_the_prior_under_misfit(deflate):
     """Pushes with little turning and a caster yaw friction the model lacks: the regression's CoM runs off (25 cm
     from the truth, the guess is 15 cm off); the CoM the controller gets, its pull from the prior deflated by the
-    misfit, stays within the guess's error. Without the deflation it does not (the same run, ``deflate_com``)."""
+    misfit, stays within the guess's error. Without the deflation it does not (the same run, ``deflate_com``).
+    The regression's samples at the noise model's weights (``misfit_weights=False``): the deflation alone."""
     log = _with_yaw_friction(_sim(30.0, False).measured, 0.0, 30.0, 4.0)
-    est = make_online_estimator(log.q[0], GUESS, MOCAP.measurement_std(), deflate_com=deflate)
+    est = make_online_estimator(log.q[0], GUESS, MOCAP.measurement_std(), deflate_com=deflate, misfit_weights=False)
     p = _run(log, est, 1, 3.0, 0.3).params()
     error, prior_error = (
         math.hypot(p.dx - TRUTH.dx, p.dy - TRUTH.dy),
@@ -97,3 +98,21 @@ def test_the_com_given_to_the_controller_is_no_worse_than_the_prior_under_misfit
     assert math.hypot(raw[1] / raw[0] - TRUTH.dx, raw[2] / raw[0] - TRUTH.dy) > prior_error
     assert (error <= prior_error) == deflate
     assert abs(p.m - TRUTH.m) < 1.5
+
+
+def test_misfit_weights_bring_the_com_nearer_and_widen_the_mass_std():
+    """The same pushes and caster yaw friction, the CoM deflated as by default: with each sample weighted by the
+    model's residual ratio (default) the CoM given to the controller ends within a third of the guess's error and
+    at most half as far as at the noise model's weights (``misfit_weights=False``); the mass std widens with the
+    misfit and covers the mass's error twice over."""
+    log = _with_yaw_friction(_sim(30.0, False).measured, 0.0, 30.0, 4.0)
+    errors, stds = {}, {}
+    for weights in (True, False):
+        est = make_online_estimator(log.q[0], GUESS, MOCAP.measurement_std(), misfit_weights=weights)
+        p = _run(log, est, 1, 3.0, 0.3).params()
+        errors[weights] = math.hypot(p.dx - TRUTH.dx, p.dy - TRUTH.dy)
+        stds[weights] = est.params_std()["mass"]
+        assert abs(p.m - TRUTH.m) < 2.0 * stds[weights]
+    prior_error = math.hypot(GUESS.dx - TRUTH.dx, GUESS.dy - TRUTH.dy)
+    assert errors[True] <= prior_error / 3.0 and errors[True] <= 0.5 * errors[False]
+    assert stds[True] > stds[False]

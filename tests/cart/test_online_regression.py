@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import cart.online_regression as reg_mod
-from cart.online_regression import PhysicalPrior, RecursiveRegression
+from cart.online_regression import ResidualWindow, PhysicalPrior, RecursiveRegression
 
 #: Prior around the guess (m, dx, dy, rho, c_v, c_w) and the data's own answer, 0.25 m off in dx.
 PRIOR = PhysicalPrior(np.array([16.0, 0.3, 0.0, 0.12, 4.0, 1.0]), np.array([8.0, 0.2, 0.2, 0.06, 2.0, 1.0]))
@@ -77,3 +77,20 @@ def test_the_online_estimator_passes_its_excitation_margin_to_the_regression():
     gated = make_online_estimator(np.zeros(3), guess, std, excitation_margin=1.0)
     assert gated.regression.excitation_margin == 1.0
     assert make_online_estimator(np.zeros(3), guess, std).regression.excitation_margin == 0.0
+
+
+def test_the_residual_window_measures_the_model_not_the_estimate():
+    """Rows whose outputs a p fits up to noise of the given variance: ratio 1 at that p; at a p off by a lot the
+    ratio is large, but with the information behind it (the window's samples added at full weight) it is 1
+    again; outputs three times noisier than their variance say give ratio 3^2."""
+    rng = np.random.default_rng(0)
+    p_true = np.array([20.0, 6.0, 3.0, 46.0, 4.0, 4.0])
+    for scale, expect in ((1.0, 1.0), (3.0, 9.0)):
+        window = ResidualWindow(3.0)
+        for _ in range(3000):
+            rows = rng.standard_normal((2, 6))
+            window.add(rows, rows @ p_true + scale * rng.standard_normal(2), np.ones(2), 0.01)
+        assert window.ratio2(p_true) == pytest.approx(expect, rel=0.15)
+        far = p_true * 3.0
+        assert window.ratio2(far) > 50.0 * expect
+        assert window.ratio2(far, 1e-3 * np.eye(6)) == pytest.approx(expect, rel=0.15)
