@@ -83,6 +83,14 @@ class EKFConfig:
     test is on the mean of the innovations over non-overlapping windows of
     ``change_window`` updates, at false-alarm probability ``change_alpha`` per
     window.
+
+    ``adaptive_q_tau`` (s; 0 = off, the paper's filter): process noise on the velocities that adapts to
+    a bias of their innovations (see :meth:`CartEKF.adapt_process_noise`): the exponential mean of each
+    normalized innovation of vx, vy, omega over ``adaptive_q_tau`` seconds, squared and normalized to
+    chi-square with 1 dof, scales the next prediction's ``q_vel`` / ``q_omega`` (by at least 1). A
+    model error that persists (a cart turning faster than the wrench predicts) raises the velocity
+    covariance within a few periods, so the filter follows the motion capture with a larger gain instead
+    of gating it and then snapping to it after ``gate_max_consecutive`` rejections.
     """
 
     meas_std: tuple[float, ...] = (0.005, 0.005, 0.005, 0.005, 0.005, 0.005)
@@ -102,6 +110,7 @@ class EKFConfig:
     gate_alpha: float = 1e-6
     gate_max_consecutive: int = 5
     gap_factor: float = 5.0
+    adaptive_q_tau: float = 0.0
 
     @classmethod
     def from_noise(cls, meas_std: Sequence[float] | np.ndarray, **kwargs) -> EKFConfig:
@@ -289,6 +298,11 @@ class CartEKF:
         self._gate = chi2_isf(alpha, N_MEAS) if alpha > 0.0 else math.inf
         self._gate_streak = 0
         self._gate_max = max(int(config.gate_max_consecutive), 0)
+        if config.adaptive_q_tau < 0.0 or config.adaptive_q_tau != config.adaptive_q_tau:
+            raise ParameterError(f"adaptive_q_tau must be >= 0 (0: off), got {config.adaptive_q_tau}")
+        #: the innovation-mean statistics b of vx, vy, omega (chi-square 1 dof when consistent; adaptive_q_tau)
+        self.velocity_bias = [0.0, 0.0, 0.0]
+        self._innovation_mean = [0.0, 0.0, 0.0]
 
     # -- accessors ---------------------------------------------------------------------------
     @property
@@ -396,6 +410,35 @@ class CartEKF:
         self._dt = dt
         self._phi6[0, 3] = self._phi6[1, 4] = self._phi6[2, 5] = dt
         np.multiply(self._qdiag, dt, out=self._qdt)
+
+    def adapt_process_noise(self, ny: Sequence[float], s_diag: Sequence[float]) -> None:
+        """Scale the velocities' process noise by an innovation-mean test (``EKFConfig.adaptive_q_tau``).
+
+        For a consistent filter the innovations are white with covariance S (Bar-Shalom, Li, Kirubarajan,
+        "Estimation with Applications to Tracking and Navigation", 2001, §5.4), so the exponential mean m_i of
+        u_i = y_i / sqrt(S_ii) over ``adaptive_q_tau`` seconds (weight beta = dt / tau) has variance
+        beta / (2 - beta), and b_i = m_i^2 (2 - beta) / beta is chi-square with 1 dof (mean 1). A model error
+        that persists (the prediction lags a turn the wrench model does not explain) biases the innovations
+        one way and b_i grows; the next prediction's process noise of vx, vy, omega is the density times
+        max(b_i, 1) (covariance matching, R. K. Mehra, "Approaches to adaptive filtering", IEEE TAC 17(5),
+        1972), so the gain rises within a few periods and falls back as the bias goes. White noise does not
+        bias the mean; each u_i is clipped at the gate's sqrt (Huber), so a lone outlier raises b_i to at
+        most about 2 beta gate.
+        """
+        tau = self.config.adaptive_q_tau
+        if tau <= 0.0:
+            return
+        dt = self._dt
+        beta = min(dt / tau, 1.0)
+        norm = (2.0 - beta) / beta
+        clip = math.sqrt(min(self._gate, 1e6))
+        m, b = self._innovation_mean, self.velocity_bias
+        for i in range(3):
+            s = s_diag[3 + i]
+            u = min(max(-ny[3 + i] / math.sqrt(s), -clip), clip) if s > 0.0 else 0.0
+            m[i] += beta * (u - m[i])
+            b[i] = m[i] * m[i] * norm
+            self._qdt[3 + i] = self._qdiag[3 + i] * dt * max(b[i], 1.0)
 
     def predict(self, gamma: Sequence[float] | np.ndarray, dt: float, gamma_cov: np.ndarray | None = None) -> None:
         """Propagate state (Euler, eq. 16) and covariance (Phi (P + Q dt) Phi^T, Phi = I + F dt, eq. 13/17) over dt.
@@ -642,12 +685,15 @@ class CartEKF:
         x = self._x
         sf = self._sf
         np.add(self._tt6, self.R, out=sf)
+        s_diag = sf.diagonal().tolist() if self.config.adaptive_q_tau > 0.0 else None
         _, _, info = _dposv(sf, self._tf, lower=1, overwrite_a=1, overwrite_b=1)
         if info != 0:  # S not positive definite: repair P (predicted already), then the plain update
             self._repair_covariance()
             return self._update(list(zl))
         wl = self._w.tolist()  # S^-1 (-y)
         nis = ny[0] * wl[0] + ny[1] * wl[1] + ny[2] * wl[2] + ny[3] * wl[3] + ny[4] * wl[4] + ny[5] * wl[5]
+        if s_diag is not None:
+            self.adapt_process_noise(ny, s_diag)
         if nis > self._gate or nis != nis:  # outlier (chi-square gate) or a non-finite state
             return self._gated(nis, ny, list(zl))
         self._gate_streak = 0
