@@ -28,8 +28,9 @@ class BasePlanSettings:
     #: MuJoCo plant does not collide)
     front_reach: float | None = None
     weight_acceleration: float = 1e-5
-    #: weight (against the hand task's 1) and rate (1/s) of the whole-body QP's pull of the base to the plan,
-    #: and weight of its pull of the arm to the plan's postures
+    #: weight (against the hand task's 1) and rate (1/s) of the whole-body QP's pull of the base to its place (the
+    #: plan's in a window, the rigid one outside: all through the run, `PushController._follow_plan`), and weight
+    #: of its pull of the arm to the plan's postures (in the windows)
     base_weight: float = 0.1
     base_gain: float = 10.0
     posture_weight: float = 0.1

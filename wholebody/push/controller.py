@@ -134,8 +134,8 @@ class PushController:
         #: per robot: its base plan (`wholebody.push.base_plan`) when `PushConfig.base_plan` is set, else None
         edges = np.cumsum([0] + [mm.n_hands for mm in self.robots])
         self.base_plans = [self._base_plan(mm, float(scheduler.y[a])) for mm, a in zip(self.robots, edges[:-1])]
-        #: per robot: its QP's own (posture weight, posture, base weight, base gain), restored outside a plan's windows
-        self._own_terms: dict[int, tuple[float, np.ndarray | None, float, float]] = {}
+        #: per robot: its QP's own (posture weight, posture), restored outside a plan's windows
+        self._own_terms: dict[int, tuple[float, np.ndarray | None]] = {}
 
     def _base_plan(self, mm: MobileManipulator, contact_y: float) -> BasePlan | None:
         """Return robot `mm`'s base plan over the desired motion (None: not asked for, several hands, not holonomic),
@@ -296,23 +296,31 @@ class PushController:
         return self._q_grasp
 
     def _follow_plan(self, mm: MobileManipulator, posture: np.ndarray | None) -> None:
-        """Inside a base plan's window (`posture` given) pull robot `mm`'s base to the plan with
-        `BasePlanSettings.base_weight`, `base_gain` and its arm to the plan's `posture` with `posture_weight`;
-        outside (None) give the whole-body QP its own base and posture terms back."""
+        """Pull robot `mm`'s base to its place (the plan's inside a window, the rigid one outside) with
+        `BasePlanSettings.base_weight` and `base_gain` all through the run, and its arm to the plan's `posture` with
+        `posture_weight` inside a window (`posture` given); outside (None) the QP's own posture term is back.
+
+        The base is held firmly everywhere because a held hand does not follow the QP's arm rates: the handle
+        carries it. The QP's hand task (gain x the hand's pose error: the grasp's give under the push, the
+        estimate's offset) and its posture term trade the base's motion against arm rates that a torque-controlled
+        arm does not make; with the QP's own weak pull (`PUSH_CONTROLLER.base_weight`) the base then falls behind
+        the cart at the rate of that trade and the arm stretches to its straight-elbow singularity (the 90 kg
+        wheelchair on Traj. 1: 10 cm behind by 14 s, the elbow from 1.03 to 0.13 rad, lost)."""
         ctrl, settings = getattr(mm.tracker, "controller", None), self.config.plan_settings()
         tasks = getattr(ctrl, "tasks", ())
         pt = next((k for k in tasks if isinstance(k, PostureTask)), None)
         bt = next((k for k in tasks if isinstance(k, BaseTask)), None)
         if ctrl is None or settings is None or pt is None or bt is None:
             return
-        own = self._own_terms.setdefault(id(mm), (pt.weight, pt.posture, bt.weight, bt.gain))
+        own = self._own_terms.setdefault(id(mm), (pt.weight, pt.posture))
+        bt.weight, bt.gain = settings.base_weight, settings.base_gain
         if posture is None:
             if pt.weight != own[0]:
-                pt.weight, bt.weight, bt.gain = own[0], own[2], own[3]
+                pt.weight = own[0]
                 ctrl.posture = own[1]  # resets the QP's constant Hessian
             return
         if pt.weight != settings.posture_weight:
-            pt.weight, bt.weight, bt.gain = settings.posture_weight, settings.base_weight, settings.base_gain
+            pt.weight = settings.posture_weight
             ctrl.posture = posture
         pt.posture = posture
 
