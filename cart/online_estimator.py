@@ -68,6 +68,8 @@ class OnlineOptions:
     ``change_rho_rel_std`` (relative, J / m): a load changes the mass more than the CoM and the
     radius of gyration;
     ``observer_q_vel`` / ``observer_q_omega``: the state observer's process noise (EKFConfig);
+    ``observer_adaptive_q_tau``: the observer's innovation-adaptive process noise (s; `EKFConfig.adaptive_q_tau`,
+    0 = off: on, MuJoCo Traj. 2 loses seed 2 in its third turn);
     ``misfit_ratio``: residual ratio flagged as misfit; ``excited_ratio``: posterior / prior std
     above which a parameter counts as not excited;
     ``impulse_alpha``: false-alarm probability of the impulse test (the state observer's NIS: a jump of
@@ -113,6 +115,7 @@ class OnlineOptions:
     observer_q_vel: float = 1e-5
     observer_q_omega: float = 1e-5
     observer_input_noise: bool = True
+    observer_adaptive_q_tau: float = 0.0
     misfit_ratio: float = 2.0
     excited_ratio: float = 0.9
     noise_time_s: float = 5.0
@@ -282,6 +285,7 @@ class OnlineLSEstimator:
             estimate_params=False,
             q_vel=self.options.observer_q_vel,
             q_omega=self.options.observer_q_omega,
+            adaptive_q_tau=self.options.observer_adaptive_q_tau,
         )
         self.observer = CartEKF(q0, qd0, params0.phi, params0.sigma, cfg, sigma_yaw=params0.sigma_yaw)
 

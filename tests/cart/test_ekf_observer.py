@@ -110,3 +110,15 @@ def test_default_is_the_paper_filter_and_a_negative_tau_is_refused():
     assert ekf.velocity_bias == [0.0, 0.0, 0.0]  # never updated
     with pytest.raises(ParameterError):
         CartEKF(z[0, :3], z[0, 3:], truth.phi, truth.sigma, EKFConfig(adaptive_q_tau=-1.0))
+
+
+def test_online_estimator_passes_the_adaptive_option_to_its_observer():
+    """`OnlineOptions.observer_adaptive_q_tau` reaches the state observer's `EKFConfig` (off by default)."""
+    from cart.online_estimator import make_online_estimator
+    from cart.params import CartParams
+
+    std = MeasurementNoise().measurement_std()
+    default = make_online_estimator(np.zeros(3), CartParams(m=20.0, dx=0.3, dy=0.0), std)
+    adaptive = make_online_estimator(np.zeros(3), CartParams(m=20.0, dx=0.3, dy=0.0), std, observer_adaptive_q_tau=0.1)
+    assert default.observer.config.adaptive_q_tau == 0.0
+    assert adaptive.observer.config.adaptive_q_tau == pytest.approx(0.1)
