@@ -118,7 +118,9 @@ def test_online_estimator_passes_the_adaptive_option_to_its_observer():
     from cart.params import CartParams
 
     std = MeasurementNoise().measurement_std()
-    default = make_online_estimator(np.zeros(3), CartParams(m=20.0, dx=0.3, dy=0.0), std)
-    adaptive = make_online_estimator(np.zeros(3), CartParams(m=20.0, dx=0.3, dy=0.0), std, observer_adaptive_q_tau=0.1)
+    default = make_online_estimator(np.zeros(3), CartParams(m=20.0, dx=0.3, dy=0.0, I=1.5), std)
+    adaptive = make_online_estimator(
+        np.zeros(3), CartParams(m=20.0, dx=0.3, dy=0.0, I=1.5), std, observer_adaptive_q_tau=0.1
+    )
     assert default.observer.config.adaptive_q_tau == 0.0
     assert adaptive.observer.config.adaptive_q_tau == pytest.approx(0.1)
