@@ -240,27 +240,32 @@ class MujocoPlant:
         self._laws = self._arm_laws(setups)
         #: per robot: (white noise std, offset) of its external joint torque, N m per joint
         self._joint_noise = self._draw_joint_noise()
-        self._qacc = np.zeros(self.scene.model.nv)
-        self._quat = np.zeros(4)
-        self._vel6 = np.zeros(6)
-        self._target_prev: list[np.ndarray | None] = [None] * len(robots)
-        self._rne = np.zeros(self.scene.model.nv)
-        self._mdv = np.zeros(self.scene.model.nv)
-        self._joint_frc = np.zeros(self.scene.model.nv)
-        self._stats = _Stats(per_robot_err=[[0.0, 0.0] for _ in robots])
-        self._theta_prev = float(cart_pose[2])
-        self._theta = float(cart_pose[2])
-        self._base_yaw = [float(s.x[2]) for s in setups]
-        self._yaw_prev = list(self._base_yaw)
-        self._hand_clean = [np.zeros(6) for _ in robots]
-        self._hand_sum = [np.zeros(6) for _ in robots]
-        self._base_int = [np.zeros(3) for _ in robots]
+        self._init_buffers(len(robots), float(cart_pose[2]))
         self._pending = sorted(load_changes, key=lambda c: c.t)
         self._start()
         #: [(time it took effect, the cart's inertial truth from then on)], the first at t = 0
         self.inertial_log: list[tuple[float, CartInertial]] = [(0.0, self._inertial)]
         i0 = self._inertial
         check_changes(CartParams(i0.mass, *i0.com_b, i0.inertia), self._pending, math.inf)
+
+    def _init_buffers(self, n_robots: int, theta0: float) -> None:
+        """Allocate the per-step work arrays and the run's statistics (after the scene and the setups exist)."""
+        nv = self.scene.model.nv
+        self._qacc = np.zeros(nv)
+        self._quat = np.zeros(4)
+        self._vel6 = np.zeros(6)
+        self._target_prev: list[np.ndarray | None] = [None] * n_robots
+        self._rne = np.zeros(nv)
+        self._mdv = np.zeros(nv)
+        self._joint_frc = np.zeros(nv)
+        self._stats = _Stats(per_robot_err=[[0.0, 0.0] for _ in range(n_robots)])
+        self._theta_prev = theta0
+        self._theta = theta0
+        self._base_yaw = [float(s.x[2]) for s in self._setups]
+        self._yaw_prev = list(self._base_yaw)
+        self._hand_clean = [np.zeros(6) for _ in range(n_robots)]
+        self._hand_sum = [np.zeros(6) for _ in range(n_robots)]
+        self._base_int = [np.zeros(3) for _ in range(n_robots)]
 
     def _draw_joint_noise(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """Return each robot's joint torque sensing noise: (white std per step, offset drawn once), N m per joint."""
