@@ -139,7 +139,7 @@ def _loop_wrench(law, J, reading, steps: int) -> np.ndarray:
 
 
 def test_integral_grows_with_the_shortfall_and_holds_while_the_torques_saturate():
-    gains = replace(LOOP, fusion_tau=0.0)
+    gains = replace(LOOP, fusion_tau=0.0, budget=False)  # the clipped law: the budget never saturates a joint
     k = np.r_[np.full(3, gains.force_feedback), np.full(3, gains.moment_feedback)]
     law, J, w = _law(gains)
     out = _loop_wrench(law, J, 0.5 * w, 500)  # 1 s of a hand delivering half the wrench
