@@ -33,6 +33,7 @@ from __future__ import annotations
 
 
 import argparse
+from collections.abc import Callable
 import json
 import math
 from dataclasses import replace
@@ -432,6 +433,23 @@ def mujoco_loads_part(seeds: tuple[int, ...] = (*range(100, 106), *range(300, 31
     return out
 
 
+def _print_replay(rows: list[dict], prefix: str, head: Callable[[dict], str]) -> None:
+    """Print a replay part's rows (`head(row)` names the log; ``{tc}`` in it is the change time) and its tally."""
+    for row in rows:
+        ev = ", ".join(
+            f"{e['t_change']:.2f} / {e['t_detected']:.2f} s ({e['method']}), {e['mass_after']:.1f} kg"
+            for e in row["events"]
+        )
+        tc = "-" if row["t_change"] is None else f"{row['t_change']:.2f} s"
+        print(f"{head(row).format(tc=tc)}: reported [{ev}] {'ok' if row['ok'] else 'MISS'}")
+    if rows:
+        ch = [r for r in rows if r["t_change"] is not None]
+        print(
+            f"{prefix}changes within 1 s and 5 %: {sum(r['ok'] for r in ch)} of {len(ch)}; logs without a change and "
+            f"no change reported: {sum(r['ok'] for r in rows if r['t_change'] is None)} of {len(rows) - len(ch)}"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -495,40 +513,18 @@ def main() -> None:
             f"{row['t_change']:.0f} s: final {row['final_mass']:.2f} kg, impulses {row['impulses']}, events {ev}, "
             f"tracking {row['tracking_rms_mm']:.2f} mm"
         )
-    rows = out.get("mujoco_loads", [])
-    for row in rows:
-        ev = ", ".join(
-            f"{e['t_change']:.2f} / {e['t_detected']:.2f} s ({e['method']}), {e['mass_after']:.1f} kg"
-            for e in row["events"]
-        )
-        tc = "-" if row["t_change"] is None else f"{row['t_change']:.2f} s"
-        print(
-            f"mujoco load seed {row['seed']} {row['kind']:8s} change {tc}, effective mass after {row['m_eff_after']:.1f} kg: "
-            f"reported [{ev}] {'ok' if row['ok'] else 'MISS'}"
-        )
-    if rows:
-        ch = [r for r in rows if r["t_change"] is not None]
-        print(
-            f"changes within 1 s and 5 %: {sum(r['ok'] for r in ch)} of {len(ch)}; logs without a change and no "
-            f"change reported: {sum(r['ok'] for r in rows if r['t_change'] is None)} of {len(rows) - len(ch)}"
-        )
-    rigid = out.get("rigid_loads", [])
-    for row in rigid:
-        ev = ", ".join(
-            f"{e['t_change']:.2f} / {e['t_detected']:.2f} s ({e['method']}), {e['mass_after']:.1f} kg"
-            for e in row["events"]
-        )
-        tc = "-" if row["t_change"] is None else f"{row['t_change']:.2f} s"
-        print(
-            f"rigid load seed {row['seed']} change {tc}, {row['mass_before']:.1f} -> {row['mass_after']:.1f} kg: "
-            f"reported [{ev}] {'ok' if row['ok'] else 'MISS'}"
-        )
-    if rigid:
-        ch = [r for r in rigid if r["t_change"] is not None]
-        print(
-            f"rigid: changes within 1 s and 5 %: {sum(r['ok'] for r in ch)} of {len(ch)}; logs without a change and "
-            f"no change reported: {sum(r['ok'] for r in rigid if r['t_change'] is None)} of {len(rigid) - len(ch)}"
-        )
+    _print_replay(
+        out.get("mujoco_loads", []),
+        "",
+        lambda r: (
+            f"mujoco load seed {r['seed']} {r['kind']:8s} change {{tc}}, effective mass after {r['m_eff_after']:.1f} kg"
+        ),
+    )
+    _print_replay(
+        out.get("rigid_loads", []),
+        "rigid: ",
+        lambda r: f"rigid load seed {r['seed']} change {{tc}}, {r['mass_before']:.1f} -> {r['mass_after']:.1f} kg",
+    )
     for row in out.get("loads", []):
         print(
             f"rigid seed {row['seed']} load {row['kind']:4s} {row['mass_before']:.1f} -> {row['mass_after']:.1f} kg:"
