@@ -18,7 +18,6 @@ import gzip
 import math
 import os
 import re
-import warnings
 import zlib
 from dataclasses import dataclass, field
 
@@ -142,17 +141,15 @@ def estimate_velocities(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
     return local_polyfit(t, q, half_window, degree)[1]
 
 
-def _open_text(path: str):
-    # utf-8-sig: a byte-order mark (Excel and some Windows tools write one) is not part of the header
-    if path.endswith(".gz"):
-        return gzip.open(path, "rt", encoding="utf-8-sig", newline="")
-    return open(path, encoding="utf-8-sig", newline="")
-
-
 def _read_lines(path: str) -> list[str]:
+    """Return the file's lines (a .gz file decompressed in one call; utf-8-sig: a byte-order mark that Excel and
+    some Windows tools write is not part of the header)."""
     try:
-        with _open_text(path) as fh:
-            return fh.read().splitlines()
+        with open(path, "rb") as fh:
+            data = fh.read()
+        if path.endswith(".gz"):
+            data = gzip.decompress(data)
+        return data.decode("utf-8-sig").splitlines()
     except (OSError, EOFError, zlib.error) as exc:  # gzip's BadGzipFile is an OSError; corrupt data a zlib.error
         if isinstance(exc, (FileNotFoundError, IsADirectoryError, PermissionError)):
             raise
@@ -255,21 +252,18 @@ def _epoch_hint(name: str, value: float) -> str:
 def _parse_rows_fast(body: list[str], header: list[str], wanted: list[str]) -> np.ndarray | None:
     """Return the values (rows, len(wanted)) in one numpy conversion, or None when any line needs the checked parser.
 
-    Valid when every line has all fields, every field is a number (numpy parses text as ``float``
-    does) and the used columns are within ``MAX_ABS_VALUE``; otherwise :func:`_parse_rows` names the problem.
+    Valid when every line has all fields, every field is a number (numpy's C reader parses text as
+    ``float`` does, and refuses a line whose number of fields differs) and the used columns are within
+    ``MAX_ABS_VALUE``; otherwise :func:`_parse_rows` names the problem.
     """
-    cols = len(header)
-    if any(line.count(",") != cols - 1 for line in body):
+    if not body or not all(body):  # the C reader skips an empty line: its file line would be lost
         return None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # numpy warns when the text does not parse to its end
-        try:
-            flat = np.fromstring(",".join(body), sep=",")  # text mode: C parsing, one pass
-        except ValueError:
-            return None
-    if flat.size != len(body) * cols:
+    try:
+        table = np.loadtxt(body, delimiter=",", comments=None, dtype=float, ndmin=2, quotechar=None)
+    except ValueError:
         return None
-    table = flat.reshape(len(body), cols)
+    if table.shape != (len(body), len(header)):  # a line of blanks only is skipped too
+        return None
     rows = table[:, [header.index(c) for c in wanted]]
     return rows if np.all(np.abs(rows) <= MAX_ABS_VALUE) else None
 
@@ -365,6 +359,16 @@ def _log_from_columns(
     return log
 
 
+def _data_lines(lines: list[str], first: int) -> tuple[list[str], np.ndarray, int]:
+    """Return (the data lines from index ``first`` on, the file line of each, the number of comment lines).
+
+    Blank lines and comment lines among the rows are not rows (a marker a recorder wrote, a flush).
+    """
+    line_of = np.array([k + 1 for k in range(first, len(lines)) if lines[k].strip() and lines[k][0] != "#"], int)
+    comments = sum(1 for k in range(first, len(lines)) if lines[k].startswith("#"))
+    return [lines[k - 1] for k in line_of], line_of, comments
+
+
 def read_log(path: str | os.PathLike) -> CartLog:
     """Return the CartLog of a docs/log_format.md file (.csv or .csv.gz); raise LogFormatError on bad input."""
     path = os.fspath(path)
@@ -379,11 +383,11 @@ def read_log(path: str | os.PathLike) -> CartLog:
     units = header_units(lines[i])
     if units:
         metadata["units (header)"] = units
-    # blank lines and comment lines among the rows are not rows (a marker a recorder wrote, a flush)
-    line_of = np.array([k + 1 for k in range(i + 1, len(lines)) if lines[k].strip() and lines[k][0] != "#"], int)
-    body = [lines[k - 1] for k in line_of]
-    comments = sum(1 for k in range(i + 1, len(lines)) if lines[k].startswith("#"))
-    rows = _parse_rows(path, body, header, wanted, line_of)
+    body, line_of, comments = lines[i + 1 :], np.arange(i + 2, len(lines) + 1), 0
+    rows = _parse_rows_fast(body, header, wanted)  # a plain table: no blank or comment line parses this way
+    if rows is None:
+        body, line_of, comments = _data_lines(lines, i + 1)
+        rows = _parse_rows(path, body, header, wanted, line_of)
     if len(body) < 3:
         raise LogFormatError(f"{path}: only {len(body)} data row(s); a log needs at least 3")
     log = _log_from_columns(path, {name: rows[:, k] for k, name in enumerate(wanted)}, metadata, line_of)

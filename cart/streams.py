@@ -221,8 +221,8 @@ def _interpolated_pose(log: CartLog) -> Stream | None:
     if line.sum() < HELD_SHARE * len(t) or between >= 0.1 * line.sum():
         return None
     runs = _runs(line[1:])
-    if not runs or np.median([last - first + 1 for first, last in runs]) > MAX_PIECE_ROWS:
-        return None
+    if len(runs) < 2 or np.median([last - first + 1 for first, last in runs]) > MAX_PIECE_ROWS:
+        return None  # one straight piece (a pose at rest) has no corners
     return _corners(t, q, runs)
 
 
@@ -234,8 +234,8 @@ def _corners(t: np.ndarray, q: np.ndarray, runs: list[tuple[int, int]]) -> Strea
     lines cross in the column whose slope changes most (relative to its typical change), its pose the
     first line at that time. ``rows`` holds the row before each corner.
     """
-    a1 = np.array([last for _, last in runs[:-1]])
-    b0 = np.array([first for first, _ in runs[1:]])
+    a1 = np.array([last for _, last in runs[:-1]], dtype=int)
+    b0 = np.array([first for first, _ in runs[1:]], dtype=int)
     ok = b0 - a1 == 3
     a1, b0 = a1[ok], b0[ok]
     ta, tb = t[a1 + 1], t[b0 - 1]

@@ -61,3 +61,16 @@ def test_a_measured_pose_and_a_noise_free_cruise_are_not_interpolated_tables():
     for log in (noisy, cruise, smooth):
         st = split_streams(log)
         assert not st.interpolated and st.held_rows == 0 and len(st.pose.t) == len(log.t)
+
+
+def test_a_pose_at_rest_is_no_interpolated_table():
+    """Ten rows of a pose at rest (one straight piece, no corners) under a growing wrench: read as they are.
+
+    The hypothesis example of tests/cart/test_bad_input_property.py that made `cartpush estimate` exit 1
+    (an IndexError in the corner search) instead of refusing the log.
+    """
+    t = np.array([0.00121914, 0.0018508, 0.00211636, 0.0023428, 0.00384403])
+    t = np.r_[t, 0.00550444, 0.00667506, 0.00804225, 0.00911205, 0.01080817]
+    gamma = np.column_stack([10.0 + 4.0 * (t - t[0]), np.zeros(10), 2.0 * (t - t[0])])
+    streams = split_streams(CartLog(t=t, q=np.zeros((10, 3)), gamma=gamma))
+    assert not streams.interpolated
