@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from typing import Any
 
 from cartpush.cli.import_bag import add_topic_options, topic_options
@@ -156,8 +157,19 @@ def _print_table(path: str, log, out: dict[str, Any]) -> None:
         print(f"warning: {w}")
 
 
+def _one_blas_thread() -> None:
+    """Run OpenBLAS on one thread unless ``OPENBLAS_NUM_THREADS`` says otherwise (read when numpy loads).
+
+    The fits' matrices are tall and thin (rows x 16 columns): a second thread saves nothing and, on a busy
+    machine, spins waiting for a core (the 20-minute tiled log of benchmarks/malformed_suite.py: 4.2 s of
+    CPU with the default threads, 3.3 s with one).
+    """
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
 def run(args: argparse.Namespace) -> int:
     """Estimate the parameters of the log and print them; return 0."""
+    _one_blas_thread()
     from cart.jsonout import dumps_strict, to_strict
     from cartpush.ros import load_any
 
