@@ -28,10 +28,11 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   noise), ``E = (J W J^T + R)^-1 J W``, ``F = (J W J^T + R)^-1 R`` the weighted least squares of the joint torques
   and the F/T's forces (``W = diag(1 / sigma_tau^2)``, a joint torque sensor's noise in proportion to its range;
   ``R`` the F/T's: where the joints see the hand, ``F`` is small; along a direction they do not see, a straight
-  elbow's, the F/T's reading; `fused_estimator`), plus the slow part (0.5 s) of the wrist F/T reading minus it (the
-  F/T's accuracy at low frequency: it removes the sensors' offsets, the model's slow errors, payload and
-  friction; `TorqueArmGains.fusion_space` "joint" instead takes the slow part of ``tau_ext + J^T w_FT``, each
-  joint torque's error, off ``tau_ext``: it stays removed as the arm moves). Fed back directly,
+  elbow's, the F/T's reading; `fused_estimator`), corrected by the wrist F/T at low frequency (the F/T's accuracy:
+  it removes the sensors' offsets, the model's slow errors, payload and friction): `TorqueArmGains.fusion_space`
+  "joint" (default) takes the slow part (0.5 s) of ``tau_ext + J^T w_FT``, each joint torque's error, off
+  ``tau_ext`` (it stays removed as the arm moves and the base turns); "hand" adds the slow part of the F/T reading
+  minus ``w_j``, kept in the frame of the arm's mount (`TorqueArmGains.fusion_frame`). Fed back directly,
   the F/T's white noise (3 N per sample at 500 Hz) would be pushed into the cart ``K_f`` times over. The loop's gain is bounded by its one-step
   delay: measured, ``K_f = 6`` rings at 20-50 Hz. The integral stops while a torque is clipped or the budget
   trims the loop (anti-windup). `TorqueArmGains.reference_model` (off by default) compares ``w_f`` with the
@@ -112,11 +113,18 @@ class TorqueArmGains:
     #: (`TorqueArmLaw.joint_torque_sample`) plus the reading's difference to it low-passed with this time constant;
     #: 0 = the F/T reading alone (its noise then enters the loop)
     fusion_tau: float = 0.5
-    #: where the F/T's slow part corrects the joint-side estimate: "hand" (the hand's wrench) or "joint" (each joint
-    #: torque's offset, which stays one as the arm moves). Measured at 3b7a99a (docs/mujoco.md "Wrench error"):
-    #: "joint" halves the error a joint torque offset leaves on some seeds (Traj. 1 seed 2: 12.9 % against 18.6-24 %)
-    #: but loses the 90 kg wheelchair on two seeds of three where "hand" tracks all three
-    fusion_space: str = "hand"
+    #: where the F/T's slow part corrects the joint-side estimate: "joint" (each joint torque's offset, which stays
+    #: one as the arm moves and the base turns) or "hand" (the hand's wrench, in `fusion_frame`: a joint torque offset
+    #: maps to a hand wrench that changes with the posture, and the correction lags each change by ``fusion_tau``).
+    #: Measured (`cartpush push --plant mujoco --trajectory 2 --json --seed S`, S = 0/1/2; docs/mujoco.md "Wrench
+    #: error"): "joint" 6.0/5.7/5.4 % of the hand force; "hand" in the world frame 7.4/12.4/18.0 % (the joint side's
+    #: offset at the hand, about 20 N, turns with the base: 5 N of lag in each turn), in the mount frame 12.0 % (S = 2)
+    fusion_space: str = "joint"
+    #: the frame in which the hand-space fusion keeps the F/T's slow correction ``LP(w_FT - w_j)``: "mount" (the link
+    #: the arm is mounted on, which turns with the base: the joint torque offsets' wrench at the hand stays put in it
+    #: while the posture holds) or "world" (world-aligned: the correction lags a turn of the base by ``fusion_tau``,
+    #: an error of the rotation rate x ``fusion_tau`` x the offset)
+    fusion_frame: str = "mount"
     #: True: the plan term of modes "smoothed" and "refreshed" (the command's planned inertial torque) acts in the
     #: hand's null space only (``N^T``): it holds the posture, and the hand's wrench is ``J^T w`` and the force
     #: loop's. Its task-space part is the inertial torque of the *planned* hand motion, which the welded hand does
@@ -282,6 +290,8 @@ class TorqueArmLaw:
         self._w_joint: np.ndarray | None = None
         self._ft_offset = np.zeros(6)
         self._n_fused = 0
+        #: the rotation (world from the arm's mount link) at the last joint torque sample (`fusion_frame` "mount")
+        self._mount = np.eye(3)
         #: the last external joint torque sample and the low-passed error of the joint torques (fusion "joint")
         self._tau_ext: np.ndarray | None = None
         self._tau_offset = np.zeros(self.limit.size)
@@ -462,21 +472,26 @@ class TorqueArmLaw:
         a = self._period / (g.plan_filter_tau + self._period)
         return d if self._plan is None else self._plan + a * (d - self._plan)
 
-    def joint_torque_sample(self, tau_ext: np.ndarray) -> None:
+    def joint_torque_sample(self, tau_ext: np.ndarray, mount: np.ndarray | None = None) -> None:
         """Take the arm's external joint torque over the last physics step (``J^T`` of the cart's wrench on the hand).
 
         ``tau_ext = (M qdd)_arm + b - tau_joint``: what the joint torque sensors, the accelerations and the model
         say the rest of the world applied to the arm (the caller computes it). The hand's wrench on the cart is
-        the weighted least squares of it and the F/T's reading (`joint_estimate`).
+        the weighted least squares of it and the F/T's reading (`joint_estimate`). `mount`: the rotation (world
+        from the link the arm is mounted on) at the sample, the frame of the F/T's slow correction
+        (`TorqueArmGains.fusion_frame`); None: the last one given (the identity at first).
         """
         self._tau_ext = np.asarray(tau_ext, dtype=float)
+        if mount is not None:
+            self._mount = np.asarray(mount, dtype=float).reshape(3, 3)
         self._w_joint = -self._Jt_pinv @ self._tau_ext
 
     def _measured_wrench(self, ft: np.ndarray) -> np.ndarray:
         """Return the hand's wrench the loop sees: the joint-side estimate + the F/T's slow part (or the F/T alone).
 
         `TorqueArmGains.fusion_space` "joint": ``w = -E (tau_ext - o)``, ``o`` the low-passed ``tau_ext + J^T w_FT``
-        (each joint torque's error against what the F/T says it should read); "hand": ``w = w_j + LP(w_FT - w_j)``.
+        (each joint torque's error against what the F/T says it should read); "hand": ``w = w_j + R LP(R^T (w_FT -
+        w_j))``, ``R`` the arm's mount rotation (`TorqueArmGains.fusion_frame` "mount"; the identity for "world").
         The low-pass (`fusion_tau`) starts as the running mean of the samples so far.
         """
         g = self.gains
@@ -488,8 +503,10 @@ class TorqueArmLaw:
             self._tau_offset += gain * (self._tau_ext + self._J.T @ ft - self._tau_offset)
             return self._E_ft @ ft - self._Jt_pinv @ (self._tau_ext - self._tau_offset)
         w_joint = self.joint_estimate(ft)
-        self._ft_offset += gain * (ft - w_joint - self._ft_offset)
-        return w_joint + self._ft_offset
+        R = self._mount if g.fusion_frame == "mount" else np.eye(3)
+        diff = ft - w_joint
+        self._ft_offset += gain * (np.r_[R.T @ diff[:3], R.T @ diff[3:]] - self._ft_offset)
+        return w_joint + np.r_[R @ self._ft_offset[:3], R @ self._ft_offset[3:]]
 
     def joint_estimate(self, ft: np.ndarray) -> np.ndarray:
         """Return the hand's wrench from the last joint torque sample and the F/T's reading `ft` of the same step:

@@ -566,7 +566,8 @@ class MujocoPlant:
             joint = d.qfrc_actuator[a] + d.qfrc_passive[a] + self._joint_frc[a]
             white, offset = self._joint_noise[i]
             noise = offset + white * self._rng_joint.normal(0.0, 1.0, white.size)
-            law.joint_torque_sample(self._mdv[a] + d.qfrc_bias[a] - joint + noise)
+            mount = d.xmat[m.body_parentid[m.dof_bodyid[a[0]]]]  # the link the arm is mounted on
+            law.joint_torque_sample(self._mdv[a] + d.qfrc_bias[a] - joint + noise, mount)
 
     def _planar_base_rates(self, i: int, r: RobotIndex, twist: np.ndarray) -> np.ndarray:
         """Return the planar base's servo setpoints (world rates): the commanded body twist + the PI loop's integral."""

@@ -246,3 +246,32 @@ def test_joint_space_fusion_keeps_a_joint_torque_offset_out_as_the_arm_moves(spa
         assert moved < 1e-6
     else:  # what the hand-space correction learnt at the old posture no longer fits
         assert moved > 0.1
+
+
+def _yaw(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+@pytest.mark.parametrize(("space", "frame"), [("joint", "world"), ("hand", "mount"), ("hand", "world")])
+def test_fusion_keeps_a_joint_torque_offset_out_as_the_base_turns(space, frame):
+    """The base turns at 0.5 rad/s with the arm's posture held: the world-aligned Jacobian turns with it, and a joint
+    torque offset maps to a hand wrench fixed in the arm's mount frame. Kept per joint or in that frame, the F/T's
+    correction stays right; kept world-aligned it lags the turn by ``fusion_tau`` (error: rate x tau x offset)."""
+    gains = TorqueArmGains(fusion_space=space, fusion_frame=frame, force_integral=0.0)
+    law, J0, w = _law(gains)
+    offset = np.array([3.0, -2.0, 1.0, 0.5, -0.5, 0.2, 0.1])
+    truth = 0.5 * w
+    z, M = np.zeros(7), _law_inertia()
+    errors = []
+    for k in range(1500):  # 3 s: 1 s still, then 2 s turning at 0.5 rad/s
+        R = _yaw(0.5 * max(k * 0.002 - 1.0, 0.0))
+        J = np.vstack([R @ J0[:3], R @ J0[3:]])
+        law.begin(w, z, z, z, J, M, t_end=0.01, dt=0.01)
+        law.joint_torque_sample(-J.T @ truth + offset, R)
+        errors.append(np.abs(law._measured_wrench(truth) - truth).max())
+    lag = max(errors[-250:])
+    if frame == "world":
+        assert lag > 0.1 if space == "hand" else lag < 1e-6
+    else:
+        assert lag < 1e-6
