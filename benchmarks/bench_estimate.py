@@ -10,17 +10,23 @@ Times, in the same run and interleaved (medians over repeats):
 The log comes from the independent test bed (``studies.testbeds.rigid_sim``), 60 s at 100 Hz.
 Never asserts a time.
 
-``--lengths 1 5 20``: also :func:`cart.estimate_report.estimate_log` (what `cartpush estimate` runs)
-on 200 Hz logs of those many minutes (issue 30: linear in the log's length; 20 minutes within 3 s);
-the logs are simulated first (about a minute for 20 minutes of log) and cached in ``--cache DIR``.
+``--lengths 1 5 20``: instead, on 200 Hz logs of those many minutes (issue 30: linear in the log's
+length; 20 minutes within 3 s), the CPU and wall time of :func:`cart.estimate_report.estimate_log` in
+process (what `cartpush estimate` runs; medians of ``--repeats``, after one untimed call that pays the lazy
+imports) and of the whole process ``cartpush estimate LOG --json`` (reading the log and start-up included:
+CPU = user + system, wall, peak resident memory; one run each). The logs are simulated first (about a
+minute for 20 minutes of log) and cached in ``--cache DIR``. ``--tiled``: also the 20-minute log of
+``benchmarks/malformed_suite.py`` (a 40 s, 100 Hz push repeated on a 200 Hz clock, jumps every 40 s).
+OpenBLAS runs on one thread (``OPENBLAS_NUM_THREADS=1`` unless set), as `cartpush estimate` runs it.
 
-Run: .venv/bin/python benchmarks/bench_estimate.py [--repeats N] [--json] [--lengths 1 5 20] [--cache DIR]
+Run: .venv/bin/python benchmarks/bench_estimate.py [--repeats N] [--json] [--lengths 1 5 20 [--tiled]] [--cache DIR]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -29,6 +35,9 @@ import tempfile
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # read when numpy loads: as `cartpush estimate` sets it
+
+import numpy as np  # noqa: E402
 
 from cart.ekf import estimate_from_log  # noqa: E402
 from cart.identify import identify, innovation_check  # noqa: E402
@@ -46,27 +55,78 @@ def _time(fn) -> float:
     return time.perf_counter() - t0
 
 
-def _lengths(minutes: list[float], cache: str, repeats: int, as_json: bool) -> int:
-    """Time estimate_log on 200 Hz logs of the given lengths (minutes); print a table or JSON."""
+def _process(path: str) -> dict:
+    """Return the CPU (user + system) and wall seconds and peak resident MB of `cartpush estimate PATH --json`."""
+    exe = os.path.join(os.path.dirname(sys.executable), "cartpush")
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([exe, "estimate", path, "--json"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    out = proc.stdout.read() if proc.stdout else b""
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    mass = json.loads(out)["mass"] if status == 0 else None
+    return {
+        "process_cpu_s": usage.ru_utime + usage.ru_stime,
+        "process_wall_s": wall,
+        "process_peak_mb": usage.ru_maxrss / 1024.0,
+        "mass": mass,
+    }
+
+
+def _tiled_log(cache: str) -> str:
+    """Return the path of the malformed suite's 20-minute tiled log (written into ``cache`` once)."""
+    from benchmarks.malformed_suite import _recorder_base
+    from cart.logs import CartLog
+
+    path = os.path.join(cache, "tiled_20min.csv.gz")
+    if not os.path.exists(path):
+        base = _recorder_base().measured
+        tl = np.arange(0.0, 1200.0, 0.005)
+        reps = int(math.ceil(len(tl) / len(base.t)))
+        tiled = CartLog(t=tl, q=np.tile(base.q, (reps, 1))[: len(tl)], gamma=np.tile(base.gamma, (reps, 1))[: len(tl)])
+        write_log(path, tiled)
+    return path
+
+
+def _lengths(minutes: list[float], cache: str, repeats: int, tiled: bool) -> list[dict]:
+    """Return one row per log: samples, estimate_log CPU / wall medians in process, the whole process."""
     from cart.estimate_report import estimate_log
     from cart.logs import read_log
 
     os.makedirs(cache, exist_ok=True)
-    rows = []
+    paths = []
     for mins in minutes:
         path = os.path.join(cache, f"long_{mins:g}min.csv.gz")
         if not os.path.exists(path):
             rigid_sim.write_case(rigid_sim.random_case(11, duration=60.0 * mins, rate_hz=200.0, m=40.0), path)
+        paths.append((f"{mins:g} min", path))
+    if tiled:
+        paths.append(("tiled 20 min", _tiled_log(cache)))
+    rows = []
+    for name, path in paths:
         log = read_log(path)
-        times = [_time(lambda: estimate_log(log)) for _ in range(repeats)]
-        rows.append({"minutes": mins, "samples": len(log), "median_s": statistics.median(times)})
-    if as_json:
-        print(json.dumps({"estimate_log_by_length": rows}))
-        return 0
-    print("estimate_log on 200 Hz logs (independent simulator), medians of", repeats)
+        estimate_log(log)  # lazy imports out of the timed runs
+        cpu, wall = [], []
+        for _ in range(repeats):
+            c0, w0 = time.process_time(), time.perf_counter()
+            estimate_log(log)
+            cpu.append(time.process_time() - c0)
+            wall.append(time.perf_counter() - w0)
+        row = {"log": name, "samples": len(log), "cpu_s": statistics.median(cpu), "wall_s": statistics.median(wall)}
+        rows.append({**row, **_process(path)})
+    return rows
+
+
+def _print_lengths(rows: list[dict], repeats: int) -> None:
+    """Print the table of :func:`_lengths`."""
+    print(
+        f"estimate_log in process (medians of {repeats}) and `cartpush estimate LOG --json` (one run); load {os.getloadavg()[0]:.1f}"
+    )
+    print("  log            samples   CPU s  wall s | process CPU s  wall s  peak MB  mass kg")
     for r in rows:
-        print(f"  {r['minutes']:5g} min  {r['samples']:8d} samples  {r['median_s']:7.2f} s")
-    return 0
+        print(
+            f"  {r['log']:13s} {r['samples']:8d} {r['cpu_s']:7.2f} {r['wall_s']:7.2f} | {r['process_cpu_s']:13.2f} "
+            f"{r['process_wall_s']:7.2f} {r['process_peak_mb']:8.0f}  {r['mass'] if r['mass'] is None else round(r['mass'], 3)}"
+        )
 
 
 def main(argv=None) -> int:
@@ -75,10 +135,16 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--lengths", type=float, nargs="*", default=[], metavar="MIN")
+    ap.add_argument("--tiled", action="store_true", help="with --lengths: also the malformed suite's 20-minute log")
     ap.add_argument("--cache", default=os.path.join(tempfile.gettempdir(), "cartpush_bench_estimate"))
     args = ap.parse_args(argv)
     if args.lengths:
-        return _lengths(args.lengths, args.cache, args.repeats, args.json)
+        rows = _lengths(args.lengths, args.cache, args.repeats, args.tiled)
+        if args.json:
+            print(json.dumps({"estimate_by_length": rows, "load": os.getloadavg()[0]}))
+        else:
+            _print_lengths(rows, args.repeats)
+        return 0
     case = rigid_sim.random_case(11, duration=60.0, rate_hz=100.0, jitter=0.0, vel_std=None)
     log, truth = rigid_sim.simulate(case)
     guess = CartParams(20.0, 0.0, 0.0, 2.0, 1.0)
