@@ -121,3 +121,72 @@ class ChangeDetector:
         cov += np.eye(N_INERTIAL) * (1e-12 * np.trace(cov, axis1=1, axis2=2)[:, None, None] + 1e-300)
         g = np.einsum("ki,ki->k", s_rev, np.linalg.solve(cov, s_rev[:, :, None])[:, :, 0])
         return int(np.argmax(g))
+
+
+class MomentumTest:
+    """A load put in at rest, found by the momentum it takes from the cart at an impulse (paper eq. 3-4).
+
+    A load set on the deck at rest joins the cart in a perfectly inelastic impulse: the wheels' no-slip
+    constraint acts sideways only, so the cart's forward momentum ``m v`` is kept (exactly at zero yaw rate),
+    ``m_after v+ = m_before v-``, and the forward speed jumps by the mass ratio ``r = v- / v+`` whatever the
+    wrench does (over the jump's period it moves the speed by ``F dt / m``, which the two sides' lines
+    take out). :meth:`add` keeps the forward speed of the last ``2 side_s`` s, :meth:`arm` marks an impulse
+    (the velocity jump the wrench does not explain, found by the online estimator), and :meth:`check`,
+    ``side_s`` after it, fits a straight line to the speed on each side (ordinary least squares, its
+    residual variance the noise) and evaluates both at the jump (the midpoint of the period before the
+    impulse's sample). The jump is a load put in when the cart moved (both sides the same sign), slowed
+    (``r > 1``), and ``r - 1`` is at least ``min_change`` and ``sigma`` times the ratio's std. A load lifted
+    out leaves with its own momentum (no jump): the regression's tests find it.
+    """
+
+    def __init__(self, side_s: float = 0.1, min_change: float = 0.08, sigma: float = 3.0) -> None:
+        self.side_s = float(side_s)
+        self.min_change = float(min_change)
+        self.sigma = float(sigma)
+        self._t: list[float] = []
+        self._v: list[float] = []
+        self._armed: float | None = None
+        self.tested: list[tuple[float, float, float]] = []  # (impulse time, ratio, its std) of every jump tested
+
+    def add(self, t: float, v: float) -> None:
+        """Store the forward speed ``v`` (m/s) at ``t`` (s); forget what lies more than ``2 side_s`` back."""
+        self._t.append(float(t))
+        self._v.append(float(v))
+        while self._t[0] < self._t[-1] - 2.0 * self.side_s - 1e-9:
+            del self._t[0], self._v[0]
+
+    def arm(self, t: float) -> None:
+        """Mark an impulse at ``t`` (the first sample after the jump): :meth:`check` tests it ``side_s`` later."""
+        self._armed = float(t)
+
+    def check(self, t: float) -> tuple[float, float, float] | None:
+        """Return (impulse time, mass ratio ``m_after / m_before``, its std) of a load put in at the armed impulse
+        once ``side_s`` of samples follow it (None: nothing armed, too early, or no load put in)."""
+        t_imp = self._armed
+        if t_imp is None or t < t_imp + self.side_s - 1e-9:
+            return None
+        self._armed = None
+        t_all, v_all = np.asarray(self._t), np.asarray(self._v)
+        before = t_all < t_imp - 1e-9
+        if before.sum() < 3 or (~before).sum() < 3:
+            return None
+        t_jump = 0.5 * (t_imp + float(t_all[before][-1]))
+        vb, sb = _line_at(t_all[before], v_all[before], t_jump)
+        va, sa = _line_at(t_all[~before], v_all[~before], t_jump)
+        if vb * va <= 0.0:
+            return None
+        ratio = vb / va
+        std = abs(ratio) * math.hypot(sb / vb, sa / va)
+        self.tested.append((t_imp, ratio, std))
+        if ratio - 1.0 < max(self.min_change, self.sigma * std):
+            return None
+        return t_imp, ratio, std
+
+
+def _line_at(t: np.ndarray, v: np.ndarray, t0: float) -> tuple[float, float]:
+    """Return the value at ``t0`` of the least-squares line through (t, v) and its std (residual variance)."""
+    a = np.column_stack([np.ones_like(t), t - t0])
+    coef = np.linalg.lstsq(a, v, rcond=None)[0]
+    r = v - a @ coef
+    var = float(r @ r) / max(len(t) - 2, 1)
+    return float(coef[0]), math.sqrt(max(var * float(np.linalg.inv(a.T @ a)[0, 0]), 0.0))
