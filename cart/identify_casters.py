@@ -133,8 +133,9 @@ def unit_rows(
     return out
 
 
-#: samples per block of :func:`_prefix_products` (a doubling scan within blocks, then one across the block totals)
-SCAN_BLOCK = 64
+#: samples per block of :func:`_prefix_products` (a doubling scan within blocks, then one across the block totals;
+#: short blocks: log2(SCAN_BLOCK) doubling passes over the samples, the recursion on the totals is cheap)
+SCAN_BLOCK = 8
 
 
 def _doubling_scan(a: list[np.ndarray]) -> None:
