@@ -6,7 +6,7 @@ compared with the allocated wrench.
 
 - **Sensor noise** (base at rest, F/T with the loop's 3 N per sample): the fused loop passes the F/T's noise only
   through its slow part, a first-order filter of time constant ``T = fusion_tau``: per axis ``sigma sqrt(dt /
-  (2 T))`` = 0.13 N (``dt`` the physics step). The F/T fed back directly (10 ms filter, ``K_f = 2``) pushes its
+  (2 T))`` = 0.13 N at T = 0.5 s (``dt`` the physics step). The F/T fed back directly (10 ms filter, ``K_f = 2``) pushes its
   noise, filtered to ``sigma sqrt(dt / (2 tau))`` = 0.9 N per axis, into the cart ``K_f`` times over.
 - **Moving base** (the base accelerates toward the cart at 0.5 m/s^2 for 0.6 s, no noise): the arm folds, its
   links' momentum takes about 2 N from the forward push open loop; the proportional loop divides that by
@@ -82,7 +82,9 @@ def test_fused_force_loop_keeps_the_sensor_noise_out_of_the_push(setup):
     sigma = 3.0
     noise = MeasurementNoise(force=sigma, torque=0.1 * sigma)
     dt = MujocoPlantConfig().physics_dt
-    gains = LOOP
+    # T = 0.5 s: the filter starts as the running mean of the samples so far (for the first T / dt of them), so the
+    # 1 s run sees the first-order filter's steady state only with T well under 1 s
+    gains = replace(LOOP, fusion_tau=0.5)
     fused = _rms(_push(_held_cart_plant(setup, gains, noise), 0.0, 1.0)[20:])
     direct = _rms(_push(_held_cart_plant(setup, FT_ONLY, noise), 0.0, 1.0)[20:])
     # what passes the fusion's slow F/T part, per axis, over three axes; twice for the torque noise's share
@@ -152,7 +154,7 @@ def test_integral_grows_with_the_shortfall_and_holds_while_the_torques_saturate(
 
 
 def test_fused_wrench_is_the_joint_estimate_with_the_ft_slow_part():
-    gains = replace(LOOP, force_integral=0.0)
+    gains = replace(LOOP, force_integral=0.0, fusion_tau=0.5)
     law, J, w = _law(gains)
     truth = 0.5 * w
     tau_ext = -J.T @ truth  # the cart pushes back on the hand
