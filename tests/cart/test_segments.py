@@ -120,3 +120,16 @@ def test_a_split_with_shared_columns_is_the_joint_least_squares_fit():
             r = ys.reshape(-1) - a @ np.linalg.lstsq(a, ys.reshape(-1), rcond=None)[0]
             assert abs(r @ r - want) < 1e-6 * (r @ r)
     assert np.all(got >= alone - 1e-9)  # fewer parameters: never a smaller residual
+
+
+def test_a_miss_is_counted_apart_only_when_a_wide_reported_stretch_holds_the_change():
+    # the test bed's count of changes the log cannot date within 1 s (mujoco_loads.in_wide_stretch)
+    from studies.testbeds.mujoco_loads import in_wide_stretch
+
+    first = {"t0": 0.0, "t0_range": None, "mass": 50.0}
+    segs = [first, {"t0": 22.6, "t0_range": [20.4, 24.8], "mass": 45.0}]
+    assert in_wide_stretch(segs, 24.6, 45.0)
+    assert not in_wide_stretch(segs, 25.0, 45.0)  # outside the stretch
+    assert not in_wide_stretch(segs, 24.6, 42.0)  # after-mass 7 % off
+    assert not in_wide_stretch([first, {**segs[1], "t0_range": [22.0, 23.5]}], 23.0, 45.0)  # 1.5 s: datable
+    assert not in_wide_stretch([first], 24.6, 45.0)  # no change reported
