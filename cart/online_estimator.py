@@ -38,6 +38,7 @@ from cart.ekf import CartEKF, EKFConfig, chi2_isf
 from cart.online_casters import CasterBank, Nuisance
 from cart.online_regression import (
     DT_REL_TOL,
+    MisfitLevel,
     OnlineEstimatorError,
     PhysicalPrior,
     RecursiveRegression,
@@ -88,10 +89,13 @@ class OnlineOptions:
     ``excitation_margin``: the identifiability gate of the regression from the initial guess (prior units; 0: off,
     :data:`cart.online_regression.EXCITATION_MARGIN` the suggested value;
     :meth:`cart.online_regression.RecursiveRegression.excited_part`);
-    ``misfit_weights``: each sample enters the regression with weight 1 / kappa^2, kappa the model's residual ratio
-    over ``misfit_weight_s`` (``None``: the misfit test's window, 2 ``change_window_s``) at the current estimate
-    (:meth:`OnlineLSEstimator._sample_deflation`): a misfitting stretch teaches a weak direction no more than the
-    prior knows; after a load change the samples after its onset are reweighted against their own fit.
+    ``misfit_weights``: each sample enters the regression with weight 1 / max(1, kappa^2 / kappa_ref^2), kappa the
+    model's residual ratio over ``misfit_weight_s`` (``None``: the misfit test's window, 2 ``change_window_s``) at the
+    current estimate and kappa_ref the run's level, the ``misfit_level_quantile`` of kappa since the last change (full
+    windows only; at least 1; e.g. 0.05) or, with ``None`` (default), 1: the noise model's own level
+    (:meth:`OnlineLSEstimator._sample_deflation`): a stretch that misfits more than the run (casters swinging round)
+    teaches a weak direction less, a model that misfits uniformly keeps its data; after a load change the samples
+    after its onset are reweighted against their own fit, relative to their own level.
     """
 
     cutoff_hz: float = 2.0
@@ -130,6 +134,7 @@ class OnlineOptions:
     excitation_margin: float = 0.0
     misfit_weights: bool = True
     misfit_weight_s: float | None = None
+    misfit_level_quantile: float | None = None
 
 
 @dataclass(frozen=True)
@@ -262,6 +267,7 @@ class OnlineLSEstimator:
         self._params = params0
         self._misfit = [0.0, 0.0, 0.0]  # EW weight, EW sums of normalized squared residuals (rows)
         self._local = ResidualWindow(options.misfit_weight_s or 2.0 * options.change_window_s)
+        self._level = MisfitLevel(options.misfit_level_quantile or 0.0)
         self.residual_ratio = (float("nan"), float("nan"))
         self._changes: list[_Change] = []
         self._flags: list[RunoffFlag] = []
@@ -637,18 +643,31 @@ class OnlineLSEstimator:
         )
 
     def _sample_deflation(self) -> float:
-        """Return the weight (at most 1) of this sample's information: 1 / kappa^2, kappa the model's residual ratio.
+        """Return the weight (at most 1) of this sample's information: 1 / max(1, kappa^2 / kappa_ref^2).
 
         Feasible weighted least squares with a local scale: the row weights come from the noise model, and a model
         that misfits by kappa (the residual power of the current estimate over the misfit test's window,
-        :class:`cart.online_regression.ResidualWindow`) has residuals kappa times larger than that model says. Its
-        samples carry kappa^2 less information: what a misfitting stretch (a real cart's casters swinging round at
-        a start) seems to say about a weakly excited direction does not outweigh the prior. A model that fits
-        (kappa <= 1) keeps the noise model's weights. ``misfit_weights=False``: always 1.
+        :class:`cart.online_regression.ResidualWindow`) has residuals kappa times larger than that model says.
+        Relative to the run's level kappa_ref (:class:`cart.online_regression.MisfitLevel`: the
+        ``misfit_level_quantile`` of kappa over the full windows since the last change, at least 1; 1 before the
+        first full window, so a start that misfits is weighed against the noise model), a stretch that misfits more
+        (a real cart's casters swinging round at a start or a turn) carries (kappa_ref / kappa)^2 of the others'
+        information: what it seems to say about a weakly excited direction does not outweigh the rest. A model
+        that misfits uniformly (the noise model off by a factor) keeps its samples' weights: the factor scales the
+        whole fit's noise, which the stds and the CoM's deflation account for (:meth:`_misfit_scale`), not the
+        balance between the samples. ``misfit_level_quantile=None``: kappa_ref = 1 (every sample 1 / kappa^2, a
+        uniform misfit loses its data to the prior); ``misfit_weights=False``: always 1.
         """
         if not self.options.misfit_weights:
             return 1.0
-        return 1.0 / max(1.0, self._local.ratio2(self.regression.p, self.regression.H))
+        if self._local.weight <= 0.0:
+            return 1.0
+        ratio2 = self._local.ratio2(self.regression.p, self.regression.H)
+        if self.options.misfit_level_quantile is None:
+            return 1.0 / max(1.0, ratio2)
+        if self._local.elapsed >= self._local.time_s:  # a full window: the run's level counts it
+            self._level.add(ratio2)
+        return 1.0 / max(1.0, ratio2 / self._level.level2())
 
     def _caster_raw(self, u: np.ndarray, dt: float) -> np.ndarray:
         """Return the caster bank's raw columns for the period's filter input u (mean velocity, mid heading)."""
@@ -728,7 +747,7 @@ class OnlineLSEstimator:
             return
         self.regression = new
         self._cov = new.covariance()
-        self._local = local  # the residuals of the samples after the onset
+        self._local, self._level = local  # the residuals of the samples after the onset, their level
         if after is not None and self.casters is not None:
             self.casters.cross, self.casters.info, self.casters.dvec = after
             new.nuisance = self.casters.nuisance()
@@ -771,6 +790,7 @@ class OnlineLSEstimator:
         new.solve(iterations=3)
         self.regression, self._cov = new, new.covariance()
         self._local.clear()
+        self._level.clear()
         if self._changes:
             self._changes[-1].mass_end = change.before.m
         index = len(self.window.changes) - 1 if self.window is not None else None
@@ -790,7 +810,9 @@ class OnlineLSEstimator:
 
     def _fit_after(
         self, idx: int, prior: PhysicalPrior
-    ) -> tuple[RecursiveRegression, RecursiveRegression, tuple[np.ndarray, ...] | None, ResidualWindow]:
+    ) -> tuple[
+        RecursiveRegression, RecursiveRegression, tuple[np.ndarray, ...] | None, tuple[ResidualWindow, MisfitLevel]
+    ]:
         """Return the fits of the samples from the onset ``idx`` under ``prior`` (at full weight; reweighted), the
         reweighted fit's caster sums and the residual window of those samples.
 
@@ -806,11 +828,11 @@ class OnlineLSEstimator:
         _, jr = reg.prior.residual(reg.p)
         weights = np.ones(len(self._ring().read("t")) - idx)
         full, after = self._weighted_fit(idx, prior, weights, d_before + jr.T @ jr)
-        new = full
+        new, level = full, MisfitLevel(self._level.quantile)
         if self.options.misfit_weights:
-            weights = self._refit_weights(idx, full)
+            weights, level = self._refit_weights(idx, full)
             new, after = self._weighted_fit(idx, prior, weights, d_before + jr.T @ jr)
-        return full, new, after, self._window_from(idx)
+        return full, new, after, (self._window_from(idx), level)
 
     def _weighted_fit(
         self, idx: int, prior: PhysicalPrior, weights: np.ndarray, info_before: np.ndarray
@@ -832,10 +854,12 @@ class OnlineLSEstimator:
         new.solve(iterations=5)
         return new, after
 
-    def _refit_weights(self, idx: int, fit: RecursiveRegression) -> np.ndarray:
-        """Return the weights of the samples from ``idx`` by their own misfit against ``fit``: 1 / max(1, q), q the
-        squared residual ratio smoothed forwards and backwards over one cut-off period (the filtered residuals'
-        correlation time), so that a transient (the filter's restart after a load's drop) weighs only itself."""
+    def _refit_weights(self, idx: int, fit: RecursiveRegression) -> tuple[np.ndarray, MisfitLevel]:
+        """Return the weights of the samples from ``idx`` by their own misfit against ``fit`` and those samples'
+        misfit level: 1 / max(1, q / q_ref), q the squared residual ratio smoothed forwards and backwards over one
+        cut-off period (the filtered residuals' correlation time), so that a transient (the filter's restart after a
+        load's drop) weighs only itself, and q_ref their ``misfit_level_quantile`` (1 with ``None``,
+        :meth:`_sample_deflation`)."""
         buf = self._ring()
         t, rows, y, e, known = (buf.read(k)[idx:] for k in ("t", "Y", "y", "e", "nk"))
         r = y - np.einsum("nij,j->ni", rows, fit.p)
@@ -851,7 +875,12 @@ class OnlineLSEstimator:
                 acc = [decay * acc[0] + 1.0, decay * acc[1] + float(q[k])]
                 smooth[sweep, k] = acc[1] / acc[0]
         ratio = 0.5 * (smooth[0] + smooth[1])
-        return np.where(known > 0.0, 1.0 / np.maximum(1.0, ratio), 1.0)
+        level = MisfitLevel(self._level.quantile)
+        for value in ratio[known > 0.0]:
+            level.add(float(value))
+        if self.options.misfit_level_quantile is not None:
+            ratio = ratio / level.level2()
+        return np.where(known > 0.0, 1.0 / np.maximum(1.0, ratio), 1.0), level
 
     def _window_from(self, idx: int) -> ResidualWindow:
         """Return the residual window of the samples from ``idx``."""

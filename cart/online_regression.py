@@ -23,6 +23,7 @@ well than the prior does: a model misfit biases a weakly excited direction most.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -283,6 +284,7 @@ class ResidualWindow:
     def clear(self) -> None:
         """Forget every sample."""
         self.weight = 0.0
+        self.elapsed = 0.0
         self.yy = np.zeros(2)
         self.yY = np.zeros((2, 6))
         self.YY = np.zeros((2, 6, 6))
@@ -291,6 +293,7 @@ class ResidualWindow:
         """Add one sample: rows Y (2, 6), outputs y (2,), noise variances e (2,), after a period dt."""
         lam = math.exp(-dt / self.time_s)
         self.weight = lam * self.weight + 1.0
+        self.elapsed += dt if math.isfinite(dt) else 0.0
         self.yy = lam * self.yy + y * y / e
         self.yY = lam * self.yY + rows * (y / e)[:, None]
         self.YY = lam * self.YY + np.einsum("ri,rj->rij", rows, rows) / e[:, None, None]
@@ -309,3 +312,40 @@ class ResidualWindow:
             p = np.linalg.solve(a + np.diag(1e-12 * np.diag(a) + 1e-300), info @ p + self.yY.sum(0))
         power = self.yy - 2.0 * self.yY @ p + np.einsum("i,rij,j->r", p, self.YY, p)
         return float(np.max(power)) / self.weight
+
+
+class MisfitLevel:
+    """The run's typical squared residual ratio since the last change: a quantile of the samples' values, at least 1.
+
+    Feasible weighted least squares with a scale that varies over the run: the noise model gives the rows'
+    weights, a sample whose local residual ratio kappa^2 (:meth:`ResidualWindow.ratio2`) is above the run's level
+    kappa_ref^2 carries kappa_ref^2 / kappa^2 of the information of the others. A model that misfits uniformly
+    (the noise model off by a factor) has kappa = kappa_ref everywhere: its samples keep their relative weights,
+    and the level is a property of the whole fit (its stds scale by kappa_ref), not a reason to prefer the prior.
+    ``quantile`` (0-1) of the values added since :meth:`clear`; 1 before any. A low quantile is the level of the
+    stretches that fit best, the noise model's factor: the weights keep the ratios 1 / kappa^2 between the samples
+    above it, and a run most of which misfits more (a cart whose casters swing round in every turn, start and stop)
+    does not take its excess for the level, as the median would.
+    """
+
+    def __init__(self, quantile: float = 0.05) -> None:
+        if not (0.0 <= quantile <= 1.0):
+            raise OnlineEstimatorError(f"the misfit level's quantile must be in [0, 1], got {quantile}")
+        self.quantile = float(quantile)
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget every value."""
+        self._values: list[float] = []
+
+    def add(self, ratio2: float) -> None:
+        """Add one sample's squared residual ratio (a non-finite value is ignored)."""
+        if math.isfinite(ratio2):
+            bisect.insort(self._values, float(ratio2))
+
+    def level2(self) -> float:
+        """Return the squared level: the quantile of the values so far (lower one), at least 1 (1 with none)."""
+        if not self._values:
+            return 1.0
+        k = int(math.floor(self.quantile * (len(self._values) - 1)))
+        return max(1.0, self._values[k])

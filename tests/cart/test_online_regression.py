@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import cart.online_regression as reg_mod
-from cart.online_regression import ResidualWindow, PhysicalPrior, RecursiveRegression
+from cart.online_regression import MisfitLevel, OnlineEstimatorError, PhysicalPrior, RecursiveRegression, ResidualWindow
 
 #: Prior around the guess (m, dx, dy, rho, c_v, c_w) and the data's own answer, 0.25 m off in dx.
 PRIOR = PhysicalPrior(np.array([16.0, 0.3, 0.0, 0.12, 4.0, 1.0]), np.array([8.0, 0.2, 0.2, 0.06, 2.0, 1.0]))
@@ -94,3 +94,21 @@ def test_the_residual_window_measures_the_model_not_the_estimate():
         far = p_true * 3.0
         assert window.ratio2(far) > 50.0 * expect
         assert window.ratio2(far, 1e-3 * np.eye(6)) == pytest.approx(expect, rel=0.15)
+
+
+def test_the_misfit_level_is_a_quantile_floored_at_one():
+    """The level is the quantile of the values since the last clear (1 with none, never below 1): the lower quartile of
+    a run misfitting by 4 in three quarters of its samples and 2 in the rest is 2^2; values below 1 give 1; a clear
+    forgets them; a quantile outside [0, 1] is refused."""
+    level = MisfitLevel(0.25)
+    assert level.level2() == 1.0
+    for value in [16.0] * 75 + [4.0] * 25:
+        level.add(value)
+    assert level.level2() == 4.0
+    assert MisfitLevel(0.5).level2() == 1.0
+    level.clear()
+    for value in (0.2, 0.5, float("nan")):
+        level.add(value)
+    assert level.level2() == 1.0
+    with pytest.raises(OnlineEstimatorError):
+        MisfitLevel(1.5)
