@@ -69,7 +69,8 @@ def _section_filter(section: np.ndarray, x: np.ndarray, z0: np.ndarray) -> np.nd
 
     b0, b1, b2, _, a1, a2 = section
     n = len(x)
-    rhs = b0 * x
+    rhs = np.empty(x.shape, order="F")  # LAPACK's layout: no copy in and out of dtbtrs
+    np.multiply(b0, x, out=rhs)
     rhs[1:] += b1 * x[:-1]
     rhs[2:] += b2 * x[:-2]
     rhs[0] += z0[0]

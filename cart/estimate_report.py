@@ -36,7 +36,7 @@ MAX_RELATIVE_STD = 1.0
 #: Half-size (m) of the largest cart (a hospital bed) when the log cannot give the body's size.
 MAX_HALF_SIZE = 1.0
 #: Samples beyond which the EKF check runs on CHECK_CHUNKS evenly spaced stretches of this total length.
-CHECK_SAMPLES = 12_000
+CHECK_SAMPLES = 8_000
 CHECK_CHUNKS = 4
 
 

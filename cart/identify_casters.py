@@ -104,6 +104,12 @@ def _nonnegative_residual(A: np.ndarray, b: np.ndarray) -> float:
     return best
 
 
+def _caster_sum(x: np.ndarray) -> np.ndarray:
+    """Return x[:, 0] + x[:, 1]: the two casters' sum (what ``np.sum(x, axis=1)`` gives, without a reduction over
+    an axis of two)."""
+    return x[:, 0] + x[:, 1]
+
+
 def unit_rows(
     alpha: np.ndarray, rate: np.ndarray, v: np.ndarray, om: np.ndarray, axle: float, trail: float
 ) -> np.ndarray:
@@ -116,20 +122,21 @@ def unit_rows(
     the swivel axis) needs ``f`` along the heading at the swivel axis.
     """
     ys = np.array([HALF_TRACK, -HALF_TRACK])
-    arm = (axle * np.cos(alpha) + ys * np.sin(alpha)) / trail
-    side = np.sin(alpha) / trail
+    cos_a, sin_a = np.cos(alpha), np.sin(alpha)
+    arm = (axle * cos_a + ys * sin_a) / trail
+    side = sin_a / trail
     wheel_rate = rate + om[:, None]
-    rolling = (v[:, None] - om[:, None] * ys) * np.cos(alpha) + om[:, None] * axle * np.sin(alpha)
+    rolling = (v[:, None] - om[:, None] * ys) * cos_a + om[:, None] * axle * sin_a
     eps = [EPS_SHARE * float(np.sqrt(np.mean(r**2))) + 1e-12 for r in (rate, wheel_rate, rolling)]
     out = np.empty((len(om), 2, N_COLUMNS))
     for k, (unit, own) in enumerate(
         ((np.tanh(rate / eps[0]), 1.0), (rate, 1.0), (np.tanh(wheel_rate / eps[1]), 0.0)),
     ):
-        out[:, 0, k] = -np.sum(unit * side, axis=1)
-        out[:, 1, k] = -np.sum(unit * (own - arm), axis=1)
+        out[:, 0, k] = -_caster_sum(unit * side)
+        out[:, 1, k] = -_caster_sum(unit * (own - arm))
     roll = np.tanh(rolling / eps[2])
-    out[:, 0, 3] = np.sum(roll * np.cos(alpha), axis=1)
-    out[:, 1, 3] = np.sum(roll * (axle * np.sin(alpha) - ys * np.cos(alpha)), axis=1)
+    out[:, 0, 3] = _caster_sum(roll * cos_a)
+    out[:, 1, 3] = _caster_sum(roll * (axle * sin_a - ys * cos_a))
     return out
 
 
