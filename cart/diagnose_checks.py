@@ -38,26 +38,33 @@ def cart_is_physical(x: np.ndarray) -> bool:
 
 
 def _x_of(p: np.ndarray) -> np.ndarray:
-    """Return x = [m, m dx, m dy, J, sigma, sigma_yaw] of p = [m, m dx, m dy, I about the CoM, sigma, sigma_yaw]."""
+    """Return x = [m, m dx, m dy, J, sigma, sigma_yaw, theta...] of p = [m, m dx, m dy, I about the CoM, ...].
+
+    The entries after the first four (the dampings, an effect's parameters) are the same in both.
+    """
     m, a, b, inertia = p[0], p[1], p[2], p[3]
-    return np.array([m, a, b, inertia + (a * a + b * b) / m, p[4], p[5]])
+    x = np.array(p, float)
+    x[3] = inertia + (a * a + b * b) / m
+    return x
 
 
 def _jac_x(p: np.ndarray) -> np.ndarray:
-    """Return dx/dp (6, 6) of :func:`_x_of`."""
+    """Return dx/dp (P, P) of :func:`_x_of`."""
     m, a, b = p[0], p[1], p[2]
-    jac = np.eye(N_NOMINAL)
+    jac = np.eye(len(p))
     jac[3, :4] = [-(a * a + b * b) / (m * m), 2.0 * a / m, 2.0 * b / m, 1.0]
     return jac
 
 
 def _start(x: np.ndarray) -> np.ndarray:
-    """Return a feasible start p for the bounded fit from an unconstrained x."""
+    """Return a feasible start p for the bounded fit from an unconstrained x (an effect's parameters kept)."""
     m = max(float(x[0]), 2.0 * MASS_MIN)
     a, b = (float(x[1]), float(x[2])) if x[0] > MASS_MIN else (0.0, 0.0)
     inertia = float(x[3]) - (a * a + b * b) / m
     inertia = max(inertia, 4.0 * GYRATION_MIN**2 * m, 0.05 * m)
-    return np.array([m, a, b, inertia, max(float(x[4]), 0.0), max(float(x[5]), 0.0)])
+    p = np.array(x, float)
+    p[:N_NOMINAL] = [m, a, b, inertia, max(float(x[4]), 0.0), max(float(x[5]), 0.0)]
+    return p
 
 
 def constrained_fit(
@@ -70,20 +77,23 @@ def constrained_fit(
     x0: np.ndarray,
     var_eq: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Return (x, equation variance per row, covariance, -2 log-likelihood) of the bounded nominal fit.
+    """Return (x, equation variance per row, covariance, -2 log-likelihood) of the bounded fit.
 
-    Rows as :func:`cart.diagnose._solve` (``d`` (n, 3, 6) window columns, ``y`` (n, 3), noise
-    loadings ``lv``, ``lw``); weights from the unconstrained fit's equation variances ``var_eq``
-    (3,) and the regressor noise at the current estimate, re-weighted twice. Bounds: m >= MASS_MIN,
-    I about the CoM >= GYRATION_MIN^2 m, sigma and sigma_yaw >= 0. The likelihood is computed as
-    :func:`cart.diagnose._solve` computes it, so candidates compare against it unchanged.
+    Rows as :func:`cart.diagnose._solve` (``d`` (n, 3, P) window columns: the nominal six, then any
+    effect's, ``y`` (n, 3), noise loadings ``lv``, ``lw``); weights from the unconstrained fit's
+    equation variances ``var_eq`` (3,) and the regressor noise at the current estimate, re-weighted
+    twice. Bounds on the cart only: m >= MASS_MIN, I about the CoM >= GYRATION_MIN^2 m, sigma and
+    sigma_yaw >= 0; an effect's parameters are free. The likelihood is computed as
+    :func:`cart.diagnose._solve` computes it, so fits compare against it unchanged.
     """
     from scipy import optimize  # lazy: scipy.optimize costs start-up time
 
-    d2 = d.reshape(-1, N_NOMINAL)
+    n_p = d.shape[-1]
+    d2 = d.reshape(-1, n_p)
     y2 = y.reshape(-1)
     p = _start(np.asarray(x0, float))
-    lo = np.array([MASS_MIN, -np.inf, -np.inf, 0.0, 0.0, 0.0])
+    lo = np.full(n_p, -np.inf)
+    lo[:N_NOMINAL] = [MASS_MIN, -np.inf, -np.inf, 0.0, 0.0, 0.0]
     var_e = np.maximum(np.asarray(var_eq, float), 1e-24)
     for _ in range(3):
         s_k = s2v * np.einsum("nrp,p->nr", lv, _x_of(p)) ** 2 + s2w * np.einsum("nrp,p->nr", lw, _x_of(p)) ** 2
@@ -97,7 +107,7 @@ def constrained_fit(
 
         lo[3] = GYRATION_MIN**2 * max(p[0], MASS_MIN)
         p = np.maximum(p, lo + 1e-12)
-        sol = optimize.least_squares(res, p, jac=jac, bounds=(lo, np.full(N_NOMINAL, np.inf)), method="trf")
+        sol = optimize.least_squares(res, p, jac=jac, bounds=(lo, np.full(n_p, np.inf)), method="trf")
         p = sol.x
         r = y - np.einsum("nrp,p->nr", d, _x_of(p))
         var_e = np.maximum(np.mean(r * r - s_k, axis=0), 0.05 * np.mean(r * r, axis=0) + 1e-24)
@@ -105,7 +115,7 @@ def constrained_fit(
     s_k = s2v * np.einsum("nrp,p->nr", lv, x) ** 2 + s2w * np.einsum("nrp,p->nr", lw, x) ** 2
     r = y - np.einsum("nrp,p->nr", d, x)
     var = var_e[None, :] + s_k
-    a = (d / np.sqrt(var)[..., None]).reshape(-1, N_NOMINAL)
+    a = (d / np.sqrt(var)[..., None]).reshape(-1, n_p)
     cov = np.linalg.pinv(a.T @ a)
     m2ll = float(np.sum(np.log(var) + r * r / var))
     return x, var_e, cov, m2ll

@@ -393,6 +393,10 @@ class CasterSwivel(Effect):
         """Return 3: force, distance and the grid-chosen shape exponent."""
         return 3
 
+    def is_physical(self, theta, nl, x):
+        """Return True when the casters resist (a positive breakaway force): a negative one would push the cart."""
+        return bool(np.isfinite(float(theta[0])) and float(theta[0]) > 0.0)
+
     def nl_grid(self, sig):
         """Return decay distances from 2 cm to 1.5 m (log-spaced)."""
         return [(d,) for d in np.geomspace(0.02, 1.5, 12)]
