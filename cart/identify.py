@@ -742,10 +742,12 @@ def _with_columns(reg: _Regression, cols: np.ndarray, rows: int | None = None) -
 
 def _full_columns(
     grid: _Grid, sos: np.ndarray, keep: np.ndarray, vo: tuple[np.ndarray, np.ndarray], axle: float, trail: float
-) -> tuple[np.ndarray, float]:
-    """Return (the filtered caster columns of one geometry on the kept rows of the whole grid, half-turns)."""
-    full, turns = casters_model.columns(grid.t, vo[0], vo[1], axle, trail)
-    return _filtfilt(sos, full.reshape(len(grid.t), -1)).reshape(full.shape)[keep], turns
+) -> np.ndarray:
+    """Return the filtered caster columns of one geometry on the kept rows of the whole grid."""
+    v, om = vo
+    alpha, rate = casters_model.lanes(grid.t, v, om, (axle,), (trail,))
+    full = casters_model.unit_rows(alpha[:, 0, 0], rate[:, 0, 0], v, om, axle, trail)
+    return _filtfilt(sos, full.reshape(len(grid.t), -1)).reshape(full.shape)[keep]
 
 
 _CasterFit = tuple[_Regression, _Regression, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
@@ -780,10 +782,10 @@ def _caster_fit(
         if not casters.kept:
             return None, casters
         if len(cols) < len(full.y):
-            cols, _ = _full_columns(grid, sos, full.keep, (v, om), axle, trail)
+            cols = _full_columns(grid, sos, full.keep, (v, om), axle, trail)
     else:
         casters = given
-        cols, _ = _full_columns(grid, sos, full.keep, (v, om), given.axle, given.trail)
+        cols = _full_columns(grid, sos, full.keep, (v, om), given.axle, given.trail)
     ext = _with_columns(full, cols)
     reg = _every(ext, step)
     try:

@@ -145,6 +145,29 @@ def unit_rows(
 SCAN_BLOCK = 8
 
 
+def _times(
+    a00: np.ndarray, a01: np.ndarray, a10: np.ndarray, a11: np.ndarray, b: tuple[np.ndarray, ...]
+) -> list[np.ndarray]:
+    """Return the entries [c00, c01, c10, c11] of the 2x2 matrix products A B (entrywise arrays; B's entries ``b``)."""
+    b00, b01, b10, b11 = b
+    c = [a00 * b00, a00 * b01, a10 * b00, a10 * b01]
+    c[0] += a01 * b10
+    c[1] += a01 * b11
+    c[2] += a11 * b10
+    c[3] += a11 * b11
+    return c
+
+
+def _scaled_into(c: list[np.ndarray], out: tuple[np.ndarray, ...]) -> None:
+    """Write the entries ``c`` divided by their largest magnitude (+ 1e-300) into ``out`` (projective state)."""
+    scale = np.abs(c[0])
+    for x in c[1:]:
+        np.maximum(scale, np.abs(x), out=scale)
+    scale += 1e-300
+    for x, o in zip(c, out):
+        np.divide(x, scale, out=o)
+
+
 def _doubling_scan(a: list[np.ndarray]) -> None:
     """Turn the entries a = [m00, m01, m10, m11], each (blocks, n, ...), in place into their prefix products.
 
@@ -156,12 +179,8 @@ def _doubling_scan(a: list[np.ndarray]) -> None:
     d = 1
     while d < a00.shape[1]:
         b00, b01, b10, b11 = a00[:, :-d], a01[:, :-d], a10[:, :-d], a11[:, :-d]
-        c00 = a00[:, d:] * b00 + a01[:, d:] * b10
-        c01 = a00[:, d:] * b01 + a01[:, d:] * b11
-        c10 = a10[:, d:] * b00 + a11[:, d:] * b10
-        c11 = a10[:, d:] * b01 + a11[:, d:] * b11
-        scale = np.maximum(np.maximum(np.abs(c00), np.abs(c01)), np.maximum(np.abs(c10), np.abs(c11))) + 1e-300
-        a00[:, d:], a01[:, d:], a10[:, d:], a11[:, d:] = c00 / scale, c01 / scale, c10 / scale, c11 / scale
+        c = _times(a00[:, d:], a01[:, d:], a10[:, d:], a11[:, d:], (b00, b01, b10, b11))
+        _scaled_into(c, (a00[:, d:], a01[:, d:], a10[:, d:], a11[:, d:]))
         d *= 2
 
 
@@ -185,11 +204,8 @@ def _prefix_products(m: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
     if nb > 1:  # E_b: the product of blocks 0..b; block b + 1's prefixes are multiplied by it on the right
         e00, e01, e10, e11 = _prefix_products(tuple(x[:, -1] for x in a))
         b00, b01, b10, b11 = (x[:-1, None] for x in (e00, e01, e10, e11))
-        a00, a01, a10, a11 = (x[1:] for x in a)
-        c00, c01 = a00 * b00 + a01 * b10, a00 * b01 + a01 * b11
-        c10, c11 = a10 * b00 + a11 * b10, a10 * b01 + a11 * b11
-        scale = np.maximum(np.maximum(np.abs(c00), np.abs(c01)), np.maximum(np.abs(c10), np.abs(c11))) + 1e-300
-        a[0][1:], a[1][1:], a[2][1:], a[3][1:] = c00 / scale, c01 / scale, c10 / scale, c11 / scale
+        c = _times(*(x[1:] for x in a), (b00, b01, b10, b11))
+        _scaled_into(c, tuple(x[1:] for x in a))
     return tuple(x.reshape(nb * SCAN_BLOCK, *rest)[:n] for x in a)
 
 
