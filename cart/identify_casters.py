@@ -204,7 +204,8 @@ def _prefix_products(m: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
     if nb > 1:  # E_b: the product of blocks 0..b; block b + 1's prefixes are multiplied by it on the right
         e00, e01, e10, e11 = _prefix_products(tuple(x[:, -1] for x in a))
         b00, b01, b10, b11 = (x[:-1, None] for x in (e00, e01, e10, e11))
-        c = _times(*(x[1:] for x in a), (b00, b01, b10, b11))
+        a00, a01, a10, a11 = (x[1:] for x in a)
+        c = _times(a00, a01, a10, a11, (b00, b01, b10, b11))
         _scaled_into(c, tuple(x[1:] for x in a))
     return tuple(x.reshape(nb * SCAN_BLOCK, *rest)[:n] for x in a)
 
