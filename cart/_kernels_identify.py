@@ -7,10 +7,9 @@
   Butterworth prototype, pre-warped bilinear transform, second-order sections ordered like
   ``scipy.signal.zpk2sos`` (the poles nearest the unit circle last, the gain in the first section);
 - :func:`sosfiltfilt`: ``scipy.signal.sosfiltfilt(sos, x, axis=0, padlen=...)`` (odd extension, initial
-  states from the steady state of a step, forward and backward passes). Each section's recursion
-  (transposed direct form II) is run by blocks: inside a block of ``L`` samples the output is a
-  convolution with the section's impulse response plus the free response of the block's initial state
-  (one matrix product for all blocks and columns); only the states between blocks are stepped one by one;
+  states from the steady state of a step, forward and backward passes). Each section's recursion is a
+  banded lower-triangular system (the transposed-direct-form-II states enter its first two right-hand
+  sides) solved for all columns at once by LAPACK's ``dtbtrs`` (:func:`_section_filter`);
 - :func:`student_t_quantile`: ``scipy.stats.t.ppf`` for an integer number of degrees of freedom
   (closed-form CDF, Abramowitz & Stegun 26.7.3-4, solved by bisection).
 
