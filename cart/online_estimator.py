@@ -32,7 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import numpy.typing as npt
 
-from cart.change_detection import ChangeDetector, RingBuffer
+from cart.change_detection import ChangeDetector, MomentumTest, RingBuffer
 from cart.dynamics import regressor
 from cart.ekf import CartEKF, EKFConfig, chi2_isf
 from cart.online_casters import CasterBank, Nuisance
@@ -78,6 +78,9 @@ class OnlineOptions:
     bump); after an impulse the regression skips ``impulse_settle_cycles`` periods of the cut-off (the
     filtered signals carry the jump that long); a change found after an impulse (its onset at most twice that
     before it, or earlier) is dated at the impulse;
+    ``momentum_changes``: at each impulse the forward speed's jump is tested for a load put in at rest
+    (:class:`cart.change_detection.MomentumTest` over ``momentum_side_s`` s each side): one found restarts the
+    parameters from the mass before times the jump's ratio (:meth:`OnlineLSEstimator._restart_from_momentum`);
     ``confirm_sigma``: a detection made while the model misfits (residual ratio at the onset above
     ``misfit_ratio``) is a load change only when the masses fitted on each side of the onset differ by this
     many stds of their difference, scaled up by that ratio (:meth:`OnlineLSEstimator._confirmed`);
@@ -125,6 +128,8 @@ class OnlineOptions:
     noise_time_s: float = 5.0
     impulse_alpha: float = 1e-9
     impulse_settle_cycles: float = 1.5
+    momentum_changes: bool = True
+    momentum_side_s: float = 0.1
     confirm_sigma: float = 3.0
     deflate_com: bool = True
     casters: bool = True
@@ -140,7 +145,8 @@ class OnlineOptions:
 @dataclass(frozen=True)
 class LoadChange:
     """A detected load change: estimated onset, detection time (s), mass before and after (kg), GLR statistic
-    (0 for a change the window search found), and the test that found it (``glr`` or ``window``)."""
+    (0 for a change the window search or the momentum test found), and the test that found it (``glr``, ``window``
+    or ``momentum``)."""
 
     t_change: float
     t_detected: float
@@ -277,6 +283,12 @@ class OnlineLSEstimator:
         self._impulse_nis = chi2_isf(options.impulse_alpha, 2)
         self._impulse_t = -math.inf
         self.impulses: list[float] = []
+        self.momentum = (
+            MomentumTest(options.momentum_side_s, options.min_change, options.confirm_sigma)
+            if options.momentum_changes and options.detect_changes
+            else None
+        )
+        self._momentum_before: tuple[CartParams, float] | None = None
         self.casters = CasterBank(StateVariableFilter(options.cutoff_hz, 96)) if options.casters else None
         self.window = (
             WindowChangeDetector(0.0, np.r_[q, qd], options.window_every_s, options.window_s)
@@ -404,9 +416,12 @@ class OnlineLSEstimator:
         )
         impulse = self.options.detect_changes and self._started
         impulse = impulse and self._impulse_statistic(g, dt, zv) > self._impulse_nis
+        if self.momentum is not None:
+            self.momentum.add(self.t, math.cos(float(zv[2])) * zv[3] + math.sin(float(zv[2])) * zv[4])
         if impulse:
             if self.t - self._impulse_t > self._settle_s():
                 self.impulses.append(self.t)
+                self._arm_momentum()
             self._impulse_t = self.t
         self._regression_step(g, dt, zv, impulse)
         if self.window is not None:
@@ -417,7 +432,47 @@ class OnlineLSEstimator:
             for c in self._changes:
                 if c.window_index is not None:
                     c.t_change = self.window.changes[c.window_index].t_change
+        jump = self.momentum.check(self.t) if self.momentum is not None else None
+        if jump is not None:
+            self._restart_from_momentum(*jump)
         return self.nis
+
+    def _arm_momentum(self) -> None:
+        """Mark the impulse for the momentum test, with the mass before it and its std (scaled by the misfit)."""
+        if self.momentum is not None:
+            self.momentum.arm(self.t)
+            std = float(self._physical_std(self._cov)[0]) * self._misfit_scale()
+            self._momentum_before = (self._params, std)
+
+    def _restart_from_momentum(self, t_imp: float, ratio: float, ratio_std: float) -> None:
+        """Restart from a load put in at rest at ``t_imp``: the mass before times the forward speed's jump ratio
+        (:class:`cart.change_detection.MomentumTest`), std from both, enters the new regression as one
+        measurement of the mass; its prior is the re-centred one of a GLR change (``change_mass_rel_std``,
+        ``change_com_std``, ``change_rho_rel_std``; CoM and radius of gyration kept, the damping's std kept), so
+        the GLR's ridge (the prior's information) does not shrink the next change's size."""
+        if self._momentum_before is None:
+            return
+        before, m_std = self._momentum_before
+        after = before.with_mass(before.m * ratio)
+        o, post = self.options, self._physical_std(self._cov)
+        std = {
+            "mass": o.change_mass_rel_std * after.m,
+            "com": (max(float(post[1]), o.change_com_std), max(float(post[2]), o.change_com_std)),
+            "inertia": o.change_rho_rel_std * after.inertia_b,
+            "sigma": float(post[4]),
+            "sigma_yaw": float(post[5]),
+        }
+        change = WindowChange(t_imp, (t_imp, t_imp), self.t, before, after, std)
+        if self.window is not None:
+            self.window.add_change(change, 1.0 / o.cutoff_hz, dated=True)
+        self._restart_from_window(change)
+        var = (after.m * math.hypot(ratio_std / ratio, m_std / before.m)) ** 2
+        e0 = np.eye(6)[0]
+        self.regression.add(np.outer(e0, e0) / var, e0 * after.m / var, np.zeros((6, 6)), 1.0)
+        self.regression.solve(iterations=3)
+        self._cov = self.regression.covariance()
+        self._update_params()
+        self._changes[-1].method = "momentum"
 
     def _impulse_statistic(self, gamma: np.ndarray, dt: float, z: np.ndarray) -> float:
         """Return the normalized jump of forward speed and yaw rate over one period beyond what the wrench explains.
