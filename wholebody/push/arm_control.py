@@ -225,6 +225,25 @@ def fused_estimator(J: np.ndarray, sigma_tau: np.ndarray, sigma_ft: np.ndarray) 
     return np.linalg.solve(A, J * W), np.linalg.solve(A, R)
 
 
+def net_wrench_projector(points: np.ndarray) -> np.ndarray:
+    """Return ``P = G^+ G`` (6n x 6n): the stacked hand wrenches' part that moves the cart's net wrench.
+
+    ``G = [G_1 ... G_n]`` (6 x 6n) maps the hands' wrenches (world-aligned ``[f; n]`` at the grasp points
+    `points`, (n, 3)) to the net wrench on the rigid cart, ``G_i = [[I, 0], [[p_i - c]x, I]]`` (the spatial form of
+    the paper's grasp map, eqs. 23-25; ``c`` the points' mean, which leaves ``P`` unchanged). ``I - P`` keeps the
+    null space of ``G``: the internal wrench (the squeeze between the hands), which no motion of the cart shows.
+    ``P`` is the orthogonal projector onto the range of ``G^T`` (forces in N, moments in N m); with one hand it is
+    the identity.
+    """
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    c = p.mean(axis=0)
+    G = np.zeros((6, 6 * len(p)))
+    for i, r in enumerate(p - c):
+        G[:, 6 * i : 6 * i + 6] = np.eye(6)
+        G[3:, 6 * i : 6 * i + 3] = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    return G.T @ np.linalg.solve(G @ G.T, G)
+
+
 def damped_pinv(J: np.ndarray, damping: float) -> np.ndarray:
     """Return J^T (J J^T + damping I)^-1."""
     return J.T @ np.linalg.inv(J @ J.T + damping * np.eye(J.shape[0]))
@@ -369,6 +388,7 @@ class TorqueArmLaw:
         tilt: tuple[np.ndarray, np.ndarray] | None = None,
         hand: tuple[np.ndarray, np.ndarray] | None = None,
         wrench_measured: np.ndarray | None = None,
+        loop_wrench: np.ndarray | None = None,
     ) -> np.ndarray:
         """Return the joint torques at time `t` and state (q, v), within limits (clipped, or `TorqueArmGains.budget`).
 
@@ -377,13 +397,16 @@ class TorqueArmLaw:
 
         `bias`: the arm's bias forces there; `tilt`: (rotation error hand -> target, hand angular velocity), world
         frame, for the roll/pitch hold (None: off); `wrench_measured`: the F/T reading at the grasp, world-aligned,
-        for the force loop (None: off).
+        for the force loop (None: off); `loop_wrench`: the loop's wrench given from outside instead (`force_loop`
+        of `force_error`, the part in the cart's net wrench with several arms on one cart: `net_wrench_projector`).
         """
         g = self.gains
+        if loop_wrench is None and wrench_measured is not None and g.force_feedback > 0.0:
+            loop_wrench = self.force_loop(self.force_error(wrench_measured))
         task, plan = self._feedforward(g, bias)
         q_plan = self._q_end - self._v * (self._t_end - t)
         impedance = self._NT @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
-        u = self._hand_feedback(g, hand, wrench_measured, tilt)
+        u = self._hand_feedback(g, hand, loop_wrench, tilt)
         posture = plan + impedance
         if g.budget:
             tau = self._prioritized(task, u, posture)
@@ -398,7 +421,7 @@ class TorqueArmLaw:
         self,
         g: TorqueArmGains,
         hand: tuple[np.ndarray, np.ndarray] | None,
-        wrench_measured: np.ndarray | None,
+        loop_wrench: np.ndarray | None,
         tilt: tuple[np.ndarray, np.ndarray] | None,
     ) -> np.ndarray:
         """Return the hand's feedback wrench (world-aligned at the grasp; the arm applies ``J^T`` of it): the
@@ -407,8 +430,8 @@ class TorqueArmLaw:
         if hand is not None:
             p_err, v_err = hand
             u[:3] += g.cartesian_stiffness * p_err + g.cartesian_damping * v_err
-        if wrench_measured is not None and g.force_feedback > 0.0:
-            u += self._force_loop(np.asarray(wrench_measured, dtype=float))
+        if loop_wrench is not None and g.force_feedback > 0.0:
+            u += loop_wrench
         if tilt is not None and (g.tilt_stiffness > 0.0 or g.tilt_damping > 0.0):
             err, omega = tilt
             n = g.tilt_stiffness * err - g.tilt_damping * omega
@@ -544,15 +567,21 @@ class TorqueArmLaw:
         self._w_d_prev = self._w_d.copy()
         return self._w_ref
 
-    def _force_loop(self, ft: np.ndarray) -> np.ndarray:
-        """Return the loop's task-space wrench ``K (e + K_i int e)``, ``e = w - w_f`` (integral held while saturated);
-        ``K`` is ``K_f`` on the force rows, ``moment_feedback`` on the moment rows."""
-        g = self.gains
-        w = self._measured_wrench(ft)
+    def force_error(self, ft: np.ndarray) -> np.ndarray:
+        """Return the force loop's error ``e = w - w_f`` of this physics step: the reference (`reference`) minus the
+        measured hand wrench (`_measured_wrench` of the F/T reading `ft`, low-passed). Call once per physics step."""
+        w = self._measured_wrench(np.asarray(ft, dtype=float))
         self._w_f = w.copy() if self._w_f is None else self._w_f + self._alpha * (w - self._w_f)
-        e = self.reference() - self._w_f
+        return self.reference() - self._w_f
+
+    def force_loop(self, e: np.ndarray, e_integral: np.ndarray | None = None) -> np.ndarray:
+        """Return the loop's task-space wrench ``K (e + K_i int e_I)`` for the error `e` (`force_error`) and the
+        error it integrates `e_integral` (default `e`; with several arms the error's part in the cart's net wrench:
+        `net_wrench_projector`); the integral is held while saturated. ``K`` is ``K_f`` on the force rows,
+        ``moment_feedback`` on the moment rows."""
+        g = self.gains
         if g.force_integral > 0.0 and not self._saturated:
-            self._integral += self._dt * e
+            self._integral += self._dt * (e if e_integral is None else e_integral)
         return self._gain * (e + g.force_integral * self._integral)
 
 

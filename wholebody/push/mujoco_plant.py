@@ -39,7 +39,13 @@ from cart.params import CartParams
 from cart.simulate import MeasurementNoise
 from wholebody.errors import WholeBodyError
 from wholebody.push import mujoco_cart
-from wholebody.push.arm_control import AdmittanceArmLaw, AdmittanceGains, TorqueArmGains, TorqueArmLaw
+from wholebody.push.arm_control import (
+    AdmittanceArmLaw,
+    AdmittanceGains,
+    TorqueArmGains,
+    TorqueArmLaw,
+    net_wrench_projector,
+)
 from wholebody.push.config import PUSH_SENSOR_NOISE, TRUE_CART
 from wholebody.push.load_change import LoadChange, check_changes
 from wholebody.push.mujoco_scene import (
@@ -99,11 +105,18 @@ class MujocoPlantConfig:
     settle_time: float = 0.2
     #: the errors of the torque-controlled arms' external joint torque (`JointTorqueNoise`; zeros: exact)
     joint_torque_noise: JointTorqueNoise = JointTorqueNoise()
-    #: False: with two or more torque-controlled arms on the cart their F/T loops are off (measured: two force loops
-    #: on one rigid cart leave the squeeze between the hands to drift; Traj. 2 diverges at 4.5 s with K_f = 2)
-    multi_arm_force_feedback: bool = False
+    #: the force loops of two or more torque-controlled arms on one cart: "off" (open-loop ``J^T w``), "net" (the
+    #: loops close on the stacked error's part in the cart's net wrench, `arm_control.net_wrench_projector`; the
+    #: squeeze between the hands, which no cart motion shows, is left to the feed-forward) or "full" (each arm on its
+    #: own error). Measured (two Ridgebacks, Traj. 2 seed 0, docs/mujoco.md "Arm laws"): "net" and "full" both drive
+    #: a joint torque to its limit (wrench error 6x and 2x the hand force), "off" 82 %
+    multi_arm_force_loop: str = "off"
 
     def __post_init__(self) -> None:
+        if self.multi_arm_force_loop not in ("net", "full", "off"):
+            raise MujocoPlantError(
+                f"multi_arm_force_loop must be 'net', 'full' or 'off', got {self.multi_arm_force_loop!r}"
+            )
         if not (0 < self.physics_dt <= self.control_dt):
             raise MujocoPlantError(f"need 0 < physics_dt <= control_dt, got {self.physics_dt}, {self.control_dt}")
         ratio = self.control_dt / self.physics_dt
@@ -133,6 +146,9 @@ class _Stats:
     slip_max: float = 0.0
     wheel_slip_max: float = 0.0
     err_sq: float = 0.0
+    #: the hand force error's part in the cart's net wrench and in the squeeze between the hands (several arms)
+    err_net_sq: float = 0.0
+    err_internal_sq: float = 0.0
     force_sq: float = 0.0
     n: int = 0
     wall: float = 0.0
@@ -301,7 +317,7 @@ class MujocoPlant:
         admittance = config.admittance  # the push fed forward through the servos the scene builds (their k_v)
         if admittance.servo_kv is None:
             admittance = replace(admittance, servo_kv=config.servos.arm_kv)
-        if sum(s.arm_mode == ARM_TORQUE for s in setups) > 1 and not config.multi_arm_force_feedback:
+        if sum(s.arm_mode == ARM_TORQUE for s in setups) > 1 and config.multi_arm_force_loop == "off":
             torque_gains = replace(torque_gains, force_feedback=0.0)
         return [
             TorqueArmLaw(r.effort_limit, torque_gains, config.physics_dt)
@@ -429,6 +445,30 @@ class MujocoPlant:
         noise = np.r_[self._rng_loop.normal(0.0, n.force, 3), self._rng_loop.normal(0.0, n.torque, 3)]
         return self._hand_wrench_world(i, self._sensor_wrench(i) + noise)
 
+    def _force_loops(self) -> dict[int, np.ndarray]:
+        """Return each torque law's force loop wrench of this physics step (robot index -> wrench, world-aligned at
+        the grasp; `TorqueArmLaw.force_loop` of `TorqueArmLaw.force_error` of the F/T reading).
+
+        With several loops on the cart and `MujocoPlantConfig.multi_arm_force_loop` "net" both the stacked error
+        and the stacked loop wrench are projected onto the cart's net wrench (`net_wrench_projector` at the grasps):
+        each loop drives the net wrench's error to zero, none integrates along the squeeze between the hands, and
+        the loops' gains (forces and moments differ) put no squeeze into the push.
+        """
+        laws = {i: law for i, law in enumerate(self._laws) if isinstance(law, TorqueArmLaw)}
+        loops = [i for i, law in laws.items() if law.gains.force_feedback > 0.0]
+        errors = [laws[i].force_error(self._ft_at_grasp(i)) for i in loops]
+        if len(loops) < 2 or self.config.multi_arm_force_loop != "net":
+            return {i: laws[i].force_loop(e) for i, e in zip(loops, errors)}
+        P = self._net_projector(loops)
+        e = P @ np.concatenate(errors)
+        u = P @ np.concatenate([laws[i].force_loop(e[6 * k : 6 * k + 6]) for k, i in enumerate(loops)])
+        return {i: u[6 * k : 6 * k + 6] for k, i in enumerate(loops)}
+
+    def _net_projector(self, robots: Sequence[int]) -> np.ndarray:
+        """Return `net_wrench_projector` at the grasps (hand sites) of `robots`, as they are now."""
+        d = self.scene.data
+        return net_wrench_projector(np.array([d.site_xpos[self.scene.robots[i].hand_site] for i in robots]))
+
     def _ft_reading(self, i: int, noisy: bool) -> np.ndarray:
         w = self._sensor_wrench(i)
         if noisy:
@@ -490,6 +530,7 @@ class MujocoPlant:
                 d.ctrl[r.wheel_actuators] = c.wheel_rates
         for k in range(self.n_sub):
             t = self.t + k * self.config.physics_dt
+            loops = self._force_loops()
             for i, (r, c, law) in enumerate(zip(self.scene.robots, commands, self._laws)):
                 if r.arm_hold_actuators.size:
                     d.ctrl[r.arm_hold_actuators] = d.qfrc_bias[r.arm_dof]
@@ -497,9 +538,8 @@ class MujocoPlant:
                     bias = self._arm_bias(r, law)
                     tilt = self._tilt(r, c) if law.gains.tilt_stiffness > 0.0 else None
                     hand = self._hand_error(i, r, c, t_end - t) if law.gains.cartesian_stiffness > 0.0 else None
-                    w_ft = self._ft_at_grasp(i) if law.gains.force_feedback > 0.0 else None
                     d.ctrl[r.arm_actuators] = law.torque(
-                        t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias, tilt, hand, w_ft
+                        t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias, tilt, hand, loop_wrench=loops.get(i)
                     )
                 if r.base == "planar":
                     d.ctrl[r.base_actuators] = self._planar_base_rates(i, r, c.base_twist)
@@ -634,6 +674,18 @@ class MujocoPlant:
             if slip > st.slip_max:
                 st.slip_max = slip
 
+    def _split_error(self, commands: Sequence[RobotCommand]) -> None:
+        """Add the period's hand wrench errors (period mean minus allocated, stacked) to the diagnostics as their part
+        in the cart's net wrench and in the squeeze (`net_wrench_projector` at the grasps; force rows, as
+        ``wrench_error_rms_n``; with one hand all of it is net)."""
+        robots = range(len(self.scene.robots))
+        e = np.concatenate([self._hand_clean[i] - np.asarray(commands[i].hand_wrench, dtype=float) for i in robots])
+        net = self._net_projector(robots) @ e
+        forces = np.r_[[6 * i + k for i in robots for k in range(3)]]
+        self._stats.err_net_sq += float(net[forces] @ net[forces])
+        internal = (e - net)[forces]
+        self._stats.err_internal_sq += float(internal @ internal)
+
     def _after_period(self, commands: Sequence[RobotCommand]) -> None:
         """Unwrap the headings, sense, and add the period to the diagnostics."""
         d, st = self.scene.data, self._stats
@@ -665,6 +717,7 @@ class MujocoPlant:
             else:
                 ratio = np.max(np.abs(d.actuator_force[r.arm_actuators]) / r.effort_limit)
                 st.arm_force_peak_ratio = max(st.arm_force_peak_ratio, float(ratio))
+        self._split_error(commands)
         st.n += 1
         self._z = self._motion_capture()
         for record in [self.cart_joints, *self.robot_joints]:
@@ -695,6 +748,8 @@ class MujocoPlant:
             "cart_com_b_m": [float(v) for v in ci.com_b],
             "cart_inertia_kg_m2": ci.inertia,
             "wrench_error_rms_n": math.sqrt(st.err_sq / n),
+            "wrench_error_net_rms_n": math.sqrt(st.err_net_sq / n),
+            "wrench_error_internal_rms_n": math.sqrt(st.err_internal_sq / n),
             "hand_force_rms_n": math.sqrt(st.force_sq / n),
             "grasp_slip_max_m": st.slip_max,
             "base_wheel_slip_max_m_s": st.wheel_slip_max if differential else None,

@@ -170,6 +170,9 @@ def test_closed_loop_run_reports_its_diagnostics(setup):
     ):
         assert key in rep
     assert rep["base_wheel_slip_max_m_s"] is None  # the Ridgeback's base is planar
+    # one hand: its whole wrench error moves the cart, none of it is a squeeze between hands
+    assert rep["wrench_error_internal_rms_n"] == pytest.approx(0.0, abs=1e-9)
+    assert rep["wrench_error_net_rms_n"] == pytest.approx(rep["wrench_error_rms_n"], rel=1e-9)
     assert 0.0 < rep["grasp_slip_max_m"] < 5e-3
     assert rep["plant_arm_torque_limit_ratio"] < 1.0
     assert res.metrics.tracking_max_mm < 20.0
