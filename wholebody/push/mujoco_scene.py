@@ -78,9 +78,11 @@ class ServoGains:
     #: and Traj. 1 without estimation then diverges at its final stop (docs/mujoco.md)
     base_integral: float = 0.0
     base_integral_limit: float = 0.05
-    #: differential drive wheels: kv (N m s/rad); force range = the wheel joint's effort limit
+    #: differential drive wheels: kv (N m s/rad); the servo's force is not limited: the wheel joint's effort limit
+    #: (the URDF import's actuator-force clamp on the joint) bounds what it applies
     wheel_kv: float = 60.0
-    #: velocity-controlled arm joints: kv (N m s/rad); force range = the joint's effort limit
+    #: velocity-controlled arm joints: kv (N m s/rad); the servo's force is not limited: the joint's effort limit
+    #: (its actuator-force clamp from the URDF import) bounds what it applies
     arm_kv: float = 80.0
 
 
