@@ -454,17 +454,18 @@ class OnlineLSEstimator:
             return
         before, m_std = self._momentum_before
         after = before.with_mass(before.m * ratio)
-        o, post = self.options, self._physical_std(self._cov)
+        post = self._physical_std(self._cov)
+        s = self._change_std(after.m, after.inertia_b / after.m, post)
         std = {
-            "mass": o.change_mass_rel_std * after.m,
-            "com": (max(float(post[1]), o.change_com_std), max(float(post[2]), o.change_com_std)),
-            "inertia": o.change_rho_rel_std * after.inertia_b,
+            "mass": float(s[0]),
+            "com": (float(s[1]), float(s[2])),
+            "inertia": float(s[3]) * after.m,
             "sigma": float(post[4]),
             "sigma_yaw": float(post[5]),
         }
         change = WindowChange(t_imp, (t_imp, t_imp), self.t, before, after, std)
         if self.window is not None:
-            self.window.add_change(change, 1.0 / o.cutoff_hz, dated=True)
+            self.window.add_change(change, 1.0 / self.options.cutoff_hz, dated=True)
         self._restart_from_window(change)
         var = (after.m * math.hypot(ratio_std / ratio, m_std / before.m)) ** 2
         e0 = np.eye(6)[0]
@@ -775,6 +776,21 @@ class OnlineLSEstimator:
         p = float(self.regression.p[0])
         return self.detector.update(dt, s, info, self._cov[:4, :4], ridge, p, kappa)
 
+    def _change_std(self, mass: float, rho: float, post: np.ndarray) -> np.ndarray:
+        """Return the re-centred prior's stds of (mass, CoM dx, dy, J / m) after a load change of ``mass`` (kg) and
+        radius of gyration squared ``rho``: ``change_mass_rel_std`` and ``change_rho_rel_std`` relative,
+        ``change_com_std`` at least the CoM's posterior std ``post[1:3]`` (a load moves the mass more than the
+        CoM and the radius of gyration)."""
+        o = self.options
+        return np.array(
+            [
+                o.change_mass_rel_std * mass,
+                max(float(post[1]), o.change_com_std),
+                max(float(post[2]), o.change_com_std),
+                o.change_rho_rel_std * rho,
+            ]
+        )
+
     def _reset_for_change(self) -> None:
         """Restart mass / CoM / inertia from the prior widths and the samples after the onset; keep the damping."""
         buf = self._ring()
@@ -785,13 +801,8 @@ class OnlineLSEstimator:
             t_change = self.impulses[-1]  # a velocity jump near or after the onset: the load came with it
         p, prm = self.regression.p, self._params
         center = np.array([prm.m, prm.dx, prm.dy, prm.inertia_b / prm.m, max(p[4], 0.0), max(p[5], 0.0)])
-        o = self.options
-        post = self._physical_std(self._cov)
         std = np.r_[
-            o.change_mass_rel_std * prm.m,
-            max(post[1], o.change_com_std),
-            max(post[2], o.change_com_std),
-            o.change_rho_rel_std * center[3],
+            self._change_std(prm.m, center[3], self._physical_std(self._cov)),
             np.sqrt(np.maximum(np.diag(self._cov)[4:], 1e-12)),
         ]
         full, new, after, local = self._fit_after(idx, PhysicalPrior(center, std))
