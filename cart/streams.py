@@ -47,6 +47,9 @@ DROPOUT_PERIODS = 2.5
 GLITCH_SCALE = 12.0
 #: A row whose slope changes by less than this share of the typical change lies on its neighbours' line.
 LINE_TOLERANCE = 1e-2
+#: The wrench and pose channels of a table, as named in warnings.
+WRENCH_CHANNELS = ("fx", "fy", "tau")
+POSE_CHANNELS = ("x", "y", "theta")
 #: Longest median run of on-the-line rows of a pose interpolated between motion-capture samples.
 MAX_PIECE_ROWS = 50
 
@@ -79,8 +82,10 @@ class Streams:
     """The log's pose and wrench streams and what was found while separating them.
 
     ``held_rows``: table rows that repeat the previous pose (dropped); ``dropouts``: (t0, t1) intervals
-    without a pose sample; ``stuck``: (t0, t1) intervals of a frozen wrench (excluded); ``glitches``: the
-    times of dropped pose glitches; ``multi_rate``: the table holds the pose between motion-capture samples.
+    without a pose sample; ``stuck``: (t0, t1) intervals of a frozen wrench (excluded), ``stuck_channels`` the
+    channel frozen in each ("" when all are); ``frozen_pose``: (t0, t1, channel) where one pose channel repeats
+    while the others change (those pose samples dropped); ``glitches``: the times of dropped pose glitches;
+    ``multi_rate``: the table holds the pose between motion-capture samples.
     """
 
     pose: Stream
@@ -93,6 +98,8 @@ class Streams:
     interpolated: bool = False
     wrench_held_rows: int = 0
     wrench_missing_rows: int = 0
+    stuck_channels: tuple[str, ...] = ()
+    frozen_pose: tuple[tuple[float, float, str], ...] = ()
 
     @property
     def pose_hz(self) -> float:
@@ -106,7 +113,7 @@ class Streams:
 
     def to_dict(self) -> dict[str, object]:
         """Return the JSON fields ``{pose_hz, wrench_hz, held_rows, wrench_held_rows, wrench_missing_rows,
-        interpolated, dropouts, stuck, glitches}``.
+        interpolated, dropouts, dropout_s, stuck_wrench_s, stuck_channels, frozen_pose_s, glitches}``.
 
         ``held_rows``: the rows that are no pose sample of their own (held, or interpolated when
         ``interpolated``); ``wrench_held_rows`` the same for the wrench; ``wrench_missing_rows``: isolated
@@ -121,6 +128,8 @@ class Streams:
             "dropouts": len(self.dropouts),
             "dropout_s": float(sum(t1 - t0 for t0, t1 in self.dropouts)),
             "stuck_wrench_s": float(sum(t1 - t0 for t0, t1 in self.stuck)),
+            "stuck_channels": sorted({name or "all" for name in self.stuck_channels}),
+            "frozen_pose_s": float(sum(t1 - t0 for t0, t1, _ in self.frozen_pose)),
             "glitches": len(self.glitches),
         }
 
@@ -148,10 +157,16 @@ class Streams:
                 f"{self.wrench_missing_rows} isolated rows have a wrench of exactly zero in every channel: "
                 "taken as missing F/T samples"
             )
-        for t0, t1 in self.stuck:
+        for (t0, t1), name in zip(self.stuck, self.stuck_channels or ("",) * len(self.stuck)):
+            what = f"{name} alone" if name else "the wrench"
             out.append(
-                f"the wrench is frozen from t = {t0:.3f} s to {t1:.3f} s ({t1 - t0:.3g} s): a stuck force "
-                "sensor; that stretch is excluded"
+                f"{what} is frozen from t = {t0:.3f} s to {t1:.3f} s ({t1 - t0:.3g} s): a stuck force "
+                f"sensor{' axis' if name else ''}; that stretch is excluded"
+            )
+        for t0, t1, name in self.frozen_pose:
+            out.append(
+                f"the pose's {name} alone repeats one value from t = {t0:.3f} s to {t1:.3f} s ({t1 - t0:.3g} s) while "
+                "the cart moves: a stuck motion-capture channel; those pose samples are dropped"
             )
         if self.glitches:
             out.append(
@@ -355,6 +370,43 @@ def _stuck(t: np.ndarray, g: np.ndarray) -> list[tuple[int, int]]:
     return out
 
 
+def _noisy(x: np.ndarray) -> bool:
+    """Return True when the samples ``x`` carry measurement noise: their third differences are as large as their
+    first (white or AR(1) noise: about 2.5 times; a smooth noise-free signal: a small fraction)."""
+    d1 = np.abs(np.diff(x))
+    d3 = np.abs(np.diff(x, 3))
+    return bool(len(d3) > 10 and np.median(d3) > 0.5 * np.median(d1) > 0.0)
+
+
+def frozen_channels(t: np.ndarray, v: np.ndarray, names: tuple[str, ...]) -> list[tuple[int, int, str]]:
+    """Return [(first, last, name)]: table rows over which one channel of ``v`` repeats its value exactly, for
+    ``STUCK_SECONDS`` and 5 samples or more, while the other channels change (one axis of a sensor stuck).
+
+    Only samples that differ from the previous row somewhere count (rows held in every channel are a slower
+    stream, or the whole sensor stuck: :func:`_stuck`). Only a channel that carries noise (:func:`_noisy`) and
+    otherwise hardly ever repeats (under 5 % of its steps: not a quantised channel) can be stuck: a measured
+    value never repeats exactly for a quarter of a second, a noise-free simulated one (a torque of exactly
+    zero on a straight push) may.
+    """
+    d = np.flatnonzero(np.r_[True, ~_repeats(v)])
+    if len(d) < 20:
+        return []
+    out = []
+    for c, name in enumerate(names):
+        same = v[d[1:], c] == v[d[:-1], c]
+        long = [
+            (f, l)
+            for f, l in _runs(same)
+            if l - f >= 4 and t[d[l]] - t[d[f - 1]] >= STUCK_SECONDS and l - f < 0.9 * len(d)
+        ]
+        inside = sum(l - f + 1 for f, l in long)
+        if not long or same.sum() - inside > 0.05 * (len(same) - inside) or not _noisy(v[d[~np.r_[False, same]], c]):
+            continue
+        for f, l in long:
+            out.append((int(d[f]), int(d[l + 1] - 1) if l + 1 < len(d) else len(t) - 1, name))
+    return out
+
+
 def _dropouts(stream: Stream) -> tuple[tuple[float, float], ...]:
     """Return the intervals between consecutive samples longer than ``DROPOUT_PERIODS`` median periods."""
     if len(stream.t) < 3:
@@ -377,12 +429,13 @@ def _isolated_zeros(g: np.ndarray) -> np.ndarray:
     return out if out.sum() >= max(MIN_HELD_SHARE * len(g), 10) else np.zeros(len(g), dtype=bool)
 
 
-def _wrench_stream(t: np.ndarray, g: np.ndarray) -> tuple[Stream, list[tuple[float, float]], int, int]:
-    """Return (wrench stream, stuck intervals, held rows, missing rows) of the table's wrench columns.
+def _wrench_stream(t: np.ndarray, g: np.ndarray) -> tuple[Stream, list[tuple[float, float, str]], int, int]:
+    """Return (wrench stream, stuck intervals (t0, t1, channel or "" for all), held rows, missing rows) of the
+    table's wrench columns.
 
     Held rows (a slower F/T sensor, :func:`held_rows`) are dropped and each sample is timed at the middle
     of the interval in which it first appeared; isolated all-zero rows (:func:`_isolated_zeros`) are
-    missing samples; a frozen wrench (:func:`_stuck`) is excluded.
+    missing samples; a frozen wrench (:func:`_stuck`) or one frozen channel (:func:`frozen_channels`) is excluded.
     """
     keep = np.ones(len(t), dtype=bool)
     held = 0
@@ -393,9 +446,9 @@ def _wrench_stream(t: np.ndarray, g: np.ndarray) -> tuple[Stream, list[tuple[flo
     missing = _isolated_zeros(g)
     keep &= ~missing
     stuck = []
-    for first, last in _stuck(t, g):
+    for first, last, _name in [(f, l, "") for f, l in _stuck(t, g)] + frozen_channels(t, g, WRENCH_CHANNELS):
         keep[first : last + 1] = False
-        stuck.append((float(t[first - 1]), float(t[last])))
+        stuck.append((float(t[first - 1]), float(t[last]), _name))
     rows = np.flatnonzero(keep)
     tw = t[rows].copy()
     if held:
@@ -413,6 +466,10 @@ def split_streams(log: CartLog) -> Streams:
         pose, held, multi = _pose_stream(log)
     bad = _glitches(pose)
     glitch_t = tuple(float(x) for x in pose.t[bad])
+    frozen = []
+    for first, last, name in frozen_channels(pose.t, pose.values, POSE_CHANNELS):
+        bad[first : last + 1] = True
+        frozen.append((float(pose.t[first - 1]), float(pose.t[last]), name))
     if bad.any():
         pose = Stream(pose.t[~bad], pose.values[~bad], pose.rows[~bad])
     wrench, stuck, wrench_held, missing = _wrench_stream(log.t, log.gamma)
@@ -421,7 +478,9 @@ def split_streams(log: CartLog) -> Streams:
         wrench=wrench,
         held_rows=held,
         dropouts=_dropouts(pose),
-        stuck=tuple(stuck),
+        stuck=tuple((t0, t1) for t0, t1, _ in stuck),
+        stuck_channels=tuple(name for _, _, name in stuck),
+        frozen_pose=tuple(frozen),
         glitches=glitch_t,
         multi_rate=multi,
         interpolated=pieces is not None,
