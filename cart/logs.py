@@ -37,8 +37,6 @@ PLAUSIBLE_YAW_STEP = 0.5  # rad per sample, together with
 PLAUSIBLE_YAW_RATE = 15.0  # rad/s
 PLAUSIBLE_HEADING = 6 * math.pi  # |theta| of a wrapped or slowly unwrapped heading (3 turns)
 PLAUSIBLE_MEDIAN_DT = 0.5  # s
-#: Share of rows repeating the previous pose above which a table holds a slower pose stream (cart.streams).
-HELD_POSE_SHARE = 0.2
 _EMPTY_CELL_FIX = (
     f"(every row needs all of {', '.join(REQUIRED_COLUMNS)}: two sensor streams merged with empty cells? "
     "repeat each stream's last sample on the rows where it has none, or drop those rows)"
@@ -505,14 +503,15 @@ def plausibility_warnings(
             f"median sample interval {med:g} s is long for a cart log (motion capture runs at 10 Hz or "
             f"more); if t is in milliseconds, convert it to seconds"
         )
-    notes += _heading_notes(log, dt, raw_theta, where)
     same = np.all(log.q[1:] == log.q[:-1], axis=1)
-    if len(log.t) > 3 and same.sum() >= HELD_POSE_SHARE * len(log.t):  # a multi-rate table: the pose's own samples
-        rows = np.r_[0, np.flatnonzero(~same) + 1]
-        if len(rows) > 2:
-            poses = CartLog(t=log.t[rows], q=log.q[rows], gamma=log.gamma[rows])
-            notes += _motion_notes(poses, float(np.median(np.diff(poses.t))), lambda i: where(int(rows[i])))
+    rows = np.r_[0, np.flatnonzero(~same) + 1]
+    if same.any() and len(rows) > 3:  # a held pose (multi-rate table, dropout): the pose's own samples
+        poses = CartLog(t=log.t[rows], q=log.q[rows], gamma=log.gamma[rows])
+        raw = None if raw_theta is None else np.asarray(raw_theta, dtype=float)[rows]
+        notes += _heading_notes(poses, np.diff(poses.t), raw, lambda i: where(int(rows[i])))
+        notes += _motion_notes(poses, float(np.median(np.diff(poses.t))), lambda i: where(int(rows[i])))
     else:
+        notes += _heading_notes(log, dt, raw_theta, where)
         notes += _motion_notes(log, med, where)
     if not np.any(log.gamma):
         notes.append(
