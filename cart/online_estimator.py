@@ -81,9 +81,10 @@ class OnlineOptions:
     ``momentum_changes``: at each impulse the forward speed's jump is tested for a load put in at rest
     (:class:`cart.change_detection.MomentumTest` over ``momentum_side_s`` s each side): one found restarts the
     parameters from the mass before times the jump's ratio (:meth:`OnlineLSEstimator._restart_from_momentum`);
-    ``confirm_sigma``: a detection made while the model misfits (residual ratio at the onset above
-    ``misfit_ratio``) is a load change only when the masses fitted on each side of the onset differ by this
-    many stds of their difference, scaled up by that ratio (:meth:`OnlineLSEstimator._confirmed`);
+    ``confirm_sigma``: a detection made while the model misfits (residual ratio at the onset, or that of the samples
+    after it against their own fit, above ``misfit_ratio``) is a load change only when the masses fitted on each
+    side of the onset differ by this many stds of their difference, scaled up by the larger ratio
+    (:meth:`OnlineLSEstimator._confirmed`);
     ``deflate_com``: the CoM given to the controller moves from the prior by the estimate's move deflated by the
     model's misfit (:meth:`OnlineLSEstimator._com_to_use`);
     ``window_changes``: every ``window_every_s`` s the offline segment search on the last ``window_s`` s of the
@@ -807,7 +808,8 @@ class OnlineLSEstimator:
         ]
         full, new, after, local = self._fit_after(idx, PhysicalPrior(center, std))
         self.detector.restart()
-        if not self._confirmed(full, self._fit_before(idx), float(buf.read("k")[idx])):
+        own = math.sqrt(local[0].ratio2(full.p))  # the samples after the onset against their own fit
+        if not self._confirmed(full, self._fit_before(idx), (float(buf.read("k")[idx]), own)):
             self.regression.solve(1)
             self._cov = self.regression.covariance()
             return
@@ -974,29 +976,33 @@ class OnlineLSEstimator:
         before.solve(iterations=5)
         return float(before.p[0]), float(self._physical_std(before.covariance())[0])
 
-    def _confirmed(self, new: RecursiveRegression, before: tuple[float, float], misfit: float) -> bool:
+    def _confirmed(self, new: RecursiveRegression, before: tuple[float, float], misfit: tuple[float, float]) -> bool:
         """Return whether the two sides of the onset confirm a load change: their masses differ.
 
         Each side is fitted on its own samples (``new``: after the onset, from its re-centered prior;
-        ``before``: (mass, std) before it); ``misfit``: the residual ratio at the onset (before the change
-        could raise it). The GLR statistic also grows when the model misfits (a real cart's casters
-        swivelling at a turn or a start): the residuals change while the mass does not. A change is
-        confirmed when the samples after the onset excite the mass (posterior / prior std at most
-        ``excited_ratio``), their estimate is plausible (:meth:`_implausible`: a misfit may fit a negative
-        mass) and the two masses differ by ``min_change`` of the mass before; when the model misfitted at
-        the onset (``misfit`` above ``misfit_ratio``: the GLR's chi-square does not hold), also by
-        ``confirm_sigma`` times the std of their difference scaled up by ``misfit`` (the misfit the stds
-        do not contain). Otherwise the detection is flagged ``change_not_confirmed`` and the estimate goes
-        on with all its samples.
+        ``before``: (mass, std) before it); ``misfit``: the residual ratios of the two sides, (the windowed one at
+        the onset, before the change could raise it; that of the samples after the onset against ``new``, their
+        own fit). The GLR statistic also grows when the model misfits (a real cart's casters swivelling round at a
+        reversal, a braking's onset): the residuals change while the mass does not, and the fit after the onset
+        then misfits its own samples too (a step of the parameters is what a load change is; what they cannot
+        express stays in the residuals). A change is confirmed when the samples after the onset excite the mass
+        (posterior / prior std at most ``excited_ratio``), their estimate is plausible (:meth:`_implausible`: a
+        misfit may fit a negative mass) and the two masses differ by ``min_change`` of the mass before; when
+        either side misfits (its ratio above ``misfit_ratio``: the GLR's chi-square does not hold), also by
+        ``confirm_sigma`` times the std of their difference scaled up by the larger ratio (the misfit the stds
+        do not contain: the model's, which the side that shows it measures). Otherwise the detection is flagged
+        ``change_not_confirmed`` and the estimate goes on with all its samples.
         """
         m_new, (m_old, std_old) = float(new.p[0]), before
+        k_old, k_new = (max(k, 1.0) for k in misfit)
         std_new = float(self._physical_std(new.covariance())[0])
         excited = std_new <= self.options.excited_ratio * new.prior.std[0]
         diff = abs(m_new - m_old)
         bad = self._implausible(new.p)
         ok = excited and diff >= self.options.min_change * abs(m_old) and not bad
-        std = math.hypot(std_new, std_old) * misfit
-        if misfit > self.options.misfit_ratio:
+        kappa = max(k_old, k_new)
+        std = math.hypot(std_new, std_old) * kappa
+        if kappa > self.options.misfit_ratio:
             ok = ok and diff >= self.options.confirm_sigma * std
         if not ok:
             self._flags.append(

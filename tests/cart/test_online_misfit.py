@@ -67,6 +67,19 @@ def test_the_confirmation_rejects_what_the_unscaled_glr_finds(misfit_log, monkey
     assert len(est.events) >= 1
 
 
+def test_a_misfit_that_starts_mid_log_is_no_load_change():
+    """The casters start to scrub at 15 s (8 N m of yaw friction the model lacks; the model fitted before): the GLR
+    test, its chi-square scaled by the residual ratio before the onset (1), fires, and the fit of the samples after
+    the onset moves the mass by more than ``min_change``; that fit misfits its own samples (a step of the parameters
+    does not express a friction), so the confirmation, its stds scaled by that ratio, rejects it: no load change,
+    the detections flagged, the mass kept."""
+    log = _with_yaw_friction(_sim(30.0, True).measured, 15.0, 30.0, 8.0)
+    est = _run(log, make_online_estimator(log.q[0], GUESS, MOCAP.measurement_std()), 1, 3.0, 0.3)
+    assert est.events == ()
+    assert "change_not_confirmed" in [f.kind for f in est.flags]
+    assert abs(est.params().m - TRUTH.m) < 1.5
+
+
 def test_the_detector_scales_its_chi_square_by_the_misfit():
     """Residuals three times the noise model's, no change: the unscaled GLR passes its threshold, scaled by 3^2 it
     does not."""
