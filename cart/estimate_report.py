@@ -148,7 +148,7 @@ def check_log(log: CartLog, streams: Streams) -> CartLog:
 
     A log whose table already is one stream per row (nothing held, stuck or dropped) is returned as is.
     """
-    if not (streams.multi_rate or streams.held_rows or streams.stuck or streams.glitches):
+    if not (streams.multi_rate or streams.held_rows or streams.stuck or streams.glitches or streams.jumps):
         return log
     t = streams.pose.t
     dt = streams.pose.period
@@ -161,7 +161,7 @@ def check_log(log: CartLog, streams: Streams) -> CartLog:
     keep = np.ones(len(t), dtype=bool)
     for t0, t1 in streams.stuck:
         keep &= ~((t >= t0) & (t <= t1))
-    qd = log.qd[streams.pose.rows] if (log.qd is not None and not streams.multi_rate) else None
+    qd = log.qd[streams.pose.rows] if (log.qd is not None and not streams.multi_rate and not streams.jumps) else None
     return CartLog(
         t=t[keep],
         q=streams.pose.values[keep],

@@ -84,7 +84,8 @@ class Streams:
     ``held_rows``: table rows that repeat the previous pose (dropped); ``dropouts``: (t0, t1) intervals
     without a pose sample; ``stuck``: (t0, t1) intervals of a frozen wrench (excluded), ``stuck_channels`` the
     channel frozen in each ("" when all are); ``frozen_pose``: (t0, t1, channel) where one pose channel repeats
-    while the others change (those pose samples dropped); ``glitches``: the times of dropped pose glitches;
+    while the others change (those pose samples dropped); ``jumps``: the times where the pose jumps and stays
+    (the pieces joined, :func:`join_jumps`); ``glitches``: the times of dropped pose glitches;
     ``multi_rate``: the table holds the pose between motion-capture samples.
     """
 
@@ -100,6 +101,7 @@ class Streams:
     wrench_missing_rows: int = 0
     stuck_channels: tuple[str, ...] = ()
     frozen_pose: tuple[tuple[float, float, str], ...] = ()
+    jumps: tuple[float, ...] = ()
 
     @property
     def pose_hz(self) -> float:
@@ -113,7 +115,7 @@ class Streams:
 
     def to_dict(self) -> dict[str, object]:
         """Return the JSON fields ``{pose_hz, wrench_hz, held_rows, wrench_held_rows, wrench_missing_rows,
-        interpolated, dropouts, dropout_s, stuck_wrench_s, stuck_channels, frozen_pose_s, glitches}``.
+        interpolated, dropouts, dropout_s, stuck_wrench_s, stuck_channels, frozen_pose_s, glitches, jumps}``.
 
         ``held_rows``: the rows that are no pose sample of their own (held, or interpolated when
         ``interpolated``); ``wrench_held_rows`` the same for the wrench; ``wrench_missing_rows``: isolated
@@ -131,6 +133,7 @@ class Streams:
             "stuck_channels": sorted({name or "all" for name in self.stuck_channels}),
             "frozen_pose_s": float(sum(t1 - t0 for t0, t1, _ in self.frozen_pose)),
             "glitches": len(self.glitches),
+            "jumps": len(self.jumps),
         }
 
     def warnings(self) -> list[str]:
@@ -167,6 +170,12 @@ class Streams:
             out.append(
                 f"the pose's {name} alone repeats one value from t = {t0:.3f} s to {t1:.3f} s ({t1 - t0:.3g} s) while "
                 "the cart moves: a stuck motion-capture channel; those pose samples are dropped"
+            )
+        if self.jumps:
+            out.append(
+                f"the pose jumps and stays {len(self.jumps)} time(s) (first at t = {self.jumps[0]:.3f} s), far beyond "
+                "the motion: a motion-capture re-registration or recordings written one after another; the pieces "
+                "are joined by a rigid shift of the later pose (its world-frame force turned with it)"
             )
         if self.glitches:
             out.append(
@@ -457,6 +466,74 @@ def _wrench_stream(t: np.ndarray, g: np.ndarray) -> tuple[Stream, list[tuple[flo
     return Stream(tw, g[rows], rows), stuck, held, int(missing.sum())
 
 
+def _jump_steps(stream: Stream) -> np.ndarray:
+    """Return the indices i where the pose jumps between samples i and i + 1 and stays (not a dropout).
+
+    A jump is a step that departs from the one its neighbours' rates predict by ``GLITCH_SCALE`` robust
+    scales of the second difference (noise and motion per step) over the log and around the step (a smooth
+    start from rest is no jump) and by 5 typical steps, in a column; the
+    interval is an ordinary one (a dropout's step is a gap's, :func:`_dropouts`). Isolated glitches are
+    dropped before (:func:`_glitches`), so the pose stays at the new place after a jump.
+    """
+    v, t = stream.values, stream.t
+    n = len(v)
+    if n < 15:
+        return np.zeros(0, dtype=int)
+    dt = np.diff(t)
+    step = np.diff(v, axis=0)
+    rate = step / dt[:, None]
+    idx = np.arange(n - 1)
+    near = np.clip(idx[:, None] + np.array([-3, -2, -1, 1, 2, 3])[None, :], 0, n - 2)
+    pred = np.median(rate[near], axis=1) * dt[:, None]
+    dev = np.abs(step - pred)
+    d2 = np.abs(np.diff(v, 2, axis=0))
+    scale = 1.4826 * np.median(d2, axis=0) + 1e-12
+    local = np.median(d2[np.clip(idx[:, None] + np.array([-4, -3, -2, 1, 2, 3])[None, :], 0, n - 3)], axis=1)
+    typical = np.median(np.abs(step), axis=0) + 1e-12
+    span = np.ptp(v, axis=0)
+    far = (dev > GLITCH_SCALE * scale) & (dev > GLITCH_SCALE * local) & (dev > 5.0 * typical) & (dev > 1e-3 * span)
+    big = np.any(far, axis=1)
+    return np.flatnonzero(big & (dt <= DROPOUT_PERIODS * float(np.median(dt))))
+
+
+def join_jumps(pose: Stream, wrench: Stream) -> tuple[Stream, Stream, tuple[float, ...]]:
+    """Return (pose, wrench, jump times) with the pieces between pose jumps joined by rigid shifts.
+
+    After a jump (:func:`_jump_steps`: a motion-capture re-registration, recordings written one after
+    another) the later pose is moved rigidly (rotated by delta about the vertical, translated) to continue
+    the earlier one at the rate of the samples before the jump; the world-frame force (fx, fy) after the
+    jump turns by the same delta, so the body-frame velocities and the forward force the model sees are
+    those of the recording (eq. 4 is invariant under a rigid change of the world frame): each piece is taken
+    as recorded in its own frame (recordings written one after another). A re-registration that shifts the
+    motion-capture frame is joined exactly; one that also turns it (the wrench's frame left as it was) leaves
+    the later force turned by delta: the misfit, or the wrench-frame check (:mod:`cart.units`), says so. Too
+    many jumps (over 1 % of the samples) is not a recording of one push: left as it is.
+    """
+    jumps = _jump_steps(pose)
+    if not len(jumps) or len(jumps) > 0.01 * len(pose.t):
+        return pose, wrench, ()
+    q = pose.values.copy()
+    g = wrench.values.copy()
+    bounds = np.r_[jumps + 1, len(q)]
+    for k, i in enumerate(jumps):
+        lo = max(i - 3, 0)
+        rate = (q[i] - q[lo]) / max(pose.t[i] - pose.t[lo], 1e-12) if i > lo else np.zeros(3)
+        target = q[i] + rate * (pose.t[i + 1] - pose.t[i])  # q[: i + 1] already joined
+        d = float(target[2] - pose.values[i + 1, 2])
+        c, s_ = math.cos(d), math.sin(d)
+        rot = np.array([[c, -s_], [s_, c]])
+        shift = target[:2] - rot @ pose.values[i + 1, :2]
+        piece = slice(i + 1, bounds[k + 1])
+        q[piece, :2] = pose.values[piece, :2] @ rot.T + shift
+        q[piece, 2] = pose.values[piece, 2] + d
+        after = wrench.t > 0.5 * (pose.t[i] + pose.t[i + 1])
+        if k + 1 < len(jumps):
+            after &= wrench.t <= 0.5 * (pose.t[jumps[k + 1]] + pose.t[jumps[k + 1] + 1])
+        g[after, :2] = wrench.values[after, :2] @ rot.T
+    times = tuple(float(0.5 * (pose.t[i] + pose.t[i + 1])) for i in jumps)
+    return Stream(pose.t, q, pose.rows), Stream(wrench.t, g, wrench.rows), times
+
+
 def split_streams(log: CartLog) -> Streams:
     """Return the pose and wrench streams of ``log`` (held rows, dropouts, glitches, stuck wrench handled)."""
     pieces = _interpolated_pose(log) if not held_rows(log.q) else None
@@ -473,6 +550,7 @@ def split_streams(log: CartLog) -> Streams:
     if bad.any():
         pose = Stream(pose.t[~bad], pose.values[~bad], pose.rows[~bad])
     wrench, stuck, wrench_held, missing = _wrench_stream(log.t, log.gamma)
+    pose, wrench, jumps = join_jumps(pose, wrench)
     return Streams(
         pose=pose,
         wrench=wrench,
@@ -481,6 +559,7 @@ def split_streams(log: CartLog) -> Streams:
         stuck=tuple((t0, t1) for t0, t1, _ in stuck),
         stuck_channels=tuple(name for _, _, name in stuck),
         frozen_pose=tuple(frozen),
+        jumps=jumps,
         glitches=glitch_t,
         multi_rate=multi,
         interpolated=pieces is not None,
