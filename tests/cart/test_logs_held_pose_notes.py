@@ -1,10 +1,10 @@
 """Issue 30: a held pose (a motion-capture dropout or a stuck pose) is not a glitch nor a heading in degrees.
 
-Helper 7's red-team logs: a naive logger's table (F/T 500 Hz, mocap 120 Hz) with a 2 s dropout while the cart
-turned warned "heading changes by 0.534 rad in one sample (238 rad/s) ...; if theta is in degrees, convert it",
-and a mocap-rows table whose pose stuck for 3 s warned "the pose moves at 31.5 m/s ...: a motion-capture glitch,
-or positions in millimetres?" and said nothing of the stuck pose. The plausibility notes now measure the pose's
-own samples whenever rows repeat it, and `estimate` names the repeated rows.
+Measured on every row, a naive logger's table (F/T 500 Hz, mocap 120 Hz) with a 2 s dropout while the cart
+turns reads "heading changes by 0.534 rad in one sample (238 rad/s) ...; if theta is in degrees, convert it",
+and a mocap-rows table whose pose sticks for 3 s "the pose moves at 31.5 m/s ...: a motion-capture glitch, or
+positions in millimetres?". The plausibility notes measure the pose's own samples whenever rows repeat it, and
+`estimate` names the repeated rows.
 """
 
 from __future__ import annotations

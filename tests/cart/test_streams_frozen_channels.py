@@ -1,10 +1,10 @@
 """Issue 30, stuck sensors: one axis of the F/T sensor (or one motion-capture channel) frozen while the rest
 keeps measuring.
 
-A whole frozen wrench was excluded, a frozen single axis was not: helper 7's red-team logs (rigid_sim seed 122,
-40.8 kg, mocap rows at 120 Hz with the F/T averaged) with fx frozen for 10 s gave 35.8 +- 17.9 kg and
-`model_fits` false with no word of the sensor, with fy frozen for 2 s 39.35 +- 1.16 kg with no warning; each
-channel alone is now excluded like the whole wrench (40.35 +- 0.79 kg, the same as all three frozen).
+Read as it is, one frozen axis misleads the fit: rigid_sim seed 122 (40.8 kg, mocap rows at 120 Hz with the F/T
+averaged) with fx frozen for 10 s reads 35.8 +- 17.9 kg with `model_fits` false and no word of the sensor, with
+fy frozen for 2 s 39.35 +- 1.16 kg with no warning. Each channel alone is excluded like the whole wrench
+(40.35 +- 0.79 kg, the same as all three frozen).
 """
 
 from __future__ import annotations

@@ -2,9 +2,9 @@
 re-registration by a shift) is joined, not fitted as an acceleration without force.
 
 The malformed suite's 20-minute log (benchmarks/bench_estimate.py --tiled: a 40 s push of a 43.13 kg cart
-repeated on a 200 Hz clock, so each piece lasts 20 s and the cart there behaves as 43.13 / 4 = 10.78 kg) gave
-0.079 +- 0.060 kg with exit 0 (and imported scipy.optimize to make it physical); its 59 jumps are now joined by
-rigid shifts: 10.69 +- 1.63 kg.
+repeated on a 200 Hz clock, so each piece lasts 20 s and the cart there behaves as 43.13 / 4 = 10.78 kg) fitted
+across its 59 jumps reads 0.079 +- 0.060 kg (and imports scipy.optimize to make it physical); joined by rigid
+shifts, 10.69 +- 1.63 kg.
 """
 
 from __future__ import annotations
