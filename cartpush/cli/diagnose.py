@@ -117,6 +117,9 @@ def stage_bar(stages: Sequence[str], enabled: bool) -> Iterator[Callable[[str], 
 
 def run(args: argparse.Namespace) -> int:
     """Diagnose the log; print a summary (or JSON); write plots with --out."""
+    from cartpush.cli.estimate import _one_blas_thread
+
+    _one_blas_thread()  # before numpy loads, as `estimate` does
     check_args(args)
     if args.out:
         options.writable_dir(args.out)
