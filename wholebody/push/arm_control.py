@@ -89,6 +89,13 @@ class TorqueArmGains:
     #: True: the impedance acts in the hand's null space only; False: on every joint (it then also damps the
     #: hand's motion relative to the plan)
     null_space: bool = True
+    #: True: the joint impedance is taken at the end of the physics step, as the step will integrate it (the
+    #: damping's velocity predicted from the arm's inertia: `implicit_impedance`); False: at its start. Held
+    #: explicitly, a damping ``D`` on a motion whose inertia ``I`` is below ``D dt / 2`` flips sign every step and
+    #: grows: near a straight iiwa elbow (joint 4 below about 0.2 rad) the null space gains the counter-rotation
+    #: of joints 3 and 5 (a few hundredths of kg m^2 against ``2 D dt`` = 0.08), which drove the torques to their
+    #: limits at 250 Hz (two arms, Traj. 2, docs/mujoco.md "Several arms on one cart")
+    implicit_damping: bool = True
     #: Cartesian stiffness (N m/rad) and damping (N m s/rad) holding the hand's roll and pitch (about the world's
     #: horizontal axes) at the command's ``hand_target``: the grip keeps the cart upright against the roll
     #: moment of a lateral push at the handle's height; 0 = off. It leaves the planar push alone.
@@ -193,6 +200,18 @@ def null_space_projector_T(J: np.ndarray, M: np.ndarray) -> np.ndarray:
     lam = np.linalg.inv(J @ Minv @ J.T + 1e-9 * np.eye(J.shape[0]))
     Jbar = Minv @ J.T @ lam
     return np.eye(M.shape[0]) - J.T @ Jbar.T
+
+
+def implicit_impedance(NT: np.ndarray, M: np.ndarray, damping: float, dt: float) -> np.ndarray:
+    """Return ``A = (I + dt N^T D M^-1)^-1 N^T``: the joint impedance ``tau = A (K (q_plan - q) + D (v_plan - v))``
+    with its damping on the velocity at the end of the physics step, ``v + dt M^-1 tau`` (semi-implicit; ``D = d I``).
+
+    ``tau = N^T (K e + D (v_plan - v - dt M^-1 tau))`` solved for ``tau``: on a motion of inertia ``I`` the explicit
+    damping's step response ``1 - D dt / I`` turns unstable below ``I = D dt / 2``; here it is ``1 / (1 + D dt / I)``,
+    stable for any inertia, and where ``D dt`` is small against the inertia (the posture's usual motions) the law is
+    the explicit one. ``A`` keeps ``tau`` in the range of ``N^T`` (the hand's null space)."""
+    n = M.shape[0]
+    return np.linalg.solve(np.eye(n) + dt * damping * NT @ np.linalg.inv(M), NT)
 
 
 def wrench_estimator(J: np.ndarray, effort_limit: np.ndarray | None = None) -> np.ndarray:
@@ -328,6 +347,7 @@ class TorqueArmLaw:
         self._arm_torque = np.zeros(self.limit.size)
         self._period = 0.01
         self._NT = np.eye(self.limit.size)
+        self._NT_imp = self._NT
         self._q_end = np.zeros(self.limit.size)
         self._v = np.zeros(self.limit.size)
         self._t_end = 0.0
@@ -373,6 +393,9 @@ class TorqueArmLaw:
         self._period = dt
         self._v = v_new
         self._NT = null_space_projector_T(J, M) if self.gains.null_space else np.eye(M.shape[0])
+        self._NT_imp = self._NT
+        if self.gains.implicit_damping:
+            self._NT_imp = implicit_impedance(self._NT, M, self.gains.damping, self._dt)
         self._J = J
         self._Jt_pinv, self._E_ft = self._estimator(J)
         self._Jr = J[3:]
@@ -405,7 +428,7 @@ class TorqueArmLaw:
             loop_wrench = self.force_loop(self.force_error(wrench_measured))
         task, plan = self._feedforward(g, bias)
         q_plan = self._q_end - self._v * (self._t_end - t)
-        impedance = self._NT @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
+        impedance = self._NT_imp @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
         u = self._hand_feedback(g, hand, loop_wrench, tilt)
         posture = plan + impedance
         if g.budget:
