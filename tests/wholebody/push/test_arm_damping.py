@@ -7,6 +7,7 @@ velocity every step and grows (`TorqueArmGains.implicit_damping`).
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -62,3 +63,55 @@ def test_implicit_impedance_is_the_explicit_one_on_a_heavy_motion_and_stays_in_t
     heavy = np.diag([3.0, 3.0, 50.0, 2.0, 1.0, 0.5, 0.5])
     NT_h = null_space_projector_T(J, heavy)
     assert np.allclose(implicit_impedance(NT_h, heavy, 20.0, DT) @ x, NT_h @ x, rtol=2e-3, atol=2e-3 * np.abs(x).max())
+
+
+@pytest.fixture(scope="module")
+def setup():
+    from wholebody.push import PushConfig, build_controller
+
+    return build_controller(PushConfig(trajectory=2, duration=2.0, contact="fixed"))
+
+
+@pytest.mark.parametrize("implicit", [True, False])
+def test_a_straight_iiwa_elbow_in_mujoco_stays_still_with_the_implicit_damping(setup, implicit):
+    """The iiwa in MuJoCo, hand released, elbow (joint 4) 0.02 rad from straight, joints 3 and 5 counter-rotating at
+    0.5 rad/s (a motion of the hand's null space there): the law holding the posture damps it, or, held explicitly,
+    drives it to the torque limits."""
+    from cart.simulate import MeasurementNoise
+    from wholebody.push.config import TRUE_CART
+    from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantConfig
+    from wholebody.push.plant import RobotCommand
+
+    gains = TorqueArmGains(force_feedback=0.0, implicit_damping=implicit)
+    plant = MujocoPlant(
+        setup.controller.robots,
+        setup.q0,
+        TRUE_CART,
+        noise=MeasurementNoise(),
+        config=MujocoPlantConfig(torque_gains=gains),
+    )
+    m, d, r = plant.scene.model, plant.scene.data, plant.scene.robots[0]
+    d.eq_active[r.weld] = 0  # the hand let go
+    q = d.qpos[r.arm_qpos]
+    q[3] = 0.02
+    d.qpos[r.arm_qpos] = q
+    d.qvel[r.arm_dof] = 0.0
+    d.qvel[r.arm_dof[2]], d.qvel[r.arm_dof[4]] = 0.5, -0.5
+    mujoco.mj_forward(m, d)
+    n = q.size
+    hold = RobotCommand(
+        arm_velocity=np.zeros(n),
+        arm_position=q.copy(),
+        arm_torque=np.zeros(n),
+        base_twist=np.zeros(3),
+        wheel_rates=np.zeros(4),
+        hand_wrench=np.zeros(6),
+    )
+    speeds = []
+    for _ in range(20):
+        plant.step([hold])
+        speeds.append(float(np.abs(d.qvel[r.arm_dof[[2, 4]]]).max()))
+    if implicit:
+        assert max(speeds[5:]) < 0.05 and plant.report()["plant_arm_torque_limit_ratio"] < 0.5
+    else:  # measured: 4-6 rad/s alternating from the first period
+        assert plant.report()["plant_arm_torque_limit_ratio"] >= 1.0 and max(speeds) > 2.0
