@@ -5,9 +5,12 @@ from __future__ import annotations
 import argparse
 import math
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cartpush.cli.import_bag import add_topic_options, topic_options
+
+if TYPE_CHECKING:
+    from cart.logs import CartLog
 
 
 DESCRIPTION = """\
@@ -167,14 +170,28 @@ def _one_blas_thread() -> None:
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
+def _load(args: argparse.Namespace) -> CartLog:
+    """Return the log of ``args.log``: a CSV (.csv, .csv.gz) given without topic options is read directly (the ROS
+    importer's imports cost start-up time), anything else through :func:`cartpush.ros.load_any`."""
+    options = topic_options(args)
+    path = os.fspath(args.log)
+    given = [k for k, v in options.items() if v is not None and v is not False]
+    if path.lower().endswith((".csv", ".csv.gz")) and not os.path.isdir(path) and not given:
+        from cart.logs import read_log
+
+        return read_log(path)
+    from cartpush.ros import load_any
+
+    return load_any(args.log, **options)
+
+
 def run(args: argparse.Namespace) -> int:
     """Estimate the parameters of the log and print them; return 0."""
     _one_blas_thread()
     from cart.jsonout import dumps_strict, to_strict
-    from cartpush.ros import load_any
 
     check_args(args)
-    log = load_any(args.log, **topic_options(args))
+    log = _load(args)
     out = to_strict(result_for(log, args))
     if args.json:
         print(dumps_strict(out))
