@@ -18,6 +18,7 @@ the last ``buffer_s`` seconds (the GLR over every candidate start, :meth:`onset`
 from __future__ import annotations
 
 import math
+from statistics import NormalDist
 
 import numpy as np
 
@@ -113,14 +114,39 @@ class ChangeDetector:
         return self.statistic > self.threshold and abs(float(self.delta[0])) >= self.min_change * abs(mass)
 
     @staticmethod
-    def onset(scores: np.ndarray, infos: np.ndarray, p_cov: np.ndarray) -> int:
-        """Return the index (into the buffered samples) of the most likely start of the change (GLR over starts)."""
+    def profile(scores: np.ndarray, infos: np.ndarray, p_cov: np.ndarray) -> np.ndarray:
+        """Return the GLR statistic of a change starting at each buffered sample (the samples from it to the end)."""
         s_rev = np.cumsum(scores[::-1], axis=0)[::-1]  # sum from each candidate start to the end
         a_rev = np.cumsum(infos[::-1], axis=0)[::-1]
         cov = a_rev + a_rev @ p_cov @ a_rev
         cov += np.eye(N_INERTIAL) * (1e-12 * np.trace(cov, axis1=1, axis2=2)[:, None, None] + 1e-300)
-        g = np.einsum("ki,ki->k", s_rev, np.linalg.solve(cov, s_rev[:, :, None])[:, :, 0])
-        return int(np.argmax(g))
+        return np.einsum("ki,ki->k", s_rev, np.linalg.solve(cov, s_rev[:, :, None])[:, :, 0])
+
+    @staticmethod
+    def onset(scores: np.ndarray, infos: np.ndarray, p_cov: np.ndarray) -> int:
+        """Return the index (into the buffered samples) of the most likely start of the change (GLR over starts)."""
+        return int(np.argmax(ChangeDetector.profile(scores, infos, p_cov)))
+
+    @staticmethod
+    def onset_range(g: np.ndarray, misfit: float = 1.0, level: float = 0.95) -> tuple[int, int, int]:
+        """Return (most likely start, earliest, latest) of the starts the data cannot tell from it, by index.
+
+        ``g``: the GLR over the starts (:meth:`profile`). Twice the log-likelihood ratio of the best start
+        against another is ``g_max - g_k``; a start is kept while that is below the chi-square (1 dof) quantile
+        ``level`` scaled by ``misfit ** 2`` (the residual ratio: the residuals, hence ``g``, are that many times
+        larger than the noise model says) -- the contiguous run around the best start (a likelihood-ratio
+        confidence set of the change time). A change made while the cart cruises changes neither the motion nor
+        the wrench until the next acceleration: every start in the cruise fits as well, and the run spans it.
+        """
+        best = int(np.argmax(g))
+        drop = NormalDist().inv_cdf(0.5 + 0.5 * level) ** 2 * max(misfit, 1.0) ** 2  # chi-square, 1 dof
+        ok = g >= g[best] - drop
+        lo, hi = best, best
+        while lo > 0 and ok[lo - 1]:
+            lo -= 1
+        while hi < len(g) - 1 and ok[hi + 1]:
+            hi += 1
+        return best, lo, hi
 
 
 class MomentumTest:

@@ -146,8 +146,11 @@ class OnlineOptions:
 @dataclass(frozen=True)
 class LoadChange:
     """A detected load change: estimated onset, detection time (s), mass before and after (kg), GLR statistic
-    (0 for a change the window search or the momentum test found), and the test that found it (``glr``, ``window``
-    or ``momentum``)."""
+    (0 for a change the window search or the momentum test found), the test that found it (``glr``, ``window``
+    or ``momentum``), and the earliest and latest onsets the data cannot tell from ``t_change`` (s; None: not
+    known): a change made while the cart cruises shows only at the next acceleration, and any onset in the
+    cruise fits as well (:meth:`cart.change_detection.ChangeDetector.onset_range`, the window search's stretch of
+    equal residual, the period of a velocity jump)."""
 
     t_change: float
     t_detected: float
@@ -155,10 +158,12 @@ class LoadChange:
     mass_after: float
     statistic: float
     method: str = "glr"
+    t_earliest: float | None = None
+    t_latest: float | None = None
 
     def as_dict(self) -> dict:
         """Return the change as a JSON-ready dict."""
-        return {k: v if isinstance(v, str) else float(v) for k, v in self.__dict__.items()}
+        return {k: v if isinstance(v, str) or v is None else float(v) for k, v in self.__dict__.items()}
 
 
 @dataclass(frozen=True)
@@ -183,6 +188,7 @@ class _Change:
     mass_end: float | None = None
     method: str = "glr"
     window_index: int | None = None  # the change's index in the window search's list (its onset is refined)
+    t_range: tuple[float, float] | None = None  # the onsets the data cannot tell apart (earliest, latest)
 
 
 def _vector(value: npt.ArrayLike, n: int, what: str) -> np.ndarray:
@@ -372,7 +378,8 @@ class OnlineLSEstimator:
             now = float(fit.params.m)
         for c in self._changes:
             after = c.mass_end if c.mass_end is not None else now
-            out.append(LoadChange(c.t_change, c.t_detected, c.mass_before, after, c.statistic, c.method))
+            lo, hi = c.t_range if c.t_range is not None else (None, None)
+            out.append(LoadChange(c.t_change, c.t_detected, c.mass_before, after, c.statistic, c.method, lo, hi))
         return tuple(out)
 
     @property
@@ -432,7 +439,8 @@ class OnlineLSEstimator:
                 self._restart_from_window(change)
             for c in self._changes:
                 if c.window_index is not None:
-                    c.t_change = self.window.changes[c.window_index].t_change
+                    found = self.window.changes[c.window_index]
+                    c.t_change, c.t_range = found.t_change, found.t_range
         jump = self.momentum.check(self.t) if self.momentum is not None else None
         if jump is not None:
             self._restart_from_momentum(*jump)
@@ -792,14 +800,26 @@ class OnlineLSEstimator:
             ]
         )
 
+    def _onset(self) -> tuple[int, float, tuple[float, float]]:
+        """Return the GLR's onset of the change just detected: its buffer index, time and the stretch of onsets the
+        data cannot tell from it (:meth:`ChangeDetector.onset_range`, scaled by the residual ratio at the onset).
+
+        A velocity jump near or after the onset (at most twice the settling time before it) dates it: the load came
+        with the jump, to the period."""
+        buf = self._ring()
+        t, k = buf.read("t"), buf.read("k")
+        g = self.detector.profile(buf.read("s"), buf.read("info"), self._cov[:4, :4])
+        idx, lo, hi = self.detector.onset_range(g, float(k[int(np.argmax(g))]))
+        t_change = float(t[idx])
+        if self.impulses and self.impulses[-1] >= t_change - 2.0 * self._settle_s():
+            return idx, self.impulses[-1], (self.impulses[-1], self.impulses[-1])
+        return idx, t_change, (float(t[lo]), float(t[hi]))
+
     def _reset_for_change(self) -> None:
         """Restart mass / CoM / inertia from the prior widths and the samples after the onset; keep the damping."""
         buf = self._ring()
-        idx = self.detector.onset(buf.read("s"), buf.read("info"), self._cov[:4, :4])
-        t_change, m_before = float(buf.read("t")[idx]), float(buf.read("m")[idx])
-        dated = bool(self.impulses) and self.impulses[-1] >= t_change - 2.0 * self._settle_s()
-        if dated:
-            t_change = self.impulses[-1]  # a velocity jump near or after the onset: the load came with it
+        idx, t_change, t_range = self._onset()
+        m_before = float(buf.read("m")[idx])
         p, prm = self.regression.p, self._params
         center = np.array([prm.m, prm.dx, prm.dy, prm.inertia_b / prm.m, max(p[4], 0.0), max(p[5], 0.0)])
         std = np.r_[
@@ -821,10 +841,10 @@ class OnlineLSEstimator:
             new.nuisance = self.casters.nuisance()
         if self._changes:
             self._changes[-1].mass_end = m_before
-        self._changes.append(_Change(t_change, self.t, m_before, self.detector.statistic))
+        self._changes.append(_Change(t_change, self.t, m_before, self.detector.statistic, t_range=t_range))
         if self.window is not None:
             before = self._params.with_mass(m_before) if m_before > 0.0 else self._params
-            seen = WindowChange(t_change, (t_change, t_change), self.t, before, self._params, {})
+            seen = WindowChange(t_change, t_range, self.t, before, self._params, {})
             # the GLR onset is kept as found (the window's search of it moves it further from the truth on
             # rigid_sim seed 0 and MuJoCo seed 103); only the window restarts after it
             self._changes[-1].window_index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated=True)
@@ -863,7 +883,15 @@ class OnlineLSEstimator:
             self._changes[-1].mass_end = change.before.m
         index = len(self.window.changes) - 1 if self.window is not None else None
         self._changes.append(
-            _Change(change.t_change, change.t_detected, change.before.m, 0.0, method="window", window_index=index)
+            _Change(
+                change.t_change,
+                change.t_detected,
+                change.before.m,
+                0.0,
+                method="window",
+                window_index=index,
+                t_range=change.t_range,
+            )
         )
         self.detector.restart()
         if self._buffer is not None:

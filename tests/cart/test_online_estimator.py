@@ -86,6 +86,8 @@ def test_load_change_detected_within_one_second():
     ev = est.events[0]
     assert 12.0 <= ev.t_detected <= 13.0
     assert abs(ev.t_change - 12.0) < 1.0
+    assert ev.t_earliest is not None and ev.t_latest is not None
+    assert ev.t_earliest <= ev.t_change <= ev.t_latest and ev.t_earliest - 1.0 < 12.0 < ev.t_latest + 1.0
     assert abs(ev.mass_after - 30.0) < 0.05 * 30.0
     assert abs(ev.mass_before - 20.0) < 1.5
 
@@ -184,6 +186,7 @@ def test_a_load_dropped_in_is_an_impulse_dated_and_learnt_at_once():
     assert len(est.events) == 1
     ev = est.events[0]
     assert ev.t_change == est.impulses[0] and ev.t_detected <= 13.0
+    assert ev.t_earliest == ev.t_latest == ev.t_change  # a velocity jump dates it to the period
     assert abs(ev.mass_after - 30.0) < 0.05 * 30.0
     assert abs(est.params().m - 30.0) < 1.0
 
