@@ -131,6 +131,18 @@ def com_value(params: CartParams, unknown: Mapping[str, str]) -> list[float | No
     return [None if "dx" in unknown else params.dx, None if "dy" in unknown else params.dy]
 
 
+#: The reader's plausibility notes that a jump of the pose explains (:func:`cart.logs.plausibility_warnings`).
+_JUMP_NOTES = ("heading changes by", "the pose moves at", "the pose accelerates at")
+
+
+def log_notes(log: CartLog, streams: Streams) -> list[str]:
+    """Return the reader's notes on ``log``, less those on fast steps when the pose jumps (the jump's note names them:
+    a step of a joined jump is neither a heading in degrees nor positions in millimetres)."""
+    if not streams.jumps:
+        return list(log.warnings)
+    return [n for n in log.warnings if not n.startswith(_JUMP_NOTES)]
+
+
 def stream_notes(streams: Streams) -> list[str]:
     """Return the streams' notes (:meth:`Streams.warnings`) and, in a single-rate table, the rows that repeated a
     pose while the cart moved (a dropout written as a held pose, or a stuck pose), left out of the pose."""
@@ -249,7 +261,7 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
     split = len(segments) > 1
     # a load change: one cart cannot fit the whole log, so the verdict is the segments' (each its own fit)
     whole = [w for w in res.warnings if not (split and w.startswith("the model does not fit"))]
-    warnings = list(log.warnings) + stream_notes(streams) + whole
+    warnings = log_notes(log, streams) + stream_notes(streams) + whole
     f_noise, t_noise = res.wrench_noise
     noise = {"force": f_noise.low_frequency_std, "torque": t_noise.low_frequency_std}
     nis, rejected, note = _innovation(log, streams, res.params, noise)
@@ -368,7 +380,7 @@ def _run_ekf(log: CartLog, streams: Streams, guess: CartParams) -> EstimateRepor
     if not all(math.isfinite(v) for v in (p.m, p.dx, p.dy, p.I, p.sigma, p.sigma_yaw)):
         raise LogFormatError(f"{log.source}: the EKF diverged on this log (non-finite estimate)")
     fits = bool(math.isfinite(est.mean_nis) and est.mean_nis < NIS_MISFIT)
-    warnings = list(log.warnings) + stream_notes(streams)
+    warnings = log_notes(log, streams) + stream_notes(streams)
     if not fits:
         warnings.append(
             f"the EKF's innovations do not fit (mean NIS {est.mean_nis:.1f}, ~6 expected): "
