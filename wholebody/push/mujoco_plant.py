@@ -108,8 +108,10 @@ class MujocoPlantConfig:
     #: the force loops of two or more torque-controlled arms on one cart: "off" (open-loop ``J^T w``), "net" (the
     #: loops close on the stacked error's part in the cart's net wrench, `arm_control.net_wrench_projector`; the
     #: squeeze between the hands, which no cart motion shows, is left to the feed-forward) or "full" (each arm on its
-    #: own error). Measured (two Ridgebacks, Traj. 2 seed 0, docs/mujoco.md "Arm laws"): "net" and "full" both drive
-    #: a joint torque to its limit (wrench error 6x and 2x the hand force), "off" 82 %
+    #: own error). Measured (two Ridgebacks, seed 0, docs/mujoco.md "Several arms on one cart"): Traj. 1 wrench error
+    #: "full" 20 %, "net" 27 %, "off" 48 % of the hand force; Traj. 2 the loops make the cart follow closer than the
+    #: bases do, an elbow comes to straight in the turns and the squeeze there is the stretched arm's (130 %, 454 %,
+    #: "off" 82 %), so off by default
     multi_arm_force_loop: str = "off"
 
     def __post_init__(self) -> None:
