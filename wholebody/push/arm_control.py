@@ -15,9 +15,9 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   null space only: `TorqueArmGains.plan_null_space`; see `TorqueArmGains.feedforward` for the other feed-forwards),
   ``q_plan(t)`` the plan interpolated over the period (``arm_position - arm_velocity (t_end - t)``) and ``N^T = I - J^T Jbar^T`` the dynamically consistent null-space
   projector (``Jbar = M^-1 J^T (J M^-1 J^T)^-1``; ``J`` the hand's 6 x n_arm Jacobian, ``M`` the arm's joint-space
-  inertia, both refreshed once per control period). The joint impedance holds the posture (the elbow of a 7-joint
-  arm) without pushing on the hand: the hand's wrench stays the commanded ``J^T w`` while the hand moves with the
-  handle it holds.
+  inertia, both refreshed once per control period). The joint impedance (its damping on the velocity at the physics
+  step's end: `implicit_impedance`) holds the posture (the elbow of a 7-joint arm) without pushing on the hand: the
+  hand's wrench stays the commanded ``J^T w`` while the hand moves with the handle it holds.
 
   The force loop (PI, ``K = 3`` on the force rows and 1 on the moment rows, ``K_i = 5 /s``) cancels what the
   arm's own dynamics take from the push: the cart feels the arm's task-space inertia (19 kg along x at the push posture, as much as the cart) whenever the
