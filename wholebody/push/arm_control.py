@@ -93,8 +93,9 @@ class TorqueArmGains:
     #: damping's velocity predicted from the arm's inertia: `implicit_impedance`); False: at its start. Held
     #: explicitly, a damping ``D`` on a motion whose inertia ``I`` is below ``D dt / 2`` flips sign every step and
     #: grows: near a straight iiwa elbow (joint 4 below about 0.2 rad) the null space gains the counter-rotation
-    #: of joints 3 and 5 (a few hundredths of kg m^2 against ``2 D dt`` = 0.08), which drove the torques to their
-    #: limits at 250 Hz (two arms, Traj. 2, docs/mujoco.md "Several arms on one cart")
+    #: of joints 3 and 5 (a few hundredths of kg m^2, damped by ``D`` on both joints: unstable below ``2 D dt / 2``
+    #: = 0.04 kg m^2), which drove the torques to their limits at 250 Hz (two arms, Traj. 2, docs/mujoco.md "Several
+    #: arms on one cart")
     implicit_damping: bool = True
     #: Cartesian stiffness (N m/rad) and damping (N m s/rad) holding the hand's roll and pitch (about the world's
     #: horizontal axes) at the command's ``hand_target``: the grip keeps the cart upright against the roll
