@@ -24,7 +24,9 @@ vdot r^2, omega r, omegadot r^2), grown by `TimeScaling.feedback_share` for the 
 can give (the allocation's limits at their current configuration, the tip-over bound under that motion's load);
 the rate heads for the largest such r on a grid, as for a deficit. This is the admissible-velocity test of
 time-optimal path parameterization, at the few rates of the grid and along the horizon only. It is off by default
-(`TimeScaling.horizon` 0): its tip-over test counts the CoM at the handle's height and finds turns the arms make.
+(`TimeScaling.horizon` 0): it judges a turn with the estimated yaw inertia, which the straight run before the first
+turn does not excite, and the sideways push that estimate asks at the handle fails its tip-over test (the CoM counted
+at the handle's height) in turns the arms make at full speed (docs/mujoco.md, "The reference slows down").
 """
 
 from __future__ import annotations
@@ -57,7 +59,8 @@ class TimeScaling:
     deficit_tol: float = 0.02
     #: how far ahead (s) the desired motion's feed-forward wrench must be one the arms can give, and how often (s,
     #: of reference time) that is checked (`admissible_rate`). 0: no look-ahead (the default: with 1.5 the default
-    #: MuJoCo Traj. 2 is slowed to 80 % in its turns, which the arms make at full speed; docs/mujoco.md)
+    #: MuJoCo Traj. 2 is slowed to 80 % in its turns, which the arms make at full speed: the estimate's yaw inertia
+    #: is not yet excited there; docs/mujoco.md)
     horizon: float = 0.0
     horizon_samples: int = 7
     check_period: float = 0.1
