@@ -1,4 +1,4 @@
-"""A holonomic base's place behind the cart, planned ahead over the desired motion within its wheel speeds.
+"""A mobile base's place behind the cart, planned ahead over the desired motion within its wheel speeds.
 
 Held rigidly behind the handle, a mecanum base cannot follow the paper's Traj. 2 through its turns (0.8 m/s,
 1.05 rad/s): its rim speed |vx| + |vy| + (lx + ly)|omega| reaches 2.5 m/s against a 1.1 m/s limit, the base
@@ -17,6 +17,15 @@ is free: the base lets it lag the cart's (the arm's seven joints absorb the diff
 the speed to translate. The arm's posture along the plan comes from the grasp IK, knot by knot
 (`wholebody.push.robot.solve_grasp_ik`), and the whole-body QP pulls the arm to it (`BasePlan.posture`).
 The base's place is kept relative to the cart (`BasePlan.target`): the plan follows the cart where it is.
+
+A nonholonomic base (a differential drive: `blocked_twists`) gets the same plan with two more row sets: its body
+twist along the blocked directions is zero on every segment with a free knot (equality rows; a differential
+drive's step is an arc, WMRA paper eq. 4-7, whose chord lies along the mean heading, so v_lateral = 0 there is
+exact), and its wheel rates change by at most the profile's `wheel_acceleration_limit` per second (its tracker's
+bound); its windows also open where the rigid place moves it sideways (`BasePlanSettings.lateral_tolerance`).
+On a straight push the rigid place has no sideways speed: no window, the plan is the rigid place.
+`PushController` plans only holonomic bases: with this plan the WMRA still loses the MuJoCo Traj. 2, and the
+plan costs about 140 s CPU there (two windows of 71 and 141 knots for SLSQP), docs/mujoco.md.
 """
 
 from __future__ import annotations
@@ -30,6 +39,7 @@ from scipy.optimize import minimize
 from scipy.optimize._numdiff import approx_derivative
 
 from wholebody.errors import WholeBodyError
+from wholebody.motion.bases import MobileBase
 from wholebody.push.base_settings import BasePlanSettings
 from wholebody.push.robot import MobileManipulator, base_target, grasp_target, handle_point, solve_grasp_ik
 
@@ -87,13 +97,29 @@ def _rot(th: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
 
 
-def rim_rates(poses: np.ndarray, h: float, H: np.ndarray) -> np.ndarray:
-    """Return the wheel rates (k, n_wheels) of the segments between consecutive poses (k + 1, 3) h apart:
-    H @ body twist, the twist at the segment's mean heading."""
+def body_twists(poses: np.ndarray, h: float) -> np.ndarray:
+    """Return the body twists (k, 3) (vx, vy, omega) of the segments between consecutive poses (k + 1, 3) h apart,
+    each at the segment's mean heading. A differential drive's step is an arc (WMRA paper eq. 4-7): its chord
+    points along the mean heading, so the arc's twist has vy = 0 exactly, as the drive's own."""
     d = np.diff(poses, axis=0) / h
     th = 0.5 * (poses[1:, 2] + poses[:-1, 2])
     c, s = np.cos(th), np.sin(th)
-    return np.c_[c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]] @ H.T
+    return np.c_[c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]]
+
+
+def rim_rates(poses: np.ndarray, h: float, H: np.ndarray) -> np.ndarray:
+    """Return the wheel rates (k, n_wheels) of the segments between consecutive poses (k + 1, 3) h apart:
+    H @ body twist (`body_twists`)."""
+    return body_twists(poses, h) @ H.T
+
+
+def blocked_twists(base: MobileBase) -> np.ndarray:
+    """Return the body twist directions (3, m) base `base` cannot move along: the orthogonal complement of its
+    wheels' twists (range of `wheel_to_body_twist`). A differential drive: (0, 1, 0), its lateral velocity
+    (WMRA paper eq. 4-7: no sideways step); a holonomic base: none (3, 0)."""
+    U, sv, _ = np.linalg.svd(base.wheel_to_body_twist())
+    rank = int(np.sum(sv > 1e-9 * max(1.0, float(sv.max(initial=0.0)))))
+    return U[:, rank:]
 
 
 def rigid_poses(cart: np.ndarray, offset_b: np.ndarray) -> np.ndarray:
@@ -101,10 +127,16 @@ def rigid_poses(cart: np.ndarray, offset_b: np.ndarray) -> np.ndarray:
     return np.c_[cart[:, :2] + np.einsum("kij,j->ki", _rot(cart[:, 2]), offset_b), cart[:, 2]]
 
 
-def wheel_windows(t: np.ndarray, rates: np.ndarray, limit: np.ndarray, s: BasePlanSettings) -> list[tuple[int, int]]:
+def wheel_windows(
+    t: np.ndarray, rates: np.ndarray, limit: np.ndarray, s: BasePlanSettings, sideways: np.ndarray | None = None
+) -> list[tuple[int, int]]:
     """Return the knot ranges [i0, i1] to plan: where the rigid place's wheel rates `rates` (len(t) - 1, n) pass
-    `speed_margin` x `limit`, widened by `lead` before and `tail` after, merged when they overlap."""
-    over = np.flatnonzero(np.any(np.abs(rates) > s.speed_margin * limit, axis=1))
+    `speed_margin` x `limit` or its speeds along the base's blocked twists `sideways` (len(t) - 1, m) pass
+    `lateral_tolerance`, widened by `lead` before and `tail` after, merged when they overlap."""
+    over = np.any(np.abs(rates) > s.speed_margin * limit, axis=1)
+    if sideways is not None:
+        over |= np.any(np.abs(sideways) > s.lateral_tolerance, axis=1)
+    over = np.flatnonzero(over)
     out: list[tuple[int, int]] = []
     lead, tail = int(round(s.lead / s.step)), int(round(s.tail / s.step))
     for k in over:
@@ -116,19 +148,44 @@ def wheel_windows(t: np.ndarray, rates: np.ndarray, limit: np.ndarray, s: BasePl
     return out
 
 
+@dataclass(frozen=True)
+class BaseWheels:
+    """What the plan keeps a base's wheels within (`base_wheels`)."""
+
+    #: (n_wheels, 3) body twist -> wheel rates
+    H: np.ndarray
+    #: (n_wheels,) wheel speed limits (rad/s)
+    limit: np.ndarray
+    #: (3, m) body twist directions the base cannot move along (`blocked_twists`; m = 0: holonomic)
+    blocked: np.ndarray
+    #: wheel acceleration limit (rad/s^2) the plan bounds, or None
+    acceleration: float | None = None
+
+
+def base_wheels(mm: MobileManipulator) -> BaseWheels:
+    """Return robot `mm`'s `BaseWheels`. A nonholonomic base's plan also bounds its wheel accelerations by the
+    profile's `wheel_acceleration_limit`, the bound its tracker puts on the wheel rates of a differential drive (a
+    holonomic base's tracker bounds its body twist's, which the plan leaves to it)."""
+    base = mm.wb.base
+    blocked = blocked_twists(base)
+    acc = mm.profile.wheel_acceleration_limit if blocked.shape[1] else None
+    limit = np.asarray(mm.wb.wheel_velocity_limit, dtype=float)
+    return BaseWheels(base.twist_to_wheels(), limit, blocked, None if acc is None else float(acc))
+
+
 def plan_window(
     cart: np.ndarray,
     nominal: np.ndarray,
     reach: ArmReach,
-    H: np.ndarray,
-    limit: np.ndarray,
+    wheels: BaseWheels,
     s: BasePlanSettings,
     front_x: float | None,
     free_end: bool = False,
 ) -> tuple[np.ndarray, float]:
     """Return (base poses (k, 3), largest mount-wrist distance rho) over one window of desired cart poses `cart`
     (k, 3) (module docstring); the first two knots stay at the rigid `nominal` poses, and so do the last two
-    unless `free_end` (a window the run's end cuts: the base need not be back at its rigid place there)."""
+    unless `free_end` (a window the run's end cuts: the base need not be back at its rigid place there). A
+    nonholonomic base: no twist along its blocked directions on a segment with a free knot, bounded accelerations."""
     n, h = len(cart), s.step
     wrist = cart[:, :2] + np.einsum("kij,j->ki", _rot(cart[:, 2]), reach.wrist_b)
     tail = 0 if free_end else 2
@@ -143,8 +200,8 @@ def plan_window(
 
     def constraints(z: np.ndarray) -> np.ndarray:
         P, rho = poses(z), z[-1]
-        r = rim_rates(P, h, H).ravel()
-        lim = np.tile(s.speed_margin * limit, n - 1)
+        rates = rim_rates(P, h, wheels.H)
+        r, lim = rates.ravel(), np.tile(s.speed_margin * wheels.limit, n - 1)
         v = wrist - (P[:, :2] + np.einsum("kij,j->ki", _rot(P[:, 2]), reach.mount))
         d = np.linalg.norm(v, axis=1)
         head = np.c_[np.cos(P[:, 2]), np.sin(P[:, 2])]
@@ -154,20 +211,27 @@ def plan_window(
             corners = P[:, None, :2] + np.einsum("kij,cj->kci", _rot(P[:, 2]), reach.footprint) - cart[:, None, :2]
             xb = np.cos(cart[:, 2])[:, None] * corners[..., 0] + np.sin(cart[:, 2])[:, None] * corners[..., 1]
             out.append((front_x - xb).ravel())
+        if wheels.acceleration is not None:
+            acc = np.diff(rates, axis=0).ravel() / h
+            out += [s.speed_margin * wheels.acceleration - acc, s.speed_margin * wheels.acceleration + acc]
         return np.concatenate(out)
 
+    def sideways(z: np.ndarray) -> np.ndarray:
+        return (body_twists(poses(z), h)[1 : min(n - 1, n - tail)] @ wheels.blocked).ravel()
+
     z0 = np.r_[nominal[2 : n - tail].ravel(), reach.nominal]
-    sparsity = _sparsity(constraints, z0, nv)
+    rows = [(constraints, "ineq")] + ([(sideways, "eq")] if wheels.blocked.shape[1] else [])
     res = minimize(
         objective,
         z0,
         jac=lambda z: approx_derivative(objective, z),
-        constraints=[{"type": "ineq", "fun": constraints, "jac": lambda z: _jac(constraints, z, sparsity)}],
+        constraints=[{"type": kind, "fun": f, "jac": _sparse_jac(f, z0, nv)} for f, kind in rows],
         method="SLSQP",
         options={"maxiter": s.max_iterations, "ftol": 1e-9},
     )
-    if np.min(constraints(res.x)) < -1e-3:  # rad/s, m: within the solver's tolerance
-        raise WholeBodyError(f"the base plan breaks its limits by {-np.min(constraints(res.x)):.3g} ({res.message})")
+    worst = max([-float(np.min(constraints(res.x)))] + [float(np.abs(f(res.x)).max()) for f, _ in rows[1:]])
+    if worst > 1e-3:  # rad/s, m, m/s: within the solver's tolerance
+        raise WholeBodyError(f"the base plan breaks its limits by {worst:.3g} ({res.message})")
     return poses(res.x), float(res.x[-1])
 
 
@@ -184,6 +248,12 @@ def _sparsity(fun, z0: np.ndarray, nv: int) -> np.ndarray:
 def _jac(fun, z: np.ndarray, sparsity: np.ndarray) -> np.ndarray:
     """Return the dense Jacobian of `fun` at z by grouped finite differences over its sparsity pattern."""
     return np.asarray(approx_derivative(fun, z, sparsity=sparsity).toarray())
+
+
+def _sparse_jac(fun, z0: np.ndarray, nv: int):
+    """Return the Jacobian function of `fun` (`_jac`) over its sparsity pattern found about z0 (`_sparsity`)."""
+    sparsity = _sparsity(fun, z0, nv)
+    return lambda z: _jac(fun, z, sparsity)
 
 
 @dataclass(frozen=True)
@@ -234,23 +304,23 @@ class BasePlan:
 def plan_base(
     mm: MobileManipulator, trajectory, contact_y: float, settings: BasePlanSettings | None = None
 ) -> BasePlan:
-    """Return the `BasePlan` of holonomic robot `mm` (one hand, at `contact_y`) over the desired cart motion
-    `trajectory` (``duration``, ``sample(t)``): planned windows where the rigid place breaks the wheel limits."""
+    """Return the `BasePlan` of robot `mm` (one hand, at `contact_y`) over the desired cart motion `trajectory`
+    (``duration``, ``sample(t)``): planned windows where the rigid place breaks the wheel limits or, for a
+    nonholonomic base, moves it along a blocked twist (module docstring)."""
     s = settings or BasePlanSettings()
-    if not mm.wb.base.holonomic or mm.n_hands != 1:
-        raise WholeBodyError("the base plan is for a holonomic base holding the handle with one hand")
-    reach = arm_reach(mm, contact_y)
-    H = mm.wb.base.twist_to_wheels()
-    limit = np.asarray(mm.wb.wheel_velocity_limit, dtype=float)
+    if mm.n_hands != 1:
+        raise WholeBodyError("the base plan is for a base holding the handle with one hand")
+    reach, wheels = arm_reach(mm, contact_y), base_wheels(mm)
     t = np.arange(0.0, float(trajectory.duration) + 0.5 * s.step, s.step)
     cart = np.array([trajectory.sample(float(v))[0] for v in t])
     cart[:, 2] = np.unwrap(cart[:, 2])
     nominal = rigid_poses(cart, mm.base_offset_b)
     front = None if s.front_reach is None else float(handle_point(contact_y, mm.geometry)[0]) + s.front_reach
+    sideways = body_twists(nominal, s.step) @ wheels.blocked if wheels.blocked.shape[1] else None
     out: tuple[list, list, list, list] = ([], [], [], [])
-    for i0, i1 in wheel_windows(t, rim_rates(nominal, s.step, H), limit, s):
-        P, rho = plan_window(cart[i0 : i1 + 1], nominal[i0 : i1 + 1], reach, H, limit, s, front, i1 == len(t) - 1)
-        C = cart[i0 : i1 + 1]
+    for i0, i1 in wheel_windows(t, rim_rates(nominal, s.step, wheels.H), wheels.limit, s, sideways):
+        C, N = cart[i0 : i1 + 1], nominal[i0 : i1 + 1]
+        P, rho = plan_window(C, N, reach, wheels, s, front, i1 == len(t) - 1)
         rel = np.einsum("kji,kj->ki", _rot(C[:, 2]), P[:, :2] - C[:, :2])
         out[0].append(t[i0 : i1 + 1])
         out[1].append(np.c_[rel, P[:, 2] - C[:, 2]])

@@ -19,6 +19,9 @@ class BasePlanSettings:
     #: seconds the plan starts before and ends after the stretch where the rigid place breaks the wheel limit
     lead: float = 1.0
     tail: float = 3.0
+    #: a nonholonomic base's plan also starts where the rigid place moves it along a blocked twist (a differential
+    #: drive's sideways) faster than this (m/s; rad/s for a blocked yaw)
+    lateral_tolerance: float = 1e-3
     #: closest horizontal mount-wrist distance, as a share of the grasp's nominal one (the arm folds)
     min_reach_fraction: float = 0.6
     #: largest angle between the base's heading and its mount-wrist direction (rad)
