@@ -471,29 +471,32 @@ def _jump_steps(stream: Stream) -> np.ndarray:
 
     A jump is a step that departs from the one its neighbours' rates predict by ``GLITCH_SCALE`` robust
     scales of the second difference (noise and motion per step) over the log and around the step (a smooth
-    start from rest is no jump) and by 5 typical steps, in a column; the
-    interval is an ordinary one (a dropout's step is a gap's, :func:`_dropouts`). Isolated glitches are
-    dropped before (:func:`_glitches`), so the pose stays at the new place after a jump.
+    start from rest is no jump) and by 5 typical steps, in a column; the interval is an ordinary one (a
+    dropout's step is a gap's, :func:`_dropouts`). Isolated glitches are dropped before (:func:`_glitches`),
+    so the pose stays at the new place after a jump. Only steps next to a second difference beyond
+    ``GLITCH_SCALE`` scales (every jump makes two) are examined, so the cost is linear and small.
     """
     v, t = stream.values, stream.t
     n = len(v)
     if n < 15:
         return np.zeros(0, dtype=int)
+    d2 = np.abs(np.diff(v, 2, axis=0))
+    scale = 1.4826 * np.median(d2[:: max(1, n // 20000)], axis=0) + 1e-12
+    hot = np.flatnonzero(np.any(d2 > GLITCH_SCALE * scale, axis=1))
+    cand = np.unique(np.clip(np.r_[hot, hot + 1], 0, n - 2))  # d2[j] spans steps j and j + 1
+    if not len(cand):
+        return np.zeros(0, dtype=int)
     dt = np.diff(t)
     step = np.diff(v, axis=0)
     rate = step / dt[:, None]
-    idx = np.arange(n - 1)
-    near = np.clip(idx[:, None] + np.array([-3, -2, -1, 1, 2, 3])[None, :], 0, n - 2)
-    pred = np.median(rate[near], axis=1) * dt[:, None]
-    dev = np.abs(step - pred)
-    d2 = np.abs(np.diff(v, 2, axis=0))
-    scale = 1.4826 * np.median(d2, axis=0) + 1e-12
-    local = np.median(d2[np.clip(idx[:, None] + np.array([-4, -3, -2, 1, 2, 3])[None, :], 0, n - 3)], axis=1)
-    typical = np.median(np.abs(step), axis=0) + 1e-12
+    near = np.clip(cand[:, None] + np.array([-3, -2, -1, 1, 2, 3])[None, :], 0, n - 2)
+    dev = np.abs(step[cand] - np.median(rate[near], axis=1) * dt[cand, None])
+    local = np.median(d2[np.clip(cand[:, None] + np.array([-4, -3, -2, 1, 2, 3])[None, :], 0, n - 3)], axis=1)
+    typical = np.median(np.abs(step[:: max(1, n // 20000)]), axis=0) + 1e-12
     span = np.ptp(v, axis=0)
     far = (dev > GLITCH_SCALE * scale) & (dev > GLITCH_SCALE * local) & (dev > 5.0 * typical) & (dev > 1e-3 * span)
-    big = np.any(far, axis=1)
-    return np.flatnonzero(big & (dt <= DROPOUT_PERIODS * float(np.median(dt))))
+    ordinary = dt[cand] <= DROPOUT_PERIODS * float(np.median(dt[:: max(1, n // 20000)]))
+    return cand[np.any(far, axis=1) & ordinary]
 
 
 def join_jumps(pose: Stream, wrench: Stream) -> tuple[Stream, Stream, tuple[float, ...]]:
@@ -526,10 +529,11 @@ def join_jumps(pose: Stream, wrench: Stream) -> tuple[Stream, Stream, tuple[floa
         piece = slice(i + 1, bounds[k + 1])
         q[piece, :2] = pose.values[piece, :2] @ rot.T + shift
         q[piece, 2] = pose.values[piece, 2] + d
-        after = wrench.t > 0.5 * (pose.t[i] + pose.t[i + 1])
+        lo_w = int(np.searchsorted(wrench.t, 0.5 * (pose.t[i] + pose.t[i + 1]), side="right"))
+        hi_w = len(g)
         if k + 1 < len(jumps):
-            after &= wrench.t <= 0.5 * (pose.t[jumps[k + 1]] + pose.t[jumps[k + 1] + 1])
-        g[after, :2] = wrench.values[after, :2] @ rot.T
+            hi_w = int(np.searchsorted(wrench.t, 0.5 * (pose.t[jumps[k + 1]] + pose.t[jumps[k + 1] + 1]), side="right"))
+        g[lo_w:hi_w, :2] = wrench.values[lo_w:hi_w, :2] @ rot.T
     times = tuple(float(0.5 * (pose.t[i] + pose.t[i + 1])) for i in jumps)
     return Stream(pose.t, q, pose.rows), Stream(wrench.t, g, wrench.rows), times
 
