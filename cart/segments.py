@@ -15,7 +15,9 @@ resistances (:func:`shared_columns`). The change is kept
 when the two sides' masses, fitted on the whole log's filtered regression away from the change (regressor
 noise compensated; std the larger of Newey-West and a block jackknife, so a misfit that varies along the
 log counts while one common to both sides cancels), differ by more than ``CHANGE_Z`` combined std and by
-more than ``MIN_RELATIVE_CHANGE`` (:func:`change_z`). Each side is then estimated on its own
+more than ``MIN_RELATIVE_CHANGE`` (:func:`change_z`); a mass that grows by less than ``CHANGE_Z`` std is kept
+when the pose shows the momentum exchange of a load put in there (:func:`exchange_shown`: the speed drops at
+once, with no force at the handle, by what the two sides' masses predict). Each side is then estimated on its own
 (:func:`cart.identify.identify`) for the report. Binary segmentation: each kept side is searched again,
 ``MAX_DEPTH`` levels. Where the motion does not excite the mass (cruise, standstill) the change time is
 only known to lie in a stretch: the middle is reported, the stretch as ``t0_range``.
@@ -430,8 +432,9 @@ def _split(
 ) -> list[dict[str, Any]]:
     """Return the segments of [t0, t1] (whose identification is ``res``), searched ``depth`` more levels.
 
-    A change is kept when the two sides' mass difference (:func:`change_z`) is at least ``CHANGE_Z`` std and
-    ``MIN_RELATIVE_CHANGE`` of the larger mass, each side's mass at least ``IDENTIFIED_Z`` of its std; each
+    A change is kept when the two sides' mass difference (:func:`change_z`) is at least ``CHANGE_Z`` std (or the
+    pose shows a put-in's momentum exchange there, :func:`exchange_shown`) and ``MIN_RELATIVE_CHANGE`` of the
+    larger mass, each side's mass at least ``IDENTIFIED_Z`` of its std; each
     side is then identified on its own, ``guard`` s (one period of the cut-off) away from the change, and
     those estimates (the ones reported) must differ by ``MIN_RELATIVE_CHANGE`` too.
     """
@@ -456,7 +459,9 @@ def _split(
     tc, lo, hi = split
     guard = 1.0 / res.cutoff_hz
     z, ml, mr, identified = change_z(res, tc, guard)
-    if not (z >= CHANGE_Z and identified >= IDENTIFIED_Z and abs(ml - mr) >= MIN_RELATIVE_CHANGE * max(ml, mr)):
+    if not (identified >= IDENTIFIED_Z and abs(ml - mr) >= MIN_RELATIVE_CHANGE * max(ml, mr)):
+        return here
+    if z < CHANGE_Z and not exchange_shown(log, res.params.m, tc, (ml, mr, z), every * data["step"] * res.grid_dt):
         return here
     try:
         casters = res.casters if res.casters is not None and res.casters.kept else None  # the same cart's casters
@@ -467,6 +472,71 @@ def _split(
     if abs(left.params.m - right.params.m) < MIN_RELATIVE_CHANGE * max(left.params.m, right.params.m):
         return here  # the sides' own estimates, which are reported, must show the change too
     return _split(log, left, t0, tc, depth - 1, t0_range) + _split(log, right, tc, t1, depth - 1, (lo, hi))
+
+
+#: Half-width (s) of the pose fits either side of a put-in's momentum exchange (:func:`exchange_jump`): short
+#: against the pushed cart's motion (and the force the handle gives it is taken out), tens of pose samples.
+EXCHANGE_WINDOW_S = 0.3
+
+
+def exchange_jump(log: CartLog, m: float, tc: float, reach: float) -> tuple[float, float, float]:
+    """Return (forward velocity before, its jump, the jump's std) at the sample within ``reach`` s of ``tc`` where the
+    jump the handle's force does not explain is most significant.
+
+    The forward displacement along the heading minus the double integral of the forward force over ``m`` (what
+    the handle's force explains), fitted by a quadratic on ``EXCHANGE_WINDOW_S`` either side of a sample: the
+    jump is the difference of the two fits' slopes there, its std from their residuals; the velocity before from
+    the same fit of the displacement alone. A load at rest put on the cart shares its forward momentum
+    ``m_L v = m_R (v + jump)`` at once, with no force at the handle.
+    """
+    ok = np.isfinite(log.t) & np.all(np.isfinite(log.q), axis=1) & np.all(np.isfinite(log.gamma), axis=1)
+    t, q, gam = log.t[ok], log.q[ok], log.gamma[ok]
+    th = q[:, 2]
+    d = np.diff(q[:, :2], axis=0)
+    s = np.r_[0.0, np.cumsum(np.cos(th[:-1]) * d[:, 0] + np.sin(th[:-1]) * d[:, 1])]
+    f = np.cos(th) * gam[:, 0] + np.sin(th) * gam[:, 1]
+    vf = np.r_[0.0, np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t))] / m
+    e = s - np.r_[0.0, np.cumsum(0.5 * (vf[1:] + vf[:-1]) * np.diff(t))]
+    best = (0.0, 0.0, math.inf)
+    for i in range(int(np.searchsorted(t, tc - reach)), min(int(np.searchsorted(t, tc + reach)) + 1, len(t))):
+        lo = int(np.searchsorted(t, t[i] - EXCHANGE_WINDOW_S))
+        hi = int(np.searchsorted(t, t[i] + EXCHANGE_WINDOW_S, side="right"))
+        if min(i - lo, hi - i) < 6:
+            continue
+        sides = [slice(lo, i), slice(i, hi)]
+        (a, va), (b, vb) = (_slope(t[side] - t[i], e[side]) for side in sides)
+        if abs(b - a) * math.sqrt(best[2]) >= abs(best[1]) * math.sqrt(va + vb):
+            best = (_slope(t[sides[0]] - t[i], s[sides[0]])[0], b - a, va + vb)
+    return best[0], best[1], math.sqrt(best[2])
+
+
+def _slope(t: np.ndarray, s: np.ndarray) -> tuple[float, float]:
+    """Return (slope at t = 0, its variance) of the least-squares quadratic through ``s(t)``."""
+    a = np.stack([np.ones_like(t), t, t * t], axis=1)
+    ata = np.linalg.inv(a.T @ a)
+    c = ata @ (a.T @ s)
+    r = s - a @ c
+    return float(c[1]), float(ata[1, 1] * (r @ r) / max(len(t) - 3, 1))
+
+
+def exchange_shown(log: CartLog, m: float, tc: float, sides: tuple[float, float, float], reach: float) -> bool:
+    """Return whether the pose shows the momentum exchange of a load put in at ``tc`` (:func:`exchange_jump`).
+
+    ``sides``: the two sides' masses and their difference over its std (:func:`change_z`). A put-in (the mass
+    grows) while the cart moves drops its speed at once by ``v (1 - m_L / m_R)`` with no force at the handle:
+    the jump must be a drop of speed of at least ``CHANGE_Z`` of its std and agree with the one the sides'
+    masses predict within ``IDENTIFIED_Z`` combined std (the prediction's relative std that of the mass
+    difference, one over its z). The sides' masses alone can then fall short of ``CHANGE_Z`` (their std
+    inflated by misfit along the log, which a jump within a fraction of a second does not see).
+    """
+    ml, mr, z = sides
+    if not (mr > ml and z > 0.0):
+        return False
+    v0, jump, sd = exchange_jump(log, m, tc, reach)
+    pred = v0 * (ml / mr - 1.0)
+    return bool(
+        jump * v0 < 0.0 and abs(jump) >= CHANGE_Z * sd and abs(jump - pred) <= IDENTIFIED_Z * math.hypot(sd, pred / z)
+    )
 
 
 def find_segments(log: CartLog, streams, res) -> tuple[list[dict[str, Any]], list[str]]:
