@@ -479,15 +479,17 @@ def _split(
 EXCHANGE_WINDOW_S = 0.3
 
 
-def exchange_jump(log: CartLog, m: float, tc: float, reach: float) -> tuple[float, float, float]:
-    """Return (forward velocity before, its jump, the jump's std) at the sample within ``reach`` s of ``tc`` where the
-    jump the handle's force does not explain is most significant.
+def exchange_jump(log: CartLog, m: float, tc: float, reach: float) -> tuple[float, float, float, float]:
+    """Return (forward velocity before, its jump, the jump's std, the largest jump over its std elsewhere) at the
+    sample within ``reach`` s of ``tc`` where the jump the handle's force does not explain is most significant.
 
     The forward displacement along the heading minus the double integral of the forward force over ``m`` (what
     the handle's force explains), fitted by a quadratic on ``EXCHANGE_WINDOW_S`` either side of a sample: the
     jump is the difference of the two fits' slopes there, its std from their residuals; the velocity before from
     the same fit of the displacement alone. A load at rest put on the cart shares its forward momentum
-    ``m_L v = m_R (v + jump)`` at once, with no force at the handle.
+    ``m_L v = m_R (v + jump)`` at once, with no force at the handle. Elsewhere: the same jump's significance at
+    samples ``EXCHANGE_WINDOW_S`` apart, farther than twice that from ``tc`` (what the log's other events, a
+    caster's swing or a bump, give without a change).
     """
     ok = np.isfinite(log.t) & np.all(np.isfinite(log.q), axis=1) & np.all(np.isfinite(log.gamma), axis=1)
     t, q, gam = log.t[ok], log.q[ok], log.gamma[ok]
@@ -499,15 +501,24 @@ def exchange_jump(log: CartLog, m: float, tc: float, reach: float) -> tuple[floa
     e = s - np.r_[0.0, np.cumsum(0.5 * (vf[1:] + vf[:-1]) * np.diff(t))]
     best = (0.0, 0.0, math.inf)
     for i in range(int(np.searchsorted(t, tc - reach)), min(int(np.searchsorted(t, tc + reach)) + 1, len(t))):
-        lo = int(np.searchsorted(t, t[i] - EXCHANGE_WINDOW_S))
-        hi = int(np.searchsorted(t, t[i] + EXCHANGE_WINDOW_S, side="right"))
-        if min(i - lo, hi - i) < 6:
-            continue
-        sides = [slice(lo, i), slice(i, hi)]
-        (a, va), (b, vb) = (_slope(t[side] - t[i], e[side]) for side in sides)
-        if abs(b - a) * math.sqrt(best[2]) >= abs(best[1]) * math.sqrt(va + vb):
-            best = (_slope(t[sides[0]] - t[i], s[sides[0]])[0], b - a, va + vb)
-    return best[0], best[1], math.sqrt(best[2])
+        got = _jump(t, e, i)
+        if got is not None and abs(got[0]) * math.sqrt(best[2]) >= abs(best[1]) * math.sqrt(got[1]):
+            best = (_slope(t[got[2]] - t[i], s[got[2]])[0], got[0], got[1])
+    elsewhere = 0.0
+    for i in np.searchsorted(t, np.arange(t[0], t[-1], EXCHANGE_WINDOW_S)):
+        got = _jump(t, e, int(i)) if abs(t[int(i)] - tc) > 2 * EXCHANGE_WINDOW_S else None
+        elsewhere = max(elsewhere, 0.0 if got is None else abs(got[0]) / math.sqrt(got[1]))
+    return best[0], best[1], math.sqrt(best[2]), elsewhere
+
+
+def _jump(t: np.ndarray, e: np.ndarray, i: int) -> tuple[float, float, slice] | None:
+    """Return (slope after - slope before, its variance, the rows before) of ``e`` at sample ``i`` (None near an end)."""
+    lo = int(np.searchsorted(t, t[i] - EXCHANGE_WINDOW_S))
+    hi = int(np.searchsorted(t, t[i] + EXCHANGE_WINDOW_S, side="right"))
+    if min(i - lo, hi - i) < 6:
+        return None
+    (a, va), (b, vb) = (_slope(t[side] - t[i], e[side]) for side in (slice(lo, i), slice(i, hi)))
+    return b - a, va + vb, slice(lo, i)
 
 
 def _slope(t: np.ndarray, s: np.ndarray) -> tuple[float, float]:
@@ -524,18 +535,21 @@ def exchange_shown(log: CartLog, m: float, tc: float, sides: tuple[float, float,
 
     ``sides``: the two sides' masses and their difference over its std (:func:`change_z`). A put-in (the mass
     grows) while the cart moves drops its speed at once by ``v (1 - m_L / m_R)`` with no force at the handle:
-    the jump must be a drop of speed of at least ``CHANGE_Z`` of its std and agree with the one the sides'
-    masses predict within ``IDENTIFIED_Z`` combined std (the prediction's relative std that of the mass
+    the jump must be a drop of speed more significant, by ``CHANGE_Z`` of its std, than any the log shows
+    elsewhere (unexplained jumps without a change, a caster's swing or a bump, reach 5-20 std on the MuJoCo
+    cart's logs), and agree with the one the sides' masses predict within ``IDENTIFIED_Z`` combined std (the prediction's relative std that of the mass
     difference, one over its z). The sides' masses alone can then fall short of ``CHANGE_Z`` (their std
     inflated by misfit along the log, which a jump within a fraction of a second does not see).
     """
     ml, mr, z = sides
     if not (mr > ml and z > 0.0):
         return False
-    v0, jump, sd = exchange_jump(log, m, tc, reach)
+    v0, jump, sd, elsewhere = exchange_jump(log, m, tc, reach)
     pred = v0 * (ml / mr - 1.0)
     return bool(
-        jump * v0 < 0.0 and abs(jump) >= CHANGE_Z * sd and abs(jump - pred) <= IDENTIFIED_Z * math.hypot(sd, pred / z)
+        jump * v0 < 0.0
+        and abs(jump) >= (CHANGE_Z + elsewhere) * sd
+        and abs(jump - pred) <= IDENTIFIED_Z * math.hypot(sd, pred / z)
     )
 
 

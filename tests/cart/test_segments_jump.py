@@ -37,10 +37,10 @@ def test_the_speed_drop_of_a_put_in_is_the_momentum_exchange():
     # 40 -> 56 kg at 10 s: the jump is v (40 / 56 - 1) within a few of its std; the force's own acceleration is
     # taken out (the same log without the change shows no jump)
     log = _straight_log(40.0, 56.0, 10.0)
-    v0, jump, sd = segments.exchange_jump(log, 45.0, 10.03, 0.08)
+    v0, jump, sd, _ = segments.exchange_jump(log, 45.0, 10.03, 0.08)
     assert abs(jump - v0 * (40.0 / 56.0 - 1.0)) < 3.0 * sd + 0.02 * abs(jump)
     assert abs(jump) > 10.0 * sd
-    _, jump0, sd0 = segments.exchange_jump(_straight_log(40.0, 40.0, None), 40.0, 10.03, 0.08)
+    _, jump0, sd0, _ = segments.exchange_jump(_straight_log(40.0, 40.0, None), 40.0, 10.03, 0.08)
     assert abs(jump0) < 4.0 * sd0
 
 
