@@ -55,6 +55,13 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   ``J^T w`` at once, and the admittance corrects what the arm's own dynamics take from it. Without it the
   admittance alone makes the push: its loop gain ``A k_v (J J^T)^-1`` is about 0.2 for the WMRA
   (``a_f`` 0.001 m/s per N, ``k_v`` 80), so the hand delivers about a third of the allocated force.
+
+  By default (`AdmittanceGains.from_arm`) the MuJoCo plant derives both from the arm's own limits for a robot whose
+  gains were not tuned (every profile robot; the WMRA keeps its own, `mujoco_plant.TUNED_ADMITTANCE`)
+  (`wholebody.push.admittance_tuning`): each joint's servo damping ``k_v,i = tau_max,i / qdot_max,i`` (at most
+  `ServoGains.arm_kv`) and ``A = L J K_v^-1 J^T``, whose loop gain ``(J K_v^-1 J^T)^-1 A`` is ``L`` (0.3) in
+  every direction; a diagonal ``A`` gives each direction the arm's task-space damping times it (0.05-4.2 over
+  the WMRA's, 0.1-3.4 over TIAGo's).
 """
 
 from __future__ import annotations
@@ -190,9 +197,17 @@ class AdmittanceGains:
     #: damping of the pseudo-inverse (m^2)
     pinv_damping: float = 1e-4
     #: the joint velocity servos' damping k_v (N m s/rad): the push J^T w goes forward as their velocity offset
-    #: J^T w / k_v; None = the MuJoCo plant's own servos' (`ServoGains.arm_kv`), 0 = no feed-forward (the admittance
-    #: alone makes the push)
-    servo_kv: float | None = None
+    #: J^T w / k_v; one per joint (a tuple) or one for all; None = the MuJoCo plant's own servos'
+    #: (`ServoGains.arm_kv`), 0 = no feed-forward (the admittance alone makes the push)
+    servo_kv: float | tuple[float, ...] | None = None
+    #: the admittance's loop gain: None = the diagonal admittance (``force_gain``, ``torque_gain``); a number L = the
+    #: admittance ``A = L J K_v^-1 J^T`` (``K_v`` = diag(``servo_kv``)), whose loop gain ``(J K_v^-1 J^T)^-1 A`` is L
+    #: in every direction (`admittance_tuning.loop_admittance`)
+    loop_gain: float | None = None
+    #: True: the MuJoCo plant derives the servos' damping per joint and the loop gain from the arm's own limits
+    #: (robots outside `mujoco_plant.TUNED_ADMITTANCE`)
+    #: (`admittance_tuning.arm_tuning`); False: ``servo_kv`` and ``loop_gain`` as given
+    from_arm: bool = True
 
 
 def null_space_projector_T(J: np.ndarray, M: np.ndarray) -> np.ndarray:
@@ -632,8 +647,12 @@ class AdmittanceArmLaw:
         g = self.gains
         err = np.asarray(wrench, dtype=float) - np.asarray(wrench_measured, dtype=float)
         self._integral += err * dt
-        gain = np.r_[np.full(3, g.force_gain), np.full(3, g.torque_gain)]
-        twist = gain * (err + g.integral_gain * self._integral)
+        u = err + g.integral_gain * self._integral
+        kv = np.broadcast_to(np.asarray(g.servo_kv if g.servo_kv else np.inf, dtype=float), (self.n,))
+        if g.loop_gain is not None and g.servo_kv:  # A = L J K_v^-1 J^T: the loop gain L in every direction
+            twist = g.loop_gain * (J @ ((J.T @ u) / kv))
+        else:
+            twist = np.r_[np.full(3, g.force_gain), np.full(3, g.torque_gain)] * u
         for part in (slice(0, 3), slice(3, 6)):
             norm = float(np.linalg.norm(twist[part]))
             if norm > g.max_speed:
@@ -643,5 +662,5 @@ class AdmittanceArmLaw:
         plan = np.asarray(arm_velocity, dtype=float) + g.posture_gain * (np.asarray(arm_position) - q)
         # the hand moves with the handle it holds: in task space the servo follows the measured motion plus the
         # admittance (its velocity error is then the push), in the null space the plan
-        ff = J.T @ np.asarray(wrench, dtype=float) / g.servo_kv if g.servo_kv else np.zeros(self.n)
+        ff = J.T @ np.asarray(wrench, dtype=float) / kv
         return Jp @ (J @ np.asarray(v, dtype=float) + twist) + ff + N @ plan

@@ -54,7 +54,7 @@ def _mean_force_error(setup, gains: AdmittanceGains, duration: float = 0.3) -> f
 
 def test_the_push_fed_through_the_servos_is_delivered_at_once(setup):
     with_ff = _mean_force_error(setup, AdmittanceGains())
-    without = _mean_force_error(setup, AdmittanceGains(servo_kv=0.0))
+    without = _mean_force_error(setup, AdmittanceGains(servo_kv=0.0, from_arm=False))
     push = float(np.linalg.norm(PUSH[:3]))
     assert with_ff < 0.15 * push  # measured 0.9 of 11.2 N
     assert without > 0.3 * push  # the admittance alone: 8.3 N short after 0.3 s

@@ -128,8 +128,7 @@ def test_tiagos_ft_sensor_reads_the_grasps_constraint_force(tiago):
 @pytest.mark.filterwarnings("ignore::wholebody.push.mujoco_scene.MujocoSceneWarning")
 def test_a_short_mujoco_push_with_tiagos_profile(tiago):
     """Traj. 1's first 1.5 s on the MuJoCo plant, the arm torque-controlled: the cart follows, the hand holds, the
-    base rolls with it. (Its arm on velocity servos, the default for an arm no profile key names, diverges: its
-    3 N m wrist and 1 N m joint friction saturate the admittance loop; docs/mujoco.md.)"""
+    base rolls with it."""
     path, _ = tiago
     config = PushConfig(robot=path, trajectory=1, plant="mujoco", contact="fixed")
     setup = build_controller(config)
@@ -147,6 +146,55 @@ def test_a_short_mujoco_push_with_tiagos_profile(tiago):
     assert report["grasp_slip_max_m"] < 0.005 and report["base_wheel_slip_max_m_s"] is not None
     base_moved = np.hypot(*(plant.robot_states()[0][:2] - base0))
     assert base_moved == pytest.approx(moved, abs=0.02)  # the base rolled along with the cart
+
+
+@pytest.mark.filterwarnings("ignore::wholebody.push.mujoco_scene.MujocoSceneWarning")
+def test_tiagos_velocity_servos_take_their_gains_from_the_arms_limits(tiago):
+    """The default arm law of a profile robot: each servo's damping is its joint's effort over its speed limit (TIAGo's
+    3 N m wrist: 1.5 N m s/rad, not the WMRA's 80) and the admittance's loop gain is the same in every direction."""
+    from wholebody.push.admittance_tuning import LOOP_GAIN, loop_admittance, loop_gains
+    from wholebody.push.arm_control import AdmittanceGains
+    from wholebody.push.mujoco_plant import MujocoPlantConfig
+
+    path, loaded = tiago
+    config = PushConfig(robot=path, trajectory=1, plant="mujoco", contact="fixed")
+    setup = build_controller(config)
+    plant = MujocoPlant(setup.controller.robots, setup.q0, config.true_params)
+    r, law = plant.scene.robots[0], plant._laws[0]
+    kv = plant.scene.model.actuator_gainprm[r.arm_actuators, 0]
+    wb = setup.controller.robots[0].wb
+    assert kv == pytest.approx(np.minimum(wb.arm_effort_limit / wb.arm_velocity_limit, 80.0))
+    assert kv[4] == pytest.approx(3.0 / 1.95)
+    assert np.asarray(law.gains.servo_kv) == pytest.approx(kv) and law.gains.loop_gain == LOOP_GAIN
+    J, _ = plant._arm_jacobian_inertia(r)
+    assert loop_gains(J, kv, loop_admittance(J, kv, LOOP_GAIN)) == pytest.approx(np.full(6, LOOP_GAIN))
+    fixed = MujocoPlant(
+        setup.controller.robots,
+        setup.q0,
+        config.true_params,
+        config=MujocoPlantConfig(admittance=AdmittanceGains(from_arm=False)),
+    )
+    assert np.all(fixed.scene.model.actuator_gainprm[r.arm_actuators, 0] == 80.0)
+    assert fixed._laws[0].gains.loop_gain is None
+
+
+@pytest.mark.filterwarnings("ignore::wholebody.push.mujoco_scene.MujocoSceneWarning")
+def test_a_short_mujoco_push_with_tiagos_default_velocity_servos(tiago):
+    """Traj. 1's first 3 s on the MuJoCo plant with TIAGo's default arm law (velocity servos, gains from its limits):
+    the cart follows and no servo drives its joint far past the effort limit (the WMRA's gains: 100x within 0.5 s)."""
+    path, _ = tiago
+    config = PushConfig(robot=path, trajectory=1, plant="mujoco", contact="fixed")
+    setup = build_controller(config)
+    plant = MujocoPlant(setup.controller.robots, setup.q0, config.true_params)
+    traj = config.make_trajectory()
+    errors = []
+    for _ in range(300):
+        m = plant.measure()
+        errors.append(np.hypot(*(m.cart_pose[:2] - traj.sample(m.t)[0][:2])))
+        plant.step(setup.controller.step(m))
+    report = plant.report()
+    assert max(errors) < 0.03 and report["grasp_slip_max_m"] < 0.005
+    assert report["plant_arm_torque_limit_ratio"] < 2.0
 
 
 URDF = """<robot name="r">
