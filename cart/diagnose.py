@@ -353,7 +353,7 @@ def fit_models(
         designs = [_design(st, edges) for st in active]
         sols = _solve_many(designs, s2v, s2w)
         for st, sol, rows in zip(active, sols, designs):
-            st.bounded = bounded and not (cart_is_physical(sol[0]) and np.all(sol[0][4:N_NOMINAL] >= 0.0))
+            st.bounded = bounded and not cart_is_physical(sol[0])
             if st.bounded:
                 d, y, lv, lw = rows
                 sol = constrained_fit(d, y, lv, lw, s2v, s2w, sol[0], sol[1])
@@ -410,33 +410,16 @@ def _cart_ok(x: np.ndarray) -> bool:
     return cart_is_physical(x)
 
 
-#: a fitted viscous coefficient this many stds below 0 is a cart that gains energy from its motion: no cart
-DAMPING_Z = 3.0
-
-
-def _damping_ok(fit: Fit) -> bool:
-    """Return True when neither viscous coefficient (sigma, sigma_yaw) is significantly negative (DAMPING_Z stds).
-
-    A negative damping drives the cart: no passive cart has one. An effect whose fit needs one trades its
-    columns against the damping's (Coulomb friction and a wrench bias, made larger, against an anti-damping
-    that takes the friction off again at speed) and is not named with it.
-    """
-    var = np.diag(fit.cov)[4:N_NOMINAL] if fit.cov.shape[0] >= N_NOMINAL else np.zeros(2)
-    sd = np.sqrt(np.maximum(var, 0.0))
-    return bool(np.all(np.asarray(fit.x[4:N_NOMINAL], float) >= -DAMPING_Z * sd))
-
-
 def _valid(effect: Effect, fit: Fit, check_cart: bool = True) -> bool:
     """Return True when the fit is physical: the effect's parameters (``Effect.is_physical``) and the cart's.
 
-    With ``check_cart`` the cart needs m > 0.5 kg, a positive inertia about
-    its CoM and no significantly negative damping (:func:`_damping_ok`): an
-    effect whose columns trade off against the nominal ones must not buy its
-    fit with an impossible cart. (A missing effect can distort the
+    With ``check_cart`` the cart needs m > 0.5 kg and a positive inertia about
+    its CoM: an effect whose columns trade off against the nominal ones must
+    not buy its fit with an impossible cart. (A missing effect can distort the
     nominal fit itself; when the current cart is impossible and no fit of a
     candidate repairs it, the candidate is judged without this check.)
     """
-    if check_cart and not (_cart_ok(fit.x) and _damping_ok(fit)):
+    if check_cart and not _cart_ok(fit.x):
         return False
     if not np.all(np.isfinite(fit.x)):
         return False
