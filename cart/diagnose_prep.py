@@ -86,6 +86,7 @@ def _merge_streams(log: CartLog, notes: list[str]) -> CartLog:
         and len(st.wrench.t) == len(log.t)
         and not st.stuck
         and not st.glitches
+        and not st.jumps
     )
     if clean or len(st.pose.t) < MIN_POSES:  # a cart that never moves repeats one pose: nothing to separate
         return log

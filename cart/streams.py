@@ -370,6 +370,20 @@ def _glitches(stream: Stream) -> np.ndarray:
     return bad
 
 
+def _glitches_in_pieces(stream: Stream, cuts: np.ndarray) -> np.ndarray:
+    """Return :func:`_glitches` of each piece between the jumps after samples ``cuts``, as one (n,) mask.
+
+    A jump stays (:func:`_jump_steps`), so the samples on either side of it are no glitch: a running
+    median across it lags the motion on one side (a pose moving against the jump's direction leaves its
+    last samples several steps from the median), so each piece is tested on its own.
+    """
+    bounds = np.r_[0, np.asarray(cuts, dtype=int) + 1, len(stream.t)]
+    parts = [
+        _glitches(Stream(stream.t[a:b], stream.values[a:b], stream.rows[a:b])) for a, b in zip(bounds[:-1], bounds[1:])
+    ]
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=bool)
+
+
 def _stuck(t: np.ndarray, g: np.ndarray) -> list[tuple[int, int]]:
     """Return [(first, last)] row ranges where the wrench repeats the previous row in every channel long enough."""
     out = []
@@ -496,10 +510,40 @@ def _jump_steps(stream: Stream) -> np.ndarray:
     span = np.ptp(v, axis=0)
     far = (dev > GLITCH_SCALE * scale) & (dev > GLITCH_SCALE * local) & (dev > 5.0 * typical) & (dev > 1e-3 * span)
     ordinary = dt[cand] <= DROPOUT_PERIODS * float(np.median(dt[:: max(1, n // 20000)]))
-    return cand[np.any(far, axis=1) & ordinary]
+    return cand[_stays(stream, cand, np.median(rate[near], axis=1), far & ordinary[:, None])]
 
 
-def join_jumps(pose: Stream, wrench: Stream) -> tuple[Stream, Stream, tuple[float, ...]]:
+def _stays(stream: Stream, steps: np.ndarray, rate: np.ndarray, far: np.ndarray, half: int = 3) -> np.ndarray:
+    """Return (m,) booleans: the step from sample i to i + 1 (``steps``, in order) is far (``far`` (m, 3)) and
+    stays in a far column: a jump, not a glitch.
+
+    The median of the 2 ``half`` + 1 samples up to i (from the last jump found on) and that of the
+    2 ``half`` + 1 from i + 1 on (robust to up to ``half`` glitched samples in a row: a glitch comes
+    back, so its level is not the median's) differ, after the motion at ``rate`` (m, 3) between their
+    times, by at least half the step's own departure from that motion (a jump stays at the new place).
+    A piece shorter than ``half`` + 1 samples between two jumps is taken for glitches.
+    """
+    v, t = stream.values, stream.t
+    n = len(v)
+    out = np.zeros(len(steps), dtype=bool)
+    start = 0
+    for k, i in enumerate(int(j) for j in steps):
+        if not far[k].any():
+            continue
+        before, after = slice(max(i - 2 * half, start), i + 1), slice(i + 1, min(i + 2 + 2 * half, n))
+        if i + 1 - before.start <= half:
+            continue  # a step within ``half`` samples of the last jump: a glitch next to it
+        moved = rate[k] * (np.median(t[after]) - np.median(t[before]))
+        shift = np.median(v[after], axis=0) - np.median(v[before], axis=0) - moved
+        dev = v[i + 1] - v[i] - rate[k] * (t[i + 1] - t[i])
+        out[k] = bool(np.any(far[k] & (np.abs(shift - dev) < 0.5 * np.abs(dev))))
+        start = i + 1 if out[k] else start
+    return out
+
+
+def join_jumps(
+    pose: Stream, wrench: Stream, jumps: np.ndarray | None = None
+) -> tuple[Stream, Stream, tuple[float, ...]]:
     """Return (pose, wrench, jump times) with the pieces between pose jumps joined by rigid shifts.
 
     After a jump (:func:`_jump_steps`: a motion-capture re-registration, recordings written one after
@@ -512,7 +556,7 @@ def join_jumps(pose: Stream, wrench: Stream) -> tuple[Stream, Stream, tuple[floa
     the later force turned by delta: the misfit, or the wrench-frame check (:mod:`cart.units`), says so. Too
     many jumps (over 1 % of the samples) is not a recording of one push: left as it is.
     """
-    jumps = _jump_steps(pose)
+    jumps = _jump_steps(pose) if jumps is None else jumps
     if not len(jumps) or len(jumps) > 0.01 * len(pose.t):
         return pose, wrench, ()
     q = pose.values.copy()
@@ -545,16 +589,22 @@ def split_streams(log: CartLog) -> Streams:
         pose, held, multi = pieces, len(log.t) - len(pieces.t), True
     else:
         pose, held, multi = _pose_stream(log)
-    bad = _glitches(pose)
+    cuts = _jump_steps(pose)
+    if len(cuts) > 0.01 * len(pose.t):
+        cuts = cuts[:0]  # not a recording of one push (:func:`join_jumps`)
+    bad = _glitches_in_pieces(pose, cuts)
     glitch_t = tuple(float(x) for x in pose.t[bad])
     frozen = []
     for first, last, name in frozen_channels(pose.t, pose.values, POSE_CHANNELS):
         bad[first : last + 1] = True
         frozen.append((float(pose.t[first - 1]), float(pose.t[last]), name))
     if bad.any():
+        kept = np.cumsum(~bad) - 1  # the index of the last kept sample up to each one
         pose = Stream(pose.t[~bad], pose.values[~bad], pose.rows[~bad])
+        cuts = np.unique(kept[cuts])
+        cuts = cuts[(cuts >= 0) & (cuts < len(pose.t) - 1)]
     wrench, stuck, wrench_held, missing = _wrench_stream(log.t, log.gamma)
-    pose, wrench, jumps = join_jumps(pose, wrench)
+    pose, wrench, jumps = join_jumps(pose, wrench, cuts)
     return Streams(
         pose=pose,
         wrench=wrench,

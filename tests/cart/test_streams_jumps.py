@@ -76,3 +76,38 @@ def test_a_smooth_or_glitched_pose_has_no_jumps():
     slow = np.arange(0.0, 30.0, 0.1)  # a noise-free start from rest at 10 Hz
     smooth = CartLog(t=slow, q=np.column_stack([0.5 * slow**2, 0 * slow, 0 * slow]), gamma=np.ones((len(slow), 3)))
     assert split_streams(smooth).jumps == ()
+
+
+def test_diagnose_joins_recordings_written_one_after_another():
+    """`diagnose` fits the joined pose too: two pushes written one after another (the second in its own world
+    frame) give the mass of one and name no effect (fitted across the jump the nominal mass read 2.65 kg)."""
+    from cart.diagnose import diagnose
+
+    log, truth = _push()
+    report = diagnose(_moved(log, (20.0,), 0.7))
+    assert report.nominal["m"] == pytest.approx(truth, rel=0.05)
+    assert report.effects == ()
+
+
+@pytest.mark.parametrize("at", [13.0, 20.0, 20.005, 21.0])
+@pytest.mark.parametrize("delta", [0.0, 0.7, -0.7])
+def test_one_jump_with_or_without_a_turn_of_the_frame_is_joined_not_taken_for_glitches(at, delta):
+    """A pose moving against the jump's direction leaves the samples before it several steps from a running
+    median across the jump: they were dropped as glitches (0.7 rad at 20.0 s: m = 6e-5 kg). A jump stays."""
+    log, truth = _push()
+    moved = _moved(log, (at,), delta)
+    st = split_streams(moved)
+    assert len(st.jumps) == 1 and st.jumps[0] == pytest.approx(at, abs=0.011) and st.glitches == ()
+    assert estimate_log(moved).params.m == pytest.approx(truth, rel=0.05)
+
+
+@pytest.mark.parametrize("size", [0.5, 5.0, 50.0])
+@pytest.mark.parametrize("run", [1, 2, 3])
+def test_glitches_in_a_row_come_back_and_are_no_jump(size, run):
+    """Up to three spiked samples in a row (position or heading) come back: dropped as glitches, no jump."""
+    log, _ = _push()
+    for col in (0, 2):
+        q = log.q.copy()
+        q[1500 : 1500 + run, col] += size
+        st = split_streams(CartLog(t=log.t, q=q, gamma=log.gamma))
+        assert st.jumps == () and len(st.glitches) == run
