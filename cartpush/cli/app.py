@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import warnings
 from collections.abc import Sequence
@@ -66,7 +67,7 @@ def _top_parser() -> argparse.ArgumentParser:
             "cart dynamics and inertial-parameter EKF, contact/wrench allocation, "
             "WMRA and Ridgeback+iiwa kinematics, Meshcat scenes.\n\n"
             "Bad input gives one line on stderr and exit code 2; an internal error exit code 1\n"
-            "(--debug shows its traceback)."
+            "(--debug shows its traceback); a reader that closes the output early (| head) exit code 141."
         ),
         epilog="Example: cartpush demo\n         cartpush estimate run.csv --json\n         cartpush COMMAND --help",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -189,8 +190,27 @@ def _echo_warnings(name: str, caught: list) -> None:
         )
 
 
+#: Exit code of a process whose output pipe was closed by its reader (128 + SIGPIPE, as a shell reports it).
+CLOSED_STDOUT = 141
+
+
+def _closed_stdout() -> int:
+    """Return ``CLOSED_STDOUT`` after the reader closed stdout (``cartpush estimate LOG | head -5``): stdout is
+    pointed to devnull so the interpreter's final flush does not fail again (Python docs, "Note on SIGPIPE")."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    return CLOSED_STDOUT
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the selected command and flush its output (a closed pipe raises here, not at exit)."""
+    code = int(args.func(args) or 0)
+    sys.stdout.flush()
+    return code
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; return the process exit code (0 ok, 2 bad input, 1 internal error)."""
+    """Run the CLI; return the process exit code (0 ok, 2 bad input, 1 internal error, 141 stdout closed)."""
     argv, debug = preprocess_argv(sys.argv[1:] if argv is None else list(argv))
     command = _selected_command(argv)
     parser = build_parser(command)
@@ -201,14 +221,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     name = args.command
     if debug:  # internal errors propagate with their traceback; bad input stays one line
         try:
-            return int(args.func(args) or 0)
+            return _run(args)
+        except BrokenPipeError:
+            return _closed_stdout()
         except USER_ERRORS as exc:
             print(f"cartpush {name}: error: {_one_line(exc)}", file=sys.stderr)
             return 2
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            code = int(args.func(args) or 0)
+            code = _run(args)
+        except BrokenPipeError:
+            return _closed_stdout()
         except USER_ERRORS as exc:
             msg = str(exc)
             if isinstance(exc, OSError) and exc.filename is not None:
