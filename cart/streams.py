@@ -485,7 +485,7 @@ def _jump_steps(stream: Stream) -> np.ndarray:
 
     A jump is a step that departs from the one its neighbours' rates predict by ``GLITCH_SCALE`` robust
     scales of the second difference (noise and motion per step) over the log and around the step (a smooth
-    start from rest is no jump) and by 5 typical steps, in a column; the interval is an ordinary one (a
+    start from rest is no jump) and by 5 typical steps (over the log and around the step), in a column; the interval is an ordinary one (a
     dropout's step is a gap's, :func:`_dropouts`). Isolated glitches are dropped before (:func:`_glitches`),
     so the pose stays at the new place after a jump. Only steps next to a second difference beyond
     ``GLITCH_SCALE`` scales (every jump makes two) are examined, so the cost is linear and small.
@@ -508,6 +508,7 @@ def _jump_steps(stream: Stream) -> np.ndarray:
     local = np.median(d2[np.clip(cand[:, None] + np.array([-4, -3, -2, 1, 2, 3])[None, :], 0, n - 3)], axis=1)
     typical = np.median(np.abs(step[:: max(1, n // 20000)]), axis=0) + 1e-12
     span = np.ptp(v, axis=0)
+    typical = np.maximum(typical, np.median(np.abs(step[near]), axis=1))  # the log's and the local motion
     far = (dev > GLITCH_SCALE * scale) & (dev > GLITCH_SCALE * local) & (dev > 5.0 * typical) & (dev > 1e-3 * span)
     ordinary = dt[cand] <= DROPOUT_PERIODS * float(np.median(dt[:: max(1, n // 20000)]))
     return cand[_stays(stream, cand, np.median(rate[near], axis=1), far & ordinary[:, None])]
@@ -517,10 +518,11 @@ def _stays(stream: Stream, steps: np.ndarray, rate: np.ndarray, far: np.ndarray,
     """Return (m,) booleans: the step from sample i to i + 1 (``steps``, in order) is far (``far`` (m, 3)) and
     stays in a far column: a jump, not a glitch.
 
-    The median of the 2 ``half`` + 1 samples up to i (from the last jump found on) and that of the
-    2 ``half`` + 1 from i + 1 on (robust to up to ``half`` glitched samples in a row: a glitch comes
-    back, so its level is not the median's) differ, after the motion at ``rate`` (m, 3) between their
-    times, by at least half the step's own departure from that motion (a jump stays at the new place).
+    A jump stays, a glitch comes back: in a far column, most (``half`` + 1 or more) of the 2 ``half`` + 1
+    samples up to i (from the last jump found on) lie on the line through sample i at ``rate`` (m, 3), and
+    most of the 2 ``half`` + 1 from i + 1 on on the line through sample i + 1, each within a quarter of the step's
+    departure from that motion (up to ``half`` glitched samples in a row on either side leave a majority),
+    and the medians of the two sets differ by the step after that motion, within half of it.
     A piece shorter than ``half`` + 1 samples between two jumps is taken for glitches.
     """
     v, t = stream.values, stream.t
@@ -528,15 +530,17 @@ def _stays(stream: Stream, steps: np.ndarray, rate: np.ndarray, far: np.ndarray,
     out = np.zeros(len(steps), dtype=bool)
     start = 0
     for k, i in enumerate(int(j) for j in steps):
-        if not far[k].any():
-            continue
         before, after = slice(max(i - 2 * half, start), i + 1), slice(i + 1, min(i + 2 + 2 * half, n))
-        if i + 1 - before.start <= half:
+        if not far[k].any() or i + 1 - before.start <= half:
             continue  # a step within ``half`` samples of the last jump: a glitch next to it
+        dev = v[i + 1] - v[i] - rate[k] * (t[i + 1] - t[i])
+        tol = 0.25 * np.abs(dev)
+        near_b = np.abs(v[before] - v[i] - np.outer(t[before] - t[i], rate[k])) < tol
+        near_a = np.abs(v[after] - v[i + 1] - np.outer(t[after] - t[i + 1], rate[k])) < tol
+        most = (near_b.sum(axis=0) > half) & (near_a.sum(axis=0) >= min(half + 1, after.stop - after.start))
         moved = rate[k] * (np.median(t[after]) - np.median(t[before]))
         shift = np.median(v[after], axis=0) - np.median(v[before], axis=0) - moved
-        dev = v[i + 1] - v[i] - rate[k] * (t[i + 1] - t[i])
-        out[k] = bool(np.any(far[k] & (np.abs(shift - dev) < 0.5 * np.abs(dev))))
+        out[k] = bool(np.any(far[k] & most & (np.abs(shift - dev) < 2.0 * tol)))
         start = i + 1 if out[k] else start
     return out
 

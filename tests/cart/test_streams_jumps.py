@@ -111,3 +111,18 @@ def test_glitches_in_a_row_come_back_and_are_no_jump(size, run):
         q[1500 : 1500 + run, col] += size
         st = split_streams(CartLog(t=log.t, q=q, gamma=log.gamma))
         assert st.jumps == () and len(st.glitches) == run
+
+
+@pytest.mark.parametrize("offset", [-3, -1, 1, 4])
+def test_a_glitch_next_to_a_jump_is_a_glitch_and_the_jump_is_joined(offset):
+    """A 5 m spike a few samples before or after a jump with a turn of the frame: the spike comes back (one
+    glitch), the jump stays (one jump, joined); a spike 3 samples before it made a second jump (m = 0.15 kg)."""
+    log, truth = _push()
+    moved = _moved(log, (20.0,), 0.7)
+    i = int(np.searchsorted(log.t, 20.0))
+    q = moved.q.copy()
+    q[i + offset, 0] -= 5.0
+    spiked = CartLog(t=log.t, q=q, gamma=moved.gamma)
+    st = split_streams(spiked)
+    assert len(st.jumps) == 1 and len(st.glitches) == 1
+    assert estimate_log(spiked).params.m == pytest.approx(truth, rel=0.05)
