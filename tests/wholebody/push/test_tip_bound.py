@@ -46,8 +46,9 @@ def test_cart_load_of_a_turn_in_place_is_centripetal() -> None:
 
 
 def test_the_loop_does_not_tip_the_cart_in_traj2s_second_turn() -> None:
-    """Kinematic Traj. 2: the second turn (right) wants a lateral hand force toward the cart's near edge (CoM 0.08 m
-    inside it). With the bound the hands' moment about that edge stays within what the cart's weight holds."""
+    """Kinematic Traj. 2: the second turn (right) wants a lateral hand force toward the cart's near edge (CoM 0.05 m
+    inside it, the casters' swivel radius counted). With the bound the hands' moment about that edge stays within
+    what the cart's weight holds."""
     truth = PushConfig().true_params
     support = shopping_cart_support(DEFAULT_GEOMETRY)
 
