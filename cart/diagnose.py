@@ -353,7 +353,7 @@ def fit_models(
         designs = [_design(st, edges) for st in active]
         sols = _solve_many(designs, s2v, s2w)
         for st, sol, rows in zip(active, sols, designs):
-            st.bounded = bounded and not cart_is_physical(sol[0])
+            st.bounded = bounded and not (cart_is_physical(sol[0]) and np.all(sol[0][4:N_NOMINAL] >= 0.0))
             if st.bounded:
                 d, y, lv, lw = rows
                 sol = constrained_fit(d, y, lv, lw, s2v, s2w, sol[0], sol[1])
@@ -410,16 +410,33 @@ def _cart_ok(x: np.ndarray) -> bool:
     return cart_is_physical(x)
 
 
+#: a fitted viscous coefficient this many stds below 0 is a cart that gains energy from its motion: no cart
+DAMPING_Z = 3.0
+
+
+def _damping_ok(fit: Fit) -> bool:
+    """Return True when neither viscous coefficient (sigma, sigma_yaw) is significantly negative (DAMPING_Z stds).
+
+    A negative damping drives the cart: no passive cart has one. An effect whose fit needs one trades its
+    columns against the damping's (Coulomb friction and a wrench bias, made larger, against an anti-damping
+    that takes the friction off again at speed) and is not named with it.
+    """
+    var = np.diag(fit.cov)[4:N_NOMINAL] if fit.cov.shape[0] >= N_NOMINAL else np.zeros(2)
+    sd = np.sqrt(np.maximum(var, 0.0))
+    return bool(np.all(np.asarray(fit.x[4:N_NOMINAL], float) >= -DAMPING_Z * sd))
+
+
 def _valid(effect: Effect, fit: Fit, check_cart: bool = True) -> bool:
     """Return True when the fit is physical: the effect's parameters (``Effect.is_physical``) and the cart's.
 
-    With ``check_cart`` the cart needs m > 0.5 kg and a positive inertia about
-    its CoM: an effect whose columns trade off against the nominal ones must
-    not buy its fit with an impossible cart. (A missing effect can distort the
+    With ``check_cart`` the cart needs m > 0.5 kg, a positive inertia about
+    its CoM and no significantly negative damping (:func:`_damping_ok`): an
+    effect whose columns trade off against the nominal ones must not buy its
+    fit with an impossible cart. (A missing effect can distort the
     nominal fit itself; when the current cart is impossible and no fit of a
     candidate repairs it, the candidate is judged without this check.)
     """
-    if check_cart and not _cart_ok(fit.x):
+    if check_cart and not (_cart_ok(fit.x) and _damping_ok(fit)):
         return False
     if not np.all(np.isfinite(fit.x)):
         return False
@@ -850,14 +867,15 @@ def _weak(dbic: float, threshold: float) -> str:
     return "" if dbic > threshold else f"evidence too weak: Delta BIC {dbic:.1f} <= {threshold:g}"
 
 
-def _logging_timing(trial: _Trial, resolution: float) -> str:
+def _logging_timing(trial: _Trial, resolution: float, slot: int = -1) -> str:
     """Return why a time_delay within one sample interval of the log is not named ('' when it is beyond).
 
     A table that averages the F/T over each pose interval (centred half an interval earlier) or holds a
     sample until the next one shifts the wrench by up to one sample interval: the logging's own timing,
-    not a delay of the set-up. The delay must exceed the interval by 2 of its stds.
+    not a delay of the set-up. The delay must exceed the interval by 2 of its stds. ``slot``: which
+    effect of ``trial.fit`` the delay is.
     """
-    delay = float(trial.fit.effects[-1][1][0])
+    delay = float(trial.fit.effects[slot][1][0])
     std = float(trial.nl_std[0]) if trial.nl_std and np.isfinite(trial.nl_std[0]) else 0.0
     if abs(delay) - 2.0 * std > resolution:
         return ""
@@ -868,14 +886,15 @@ def _logging_timing(trial: _Trial, resolution: float) -> str:
     )
 
 
-def _sensor_offset(trial: _Trial, push: tuple[float, float]) -> str:
+def _sensor_offset(trial: _Trial, push: tuple[float, float], slot: int = -1) -> str:
     """Return why a wrench_bias small against the push is not named ('' when it is not small).
 
     An F/T sensor carries an offset after taring (a few tenths of a newton); effect-free logs have one, and a
     long log makes it significant. A bias is named when its forward force or its torque reaches
     ``OFFSET_SHARE`` of the RMS forward force or torque applied over the log (``push``: N, N m).
+    ``slot``: which effect of ``trial.fit`` the bias is.
     """
-    fx, tau = (float(v) for v in trial.fit.thetas[-1][:2])
+    fx, tau = (float(v) for v in trial.fit.thetas[slot][:2])
     share = max(abs(fx) / max(push[0], 1e-12), abs(tau) / max(push[1], 1e-12))
     if share >= OFFSET_SHARE:
         return ""
@@ -1300,13 +1319,23 @@ def _replayed(trial: _Trial, horizon: float) -> _Named | None:
     return _Named(trial, rep) if rep.finite else None
 
 
-def _own_objection(nm: _Named, resolution: float, push: tuple[float, float]) -> str:
-    """Return why an effect's own size rules it out (a delay within the logging's timing, a sensor's offset)."""
+def _own_objection(nm: _Named, resolution: float, push: tuple[float, float], final: Fit | None = None) -> str:
+    """Return why an effect's own size rules it out (a delay within the logging's timing, a sensor's offset).
+
+    With ``final`` (the fit of every effect named, ``nm``'s in the same place in it as in the names) the size
+    judged is the one ``final`` gives it: an effect named early, large while it stood in for the effects
+    named after it, can shrink to a sensor's offset once they are in.
+    """
     name = nm.trial.effect.name
+    slot = nm.slot
+    trial = nm.trial
+    if final is not None:
+        slot = [e[0].name for e in final.effects].index(name)
+        trial = replace(nm.trial, fit=final)
     if name == "time_delay":
-        return _logging_timing(nm.trial, resolution)
+        return _logging_timing(trial, resolution, slot)
     if name == "wrench_bias":
-        return _sensor_offset(nm.trial, push)
+        return _sensor_offset(trial, push, slot)
     return ""
 
 
@@ -1431,6 +1460,38 @@ def _rounds(
     return first
 
 
+def _replaced(
+    named: Sequence[_Named],
+    p_named: Sequence[_Named],
+    scores: tuple[float, float, float],
+    gaps: tuple[float, float],
+    objections: dict[str, str],
+) -> dict[str, Verdict]:
+    """Return the verdicts of the effects named one at a time that the pair's search (``p_named``) replaces.
+
+    ``scores``: (the pair search's Delta BIC, the one-at-a-time search's, threshold); ``gaps``: their replay
+    gaps; ``objections``: why each effect's size in the one-at-a-time fit rules it out ('' when it does not).
+    """
+    p_dbic, g_dbic, threshold = scores
+    p_set = {nm.trial.effect.name for nm in p_named}
+    p_names = " + ".join(nm.trial.effect.name for nm in p_named)
+    out: dict[str, Verdict] = {}
+    for nm in named:
+        name = nm.trial.effect.name
+        if name in p_set:
+            continue
+        why = "explain the log better" if p_dbic > g_dbic + threshold else "explain it about as well without it"
+        if objections.get(name) and p_dbic <= g_dbic - threshold:
+            why = f"explain it without it, and given the others {objections[name]}"
+        out[name] = Verdict(
+            name,
+            float(nm.trial.dbic),
+            f"named one at a time, but {p_names} {why} (Delta BIC {p_dbic:.1f} against "
+            f"{g_dbic:.1f}; replay gap {_mm(gaps[0])} against {_mm(gaps[1])})",
+        )
+    return out
+
+
 def _search(
     sig: Signals,
     edges: np.ndarray,
@@ -1476,20 +1537,14 @@ def _search(
     _rounds(sig, edges, (joint, p_named, p_reasons, p_reps), cands, settings, start, p_verdicts)
     p_dbic = best.dbic + sum(float(nm.trial.dbic) for nm in p_named[2:])
     p_set = {nm.trial.effect.name for nm in p_named}
-    # the pair's effects are some of those named one at a time, which add less than the threshold to them
-    fewer = p_set < set(g_names) and p_dbic > g_dbic - threshold
+    # the pair's effects are some of those named one at a time, which add less than the threshold to them or
+    # shrink, given the others, to a size the search never names (a sensor's offset, the logging's timing)
+    why = {nm.trial.effect.name: _own_objection(nm, resolution, push, current) for nm in named}
+    fewer = p_set < set(g_names) and (p_dbic > g_dbic - threshold or all(why[n] for n in set(g_names) - p_set))
     if not (p_dbic > g_dbic + threshold or fewer) or p_reps[-1].gap(mask) > (1.0 + MIN_SHRINK) * reps[-1].gap(mask):
         return current, named, reasons, reps, first_scores, verdicts
-    p_names = " + ".join(nm.trial.effect.name for nm in p_named)
-    for nm in named:
-        if nm.trial.effect.name not in p_set:
-            why = "explain the log better" if p_dbic > g_dbic + threshold else "explain it about as well without it"
-            p_verdicts[nm.trial.effect.name] = Verdict(
-                nm.trial.effect.name,
-                float(nm.trial.dbic),
-                f"named one at a time, but {p_names} {why} (Delta BIC {p_dbic:.1f} against "
-                f"{g_dbic:.1f}; replay gap {_mm(p_reps[-1].gap(mask))} against {_mm(reps[-1].gap(mask))})",
-            )
+    gaps = (p_reps[-1].gap(mask), reps[-1].gap(mask))
+    p_verdicts.update(_replaced(named, p_named, (p_dbic, g_dbic, threshold), gaps, why))
     return p_named[-1].trial.fit, p_named, p_reasons, p_reps, first_scores, p_verdicts
 
 

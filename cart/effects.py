@@ -148,6 +148,63 @@ def local_mean(t: np.ndarray, y: np.ndarray, half_window: float) -> np.ndarray:
     return (cum[hi] - cum[lo]) / cnt
 
 
+#: holds (smoothed) above this fraction of the breakaway force count as at the limit (see :func:`hold_column`)
+HOLD_LIMIT = 0.8
+#: half window (s) of the smoothed unexplained force that decides a hold
+HOLD_SMOOTH = 0.1
+
+
+def held_forces(sig: Signals, phi: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Return (r, r smoothed over +-HOLD_SMOOTH s, the least smoothed force that is a hold).
+
+    r: the forward force the nominal model leaves unexplained. A smoothed force within HOLD_NOISE_Z stds
+    of what the sensor's (coloured) noise gives it (:func:`mean_noise_std`) is no evidence of a hold: a
+    friction is not credited with the noise of a cart at rest.
+    """
+    r = forward_residual(sig, phi, base)
+    return r, local_mean(sig.t, r, HOLD_SMOOTH), HOLD_NOISE_Z * mean_noise_std(sig, r, HOLD_SMOOTH)
+
+
+def hold_column(
+    sig: Signals, moving_col: np.ndarray, cap: np.ndarray, phi: np.ndarray | None, base: np.ndarray | None, f_ref: float
+) -> np.ndarray:
+    """Return the forward column of a friction that holds the cart at rest up to F ``cap`` (N,) (active set).
+
+    ``moving_col``: the column while the cart moves (0 at rest). At rest the force is set-valued
+    (:func:`hold_offset` holds the cart up to F cap); where the unexplained force r (smoothed) exceeds
+    HOLD_LIMIT times the current estimate ``f_ref`` of the breakaway force F cap (and the noise), the
+    hold is at its limit, E_fwd = -F cap sign(r), which is linear in F: so the holds inform F, and the
+    largest holds keep pinning F when no motion does.
+    """
+    rest = (np.abs(sig.v) < stop_threshold(sig)) & (cap > 1e-6)
+    if phi is None or base is None or not np.any(rest):
+        return moving_col
+    _, rs, least = held_forces(sig, phi, base)
+    over = rest & (np.abs(rs) > np.maximum(HOLD_LIMIT * f_ref * cap, least))
+    return np.where(over, np.sign(rs) * cap, moving_col)
+
+
+def hold_offset(
+    sig: Signals, cap: np.ndarray, phi: np.ndarray | None, base: np.ndarray, f_ref: float
+) -> np.ndarray | None:
+    """Return the hold at rest (N, 3): r where |r| (smoothed) is within HOLD_LIMIT f_ref ``cap`` and beyond the noise.
+
+    The set-valued part of a friction that holds the cart up to its breakaway force f_ref cap (N,): the
+    forward force the nominal model leaves unexplained (r) is the hold; None when nothing is held.
+    """
+    if f_ref <= 0.0 or phi is None:
+        return None
+    rest = np.abs(sig.v) < stop_threshold(sig)
+    cap = f_ref * cap
+    if not np.any(rest & (cap > 0)):
+        return None
+    r, rs, least = held_forces(sig, phi, base)
+    out = np.zeros((sig.n, 3))
+    held = rest & (cap > 0) & (np.abs(rs) <= HOLD_LIMIT * cap) & (np.abs(rs) > least)
+    out[:, 0] = np.where(held, r, 0.0)
+    return out
+
+
 def forward_displacement(sig: Signals) -> np.ndarray:
     """Return X(t) = integral of the forward speed v dt (m): signed travel along the body x axis."""
     cached = sig.extras.get(("motion", "x_fwd"))
@@ -324,28 +381,33 @@ class CoulombFriction(Effect):
 
     Moving: E_fwd = -F tanh(v / v0), E_yaw = -T tanh(omega / omega0). At rest
     (|v| below :func:`stop_threshold`) the forward friction is static: it holds
-    the cart against any push up to F, E_fwd = -clip(r, -F, F) with r the
-    forward force the nominal model leaves unexplained (:meth:`offset`).
+    the cart against any push up to F (:meth:`offset`), and a push at the limit
+    informs F (:meth:`columns`) -- the hold of ``caster_swivel``'s profile form
+    with a profile of 1 (friction that does not fade after a reversal), so that
+    the two are compared on the same footing.
     """
 
     name = "coulomb_friction"
     param_names = ("force", "torque")
     set_valued = True
+    #: key of the current force estimate in ``sig.extras`` (set by :meth:`offset`, read by :meth:`columns`)
+    REF_KEY = ("coulomb_force_ref",)
 
     def columns(self, sig, nl, phi, base):
-        """Return G: tanh(v/v0) in the forward row while moving (0 at rest), tanh(omega/omega0) in the yaw row."""
+        """Return G: tanh(v/v0) in the forward row while moving, sign(r) at a hold at its limit; tanh(omega/w0) in yaw."""
         v0, w0 = speed_scales(sig)
         moving = np.abs(sig.v) >= stop_threshold(sig)
         g = np.zeros((sig.n, 3, 2))
-        g[:, 0, 0] = np.where(moving, np.tanh(sig.v / v0), 0.0)
+        f_ref = float(sig.extras.get(self.REF_KEY, 0.0))
+        g[:, 0, 0] = hold_column(sig, np.where(moving, np.tanh(sig.v / v0), 0.0), np.ones(sig.n), phi, base, f_ref)
         g[:, 1, 1] = np.tanh(sig.omega / w0)
         return g
 
     def offset(self, sig, nl, phi, base, theta):
-        """Return the static friction at rest: clip(r, -F, F) in the forward row (r: nominal residual)."""
-        if theta is None or phi is None or len(theta) == 0 or float(theta[0]) <= 0.0:
-            return None
-        return static_hold(sig, forward_residual(sig, phi, base), float(theta[0]))
+        """Return the static friction at rest: r where the smoothed r is within the hold (r: nominal residual)."""
+        f_ref = 0.0 if theta is None or len(theta) == 0 else max(float(theta[0]), 0.0)
+        sig.extras[self.REF_KEY] = f_ref
+        return hold_offset(sig, np.ones(sig.n), phi, base, f_ref)
 
 
 class CasterSwivel(Effect):
@@ -374,8 +436,6 @@ class CasterSwivel(Effect):
     #: shape exponent p of g(u) = exp(-u^p)
     shape: float = 1.0
     SHAPES: tuple[float, ...] = (1.0, 2.0, 4.0)
-    #: holds (smoothed) above this fraction of the breakaway force count as at the limit (see :meth:`columns`)
-    HOLD_LIMIT = 0.8
 
     def __init__(self, shape: float = 1.0) -> None:
         self.shape = float(shape)
@@ -416,57 +476,25 @@ class CasterSwivel(Effect):
         """Return None: the columns at rest depend on phi and on the current force estimate (no caching)."""
         return None
 
-    #: half window (s) of the smoothed unexplained force that decides a hold
-    HOLD_SMOOTH = 0.1
-
-    def _held(self, sig: Signals, phi: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-        """Return (r, r smoothed over +-HOLD_SMOOTH s, the least smoothed force that is a hold).
-
-        r: the forward force the nominal model leaves unexplained. A smoothed force within HOLD_NOISE_Z stds
-        of what the sensor's (coloured) noise gives it (:func:`mean_noise_std`) is no evidence of a hold: the
-        casters are not credited with the noise of a cart at rest.
-        """
-        r = forward_residual(sig, phi, base)
-        return r, local_mean(sig.t, r, self.HOLD_SMOOTH), HOLD_NOISE_Z * mean_noise_std(sig, r, self.HOLD_SMOOTH)
-
     def columns(self, sig, nl, phi, base):
-        """Return G: tanh(v / v0) g(s / d) while moving; at rest, g sign(r) where the hold exceeds F g (active set).
+        """Return G: tanh(v / v0) g(s / d) while moving; at rest, g sign(r) where the hold is at its limit.
 
-        At rest the force is set-valued (:meth:`offset` holds the cart up to
-        F g); where the unexplained force r (smoothed) exceeds the current
-        estimate of the breakaway force F g, the hold is at its limit,
-        E_fwd = -F g sign(r), which is linear in F: so the holds inform F.
-        Holds above HOLD_LIMIT F g count as at the limit, so the largest
-        holds keep pinning F when no motion after the reversal does.
+        At rest the force is set-valued (:meth:`offset` holds the cart up to F g); the holds at the limit
+        are linear in F (:func:`hold_column`), so the holds inform F.
         """
         v0, _ = speed_scales(sig)
         moving = np.abs(sig.v) >= stop_threshold(sig)
         prof = self.profile(sig, nl)
         g = np.zeros((sig.n, 3, 1))
-        g[:, 0, 0] = np.where(moving, np.tanh(sig.v / v0) * prof, 0.0)
-        rest = ~moving & (prof > 1e-6)
-        if phi is not None and base is not None and np.any(rest):
-            f_ref = float(sig.extras.get(("caster_force_ref", self.shape, float(nl[0])), 0.0))
-            _, rs, least = self._held(sig, phi, base)
-            over = rest & (np.abs(rs) > np.maximum(self.HOLD_LIMIT * f_ref * prof, least))
-            g[:, 0, 0] = np.where(over, np.sign(rs) * prof, g[:, 0, 0])
+        f_ref = float(sig.extras.get(("caster_force_ref", self.shape, float(nl[0])), 0.0))
+        g[:, 0, 0] = hold_column(sig, np.where(moving, np.tanh(sig.v / v0) * prof, 0.0), prof, phi, base, f_ref)
         return g
 
     def offset(self, sig, nl, phi, base, theta):
         """Return the hold at rest: r where |r| (smoothed) is within the breakaway force F g(s) (r: nominal residual)."""
         f_ref = 0.0 if theta is None or len(theta) == 0 else max(float(theta[0]), 0.0)
         sig.extras[("caster_force_ref", self.shape, float(nl[0]))] = f_ref
-        if f_ref <= 0.0 or phi is None:
-            return None
-        rest = np.abs(sig.v) < stop_threshold(sig)
-        cap = f_ref * self.profile(sig, nl)
-        if not np.any(rest & (cap > 0)):
-            return None
-        r, rs, least = self._held(sig, phi, base)
-        out = np.zeros((sig.n, 3))
-        held = rest & (cap > 0) & (np.abs(rs) <= self.HOLD_LIMIT * cap) & (np.abs(rs) > least)
-        out[:, 0] = np.where(held, r, 0.0)
-        return out
+        return hold_offset(sig, self.profile(sig, nl), phi, base, f_ref)
 
     def describe(self, theta, nl, cov, nl_std, phi):
         """Return force (N), distance d (m) and the shape exponent p (grid-chosen: std reported as 0)."""
