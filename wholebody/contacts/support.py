@@ -15,7 +15,11 @@ linear in the stacked hand wrenches, so `wholebody.contacts.allocation.WrenchAll
 to the allocation QP (paper eq. 25): the allocation then pushes sideways only as hard as the cart stands, and
 presses down on the handle (a downward force inside an edge holds the cart on it) where it must push harder.
 
-The cart's mass and CoM are the estimator's; `CartLoad` shrinks the margin by their uncertainty. The CoM's height is
+The cart's mass and CoM are the estimator's; `CartLoad` shrinks the holding moment by their uncertainty on each edge
+the hands are inside of: there a downward push on the handle holds the cart on the edge, so the allocation can keep
+the margin at the cost of a press. On an edge the hands are outside of (the rear axle, for a handle behind it)
+pressing down tips the cart further and a margin would forbid the motion itself (braking): there the bound takes the
+estimate as it is. The CoM's height is
 not estimated (the planar model has none): `SupportPolygon.com_height` is an upper bound, counted only where the
 inertia tips the cart (a lower CoM tips it less). A swivelling caster's contact moves on a circle about its swivel
 axis (its trail): `SupportPolygon.radius` moves each edge inward by it.
@@ -133,15 +137,13 @@ def tip_rows(
 
     ``w`` stacks the hands' wrenches [f; tau] (in {a}, the orientation of {b}) at ``points_b`` (N, 3, in {b}).
     One row per edge (module docstring): hand moments about the edge <= what gravity holds less what the
-    inertia tips, with the load's margins; the last row keeps the hands from lifting the cart (sum fz <= m g).
+    inertia tips, with the load's margins on the edges every hand is inside of (`holding_moment`); the last row keeps the hands from lifting the cart (sum fz <= m g).
     A right-hand side below 0 (the cart tips with no hand on it) is held at 0 so that w = 0 stays allowed.
     """
     pts = np.asarray(points_b, dtype=float).reshape(-1, 3)
     p1, e, n, shift = support.edges()
     m_low = max(load.mass - load.std_factor * load.mass_std, 0.0)
-    com_std_n = np.sqrt((n**2) @ np.square(load.com_std))  # the CoM's 1-sigma along each edge's normal
-    d = support.com_margin(load.com) - load.std_factor * com_std_n  # the CoM inside each edge, less margins
-    hold = m_low * GRAVITY * d
+    hold = holding_moment(support, load, hands_inside(support, pts))
     a_in = np.asarray(load.acceleration, dtype=float) @ n.T  # toward the inside: the d'Alembert -m a points out
     tipping = load.mass * support.com_height * np.maximum(a_in, 0.0)
     rows = np.zeros((len(e) + 1, 6 * len(pts)))
@@ -159,3 +161,28 @@ def tip_rows(
         for k in range(len(e))
     ]
     return rows, rhs, labels + ["cart tip-over bound (hands lift the cart)"]
+
+
+def hands_inside(support: SupportPolygon, points_b: npt.ArrayLike) -> np.ndarray:
+    """Return, per edge of `support`, whether every hand point (x, y of `points_b`, (N, 3) in {b}) is inside it.
+
+    Inside an edge (beyond its shift) a hand's downward force holds the cart on that edge.
+    """
+    p1, _, n, shift = support.edges()
+    xy = np.asarray(points_b, dtype=float).reshape(-1, 3)[:, :2]
+    dist = np.einsum("pij,ij->pi", xy[:, None, :] - p1[None], n) - shift  # (N, E)
+    return np.asarray(np.all(dist > 0.0, axis=0))
+
+
+def holding_moment(support: SupportPolygon, load: CartLoad, margined: np.ndarray) -> np.ndarray:
+    """Return per edge the moment m g d (N m) by which the cart's weight holds it on the edge.
+
+    On the edges where `margined` is True the mass and the CoM's distance inside the edge are the estimate's less
+    ``std_factor`` of their 1-sigma (the CoM's along the edge's normal); elsewhere they are the estimate's.
+    """
+    _, _, n, _ = support.edges()
+    d = support.com_margin(load.com)
+    com_std_n = np.sqrt((n**2) @ np.square(load.com_std))  # the CoM's 1-sigma along each edge's normal
+    m_low = max(load.mass - load.std_factor * load.mass_std, 0.0)
+    robust = m_low * GRAVITY * (d - load.std_factor * com_std_n)
+    return np.where(np.asarray(margined, dtype=bool), robust, load.mass * GRAVITY * d)

@@ -7,7 +7,7 @@ import pytest
 from scipy.optimize import linprog
 
 from wholebody.contacts.allocation import ArmLimits, GraspModel, WrenchAllocator
-from wholebody.contacts.support import GRAVITY, CartLoad, SupportPolygon, tip_rows
+from wholebody.contacts.support import GRAVITY, CartLoad, SupportPolygon, hands_inside, tip_rows
 from wholebody.errors import WholeBodyError
 
 #: a shopping cart's wheels in {b} (rear axle at x = 0), floor 0.06 m below {b}, a handle behind the axle
@@ -105,7 +105,10 @@ def test_margins_shrink_the_bound_and_swivel_radius_moves_the_edges_in() -> None
     base = tip_rows(support(), CartLoad(MASS, COM), HANDLE)[1]
     std = tip_rows(support(), CartLoad(MASS, COM, mass_std=1.0, com_std=(0.02, 0.02), std_factor=2.0), HANDLE)[1]
     caster = tip_rows(SupportPolygon(WHEELS, FLOOR_Z, 0.5, (0, 0, 0.03, 0.03)), CartLoad(MASS, COM), HANDLE)[1]
-    assert np.all(std[:-1] < base[:-1]) and np.all(caster[:-1] <= base[:-1]) and np.any(caster[:-1] < base[:-1])
+    inside = hands_inside(support(), HANDLE)  # the handle is behind the rear axle: no margin on that edge
+    assert inside.sum() == 3 and np.all(std[:-1][inside] < base[:-1][inside])
+    assert np.allclose(std[:-1][~inside], base[:-1][~inside])
+    assert np.all(caster[:-1] <= base[:-1]) and np.any(caster[:-1] < base[:-1])
 
 
 def test_bad_polygons_are_refused() -> None:
