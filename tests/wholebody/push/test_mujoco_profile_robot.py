@@ -193,7 +193,9 @@ def test_a_short_mujoco_push_with_tiagos_default_velocity_servos(tiago):
         errors.append(np.hypot(*(m.cart_pose[:2] - traj.sample(m.t)[0][:2])))
         plant.step(setup.controller.step(m))
     report = plant.report()
-    assert max(errors) < 0.03 and report["grasp_slip_max_m"] < 0.005
+    # 4.8 cm at most with the tip-over bound's margin (the prior's CoM std leaves the hands less sideways push at
+    # the start), under 3 cm without it; the WMRA's gains lose the cart at 3.16 s
+    assert max(errors) < 0.06 and report["grasp_slip_max_m"] < 0.005
     assert report["plant_arm_torque_limit_ratio"] < 2.0
 
 
