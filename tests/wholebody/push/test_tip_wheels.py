@@ -1,4 +1,4 @@
-"""The tip-over bound's support polygon against the MuJoCo cart's wheels (issue #28): static roll moments."""
+"""The tip-over bound against the MuJoCo cart's wheels (static roll moments), and its margin for the estimate's error (issue #28)."""
 
 from __future__ import annotations
 
@@ -59,3 +59,19 @@ def test_the_bound_is_where_the_mujoco_carts_wheels_unload(sign: float) -> None:
     above, _ = _wheel_loads_under(-sign * 1.3 * limit)
     assert len(below) == 4 and min(below.values()) > 0.5
     assert len(above) < 4 or min(above.values()) < 0.5
+
+
+def test_a_margin_of_three_sigma_covers_the_estimate_that_tipped_the_wmras_cart() -> None:
+    """WMRA MuJoCo Traj. 2, seed 0, at 16.6 s in the second turn (no margin): the estimate (19.8 kg, CoM (0.265,
+    0.075) m, 1-sigma 2.0 kg, (0.159, 0.015) m) against the truth (20 kg, (0.30, 0.15) m, CoM 0.47 m above the
+    floor), the CoM accelerating (0.14, -0.54) m/s^2. With 3 sigma off the holding moment the bound allows no more
+    roll moment toward the +y edge than the true cart holds under that acceleration; with the estimate as it is it
+    allowed 12 N m, and the cart tipped. (The default, `PushConfig.tip_std_factor` 1.5, allows 6.1 N m against the
+    4.9 the truth holds here; its runs keep the cart up, the bound's CoM height being twice the cart's.)"""
+    a = (0.14, -0.54)
+    assert 0.0 < PushConfig().tip_std_factor <= 3.0
+    est = CartLoad(19.8, (0.265, 0.075), a, 2.0, (0.159, 0.015), 3.0)
+    true_hold = TRUTH.m * 9.81 * float(_support().com_margin((TRUTH.dx, TRUTH.dy)).min())
+    true_tip = TRUTH.m * 0.47 * -a[1]
+    assert _roll_limit(est, 1.0) <= true_hold - true_tip
+    assert _roll_limit(CartLoad(19.8, (0.265, 0.075), a), 1.0) > true_hold - true_tip  # no margin: past it
