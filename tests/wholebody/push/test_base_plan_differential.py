@@ -16,9 +16,11 @@ import pytest
 
 import robots
 from cart.trajectories import Turn, UnicycleTrajectory
-from wholebody.push.base_plan import BasePlan, body_twists, plan_base, rigid_poses
+from wholebody.push.base_plan import body_twists, plan_base, rigid_poses
 from wholebody.push.base_settings import BasePlanSettings
 from wholebody.push.robot import base_target, grasp_target, make_robots
+
+from tests.wholebody.push.test_base_plan import world_poses  # the same first turn (FIRST_TURN)
 
 #: Traj. 2's first turn (pi/2 over 3 s at 0.8 m/s from t = 7 s), the motion held after 13 s
 FIRST_TURN = UnicycleTrajectory(duration=13.0, stop_start=13.0, turns=(Turn(7.0, 3.0, math.pi / 2),))
@@ -31,16 +33,6 @@ SETTINGS = BasePlanSettings(step=0.2, lead=1.0, tail=2.0)
 def robot_and_plan():
     mm = make_robots(robots.load("wmra"), np.zeros(3), [CONTACT_Y])[0]
     return mm, plan_base(mm, FIRST_TURN, CONTACT_Y, SETTINGS)
-
-
-def world_poses(plan: BasePlan, i: int, trajectory=FIRST_TURN) -> tuple[np.ndarray, np.ndarray]:
-    """Return (cart poses, base poses) of window i of the plan of `trajectory`, in the world."""
-    cart = np.array([trajectory.sample(float(t))[0] for t in plan.times[i]])
-    cart[:, 2] = np.unwrap(cart[:, 2])
-    rel = plan.relative[i]
-    c, s = np.cos(cart[:, 2]), np.sin(cart[:, 2])
-    base = np.c_[cart[:, 0] + c * rel[:, 0] - s * rel[:, 1], cart[:, 1] + s * rel[:, 0] + c * rel[:, 1]]
-    return cart, np.c_[base, cart[:, 2] + rel[:, 2]]
 
 
 def sideways_speed(poses: np.ndarray, h: float) -> np.ndarray:
