@@ -168,10 +168,8 @@ def hands_inside(support: SupportPolygon, points_b: npt.ArrayLike) -> np.ndarray
 
     Inside an edge (beyond its shift) a hand's downward force holds the cart on that edge.
     """
-    p1, _, n, shift = support.edges()
     xy = np.asarray(points_b, dtype=float).reshape(-1, 3)[:, :2]
-    dist = np.einsum("pij,ij->pi", xy[:, None, :] - p1[None], n) - shift  # (N, E)
-    return np.asarray(np.all(dist > 0.0, axis=0))
+    return np.asarray(np.all([support.com_margin(p) > 0.0 for p in xy], axis=0))
 
 
 def holding_moment(support: SupportPolygon, load: CartLoad, margined: np.ndarray) -> np.ndarray:
