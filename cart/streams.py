@@ -85,7 +85,9 @@ class Streams:
     without a pose sample; ``stuck``: (t0, t1) intervals of a frozen wrench (excluded), ``stuck_channels`` the
     channel frozen in each ("" when all are); ``frozen_pose``: (t0, t1, channel) where one pose channel repeats
     while the others change (those pose samples dropped); ``jumps``: the times where the pose jumps and stays
-    (the pieces joined, :func:`join_jumps`); ``glitches``: the times of dropped pose glitches;
+    (the pieces joined, :func:`join_jumps`), ``heading_jumps`` those of them where the heading alone jumps;
+    ``saturated``: (channel, value, samples) of a wrench channel clipped at a fixed value (those samples
+    excluded); ``glitches``: the times of dropped pose glitches;
     ``multi_rate``: the table holds the pose between motion-capture samples.
     """
 
@@ -102,6 +104,8 @@ class Streams:
     stuck_channels: tuple[str, ...] = ()
     frozen_pose: tuple[tuple[float, float, str], ...] = ()
     jumps: tuple[float, ...] = ()
+    heading_jumps: tuple[float, ...] = ()
+    saturated: tuple[tuple[str, float, int], ...] = ()
 
     @property
     def pose_hz(self) -> float:
@@ -115,7 +119,8 @@ class Streams:
 
     def to_dict(self) -> dict[str, object]:
         """Return the JSON fields ``{pose_hz, wrench_hz, held_rows, wrench_held_rows, wrench_missing_rows,
-        interpolated, dropouts, dropout_s, stuck_wrench_s, stuck_channels, frozen_pose_s, glitches, jumps}``.
+        interpolated, dropouts, dropout_s, stuck_wrench_s, stuck_channels, frozen_pose_s, glitches, jumps,
+        heading_jumps, saturated_channels, saturated_samples}``.
 
         ``held_rows``: the rows that are no pose sample of their own (held, or interpolated when
         ``interpolated``); ``wrench_held_rows`` the same for the wrench; ``wrench_missing_rows``: isolated
@@ -134,6 +139,9 @@ class Streams:
             "frozen_pose_s": float(sum(t1 - t0 for t0, t1, _ in self.frozen_pose)),
             "glitches": len(self.glitches),
             "jumps": len(self.jumps),
+            "heading_jumps": len(self.heading_jumps),
+            "saturated_channels": sorted({name for name, _, _ in self.saturated}),
+            "saturated_samples": int(sum(n for _, _, n in self.saturated)),
         }
 
     def warnings(self) -> list[str]:
@@ -166,14 +174,26 @@ class Streams:
                 f"{what} is frozen from t = {t0:.3f} s to {t1:.3f} s ({t1 - t0:.3g} s): a stuck force "
                 f"sensor{' axis' if name else ''}; that stretch is excluded"
             )
+        for name, value, n in self.saturated:
+            out.append(
+                f"{name} reads its extreme value {value:.6g} exactly on {n} samples: clipped (a saturated force "
+                "sensor axis); those samples are excluded"
+            )
         for t0, t1, name in self.frozen_pose:
             out.append(
                 f"the pose's {name} alone repeats one value from t = {t0:.3f} s to {t1:.3f} s ({t1 - t0:.3g} s) while "
                 "the cart moves: a stuck motion-capture channel; those pose samples are dropped"
             )
-        if self.jumps:
+        if self.heading_jumps:
             out.append(
-                f"the pose jumps and stays {len(self.jumps)} time(s) (first at t = {self.jumps[0]:.3f} s), far beyond "
+                f"the heading alone jumps {len(self.heading_jumps)} time(s) (first at t = {self.heading_jumps[0]:.3f} s) "
+                "while the positions carry on: a change of the heading's reference (a symmetric marker set read turned, "
+                "a missed wrap); the later heading is shifted to continue the earlier one"
+            )
+        if len(self.jumps) > len(self.heading_jumps):
+            frame = [x for x in self.jumps if x not in self.heading_jumps]
+            out.append(
+                f"the pose jumps and stays {len(frame)} time(s) (first at t = {frame[0]:.3f} s), far beyond "
                 "the motion: a motion-capture re-registration or recordings written one after another; the pieces "
                 "are joined by a rigid shift of the later pose (its world-frame force turned with it)"
             )
@@ -430,6 +450,32 @@ def frozen_channels(t: np.ndarray, v: np.ndarray, names: tuple[str, ...]) -> lis
     return out
 
 
+def saturated_channels(v: np.ndarray, names: tuple[str, ...]) -> list[tuple[str, float, np.ndarray]]:
+    """Return [(name, value, rows)]: channels of ``v`` clipped at a fixed value (a saturated force sensor axis or
+    its amplifier), with the rows that read it.
+
+    A channel is clipped at its largest (or smallest) value when that exact value is read on 5 samples or more
+    (counting only rows that differ from the previous row somewhere: a held, slower stream repeats every sample)
+    and, apart from it, the channel carries noise (:func:`_noisy`) and hardly ever repeats a value (under 5 % of
+    its steps: not a quantised channel). A measured value never hits its own extreme exactly five times.
+    """
+    d = np.flatnonzero(np.r_[True, ~_repeats(v)])
+    if len(d) < 50:
+        return []
+    out = []
+    for c, name in enumerate(names):
+        x = v[d, c]
+        for value in (float(x.max()), float(x.min())):
+            at = x == value
+            rest = x[~at]
+            if at.sum() < 5 or len(rest) < 20 or not _noisy(rest):
+                continue
+            if np.sum(rest[1:] == rest[:-1]) > 0.05 * len(rest):
+                continue
+            out.append((name, value, np.flatnonzero(v[:, c] == value)))
+    return out
+
+
 def _dropouts(stream: Stream) -> tuple[tuple[float, float], ...]:
     """Return the intervals between consecutive samples longer than ``DROPOUT_PERIODS`` median periods."""
     if len(stream.t) < 3:
@@ -452,13 +498,16 @@ def _isolated_zeros(g: np.ndarray) -> np.ndarray:
     return out if out.sum() >= max(MIN_HELD_SHARE * len(g), 10) else np.zeros(len(g), dtype=bool)
 
 
-def _wrench_stream(t: np.ndarray, g: np.ndarray) -> tuple[Stream, list[tuple[float, float, str]], int, int]:
-    """Return (wrench stream, stuck intervals (t0, t1, channel or "" for all), held rows, missing rows) of the
-    table's wrench columns.
+def _wrench_stream(
+    t: np.ndarray, g: np.ndarray
+) -> tuple[Stream, list[tuple[float, float, str]], int, int, list[tuple[str, float, int]]]:
+    """Return (wrench stream, stuck intervals (t0, t1, channel or "" for all), held rows, missing rows, saturated
+    channels (name, value, samples)) of the table's wrench columns.
 
     Held rows (a slower F/T sensor, :func:`held_rows`) are dropped and each sample is timed at the middle
     of the interval in which it first appeared; isolated all-zero rows (:func:`_isolated_zeros`) are
-    missing samples; a frozen wrench (:func:`_stuck`) or one frozen channel (:func:`frozen_channels`) is excluded.
+    missing samples; a frozen wrench (:func:`_stuck`), one frozen channel (:func:`frozen_channels`) and the
+    samples of a clipped channel (:func:`saturated_channels`) are excluded.
     """
     keep = np.ones(len(t), dtype=bool)
     held = 0
@@ -468,16 +517,22 @@ def _wrench_stream(t: np.ndarray, g: np.ndarray) -> tuple[Stream, list[tuple[flo
         held = int(same.sum())
     missing = _isolated_zeros(g)
     keep &= ~missing
+    saturated = saturated_channels(g, WRENCH_CHANNELS)
+    clip = {(name, value) for name, value, _ in saturated}
     stuck = []
     for first, last, _name in [(f, l, "") for f, l in _stuck(t, g)] + frozen_channels(t, g, WRENCH_CHANNELS):
         keep[first : last + 1] = False
-        stuck.append((float(t[first - 1]), float(t[last]), _name))
+        if (_name, float(g[first, WRENCH_CHANNELS.index(_name)]) if _name else 0.0) not in clip:
+            stuck.append((float(t[first - 1]), float(t[last]), _name))
+    for _, _, rows in saturated:
+        keep[rows] = False
     rows = np.flatnonzero(keep)
     tw = t[rows].copy()
     if held:
         prev = np.maximum(rows - 1, 0)
         tw[rows > 0] = 0.5 * (t[prev] + t[rows])[rows > 0]  # the sample arrived after the previous row
-    return Stream(tw, g[rows], rows), stuck, held, int(missing.sum())
+    sat = [(name, value, len(r)) for name, value, r in saturated]
+    return Stream(tw, g[rows], rows), stuck, held, int(missing.sum()), sat
 
 
 def _jump_steps(stream: Stream) -> np.ndarray:
@@ -545,10 +600,63 @@ def _stays(stream: Stream, steps: np.ndarray, rate: np.ndarray, far: np.ndarray,
     return out
 
 
+def _positions_continue(pose: Stream, i: int, half: int = 4) -> bool:
+    """Return True when the heading alone jumps from sample i to i + 1: the positions step as
+    the motion around the step predicts (within ``GLITCH_SCALE`` robust scales of the second difference around
+    it) and the direction of travel does not turn with the heading (when the cart moves enough to tell).
+
+    A heading that jumps while the path carries on (a symmetric marker set read turned by pi, a heading
+    written modulo 2 pi with one wrap missed) is a change of the body's heading reference, not of the
+    motion-capture frame: the positions and the world-frame wrench need no change. A frame turned about the
+    cart's own position also leaves the positions in place, but turns the direction of travel with the heading.
+    """
+    p, t = pose.values, pose.t
+    lo, hi = max(i - half, 0), min(i + 1 + half, len(p) - 1)
+    if i - lo < 2 or hi - (i + 1) < 2:
+        return False
+    before = (p[i] - p[lo]) / max(t[i] - t[lo], 1e-12)
+    after = (p[hi] - p[i + 1]) / max(t[hi] - t[i + 1], 1e-12)
+    dev = p[i + 1] - p[i] - 0.5 * (before + after) * (t[i + 1] - t[i])
+    d2 = np.abs(np.diff(np.r_[p[lo : i + 1], p[i + 1 : hi + 1] - (p[i + 1] - p[i])], 2, axis=0))
+    scale = 1.4826 * np.median(d2, axis=0)[:2] + 1e-9
+    step = np.median(np.abs(np.diff(p[lo : hi + 1, :2], axis=0)), axis=0)
+    if not np.all(np.abs(dev[:2]) <= np.maximum(GLITCH_SCALE * scale, 2.0 * step)):
+        return False
+    moving = min(np.hypot(*before[:2]), np.hypot(*after[:2])) * (t[hi] - t[lo]) > 10.0 * float(np.max(scale))
+    travel = math.remainder(math.atan2(after[1], after[0]) - math.atan2(before[1], before[0]), 2.0 * math.pi)
+    turn = math.remainder(float(dev[2]), 2.0 * math.pi)  # a turn by 2 pi is no turn of the frame
+    return not moving or abs(math.remainder(travel - turn, 2.0 * math.pi)) >= 0.5 * abs(turn)
+
+
+def _piece_maps(pose: Stream, jumps: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray, bool]]:
+    """Return, per piece after each jump, (heading offset, rotation, shift, heading alone) mapping its raw pose
+    onto the continuation of the joined pose before it (:func:`join_jumps`); the rotation also turns its wrench.
+    After a jump of the heading alone the positions keep the previous piece's rotation and shift."""
+    q = pose.values.copy()
+    bounds = np.r_[jumps + 1, len(q)]
+    rot, shift = np.eye(2), np.zeros(2)
+    maps = []
+    for k, i in enumerate(jumps):
+        lo = max(i - 3, 0)
+        rate = (q[i] - q[lo]) / max(pose.t[i] - pose.t[lo], 1e-12) if i > lo else np.zeros(3)
+        target = q[i] + rate * (pose.t[i + 1] - pose.t[i])  # q[: i + 1] already joined
+        d = float(target[2] - pose.values[i + 1, 2])
+        alone = _positions_continue(pose, int(i))
+        if not alone:  # the frame moved: a rigid shift of the later pose
+            c, s_ = math.cos(d), math.sin(d)
+            rot = np.array([[c, -s_], [s_, c]])
+            shift = target[:2] - rot @ pose.values[i + 1, :2]
+        piece = slice(i + 1, bounds[k + 1])
+        q[piece, :2] = pose.values[piece, :2] @ rot.T + shift
+        q[piece, 2] = pose.values[piece, 2] + d
+        maps.append((d, rot, shift, alone))
+    return maps
+
+
 def join_jumps(
     pose: Stream, wrench: Stream, jumps: np.ndarray | None = None
-) -> tuple[Stream, Stream, tuple[float, ...]]:
-    """Return (pose, wrench, jump times) with the pieces between pose jumps joined by rigid shifts.
+) -> tuple[Stream, Stream, tuple[float, ...], tuple[float, ...]]:
+    """Return (pose, wrench, jump times, times of the heading-only jumps) with the pieces between pose jumps joined by rigid shifts.
 
     After a jump (:func:`_jump_steps`: a motion-capture re-registration, recordings written one after
     another) the later pose is moved rigidly (rotated by delta about the vertical, translated) to continue
@@ -557,23 +665,18 @@ def join_jumps(
     those of the recording (eq. 4 is invariant under a rigid change of the world frame): each piece is taken
     as recorded in its own frame (recordings written one after another). A re-registration that shifts the
     motion-capture frame is joined exactly; one that also turns it (the wrench's frame left as it was) leaves
-    the later force turned by delta: the misfit, or the wrench-frame check (:mod:`cart.units`), says so. Too
-    many jumps (over 1 % of the samples) is not a recording of one push: left as it is.
+    the later force turned by delta: the misfit, or the wrench-frame check (:mod:`cart.units`), says so. A jump
+    of the heading alone (:func:`_positions_continue`: the positions carry on) only shifts the later heading.
+    Too many jumps (over 1 % of the samples) is not a recording of one push: left as it is.
     """
     jumps = _jump_steps(pose) if jumps is None else jumps
     if not len(jumps) or len(jumps) > 0.01 * len(pose.t):
-        return pose, wrench, ()
+        return pose, wrench, (), ()
     q = pose.values.copy()
     g = wrench.values.copy()
     bounds = np.r_[jumps + 1, len(q)]
-    for k, i in enumerate(jumps):
-        lo = max(i - 3, 0)
-        rate = (q[i] - q[lo]) / max(pose.t[i] - pose.t[lo], 1e-12) if i > lo else np.zeros(3)
-        target = q[i] + rate * (pose.t[i + 1] - pose.t[i])  # q[: i + 1] already joined
-        d = float(target[2] - pose.values[i + 1, 2])
-        c, s_ = math.cos(d), math.sin(d)
-        rot = np.array([[c, -s_], [s_, c]])
-        shift = target[:2] - rot @ pose.values[i + 1, :2]
+    maps = _piece_maps(pose, jumps)
+    for k, (i, (d, rot, shift, _)) in enumerate(zip(jumps, maps)):
         piece = slice(i + 1, bounds[k + 1])
         q[piece, :2] = pose.values[piece, :2] @ rot.T + shift
         q[piece, 2] = pose.values[piece, 2] + d
@@ -583,7 +686,8 @@ def join_jumps(
             hi_w = int(np.searchsorted(wrench.t, 0.5 * (pose.t[jumps[k + 1]] + pose.t[jumps[k + 1] + 1]), side="right"))
         g[lo_w:hi_w, :2] = wrench.values[lo_w:hi_w, :2] @ rot.T
     times = tuple(float(0.5 * (pose.t[i] + pose.t[i + 1])) for i in jumps)
-    return Stream(pose.t, q, pose.rows), Stream(wrench.t, g, wrench.rows), times
+    heading = tuple(x for x, m in zip(times, maps) if m[3])
+    return Stream(pose.t, q, pose.rows), Stream(wrench.t, g, wrench.rows), times, heading
 
 
 def split_streams(log: CartLog) -> Streams:
@@ -607,8 +711,8 @@ def split_streams(log: CartLog) -> Streams:
         pose = Stream(pose.t[~bad], pose.values[~bad], pose.rows[~bad])
         cuts = np.unique(kept[cuts])
         cuts = cuts[(cuts >= 0) & (cuts < len(pose.t) - 1)]
-    wrench, stuck, wrench_held, missing = _wrench_stream(log.t, log.gamma)
-    pose, wrench, jumps = join_jumps(pose, wrench, cuts)
+    wrench, stuck, wrench_held, missing, saturated = _wrench_stream(log.t, log.gamma)
+    pose, wrench, jumps, heading_jumps = join_jumps(pose, wrench, cuts)
     return Streams(
         pose=pose,
         wrench=wrench,
@@ -618,6 +722,8 @@ def split_streams(log: CartLog) -> Streams:
         stuck_channels=tuple(name for _, _, name in stuck),
         frozen_pose=tuple(frozen),
         jumps=jumps,
+        heading_jumps=heading_jumps,
+        saturated=tuple(saturated),
         glitches=glitch_t,
         multi_rate=multi,
         interpolated=pieces is not None,
