@@ -23,6 +23,7 @@ import numpy as np
 
 from cart.errors import CartError, LogFormatError, ParameterError
 from cart.logs import CartLog, read_log
+from cart.noise_model import SpectralNoise, lag_correlation
 from cart.params import CartParams
 from cart.streams import Streams, box_average, split_streams
 from cart.units import check_declared_units, check_units, check_wrench_frame
@@ -227,6 +228,24 @@ def push_work(streams: Streams, cart_frame: bool = False) -> float:
     return float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(t)))
 
 
+def _noise_json(model: SpectralNoise, dt: float, fc: float) -> dict[str, float]:
+    """Return the wrench noise model (:class:`cart.noise_model.SpectralNoise`) as --json shows it.
+
+    ``std``: the raw noise's std; ``lag1_corr``: its correlation at one grid step; ``low_frequency_std``: the
+    std of the white noise with the same mean power below the cut-off ``fc``; ``psd_white``, ``psd_power``,
+    ``alpha``, ``f_ref``: the one-sided PSD ``psd_white + psd_power (f / f_ref)^-alpha`` (units^2 / Hz).
+    """
+    return {
+        "std": model.sigma,
+        "lag1_corr": lag_correlation(model, dt),
+        "low_frequency_std": model.band_white_std(fc),
+        "psd_white": model.white,
+        "psd_power": model.power,
+        "alpha": model.alpha,
+        "f_ref": model.f_ref,
+    }
+
+
 def _no_mass_error(log: CartLog, streams: Streams, exc: Exception) -> CartError:
     """Return the error for a log whose fit gives no positive mass: a flipped wrench sign when the push
     does negative work on the cart read in either frame (:func:`push_work`), otherwise a push that does
@@ -263,7 +282,7 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
     whole = [w for w in res.warnings if not (split and w.startswith("the model does not fit"))]
     warnings = log_notes(log, streams) + stream_notes(streams) + whole
     f_noise, t_noise = res.wrench_noise
-    noise = {"force": f_noise.low_frequency_std, "torque": t_noise.low_frequency_std}
+    noise = {"force": f_noise.band_white_std(res.cutoff_hz), "torque": t_noise.band_white_std(res.cutoff_hz)}
     nis, rejected, note = _innovation(log, streams, res.params, noise)
     warnings += [note] if note else []
     fits = res.model_fits
@@ -282,8 +301,8 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
         "coulomb_resistance": {"force": res.coulomb["force"], "torque": res.coulomb["torque"]},
         "noise_std": res.noise,
         "noise_model": {
-            "force": {"std": f_noise.sigma, "lag1_corr": f_noise.a, "low_frequency_std": f_noise.low_frequency_std},
-            "torque": {"std": t_noise.sigma, "lag1_corr": t_noise.a, "low_frequency_std": t_noise.low_frequency_std},
+            "force": _noise_json(f_noise, res.grid_dt, res.cutoff_hz),
+            "torque": _noise_json(t_noise, res.grid_dt, res.cutoff_hz),
             "grid_dt": res.grid_dt,
         },
         "wrench_offsets": res.offsets,

@@ -49,7 +49,7 @@ from cart.dynamics import regressor
 from cart.errors import CartError
 from cart.log_signals import filter_support_keep
 from cart.logs import CartLog
-from cart.noise_model import AR1Noise, fit_ar1
+from cart.noise_model import SpectralNoise, fit_spectrum, sos_power_gain
 from cart.params import CartParams
 from cart.physical import constrained_fit
 from cart.streams import Streams, box_average, split_streams
@@ -126,7 +126,7 @@ class Identification:
     samples_used: int
     gaps: int
     streams: Streams | None = field(default=None, repr=False)
-    wrench_noise: tuple[AR1Noise, AR1Noise] | None = None
+    wrench_noise: tuple[SpectralNoise, SpectralNoise] | None = None
     offsets: dict[str, float] = field(default_factory=dict)
     grid_dt: float = float("nan")
     fit_data: FitData | None = field(default=None, repr=False)
@@ -601,17 +601,81 @@ def _every(reg: _Regression, step: int) -> _Regression:
     return replace(reg, x=reg.x[::step], y=reg.y[::step], v=reg.v[::step], om=reg.om[::step], y_raw=reg.y_raw[::step])
 
 
-def _wrench_noise(reg: _Regression, p: np.ndarray, dt: float, sos: np.ndarray) -> tuple[AR1Noise, AR1Noise, np.ndarray]:
-    """Return the coloured-noise models of the forward and yaw rows and their filtered-output std (2,).
+def _wrench_noise(
+    reg: _Regression, p: np.ndarray, dt: float, sos: np.ndarray
+) -> tuple[SpectralNoise, SpectralNoise, np.ndarray]:
+    """Return the spectral noise models of the forward and yaw rows and their filtered-output std (2,).
 
-    Measured on the raw (unfiltered) wrench minus the model's prediction (:func:`cart.noise_model.fit_ar1`).
+    Measured on the raw (unfiltered) wrench minus the model's prediction (:func:`cart.noise_model.fit_spectrum`)
+    over the band from twice the cut-off (where the filtered regression leaves no signal and a misfit of the
+    cart's dynamics has little power) to a quarter of the sample rate (below the attenuation of a wrench
+    averaged over each sample); the output std integrates the model's PSD times the zero-phase filter's
+    power gain |H|^4 from the log's lowest frequency.
     """
     n_rows = min(len(reg.y_raw), NOISE_ROWS)
     r_raw = reg.y_raw[:n_rows] - _predict(reg.x[:n_rows], p)
-    models = (fit_ar1(r_raw[:, 0], dt), fit_ar1(r_raw[:, 1], dt))
-    n = min(len(r_raw), 20000)
-    gains = np.array([_gains_of(_filtfilt(sos, mdl.unit_series(n)), dt)[1] for mdl in models])
-    return models[0], models[1], gains
+    fs, f_min = 1.0 / dt, 1.0 / (len(reg.y_raw) * dt)
+    fc = _cutoff_of(sos, dt)
+    band = (min(4.0 * fc, 0.125 * fs), min(max(0.25 * fs, 8.0 * fc), 0.5 * fs))
+    models = (fit_spectrum(r_raw[:, 0], dt, band, f_min), fit_spectrum(r_raw[:, 1], dt, band, f_min))
+    f = np.geomspace(f_min, 0.5 * fs, 4000)
+    gain = sos_power_gain(sos, f, dt) ** 2
+    out = np.array([math.sqrt(max(mdl.variance(gain, f), 0.0)) for mdl in models])
+    return models[0], models[1], out
+
+
+def _cutoff_of(sos: np.ndarray, dt: float) -> float:
+    """Return the -3 dB frequency (Hz) of the low-pass ``sos`` (bisection on its power gain)."""
+    lo, hi = 0.0, 0.5 / dt
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if sos_power_gain(sos, np.array([mid]), dt)[0] > 0.5 else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def _spectral_cov(
+    x: np.ndarray, wts: np.ndarray, a: np.ndarray, models: tuple[SpectralNoise, SpectralNoise], sos_dt: tuple
+) -> np.ndarray:
+    """Return the covariance of the weighted least-squares estimate under the noise models' spectra.
+
+    The score ``sum_k X_k^T W_k e_k`` of filtered noise ``e`` (PSD ``S(f) |H(f)|^4``, :func:`_wrench_noise`)
+    has the variance ``sum_rows integral |Z(f)|^2 S(f) |H(f)|^4 df``, ``Z`` the Fourier transform of the
+    weighted regressor column (rows spaced ``dt_rows``, zero-padded to twice their length: no wrap-around);
+    the covariance is ``A^-1 V A^-1`` with ``A`` the (noise-compensated) normal matrix. Honest for any
+    stationary noise the model describes, however slowly it decorrelates (a Newey-West window does not reach
+    a 1 / f noise's correlations).
+    """
+    sos, dt, dt_rows = sos_dt
+    k = x.shape[0]
+    m = 2 * k
+    f = np.fft.rfftfreq(m, dt_rows)
+    gain = sos_power_gain(sos, f, dt) ** 2
+    v = np.zeros((x.shape[-1], x.shape[-1]))
+    for row, model in enumerate(models):
+        z = np.fft.rfft(x[:, row, :] * wts[:, row, None], n=m, axis=0)
+        s = model.psd(f) * gain / (m * dt_rows)
+        s[0] *= 0.5
+        v += np.real((z.conj() * s[:, None]).T @ z)
+    a_inv = np.linalg.pinv(a)
+    return a_inv @ v @ a_inv
+
+
+def _with_spectral_cov(
+    reg: _Regression, fit: tuple, noise: np.ndarray, models: tuple[SpectralNoise, SpectralNoise], sos_dt: tuple
+) -> np.ndarray:
+    """Return the fit's covariance with each std at least the spectral model's (:func:`_spectral_cov`).
+
+    ``fit``: (p, cov, row scales, residuals) of :func:`_fit`; the Huber weights are those of its residuals.
+    """
+    _, cov, scale, r = fit
+    u = np.abs(r) / (1.5 * scale)
+    wts = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-300)) / scale**2
+    pad = np.pad(noise, ((0, 0), (0, reg.x.shape[-1] - noise.shape[1])))
+    a = _normal(reg.x, reg.y, wts)[0] - _noise_correction(wts, pad)
+    cov_sp = _spectral_cov(reg.x, wts, a, models, sos_dt)
+    sd_old = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+    sd = np.maximum(sd_old, np.sqrt(np.maximum(np.diag(cov_sp), 0.0)))
+    return cov / np.outer(sd_old, sd_old) * np.outer(sd, sd)
 
 
 def _physical(p: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
@@ -639,11 +703,11 @@ def _physical(p: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, l
 
 
 def _residual_ratio(
-    lv: _Noise, out_gain: np.ndarray, sv: float, so: float, p: np.ndarray, r: np.ndarray, y: np.ndarray
+    out_std: np.ndarray, sv: float, so: float, p: np.ndarray, r: np.ndarray, y: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return (residual RMS / what the noise explains, the explained RMS) of the forward and yaw rows.
 
-    The explained part: the filtered wrench noise (its colour included: ``out_gain`` per row) plus the
+    The explained part: the filtered wrench noise (its spectrum included: ``out_std`` per row) plus the
     regressor's acceleration noise times the parameters; at least FIT_FLOOR of the wrench (a model
     "fits" to within it on a noise-free log).
     """
@@ -651,8 +715,8 @@ def _residual_ratio(
     expected = (
         np.sqrt(
             [
-                (lv.force * out_gain[0]) ** 2 + (m_ * sv) ** 2 + (b_ * so) ** 2,
-                (lv.torque * out_gain[1]) ** 2 + (j_ * so) ** 2 + (b_ * sv) ** 2,
+                out_std[0] ** 2 + (m_ * sv) ** 2 + (b_ * so) ** 2,
+                out_std[1] ** 2 + (j_ * so) ** 2 + (b_ * sv) ** 2,
             ]
         )
         + 1e-300
@@ -860,9 +924,10 @@ def identify(
         warnings.append(_caster_warning(casters))
     else:
         p, cov, scale, r = _fit_or_raise(log, reg, noise, lag)
-    f_noise, t_noise, out_gain = _wrench_noise(full, p, grid.dt, sos)
+    f_noise, t_noise, out_std = _wrench_noise(full, p, grid.dt, sos)
+    cov = _with_spectral_cov(reg, (p, cov, scale, r), noise, (f_noise, t_noise), (sos, grid.dt, grid.dt * step))
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
-    ratio, expected = _residual_ratio(lv, out_gain, sv, so, p, r, reg.y)
+    ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings)
     cart_frame = None if fits else _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
     p, cov, note = _physical(p, cov)
@@ -905,16 +970,15 @@ def _cart_frame_reading(
     :func:`_residual_ratio`. ``lv_acc``: the log's noise levels and the regressor's acceleration noise (sv, so).
     """
     full, step = full_step
-    lv, sv, so = lv_acc
+    _, sv, so = lv_acc
     y_raw, y = full.y_raw.copy(), full.y.copy()  # the torque row is the same in both readings
     y_raw[:, 0] = grid.gamma[full.keep, 0]
     y[:, 0] = _filtfilt(sos, grid.gamma[:, 0])[full.keep]
     alt = replace(full, y=y, y_raw=y_raw)
     reg = _every(alt, step)
     p, _, _ = _wls(reg.x, reg.y, np.pad(noise, ((0, 0), (0, reg.x.shape[-1] - noise.shape[1]))))
-    f_noise, t_noise, out_gain = _wrench_noise(alt, p, grid.dt, sos)
-    lv_b = replace(lv, force=f_noise.sigma, torque=t_noise.sigma)
-    ratio, _ = _residual_ratio(lv_b, out_gain, sv, so, p, reg.y - _predict(reg.x, p), reg.y)
+    _, _, out_std = _wrench_noise(alt, p, grid.dt, sos)
+    ratio, _ = _residual_ratio(out_std, sv, so, p, reg.y - _predict(reg.x, p), reg.y)
     return float(ratio[0]), float(p[0])
 
 

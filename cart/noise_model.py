@@ -74,3 +74,132 @@ def fit_ar1(r: np.ndarray, dt: float, horizon: float = HORIZON) -> AR1Noise:
     err = np.sum((np.log(gam)[None, :] - np.log(model) - log_s2[:, None]) ** 2, axis=1)
     k = int(np.argmin(err))
     return AR1Noise(sigma=float(math.sqrt(math.exp(log_s2[k]))), a=float(a_grid[k]))
+
+
+#: Power-law exponents the spectral model may take: white (0) to flicker / pink (1). Steeper tails above the
+#: regression's band are the cart's own wrench (its accelerations' spectrum falls as 1 / f^2 or faster), a
+#: misfit's (a dry-friction step) or an AR(1) noise's beyond its corner: extrapolated down they would
+#: call any misfit noise.
+ALPHAS = np.linspace(0.0, 1.0, 21)
+#: Log-spaced frequency bins of the periodogram the spectral model is fitted on.
+FIT_BINS = 12
+
+
+@dataclass(frozen=True)
+class SpectralNoise:
+    """A stationary noise by its one-sided power spectral density ``S(f) = white + power (f / f_ref)^-alpha``.
+
+    ``white``, ``power``: PSD levels (units^2 / Hz); ``S`` is held at ``S(f_min)`` below ``f_min``, the lowest
+    frequency the log shows (one over its length); ``f_max``: the Nyquist frequency. Covers white noise
+    (power 0), flicker (pink, 1 / f) noise, a random-walk drift (1 / f^2) and an AR(1) process above its corner.
+    """
+
+    white: float
+    power: float
+    alpha: float
+    f_ref: float
+    f_min: float
+    f_max: float
+    #: the AR(1) model of the same noise (:func:`fit_ar1`, fitted at the period ``0.5 / f_max``): the PSD is the
+    #: larger of the two at each frequency
+    ar1: AR1Noise | None = None
+
+    def psd(self, f: np.ndarray) -> np.ndarray:
+        """Return the one-sided PSD at the frequencies ``f`` (Hz)."""
+        f = np.maximum(np.asarray(f, float), self.f_min)
+        s = self.white + self.power * (f / self.f_ref) ** (-self.alpha)
+        if self.ar1 is None:
+            return s
+        a, dt = self.ar1.a, 0.5 / self.f_max
+        s_ar = 2.0 * dt * self.ar1.sigma**2 * (1.0 - a * a) / np.abs(1.0 - a * np.exp(-2j * math.pi * f * dt)) ** 2
+        return np.maximum(s, s_ar)
+
+    def variance(self, gain2: np.ndarray | None = None, f: np.ndarray | None = None) -> float:
+        """Return the variance of the noise through a filter of power gain ``gain2`` at ``f`` (None: unfiltered)."""
+        if f is None:
+            f = np.geomspace(self.f_min, self.f_max, 4000)
+        s = self.psd(f) * (1.0 if gain2 is None else gain2)
+        return float(np.sum(0.5 * (s[1:] + s[:-1]) * np.diff(f)) + s[0] * self.f_min)
+
+    @property
+    def sigma(self) -> float:
+        """Return the std of the raw noise."""
+        return math.sqrt(max(self.variance(), 0.0))
+
+    def band_white_std(self, f_hi: float) -> float:
+        """Return the std of white noise (sampled at 2 f_max) with this noise's mean PSD over [f_min, f_hi]."""
+        f = np.geomspace(self.f_min, max(f_hi, 1.001 * self.f_min), 400)
+        mean_psd = self.variance(np.ones_like(f), f) / (f[-1] - f[0] + self.f_min)
+        return math.sqrt(max(mean_psd * self.f_max, 0.0))
+
+
+def periodogram(r: np.ndarray, dt: float, seg: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return (f, one-sided PSD) of ``r`` by Welch's method: Hann-windowed halves-overlapping segments of ``seg`` samples."""
+    r = np.asarray(r, float)
+    seg = max(8, min(seg, len(r)))
+    starts = np.arange(0, len(r) - seg + 1, max(seg // 2, 1))
+    win = np.hanning(seg)
+    segs = np.stack([r[i : i + seg] for i in starts])
+    segs = (segs - segs.mean(axis=1, keepdims=True)) * win
+    p = np.mean(np.abs(np.fft.rfft(segs, axis=1)) ** 2, axis=0) * 2.0 * dt / np.sum(win**2)
+    return np.fft.rfftfreq(seg, dt), p
+
+
+def fit_spectrum(r: np.ndarray, dt: float, band: tuple[float, float], f_min: float) -> SpectralNoise:
+    """Return the :class:`SpectralNoise` fitted to the periodogram of ``r`` (period ``dt``) over ``band`` (Hz).
+
+    The band lies above the regression's cut-off, where the model's residual is the sensor's noise (the
+    cart's dynamics, and a misfit of them, live below the cut-off). The periodogram (:func:`periodogram`,
+    segments resolving the band's low edge) is averaged in ``FIT_BINS`` log-spaced bins; for each exponent
+    of ``ALPHAS`` the non-negative levels (white, power) minimise the relative error, and the exponent with
+    the least log-spectral error is kept; the PSD is the larger of it and the AR(1) model's (:func:`fit_ar1`),
+    or the AR(1) model's alone when that describes the band at least as well. Below the band the power law is
+    extrapolated down to ``f_min``.
+    """
+    f_max = 0.5 / dt
+    lo, hi = max(band[0], 2.0 * f_min), min(band[1], f_max)
+    seg = int(2 ** math.ceil(math.log2(max(8.0 / (lo * dt), 16.0))))
+    f, p = periodogram(r, dt, min(seg, max(len(r) // 4, 16)))
+    edges = np.geomspace(lo, max(hi, 1.01 * lo), FIT_BINS + 1)
+    idx = np.digitize(f, edges) - 1
+    fb = np.array([np.mean(f[idx == i]) for i in range(FIT_BINS) if np.any(idx == i)])
+    pb = np.array([np.mean(p[idx == i]) for i in range(FIT_BINS) if np.any(idx == i)])
+    if len(fb) < 2 or not np.all(pb > 0):
+        level = float(np.mean(p[1:])) if len(p) > 1 else 0.0
+        return SpectralNoise(level, 0.0, 0.0, lo, f_min, f_max, fit_ar1(r, dt))
+    best = (math.inf, 0.0, 0.0, 0.0)
+    for alpha in ALPHAS:
+        g = (fb / lo) ** (-alpha)
+        basis = np.column_stack([np.ones_like(fb), g]) / pb[:, None]
+        coef = np.linalg.lstsq(basis, np.ones_like(fb), rcond=None)[0]
+        if coef[0] < 0 or coef[1] < 0:
+            coef = (
+                np.array([max(float(np.mean(pb)), 0.0), 0.0])
+                if coef[1] < 0
+                else np.array([0.0, float(np.mean(pb / g))])
+            )
+        model = coef[0] + coef[1] * g
+        err = float(np.sum(np.log(np.maximum(model, 1e-300) / pb) ** 2))
+        if err < best[0] - 1e-12:
+            best = (err, float(coef[0]), float(coef[1]), float(alpha))
+    ar1 = fit_ar1(r, dt)
+    only_ar1 = SpectralNoise(0.0, 0.0, 0.0, lo, f_min, f_max, ar1)
+    if float(np.sum(np.log(only_ar1.psd(fb) / pb) ** 2)) <= best[0]:
+        return only_ar1  # the AR(1) model describes the band as well: no flicker component
+    return SpectralNoise(best[1], best[2], best[3] if best[2] > 0 else 0.0, lo, f_min, f_max, ar1)
+
+
+def lag_correlation(model: SpectralNoise, lag_s: float) -> float:
+    """Return the noise's autocorrelation at a lag of ``lag_s`` seconds (Wiener-Khinchin)."""
+    f = np.geomspace(model.f_min, model.f_max, 4000)
+    var = model.variance(None, f)
+    return model.variance(np.cos(2.0 * math.pi * f * lag_s), f) / var if var > 0 else 0.0
+
+
+def sos_power_gain(sos: np.ndarray, f: np.ndarray, dt: float) -> np.ndarray:
+    """Return |H(f)|^2 of the second-order sections ``sos`` (sampling period ``dt``) at the frequencies ``f``."""
+    z1 = np.exp(-2j * math.pi * np.asarray(f, float) * dt)
+    h = np.ones_like(z1)
+    for b0, b1, b2, a0, a1, a2 in sos:
+        h = h * (b0 + b1 * z1 + b2 * z1 * z1) / (a0 + a1 * z1 + a2 * z1 * z1)
+    return np.abs(h) ** 2
