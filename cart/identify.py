@@ -666,8 +666,11 @@ def _with_spectral_cov(
     """Return the fit's covariance with each std at least the spectral model's (:func:`_spectral_cov`).
 
     ``fit``: (p, cov, row scales, residuals) of :func:`_fit`; the Huber weights are those of its residuals.
+    Only with a flicker (1 / f) component: an AR(1) noise decorrelates within the Newey-West window.
     """
     _, cov, scale, r = fit
+    if all(mdl.power <= 0.0 for mdl in models):
+        return cov
     u = np.abs(r) / (1.5 * scale)
     wts = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-300)) / scale**2
     pad = np.pad(noise, ((0, 0), (0, reg.x.shape[-1] - noise.shape[1])))

@@ -83,6 +83,10 @@ def fit_ar1(r: np.ndarray, dt: float, horizon: float = HORIZON) -> AR1Noise:
 ALPHAS = np.linspace(0.0, 1.0, 21)
 #: Log-spaced frequency bins of the periodogram the spectral model is fitted on.
 FIT_BINS = 12
+#: The flicker component is kept when it lowers the bins' weighted log-spectral error, below both white noise's
+#: and the AR(1) model's, by this much: the chi-square quantile of one degree of freedom at 1e-3 (a small slope
+#: of the band, extrapolated down by decades, would otherwise multiply the low-frequency noise).
+FLICKER_CHI2 = 10.83
 
 
 @dataclass(frozen=True)
@@ -152,40 +156,42 @@ def fit_spectrum(r: np.ndarray, dt: float, band: tuple[float, float], f_min: flo
     cart's dynamics, and a misfit of them, live below the cut-off). The periodogram (:func:`periodogram`,
     segments resolving the band's low edge) is averaged in ``FIT_BINS`` log-spaced bins; for each exponent
     of ``ALPHAS`` the non-negative levels (white, power) minimise the relative error, and the exponent with
-    the least log-spectral error is kept; the PSD is the larger of it and the AR(1) model's (:func:`fit_ar1`),
-    or the AR(1) model's alone when that describes the band at least as well. Below the band the power law is
-    extrapolated down to ``f_min``.
+    the least weighted log-spectral error is kept; the PSD is the larger of it and the AR(1) model's
+    (:func:`fit_ar1`), or the AR(1) model's alone unless the power law's error is ``FLICKER_CHI2`` below both
+    the white fit's (alpha 0) and the AR(1) model's.
+    Below the band the power law is extrapolated down to ``f_min``.
     """
     f_max = 0.5 / dt
     lo, hi = max(band[0], 2.0 * f_min), min(band[1], f_max)
     seg = int(2 ** math.ceil(math.log2(max(8.0 / (lo * dt), 16.0))))
-    f, p = periodogram(r, dt, min(seg, max(len(r) // 4, 16)))
+    seg = min(seg, max(len(r) // 4, 16))
+    f, p = periodogram(r, dt, seg)
     edges = np.geomspace(lo, max(hi, 1.01 * lo), FIT_BINS + 1)
     idx = np.digitize(f, edges) - 1
-    fb = np.array([np.mean(f[idx == i]) for i in range(FIT_BINS) if np.any(idx == i)])
-    pb = np.array([np.mean(p[idx == i]) for i in range(FIT_BINS) if np.any(idx == i)])
-    if len(fb) < 2 or not np.all(pb > 0):
-        level = float(np.mean(p[1:])) if len(p) > 1 else 0.0
-        return SpectralNoise(level, 0.0, 0.0, lo, f_min, f_max, fit_ar1(r, dt))
-    best = (math.inf, 0.0, 0.0, 0.0)
+    used = [i for i in range(FIT_BINS) if np.any(idx == i)]
+    fb = np.array([np.mean(f[idx == i]) for i in used])
+    pb = np.array([np.mean(p[idx == i]) for i in used])
+    # log of a mean of K chi-square(2) / 2 values has a variance of about 1 / K (half-overlapping segments)
+    kb = np.array([np.sum(idx == i) for i in used]) * max(len(r) // seg, 1)
+    ar1 = fit_ar1(r, dt)
+    only_ar1 = SpectralNoise(0.0, 0.0, 0.0, lo, f_min, f_max, ar1)
+    if len(fb) < 4 or not np.all(pb > 0):
+        return only_ar1
+    best, err_white = (math.inf, 0.0, 0.0, 0.0), math.inf
     for alpha in ALPHAS:
         g = (fb / lo) ** (-alpha)
         basis = np.column_stack([np.ones_like(fb), g]) / pb[:, None]
         coef = np.linalg.lstsq(basis, np.ones_like(fb), rcond=None)[0]
         if coef[0] < 0 or coef[1] < 0:
-            coef = (
-                np.array([max(float(np.mean(pb)), 0.0), 0.0])
-                if coef[1] < 0
-                else np.array([0.0, float(np.mean(pb / g))])
-            )
+            coef = np.array([float(np.mean(pb)), 0.0]) if coef[1] < 0 else np.array([0.0, float(np.mean(pb / g))])
         model = coef[0] + coef[1] * g
-        err = float(np.sum(np.log(np.maximum(model, 1e-300) / pb) ** 2))
+        err = float(np.sum(kb * np.log(np.maximum(model, 1e-300) / pb) ** 2))
+        err_white = min(err_white, err) if alpha == 0.0 else err_white
         if err < best[0] - 1e-12:
             best = (err, float(coef[0]), float(coef[1]), float(alpha))
-    ar1 = fit_ar1(r, dt)
-    only_ar1 = SpectralNoise(0.0, 0.0, 0.0, lo, f_min, f_max, ar1)
-    if float(np.sum(np.log(only_ar1.psd(fb) / pb) ** 2)) <= best[0]:
-        return only_ar1  # the AR(1) model describes the band as well: no flicker component
+    err_ar1 = float(np.sum(kb * np.log(only_ar1.psd(fb) / pb) ** 2))
+    if min(err_ar1, err_white) <= best[0] + FLICKER_CHI2 or best[2] <= 0:
+        return only_ar1  # the AR(1) model describes the band about as well: no flicker component
     return SpectralNoise(best[1], best[2], best[3] if best[2] > 0 else 0.0, lo, f_min, f_max, ar1)
 
 
