@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from collections.abc import Callable
 from typing import TypedDict
 
 import numpy as np
@@ -633,52 +634,81 @@ def _cutoff_of(sos: np.ndarray, dt: float) -> float:
     return 0.5 * (lo + hi)
 
 
-def _spectral_cov(
-    x: np.ndarray, wts: np.ndarray, a: np.ndarray, models: tuple[SpectralNoise, SpectralNoise], sos_dt: tuple
-) -> np.ndarray:
-    """Return the covariance of the weighted least-squares estimate under the noise models' spectra.
+def _spectral_cov(x: np.ndarray, wts: np.ndarray, a: np.ndarray, psds: tuple, sos_dt: tuple) -> np.ndarray:
+    """Return the covariance of the weighted least-squares estimate under the noise spectra ``psds``.
 
-    The score ``sum_k X_k^T W_k e_k`` of filtered noise ``e`` (PSD ``S(f) |H(f)|^4``, :func:`_wrench_noise`)
-    has the variance ``sum_rows integral |Z(f)|^2 S(f) |H(f)|^4 df``, ``Z`` the Fourier transform of the
-    weighted regressor column (rows spaced ``dt_rows``, zero-padded to twice their length: no wrap-around);
-    the covariance is ``A^-1 V A^-1`` with ``A`` the (noise-compensated) normal matrix. Honest for any
-    stationary noise the model describes, however slowly it decorrelates (a Newey-West window does not reach
-    a 1 / f noise's correlations).
+    The score ``sum_k X_k^T W_k e_k`` of filtered noise ``e`` (PSD ``S(f) |H(f)|^4``, :func:`_wrench_noise`;
+    ``psds``: one callable ``f -> S(f)`` per row) has the variance ``sum_rows integral |Z(f)|^2 S(f) |H(f)|^4 df``,
+    ``Z`` the Fourier transform of the weighted regressor column (rows spaced ``dt_rows``, zero-padded to twice
+    their length: no wrap-around); the covariance is ``A^-1 V A^-1`` with ``A`` the (noise-compensated) normal
+    matrix. Honest for any stationary noise the spectra describe, however slowly it decorrelates (a Newey-West
+    window does not reach a 1 / f noise's correlations).
     """
     sos, dt, dt_rows = sos_dt
-    k = x.shape[0]
-    m = 2 * k
+    m = 2 * x.shape[0]
     f = np.fft.rfftfreq(m, dt_rows)
     gain = sos_power_gain(sos, f, dt) ** 2
     v = np.zeros((x.shape[-1], x.shape[-1]))
-    for row, model in enumerate(models):
+    for row, psd in enumerate(psds):
         z = np.fft.rfft(x[:, row, :] * wts[:, row, None], n=m, axis=0)
-        s = model.psd(f) * gain / (m * dt_rows)
+        s = psd(f) * gain / (m * dt_rows)
         s[0] *= 0.5
         v += np.real((z.conj() * s[:, None]).T @ z)
     a_inv = np.linalg.pinv(a)
     return a_inv @ v @ a_inv
 
 
-def _with_spectral_cov(
-    reg: _Regression, fit: tuple, noise: np.ndarray, models: tuple[SpectralNoise, SpectralNoise], sos_dt: tuple
-) -> np.ndarray:
-    """Return the fit's covariance with each std at least the spectral model's (:func:`_spectral_cov`).
+def _with_spectral_cov(reg: _Regression, fit: tuple, noise: np.ndarray, psds: tuple, sos_dt: tuple) -> np.ndarray:
+    """Return the fit's covariance with each std at least the spectral one (:func:`_spectral_cov`, ``psds``).
 
     ``fit``: (p, cov, row scales, residuals) of :func:`_fit`; the Huber weights are those of its residuals.
-    Only with a flicker (1 / f) component: an AR(1) noise decorrelates within the Newey-West window.
     """
     _, cov, scale, r = fit
-    if all(mdl.power <= 0.0 for mdl in models):
-        return cov
     u = np.abs(r) / (1.5 * scale)
     wts = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-300)) / scale**2
     pad = np.pad(noise, ((0, 0), (0, reg.x.shape[-1] - noise.shape[1])))
     a = _normal(reg.x, reg.y, wts)[0] - _noise_correction(wts, pad)
-    cov_sp = _spectral_cov(reg.x, wts, a, models, sos_dt)
+    cov_sp = _spectral_cov(reg.x, wts, a, psds, sos_dt)
     sd_old = np.sqrt(np.maximum(np.diag(cov), 1e-300))
     sd = np.maximum(sd_old, np.sqrt(np.maximum(np.diag(cov_sp), 0.0)))
     return cov / np.outer(sd_old, sd_old) * np.outer(sd, sd)
+
+
+def _whitening(model: SpectralNoise, f_ref: float) -> Callable[[np.ndarray], np.ndarray]:
+    """Return the amplitude response ``sqrt(S(f_ref) / S(f))`` that makes the noise ``model`` white (level at ``f_ref``)."""
+    return lambda f: np.sqrt(model.psd(np.array([f_ref]))[0] / model.psd(f))
+
+
+def _generalised_fit(
+    reg: _Regression, models: tuple[SpectralNoise, SpectralNoise], noise: np.ndarray, lag: int, sos_dt: tuple
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Return (p, cov, row scales, residuals of the unwhitened rows) of generalised least squares.
+
+    Each row's ``x`` and ``y`` pass through the same zero-phase filter ``sqrt(S(fc) / S(f))`` of its noise
+    model (applied by FFT, zero-padded to twice the length): the model stays exact (a linear filter on both
+    sides) and the noise becomes white below the cut-off, so the frequencies where flicker noise is weak
+    weigh more (the efficient estimator, as in the Cramer-Rao bound of ``log_recorders``). The regressor
+    noise's power in each row scales by the filter's mean power gain over its spectrum (``f^4 |H|^4``). The
+    covariance: :func:`_fit`'s on the whitened rows, each std at least the spectral one.
+    """
+    sos, dt, dt_rows = sos_dt
+    fc = _cutoff_of(sos, dt)
+    k, m = len(reg.y), 2 * len(reg.y)
+    f = np.fft.rfftfreq(m, dt_rows)
+    acc = f**4 * sos_power_gain(sos, f, dt) ** 2
+    xw, yw, scaled = np.empty_like(reg.x), np.empty_like(reg.y), noise.copy()
+    psds = []
+    for row, model in enumerate(models):
+        g = _whitening(model, fc)
+        gf = g(f)
+        xw[:, row, :] = np.fft.irfft(np.fft.rfft(reg.x[:, row, :], n=m, axis=0) * gf[:, None], n=m, axis=0)[:k]
+        yw[:, row] = np.fft.irfft(np.fft.rfft(reg.y[:, row], n=m) * gf, n=m)[:k]
+        scaled[row] *= float(np.sum(acc * gf**2) / max(float(np.sum(acc)), 1e-300))
+        psds.append(lambda ff, mdl=model, gg=g: mdl.psd(ff) * gg(ff) ** 2)
+    p, cov, scale, rw = _fit(xw, yw, scaled, lag)
+    wreg = replace(reg, x=xw, y=yw)
+    cov = _with_spectral_cov(wreg, (p, cov, scale, rw), scaled, tuple(psds), sos_dt)
+    return p, cov, scale, reg.y - _predict(reg.x, p)
 
 
 def _physical(p: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
@@ -928,7 +958,8 @@ def identify(
     else:
         p, cov, scale, r = _fit_or_raise(log, reg, noise, lag)
     f_noise, t_noise, out_std = _wrench_noise(full, p, grid.dt, sos)
-    cov = _with_spectral_cov(reg, (p, cov, scale, r), noise, (f_noise, t_noise), (sos, grid.dt, grid.dt * step))
+    if f_noise.power > 0.0 or t_noise.power > 0.0:  # flicker noise: generalised least squares
+        p, cov, scale, r = _generalised_fit(reg, (f_noise, t_noise), noise, lag, (sos, grid.dt, grid.dt * step))
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings)
