@@ -1078,6 +1078,12 @@ class _FrameMixTest:
         return self.not_s and abs(self.lam - 1.0) <= 3.0 * self.std
 
     @property
+    def leans_b(self) -> bool:
+        """Return True when lam lies more than 3 std from 0 and within 3 std of 1: {b} fits the log better than
+        {s} does, short of the power or the distance from 0 to say so firmly (a warning, never a refusal)."""
+        return self.lam > 3.0 * self.std and abs(self.lam - 1.0) <= 3.0 * self.std
+
+    @property
     def is_b(self) -> bool:
         """Return True when the wrench reads as in {b}: lam far from 0, within 3 std of 1, with power."""
         return self.has_power and self.may_be_b
@@ -1198,7 +1204,8 @@ def _frame_check(
     and the {b} reading better by 99, with 50.2 kg for a 50.9 kg cart against 26.6 kg as logged). Named effects that do not beat the {b} reading without them by the naming
     threshold in either BIC, on a log whose lam may be that of {b} or whose {b} reading wins, stand for
     the frame as well as for themselves: withdrawn, with a warning. Short of a refusal, a log whose lam
-    may be {b} or whose {b} reading wins by FRAME_WARN with lam far from 0: a warning. lam far from 0 and
+    may be {b} or whose {b} reading wins by FRAME_WARN with lam far from 0, or whose lam lies more than 3 std
+    from 0 and within 3 std of 1 (:attr:`_FrameMixTest.leans_b`): a warning. lam far from 0 and
     1 with the reading as logged better is a misfit the named effects leave, not a frame: no warning. A
     log without the power to tell the frames whose plain readings give masses 3 std apart: a warning that
     the frame cannot be checked.
@@ -1224,12 +1231,13 @@ def _frame_check(
             f"{threshold:g}; {mix.text()}): the effects may stand for a wrench logged in {{b}}; check the "
             "logger's frame"
         ), True
-    if mix.may_be_b or b_wins:
+    if mix.may_be_b or b_wins or mix.leans_b:
         why = (
             f"read in {{b}} the model fits better by BIC {b_margin:.0f} (m = {best.x[0]:.1f} kg against "
             f"{ff.s_named.x[0]:.1f} kg as logged)"
             if b_wins
-            else "the cart turns too little to be sure"
+            else f"the cart turns too little to be sure (m = {best.x[0]:.1f} kg read in {{b}}, "
+            f"{ff.s_named.x[0]:.1f} kg as logged)"
         )
         return (
             f"the wrench (fx, fy) may be expressed in the cart frame {{b}} instead of {{s}}: {mix.text()}; {why}; "

@@ -52,3 +52,13 @@ def test_a_two_effect_log_in_the_world_frame_is_answered_with_both_effects():
     _, two = _scenario(9000, 4)
     rep = diagnose(two)
     assert {"floor_slope", "coulomb_friction"} <= set(rep.names), rep.summary()
+    assert not any("cart frame" in w for w in rep.warnings), rep.warnings
+
+
+def test_a_wrench_in_the_cart_frame_that_the_log_cannot_settle_is_warned():
+    """Seed 12007's ``wrench_in_cart_frame07`` (heading range 1.06 rad, std 0.32): lam = 0.67 +- 0.19, 3.4 std
+    from 0 and 1.7 from 1, short of the power to refuse; it was answered with nothing named and no warning
+    (27.8 kg as logged for a 30.0 kg cart, 29.4 kg read in {b})."""
+    frame, _ = _scenario(12000, 7)
+    rep = diagnose(frame)
+    assert any("may be expressed in the cart frame" in w and "lam = " in w for w in rep.warnings), rep.summary()
