@@ -41,6 +41,8 @@ DEGREE_SHARE = 0.6
 
 #: Share of the forward residual variance below which the wrench read in {b} fits so much better that it is in {b}.
 FRAME_VARIANCE_SHARE = 0.5
+#: Chi-square drop (over the fit's independent samples) by which reading the wrench in {b} must fit better for a warning.
+FRAME_WARN_CHI2 = 10.0
 
 
 class UnitsError(CartError):
@@ -230,3 +232,30 @@ def check_wrench_frame(source: str, ratio: tuple[float, float], cart_frame: tupl
             "rotate fx, fy into {s} (fx_s = cos(theta) fx - sin(theta) fy, "
             "fy_s = sin(theta) fx + cos(theta) fy)"
         )
+
+
+def wrench_frame_warning(
+    ratio: tuple[float, float], cart_frame: tuple[float, float] | None, n_independent: float
+) -> str | None:
+    """Return a warning when the wrench read in the cart frame {b} fits better than as logged, short of a refusal.
+
+    ``ratio``, ``cart_frame``: as :func:`check_wrench_frame`; ``n_independent``: the fit's independent samples
+    (about 2 f_c T: the rows are band-limited to the cut-off f_c). The forward row's residual variance, in
+    units of the noise's, summed over the independent samples is a chi-square; read in {b} it must drop by
+    more than ``FRAME_WARN_CHI2`` (a likelihood ratio, as a Delta BIC) for the warning. A cart that turns
+    little leaves the two readings close and the model fitting both (seed 12007's ``wrench_in_cart_frame07``,
+    heading range 1.06 rad: residual ratio 1.13 as logged, 0.98 in {b}, over 99 independent samples; 27.9 kg
+    as logged for a 30.0 kg cart, 29.6 kg read in {b}); in {s} the {b} reading fits worse.
+    """
+    if cart_frame is None or not all(math.isfinite(r) for r in (*ratio, *cart_frame, n_independent)):
+        return None
+    other, m_other = cart_frame
+    drop = n_independent * (ratio[0] ** 2 - other**2)
+    if drop <= FRAME_WARN_CHI2 or m_other <= 0.0:
+        return None
+    return (
+        f"the wrench (fx, fy) may be expressed in the cart frame {{b}} instead of the world frame {{s}}: read as {{b}} "
+        f"and rotated by theta, the forward residual is {other:.3g}x the noise instead of {ratio[0]:.3g}x (chi-square "
+        f"{drop:.0f} lower; m = {m_other:.4g} kg so read); the cart turns too little to be sure: check the logger's "
+        "frame (LOG_FORMAT: fx, fy in {s})"
+    )
