@@ -74,8 +74,8 @@ class BodyTracker(Protocol):
 PUSH_SENSOR_NOISE = MeasurementNoise(position=0.003, theta=0.003, velocity=0.01, omega=0.01, force=3.0, torque=0.3)
 
 
-#: the push loop's hand limits: `ArmLimits` with a 150 N grip (`PushConfig.arm_limits`)
-PUSH_ARM_LIMITS = ArmLimits(grasp=GraspModel(grip_force=150.0))
+#: the push loop's hand limits: `ArmLimits` with a 200 N grip (`PushConfig.arm_limits`)
+PUSH_ARM_LIMITS = ArmLimits(grasp=GraspModel(grip_force=200.0))
 
 
 @dataclass(frozen=True)
@@ -112,9 +112,12 @@ class PushConfig:
     slide_speed: float = 0.05
     #: contact slide acceleration (m/s^2): the hand's speed along the handle changes smoothly
     slide_acceleration: float = 0.1
-    #: each hand's limits; the grasp squeezes 150 N per finger (the 2F-85 holds 20-235 N): one hand then makes
-    #: 6 N m of yaw torque at its 0.02 m torque arm, and MuJoCo Traj. 2 holds its second turn with seeds 0-2
-    #: (at 100 N, only seed 0; docs/mujoco.md "Why Traj. 2 diverges")
+    #: each hand's limits; the grasp squeezes 200 N per finger (the 2F-85 holds 20-235 N): one hand then makes
+    #: 8 N m of yaw torque at its 0.02 m torque arm. A turn's yaw torque comes from the grip's torque and from
+    #: lateral force at the handle, which the tip-over bound limits (all the more with `tip_std_factor`'s margin):
+    #: at 150 N the Ridgeback's MuJoCo Traj. 2 saturates on the grip's torque in the turns (seed 2: 1.44 s), the
+    #: cart's unmodelled dynamics there read as mass (21.87 kg for m_eff 20.70); at 200 N 0.53 s, 21.26 kg.
+    #: At 100 N only seed 0 holds the second turn (docs/mujoco.md "Why Traj. 2 diverges")
     arm_limits: ArmLimits = PUSH_ARM_LIMITS
     #: the pushing robot: a registered name or the path of a robot profile (.toml), see docs/robots.md
     robot: str = "ridgeback_iiwa"
@@ -133,8 +136,9 @@ class PushConfig:
     tip_bound: bool | Literal["auto"] = "auto"
     #: the bound takes the estimate's mass and CoM less this many of their 1-sigma, on the support edges the hands
     #: are inside of (`wholebody.contacts.support.holding_moment`). 0: the estimate as it is (the WMRA's MuJoCo
-    #: Traj. 2, seed 0, then tips the cart: the CoM's y estimate 0.075 m, 1-sigma 0.015 m, truth 0.15 m); 3: the
-    #: hands press down so hard that the Ridgeback's Traj. 2 mass estimate ends 6.5 % off (docs/mujoco.md)
+    #: Traj. 2, seed 0, then tips the cart: the CoM's y estimate 0.075 m, 1-sigma 0.015 m, truth 0.15 m); 3: with a
+    #: 150 N grip the Ridgeback's Traj. 2 (seed 0) mass estimate ends 6.5 % off (docs/mujoco.md). The margin's
+    #: press on the handle does not read as mass (a constant 30 N press without it: seed 2 21.16 -> 21.14 kg)
     tip_std_factor: float = 1.5
     #: the cart's floor contacts for that bound (None: the default cart's, or the cart file's wheels)
     support: SupportPolygon | None = None

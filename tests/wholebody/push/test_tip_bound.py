@@ -58,7 +58,7 @@ def test_the_loop_does_not_tip_the_cart_in_traj2s_second_turn() -> None:
         C, h, _ = tip_rows(support, CartLoad(truth.m, (truth.dx, truth.dy)), point[None])
         return float(np.max(res.wrenches[:, 0] @ C.T - h))
 
-    assert worst(False) > 20.0  # N m past the holding moment: it would tip
+    assert worst(False) > 9.95  # past the holding moment by more than all the weight holds (9.95 N m): it tips
     assert worst(True) < 1.0
 
 
