@@ -1,6 +1,6 @@
 """Study of the online estimator (issue 27): push runs, Table I test 11, load changes on an independent simulator.
 
-Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loads|push_loads|mujoco|mujoco_loads|
+Run: .venv/bin/python -m studies.online_estimation_study [--part push|table1|loads|push_loads|mujoco|mujoco_com|mujoco_loads|
 rigid_loads|all] [--seeds N ...] [--json]
 
 1. ``push``: ``run_push(PushConfig(trajectory=1|2))`` with the paper's EKF (the loop's default,
@@ -18,11 +18,14 @@ rigid_loads|all] [--seeds N ...] [--json]
    default cart, no load change) with the online estimator as the loop builds it and with its CoM not
    deflated by the misfit (``deflate_com=False``): CoM and mass errors, load changes reported (all spurious),
    run-off flags by kind.
-6. ``mujoco_loads`` (not in ``all``: needs MuJoCo): the MuJoCo load-change test bed's logs
+6. ``mujoco_com`` (not in ``all``: needs MuJoCo): the online estimate's CoM y at the turns of MuJoCo Traj. 2
+   (WMRA seed 0, Ridgeback seeds 0-2) beside paper eq. 4 fitted to each whole run, with the plant's true motion and
+   wrench or the sensors', with and without the caster columns (:func:`mujoco_com_run`).
+7. ``mujoco_loads`` (not in ``all``: needs MuJoCo): the MuJoCo load-change test bed's logs
    (``studies.testbeds.mujoco_loads``, seeds 100-105 and 300-309, each with its change and without) replayed
    through the online estimator; a change counts when it is the only one reported, its onset within 1 s and its
    mass after within 5 % of the effective mass after.
-7. ``rigid_loads`` (not in ``all``: slow): the independent simulator's load-change logs as
+8. ``rigid_loads`` (not in ``all``: slow): the independent simulator's load-change logs as
    ``studies.testbeds.log_recorders --load-changes`` draws them (seeds 7000-7009 by default, each with its change
    and without), replayed through the online estimator and judged like ``mujoco_loads`` against the rigid mass.
 
@@ -433,6 +436,130 @@ def mujoco_loads_part(seeds: tuple[int, ...] = (*range(100, 106), *range(300, 31
     return out
 
 
+# --------------------------------------------------------------------------- the MuJoCo cart's CoM y
+def _zero_phase(x: np.ndarray, dt: float, cutoff_hz: float = 2.0) -> np.ndarray:
+    """Return x (n, ...) low-passed forwards and backwards (3rd-order Butterworth): no lag, for a batch fit."""
+    from scipy.signal import butter, filtfilt
+
+    b, a = butter(3, 2.0 * cutoff_hz * dt)
+    return filtfilt(b, a, x, axis=0)
+
+
+def _caster_columns(v: np.ndarray, om: np.ndarray, dt: float) -> np.ndarray:
+    """Return the caster columns (n, G, 2, 4) of the online bank's grid (`cart.online_casters.CasterBank`)."""
+    from cart.online_casters import CasterBank
+
+    bank = CasterBank(None)
+    return np.array([bank.raw_columns(float(a), float(b), dt) for a, b in zip(v, om)])
+
+
+def eq4_fit(t: np.ndarray, q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, casters: bool) -> dict:
+    """Return paper eq. 4 (`cart.dynamics.regressor`) fitted to a whole push by least squares, both sides filtered
+    without lag at the online cut-off (2 Hz), rows weighted by the F/T noise (3 N, 0.3 N m), t < 0.5 s left out.
+
+    ``q``, ``qd``: the cart's pose and velocity (the plant's truth or the motion capture); ``gamma``: the wrench
+    (world force, yaw torque). ``casters``: with the caster columns of the online bank's grid geometry that fits
+    best (the four resistances as free coefficients). Returns mass, CoM, J, the weighted residual RMS and the
+    geometry (x, trail) used.
+    """
+    from cart.dynamics import regressor
+
+    dt = float(t[1] - t[0])
+    th = np.unwrap(q[:, 2])
+    c, s = np.cos(th), np.sin(th)
+    v, om = _zero_phase(c * qd[:, 0] + s * qd[:, 1], dt), _zero_phase(qd[:, 2], dt)
+    Y = regressor(v, om, np.gradient(v, dt), np.gradient(om, dt))
+    y = np.stack([_zero_phase(c * gamma[:, 0] + s * gamma[:, 1], dt), _zero_phase(gamma[:, 2], dt)], axis=-1)
+    w = np.array([1.0 / 3.0, 1.0 / 0.3])
+    keep = t >= 0.5
+    extra = [None]
+    if casters:
+        raw = _caster_columns(c * qd[:, 0] + s * qd[:, 1], qd[:, 2], dt)
+        extra = list(np.moveaxis(_zero_phase(raw, dt), 1, 0))
+    best: dict = {}
+    for g, cols in enumerate(extra):
+        a = Y if cols is None else np.concatenate([Y, cols], axis=-1)
+        a = (a[keep] * w[None, :, None]).reshape(-1, a.shape[-1])
+        p, *_ = np.linalg.lstsq(a, (y[keep] * w).reshape(-1), rcond=None)
+        rms = float(np.sqrt(np.mean(((y[keep] * w).reshape(-1) - a @ p) ** 2)))
+        if not best or rms < best["rms"]:
+            best = {"m": float(p[0]), "dx": float(p[1] / p[0]), "dy": float(p[2] / p[0]), "J": float(p[3]), "rms": rms}
+            best["geometry"] = None if cols is None else _geometry(g)
+    return best
+
+
+def _geometry(g: int) -> tuple[float, float]:
+    """Return (swivel axis x, trail) of the online bank's grid geometry g."""
+    from cart.identify_casters import AXLES, TRAILS
+
+    return AXLES[g // len(TRAILS)], TRAILS[g % len(TRAILS)]
+
+
+def mujoco_com_run(trajectory: int = 2, seed: int = 0, robot: str = "ridgeback_iiwa") -> dict:
+    """Return one MuJoCo push (the loop's default estimator, ``cartpush push --plant mujoco``) with the online
+    estimate's CoM y in the middle of each turn (|yaw rate| above 0.3 rad/s) and paper eq. 4 fitted to the whole
+    run (:func:`eq4_fit`) with the plant's true motion and applied wrench or the sensors', with and without the
+    caster columns: what the run's data say about dy without the online estimator's prior, weights and noise."""
+    from wholebody.push.config import PushConfig
+    from wholebody.push.loop import run_push
+
+    cfg = PushConfig(trajectory=trajectory, seed=seed, robot=robot, plant="mujoco", contact="fixed")
+    res = run_push(cfg)
+    turning = np.abs(res.qd_true[:, 2]) > 0.3
+    edges = np.flatnonzero(np.diff(turning.astype(int)))
+    mids = [int(0.5 * (a + b)) for a, b in zip(edges[::2] + 1, edges[1::2]) if turning[a + 1]]
+    dx, dy = res.phi_hat[:, 1] / res.phi_hat[:, 0], res.phi_hat[:, 2] / res.phi_hat[:, 0]
+    early = [(ts, int(np.searchsorted(res.t, ts))) for ts in (2.0, 4.0)]
+    std = res.param_std[:, 1] if res.param_std is not None else np.full(len(res.t), np.nan)
+    fits = {
+        f"{kin}, {'casters' if casters else 'eq. 4'}": eq4_fit(res.t, q, qd, g, casters)
+        for kin, (q, qd, g) in (
+            ("truth", (res.q_true, res.qd_true, res.gamma_applied)),
+            ("true motion, F/T", (res.q_true, res.qd_true, res.gamma_measured)),
+            ("sensors", (res.z_meas[:, :3], res.z_meas[:, 3:], res.gamma_measured)),
+        )
+        for casters in (False, True)
+    }
+    m = res.metrics
+    return {
+        "trajectory": trajectory,
+        "seed": seed,
+        "robot": robot,
+        "dy_true": float(res.params_true[-1, 2]) if res.params_true is not None else None,
+        "turns": [{"t": float(res.t[k]), "dy": float(dy[k]), "com_std": float(std[k])} for k in mids],
+        "dy_final": float(dy[-1]),
+        "start": [{"t": ts, "dx": float(dx[k]), "dy": float(dy[k]), "J": float(res.phi_hat[k, 3])} for ts, k in early],
+        "mass_final_kg": float(m.mass_final_kg),
+        "tracking_rms_mm": float(m.tracking_rms_mm),
+        "tracking_lost_at_s": m.tracking_lost_at_s,
+        "fits": fits,
+    }
+
+
+def mujoco_com_part() -> list[dict]:
+    """Return :func:`mujoco_com_run` for the WMRA's Traj. 2 seed 0 and the Ridgeback's Traj. 2 seeds 0-2."""
+    runs = [(2, 0, "wmra"), *((2, s, "ridgeback_iiwa") for s in (0, 1, 2))]
+    return [mujoco_com_run(*r) for r in runs]
+
+
+def _print_mujoco_com(rows: list[dict]) -> None:
+    """Print the ``mujoco_com`` part: the estimate's dy at each turn and the batch fits' dy."""
+    for r in rows:
+        turns = ", ".join(f"{u['t']:.1f} s {u['dy']:.3f} (com std {u['com_std']:.3f})" for u in r["turns"])
+        print(
+            f"{r['robot']} traj {r['trajectory']} seed {r['seed']}: dy true {r['dy_true']:.3f}; online at the turns "
+            f"{turns}; final {r['dy_final']:.3f}; mass {r['mass_final_kg']:.2f} kg; tracking {r['tracking_rms_mm']:.2f} mm"
+        )
+        print(
+            "  start: "
+            + ", ".join(f"{u['t']:.0f} s dx {u['dx']:.3f} dy {u['dy']:.3f} J {u['J']:.2f}" for u in r["start"])
+        )
+        for name, f in r["fits"].items():
+            print(
+                f"  eq. 4 fit, {name:18s}: dy {f['dy']:.3f} dx {f['dx']:.3f} m {f['m']:.2f} rms {f['rms']:.2f} {f['geometry']}"
+            )
+
+
 def _print_replay(rows: list[dict], prefix: str, head: Callable[[dict], str]) -> None:
     """Print a replay part's rows (`head(row)` names the log; ``{tc}`` in it is the change time) and its tally."""
     for row in rows:
@@ -454,7 +581,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--part",
-        choices=("push", "table1", "loads", "push_loads", "mujoco", "mujoco_loads", "rigid_loads", "all"),
+        choices=("push", "table1", "loads", "push_loads", "mujoco", "mujoco_com", "mujoco_loads", "rigid_loads", "all"),
         default="all",
     )
     parser.add_argument("--seeds", type=int, nargs="+", help="seeds of mujoco_loads / rigid_loads (default: theirs)")
@@ -471,6 +598,8 @@ def main() -> None:
         out["push_loads"] = push_loads_part()
     if args.part == "mujoco":
         out["mujoco"] = mujoco_part()
+    if args.part == "mujoco_com":
+        out["mujoco_com"] = mujoco_com_part()
     if args.part == "mujoco_loads":
         out["mujoco_loads"] = mujoco_loads_part(*([tuple(args.seeds)] if args.seeds else []))
     if args.part == "rigid_loads":
@@ -478,6 +607,7 @@ def main() -> None:
     if args.json:
         print(json.dumps(out, default=float))
         return
+    _print_mujoco_com(out.get("mujoco_com", []))
     for row in out.get("mujoco", []):
         print(
             f"mujoco traj {row['trajectory']} {row['options'] or 'default'}: CoM final "
