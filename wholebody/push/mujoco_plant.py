@@ -109,14 +109,17 @@ class MujocoPlantConfig:
     settle_time: float = 0.2
     #: the errors of the torque-controlled arms' external joint torque (`JointTorqueNoise`; zeros: exact)
     joint_torque_noise: JointTorqueNoise = JointTorqueNoise()
-    #: the force loops of two or more torque-controlled arms on one cart: "off" (open-loop ``J^T w``), "net" (the
-    #: loops close on the stacked error's part in the cart's net wrench, `arm_control.net_wrench_projector`; the
-    #: squeeze between the hands, which no cart motion shows, is left to the feed-forward) or "full" (each arm on its
-    #: own error). Measured (two Ridgebacks, seed 0, docs/mujoco.md "Several arms on one cart"): Traj. 1 wrench error
-    #: "full" 20 %, "net" 27 %, "off" 48 % of the hand force; Traj. 2 the loops make the cart follow closer than the
-    #: bases do, an elbow comes to straight in the turns and the squeeze there is the stretched arm's (130 %, 454 %,
-    #: "off" 82 %), so off by default
-    multi_arm_force_loop: str = "off"
+    #: the force loops of two or more torque-controlled arms on one cart: "full" (each arm on its own error), "net"
+    #: (the loops close on the stacked error's part in the cart's net wrench, `arm_control.net_wrench_projector`; the
+    #: squeeze between the hands, which no cart motion shows, is left to the feed-forward) or "off" (open-loop
+    #: ``J^T w``). Measured (two Ridgeback + iiwa, `cartpush push --plant mujoco --arms 2 --json`, seeds 0/1;
+    #: docs/mujoco.md "Several arms on one cart"): "full" Traj. 1 1.98/2.22 mm, wrench error 20.2/20.4 % of the hand
+    #: force, Traj. 2 2.57/2.72 mm, 27.1/27.1 %; "off" Traj. 2 seed 0 17.6 mm, 74 % (the arms' task-space inertia, 19
+    #: kg along the push at the iiwa's push posture, takes the push). The loops need each base held at its place
+    #: (`BasePlanSettings.base_weight`): with a base that lags its place the loops make the cart follow its
+    #: reference while the hand reaches further from that base, and an elbow comes through straight (the squeeze
+    #: then is the stretched arm's)
+    multi_arm_force_loop: str = "full"
 
     def __post_init__(self) -> None:
         if self.multi_arm_force_loop not in ("net", "full", "off"):
@@ -317,7 +320,8 @@ class MujocoPlant:
     # ------------------------------------------------------------------ set-up
 
     def _arm_laws(self, setups: Sequence[RobotSetup]) -> list[TorqueArmLaw | AdmittanceArmLaw]:
-        """Return each arm's law (torque or admittance); several torque arms lose their F/T loops (see the config)."""
+        """Return each arm's law (torque or admittance); several torque arms lose their F/T loops with
+        `MujocoPlantConfig.multi_arm_force_loop` "off"."""
         config = self.config
         torque_gains = config.torque_gains
         admittance = config.admittance  # the push fed forward through the servos the scene builds (their k_v)
