@@ -311,6 +311,13 @@ def recorder_logs(d: Path) -> dict:
     put_log("heading_wrapped_pi", t, np.column_stack([q[:, :2], np.angle(np.exp(1j * q[:, 2]))]), g)
     put_log("heading_offset_2pi_x5", t, q + [0.0, 0.0, 10 * math.pi], g)
     put_log("unix_seconds", t + 1.732e9, q, g)
+    flip = q.copy()
+    flip[(t > 17.0) & (t < 18.5), 2] += math.pi  # a symmetric marker set read turned for 1.5 s
+    put_log("heading_flipped_pi_1s", t, flip, g)
+    clip = g.copy()
+    lim = 0.7 * float(np.max(np.abs(g[:, :2])))
+    clip[:, :2] = np.clip(g[:, :2], -lim, lim)  # a saturated F/T axis
+    put_log("force_clipped_70pc", t, q, clip)
     tl = np.arange(0.0, 1200.0, 0.005)
     reps = int(math.ceil(len(tl) / len(t)))
     huge = CartLog(t=tl, q=np.tile(q, (reps, 1))[: len(tl)], gamma=np.tile(g, (reps, 1))[: len(tl)])
