@@ -20,7 +20,12 @@ when the pose shows the momentum exchange of a load put in there (:func:`exchang
 once, with no force at the handle, by what the two sides' masses predict). Each side is then estimated on its own
 (:func:`cart.identify.identify`) for the report. Binary segmentation: each kept side is searched again,
 ``MAX_DEPTH`` levels. Where the motion does not excite the mass (cruise, standstill) the change time is
-only known to lie in a stretch: the middle is reported, the stretch as ``t0_range``.
+only known to lie in a stretch (:func:`information_stretch`: the splits the motion cannot tell apart, whatever
+the log's misfit makes of them): ``t0`` is the middle of the splits within one independent residual of the
+least (:func:`best_split`), the whole stretch is ``t0_range``, with a
+note that the time is not identified, and each side is identified away from the whole stretch. A split whose
+two sides' own searches split them further is checked again (:func:`_joined`: two segments of the same load
+next to it are joined).
 """
 
 from __future__ import annotations
@@ -52,6 +57,8 @@ _CANDIDATES = 400
 _ROWS_PER_PERIOD = 10.0
 #: Columns of the cart's dynamics in the filtered regression ([m, m dx, m dy, J, c_v, c_w]); the rest are nuisance.
 N_DYNAMIC = 6
+#: The columns a load on the deck changes by its own inertia ([m, m dx, m dy, J]).
+_N_LOAD = 4
 
 
 def shared_columns(p_dim: int) -> np.ndarray:
@@ -162,6 +169,19 @@ def _window_ssr(
     of the rows outside the window, which are each side's own; ``t`` (:func:`_shared_map`). ``put_in``: a
     candidate whose right side's mass is not above the left's (the momentum exchange of a load put in) gets ``inf``.
     """
+    return _window_fit(ys, idx, outside, rows, c_all, put_in, t)[0]
+
+
+def _window_fit(
+    ys: np.ndarray,
+    idx: np.ndarray,
+    outside: tuple[np.ndarray, ...],
+    rows: np.ndarray,
+    c_all: float,
+    put_in: bool,
+    t: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return (residual, both sides' parameters (n, 2P)) of each candidate's split (see :func:`_window_ssr`)."""
     a_left, b_left, a_right, b_right = outside
     n, half, n_p = len(idx), rows.shape[1] // 2, a_left.shape[-1]
     win = idx[:, None] + np.arange(-half, half + 1)[None, :]
@@ -171,7 +191,28 @@ def _window_ssr(
     m[:, n_p:, n_p:] += a_right
     v = np.concatenate([b_left, b_right], axis=-1) + np.einsum("nri,nr->ni", flat, yv)
     out, sol = _solve_split(m, v, t, c_all)
-    return np.where(sol[:, n_p] > sol[:, 0], out, math.inf) if put_in else out
+    return (np.where(sol[:, n_p] > sol[:, 0], out, math.inf) if put_in else out), sol
+
+
+def _window_system(
+    xs: np.ndarray, ys: np.ndarray, idx: np.ndarray, kernels: SplitKernels, filtered: bool
+) -> tuple[tuple[np.ndarray, ...], np.ndarray, float]:
+    """Return (the normal equations outside each candidate's window, the window's rows, the log's ``c``).
+
+    The weighted regression ``xs``, ``ys``; the rows as :func:`_window_ssr` takes them: switched
+    (:func:`_switched_rows`) or, ``filtered`` False, split at the candidate as they are.
+    """
+    half = kernels.half
+    a_all, b_all, c_all = _cumulative_normal(xs, ys, idx)[2:]
+    a_left, b_left = _cumulative_normal(xs, ys, idx - half - 1)[:2]
+    a_to, b_to = _cumulative_normal(xs, ys, idx + half)[:2]
+    outside = (a_left, b_left, a_all[None] - a_to, b_all[None] - b_to)
+    win_rows = xs[idx[:, None] + np.arange(-half, half + 1)[None, :]]
+    if filtered:
+        right = _switched_rows(xs, idx, kernels.k, half)
+    else:
+        right = win_rows * (np.arange(-half, half + 1) > 0)[None, :, None, None]
+    return outside, np.concatenate([win_rows - right, right], axis=-1), c_all
 
 
 def _split_residuals(
@@ -198,22 +239,38 @@ def _split_residuals(
         m = np.zeros((len(idx), 2 * p_dim, 2 * p_dim))
         m[:, :p_dim, :p_dim], m[:, p_dim:, p_dim:] = a, a_all[None] - a
         return _solve_split(m, np.concatenate([b, b_all[None] - b], axis=-1), t, c_all)[0]
-    half = kernels.half
-    a_left, b_left = _cumulative_normal(xs, ys, idx - half - 1)[:2]
-    a_to, b_to = _cumulative_normal(xs, ys, idx + half)[:2]
-    outside = (a_left, b_left, a_all[None] - a_to, b_all[None] - b_to)
-    if filtered:
-        right = _switched_rows(xs, idx, kernels.k, half)
-    else:
-        win_rows = xs[idx[:, None] + np.arange(-half, half + 1)[None, :]]
-        right = win_rows * (np.arange(-half, half + 1) > 0)[None, :, None, None]
-    rows = np.concatenate([xs[idx[:, None] + np.arange(-half, half + 1)[None, :]] - right, right], axis=-1)
+    outside, rows, c_all = _window_system(xs, ys, idx, kernels, filtered)
     switched = _window_ssr(ys, idx, outside, rows, c_all, False, t)
     if not exchange:
         return switched
     corr = exchange_corrections(x, idx, sw, kernels)
     moved = rows + np.concatenate([-corr, corr], axis=-1)
     return np.minimum(switched, _window_ssr(ys, idx, outside, moved, c_all, True, t))
+
+
+def split_prediction(
+    x: np.ndarray, y: np.ndarray, scale: np.ndarray, i: int, kernels: SplitKernels, shared: np.ndarray | None = None
+) -> np.ndarray:
+    """Return the prediction ``y`` (k, 2) of the switched split after row ``i`` (with the momentum exchange when
+    that fits better), both sides' parameters fitted (:func:`_split_residuals`): the log as the split says it is."""
+    sw = 1.0 / scale
+    xs, ys = x * sw[None, :, None], y * sw[None, :]
+    p_dim, half = x.shape[-1], kernels.half
+    t = _shared_map(p_dim, np.zeros(0, dtype=int) if shared is None else shared)
+    idx = np.array([i])
+    outside, rows, c_all = _window_system(xs, ys, idx, kernels, True)
+    ssr, sol = _window_fit(ys, idx, outside, rows, c_all, False, t)
+    corr = exchange_corrections(x, idx, sw, kernels)
+    ssr_x, sol_x = _window_fit(ys, idx, outside, rows + np.concatenate([-corr, corr], axis=-1), c_all, True, t)
+    if ssr_x[0] < ssr[0]:
+        rows, sol = rows + np.concatenate([-corr, corr], axis=-1), sol_x
+    sol = sol.copy()
+    common = 0.5 * (sol[0, _N_LOAD:p_dim] + sol[0, p_dim + _N_LOAD :])
+    sol[0, _N_LOAD:p_dim], sol[0, p_dim + _N_LOAD :] = common, common
+    pred = np.concatenate(
+        [xs[: i - half] @ sol[0, :p_dim], rows[0] @ sol[0], xs[i + half + 1 :] @ sol[0, p_dim:]], axis=0
+    )
+    return pred / sw[None, :]
 
 
 def best_split(
@@ -243,12 +300,9 @@ def best_split(
     that can fit a local misfit (a caster event) far from the change when the two sides differ much.
     ``shared``: columns whose parameter both sides share (:func:`shared_columns`); None: each side has all its own.
     """
-    reach = 0 if kernels is None else 2 * kernels.half + 1
-    ok = np.flatnonzero((t - t[0] >= min_len) & (t[-1] - t >= min_len))
-    ok = ok[(ok >= reach) & (ok < len(t) - reach)]
-    if len(ok) == 0:
+    idx = _candidates(t, min_len, kernels)
+    if len(idx) == 0:
         return None
-    idx = ok[:: max(1, len(ok) // _CANDIDATES)]
     total = _split_residuals(x, y, scale, idx, kernels, exchange, shared)
     if kernels is not None:  # within the plain split's stretch, widened by the filter's reach
         lo, hi = _near(_split_residuals(x, y, scale, idx, kernels, exchange, shared, filtered=False), tol)
@@ -258,9 +312,46 @@ def best_split(
     return float(0.5 * (t[idx[lo]] + t[idx[hi]])), float(t[idx[lo]]), float(t[idx[hi]])
 
 
-def _near(total: np.ndarray, tol: float) -> tuple[int, int]:
-    """Return the first and last candidate of the stretch around the least ``total`` within ``tol`` of it."""
-    k = int(np.argmin(total))
+def information_stretch(
+    t: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    scale: np.ndarray,
+    min_len: float,
+    tol: float,
+    kernels: SplitKernels,
+    tc: float,
+    shared: np.ndarray | None = None,
+) -> tuple[float, float]:
+    """Return (earliest, latest) split the motion cannot tell from the split at ``tc`` (see :func:`best_split`).
+
+    The split's own prediction (:func:`split_prediction`), with both sides' parameters alike but for the
+    columns a load changes by its inertia ([m, m dx, m dy, J]), searched again: its residual at each other
+    candidate is the evidence the motion gives against it (the rows it puts on the wrong side: no noise, no
+    misfit), so the stretch within ``tol`` of it is where the change may lie, a cruise or a standstill
+    between two motions that excite the load's inertia, whatever the log's misfit makes of that stretch.
+    A sharp change (an acceleration, a put-in's momentum exchange) gives a narrow stretch.
+    """
+    idx = _candidates(t, min_len, kernels)
+    k = int(np.argmin(np.abs(t[idx] - tc)))
+    pred = split_prediction(x, y, scale, int(idx[k]), kernels, shared)
+    lo, hi = _near(_split_residuals(x, pred, scale, idx, kernels, True, shared), tol, k)
+    return float(t[idx[lo]]), float(t[idx[hi]])
+
+
+def _candidates(t: np.ndarray, min_len: float, kernels: SplitKernels | None) -> np.ndarray:
+    """Return the rows a split may follow: ``min_len`` s and the filter's reach from either end, at most
+    ``_CANDIDATES`` of them evenly spaced."""
+    reach = 0 if kernels is None else 2 * kernels.half + 1
+    ok = np.flatnonzero((t - t[0] >= min_len) & (t[-1] - t >= min_len))
+    ok = ok[(ok >= reach) & (ok < len(t) - reach)]
+    return ok[:: max(1, len(ok) // _CANDIDATES)] if len(ok) else ok
+
+
+def _near(total: np.ndarray, tol: float, k: int | None = None) -> tuple[int, int]:
+    """Return the first and last candidate of the stretch around the least ``total`` (or candidate ``k``) within
+    ``tol`` of it."""
+    k = int(np.argmin(total)) if k is None else k
     near = total <= total[k] + tol
     lo, hi = k, k
     while lo > 0 and near[lo - 1]:
@@ -427,6 +518,41 @@ def _summary(res, t0: float, t1: float, t0_range: tuple[float, float] | None = N
     }
 
 
+class _Search(NamedTuple):
+    """The split search's regression (:func:`best_split`'s arguments): rows ``_ROWS_PER_PERIOD`` per cut-off period."""
+
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    scale: np.ndarray
+    min_len: float
+    tol: float
+    kernels: SplitKernels
+    shared: np.ndarray
+    row_dt: float
+
+
+def _search_rows(res: Identification) -> _Search:
+    """Return the split search's rows of ``res``'s filtered regression (with the Coulomb-like columns), the
+    shortest segment (``MIN_SEGMENT_S`` or ten cut-off periods) and the tolerance (one independent residual)."""
+    data = res.fit_data
+    assert data is not None
+    every = max(1, int(1.0 / (_ROWS_PER_PERIOD * res.cutoff_hz * res.grid_dt * data["step"])))
+    x = _with_coulomb(data["x"])[::every]
+    lag = 2.0 / (res.cutoff_hz * res.grid_dt)  # samples per independent residual (the filter's memory)
+    return _Search(
+        t=data["t"][::every],
+        x=x,
+        y=data["y"][::every],
+        scale=data["scale"],
+        min_len=max(MIN_SEGMENT_S, 10.0 / res.cutoff_hz),
+        tol=lag / (data["step"] * every),
+        kernels=split_kernels(res, data["step"] * every),
+        shared=shared_columns(x.shape[-1]),
+        row_dt=every * data["step"] * res.grid_dt,
+    )
+
+
 def _split(
     log: CartLog, res, t0: float, t1: float, depth: int, t0_range: tuple[float, float] | None = None
 ) -> list[dict[str, Any]]:
@@ -444,16 +570,8 @@ def _split(
     data = res.fit_data
     if depth <= 0 or data is None:
         return here
-    min_len = max(MIN_SEGMENT_S, 10.0 / res.cutoff_hz)
-    lag = 2.0 / (res.cutoff_hz * res.grid_dt)  # samples per independent residual (the filter's memory)
-    every = max(1, int(1.0 / (_ROWS_PER_PERIOD * res.cutoff_hz * res.grid_dt * data["step"])))
-    x = _with_coulomb(data["x"])[::every]
-    kernels = split_kernels(res, data["step"] * every)
-    rows_lag = lag / (data["step"] * every)  # rows per independent residual
-    shared = shared_columns(x.shape[-1])
-    split = best_split(
-        data["t"][::every], x, data["y"][::every], data["scale"], min_len, rows_lag, kernels, shared=shared
-    )
+    s = _search_rows(res)
+    split = best_split(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, shared=s.shared)
     if split is None:
         return here
     tc, lo, hi = split
@@ -461,17 +579,48 @@ def _split(
     z, ml, mr, identified = change_z(res, tc, guard)
     if not (identified >= IDENTIFIED_Z and abs(ml - mr) >= MIN_RELATIVE_CHANGE * max(ml, mr)):
         return here
-    if z < CHANGE_Z and not exchange_shown(log, res.params.m, tc, (ml, mr, z), every * data["step"] * res.grid_dt):
+    if z < CHANGE_Z and not exchange_shown(log, res.params.m, tc, (ml, mr, z), s.row_dt):
         return here
+    lo_i, hi_i = information_stretch(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, tc, s.shared)
+    lo, hi = min(lo, lo_i), max(hi, hi_i)  # the sides are identified away from the whole stretch
     try:
         casters = res.casters if res.casters is not None and res.casters.kept else None  # the same cart's casters
-        left = identify(slice_log(log, t0, tc - guard), casters=casters)
-        right = identify(slice_log(log, tc + guard, t1), casters=casters)
+        left = identify(slice_log(log, t0, lo - guard), casters=casters)
+        right = identify(slice_log(log, hi + guard, t1), casters=casters)
     except (IdentifiabilityError, np.linalg.LinAlgError):
         return here
-    if abs(left.params.m - right.params.m) < MIN_RELATIVE_CHANGE * max(left.params.m, right.params.m):
+    if _alike(left.params.m, right.params.m):
         return here  # the sides' own estimates, which are reported, must show the change too
-    return _split(log, left, t0, tc, depth - 1, t0_range) + _split(log, right, tc, t1, depth - 1, (lo, hi))
+    segs_l = _split(log, left, t0, tc, depth - 1, t0_range)
+    segs_r = _split(log, right, tc, t1, depth - 1, (lo, hi))
+    return _joined(log, segs_l, segs_r, guard, casters)
+
+
+def _alike(m_a: float, m_b: float) -> bool:
+    """Return whether two masses differ by less than ``MIN_RELATIVE_CHANGE`` of the larger."""
+    return abs(m_a - m_b) < MIN_RELATIVE_CHANGE * max(m_a, m_b)
+
+
+def _joined(
+    log: CartLog, segs_l: list[dict[str, Any]], segs_r: list[dict[str, Any]], guard: float, casters
+) -> list[dict[str, Any]]:
+    """Return the segments of both sides of a change, the two next to it joined when a side's own search split
+    it further and they no longer differ (binary segmentation re-checks its split: a whole log's best split can
+    fall between two segments of the same load when the change lies elsewhere in that side).
+
+    The joined segment is identified again, on its rows ``guard`` s after its start (a change's filter reach).
+    """
+    from cart.identify import IdentifiabilityError, identify
+
+    a, b = segs_l[-1], segs_r[0]
+    if len(segs_l) + len(segs_r) == 2 or not _alike(a["params"].m, b["params"].m):
+        return segs_l + segs_r
+    start = a["t0"] + (0.0 if a["t0_range"] is None else guard)
+    try:
+        res = identify(slice_log(log, start, b["t1"]), casters=casters)
+    except (IdentifiabilityError, np.linalg.LinAlgError):
+        return segs_l + segs_r
+    return segs_l[:-1] + [_summary(res, a["t0"], b["t1"], a["t0_range"])] + segs_r[1:]
 
 
 #: Half-width (s) of the pose fits either side of a put-in's momentum exchange (:func:`exchange_jump`): short
@@ -568,7 +717,12 @@ def find_segments(log: CartLog, streams, res) -> tuple[list[dict[str, Any]], lis
 
     def when(seg: dict[str, Any]) -> str:
         lo, hi = seg["t0_range"]
-        wide = f", between {lo:.1f} and {hi:.1f} s: the motion there does not excite the mass" if hi - lo > 1 else ""
+        wide = (
+            f" (the time is not identified: the change lies between {lo:.1f} and {hi:.1f} s, where the motion does "
+            "not excite the load's inertia)"
+            if hi - lo > 1
+            else ""
+        )
         return f"t = {seg['t0']:.2f} s{wide}"
 
     changes = ", ".join(f"{when(b)} ({a['params'].m:.4g} -> {b['params'].m:.4g} kg)" for a, b in zip(segs, segs[1:]))
