@@ -1,4 +1,4 @@
-"""Gains of the velocity-servo arm law (`arm_control.AdmittanceArmLaw`) from the arm's own model.
+"""Gains of the velocity-servo arm law (`admittance_law.AdmittanceArmLaw`) from the arm's own model.
 
 A velocity-servoed arm pushes through its servos: joint ``i`` applies ``k_v,i (qdot_set,i - qdot_i)`` on top of
 the drive's hold of its static load, within its effort limit ``tau_max,i``. One servo damping for every arm
@@ -10,7 +10,7 @@ velocity errors of that size every control period. Here each joint's damping is 
 
 the servo reaches its effort limit at a velocity error of the joint's own speed limit (URDF ``effort`` and
 ``velocity``). The admittance then closes its loop through these servos with the gain set in every direction
-(`arm_control.AdmittanceGains.loop_gain`): ``A = L J K_v^-1 J^T``, so that the hand's force per unit wrench error
+(`admittance_law.AdmittanceGains.loop_gain`): ``A = L J K_v^-1 J^T``, so that the hand's force per unit wrench error
 ``A (J K_v^-1 J^T)^-1 = L`` (the servos' task-space damping is ``(J K_v^-1 J^T)^-1``) and the servo torques of the
 correction are ``L J^T`` of it, the scale of the push itself. With one diagonal ``A`` for all arms the loop gain
 is the arm's task-space damping times ``A``: 0.05-4.2 over the WMRA's directions, 0.1-3.4 over TIAGo's.
@@ -23,12 +23,13 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-#: the admittance's loop gain when the arm's gains are derived (`arm_tuning`): the hand's force correction per unit
-#: of wrench error per control period, well inside the one-period delay's stability bound of 2. Measured (`cartpush
-#: push --plant mujoco --trajectory 1 --json`, TIAGo / the WMRA / TIAGo Pro, docs/mujoco.md "Arm law"): 0.3 tracks
-#: at 10.9 / 4.6 / 4.0 mm RMS with wrench errors of 97 / 36 / 39 % of the hand force; 1.0 at 5.2 / 2.9 / 2.4 mm but
-#: 138 / 327 / 242 %: near 1 the loop passes the F/T's noise (3 N per sample) into the push
-LOOP_GAIN = 0.3
+#: the admittance's loop gain (`admittance_law.AdmittanceGains.loop_gain`): the hand's force correction per unit of
+#: wrench error per control period, well inside the one-period delay's stability bound of 2. The F/T's noise bounds
+#: it: the period-mean of its samples (1.3 N per axis) enters the push ``L`` times. Measured with the integral
+#: (`admittance_law.DEFAULT_INTEGRAL_GAIN`): 0.1 / 0.2 / 0.3 (``L K_i`` 5 / 2 / 1.5 /s) put the WMRA's wrench error on
+#: Traj. 2 at 14.9 / 15.9 / 16.3 % of the hand force, but 0.1 loses TIAGo's Traj. 1 at 15.3 s (0.2: 21.2 mm RMS;
+#: `cartpush push --plant mujoco --robot wmra|tiago.toml --trajectory 1|2 --json`)
+LOOP_GAIN = 0.2
 
 
 def servo_damping(effort_limit: np.ndarray, velocity_limit: np.ndarray, kv_max: float = np.inf) -> np.ndarray:

@@ -14,7 +14,7 @@ import pytest
 
 from cart.simulate import MeasurementNoise
 from wholebody.push import PushConfig, build_controller
-from wholebody.push.arm_control import AdmittanceGains
+from wholebody.push.admittance_law import AdmittanceGains
 from wholebody.push.config import TRUE_CART
 from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantConfig
 from wholebody.push.plant import RobotCommand
