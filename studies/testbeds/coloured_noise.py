@@ -2,6 +2,7 @@
 
 python -m studies.testbeds.coloured_noise N SEED0 DIR   # DIR/{white,ar1,pink,brown}_SEED.csv.gz, DIR/truth.json
 python -m studies.testbeds.coloured_noise --evaluate DIR
+python -m studies.testbeds.coloured_noise --hidden N SEED0 DIR   # hidden-effect logs, and with pink F/T noise added
 
 Each seed: one :func:`studies.testbeds.rigid_sim.random_case` cart (40-60 s), run noise-free at 1 kHz; for each
 colour the F/T is sampled at 200-500 Hz with noise of 0.5-3 N (force) and 0.05-0.3 N m (torque) and offsets up
@@ -104,6 +105,35 @@ def generate(n: int, seed0: int, out_dir: str) -> dict[str, dict]:
     return truth
 
 
+HIDDEN = ("coulomb_friction", "lateral_slip", "payload_change")
+
+
+def hidden(n: int, seed0: int, out_dir: str) -> dict[str, dict]:
+    """Write :func:`studies.testbeds.hidden_effects.random_case` logs of each of ``HIDDEN`` for seeds seed0 ..
+    seed0 + n - 1, each also with pink F/T noise (0.5-3 N, 0.05-0.3 N m) added (``pink_`` names); return the truth."""
+    from studies.testbeds import hidden_effects
+
+    os.makedirs(out_dir, exist_ok=True)
+    truth: dict[str, dict] = {}
+    for seed in range(seed0, seed0 + n):
+        for j, effect in enumerate(HIDDEN):
+            rng = np.random.default_rng([seed, j])
+            case = hidden_effects.random_case(effect, rng)
+            log = case.measured
+            dt = float(np.median(np.diff(log.t)))
+            level = np.array([rng.uniform(0.5, 3.0), rng.uniform(0.5, 3.0), rng.uniform(0.05, 0.3)])
+            pink = np.column_stack([coloured("pink", len(log.t), dt, rng) for _ in range(3)]) * level
+            for name, out in (
+                (f"{effect}_{seed}", log),
+                (f"pink_{effect}_{seed}", replace(log, gamma=log.gamma + pink)),
+            ):
+                write_log(os.path.join(out_dir, name + ".csv.gz"), out)
+                truth[name] = {"m": case.params.m, "kind": ("pink_" if name.startswith("pink") else "") + effect}
+    with open(os.path.join(out_dir, "truth.json"), "w", encoding="utf-8") as fh:
+        json.dump(truth, fh, indent=1)
+    return truth
+
+
 def evaluate(out_dir: str) -> dict[str, dict[str, float]]:
     """Return, per colour, the logs, model fits, mass within 5 %, truth within 3 std and the largest mass error (%)."""
     from cart.errors import CartError
@@ -132,7 +162,9 @@ def evaluate(out_dir: str) -> dict[str, dict[str, float]]:
 
 
 if __name__ == "__main__":
-    if sys.argv[1] == "--evaluate":
+    if sys.argv[1] == "--hidden":
+        hidden(int(sys.argv[2]), int(sys.argv[3]), sys.argv[4])
+    elif sys.argv[1] == "--evaluate":
         for colour, row in evaluate(sys.argv[2]).items():
             print(colour, row)
     else:
