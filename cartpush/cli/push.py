@@ -123,7 +123,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         metavar="M",
         help="the yaw, roll and pitch torque one hand may apply per N of normal load, in m (the allocation's\n"
-        "GraspModel.torque_arm; default 0.02: 6 N m at the grip's 2 x 150 N squeeze). A firmer grip (0.1) makes\n"
+        "GraspModel.torque_arm; default 0.02: 8 N m at the grip's 2 x 200 N squeeze). A firmer grip (0.1) makes\n"
         "the cart's yaw torque at the wrist instead of with lateral force at the handle's height",
     )
     p.add_argument(

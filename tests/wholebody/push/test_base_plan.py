@@ -142,7 +142,7 @@ def test_cli_grip_torque_arm_reaches_the_allocation():
     firm = push.config_from_args(parser.parse_args(["push", "--grip-torque-arm", "0.1"]))
     default = push.config_from_args(parser.parse_args(["push"]))
     assert firm.arm_limits.grasp is not None and firm.arm_limits.grasp.torque_arm == 0.1
-    assert default.arm_limits == PushConfig().arm_limits != ArmLimits()  # the loop's 150 N grip
+    assert default.arm_limits == PushConfig().arm_limits != ArmLimits()  # the loop's 200 N grip
     assert firm.arm_limits.grasp.grip_force == 150.0
     for bad in ("-0.1", "nan", "2"):
         with pytest.raises(OptionError, match="--grip-torque-arm"):
