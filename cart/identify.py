@@ -680,9 +680,13 @@ def _whitening(model: SpectralNoise, f_ref: float) -> Callable[[np.ndarray], np.
 
 
 def _generalised_fit(
-    reg: _Regression, models: tuple[SpectralNoise, SpectralNoise], noise: np.ndarray, lag: int, sos_dt: tuple
+    reg: _Regression, models: tuple[SpectralNoise, SpectralNoise], noise_lag: tuple, sos_step: tuple, fit: tuple
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (p, cov, row scales, residuals of the unwhitened rows) of generalised least squares.
+
+    ``fit``, returned as it is when neither noise model has a flicker component: the least-squares fit
+    (:func:`_fit`); ``noise_lag``: the regressor noise and the HAC lag; ``sos_step``: the filter, the grid's
+    step and the rows' decimation step.
 
     Each row's ``x`` and ``y`` pass through the same zero-phase filter ``sqrt(S(fc) / S(f))`` of its noise
     model (applied by FFT, zero-padded to twice the length): the model stays exact (a linear filter on both
@@ -691,8 +695,11 @@ def _generalised_fit(
     noise's power in each row scales by the filter's mean power gain over its spectrum (``f^4 |H|^4``). The
     covariance: :func:`_fit`'s on the whitened rows, each std at least the spectral one.
     """
-    sos, dt, dt_rows = sos_dt
-    fc = _cutoff_of(sos, dt)
+    if all(mdl.power <= 0.0 for mdl in models):
+        return fit
+    noise, lag = noise_lag
+    sos, dt, step = sos_step
+    sos_dt, dt_rows, fc = (sos, dt, dt * step), dt * step, _cutoff_of(sos, dt)
     k, m = len(reg.y), 2 * len(reg.y)
     f = np.fft.rfftfreq(m, dt_rows)
     acc = f**4 * sos_power_gain(sos, f, dt) ** 2
@@ -958,16 +965,14 @@ def identify(
     else:
         p, cov, scale, r = _fit_or_raise(log, reg, noise, lag)
     f_noise, t_noise, out_std = _wrench_noise(full, p, grid.dt, sos)
-    if f_noise.power > 0.0 or t_noise.power > 0.0:  # flicker noise: generalised least squares
-        p, cov, scale, r = _generalised_fit(reg, (f_noise, t_noise), noise, lag, (sos, grid.dt, grid.dt * step))
+    p, cov, scale, r = _generalised_fit(reg, (f_noise, t_noise), (noise, lag), (sos, grid.dt, step), (p, cov, scale, r))
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings)
     cart_frame = None if fits else _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
     p, cov, note = _physical(p, cov)
     warnings += note
-    params, inertia = _physical_params(log, p, cov)
-    std = _physical_std(p, cov)
+    (params, inertia), std = _physical_params(log, p, cov), _physical_std(p, cov)
     warnings += _excitation_warnings(p, std, inertia if inertia > 0 else params.I)
     noise_out = {"position": lv.pos, "theta": lv.theta, "force": lv.force, "torque": lv.torque}
     return Identification(
