@@ -55,6 +55,25 @@ def _made_physical(p: np.ndarray, i_min: float) -> np.ndarray:
     return p
 
 
+def _usable_cov(cov: np.ndarray) -> np.ndarray:
+    """Return the symmetrised ``cov`` with every parameter whose variance is not a finite number >= 0 (a column
+    the log does not excite: a heading that never changes) made free: uncorrelated, with a variance 1e6 times
+    the largest usable one (the closest physical point may move it at no cost)."""
+    cov = np.asarray(cov, float)
+    cov = 0.5 * (cov + cov.T)
+    d = np.diag(cov)
+    bad = ~np.isfinite(d) | (d < 0.0) | ~np.all(np.isfinite(cov), axis=1)
+    if not bad.any():
+        return cov
+    cov = np.where(np.isfinite(cov), cov, 0.0)
+    good = d[~bad]
+    free = 1e6 * max(float(good.max()) if good.size else 1.0, 1e-12)
+    cov[bad, :] = 0.0
+    cov[:, bad] = 0.0
+    cov[bad, bad] = free
+    return cov
+
+
 def constrained_fit(p_hat: np.ndarray, cov: np.ndarray, min_inertia_share: float = 1e-3) -> np.ndarray:
     """Return the physical p (m > 0, I about the CoM > 0, c_v, c_w >= 0) closest to ``p_hat`` in the metric of ``cov``.
 
@@ -69,7 +88,7 @@ def constrained_fit(p_hat: np.ndarray, cov: np.ndarray, min_inertia_share: float
     margins = _physical_margins(p_hat)
     if margins[0] > 0 and margins[1] > 0 and min(margins[2:]) >= 0:
         return p_hat.copy()
-    cov = 0.5 * (np.asarray(cov, float) + np.asarray(cov, float).T)
+    cov = _usable_cov(cov)
     lam, vec = np.linalg.eigh(cov)
     whiten = vec * np.sqrt(np.maximum(lam, max(float(lam.max()), 1e-300) * 1e-16))
     cons = optimize.NonlinearConstraint(

@@ -455,8 +455,9 @@ def saturated_channels(v: np.ndarray, names: tuple[str, ...]) -> list[tuple[str,
     its amplifier), with the rows that read it.
 
     A channel is clipped at its largest (or smallest) value when that exact value is read on 5 samples or more
-    (counting only rows that differ from the previous row somewhere: a held, slower stream repeats every sample)
-    and, apart from it, the channel carries noise (:func:`_noisy`) and hardly ever repeats a value (under 5 % of
+    (counting only rows that differ from the previous row somewhere: a held, slower stream repeats every sample),
+    most of them next to another (a force held beyond the limit reads it on consecutive samples; a recording
+    repeated end to end reaches its peak once per copy) and, apart from it, the channel carries noise (:func:`_noisy`) and hardly ever repeats a value (under 5 % of
     its steps: not a quantised channel). A measured value never hits its own extreme exactly five times.
     """
     d = np.flatnonzero(np.r_[True, ~_repeats(v)])
@@ -468,7 +469,8 @@ def saturated_channels(v: np.ndarray, names: tuple[str, ...]) -> list[tuple[str,
         for value in (float(x.max()), float(x.min())):
             at = x == value
             rest = x[~at]
-            if at.sum() < 5 or len(rest) < 20 or not _noisy(rest):
+            in_runs = at & (np.r_[False, at[:-1]] | np.r_[at[1:], False])  # next to another clipped sample
+            if at.sum() < 5 or 2 * in_runs.sum() < at.sum() or len(rest) < 20 or not _noisy(rest):
                 continue
             if np.sum(rest[1:] == rest[:-1]) > 0.05 * len(rest):
                 continue

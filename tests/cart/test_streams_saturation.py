@@ -60,3 +60,10 @@ def test_an_unclipped_or_quantised_wrench_is_not_saturated():
     coarse = np.round(log.gamma * 2.0) / 2.0  # a sensor read in steps of 0.5 N: its extremes repeat, no clipping
     assert saturated_channels(coarse, WRENCH_CHANNELS) == []
     assert split_streams(log).saturated == ()
+
+
+def test_a_recording_repeated_end_to_end_is_not_saturated():
+    """Tiled copies reach the same peak once per copy: isolated samples, not a force held beyond a limit."""
+    log, _ = _push(seconds=10.0)
+    g = np.tile(log.gamma, (8, 1))
+    assert saturated_channels(g, WRENCH_CHANNELS) == []
