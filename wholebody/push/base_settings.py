@@ -33,8 +33,17 @@ class BasePlanSettings:
     weight_acceleration: float = 1e-5
     #: weight (against the hand task's 1) and rate (1/s) of the whole-body QP's pull of the base to its place (the
     #: plan's in a window, the rigid one outside: all through the run, `PushController._follow_plan`), and weight
-    #: of its pull of the arm to the plan's postures (in the windows)
-    base_weight: float = 0.1
+    #: of its pull of the arm to the plan's postures (in the windows). The base's pull is as strong as the hand task:
+    #: a held hand does not follow the QP's arm rates, so what the QP trades for them is base motion lost (the
+    #: base 2 cm behind its place, the hand 1 cm ahead of its target: the QP's base closes 19 % of the gap at 0.1,
+    #: 57 % at 1; tests/wholebody/push/test_base_hold.py's `base_command`). Measured (two Ridgeback + iiwa,
+    #: `cartpush push --plant mujoco --arms 2 --trajectory 2 --seed 0 --json`, force loops "full"): at 0.1 robot 0's
+    #: base fell 84 mm RMS (255 max) behind its place in the turns (its servos follow the commanded twist within
+    #: 0.01 m/s; the command was 0.04-0.08 m/s off the plan's rates), its elbow went through straight to -0.6 rad
+    #: (tracking 17.4 mm, wrench error 128 % of the hand force); at 1 the elbows stay above 0.73 rad (2.57 mm,
+    #: 27.1 %). One arm, Traj. 2, seeds 0/1/2 (at c50c77c): 4.03/3.93/5.16 -> 3.97/4.06/5.25 mm, wrench error
+    #: 2.4/2.8/2.4 -> 2.8/2.9/2.7 %
+    base_weight: float = 1.0
     base_gain: float = 10.0
     posture_weight: float = 0.1
     #: SLSQP iterations per window: the plan's reach (rho) is at its optimum by 40 on Traj. 2 (0.7114 m in each of its

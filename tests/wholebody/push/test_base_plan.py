@@ -143,7 +143,8 @@ def test_cli_grip_torque_arm_reaches_the_allocation():
     default = push.config_from_args(parser.parse_args(["push"]))
     assert firm.arm_limits.grasp is not None and firm.arm_limits.grasp.torque_arm == 0.1
     assert default.arm_limits == PushConfig().arm_limits != ArmLimits()  # the loop's 200 N grip
-    assert firm.arm_limits.grasp.grip_force == 150.0
+    assert default.arm_limits.grasp is not None
+    assert firm.arm_limits.grasp.grip_force == default.arm_limits.grasp.grip_force == 200.0
     for bad in ("-0.1", "nan", "2"):
         with pytest.raises(OptionError, match="--grip-torque-arm"):
             push.config_from_args(parser.parse_args(["push", "--grip-torque-arm", bad]))
