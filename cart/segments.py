@@ -23,7 +23,8 @@ once, with no force at the handle, by what the two sides' masses predict). Each 
 only known to lie in a stretch (:func:`information_stretch`: the splits the motion cannot tell apart, whatever
 the log's misfit makes of them): ``t0`` is the middle of the splits within one independent residual of the
 least (:func:`best_split`), the whole stretch is ``t0_range``, with a
-note that the time is not identified, and each side is identified away from the whole stretch. A split whose
+note that the time is not identified; each side is identified up to ``t0`` (the stretch's rows say little of
+the mass but much of the damping). A split whose
 two sides' own searches split them further is checked again (:func:`_joined`: two segments of the same load
 next to it are joined).
 """
@@ -582,11 +583,11 @@ def _split(
     if z < CHANGE_Z and not exchange_shown(log, res.params.m, tc, (ml, mr, z), s.row_dt):
         return here
     lo_i, hi_i = information_stretch(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, tc, s.shared)
-    lo, hi = min(lo, lo_i), max(hi, hi_i)  # the sides are identified away from the whole stretch
+    lo, hi = min(lo, lo_i), max(hi, hi_i)
     try:
         casters = res.casters if res.casters is not None and res.casters.kept else None  # the same cart's casters
-        left = identify(slice_log(log, t0, lo - guard), casters=casters)
-        right = identify(slice_log(log, hi + guard, t1), casters=casters)
+        left = identify(slice_log(log, t0, tc - guard), casters=casters)
+        right = identify(slice_log(log, tc + guard, t1), casters=casters)
     except (IdentifiabilityError, np.linalg.LinAlgError):
         return here
     if _alike(left.params.m, right.params.m):
