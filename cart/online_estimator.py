@@ -353,9 +353,12 @@ class OnlineLSEstimator:
         return tuple(n for n, a, b in zip(PHYSICAL_NAMES, post, prior) if a > self.options.excited_ratio * b)
 
     def _misfit_scale(self) -> float:
-        """Return the factor (at least 1) by which the stds are scaled up: the largest residual ratio so far.
+        """Return the factor (at least 1) by which the stds are scaled up: the model's current residual ratio.
 
-        The residual test's windowed ratio (:meth:`_check_misfit`), also before it is reported.
+        The residual test's ratio (:meth:`_check_misfit`), also before it is reported: the a-priori residual
+        power over what the noise and the estimate's std explain, exponentially weighted over 2
+        ``change_window_s`` and the larger of the two rows (force, yaw torque). It forgets: a misfit at the start
+        no longer scales the stds a few windows later.
         """
         mf = self._misfit
         if mf[0] <= 0.0:
