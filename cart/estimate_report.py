@@ -26,7 +26,7 @@ from cart.logs import CartLog, read_log
 from cart.noise_model import SpectralNoise, lag_correlation
 from cart.params import CartParams
 from cart.streams import Streams, box_average, split_streams
-from cart.units import check_declared_units, check_units, check_wrench_frame
+from cart.units import check_declared_units, check_units, check_wrench_frame, wrench_frame_warning
 
 #: Mean NIS above which the EKF's innovations do not fit the 6-dof measurement (about 6 expected).
 NIS_MISFIT = 18.0
@@ -273,14 +273,16 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
         res = identify(log, streams=streams)
     except ParameterError as exc:
         raise _no_mass_error(log, streams, exc) from None
-    check_wrench_frame(log.source, res.residual_ratio, res.cart_frame)
+    check_wrench_frame(log.source, res.residual_ratio, None if res.model_fits else res.cart_frame)
+    n_independent = 2.0 * res.cutoff_hz * res.samples_used * res.grid_dt  # rows band-limited to the cut-off
+    frame_note = wrench_frame_warning(res.residual_ratio, res.cart_frame, n_independent)
     if res.wrench_noise is None:
         raise IdentifiabilityError(f"{log.source}: the least-squares fit gave no wrench-noise model")
     segments, seg_notes = find_segments(log, streams, res)
     split = len(segments) > 1
     # a load change: one cart cannot fit the whole log, so the verdict is the segments' (each its own fit)
     whole = [w for w in res.warnings if not (split and w.startswith("the model does not fit"))]
-    warnings = log_notes(log, streams) + stream_notes(streams) + whole
+    warnings = log_notes(log, streams) + stream_notes(streams) + whole + ([frame_note] if frame_note else [])
     f_noise, t_noise = res.wrench_noise
     noise = {"force": f_noise.band_white_std(res.cutoff_hz), "torque": t_noise.band_white_std(res.cutoff_hz)}
     nis, rejected, note = _innovation(log, streams, res.params, noise)

@@ -132,8 +132,8 @@ class Identification:
     grid_dt: float = float("nan")
     fit_data: FitData | None = field(default=None, repr=False)
     casters: casters_model.Casters | None = None
-    #: on a log the model does not fit: (forward residual ratio, mass) of the same regression with the wrench
-    #: (fx, fy) read in the cart frame {b} (:func:`_cart_frame_reading`); None when the model fits
+    #: (forward residual ratio, mass) of the same regression with the wrench
+    #: (fx, fy) read in the cart frame {b} (:func:`_cart_frame_reading`)
     cart_frame: tuple[float, float] | None = None
 
 
@@ -969,7 +969,7 @@ def identify(
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings)
-    cart_frame = None if fits else _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
+    cart_frame = _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
     p, cov, note = _physical(p, cov)
     warnings += note
     (params, inertia), std = _physical_params(log, p, cov), _physical_std(p, cov)
