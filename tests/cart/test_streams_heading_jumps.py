@@ -14,25 +14,7 @@ import pytest
 from cart.estimate_report import estimate_log
 from cart.logs import CartLog
 from cart.streams import split_streams
-
-
-def _push(seconds: float = 40.0, hz: float = 100.0, seed: int = 3) -> tuple[CartLog, float]:
-    """A push of the Table I test-5 cart with 1 N / 0.2 N m of white F/T noise; (log, true mass)."""
-    from cart import table1
-    from cart.simulate import MeasurementNoise, simulate
-
-    truth = table1.true_params(table1.TESTS[4])
-
-    def ctrl(t, q, qd):
-        f = 15.0 + 10.0 * math.sin(2.1 * t)
-        return np.array([f * math.cos(q[2]), f * math.sin(q[2]), 3.0 * math.sin(1.7 * t)])
-
-    sim = simulate(
-        truth, ctrl, seconds, 1.0 / hz, noise=MeasurementNoise.from_level(0.001), rng=np.random.default_rng(seed)
-    )
-    m = sim.measured
-    ft = np.random.default_rng(seed + 1).normal(0.0, 1.0, m.gamma.shape) * [1.0, 1.0, 0.2]
-    return CartLog(t=m.t, q=m.q, gamma=m.gamma + ft), float(truth.m)
+from tests.cart.test_streams_jumps import _push
 
 
 @pytest.mark.parametrize("turn", [math.pi, -math.pi, 2.0 * math.pi])

@@ -19,15 +19,16 @@ from cart.logs import CartLog, write_log
 from cart.streams import split_streams
 
 
-def _push(seconds: float = 40.0, hz: float = 100.0, seed: int = 3) -> tuple[CartLog, float]:
-    """A push of the Table I test-5 cart with 1 N / 0.2 N m of white F/T noise; (log, true mass)."""
+def _push(seconds: float = 40.0, hz: float = 100.0, seed: int = 3, amplitude: float = 10.0) -> tuple[CartLog, float]:
+    """A push of the Table I test-5 cart (forward force 15 N + `amplitude` N sin 2.1 t) with 1 N / 0.2 N m of white
+    F/T noise; (log, true mass)."""
     from cart import table1
     from cart.simulate import MeasurementNoise, simulate
 
     truth = table1.true_params(table1.TESTS[4])
 
     def ctrl(t, q, qd):
-        f = 15.0 + 10.0 * math.sin(2.1 * t)
+        f = 15.0 + amplitude * math.sin(2.1 * t)
         return np.array([f * math.cos(q[2]), f * math.sin(q[2]), 3.0 * math.sin(1.7 * t)])
 
     sim = simulate(

@@ -6,32 +6,18 @@ the axis clipped for a second at a time was taken for a stuck sensor).
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
 from cart.estimate_report import estimate_log
 from cart.logs import CartLog
 from cart.streams import WRENCH_CHANNELS, saturated_channels, split_streams
+from tests.cart.test_streams_jumps import _push as push
 
 
 def _push(seconds: float = 40.0, hz: float = 100.0, seed: int = 5) -> tuple[CartLog, float]:
-    """A push of the Table I test-5 cart with 1 N / 0.2 N m of white F/T noise; (log, true mass)."""
-    from cart import table1
-    from cart.simulate import MeasurementNoise, simulate
-
-    truth = table1.true_params(table1.TESTS[4])
-
-    def ctrl(t, q, qd):
-        f = 15.0 + 25.0 * math.sin(2.1 * t)
-        return np.array([f * math.cos(q[2]), f * math.sin(q[2]), 3.0 * math.sin(1.7 * t)])
-
-    sim = simulate(
-        truth, ctrl, seconds, 1.0 / hz, noise=MeasurementNoise.from_level(0.001), rng=np.random.default_rng(seed)
-    )
-    m = sim.measured
-    ft = np.random.default_rng(seed + 1).normal(0.0, 1.0, m.gamma.shape) * [1.0, 1.0, 0.2]
-    return CartLog(t=m.t, q=m.q, gamma=m.gamma + ft), float(truth.m)
+    """The push of test_streams_jumps with a forward force of 15 N + 25.0 N sin 2.1 t; (log, true mass)."""
+    return push(seconds, hz, seed, amplitude=25.0)
 
 
 def test_a_clipped_force_axis_is_found_and_its_samples_excluded():
