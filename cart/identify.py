@@ -1072,10 +1072,12 @@ def _check_independent_rows(log: CartLog, reg: _Regression, lag: int, fc_dt: tup
     n_eff, n_p = 4.0 * len(reg.y) / max(lag, 1), reg.x.shape[-1]
     if n_eff <= n_p:
         seconds = float(reg.keep.sum()) * dt
+        gappy = reg.keep.mean() < 0.8  # gaps (or ends) took a fifth of the grid: the stretches are short
+        fix = "log longer stretches without gaps" if gappy else "push longer, with more speed changes and turns"
         raise IdentifiabilityError(
             f"{log.source}: the rows kept away from the log's ends and gaps ({int(reg.keep.sum())} grid samples, "
             f"about {seconds:.3g} s) hold about {n_eff:.2g} independent samples at the cut-off {fc:.3g} Hz for "
-            f"{n_p} parameters: nothing can be identified (log longer stretches without gaps)"
+            f"{n_p} parameters: nothing can be identified ({fix})"
         )
 
 
