@@ -297,7 +297,26 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
         last = segments[-1]
         params, std = last["params"], last["std"]
         fits = all(s["model_fits"] for s in segments)
-    fields = {
+    fields = _ls_fields(res, rejected)
+    unknown = not_identified(params, std)
+    return EstimateReport(
+        method="ls",
+        params=params,
+        std=std,
+        nis_mean=nis,
+        model_fits=fits,
+        warnings=tuple(warnings + _unknown_notes(unknown)),
+        not_identified=unknown,
+        fields=fields,
+        streams=streams,
+        segments=tuple(_segment_json(s) for s in segments),
+    )
+
+
+def _ls_fields(res, rejected: int) -> dict[str, Any]:
+    """Return the least-squares fit's extra JSON fields (residual, cut-off, noise model, offsets, casters, rows)."""
+    f_noise, t_noise = res.wrench_noise
+    return {
         "residual_ratio": list(res.residual_ratio),
         "cutoff_hz": res.cutoff_hz,
         "coulomb_resistance": {"force": res.coulomb["force"], "torque": res.coulomb["torque"]},
@@ -313,19 +332,6 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
         "gaps": res.gaps,
         "rejected_samples": rejected,
     }
-    unknown = not_identified(params, std)
-    return EstimateReport(
-        method="ls",
-        params=params,
-        std=std,
-        nis_mean=nis,
-        model_fits=fits,
-        warnings=tuple(warnings + _unknown_notes(unknown)),
-        not_identified=unknown,
-        fields=fields,
-        streams=streams,
-        segments=tuple(_segment_json(s) for s in segments),
-    )
 
 
 def _caster_json(casters) -> dict[str, Any] | None:
