@@ -154,25 +154,6 @@ def _solve_split(m: np.ndarray, v: np.ndarray, t: np.ndarray, c_all: float) -> t
     return c_all - np.einsum("ni,ni->n", vq, sol), sol @ t.T
 
 
-def _window_ssr(
-    ys: np.ndarray,
-    idx: np.ndarray,
-    outside: tuple[np.ndarray, ...],
-    rows: np.ndarray,
-    c_all: float,
-    put_in: bool,
-    t: np.ndarray,
-) -> np.ndarray:
-    """Return each candidate's residual when the rows within ``half`` of its split take the regressors ``rows``.
-
-    ``rows`` (n, 2 half + 1, 2, 2P): the window's rows of each candidate ``idx``, the left side's parameters'
-    columns then the right side's; ``outside``: the normal equations (``a``, ``b`` left, ``a``, ``b`` right)
-    of the rows outside the window, which are each side's own; ``t`` (:func:`_shared_map`). ``put_in``: a
-    candidate whose right side's mass is not above the left's (the momentum exchange of a load put in) gets ``inf``.
-    """
-    return _window_fit(ys, idx, outside, rows, c_all, put_in, t)[0]
-
-
 def _window_fit(
     ys: np.ndarray,
     idx: np.ndarray,
@@ -182,7 +163,14 @@ def _window_fit(
     put_in: bool,
     t: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Return (residual, both sides' parameters (n, 2P)) of each candidate's split (see :func:`_window_ssr`)."""
+    """Return (residual, both sides' parameters (n, 2P)) of each candidate's split when the rows within ``half`` of
+    its split take the regressors ``rows``.
+
+    ``rows`` (n, 2 half + 1, 2, 2P): the window's rows of each candidate ``idx``, the left side's parameters'
+    columns then the right side's; ``outside``: the normal equations (``a``, ``b`` left, ``a``, ``b`` right)
+    of the rows outside the window, which are each side's own; ``t`` (:func:`_shared_map`). ``put_in``: a
+    candidate whose right side's mass is not above the left's (the momentum exchange of a load put in) gets ``inf``.
+    """
     a_left, b_left, a_right, b_right = outside
     n, half, n_p = len(idx), rows.shape[1] // 2, a_left.shape[-1]
     win = idx[:, None] + np.arange(-half, half + 1)[None, :]
@@ -200,7 +188,7 @@ def _window_system(
 ) -> tuple[tuple[np.ndarray, ...], np.ndarray, float]:
     """Return (the normal equations outside each candidate's window, the window's rows, the log's ``c``).
 
-    The weighted regression ``xs``, ``ys``; the rows as :func:`_window_ssr` takes them: switched
+    The weighted regression ``xs``, ``ys``; the rows as :func:`_window_fit` takes them: switched
     (:func:`_switched_rows`) or, ``filtered`` False, split at the candidate as they are.
     """
     half = kernels.half
@@ -241,12 +229,12 @@ def _split_residuals(
         m[:, :p_dim, :p_dim], m[:, p_dim:, p_dim:] = a, a_all[None] - a
         return _solve_split(m, np.concatenate([b, b_all[None] - b], axis=-1), t, c_all)[0]
     outside, rows, c_all = _window_system(xs, ys, idx, kernels, filtered)
-    switched = _window_ssr(ys, idx, outside, rows, c_all, False, t)
+    switched = _window_fit(ys, idx, outside, rows, c_all, False, t)[0]
     if not exchange:
         return switched
     corr = exchange_corrections(x, idx, sw, kernels)
     moved = rows + np.concatenate([-corr, corr], axis=-1)
-    return np.minimum(switched, _window_ssr(ys, idx, outside, moved, c_all, True, t))
+    return np.minimum(switched, _window_fit(ys, idx, outside, moved, c_all, True, t)[0])
 
 
 def split_prediction(
