@@ -170,9 +170,11 @@ class PushController:
         saturated = alloc.residual > 1e-6 * max(1.0, float(np.abs(gamma_d).max()))  # eq. (25)
         self._advance_clock(s, cart_model.generalized_to_body(q_hat, gamma_d), alloc.gamma_achieved, params_hat)
         q_grasp = self._grasp_pose(q_hat, qd_hat, m.t)
+        gamma_a = _body_to_generalized(q_hat, alloc.gamma_achieved)
+        qdd = np.asarray(cart_model.forward_dynamics(q_hat, qd_hat, gamma_a, params_hat), dtype=float)
         commands, per_robot = zip(
             *(
-                self._robot_command(mm, q_grasp, qd_hat, y, yd, w, s, plan)
+                self._robot_command(mm, q_grasp, qd_hat, y, yd, w, s, plan, qdd)
                 for mm, y, yd, w, plan in zip(
                     self.robots, *self._by_robot(ys, ydots, alloc.wrenches_ee), self.base_plans
                 )
@@ -352,12 +354,15 @@ class PushController:
         wrench_a: np.ndarray,
         t: float = 0.0,
         plan: BasePlan | None = None,
+        qdd: np.ndarray | None = None,
     ) -> tuple[RobotCommand, list[tuple[np.ndarray, np.ndarray, float]]]:
         """Return (the command of one robot, per hand (arm torque, J^T w part, grasp error)) for one period.
 
         A robot with several hands (`_by_robot`: arrays of contacts and wrenches) gets one command: its arms'
         joints in turn, one hand wrench and one hand target per hand (rows). With a base `plan` the base follows
-        the plan's place at time t and the arm its posture (`_follow_plan`).
+        the plan's place at time t and the arm its posture (`_follow_plan`). `qdd`: the cart's commanded
+        acceleration (the allocated wrench through the estimated model); the hands' and the base's predicted
+        accelerations are its rigid-body field at their points (`rigid_acceleration`), None: not predicted.
         """
         dt = self.config.dt
         ys, yds, ws = np.atleast_1d(y), np.atleast_1d(ydot), np.reshape(wrench_a, (-1, 6))
@@ -384,6 +389,7 @@ class PushController:
             wheel_rates=mm.wb.wheel_rates(u),
             hand_wrench=w_world[0] if one else np.array(w_world),
             hand_target=target.homogeneous if one else np.array([T.homogeneous for T, _ in targets]),
+            **({} if qdd is None else _predicted_accelerations(q, qd, qdd, [T for T, _ in targets], mm.x[:2])),
         )
         errors = [float(np.linalg.norm(P.translation - T.translation)) for P, (T, _) in zip(hands, targets)]
         return cmd, list(zip(taus, pushes, errors))
@@ -415,6 +421,28 @@ def _body_to_generalized(q: np.ndarray, gamma_b: np.ndarray) -> np.ndarray:
     """Return the generalized force (fx, fy in {s}, tau) of a body wrench (f_forward, f_lateral, tau) at pose q."""
     c, s = np.cos(q[2]), np.sin(q[2])
     return np.array([c * gamma_b[0] - s * gamma_b[1], s * gamma_b[0] + c * gamma_b[1], gamma_b[2]])
+
+
+def rigid_acceleration(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """Return the acceleration (6: linear at the world point `point` (x, y[, z]), then angular) of a point moving
+    rigidly with the cart of pose `q`, velocity `qd` and acceleration `qdd` ({b} origin's (x, y, theta)):
+    ``a = a_o + alpha x r + omega x (omega x r)``, planar (``r`` the point's offset from the {b} origin)."""
+    rx, ry = float(point[0] - q[0]), float(point[1] - q[1])
+    w, alpha = float(qd[2]), float(qdd[2])
+    ax = float(qdd[0]) - alpha * ry - w * w * rx
+    ay = float(qdd[1]) + alpha * rx - w * w * ry
+    return np.array([ax, ay, 0.0, 0.0, 0.0, alpha])
+
+
+def _predicted_accelerations(
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, targets: Sequence[pin.SE3], base_xy: np.ndarray
+) -> dict[str, np.ndarray]:
+    """Return a command's ``hand_acceleration`` (one row per hand; (6,) for one) and ``base_acceleration``: the
+    cart's commanded motion at the hands' targets and at the base (`rigid_acceleration`; the robot held at its
+    place on the cart moves with it)."""
+    hands = [rigid_acceleration(q, qd, qdd, T.translation) for T in targets]
+    base = rigid_acceleration(q, qd, qdd, base_xy)
+    return {"hand_acceleration": hands[0] if len(hands) == 1 else np.array(hands), "base_acceleration": base[[0, 1, 5]]}
 
 
 def _rot_z(theta: float) -> np.ndarray:

@@ -44,6 +44,7 @@ from wholebody.push.admittance_law import AdmittanceArmLaw, AdmittanceGains
 from wholebody.push.arm_control import (
     TorqueArmGains,
     TorqueArmLaw,
+    hand_inertia_terms,
     net_wrench_projector,
 )
 from wholebody.push.config import PUSH_SENSOR_NOISE, TRUE_CART
@@ -521,6 +522,35 @@ class MujocoPlant:
         mujoco.mj_fullM(m, d, M)
         return J, M[np.ix_(r.arm_dof, r.arm_dof)]
 
+    def _hand_inertia(self, r: RobotIndex, c: RobotCommand) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Return the arm's inertial terms under the command's predicted hand acceleration (`TorqueArmLaw.begin`:
+        `arm_control.hand_inertia_terms` with the engine's inertia, Jacobians and the hand's ``Jdot qdot`` at the
+        period's start, and the base joints' planned acceleration); None without a ``hand_acceleration`` of one hand."""
+        if c.hand_acceleration is None or np.shape(c.hand_acceleration) != (6,):
+            return None
+        m, d = self.scene.model, self.scene.data
+        jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        mujoco.mj_jacSite(m, d, jacp, jacr, r.hand_site)
+        dotp, dotr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        mujoco.mj_jacDot(m, d, dotp, dotr, d.site_xpos[r.hand_site], int(m.site_bodyid[r.hand_site]))
+        M = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, M)
+        J, a, b = np.vstack([jacp, jacr]), r.arm_dof, r.base_dof
+        jdot_qdot = np.r_[dotp @ d.qvel, dotr @ d.qvel]
+        t, K = hand_inertia_terms(M[np.ix_(a, a)], M[np.ix_(a, b)], J[:, a], J[:, b], jdot_qdot, c.hand_acceleration)
+        return t, K, self._base_qacc(r, c.base_acceleration)
+
+    def _base_qacc(self, r: RobotIndex, planar: np.ndarray | None) -> np.ndarray:
+        """Return the base joints' accelerations of a planar base acceleration (xddot, yddot, yaw ddot) in the world:
+        the planar joints' own; a free joint's (linear in the world, angular in the body's frame)."""
+        if planar is None:
+            return np.zeros(r.base_dof.size)
+        acc = np.asarray(planar, dtype=float)
+        if r.base == "planar":
+            return acc.copy()
+        R = self.scene.data.xmat[r.root_body].reshape(3, 3)
+        return np.r_[acc[0], acc[1], 0.0, R.T @ np.array([0.0, 0.0, acc[2]])]
+
     def step(self, commands: Sequence[RobotCommand]) -> None:
         """Hold one command per robot for one control period (`n_sub` physics steps), then sense."""
         if len(commands) != len(self.scene.robots):
@@ -533,7 +563,8 @@ class MujocoPlant:
             self._check_command(r, c)
             if isinstance(law, TorqueArmLaw):
                 J, M = self._arm_jacobian_inertia(r)
-                law.begin(c.hand_wrench, c.arm_torque, c.arm_position, c.arm_velocity, J, M, t_end, self.dt)
+                inertial = self._hand_inertia(r, c) if law.gains.hand_inertia != "off" else None
+                law.begin(c.hand_wrench, c.arm_torque, c.arm_position, c.arm_velocity, J, M, t_end, self.dt, inertial)
             else:
                 J, _ = self._arm_jacobian_inertia(r)
                 w_meas = self._hand_wrench_world(i, self._ft[i])
@@ -562,7 +593,14 @@ class MujocoPlant:
                     tilt = self._tilt(r, c) if law.gains.tilt_stiffness > 0.0 else None
                     hand = self._hand_error(i, r, c, t_end - t) if law.gains.cartesian_stiffness > 0.0 else None
                     d.ctrl[r.arm_actuators] = law.torque(
-                        t, d.qpos[r.arm_qpos], d.qvel[r.arm_dof], bias, tilt, hand, loop_wrench=loops.get(i)
+                        t,
+                        d.qpos[r.arm_qpos],
+                        d.qvel[r.arm_dof],
+                        bias,
+                        tilt,
+                        hand,
+                        loop_wrench=loops.get(i),
+                        base_acceleration=d.qacc[r.base_dof],
                     )
                 if r.base == "planar":
                     d.ctrl[r.base_actuators] = self._planar_base_rates(i, r, c.base_twist)

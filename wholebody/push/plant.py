@@ -71,6 +71,14 @@ class RobotCommand:
     hand_wrench: np.ndarray
     #: (4, 4) the hand's target pose in the world (the handle point it should hold)
     hand_target: np.ndarray = field(default_factory=lambda: np.eye(4))
+    #: (6,) the hand's predicted acceleration over the period: the grasp point's linear acceleration and the hand's
+    #: angular acceleration, world-aligned (m/s^2, rad/s^2; the handle's, which the held hand moves with), one row per
+    #: hand as `hand_wrench`. A torque-controlled arm adds its own inertia under it to the push
+    #: (`arm_control.hand_inertia_torque`); None: not predicted (the kinematic plant's servos need none)
+    hand_acceleration: np.ndarray | None = None
+    #: (3,) the base's predicted acceleration over the period: (xddot, yddot, yaw ddot) of its planar pose in the world
+    #: (m/s^2, rad/s^2); None: not predicted (with a `hand_acceleration`: zero)
+    base_acceleration: np.ndarray | None = None
 
 
 class Plant(Protocol):
