@@ -258,22 +258,65 @@ def _start_fit(
     )
 
 
+def _phi_over_time(
+    sig: Signals, effects: Sequence[tuple[Effect, tuple[float, ...]]], thetas: Sequence[np.ndarray | None], phi
+) -> np.ndarray | None:
+    """Return phi per sample (N, 4) with the steps of the effects that change it (None: phi is constant)."""
+    if phi is None:
+        return None
+    out = None
+    for (e, nl), th in zip(effects, thetas):
+        ch = e.replay_phi_change(sig, nl, th, phi) if (e.steps_phi and th is not None) else None
+        if ch is not None:
+            out = (np.tile(np.asarray(phi[:4], float), (sig.n, 1)) if out is None else out) + ch
+    return out
+
+
+def _bilinear(st: _FitState, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """Return the nominal rows (a_s, a_w, y_w) linearised about the iterate for the ``bilinear`` effects, and phi(t).
+
+    An effect whose force is S(theta) phi(t) (a floor slope: m g, with the mass of each sample) is
+    bilinear in its parameters and phi. The Gauss-Newton step about (phi0(t), theta0): rows
+    y + S(theta0) phi0(t) = (A + S(theta0)) phi(t) + G(phi0(t)) theta, so the phi columns (the nominal
+    ones and a payload's step of them) carry S(theta0), the effect's columns phi0(t). A fixed point on
+    phi alone does not converge when phi steps (the slope's force on the payload).
+    """
+    sig, (a_s, a_w, y_w) = st.sig, st.base
+    phi_t = _phi_over_time(sig, st.effects, st.thetas_prev, st.phi)
+    s0 = None
+    for (e, _), th in zip(st.effects, st.thetas_prev):
+        s_e = e.phi_force(sig, th) if (e.bilinear and th is not None) else None
+        if s_e is not None:
+            s0 = s_e if s0 is None else s0 + s_e
+    if s0 is None or st.phi is None:
+        return a_s, a_w, y_w, phi_t
+    phi0 = phi_t if phi_t is not None else np.asarray(st.phi[:4], float)[None, :]
+    a_s = a_s.copy()
+    a_s[:, :, :4] += s0
+    a_w = a_w.copy()
+    a_w[:, :, :4] += window_integrals(sig.t, s0, edges)
+    y_w = y_w + window_integrals(sig.t, np.einsum("nrk,nk->nr", s0, np.broadcast_to(phi0, (sig.n, 4))), edges)
+    return a_s, a_w, y_w, phi_t
+
+
 def _design(st: _FitState, edges: np.ndarray) -> tuple[np.ndarray, ...]:
     """Return (d, y, lv, lw) of the window rows for the current iterate of ``st`` (set-valued terms first)."""
-    sig, (a_s, a_w, y_w) = st.sig, st.base
+    sig, a_hold = st.sig, st.base[0]
+    a_s, a_w, y_w, phi_t = _bilinear(st, edges)
     lv_b, lw_b = nominal_loadings(a_w.shape[0])
     g_w, lv, lw = [a_w], [lv_b], [lw_b]
     y_fit = y_w
     for (e, nl), th_prev in zip(st.effects, st.thetas_prev):
         # the set-valued term first: it may update state the columns use (active set, swing choice)
-        off = e.offset(sig, nl, st.phi, a_s, th_prev) if e.set_valued else None
+        off = e.offset(sig, nl, st.phi, a_hold, th_prev) if e.set_valued else None
         if off is not None:
             y_fit = y_fit - window_integrals(sig.t, off, edges)
-        ck = e.column_key(sig, nl)
+        ck = e.column_key(sig, nl) if (a_s is a_hold or not e.steps_phi) else None
         ck = ("cols", ck, len(edges), int(edges[-1])) if ck is not None else None
         g = sig.extras.get(ck) if ck is not None else None
         if g is None:
-            g = e.window_columns(sig, nl, st.phi, a_s, edges)
+            phi_e = phi_t if (e.bilinear and phi_t is not None) else st.phi
+            g = e.window_columns(sig, nl, phi_e, a_s if e.steps_phi else a_hold, edges)
             if ck is not None:
                 cache_bounded(sig, "cols", ck, g, COLUMN_CACHE_BYTES)
         g_w.append(g)
@@ -299,10 +342,11 @@ def _converged(st: _FitState, x: np.ndarray, thetas: list[np.ndarray], freeze: i
     """Return True when phi and the free set-valued effects' parameters stopped moving."""
     if st.phi is None or not np.all(np.abs(x[:4] - st.phi) <= 1e-4 * (np.abs(st.phi) + 1e-3)):
         return False
+    gauss_newton = any(e.bilinear for e, _ in st.effects)  # the linearisation point holds every parameter
     return all(
         tp is not None and np.all(np.abs(th - tp) <= 1e-3 * (np.abs(tp) + 1e-3))
         for i, ((e, _), th, tp) in enumerate(zip(st.effects, thetas, st.thetas_prev))
-        if e.set_valued and i >= freeze
+        if (e.set_valued or gauss_newton) and i >= freeze
     )
 
 
@@ -634,6 +678,7 @@ def _replay_terms(fit: Fit) -> tuple[np.ndarray, np.ndarray | None]:
     extra = np.zeros((sig.n, 3))
     dphi = None
     a_s = sig.extras["base"][0]
+    phi_t = _phi_over_time(sig, fit.effects, fit.thetas, fit.phi)
     for (e, nl), th in zip(fit.effects, fit.thetas):
         ch = e.replay_phi_change(sig, nl, th, fit.phi)
         if ch is not None:
@@ -646,7 +691,8 @@ def _replay_terms(fit: Fit) -> tuple[np.ndarray, np.ndarray | None]:
             extra[:, 2] += off[:, 2]
         if len(th) == 0:
             continue
-        g = e.columns(sig, nl, fit.phi, a_s) @ th
+        phi_e = phi_t if (e.bilinear and phi_t is not None) else fit.phi
+        g = e.columns(sig, nl, phi_e, a_s) @ th
         extra[:, 0] -= g[:, 0]
         extra[:, 1] -= g[:, 1]
         extra[:, 2] += g[:, 2]

@@ -288,6 +288,10 @@ class Effect:
     refine: bool = True
     #: True: the nonlinear parameter is searched (and its std computed) on a log scale.
     log_scale: bool = False
+    #: True: the effect's force is S(theta) phi(t), bilinear in its parameters and phi (:meth:`phi_force`)
+    bilinear: bool = False
+    #: True: the effect steps phi over time (:meth:`replay_phi_change`); its columns are the phi columns ``base``
+    steps_phi: bool = False
 
     def nl_grid(self, sig: Signals) -> list[tuple[float, ...]]:
         """Return the grid of nonlinear-parameter tuples to search (one empty tuple when there are none)."""
@@ -339,6 +343,14 @@ class Effect:
         self, sig: Signals, nl: tuple[float, ...], edges: np.ndarray, lv: np.ndarray, lw: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray] | None:
         """Return the window noise loadings (like :func:`nominal_loadings`) of the columns, or None (noise-free)."""
+        return None
+
+    def phi_force(self, sig: Signals, theta: np.ndarray) -> np.ndarray | None:
+        """Return S (N, 3, 4) with the effect's rows = S(theta) phi(t) (``bilinear`` effects), or None.
+
+        The same rows as :meth:`columns` with phi per sample (``columns(sig, nl, phi_t, base) @ theta``):
+        the fits linearise the product of the effect's parameters and phi (a Gauss-Newton step).
+        """
         return None
 
     def is_physical(self, theta: np.ndarray, nl: tuple[float, ...], x: np.ndarray) -> bool:
@@ -866,10 +878,12 @@ class FloorSlope(Effect):
     name = "floor_slope"
     param_names = ("gx", "gy")
     uses_phi = True
+    bilinear = True
 
     def columns(self, sig, nl, phi, base):
-        """Return G = -dE/d(gx, gy) with E the force and its torque about {b} (CoM from phi)."""
-        m, a, b = phi[0], phi[1], phi[2]
+        """Return G = -dE/d(gx, gy) with E the force and its torque about {b} (CoM from phi: (4,) or per sample)."""
+        phi = np.asarray(phi, float)
+        m, a, b = phi[..., 0], phi[..., 1], phi[..., 2]
         c, s = np.cos(sig.q[:, 2]), np.sin(sig.q[:, 2])
         g = np.zeros((sig.n, 3, 2))
         g[:, 0, 0] = -m * c
@@ -877,6 +891,16 @@ class FloorSlope(Effect):
         g[:, 1, 0] = a * s + b * c
         g[:, 1, 1] = -(a * c - b * s)
         return g
+
+    def phi_force(self, sig, theta):
+        """Return S(g) (N, 3, 4): the slope's rows per unit phi, m (gx, gy) at the CoM (the mass of each sample)."""
+        gx, gy = float(theta[0]), float(theta[1])
+        c, s = np.cos(sig.q[:, 2]), np.sin(sig.q[:, 2])
+        out = np.zeros((sig.n, 3, 4))
+        out[:, 0, 0] = -(gx * c + gy * s)
+        out[:, 1, 1] = gx * s - gy * c
+        out[:, 1, 2] = gx * c + gy * s
+        return out
 
     def describe(self, theta, nl, cov, nl_std, phi):
         """Return angle alpha (rad), downhill direction beta in {s} (rad), gx, gy (m/s^2), with stds."""
@@ -905,6 +929,7 @@ class PayloadChange(Effect):
     name = "payload_change"
     param_names: tuple[str, ...] = ("delta_m", "delta_m_dx", "delta_m_dy", "delta_J")
     nl_names = ("time",)
+    steps_phi = True
 
     #: most change times on the grid (a long log gets a coarser grid; the 1-D refinement follows)
     GRID_MAX = 120
@@ -1000,11 +1025,13 @@ class PayloadMassStep(PayloadChange):
     def window_columns(self, sig, nl, phi, base, edges):
         """Return the window integrals of the columns: those of the stepped phi columns (cached) along phi / m."""
         sig.extras["phi_mass_step"] = np.asarray(phi[:4], float)
+        nominal = base is sig.extras.get("base", (None,))[0]  # else phi's rows carry a bilinear effect's force
         key = ("phi_step_windows", float(nl[0]), len(edges), int(edges[-1]))
-        stepped = sig.extras.get(key)
+        stepped = sig.extras.get(key) if nominal else None
         if stepped is None:
             stepped = window_integrals(sig.t, PayloadChange.columns(self, sig, nl, phi, base), edges)
-            cache_bounded(sig, "phi_step_windows", key, stepped, STEP_CACHE_BYTES)
+            if nominal:
+                cache_bounded(sig, "phi_step_windows", key, stepped, STEP_CACHE_BYTES)
         u = np.asarray(phi[:4], float) / float(phi[0])
         return (stepped @ u)[:, :, None]
 

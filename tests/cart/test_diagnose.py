@@ -335,8 +335,9 @@ def _two_effect_log(seed: int):
     return simulate_hidden(params, effects, duration=40.0, rate=100.0, jitter=0.1, rng=rng).measured
 
 
-def test_two_effects_that_one_at_a_time_lose_to_a_stand_in_are_named_jointly():
+def test_two_effects_that_a_stand_in_could_absorb_are_both_named_without_it():
+    # with the slope fitted as a fixed point on phi, a wrench_bias (Delta BIC 290.7) beat it one at a time and
+    # the pair was named jointly; the slope's least-squares fit (a Gauss-Newton step) wins on its own (381.4)
     rep = diagnose(_two_effect_log(4))
-    assert {"floor_slope", "coulomb_friction"} <= set(rep.names) and "wrench_bias" not in rep.names, rep.names
-    assert all("fitted jointly with" in e.reason for e in rep.effects[:2])
-    assert rep.gap_after < 0.5 * rep.gap_before
+    assert {"floor_slope", "coulomb_friction"} == set(rep.names), rep.names
+    assert rep.gap_after < 0.2 * rep.gap_before
