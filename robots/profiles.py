@@ -36,6 +36,9 @@ BaseType = Literal["differential", "holonomic", "none"]
 BASE_TYPES = ("differential", "holonomic", "none")
 #: Axes a gripper frame's tool axis may point along (the direction from the wrist to the fingertips).
 TOOL_AXES = ("x", "y", "z", "-x", "-y", "-z")
+#: Grip forces (N per finger) a profile's ``grip_force`` may give: the Robotiq 2F-85's range (20-235 N, its
+#: manual), which the allocation's grasp model (`wholebody.contacts.allocation.GraspModel`) also takes.
+GRIP_FORCE_RANGE = (20.0, 235.0)
 
 _TOP_KEYS = (
     "name",
@@ -52,7 +55,7 @@ _TOP_KEYS = (
     "push",
     "arm_control",
 )
-_ARM_KEYS = ("joints", "gripper_frame", "ft_frame", "tool_axis", "push_seed")
+_ARM_KEYS = ("joints", "gripper_frame", "ft_frame", "tool_axis", "push_seed", "grip_force")
 _PUSH_KEYS = (
     "grasp_pitch",
     "grasp_roll",
@@ -78,6 +81,10 @@ class ArmProfile:
     tool_axis: str | None = None
     #: arm posture holding the handle (the grasp IK's seed); None = computed by IK
     push_seed: tuple[float, ...] | None = None
+    #: the gripper's squeeze on the handle (N per finger, its rated grip force, within `GRIP_FORCE_RANGE`); it sets
+    #: how hard the hand may pull and how much torque the grip holds; None = the push loop's default
+    #: (`wholebody.push.config.PUSH_GRIP_FORCE`)
+    grip_force: float | None = None
 
     @property
     def sensor_frame(self) -> str:
@@ -277,7 +284,21 @@ def _arm(r: _Reader, i: int, table: object) -> ArmProfile:
         ft_frame=r.string(table, "ft_frame", prefix, required=False),
         tool_axis=axis,
         push_seed=r.numbers(table, "push_seed", len(joints), prefix),
+        grip_force=_grip_force(r, table, prefix),
     )
+
+
+def _grip_force(r: _Reader, table: Mapping, prefix: str) -> float | None:
+    """Return an arm's ``grip_force`` (N per finger), None when not given; outside `GRIP_FORCE_RANGE` is an error."""
+    force = r.number(table, "grip_force", prefix, positive=True)
+    lo, hi = GRIP_FORCE_RANGE
+    if force is not None and not lo <= force <= hi:
+        raise r.fail(
+            f"{prefix}grip_force",
+            f"must be the gripper's squeeze in N per finger within [{lo:g}, {hi:g}] (the grasp model's range), "
+            f"got {force:g}",
+        )
+    return force
 
 
 def _base(r: _Reader, data: Mapping) -> tuple[BaseType, tuple[str, ...]]:

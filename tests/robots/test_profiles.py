@@ -153,6 +153,16 @@ def test_locked_joints_hold_their_value(tmp_path):
             "arms[0].push_seed",
             "1 numbers",
         ),
+        (
+            {"arm": 'joints = ["arm_joint1"]\ngripper_frame = "ee"\ngrip_force = 300.0\n'},
+            "arms[0].grip_force",
+            "within [20, 235]",
+        ),
+        (
+            {"arm": 'joints = ["arm_joint1"]\ngripper_frame = "ee"\ngrip_force = "strong"\n'},
+            "arms[0].grip_force",
+            "number",
+        ),
     ],
 )
 def test_a_bad_profile_is_one_line_naming_the_key(wmra_dir, over, key, fix):

@@ -41,6 +41,7 @@ import numpy.typing as npt
 import qpsolvers
 import scipy.sparse as sp
 
+from robots.profiles import GRIP_FORCE_RANGE as GRIP_FORCE_RANGE  # the grasp's range (N), the 2F-85's
 from wholebody.contacts.handle import ContactSpec, grasp_matrices
 from wholebody.contacts.kernels import equality_optimum_effort
 from wholebody.contacts.support import CartLoad, SupportPolygon, tip_rows
@@ -53,8 +54,6 @@ if TYPE_CHECKING:
 #: closed-form KKT matrices (Kx, Kl, h_active) of an active set; None: a degenerate active set
 KKTEntry = tuple[np.ndarray, np.ndarray, np.ndarray]
 
-#: Robotiq 2F-85 grip force range (N).
-GRIP_FORCE_RANGE = (20.0, 235.0)
 #: Components of [f; tau]: index -> short name.
 COMPONENTS = ("fx", "fy", "fz", "tau_x", "tau_y", "tau_z")
 #: Components used by a planar contact (the others are fixed to zero).

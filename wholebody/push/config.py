@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Literal, Protocol
 
@@ -74,8 +75,10 @@ class BodyTracker(Protocol):
 PUSH_SENSOR_NOISE = MeasurementNoise(position=0.003, theta=0.003, velocity=0.01, omega=0.01, force=3.0, torque=0.3)
 
 
-#: the push loop's hand limits: `ArmLimits` with a 200 N grip (`PushConfig.arm_limits`)
-PUSH_ARM_LIMITS = ArmLimits(grasp=GraspModel(grip_force=200.0))
+#: the grip's squeeze (N per finger) of an arm whose profile gives no ``grip_force`` (docs/robots.md)
+PUSH_GRIP_FORCE = 200.0
+#: the push loop's hand limits: `ArmLimits` with a `PUSH_GRIP_FORCE` grip (`PushConfig.arm_limits`)
+PUSH_ARM_LIMITS = ArmLimits(grasp=GraspModel(grip_force=PUSH_GRIP_FORCE))
 
 
 @dataclass(frozen=True)
@@ -112,7 +115,8 @@ class PushConfig:
     slide_speed: float = 0.05
     #: contact slide acceleration (m/s^2): the hand's speed along the handle changes smoothly
     slide_acceleration: float = 0.1
-    #: each hand's limits; the grasp squeezes 200 N per finger (the 2F-85 holds 20-235 N): one hand then makes
+    #: each hand's limits (`hand_limits`: the grip force of an arm whose profile gives ``grip_force`` is the
+    #: profile's); the grasp squeezes 200 N per finger (the 2F-85 holds 20-235 N): one hand then makes
     #: 8 N m of yaw torque at its 0.02 m torque arm. A turn's yaw torque comes from the grip's torque and from
     #: lateral force at the handle, which the tip-over bound limits (all the more with `tip_std_factor`'s margin):
     #: at 150 N the Ridgeback's MuJoCo Traj. 2 saturates on the grip's torque in the turns (seed 2: 1.44 s), the
@@ -191,6 +195,24 @@ class PushConfig:
             raise WholeBodyError("load_changes must be a tuple of LoadChange")
         # a cart file's masses are the plant's to check (`MujocoPlant`); the times are checked here
         check_changes(self.true_params if self.cart_model is None else None, self.load_changes, self.duration)
+
+    def hand_limits(self, arms: Sequence[int] | None = None) -> tuple[ArmLimits, ...]:
+        """Return each hand's limits: `arm_limits` with the grip force of the hand's arm when its robot profile gives
+        one (``grip_force`` in its ``[[arms]]`` table: the robot's own gripper). `arms`: the profile's arm of each
+        hand, in contact order (`MobileManipulator.arms` of the robots in turn); None: arm 0 of each robot, or arms
+        0, 1 of one robot that pushes with both (`wholebody.push.robot.arms_per_robot`)."""
+        from robots.profiles import profile
+
+        prof = profile(self.robot)
+        if arms is None:
+            from wholebody.push.robot import arms_per_robot
+
+            arms = [hand % arms_per_robot(prof, self.n_arms) for hand in range(self.n_arms)]
+        lim = self.arm_limits
+        forces = [prof.arms[a].grip_force for a in arms]
+        return tuple(
+            lim if f is None else replace(lim, grasp=replace(lim.grasp or GraspModel(), grip_force=f)) for f in forces
+        )
 
     def contact_y0(self) -> np.ndarray:
         """Return the initial contact y per arm (fixed mode: the fixed points)."""
