@@ -93,14 +93,24 @@ def simulate_replays(
     k_steps = max(1, int(round(horizon / h)))
     h = horizon / k_steps
     tau = np.arange(k_steps + 1) * h
-    f = _replay_dynamics(sig, x, extra, dphi, starts_all, h, k_steps)
-    state = np.array(
-        [np.interp(starts_all, t, col) for col in (sig.q[:, 0], sig.q[:, 1], sig.q[:, 2], sig.v, sig.omega)]
-    )
-    sim = _rk4_replays(f, state, h, k_steps)
-    times = starts_all[:, None] + tau[None, :]
-    meas = np.stack([np.interp(times, t, sig.q_raw[:, k]) for k in range(3)], axis=-1)
+    sim = np.empty((len(starts_all), k_steps + 1, 3))
+    meas = np.empty_like(sim)
+    # the starts in chunks: the inputs on the RK4 stage grid (10 arrays of K x (2 k + 1)) stay bounded
+    for c0 in range(0, len(starts_all), REPLAY_CHUNK):
+        starts = starts_all[c0 : c0 + REPLAY_CHUNK]
+        f = _replay_dynamics(sig, x, extra, dphi, starts, h, k_steps)
+        state = np.array(
+            [np.interp(starts, t, col) for col in (sig.q[:, 0], sig.q[:, 1], sig.q[:, 2], sig.v, sig.omega)]
+        )
+        sim[c0 : c0 + len(starts)] = _rk4_replays(f, state, h, k_steps)
+        times = starts[:, None] + tau[None, :]
+        for k in range(3):
+            meas[c0 : c0 + len(starts), :, k] = np.interp(times, t, sig.q_raw[:, k])
     return starts_all, tau, sim, meas
+
+
+#: replay starts integrated at once (bounded working memory however long the log)
+REPLAY_CHUNK = 1024
 
 
 def _replay_dynamics(
