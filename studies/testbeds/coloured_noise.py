@@ -2,6 +2,7 @@
 
 python -m studies.testbeds.coloured_noise N SEED0 DIR   # DIR/{white,ar1,pink,brown}_SEED.csv.gz, DIR/truth.json
 python -m studies.testbeds.coloured_noise --evaluate DIR
+python -m studies.testbeds.coloured_noise --slow N SEED0 DIR     # DIR/{ar1_slow,drift}_SEED.csv.gz, DIR/truth.json
 python -m studies.testbeds.coloured_noise --hidden N SEED0 DIR   # hidden-effect logs, and with pink F/T noise added
 
 Each seed: one :func:`studies.testbeds.rigid_sim.random_case` cart (40-60 s), run noise-free at 1 kHz; for each
@@ -27,6 +28,10 @@ from cart.logs import CartLog, write_log
 from studies.testbeds import log_recorders, rigid_sim
 
 COLOURS = ("white", "ar1", "pink", "brown")
+#: Slowly decorrelating F/T noise (``--slow``): AR(1) with a correlation time of 0.5, 1, 2 or 5 s (one per seed,
+#: in turn), and white noise plus a random-walk offset drift of 0.5-2 N (its RMS over the log).
+SLOW_COLOURS = ("ar1_slow", "drift")
+SLOW_TAUS = (0.5, 1.0, 2.0, 5.0)
 
 
 def _clean(seed: int) -> tuple[CartLog, dict, rigid_sim.RigidCase]:
@@ -65,17 +70,45 @@ def coloured(kind: str, n: int, dt: float, rng: np.random.Generator) -> np.ndarr
     return e / np.std(e)
 
 
-def _table(run: CartLog, case: rigid_sim.RigidCase, kind: str, mocap_rows: bool, rng: np.random.Generator) -> CartLog:
-    """Return one log of the clean ``run`` with F/T noise of colour ``kind``, as single-rate or mocap-rows table."""
+def slow_noise(kind: str, n: int, dt: float, tau: float, rng: np.random.Generator) -> np.ndarray:
+    """Return (n, 3) F/T noise of a ``SLOW_COLOURS`` colour: AR(1) of correlation time ``tau`` s and std 0.5-3 N
+    (0.05-0.3 N m), or white noise of that level plus a random-walk drift of RMS 0.5-2 N (0.05-0.2 N m)."""
+    scale = np.array([1.0, 1.0, 0.1])
+    level = np.array([rng.uniform(0.5, 3.0), rng.uniform(0.5, 3.0), rng.uniform(0.5, 3.0)]) * scale
+    if kind == "ar1_slow":
+        a = math.exp(-dt / tau)
+        w = rng.standard_normal((n, 3)) * math.sqrt(1.0 - a * a)
+        e = np.empty((n, 3))
+        e[0] = rng.standard_normal(3)
+        for i in range(1, n):
+            e[i] = a * e[i - 1] + w[i]
+        return e * level
+    if kind != "drift":
+        raise ValueError(f"unknown colour {kind!r} ({', '.join(SLOW_COLOURS)})")
+    walk = np.cumsum(rng.standard_normal((n, 3)), axis=0)
+    walk = (walk - walk.mean(axis=0)) / walk.std(axis=0)
+    return rng.standard_normal((n, 3)) * level + walk * rng.uniform(0.5, 2.0, 3) * scale
+
+
+def _table(
+    run: CartLog, case: rigid_sim.RigidCase, kind: str, mocap_rows: bool, rng: np.random.Generator, tau: float = 0.0
+) -> CartLog:
+    """Return one log of the clean ``run`` with F/T noise of colour ``kind``, as single-rate or mocap-rows table.
+
+    ``tau``: the correlation time of the ``ar1_slow`` colour; slow colours carry offsets of up to 3 N / 0.3 N m."""
     t, q, g = run.t, run.q, run.gamma
     hz = float(rng.uniform(200.0, 500.0))
     t_ft = np.arange(0.0, float(t[-1]), 1.0 / hz) + rng.uniform(0, 1.0 / hz)
     t_ft = t_ft[t_ft < t[-1]]
     tick = np.minimum((t_ft / rigid_sim.WRENCH_PERIOD).astype(int), len(t) - 1)
-    level = np.array([rng.uniform(0.5, 3.0), rng.uniform(0.5, 3.0), rng.uniform(0.05, 0.3)])
-    offset = np.array([rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.03, 0.03)])
-    noise = np.column_stack([coloured(kind, len(t_ft), 1.0 / hz, rng) for _ in range(3)])
-    gamma = g[tick] + noise * level + offset
+    if kind in SLOW_COLOURS:
+        offset = np.array([rng.uniform(-3.0, 3.0), rng.uniform(-3.0, 3.0), rng.uniform(-0.3, 0.3)])
+        gamma = g[tick] + slow_noise(kind, len(t_ft), 1.0 / hz, tau, rng) + offset
+    else:
+        level = np.array([rng.uniform(0.5, 3.0), rng.uniform(0.5, 3.0), rng.uniform(0.05, 0.3)])
+        offset = np.array([rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.03, 0.03)])
+        noise = np.column_stack([coloured(kind, len(t_ft), 1.0 / hz, rng) for _ in range(3)])
+        gamma = g[tick] + noise * level + offset
     pose_std = [case.pos_std, case.pos_std, case.theta_std]
     t_pose = t_ft
     if mocap_rows:
@@ -88,29 +121,33 @@ def _table(run: CartLog, case: rigid_sim.RigidCase, kind: str, mocap_rows: bool,
     return CartLog(t=np.round(t_ft, 6), q=qq, gamma=gamma)
 
 
-def generate(n: int, seed0: int, out_dir: str) -> dict[str, dict]:
-    """Write the four colours' logs of seeds seed0 .. seed0 + n - 1 and ``truth.json``; return the truth."""
+def generate(n: int, seed0: int, out_dir: str, colours: tuple[str, ...] = COLOURS) -> dict[str, dict]:
+    """Write the ``colours``' logs of seeds seed0 .. seed0 + n - 1 and ``truth.json``; return the truth."""
     os.makedirs(out_dir, exist_ok=True)
     truth: dict[str, dict] = {}
     for seed in range(seed0, seed0 + n):
         run, tr, case = _clean(seed)
         rng = np.random.default_rng(seed + 4242)
-        for j, kind in enumerate(COLOURS):
+        tau = SLOW_TAUS[seed % len(SLOW_TAUS)]
+        for j, kind in enumerate(colours):
             rows = bool((seed + j) % 2)
             name = f"{kind}_{seed}"
-            write_log(os.path.join(out_dir, name + ".csv.gz"), _table(run, case, kind, rows, rng))
+            write_log(os.path.join(out_dir, name + ".csv.gz"), _table(run, case, kind, rows, rng, tau))
             truth[name] = {**tr, "kind": kind, "table": "mocap_rows" if rows else "single_rate"}
+            if kind == "ar1_slow":
+                truth[name]["tau"] = tau
     with open(os.path.join(out_dir, "truth.json"), "w", encoding="utf-8") as fh:
         json.dump(truth, fh, indent=1)
     return truth
 
 
-HIDDEN = ("coulomb_friction", "lateral_slip", "payload_change")
+HIDDEN = ("coulomb_friction", "lateral_slip", "payload_change", "time_delay")
 
 
 def hidden(n: int, seed0: int, out_dir: str) -> dict[str, dict]:
     """Write :func:`studies.testbeds.hidden_effects.random_case` logs of each of ``HIDDEN`` for seeds seed0 ..
-    seed0 + n - 1, each also with pink F/T noise (0.5-3 N, 0.05-0.3 N m) added (``pink_`` names); return the truth."""
+    seed0 + n - 1, each also with pink F/T noise (0.5-3 N, 0.05-0.3 N m) added (``pink_`` names) and with a
+    random-walk offset drift of 0.5-2 N (0.05-0.2 N m) RMS added (``drift_`` names); return the truth."""
     from studies.testbeds import hidden_effects
 
     os.makedirs(out_dir, exist_ok=True)
@@ -123,12 +160,15 @@ def hidden(n: int, seed0: int, out_dir: str) -> dict[str, dict]:
             dt = float(np.median(np.diff(log.t)))
             level = np.array([rng.uniform(0.5, 3.0), rng.uniform(0.5, 3.0), rng.uniform(0.05, 0.3)])
             pink = np.column_stack([coloured("pink", len(log.t), dt, rng) for _ in range(3)]) * level
-            for name, out in (
-                (f"{effect}_{seed}", log),
-                (f"pink_{effect}_{seed}", replace(log, gamma=log.gamma + pink)),
+            walk = np.column_stack([coloured("brown", len(log.t), dt, rng) for _ in range(3)])
+            drift = walk * rng.uniform(0.5, 2.0, 3) * np.array([1.0, 1.0, 0.1])
+            for prefix, out in (
+                ("", log),
+                ("pink_", replace(log, gamma=log.gamma + pink)),
+                ("drift_", replace(log, gamma=log.gamma + drift)),
             ):
-                write_log(os.path.join(out_dir, name + ".csv.gz"), out)
-                truth[name] = {"m": case.params.m, "kind": ("pink_" if name.startswith("pink") else "") + effect}
+                write_log(os.path.join(out_dir, f"{prefix}{effect}_{seed}.csv.gz"), out)
+                truth[f"{prefix}{effect}_{seed}"] = {"m": case.params.m, "kind": prefix + effect}
     with open(os.path.join(out_dir, "truth.json"), "w", encoding="utf-8") as fh:
         json.dump(truth, fh, indent=1)
     return truth
@@ -164,6 +204,8 @@ def evaluate(out_dir: str) -> dict[str, dict[str, float]]:
 if __name__ == "__main__":
     if sys.argv[1] == "--hidden":
         hidden(int(sys.argv[2]), int(sys.argv[3]), sys.argv[4])
+    elif sys.argv[1] == "--slow":
+        generate(int(sys.argv[2]), int(sys.argv[3]), sys.argv[4], SLOW_COLOURS)
     elif sys.argv[1] == "--evaluate":
         for colour, row in evaluate(sys.argv[2]).items():
             print(colour, row)
