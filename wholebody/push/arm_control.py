@@ -4,12 +4,14 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
 
 - **Torque-controlled arm** (the iiwa, joint torque control): each physics step
 
-  ``tau = J^T w + b(q, v) + N^T LP(arm_torque - J^T w - b_0) + J^T K (e + K_i int e) + N^T (K_q (q_plan(t) - q) +
-  D (v_plan - v))``, clipped to the effort limits (`TorqueArmGains.budget`: within them by priority instead,
+  ``tau = J^T w + b(q, v) + t_in + N^T LP(arm_torque - J^T w - b_0) + J^T K (e + K_i int e) + N^T (K_q (q_plan(t) - q)
+  + D (v_plan - v))``, clipped to the effort limits (`TorqueArmGains.budget`: within them by priority instead,
   `TorqueArmLaw._prioritized`: the task part, then the hand's feedback as the closest wrench that fits,
   `fit_in_limits`, then the posture), with ``e = w - w_f``,
 
-  where ``w`` is the allocated hand wrench, ``b`` the arm's bias forces at the step's state, ``arm_torque`` the
+  where ``w`` is the allocated hand wrench, ``b`` the arm's bias forces at the step's state, ``t_in`` the arm's own
+  inertia under the hand's predicted acceleration (the handle's) and the base's measured one (`hand_inertia_terms`,
+  `TorqueArmGains.hand_inertia`: the push then does not carry the arm), ``arm_torque`` the
   controller's command (Pinocchio's RNEA with the plan's velocities and accelerations + ``J^T w``), ``b_0`` the
   bias forces at the period's start and ``LP`` a low-pass over the periods (0.1 s; the plan term in the hand's
   null space only: `TorqueArmGains.plan_null_space`; see `TorqueArmGains.feedforward` for the other feed-forwards),

@@ -123,7 +123,8 @@ class PushController:
         self.geometry = config.cart_geometry()
         #: the cart's floor contacts the allocation keeps loaded (None: no tip-over bound)
         self.support = config.support_polygon() if config.tip_on() else None
-        limits = config.arm_limits if self.support is None else replace(config.arm_limits, planar=False)
+        hands = config.hand_limits([a for mm in self.robots for a in mm.arms])  # each arm's own grip
+        limits = list(hands) if self.support is None else [replace(h, planar=False) for h in hands]
         self.allocator = WrenchAllocator(
             [handle_point(v, self.geometry) for v in scheduler.y], limits, only_motion_directions=True
         )

@@ -65,8 +65,9 @@ from wholebody.push.plant import Measurement, RobotCommand, RobotReading
 #: Robots not listed get velocity servos (any position/velocity-servoed arm).
 ARM_MODES = {"ridgeback_iiwa": ARM_TORQUE, "wmra": ARM_VELOCITY}
 #: velocity-servo arms whose admittance gains were tuned for them (`AdmittanceGains` as given, `from_arm` ignored):
-#: the WMRA's (its gains from its limits track Traj. 1 at 4.6 mm but its final mass ends 5.6 % off, docs/mujoco.md)
-TUNED_ADMITTANCE = frozenset({"wmra"})
+#: none; every velocity-servoed arm, the WMRA's among them, takes its servos' damping from its limits
+#: (`admittance_tuning.arm_tuning`)
+TUNED_ADMITTANCE: frozenset[str] = frozenset()
 GRAVITY_VECTOR = np.array([0.0, 0.0, -mujoco_cart.GRAVITY])
 
 
@@ -442,10 +443,22 @@ class MujocoPlant:
         f = d.sensordata[r.force_adr : r.force_adr + 3]
         n = d.sensordata[r.torque_adr : r.torque_adr + 3]
         R = d.site_xmat[r.ft_site].reshape(3, 3)
-        g_s = R.T @ (r.tool_mass * GRAVITY_VECTOR)  # the tool's weight in the sensor frame
+        g_s = R.T @ (r.tool_mass * self._tool_proper_acceleration(i))  # the tool's load in the sensor frame
         # MuJoCo senses what the child subtree applies to its parent: the hand's push on the cart, minus the
-        # tool's weight (statics: F_sensor = w_hand - m g), and likewise for the torque about the site
+        # tool's load (F_sensor = w_hand - m (g - a): its weight and its inertia), and likewise for the torque
         return np.r_[f + g_s, n + np.cross(r.tool_com, g_s)]
+
+    def _tool_proper_acceleration(self, i: int) -> np.ndarray:
+        """Return g - a of the tool's centre of mass (world, m/s^2): gravity less its acceleration (the tool rides on
+        the handle, so a is the handle's; read from MuJoCo's body accelerations of this step)."""
+        r, m, d = self.scene.robots[i], self.scene.model, self.scene.data
+        acc, vel = np.zeros(6), np.zeros(6)
+        mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_SITE, r.ft_site, acc, 0)
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, r.ft_site, vel, 0)
+        rho = d.site_xmat[r.ft_site].reshape(3, 3) @ r.tool_com
+        w = vel[:3]
+        # MuJoCo's accelerations carry -g (an accelerometer's reading): acc[3:] = a_site - g
+        return -(acc[3:] + np.cross(acc[:3], rho) + np.cross(w, np.cross(w, rho)))
 
     def _hand_wrench_world(self, i: int, w_s: np.ndarray) -> np.ndarray:
         """Return a sensor-frame wrench as world-aligned [f, n] at the grasp (the hand's site)."""
@@ -559,29 +572,7 @@ class MujocoPlant:
         self._apply_load_changes()
         m, d = self.scene.model, self.scene.data
         t_end = self.t + self.dt
-        for i, (r, c, law) in enumerate(zip(self.scene.robots, commands, self._laws)):
-            self._check_command(r, c)
-            if isinstance(law, TorqueArmLaw):
-                J, M = self._arm_jacobian_inertia(r)
-                inertial = self._hand_inertia(r, c) if law.gains.hand_inertia != "off" else None
-                law.begin(c.hand_wrench, c.arm_torque, c.arm_position, c.arm_velocity, J, M, t_end, self.dt, inertial)
-            else:
-                J, _ = self._arm_jacobian_inertia(r)
-                w_meas = self._hand_wrench_world(i, self._ft[i])
-                q = d.qpos[r.arm_qpos]
-                d.ctrl[r.arm_actuators] = law.velocity(
-                    c.arm_velocity,
-                    c.arm_position,
-                    q,
-                    d.qvel[r.arm_dof],
-                    J,
-                    c.hand_wrench,
-                    w_meas,
-                    self.dt,
-                    bias=d.qfrc_bias[r.arm_dof],
-                )
-            if r.base == "differential":
-                d.ctrl[r.wheel_actuators] = c.wheel_rates
+        self._begin_period(commands, t_end)
         for k in range(self.n_sub):
             t = self.t + k * self.config.physics_dt
             loops = self._force_loops()
@@ -616,6 +607,34 @@ class MujocoPlant:
         self._after_period(commands)
         self._stats.wall += time.perf_counter() - wall0
         self._stats.sim += self.dt
+
+    def _begin_period(self, commands: Sequence[RobotCommand], t_end: float) -> None:
+        """Check each command and start the period: a torque law takes its wrench and plan, a velocity-servoed arm
+        its admittance law's joint velocities, a differential base its wheel rates."""
+        d = self.scene.data
+        for i, (r, c, law) in enumerate(zip(self.scene.robots, commands, self._laws)):
+            self._check_command(r, c)
+            if isinstance(law, TorqueArmLaw):
+                J, M = self._arm_jacobian_inertia(r)
+                inertial = self._hand_inertia(r, c) if law.gains.hand_inertia != "off" else None
+                law.begin(c.hand_wrench, c.arm_torque, c.arm_position, c.arm_velocity, J, M, t_end, self.dt, inertial)
+            else:
+                J, _ = self._arm_jacobian_inertia(r)
+                w_meas = self._hand_wrench_world(i, self._ft[i])
+                q = d.qpos[r.arm_qpos]
+                d.ctrl[r.arm_actuators] = law.velocity(
+                    c.arm_velocity,
+                    c.arm_position,
+                    q,
+                    d.qvel[r.arm_dof],
+                    J,
+                    c.hand_wrench,
+                    w_meas,
+                    self.dt,
+                    bias=d.qfrc_bias[r.arm_dof],
+                )
+            if r.base == "differential":
+                d.ctrl[r.wheel_actuators] = c.wheel_rates
 
     def _apply_load_changes(self) -> None:
         """Put in or take out the loads due at this period's start (`mujoco_cart.add_point_mass` on the cart body, at
@@ -777,8 +796,9 @@ class MujocoPlant:
                 st.arm_task_peak_ratio = max(st.arm_task_peak_ratio, law.peak_task_ratio)
                 st.arm_scaled = max(st.arm_scaled, law.scaled_steps)
                 st.joint_peak_ratio[i] = law.peak_joint_ratio
-            else:
-                ratio = np.max(np.abs(d.actuator_force[r.arm_actuators]) / r.effort_limit)
+            else:  # the joint's torque: its servo's and its drive's hold of the static load (the joint clamps the sum)
+                joint = d.actuator_force[r.arm_actuators] + d.actuator_force[r.arm_hold_actuators]
+                ratio = np.max(np.abs(joint) / r.effort_limit)
                 st.arm_force_peak_ratio = max(st.arm_force_peak_ratio, float(ratio))
         self._split_error(commands)
         st.n += 1

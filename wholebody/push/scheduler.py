@@ -71,7 +71,7 @@ class ContactScheduler:
         self.next_replan = 0.0
         self.geometry = config.cart_geometry()
         self.alloc = WrenchAllocator(
-            [handle_point(v, self.geometry) for v in self.y], config.arm_limits, only_motion_directions=True
+            [handle_point(v, self.geometry) for v in self.y], list(config.hand_limits()), only_motion_directions=True
         )
         self.handle = self.geometry.handle
         n = config.n_arms

@@ -131,8 +131,10 @@ def test_ft_sensor_equals_the_grasps_constraint_force_within_noise(setup):
             on_cart = np.r_[w[:3], w[3:] + np.cross(p - o, w[:3])]  # the hand's wrench about the cart origin
             out.append(on_cart - weld)
     e_clean, e_noisy = np.array(errors_clean), np.array(errors_noisy)
-    # the sensor is the weld's force, up to the inertia of the gripper beyond it (0.9 kg, slow push)
-    assert np.abs(e_clean[:, :3]).max() < 1.0
+    # the sensor is the weld's force: the reading removes the load (weight and inertia) of the 0.9 kg of gripper
+    # beyond it, which without its inertia leaves 0.8 N and 0.8 N m here
+    assert np.abs(e_clean[:, :3]).max() < 0.01
+    assert np.abs(e_clean[:, 3:]).max() < 0.05
     # and the reading adds the sensor's white noise: 3 N per axis
     assert np.std(e_noisy[:, :3]) == pytest.approx(3.0, rel=0.3)
     assert np.abs(e_noisy[:, :3].mean(axis=0)).max() < 3.0 * 4 / math.sqrt(40) + 1.0
