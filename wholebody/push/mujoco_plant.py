@@ -77,6 +77,12 @@ def arm_mode_of(mm) -> str:
     return str(mode) if mode else ARM_MODES.get(mm.wb.robot.name, ARM_VELOCITY)
 
 
+def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Return the cross product of two 3-vectors (`np.cross` without its axis handling: the sensing calls it at
+    every physics step)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 class MujocoPlantError(WholeBodyError):
     """Bad input to the MuJoCo plant (command count or shape, grasp not on a handle, unknown arm mode)."""
 
@@ -446,7 +452,7 @@ class MujocoPlant:
         g_s = R.T @ (r.tool_mass * self._tool_proper_acceleration(i))  # the tool's load in the sensor frame
         # MuJoCo senses what the child subtree applies to its parent: the hand's push on the cart, minus the
         # tool's load (F_sensor = w_hand - m (g - a): its weight and its inertia), and likewise for the torque
-        return np.r_[f + g_s, n + np.cross(r.tool_com, g_s)]
+        return np.concatenate((f + g_s, n + _cross3(r.tool_com, g_s)))
 
     def _tool_proper_acceleration(self, i: int) -> np.ndarray:
         """Return g - a of the tool's centre of mass (world, m/s^2): gravity less its acceleration (the tool rides on
@@ -458,7 +464,7 @@ class MujocoPlant:
         rho = d.site_xmat[r.ft_site].reshape(3, 3) @ r.tool_com
         w = vel[:3]
         # MuJoCo's accelerations carry -g (an accelerometer's reading): acc[3:] = a_site - g
-        return -(acc[3:] + np.cross(acc[:3], rho) + np.cross(w, np.cross(w, rho)))
+        return -(acc[3:] + _cross3(acc[:3], rho) + _cross3(w, _cross3(w, rho)))
 
     def _hand_wrench_world(self, i: int, w_s: np.ndarray) -> np.ndarray:
         """Return a sensor-frame wrench as world-aligned [f, n] at the grasp (the hand's site)."""
@@ -466,7 +472,7 @@ class MujocoPlant:
         R = d.site_xmat[r.ft_site].reshape(3, 3)
         f, n = R @ w_s[:3], R @ w_s[3:]
         o, p = d.site_xpos[r.ft_site], d.site_xpos[r.hand_site]
-        return np.r_[f, n + np.cross(o - p, f)]
+        return np.concatenate((f, n + _cross3(o - p, f)))
 
     def _ft_at_grasp(self, i: int) -> np.ndarray:
         """Return the F/T sensor's reading of this physics step (with its noise) as the hand's wrench at the grasp."""
