@@ -153,66 +153,99 @@ class MomentumTest:
     """A load put in at rest, found by the momentum it takes from the cart at an impulse (paper eq. 3-4).
 
     A load set on the deck at rest joins the cart in a perfectly inelastic impulse: the wheels' no-slip
-    constraint acts sideways only, so the cart's forward momentum ``m v`` is kept (exactly at zero yaw rate),
-    ``m_after v+ = m_before v-``, and the forward speed jumps by the mass ratio ``r = v- / v+`` whatever the
-    wrench does (over the jump's period it moves the speed by ``F dt / m``, which the two sides' lines
-    take out). :meth:`add` keeps the forward speed of the last ``2 side_s`` s, :meth:`arm` marks an impulse
-    (the velocity jump the wrench does not explain, found by the online estimator), and :meth:`check`,
-    ``side_s`` after it, fits a straight line to the speed on each side (ordinary least squares, its
-    residual variance the noise) and evaluates both at the jump (the midpoint of the period before the
-    impulse's sample). The jump is a load put in when the cart moved (both sides the same sign), slowed
-    (``r > 1``), and ``r - 1`` is at least ``min_change`` and ``sigma`` times the ratio's std. A load lifted
-    out leaves with its own momentum (no jump): the regression's tests find it.
+    constraint acts sideways only, so the forward momentum of the cart's centre of mass ``m (v - dy omega)``
+    (``v`` the forward speed of {b}'s origin, ``omega`` the yaw rate, ``dy`` the CoM's lateral offset) is kept,
+    ``m_after u+ = m_before u-``, and the CoM's forward speed ``u`` jumps by the mass ratio ``r = u- / u+``.
+    What the sensors measure besides is taken out: the measured net forward force's impulse ``I(t)`` (the wrench
+    held over each period minus the damping, :meth:`add`) moves ``u`` by ``(I(t) - I(t_jump)) / m_before``, and
+    the yaw rate the wrench's torque gives moves ``v`` by ``dy omega`` without moving the CoM; an arm at its
+    limit (a wrench spike, the cart yanked in yaw) is then no jump. :meth:`add` keeps the last ``2 side_s`` s,
+    :meth:`arm` marks an impulse (the velocity jump the wrench does not explain, found by the online estimator)
+    with the estimate before it, and :meth:`check`, ``side_s`` after it, fits a straight line to
+    ``u - (I - I_jump) / m_before`` on each side (ordinary least squares; the lines take out what the mass
+    error leaves of the impulse) and evaluates both at the jump (the midpoint of the period before the
+    impulse's sample). The noise is the larger of the lines' residual variance and the predicted one
+    (``speed_std``: the motion capture's forward speed std; ``force_std``: the measured force's per-period std,
+    integrated into ``I``). The jump is a load put in when the cart moved (both sides the same sign), slowed
+    (``r > 1``), and ``r - 1`` is at least ``min_change`` and ``sigma`` times the ratio's std. A load lifted out
+    leaves with its own momentum (no jump): the regression's tests find it.
     """
 
-    def __init__(self, side_s: float = 0.1, min_change: float = 0.08, sigma: float = 3.0) -> None:
+    def __init__(
+        self,
+        side_s: float = 0.1,
+        min_change: float = 0.08,
+        sigma: float = 3.0,
+        speed_std: float = 0.0,
+        force_std: float = 0.0,
+    ) -> None:
+        if not (side_s > 0.0 and min_change >= 0.0 and sigma >= 0.0 and speed_std >= 0.0 and force_std >= 0.0):
+            raise ValueError(
+                "MomentumTest needs side_s > 0 and min_change, sigma, speed_std, force_std >= 0; got "
+                f"{side_s}, {min_change}, {sigma}, {speed_std}, {force_std}"
+            )
         self.side_s = float(side_s)
         self.min_change = float(min_change)
         self.sigma = float(sigma)
-        self._t: list[float] = []
-        self._v: list[float] = []
-        self._armed: float | None = None
+        self.speed_std = float(speed_std)
+        self.force_std = float(force_std)
+        self._rows: list[tuple[float, float, float, float]] = []  # (t, v, omega, impulse I(t))
+        self._impulse = 0.0
+        self._armed: tuple[float, float, float] | None = None  # (t, mass before, dy before)
         self.tested: list[tuple[float, float, float]] = []  # (impulse time, ratio, its std) of every jump tested
 
-    def add(self, t: float, v: float) -> None:
-        """Store the forward speed ``v`` (m/s) at ``t`` (s); forget what lies more than ``2 side_s`` back."""
-        self._t.append(float(t))
-        self._v.append(float(v))
-        while self._t[0] < self._t[-1] - 2.0 * self.side_s - 1e-9:
-            del self._t[0], self._v[0]
+    def add(self, t: float, v: float, omega: float = 0.0, force: float = 0.0) -> None:
+        """Store the forward speed ``v`` (m/s) and yaw rate ``omega`` (rad/s) at ``t`` (s), with the measured net
+        forward force ``force`` (N) held over the period ending at ``t``; forget what lies more than ``2 side_s``
+        back."""
+        t = float(t)
+        if self._rows:
+            self._impulse += float(force) * (t - self._rows[-1][0])
+        self._rows.append((t, float(v), float(omega), self._impulse))
+        while self._rows[0][0] < t - 2.0 * self.side_s - 1e-9:
+            del self._rows[0]
 
-    def arm(self, t: float) -> None:
-        """Mark an impulse at ``t`` (the first sample after the jump): :meth:`check` tests it ``side_s`` later."""
-        self._armed = float(t)
+    def arm(self, t: float, mass: float = math.inf, dy: float = 0.0) -> None:
+        """Mark an impulse at ``t`` (the first sample after the jump): :meth:`check` tests it ``side_s`` later.
+
+        ``mass`` (kg) and ``dy`` (m): the estimate before it (``mass`` inf: the measured impulse is not used)."""
+        self._armed = (float(t), float(mass), float(dy))
 
     def check(self, t: float) -> tuple[float, float, float] | None:
         """Return (impulse time, mass ratio ``m_after / m_before``, its std) of a load put in at the armed impulse
         once ``side_s`` of samples follow it (None: nothing armed, too early, or no load put in)."""
-        t_imp = self._armed
-        if t_imp is None or t < t_imp + self.side_s - 1e-9:
+        if self._armed is None or t < self._armed[0] + self.side_s - 1e-9:
             return None
+        t_imp, mass, dy = self._armed
         self._armed = None
-        t_all, v_all = np.asarray(self._t), np.asarray(self._v)
-        before = t_all < t_imp - 1e-9
+        rows = np.asarray(self._rows)
+        before = rows[:, 0] < t_imp - 1e-9
         if before.sum() < 3 or (~before).sum() < 3:
             return None
-        t_jump = 0.5 * (t_imp + float(t_all[before][-1]))
-        vb, sb = _line_at(t_all[before], v_all[before], t_jump)
-        va, sa = _line_at(t_all[~before], v_all[~before], t_jump)
-        if vb * va <= 0.0:
+        k = int(before.sum())  # the impulse's sample: the jump lies in the period before it
+        t_jump = 0.5 * (t_imp + float(rows[k - 1, 0]))
+        i_jump = 0.5 * (rows[k - 1, 3] + rows[k, 3])
+        u = rows[:, 1] - dy * rows[:, 2] - (rows[:, 3] - i_jump) / mass
+        # predicted noise of u: the speed's, and the force's integrated from the jump (a random walk)
+        steps = np.abs(np.arange(len(u)) - (k - 0.5))
+        var = self.speed_std**2 + steps * (self.force_std * np.diff(rows[:, 0]).mean() / mass) ** 2
+        ub, sb = _line_at(rows[before, 0], u[before], t_jump, var[before])
+        ua, sa = _line_at(rows[~before, 0], u[~before], t_jump, var[~before])
+        if ub * ua <= 0.0:
             return None
-        ratio = vb / va
-        std = abs(ratio) * math.hypot(sb / vb, sa / va)
+        ratio = ub / ua
+        std = abs(ratio) * math.hypot(sb / ub, sa / ua)
         self.tested.append((t_imp, ratio, std))
         if ratio - 1.0 < max(self.min_change, self.sigma * std):
             return None
         return t_imp, ratio, std
 
 
-def _line_at(t: np.ndarray, v: np.ndarray, t0: float) -> tuple[float, float]:
-    """Return the value at ``t0`` of the least-squares line through (t, v) and its std (residual variance)."""
+def _line_at(t: np.ndarray, v: np.ndarray, t0: float, var_pred: np.ndarray | float = 0.0) -> tuple[float, float]:
+    """Return the value at ``t0`` of the least-squares line through (t, v) and its std: the residual variance, or
+    the predicted per-sample variance ``var_pred`` (its mean) where that is larger."""
     a = np.column_stack([np.ones_like(t), t - t0])
     coef = np.linalg.lstsq(a, v, rcond=None)[0]
     r = v - a @ coef
-    var = float(r @ r) / max(len(t) - 2, 1)
+    var = max(float(r @ r) / max(len(t) - 2, 1), float(np.mean(var_pred)))
     return float(coef[0]), math.sqrt(max(var * float(np.linalg.inv(a.T @ a)[0, 0]), 0.0))

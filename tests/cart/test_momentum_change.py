@@ -72,3 +72,80 @@ def test_nothing_armed_nothing_tested() -> None:
         test.add(tk, vk)
         assert test.check(tk) is None
     assert test.tested == []
+
+
+def _spike(mass: float = 20.0, spike_n: float = -200.0, noise: float = 0.005, seed: int = 0):
+    """Forward speeds and the measured net force at 100 Hz over 0.5 s: a cart of ``mass`` kg at 0.8 m/s under a
+    constant 4 N, with a ``spike_n`` N wrench over the period ending at 0.3 s (an arm at its limit)."""
+    rng = np.random.default_rng(seed)
+    t = DT * np.arange(1, 51)
+    f = np.full(t.size, 4.0)
+    f[np.abs(t - 0.3) < 1e-9] += spike_n
+    v = 0.8 + np.cumsum(f) * DT / mass
+    return t, v + noise * rng.standard_normal(t.size), f
+
+
+def _run_measured(test: MomentumTest, t, v, omega, f, mass: float, dy: float, t_imp: float = 0.3):
+    found = None
+    for tk, vk, wk, fk in zip(t, v, omega, f):
+        test.add(tk, vk, wk, fk)
+        if abs(tk - t_imp) < 1e-9:
+            test.arm(tk, mass, dy)
+        found = test.check(tk) or found
+    return found
+
+
+def test_a_jump_the_measured_wrench_explains_is_no_load() -> None:
+    """A 200 N spike over one period slows a 20 kg cart by 0.1 m/s (r = 1.14): with the measured force the
+    jump is the wrench's (ratio 1 within its std); the speed alone reads it as a load put in."""
+    t, v, f = _spike()
+    zero = np.zeros(t.size)
+    measured = MomentumTest(side_s=0.1)
+    assert _run_measured(measured, t, v, zero, f, 20.0, 0.0) is None
+    _, ratio, std = measured.tested[0]
+    assert abs(ratio - 1.0) < 3.0 * std + 0.01
+    assert _run(MomentumTest(side_s=0.1), t, v) is not None
+
+
+def test_a_load_put_in_under_a_measured_wrench_is_weighed() -> None:
+    """The load put in (20 -> 30 kg) while a -60 N wrench brakes the cart: the ratio is the masses' 1.5."""
+    t, v, f = _spike(spike_n=0.0, noise=0.0)
+    f = np.full(t.size, -60.0)
+    v = np.empty(t.size)
+    p, m = 20.0 * 0.8, 20.0
+    for k in range(t.size):  # the momentum kept at the jump, the force's impulse on each side
+        if abs(t[k] - 0.3) < 1e-9:
+            m = 30.0
+        p += f[k] * DT
+        v[k] = p / m
+    found = _run_measured(MomentumTest(side_s=0.1), t, v, np.zeros(t.size), f, 20.0, 0.0)
+    assert found is not None
+    assert found[1] == pytest.approx(1.5, rel=0.01)
+
+
+def test_a_yaw_jump_moves_the_origin_not_the_centre_of_mass() -> None:
+    """The yaw rate jumps by 0.6 rad/s with the CoM 0.15 m to the side: {b}'s origin speeds down by 0.09 m/s
+    (r = 1.13) but the CoM's forward speed ``v - dy omega`` does not change: no load."""
+    t, _, f = _spike(spike_n=0.0, noise=0.0)
+    f = np.zeros(t.size)
+    omega = np.where(t > 0.3 - 0.5 * DT, -0.6, 0.0)
+    v = 0.8 + 0.15 * omega
+    found = _run_measured(MomentumTest(side_s=0.1), t, v, omega, f, 20.0, 0.15)
+    assert found is None
+    assert _run_measured(MomentumTest(side_s=0.1), t, v, omega, f, 20.0, 0.0) is not None
+
+
+def test_the_predicted_noise_bounds_the_ratio_std() -> None:
+    """Noise-free speeds: the lines' residuals are zero, the std is the predicted one (motion capture 0.05 m/s):
+    a 10 % slowing is then within 3 std and no load; with no predicted noise it is one."""
+    t, v = _speeds(1.1, noise=0.0)
+    quiet = MomentumTest(side_s=0.1, speed_std=0.05)
+    assert _run(quiet, t, v) is None
+    assert quiet.tested[0][2] > 0.05
+    assert _run(MomentumTest(side_s=0.1), t, v) is not None
+
+
+@pytest.mark.parametrize("bad", [{"side_s": 0.0}, {"min_change": -0.1}, {"speed_std": -1.0}, {"force_std": -1.0}])
+def test_bad_settings_are_refused(bad: dict) -> None:
+    with pytest.raises(ValueError, match="MomentumTest needs"):
+        MomentumTest(**bad)
