@@ -7,6 +7,8 @@ velocity every step and grows (`TorqueArmGains.implicit_damping`).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import mujoco
 import numpy as np
 import pytest
@@ -77,19 +79,11 @@ def test_a_straight_iiwa_elbow_in_mujoco_stays_still_with_the_implicit_damping(s
     """The iiwa in MuJoCo, hand released, elbow (joint 4) 0.02 rad from straight, joints 3 and 5 counter-rotating at
     0.5 rad/s (a motion of the hand's null space there): the law holding the posture damps it, or, held explicitly,
     drives it to the torque limits."""
-    from cart.simulate import MeasurementNoise
-    from wholebody.push.config import TRUE_CART
-    from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantConfig
-    from wholebody.push.plant import RobotCommand
+    from tests.wholebody.push.mujoco_hold import hold_commands, quiet_plant
+    from wholebody.push.mujoco_plant import MujocoPlantConfig
 
     gains = TorqueArmGains(force_feedback=0.0, implicit_damping=implicit)
-    plant = MujocoPlant(
-        setup.controller.robots,
-        setup.q0,
-        TRUE_CART,
-        noise=MeasurementNoise(),
-        config=MujocoPlantConfig(torque_gains=gains),
-    )
+    plant = quiet_plant(setup, config=MujocoPlantConfig(torque_gains=gains))
     m, d, r = plant.scene.model, plant.scene.data, plant.scene.robots[0]
     d.eq_active[r.weld] = 0  # the hand let go
     q = d.qpos[r.arm_qpos]
@@ -98,15 +92,7 @@ def test_a_straight_iiwa_elbow_in_mujoco_stays_still_with_the_implicit_damping(s
     d.qvel[r.arm_dof] = 0.0
     d.qvel[r.arm_dof[2]], d.qvel[r.arm_dof[4]] = 0.5, -0.5
     mujoco.mj_forward(m, d)
-    n = q.size
-    hold = RobotCommand(
-        arm_velocity=np.zeros(n),
-        arm_position=q.copy(),
-        arm_torque=np.zeros(n),
-        base_twist=np.zeros(3),
-        wheel_rates=np.zeros(4),
-        hand_wrench=np.zeros(6),
-    )
+    hold = replace(hold_commands(plant)[0], arm_position=q.copy())  # the straight elbow's posture
     speeds = []
     for _ in range(20):
         plant.step([hold])

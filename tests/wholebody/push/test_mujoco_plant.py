@@ -11,6 +11,7 @@ import pinocchio as pin
 import pytest
 
 from cart.simulate import MeasurementNoise
+from tests.wholebody.push.mujoco_hold import hold_commands, quiet_plant
 from wholebody.push import PushConfig, build_controller
 from wholebody.push.arm_control import TorqueArmGains, null_space_projector_T
 from wholebody.push.config import TRUE_CART
@@ -27,21 +28,12 @@ def setup():
 
 
 def _plant(setup, **kw) -> MujocoPlant:
-    return MujocoPlant(setup.controller.robots, setup.q0, TRUE_CART, **kw)
+    return quiet_plant(setup, **kw)
 
 
 def _hold(plant: MujocoPlant, wrench=np.zeros(6), arm_torque=None) -> RobotCommand:
     """A command that holds the arm where it is and the base still, with `wrench` allocated to the hand."""
-    r = plant.measure().robots[0]
-    n = r.q_arm.size
-    return RobotCommand(
-        arm_velocity=np.zeros(n),
-        arm_position=r.q_arm.copy(),
-        arm_torque=np.zeros(n) if arm_torque is None else arm_torque,
-        base_twist=np.zeros(3),
-        wheel_rates=np.zeros(4),
-        hand_wrench=np.asarray(wrench, dtype=float),
-    )
+    return hold_commands(plant, wrench, arm_torque)[0]
 
 
 def test_scene_keeps_the_robots_mass_and_the_carts_inertial(setup):

@@ -11,11 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cart.simulate import MeasurementNoise
+from tests.wholebody.push.mujoco_hold import hold_commands, quiet_plant
 from wholebody.push import PushConfig, build_controller
-from wholebody.push.config import TRUE_CART
-from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantConfig
-from wholebody.push.plant import RobotCommand
+from wholebody.push.mujoco_plant import MujocoPlantConfig
 
 PUSH = 15.0  # N per hand, forward in the world (the cart's x at the start)
 STEPS = 30  # control periods (0.3 s: the hands move about 10 cm from their bases)
@@ -28,29 +26,11 @@ def setup():
 
 def _hand_force_errors(setup, mode: str) -> np.ndarray:
     """Return, per period after the first 5, each hand's period-mean force minus its allocated one (N, x y z)."""
-    plant = MujocoPlant(
-        setup.controller.robots,
-        setup.q0,
-        TRUE_CART,
-        noise=MeasurementNoise(),
-        config=MujocoPlantConfig(multi_arm_force_loop=mode),
-    )
+    plant = quiet_plant(setup, config=MujocoPlantConfig(multi_arm_force_loop=mode))
     wrench = np.array([PUSH, 0.0, 0.0, 0.0, 0.0, 0.0])
     errors = []
     for k in range(STEPS):
-        cmds = []
-        for r in plant.measure().robots:
-            n = r.q_arm.size
-            cmds.append(
-                RobotCommand(
-                    arm_velocity=np.zeros(n),
-                    arm_position=r.q_arm.copy(),
-                    arm_torque=np.zeros(n),
-                    base_twist=np.zeros(3),
-                    wheel_rates=np.zeros(4),
-                    hand_wrench=wrench,
-                )
-            )
+        cmds = hold_commands(plant, wrench)
         plant.step(cmds)
         if k >= 5:
             errors.append([w[:3] - wrench[:3] for w in plant._hand_clean])
