@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from wholebody.push.admittance_law import AdmittanceArmLaw, AdmittanceGains
+from wholebody.push.arm_control import hand_inertia_terms
 
 KV = np.array([60.0, 60.0, 30.0, 30.0, 15.0, 10.0, 10.0])
 DT = 0.01
@@ -86,3 +87,53 @@ def test_the_plans_change_of_velocity_goes_into_the_predicted_motion():
     dv = J.T @ np.linalg.solve(J @ J.T, np.array([0.01, 0, 0, 0, 0, 0]))  # the plan speeds the hand up by 1 cm/s
     tau = _torque(law, J, q, w, w, plan=dv)
     assert J @ (tau / KV) == pytest.approx(J @ dv, rel=1e-3, abs=1e-3)
+
+
+def _inertia(seed: int, n: int = 7) -> np.ndarray:
+    """Return a joint-space inertia (n x n, symmetric positive definite)."""
+    A = np.random.default_rng(seed).normal(size=(n, n))
+    return A @ A.T + 0.5 * np.eye(n)
+
+
+def _inertial_terms(seed: int, a_hand: np.ndarray, a_base: np.ndarray):
+    """Return a robot (arm J_a, base J_b, inertia M over arm then base joints, Jdot qdot) and the law's ``inertial``."""
+    rng = np.random.default_rng(seed)
+    J_a, J_b, jdq = rng.normal(size=(6, 7)), rng.normal(size=(6, 3)), rng.normal(size=6)
+    M = _inertia(seed, 10)
+    t, K = hand_inertia_terms(M[:7, :7], M[:7, 7:], J_a, J_b, jdq, a_hand)
+    return (J_a, J_b, M, jdq), (t, K, a_base)
+
+
+def test_the_servos_add_the_torque_that_moves_the_arm_with_the_hand_and_the_base():
+    """The added torque, on the arm's rows of the robot's dynamics (the hand's wrench aside), gives the hand the
+    predicted acceleration while the base accelerates as planned."""
+    a, a_base = np.array([0.4, -0.2, 0.0, 0.0, 0.0, 0.3]), np.array([0.3, 0.1, -0.2])
+    (J, J_b, M, jdq), inertial = _inertial_terms(5, a, a_base)
+    q, w = np.zeros(7), np.array([10.0, -3.0, -5.0, 0.2, 0.0, 0.5])
+    law = AdmittanceArmLaw(7, AdmittanceGains(servo_kv=tuple(KV), integral_gain=0.0, hand_inertia=True))
+    tau = KV * law.velocity(np.zeros(7), q, q, np.zeros(7), J, w, w, DT, inertial=inertial) - J.T @ w
+    qdd = np.linalg.solve(M[:7, :7], tau - M[:7, 7:] @ a_base)
+    assert J @ qdd + J_b @ a_base + jdq == pytest.approx(a, rel=1e-6, abs=1e-6)
+    off = AdmittanceArmLaw(7, AdmittanceGains(servo_kv=tuple(KV), integral_gain=0.0))  # the default: off
+    plain = off.velocity(np.zeros(7), q, q, np.zeros(7), J, w, w, DT, inertial=inertial)
+    assert KV * plain == pytest.approx(J.T @ w, rel=1e-6, abs=1e-9)
+
+
+def test_the_arms_inertia_stays_within_the_limits_the_push_and_its_load_leave():
+    (J, _, _, _), inertial = _inertial_terms(6, np.array([5.0, 0, 0, 0, 0, 2.0]), np.array([1.0, 0.0, 0.5]))
+    q, w, bias = np.zeros(7), np.array([10.0, 0, 0, 0, 0, 0]), np.full(7, 0.5)
+    limit = np.abs(J.T @ w + bias) + 0.05  # 0.05 N m of room on every joint
+    law = AdmittanceArmLaw(7, AdmittanceGains(servo_kv=tuple(KV), hand_inertia=True), effort_limit=limit)
+    short = w - np.array([2.0, 0, 0, 0, 0, 0])  # the loop has an error to correct
+    tau = KV * law.velocity(np.zeros(7), q, q, np.zeros(7), J, w, short, DT, bias=bias, inertial=inertial) + bias
+    assert np.all(np.abs(tau) <= limit + 1e-9)
+    assert np.max(np.abs(tau) - limit) > -1e-9  # the inertia fills the room on one joint
+    assert law.budget == 0.0  # none left for the loop
+
+
+def test_inertial_terms_of_the_wrong_shape_are_refused():
+    J, q = _arm(7)
+    law = AdmittanceArmLaw(7, AdmittanceGains(servo_kv=tuple(KV), hand_inertia=True))
+    w = np.zeros(6)
+    with pytest.raises(ValueError, match="inertial"):
+        law.velocity(np.zeros(7), q, q, np.zeros(7), J, w, w, DT, inertial=(np.zeros(6), np.zeros((6, 3)), np.zeros(3)))
