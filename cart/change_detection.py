@@ -166,7 +166,8 @@ class MomentumTest:
     error leaves of the impulse) and evaluates both at the jump (the midpoint of the period before the
     impulse's sample). The noise is the larger of the lines' residual variance and the predicted one
     (``speed_std``: the motion capture's forward speed std; ``force_std``: the measured force's per-period std,
-    integrated into ``I``). The jump is a load put in when the cart moved (both sides the same sign), slowed
+    integrated into ``I`` and scaled by the model's residual ratio: where the wrench misfits the motion, as when
+    the arm saturates, its impulse is trusted that much less). The jump is a load put in when the cart moved (both sides the same sign), slowed
     (``r > 1``), and ``r - 1`` is at least ``min_change`` and ``sigma`` times the ratio's std. A load lifted out
     leaves with its own momentum (no jump): the regression's tests find it.
     """
@@ -191,7 +192,7 @@ class MomentumTest:
         self.force_std = float(force_std)
         self._rows: list[tuple[float, float, float, float]] = []  # (t, v, omega, impulse I(t))
         self._impulse = 0.0
-        self._armed: tuple[float, float, float] | None = None  # (t, mass before, dy before)
+        self._armed: tuple[float, float, float, float] | None = None  # (t, mass before, dy before, misfit)
         self.tested: list[tuple[float, float, float]] = []  # (impulse time, ratio, its std) of every jump tested
 
     def add(self, t: float, v: float, omega: float = 0.0, force: float = 0.0) -> None:
@@ -205,18 +206,20 @@ class MomentumTest:
         while self._rows[0][0] < t - 2.0 * self.side_s - 1e-9:
             del self._rows[0]
 
-    def arm(self, t: float, mass: float = math.inf, dy: float = 0.0) -> None:
+    def arm(self, t: float, mass: float = math.inf, dy: float = 0.0, misfit: float = 1.0) -> None:
         """Mark an impulse at ``t`` (the first sample after the jump): :meth:`check` tests it ``side_s`` later.
 
-        ``mass`` (kg) and ``dy`` (m): the estimate before it (``mass`` inf: the measured impulse is not used)."""
-        self._armed = (float(t), float(mass), float(dy))
+        ``mass`` (kg) and ``dy`` (m): the estimate before it (``mass`` inf: the measured impulse is not used);
+        ``misfit``: the model's residual ratio (at least 1): the measured force explains the motion that many
+        times worse than its sensor noise says, and the force's std is scaled by it."""
+        self._armed = (float(t), float(mass), float(dy), max(float(misfit), 1.0))
 
     def check(self, t: float) -> tuple[float, float, float] | None:
         """Return (impulse time, mass ratio ``m_after / m_before``, its std) of a load put in at the armed impulse
         once ``side_s`` of samples follow it (None: nothing armed, too early, or no load put in)."""
         if self._armed is None or t < self._armed[0] + self.side_s - 1e-9:
             return None
-        t_imp, mass, dy = self._armed
+        t_imp, mass, dy, misfit = self._armed
         self._armed = None
         rows = np.asarray(self._rows)
         before = rows[:, 0] < t_imp - 1e-9
@@ -228,7 +231,7 @@ class MomentumTest:
         u = rows[:, 1] - dy * rows[:, 2] - (rows[:, 3] - i_jump) / mass
         # predicted noise of u: the speed's, and the force's integrated from the jump (a random walk)
         steps = np.abs(np.arange(len(u)) - (k - 0.5))
-        var = self.speed_std**2 + steps * (self.force_std * np.diff(rows[:, 0]).mean() / mass) ** 2
+        var = self.speed_std**2 + steps * (misfit * self.force_std * np.diff(rows[:, 0]).mean() / mass) ** 2
         ub, sb = _line_at(rows[before, 0], u[before], t_jump, var[before])
         ua, sa = _line_at(rows[~before, 0], u[~before], t_jump, var[~before])
         if ub * ua <= 0.0:

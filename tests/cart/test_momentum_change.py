@@ -149,3 +149,26 @@ def test_the_predicted_noise_bounds_the_ratio_std() -> None:
 def test_bad_settings_are_refused(bad: dict) -> None:
     with pytest.raises(ValueError, match="MomentumTest needs"):
         MomentumTest(**bad)
+
+
+def test_a_misfitting_wrench_is_trusted_less() -> None:
+    """The measured force claims a 200 N push over one period that the motion does not show (an arm at its
+    limit): taken at its word, the cart that kept its speed reads as slowed (r = 1.13, a load); with the model's
+    residual ratio (12) scaling the force's std the jump is within 3 std: no load."""
+    t, _, f = _spike(spike_n=200.0)
+    rng = np.random.default_rng(3)
+    v = 0.8 + np.cumsum(np.full(t.size, 4.0)) * DT / 20.0 + 0.005 * rng.standard_normal(t.size)
+
+    def run(misfit: float):
+        test = MomentumTest(side_s=0.1, speed_std=0.005, force_std=3.0)
+        found = None
+        for tk, vk, fk in zip(t, v, f):
+            test.add(tk, vk, 0.0, fk)
+            if abs(tk - 0.3) < 1e-9:
+                test.arm(tk, 20.0, 0.0, misfit)
+            found = test.check(tk) or found
+        return found, test.tested[0]
+
+    assert run(1.0)[0] is not None
+    found, (_, ratio, std) = run(12.0)
+    assert found is None and ratio - 1.0 < 3.0 * std
