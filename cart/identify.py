@@ -62,6 +62,10 @@ ATTENUATION = 0.005
 FIT_RATIO = 1.6
 #: Significance of the Coulomb-resistance check (Wald test, two dof).
 COULOMB_ALPHA = 1e-3
+#: A residual whose excess over the noise lies below this share of the cut-off is read as slow sensor noise
+#: (an offset's drift, a slowly decorrelating noise) when no Coulomb-like resistance is significant
+#: (:func:`_slow_excess`); the spectral model, fitted above the cut-off, does not reach it.
+SLOW_SHARE = 0.25
 JACKKNIFE_BLOCKS = 10
 #: Smallest residual (share of the filtered wrench RMS) that counts as misfit on a noise-free log.
 FIT_FLOOR = 0.02
@@ -766,6 +770,39 @@ def _residual_ratio(
     return rms / expected, expected
 
 
+def _slow_excess(
+    reg: _Regression,
+    p: np.ndarray,
+    expected: np.ndarray,
+    rows_fc: tuple[float, float],
+    ratio: np.ndarray,
+    warnings: list[str],
+) -> bool:
+    """Return whether the residual's excess over the noise is slow: within FIT_RATIO once its part below
+    SLOW_SHARE of the cut-off is removed; append a note when it is.
+
+    Slow sensor noise (an offset's random walk, noise decorrelating over seconds) leaves its excess at the
+    lowest frequencies; the cart's misfits (a time delay, a wrong model) leave theirs across the band of the
+    dynamics. A Coulomb-like resistance is slow too (its caller tests it first: its Wald statistic separates it).
+    ``rows_fc``: the rows' period (s) and the cut-off (Hz); the part is removed by FFT (zero-padded to twice
+    the length).
+    """
+    dt_rows, fc = rows_fc
+    r = reg.y - _predict(reg.x, p)
+    m = 2 * len(r)
+    keep = (np.fft.rfftfreq(m, dt_rows) > SLOW_SHARE * fc).astype(float)
+    fast = np.fft.irfft(np.fft.rfft(r, n=m, axis=0) * keep[:, None], n=m, axis=0)[: len(r)]
+    above = np.sqrt(np.mean(fast**2, axis=0)) / expected
+    if not np.all(above <= FIT_RATIO):
+        return False
+    warnings.append(
+        f"the residual wrench is {ratio[0]:.1f}x (force) and {ratio[1]:.1f}x (torque) what the sensor noise "
+        f"explains, {above[0]:.1f}x and {above[1]:.1f}x above {SLOW_SHARE * fc:.2g} Hz: read as slow sensor noise "
+        "(an offset's drift; no Coulomb-like resistance is significant); the std covers it"
+    )
+    return True
+
+
 def _model_uncertainty(
     reg: _Regression,
     noise: np.ndarray,
@@ -775,11 +812,14 @@ def _model_uncertainty(
     ratio: np.ndarray,
     expected: np.ndarray,
     warnings: list[str],
+    rows_fc: tuple[float, float],
 ) -> tuple[np.ndarray, dict[str, float], bool]:
     """Return (covariance with the model uncertainty added, Coulomb-like resistance, model fits); append warnings.
 
     A significant Coulomb-like resistance (rolling resistance, dry friction: a nuisance term) adds the
-    shift it causes; a misfit adds the unexplained share of the wrench (:func:`_misfit_scale`).
+    shift it causes; a misfit adds the unexplained share of the wrench (:func:`_misfit_scale`), also when
+    the excess is slow sensor noise (:func:`_slow_excess`: the model fits). ``rows_fc``: the rows' period
+    and the cut-off (Hz).
     """
     coulomb, shift = _coulomb_check(reg, noise, lag, p)
     if shift is not None:
@@ -789,8 +829,9 @@ def _model_uncertainty(
             f"{coulomb['torque']:.3g} N m yaw): the nominal viscous model misses it; the std includes "
             "its effect on the estimate (`cartpush diagnose` names the effect)"
         )
-    fits = bool(np.all(ratio <= FIT_RATIO))
-    cov = cov + np.diag(_misfit_scale(p, ratio, expected, reg.y, fits) ** 2)
+    within = bool(np.all(ratio <= FIT_RATIO))
+    cov = cov + np.diag(_misfit_scale(p, ratio, expected, reg.y, within) ** 2)
+    fits = within or (shift is None and _slow_excess(reg, p, expected, rows_fc, ratio, warnings))
     if not fits:
         warnings.append(
             f"the model does not fit: residual wrench {ratio[0]:.1f}x (force) and {ratio[1]:.1f}x "
@@ -968,7 +1009,7 @@ def identify(
     p, cov, scale, r = _generalised_fit(reg, (f_noise, t_noise), (noise, lag), (sos, grid.dt, step), (p, cov, scale, r))
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
-    cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings)
+    cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings, (grid.dt * step, fc))
     cart_frame = _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
     p, cov, note = _physical(p, cov)
     warnings += note
