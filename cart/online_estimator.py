@@ -290,11 +290,7 @@ class OnlineLSEstimator:
         self._impulse_nis = chi2_isf(options.impulse_alpha, 2)
         self._impulse_t = -math.inf
         self.impulses: list[float] = []
-        self.momentum = (
-            MomentumTest(options.momentum_side_s, options.min_change, options.confirm_sigma)
-            if options.momentum_changes and options.detect_changes
-            else None
-        )
+        self.momentum = self._momentum_test(std) if options.momentum_changes and options.detect_changes else None
         self._momentum_before: tuple[CartParams, float] | None = None
         self.casters = CasterBank(StateVariableFilter(options.cutoff_hz, 96)) if options.casters else None
         self.window = (
@@ -428,7 +424,7 @@ class OnlineLSEstimator:
         impulse = self.options.detect_changes and self._started
         impulse = impulse and self._impulse_statistic(g, dt, zv) > self._impulse_nis
         if self.momentum is not None:
-            self.momentum.add(self.t, math.cos(float(zv[2])) * zv[3] + math.sin(float(zv[2])) * zv[4])
+            self._add_momentum(g, zv)
         if impulse:
             if self.t - self._impulse_t > self._settle_s():
                 self.impulses.append(self.t)
@@ -449,10 +445,26 @@ class OnlineLSEstimator:
             self._restart_from_momentum(*jump)
         return self.nis
 
+    def _momentum_test(self, meas_std: np.ndarray) -> MomentumTest:
+        """Return the momentum test with the motion capture's forward-speed std and the measured force's std."""
+        o = self.options
+        v_std = math.hypot(float(meas_std[3]), float(meas_std[4])) / math.sqrt(2.0)
+        return MomentumTest(o.momentum_side_s, o.min_change, o.confirm_sigma, v_std, (o.wrench_std or (0.0, 0.0))[0])
+
+    def _add_momentum(self, gamma: np.ndarray, z: np.ndarray) -> None:
+        """Give the momentum test the forward speed, the yaw rate and the net forward force the estimate predicts
+        over the period (the measured wrench minus the damping at the period's start, ``_z_prev``)."""
+        if self.momentum is None:
+            return
+        cth, sth = math.cos(float(z[2])), math.sin(float(z[2]))
+        v_prev = cth * self._z_prev[3] + sth * self._z_prev[4]
+        force = cth * gamma[0] + sth * gamma[1] - self._params.sigma * v_prev
+        self.momentum.add(self.t, cth * z[3] + sth * z[4], float(z[5]), force)
+
     def _arm_momentum(self) -> None:
         """Mark the impulse for the momentum test, with the mass before it and its std (scaled by the misfit)."""
         if self.momentum is not None:
-            self.momentum.arm(self.t)
+            self.momentum.arm(self.t, self._params.m, self._params.dy, self._misfit_scale())
             std = float(self._physical_std(self._cov)[0]) * self._misfit_scale()
             self._momentum_before = (self._params, std)
 
