@@ -638,6 +638,7 @@ class MujocoPlant:
                     w_meas,
                     self.dt,
                     bias=d.qfrc_bias[r.arm_dof],
+                    inertial=self._hand_inertia(r, c) if law.gains.hand_inertia else None,
                 )
             if r.base == "differential":
                 d.ctrl[r.wheel_actuators] = c.wheel_rates
