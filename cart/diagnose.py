@@ -834,7 +834,7 @@ def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon:
             why = "its fits give a non-positive or non-finite mass"
             continue
         extra, dphi = _replay_terms(tr.fit)
-        rep = replay(tr.fit.signals(), tr.fit.x, extra, dphi, horizon=horizon)
+        rep = replay(tr.fit.signals(), tr.fit.x, extra, dphi, horizon=horizon).without_paths()
         if not rep.finite:  # a blown-up replay = a failed candidate (infinite error)
             why = "the replay of its fit blows up (the fitted cart is not physical)"
             continue
@@ -1366,10 +1366,15 @@ class _Pair:
         return frozenset((self.first.trial.effect.name, self.second.trial.effect.name))
 
 
-def _replayed(trial: _Trial, horizon: float) -> _Named | None:
-    """Return ``trial`` with the replay of its fit, or None when the replay blows up."""
+def _replayed(trial: _Trial, horizon: float, paths: bool = False) -> _Named | None:
+    """Return ``trial`` with the replay of its fit, or None when the replay blows up.
+
+    The replay keeps its paths (the report's plots) only with ``paths``: a candidate's replay is judged by its
+    scores, and the paths of every candidate kept would grow the memory with the log's length.
+    """
     extra, dphi = _replay_terms(trial.fit)
     rep = replay(trial.fit.signals(), trial.fit.x, extra, dphi, horizon=horizon)
+    rep = rep if paths else rep.without_paths()
     return _Named(trial, rep) if rep.finite else None
 
 
@@ -1633,6 +1638,8 @@ def diagnose(
     warnings += [frame_note] if frame_note else []
     if withdraw:
         current, named, reasons, reps = nominal, [], [], [rep0]
+    final = _replayed(named[-1].trial, horizon, paths=True) if named else None
+    reps = reps[:-1] + [final.replay] if final is not None else reps  # the same replay with its paths
     return DiagnosisReport(
         effects=tuple(_named_effects(named, reasons, reps, flagged, horizon, prep.time_offset)),
         gap_before=rep0.gap(mask),

@@ -12,7 +12,7 @@ flagged and merged into windows.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from collections.abc import Callable
 
 import math
@@ -37,8 +37,20 @@ class Replay:
 
     @property
     def finite(self) -> bool:
-        """Return True when every replay stayed finite (a blown-up replay means a non-physical model)."""
-        return bool(np.all(np.isfinite(self.sim)))
+        """Return True when every replay stayed finite (a blown-up replay means a non-physical model).
+
+        A replay that left the finite range has an infinite (or NaN) RMS error (:func:`replay`).
+        """
+        return bool(np.all(np.isfinite(self.rms)))
+
+    def without_paths(self) -> Replay:
+        """Return this replay without its simulated and measured paths (K, 0, 3): the scores only.
+
+        The paths are 2 x 8 bytes x 3 x (J + 1) per start (2.4 kB for a 1 s horizon at 50 Hz, every 0.25 s):
+        a candidate's replay is kept for its gap and chi2, the paths only for the report's two plotted replays.
+        """
+        empty = np.empty((len(self.starts), 0, 3))
+        return replace(self, sim=empty, meas=empty.copy())
 
     def rms_error(self, mask: np.ndarray | None = None) -> float:
         """Return the RMS position error (m) over the starts in ``mask`` (all when None)."""
