@@ -38,11 +38,11 @@ def test_the_spectrum_of_flicker_noise_is_one_over_f_and_white_noise_is_flat():
     assert abs(lag_correlation(white, dt)) < 0.1 and lag_correlation(pink, dt) > 0.3
 
 
-@pytest.fixture(scope="module")
-def clean_run():
+def _noise_free_wrench_log(seed: int):
+    """A 45 s independent-simulator log at 250 Hz: motion-capture noise on the pose, the wrench exact."""
     from studies.testbeds import rigid_sim
 
-    case = rigid_sim.random_case(7, duration=45.0)
+    case = rigid_sim.random_case(seed, duration=45.0)
     clean = replace(
         case, rate_hz=250.0, jitter=0.0, pos_std=0.0, theta_std=0.0, force_std=0.0, torque_std=0.0, vel_std=None
     )
@@ -50,6 +50,11 @@ def clean_run():
     rng = np.random.default_rng(11)
     q = log.q + rng.standard_normal(log.q.shape) * [case.pos_std, case.pos_std, case.theta_std]
     return replace(log, q=q, qd=None), truth
+
+
+@pytest.fixture(scope="module")
+def clean_run():
+    return _noise_free_wrench_log(7)
 
 
 @pytest.mark.parametrize("seed", [1, 2])
@@ -78,16 +83,7 @@ def test_dry_friction_is_still_a_misfit_and_not_coloured_noise():
 
 @pytest.fixture(scope="module")
 def drift_case():
-    from studies.testbeds import rigid_sim
-
-    case = rigid_sim.random_case(6200, duration=45.0)
-    clean = replace(
-        case, rate_hz=250.0, jitter=0.0, pos_std=0.0, theta_std=0.0, force_std=0.0, torque_std=0.0, vel_std=None
-    )
-    log, truth = rigid_sim.simulate(clean)
-    rng = np.random.default_rng(11)
-    q = log.q + rng.standard_normal(log.q.shape) * [case.pos_std, case.pos_std, case.theta_std]
-    return replace(log, q=q, qd=None), truth
+    return _noise_free_wrench_log(6200)
 
 
 @pytest.mark.parametrize("seed", [1, 2])
