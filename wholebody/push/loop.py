@@ -16,6 +16,7 @@ from typing import Any
 from collections.abc import Sequence
 
 import numpy as np
+import pinocchio as pin
 
 import robots
 
@@ -58,20 +59,47 @@ def make_estimator(config: PushConfig, q0: np.ndarray) -> ParameterEstimator:
     return CartEKF(q0, np.zeros(3), p0.phi, p0.sigma, ekf_config)
 
 
-def summed_wrench_std(config: PushConfig) -> tuple[float, float]:
+def summed_wrench_std(config: PushConfig, sensors: np.ndarray | None = None) -> tuple[float, float]:
     """Return the white-noise std (forward force N, yaw torque N m) of the wrench the estimator sees.
 
-    One hand: its sensor's (``config.noise``). Several hands: their readings, each with the sensor's noise at the
-    hand, are summed about {b}'s origin, so the force noise adds up over the hands and each hand's force noise
-    also reaches the torque through the hand's lever arm (the handle point of its first contact, x and y in {b}):
-    ``var_f = n sf^2``, ``var_tau = sum (st^2 + (x^2 + y^2) sf^2)``.
+    Each hand's F/T reading carries the sensor's white noise (``config.noise``: sf per force axis, st per torque
+    axis, isotropic) at the sensor's origin; the controller carries every reading to {b}'s origin and sums them
+    (`wholebody.push.robot.ft_to_cart_gamma`), so the force noise adds up over the hands and each sensor's force
+    noise also reaches the yaw torque through the sensor's lever arm (x, y) in {b} (``sensors``, one row per hand;
+    default `sensor_origins`): ``var_f = n sf^2``, ``var_tau = sum (st^2 + (x^2 + y^2) sf^2)``, one hand included.
     """
     sf, st = config.noise.force, config.noise.torque
-    ys = config.contact_y0()
-    if len(ys) <= 1:
-        return sf, st
-    pts = [config.cart_geometry().point(float(y))[:2] for y in ys]
-    return math.sqrt(len(ys)) * sf, math.sqrt(sum(st * st + float(p @ p) * sf * sf for p in pts))
+    pts = sensor_origins(config) if sensors is None else np.asarray(sensors, dtype=float)
+    lever = float(np.sum(pts[:, :2] ** 2))
+    return math.sqrt(len(pts)) * sf, math.sqrt(len(pts) * st * st + lever * sf * sf)
+
+
+def sensor_origins(config: PushConfig) -> np.ndarray:
+    """Return the F/T sensors' origins (x, y) in {b} at the run's first grasps, one row per hand (n, 2).
+
+    Each hand holds the handle point of its first contact with its grasp rotation (`wholebody.push.robot`); the
+    sensor's origin sits at the gripper-to-sensor offset of the robot's model (its neutral configuration: exact
+    when both frames ride the same joint, as in every shipped profile) from that grasp.
+    """
+    loaded = robots.load(config.robot)
+    ys = np.sort(np.asarray(config.contact_y0(), dtype=float))
+    prof = robot_mod.filled_profile(loaded)
+    if robot_mod.arms_per_robot(loaded.profile or prof, len(ys)) > 1:  # one base, several arms (contacts by side)
+        pl = robot_mod.multi_arm_placement(loaded, ys)
+        tools = [prof.arms[i].tool_axis or "z" for i in pl.arms]
+        grasps = [(i, robot_mod.grasp_rotation(pl.pitch, r, a)) for i, r, a in zip(pl.arms, pl.rolls, tools)]
+    else:
+        grasps = [(0, robot_mod.push_grasp_rotation(robot_mod.push_profile(loaded)))] * len(ys)
+    model = loaded.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, pin.neutral(model))
+    geo = config.cart_geometry()
+    out = []
+    for y, (arm, R) in zip(ys, grasps):
+        grip = data.oMf[model.getFrameId(prof.arms[arm].gripper_frame)]
+        offset = grip.actInv(data.oMf[model.getFrameId(prof.arms[arm].sensor_frame)]).translation
+        out.append((geo.point(float(y)) + R @ offset)[:2])
+    return np.array(out)
 
 
 def make_robots(
