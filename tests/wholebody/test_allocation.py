@@ -43,7 +43,13 @@ def test_mapped_wrenches_sum_to_request(solver, n_arms, fast_path):
 
 
 def _scipy_reference(gamma, points, lim: ArmLimits, weights=EffortWeights()):
-    """Independent solve with SLSQP on the planar variables (fx, fy, tau_z) per arm."""
+    """Independent solve with SLSQP on the planar variables (fx, fy, tau_z) per arm; returns its effort."""
+    return _scipy_solution(gamma, points, lim, weights).fun
+
+
+def _scipy_solution(gamma, points, lim: ArmLimits, weights=EffortWeights(), reference=None):
+    """SLSQP on the planar variables (fx, fy, tau_z) per arm, the cost the effort plus ``weights.change`` times the
+    weighted squared change from `reference` (planar variables per arm; None: zero)."""
     n = len(points)
     g = lim.grasp
     Wd = np.tile([weights.force, weights.force, weights.torque], n)
@@ -54,26 +60,28 @@ def _scipy_reference(gamma, points, lim: ArmLimits, weights=EffortWeights()):
         for i in range(n):
             fx, fy, tz = x[3 * i : 3 * i + 3]
             nrm = 2 * g.grip_force + fx
-            out += [
-                lim.max_force - abs(fx),
-                lim.max_force - abs(fy),
-                lim.max_torque - abs(tz),
-                g.pull_capacity + fx,
-                g.friction * nrm - abs(fy),
-                g.torque_arm * nrm - abs(tz),
-            ]
+            out += [g.pull_capacity + fx]
+            for sgn in (1.0, -1.0):  # |v| <= c as c - v >= 0 and c + v >= 0 (smooth rows for SLSQP)
+                out += [
+                    lim.max_force - sgn * fx,
+                    lim.max_force - sgn * fy,
+                    lim.max_torque - sgn * tz,
+                    g.friction * nrm - sgn * fy,
+                    g.torque_arm * nrm - sgn * tz,
+                ]
         return np.array(out)
 
     x0 = np.linalg.lstsq(Gp, gamma, rcond=None)[0]
-    r = minimize(
-        lambda x: x @ (Wd * x),
+    ref = np.zeros(3 * n) if reference is None else np.asarray(reference, dtype=float)
+    lam = weights.change
+    return minimize(
+        lambda x: x @ (Wd * x) + lam * (x - ref) @ (Wd * (x - ref)),
         x0,
-        jac=lambda x: 2 * Wd * x,
+        jac=lambda x: 2 * Wd * x + 2 * lam * Wd * (x - ref),
         method="SLSQP",
         constraints=[{"type": "eq", "fun": lambda x: Gp @ x - gamma}, {"type": "ineq", "fun": ineq}],
         options={"ftol": 1e-12, "maxiter": 500},
     )
-    return r.fun
 
 
 @pytest.mark.parametrize("solver", SOLVERS)
@@ -301,3 +309,69 @@ def test_saturation_spans_group_consecutive_binding_limits():
     summary = saturation_summary(spans)
     assert summary["a"]["spans"] == 3 and summary["a"]["total_s"] == pytest.approx(0.04)
     assert summary["b"]["longest_s"] == pytest.approx(0.03) and summary["b"]["first_s"] == pytest.approx(0.04)
+
+
+def _planar(w):
+    """Return the planar components (fx, fy, tau_z) of stacked hand wrenches (N x 6), flattened."""
+    return np.asarray(w)[:, [0, 1, 5]].reshape(-1)
+
+
+@pytest.mark.parametrize("solver,direct,fast_path", [("proxqp", True, True), ("proxqp", False, False), ("daqp", 0, 0)])
+def test_change_weight_moves_the_free_directions_a_share_of_the_way(solver, direct, fast_path):
+    # cost |w|^2 + c |w - r|^2 on the affine set G w = gamma, with r on it: (1 + c) |w - c r / (1 + c)|^2 + const,
+    # whose minimum over the set is (w_min + c r) / (1 + c) (w_min the minimum-effort allocation)
+    pts = _contacts(2)
+    lim = ArmLimits(max_force=500.0, max_torque=100.0, grasp=None)
+    gamma = np.array([60.0, 5.0, 3.0])
+    w_min = allocate(gamma, pts, lim).wrenches_ee
+    squeeze = np.zeros((2, 6))
+    squeeze[0, 1], squeeze[1, 1] = 20.0, -20.0  # equal and opposite sideways forces on one line: no cart wrench
+    reference = w_min + squeeze
+    assert np.allclose(cart_wrench(pts, reference), gamma, atol=1e-12)
+    c = 4.0
+    alloc = WrenchAllocator(
+        pts, lim, EffortWeights(change=c), solver=solver, direct=bool(direct), fast_path=bool(fast_path)
+    )
+    alloc.set_reference(reference)
+    res = alloc.solve(gamma)
+    assert np.allclose(res.wrenches_ee, (w_min + c * reference) / (1 + c), atol=1e-7)
+    assert res.effort == pytest.approx(float(np.sum(res.wrenches_ee**2)), rel=1e-12)  # the effort alone
+    alloc.set_reference(None)
+    assert np.allclose(alloc.solve(gamma).wrenches_ee, w_min, atol=1e-7)
+
+
+@pytest.mark.parametrize("solver", ["proxqp", "daqp"])
+def test_change_weight_with_active_limits_matches_an_independent_optimum(solver):
+    rng = np.random.default_rng(7)
+    lim = ArmLimits(max_force=60.0, max_torque=3.0, grasp=GraspModel(grip_force=40.0, friction=0.4, torque_arm=0.03))
+    weights = EffortWeights(torque=2.0, change=3.0)
+    active = compared = 0
+    for _ in range(16):
+        pts = [HANDLE.point(s) for s in np.sort(rng.uniform(0, 0.5, 2))]
+        gamma = rng.uniform([0, -30, -10], [100, 30, 10])
+        reference = np.zeros((2, 6))
+        reference[:, [0, 1, 5]] = rng.uniform([-20, -40, -6], [70, 40, 6], size=(2, 3))  # beyond some limits
+        alloc = WrenchAllocator(pts, lim, weights, solver=solver)
+        alloc.set_reference(reference)
+        try:
+            res = alloc.solve(gamma)
+        except InfeasibleWrenchError:
+            continue
+        ref = _scipy_solution(gamma, pts, lim, weights, _planar(reference))
+        assert np.allclose(_planar(res.wrenches_ee), ref.x, atol=1e-4)
+        compared += 1
+        x = res.wrenches_ee.reshape(-1)[alloc.free]
+        active += int(np.any(alloc.Gin @ x > alloc.hin - 1e-6))
+    assert compared >= 6 and active >= 3  # the comparison covered cases where limits bind
+
+
+def test_change_weight_bad_input_and_minimum_effort_only_calls():
+    with pytest.raises(WholeBodyError, match="change weight"):
+        EffortWeights(change=-1.0)
+    alloc = WrenchAllocator(_contacts(2), weights=EffortWeights(change=2.0))
+    with pytest.raises(WholeBodyError, match="2 finite wrenches of 6 numbers"):
+        alloc.set_reference(np.zeros((1, 6)))
+    with pytest.raises(WholeBodyError, match="change = 0"):
+        alloc.closed_form_batch(np.array([_contacts(2)]), np.array([[10.0, 0.0, 0.0]]))
+    with pytest.raises(WholeBodyError, match="change = 0"):
+        alloc.closed_form_effort(np.array(_contacts(2)), np.array([10.0, 0.0, 0.0]))

@@ -117,15 +117,26 @@ class ArmLimits:
 
 @dataclass(frozen=True)
 class EffortWeights:
-    """Weights of the effort: force and torque components, or joint torques."""
+    """Weights of the effort: force and torque components, or joint torques; and of the change from a reference.
+
+    ``change`` > 0 adds ``change * (w - w_ref)^T W (w - w_ref)`` to the effort (``W`` the force and torque weights,
+    ``w_ref`` the wrenches of `WrenchAllocator.set_reference`: a control loop's last allocation): the directions the
+    cart wrench leaves free (the squeeze between hands, a hand's press on the handle, its split between a sideways
+    force and a torque) then move from one period to the next by the share ``1 / (1 + change)`` of the way to their
+    minimum-effort value where no limit binds (an implicit-Euler lag of time constant ``change`` control periods),
+    while the limits and the cart wrench are kept exactly.
+    """
 
     force: float = 1.0
     torque: float = 1.0
     joint: float = 1.0
+    change: float = 0.0
 
     def __post_init__(self) -> None:
         if not (self.force > 0.0 and self.torque > 0.0 and self.joint > 0.0):
             raise WholeBodyError("effort weights must be positive")
+        if not (self.change >= 0.0 and math.isfinite(self.change)):
+            raise WholeBodyError(f"the change weight must be a finite number >= 0, got {self.change}")
 
 
 @dataclass(frozen=True)
@@ -371,13 +382,17 @@ class WrenchAllocator:
         self.E[self.free, np.arange(nx)] = 1.0
         w = self.weights
         self.Q = _effort_matrix(n, w, self.jacobians)
-        reg = np.diag(np.tile(np.r_[[w.force] * 3, [w.torque] * 3], n)) * (1e-9 if self.jacobians is not None else 0.0)
-        self.P = 2.0 * self.E.T @ (self.Q + reg) @ self.E
-        self._zero_cost = np.zeros(self.P.shape[0])
+        diag = np.diag(np.tile(np.r_[[w.force] * 3, [w.torque] * 3], n))
+        reg = diag * (1e-9 if self.jacobians is not None else 0.0)
+        #: the change term's weights on the free components (`EffortWeights.change`)
+        self._W_change = w.change * (self.E.T @ diag @ self.E)
+        self.P = 2.0 * (self.E.T @ (self.Q + reg) @ self.E + self._W_change)
         self._Pinv = np.linalg.inv(self.P)
         self._Q_free = self.E.T @ self.Q @ self.E  # effort = x^T Q_free x on the free components
         self._active: tuple[int, ...] = ()  # active limits of the last QP solution (the shortcut's guess)
         self.q = np.zeros(nx)
+        #: the cost's unconstrained minimum -P^-1 q (zero without a reference): the closed forms are taken about it
+        self._x0 = np.zeros(nx)
         rows = _inequalities(self.limits, self.jacobians, torque_limits)
         self._static = (np.array(rows.rows) @ self.E, np.array(rows.rhs), list(rows.labels))
         self.torque_constraints: tuple[TorqueConstraint | None, ...] = ()
@@ -400,6 +415,21 @@ class WrenchAllocator:
         self._h_polish = self.hin + 1e-9 * slack  # a polished solution within this is kept
         self._h_active = self.hin - 1e-7 * slack  # rows of a QP result taken as active
         self._G_conv = sp.csc_matrix(self.Gin) if self.solver in SPARSE_SOLVERS else self.Gin
+
+    def set_reference(self, wrenches_ee: npt.ArrayLike | None) -> None:
+        """Take the wrenches (N x 6, each in its {a}: a loop's last `AllocationResult.wrenches_ee`) the change term
+        of `EffortWeights.change` pulls toward; None drops the reference (the minimum-effort allocation)."""
+        nx = len(self.free)
+        if wrenches_ee is None or not self.weights.change:
+            self.q, self._x0 = np.zeros(nx), np.zeros(nx)
+            return
+        w = np.asarray(wrenches_ee, dtype=float).reshape(-1)
+        if w.shape != (6 * len(self._names),) or not np.isfinite(w).all():
+            raise WholeBodyError(
+                f"the reference must be {len(self._names)} finite wrenches of 6 numbers, got {w.shape}"
+            )
+        self.q = -2.0 * self._W_change @ w[self.free]
+        self._x0 = -self._Pinv @ self.q
 
     def set_torque_limits(self, constraints: Sequence[TorqueConstraint | None], margin: float = 0.0) -> None:
         """Bound each arm's joint torques at its current configuration: |J_i^T w_i + g_i| <= (1 - margin) tau_max.
@@ -490,7 +520,7 @@ class WrenchAllocator:
     def _qpsolvers_mats(self) -> dict[str, np.ndarray | sp.csc_matrix]:
         if self._mats is None:
             conv = sp.csc_matrix if self.solver in SPARSE_SOLVERS else (lambda M: M)
-            relax_scale = 1e6 * max(1.0, float(np.max(np.diag(self.P))))
+            relax_scale = self._relax_scale()
             self._mats = dict(
                 P=conv(self.P),
                 G=self._G_conv,
@@ -508,6 +538,7 @@ class WrenchAllocator:
         (M, T): the effort of the QP optimum where exact, a lower bound on it elsewhere (no joint-torque
         weights).
         """
+        self._check_no_change_term("closed_form_batch")
         _, A = self._equality_batch(np.asarray(points_b, dtype=float))
         Pinv_At = self._Pinv @ np.swapaxes(A, 1, 2)  # (M, nx, r)
         B = np.asarray(gammas, dtype=float)[:, self.rows].T  # (r, T)
@@ -522,6 +553,7 @@ class WrenchAllocator:
         equality matrix is the cached one with the torque row's lever arms (-p_y, p_x; eq. 24) filled in.
         None when the closed form breaks a limit or A P^-1 A^T is not positive definite (the QP is needed).
         """
+        self._check_no_change_term("closed_form_effort")
         effort, ok = equality_optimum_effort(
             self._A_template,
             self._fx_cols,
@@ -535,7 +567,15 @@ class WrenchAllocator:
         )
         return effort if ok else None
 
+    def _check_no_change_term(self, name: str) -> None:
+        if self.weights.change:
+            raise WholeBodyError(f"{name} gives minimum-effort allocations: build the allocator with change = 0")
+
     # ------------------------------------------------------------------ solve
+    def _relax_scale(self) -> float:
+        """Return the factor the effort is divided by in the closest-wrench QP (`_closest`)."""
+        return 1e6 * max(1.0, float(np.max(np.diag(self.P))))
+
     def _solver_kwargs(self) -> dict:
         if self.solver == "proxqp":
             return dict(eps_abs=PROXQP_EPS_ABS, eps_rel=0.0)
@@ -546,7 +586,9 @@ class WrenchAllocator:
     def _qp(self, b: np.ndarray) -> np.ndarray | None:
         """Return the QP solution for right-hand side b (None when the solver fails)."""
         if self._direct is not None:
-            x = self._direct.solve_equality(self.P, self._zero_cost, self.A, b, self.Gin, self.hin, self._A_new)
+            # the cost's linear term moves with the reference: the solver then starts cold on it
+            fresh = self._A_new or bool(self.weights.change)
+            x = self._direct.solve_equality(self.P, self.q, self.A, b, self.Gin, self.hin, fresh)
             self._A_new = False
         else:
             m = self._qpsolvers_mats()
@@ -592,7 +634,12 @@ class WrenchAllocator:
             return None
         Kx, Kl, h_act = entry
         beq = np.concatenate([b, h_act]) if active else b
-        x = Kx @ beq
+        if self.weights.change:  # about the cost's unconstrained minimum x0: x = x0 + Kx (b_eq - A_eq x0)
+            x0 = self._x0
+            beq = beq - (np.concatenate([self.A @ x0, self.Gin[list(active)] @ x0]) if active else self.A @ x0)
+            x = x0 + Kx @ beq
+        else:
+            x = Kx @ beq
         if (self.Gin @ x <= h_max).all() and (not active or (Kl @ beq >= -1e-9 * scale).all()):
             return x
         return None
@@ -687,7 +734,7 @@ class WrenchAllocator:
     def _closest(self, gamma: np.ndarray, b: np.ndarray, tol: float, raise_on_infeasible: bool) -> AllocationResult:
         """Solve min |A x - b|^2 + effort / rho under the limits (rho large); raise or return it."""
         m = self._qpsolvers_mats()
-        problem = qpsolvers.Problem(m["relax_P"], -2.0 * self.A.T @ b, m["G"], self.hin)
+        problem = qpsolvers.Problem(m["relax_P"], self.q / self._relax_scale() - 2.0 * self.A.T @ b, m["G"], self.hin)
         # x = 0 is feasible, so a failure is numerical: retry with the active-set solver daqp (a runtime dependency)
         for solver in dict.fromkeys((self.solver, "daqp")):
             sol = qpsolvers.solve_problem(
