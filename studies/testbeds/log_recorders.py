@@ -257,12 +257,15 @@ def _against_bound(names: list[str], res: dict, truth: dict) -> dict[str, float]
 def load_change_study(n: int, seed0: int) -> dict[str, float]:
     """Return the share of rigid_sim logs (40-60 s, a load of factor 0.6, 0.7, 1.4 or 1.6 at 35-65 % of the log)
     whose change `estimate` finds within 1 s with the after-mass within 5 %, the number of the others whose change
-    lies in a reported stretch wider than 2 s (:func:`studies.testbeds.mujoco_loads.in_wide_stretch`), and the
-    share of the same carts without a change where it reports one."""
-    from cart.estimate_report import estimate_log
-    from studies.testbeds.mujoco_loads import in_wide_stretch
+    lies in a reported stretch wider than 2 s (:func:`studies.testbeds.mujoco_loads.in_wide_stretch`) and of those
+    whose ``t0_range`` holds it (:func:`studies.testbeds.mujoco_loads.holds_truth`), and the share of the same carts
+    without a change where it reports one. Each change log's line is printed as it comes (JSON)."""
+    import json
 
-    found = false = wide = 0
+    from cart.estimate_report import estimate_log
+    from studies.testbeds.mujoco_loads import holds_truth, in_wide_stretch
+
+    found = false = wide = held = 0
     for i in range(n):
         rng = np.random.default_rng(seed0 + i)
         dur = float(rng.uniform(40, 60))
@@ -280,12 +283,16 @@ def load_change_study(n: int, seed0: int) -> dict[str, float]:
         )
         found += ok
         wide += not ok and in_wide_stretch(list(segs), tc, m_after)
+        held += not ok and holds_truth(list(segs), tc)
+        row = {"seed": seed0 + i, "t_change": tc, "found": ok, "t0": last["t0"], "t0_range": last.get("t0_range")}
+        print(json.dumps({**row, "mass": last["mass"], "m_after": m_after}), flush=True)
         log0, _ = rigid_sim.simulate(rigid_sim.random_case(seed0 + i, duration=dur))
         false += len(estimate_log(log0).segments) > 1
     return {
         "logs": n,
         "found_within_1s_5pct": found / n,
         "missed_in_wide_stretch_holding_truth": wide,
+        "missed_with_t0_range_holding_truth": held,
         "false_changes": false / n,
     }
 
