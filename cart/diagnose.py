@@ -243,6 +243,7 @@ def _start_fit(
         y_w[:, 2] = lateral_displacements(sig, edges)
         base = (a_s, window_integrals(sig.t, a_s, edges), y_w)
         sig.extras["base"] = base
+        sig.extras["base_edges"] = edges  # the windows of base's integrals (a payload's step reuses them)
     thetas_prev: list[np.ndarray | None] = list(theta_ref) if theta_ref is not None else []
     thetas_prev = (thetas_prev + [None] * len(effects))[: len(effects)]
     iterate = any(e.uses_phi or e.set_valued for e, _ in effects)
@@ -845,7 +846,8 @@ def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon:
 
 #: a named effect must close at least this share of the gap the nominal model (or the named effects) leave
 MIN_SHRINK = 0.1
-#: A wrench_bias smaller than this share of the RMS applied forward force and torque is a sensor's offset.
+#: A wrench_bias (floor_slope force) smaller than this share of the RMS applied forward force and torque is a
+#: sensor's offset.
 OFFSET_SHARE = 0.2
 
 
@@ -950,6 +952,26 @@ def _sensor_offset(trial: _Trial, push: tuple[float, float], slot: int = -1) -> 
     )
 
 
+def _slope_offset(trial: _Trial, push: tuple[float, float], slot: int = -1) -> str:
+    """Return why a floor_slope whose force is small against the push is not named ('' when it is not small).
+
+    A slope's force m g sin(alpha) is a constant force in {s}: the F/T sensor's offset after taring, written
+    in {s}, is one too, and where the heading turns little it is also the constant {b} force of a wrench_bias.
+    A slope is named when its force reaches ``OFFSET_SHARE`` of the RMS forward force applied over the log
+    (``push``: N, N m), as a bias must. ``slot``: which effect of ``trial.fit`` the slope is.
+    """
+    gx, gy = (float(v) for v in trial.fit.thetas[slot][:2])
+    force = abs(float(trial.fit.x[0])) * math.hypot(gx, gy)
+    share = force / max(push[0], 1e-12)
+    if share >= OFFSET_SHARE:
+        return ""
+    return (
+        f"its force (m g sin(alpha) = {force:.3g} N) is {share:.2f} of the push (RMS {push[0]:.3g} N), below "
+        f"{OFFSET_SHARE:g}: the size of an F/T sensor's offset after taring, which is a constant force too, "
+        "not a slope of the floor"
+    )
+
+
 def _choose_effect(
     results: Sequence[_Ranked],
     threshold: float,
@@ -968,8 +990,8 @@ def _choose_effect(
     (``slip_ratio`` > SLIP_RATIO) ``lateral_slip`` is tried first (it must then not widen the gap):
     no other term of the model can stand in for a broken no-slip constraint. A time_delay within
     ``resolution`` (the log's median sample interval) is the logging's timing (:func:`_logging_timing`);
-    a wrench_bias below ``OFFSET_SHARE`` of the ``push`` (RMS forward force, torque) is a sensor's offset
-    (:func:`_sensor_offset`).
+    a wrench_bias or a floor_slope below ``OFFSET_SHARE`` of the ``push`` (RMS forward force, torque) is a
+    sensor's offset (:func:`_sensor_offset`, :func:`_slope_offset`).
     """
     first = not named
     slip_rule = first and slip_ratio > SLIP_RATIO
@@ -998,6 +1020,8 @@ def _choose_effect(
             why = _logging_timing(cand.trial, resolution)
         if not why and cand is not None and name == "wrench_bias":
             why = _sensor_offset(cand.trial, push)
+        if not why and cand is not None and name == "floor_slope":
+            why = _slope_offset(cand.trial, push)
         if why:
             verdicts.append(Verdict(name, dbic, why))
             passed.append(verdicts[-1])
@@ -1395,6 +1419,8 @@ def _own_objection(nm: _Named, resolution: float, push: tuple[float, float], fin
         return _logging_timing(trial, resolution, slot)
     if name == "wrench_bias":
         return _sensor_offset(trial, push, slot)
+    if name == "floor_slope":
+        return _slope_offset(trial, push, slot)
     return ""
 
 
