@@ -9,7 +9,8 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   `TorqueArmLaw._prioritized`: the task part, then the hand's feedback as the closest wrench that fits,
   `fit_in_limits`, then the posture), with ``e = w - w_f``,
 
-  where ``w`` is the allocated hand wrench, ``b`` the arm's bias forces at the step's state, ``t_in`` the arm's own
+  where ``w`` is the allocated hand wrench, ``b`` the arm's bias forces at the step's state less the joints'
+  modelled passive torque (their viscous damping: `TorqueArmGains.passive_feedforward`), ``t_in`` the arm's own
   inertia under the hand's predicted acceleration (the handle's) and the base's measured one (`hand_inertia_terms`,
   `TorqueArmGains.hand_inertia`: the push then does not carry the arm), ``arm_torque`` the
   controller's command (Pinocchio's RNEA with the plan's velocities and accelerations + ``J^T w``), ``b_0`` the
@@ -26,9 +27,11 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   hand accelerates relative to the base. Its measured wrench ``w_f`` is the hand's wrench at the grasp
   (world-aligned), low-passed (5 ms), fused from two sensors (a complementary filter): the arm's joint-side
   estimate ``w_j = -E tau_ext + F w_FT``, ``tau_ext = (M qdd)_arm + b - tau_joint`` (the external joint torque
-  from the joint torque sensors, accelerations and model, as a torque-sensing arm estimates it; free of the F/T's
-  noise), ``E = (J W J^T + R)^-1 J W``, ``F = (J W J^T + R)^-1 R`` the weighted least squares of the joint torques
-  and the F/T's forces (``W = diag(1 / sigma_tau^2)``, a joint torque sensor's noise in proportion to its range;
+  from the joint torques, accelerations and model, as a torque-sensing arm estimates it; free of the F/T's
+  noise; ``tau_joint`` the law's own last command and the joints' modelled damping, plus the joint torque
+  sensors' difference to both low-passed over 0.2 s: `TorqueArmGains.motor_torque_tau`), ``E = (J W J^T + R)^-1 J W``, ``F = (J W J^T + R)^-1 R`` the weighted least squares of the joint torques
+  and the F/T's forces (``W = diag(1 / sigma_tau^2)``, a joint torque sensor's noise in proportion to its range,
+  as much of it as the low-pass leaves;
   ``R`` the F/T's: where the joints see the hand, ``F`` is small; along a direction they do not see, a straight
   elbow's, the F/T's reading; `fused_estimator`), corrected by the wrist F/T at low frequency (2 s) (the F/T's accuracy:
   it removes the sensors' offsets, the model's slow errors, payload and friction): `TorqueArmGains.fusion_space`
@@ -167,6 +170,18 @@ class TorqueArmGains:
     #: the force loop. Measured (two Ridgebacks, Traj. 1, seed 0, first 10 s): wrench error 14.4 / 15.5 / 16.3 % of
     #: the hand force
     hand_inertia: str = "measured"
+    #: time constant (s) of the joint torque sensors' part in the external joint torque: ``tau_ext = (M qdd + b) -
+    #: (tau_cmd + LP(tau_joint - tau_cmd))``, the law's own command (the motor's torque, known without noise) plus
+    #: the sensors' slow difference to it (the joints' friction and damping, the sensors' offsets), a complementary
+    #: filter (`TorqueArmLaw.joint_torque_sample` with the sensors' reading); the sensors' white noise passes as
+    #: ``sqrt(a / (2 - a))`` of it per sample, ``a = dt / (tau + dt)`` (0.07 at 0.2 s); 0 = the sensors' reading alone
+    motor_torque_tau: float = 0.2
+    #: True: the task part takes the joints' modelled passive torque off (`TorqueArmLaw.torque`'s ``passive``: their
+    #: viscous damping, 0.5 N m s/rad per iiwa joint in the scene), the arm's friction compensation; False: left to
+    #: the force loop, which meets it as a slow disturbance (the joints' velocities, 0.1-2 Hz: with two arms, Traj. 2
+    #: seed 0, the loop's 0.1-2 Hz wrench is 97 % explained by the arm's joint velocities; docs/mujoco.md "Several
+    #: arms on one cart")
+    passive_feedforward: bool = False
 
 
 def hand_inertia_terms(
@@ -348,6 +363,11 @@ class TorqueArmLaw:
         #: the last external joint torque sample and the low-passed error of the joint torques (fusion "joint")
         self._tau_ext: np.ndarray | None = None
         self._tau_offset = np.zeros(self.limit.size)
+        #: the torque the law commanded for the last physics step and the low-passed sensed-minus-commanded joint
+        #: torque (`TorqueArmGains.motor_torque_tau`)
+        self._tau_cmd: np.ndarray | None = None
+        self._tau_friction = np.zeros(self.limit.size)
+        self._n_motor = 0
         self._Jt_pinv = np.zeros((6, self.limit.size))
         self._E_ft = np.zeros((6, 6))
         self._gain = np.r_[np.full(3, gains.force_feedback), np.full(3, gains.moment_feedback)]
@@ -433,11 +453,14 @@ class TorqueArmLaw:
         wrench_measured: np.ndarray | None = None,
         loop_wrench: np.ndarray | None = None,
         base_acceleration: np.ndarray | None = None,
+        passive: np.ndarray | None = None,
     ) -> np.ndarray:
         """Return the joint torques at time `t` and state (q, v), within limits (clipped, or `TorqueArmGains.budget`).
 
         `base_acceleration`: the base joints' measured acceleration over the last physics step, for the arm's
-        inertial torque with `TorqueArmGains.hand_inertia` "measured" (None: the planned one).
+        inertial torque with `TorqueArmGains.hand_inertia` "measured" (None: the planned one). `passive`: the joints'
+        modelled passive torque (their viscous damping at the joints' velocities), which the task part takes off
+        with `TorqueArmGains.passive_feedforward` (None: zero).
 
         `hand`: (target position - hand position, target velocity - hand velocity), world frame, for the
         Cartesian impedance (None: off).
@@ -452,6 +475,8 @@ class TorqueArmLaw:
             loop_wrench = self.force_loop(self.force_error(wrench_measured))
         task, plan = self._feedforward(g, bias)
         task = task + self._inertial_torque(base_acceleration)
+        if passive is not None and g.passive_feedforward:
+            task = task - np.asarray(passive, dtype=float)
         q_plan = self._q_end - self._v * (self._t_end - t)
         impedance = self._NT_imp @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
         u = self._hand_feedback(g, hand, loop_wrench, tilt)
@@ -463,6 +488,7 @@ class TorqueArmLaw:
             self._record(task, tau, False, False)
         if self.saturated_now:
             tau = np.clip(tau, -self.limit, self.limit)
+        self._tau_cmd = tau
         return tau
 
     def _hand_feedback(
@@ -555,19 +581,46 @@ class TorqueArmLaw:
         a = self._period / (g.plan_filter_tau + self._period)
         return d if self._plan is None else self._plan + a * (d - self._plan)
 
-    def joint_torque_sample(self, tau_ext: np.ndarray, mount: np.ndarray | None = None) -> None:
+    def joint_torque_sample(
+        self,
+        tau_ext: np.ndarray,
+        mount: np.ndarray | None = None,
+        joint_torque: np.ndarray | None = None,
+        passive: np.ndarray | None = None,
+    ) -> None:
         """Take the arm's external joint torque over the last physics step (``J^T`` of the cart's wrench on the hand).
 
         ``tau_ext = (M qdd)_arm + b - tau_joint``: what the joint torque sensors, the accelerations and the model
         say the rest of the world applied to the arm (the caller computes it). The hand's wrench on the cart is
         the weighted least squares of it and the F/T's reading (`joint_estimate`). `mount`: the rotation (world
         from the link the arm is mounted on) at the sample, the frame of the F/T's slow correction
-        (`TorqueArmGains.fusion_frame`); None: the last one given (the identity at first).
+        (`TorqueArmGains.fusion_frame`); None: the last one given (the identity at first). `joint_torque`: the
+        sensors' reading ``tau_joint`` itself; with it and `TorqueArmGains.motor_torque_tau` the sensed joint torque
+        is the law's last command plus the joints' modelled `passive` torque (their viscous damping; None: zero) plus
+        the reading's low-passed difference to both (`_motor_side`).
         """
-        self._tau_ext = np.asarray(tau_ext, dtype=float)
+        tau_ext = np.asarray(tau_ext, dtype=float)
+        if joint_torque is not None and self.gains.motor_torque_tau > 0.0 and self._tau_cmd is not None:
+            model = self._tau_cmd if passive is None else self._tau_cmd + np.asarray(passive, dtype=float)
+            tau_ext = self._motor_side(tau_ext, np.asarray(joint_torque, dtype=float), model)
+        self._tau_ext = tau_ext
         if mount is not None:
             self._mount = np.asarray(mount, dtype=float).reshape(3, 3)
         self._w_joint = -self._Jt_pinv @ self._tau_ext
+
+    def _motor_side(self, tau_ext: np.ndarray, joint_torque: np.ndarray, model: np.ndarray) -> np.ndarray:
+        """Return ``tau_ext`` with the sensed joint torque replaced by the `model`'s (the last command and the
+        joints' modelled damping) plus the low-passed sensed-minus-modelled torque (`TorqueArmGains.motor_torque_tau`;
+        the low-pass starts as the running mean).
+
+        The joint's torque is the motor's, which the law commands and so knows without noise, plus what the joint
+        itself takes (its modelled damping, its unmodelled friction) and the sensor's offset: the unmodelled part is
+        slow next to the sensor's white noise, so the sensor is needed only at low frequency (a complementary filter).
+        """
+        self._n_motor += 1
+        gain = max(min(self._dt / self.gains.motor_torque_tau, 1.0), 1.0 / self._n_motor)
+        self._tau_friction += gain * (joint_torque - model - self._tau_friction)
+        return tau_ext + joint_torque - (model + self._tau_friction)
 
     def _measured_wrench(self, ft: np.ndarray) -> np.ndarray:
         """Return the hand's wrench the loop sees: the joint-side estimate + the F/T's slow part (or the F/T alone).
@@ -605,7 +658,16 @@ class TorqueArmLaw:
             return wrench_estimator(J, self.limit if g.weighted_estimate else None), np.zeros((6, 6))
         scale = self.limit if g.weighted_estimate else np.full(self.limit.size, float(np.mean(self.limit)))
         sigma_ft = np.r_[np.full(3, g.ft_noise[0]), np.full(3, g.ft_noise[1])]
-        return fused_estimator(J, g.joint_torque_noise * scale, sigma_ft)
+        return fused_estimator(J, self._joint_noise_factor() * g.joint_torque_noise * scale, sigma_ft)
+
+    def _joint_noise_factor(self) -> float:
+        """Return the part of the joint torque sensors' white noise left in the sensed joint torque per sample: 1, or
+        ``sqrt(a / (2 - a))``, ``a = dt / (motor_torque_tau + dt)``, through `_motor_side`'s low-pass."""
+        tau = self.gains.motor_torque_tau
+        if tau <= 0.0:
+            return 1.0
+        a = self._dt / (tau + self._dt)
+        return math.sqrt(a / (2.0 - a))
 
     def reference(self) -> np.ndarray:
         """Return the force loop's reference: the allocated wrench as the loop's measurement sees it.

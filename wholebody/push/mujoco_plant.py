@@ -598,6 +598,7 @@ class MujocoPlant:
                         hand,
                         loop_wrench=loops.get(i),
                         base_acceleration=d.qacc[r.base_dof],
+                        passive=d.qfrc_passive[r.arm_dof],
                     )
                 if r.base == "planar":
                     d.ctrl[r.base_actuators] = self._planar_base_rates(i, r, c.base_twist)
@@ -694,9 +695,9 @@ class MujocoPlant:
             a = r.arm_dof
             joint = d.qfrc_actuator[a] + d.qfrc_passive[a] + self._joint_frc[a]
             white, offset = self._joint_noise[i]
-            noise = offset + white * self._rng_joint.normal(0.0, 1.0, white.size)
+            sensed = joint - offset - white * self._rng_joint.normal(0.0, 1.0, white.size)
             mount = d.xmat[m.body_parentid[m.dof_bodyid[a[0]]]]  # the link the arm is mounted on
-            law.joint_torque_sample(self._mdv[a] + d.qfrc_bias[a] - joint + noise, mount)
+            law.joint_torque_sample(self._mdv[a] + d.qfrc_bias[a] - sensed, mount, sensed, d.qfrc_passive[a])
 
     def _planar_base_rates(self, i: int, r: RobotIndex, twist: np.ndarray) -> np.ndarray:
         """Return the planar base's servo setpoints (world rates): the commanded body twist + the PI loop's integral."""

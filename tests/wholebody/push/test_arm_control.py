@@ -103,7 +103,8 @@ def test_fused_estimate_stays_bounded_where_the_joints_do_not_see_the_hand():
     ft = truth + np.r_[rng.normal(0.0, 3.0, 3), 0.0, 0.0, 0.0]
     errors = {}
     for ft_noise in (None, (3.0, math.inf)):
-        gains = TorqueArmGains(feedforward="bias", fusion_tau=0.0, ft_noise=ft_noise)
+        # the sensors' raw reading (no motor-side low-pass): the fit weighs their full white noise
+        gains = TorqueArmGains(feedforward="bias", fusion_tau=0.0, ft_noise=ft_noise, motor_torque_tau=0.0)
         law = TorqueArmLaw(LIMIT, gains, 0.002)
         z = np.zeros(7)
         law.begin(truth, z, z, z, Js, M, t_end=0.01, dt=0.01)
