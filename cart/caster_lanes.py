@@ -5,8 +5,9 @@ caster along the log for every axle position, trail and swing mode (:data:`cart.
 924 lanes per sample). The fits use the *natural* lane everywhere and the other lanes only during the
 swings, where the lanes disagree. :func:`caster_lanes` steps the log in chunks (the state carried from
 one chunk to the next) and keeps only those: the natural lanes (single precision) and, per axle and
-trail, the full lanes on the samples of its swings. The working memory is one chunk's; what is kept
-grows with the log by the natural lanes plus the swings' share of the full ones.
+trail, the full lanes on the samples of its swings -- angles only: a swivel rate is a function of the angle
+and the motion, recomputed when asked for. The working memory is one chunk's; what is kept grows with the
+log by the natural lanes' angles plus the swings' share of the full ones.
 """
 
 from __future__ import annotations
@@ -24,19 +25,62 @@ SWING_SPLIT = 0.02
 
 @dataclass(frozen=True)
 class CasterLanes:
-    """Swivel angles and rates of :func:`caster_lanes` for a grid of axle positions x trails.
+    """Swivel angles of :func:`caster_lanes` for a grid of axle positions x trails; their rates on demand.
 
-    ``alpha0`` / ``rate0``: the natural lane (N, axles, trails, 2 casters), single precision;
+    ``alpha0``: the natural lane (N, axles, trails, 2 casters), single precision;
     ``swings[(i, j)]``: the sample ranges [i0, i1) of axle i, trail j where the lanes disagree;
-    ``swing_alpha[(i, j)]`` / ``swing_rate[(i, j)]``: every lane on those samples, one array
-    (L, 2 casters, modes) per swing, in the order of ``swings``.
+    ``swing_alpha[(i, j)]``: every lane on those samples, one array (L, 2 casters, modes) per swing, in the
+    order of ``swings``. The swivel rates are not kept: a rate is a function of the angle and the motion
+    (the no-side-slip kinematics), recomputed from the kept angles (:meth:`natural_rate`, :meth:`swing_rates`)
+    as the pass computed it. ``v``, ``om``: the forward speed and yaw rate of the pass (the caller's arrays).
     """
 
     alpha0: np.ndarray
-    rate0: np.ndarray
     swings: dict[tuple[int, int], list[tuple[int, int]]]
     swing_alpha: dict[tuple[int, int], list[np.ndarray]]
-    swing_rate: dict[tuple[int, int], list[np.ndarray]]
+    v: np.ndarray
+    om: np.ndarray
+    axles: tuple[float, ...]
+    trails: tuple[float, ...]
+    half_track: float
+
+    def natural_rate(self, i: int, j: int) -> np.ndarray:
+        """Return the swivel rates (N, 2 casters) of the natural lane of axle i, trail j (single precision)."""
+        ys = np.array([self.half_track, -self.half_track])
+        return _rates(self.alpha0[:, i, j], self.v[:, None], self.om[:, None], self.axles[i], ys, self.trails[j])
+
+    def swing_rates(self, i: int, j: int, k: int) -> np.ndarray:
+        """Return the swivel rates (L, 2 casters, modes) of every lane on swing k of axle i, trail j."""
+        i0, i1 = self.swings[(i, j)][k]
+        ys = np.array([self.half_track, -self.half_track])[None, :, None]
+        v, om = self.v[i0:i1, None, None], self.om[i0:i1, None, None]
+        return _rates(self.swing_alpha[(i, j)][k], v, om, self.axles[i], ys, self.trails[j])
+
+    @property
+    def rate0(self) -> np.ndarray:
+        """Return the natural lanes' rates (N, axles, trails, 2), recomputed."""
+        out = np.empty_like(self.alpha0)
+        for i in range(len(self.axles)):
+            for j in range(len(self.trails)):
+                out[:, i, j] = self.natural_rate(i, j)
+        return out
+
+    @property
+    def swing_rate(self) -> dict[tuple[int, int], list[np.ndarray]]:
+        """Return the rates of every lane on the swings, as ``swing_alpha`` (recomputed)."""
+        return {key: [self.swing_rates(*key, k) for k in range(len(r))] for key, r in self.swings.items()}
+
+
+def _rates(alpha: np.ndarray, v: np.ndarray, om: np.ndarray, x, y, trail) -> np.ndarray:
+    """Return alpha' = (-qx sin alpha + qy cos alpha) / e - omega, (qx, qy) = (v - omega y, omega x), single precision.
+
+    The rate of a caster at (x, y) with trail e rolling without sliding sideways, at the angle as kept (single
+    precision); the arguments broadcast.
+    """
+    a = np.asarray(alpha).astype(float)
+    qx = v - om * y
+    qy = om * x
+    return ((-qx * np.sin(a) + qy * np.cos(a)) / trail - om).astype(np.float32)
 
 
 def _ranges(on: np.ndarray) -> list[tuple[int, int]]:
@@ -96,11 +140,9 @@ class _Geometry:
     lim: np.ndarray
 
 
-def _chunk_angles(
-    geo: _Geometry, st: _Stepper, c: slice, last: bool, kin: tuple[np.ndarray, ...]
-) -> tuple[np.ndarray, np.ndarray]:
-    """Return the swivel angles and rates (k, axles, trails, 2, modes) of the samples ``c`` (stepping ``st``)."""
-    v, om, vm, omm, dt = kin
+def _chunk_angles(geo: _Geometry, st: _Stepper, c: slice, last: bool, kin: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Return the swivel angles (k, axles, trails, 2, modes) of the samples ``c`` (stepping ``st``), single precision."""
+    vm, omm, dt = kin
     stop = c.stop if last else c.stop + 1  # the reference direction of the next sample, for the last rotation
     px = vm[c.start : stop, None, None, None, None] - omm[c.start : stop, None, None, None, None] * geo.ys[None]
     py = omm[c.start : stop, None, None, None, None] * geo.xs[None]
@@ -110,12 +152,7 @@ def _chunk_angles(
     yaw = omm[c.start : stop] * dt[c.start : stop]
     half = 0.5 * (psi[:-1] - yaw[: len(psi) - 1, None, None, None, None] - psi[1:])
     bp, bq = st.run(decay, np.cos(half), np.sin(half), last)
-    alpha = (2.0 * np.arctan2(bp, bq) + psi[:k] - yaw[:k, None, None, None, None]).astype(np.float32)
-    a = alpha.astype(float)  # the rates of the angles as kept (single precision)
-    qx = v[c, None, None, None, None] - om[c, None, None, None, None] * geo.ys[None]
-    qy = om[c, None, None, None, None] * geo.xs[None]
-    rate = (-qx * np.sin(a) + qy * np.cos(a)) / geo.es[None] - om[c, None, None, None, None]
-    return alpha, rate.astype(np.float32)
+    return (2.0 * np.arctan2(bp, bq) + psi[:k] - yaw[:k, None, None, None, None]).astype(np.float32)
 
 
 def caster_lanes(
@@ -152,36 +189,30 @@ def caster_lanes(
     st = _Stepper(psi0, (nx, nt, 2, nm), side, geo.lim)
     n = len(t)
     alpha0 = np.empty((n, nx, nt, 2), np.float32)
-    rate0 = np.empty_like(alpha0)
     on = np.zeros((n, nx, nt), bool)
-    kept: dict[tuple[int, int], list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+    kept: dict[tuple[int, int], list[np.ndarray]] = {}
     for c0 in range(0, n, CHUNK):
         c = slice(c0, min(c0 + CHUNK, n))
-        alpha, rate = _chunk_angles(geo, st, c, c.stop == n, (v, om, vm, omm, dt))
-        alpha0[c], rate0[c] = alpha[..., 0], rate[..., 0]
+        alpha = _chunk_angles(geo, st, c, c.stop == n, (vm, omm, dt))
+        alpha0[c] = alpha[..., 0]
         on[c] = np.max(np.abs(np.sin(0.5 * (alpha - alpha[..., :1]))), axis=(3, 4)) > SWING_SPLIT
         for i, j in zip(*np.nonzero(np.any(on[c], axis=0))):
-            idx = np.flatnonzero(on[c, i, j])
-            kept.setdefault((int(i), int(j)), []).append((idx + c0, alpha[idx, i, j], rate[idx, i, j]))
-    return _assemble(alpha0, rate0, on, kept)
+            kept.setdefault((int(i), int(j)), []).append(alpha[np.flatnonzero(on[c, i, j]), i, j])
+    swings, s_alpha = _assemble(on, kept, alpha0.shape[-1:])
+    return CasterLanes(alpha0, swings, s_alpha, v, om, tuple(axles), tuple(trails), float(half_track))
 
 
 def _assemble(
-    alpha0: np.ndarray,
-    rate0: np.ndarray,
-    on: np.ndarray,
-    kept: dict[tuple[int, int], list[tuple[np.ndarray, np.ndarray, np.ndarray]]],
-) -> CasterLanes:
-    """Return the CasterLanes of the natural lanes and the swing samples kept per (axle, trail)."""
-    swings, s_alpha, s_rate = {}, {}, {}
+    on: np.ndarray, kept: dict[tuple[int, int], list[np.ndarray]], tail: tuple[int, ...]
+) -> tuple[dict[tuple[int, int], list[tuple[int, int]]], dict[tuple[int, int], list[np.ndarray]]]:
+    """Return the swing ranges and every lane on each swing per (axle, trail), from the swing samples kept."""
+    swings, s_alpha = {}, {}
     for i in range(on.shape[1]):
         for j in range(on.shape[2]):
             ranges = _ranges(on[:, i, j])
             swings[(i, j)] = ranges
             parts = kept.get((i, j), [])
-            a = np.concatenate([p[1] for p in parts]) if parts else np.empty((0,) + alpha0.shape[-1:])
-            r = np.concatenate([p[2] for p in parts]) if parts else np.empty_like(a)
+            a = np.concatenate(parts) if parts else np.empty((0,) + tail)
             cuts = np.cumsum([i1 - i0 for i0, i1 in ranges])[:-1]
             s_alpha[(i, j)] = np.split(a, cuts) if ranges else []
-            s_rate[(i, j)] = np.split(r, cuts) if ranges else []
-    return CasterLanes(alpha0=alpha0, rate0=rate0, swings=swings, swing_alpha=s_alpha, swing_rate=s_rate)
+    return swings, s_alpha

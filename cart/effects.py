@@ -28,7 +28,7 @@ import numpy as np
 
 from cart.caster_lanes import CasterLanes, caster_lanes
 from cart.dynamics import regressor
-from cart.log_signals import Signals, cache_bounded, derivative_gain, local_poly, window_integrals
+from cart.log_signals import Signals, derivative_gain, local_poly, window_integrals
 from cart.noise_model import fit_ar1
 
 #: Nominal parameters x = [m, m dx, m dy, J, sigma, sigma_yaw] (two viscous coefficients).
@@ -528,10 +528,6 @@ SWING_MODES: tuple[tuple[int, float], ...] = ((0, 1e-5),) + tuple(
 _SwingArrays = tuple[
     tuple[tuple[int, int], ...], np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray
 ]
-#: a caster model's lanes for one axle and trail: natural alpha, alpha' (N, 2), the swings, every lane on each swing
-_Lanes = tuple[np.ndarray, np.ndarray, list[tuple[int, int]], list[np.ndarray], list[np.ndarray]]
-#: bytes of the mass step's window integrals kept over its change times (oldest dropped first)
-STEP_CACHE_BYTES = 32 * 2**20
 #: half window (s) of the local quadratic that gives the yaw rate driving the caster kinematics
 CASTER_OMEGA_WINDOW = 0.25
 
@@ -645,25 +641,20 @@ class SwivelCasterModel(CasterSwivel):
         """Return the trail bounds in metres."""
         return [(self.TRAILS[0], self.TRAILS[-1])]
 
-    def _lanes(self, sig: Signals, trail: float) -> _Lanes:
-        """Return the natural alpha, alpha' (N, 2; single precision views), the swings and every lane on them
-        (L, 2, modes per swing) for this axle and ``trail`` (grid: one shared pass)."""
+    def _lanes(self, sig: Signals, trail: float) -> tuple[CasterLanes, int, int]:
+        """Return the caster pass holding this axle and ``trail`` (grid: one shared pass) and its indices in it."""
         if trail in self.TRAILS and self.axle_x in self.AXLES:
-            lanes = caster_kinematics(sig, self.AXLES, self.TRAILS)
-            i, j = self.AXLES.index(self.axle_x), self.TRAILS.index(trail)
-        else:
-            lanes, i, j = caster_kinematics(sig, (self.axle_x,), (trail,)), 0, 0
-        return (
-            lanes.alpha0[:, i, j],
-            lanes.rate0[:, i, j],
-            lanes.swings[(i, j)],
-            lanes.swing_alpha[(i, j)],
-            lanes.swing_rate[(i, j)],
-        )
+            return (
+                caster_kinematics(sig, self.AXLES, self.TRAILS),
+                self.AXLES.index(self.axle_x),
+                self.TRAILS.index(trail),
+            )
+        return caster_kinematics(sig, (self.axle_x,), (trail,)), 0, 0
 
     def _swings(self, sig: Signals, trail: float) -> list[tuple[int, int]]:
         """Return sample ranges [i0, i1) where the swing modes disagree (swings from a leading caster)."""
-        return self._lanes(sig, trail)[2]
+        lanes, i, j = self._lanes(sig, trail)
+        return lanes.swings[(i, j)]
 
     def _unit_rows(self, alpha: np.ndarray, rate: np.ndarray, trail: float) -> np.ndarray:
         """Return -dE/d(c1, c2, damping) (..., 2 rows: forward, yaw; 3 params) summed over the casters (last axis)."""
@@ -678,7 +669,8 @@ class SwivelCasterModel(CasterSwivel):
 
     def _units(self, sig: Signals, trail: float, swing: int, combos: np.ndarray | None = None) -> np.ndarray:
         """Return the unit rows (L, combos, 2 rows, 3 params) of the mode combinations (all: None) on one swing."""
-        alpha, rate = self._lanes(sig, trail)[3][swing], self._lanes(sig, trail)[4][swing]
+        lanes, i, j = self._lanes(sig, trail)
+        alpha, rate = lanes.swing_alpha[(i, j)][swing], lanes.swing_rates(i, j, swing)
         c1, c2 = self.COMBO_LANES
         if combos is not None:
             c1, c2 = c1[combos], c2[combos]
@@ -792,8 +784,9 @@ class SwivelCasterModel(CasterSwivel):
 
     def _rows(self, sig: Signals, trail: float) -> np.ndarray:
         """Return the unit rows (N, 2, 3): natural swings, each chosen swing as its weighted mixture of combos."""
-        alpha, rate = self._lanes(sig, trail)[:2]
-        rows = self._unit_rows(alpha, rate, trail)  # not kept: the lanes are, and the fits keep their columns
+        lanes, i, j = self._lanes(sig, trail)
+        # not kept: the lanes are, and the fits keep their columns
+        rows = self._unit_rows(lanes.alpha0[:, i, j], lanes.natural_rate(i, j), trail)
         choice = self._choice(sig, trail)
         if choice:
             for st in sig.extras.get(("caster_swing_stats", self.axle_x, trail), []):
@@ -806,7 +799,8 @@ class SwivelCasterModel(CasterSwivel):
 
     def _hold_capacity(self, sig: Signals, trail: float) -> np.ndarray:
         """Return sum |sin alpha| / e (N,) per unit torque: the casters' most likely swing per chosen swing."""
-        alpha, _, swings, s_alpha, _ = self._lanes(sig, trail)
+        lanes, i, j = self._lanes(sig, trail)
+        alpha, swings, s_alpha = lanes.alpha0[:, i, j], lanes.swings[(i, j)], lanes.swing_alpha[(i, j)]
         nkey = ("motion", "caster_hold_natural", self.axle_x, trail)
         natural = sig.extras.get(nkey)
         if natural is None:
@@ -814,10 +808,10 @@ class SwivelCasterModel(CasterSwivel):
             sig.extras[nkey] = natural
         cap = natural.copy()
         c1, c2 = self.COMBO_LANES
-        lanes = dict(zip(swings, s_alpha))
+        on_swing = dict(zip(swings, s_alpha))
         for (i0, i1), wts in self._choice(sig, trail).items():
             c = int(np.argmax(wts))
-            al = lanes[(i0, i1)]
+            al = on_swing[(i0, i1)]
             cap[i0:i1] = (np.abs(np.sin(al[:, 0, c1[c]])) + np.abs(np.sin(al[:, 1, c2[c]]))) / trail
         return cap
 
@@ -923,6 +917,30 @@ class FloorSlope(Effect):
         return params, std
 
 
+def stepped_window_integrals(sig: Signals, base: np.ndarray, edges: np.ndarray, t_change: float) -> np.ndarray | None:
+    """Return the window integrals of the phi columns ``base[:, :, :4]`` times the step (t >= ``t_change``), windowed.
+
+    ``base`` must be the nominal rows ``a_s`` whose window integrals on ``edges`` the fits keep
+    (``sig.extras["base"]``, ``sig.extras["base_edges"]``); else None. The windows after the change are those
+    integrals, the windows before it zero, and only the window that holds the change is integrated again from
+    its samples: no per-sample copy of the columns (the same sums as :func:`window_integrals` of the product).
+    """
+    rows = sig.extras.get("base")
+    if rows is None or base is not rows[0] or sig.extras.get("base_edges") is not edges:
+        return None
+    a_w = rows[1][:, :, :4]
+    first = int(np.searchsorted(sig.t, t_change, side="left"))  # the first sample after the change
+    after = int(np.searchsorted(edges[:-1], first, side="left"))  # the first window wholly after it
+    out = np.zeros_like(a_w)
+    out[after:] = a_w[after:]
+    if after > 0:  # the window holding the change, from its own samples
+        i0, i1 = int(edges[after - 1]), int(edges[after])
+        step = (np.arange(i0, i1 + 1) >= first).astype(float)
+        part = base[i0 : i1 + 1, :, :4] * step[:, None, None]
+        out[after - 1] = window_integrals(sig.t[i0 : i1 + 1], part, np.array([0, i1 - i0]))[0]
+    return out
+
+
 class PayloadChange(Effect):
     """A step of phi = [m, m dx, m dy, J] at an unknown time (a payload put in or taken out)."""
 
@@ -960,6 +978,17 @@ class PayloadChange(Effect):
         """Return G = the nominal phi columns after the change time (the step of phi)."""
         step = (sig.t >= nl[0]).astype(float)
         return base[:, :, :4] * step[:, None, None]
+
+    def window_columns(self, sig, nl, phi, base, edges):
+        """Return the window integrals of :meth:`columns`: the nominal window rows after the change, windowed.
+
+        Of the nominal rows (``base`` is the fit's nominal ``a_s``, on these ``edges``) only the window that holds
+        the change is integrated again; the others are the nominal window rows or zero (no per-sample copy).
+        """
+        stepped = stepped_window_integrals(sig, base, edges, float(nl[0]))
+        if stepped is None:  # phi's rows carry a bilinear effect's force: integrated sample by sample
+            stepped = window_integrals(sig.t, PayloadChange.columns(self, sig, nl, phi, base), edges)
+        return stepped
 
     def noise_loadings(self, sig, nl, edges, lv, lw):
         """Return the nominal phi loadings in the windows after the change time."""
@@ -1023,17 +1052,10 @@ class PayloadMassStep(PayloadChange):
         return (base[:, :, :4] @ u)[:, :, None] * step[:, None, None]
 
     def window_columns(self, sig, nl, phi, base, edges):
-        """Return the window integrals of the columns: those of the stepped phi columns (cached) along phi / m."""
+        """Return the window integrals of the columns: those of the stepped phi columns along phi / m."""
         sig.extras["phi_mass_step"] = np.asarray(phi[:4], float)
-        nominal = base is sig.extras.get("base", (None,))[0]  # else phi's rows carry a bilinear effect's force
-        key = ("phi_step_windows", float(nl[0]), len(edges), int(edges[-1]))
-        stepped = sig.extras.get(key) if nominal else None
-        if stepped is None:
-            stepped = window_integrals(sig.t, PayloadChange.columns(self, sig, nl, phi, base), edges)
-            if nominal:
-                cache_bounded(sig, "phi_step_windows", key, stepped, STEP_CACHE_BYTES)
         u = np.asarray(phi[:4], float) / float(phi[0])
-        return (stepped @ u)[:, :, None]
+        return (PayloadChange.window_columns(self, sig, nl, phi, base, edges) @ u)[:, :, None]
 
     def noise_loadings(self, sig, nl, edges, lv, lw):
         """Return the nominal phi loadings along phi / m in the windows after the change time."""

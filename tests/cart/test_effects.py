@@ -204,7 +204,8 @@ def test_caster_kinematics_match_the_test_bed_casters_and_the_columns_their_forc
     sig = signals_from_log(_log_of(t, xy[:, 0], xy[:, 1], th), half_window=0.05)
     model = fx.SwivelCasterModel(0.8)
     e = model.TRAILS[8]
-    alpha = model._lanes(sig, e)[0]  # the natural lane (N, 2 casters)
+    lanes, i, j = model._lanes(sig, e)
+    alpha = lanes.alpha0[:, i, j]  # the natural lane (N, 2 casters)
     # independent: fine Euler steps of SwivelCasters with the same speeds (the kinematic yaw rate of the model)
     omk = fx.kinematic_yaw_rate(sig)
     cas = SwivelCasters(
@@ -307,3 +308,25 @@ def test_the_caches_that_grow_with_the_log_are_bounded():
     assert sum(sig.extras[k].nbytes for k in cols) <= 10_000 and len(cols) == 5
     assert ("cols", 49) in sig.extras and ("cols", 0) not in sig.extras
     assert all(("other", k) in sig.extras for k in range(50))  # groups are bounded apart
+
+
+def test_a_payload_steps_window_integrals_equal_those_of_the_stepped_columns():
+    # the payload's columns are the nominal phi columns after the change time; their window integrals are taken
+    # from the nominal window rows (only the window holding the change integrated again): the same sums as the
+    # per-sample product, at change times on, between and beyond the samples
+    from cart.effects import PayloadChange, nominal_columns, stepped_window_integrals
+    from cart.log_signals import window_integrals
+    from studies.testbeds.hidden_effects import random_case
+
+    sig = signals_from_log(random_case(None, np.random.default_rng(5), duration=20.0).measured)
+    edges = window_edges(sig.t, 0.3, sig.breaks)
+    a_s = nominal_columns(sig)
+    sig.extras["base"] = (a_s, window_integrals(sig.t, a_s, edges), None)
+    assert stepped_window_integrals(sig, a_s, edges, 5.0) is None  # rows on other windows: not these
+    sig.extras["base_edges"] = edges
+    times = np.concatenate([[sig.t[0] - 1.0, sig.t[-1] + 1.0], sig.t[edges[3:-3:9]], sig.t[edges[5:-5:9]] + 1e-9])
+    for tc in np.concatenate([times, np.linspace(sig.t[0], sig.t[-1], 41)]):
+        want = window_integrals(sig.t, a_s[:, :, :4] * (sig.t >= tc)[:, None, None], edges)
+        assert np.array_equal(stepped_window_integrals(sig, a_s, edges, float(tc)), want)
+        assert np.array_equal(PayloadChange().window_columns(sig, (float(tc),), None, a_s, edges), want)
+    assert stepped_window_integrals(sig, a_s.copy(), edges, 5.0) is None  # rows carrying another force
