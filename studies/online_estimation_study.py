@@ -91,13 +91,12 @@ def mujoco_run(trajectory: int, **options) -> dict:
     from collections import Counter
 
     from wholebody.push.config import PushConfig
-    from wholebody.push.loop import run_push
+    from wholebody.push.loop import run_push, summed_wrench_std
 
     cfg = PushConfig(trajectory=trajectory, plant="mujoco", contact="fixed")
     q0 = cfg.make_trajectory().sample(0.0)[0]
-    noise = cfg.noise
     est = make_online_estimator(
-        q0, cfg.initial_params(), noise.measurement_std(), wrench_std=(noise.force, noise.torque), **options
+        q0, cfg.initial_params(), cfg.noise.measurement_std(), wrench_std=summed_wrench_std(cfg), **options
     )
     res = run_push(cfg, estimator=est)
     m = res.metrics
