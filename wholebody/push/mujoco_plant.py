@@ -120,8 +120,8 @@ class MujocoPlantConfig:
     #: (the loops close on the stacked error's part in the cart's net wrench, `arm_control.net_wrench_projector`; the
     #: squeeze between the hands, which no cart motion shows, is left to the feed-forward) or "off" (open-loop
     #: ``J^T w``). Measured (two Ridgeback + iiwa, `cartpush push --plant mujoco --arms 2 --json`, seeds 0/1;
-    #: docs/mujoco.md "Several arms on one cart"): "full" Traj. 1 / 2 seed 0 2.16 / 2.68 mm, wrench error 18.0 / 19.5 %
-    #: of the hand force; "off" Traj. 2 seed 0 17.6 mm, 74 % without the arm inertia fed forward (the arms' task-space inertia, 19
+    #: docs/mujoco.md "Several arms on one cart"): "full" Traj. 2 seed 0 2.67 mm, wrench error 13.8 % of the hand
+    #: force with the default `TorqueArmGains`; "off" Traj. 2 seed 0 17.6 mm, 74 % without the arm inertia fed forward (the arms' task-space inertia, 19
     #: kg along the push at the iiwa's push posture, takes the push). The loops need each base held at its place
     #: (`BasePlanSettings.base_weight`): with a base that lags its place the loops make the cart follow its
     #: reference while the hand reaches further from that base, and an elbow comes through straight (the squeeze
