@@ -67,6 +67,130 @@ def _start(x: np.ndarray) -> np.ndarray:
     return p
 
 
+#: how far inside the bounds a start is moved (relative): the barrier needs a strictly feasible one
+_INSIDE = 1e-3
+
+
+def _interior(x: np.ndarray, lo3: float) -> np.ndarray:
+    """Return x moved strictly inside the bounds of :func:`bounded_least_squares` (m, I about the CoM, dampings)."""
+    x = np.array(x, float)
+    m = max(float(x[0]), MASS_MIN * (1.0 + _INSIDE))
+    inertia = max(float(x[3]) - (x[1] ** 2 + x[2] ** 2) / m, lo3 * (1.0 + _INSIDE))
+    x[0], x[3] = m, inertia + (x[1] ** 2 + x[2] ** 2) / m
+    x[4:N_NOMINAL] = np.maximum(x[4:N_NOMINAL], _INSIDE)
+    return x
+
+
+def _slacks(x: np.ndarray, lo3: float) -> tuple[float, float, float, float]:
+    """Return the slacks of the bounds: m - MASS_MIN, sigma, sigma_yaw, m (J - lo3) - (m dx)^2 - (m dy)^2."""
+    m, a, b, j = (float(u) for u in x[:4])
+    return m - MASS_MIN, float(x[4]), float(x[5]), m * (j - lo3) - a * a - b * b
+
+
+def _barrier_value(x: np.ndarray, lo3: float) -> float:
+    """Return the log barrier of the bounds at x (inf outside): -sum log(slack) over :func:`_slacks`.
+
+    I about the CoM >= lo3 is the rotated cone m (J - lo3) >= (m dx)^2 + (m dy)^2 (m > 0), whose
+    barrier -log(m (J - lo3) - (m dx)^2 - (m dy)^2) is self-concordant (parameter 2); each of
+    m >= MASS_MIN, sigma >= 0, sigma_yaw >= 0 adds -log(slack) (parameter 1).
+    """
+    slacks = _slacks(x, lo3)
+    if min(slacks) <= 0.0:
+        return math.inf
+    return -sum(math.log(v) for v in slacks)
+
+
+def _barrier_derivatives(x: np.ndarray, lo3: float) -> tuple[np.ndarray, np.ndarray]:
+    """Return the gradient and Hessian of :func:`_barrier_value` at a feasible x."""
+    n = len(x)
+    grad, hess = np.zeros(n), np.zeros((n, n))
+    s_m, s_1, s_2, q = _slacks(x, lo3)
+    for i, v in ((0, s_m), (4, s_1), (5, s_2)):
+        grad[i] -= 1.0 / v
+        hess[i, i] += 1.0 / (v * v)
+    m, a, b, j = (float(u) for u in x[:4])
+    dq = np.array([j - lo3, -2.0 * a, -2.0 * b, m])
+    grad[:4] -= dq / q
+    hess[:4, :4] += np.outer(dq, dq) / (q * q)
+    hess[0, 3] -= 1.0 / q
+    hess[3, 0] -= 1.0 / q
+    hess[1, 1] += 2.0 / q
+    hess[2, 2] += 2.0 / q
+    return grad, hess
+
+
+#: barrier parameter of :func:`_barrier` (three bounds and a cone of parameter 2)
+_NU = 5.0
+
+
+def _newton_step(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -> tuple[np.ndarray, float]:
+    """Return the Newton step of t ||c - r x||^2 + barrier at x and its Newton decrement."""
+    g_b, h_b = _barrier_derivatives(x, lo3)
+    grad = -2.0 * t * (r.T @ (c - r @ x)) + g_b
+    hess = 2.0 * t * (r.T @ r) + h_b
+    diag = np.diag(hess)
+    scale = 1.0 / np.sqrt(np.where(diag > 0.0, diag, 1.0))
+    # the equilibrated system, a tiny ridge for columns without weight (an effect's column that is all zero)
+    step = -scale * np.linalg.solve(hess * np.outer(scale, scale) + 1e-13 * np.eye(len(x)), grad * scale)
+    return step, math.sqrt(max(-float(grad @ step), 0.0))
+
+
+def _centre(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -> np.ndarray:
+    """Return the minimiser of t ||c - r x||^2 + barrier (Newton, backtracking while far, from a feasible x)."""
+
+    def phi(u: np.ndarray) -> float:
+        e = c - r @ u
+        return t * float(e @ e) + _barrier_value(u, lo3)
+
+    lam_prev = math.inf
+    for _ in range(_MAX_NEWTON):
+        step, lam = _newton_step(r, c, x, t, lo3)
+        size = 1.0
+        if lam >= 0.25:  # damped phase: backtrack on the barrier function
+            phi0 = phi(x)
+            while size > 1e-12 and phi(x + size * step) > phi0 - 0.25 * size * lam * lam:
+                size *= 0.5
+        while size > 1e-12 and _barrier_value(x + size * step, lo3) == math.inf:
+            size *= 0.5
+        if _barrier_value(x + size * step, lo3) == math.inf:
+            break
+        x = x + size * step
+        # converged, or stalled at the rounding level of t ||c - r x||^2
+        if lam < 1e-5 or (lam < 1e-2 and lam > 0.5 * lam_prev):
+            break
+        lam_prev = lam
+    return x
+
+
+#: Newton steps per centring at most (a few are typical; the first centring from a far start takes tens)
+_MAX_NEWTON = 200
+#: relative accuracy of the bounded fit's cost (the barrier's gap over the cost)
+_GAP = 1e-14
+
+
+def bounded_least_squares(r: np.ndarray, c: np.ndarray, x0: np.ndarray, lo3: float, rss0: float = 0.0) -> np.ndarray:
+    """Return argmin ||c - r x||^2 with the cart bounded: m >= MASS_MIN, I about the CoM >= lo3, both dampings >= 0.
+
+    x = [m, m dx, m dy, J, sigma, sigma_yaw, theta...] (J about {b}'s origin: I about the CoM =
+    J - ((m dx)^2 + (m dy)^2) / m); theta free. ``r`` (P, P), ``c`` (P,): a least-squares problem
+    ||b - A x||^2 reduced by A = Q r (QR), c = Q^T b; ``rss0`` = ||b||^2 - ||c||^2 sets the accuracy
+    (the gap relative to the whole cost). The bounded set is convex (the inertia bound is a rotated
+    second-order cone in x), so the minimiser is unique: the log-barrier (interior-point) method
+    from x0 moved inside the bounds, the barrier's weight raised until its gap, _NU / t, is below
+    _GAP of the cost.
+    """
+    x = _interior(np.asarray(x0, float), lo3)
+    e = c - r @ x
+    t = _NU / max(float(e @ e), 1e-300)
+    for _ in range(40):
+        x = _centre(r, c, x, t, lo3)
+        e = c - r @ x
+        if _NU / t <= _GAP * (float(e @ e) + rss0):
+            break
+        t *= 100.0
+    return x
+
+
 def constrained_fit(
     d: np.ndarray,
     y: np.ndarray,
@@ -86,32 +210,21 @@ def constrained_fit(
     sigma_yaw >= 0; an effect's parameters are free. The likelihood is computed as
     :func:`cart.diagnose._solve` computes it, so fits compare against it unchanged.
     """
-    from scipy import optimize  # lazy: scipy.optimize costs start-up time
-
     n_p = d.shape[-1]
     d2 = d.reshape(-1, n_p)
     y2 = y.reshape(-1)
     p = _start(np.asarray(x0, float))
-    lo = np.full(n_p, -np.inf)
-    lo[:N_NOMINAL] = [MASS_MIN, -np.inf, -np.inf, 0.0, 0.0, 0.0]
+    x = _x_of(p)
     var_e = np.maximum(np.asarray(var_eq, float), 1e-24)
     for _ in range(3):
-        s_k = s2v * np.einsum("nrp,p->nr", lv, _x_of(p)) ** 2 + s2w * np.einsum("nrp,p->nr", lw, _x_of(p)) ** 2
+        s_k = s2v * np.einsum("nrp,p->nr", lv, x) ** 2 + s2w * np.einsum("nrp,p->nr", lw, x) ** 2
         sw = 1.0 / np.sqrt(var_e[None, :] + s_k).reshape(-1)
-
-        def res(u: np.ndarray, sw: np.ndarray = sw) -> np.ndarray:
-            return (y2 - d2 @ _x_of(u)) * sw
-
-        def jac(u: np.ndarray, sw: np.ndarray = sw) -> np.ndarray:
-            return -(d2 @ _jac_x(u)) * sw[:, None]
-
-        lo[3] = GYRATION_MIN**2 * max(p[0], MASS_MIN)
-        p = np.maximum(p, lo + 1e-12)
-        sol = optimize.least_squares(res, p, jac=jac, bounds=(lo, np.full(n_p, np.inf)), method="trf")
-        p = sol.x
-        r = y - np.einsum("nrp,p->nr", d, _x_of(p))
-        var_e = np.maximum(np.mean(r * r - s_k, axis=0), 0.05 * np.mean(r * r, axis=0) + 1e-24)
-    x = _x_of(p)
+        q, r = np.linalg.qr(d2 * sw[:, None])
+        b = y2 * sw
+        c = q.T @ b
+        x = bounded_least_squares(r, c, x, GYRATION_MIN**2 * max(float(x[0]), MASS_MIN), float(b @ b - c @ c))
+        r_w = y - np.einsum("nrp,p->nr", d, x)
+        var_e = np.maximum(np.mean(r_w * r_w - s_k, axis=0), 0.05 * np.mean(r_w * r_w, axis=0) + 1e-24)
     s_k = s2v * np.einsum("nrp,p->nr", lv, x) ** 2 + s2w * np.einsum("nrp,p->nr", lw, x) ** 2
     r = y - np.einsum("nrp,p->nr", d, x)
     var = var_e[None, :] + s_k
