@@ -9,8 +9,9 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   `TorqueArmLaw._prioritized`: the task part, then the hand's feedback as the closest wrench that fits,
   `fit_in_limits`, then the posture), with ``e = w - w_f``,
 
-  where ``w`` is the allocated hand wrench, ``b`` the arm's bias forces at the step's state less the joints'
-  modelled passive torque (their viscous damping: `TorqueArmGains.passive_feedforward`), ``t_in`` the arm's own
+  where ``w`` is the allocated hand wrench, ``b`` the arm's bias forces at the step's state plus, while the hand
+  holds, the hand-space part of the joints' modelled viscous damping (``J^T Jbar^T D v``, ``D`` the robot model's:
+  `TorqueArmGains.passive_feedforward`), ``t_in`` the arm's own
   inertia under the hand's predicted acceleration (the handle's) and the base's measured one (`hand_inertia_terms`,
   `TorqueArmGains.hand_inertia`: the push then does not carry the arm), ``arm_torque`` the
   controller's command (Pinocchio's RNEA with the plan's velocities and accelerations + ``J^T w``), ``b_0`` the
@@ -176,11 +177,18 @@ class TorqueArmGains:
     #: filter (`TorqueArmLaw.joint_torque_sample` with the sensors' reading); the sensors' white noise passes as
     #: ``sqrt(a / (2 - a))`` of it per sample, ``a = dt / (tau + dt)`` (0.07 at 0.2 s); 0 = the sensors' reading alone
     motor_torque_tau: float = 0.2
-    #: True: the task part takes the joints' modelled passive torque off (`TorqueArmLaw.torque`'s ``passive``: their
-    #: viscous damping, 0.5 N m s/rad per iiwa joint in the scene), the arm's friction compensation; False: left to
-    #: the force loop, which meets it as a slow disturbance (the joints' velocities, 0.1-2 Hz: with two arms, Traj. 2
-    #: seed 0, the loop's 0.1-2 Hz wrench is 97 % explained by the arm's joint velocities; docs/mujoco.md "Several
-    #: arms on one cart")
+    #: True: while the hand holds the handle, the task part gives back the hand-space part of the joints' modelled
+    #: viscous damping (``J^T Jbar^T D v``, ``D`` the robot model's joint damping, `TorqueArmLaw`'s
+    #: ``joint_damping``: the URDF's ``<dynamics damping>``, 0.5 N m s/rad per iiwa joint): the damping the push
+    #: would otherwise lose to the hand's motion relative to the base, which the force loop meets as a slow
+    #: disturbance (the joints' velocities, 0.1-2 Hz). The null space keeps the joints' damping (and the posture
+    #: impedance's), and a released hand keeps all of it: a force-controlled arm in free space has no other damping on
+    #: the hand's directions. False (default): all of it left to the force loop. Measured (`cartpush push --plant
+    #: mujoco --arms 2 --trajectory T --seed S --json`; docs/mujoco.md "Several arms on one cart"): two arms' wrench
+    #: error 13.8 / 14.8 / 10.6 % of the hand force (T2 S0, T2 S1, T1 S0) becomes 10.1 / 10.9 / 10.9 %; one arm's
+    #: stays (4.4-4.5 % on T2, 7.9-8.2 % on T1). Off by default: with it the moving-base test of
+    #: tests/wholebody/push/test_wrench_tracking.py (the arm folding on a held cart) meets the arm's inertia alone, a
+    #: ramp, which the PI loop leaves at ``slope / (K_f K_i)`` (0.34 N) instead of removing it
     passive_feedforward: bool = False
 
 
@@ -340,13 +348,34 @@ def fit_in_limits(A: np.ndarray, x: np.ndarray, base: np.ndarray, limit: np.ndar
     return np.asarray(sol, dtype=float)
 
 
+def _joint_damping(joint_damping: np.ndarray | None, n: int) -> np.ndarray:
+    """Return the joints' viscous damping as an array of `n` values >= 0 (zeros for None); ValueError otherwise."""
+    if joint_damping is None:
+        return np.zeros(n)
+    D = np.asarray(joint_damping, dtype=float)
+    if D.shape != (n,) or np.any(D < 0.0):
+        raise ValueError(f"joint_damping must give one damping >= 0 per joint ({n}), got {joint_damping}")
+    return D
+
+
 class TorqueArmLaw:
     """The torque law of one arm (see the module docstring); `begin` once per period, `torque` each physics step."""
 
     def __init__(
-        self, effort_limit: np.ndarray, gains: TorqueArmGains = TorqueArmGains(), physics_dt: float = 0.002
+        self,
+        effort_limit: np.ndarray,
+        gains: TorqueArmGains = TorqueArmGains(),
+        physics_dt: float = 0.002,
+        joint_damping: np.ndarray | None = None,
     ) -> None:
+        """`joint_damping`: the joints' viscous damping ``D`` (N m s/rad per joint) of the robot's model (its URDF's
+        ``<dynamics damping>``; None: none), the law's model of the joints' passive torque ``-D v``."""
         self.limit = np.asarray(effort_limit, dtype=float)
+        self.joint_damping = _joint_damping(joint_damping, self.limit.size)
+        #: the joints' modelled passive torque ``-D v`` at the last step's velocity (`torque`)
+        self._passive = np.zeros(self.limit.size)
+        #: ``J^T Jbar^T``: the hand-space part of a joint torque (`begin`)
+        self._task_proj = np.zeros((self.limit.size, self.limit.size))
         self.gains = gains
         self._alpha = physics_dt / (gains.force_filter_tau + physics_dt)
         self._dt = physics_dt
@@ -383,15 +412,7 @@ class TorqueArmLaw:
         self._q_end = np.zeros(self.limit.size)
         self._v = np.zeros(self.limit.size)
         self._t_end = 0.0
-        #: the law's request against the limits, before any clip: the peak over all joints, per joint, and the task
-        #: part's (``J^T w + b``) peak; physics steps whose request exceeds a limit (then clipped: the task part
-        #: alone exceeds it) and steps where the budget scaled the feedback down
-        self.peak_ratio = 0.0
-        self.peak_joint_ratio = np.zeros(self.limit.size)
-        self.peak_task_ratio = 0.0
-        self.saturated_steps = 0
-        self.scaled_steps = 0
-        self.saturated_now = False
+        self._reset_records()
         #: the loop's reference: the allocated wrench as the measurement sees it (`reference`)
         self._w_ref: np.ndarray | None = None
         self._w_d_prev: np.ndarray | None = None
@@ -399,6 +420,17 @@ class TorqueArmLaw:
         self._started = False
         #: the arm's inertial torque under the hand's predicted acceleration (`begin`): (t, K, planned base acceleration)
         self._inertial_terms: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def _reset_records(self) -> None:
+        """Start the records of the law's request against the limits, before any clip: the peak over all joints, per
+        joint, and the task part's (``J^T w + b``) peak; physics steps whose request exceeds a limit (then clipped:
+        the task part alone exceeds it) and steps where the budget scaled the feedback down."""
+        self.peak_ratio = 0.0
+        self.peak_joint_ratio = np.zeros(self.limit.size)
+        self.peak_task_ratio = 0.0
+        self.saturated_steps = 0
+        self.scaled_steps = 0
+        self.saturated_now = False
 
     def begin(
         self,
@@ -431,7 +463,9 @@ class TorqueArmLaw:
         self._Jw = J.T @ np.asarray(hand_wrench, dtype=float)
         self._period = dt
         self._v = v_new
-        self._NT = null_space_projector_T(J, M) if self.gains.null_space else np.eye(M.shape[0])
+        NT = null_space_projector_T(J, M)
+        self._task_proj = np.eye(M.shape[0]) - NT
+        self._NT = NT if self.gains.null_space else np.eye(M.shape[0])
         self._NT_imp = self._NT
         if self.gains.implicit_damping:
             self._NT_imp = implicit_impedance(self._NT, M, self.gains.damping, self._dt)
@@ -453,14 +487,14 @@ class TorqueArmLaw:
         wrench_measured: np.ndarray | None = None,
         loop_wrench: np.ndarray | None = None,
         base_acceleration: np.ndarray | None = None,
-        passive: np.ndarray | None = None,
+        grasped: bool = True,
     ) -> np.ndarray:
         """Return the joint torques at time `t` and state (q, v), within limits (clipped, or `TorqueArmGains.budget`).
 
         `base_acceleration`: the base joints' measured acceleration over the last physics step, for the arm's
-        inertial torque with `TorqueArmGains.hand_inertia` "measured" (None: the planned one). `passive`: the joints'
-        modelled passive torque (their viscous damping at the joints' velocities), which the task part takes off
-        with `TorqueArmGains.passive_feedforward` (None: zero).
+        inertial torque with `TorqueArmGains.hand_inertia` "measured" (None: the planned one). `grasped`: the hand
+        holds the handle (the gripper closed on it); only then does the task part give back the hand-space part of
+        the joints' modelled damping (`TorqueArmGains.passive_feedforward`).
 
         `hand`: (target position - hand position, target velocity - hand velocity), world frame, for the
         Cartesian impedance (None: off).
@@ -475,8 +509,9 @@ class TorqueArmLaw:
             loop_wrench = self.force_loop(self.force_error(wrench_measured))
         task, plan = self._feedforward(g, bias)
         task = task + self._inertial_torque(base_acceleration)
-        if passive is not None and g.passive_feedforward:
-            task = task - np.asarray(passive, dtype=float)
+        self._passive = -self.joint_damping * v
+        if grasped and g.passive_feedforward:
+            task = task - self._task_proj @ self._passive
         q_plan = self._q_end - self._v * (self._t_end - t)
         impedance = self._NT_imp @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
         u = self._hand_feedback(g, hand, loop_wrench, tilt)
@@ -586,7 +621,6 @@ class TorqueArmLaw:
         tau_ext: np.ndarray,
         mount: np.ndarray | None = None,
         joint_torque: np.ndarray | None = None,
-        passive: np.ndarray | None = None,
     ) -> None:
         """Take the arm's external joint torque over the last physics step (``J^T`` of the cart's wrench on the hand).
 
@@ -596,12 +630,12 @@ class TorqueArmLaw:
         from the link the arm is mounted on) at the sample, the frame of the F/T's slow correction
         (`TorqueArmGains.fusion_frame`); None: the last one given (the identity at first). `joint_torque`: the
         sensors' reading ``tau_joint`` itself; with it and `TorqueArmGains.motor_torque_tau` the sensed joint torque
-        is the law's last command plus the joints' modelled `passive` torque (their viscous damping; None: zero) plus
-        the reading's low-passed difference to both (`_motor_side`).
+        is the law's last command plus the joints' modelled passive torque (``-D v`` at the step's velocity, ``D``
+        the law's ``joint_damping``) plus the reading's low-passed difference to both (`_motor_side`).
         """
         tau_ext = np.asarray(tau_ext, dtype=float)
         if joint_torque is not None and self.gains.motor_torque_tau > 0.0 and self._tau_cmd is not None:
-            model = self._tau_cmd if passive is None else self._tau_cmd + np.asarray(passive, dtype=float)
+            model = self._tau_cmd + self._passive
             tau_ext = self._motor_side(tau_ext, np.asarray(joint_torque, dtype=float), model)
         self._tau_ext = tau_ext
         if mount is not None:

@@ -339,7 +339,8 @@ class MujocoPlant:
         laws: list[TorqueArmLaw | AdmittanceArmLaw] = []
         for mm, r, s in zip(self._robots, self.scene.robots, setups):
             if s.arm_mode == ARM_TORQUE:
-                laws.append(TorqueArmLaw(r.effort_limit, torque_gains, config.physics_dt))
+                damping = np.asarray(mm.model.damping)[mm.wb.arm_idx_v]  # the robot model's (its URDF's)
+                laws.append(TorqueArmLaw(r.effort_limit, torque_gains, config.physics_dt, damping))
                 continue
             gains = admittance
             if gains.from_arm and mm.wb.robot.name not in TUNED_ADMITTANCE:  # damping and loop gain from the limits
@@ -598,7 +599,7 @@ class MujocoPlant:
                         hand,
                         loop_wrench=loops.get(i),
                         base_acceleration=d.qacc[r.base_dof],
-                        passive=d.qfrc_passive[r.arm_dof],
+                        grasped=bool(d.eq_active[r.weld]),
                     )
                 if r.base == "planar":
                     d.ctrl[r.base_actuators] = self._planar_base_rates(i, r, c.base_twist)
@@ -697,7 +698,7 @@ class MujocoPlant:
             white, offset = self._joint_noise[i]
             sensed = joint - offset - white * self._rng_joint.normal(0.0, 1.0, white.size)
             mount = d.xmat[m.body_parentid[m.dof_bodyid[a[0]]]]  # the link the arm is mounted on
-            law.joint_torque_sample(self._mdv[a] + d.qfrc_bias[a] - sensed, mount, sensed, d.qfrc_passive[a])
+            law.joint_torque_sample(self._mdv[a] + d.qfrc_bias[a] - sensed, mount, sensed)
 
     def _planar_base_rates(self, i: int, r: RobotIndex, twist: np.ndarray) -> np.ndarray:
         """Return the planar base's servo setpoints (world rates): the commanded body twist + the PI loop's integral."""

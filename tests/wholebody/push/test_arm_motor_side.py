@@ -1,5 +1,5 @@
 """The torque law and its joints: the sensed joint torque from its own command (`TorqueArmGains.motor_torque_tau`),
-the joints' damping compensated (`TorqueArmGains.passive_feedforward`).
+the joints' damping compensated in the hand's directions while the hand holds (`TorqueArmGains.passive_feedforward`).
 
 The joint's torque is the motor's (the law's command) plus the joint's modelled damping and its unmodelled friction;
 the joint torque sensor reads it with white noise. A law on a random 6 x 7 Jacobian and inertia is fed what an arm
@@ -9,6 +9,7 @@ holding a constant wrench would sense while its command jumps from step to step.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from wholebody.push.arm_control import TorqueArmGains, TorqueArmLaw
 
@@ -31,7 +32,7 @@ def _estimates(motor_tau: float, friction: np.ndarray, steps: int = 2000, seed: 
     torque ``-J^T w`` on top of the joint's torque."""
     J, M = _arm()
     gains = TorqueArmGains(feedforward="bias", motor_torque_tau=motor_tau, ft_noise=None, fusion_tau=0.0)
-    law = TorqueArmLaw(LIMIT, gains, DT)
+    law = TorqueArmLaw(LIMIT, gains, DT, joint_damping=np.full(7, 0.5))
     z = np.zeros(7)
     law.begin(TRUTH, z, z, z, J, M, t_end=1e9, dt=0.01)
     rng = np.random.default_rng(seed)
@@ -43,7 +44,7 @@ def _estimates(motor_tau: float, friction: np.ndarray, steps: int = 2000, seed: 
         joint = tau + passive + friction[k]
         sensed = joint + 1e-3 * LIMIT * rng.normal(size=7)
         model = -J.T @ TRUTH + joint  # M qdd + b: the external torque plus the joint's own
-        law.joint_torque_sample(model - sensed, None, sensed, passive)
+        law.joint_torque_sample(model - sensed, None, sensed)
         out.append(law.joint_estimate(np.zeros(6)))
     return np.array(out)
 
@@ -76,22 +77,40 @@ def test_an_unmodelled_friction_step_is_followed_within_the_low_pass():
     assert settled < 0.1 * jump  # ... and is gone after the low-pass
 
 
-def test_the_joints_damping_is_compensated_so_the_hand_keeps_its_wrench():
-    """The joint's viscous damping takes ``-D v`` from the motor's torque; with `passive_feedforward` the law adds it
-    back, so what reaches the links (motor + damping) is the law's torque of an arm without damping."""
+def test_the_joints_damping_is_compensated_in_the_hands_directions_while_the_hand_holds():
+    """The joint's viscous damping takes ``-D v`` from the motor's torque; with `passive_feedforward` and the hand
+    holding, the law gives back its hand-space part: what reaches the links (motor + damping) puts on the held hand
+    the wrench of an arm without damping (its acceleration ``J M^-1 tau`` under a held hand is the constraint's), and
+    the null space keeps the damping. A released hand keeps all of it (the arm's only damping in free space)."""
     J, M = _arm()
     z = np.zeros(7)
     rng = np.random.default_rng(5)
     q, v, bias = rng.normal(0.0, 0.1, 7), rng.normal(0.0, 1.0, 7), rng.normal(0.0, 5.0, 7)
-    passive = -0.5 * v
+    D = np.array([0.5, 0.5, 0.5, 0.5, 0.5, 0.2, 0.2])
+    passive = -D * v
     taus = {}
-    for on in (True, False):
-        law = TorqueArmLaw(LIMIT, TorqueArmGains(passive_feedforward=on), DT)
+    for on, grasped in ((True, True), (True, False), (False, True)):
+        law = TorqueArmLaw(LIMIT, TorqueArmGains(passive_feedforward=on), DT, joint_damping=D)
         law.begin(TRUTH, z, z, z, J, M, t_end=0.01, dt=0.01)
-        taus[on] = law.torque(0.0, q, v, bias, passive=passive)
+        taus[on, grasped] = law.torque(0.0, q, v, bias, grasped=grasped)
     undamped = TorqueArmLaw(LIMIT, TorqueArmGains(), DT)
     undamped.begin(TRUTH, z, z, z, J, M, t_end=0.01, dt=0.01)
     reference = undamped.torque(0.0, q, v, bias)
-    np.testing.assert_allclose(taus[True] + passive, reference, atol=1e-9)
-    np.testing.assert_allclose(taus[False], reference, atol=1e-9)  # off: the damping is the loop's to meet
+    held = taus[True, True] + passive - reference  # what the damping leaves on the links
+    on_hand = np.linalg.norm(J @ np.linalg.solve(M, passive))  # the damping's own acceleration of a free hand
+    np.testing.assert_allclose(J @ np.linalg.solve(M, held), 0.0, atol=1e-6 * on_hand)  # none of it on the hand
+    # the null space keeps the damping: N^T (-D v), N^T = I - J^T Jbar^T (an independent computation)
+    Minv = np.linalg.inv(M)
+    Jbar = Minv @ J.T @ np.linalg.inv(J @ Minv @ J.T)
+    np.testing.assert_allclose(held, (np.eye(7) - J.T @ Jbar.T) @ passive, atol=1e-6 * np.abs(passive).max())
+    assert np.linalg.norm(held) > 0.1 * np.linalg.norm(passive)  # and that is not nothing
+    np.testing.assert_allclose(taus[True, False], reference, atol=1e-9)  # released: all the damping stays
+    np.testing.assert_allclose(taus[False, True], reference, atol=1e-9)  # off: the damping is the loop's to meet
     assert np.max(np.abs(passive)) > 0.1  # the test holds a damping worth compensating
+
+
+def test_joint_damping_must_be_one_non_negative_value_per_joint():
+    with pytest.raises(ValueError, match="one damping >= 0 per joint"):
+        TorqueArmLaw(LIMIT, joint_damping=np.full(6, 0.5))
+    with pytest.raises(ValueError, match="one damping >= 0 per joint"):
+        TorqueArmLaw(LIMIT, joint_damping=np.r_[np.full(6, 0.5), -0.1])
