@@ -26,7 +26,10 @@ least (:func:`best_split`), the whole stretch is ``t0_range``, with a
 note that the time is not identified; each side is identified up to ``t0`` (the stretch's rows say little of
 the mass but much of the damping). A split whose
 two sides' own searches split them further is checked again (:func:`_joined`: two segments of the same load
-next to it are joined).
+next to it are joined). The search weighs its rows down where the whole log's single fit misfits several times
+more than it does typically over a second or two (:func:`reweighted`: a caster's swing as the cart turns in
+place, which a split far from the change can fit better than the change itself); when the change found so is
+not kept, the unweighted search is tried too.
 """
 
 from __future__ import annotations
@@ -60,6 +63,10 @@ _ROWS_PER_PERIOD = 10.0
 N_DYNAMIC = 6
 #: The columns a load on the deck changes by its own inertia ([m, m dx, m dy, J]).
 _N_LOAD = 4
+#: Half-width (s) of the windows whose misfit weighs the split search's rows (:func:`robust_weights`).
+ROBUST_WINDOW_S = 1.0
+#: A window's misfit (RMS) above this many times the typical one lowers its rows' weight (:func:`robust_weights`).
+ROBUST_MISFIT = 3.0
 #: Level of the likelihood-ratio confidence set of a change's time that ``t0_range`` holds (:func:`confidence_set`).
 CONFIDENCE_LEVEL = 0.95
 
@@ -591,7 +598,8 @@ def _split(
     pose shows a put-in's momentum exchange there, :func:`exchange_shown`) and ``MIN_RELATIVE_CHANGE`` of the
     larger mass, each side's mass at least ``IDENTIFIED_Z`` of its std; each
     side is then identified on its own, ``guard`` s (one period of the cut-off) away from the change, and
-    those estimates (the ones reported) must differ by ``MIN_RELATIVE_CHANGE`` too.
+    those estimates (the ones reported) must differ by ``MIN_RELATIVE_CHANGE`` too. The split is sought on the
+    rows weighted by :func:`robust_weights` first, unweighted when the change found so is not kept.
     """
     from cart.identify import IdentifiabilityError, identify
 
@@ -599,17 +607,15 @@ def _split(
     data = res.fit_data
     if depth <= 0 or data is None:
         return here
-    s = _search_rows(res)
-    split = best_split(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, shared=s.shared)
-    if split is None:
+    plain = _search_rows(res)
+    for s in (reweighted(plain), plain):
+        split = _kept_split(log, res, s)
+        if split is not None:
+            break
+    else:
         return here
     tc, lo, hi = split
     guard = 1.0 / res.cutoff_hz
-    z, ml, mr, identified = change_z(res, tc, guard)
-    if not (identified >= IDENTIFIED_Z and abs(ml - mr) >= MIN_RELATIVE_CHANGE * max(ml, mr)):
-        return here
-    if z < CHANGE_Z and not exchange_shown(log, res.params.m, tc, (ml, mr, z), s.row_dt):
-        return here
     lo_i, hi_i = information_stretch(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, tc, s.shared)
     lo_c, hi_c = confidence_set(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, s.shared)
     lo, hi = min(lo, lo_i, lo_c), max(hi, hi_i, hi_c)
@@ -624,6 +630,47 @@ def _split(
     segs_l = _split(log, left, t0, tc, depth - 1, t0_range)
     segs_r = _split(log, right, tc, t1, depth - 1, (lo, hi))
     return _joined(log, segs_l, segs_r, guard, casters)
+
+
+def _kept_split(log: CartLog, res, s: _Search) -> tuple[float, float, float] | None:
+    """Return :func:`best_split`'s (time, earliest, latest) on the search ``s`` when the change there is kept (the
+    sides' masses differ by ``CHANGE_Z`` std or the pose shows a put-in's exchange, :func:`_split`), else None."""
+    split = best_split(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, shared=s.shared)
+    if split is None:
+        return None
+    z, ml, mr, identified = change_z(res, split[0], 1.0 / res.cutoff_hz)
+    if not (identified >= IDENTIFIED_Z and abs(ml - mr) >= MIN_RELATIVE_CHANGE * max(ml, mr)):
+        return None
+    if z < CHANGE_Z and not exchange_shown(log, res.params.m, split[0], (ml, mr, z), s.row_dt):
+        return None
+    return split
+
+
+def robust_weights(s: _Search) -> np.ndarray:
+    """Return each row's weight (k, 2) of the search ``s``: at most one, less where the whole log's single fit (no
+    change) misfits more than ``ROBUST_MISFIT`` times its typical misfit over ``ROBUST_WINDOW_S`` either side.
+
+    The typical misfit is the median of the windows' mean square, per row of the wrench (force, torque).
+    """
+    sw = 1.0 / s.scale
+    xs, ys = s.x * sw[None, :, None], s.y * sw[None, :]
+    p = np.linalg.lstsq(xs.reshape(-1, xs.shape[-1]), ys.reshape(-1), rcond=None)[0]
+    r2 = (ys - np.einsum("krp,p->kr", xs, p)) ** 2
+    n = max(1, int(round(ROBUST_WINDOW_S / s.row_dt)))
+    box = np.ones(2 * n + 1) / (2 * n + 1)
+    local = np.stack([np.convolve(r2[:, j], box)[n : n + len(r2)] for j in range(2)], axis=1)  # centred windows
+    typical = np.median(local, axis=0)
+    return np.minimum(1.0, ROBUST_MISFIT * np.sqrt(typical[None, :] / np.maximum(local, 1e-300)))
+
+
+def reweighted(s: _Search) -> _Search:
+    """Return the search ``s`` with its rows weighted by :func:`robust_weights` (the same tolerance).
+
+    The weights vary over a window of ``2 ROBUST_WINDOW_S``, longer than the filter's reach, so the momentum
+    exchange's rows (:func:`exchange_corrections`, weighted at the candidate's row) share their window's weight.
+    """
+    w = robust_weights(s)
+    return s._replace(x=s.x * w[:, :, None], y=s.y * w)
 
 
 def _alike(m_a: float, m_b: float) -> bool:
