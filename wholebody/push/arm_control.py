@@ -183,13 +183,11 @@ class TorqueArmGains:
     #: would otherwise lose to the hand's motion relative to the base, which the force loop meets as a slow
     #: disturbance (the joints' velocities, 0.1-2 Hz). The null space keeps the joints' damping (and the posture
     #: impedance's), and a released hand keeps all of it: a force-controlled arm in free space has no other damping on
-    #: the hand's directions. False (default): all of it left to the force loop. Measured (`cartpush push --plant
-    #: mujoco --arms 2 --trajectory T --seed S --json`; docs/mujoco.md "Several arms on one cart"): two arms' wrench
-    #: error 13.8 / 14.8 / 10.6 % of the hand force (T2 S0, T2 S1, T1 S0) becomes 10.1 / 10.9 / 10.9 %; one arm's
-    #: stays (4.4-4.5 % on T2, 7.9-8.2 % on T1). Off by default: with it the moving-base test of
-    #: tests/wholebody/push/test_wrench_tracking.py (the arm folding on a held cart) meets the arm's inertia alone, a
-    #: ramp, which the PI loop leaves at ``slope / (K_f K_i)`` (0.34 N) instead of removing it
-    passive_feedforward: bool = False
+    #: the hand's directions. False: all of it left to the force loop. Measured (`cartpush push --plant mujoco --arms
+    #: 2 --trajectory T --seed S --json`; docs/mujoco.md "Several arms on one cart"): two arms' wrench error 13.8 /
+    #: 14.8 / 10.6 % of the hand force (T2 S0, T2 S1, T1 S0) becomes 10.1 / 10.9 / 10.9 %; one arm's stays (4.4-4.5 %
+    #: on T2, 7.9-8.2 % on T1)
+    passive_feedforward: bool = True
 
 
 def hand_inertia_terms(
