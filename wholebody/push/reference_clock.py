@@ -12,7 +12,12 @@ which the cart controller (eq. 26) tracks as it would q_d(t). The inertial deman
 yaw acceleration and the CoM's swing out of it, which the tip-over bound counts): when the allocation gives only
 part of the desired wrench (its residual, a share d of the demand) the rate heads for r (1 - d) with time constant
 `TimeScaling.tau_down` (fast: the error a missing turn leaves grows quickly); when it gives all of it, back to 1. The rate's change is the reference's own acceleration along
-the path (q_d' r_dot): its slowing is kept within `TimeScaling.brake_share` of what the hands' force gives the
+the path (q_d' r_dot). At the edge of what the arms can give, a period that saturates slows the rate and the next,
+given in full, lets it recover, and with each period's own r_dot the feed-forward would alternate with them (the
+WMRA's Traj. 2, seed 0: the desired push between +5 and -11 N period by period, the hand's allocated press on the
+handle between 0 and 55 N): a change of the rate that reverses the last one, the rate staying below 1, gives r_dot
+the mean of the two, which cancels that alternation; any other change is the period's own. Its slowing is kept
+within `TimeScaling.brake_share` of what the hands' force gives the
 estimated mass (toppra-style: the admissible path acceleration from the estimated dynamics; Pham and Pham,
 "A new approach to time-optimal path parameterization based on reachability analysis", IEEE T-RO 34(3), 2018).
 While r = 1 the reference time is the run's time exactly (s = t).
@@ -82,7 +87,11 @@ class ReferenceClock:
     #: the run's time minus the reference time (s): how far the reference is behind the desired motion
     delay: float = 0.0
     rate: float = 1.0
+    #: the reference's path acceleration r_dot (1/s): the rate's change over the last period, or its mean with the
+    #: change before when it reverses that one below a rate of 1 (module docstring)
     rate_dot: float = 0.0
+    #: the rate's change over the last period, over its length (1/s)
+    rate_step: float = 0.0
     #: the largest rate whose feed-forward over the horizon the arms can give (`admissible_rate`), and when (run
     #: time, s) it was last checked
     admissible: float = 1.0
@@ -101,7 +110,7 @@ class ReferenceClock:
         """
         s = self.settings
         if math.isnan(deficit):  # a braking deficit: slowing would ask more braking; hold the rate
-            self.rate_dot = 0.0
+            self._rate_changed(0.0, self.rate < 1.0)
             self.delay += (1.0 - self.rate) * dt
             return
         slowing = deficit > s.deficit_tol or self.admissible < self.rate
@@ -113,9 +122,16 @@ class ReferenceClock:
         new = min(1.0, max(s.rate_min, self.rate + step))
         if not slowing and new > 1.0 - RATE_SNAP:  # the approach to 1 is asymptotic: it ends
             new = 1.0
-        self.rate_dot = (new - self.rate) / dt
+        self._rate_changed((new - self.rate) / dt, new < 1.0)
         self.rate = new
         self.delay += (1.0 - new) * dt
+
+    def _rate_changed(self, step: float, slowed: bool) -> None:
+        """Take this period's rate change (1/s) and whether the rate stays below 1: r_dot is the change, or its mean
+        with the last period's when it reverses that one while slowed (module docstring)."""
+        reverses = slowed and step * self.rate_step < 0.0
+        self.rate_dot = 0.5 * (step + self.rate_step) if reverses else step
+        self.rate_step = step
 
 
 class ScaledReference:

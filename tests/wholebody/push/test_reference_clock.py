@@ -14,6 +14,7 @@ from wholebody.push.config import PUSH_ARM_LIMITS
 from cart.trajectories import trajectory_2
 from wholebody.push.config import TRUE_CART
 from wholebody.push.reference_clock import (
+    RATE_SNAP,
     ReferenceClock,
     ScaledReference,
     TimeScaling,
@@ -138,3 +139,34 @@ def test_a_reference_slowed_by_less_than_half_a_percent_is_not_called_saturation
     rate[len(rate) // 2] = 0.9
     slowed = replace(result, reference_rate=rate, reference_time=result.t.copy())
     assert any(line.startswith("saturation: reference slowed to 90 %") for line in what_happened(slowed))
+
+
+def test_a_rate_that_alternates_between_slowing_and_recovering_gives_a_steady_path_acceleration():
+    # at the edge of what the arms can give: a period saturates (the rate slows), the next is given in full (it
+    # recovers), and so on; from the first reversal on, the path acceleration r_dot is the mean of the last two
+    # periods' rate changes
+    dt = 0.01
+    clock = ReferenceClock(TimeScaling(), rate=0.7)
+    rates, rate_dots = [clock.rate], []
+    for k in range(20):
+        clock.advance(0.2 if k % 2 == 0 else 0.0, dt, 0.5, 10.0)
+        rates.append(clock.rate)
+        rate_dots.append(clock.rate_dot)
+    steps = np.diff(rates) / dt
+    assert rate_dots[0] == pytest.approx(steps[0])  # the first slowing is the period's own
+    assert np.allclose(rate_dots[1:], 0.5 * (steps[1:] + steps[:-1]), rtol=0, atol=1e-12)
+    # each period's own change alternates by about 0.6 /s; their two-period mean by less than a tenth of that
+    assert np.abs(np.diff(steps[5:])).min() > 0.5
+    assert np.abs(np.diff(rate_dots[5:])).max() < 0.1 * np.abs(np.diff(steps[5:])).min()
+
+
+def test_a_rate_that_slows_steadily_or_returns_to_one_keeps_each_periods_change():
+    dt = 0.01
+    clock = ReferenceClock(TimeScaling(), rate=0.99)
+    for _ in range(3):  # slowing, period after period
+        before = clock.rate
+        clock.advance(0.3, dt, 0.5, 10.0)
+        assert clock.rate_dot == pytest.approx((clock.rate - before) / dt)
+    clock.rate = 1.0 - 0.5 * RATE_SNAP
+    clock.advance(0.0, dt, 0.5, 10.0)  # given in full: back to 1 within the period, a reversal that is not averaged
+    assert clock.rate == 1.0 and clock.rate_dot == pytest.approx(0.5 * RATE_SNAP / dt)
