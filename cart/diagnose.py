@@ -741,6 +741,10 @@ class _Ranked:
         return self.trials[0]
 
 
+#: the candidates ranked on one fit (:func:`_rank_candidates`), with that fit
+_RankMemo = tuple[Fit, list[_Ranked]]
+
+
 @dataclass(frozen=True)
 class _Named:
     """An effect named in one round of the search: its variant's trial and the replay of the model with it."""
@@ -1425,7 +1429,13 @@ def _own_objection(nm: _Named, resolution: float, push: tuple[float, float], fin
 
 
 def _pairs_from(
-    sig: Signals, edges: np.ndarray, first: _Named, alone: dict[str, tuple[float, float]], ctx: tuple, gap0: float
+    sig: Signals,
+    edges: np.ndarray,
+    first: _Named,
+    alone: dict[str, tuple[float, float]],
+    ctx: tuple,
+    gap0: float,
+    ranked_on: _RankMemo | None = None,
 ) -> list[_Pair]:
     """Return the pairs of ``first`` with each other candidate that pass the drop-one and replay rules.
 
@@ -1433,11 +1443,15 @@ def _pairs_from(
     does not replay); dropping either effect must lose more than the threshold and widen the replay gap.
     ``ctx``: (candidates, threshold,
     horizon, mask, resolution, push); ``gap0``: the nominal replay's gap, which the pair must shrink by MIN_SHRINK.
+    ``ranked_on``: the candidates ranked on the fit of the effect the rounds named first (:func:`_rounds`),
+    the same ranking as ``first``'s when ``first`` is that fit.
     """
     cands, threshold, horizon, mask, resolution, push = ctx
     a = first.trial
     out: list[_Pair] = []
-    for ranked in _rank_candidates(sig, edges, a.fit, cands, [a.effect.name]):
+    known = ranked_on is not None and ranked_on[0] is a.fit
+    ranking = ranked_on[1] if known and ranked_on is not None else None
+    for ranked in ranking if ranking is not None else _rank_candidates(sig, edges, a.fit, cands, [a.effect.name]):
         b_name = ranked.best.effect.name
         second, _ = _best_replaying_variant(ranked.trials, threshold, horizon)
         if second is None or _own_objection(second, resolution, push):
@@ -1451,7 +1465,14 @@ def _pairs_from(
     return out
 
 
-def _joint_pairs(sig: Signals, edges: np.ndarray, results: Sequence[_Ranked], ctx: tuple, rep0: Replay) -> list[_Pair]:
+def _joint_pairs(
+    sig: Signals,
+    edges: np.ndarray,
+    results: Sequence[_Ranked],
+    ctx: tuple,
+    rep0: Replay,
+    ranked_on: _RankMemo | None = None,
+) -> list[_Pair]:
     """Return every pair of candidates fitted jointly in which each is needed given the other, best first.
 
     Add-one/drop-one over pairs: one at a time, an effect whose force the nominal model absorbs
@@ -1473,7 +1494,7 @@ def _joint_pairs(sig: Signals, edges: np.ndarray, results: Sequence[_Ranked], ct
         first = singles.get(ranked.best.effect.name)
         if first is None or _own_objection(first, resolution, push):
             continue
-        pairs += _pairs_from(sig, edges, first, alone, ctx, rep0.gap(mask))
+        pairs += _pairs_from(sig, edges, first, alone, ctx, rep0.gap(mask), ranked_on)
     return sorted(pairs, key=lambda p: -p.dbic)
 
 
@@ -1508,11 +1529,13 @@ def _rounds(
     settings: tuple[float, float, int],
     start: tuple[np.ndarray | None, Replay, float],
     verdicts: dict[str, Verdict],
+    ranked_on: list[_RankMemo] | None = None,
 ) -> list[_Ranked]:
     """Name effects one at a time from ``state`` (updated in place) until none is named; return round 1's ranking.
 
     ``settings``: (threshold, horizon, max_effects); ``start``: (mask of flagged starts, nominal replay,
-    lateral slip ratio); ``verdicts`` collects why the others were not named.
+    lateral slip ratio); ``verdicts`` collects why the others were not named; ``ranked_on`` (when given)
+    receives round 2's ranking on the first named effect's fit (:func:`_pairs_from` ranks the same).
     """
     threshold, horizon, max_effects = settings
     mask, _, slip_ratio = start
@@ -1526,6 +1549,8 @@ def _rounds(
         results = _rank_candidates(sig, edges, current, cands, names)
         if not results:
             break
+        if ranked_on is not None and round_ == 1:
+            ranked_on.append((current, results))
         first = first or results
         rnd = _choose_effect(results, threshold, horizon, mask, reps[-1], names, slip_ratio, resolution, push)
         for v in rnd.verdicts:  # the reasons of every round, the first round's Delta BIC
@@ -1599,7 +1624,8 @@ def _search(
     named: list[_Named] = []
     reasons: list[str] = []
     reps = [rep0]  # the nominal replay and one after each named effect
-    results = _rounds(sig, edges, (nominal, named, reasons, reps), cands, settings, start, verdicts)
+    ranked_on: list[_RankMemo] = []
+    results = _rounds(sig, edges, (nominal, named, reasons, reps), cands, settings, start, verdicts, ranked_on)
     first_scores = [(r.best.effect.name, float(r.best.dbic)) for r in results]
     current = named[-1].trial.fit if named else nominal
     slip_first = bool(named) and named[0].trial.effect.name == "lateral_slip" and slip_ratio > SLIP_RATIO
@@ -1608,7 +1634,7 @@ def _search(
     resolution = float(np.median(np.diff(sig.t)))
     push = (float(np.sqrt(np.mean(sig.f_fwd**2))), float(np.sqrt(np.mean(sig.tau**2))))
     ctx = (cands, threshold, horizon, mask, resolution, push)
-    pairs = _joint_pairs(sig, edges, results, ctx, rep0)
+    pairs = _joint_pairs(sig, edges, results, ctx, rep0, ranked_on[0] if ranked_on else None)
     g_names = [nm.trial.effect.name for nm in named]
     g_dbic = float(sum(nm.trial.dbic for nm in named))
     if not pairs or pairs[0].names == set(g_names):
