@@ -83,8 +83,8 @@ def _interior(x: np.ndarray, lo3: float) -> np.ndarray:
 
 def _slacks(x: np.ndarray, lo3: float) -> tuple[float, float, float, float]:
     """Return the slacks of the bounds: m - MASS_MIN, sigma, sigma_yaw, m (J - lo3) - (m dx)^2 - (m dy)^2."""
-    m, a, b, j = (float(u) for u in x[:4])
-    return m - MASS_MIN, float(x[4]), float(x[5]), m * (j - lo3) - a * a - b * b
+    m, a, b, j, s_1, s_2 = x[:6].tolist()
+    return m - MASS_MIN, s_1, s_2, m * (j - lo3) - a * a - b * b
 
 
 def _barrier_value(x: np.ndarray, lo3: float) -> float:
@@ -94,10 +94,10 @@ def _barrier_value(x: np.ndarray, lo3: float) -> float:
     barrier -log(m (J - lo3) - (m dx)^2 - (m dy)^2) is self-concordant (parameter 2); each of
     m >= MASS_MIN, sigma >= 0, sigma_yaw >= 0 adds -log(slack) (parameter 1).
     """
-    slacks = _slacks(x, lo3)
-    if min(slacks) <= 0.0:
+    s_m, s_1, s_2, q = _slacks(x, lo3)
+    if s_m <= 0.0 or s_1 <= 0.0 or s_2 <= 0.0 or q <= 0.0:
         return math.inf
-    return -sum(math.log(v) for v in slacks)
+    return -(math.log(s_m) + math.log(s_1) + math.log(s_2) + math.log(q))
 
 
 def _barrier_derivatives(x: np.ndarray, lo3: float) -> tuple[np.ndarray, np.ndarray]:
@@ -108,7 +108,7 @@ def _barrier_derivatives(x: np.ndarray, lo3: float) -> tuple[np.ndarray, np.ndar
     for i, v in ((0, s_m), (4, s_1), (5, s_2)):
         grad[i] -= 1.0 / v
         hess[i, i] += 1.0 / (v * v)
-    m, a, b, j = (float(u) for u in x[:4])
+    m, a, b, j = x[:4].tolist()
     dq = np.array([j - lo3, -2.0 * a, -2.0 * b, m])
     grad[:4] -= dq / q
     hess[:4, :4] += np.outer(dq, dq) / (q * q)
@@ -123,15 +123,21 @@ def _barrier_derivatives(x: np.ndarray, lo3: float) -> tuple[np.ndarray, np.ndar
 _NU = 5.0
 
 
-def _newton_step(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -> tuple[np.ndarray, float]:
-    """Return the Newton step of t ||c - r x||^2 + barrier at x and its Newton decrement."""
+def _newton_step(
+    r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float, fixed: tuple[np.ndarray, np.ndarray]
+) -> tuple[np.ndarray, float]:
+    """Return the Newton step of t ||c - r x||^2 + barrier at x and its Newton decrement.
+
+    ``fixed``: (r^T r, the ridge 1e-13 I), the same at every step of one problem.
+    """
+    rtr, ridge = fixed
     g_b, h_b = _barrier_derivatives(x, lo3)
     grad = -2.0 * t * (r.T @ (c - r @ x)) + g_b
-    hess = 2.0 * t * (r.T @ r) + h_b
+    hess = 2.0 * t * rtr + h_b
     diag = np.diag(hess)
     scale = 1.0 / np.sqrt(np.where(diag > 0.0, diag, 1.0))
     # the equilibrated system, a tiny ridge for columns without weight (an effect's column that is all zero)
-    step = -scale * np.linalg.solve(hess * np.outer(scale, scale) + 1e-13 * np.eye(len(x)), grad * scale)
+    step = -scale * np.linalg.solve(hess * np.outer(scale, scale) + ridge, grad * scale)
     return step, math.sqrt(max(-float(grad @ step), 0.0))
 
 
@@ -143,18 +149,21 @@ def _centre(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -
         return t * float(e @ e) + _barrier_value(u, lo3)
 
     lam_prev = math.inf
+    fixed = (r.T @ r, 1e-13 * np.eye(len(x)))
     for _ in range(_MAX_NEWTON):
-        step, lam = _newton_step(r, c, x, t, lo3)
+        step, lam = _newton_step(r, c, x, t, lo3, fixed)
         size = 1.0
         if lam >= 0.25:  # damped phase: backtrack on the barrier function
             phi0 = phi(x)
             while size > 1e-12 and phi(x + size * step) > phi0 - 0.25 * size * lam * lam:
                 size *= 0.5
-        while size > 1e-12 and _barrier_value(x + size * step, lo3) == math.inf:
+        x_new = x + size * step
+        while size > 1e-12 and _barrier_value(x_new, lo3) == math.inf:
             size *= 0.5
-        if _barrier_value(x + size * step, lo3) == math.inf:
+            x_new = x + size * step
+        if _barrier_value(x_new, lo3) == math.inf:
             break
-        x = x + size * step
+        x = x_new
         # converged, or stalled at the rounding level of t ||c - r x||^2
         if lam < 1e-5 or (lam < 1e-2 and lam > 0.5 * lam_prev):
             break
