@@ -35,12 +35,16 @@ from wholebody.push.robot import MobileManipulator, base_target, ft_to_cart_gamm
 from wholebody.push.scheduler import ContactScheduler
 from wholebody.motion.tasks import BaseTask, PostureTask
 from wholebody.push.base_plan import BasePlan
-from wholebody.push.reference_clock import ReferenceClock, admissible_rate, deficit
+from wholebody.push.reference_clock import ReferenceClock, admissible_rate, deficit, footprint_params
 from wholebody.push.tip_support import cart_load
 
 
 #: allocations per period with the tip-over bound when the allocation saturates (`PushController._allocate`)
 TIP_LOAD_PASSES = 3
+
+#: the largest share of the estimated mass and of the footprint's half-size the tip-over bound's margin takes off
+#: (`PushController._cart_load`)
+TIP_MARGIN_SHARE = 0.25
 
 #: time constant (s) of the filter between the cart estimate and the pose the hands hold (`PushController._grasp_pose`)
 GRASP_FILTER_TAU = 0.1
@@ -218,23 +222,42 @@ class PushController:
         self.clock.advance(share, self.config.dt, path_speed, accel)
 
     def _look_ahead(self, s: float, params: CartParams) -> None:
-        """Every `TimeScaling.check_period` of reference time: the largest rate whose feed-forward over the horizon
-        the arms can give (`reference_clock.admissible_rate`), with the allocation's limits as they are now and the
-        tip-over bound under each sample's motion. The allocator's own tip rows are put back afterwards."""
+        """Every `TimeScaling.check_period` of reference time: the largest rate from which the reference can slow in
+        time to one whose feed-forward the arms can give over the horizon (`reference_clock.admissible_rate`), with
+        the allocation's limits as they are now, the tip-over bound under each sample's motion (with the allocation's
+        margin, `_cart_load`) and the estimate's
+        inertia at least its mass spread over the wheels (`reference_clock.footprint_params`). The allocator's own
+        tip rows are put back afterwards."""
         clock = self.clock
         settings = clock.settings if clock is not None else None
         if clock is None or settings is None or settings.horizon <= 0 or s - clock.checked_at < settings.check_period:
             return
         clock.checked_at = s
+        if self.support is not None:
+            params = footprint_params(params, np.asarray(self.support.points, dtype=float))
 
         def achievable(row: np.ndarray) -> bool:
             if self.support is not None:
                 state = np.array([row[3], 0.0, row[4]])
-                self.allocator.set_tip_bound(self.support, cart_load(np.zeros(3), state, row[:3], params, None, 0.0))
+                self.allocator.set_tip_bound(self.support, self._cart_load(np.zeros(3), state, row[:3], params))
             return self.allocator.optimum(row[:3]) is not None
 
+        decel = settings.plan_share * self._rate_decel(s, params)
         with self.allocator.tip_bound_kept() if self.support is not None else nullcontext():
-            clock.admissible = admissible_rate(self.trajectory, s, 1.0, settings, params, achievable)
+            clock.admissible = admissible_rate(self.trajectory, s, settings, params, achievable, decel)
+
+    def _rate_decel(self, s: float, params: CartParams) -> float:
+        """Return the path deceleration (1/s) the clock's brake bound allows at reference time s: `brake_share` of
+        the hands' total force over the estimated mass, over the desired path speed (the largest over the horizon
+        when the path is at rest at s); inf when the path does not move."""
+        assert self.clock is not None
+        settings = self.clock.settings
+        hs = np.linspace(0.0, settings.horizon, settings.horizon_samples)
+        speed = max(float(np.hypot(*self.trajectory.sample(s + float(h))[1][:2])) for h in hs)
+        force = self.config.n_arms * self.config.arm_limits.max_force
+        if speed <= 1e-9 or params.m <= 0:
+            return float("inf")
+        return settings.brake_share * force / params.m / speed
 
     def _demand(self, t: float, q: np.ndarray, qd: np.ndarray, params: CartParams) -> tuple[float, float, np.ndarray]:
         """Return the reference time s at time t, its rate (`ReferenceClock`; t and 1 without one) and the desired
@@ -278,10 +301,22 @@ class PushController:
 
     def _cart_load(self, q: np.ndarray, qd: np.ndarray, gamma: np.ndarray, params: CartParams) -> CartLoad:
         """Return the cart's load on its wheels under the desired wrench (`tip_support.cart_load`), with the
-        estimator's 1-sigma when `PushConfig.tip_std_factor` asks for a margin."""
+        estimator's 1-sigma when `PushConfig.tip_std_factor` asks for a margin.
+
+        The margin guards against the estimate's error; a misfitting estimator scales its 1-sigma up by its residual
+        ratio (`cart.online_estimator.OnlineLSEstimator.params_std`: the hospital bed's 206 +- 116 kg, CoM y +-
+        0.22 m on a 0.8 m track), and that margin forbade the sideways push that steers the cart (its hand pressed
+        down at the 150 N bound and pushed sideways 30-60 N). So it takes off at most `TIP_MARGIN_SHARE` of the
+        estimated mass and of the wheels' footprint's half-size along x and y."""
         factor = self.config.tip_std_factor
         std_of = getattr(self.estimator, "params_std", None)
         std = std_of() if std_of is not None and factor > 0.0 else None
+        if std is not None and self.support is not None:
+            pts = np.asarray(self.support.points, dtype=float)
+            half = 0.5 * (pts.max(axis=0) - pts.min(axis=0))
+            cap = TIP_MARGIN_SHARE / factor
+            com = np.minimum(np.nan_to_num(np.asarray(std["com"], dtype=float), nan=0.0), cap * half)
+            std = dict(std, mass=min(float(std["mass"]), cap * float(params.m)), com=[float(v) for v in com])
         return cart_load(q, qd, gamma, params, std, factor)
 
     def _grasp_pose(self, q_hat: np.ndarray, qd_hat: np.ndarray, t: float) -> np.ndarray:

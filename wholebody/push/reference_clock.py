@@ -22,16 +22,17 @@ estimated mass (toppra-style: the admissible path acceleration from the estimate
 "A new approach to time-optimal path parameterization based on reachability analysis", IEEE T-RO 34(3), 2018).
 While r = 1 the reference time is the run's time exactly (s = t).
 
-The reaction comes after the cart has fallen behind, and a turn's demand grows with the error it leaves. So the
-clock also looks ahead (`planned_wrenches`, `admissible_rate`): the feed-forward wrench of the desired motion
-over the next `TimeScaling.horizon` seconds at rate r (cart paper eq. 4 with the estimated parameters: v r,
-vdot r^2, omega r, omegadot r^2), grown by `TimeScaling.feedback_share` for the feedback, must be one the arms
+The reaction comes after the cart has fallen behind, and a turn's demand grows with the error it leaves; a heavy
+cart at speed also keeps its momentum while its reference slows. So the clock also looks ahead (`admissible_rate`,
+on by default): at samples of the desired path over the next `TimeScaling.horizon` seconds of reference time, the
+largest rate of a grid whose feed-forward wrench there (`planned_wrench`: cart paper eq. 4 with the estimated
+parameters, v r, vdot r^2, omega r, omegadot r^2, grown by `TimeScaling.feedback_share` for the feedback) the arms
 can give (the allocation's limits at their current configuration, the tip-over bound under that motion's load);
-the rate heads for the largest such r on a grid, as for a deficit. This is the admissible-velocity test of
-time-optimal path parameterization, at the few rates of the grid and along the horizon only. It is off by default
-(`TimeScaling.horizon` 0): it judges a turn with the estimated yaw inertia, which the straight run before the first
-turn does not excite, and the sideways push that estimate asks at the handle fails its tip-over test (the CoM counted
-at the handle's height) in turns the arms make at full speed (docs/mujoco.md, "The reference slows down").
+the rate now is at most the one from which the reference can slow to each of those in time, at a path deceleration
+within the brake bound (`plan_share` of it): the backward pass of time-optimal path parameterization at the grid's
+rates. The turn ahead is judged with the estimate's yaw inertia and CoM, but at least those of its mass spread over
+the wheels' footprint (`footprint_params`): before the first turn nothing has excited them and the estimate's are
+its prior, scaled from a small cart.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cart.params import CartParams
 from wholebody.errors import WholeBodyError
 
 
@@ -62,17 +64,19 @@ class TimeScaling:
     brake_share: float = 0.5
     #: the allocation's residual, as a share of the demand, below which it counts as giving the whole wrench
     deficit_tol: float = 0.02
-    #: how far ahead (s) the desired motion's feed-forward wrench must be one the arms can give, and how often (s,
-    #: of reference time) that is checked (`admissible_rate`). 0: no look-ahead (the default: with 1.5 the default
-    #: MuJoCo Traj. 2 is slowed to 80 % in its turns, which the arms make at full speed: the estimate's yaw inertia
-    #: is not yet excited there; docs/mujoco.md)
-    horizon: float = 0.0
-    horizon_samples: int = 7
+    #: how far ahead (s of reference time) the desired motion's feed-forward must be one the arms can give at a rate
+    #: the reference can slow to in time (`admissible_rate`), at how many samples, and how often (s, of reference
+    #: time) that is checked. 0: no look-ahead
+    horizon: float = 4.0
+    horizon_samples: int = 17
     check_period: float = 0.1
     #: the feed-forward checked is grown by this share: room for the feedback
-    feedback_share: float = 0.0
-    #: the rates tried, from the top, when the feed-forward at the current target is not one the arms can give
-    rate_grid: tuple[float, ...] = (1.0, 0.8, 0.6, 0.45, 0.3, 0.2)
+    feedback_share: float = 0.5
+    #: the rates tried at each sample, from the top
+    rate_grid: tuple[float, ...] = (1.0, 0.8, 0.6, 0.45, 0.3, 0.2, 0.15, 0.1)
+    #: share of the slowing `brake_share` allows that the look-ahead plans with (the rate's approach to its target
+    #: is exponential, `tau_down`, and slower than that bound near the target)
+    plan_share: float = 0.5
 
     def __post_init__(self) -> None:
         if not (0.0 < self.rate_min <= 1.0 and self.tau_down > 0 and self.tau_up > 0 and 0 < self.brake_share <= 1):
@@ -172,30 +176,66 @@ def deficit(gamma_desired: np.ndarray, gamma_achieved: np.ndarray, path_braking:
     return math.nan if share > 0.0 and braking else share
 
 
-def planned_wrenches(trajectory, s: float, rate: float, settings: TimeScaling, params) -> list[np.ndarray]:
-    """Return the body wrenches (f_forward, 0, tau) the desired motion needs over the horizon at `rate`, with the
-    estimated parameters (`cart.dynamics.inverse_dynamics`, paper eq. 4) and the feedback's share on top; each
-    with the state (v, omega) it is needed at: ``[(wrench, v, omega), ...]`` as rows (f, 0, tau, v, omega)."""
+def planned_wrench(trajectory, s: float, rate: float, settings: TimeScaling, params) -> np.ndarray:
+    """Return the body wrench (f_forward, 0, tau) the desired motion needs at reference time `s` read at `rate`,
+    with the estimated parameters (`cart.dynamics.inverse_dynamics`, paper eq. 4) and the feedback's share on top,
+    and the state it is needed at: the row (f, 0, tau, v, omega)."""
     from cart.dynamics import inverse_dynamics
 
     m, a, b, j = params.phi
     c_v, c_w = params.damping
     grow = 1.0 + settings.feedback_share
-    out = []
-    for h in np.linspace(0.0, settings.horizon, settings.horizon_samples):
-        q, qd, qdd = trajectory.sample(s + rate * float(h))
-        c, sn = math.cos(q[2]), math.sin(q[2])
-        v, vdot = rate * (c * qd[0] + sn * qd[1]), rate * rate * (c * qdd[0] + sn * qdd[1])
-        om, omdot = rate * qd[2], rate * rate * qdd[2]
-        fu, tau = inverse_dynamics(v, om, vdot, omdot, m, a, b, j, c_v, c_w)
-        out.append(np.array([grow * fu, 0.0, grow * tau, v, om]))
-    return out
+    q, qd, qdd = trajectory.sample(s)
+    c, sn = math.cos(q[2]), math.sin(q[2])
+    v, vdot = rate * (c * qd[0] + sn * qd[1]), rate * rate * (c * qdd[0] + sn * qdd[1])
+    om, omdot = rate * qd[2], rate * rate * qdd[2]
+    fu, tau = inverse_dynamics(v, om, vdot, omdot, m, a, b, j, c_v, c_w)
+    return np.array([grow * fu, 0.0, grow * tau, v, om])
 
 
-def admissible_rate(trajectory, s: float, top: float, settings: TimeScaling, params, achievable) -> float:
-    """Return the largest rate of `TimeScaling.rate_grid` (at most `top`; else `rate_min`) whose feed-forward over the
-    horizon (`planned_wrenches`) is, at every sample, ``achievable(row)`` (the caller's allocation test)."""
-    for r in [v for v in settings.rate_grid if v <= top + 1e-12]:
-        if all(achievable(row) for row in planned_wrenches(trajectory, s, r, settings, params)):
+def sample_rate(trajectory, s: float, settings: TimeScaling, params, achievable) -> float:
+    """Return the largest rate of `TimeScaling.rate_grid` whose feed-forward at reference time `s` (`planned_wrench`)
+    is ``achievable(row)`` (the caller's allocation test); `rate_min` when none is."""
+    for r in settings.rate_grid:
+        if achievable(planned_wrench(trajectory, s, r, settings, params)):
             return r
     return settings.rate_min
+
+
+def admissible_rate(trajectory, s: float, settings: TimeScaling, params, achievable, decel: float) -> float:
+    """Return the largest rate now from which the reference can slow, at the path deceleration `decel` (1/s, r_dot
+    = -decel), to a rate the arms can give at every sample ahead (`sample_rate` at s + h, h from 0 to the horizon).
+
+    Slowing from r to r_k at r_dot = -decel covers (r^2 - r_k^2) / (2 decel) of reference time (the reference
+    advances at ds/dt = r), so the rate now is at most sqrt(r_k^2 + 2 decel h_k) for each sample k: the
+    backward pass of time-optimal path parameterization (Pham and Pham 2018) at a constant deceleration. The
+    samples are tested nearest first, and none further once their bound cannot go below the smallest so far.
+    """
+    best = 1.0
+    for h in np.linspace(0.0, settings.horizon, settings.horizon_samples):
+        if decel > 0.0 and math.isfinite(decel) and settings.rate_min**2 + 2.0 * decel * float(h) >= best * best:
+            break  # no sample this far can ask for a slower rate now
+        r_k = sample_rate(trajectory, s + float(h), settings, params, achievable)
+        reach = math.sqrt(r_k * r_k + 2.0 * decel * float(h)) if math.isfinite(decel) else (1.0 if h > 0 else r_k)
+        best = min(best, reach)
+    return max(settings.rate_min, min(1.0, best))
+
+
+def footprint_params(params: CartParams, points: np.ndarray) -> CartParams:
+    """Return the estimate `params` with its yaw inertia about {b} at least that of its mass spread evenly over the
+    rectangle around the cart's wheel contacts `points` ((K, 2) in {b}), and its CoM along each axis at least as
+    far from {b} as that rectangle's centre.
+
+    Before the first turn the estimate's yaw inertia and CoM are its prior (nothing excited them); the look-ahead
+    judges a turn it has not met with the larger of the two, so a 2 m bed is not entered into a turn as if it
+    were a 0.8 m shopping cart."""
+    pts = np.asarray(points, dtype=float)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre, size = 0.5 * (lo + hi), hi - lo
+    m = float(params.m)
+    dx = float(centre[0]) if abs(centre[0]) > abs(params.dx) else float(params.dx)
+    dy = float(centre[1]) if abs(centre[1]) > abs(params.dy) else float(params.dy)
+    spread_b = m * (float(size @ size) / 12.0 + float(centre @ centre))
+    j_b = max(float(params.inertia_b), spread_b)
+    inertia = max(j_b - m * (dx * dx + dy * dy), float(params.I))
+    return CartParams(m, dx, dy, inertia, params.sigma, params.sigma_yaw)

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from cart.params import CartParams
 from cart.trajectories import trajectory_1
 from wholebody.contacts.allocation import ArmLimits
 from wholebody.push import PushConfig, run_push
@@ -20,7 +22,9 @@ from wholebody.push.reference_clock import (
     TimeScaling,
     admissible_rate,
     deficit,
-    planned_wrenches,
+    footprint_params,
+    planned_wrench,
+    sample_rate,
 )
 from wholebody.push.report import what_happened
 
@@ -97,7 +101,10 @@ def test_a_saturating_push_slows_its_reference_instead_of_losing_the_cart():
     assert config.scaling_settings() is None  # the kinematic plant's default: the desired timing
     lost = run_push(config).metrics
     assert lost.tracking_lost_at_s is not None and lost.reference_time_scale_min == 1.0
-    result = run_push(replace(config, time_scaling=TimeScaling()))
+    # the look-ahead (the default) slows the reference before the ramp: the allocation never leaves a share out
+    ahead = run_push(replace(config, time_scaling=TimeScaling())).metrics
+    assert ahead.tracking_lost_at_s is None and ahead.saturated_steps == 0 and ahead.reference_time_scale_min < 0.9
+    result = run_push(replace(config, time_scaling=TimeScaling(horizon=0.0)))  # the reaction alone
     m = result.metrics
     assert m.tracking_lost_at_s is None and m.tracking_rms_mm < 20.0
     assert m.saturated_steps > 0 and m.reference_time_scale_min < 0.9 and m.reference_delay_s > 0.5
@@ -116,18 +123,47 @@ def test_a_saturating_push_slows_its_reference_instead_of_losing_the_cart():
     assert not any("reference slowed" in line for line in what_happened(never))
 
 
-def test_the_look_ahead_takes_the_fastest_rate_whose_turn_torque_the_arms_give():
-    settings = TimeScaling(horizon=1.5)
+def test_the_look_ahead_slows_before_the_turn_to_a_rate_whose_torque_the_arms_give_at_its_peak():
+    settings = TimeScaling(horizon=4.0, feedback_share=0.0)
     traj = trajectory_2(30.0)
-    full = max(abs(row[2]) for row in planned_wrenches(traj, 7.0, 1.0, settings, TRUE_CART))
-    half = max(abs(row[2]) for row in planned_wrenches(traj, 7.0, 0.5, settings, TRUE_CART))
+    peak = 7.9  # s: Traj. 2's first turn's largest torque (yaw acceleration and v omega together)
+    full = abs(planned_wrench(traj, peak, 1.0, settings, TRUE_CART)[2])
+    half = abs(planned_wrench(traj, peak, 0.5, settings, TRUE_CART)[2])
     assert 0.0 < half < 0.5 * full  # the turn's torque falls at least as fast as the rate
-    limit = 0.7 * full  # arms that give 70 % of the full-speed turn's torque
-    rate = admissible_rate(traj, 7.0, 1.0, settings, TRUE_CART, lambda row: abs(row[2]) <= limit)
-    assert rate < 1.0 and rate in settings.rate_grid
-    faster = [r for r in settings.rate_grid if r > rate]
-    assert all(max(abs(w[2]) for w in planned_wrenches(traj, 7.0, r, settings, TRUE_CART)) > limit for r in faster)
-    assert admissible_rate(traj, 7.0, 1.0, settings, TRUE_CART, lambda row: False) == settings.rate_min
+    limit = 0.2 * full  # arms that give a fifth of the full-speed turn's torque
+
+    def arms(row):
+        return abs(row[2]) <= limit
+
+    at_peak = sample_rate(traj, peak, settings, TRUE_CART, arms)
+    assert at_peak < 1.0 and at_peak in settings.rate_grid
+    assert all(
+        abs(planned_wrench(traj, peak, r, settings, TRUE_CART)[2]) > limit for r in settings.rate_grid if r > at_peak
+    )
+    # on the straight before it the arms give the full speed; from 2 s of reference time ahead of the peak the rate
+    # now is the one the reference can slow from, at `decel`, to the peak's: sqrt(r_k^2 + 2 decel h), at most 1
+    decel = 0.1
+    assert sample_rate(traj, 5.0, settings, TRUE_CART, arms) == 1.0
+    now = admissible_rate(traj, peak - 2.0, settings, TRUE_CART, arms, decel)
+    assert at_peak < now <= math.sqrt(at_peak**2 + 2.0 * decel * 2.0) + 1e-9
+    assert now < 1.0
+    # far from the turn (the horizon does not reach it) and with an unbounded deceleration: no slowing now
+    assert admissible_rate(traj, 2.0, settings, TRUE_CART, arms, decel) == 1.0
+    assert admissible_rate(traj, peak - 2.0, settings, TRUE_CART, arms, math.inf) == 1.0
+    assert admissible_rate(traj, peak, settings, TRUE_CART, lambda row: False, decel) == settings.rate_min
+
+
+def test_the_look_ahead_judges_a_turn_with_at_least_the_inertia_of_the_mass_spread_over_the_wheels():
+    bed = CartParams(250.0, 0.3, 0.0, 250.0 * 0.2)  # a prior scaled from a small cart: CoM 0.3 m, j/m 0.2 m^2
+    wheels = np.array([[0.0, 0.4], [0.0, -0.4], [1.74, 0.4], [1.74, -0.4]])
+    spread = footprint_params(bed, wheels)
+    plate = 250.0 * ((1.74**2 + 0.8**2) / 12.0 + 0.87**2)  # a uniform 1.74 m x 0.8 m plate about {b}
+    assert spread.m == bed.m and spread.dx == pytest.approx(0.87) and spread.dy == 0.0
+    assert spread.inertia_b == pytest.approx(plate)
+    # an estimate already larger than the spread mass is kept
+    heavy = CartParams(250.0, 0.9, 0.05, 400.0)
+    kept = footprint_params(heavy, wheels)
+    assert (kept.dx, kept.dy, kept.I) == (heavy.dx, heavy.dy, heavy.I)
 
 
 def test_a_reference_slowed_by_less_than_half_a_percent_is_not_called_saturation():
