@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -254,6 +255,16 @@ def _against_bound(names: list[str], res: dict, truth: dict) -> dict[str, float]
     }
 
 
+def load_change_case(seed: int) -> rigid_sim.RigidCase:
+    """Return :func:`load_change_study`'s case of ``seed``: 40-60 s, a load of factor 0.6, 0.7, 1.4 or 1.6 at
+    35-65 % of the log."""
+    rng = np.random.default_rng(seed)
+    dur = float(rng.uniform(40, 60))
+    tc = float(rng.uniform(0.35, 0.65) * dur)
+    fac = float(rng.choice([0.6, 0.7, 1.4, 1.6]))
+    return rigid_sim.random_case(seed, duration=dur, load_time=tc, load_factor=fac)
+
+
 def load_change_study(n: int, seed0: int) -> dict[str, float]:
     """Return the share of rigid_sim logs (40-60 s, a load of factor 0.6, 0.7, 1.4 or 1.6 at 35-65 % of the log)
     whose change `estimate` finds within 1 s with the after-mass within 5 %, the number of the others whose change
@@ -267,11 +278,9 @@ def load_change_study(n: int, seed0: int) -> dict[str, float]:
 
     found = false = wide = held = 0
     for i in range(n):
-        rng = np.random.default_rng(seed0 + i)
-        dur = float(rng.uniform(40, 60))
-        tc = float(rng.uniform(0.35, 0.65) * dur)
-        fac = float(rng.choice([0.6, 0.7, 1.4, 1.6]))
-        log, truth = rigid_sim.simulate(rigid_sim.random_case(seed0 + i, duration=dur, load_time=tc, load_factor=fac))
+        case = load_change_case(seed0 + i)
+        tc, dur = float(case.load_time or 0.0), case.duration
+        log, truth = rigid_sim.simulate(case)
         segs = estimate_log(log).segments
         m_after = truth["load_change"]["m_after"]
         last = segs[-1]
@@ -297,12 +306,88 @@ def load_change_study(n: int, seed0: int) -> dict[str, float]:
     }
 
 
+def after_mass_row(seed: int) -> dict[str, Any]:
+    """Return one load-change log's (:func:`load_change_case`) after-mass errors (% of the truth): ``reported``
+    (``estimate``'s last segment), ``at_truth`` (:func:`cart.identify.identify` on the log from the true change
+    plus one cut-off period, as ``estimate`` identifies a side) and its ``std``; the before-mass's too; and the
+    stretch around the true change that the motion cannot date (:func:`cart.segments.information_stretch`, s
+    from the change)."""
+    from cart import segments
+    from cart.estimate_report import estimate_log
+    from cart.identify import identify
+
+    case = load_change_case(seed)
+    tc, fac = float(case.load_time or 0.0), case.load_factor
+    log, truth = rigid_sim.simulate(case)
+    m0, m1 = float(truth["m"]), float(truth["load_change"]["m_after"])
+    segs = estimate_log(log).segments
+    res = identify(log)
+    guard, t0, t1 = 1.0 / res.cutoff_hz, float(log.t[0]), float(log.t[-1])
+    after = identify(segments.slice_log(log, tc + guard, t1))
+    before = identify(segments.slice_log(log, t0, tc - guard))
+    s = segments._search_rows(res)
+    lo, hi = segments.information_stretch(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, tc, s.shared)
+    pct = lambda m, truth_m: 100.0 * (m / truth_m - 1.0)  # noqa: E731
+    return {
+        "seed": seed,
+        "factor": fac,
+        "t_change": tc,
+        "after_s": t1 - tc,
+        "m_after": m1,
+        "found": len(segs) >= 2,
+        "t0_off": float(segs[-1]["t0"]) - tc if len(segs) >= 2 else math.nan,
+        "reported": pct(float(segs[-1]["mass"]), m1) if len(segs) >= 2 else math.nan,
+        "at_truth": pct(after.params.m, m1),
+        "std": 100.0 * after.std["mass"] / m1,
+        "before_at_truth": pct(before.params.m, m0),
+        "before_std": 100.0 * before.std["mass"] / m0,
+        "stretch": (lo - tc, hi - tc),
+    }
+
+
+def after_mass_study(n: int, seed0: int) -> dict[str, float]:
+    """Return the after-mass errors of :func:`after_mass_row` over ``n`` load-change logs: mean and median of the
+    error at the true change (%), mean and RMS of it over its std (z), the same for the before-mass, the mean of
+    ``estimate``'s reported error on the changes it finds, and the share one may expect of a method that dates
+    each change at the middle of its :func:`cart.segments.information_stretch` (hit within 1 s with probability
+    min(1, 2 / width) for a change anywhere in it) and weighs the after-segment with that std, unbiased (within
+    5 % with probability erf(5 / (std sqrt 2))). Each log's row is printed as it comes (JSON)."""
+    import json
+
+    rows = []
+    for i in range(n):
+        r = after_mass_row(seed0 + i)
+        print(json.dumps(r), flush=True)
+        rows.append(r)
+    err, std = np.array([r["at_truth"] for r in rows]), np.array([r["std"] for r in rows])
+    err0, std0 = np.array([r["before_at_truth"] for r in rows]), np.array([r["before_std"] for r in rows])
+    width = np.array([r["stretch"][1] - r["stretch"][0] for r in rows])
+    p_date = np.minimum(1.0, 2.0 / np.maximum(width, 1e-9))
+    p_mass = np.array([math.erf(5.0 / (sd * math.sqrt(2.0))) for sd in std])
+    rep = np.array([r["reported"] for r in rows if r["found"]])
+    return {
+        "logs": n,
+        "after_error_mean_pct": float(err.mean()),
+        "after_error_median_pct": float(np.median(err)),
+        "after_z_mean": float(np.mean(err / std)),
+        "after_z_rms": float(np.sqrt(np.mean((err / std) ** 2))),
+        "after_within_5pct_at_truth": float(np.mean(np.abs(err) < 5.0)),
+        "before_error_mean_pct": float(err0.mean()),
+        "before_z_mean": float(np.mean(err0 / std0)),
+        "before_z_rms": float(np.sqrt(np.mean((err0 / std0) ** 2))),
+        "reported_error_mean_pct": float(rep.mean()) if len(rep) else math.nan,
+        "expected_share_dated_and_weighed": float(np.mean(p_date * p_mass)),
+    }
+
+
 if __name__ == "__main__":  # python -m studies.testbeds.log_recorders N SEED0 OUT_DIR | --evaluate OUT_DIR
     import json
     import sys
 
     if len(sys.argv) == 3 and sys.argv[1] == "--evaluate":
         print(json.dumps(evaluate(sys.argv[2]), indent=1))
+    elif len(sys.argv) == 4 and sys.argv[1] == "--after-mass":
+        print(json.dumps(after_mass_study(int(sys.argv[2]), int(sys.argv[3])), indent=1))
     elif len(sys.argv) == 4 and sys.argv[1] == "--load-changes":
         print(json.dumps(load_change_study(int(sys.argv[2]), int(sys.argv[3])), indent=1))
     elif len(sys.argv) == 4:
@@ -310,5 +395,5 @@ if __name__ == "__main__":  # python -m studies.testbeds.log_recorders N SEED0 O
     else:
         sys.exit(
             "usage: python -m studies.testbeds.log_recorders N SEED0 OUT_DIR | --evaluate OUT_DIR "
-            "| --load-changes N SEED0"
+            "| --load-changes N SEED0 | --after-mass N SEED0"
         )

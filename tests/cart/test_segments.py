@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pathlib
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -14,16 +15,15 @@ if str(ROOT) not in sys.path:  # `studies` is not an installed package
 
 from cart.estimate_report import estimate_log  # noqa: E402
 from studies.testbeds import rigid_sim  # noqa: E402
+from studies.testbeds.log_recorders import load_change_case  # noqa: E402
 
 
 def _load_case(seed: int, change: bool = True) -> tuple:
-    """Return (log, change time, truth) of the load-change study's case ``seed`` (log_recorders.load_change_study)."""
-    rng = np.random.default_rng(seed)
-    dur = float(rng.uniform(40, 60))
-    tc = float(rng.uniform(0.35, 0.65) * dur)
-    fac = float(rng.choice([0.6, 0.7, 1.4, 1.6]))
-    extra = {"load_time": tc, "load_factor": fac} if change else {}
-    log, truth = rigid_sim.simulate(rigid_sim.random_case(seed, duration=dur, **extra))
+    """Return (log, change time, truth) of the load-change study's case ``seed`` (log_recorders.load_change_case),
+    without its change when ``change`` is False."""
+    case = load_change_case(seed)
+    tc = float(case.load_time or 0.0)
+    log, truth = rigid_sim.simulate(case if change else replace(case, load_time=None, load_factor=1.0))
     return log, tc, truth
 
 
