@@ -105,13 +105,12 @@ def _barrier_derivatives(x: np.ndarray, lo3: float) -> tuple[np.ndarray, np.ndar
     n = len(x)
     grad, hess = np.zeros(n), np.zeros((n, n))
     s_m, s_1, s_2, q = _slacks(x, lo3)
-    for i, v in ((0, s_m), (4, s_1), (5, s_2)):
-        grad[i] -= 1.0 / v
-        hess[i, i] += 1.0 / (v * v)
+    grad[0], grad[4], grad[5] = -(1.0 / s_m), -(1.0 / s_1), -(1.0 / s_2)
+    hess[0, 0], hess[4, 4], hess[5, 5] = 1.0 / (s_m * s_m), 1.0 / (s_1 * s_1), 1.0 / (s_2 * s_2)
     m, a, b, j = x[:4].tolist()
     dq = np.array([j - lo3, -2.0 * a, -2.0 * b, m])
     grad[:4] -= dq / q
-    hess[:4, :4] += np.outer(dq, dq) / (q * q)
+    hess[:4, :4] += (dq[:, None] * dq[None, :]) / (q * q)
     hess[0, 3] -= 1.0 / q
     hess[3, 0] -= 1.0 / q
     hess[1, 1] += 2.0 / q
@@ -134,10 +133,10 @@ def _newton_step(
     g_b, h_b = _barrier_derivatives(x, lo3)
     grad = -2.0 * t * (r.T @ (c - r @ x)) + g_b
     hess = 2.0 * t * rtr + h_b
-    diag = np.diag(hess)
+    diag = hess.diagonal()
     scale = 1.0 / np.sqrt(np.where(diag > 0.0, diag, 1.0))
     # the equilibrated system, a tiny ridge for columns without weight (an effect's column that is all zero)
-    step = -scale * np.linalg.solve(hess * np.outer(scale, scale) + ridge, grad * scale)
+    step = -scale * np.linalg.solve(hess * (scale[:, None] * scale[None, :]) + ridge, grad * scale)
     return step, math.sqrt(max(-float(grad @ step), 0.0))
 
 
