@@ -206,3 +206,36 @@ def test_a_rate_that_slows_steadily_or_returns_to_one_keeps_each_periods_change(
     clock.rate = 1.0 - 0.5 * RATE_SNAP
     clock.advance(0.0, dt, 0.5, 10.0)  # given in full: back to 1 within the period, a reversal that is not averaged
     assert clock.rate == 1.0 and clock.rate_dot == pytest.approx(0.5 * RATE_SNAP / dt)
+
+
+class _Sigma:
+    """An estimator stand-in that reports a given 1-sigma (`params_std`)."""
+
+    def __init__(self, mass: float, com: tuple[float, float]) -> None:
+        self.std = {"mass": mass, "com": list(com)}
+
+    def params_std(self) -> dict:
+        return self.std
+
+
+def test_the_tip_over_margin_takes_at_most_a_quarter_of_the_mass_and_of_the_footprints_half_size():
+    from wholebody.push.controller import TIP_MARGIN_SHARE
+    from wholebody.push.loop import build_controller
+
+    config = PushConfig(plant="mujoco", contact="fixed", duration=8.0, base_plan=None, tip_bound=True)
+    ctrl = build_controller(config).controller
+    assert ctrl.support is not None
+    pts = np.asarray(ctrl.support.points)
+    half = 0.5 * (pts.max(axis=0) - pts.min(axis=0))
+    params, factor = TRUE_CART, config.tip_std_factor
+    q, qd, gamma = np.zeros(3), np.array([0.5, 0.0, 0.0]), np.array([10.0, 0.0, 0.0])
+    # a misfit-inflated 1-sigma (the bed's: 116 kg on 206, CoM +- 2.5 m): the margin is capped
+    ctrl.estimator = _Sigma(0.6 * params.m, (2.5, 0.2))
+    load = ctrl._cart_load(q, qd, gamma, params)
+    assert factor * load.mass_std == pytest.approx(TIP_MARGIN_SHARE * params.m)
+    assert factor * np.asarray(load.com_std) == pytest.approx(TIP_MARGIN_SHARE * half)
+    assert TIP_MARGIN_SHARE * params.m < factor * 0.6 * params.m
+    # a small one (the WMRA's CoM +- 0.015 m) is kept as it is
+    ctrl.estimator = _Sigma(0.4, (0.01, 0.015))
+    load = ctrl._cart_load(q, qd, gamma, params)
+    assert load.mass_std == 0.4 and tuple(load.com_std) == (0.01, 0.015)
