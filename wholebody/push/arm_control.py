@@ -100,7 +100,14 @@ class TorqueArmGains:
     #: force loop: ``J^T K_f (e + K_i int e)``, ``e = w - w_f``, ``w_f`` the measured hand wrench (at the grasp,
     #: world-aligned) low-passed with time constant ``force_filter_tau`` (s), every physics step; it divides the
     #: arm's own task-space inertia and friction felt by the cart by ``1 + K_f`` and removes their slow part
-    #: (``K_i``, 1/s); ``force_feedback`` 0 = off (open-loop J^T w)
+    #: (``K_i``, 1/s); ``force_feedback`` 0 = off (open-loop J^T w). The loop's one-step delay and its measurement
+    #: filter bound the gain: with ``force_filter_tau`` 2 ms instead of 5, K_f = 4 diverges (two arms, Traj. 2, seed
+    #: 0, first 8 s: 316 % of the hand force; 3: 9.7 %). Measured with K_f = 4 (`cartpush push --plant mujoco [--arms
+    #: 2] --trajectory T --seed S --json`; docs/mujoco.md "Several arms on one cart"): two arms' wrench error T2
+    #: S0/S1 9.3/10.2 % of the hand force (10.1/10.9 at 3), T1 S0 9.9 % (10.9), held-out T2 S7/S8 10.6/10.9 %
+    #: (11.1/11.6); one arm's T2 S0/S1/S2 3.9/4.0/4.1 % (4.4/4.5/4.5), T1 S0 7.1 % (8.0); tracking within 0.05 mm
+    #: (one arm's T1 2.26 mm against 2.50), torque requests at most 0.31 of a limit; a released arm, exact sensing,
+    #: moves 2.0 mrad in 1 s (1.5 at 3, 1.35 without the loop)
     force_feedback: float = 3.0
     #: the loop's gain on the moment rows (``K_f`` stands for the force rows): the wrist's rotational task-space
     #: inertia (0.3-0.6 kg m^2 for the iiwa, 0.004 for TIAGo) is too small to filter the loop's one-step delay;
