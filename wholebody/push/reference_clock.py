@@ -70,8 +70,9 @@ class TimeScaling:
     horizon: float = 4.0
     horizon_samples: int = 17
     check_period: float = 0.1
-    #: the feed-forward checked is grown by this share: room for the feedback
-    feedback_share: float = 0.5
+    #: the feed-forward checked is grown by this share: room for the feedback. A trade-off measured on Traj. 2:
+    #: 0.5 slows the default cart's turns to 63 % (hand-force error 9.4 %), 0 leaves the wheelchair's too fast (61.5 mm)
+    feedback_share: float = 0.25
     #: the rates tried at each sample, from the top
     rate_grid: tuple[float, ...] = (1.0, 0.8, 0.6, 0.45, 0.3, 0.2, 0.15, 0.1)
     #: share of the slowing `brake_share` allows that the look-ahead plans with (the rate's approach to its target
