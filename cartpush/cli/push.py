@@ -15,6 +15,7 @@ if TYPE_CHECKING:
     from wholebody.contacts.allocation import ArmLimits
     from wholebody.push.base_settings import BasePlanSettings
     from wholebody.push.load_change import LoadChange
+    from wholebody.push.reference_clock import TimeScaling
 
 JSON_FIELDS = (
     "tracking_rms_mm",
@@ -135,6 +136,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "centre of mass); repeatable. A load put in takes the cart's momentum (docs/push.md); --json gives\n"
         "load_changes_true beside the estimator's load_changes, and what_happened says whether each was found",
     )
+    p.add_argument(
+        "--look-ahead",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="MuJoCo plant: slow the reference before a stretch of the next S s of the path that the arms cannot\n"
+        "give at speed (wholebody.push.reference_clock.admissible_rate; default 0: off)",
+    )
     p.add_argument("--duration", type=float, default=30.0, help="trajectory duration in s (default 30)")
     p.add_argument("--initial-mass", type=float, default=16.0, help="initial mass estimate in kg (default 16)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
@@ -208,7 +217,21 @@ def config_from_args(args: argparse.Namespace):
         tip_bound="auto" if args.tip_bound == "auto" else args.tip_bound == "on",
         arm_limits=_arm_limits(args.grip_torque_arm),
         load_changes=tuple(parse_load_change(v) for v in args.load_change or ()),
+        time_scaling=_time_scaling(args.look_ahead, args.plant),
     )
+
+
+def _time_scaling(look_ahead: float, plant: str) -> TimeScaling | Literal["auto"]:
+    """Return `PushConfig.time_scaling` for ``--look-ahead S``: "auto" for 0, the look-ahead's settings otherwise."""
+    from wholebody.push.reference_clock import TimeScaling
+
+    if not math.isfinite(look_ahead) or look_ahead < 0.0:
+        raise OptionError(f"--look-ahead takes a horizon in s >= 0, got {look_ahead}")
+    if look_ahead == 0.0:
+        return "auto"
+    if plant != "mujoco":
+        raise OptionError("--look-ahead needs --plant mujoco (the kinematic plant's reference never slows)")
+    return TimeScaling(horizon=look_ahead)
 
 
 def parse_load_change(text: str) -> LoadChange:

@@ -33,3 +33,15 @@ def test_a_cart_model_without_the_mujoco_plant_or_not_a_model_is_refused(capsys,
     assert main(["push", "--plant", "mujoco", "--cart-model", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cart" in err[0]
+
+
+def test_look_ahead_reaches_the_reference_clock_and_bad_horizons_are_refused(capsys):
+    from cartpush.cli.push import _time_scaling
+
+    settings = _time_scaling(4.0, "mujoco")
+    assert settings != "auto" and settings.horizon == 4.0
+    assert _time_scaling(0.0, "mujoco") == "auto"
+    for argv in (["--plant", "mujoco", "--look-ahead", "-1"], ["--look-ahead", "4"]):
+        assert main(["push", *argv, "--duration", "8"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--look-ahead" in err[0]

@@ -23,8 +23,8 @@ estimated mass (toppra-style: the admissible path acceleration from the estimate
 While r = 1 the reference time is the run's time exactly (s = t).
 
 The reaction comes after the cart has fallen behind, and a turn's demand grows with the error it leaves; a heavy
-cart at speed also keeps its momentum while its reference slows. So the clock also looks ahead (`admissible_rate`,
-on by default): at samples of the desired path over the next `TimeScaling.horizon` seconds of reference time, the
+cart at speed also keeps its momentum while its reference slows. So the clock can also look ahead (`admissible_rate`,
+`TimeScaling(horizon=4.0)`, `cartpush push --look-ahead 4`; off by default): at samples of the desired path over the next `TimeScaling.horizon` seconds of reference time, the
 largest rate of a grid whose feed-forward wrench there (`planned_wrench`: cart paper eq. 4 with the estimated
 parameters, v r, vdot r^2, omega r, omegadot r^2, grown by `TimeScaling.feedback_share` for the feedback) the arms
 can give (the allocation's limits at their current configuration, the tip-over bound under that motion's load);
@@ -66,8 +66,9 @@ class TimeScaling:
     deficit_tol: float = 0.02
     #: how far ahead (s of reference time) the desired motion's feed-forward must be one the arms can give at a rate
     #: the reference can slow to in time (`admissible_rate`), at how many samples, and how often (s, of reference
-    #: time) that is checked. 0: no look-ahead
-    horizon: float = 4.0
+    #: time) that is checked. 0 (the default): no look-ahead. 4 s keeps heavy or off-centre carts' turns (docs/mujoco.md,
+    #: "Example cart files"), but slows the default carts' turns and lowers their hand force more than its error
+    horizon: float = 0.0
     horizon_samples: int = 17
     check_period: float = 0.1
     #: the feed-forward checked is grown by this share: room for the feedback. A trade-off measured on Traj. 2:

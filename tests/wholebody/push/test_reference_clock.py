@@ -101,8 +101,8 @@ def test_a_saturating_push_slows_its_reference_instead_of_losing_the_cart():
     assert config.scaling_settings() is None  # the kinematic plant's default: the desired timing
     lost = run_push(config).metrics
     assert lost.tracking_lost_at_s is not None and lost.reference_time_scale_min == 1.0
-    # the look-ahead (the default) slows the reference before the ramp: the allocation never leaves a share out
-    ahead = run_push(replace(config, time_scaling=TimeScaling())).metrics
+    # the look-ahead slows the reference before the ramp: the allocation never leaves a share out
+    ahead = run_push(replace(config, time_scaling=TimeScaling(horizon=4.0))).metrics
     assert ahead.tracking_lost_at_s is None and ahead.saturated_steps == 0 and ahead.reference_time_scale_min < 0.9
     result = run_push(replace(config, time_scaling=TimeScaling(horizon=0.0)))  # the reaction alone
     m = result.metrics
