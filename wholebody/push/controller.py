@@ -17,6 +17,7 @@ object drives the kinematic plant, the MuJoCo plant or real robots.
 
 from __future__ import annotations
 
+import math
 from contextlib import nullcontext
 from dataclasses import dataclass, replace
 from collections.abc import Sequence
@@ -217,9 +218,12 @@ class PushController:
         _, qd, qdd = self.trajectory.sample(s)
         share = deficit(np.asarray(gamma_b)[rows], np.asarray(achieved)[rows], float(qd[:2] @ qdd[:2]) < 0.0)
         path_speed = float(np.hypot(*qd[:2]))
+        self.clock.advance(share, self.config.dt, path_speed, self._accel_bound(params))
+
+    def _accel_bound(self, params: CartParams) -> float:
+        """Return the acceleration (m/s^2) the hands' total force bound gives the estimated mass; inf without a mass."""
         force = self.config.n_arms * self.config.arm_limits.max_force
-        accel = force / params.m if params.m > 0 else float("inf")
-        self.clock.advance(share, self.config.dt, path_speed, accel)
+        return force / params.m if params.m > 0 else float("inf")
 
     def _look_ahead(self, s: float, params: CartParams) -> None:
         """Every `TimeScaling.check_period` of reference time: the largest rate from which the reference can slow in
@@ -254,10 +258,10 @@ class PushController:
         settings = self.clock.settings
         hs = np.linspace(0.0, settings.horizon, settings.horizon_samples)
         speed = max(float(np.hypot(*self.trajectory.sample(s + float(h))[1][:2])) for h in hs)
-        force = self.config.n_arms * self.config.arm_limits.max_force
-        if speed <= 1e-9 or params.m <= 0:
+        accel = self._accel_bound(params)
+        if speed <= 1e-9 or not math.isfinite(accel):
             return float("inf")
-        return settings.brake_share * force / params.m / speed
+        return settings.brake_share * accel / speed
 
     def _demand(self, t: float, q: np.ndarray, qd: np.ndarray, params: CartParams) -> tuple[float, float, np.ndarray]:
         """Return the reference time s at time t, its rate (`ReferenceClock`; t and 1 without one) and the desired
