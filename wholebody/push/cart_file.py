@@ -186,6 +186,44 @@ def _handle_sites(path: Path, model: mujoco.MjModel, cart: int) -> tuple[HandleS
     return tuple(handles)
 
 
+#: a wheel's cylinder axis within this angle (rad) of its hinge's rolls on it; one whose radius down from its centre
+#: comes this close (m) to the floor is a wheel (`_check_wheels`)
+WHEEL_AXIS_TOL = 0.1
+FLOOR_TOUCH_M = 5e-3
+
+
+def _check_wheels(path: Path, model: mujoco.MjModel, cart: int) -> None:
+    """Raise when a cylinder on a horizontal hinge of the cart's subtree reaches the floor by its radius (a wheel,
+    as `mujoco_cart.rolling_wheels` reads it) but its axis is not along the hinge: the cart stands on its rim or
+    face and slides instead of rolling (a wheel turned by an ``euler`` meant in radians, read in degrees, MuJoCo's
+    default unit)."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    floor = _floor_z(model)
+    for b in mujoco_cart.subtree_bodies(model, cart):
+        hinges = [
+            j
+            for j in range(int(model.body_jntadr[b]), int(model.body_jntadr[b] + model.body_jntnum[b]))
+            if int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE)
+            and abs(float(data.xaxis[j][2])) <= math.sin(WHEEL_AXIS_TOL)
+        ]
+        for j in hinges:
+            for g in range(int(model.body_geomadr[b]), int(model.body_geomadr[b] + model.body_geomnum[b])):
+                if int(model.geom_type[g]) != int(mujoco.mjtGeom.mjGEOM_CYLINDER):
+                    continue
+                a = data.geom_xmat[g].reshape(3, 3)[:, 2]
+                radius_low = float(data.geom_xpos[g][2] - model.geom_size[g][0])  # as a wheel: its radius down
+                angle = math.degrees(math.acos(min(1.0, abs(float(a @ data.xaxis[j])))))
+                if radius_low - floor <= FLOOR_TOUCH_M and angle > math.degrees(WHEEL_AXIS_TOL):
+                    body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(b))
+                    joint = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j)
+                    raise CartFileError(
+                        f"cart file {path}: wheel {body!r} stands on a cylinder turned {angle:.0f} degrees from the axis "
+                        f"of its hinge {joint!r}, so it slides instead of rolling (an euler meant in radians? MuJoCo "
+                        'reads degrees unless <compiler angle="radian"/>; or give the cylinder\'s zaxis)'
+                    )
+
+
 #: handle sites within this distance (m) along x of the rearmost one are the rear group (`rear_handles`)
 REAR_DEPTH = 0.10
 #: a bar whose ends are at least this far apart along y runs across the cart (held anywhere along it)
@@ -211,6 +249,7 @@ def load_cart_file(path: str | os.PathLike) -> CartSource:
     _, model = _read(p)
     cart = _check_cart_body(p, model)
     handles = _handle_sites(p, model, cart)
+    _check_wheels(p, model, cart)
     z = float(model.body_pos[cart][2])  # compiled: a <frame> around the body counts
     if not math.isfinite(z):
         raise CartFileError(f"cart file {p}: body 'cart' has no finite pos")

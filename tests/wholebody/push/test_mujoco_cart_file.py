@@ -19,6 +19,12 @@ GOOD_BODY = """
     </body>"""
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples" / "carts"
 BAR = '<site name="handle" type="capsule" size="0.015" fromto="-0.15 -0.25 0.9 -0.15 0.25 0.9"/>'
+#: a wheel on a hinge along y, its cylinder turned by `turn`: 90 degrees about x rolls on the hinge, 1.5708 (radians
+#: meant, degrees read: MuJoCo's default unit) leaves it a puck under the axle
+PUCK = (
+    '<body name="wl" pos="0 0.3 0"><joint name="axle_l" type="hinge" axis="0 1 0"/>'
+    '<geom type="cylinder" size="0.1 0.02" {turn}/></body>'
+)
 
 
 def _write(tmp_path, body: str, floor: bool = True) -> str:
@@ -51,6 +57,10 @@ def _write(tmp_path, body: str, floor: bool = True) -> str:
             "handle site 'handle' is on body 'post', not on 'cart'",
         ),
         ("<body name='cart'><freejoint/><geom type='nonsense'/></body>", "not a valid MuJoCo model"),
+        (
+            GOOD_BODY.format(sites=BAR + PUCK.format(turn='euler="1.5708 0 0"')),
+            "wheel 'wl' stands on a cylinder turned 88 degrees from the axis of its hinge 'axle_l', so it slides",
+        ),
     ],
     ids=[
         "no_cart_body",
@@ -60,12 +70,18 @@ def _write(tmp_path, body: str, floor: bool = True) -> str:
         "handle_on_moving_child",
         "handle_elsewhere",
         "bad_mjcf",
+        "wheel_turned_in_degrees",
     ],
 )
 def test_each_break_of_the_contract_gets_its_message(tmp_path, body, message):
     with pytest.raises(CartFileError, match=message) as info:
         load_cart_file(_write(tmp_path, body))
     assert "\n" not in str(info.value)
+
+
+def test_a_wheel_turned_onto_its_hinge_is_a_wheel(tmp_path):
+    """The same wheel turned 90 degrees (its axis along the hinge's) rolls: the file loads."""
+    assert load_cart_file(_write(tmp_path, GOOD_BODY.format(sites=BAR + PUCK.format(turn='euler="90 0 0"')))).handles
 
 
 def test_missing_file(tmp_path):
