@@ -267,10 +267,10 @@ print(json.dumps({"seconds": time.perf_counter() - t0, "names": rep.names, "samp
 """
 
 
-def scale_study(minutes: list[float], rate: float = 200.0, quiet: bool = False) -> list[dict]:
+def scale_study(minutes: list[float], rate: float = 200.0, quiet: bool = False, seed: int = 5) -> list[dict]:
     """Return (and print unless ``quiet``) diagnose's wall time and peak RSS on effect-free logs of these lengths.
 
-    Each log (hidden-effect test bed, ``rate`` Hz, 10 % jitter, seed 5) is written to a file and
+    Each log (hidden-effect test bed, ``rate`` Hz, 10 % jitter, ``seed``) is written to a file and
     diagnosed in a fresh process (the log already read: the wall time is diagnose's own; the CPU
     time, start-up and reading included, is the figure to read on a shared machine); the peak
     resident memory is that process's (``getrusage``), reading included.
@@ -278,7 +278,7 @@ def scale_study(minutes: list[float], rate: float = 200.0, quiet: bool = False) 
     rows = []
     with tempfile.TemporaryDirectory() as d:
         for mins in minutes:
-            rng = np.random.default_rng(5)
+            rng = np.random.default_rng(seed)
             log = simulate_hidden(random_cart(rng), (), duration=60.0 * mins, rate=rate, jitter=0.1, rng=rng).measured
             path = os.path.join(d, f"long{mins:g}.csv")
             write_log(path, log)
@@ -317,6 +317,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--classes", default="", help="comma-separated classes to run (default: all)")
     ap.add_argument("--caster-form", default=None, choices=("profile", "swivel"))
     ap.add_argument("--scale", default="", metavar="MINUTES", help="e.g. 1,5,20: time and memory of long 200 Hz logs")
+    ap.add_argument("--scale-seed", type=int, default=5, help="the long logs' seed (--scale)")
     a = ap.parse_args(argv)
     quiet = a.json == "-"
     cls = [c for c in a.classes.split(",") if c] or None
@@ -324,7 +325,7 @@ def main(argv: list[str] | None = None) -> int:
     if not a.no_timing:
         figures["timing"] = timing(a.repeats, quiet)
     if a.scale:
-        figures["scale"] = scale_study([float(m) for m in a.scale.split(",") if m], quiet=quiet)
+        figures["scale"] = scale_study([float(m) for m in a.scale.split(",") if m], quiet=quiet, seed=a.scale_seed)
     everything: list[dict] = []
     if a.study:
         res = run_cases(a.study, a.seed, label="default", classes=cls, caster_form=a.caster_form)

@@ -87,7 +87,7 @@ def _tiled_log(cache: str) -> str:
     return path
 
 
-def _lengths(minutes: list[float], cache: str, repeats: int, tiled: bool) -> list[dict]:
+def _lengths(minutes: list[float], cache: str, repeats: int, tiled: bool, seed: int = 11) -> list[dict]:
     """Return one row per log: samples, estimate_log CPU / wall medians in process, the whole process."""
     from cart.estimate_report import estimate_log
     from cart.logs import read_log
@@ -95,9 +95,9 @@ def _lengths(minutes: list[float], cache: str, repeats: int, tiled: bool) -> lis
     os.makedirs(cache, exist_ok=True)
     paths = []
     for mins in minutes:
-        path = os.path.join(cache, f"long_{mins:g}min.csv.gz")
+        path = os.path.join(cache, f"long_{mins:g}min.csv.gz" if seed == 11 else f"long_{mins:g}min_s{seed}.csv.gz")
         if not os.path.exists(path):
-            rigid_sim.write_case(rigid_sim.random_case(11, duration=60.0 * mins, rate_hz=200.0, m=40.0), path)
+            rigid_sim.write_case(rigid_sim.random_case(seed, duration=60.0 * mins, rate_hz=200.0, m=40.0), path)
         paths.append((f"{mins:g} min", path))
     if tiled:
         paths.append(("tiled 20 min", _tiled_log(cache)))
@@ -135,11 +135,12 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--lengths", type=float, nargs="*", default=[], metavar="MIN")
+    ap.add_argument("--seed", type=int, default=11, help="with --lengths: the logs' rigid_sim seed")
     ap.add_argument("--tiled", action="store_true", help="with --lengths: also the malformed suite's 20-minute log")
     ap.add_argument("--cache", default=os.path.join(tempfile.gettempdir(), "cartpush_bench_estimate"))
     args = ap.parse_args(argv)
     if args.lengths:
-        rows = _lengths(args.lengths, args.cache, args.repeats, args.tiled)
+        rows = _lengths(args.lengths, args.cache, args.repeats, args.tiled, args.seed)
         if args.json:
             print(json.dumps({"estimate_by_length": rows, "load": os.getloadavg()[0]}))
         else:

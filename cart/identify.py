@@ -688,8 +688,10 @@ def _generalised_fit(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return (p, cov, row scales, residuals of the unwhitened rows) of generalised least squares.
 
-    ``fit``, returned as it is when neither noise model has a flicker component: the least-squares fit
-    (:func:`_fit`); ``noise_lag``: the regressor noise and the HAC lag; ``sos_step``: the filter, the grid's
+    ``fit``: the least-squares fit (:func:`_fit`), returned with each std at least the spectral one when neither
+    noise model has a flicker component (the Newey-West and jackknife covariances read the noise from the
+    residual, and the fit's offset and damping columns take up the slow part of an AR(1) noise, so they fall
+    below what the noise gives); ``noise_lag``: the regressor noise and the HAC lag; ``sos_step``: the filter, the grid's
     step and the rows' decimation step.
 
     Each row's ``x`` and ``y`` pass through the same zero-phase filter ``sqrt(S(fc) / S(f))`` of its noise
@@ -699,11 +701,12 @@ def _generalised_fit(
     noise's power in each row scales by the filter's mean power gain over its spectrum (``f^4 |H|^4``). The
     covariance: :func:`_fit`'s on the whitened rows, each std at least the spectral one.
     """
-    if all(mdl.power <= 0.0 for mdl in models):
-        return fit
     noise, lag = noise_lag
     sos, dt, step = sos_step
-    sos_dt, dt_rows, fc = (sos, dt, dt * step), dt * step, _cutoff_of(sos, dt)
+    sos_dt, dt_rows = (sos, dt, dt * step), dt * step
+    if all(mdl.power <= 0.0 for mdl in models):
+        return fit[0], _with_spectral_cov(reg, fit, noise, tuple(mdl.psd for mdl in models), sos_dt), fit[2], fit[3]
+    fc = _cutoff_of(sos, dt)
     k, m = len(reg.y), 2 * len(reg.y)
     f = np.fft.rfftfreq(m, dt_rows)
     acc = f**4 * sos_power_gain(sos, f, dt) ** 2
