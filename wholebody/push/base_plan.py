@@ -26,12 +26,19 @@ bound); its windows also open where the rigid place moves it sideways (`BasePlan
 On a straight push the rigid place has no sideways speed: no window, the plan is the rigid place.
 `PushController` plans only holonomic bases: with this plan the WMRA still loses the MuJoCo Traj. 2, and the
 plan costs about 140 s CPU there (two windows of 71 and 141 knots for SLSQP), docs/mujoco.md.
+
+A window whose plan cannot meet the wheel limits at the desired speed (a handle far from the cart's axle swings
+the base through a turn faster than its wheels go) is planned again for the reference read slower (`PLAN_RATES`):
+at a rate r of the desired speed the wheel rates of the same path are r times those per unit of reference time,
+so the plan meets limit / r. The window's rate (`BasePlan.rates`) caps the reference clock's there
+(`BasePlan.rate_cap`). Only when no rate down to the slowest gives a plan within the limits (the arm cannot reach
+the handle from any place the base can take) does `plan_base` raise, naming the window.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -42,6 +49,10 @@ from wholebody.errors import WholeBodyError
 from wholebody.motion.bases import MobileBase
 from wholebody.push.base_settings import BasePlanSettings
 from wholebody.push.robot import MobileManipulator, base_target, grasp_target, handle_point, solve_grasp_ik
+
+#: the rates (shares of the desired speed) at which a window is planned, from the top, until its plan meets the
+#: wheel limits (module docstring); the reference clock's slowest is 0.1 (`reference_clock.TimeScaling.rate_min`)
+PLAN_RATES = (1.0, 0.8, 0.6, 0.45, 0.3, 0.2, 0.15, 0.1)
 
 
 @dataclass(frozen=True)
@@ -269,6 +280,22 @@ class BasePlan:
     #: per window: the largest horizontal mount-wrist distance of the plan (m) and the grasp's nominal one
     stretch: tuple[float, ...]
     nominal_stretch: float
+    #: per window: the share of the desired speed its plan meets the wheel limits at (1: the desired speed)
+    rates: tuple[float, ...] = ()
+
+    def rate_cap(self, s: float, decel: float) -> float:
+        """Return the largest reference rate at reference time `s` from which the reference can slow, at the path
+        deceleration `decel` (1/s), to each window's rate by the window's start (1: no slower window ahead)."""
+        cap = 1.0
+        for ts, r in zip(self.times, self.rates):
+            if r >= 1.0 or s > ts[-1]:
+                continue
+            ahead = max(0.0, float(ts[0]) - s)
+            if ahead == 0.0:
+                cap = min(cap, r)
+            elif math.isfinite(decel):
+                cap = min(cap, math.sqrt(r * r + 2.0 * decel * ahead))
+        return cap
 
     def _window(self, t: float) -> int | None:
         for i, ts in enumerate(self.times):
@@ -276,16 +303,19 @@ class BasePlan:
                 return i
         return None
 
-    def target(self, t: float, q: np.ndarray, qd: np.ndarray, offset_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Return (pose, world rates) of the base at time t for the cart at pose q with rates qd: the plan's place
-        relative to the cart inside a window, the rigid place `offset_b` outside (`robot.base_target`)."""
+    def target(
+        self, t: float, q: np.ndarray, qd: np.ndarray, offset_b: np.ndarray, rate: float = 1.0
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Return (pose, world rates) of the base at reference time t for the cart at pose q with rates qd: the plan's
+        place relative to the cart inside a window, the rigid place `offset_b` outside (`robot.base_target`); the
+        place moves along the plan per unit of reference time, so at the reference's `rate` of it per second."""
         i = self._window(t)
         if i is None:
             return base_target(q, qd, offset_b)
         ts, rel = self.times[i], self.relative[i]
         o = np.array([np.interp(t, ts, rel[:, j]) for j in range(3)])
         k = min(int(np.searchsorted(ts, t, side="right")) - 1, len(ts) - 2)
-        od = (rel[k + 1] - rel[k]) / (ts[k + 1] - ts[k])
+        od = rate * (rel[k + 1] - rel[k]) / (ts[k + 1] - ts[k])
         c, s = math.cos(q[2]), math.sin(q[2])
         R = np.array([[c, -s], [s, c]])
         Ro = R @ o[:2]
@@ -317,16 +347,49 @@ def plan_base(
     nominal = rigid_poses(cart, mm.base_offset_b)
     front = None if s.front_reach is None else float(handle_point(contact_y, mm.geometry)[0]) + s.front_reach
     sideways = body_twists(nominal, s.step) @ wheels.blocked if wheels.blocked.shape[1] else None
-    out: tuple[list, list, list, list] = ([], [], [], [])
+    out: tuple[list, list, list, list, list] = ([], [], [], [], [])
     for i0, i1 in wheel_windows(t, rim_rates(nominal, s.step, wheels.H), wheels.limit, s, sideways):
         C, N = cart[i0 : i1 + 1], nominal[i0 : i1 + 1]
-        P, rho = plan_window(C, N, reach, wheels, s, front, i1 == len(t) - 1)
+        P, rho, rate, postures = _plan_slowed(
+            mm, contact_y, C, N, (reach, wheels, front), s, i1 == len(t) - 1, (t[i0], t[i1])
+        )
         rel = np.einsum("kji,kj->ki", _rot(C[:, 2]), P[:, :2] - C[:, :2])
         out[0].append(t[i0 : i1 + 1])
         out[1].append(np.c_[rel, P[:, 2] - C[:, 2]])
-        out[2].append(_postures(mm, C, P, contact_y))
+        out[2].append(postures)
         out[3].append(rho)
-    return BasePlan(tuple(out[0]), tuple(out[1]), tuple(out[2]), tuple(out[3]), reach.nominal)
+        out[4].append(rate)
+    return BasePlan(tuple(out[0]), tuple(out[1]), tuple(out[2]), tuple(out[3]), reach.nominal, tuple(out[4]))
+
+
+def _plan_slowed(
+    mm: MobileManipulator,
+    contact_y: float,
+    cart: np.ndarray,
+    nominal: np.ndarray,
+    robot: tuple[ArmReach, BaseWheels, float | None],
+    s: BasePlanSettings,
+    free_end: bool,
+    span: tuple[float, float],
+) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """Return (poses, rho, rate, arm postures) of one window: `plan_window` at the first of `PLAN_RATES` whose plan
+    meets the wheel limits with the reference read at that rate (limits / r, accelerations / r^2: module
+    docstring) and whose every knot the grasp IK reaches (`_postures`). `robot`: (reach, wheels, front x)."""
+    reach, wheels, front_x = robot
+    why = ""
+    for rate in PLAN_RATES:
+        acc = None if wheels.acceleration is None else wheels.acceleration / rate**2
+        try:
+            poses, rho = plan_window(
+                cart, nominal, reach, replace(wheels, limit=wheels.limit / rate, acceleration=acc), s, front_x, free_end
+            )
+            return poses, rho, rate, _postures(mm, cart, poses, contact_y)
+        except WholeBodyError as exc:
+            why = str(exc)
+    raise WholeBodyError(
+        f"the base cannot keep the hand on the handle from {span[0]:.1f} to {span[1]:.1f} s of the desired motion "
+        f"even at {PLAN_RATES[-1]:.0%} of its speed ({why}): this robot cannot push this cart along this path"
+    )
 
 
 def _postures(mm: MobileManipulator, cart: np.ndarray, poses: np.ndarray, contact_y: float) -> np.ndarray:

@@ -180,7 +180,7 @@ class PushController:
         qdd = np.asarray(cart_model.forward_dynamics(q_hat, qd_hat, gamma_a, params_hat), dtype=float)
         commands, per_robot = zip(
             *(
-                self._robot_command(mm, q_grasp, qd_hat, y, yd, w, s, plan, qdd)
+                self._robot_command(mm, q_grasp, qd_hat, y, yd, w, s, plan, qdd, rate)
                 for mm, y, yd, w, plan in zip(
                     self.robots, *self._by_robot(ys, ydots, alloc.wrenches_ee), self.base_plans
                 )
@@ -214,11 +214,22 @@ class PushController:
         if self.clock is None:
             return
         self._look_ahead(s, params)
+        self._plan_cap(s, params)
         rows = self.allocator.rows
         _, qd, qdd = self.trajectory.sample(s)
         share = deficit(np.asarray(gamma_b)[rows], np.asarray(achieved)[rows], float(qd[:2] @ qdd[:2]) < 0.0)
         path_speed = float(np.hypot(*qd[:2]))
         self.clock.advance(share, self.config.dt, path_speed, self._accel_bound(params))
+
+    def _plan_cap(self, s: float, params: CartParams) -> None:
+        """Cap the clock's rate where a base plan's window meets the wheel limits only slower (`BasePlan.rates`): at
+        reference time s, the largest rate from which the reference slows to each such window's rate by its start
+        at the look-ahead's path deceleration (`TimeScaling.plan_share` of the brake bound, `BasePlan.rate_cap`)."""
+        assert self.clock is not None
+        plans = [p for p in self.base_plans if p is not None and any(r < 1.0 for r in p.rates)]
+        if plans:
+            decel = self.clock.settings.plan_share * self._rate_decel(s, params)
+            self.clock.cap = min(p.rate_cap(s, decel) for p in plans)
 
     def _accel_bound(self, params: CartParams) -> float:
         """Return the acceleration (m/s^2) the hands' total force bound gives the estimated mass; inf without a mass."""
@@ -395,14 +406,16 @@ class PushController:
         t: float = 0.0,
         plan: BasePlan | None = None,
         qdd: np.ndarray | None = None,
+        rate: float = 1.0,
     ) -> tuple[RobotCommand, list[tuple[np.ndarray, np.ndarray, float]]]:
         """Return (the command of one robot, per hand (arm torque, J^T w part, grasp error)) for one period.
 
         A robot with several hands (`_by_robot`: arrays of contacts and wrenches) gets one command: its arms'
         joints in turn, one hand wrench and one hand target per hand (rows). With a base `plan` the base follows
-        the plan's place at time t and the arm its posture (`_follow_plan`). `qdd`: the cart's commanded
-        acceleration (the allocated wrench through the estimated model); the hands' and the base's predicted
-        accelerations are its rigid-body field at their points (`rigid_acceleration`), None: not predicted.
+        the plan's place at reference time t, read at the reference's `rate`, and the arm its posture
+        (`_follow_plan`). `qdd`: the cart's commanded acceleration (the allocated wrench through the estimated
+        model); the hands' and the base's predicted accelerations are its rigid-body field at their points
+        (`rigid_acceleration`), None: not predicted.
         """
         dt = self.config.dt
         ys, yds, ws = np.atleast_1d(y), np.atleast_1d(ydot), np.reshape(wrench_a, (-1, 6))
@@ -411,7 +424,7 @@ class PushController:
         if plan is None:
             bpose, brates = base_target(q, qd, mm.base_offset_b)
         else:
-            bpose, brates = plan.target(t, q, qd, mm.base_offset_b)
+            bpose, brates = plan.target(t, q, qd, mm.base_offset_b, rate)
             self._follow_plan(mm, plan.posture(t))
         R = _rot_z(q[2])
         w_world = [np.concatenate([R @ w[:3], R @ w[3:]]) for w in ws]

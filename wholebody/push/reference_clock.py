@@ -102,6 +102,9 @@ class ReferenceClock:
     #: time, s) it was last checked
     admissible: float = 1.0
     checked_at: float = -math.inf
+    #: the largest rate the robots' bases allow here (`wholebody.push.base_plan.BasePlan.rate_cap`: a base plan's
+    #: window that meets the wheel limits only slower than the desired speed); 1: none
+    cap: float = 1.0
 
     def time(self, t: float) -> float:
         """Return the reference time s at the run's time t (t itself until the reference first slows)."""
@@ -119,8 +122,9 @@ class ReferenceClock:
             self._rate_changed(0.0, self.rate < 1.0)
             self.delay += (1.0 - self.rate) * dt
             return
-        slowing = deficit > s.deficit_tol or self.admissible < self.rate
-        target = min(self.rate * (1.0 - max(deficit, 0.0)), self.admissible) if slowing else self.admissible
+        admissible = min(self.admissible, self.cap)
+        slowing = deficit > s.deficit_tol or admissible < self.rate
+        target = min(self.rate * (1.0 - max(deficit, 0.0)), admissible) if slowing else admissible
         tau = s.tau_down if slowing else s.tau_up
         step = (target - self.rate) * min(1.0, dt / tau)
         if path_speed > 1e-9 and math.isfinite(accel_bound):
