@@ -15,7 +15,8 @@ resistances (:func:`shared_columns`). The change is kept
 when the two sides' masses, fitted on the whole log's filtered regression away from the change (regressor
 noise compensated; std the larger of Newey-West and a block jackknife, so a misfit that varies along the
 log counts while one common to both sides cancels), differ by more than ``CHANGE_Z`` combined std and by
-more than ``MIN_RELATIVE_CHANGE`` (:func:`change_z`); a mass that grows by less than ``CHANGE_Z`` std is kept
+more than ``MIN_RELATIVE_CHANGE`` (:func:`change_z`), or where the yaw inertia moves with the mass (a load adds
+both), their joint evidence reaches ``CHANGE_Z`` (:func:`load_z`); a mass that grows by less than ``CHANGE_Z`` std is kept
 when the pose shows the momentum exchange of a load put in there (:func:`exchange_shown`: the speed drops at
 once, with no force at the handle, by what the two sides' masses predict). Each side is then estimated on its own
 (:func:`cart.identify.identify`) for the report. Binary segmentation: each kept side is searched again,
@@ -44,7 +45,8 @@ from cart.logs import CartLog
 if TYPE_CHECKING:
     from cart.identify import Identification
 
-#: Combined std by which the masses of two sides must differ for a load change (:func:`change_z`; no change is
+#: Combined std by which the masses of two sides (or their mass and yaw inertia jointly, :func:`load_z`) must differ
+#: for a load change (:func:`change_stats`; no change is
 #: reported on the change-free logs of the independent simulator, the MuJoCo cart and the validation set,
 #: docs/estimation.md "Load changes").
 CHANGE_Z = 3.5
@@ -468,6 +470,25 @@ def regressor_noise(res: Identification) -> np.ndarray:
 def change_z(res: Identification, tc: float, guard: float) -> tuple[float, float, float, float]:
     """Return (z, mass before, mass after, least mass / its std of the two) of a change at ``tc`` in ``res``'s fit.
 
+    ``z`` is :func:`change_stats`'s mass ``z``.
+    """
+    got = change_stats(res, tc, guard)
+    return got.z, got.m_before, got.m_after, got.identified
+
+
+class ChangeStats(NamedTuple):
+    """:func:`change_stats`: the two sides' masses and how far apart their fits put them and the load's inertia."""
+
+    z: float
+    z_load: float
+    m_before: float
+    m_after: float
+    identified: float
+
+
+def change_stats(res: Identification, tc: float, guard: float) -> ChangeStats:
+    """Return the :class:`ChangeStats` of a change at ``tc`` in ``res``'s fit.
+
     Each side fitted on its own rows of the whole log's filtered regression (with the Coulomb-like columns of
     :func:`_with_coulomb` and the noise compensation of :func:`regressor_noise`), the rows within ``guard`` s of
     ``tc`` left out (the zero-phase filter mixes the two sides there, and a load dropped in gives the cart an
@@ -478,8 +499,9 @@ def change_z(res: Identification, tc: float, guard: float) -> tuple[float, float
     offsets, caster resistances) held at the two sides' joint fit (:func:`_shared_parameters`), as in the
     split search. The first is weak where caster columns and mass trade on a short side, the second
     overconfident where the casters' share of the load is not the same on both sides (their scrub grows with
-    the load) and it leaves out the shared parameters' own uncertainty: a change must show in both. The
-    masses are the first fit's.
+    the load) and it leaves out the shared parameters' own uncertainty: a change must show in both.
+    ``z_load`` (:func:`load_z`) adds the yaw inertia's evidence where it moves with the mass, the lesser of
+    the two fits too. The masses are the first fit's; ``identified`` the least mass over its std of the two.
     """
     data = res.fit_data
     assert data is not None
@@ -488,31 +510,60 @@ def change_z(res: Identification, tc: float, guard: float) -> tuple[float, float
     noise = regressor_noise(res)
     sides = ((t < tc - guard), (t >= tc + guard))
     if min(int(side.sum()) for side in sides) < 4 * lag:
-        return 0.0, math.nan, math.nan, 0.0
+        return ChangeStats(0.0, 0.0, math.nan, math.nan, 0.0)
     x = _with_coulomb(data["x"])
     shared = shared_columns(x.shape[-1])
     try:
-        (ml, vl), (mr, vr) = _side_masses(x, data["y"], sides, noise, lag)
+        own = _side_fits(x, data["y"], sides, noise, lag)
         p_sh = _shared_parameters(x, data["y"], data["scale"], sides, noise, shared)
         y_free = data["y"] - np.einsum("krp,p->kr", x[..., shared], p_sh)
-        (jl, wl), (jr, wr) = _side_masses(np.delete(x, shared, axis=-1), y_free, sides, noise, lag)
+        held = _side_fits(np.delete(x, shared, axis=-1), y_free, sides, noise, lag)
     except np.linalg.LinAlgError:
-        return 0.0, math.nan, math.nan, 0.0
-    z = min(abs(ml - mr) / math.sqrt(vl + vr), abs(jl - jr) / math.sqrt(wl + wr))
-    return z, ml, mr, min(ml / math.sqrt(vl), mr / math.sqrt(vr))
+        return ChangeStats(0.0, 0.0, math.nan, math.nan, 0.0)
+    (z_own, zl_own), (z_held, zl_held) = load_z(*own), load_z(*held)
+    left, right = own
+    ident = min(left.m / math.sqrt(left.var_m), right.m / math.sqrt(right.var_m))
+    return ChangeStats(min(z_own, z_held), min(zl_own, zl_held), left.m, right.m, ident)
 
 
-def _side_masses(
-    x: np.ndarray, y: np.ndarray, sides: tuple[np.ndarray, ...], noise: np.ndarray, lag: int
-) -> list[tuple[float, float]]:
-    """Return (mass, its variance) of each side's own fit (:func:`cart.identify._fit`) of the regression ``x``, ``y``."""
+class _Side(NamedTuple):
+    """One side's fit: its mass and yaw inertia (the ``J`` column), their variances and covariance."""
+
+    m: float
+    var_m: float
+    j: float
+    var_j: float
+    cov: float
+
+
+def _side_fits(x: np.ndarray, y: np.ndarray, sides: tuple[np.ndarray, ...], noise: np.ndarray, lag: int) -> list[_Side]:
+    """Return each side's own fit (:func:`cart.identify._fit`) of the regression ``x``, ``y`` (:class:`_Side`)."""
     from cart.identify import _fit
 
     out = []
     for side in sides:
         p, cov, _, _ = _fit(x[side], y[side], noise, lag)
-        out.append((float(p[0]), max(float(cov[0, 0]), 1e-300)))
+        var_m, var_j = max(float(cov[0, 0]), 1e-300), max(float(cov[3, 3]), 1e-300)
+        out.append(_Side(float(p[0]), var_m, float(p[3]), var_j, float(cov[0, 3])))
     return out
+
+
+def load_z(left: _Side, right: _Side) -> tuple[float, float]:
+    """Return (the mass difference over its std, the load's joint evidence) between two sides' fits.
+
+    A load on the deck adds its mass and its yaw inertia (about the composite CoM the parts' own inertias and
+    their parallel-axis terms add; about any fixed point too): the mass and the ``J`` column move the same way.
+    Where they do, the joint evidence is the sum of their differences over their std, over that sum's std
+    (``sqrt(2 + 2 rho)``, ``rho`` the two differences' correlation); where they do not, the mass's alone.
+    The yaw inertia is often the better identified of the two on a light cart that turns (the F/T noise on the
+    forward force hides a few kilograms that the torque's response to the turns shows).
+    """
+    var_m, var_j = left.var_m + right.var_m, left.var_j + right.var_j
+    z_m = (right.m - left.m) / math.sqrt(var_m)
+    z_j = (right.j - left.j) / math.sqrt(var_j)
+    rho = (left.cov + right.cov) / math.sqrt(var_m * var_j)
+    joint = abs(z_m + z_j) / math.sqrt(max(2.0 + 2.0 * rho, 1e-12)) if z_m * z_j > 0.0 else 0.0
+    return abs(z_m), max(abs(z_m), joint)
 
 
 def _shared_parameters(
@@ -594,8 +645,9 @@ def _split(
 ) -> list[dict[str, Any]]:
     """Return the segments of [t0, t1] (whose identification is ``res``), searched ``depth`` more levels.
 
-    A change is kept when the two sides' mass difference (:func:`change_z`) is at least ``CHANGE_Z`` std (or the
-    pose shows a put-in's momentum exchange there, :func:`exchange_shown`) and ``MIN_RELATIVE_CHANGE`` of the
+    A change is kept when the two sides' mass difference (:func:`change_z`), or the joint evidence of their mass and
+    yaw inertia (:func:`load_z`), is at least ``CHANGE_Z`` std (or the pose shows a put-in's momentum exchange
+    there, :func:`exchange_shown`) and ``MIN_RELATIVE_CHANGE`` of the
     larger mass, each side's mass at least ``IDENTIFIED_Z`` of its std; each
     side is then identified on its own, ``guard`` s (one period of the cut-off) away from the change, and
     those estimates (the ones reported) must differ by ``MIN_RELATIVE_CHANGE`` too. The split is sought on the
@@ -634,14 +686,15 @@ def _split(
 
 def _kept_split(log: CartLog, res, s: _Search) -> tuple[float, float, float] | None:
     """Return :func:`best_split`'s (time, earliest, latest) on the search ``s`` when the change there is kept (the
-    sides' masses differ by ``CHANGE_Z`` std or the pose shows a put-in's exchange, :func:`_split`), else None."""
+    sides' masses, or their masses and yaw inertias jointly, differ by ``CHANGE_Z`` std, or the pose shows a
+    put-in's exchange, :func:`_split`), else None."""
     split = best_split(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, shared=s.shared)
     if split is None:
         return None
-    z, ml, mr, identified = change_z(res, split[0], 1.0 / res.cutoff_hz)
+    z, z_load, ml, mr, identified = change_stats(res, split[0], 1.0 / res.cutoff_hz)
     if not (identified >= IDENTIFIED_Z and abs(ml - mr) >= MIN_RELATIVE_CHANGE * max(ml, mr)):
         return None
-    if z < CHANGE_Z and not exchange_shown(log, res.params.m, split[0], (ml, mr, z), s.row_dt):
+    if z_load < CHANGE_Z and not exchange_shown(log, res.params.m, split[0], (ml, mr, z), s.row_dt):
         return None
     return split
 
