@@ -36,7 +36,13 @@ from wholebody.push.robot import MobileManipulator, base_target, ft_to_cart_gamm
 from wholebody.push.scheduler import ContactScheduler
 from wholebody.motion.tasks import BaseTask, PostureTask
 from wholebody.push.base_plan import BasePlan
-from wholebody.push.reference_clock import ReferenceClock, admissible_rate, deficit, footprint_params
+from wholebody.push.reference_clock import (
+    ReferenceClock,
+    admissible_rate,
+    deficit,
+    footprint_params,
+    path_braking,
+)
 from wholebody.push.tip_support import cart_load
 
 
@@ -217,7 +223,7 @@ class PushController:
         self._plan_cap(s, params)
         rows = self.allocator.rows
         _, qd, qdd = self.trajectory.sample(s)
-        share = deficit(np.asarray(gamma_b)[rows], np.asarray(achieved)[rows], float(qd[:2] @ qdd[:2]) < 0.0)
+        share = deficit(np.asarray(gamma_b)[rows], np.asarray(achieved)[rows], path_braking(qd, qdd))
         path_speed = float(np.hypot(*qd[:2]))
         self.clock.advance(share, self.config.dt, path_speed, self._accel_bound(params))
 

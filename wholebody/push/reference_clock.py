@@ -182,6 +182,17 @@ def deficit(gamma_desired: np.ndarray, gamma_achieved: np.ndarray, path_braking:
     return math.nan if share > 0.0 and braking else share
 
 
+#: the desired motion brakes when q_d' . q_d'' is below minus this (m^2/s^3): a turn at constant speed has it at
+#: rounding's 1e-17 of either sign, which is no braking
+BRAKING_TOL = 1e-9
+
+
+def path_braking(qd: np.ndarray, qdd: np.ndarray) -> bool:
+    """Return whether the desired motion's speed along its path falls (q_d' . q_d'' < -`BRAKING_TOL`; planar rates
+    `qd`, accelerations `qdd`, their x and y read): `deficit`'s ``path_braking``."""
+    return float(qd[0] * qdd[0] + qd[1] * qdd[1]) < -BRAKING_TOL
+
+
 def planned_wrench(trajectory, s: float, rate: float, settings: TimeScaling, params) -> np.ndarray:
     """Return the body wrench (f_forward, 0, tau) the desired motion needs at reference time `s` read at `rate`,
     with the estimated parameters (`cart.dynamics.inverse_dynamics`, paper eq. 4) and the feedback's share on top,

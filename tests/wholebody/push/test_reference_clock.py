@@ -23,6 +23,7 @@ from wholebody.push.reference_clock import (
     admissible_rate,
     deficit,
     footprint_params,
+    path_braking,
     planned_wrench,
     sample_rate,
 )
@@ -76,6 +77,20 @@ def test_a_missing_push_counts_a_missing_brake_on_a_braking_path_holds_the_rate(
     clock = ReferenceClock(TimeScaling(), rate=0.5)
     clock.advance(float("nan"), 0.01, 0.8, 5.0)
     assert clock.rate == 0.5 and clock.rate_dot == 0.0 and clock.delay == pytest.approx(0.005)
+
+
+def test_a_turn_at_constant_speed_is_not_braking_but_the_stop_is():
+    """Traj. 2's turns keep 0.8 m/s: q_d' . q_d'' is rounding there (1e-17 of either sign), which must not read as
+    braking (the rate would be held on every other period of a turn the arms cannot make); its final stop brakes."""
+    traj = trajectory_2(30.0)
+    turns = [traj.sample(float(s)) for s in np.arange(7.05, 10.0, 0.01)]
+    dots = [float(qd[:2] @ qdd[:2]) for _, qd, qdd in turns]
+    assert min(dots) < 0.0 < max(dots) and max(abs(v) for v in dots) < 1e-12  # noise of both signs
+    assert not any(path_braking(qd, qdd) for _, qd, qdd in turns)
+    speeds = [np.hypot(*traj.sample(float(s))[1][:2]) for s in np.arange(0.0, 30.0, 0.01)]
+    slowing = [k for k in range(1, len(speeds)) if speeds[k - 1] - speeds[k] > 1e-4 and speeds[k] > 0.1]
+    _, qd, qdd = traj.sample(0.01 * slowing[-1])  # in the final stop, still moving
+    assert path_braking(qd, qdd)
 
 
 def test_the_scaled_reference_is_the_time_derivative_of_the_slowed_path():
