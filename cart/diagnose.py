@@ -758,7 +758,9 @@ class _Named:
 def _checked_signals(log: CartLog, horizon: float | None, window: float | None) -> tuple[Signals, float, np.ndarray]:
     """Return (signals, replay horizon, window edges) of ``log``; raise DiagnoseError when it cannot be diagnosed."""
     sig = signals_from_log(log)
-    if np.max(np.abs(sig.v)) < 5.0 * sig.sigma_v and np.max(np.abs(sig.omega)) < 5.0 * sig.sigma_omega:
+    if _stands(sig) or (
+        np.max(np.abs(sig.v)) < 5.0 * sig.sigma_v and np.max(np.abs(sig.omega)) < 5.0 * sig.sigma_omega
+    ):
         raise DiagnoseError(
             f"{log.source}: the cart does not move beyond the noise of its pose "
             f"(speed noise {sig.sigma_v:.2g} m/s); nothing to diagnose"
@@ -779,6 +781,17 @@ def _checked_signals(log: CartLog, horizon: float | None, window: float | None) 
     if n_win < 11:
         raise DiagnoseError(f"{log.source}: too short for a fit ({n_win} window{'s' if n_win != 1 else ''})")
     return sig, horizon, edges
+
+
+def _stands(sig: Signals) -> bool:
+    """Return whether the cart stands: its position spans at most 20 and its heading at most 20 noise stds.
+
+    The extreme speeds of thousands of differentiated noise samples reach past 5 of their std (the test on
+    ``v`` and ``omega``); a standing cart's pose does not wander beyond a few of its noise stds (the
+    estimate's rule, :func:`cart.identify.identify`, on the positions).
+    """
+    span = float(np.max(np.ptp(sig.q_raw[:, :2], axis=0)))
+    return span <= 20.0 * sig.sigma_pos and float(np.ptp(sig.q_raw[:, 2])) <= 20.0 * sig.sigma_theta
 
 
 def clear_of_holes(sig: Signals, edges: np.ndarray) -> np.ndarray:
@@ -1350,7 +1363,7 @@ def _nominal_fit(sig: Signals, edges: np.ndarray, source: str) -> tuple[Fit, lis
     if cart_is_physical(nominal.x):
         return nominal, []
     work, work_b = _push_work(sig), _push_work(_cart_frame_signals(sig, {}))
-    if nominal.x[0] <= 0.0 and work < 0.0 and work_b < 0.0:  # read in {b} it is no push either: not a frame
+    if nominal.x[0] <= 0.0 and work < 0.0 and work_b < -work:  # read in {b} no clearer push: not a frame
         raise DiagnoseError(
             f"{source}: the nominal fit gives no positive mass (m = {nominal.x[0]:.3g} kg) and the logged wrench "
             f"does {work:.4g} J of work on the cart (a passive cart is pushed with positive work): the wrench's "

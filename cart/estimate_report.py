@@ -248,10 +248,10 @@ def _noise_json(model: SpectralNoise, dt: float, fc: float) -> dict[str, float]:
 
 def _no_mass_error(log: CartLog, streams: Streams, exc: Exception) -> CartError:
     """Return the error for a log whose fit gives no positive mass: a flipped wrench sign when the push
-    does negative work on the cart read in either frame (:func:`push_work`), otherwise a push that does
-    not match the motion."""
+    does negative work on the cart as logged and, read in {b}, no more positive work than that
+    (:func:`push_work`), otherwise a push that does not match the motion."""
     work = push_work(streams)
-    if work < 0.0 and push_work(streams, cart_frame=True) < 0.0:  # read in {b} it is no push either
+    if work < 0.0 and push_work(streams, cart_frame=True) < -work:  # read in {b} no clearer push: not a frame
         return CartError(
             f"{log.source}: the fit gives no positive mass and the logged wrench does {work:.4g} J of work on "
             "the cart (a passive cart is pushed with positive work): the wrench's sign looks flipped (the "
