@@ -757,6 +757,8 @@ class _Named:
 
 def _checked_signals(log: CartLog, horizon: float | None, window: float | None) -> tuple[Signals, float, np.ndarray]:
     """Return (signals, replay horizon, window edges) of ``log``; raise DiagnoseError when it cannot be diagnosed."""
+    if not np.any(log.gamma):
+        raise DiagnoseError(f"{log.source}: the wrench is zero throughout; nothing to diagnose")
     sig = signals_from_log(log)
     if _stands(sig) or (
         np.max(np.abs(sig.v)) < 5.0 * sig.sigma_v and np.max(np.abs(sig.omega)) < 5.0 * sig.sigma_omega

@@ -1131,6 +1131,8 @@ def _checked_streams(log: CartLog, streams: Streams | None) -> Streams:
         raise IdentifiabilityError(
             f"{log.source}: {len(log)} samples are too few to estimate anything (need a push of many samples)"
         )
+    if not np.any(log.gamma):  # else read as a wrench stream of missing (zero) samples, "too few"
+        raise IdentifiabilityError(f"{log.source}: nothing can be estimated: the wrench is zero throughout")
     streams = split_streams(log) if streams is None else streams
     if len(streams.pose.t) < 12 or len(streams.wrench.t) < 12:
         raise IdentifiabilityError(
