@@ -129,7 +129,12 @@ class DiagnosisReport:
         if len(self.windows) > 12:
             lines.append(f"  ... {len(self.windows) - 12} more")
         if not self.effects:
-            lines.append("named effects: none (the nominal model explains the log)")
+            lines.append(
+                "named effects: none (the nominal model explains the log)"
+                if not self.windows
+                else f"named effects: none (no candidate explains the {len(self.windows)} significant discrepancy "
+                "window(s): the log holds something the effects listed below do not model)"
+            )
         for i, e in enumerate(self.effects, 1):
             ps = ", ".join(_format_parameter(k, v, e.uncertainties.get(k)) for k, v in e.parameters.items())
             nw = len(e.windows)
