@@ -64,6 +64,7 @@ from cart.diagnose_checks import (
     cart_is_physical,
     constrained_fit,
     lateral_slip_ratio,
+    unexplained_slip,
 )
 from cart.diagnose_prep import prepare_log
 from cart.diagnose_replay import Replay, flag_starts, merge_windows, replay
@@ -1705,6 +1706,10 @@ def diagnose(
     warnings += [frame_note] if frame_note else []
     if withdraw:
         current, named, reasons, reps = nominal, [], [], [rep0]
+    lateral = verdicts.get("lateral_slip")
+    lateral_dbic = lateral.delta_bic if lateral is not None else None
+    slip_note = unexplained_slip(slip_ratio, [n.trial.effect.name for n in named], lateral_dbic)
+    warnings += [slip_note] if slip_note else []
     final = _replayed(named[-1].trial, horizon, paths=True) if named else None
     reps = reps[:-1] + [final.replay] if final is not None else reps  # the same replay with its paths
     return DiagnosisReport(
