@@ -26,7 +26,13 @@ from cart.logs import CartLog, read_log
 from cart.noise_model import SpectralNoise, lag_correlation
 from cart.params import CartParams
 from cart.streams import Streams, box_average, split_streams
-from cart.units import check_declared_units, check_units, check_wrench_frame, wrench_frame_warning
+from cart.units import (
+    check_declared_units,
+    check_torque_origin,
+    check_units,
+    check_wrench_frame,
+    wrench_frame_warning,
+)
 
 #: Mean NIS above which the EKF's innovations do not fit the 6-dof measurement (about 6 expected).
 NIS_MISFIT = 18.0
@@ -274,6 +280,7 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
     except ParameterError as exc:
         raise _no_mass_error(log, streams, exc) from None
     check_wrench_frame(log.source, res.residual_ratio, None if res.model_fits else res.cart_frame)
+    check_torque_origin(log.source, res.residual_ratio, res.torque_origin)
     n_independent = 2.0 * res.cutoff_hz * res.samples_used * res.grid_dt  # rows band-limited to the cut-off
     frame_note = wrench_frame_warning(res.residual_ratio, res.cart_frame, n_independent)
     if res.wrench_noise is None:

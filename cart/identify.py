@@ -139,6 +139,9 @@ class Identification:
     #: (forward residual ratio, mass) of the same regression with the wrench
     #: (fx, fy) read in the cart frame {b} (:func:`_cart_frame_reading`)
     cart_frame: tuple[float, float] | None = None
+    #: yaw residual ratio of the same regression with the torque moved from the world origin to {b}'s origin
+    #: (:func:`_torque_origin_reading`); None when the model fits (only a misfit is checked)
+    torque_origin: float | None = None
 
 
 @dataclass(frozen=True)
@@ -991,8 +994,7 @@ def identify(
     ``streams``: the log's pose and wrench streams (:func:`cart.streams.split_streams`, computed here
     when None). ``casters``: a caster model kept on a longer log of the same cart (``Identification.casters``;
     a segment of it): its geometry is used without a new search or test (:mod:`cart.identify_casters`).
-    Raises :class:`IdentifiabilityError` when the log cannot say anything (too
-    short, no motion above the noise); weakly excited parameters give warnings.
+    Raises :class:`IdentifiabilityError` when the log cannot say anything (too short, no motion above the noise).
     """
     streams = _checked_streams(log, streams)
     grid = _uniform_grid(log, streams)
@@ -1014,11 +1016,11 @@ def identify(
     ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings, (grid.dt * step, fc))
     cart_frame = _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
+    origin = None if fits else _torque_origin_reading(grid, sos, (full, step), noise, (lv, sv, so))
     p, cov, note = _physical(p, cov)
     warnings += note
     (params, inertia), std = _physical_params(log, p, cov), _physical_std(p, cov)
     warnings += _excitation_warnings(p, std, inertia if inertia > 0 else params.I)
-    noise_out = {"position": lv.pos, "theta": lv.theta, "force": lv.force, "torque": lv.torque}
     return Identification(
         params=params,
         std=std,
@@ -1028,7 +1030,7 @@ def identify(
         residual_ratio=(float(ratio[0]), float(ratio[1])),
         model_fits=fits,
         coulomb=coulomb,
-        noise=noise_out,
+        noise={"position": lv.pos, "theta": lv.theta, "force": lv.force, "torque": lv.torque},
         warnings=tuple(warnings),
         samples_used=int(reg.keep.sum()),
         gaps=grid.gaps,
@@ -1039,7 +1041,32 @@ def identify(
         fit_data={"t": grid.t[reg.keep][::step], "x": reg.x, "y": reg.y, "scale": scale, "step": step},
         casters=casters,
         cart_frame=cart_frame,
+        torque_origin=origin,
     )
+
+
+def _torque_origin_reading(
+    grid: _Grid, sos: np.ndarray, full_step: tuple[_Regression, int], noise: np.ndarray, lv_acc: tuple
+) -> float:
+    """Return the yaw residual ratio of the regression ``full`` with the torque read as taken about the world origin.
+
+    LOG_FORMAT's torque is about {b}'s origin; one taken about the world origin holds the moment of the
+    force at the cart's position, x fy - y fx, which grows with the distance travelled. Read that way the
+    torque row's y is tau - (x fy - y fx); the rest is :func:`_cart_frame_reading`'s fit.
+    """
+    full, step = full_step
+    _, sv, so = lv_acc
+    q, g = grid.q, grid.gamma
+    tau_b = g[:, 2] - (q[:, 0] * g[:, 1] - q[:, 1] * g[:, 0])
+    y_raw, y = full.y_raw.copy(), full.y.copy()
+    y_raw[:, 1] = tau_b[full.keep]
+    y[:, 1] = _filtfilt(sos, tau_b)[full.keep]
+    alt = replace(full, y=y, y_raw=y_raw)
+    reg = _every(alt, step)
+    p, _, _ = _wls(reg.x, reg.y, np.pad(noise, ((0, 0), (0, reg.x.shape[-1] - noise.shape[1]))))
+    _, _, out_std = _wrench_noise(alt, p, grid.dt, sos)
+    ratio, _ = _residual_ratio(out_std, sv, so, p, reg.y - _predict(reg.x, p), reg.y)
+    return float(ratio[1])
 
 
 def _cart_frame_reading(

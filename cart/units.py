@@ -234,6 +234,24 @@ def check_wrench_frame(source: str, ratio: tuple[float, float], cart_frame: tupl
         )
 
 
+def check_torque_origin(source: str, ratio: tuple[float, float], origin: float | None) -> None:
+    """Raise :class:`UnitsError` when the log's torque is taken about the world origin, not about {b}'s origin.
+
+    ``ratio``: the fit's residual ratio (forward, yaw) as logged; ``origin``: the yaw ratio with the torque
+    moved to {b}'s origin (tau - (x fy - y fx); ``Identification.torque_origin``), None when the model fits.
+    As for the frame (:func:`check_wrench_frame`), the yaw row's residual variance must drop below
+    ``FRAME_VARIANCE_SHARE`` of the logged reading's.
+    """
+    if origin is None or not all(math.isfinite(r) for r in (*ratio, origin)):
+        return
+    if origin**2 < FRAME_VARIANCE_SHARE * ratio[1] ** 2:
+        raise UnitsError(
+            f"{source}: the torque looks taken about the world origin, not about the cart's origin {{b}} that "
+            f"LOG_FORMAT requires: moved to {{b}}, the yaw residual is {origin:.3g}x the noise instead of "
+            f"{ratio[1]:.3g}x; subtract the force's moment at the cart's position (tau_b = tau - (x fy - y fx))"
+        )
+
+
 def wrench_frame_warning(
     ratio: tuple[float, float], cart_frame: tuple[float, float] | None, n_independent: float
 ) -> str | None:
