@@ -1,5 +1,6 @@
-"""Issue 30: a wrench written in the cart frame {b} is refused by `estimate` (exit 2), as by `diagnose`; so is a
-wrench column that was not recorded (constant on every row while the cart turns).
+"""Issue 30: a wrench written in the cart frame {b} is refused by `estimate` (exit 2), as by `diagnose`; so are a
+torque taken about the world origin instead of {b}'s origin and a wrench column that was not recorded (constant on
+every row while the cart turns).
 
 rigid_sim seed 19 (35.73 kg) with (fx, fy) in {b}: `estimate` answered 29.98 +- 19.47 kg with exit 0 (the
 model did not fit, the forward residual 5.5x the noise; read in {b} and rotated, 0.76x and 35.88 kg).
@@ -13,7 +14,7 @@ import numpy as np
 import pytest
 
 from cart.estimate_report import estimate_log
-from cart.units import UnitsError
+from cart.units import UnitsError, check_torque_origin
 from studies.testbeds import rigid_sim
 
 
@@ -23,12 +24,35 @@ def _in_cart_frame(log):
     return replace(log, gamma=np.column_stack([c * g[:, 0] + s * g[:, 1], -s * g[:, 0] + c * g[:, 1], g[:, 2]]))
 
 
-def test_a_wrench_in_the_cart_frame_is_refused_with_the_rotation_named():
+def _about_world_origin(log):
+    g = log.gamma
+    return replace(
+        log, gamma=np.column_stack([g[:, 0], g[:, 1], g[:, 2] + log.q[:, 0] * g[:, 1] - log.q[:, 1] * g[:, 0]])
+    )
+
+
+@pytest.mark.parametrize(
+    ("mistake", "named"),
+    [
+        (_in_cart_frame, r"cart frame \{b\}.*cos\(theta\) fx - sin\(theta\) fy"),
+        # the torque about the world origin: 15.11 kg with exit 0 before, the yaw residual 13.2x the noise
+        (_about_world_origin, r"world origin.*tau - \(x fy - y fx\)"),
+    ],
+)
+def test_a_wrench_in_the_wrong_frame_or_about_the_wrong_point_is_refused_with_the_fix_named(mistake, named):
     log, truth = rigid_sim.simulate(rigid_sim.random_case(19, duration=40.0, rate_hz=100.0))
     ok = estimate_log(log)
     assert ok.model_fits and abs(ok.params.m / truth["m"] - 1) < 0.02
-    with pytest.raises(UnitsError, match=r"cart frame \{b\}.*cos\(theta\) fx - sin\(theta\) fy"):
-        estimate_log(_in_cart_frame(log))
+    with pytest.raises(UnitsError, match=named):
+        estimate_log(mistake(log))
+
+
+def test_the_origin_check_needs_the_yaw_residual_to_drop_and_skips_a_fitting_model():
+    check_torque_origin("log", (1.0, 3.0), None)  # the model fits: not checked
+    check_torque_origin("log", (1.0, 3.0), 2.5)  # a misfit the origin does not explain
+    check_torque_origin("log", (1.0, 3.0), float("nan"))
+    with pytest.raises(UnitsError, match="world origin"):
+        check_torque_origin("log", (1.0, 3.0), 1.0)
 
 
 def test_a_wrench_column_that_was_not_recorded_is_refused():
