@@ -57,6 +57,7 @@ from cart.log_signals import (
     window_keep,
 )
 from cart.logs import CartLog
+from cart.standing import pose_stands
 from cart.diagnose_checks import (
     MASS_MIN,
     SLIP_RATIO,
@@ -787,14 +788,12 @@ def _checked_signals(log: CartLog, horizon: float | None, window: float | None) 
 
 
 def _stands(sig: Signals) -> bool:
-    """Return whether the cart stands: its position spans at most 20 and its heading at most 20 noise stds.
+    """Return whether the cart stands (:func:`cart.standing.pose_stands`, the estimate's rule, with the heading).
 
     The extreme speeds of thousands of differentiated noise samples reach past 5 of their std (the test on
-    ``v`` and ``omega``); a standing cart's pose does not wander beyond a few of its noise stds (the
-    estimate's rule, :func:`cart.identify.identify`, on the positions).
+    ``v`` and ``omega``); a standing cart's pose does not wander beyond a few of its noise stds.
     """
-    span = float(np.max(np.ptp(sig.q_raw[:, :2], axis=0)))
-    return span <= 20.0 * sig.sigma_pos and float(np.ptp(sig.q_raw[:, 2])) <= 20.0 * sig.sigma_theta
+    return pose_stands(sig.q_raw, sig.sigma_pos, sig.sigma_theta)
 
 
 def clear_of_holes(sig: Signals, edges: np.ndarray) -> np.ndarray:

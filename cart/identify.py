@@ -53,6 +53,7 @@ from cart.logs import CartLog
 from cart.noise_model import SpectralNoise, fit_spectrum, sos_power_gain
 from cart.params import CartParams
 from cart.physical import constrained_fit
+from cart.standing import pose_stands
 from cart.streams import Streams, box_average, split_streams
 
 #: Largest share of the filtered acceleration's power that differentiated pose noise may have (the
@@ -501,12 +502,9 @@ def _noise_levels(log: CartLog, streams: Streams) -> _Noise:
     f_std = max(white_noise_std(g[:, 0]), white_noise_std(g[:, 1]))
     tau_std = white_noise_std(g[:, 2])
     span = float(np.max(np.ptp(q[:, :2], axis=0)))
-    if span <= 20.0 * max(pos_std, 1e-12) or not np.any(np.abs(log.gamma) > 0):
-        what = (
-            "the cart does not move beyond the pose noise"
-            if span <= 20.0 * max(pos_std, 1e-12)
-            else "the wrench is zero throughout"
-        )
+    stands = pose_stands(q, max(pos_std, 1e-12))
+    if stands or not np.any(np.abs(log.gamma) > 0):
+        what = "the cart does not move beyond the pose noise" if stands else "the wrench is zero throughout"
         raise IdentifiabilityError(f"{log.source}: nothing can be estimated: {what}")
     # floors: a noise-free log still has rounding; keep the choice scale-free
     return _Noise(pos=max(pos_std, 1e-9 * span), theta=max(th_std, 1e-9), force=f_std, torque=tau_std, span=span)
