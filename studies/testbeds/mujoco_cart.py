@@ -87,7 +87,8 @@ class MujocoCase:
     (None: random from ``seed``). ``mass_guess_error`` is the relative error of the
     tracker's feedforward guess of mass and inertia; ``lateral_share`` the part of
     the yaw torque the robot makes with a lateral force at the handle (the rest is
-    a wrist torque; None: random). ``v_max`` / ``omega_max`` bound the reference.
+    a wrist torque; None: random; on a floor the wheels slide on, ``cart.sliding_friction`` below
+    :data:`SLIPPERY`, capped by :func:`sliding_share`). ``v_max`` / ``omega_max`` bound the reference.
     """
 
     cart: MujocoCart = field(default_factory=MujocoCart)
@@ -284,6 +285,26 @@ class _Reference:
         return cls(v_ref, a_ref, w_ref, al_ref, s_ref, th_ref)
 
 
+#: a floor friction coefficient below this lets the wheels slide under the handle's lateral force
+SLIPPERY = 0.3
+
+
+def sliding_share(share: float, dx: float, handle_distance: float) -> float:
+    """Return the lateral share that keeps half the commanded yaw torque about the CoM of a cart that slides.
+
+    The tracker makes ``share`` of its yaw torque about {b}, t_b, with a lateral force at the handle
+    (``handle_distance`` behind {b}) and the rest with a wrist torque. Held by its wheels, the cart turns
+    about {b}; sliding, it turns about its CoM (``dx`` ahead of {b}), where the same wrench has the torque
+    t_b (1 - share dx / handle_distance). Beyond share = handle_distance / dx that torque turns the other
+    way, the yaw loop feeds back positively and the pushed cart spins up until the simulation diverges
+    (``random_case(60001, sliding_friction=0.04, lateral_share=0.8)``: dx 0.28 m, handle 0.17 m, the cart
+    spinning at 760 rad/s by 22.6 s). The share is capped so that the torque about the CoM keeps half of t_b.
+    """
+    if dx <= 0.0:
+        return share
+    return min(share, 0.5 * handle_distance / dx)
+
+
 @dataclass(frozen=True)
 class _Tracker:
     """The pushing robot's controller: feedforward from a rough guess of the cart plus PD on progress / heading."""
@@ -306,6 +327,8 @@ class _Tracker:
         i_g = i_b_true * float(rng.uniform(1.0 - err, 1.0 + err))
         f_roll_g = m_g * GRAVITY * float(rng.uniform(0.003, 0.02))
         share = float(rng.uniform(0.2, 0.8)) if case.lateral_share is None else float(case.lateral_share)
+        if case.cart.sliding_friction < SLIPPERY:
+            share = min(share, sliding_share(share, info["dx"], case.cart.handle_distance))
         return cls(ref, m_g, i_g, f_roll_g, share, (-case.cart.handle_distance, case.cart.handle_y))
 
     def wrench(self, i: int, v: float, omega: float, s_meas: float, th_rel: float) -> tuple[float, float, float]:
@@ -532,8 +555,10 @@ def simulate(case: MujocoCase) -> tuple[CartLog, dict[str, Any]]:
     tracker = _Tracker.guessing(case, info, ref, rng)
     samples = _sample_steps(case, n_steps, rng)
     out = _run(model, data, tracker, n_steps, samples)
-    if not np.all(np.isfinite(out.rec)):
-        raise RuntimeError(f"{case.name or case.seed}: the simulation diverged")
+    # MuJoCo resets the state where the accelerations blow up (a warning, not an error): a log of restarts
+    resets = int(data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number)
+    if resets or not np.all(np.isfinite(out.rec)):
+        raise RuntimeError(f"{case.name or case.seed}: the simulation diverged ({resets} reset(s) by MuJoCo)")
     log = _noisy_log(case, out.rec, tracker.handle, rng)
     info.update(_truth_notes(case, out, tracker, ref, samples))
     return log, info
