@@ -43,6 +43,7 @@ from wholebody.push.reference_clock import (
     footprint_params,
     path_braking,
 )
+from wholebody.push.slip_hold import SlipHold, lateral_demand
 from wholebody.push.tip_support import cart_load
 
 
@@ -136,9 +137,12 @@ class PushController:
         self.support = config.support_polygon() if config.tip_on() else None
         hands = config.hand_limits([a for mm in self.robots for a in mm.arms])  # each arm's own grip
         limits = list(hands) if self.support is None else [replace(h, planar=False) for h in hands]
+        self._limits = limits
         self.allocator = WrenchAllocator(
             [handle_point(v, self.geometry) for v in scheduler.y], limits, only_motion_directions=True
         )
+        #: whether the cart slides sideways (`wholebody.push.slip_hold`): then the hands hold its lateral motion too
+        self.slip = SlipHold()
         self._t_prev: float | None = None
         self._q_grasp: np.ndarray | None = None
         self._t_grasp: float | None = None
@@ -177,6 +181,7 @@ class PushController:
         x_hat = np.array(self.estimator.x[:6], dtype=float)
         q_hat, qd_hat = x_hat[0:3], x_hat[3:6]
         s, rate, gamma_d = self._demand(m.t, q_hat, qd_hat, params_hat)
+        gamma_d = self._hold_slide(m.t, s, q_hat, qd_hat, params_hat, gamma_d)
         ys, ydots = self.scheduler.update(s, params_hat, dt)
         alloc = self._allocate(q_hat, qd_hat, gamma_d, params_hat, ys)
         saturated = alloc.residual > 1e-6 * max(1.0, float(np.abs(gamma_d).max()))  # eq. (25)
@@ -213,6 +218,25 @@ class PushController:
             reference_rate=rate,
         )
         return list(commands)
+
+    def _hold_slide(
+        self, t: float, s: float, q: np.ndarray, qd: np.ndarray, params: CartParams, gamma: np.ndarray
+    ) -> np.ndarray:
+        """Return the desired wrench `gamma` ({s}) with its lateral part in {b} the one a sliding cart's motion asks
+        of the hands (`slip_hold.lateral_demand` at the reference read on the clock) once the cart has been seen
+        sliding (`SlipHold`), and from then on allocate all three rows: the allocation then no longer makes the yaw
+        torque with a sideways push that a missing axle does not take. Unchanged while the cart does not slide."""
+        if not self.slip.update(t, q, qd, self.config.dt):
+            return gamma
+        if len(self.allocator.rows) < 3:
+            points = [handle_point(v, self.geometry) for v in self.scheduler.y]
+            self.allocator = WrenchAllocator(points, self._limits, only_motion_directions=False)
+        q_d, qd_d, qdd_d = self.trajectory.sample(s)
+        r, rd = (1.0, 0.0) if self.clock is None else (self.clock.rate, self.clock.rate_dot)
+        ref = (q_d, qd_d * r, qdd_d * (r * r) + qd_d * rd)
+        gamma_b = cart_model.generalized_to_body(q, gamma)
+        gamma_b[1] = lateral_demand(q, qd, ref, params, self.slip.settings)
+        return _body_to_generalized(q, gamma_b)
 
     def _advance_clock(self, s: float, gamma_b: np.ndarray, achieved: np.ndarray, params: CartParams) -> None:
         """Set the reference's rate for the next period from this one's allocation (`ReferenceClock.advance`): the
