@@ -270,18 +270,19 @@ def load_change_study(n: int, seed0: int) -> dict[str, float]:
     whose change `estimate` finds within 1 s with the after-mass within 5 %, the number of the others whose change
     lies in a reported stretch wider than 2 s (:func:`studies.testbeds.mujoco_loads.in_wide_stretch`) and of those
     whose ``t0_range`` holds it (:func:`studies.testbeds.mujoco_loads.holds_truth`), and the share of the same carts
-    without a change where it reports one. Each change log's line is printed as it comes (JSON)."""
+    without a change where it reports one; a log ``estimate`` refuses counts as ``refused`` (and as a miss when it has
+    a change: :func:`studies.testbeds.mujoco_loads.estimated_segments`). Each change log's line is printed as it comes
+    (JSON)."""
     import json
 
-    from cart.estimate_report import estimate_log
-    from studies.testbeds.mujoco_loads import holds_truth, in_wide_stretch
+    from studies.testbeds.mujoco_loads import estimated_segments, holds_truth, in_wide_stretch
 
-    found = false = wide = held = 0
+    found = false = wide = held = refused = 0
     for i in range(n):
         case = load_change_case(seed0 + i)
         tc, dur = float(case.load_time or 0.0), case.duration
         log, truth = rigid_sim.simulate(case)
-        segs = estimate_log(log).segments
+        segs = estimated_segments(log)
         m_after = truth["load_change"]["m_after"]
         last = segs[-1]
         ok = bool(
@@ -294,15 +295,18 @@ def load_change_study(n: int, seed0: int) -> dict[str, float]:
         wide += not ok and in_wide_stretch(list(segs), tc, m_after)
         held += not ok and holds_truth(list(segs), tc)
         row = {"seed": seed0 + i, "t_change": tc, "found": ok, "t0": last["t0"], "t0_range": last.get("t0_range")}
-        print(json.dumps({**row, "mass": last["mass"], "m_after": m_after}), flush=True)
+        print(json.dumps({**row, "mass": last["mass"], "m_after": m_after, "refused": last.get("refused")}), flush=True)
         log0, _ = rigid_sim.simulate(rigid_sim.random_case(seed0 + i, duration=dur))
-        false += len(estimate_log(log0).segments) > 1
+        segs0 = estimated_segments(log0)
+        false += len(segs0) > 1
+        refused += ("refused" in last) + ("refused" in segs0[-1])
     return {
         "logs": n,
         "found_within_1s_5pct": found / n,
         "missed_in_wide_stretch_holding_truth": wide,
         "missed_with_t0_range_holding_truth": held,
         "false_changes": false / n,
+        "refused": refused,
     }
 
 

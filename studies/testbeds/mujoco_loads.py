@@ -230,6 +230,7 @@ def _row(seed: int, kind: str, t_change: float | None, truth: dict[str, Any], se
         "m_before": truth["before"]["m"],
         "m_after": truth["after"]["m"],
         "m_eff_after": truth["after"]["m_effective_forward_incl_wheel_spin"],
+        "refused": last.get("refused"),
     }
 
 
@@ -250,6 +251,18 @@ def in_wide_stretch(segs: list[dict[str, Any]], t_change: float, m_after: float)
     return bool(hi - lo > WIDE_STRETCH_S and lo <= t_change <= hi and abs(segs[-1]["mass"] / m_after - 1) < 0.05)
 
 
+def estimated_segments(log: CartLog) -> list[dict[str, Any]]:
+    """Return ``estimate``'s segments of ``log``; a log ``estimate`` refuses (:class:`cart.errors.CartError`, e.g. its
+    torque-origin check) gives one segment without a mass, marked ``refused`` with the message (counted, not fatal)."""
+    from cart.errors import CartError
+    from cart.estimate_report import estimate_log
+
+    try:
+        return list(estimate_log(log).segments)
+    except CartError as exc:
+        return [{"t0": float(log.t[0]), "t0_range": None, "mass": None, "refused": str(exc)}]
+
+
 def holds_truth(segs: list[dict[str, Any]], t_change: float) -> bool:
     """Return whether the last segment's reported ``t0_range`` holds ``t_change`` (any width)."""
     rng = segs[-1]["t0_range"] if len(segs) >= 2 else None
@@ -268,15 +281,13 @@ def evaluate(n: int, seed0: int) -> dict[str, Any]:
     (:func:`in_wide_stretch`: the log cannot date them within 1 s); so are the misses whose ``t0_range``, of any
     width, holds the change (:func:`holds_truth`: the range is honest where ``t0`` misses).
     """
-    from cart.estimate_report import estimate_log
-
     rows = []
     for seed in range(seed0, seed0 + n):
         case, load = random_load_case(seed)
         got: dict[str, tuple[dict, list]] = {}
         for kind in (load.kind, "none_in", "none_out"):
             log, truth = simulated(seed, case, replace(load, kind=kind))
-            got[kind] = (truth, list(estimate_log(log).segments))
+            got[kind] = (truth, estimated_segments(log))
         truth, segs = got[load.kind]
         row = _row(seed, load.kind, load.t, truth, segs)
         alone = got["none_out" if load.kind == "in" else "none_in"][1][-1]["mass"]
@@ -304,6 +315,8 @@ def evaluate(n: int, seed0: int) -> dict[str, Any]:
         "missed_with_t0_range_holding_truth": sum(r["range_holds_truth"] and not r["found_m_eff"] for r in changed),
         "logs_without_change": len(rows) - len(changed),
         "false_changes": float(np.mean([r["segments"] > 1 for r in rows if "found_m" not in r])),
+        "refused_with_change": sum(r["refused"] is not None for r in changed),
+        "refused_without_change": sum(r["refused"] is not None for r in rows if "found_m" not in r),
     }
 
 
