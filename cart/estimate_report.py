@@ -29,6 +29,7 @@ from cart.streams import Streams, box_average, split_streams
 from cart.units import (
     check_declared_units,
     check_torque_origin,
+    torque_origin_warning,
     check_units,
     check_wrench_frame,
     wrench_frame_warning,
@@ -289,7 +290,9 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
     split = len(segments) > 1
     # a load change: one cart cannot fit the whole log, so the verdict is the segments' (each its own fit)
     whole = [w for w in res.warnings if not (split and w.startswith("the model does not fit"))]
-    warnings = log_notes(log, streams) + stream_notes(streams) + whole + ([frame_note] if frame_note else [])
+    origin_note = None if split else torque_origin_warning(res.residual_ratio, res.torque_origin)
+    notes = [n for n in (frame_note, origin_note) if n]
+    warnings = log_notes(log, streams) + stream_notes(streams) + whole + notes
     f_noise, t_noise = res.wrench_noise
     noise = {"force": f_noise.band_white_std(res.cutoff_hz), "torque": t_noise.band_white_std(res.cutoff_hz)}
     nis, rejected, note = _innovation(log, streams, res.params, noise)
