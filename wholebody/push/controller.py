@@ -38,9 +38,11 @@ from wholebody.motion.tasks import BaseTask, PostureTask
 from wholebody.push.base_plan import BasePlan
 from wholebody.push.reference_clock import (
     ReferenceClock,
+    TimeScaling,
     admissible_rate,
     deficit,
     footprint_params,
+    needs_look_ahead,
     path_braking,
 )
 from wholebody.push.slip_hold import SlipHold, lateral_demand
@@ -185,7 +187,7 @@ class PushController:
         ys, ydots = self.scheduler.update(s, params_hat, dt)
         alloc = self._allocate(q_hat, qd_hat, gamma_d, params_hat, ys)
         saturated = alloc.residual > 1e-6 * max(1.0, float(np.abs(gamma_d).max()))  # eq. (25)
-        self._advance_clock(s, cart_model.generalized_to_body(q_hat, gamma_d), alloc.gamma_achieved, params_hat)
+        self._advance_clock(s, q_hat, cart_model.generalized_to_body(q_hat, gamma_d), alloc.gamma_achieved, params_hat)
         q_grasp = self._grasp_pose(q_hat, qd_hat, m.t)
         gamma_a = _body_to_generalized(q_hat, alloc.gamma_achieved)
         qdd = np.asarray(cart_model.forward_dynamics(q_hat, qd_hat, gamma_a, params_hat), dtype=float)
@@ -238,18 +240,22 @@ class PushController:
         gamma_b[1] = lateral_demand(q, qd, ref, params, self.slip.settings)
         return _body_to_generalized(q, gamma_b)
 
-    def _advance_clock(self, s: float, gamma_b: np.ndarray, achieved: np.ndarray, params: CartParams) -> None:
+    def _advance_clock(
+        self, s: float, q: np.ndarray, gamma_b: np.ndarray, achieved: np.ndarray, params: CartParams
+    ) -> None:
         """Set the reference's rate for the next period from this one's allocation (`ReferenceClock.advance`): the
-        share of the demand it left out, the desired path speed at s, the hands' force over the estimated mass."""
+        share of the demand it left out, the desired path speed at s, the hands' force over the estimated mass, and
+        the estimated cart's distance from the reference (`reference_clock.error_rate_cap`)."""
         if self.clock is None:
             return
         self._look_ahead(s, params)
         self._plan_cap(s, params)
         rows = self.allocator.rows
-        _, qd, qdd = self.trajectory.sample(s)
+        q_d, qd, qdd = self.trajectory.sample(s)
         share = deficit(np.asarray(gamma_b)[rows], np.asarray(achieved)[rows], path_braking(qd, qdd))
         path_speed = float(np.hypot(*qd[:2]))
-        self.clock.advance(share, self.config.dt, path_speed, self._accel_bound(params))
+        error = float(np.hypot(q_d[0] - q[0], q_d[1] - q[1]))
+        self.clock.advance(share, self.config.dt, path_speed, self._accel_bound(params), error)
 
     def _plan_cap(self, s: float, params: CartParams) -> None:
         """Cap the clock's rate where a base plan's window meets the wheel limits only slower (`BasePlan.rates`): at
@@ -274,8 +280,8 @@ class PushController:
         inertia at least its mass spread over the wheels (`reference_clock.footprint_params`). The allocator's own
         tip rows are put back afterwards."""
         clock = self.clock
-        settings = clock.settings if clock is not None else None
-        if clock is None or settings is None or settings.horizon <= 0 or s - clock.checked_at < settings.check_period:
+        settings = self._look_ahead_settings(s, params)
+        if clock is None or settings is None or s - clock.checked_at < settings.check_period:
             return
         clock.checked_at = s
         if self.support is not None:
@@ -287,16 +293,36 @@ class PushController:
                 self.allocator.set_tip_bound(self.support, self._cart_load(np.zeros(3), state, row[:3], params))
             return self.allocator.optimum(row[:3]) is not None
 
-        decel = settings.plan_share * self._rate_decel(s, params)
+        decel = settings.plan_share * self._rate_decel(s, params, settings)
         with self.allocator.tip_bound_kept() if self.support is not None else nullcontext():
             clock.admissible = admissible_rate(self.trajectory, s, settings, params, achievable, decel)
 
-    def _rate_decel(self, s: float, params: CartParams) -> float:
+    def _look_ahead_settings(self, s: float, params: CartParams) -> TimeScaling | None:
+        """Return the clock's settings when it looks ahead at reference time s: its own with a horizon, else with
+        `TimeScaling.momentum_horizon` while the estimated cart's stopping distance at the path's top speed over
+        that horizon is over `TimeScaling.stop_distance` (`reference_clock.needs_look_ahead`); None: no look-ahead."""
+        if self.clock is None:
+            return None
+        settings = self.clock.settings
+        if settings.horizon > 0:
+            return settings
+        if settings.momentum_horizon <= 0:
+            return None
+        ahead = replace(settings, horizon=settings.momentum_horizon)
+        hs = np.linspace(0.0, ahead.horizon, ahead.horizon_samples)
+        speed = max(float(np.hypot(*self.trajectory.sample(s + float(h))[1][:2])) for h in hs)
+        force = self.config.n_arms * self.config.arm_limits.max_force
+        if needs_look_ahead(float(params.m), speed, force, settings):
+            return ahead
+        self.clock.admissible = 1.0
+        return None
+
+    def _rate_decel(self, s: float, params: CartParams, settings: TimeScaling | None = None) -> float:
         """Return the path deceleration (1/s) the clock's brake bound allows at reference time s: `brake_share` of
         the hands' total force over the estimated mass, over the desired path speed (the largest over the horizon
         when the path is at rest at s); inf when the path does not move."""
         assert self.clock is not None
-        settings = self.clock.settings
+        settings = self.clock.settings if settings is None else settings
         hs = np.linspace(0.0, settings.horizon, settings.horizon_samples)
         speed = max(float(np.hypot(*self.trajectory.sample(s + float(h))[1][:2])) for h in hs)
         accel = self._accel_bound(params)

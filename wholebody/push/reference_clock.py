@@ -33,6 +33,13 @@ within the brake bound (`plan_share` of it): the backward pass of time-optimal p
 rates. The turn ahead is judged with the estimate's yaw inertia and CoM, but at least those of its mass spread over
 the wheels' footprint (`footprint_params`): before the first turn nothing has excited them and the estimate's are
 its prior, scaled from a small cart.
+
+Two more guards, on by default. A cart that still falls behind once the rate has reached `rate_min` (a turn
+tighter than the hands can yaw it at that speed) gets its rate capped by its distance from the reference
+(`error_rate_cap`) until the rate is back at 1. And without a horizon the clock looks ahead over
+`TimeScaling.momentum_horizon` while the estimated cart would stop, under the hands' whole force, beyond
+`TimeScaling.stop_distance` at the path's speed ahead (`needs_look_ahead`): its momentum would carry it off the path
+before the reaction slowed it (the hospital bed, not the shopping cart or the wheelchair; docs/mujoco.md).
 """
 
 from __future__ import annotations
@@ -79,10 +86,24 @@ class TimeScaling:
     #: share of the slowing `brake_share` allows that the look-ahead plans with (the rate's approach to its target
     #: is exponential, `tau_down`, and slower than that bound near the target)
     plan_share: float = 0.5
+    #: the tracking error (m, the estimated {b} from the reference q_d(s)) over which, once the rate has reached
+    #: `rate_min`, the rate is capped from 1 at the first to `error_rate_min` at the second (`error_rate_cap`): a
+    #: cart that falls behind its path at the slowest rate (a turn tighter than the hands can yaw it at that speed)
+    #: gets a slower reference still, until the rate is back at 1
+    error_band: tuple[float, float] = (0.04, 0.14)
+    error_rate_min: float = 0.01
+    #: without a look-ahead (`horizon` 0), a cart whose stopping distance at the path's speed ahead under the hands'
+    #: whole force (estimated mass) is over `stop_distance` (m) is looked ahead over `momentum_horizon` (s): its
+    #: momentum would carry it off the path before the reference's reaction slowed it (`needs_look_ahead`)
+    stop_distance: float = 0.4
+    momentum_horizon: float = 4.0
 
     def __post_init__(self) -> None:
         if not (0.0 < self.rate_min <= 1.0 and self.tau_down > 0 and self.tau_up > 0 and 0 < self.brake_share <= 1):
             raise WholeBodyError("time scaling: rate_min in (0, 1], tau_down, tau_up > 0, brake_share in (0, 1]")
+        lo, hi = self.error_band
+        if not (0.0 <= lo < hi and 0.0 < self.error_rate_min <= self.rate_min):
+            raise WholeBodyError("time scaling: error_band (lo, hi) with 0 <= lo < hi, error_rate_min in (0, rate_min]")
 
 
 @dataclass
@@ -105,33 +126,38 @@ class ReferenceClock:
     #: the largest rate the robots' bases allow here (`wholebody.push.base_plan.BasePlan.rate_cap`: a base plan's
     #: window that meets the wheel limits only slower than the desired speed); 1: none
     cap: float = 1.0
+    #: whether the rate has reached `TimeScaling.rate_min` since it was last at 1: the tracking error then caps it
+    #: (`error_rate_cap`)
+    floored: bool = False
 
     def time(self, t: float) -> float:
         """Return the reference time s at the run's time t (t itself until the reference first slows)."""
         return t - self.delay if self.delay != 0.0 else t
 
-    def advance(self, deficit: float, dt: float, path_speed: float, accel_bound: float) -> None:
+    def advance(self, deficit: float, dt: float, path_speed: float, accel_bound: float, error: float = 0.0) -> None:
         """Set the rate of the next period from this period's allocation `deficit` (residual / demand, in [0, 1];
         NaN: the arms could not brake as hard as asked, and the rate is held, `deficit`).
 
         ``path_speed``: |q_d'(s)| of the forward motion (m/s); ``accel_bound``: the hands' total force over the
         estimated mass (m/s^2), which bounds the slowing: r_dot >= -brake_share accel_bound / path_speed.
+        ``error``: the tracking error (m), which caps the rate once it has reached `rate_min` (`error_rate_cap`).
         """
         s = self.settings
         if math.isnan(deficit):  # a braking deficit: slowing would ask more braking; hold the rate
             self._rate_changed(0.0, self.rate < 1.0)
             self.delay += (1.0 - self.rate) * dt
             return
-        admissible = min(self.admissible, self.cap)
+        admissible = min(self.admissible, self.cap, error_rate_cap(error, s) if self.floored else 1.0)
         slowing = deficit > s.deficit_tol or admissible < self.rate
         target = min(self.rate * (1.0 - max(deficit, 0.0)), admissible) if slowing else admissible
         tau = s.tau_down if slowing else s.tau_up
         step = (target - self.rate) * min(1.0, dt / tau)
         if path_speed > 1e-9 and math.isfinite(accel_bound):
             step = max(step, -s.brake_share * accel_bound / path_speed * dt)
-        new = min(1.0, max(s.rate_min, self.rate + step))
+        new = min(1.0, max(min(s.rate_min, admissible), self.rate + step))
         if not slowing and new > 1.0 - RATE_SNAP:  # the approach to 1 is asymptotic: it ends
             new = 1.0
+        self.floored = new < 1.0 and (self.floored or new <= s.rate_min + 1e-12)
         self._rate_changed((new - self.rate) / dt, new < 1.0)
         self.rate = new
         self.delay += (1.0 - new) * dt
@@ -142,6 +168,21 @@ class ReferenceClock:
         reverses = slowed and step * self.rate_step < 0.0
         self.rate_dot = 0.5 * (step + self.rate_step) if reverses else step
         self.rate_step = step
+
+
+def error_rate_cap(error: float, settings: TimeScaling) -> float:
+    """Return the largest rate the tracking `error` (m) allows once the rate has reached `rate_min`: 1 up to
+    `TimeScaling.error_band`'s first value, `error_rate_min` from its second, geometric between (halfway the
+    geometric mean of 1 and `error_rate_min`: the rate a cart can follow is found within the band however slow)."""
+    lo, hi = settings.error_band
+    share = min(1.0, max(0.0, (error - lo) / (hi - lo)))
+    return settings.error_rate_min**share
+
+
+def needs_look_ahead(mass: float, speed: float, force: float, settings: TimeScaling) -> bool:
+    """Return whether a cart of estimated `mass` (kg) at the path `speed` (m/s) ahead stops, under the hands' whole
+    `force` (N), over more than `TimeScaling.stop_distance`: m v^2 / (2 F)."""
+    return force > 0.0 and mass * speed * speed / (2.0 * force) > settings.stop_distance
 
 
 class ScaledReference:

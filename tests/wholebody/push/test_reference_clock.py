@@ -11,7 +11,7 @@ import pytest
 from cart.params import CartParams
 from cart.trajectories import trajectory_1
 from wholebody.contacts.allocation import ArmLimits
-from wholebody.push import PushConfig, run_push
+from wholebody.push import PushConfig, build_controller, run_push
 from wholebody.push.config import PUSH_ARM_LIMITS
 from cart.trajectories import trajectory_2
 from wholebody.push.config import TRUE_CART
@@ -22,7 +22,9 @@ from wholebody.push.reference_clock import (
     TimeScaling,
     admissible_rate,
     deficit,
+    error_rate_cap,
     footprint_params,
+    needs_look_ahead,
     path_braking,
     planned_wrench,
     sample_rate,
@@ -119,7 +121,8 @@ def test_a_saturating_push_slows_its_reference_instead_of_losing_the_cart():
     # the look-ahead slows the reference before the ramp: the allocation never leaves a share out
     ahead = run_push(replace(config, time_scaling=TimeScaling(horizon=4.0))).metrics
     assert ahead.tracking_lost_at_s is None and ahead.saturated_steps == 0 and ahead.reference_time_scale_min < 0.9
-    result = run_push(replace(config, time_scaling=TimeScaling(horizon=0.0)))  # the reaction alone
+    # the reaction alone (5 N stops the cart in more than stop_distance: it would be looked ahead by default)
+    result = run_push(replace(config, time_scaling=TimeScaling(horizon=0.0, momentum_horizon=0.0)))
     m = result.metrics
     assert m.tracking_lost_at_s is None and m.tracking_rms_mm < 20.0
     assert m.saturated_steps > 0 and m.reference_time_scale_min < 0.9 and m.reference_delay_s > 0.5
@@ -254,3 +257,63 @@ def test_the_tip_over_margin_takes_at_most_a_quarter_of_the_mass_and_of_the_foot
     ctrl.estimator = _Sigma(0.4, (0.01, 0.015))
     load = ctrl._cart_load(q, qd, gamma, params)
     assert load.mass_std == 0.4 and tuple(load.com_std) == (0.01, 0.015)
+
+
+def test_the_tracking_error_caps_the_rate_geometrically_over_its_band():
+    settings = TimeScaling(error_band=(0.04, 0.14), error_rate_min=0.01)
+    assert error_rate_cap(0.0, settings) == 1.0 and error_rate_cap(0.04, settings) == 1.0
+    assert error_rate_cap(0.09, settings) == pytest.approx(0.1, rel=1e-12)  # halfway: sqrt(1 x 0.01)
+    assert error_rate_cap(0.14, settings) == pytest.approx(0.01)
+    assert error_rate_cap(1.0, settings) == pytest.approx(0.01)
+    caps = [error_rate_cap(e, settings) for e in np.linspace(0.0, 0.2, 41)]
+    assert np.all(np.diff(caps) <= 0.0)
+
+
+def test_a_cart_falling_behind_slows_its_reference_below_the_deficit_floor_and_back():
+    """A deficit alone stops at rate_min; a cart that keeps falling behind (a turn it cannot yaw through at that
+    speed) takes the rate down to error_rate_min, and once back on the path the reference returns to 1. A cart
+    whose rate never reached rate_min is not slowed by its error."""
+    settings = TimeScaling()
+    alone, behind, given = ReferenceClock(settings), ReferenceClock(settings), ReferenceClock(settings)
+    for _ in range(1000):
+        alone.advance(0.9, 0.01, 0.8, 5.0)
+        behind.advance(0.9, 0.01, 0.8, 5.0, error=0.2)
+        given.advance(0.0, 0.01, 0.8, 5.0, error=0.2)
+    assert alone.rate == pytest.approx(settings.rate_min)
+    assert behind.rate == pytest.approx(settings.error_rate_min)
+    assert given.rate == 1.0
+    for _ in range(1500):
+        behind.advance(0.0, 0.01, 0.8, 5.0, error=0.01)
+    assert behind.rate == 1.0
+
+
+def test_a_cart_that_stops_beyond_the_stop_distance_is_looked_ahead():
+    settings = TimeScaling(stop_distance=0.25)
+    # m v^2 / (2 F): the hospital bed (245 kg) at 0.8 m/s under one hand's 150 N stops in 0.52 m; the shopping cart
+    # (20.7 kg) in 0.044 m
+    assert needs_look_ahead(245.0, 0.8, 150.0, settings)
+    assert not needs_look_ahead(20.7, 0.8, 150.0, settings)
+    assert not needs_look_ahead(245.0, 0.8, 0.0, settings)
+    edge = 2.0 * 150.0 * 0.25 / 0.8**2  # the mass that stops in exactly 0.25 m
+    assert not needs_look_ahead(edge * (1 - 1e-9), 0.8, 150.0, settings)
+    assert needs_look_ahead(edge * (1 + 1e-9), 0.8, 150.0, settings)
+
+
+def test_the_controller_looks_ahead_for_a_heavy_cart_only():
+    """Without --look-ahead the controller looks ahead (`TimeScaling.momentum_horizon`) while the estimated cart
+    would stop beyond `stop_distance` at the path's speed ahead: the hospital bed's mass, not the shopping cart's."""
+    config = PushConfig(plant="mujoco", contact="fixed", trajectory=2)
+    controller = build_controller(config).controller
+    clock = controller.clock
+    assert clock is not None
+    settings = clock.settings
+    assert settings.horizon == 0.0
+    heavy, light = CartParams(245.0, 0.8, 0.0, 100.0, 10.0), CartParams(20.7, 0.4, 0.0, 1.5, 3.0)
+    ahead = controller._look_ahead_settings(5.0, heavy)
+    assert ahead is not None and ahead.horizon == settings.momentum_horizon
+    assert controller._look_ahead_settings(5.0, light) is None
+    clock.settings = replace(settings, momentum_horizon=0.0)  # off
+    assert controller._look_ahead_settings(5.0, heavy) is None
+    clock.settings = settings
+    controller._look_ahead(5.0, heavy)
+    assert clock.checked_at == 5.0  # it checked
