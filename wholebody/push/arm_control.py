@@ -23,7 +23,7 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   step's end: `implicit_impedance`) holds the posture (the elbow of a 7-joint arm) without pushing on the hand: the
   hand's wrench stays the commanded ``J^T w`` while the hand moves with the handle it holds.
 
-  The force loop (PI, ``K = 3`` on the force rows and 1 on the moment rows, ``K_i = 5 /s``) cancels what the
+  The force loop (PI, ``K = 5`` on the force rows and 1 on the moment rows, ``K_i = 5 /s``) cancels what the
   arm's own dynamics take from the push: the cart feels the arm's task-space inertia (19 kg along x at the push posture, as much as the cart) whenever the
   hand accelerates relative to the base. Its measured wrench ``w_f`` is the hand's wrench at the grasp
   (world-aligned), low-passed (5 ms), fused from two sensors (a complementary filter): the arm's joint-side
@@ -34,14 +34,18 @@ Two kinds of arm, two laws (the plant picks one per robot, see `mujoco_plant.ARM
   and the F/T's forces (``W = diag(1 / sigma_tau^2)``, a joint torque sensor's noise in proportion to its range,
   as much of it as the low-pass leaves;
   ``R`` the F/T's: where the joints see the hand, ``F`` is small; along a direction they do not see, a straight
-  elbow's, the F/T's reading; `fused_estimator`), corrected by the wrist F/T at low frequency (2 s) (the F/T's accuracy:
+  elbow's, the F/T's reading; `fused_estimator`), corrected by the wrist F/T at low frequency (6 s) (the F/T's accuracy:
   it removes the sensors' offsets, the model's slow errors, payload and friction): `TorqueArmGains.fusion_space`
   "joint" (default) takes the slow part of ``tau_ext + J^T w_FT``, each joint torque's error, off
   ``tau_ext`` (it stays removed as the arm moves and the base turns); "hand" adds the slow part of the F/T reading
-  minus ``w_j``, kept in the frame of the arm's mount (`TorqueArmGains.fusion_frame`). Fed back directly,
+  minus ``w_j``, kept in the frame of the arm's mount (`TorqueArmGains.fusion_frame`). Both slow parts can start
+  from samples taken while the arm holds still before the push (`TorqueArmLaw.hold`, `TorqueArmLaw.tare`; the MuJoCo
+  plant's settling, `MujocoPlantConfig.tare`), as a real arm zeroes its sensors before a task. Fed back directly,
   the F/T's white noise (3 N per sample at 500 Hz) would be pushed into the cart ``K_f`` times over. The loop's gain is bounded by its one-step
-  delay: measured, ``K_f = 6`` rings at 20-50 Hz. The integral stops while a torque is clipped or the budget
-  trims the loop (anti-windup). `TorqueArmGains.reference_model` (off by default) compares ``w_f`` with the
+  delay and its measurement filter (`TorqueArmGains.force_feedback`). The integral stops while a torque is clipped or
+  the budget trims the loop (anti-windup); the loop's wrench is applied only while the hand holds the handle
+  (`TorqueArmLaw.torque`'s ``grasped``: a released hand has no wrench to control). `TorqueArmGains.reference_model`
+  (on by default) compares ``w_f`` with the
   allocated wrench as the measurement sees it (one step late, low-passed) instead of ``w``.
 
 - **Velocity-controlled arm** (the WMRA's, joint velocity servos): an admittance around the servos,
@@ -101,14 +105,15 @@ class TorqueArmGains:
     #: world-aligned) low-passed with time constant ``force_filter_tau`` (s), every physics step; it divides the
     #: arm's own task-space inertia and friction felt by the cart by ``1 + K_f`` and removes their slow part
     #: (``K_i``, 1/s); ``force_feedback`` 0 = off (open-loop J^T w). The loop's one-step delay and its measurement
-    #: filter bound the gain: with ``force_filter_tau`` 2 ms instead of 5, K_f = 4 diverges (two arms, Traj. 2, seed
-    #: 0, first 8 s: 316 % of the hand force; 3: 9.7 %). Measured with K_f = 4 (`cartpush push --plant mujoco [--arms
-    #: 2] --trajectory T --seed S --json`; docs/mujoco.md "Several arms on one cart"): two arms' wrench error T2
-    #: S0/S1 9.3/10.2 % of the hand force (10.1/10.9 at 3), T1 S0 9.9 % (10.9), held-out T2 S7/S8 10.6/10.9 %
-    #: (11.1/11.6); one arm's T2 S0/S1/S2 3.9/4.0/4.1 % (4.4/4.5/4.5), T1 S0 7.1 % (8.0); tracking within 0.05 mm
-    #: (one arm's T1 2.26 mm against 2.50), torque requests at most 0.31 of a limit; a released arm, exact sensing,
-    #: moves 2.0 mrad in 1 s (1.5 at 3, 1.35 without the loop)
-    force_feedback: float = 3.0
+    #: filter bound the gain. In the simplest model the hand delivers ``G`` times a change of the loop's wrench in the
+    #: next physics step (1 along a
+    #: direction the handle does not move, about ``m / (m + Lambda)`` along one the cart moves with the hand, ``m`` the
+    #: cart's and ``Lambda`` the arm's task-space inertia: 20 and 19 kg along the push), and the filter passes ``a =
+    #: dt / (tau + dt)`` of it, so the loop's pole is ``1 - a - a G K_f``: -1 at ``K_f = (2 - a) / (a G)``, 6 with
+    #: 5 ms at ``G = 1``; with 2 ms instead (``a`` 0.5) K_f = 4 diverges (two arms, Traj. 2, seed 0, first 8 s: 316 %
+    #: of the hand force). At 5 the pole is -0.71 where ``G = 1`` (0.18 left after a period). Measured in
+    #: docs/mujoco.md "Several arms on one cart"
+    force_feedback: float = 5.0
     #: the loop's gain on the moment rows (``K_f`` stands for the force rows): the wrist's rotational task-space
     #: inertia (0.3-0.6 kg m^2 for the iiwa, 0.004 for TIAGo) is too small to filter the loop's one-step delay;
     #: measured, TIAGo's moment loop at 3 drives its 3 N m wrist to 10x its limit
@@ -118,10 +123,12 @@ class TorqueArmGains:
     #: time constant (s) of the F/T's part in the measured wrench: the loop takes the arm's joint-side estimate
     #: (`TorqueArmLaw.joint_torque_sample`) plus the reading's difference to it low-passed with this time constant;
     #: 0 = the F/T reading alone (its noise then enters the loop). The F/T's white noise passes as ``sigma sqrt(dt /
-    #: 2 tau)`` per axis (0.067 N at 2 s, 0.13 N at 0.5 s); with the joint-space fusion what it corrects (the joint
-    #: torque offsets) stays put as the arm moves, so a slow correction costs nothing. Measured (`cartpush push
-    #: --plant mujoco --trajectory 1 --json`): 0.5 s 11.0 %, 2 s 10.4 % of the hand force
-    fusion_tau: float = 2.0
+    #: 2 tau)`` per axis (0.039 N at 6 s, 0.067 N at 2 s), a slow wander the loop pushes into the cart; with the
+    #: joint-space fusion what it corrects (the joint torque sensors' offsets, assumed to drift over minutes) stays put as
+    #: the arm moves, and the correction starts from the samples of the settling before the push (`TorqueArmLaw.tare`),
+    #: so a slow correction costs nothing. Measured (two arms, Traj. 2, seed 0, first 10 s, K_f = 4): 6 s 8.5 %,
+    #: 2 s 8.7 % of the hand force
+    fusion_tau: float = 6.0
     #: where the F/T's slow part corrects the joint-side estimate: "joint" (each joint torque's offset, which stays
     #: one as the arm moves and the base turns) or "hand" (the hand's wrench, in `fusion_frame`: a joint torque offset
     #: maps to a hand wrench that changes with the posture, and the correction lags each change by ``fusion_tau``).
@@ -499,7 +506,7 @@ class TorqueArmLaw:
         `base_acceleration`: the base joints' measured acceleration over the last physics step, for the arm's
         inertial torque with `TorqueArmGains.hand_inertia` "measured" (None: the planned one). `grasped`: the hand
         holds the handle (the gripper closed on it); only then does the task part give back the hand-space part of
-        the joints' modelled damping (`TorqueArmGains.passive_feedforward`).
+        the joints' modelled damping (`TorqueArmGains.passive_feedforward`) and the force loop's wrench apply.
 
         `hand`: (target position - hand position, target velocity - hand velocity), world frame, for the
         Cartesian impedance (None: off).
@@ -519,7 +526,7 @@ class TorqueArmLaw:
             task = task - self._task_proj @ self._passive
         q_plan = self._q_end - self._v * (self._t_end - t)
         impedance = self._NT_imp @ (g.stiffness * (q_plan - q) + g.damping * (self._v - v))
-        u = self._hand_feedback(g, hand, loop_wrench, tilt)
+        u = self._hand_feedback(g, hand, loop_wrench if grasped else None, tilt)
         posture = plan + impedance
         if g.budget:
             tau = self._prioritized(task, u, posture)
@@ -646,6 +653,22 @@ class TorqueArmLaw:
         if mount is not None:
             self._mount = np.asarray(mount, dtype=float).reshape(3, 3)
         self._w_joint = -self._Jt_pinv @ self._tau_ext
+
+    def hold(self, J: np.ndarray, tau: np.ndarray, v: np.ndarray) -> None:
+        """Take one physics step of the arm holding the handle still before the push (the plant's settling): the
+        hand's Jacobian (6, n), the torque commanded for the step and the joint velocities at its start. The step's
+        samples (`joint_torque_sample`, then `tare`) then start the sensors' slow parts (`_motor_side`,
+        `_measured_wrench`) as a real arm zeroes its sensors before a task, instead of the push's first samples."""
+        self._J = J
+        self._Jt_pinv, self._E_ft = self._estimator(J)
+        self._tau_cmd = np.asarray(tau, dtype=float).copy()
+        self._passive = -self.joint_damping * np.asarray(v, dtype=float)
+
+    def tare(self, ft: np.ndarray) -> None:
+        """Take the F/T reading (world-aligned at the grasp) of a step held before the push (`hold`, after
+        `joint_torque_sample`) into the fusion's slow part; the loop's measured wrench and reference are left alone."""
+        if self.gains.fusion_tau > 0.0 and self._w_joint is not None:
+            self._measured_wrench(np.asarray(ft, dtype=float))
 
     def _motor_side(self, tau_ext: np.ndarray, joint_torque: np.ndarray, model: np.ndarray) -> np.ndarray:
         """Return ``tau_ext`` with the sensed joint torque replaced by the `model`'s (the last command and the

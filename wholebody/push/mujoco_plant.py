@@ -120,13 +120,17 @@ class MujocoPlantConfig:
     #: (the loops close on the stacked error's part in the cart's net wrench, `arm_control.net_wrench_projector`; the
     #: squeeze between the hands, which no cart motion shows, is left to the feed-forward) or "off" (open-loop
     #: ``J^T w``). Measured (two Ridgeback + iiwa, `cartpush push --plant mujoco --arms 2 --json`, seeds 0/1;
-    #: docs/mujoco.md "Several arms on one cart"): "full" Traj. 2 seed 0 2.67 mm, wrench error 13.8 % of the hand
+    #: docs/mujoco.md "Several arms on one cart"): "full" Traj. 2 seed 0 2.89 mm, wrench error 7.8 % of the hand
     #: force with the default `TorqueArmGains`; "off" Traj. 2 seed 0 17.6 mm, 74 % without the arm inertia fed forward (the arms' task-space inertia, 19
     #: kg along the push at the iiwa's push posture, takes the push). The loops need each base held at its place
     #: (`BasePlanSettings.base_weight`): with a base that lags its place the loops make the cart follow its
     #: reference while the hand reaches further from that base, and an elbow comes through straight (the squeeze
     #: then is the stretched arm's)
     multi_arm_force_loop: str = "full"
+    #: the torque-controlled arms' force loops zero their sensors while the scene settles (`settle_time`, the robots
+    #: holding still): the slow parts of the joint torque sensing and of the F/T's correction (`TorqueArmLaw.hold`,
+    #: `TorqueArmLaw.tare`) start the push from those samples, not from its first ones
+    tare: bool = True
 
     def __post_init__(self) -> None:
         if self.multi_arm_force_loop not in ("net", "full", "off"):
@@ -253,6 +257,9 @@ class MujocoPlant:
         self._rng_loop = np.random.default_rng([0 if seed is None else seed, 1])
         #: the joint torque sensing's noise (every physics step), apart from the F/T's
         self._rng_joint = np.random.default_rng([0 if seed is None else seed, 2])
+        #: the same two noises while the scene settles (`MujocoPlantConfig.tare`), apart from the push's: the push
+        #: draws the same noise with or without the tare
+        self._rng_settle = [np.random.default_rng([0 if seed is None else seed, k]) for k in (3, 4)]
         self.n_sub = int(round(config.control_dt / config.physics_dt))
         robots = list(robots)
         modes = list(arm_modes) if arm_modes is not None else [arm_mode_of(mm) for mm in robots]
@@ -371,6 +378,9 @@ class MujocoPlant:
     def _settle(self) -> None:
         """Let wheels, casters and grasps settle for `settle_time` with the robots holding still (MuJoCo's own bias)."""
         m, d = self.scene.model, self.scene.data
+        tare = self._fused_loops() if self.config.tare else []
+        push_rngs = self._rng_loop, self._rng_joint
+        self._rng_loop, self._rng_joint = self._rng_settle
         for _ in range(int(round(self.config.settle_time / self.config.physics_dt))):
             for r, s in zip(self.scene.robots, self._setups):
                 if s.arm_mode == ARM_TORQUE:
@@ -380,8 +390,23 @@ class MujocoPlant:
                     d.ctrl[r.arm_hold_actuators] = d.qfrc_bias[r.arm_dof]
                 d.ctrl[r.base_actuators] = 0.0
                 d.ctrl[r.wheel_actuators] = 0.0
+            for i, (r, law) in tare:
+                law.hold(self._arm_jacobian_inertia(r)[0], d.ctrl[r.arm_actuators], d.qvel[r.arm_dof])
             mujoco.mj_step(m, d)
+            if tare:
+                self._joint_samples()
+                for i, (r, law) in tare:
+                    law.tare(self._ft_at_grasp(i))
+        self._rng_loop, self._rng_joint = push_rngs
         mujoco.mj_forward(m, d)
+
+    def _fused_loops(self) -> list[tuple[int, tuple[RobotIndex, TorqueArmLaw]]]:
+        """Return (index, (robot, law)) of each torque law whose force loop fuses the joint torques with the F/T."""
+        return [
+            (i, (r, law))
+            for i, (r, law) in enumerate(zip(self.scene.robots, self._laws))
+            if isinstance(law, TorqueArmLaw) and law.gains.fusion_tau > 0.0 and law.gains.force_feedback > 0.0
+        ]
 
     def _read_inertial(self) -> CartInertial:
         m, d = self.scene.model, self.scene.data
@@ -677,11 +702,7 @@ class MujocoPlant:
         sensing's errors (`JointTorqueNoise`: white noise and a per-run offset per joint).
         """
         m, d = self.scene.model, self.scene.data
-        laws = [
-            (i, (r, law))
-            for i, (r, law) in enumerate(zip(self.scene.robots, self._laws))
-            if isinstance(law, TorqueArmLaw) and law.gains.fusion_tau > 0.0 and law.gains.force_feedback > 0.0
-        ]
+        laws = self._fused_loops()
         if not laws:
             return
         # d.qM, qfrc_*, efc_* are the step's state (mj_step integrates after them)

@@ -183,3 +183,16 @@ def test_a_jump_of_the_allocation_meets_no_proportional_kick(reference_model):
         assert kick < 1.0  # N: the feed-forward carries the jump
     else:
         assert kick == pytest.approx(gains.force_feedback * 80.0)  # K times the jump on top of it
+
+
+def test_a_released_hand_gets_no_force_loop():
+    """The force loop controls the wrench on the handle: with the hand let go (`grasped` False) its wrench is not
+    applied, so a released arm moves under its feed-forward and posture alone, whatever the loop's gain."""
+    gains = TorqueArmGains(feedforward="bias", stiffness=0.0, damping=0.0)
+    law, J = _law(gains, np.zeros(6), limit=np.full(7, 1e6))
+    z = np.zeros(7)
+    loop = np.array([3.0, -1.0, 2.0, 0.1, 0.0, 0.2])
+    free = law.torque(0.0, z, z, z, grasped=False)
+    np.testing.assert_allclose(law.torque(0.0, z, z, z, loop_wrench=loop, grasped=False), free)
+    held = law.torque(0.0, z, z, z, loop_wrench=loop, grasped=True)
+    np.testing.assert_allclose(held - free, J.T @ loop, atol=1e-9)
