@@ -92,6 +92,8 @@ class TimeScaling:
     #: gets a slower reference still, until the rate is back at 1
     error_band: tuple[float, float] = (0.04, 0.14)
     error_rate_min: float = 0.01
+    #: the rate counts as at `rate_min` within this share above it (its approach to a target is asymptotic)
+    floor_share: float = 0.25
     #: without a look-ahead (`horizon` 0), a cart whose stopping distance at the path's speed ahead under the hands'
     #: whole force (estimated mass) is over `stop_distance` (m) is looked ahead over `momentum_horizon` (s): its
     #: momentum would carry it off the path before the reference's reaction slowed it (`needs_look_ahead`)
@@ -126,8 +128,8 @@ class ReferenceClock:
     #: the largest rate the robots' bases allow here (`wholebody.push.base_plan.BasePlan.rate_cap`: a base plan's
     #: window that meets the wheel limits only slower than the desired speed); 1: none
     cap: float = 1.0
-    #: whether the rate has reached `TimeScaling.rate_min` since it was last at 1: the tracking error then caps it
-    #: (`error_rate_cap`)
+    #: whether the rate has reached `TimeScaling.rate_min` (within `floor_share`) since it was last at 1: the tracking
+    #: error then caps it (`error_rate_cap`)
     floored: bool = False
 
     def time(self, t: float) -> float:
@@ -157,7 +159,7 @@ class ReferenceClock:
         new = min(1.0, max(min(s.rate_min, admissible), self.rate + step))
         if not slowing and new > 1.0 - RATE_SNAP:  # the approach to 1 is asymptotic: it ends
             new = 1.0
-        self.floored = new < 1.0 and (self.floored or new <= s.rate_min + 1e-12)
+        self.floored = new < 1.0 and (self.floored or new <= s.rate_min * (1.0 + s.floor_share))
         self._rate_changed((new - self.rate) / dt, new < 1.0)
         self.rate = new
         self.delay += (1.0 - new) * dt

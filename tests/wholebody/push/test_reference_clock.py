@@ -282,6 +282,14 @@ def test_a_cart_falling_behind_slows_its_reference_below_the_deficit_floor_and_b
     assert alone.rate == pytest.approx(settings.rate_min)
     assert behind.rate == pytest.approx(settings.error_rate_min)
     assert given.rate == 1.0
+    # the rate approaches its target asymptotically: within floor_share above rate_min it counts as there
+    near, above = ReferenceClock(settings, rate=0.12), ReferenceClock(settings, rate=0.2)
+    near.advance(0.1, 0.01, 0.8, 5.0, error=0.2)
+    above.advance(0.1, 0.01, 0.8, 5.0, error=0.2)
+    assert near.floored and not above.floored
+    for _ in range(1000):
+        near.advance(0.1, 0.01, 0.8, 5.0, error=0.2)
+    assert near.rate == pytest.approx(settings.error_rate_min)
     for _ in range(1500):
         behind.advance(0.0, 0.01, 0.8, 5.0, error=0.01)
     assert behind.rate == 1.0
