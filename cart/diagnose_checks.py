@@ -7,8 +7,8 @@
 - :func:`lateral_slip_ratio`: the sideways travel of the {b} origin per fit window against what
   the pose noise predicts. Well above 1, the no-slip constraint (paper eq. 3) is broken, and the
   model's other terms cannot stand in for that: ``lateral_slip`` is then named first.
-- :func:`unexplained_slip`: the warning for a broken no-slip constraint that ``lateral_slip``'s model
-  does not describe (it was tried first and not named).
+- :func:`unexplained_slip`: the warning for a broken no-slip constraint that neither form of ``lateral_slip``
+  explains (it was tried first and not named).
 """
 
 from __future__ import annotations
@@ -265,17 +265,18 @@ def lateral_slip_ratio(sig: Signals, lateral: np.ndarray, edges: np.ndarray, kee
 def unexplained_slip(slip_ratio: float, named: list[str], lateral_dbic: float | None) -> str:
     """Return a warning when {b} slides sideways (ratio above SLIP_RATIO) and ``lateral_slip`` was not named.
 
-    ``lateral_slip`` models the sideways speed as proportional to the lateral force the wheels carry (a
-    compliant tyre); a cart sliding on low friction, or one without a fixed axle, breaks eq. 3 in a way that
-    model does not describe. The log's kinematics still show the broken constraint, and the report says so
-    rather than leave the user with "nothing named". Empty when no such warning applies.
+    ``lateral_slip`` has two forms: a creep (a sideways speed proportional to the lateral force the wheels
+    carry, a compliant tyre) and sliding wheels (a friction-braked sideways speed, :mod:`cart.diagnose_slide`).
+    Where neither is named (no significant or physical fit), the log's kinematics still show the broken
+    constraint, and the report says so rather than leave the user with "nothing named". Empty when no such
+    warning applies.
     """
     if not math.isfinite(slip_ratio) or slip_ratio <= SLIP_RATIO or "lateral_slip" in named:
         return ""
     why = f"Delta BIC {lateral_dbic:.1f}" if lateral_dbic is not None and math.isfinite(lateral_dbic) else "not ranked"
     return (
         f"the {{b}} origin slides sideways ({slip_ratio:.1f} x the travel the pose noise explains): the no-slip "
-        f"constraint (eq. 3) does not hold, but lateral_slip's model (sideways speed proportional to the wheels' "
-        f"lateral force) does not describe it ({why}): a cart sliding on low friction or without a fixed axle "
-        "needs a model the effects do not list"
+        f"constraint (eq. 3) does not hold, but neither form of lateral_slip (a creep: sideways speed "
+        f"proportional to the wheels' lateral force; sliding wheels: a sideways speed braked by friction) "
+        f"explains it ({why}): the sideways motion needs a model the effects do not list"
     )

@@ -188,6 +188,9 @@ PARAMETER_UNITS: dict[str, str] = {
     "com_y_after": "m",
     "delay": "s",
     "compliance": "m/(s N)",
+    "friction": "N",
+    "slide_speed": "m/s",
+    "friction_coefficient": "1",
 }
 
 
@@ -265,6 +268,10 @@ def effect_comment(name: str, params: dict[str, float]) -> str:
         return f"{'loaded' if dm > 0 else 'unloaded'} {abs(dm):.1f} kg at t = {params.get('time', float('nan')):.2f} s"
     if name == "lateral_slip" and params.get("compliance") is not None:
         return f"{float(params['compliance']) * 1000:.2f} mm/s of sideways speed per N of lateral force"
+    if name == "lateral_slip" and params.get("friction") is not None:
+        mu = params.get("friction_coefficient")
+        share = f" ({float(mu):.3f} of the weight)" if mu is not None else ""
+        return f"the wheels slide sideways beyond a friction force of {float(params['friction']):.1f} N{share}"
     return ""
 
 
