@@ -36,10 +36,15 @@ the handle from any place the base can take) does `plan_base` raise, naming the 
 
 The solver is scipy's SLSQP on the rows above with their exact Jacobians (`WindowProblem`: each row depends on
 one knot or on the two or three of a segment, in closed form through the headings' sines and cosines; checked
-against finite differences in tests/wholebody/push/test_base_plan_jacobian.py). Finite differences cost one
-evaluation of the objective per variable and a few grouped ones per Jacobian; the exact ones give the same
-iterates (Traj. 2's planned places within 1e-9) for a third less time. The plan keeps SLSQP (dense, a few hundred
-variables) because its 40 iterations fix the plan the tracking figures were measured with.
+against finite differences in tests/wholebody/push/test_base_plan_jacobian.py). SLSQP's dense subproblem costs
+about (rows) x (variables)^2 per iteration; it takes the rows that can bind (`WindowProblem.screened`: not a
+wheel's row for the sign opposite to its rate at the rigid place, nor a heading row far from its bound), and the
+plan is checked on every row (solved again with all of them when a row left out is broken). On Traj. 2 this keeps
+374 of 685 rows and gives the same plan as finite differences on all rows (places within 1e-9) in 6.4 s CPU
+instead of 16.0 (Ridgeback + iiwa, `build_controller(PushConfig(robot="ridgeback_iiwa", trajectory=2,
+plant="mujoco", contact="fixed"))`, three windows). SLSQP stays (rather than an SQP on a sparse QP solver) because
+the tracking figures were measured with its plan: its 40 iterations find the optimal reach but stop short of
+the optimal smoothing (the places move up to 0.13 m by 300 iterations).
 """
 
 from __future__ import annotations
@@ -204,23 +209,32 @@ def plan_window(
     unless `free_end` (a window the run's end cuts: the base need not be back at its rigid place there). A
     nonholonomic base: no twist along its blocked directions on a segment with a free knot, bounded accelerations."""
     w = WindowProblem(cart, nominal, reach, wheels, s, front_x, free_end)
-    cons = [{"type": "ineq", "fun": w.constraints, "jac": w.constraints_jacobian}]
-    if wheels.blocked.shape[1]:
-        cons.append({"type": "eq", "fun": w.sideways, "jac": w.sideways_jacobian})
-    res = minimize(
-        w.objective,
-        w.z0,
-        jac=w.gradient,
-        constraints=cons,
-        method="SLSQP",
-        options={"maxiter": s.max_iterations, "ftol": 1e-9},
-    )
-    worst = -float(np.min(w.constraints(res.x)))
-    if wheels.blocked.shape[1]:
-        worst = max(worst, float(np.abs(w.sideways(res.x)).max()))
+    kept = w.screened()
+    res = _slsqp(w, kept)
+    worst = w.worst(res.x)
+    if worst > 1e-3 and w.worst(res.x, kept) <= 1e-3:  # a row left out is broken: again with every row
+        res = _slsqp(w, None)
+        worst = w.worst(res.x)
     if worst > 1e-3:  # rad/s, m, m/s: within the solver's tolerance
         raise WholeBodyError(f"the base plan breaks its limits by {worst:.3g} ({res.message})")
     return w.poses(res.x), float(res.x[-1])
+
+
+def _slsqp(w: WindowProblem, rows: np.ndarray | None):
+    """Return SLSQP's result on window `w` with its inequality rows `rows` (indices; None: all) and its equality rows,
+    from the rigid place, after `BasePlanSettings.max_iterations` iterations at most."""
+    ineq = {"type": "ineq", "fun": w.constraints, "jac": w.constraints_jacobian}
+    if rows is not None:
+        ineq = {
+            "type": "ineq",
+            "fun": lambda z: w.constraints(z)[rows],
+            "jac": lambda z: w.constraints_jacobian(z)[rows],
+        }
+    cons = [ineq] + (
+        [{"type": "eq", "fun": w.sideways, "jac": w.sideways_jacobian}] if w.wheels.blocked.shape[1] else []
+    )
+    opts = {"maxiter": w.s.max_iterations, "ftol": 1e-9}
+    return minimize(w.objective, w.z0, jac=w.gradient, constraints=cons, method="SLSQP", options=opts)
 
 
 class WindowProblem:
@@ -375,6 +389,27 @@ class WindowProblem:
         J = self._rows(z, True)[1]
         assert J is not None
         return J
+
+    def screened(self) -> np.ndarray:
+        """Return the inequality rows SLSQP takes (`plan_window`): all but a wheel's row for the sign opposite to its
+        rate at the rigid place (slack above the wheel's limit there) and the heading rows with slack above half the
+        nominal reach there. A row left out would need the plan to move its value by that much to bind; the plan
+        checks every row (`worst`)."""
+        g0, n, nw = self.constraints(self.z0), self.n, len(self.wheels.limit)
+        keep = np.ones(len(g0), dtype=bool)
+        nr = (n - 1) * nw
+        keep[: 2 * nr] = g0[: 2 * nr] < np.tile(self.s.speed_margin * self.wheels.limit, 2 * (n - 1))
+        heading = slice(2 * nr + 2 * n, 2 * nr + 3 * n)
+        keep[heading] = g0[heading] < 0.5 * self.reach.nominal
+        return np.flatnonzero(keep)
+
+    def worst(self, z: np.ndarray, rows: np.ndarray | None = None) -> float:
+        """Return the largest amount by which z breaks the inequality rows `rows` (None: all) or the equality rows."""
+        g = self.constraints(z)
+        worst = -float(np.min(g if rows is None else g[rows]))
+        if self.wheels.blocked.shape[1]:
+            worst = max(worst, float(np.abs(self.sideways(z)).max()))
+        return worst
 
     def _sideways_span(self) -> slice:
         return slice(1, min(self.n - 1, self.n - self.tail))
