@@ -13,9 +13,14 @@ Two runs per case (robot, trajectory):
   either with its generalized force Gamma_MM applied at {b}, or with the allocated hand wrench applied
   at the handle point (what a perfect arm would do): the cart's own response to the loop's wrenches.
 
-Prints one table; never asserts a time (the real-time factor depends on the machine and its load: the
-closed loop also reports it over the process's CPU time, ``real_time_factor_cpu``, which a shared machine's
-load does not change).
+Prints one table; never asserts a time (the real-time factor depends on the machine and its load). The closed
+loop's times cover what a user's ``cartpush push --plant mujoco`` runs after its imports: ``build_controller``
+(the base plan's SLSQP included), the plant's settling and ``run_loop``. ``real_time_factor_loop`` is the
+simulated duration over their wall time, ``real_time_factor_cpu`` over their process CPU time (which other
+processes' load changes less), ``real_time_factor_plant`` the plant's own (wall, its steps alone). The CPU time
+is also given in parts: ``cpu_plan_s`` (``build_controller``: the base plan and the controller's setup),
+``cpu_settle_s`` (the plant's construction and settling), ``cpu_loop_s`` (``run_loop``), and within the loop
+``cpu_controller_steps_s`` and ``cpu_plant_steps_s`` (the controller's and the plant's ``step`` calls).
 
 Prototypes of changes outside the plant (issue 28), as options: ``--grasp-torque-arm`` (the allocation's
 `GraspModel.torque_arm`: the yaw torque the hand may apply, instead of lateral force at the handle's height),
@@ -36,7 +41,7 @@ import time
 
 import numpy as np
 
-from cart.trajectories import paper_trajectory
+from cart.trajectories import CartTrajectory, paper_trajectory
 from wholebody.contacts.allocation import ArmLimits
 from wholebody.push import PushConfig, build_controller, kinematic_plant
 from wholebody.push.arm_control import TorqueArmGains
@@ -51,7 +56,7 @@ OPTIONS: dict = {}
 def _config(robot: str, trajectory: int, duration: float) -> PushConfig:
     opts = dict(OPTIONS)
     until = opts.pop("until", None)
-    traj: object = trajectory
+    traj: int | CartTrajectory = trajectory
     if until is not None:  # the trajectory of `duration`, run up to `until`
         traj, duration = paper_trajectory(trajectory, duration), until
     # plant="mujoco": the controller's MuJoCo defaults (base plan, tip-over bound), as `cartpush push --plant mujoco`
@@ -88,14 +93,35 @@ def open_loop(robot: str, trajectory: int, duration: float, plant_config: Mujoco
     }
 
 
+def _timed_step(obj, into: list[float]) -> None:
+    """Wrap `obj.step` so that each call adds its process CPU time to ``into[0]``."""
+    step = obj.step
+
+    def timed(*args, **kwargs):
+        c = time.process_time()
+        try:
+            return step(*args, **kwargs)
+        finally:
+            into[0] += time.process_time() - c
+
+    obj.step = timed
+
+
 def closed_loop(robot: str, trajectory: int, duration: float, plant_config: MujocoPlantConfig) -> dict:
-    """Return tracking, estimate and plant diagnostics of a closed-loop run on the MuJoCo plant."""
+    """Return tracking, estimate and plant diagnostics of a closed-loop run on the MuJoCo plant, and its CPU times:
+    the setup (``build_controller``, the base plan included, and the plant's settling) and the loop, whose controller
+    and plant steps are also timed apart."""
     cfg = _config(robot, trajectory, duration)
+    t0, c0 = time.perf_counter(), time.process_time()
     setup = build_controller(cfg)
+    c_plan = time.process_time()
     plant = MujocoPlant(
         setup.controller.robots, setup.q0, cfg.true_params, noise=cfg.noise, seed=cfg.seed, config=plant_config
     )
-    t0, c0 = time.perf_counter(), time.process_time()
+    c_loop = time.process_time()
+    ctrl_cpu, plant_cpu = [0.0], [0.0]
+    _timed_step(setup.controller, ctrl_cpu)
+    _timed_step(plant, plant_cpu)
     res = run_loop(cfg, setup.controller, plant)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     rep, m = plant.report(), res.metrics
@@ -108,6 +134,12 @@ def closed_loop(robot: str, trajectory: int, duration: float, plant_config: Mujo
         "real_time_factor_loop": cfg.duration / wall,
         "real_time_factor_cpu": cfg.duration / cpu,
         "real_time_factor_plant": rep["real_time_factor"],
+        "cpu_total_s": cpu,
+        "cpu_plan_s": c_plan - c0,
+        "cpu_settle_s": c_loop - c_plan,
+        "cpu_loop_s": c0 + cpu - c_loop,
+        "cpu_controller_steps_s": ctrl_cpu[0],
+        "cpu_plant_steps_s": plant_cpu[0],
         "tracking_rms_mm": m.tracking_rms_mm,
         "tracking_max_mm": m.tracking_max_mm,
         "time_error_over_5cm_s": lost,
