@@ -69,6 +69,9 @@ ARM_MODES = {"ridgeback_iiwa": ARM_TORQUE, "wmra": ARM_VELOCITY}
 #: (`admittance_tuning.arm_tuning`)
 TUNED_ADMITTANCE: frozenset[str] = frozenset()
 GRAVITY_VECTOR = np.array([0.0, 0.0, -mujoco_cart.GRAVITY])
+#: the constraint types whose forces are the joints' own (dof friction, joint limits), as ints: a numpy array
+#: compared with MuJoCo's enum objects compares element by element in Python (about 1 ms per physics step)
+_JOINT_INTERNAL = (int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF), int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT))
 
 
 def arm_mode_of(mm) -> str:
@@ -293,6 +296,10 @@ class MujocoPlant:
         self._qacc = np.zeros(nv)
         self._quat = np.zeros(4)
         self._vel6 = np.zeros(6)
+        self._site_acc, self._site_vel = np.zeros(6), np.zeros(6)
+        m = self.scene.model
+        #: per robot: the body its arm is mounted on (the parent of its first arm joint's body)
+        self._mount_body = [int(m.body_parentid[m.dof_bodyid[r.arm_dof[0]]]) for r in self.scene.robots]
         self._target_prev: list[np.ndarray | None] = [None] * n_robots
         self._rne = np.zeros(nv)
         self._mdv = np.zeros(nv)
@@ -401,12 +408,27 @@ class MujocoPlant:
         mujoco.mj_forward(m, d)
 
     def _fused_loops(self) -> list[tuple[int, tuple[RobotIndex, TorqueArmLaw]]]:
-        """Return (index, (robot, law)) of each torque law whose force loop fuses the joint torques with the F/T."""
-        return [
-            (i, (r, law))
-            for i, (r, law) in enumerate(zip(self.scene.robots, self._laws))
-            if isinstance(law, TorqueArmLaw) and law.gains.fusion_tau > 0.0 and law.gains.force_feedback > 0.0
-        ]
+        """Return (index, (robot, law)) of each torque law whose force loop fuses the joint torques with the F/T
+        (found once: the laws and their gains are fixed)."""
+        fused = getattr(self, "_fused", None)
+        if fused is None:
+            fused = self._fused = [
+                (i, (r, law))
+                for i, (r, law) in enumerate(zip(self.scene.robots, self._laws))
+                if isinstance(law, TorqueArmLaw) and law.gains.fusion_tau > 0.0 and law.gains.force_feedback > 0.0
+            ]
+        return fused
+
+    def _loop_laws(self) -> list[tuple[int, TorqueArmLaw]]:
+        """Return (index, law) of each torque law with a force loop (found once: the laws and their gains are fixed)."""
+        loops = getattr(self, "_loops", None)
+        if loops is None:
+            loops = self._loops = [
+                (i, law)
+                for i, law in enumerate(self._laws)
+                if isinstance(law, TorqueArmLaw) and law.gains.force_feedback > 0.0
+            ]
+        return loops
 
     def _read_inertial(self) -> CartInertial:
         m, d = self.scene.model, self.scene.data
@@ -484,7 +506,7 @@ class MujocoPlant:
         """Return g - a of the tool's centre of mass (world, m/s^2): gravity less its acceleration (the tool rides on
         the handle, so a is the handle's; read from MuJoCo's body accelerations of this step)."""
         r, m, d = self.scene.robots[i], self.scene.model, self.scene.data
-        acc, vel = np.zeros(6), np.zeros(6)
+        acc, vel = self._site_acc, self._site_vel
         mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_SITE, r.ft_site, acc, 0)
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, r.ft_site, vel, 0)
         rho = d.site_xmat[r.ft_site].reshape(3, 3) @ r.tool_com
@@ -503,7 +525,7 @@ class MujocoPlant:
     def _ft_at_grasp(self, i: int) -> np.ndarray:
         """Return the F/T sensor's reading of this physics step (with its noise) as the hand's wrench at the grasp."""
         n = self.noise
-        noise = np.r_[self._rng_loop.normal(0.0, n.force, 3), self._rng_loop.normal(0.0, n.torque, 3)]
+        noise = np.concatenate((self._rng_loop.normal(0.0, n.force, 3), self._rng_loop.normal(0.0, n.torque, 3)))
         return self._hand_wrench_world(i, self._sensor_wrench(i) + noise)
 
     def _force_loops(self) -> dict[int, np.ndarray]:
@@ -515,14 +537,14 @@ class MujocoPlant:
         each loop drives the net wrench's error to zero, none integrates along the squeeze between the hands, and
         the loops' gains (forces and moments differ) put no squeeze into the push.
         """
-        laws = {i: law for i, law in enumerate(self._laws) if isinstance(law, TorqueArmLaw)}
-        loops = [i for i, law in laws.items() if law.gains.force_feedback > 0.0]
-        errors = [laws[i].force_error(self._ft_at_grasp(i)) for i in loops]
-        if len(loops) < 2 or self.config.multi_arm_force_loop != "net":
-            return {i: laws[i].force_loop(e) for i, e in zip(loops, errors)}
+        loop_laws = self._loop_laws()
+        errors = [law.force_error(self._ft_at_grasp(i)) for i, law in loop_laws]
+        if len(loop_laws) < 2 or self.config.multi_arm_force_loop != "net":
+            return {i: law.force_loop(e) for (i, law), e in zip(loop_laws, errors)}
+        loops = [i for i, _ in loop_laws]
         P = self._net_projector(loops)
         e = P @ np.concatenate(errors)
-        u = P @ np.concatenate([laws[i].force_loop(e[6 * k : 6 * k + 6]) for k, i in enumerate(loops)])
+        u = P @ np.concatenate([law.force_loop(e[6 * k : 6 * k + 6]) for k, (_, law) in enumerate(loop_laws)])
         return {i: u[6 * k : 6 * k + 6] for k, i in enumerate(loops)}
 
     def _net_projector(self, robots: Sequence[int]) -> np.ndarray:
@@ -557,31 +579,38 @@ class MujocoPlant:
 
     # ------------------------------------------------------------------ stepping
 
-    def _arm_jacobian_inertia(self, r: RobotIndex) -> tuple[np.ndarray, np.ndarray]:
-        """Return the hand's world-aligned Jacobian (6, n_arm) at the hand site and the arm's joint inertia."""
+    def _site_jacobian_inertia(self, r: RobotIndex) -> tuple[np.ndarray, np.ndarray]:
+        """Return the hand site's world-aligned Jacobian (6, nv) and the whole scene's joint inertia (nv, nv)."""
         m, d = self.scene.model, self.scene.data
-        jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-        mujoco.mj_jacSite(m, d, jacp, jacr, r.hand_site)
-        J = np.vstack([jacp[:, r.arm_dof], jacr[:, r.arm_dof]])
+        J = np.zeros((6, m.nv))
+        mujoco.mj_jacSite(m, d, J[:3], J[3:], r.hand_site)
         M = np.zeros((m.nv, m.nv))
         mujoco.mj_fullM(m, d, M)
-        return J, M[np.ix_(r.arm_dof, r.arm_dof)]
+        return J, M
 
-    def _hand_inertia(self, r: RobotIndex, c: RobotCommand) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    def _arm_jacobian_inertia(
+        self, r: RobotIndex, full: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Return the hand's world-aligned Jacobian (6, n_arm) at the hand site and the arm's joint inertia (of
+        `full`, `_site_jacobian_inertia`'s, when given)."""
+        J, M = self._site_jacobian_inertia(r) if full is None else full
+        return J[:, r.arm_dof], M[np.ix_(r.arm_dof, r.arm_dof)]
+
+    def _hand_inertia(
+        self, r: RobotIndex, c: RobotCommand, full: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Return the arm's inertial terms under the command's predicted hand acceleration (`TorqueArmLaw.begin`:
         `arm_control.hand_inertia_terms` with the engine's inertia, Jacobians and the hand's ``Jdot qdot`` at the
-        period's start, and the base joints' planned acceleration); None without a ``hand_acceleration`` of one hand."""
+        period's start, and the base joints' planned acceleration); None without a ``hand_acceleration`` of one hand.
+        `full`: `_site_jacobian_inertia`'s, when the caller has it."""
         if c.hand_acceleration is None or np.shape(c.hand_acceleration) != (6,):
             return None
         m, d = self.scene.model, self.scene.data
-        jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-        mujoco.mj_jacSite(m, d, jacp, jacr, r.hand_site)
         dotp, dotr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
         mujoco.mj_jacDot(m, d, dotp, dotr, d.site_xpos[r.hand_site], int(m.site_bodyid[r.hand_site]))
-        M = np.zeros((m.nv, m.nv))
-        mujoco.mj_fullM(m, d, M)
-        J, a, b = np.vstack([jacp, jacr]), r.arm_dof, r.base_dof
-        jdot_qdot = np.r_[dotp @ d.qvel, dotr @ d.qvel]
+        J, M = self._site_jacobian_inertia(r) if full is None else full
+        a, b = r.arm_dof, r.base_dof
+        jdot_qdot = np.concatenate((dotp @ d.qvel, dotr @ d.qvel))
         t, K = hand_inertia_terms(M[np.ix_(a, a)], M[np.ix_(a, b)], J[:, a], J[:, b], jdot_qdot, c.hand_acceleration)
         return t, K, self._base_qacc(r, c.base_acceleration)
 
@@ -648,8 +677,9 @@ class MujocoPlant:
         for i, (r, c, law) in enumerate(zip(self.scene.robots, commands, self._laws)):
             self._check_command(r, c)
             if isinstance(law, TorqueArmLaw):
-                J, M = self._arm_jacobian_inertia(r)
-                inertial = self._hand_inertia(r, c) if law.gains.hand_inertia != "off" else None
+                full = self._site_jacobian_inertia(r)
+                J, M = self._arm_jacobian_inertia(r, full)
+                inertial = self._hand_inertia(r, c, full) if law.gains.hand_inertia != "off" else None
                 law.begin(c.hand_wrench, c.arm_torque, c.arm_position, c.arm_velocity, J, M, t_end, self.dt, inertial)
             else:
                 J, _ = self._arm_jacobian_inertia(r)
@@ -707,9 +737,8 @@ class MujocoPlant:
             return
         # d.qM, qfrc_*, efc_* are the step's state (mj_step integrates after them)
         mujoco.mj_mulM(m, d, self._mdv, d.qacc)
-        internal = (d.efc_type == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF) | (
-            d.efc_type == mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT
-        )
+        efc_type = d.efc_type
+        internal = (efc_type == _JOINT_INTERNAL[0]) | (efc_type == _JOINT_INTERNAL[1])
         self._joint_frc[:] = 0.0
         if internal.any():
             mujoco.mj_mulJacTVec(m, d, self._joint_frc, np.where(internal, d.efc_force, 0.0))
@@ -718,7 +747,7 @@ class MujocoPlant:
             joint = d.qfrc_actuator[a] + d.qfrc_passive[a] + self._joint_frc[a]
             white, offset = self._joint_noise[i]
             sensed = joint - offset - white * self._rng_joint.normal(0.0, 1.0, white.size)
-            mount = d.xmat[m.body_parentid[m.dof_bodyid[a[0]]]]  # the link the arm is mounted on
+            mount = d.xmat[self._mount_body[i]]  # the link the arm is mounted on
             law.joint_torque_sample(self._mdv[a] + d.qfrc_bias[a] - sensed, mount, sensed)
 
     def _planar_base_rates(self, i: int, r: RobotIndex, twist: np.ndarray) -> np.ndarray:
