@@ -40,9 +40,9 @@ against finite differences in tests/wholebody/push/test_base_plan_jacobian.py). 
 about (rows) x (variables)^2 per iteration; it takes the rows that can bind (`WindowProblem.screened`: not a
 wheel's row for the sign opposite to its rate at the rigid place, nor a heading row far from its bound), and the
 plan is checked on every row (solved again with all of them when a row left out is broken). On Traj. 2 this keeps
-374 of 685 rows and gives the same plan as finite differences on all rows (places within 1e-9) in 6.4 s CPU
-instead of 16.0 (Ridgeback + iiwa, `build_controller(PushConfig(robot="ridgeback_iiwa", trajectory=2,
-plant="mujoco", contact="fixed"))`, three windows). SLSQP stays (rather than an SQP on a sparse QP solver) because
+374 of 685 rows and gives the same plan as finite differences on all rows (places within 1e-9) in 7.3-7.6 s CPU
+instead of 13.3-14.1 (Ridgeback + iiwa, `build_controller(PushConfig(robot="ridgeback_iiwa", trajectory=2,
+plant="mujoco", contact="fixed"))`, three windows; two runs of each, interleaved on the shared 2-core machine). SLSQP stays (rather than an SQP on a sparse QP solver) because
 the tracking figures were measured with its plan: its 40 iterations find the optimal reach but stop short of
 the optimal smoothing (the places move up to 0.13 m by 300 iterations).
 """

@@ -47,3 +47,28 @@ def test_the_rows_are_the_module_docstring_s_at_the_nominal_place():
         ).T
     )
     assert np.allclose(rho_row, 0.7 - np.linalg.norm(w.wrist - mount, axis=1))
+
+
+def test_the_rows_left_out_change_nothing_on_traj_2_s_first_turn():
+    """SLSQP on the screened rows (`WindowProblem.screened`) gives the plan of SLSQP on every row."""
+    import math
+
+    import robots
+    from cart.trajectories import Turn, UnicycleTrajectory
+    from wholebody.push.base_plan import _slsqp, arm_reach, base_wheels, rigid_poses, rim_rates, wheel_windows
+    from wholebody.push.robot import make_robots
+
+    turn = UnicycleTrajectory(duration=13.0, stop_start=13.0, turns=(Turn(7.0, 3.0, math.pi / 2),))
+    s = BasePlanSettings(step=0.2, lead=1.0, tail=2.0)
+    mm = make_robots(robots.load("ridgeback_iiwa"), np.zeros(3), [-0.2])[0]
+    reach, wheels = arm_reach(mm, -0.2), base_wheels(mm)
+    t = np.arange(0.0, turn.duration + 0.5 * s.step, s.step)
+    cart = np.array([turn.sample(float(v))[0] for v in t])
+    nominal = rigid_poses(cart, mm.base_offset_b)
+    (i0, i1), *_ = wheel_windows(t, rim_rates(nominal, s.step, wheels.H), wheels.limit, s)
+    w = WindowProblem(cart[i0 : i1 + 1], nominal[i0 : i1 + 1], reach, wheels, s, None, False)
+    kept = w.screened()
+    assert len(kept) < 0.75 * len(w.constraints(w.z0))
+    screened, full = _slsqp(w, kept), _slsqp(w, None)
+    assert w.worst(screened.x) < 1e-3
+    assert np.abs(w.poses(screened.x) - w.poses(full.x)).max() < 1e-6
