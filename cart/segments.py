@@ -650,7 +650,8 @@ def _split(
     there, :func:`exchange_shown`) and ``MIN_RELATIVE_CHANGE`` of the
     larger mass, each side's mass at least ``IDENTIFIED_Z`` of its std; each
     side is then identified on its own, ``guard`` s (one period of the cut-off) away from the change, and
-    those estimates (the ones reported) must differ by ``MIN_RELATIVE_CHANGE`` too. The split is sought on the
+    those estimates (the ones reported) must differ by ``MIN_RELATIVE_CHANGE`` too, each mass at least
+    ``IDENTIFIED_Z`` of its own std (:func:`_weighed`). The split is sought on the
     rows weighted by :func:`robust_weights` first, unweighted when the change found so is not kept.
     """
     from cart.identify import IdentifiabilityError, identify
@@ -677,8 +678,8 @@ def _split(
         right = identify(slice_log(log, tc + guard, t1), casters=casters)
     except (IdentifiabilityError, np.linalg.LinAlgError):
         return here
-    if _alike(left.params.m, right.params.m):
-        return here  # the sides' own estimates, which are reported, must show the change too
+    if _alike(left.params.m, right.params.m) or not (_weighed(left) and _weighed(right)):
+        return here  # the sides' own estimates, which are reported, must show the change and weigh each side
     segs_l = _split(log, left, t0, tc, depth - 1, t0_range)
     segs_r = _split(log, right, tc, t1, depth - 1, (lo, hi))
     return _joined(log, segs_l, segs_r, guard, casters)
@@ -724,6 +725,12 @@ def reweighted(s: _Search) -> _Search:
     """
     w = robust_weights(s)
     return s._replace(x=s.x * w[:, :, None], y=s.y * w)
+
+
+def _weighed(res) -> bool:
+    """Return whether an identification's mass is at least ``IDENTIFIED_Z`` of its own std (a segment whose mass the
+    log does not hold is no side of a change: a split that leaves one is not kept)."""
+    return bool(res.params.m >= IDENTIFIED_Z * res.std["mass"])
 
 
 def _alike(m_a: float, m_b: float) -> bool:

@@ -5,7 +5,9 @@ The push loop sees the cart's pose, velocity and the wrench held over each perio
 last ``window_s`` seconds since the last change: :func:`cart.identify.identify` (the zero-phase filtered
 regression, paper eq. 4 with the wrench as its output) and :func:`cart.segments.find_segments` (the split of
 least residual, with the momentum exchange of a load put in at rest, kept when the two sides' masses differ
-by ``cart.segments.CHANGE_Z`` combined std). A kept split is a load change: its onset is the split time,
+by ``cart.segments.CHANGE_Z`` combined std). A split kept at two checks in a row (the second with ``every_s``
+more data after it: the window's many overlapping tests each risk a false alarm the offline search, run once on a
+log, does not) is a load change: its onset is the split time,
 which lies seconds in the past (each side needs ``cart.segments.MIN_SEGMENT_S`` of data), and the fit of
 the window after it (mass, CoM, inertia, damping and their std) is what the online filter restarts from
 (:meth:`cart.online_estimator.OnlineLSEstimator`). The segment search is the offline one, not a copy: its
@@ -105,6 +107,7 @@ class WindowChangeDetector:
         self.changes: list[WindowChange] = []  # the changes found, each onset refined while data come in
         self._before = float(t0)  # start of the window the last change was found in
         self._refining = False  # whether the last change's onset is searched again
+        self._sighted: WindowChange | None = None  # a change the last check found, not yet found again
 
     def add_change(self, change: WindowChange, guard_s: float, dated: bool = False) -> int:
         """Register a change found by another test (the online GLR); return its index in :attr:`changes`.
@@ -113,7 +116,7 @@ class WindowChangeDetector:
         velocity jump) the onset is searched again like the window's own (:meth:`_refine`), on a window from
         ``window_s / 2`` before it.
         """
-        self._refining = not dated
+        self._refining, self._sighted = not dated, None
         self._before = max(self.start, change.t_change - 0.5 * self.window_s)
         self.start = max(self.start, change.t_change + guard_s)
         self.fit = None
@@ -125,7 +128,8 @@ class WindowChangeDetector:
         self.window.add(t, gamma, z)
 
     def check(self) -> WindowChange | None:
-        """Run the segment search on the window when due; return the first change it keeps (None: none, not due).
+        """Run the segment search on the window when due; return the change it keeps at two checks in a row (None:
+        none, not due, or seen at this check only: :func:`_same_change`).
 
         The window is [max(start, end - window_s), end]; after a change, ``start`` moves to the change plus the
         segment search's guard (one period of the fit's cut-off: the zero-phase filter mixes the two sides).
@@ -151,10 +155,14 @@ class WindowChangeDetector:
         except (IdentifiabilityError, np.linalg.LinAlgError, ValueError):
             return None
         if len(segs) < 2:
-            self.fit = res
+            self.fit, self._sighted = res, None
             self._refine(end)
             return None
         change = _change(segs[0], segs[1], end)
+        sighted, self._sighted = self._sighted, change
+        if sighted is None or not _same_change(sighted, change):
+            return None  # seen once: kept only when the next check, with more data after it, finds it again
+        self._sighted = None
         self._before, self.start, self.fit = t0, change.t_change + 1.0 / res.cutoff_hz, None
         self.changes.append(change)
         self._refining = True
@@ -187,6 +195,13 @@ class WindowChangeDetector:
         new = _change(segs[k - 1], segs[k], last.t_detected)
         self.changes[-1] = replace(new, after=last.after, after_std=last.after_std)
         self.start = new.t_change + 1.0 / res.cutoff_hz
+
+
+def _same_change(a: WindowChange, b: WindowChange) -> bool:
+    """Return whether two checks found the same change: onsets within a second of each other or of the other's
+    stretch, and the mass moving the same way."""
+    near = min(abs(a.t_change - b.t_change), max(0.0, b.t_range[0] - a.t_change, a.t_change - b.t_range[1]))
+    return near <= 1.0 and (a.after.m - a.before.m) * (b.after.m - b.before.m) > 0.0
 
 
 def _change(before: dict, after: dict, t_detected: float) -> WindowChange:

@@ -96,3 +96,40 @@ def test_a_detection_that_is_not_confirmed_leaves_the_last_change_as_it_was(remo
     assert len(est.events) == len(before) == 1
     assert est._changes[-1].mass_end is None  # still the last change: its mass after follows the estimate
     assert est.events[0].mass_after == pytest.approx(before[0].mass_after, rel=1e-4)
+
+
+def _seg(t0, m, t0_range=None):
+    return {"t0": t0, "t0_range": t0_range, "params": TRUTH.with_mass(m), "std": {"mass": 0.1}}
+
+
+@pytest.mark.parametrize(
+    "found, reported",
+    [
+        ([None, 14.0, None, None], []),  # seen at one check only: a fluke of one window
+        ([None, 14.0, 14.6, None], [14.6]),  # found again 2 s later: the change, dated by the second check
+        ([None, 14.0, 17.5, None], []),  # two different splits: neither confirmed
+    ],
+)
+def test_a_window_change_is_reported_only_when_the_next_check_finds_it_again(monkeypatch, found, reported):
+    import cart.identify
+    import cart.segments
+
+    fits = iter(found)
+    fake = type("Fit", (), {"cutoff_hz": 2.0, "params": TRUTH})()
+
+    def segments(log, streams, res):
+        tc = next(fits)
+        if tc is None:
+            return [_seg(0.0, 20.0)], []
+        return [_seg(0.0, 20.0), _seg(tc, 12.0, (tc - 0.2, tc + 0.2))], []
+
+    monkeypatch.setattr(cart.identify, "identify", lambda log: fake)
+    monkeypatch.setattr(cart.segments, "find_segments", segments)
+    det = WindowChangeDetector(0.0, np.zeros(6), every_s=2.0, window_s=30.0)
+    got = []
+    for k in range(1, 1801):  # 18 s: checks at 10, 12, 14 and 16 s
+        det.add(0.01 * k, np.zeros(3), np.zeros(6))
+        change = det.check()
+        if change is not None:
+            got.append(round(change.t_change, 6))
+    assert got == reported
