@@ -68,7 +68,6 @@ from cart.diagnose_checks import (
     unexplained_slip,
 )
 from cart.diagnose_prep import prepare_log
-from cart.diagnose_slide import register_forms
 from cart.diagnose_replay import Replay, flag_starts, merge_windows, replay
 from cart.diagnose_report import (  # noqa: F401  (re-exported: the report is part of this module's API)
     PARAMETER_UNITS,
@@ -84,7 +83,6 @@ from cart.diagnose_report import (  # noqa: F401  (re-exported: the report is pa
     plot_diagnosis,
 )
 
-register_forms()  # lateral_slip in both forms: a creep and sliding wheels (cart.diagnose_slide)
 
 GAP_METRIC = (
     "RMS excess position error (m) of the {b} origin over the noise floor: sqrt(max(mean(e^2 - f^2), 0)), "

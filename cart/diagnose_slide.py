@@ -20,15 +20,15 @@ slides, the forward and yaw rows of eq. 4 gain the CoM's acceleration due to the
 linear in F given the active set (the held samples, decided with the previous estimate of F: a set-valued
 term iterated like ``coulomb_friction``'s hold) and uses phi (``uses_phi``).
 
-:class:`LateralSlipForms` offers both forms as ``Effect.variants()`` of ``lateral_slip``: each is fitted by
-the same machinery and the better one is named (:func:`cart.diagnose._rank_candidates`).
+:class:`cart.effects.LateralSlip` offers both forms as its ``Effect.variants()``: each is fitted by the same
+machinery and the better one is named (:func:`cart.diagnose._rank_candidates`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from cart.effects import Effect, LateralSlip, register_effect
+from cart.effects import Effect, LateralSlip
 from cart.log_signals import Signals, lateral_displacements
 
 #: a sideways speed within this many speed-noise stds of 0 is at rest sideways (the wheels may hold it)
@@ -162,6 +162,10 @@ class SlidingWheels(LateralSlip):
         accel = np.where(held, 0.0, f_need / m)
         return _sliding_rows(sig, slide_speed(sig, edges, accel, held, travel), phi)
 
+    def variants(self) -> list[Effect]:
+        """Return itself (the creep and this form are the variants of :class:`cart.effects.LateralSlip`)."""
+        return [self]
+
     def is_physical(self, theta, nl, x):
         """Return False for a negative friction (it would push the sliding cart)."""
         return bool(len(theta) == 0 or float(theta[0]) >= 0.0)
@@ -174,16 +178,3 @@ class SlidingWheels(LateralSlip):
             params["friction_coefficient"] = float(theta[0]) / (m * 9.81)
             std["friction_coefficient"] = std["friction"] / (m * 9.81)
         return params, std
-
-
-class LateralSlipForms(LateralSlip):
-    """``lateral_slip`` in two forms: a creep (:class:`cart.effects.LateralSlip`) and sliding wheels."""
-
-    def variants(self) -> list[Effect]:
-        """Return the creep and the sliding form (each fitted; the better is named)."""
-        return [LateralSlip(), SlidingWheels()]
-
-
-def register_forms() -> None:
-    """Register :class:`LateralSlipForms` as ``lateral_slip`` (the diagnosis tries both forms)."""
-    register_effect(LateralSlipForms)

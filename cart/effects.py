@@ -1129,6 +1129,16 @@ class LateralSlip(Effect):
     param_names = ("compliance",)
     uses_phi = True
 
+    def variants(self) -> list[Effect]:
+        """Return the creep (this form) and the sliding wheels (:class:`cart.diagnose_slide.SlidingWheels`).
+
+        Both are fitted by the same machinery and the better Delta BIC is named; the sliding form is
+        imported when asked for, so the registry offers both without importing the diagnosis.
+        """
+        from cart.diagnose_slide import SlidingWheels
+
+        return [self, SlidingWheels()]
+
     def columns(self, sig, nl, phi, base):
         """Return G: lateral force the wheels carry, f_lat - (m v omega + m dx omegadot - m dy omega^2)."""
         m, a, b = phi[0], phi[1], phi[2]
