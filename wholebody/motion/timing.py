@@ -12,9 +12,6 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
-import toppra
-import toppra.algorithm
-import toppra.constraint
 
 from wholebody.motion.control import ControllerConfig, ResolvedRateController
 from wholebody.errors import TrajectoryInfeasibleError, WholeBodyError
@@ -78,6 +75,10 @@ def time_optimal(
     if not (np.all(vmax > 0) and np.all(amax > 0) and np.all(np.isfinite(wp))):
         raise WholeBodyError("limits must be positive and waypoints finite")
     s = path_parameter(wp)
+    import toppra  # here: toppra imports matplotlib.pyplot (about 1 s), which no push needs
+    import toppra.algorithm
+    import toppra.constraint
+
     path = toppra.SplineInterpolator(s, wp)
     if not 0 < safety_factor <= 1:
         raise WholeBodyError("safety_factor must be in (0, 1]")
