@@ -70,12 +70,13 @@ def _section_filter(section: np.ndarray, x: np.ndarray, z0: np.ndarray) -> np.nd
     n = len(x)
     rhs = np.empty(x.shape, order="F")  # LAPACK's layout: no copy in and out of dtbtrs
     np.multiply(b0, x, out=rhs)
-    rhs[1:] += b1 * x[:-1]
-    rhs[2:] += b2 * x[:-2]
-    rhs[0] += z0[0]
     if n > 1:
+        tmp = np.empty((n - 1,) + x.shape[1:], order="F")
+        rhs[1:] += np.multiply(b1, x[:-1], out=tmp)
+        rhs[2:] += np.multiply(b2, x[:-2], out=tmp[: n - 2])
         rhs[1] += z0[1]
-    band = np.empty((3, n))
+    rhs[0] += z0[0]
+    band = np.empty((3, n), order="F")  # LAPACK's layout: not copied by the wrapper
     band[0] = 1.0
     band[1] = a1
     band[2] = a2
@@ -97,14 +98,14 @@ def sosfiltfilt(sos: np.ndarray, x: np.ndarray, padlen: int) -> np.ndarray:
     """Return the zero-phase (forward-backward) filtering of x along axis 0, odd extension of ``padlen`` samples."""
     x = np.asarray(x, float)
     flat = x.reshape(len(x), -1)
-    if padlen >= len(flat):
-        raise ValueError(f"padlen {padlen} must be less than the signal length {len(flat)}")
+    n = len(flat)
+    if padlen >= n:
+        raise ValueError(f"padlen {padlen} must be less than the signal length {n}")
+    ext = np.empty((n + 2 * padlen, flat.shape[1]), order="F")  # column-major: each column's recursion is contiguous
+    ext[padlen : padlen + n] = flat
     if padlen > 0:
-        left = 2.0 * flat[0] - flat[padlen:0:-1]
-        right = 2.0 * flat[-1] - flat[-2 : -padlen - 2 : -1]
-        ext = np.concatenate([left, flat, right])
-    else:
-        ext = flat
+        np.subtract(2.0 * flat[0], flat[padlen:0:-1], out=ext[:padlen])
+        np.subtract(2.0 * flat[-1], flat[-2 : -padlen - 2 : -1], out=ext[padlen + n :])
     zi = _section_zi(sos)[:, :, None]
     y = sosfilt(sos, ext, zi * ext[0])
     y = sosfilt(sos, y[::-1], zi * y[-1])[::-1]

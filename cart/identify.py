@@ -240,14 +240,6 @@ def _noise_gains(n: int, dt: float, sos: np.ndarray, seed: int = 0) -> tuple[flo
     return _gains_of(_filtfilt(sos, _unit_noise(n, seed)), dt)
 
 
-def _filter_pose_and_noise(sos: np.ndarray, q: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Return (filtered q, filtered e); one pass over both when they have the same length (columns are independent)."""
-    if len(e) == len(q):
-        both = _filtfilt(sos, np.column_stack([q, e]))
-        return both[:, :3], both[:, 3]
-    return _filtfilt(sos, q), _filtfilt(sos, e)
-
-
 def _cutoff_chunks(n: int) -> list[tuple[int, int]]:
     """Return the grid stretches the cut-off is chosen on: the whole grid, or evenly spaced chunks of a long one."""
     if n <= CUTOFF_SAMPLES:
@@ -262,9 +254,11 @@ def _chunk_accelerations(
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Return (vdot, omegadot on the valid samples of the chunks, acceleration noise gain) at one filter."""
     vds, ods = [], []
-    for i0, i1 in chunks:
-        qs, ef = _filter_pose_and_noise(sos, grid.q[i0:i1], e[: i1 - i0])
-        _, _, _, vd, od = _pose_kinematics(qs, grid.dt)
+    size = chunks[0][1] - chunks[0][0]  # the chunks have one length: one pass filters them all, the noise once
+    both = _filtfilt(sos, np.column_stack([grid.q[i0:i1] for i0, i1 in chunks] + [e[:size]]))
+    ef = both[:, -1]
+    for c, (i0, i1) in enumerate(chunks):
+        _, _, _, vd, od = _pose_kinematics(both[:, 3 * c : 3 * c + 3], grid.dt)
         valid = grid.valid[i0:i1]
         if len(chunks) > 1:  # away from the chunk's own ends
             k = (i1 - i0) // 10
