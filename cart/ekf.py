@@ -807,8 +807,9 @@ def run_ekf(
     want_nll = nll is not None
     dt_med = float(np.median(dts)) if n > 1 else 0.0
     gap_limit = config.gap_factor * dt_med if config.gap_factor > 0 else math.inf
+    tl = t.tolist()  # Python floats: the steps' scalar arithmetic stays out of numpy scalars (the same IEEE results)
     for k in range(k0 + 1, n):
-        dt = t[k] - t[k - 1]
+        dt = tl[k] - tl[k - 1]
         if dt > gap_limit:  # a gap in the log: sub-steps of about the median under the held wrench
             n_sub = min(int(math.ceil(dt / dt_med)), MAX_GAP_SUBSTEPS)
             dt = dt / n_sub
@@ -855,14 +856,15 @@ def measurement_std_from_log(
     neighbouring estimates (coloured noise: treating them as white with the
     plain slope std made the filter overconfident, mean NIS ~30 at 200 Hz).
     """
-    from cart.logs import local_polyfit
+    from cart.logs import local_polyfits
 
-    smooth, _, width = local_polyfit(t, q, half_window)
+    fits, _, width = local_polyfits(t, [q] if qd is None else [q, qd], half_window)  # one set of windows for both
+    smooth = fits[0]
     dof = max(width - 3, 1)
     pose_std = np.std(q - smooth, axis=0) * math.sqrt(width / dof)
     pose_std = np.maximum(pose_std, [1e-4, 1e-4, 1e-4])
     if qd is not None:
-        vsmooth, _, _ = local_polyfit(t, qd, half_window)
+        vsmooth = fits[1]
         vel_std = np.maximum(np.std(qd - vsmooth, axis=0) * math.sqrt(width / dof), [1e-3, 1e-3, 1e-3])
     else:
         # slope std of a least-squares line over the window, sqrt(12 / width) pose_std / span, inflated by

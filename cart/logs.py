@@ -127,11 +127,23 @@ def local_polyfit(
 
     See `local_fit` for the windows.
     """
-    q = np.asarray(q, dtype=float)
+    smooth, slope, width = local_polyfits(t, [q], half_window, degree)
+    return smooth[0], slope[0], width
+
+
+def local_polyfits(
+    t: np.ndarray, arrays: list[np.ndarray], half_window: float = 0.05, degree: int = 2
+) -> tuple[list[np.ndarray], list[np.ndarray], int]:
+    """Return ([smoothed a], [da/dt], window size) of :func:`local_polyfit` for each array of ``arrays`` (N, k)
+    sampled at the same ``t``: the windows and the fits' linear map are computed once (`local_fit`)."""
+    arrays = [np.asarray(a, dtype=float) for a in arrays]
     if len(t) < degree + 1:
         raise LogFormatError(f"need at least {degree + 1} samples to estimate velocities, got {len(t)}")
-    coef, scale, _, _, width = local_fit(t, q, half_window, degree)
-    return coef[:, 0, :].reshape(q.shape), (coef[:, 1, :] / scale).reshape(q.shape), width
+    coef, scale, pinv, start, width = local_fit(t, arrays[0], half_window, degree)
+    idx = start[:, None] + np.arange(width)[None, :]
+    coefs = [coef] + [np.einsum("niw,nwk->nik", pinv, a.reshape(len(t), -1)[idx]) for a in arrays[1:]]
+    smooth = [c[:, 0, :].reshape(a.shape) for c, a in zip(coefs, arrays)]
+    return smooth, [(c[:, 1, :] / scale).reshape(a.shape) for c, a in zip(coefs, arrays)], width
 
 
 def estimate_velocities(t: np.ndarray, q: np.ndarray, half_window: float = 0.05, degree: int = 2) -> np.ndarray:
