@@ -29,6 +29,7 @@ import numpy.typing as npt
 from scipy.linalg import cho_factor as _cho_factor, cho_solve as _cho_solve
 from scipy.linalg.lapack import dposv as _dposv, dtrtrs as _dtrtrs
 
+from cart._kernels_identify import median
 from cart.dynamics import dynamics_jacobian_rows, wrench_input_matrix as _wrench_input_matrix
 from cart.errors import NumericalError, ParameterError
 from cart.params import CartParams
@@ -805,7 +806,7 @@ def run_ekf(
     rejected = np.zeros(n, dtype=bool)
     log_det = 0.0
     want_nll = nll is not None
-    dt_med = float(np.median(dts)) if n > 1 else 0.0
+    dt_med = float(median(dts)) if n > 1 else 0.0
     gap_limit = config.gap_factor * dt_med if config.gap_factor > 0 else math.inf
     tl = t.tolist()  # Python floats: the steps' scalar arithmetic stays out of numpy scalars (the same IEEE results)
     for k in range(k0 + 1, n):
@@ -870,7 +871,7 @@ def measurement_std_from_log(
         # slope std of a least-squares line over the window, sqrt(12 / width) pose_std / span, inflated by
         # sqrt(width): neighbouring estimates share almost all their samples (strongly coloured errors),
         # so only about one velocity per window is independent information for the white-noise EKF
-        span = float(np.median(np.diff(t))) * (width - 1)
+        span = float(median(np.diff(t))) * (width - 1)
         vel_std = pose_std * math.sqrt(12.0) / max(span, 1e-9)
     pos = 0.5 * (pose_std[0] + pose_std[1])
     vel = 0.5 * (vel_std[0] + vel_std[1])
@@ -951,7 +952,7 @@ def estimate_from_log(
     """
     meas_std = measurement_std_from_log(log.t, log.q, log.qd) if meas_std is None else meas_std
     wrench_std = wrench_noise_std_from_log(log)
-    dt_med = float(np.median(np.diff(log.t)))
+    dt_med = float(median(np.diff(log.t)))
     z = np.hstack([log.q, log.velocities()])
     starts = tuple(default_starts(guess) if starts is None else starts)
     if not starts:

@@ -45,7 +45,7 @@ from typing import TypedDict
 import numpy as np
 
 from cart import identify_casters as casters_model
-from cart._kernels_identify import butter_lowpass_sos, sosfiltfilt, student_t_quantile
+from cart._kernels_identify import butter_lowpass_sos, median, sosfiltfilt, student_t_quantile
 from cart.dynamics import regressor
 from cart.errors import CartError
 from cart.log_signals import filter_support_keep
@@ -172,7 +172,7 @@ def _uniform_grid(log: CartLog, streams: Streams | None = None, gap_factor: floa
     """
     st = streams if streams is not None else split_streams(log)
     t = log.t
-    dt = float(np.median(np.diff(t)))
+    dt = float(median(np.diff(t)))
     if st.multi_rate or st.wrench.period < dt / 1.5 or st.pose.period > 1.5 * dt:
         dt = st.pose.period
     t0, t1 = max(st.pose.t[0], st.wrench.t[0]), min(st.pose.t[-1], st.wrench.t[-1])
@@ -198,7 +198,7 @@ def white_noise_std(y: np.ndarray) -> float:
     d3 = np.diff(np.asarray(y, float), 3)
     if len(d3) == 0:
         return 0.0
-    return float(1.4826 * np.median(np.abs(d3 - np.median(d3))) / math.sqrt(20.0))
+    return float(1.4826 * median(np.abs(d3 - median(d3))) / math.sqrt(20.0))
 
 
 def _filtfilt(sos: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -373,7 +373,7 @@ def _wls(
         a = a - _noise_correction(wts, noise)
         p = np.linalg.lstsq(a, b, rcond=None)[0]
         r = y - _predict(x, p)
-        scale = np.array([1.4826 * np.median(np.abs(r[:, i])) + 1e-300 for i in range(2)])
+        scale = np.array([1.4826 * median(np.abs(r[:, i])) + 1e-300 for i in range(2)])
         u = np.abs(r) / (1.5 * scale)
         w = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-300))
     return p, scale, w
@@ -1200,7 +1200,7 @@ def innovation_check(log: CartLog, params: CartParams, noise: dict[str, float] |
             "torque": white_noise_std(log.gamma[:, 2]),
         }
     f_std, tau_std = noise["force"], noise["torque"]
-    dt = float(np.median(np.diff(log.t)))
+    dt = float(median(np.diff(log.t)))
     cfg = EKFConfig.from_noise(
         meas_std,
         estimate_params=False,

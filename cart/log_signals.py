@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from cart._kernels_identify import median
 from cart.errors import LogFormatError
 from cart.logs import CartLog
 
@@ -31,7 +32,7 @@ def segment_breaks(t: np.ndarray) -> tuple[int, ...]:
     if len(t) < 3:
         return ()
     dt = np.diff(t)
-    lim = max(GAP_SECONDS, GAP_PERIODS * float(np.median(dt)))
+    lim = max(GAP_SECONDS, GAP_PERIODS * float(median(dt)))
     return tuple(int(i) + 1 for i in np.flatnonzero(dt > lim))
 
 
@@ -62,7 +63,7 @@ def local_poly(
     if n < degree + 2:
         raise LogFormatError(f"need at least {degree + 2} samples to differentiate the pose, got {n}")
     y2 = np.asarray(y, float).reshape(n, -1)
-    med_dt = float(np.median(np.diff(t)))
+    med_dt = float(median(np.diff(t)))
     k = max(degree // 2 + 1, int(round(half_window / med_dt)))
     value = y2.copy()
     d1 = np.zeros_like(y2)
@@ -108,7 +109,7 @@ def derivative_gain(
 def robust_std(r: np.ndarray) -> float:
     """Return 1.4826 * median absolute deviation of r (a robust standard deviation)."""
     r = np.asarray(r, float).ravel()
-    return float(1.4826 * np.median(np.abs(r - np.median(r))))
+    return float(1.4826 * median(np.abs(r - median(r))))
 
 
 @dataclass(frozen=True)
@@ -178,7 +179,7 @@ def signals_from_log(log: CartLog, half_window: float | None = None) -> Signals:
         raise LogFormatError(f"{log.source}: {len(t)} samples are too few to diagnose (need at least 20)")
     dur = float(t[-1] - t[0])
     q = np.asarray(log.q, float)
-    med_dt = float(np.median(np.diff(t)))
+    med_dt = float(median(np.diff(t)))
     # 0.15 s for a cart log; a short log (a quick push of a small object) gets windows in proportion
     hw = min(0.15, dur / 30.0) if half_window is None else float(half_window)
     if dur < 60.0 * med_dt:

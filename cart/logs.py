@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from cart._kernels_identify import median
 from cart.errors import LogFormatError
 
 REQUIRED_COLUMNS = ("t", "x", "y", "theta", "fx", "fy", "tau")
@@ -106,7 +107,7 @@ def local_fit(
     t = np.asarray(t, dtype=float)
     y2 = np.asarray(y, dtype=float).reshape(len(t), -1)
     n = len(t)
-    med_dt = float(np.median(np.diff(t)))
+    med_dt = float(median(np.diff(t)))
     k = max(degree // 2 + 1, int(round(half_window / med_dt)))
     width = min(2 * k + 1, n)
     start = np.clip(np.arange(n) - width // 2, 0, n - width)
@@ -414,7 +415,7 @@ def _rolls_along_heading(log: CartLog, span: float = 0.1) -> bool:
     |sin(travel direction - heading)| is below 0.3: the heading is in radians, however many turns it makes.
     """
     t, q = log.t, log.q
-    med = float(np.median(np.diff(t)))
+    med = float(median(np.diff(t)))
     w = max(1, int(math.ceil(span / med))) if med > 0 else 1
     if len(t) <= w + 10:
         return False
@@ -424,7 +425,7 @@ def _rolls_along_heading(log: CartLog, span: float = 0.1) -> bool:
         return False
     psi = np.arctan2(d[moving, 1], d[moving, 0])
     heading = 0.5 * (q[w:, 2] + q[:-w, 2])[moving]
-    return float(np.median(np.abs(np.sin(psi - heading)))) < 0.3
+    return float(median(np.abs(np.sin(psi - heading)))) < 0.3
 
 
 def _heading_notes(log: CartLog, dt: np.ndarray, raw_theta: np.ndarray | None, where) -> list[str]:
@@ -509,7 +510,7 @@ def plausibility_warnings(
         return f"line {first_line + i}" if first_line is not None else f"sample {i}"
 
     dt = np.diff(log.t)
-    med = float(np.median(dt))
+    med = float(median(dt))
     if med > PLAUSIBLE_MEDIAN_DT:
         notes.append(
             f"median sample interval {med:g} s is long for a cart log (motion capture runs at 10 Hz or "
@@ -521,7 +522,7 @@ def plausibility_warnings(
         poses = CartLog(t=log.t[rows], q=log.q[rows], gamma=log.gamma[rows])
         raw = None if raw_theta is None else np.asarray(raw_theta, dtype=float)[rows]
         notes += _heading_notes(poses, np.diff(poses.t), raw, lambda i: where(int(rows[i])))
-        notes += _motion_notes(poses, float(np.median(np.diff(poses.t))), lambda i: where(int(rows[i])))
+        notes += _motion_notes(poses, float(median(np.diff(poses.t))), lambda i: where(int(rows[i])))
     else:
         notes += _heading_notes(log, dt, raw_theta, where)
         notes += _motion_notes(log, med, where)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cart._kernels_identify import sosfilt
+from cart._kernels_identify import median, sosfilt
 
 #: Longest lag (s) of the variogram: sensor noise decorrelates faster; slower residual is misfit.
 HORIZON = 0.25
@@ -51,7 +51,7 @@ def _robust_var(d: np.ndarray) -> float:
     """Return the variance of d from its median absolute deviation (Gaussian-consistent)."""
     if len(d) == 0:
         return 0.0
-    return float((1.4826 * np.median(np.abs(d - np.median(d)))) ** 2)
+    return float((1.4826 * median(np.abs(d - median(d)))) ** 2)
 
 
 def fit_ar1(r: np.ndarray, dt: float, horizon: float = HORIZON) -> AR1Noise:

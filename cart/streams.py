@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cart._kernels_identify import median, median_columns
 from cart.logs import CartLog
 
 #: Share of rows repeating the previous pose above which the table is a multi-rate (held-pose) table.
@@ -65,7 +66,7 @@ class Stream:
     @property
     def median_period(self) -> float:
         """Return the median interval between samples (s)."""
-        return float(np.median(np.diff(self.t))) if len(self.t) > 1 else float("nan")
+        return float(median(np.diff(self.t))) if len(self.t) > 1 else float("nan")
 
     @property
     def period(self) -> float:
@@ -73,7 +74,7 @@ class Stream:
         if len(self.t) < 2:
             return float("nan")
         steps = np.diff(self.t)
-        inside = steps[steps <= DROPOUT_PERIODS * np.median(steps)]
+        inside = steps[steps <= DROPOUT_PERIODS * median(steps)]
         return float(np.mean(inside))
 
 
@@ -237,7 +238,7 @@ def _slope_change(t: np.ndarray, q: np.ndarray) -> np.ndarray:
     dt = np.diff(t)
     slope = np.diff(q, axis=0) / dt[:, None]
     change = np.abs(np.diff(slope, axis=0))
-    rounding = 1e-9 * (np.max(np.abs(q), axis=0) + 1.0) / float(np.median(dt))
+    rounding = 1e-9 * (np.max(np.abs(q), axis=0) + 1.0) / float(median(dt))
     typical = np.maximum(np.percentile(change, 90, axis=0), rounding)
     out = np.full(len(t), np.inf)
     out[1:-1] = np.max(change / typical, axis=1)
@@ -265,7 +266,7 @@ def _interpolated_pose(log: CartLog) -> Stream | None:
     if line.sum() < HELD_SHARE * len(t) or between >= 0.1 * line.sum():
         return None
     runs = _runs(line[1:])
-    if len(runs) < 2 or np.median([last - first + 1 for first, last in runs]) > MAX_PIECE_ROWS:
+    if len(runs) < 2 or median([last - first + 1 for first, last in runs]) > MAX_PIECE_ROWS:
         return None  # one straight piece (a pose at rest) has no corners
     return _corners(t, q, runs)
 
@@ -286,7 +287,7 @@ def _corners(t: np.ndarray, q: np.ndarray, runs: list[tuple[int, int]]) -> Strea
     s_a = (q[a1 + 1] - q[a1]) / (ta - t[a1])[:, None]
     s_b = (q[b0] - q[b0 - 1]) / (t[b0] - tb)[:, None]
     change = s_a - s_b
-    col = np.argmax(np.abs(change) / (np.median(np.abs(change), axis=0) + 1e-300), axis=1)
+    col = np.argmax(np.abs(change) / (median_columns(np.abs(change)) + 1e-300), axis=1)
     k = np.arange(len(a1))
     gap = q[b0 - 1, col] - q[a1 + 1, col] - s_b[k, col] * (tb - ta)  # line B minus line A at ta
     tc = np.clip(ta + gap / change[k, col], ta, tb)
@@ -301,7 +302,7 @@ def _activity(v: np.ndarray, half: int = 2) -> np.ndarray:
     lo = np.clip(np.arange(1, n) - half, 0, n - 1)
     hi = np.clip(np.arange(1, n) + half, 0, n - 1)
     change = np.abs(v[hi] - v[lo])
-    return np.max(change / (np.median(change, axis=0) + 1e-300), axis=1)
+    return np.max(change / (median_columns(change) + 1e-300), axis=1)
 
 
 def held_rows(v: np.ndarray) -> bool:
@@ -320,7 +321,7 @@ def held_rows(v: np.ndarray) -> bool:
     runs = _runs(same)
     if n < 20 or not runs:
         return False
-    longest = 2 * float(np.median([last - first + 1 for first, last in runs])) + 1
+    longest = 2 * float(median([last - first + 1 for first, last in runs])) + 1
     short = np.zeros(n - 1, dtype=bool)
     for first, last in runs:
         if last - first + 1 <= longest:
@@ -348,7 +349,7 @@ def _pose_stream(log: CartLog) -> tuple[Stream, int, bool]:
         return Stream(tp, q[rows], rows), held, True
     if held:
         step = np.hypot(*np.diff(q[:, :2], axis=0).T)
-        typical = float(np.median(step[step > 0])) if np.any(step > 0) else 0.0
+        typical = float(median(step[step > 0])) if np.any(step > 0) else 0.0
         for first, last in _runs(same):
             jump = float(np.hypot(*(q[min(last + 1, n - 1), :2] - q[first - 1, :2])))
             if last - first >= 2 and typical > 0 and jump > 2.5 * typical:
@@ -375,16 +376,16 @@ def _glitches(stream: Stream) -> np.ndarray:
     if n < 15:
         return np.zeros(n, dtype=bool)
     sample = np.arange(0, n, max(1, n // 20000))
-    scale = 1.4826 * np.median(np.abs(v[sample] - _median_at(v, sample)), axis=0) + 1e-12
+    scale = 1.4826 * median_columns(np.abs(v[sample] - _median_at(v, sample))) + 1e-12
     d2 = np.abs(v[2:] - 2.0 * v[1:-1] + v[:-2])
-    s2 = 1.4826 * np.median(d2, axis=0) + 1e-12
+    s2 = 1.4826 * median_columns(d2) + 1e-12
     hot = np.flatnonzero(np.any(d2 > 3.0 * s2, axis=1)) + 1
     cand = np.unique(np.clip(np.concatenate([hot - 1, hot, hot + 1]), 0, n - 1))
     bad = np.zeros(n, dtype=bool)
     if len(cand) == 0:
         return bad
     r = np.abs(v[cand] - _median_at(v, cand))
-    step = np.median(np.abs(np.diff(v, axis=0)), axis=0) + 1e-12
+    step = median_columns(np.abs(np.diff(v, axis=0))) + 1e-12
     span = np.ptp(v, axis=0)
     bad[cand] = np.any((r > GLITCH_SCALE * scale) & (r > 5.0 * step) & (r > 1e-3 * span), axis=1)
     return bad
@@ -418,7 +419,7 @@ def _noisy(x: np.ndarray) -> bool:
     first (white or AR(1) noise: about 2.5 times; a smooth noise-free signal: a small fraction)."""
     d1 = np.abs(np.diff(x))
     d3 = np.abs(np.diff(x, 3))
-    return bool(len(d3) > 10 and np.median(d3) > 0.5 * np.median(d1) > 0.0)
+    return bool(len(d3) > 10 and median(d3) > 0.5 * median(d1) > 0.0)
 
 
 def frozen_channels(t: np.ndarray, v: np.ndarray, names: tuple[str, ...]) -> list[tuple[int, int, str]]:
@@ -483,7 +484,7 @@ def _dropouts(stream: Stream) -> tuple[tuple[float, float], ...]:
     if len(stream.t) < 3:
         return ()
     steps = np.diff(stream.t)
-    big = np.flatnonzero(steps > DROPOUT_PERIODS * np.median(steps))
+    big = np.flatnonzero(steps > DROPOUT_PERIODS * median(steps))
     return tuple((float(stream.t[i]), float(stream.t[i + 1])) for i in big)
 
 
@@ -552,7 +553,7 @@ def _jump_steps(stream: Stream) -> np.ndarray:
     if n < 15:
         return np.zeros(0, dtype=int)
     d2 = np.abs(np.diff(v, 2, axis=0))
-    scale = 1.4826 * np.median(d2[:: max(1, n // 20000)], axis=0) + 1e-12
+    scale = 1.4826 * median_columns(d2[:: max(1, n // 20000)]) + 1e-12
     hot = np.flatnonzero(np.any(d2 > GLITCH_SCALE * scale, axis=1))
     cand = np.unique(np.clip(np.r_[hot, hot + 1], 0, n - 2))  # d2[j] spans steps j and j + 1
     if not len(cand):
@@ -563,11 +564,11 @@ def _jump_steps(stream: Stream) -> np.ndarray:
     near = np.clip(cand[:, None] + np.array([-3, -2, -1, 1, 2, 3])[None, :], 0, n - 2)
     dev = np.abs(step[cand] - np.median(rate[near], axis=1) * dt[cand, None])
     local = np.median(d2[np.clip(cand[:, None] + np.array([-4, -3, -2, 1, 2, 3])[None, :], 0, n - 3)], axis=1)
-    typical = np.median(np.abs(step[:: max(1, n // 20000)]), axis=0) + 1e-12
+    typical = median_columns(np.abs(step[:: max(1, n // 20000)])) + 1e-12
     span = np.ptp(v, axis=0)
     typical = np.maximum(typical, np.median(np.abs(step[near]), axis=1))  # the log's and the local motion
     far = (dev > GLITCH_SCALE * scale) & (dev > GLITCH_SCALE * local) & (dev > 5.0 * typical) & (dev > 1e-3 * span)
-    ordinary = dt[cand] <= DROPOUT_PERIODS * float(np.median(dt[:: max(1, n // 20000)]))
+    ordinary = dt[cand] <= DROPOUT_PERIODS * float(median(dt[:: max(1, n // 20000)]))
     return cand[_stays(stream, cand, np.median(rate[near], axis=1), far & ordinary[:, None])]
 
 
@@ -595,8 +596,8 @@ def _stays(stream: Stream, steps: np.ndarray, rate: np.ndarray, far: np.ndarray,
         near_b = np.abs(v[before] - v[i] - np.outer(t[before] - t[i], rate[k])) < tol
         near_a = np.abs(v[after] - v[i + 1] - np.outer(t[after] - t[i + 1], rate[k])) < tol
         most = (near_b.sum(axis=0) > half) & (near_a.sum(axis=0) >= min(half + 1, after.stop - after.start))
-        moved = rate[k] * (np.median(t[after]) - np.median(t[before]))
-        shift = np.median(v[after], axis=0) - np.median(v[before], axis=0) - moved
+        moved = rate[k] * (median(t[after]) - median(t[before]))
+        shift = median_columns(v[after]) - median_columns(v[before]) - moved
         out[k] = bool(np.any(far[k] & most & (np.abs(shift - dev) < 2.0 * tol)))
         start = i + 1 if out[k] else start
     return out
@@ -620,8 +621,8 @@ def _positions_continue(pose: Stream, i: int, half: int = 4) -> bool:
     after = (p[hi] - p[i + 1]) / max(t[hi] - t[i + 1], 1e-12)
     dev = p[i + 1] - p[i] - 0.5 * (before + after) * (t[i + 1] - t[i])
     d2 = np.abs(np.diff(np.r_[p[lo : i + 1], p[i + 1 : hi + 1] - (p[i + 1] - p[i])], 2, axis=0))
-    scale = 1.4826 * np.median(d2, axis=0)[:2] + 1e-9
-    step = np.median(np.abs(np.diff(p[lo : hi + 1, :2], axis=0)), axis=0)
+    scale = 1.4826 * median_columns(d2)[:2] + 1e-9
+    step = median_columns(np.abs(np.diff(p[lo : hi + 1, :2], axis=0)))
     if not np.all(np.abs(dev[:2]) <= np.maximum(GLITCH_SCALE * scale, 2.0 * step)):
         return False
     moving = min(np.hypot(*before[:2]), np.hypot(*after[:2])) * (t[hi] - t[lo]) > 10.0 * float(np.max(scale))

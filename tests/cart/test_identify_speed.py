@@ -162,3 +162,22 @@ def test_columns_filtered_together_equal_each_filtered_alone():
     together = kernels.sosfiltfilt(sos, np.column_stack(cols), 15)
     for k, col in enumerate(cols):
         assert np.array_equal(together[:, k], kernels.sosfiltfilt(sos, col, 15))
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 8, 1001, 20000, 20001])
+@pytest.mark.parametrize("kind", ["normal", "abs", "ties", "nan", "int", "2d"])
+def test_median_is_numpys_median_bit_for_bit(n, kind):
+    rng = np.random.default_rng(n)
+    x = rng.standard_normal((n, 3) if kind == "2d" else n)
+    if kind == "abs":
+        x = np.abs(x)
+    elif kind == "ties":
+        x = np.round(x, 1)
+    elif kind == "nan":
+        x[n // 3] = np.nan
+    elif kind == "int":
+        x = np.round(10 * x).astype(int)
+    got, ref = kernels.median(x), np.median(x)
+    assert np.array_equal(got, ref, equal_nan=True) and np.asarray(got).dtype == np.asarray(ref).dtype
+    if kind == "2d":
+        assert np.array_equal(kernels.median_columns(x), np.median(x, axis=0))
