@@ -143,8 +143,9 @@ def _switched_rows(xs: np.ndarray, idx: np.ndarray, k: np.ndarray, half: int) ->
     n_w = 2 * half + 1
     a = np.arange(n_w)[:, None] - np.arange(2 * half)[None, :] - 1  # row i - half + a, source i + 1 + b
     kmat = np.where((a >= 0) & (a <= 2 * half), k[np.clip(a, 0, 2 * half)], 0.0)
-    src = np.stack([xs[i + 1 : i + 1 + 2 * half] for i in idx])  # (n, 2 half, 2, P)
-    return np.einsum("ab,nbkp->nakp", kmat, src)
+    src = xs[idx[:, None] + 1 + np.arange(2 * half)[None, :]]  # (n, 2 half, 2, P)
+    n, _, rows, p_dim = src.shape
+    return (kmat @ src.reshape(n, 2 * half, rows * p_dim)).reshape(n, n_w, rows, p_dim)
 
 
 def _shared_map(p_dim: int, shared: np.ndarray) -> np.ndarray:
@@ -186,10 +187,11 @@ def _window_fit(
     n, half, n_p = len(idx), rows.shape[1] // 2, a_left.shape[-1]
     win = idx[:, None] + np.arange(-half, half + 1)[None, :]
     flat, yv = rows.reshape(n, -1, 2 * n_p), ys[win].reshape(n, -1)
-    m = np.einsum("nri,nrj->nij", flat, flat)
+    flat_t = flat.transpose(0, 2, 1)
+    m = flat_t @ flat  # batched BLAS: an einsum of this contraction is ten times slower
     m[:, :n_p, :n_p] += a_left
     m[:, n_p:, n_p:] += a_right
-    v = np.concatenate([b_left, b_right], axis=-1) + np.einsum("nri,nr->ni", flat, yv)
+    v = np.concatenate([b_left, b_right], axis=-1) + (flat_t @ yv[:, :, None])[:, :, 0]
     out, sol = _solve_split(m, v, t, c_all)
     return (np.where(sol[:, n_p] > sol[:, 0], out, math.inf) if put_in else out), sol
 
