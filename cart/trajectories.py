@@ -118,6 +118,13 @@ class UnicycleTrajectory:
         qdd = np.array([vdot * c - v * om * s, vdot * s + v * om * c, od])
         return q, qd, qdd
 
+    def path_speed(self, t: float) -> float:
+        """Return the desired path speed at t: ``np.hypot`` of ``sample(t)``'s planar velocity, bit for bit, without
+        the position grid (the push controller reads it at every look-ahead sample)."""
+        v = self.speed(float(t))[0]
+        th = self.yaw(float(t))[0]
+        return float(np.hypot(v * math.cos(th), v * math.sin(th)))
+
     def poses(self, ts: npt.ArrayLike) -> np.ndarray:
         """Return the desired poses q_d (N, 3) at the times ``ts``: ``sample(t)[0]`` for each t, at once."""
         tg, xg, yg = self._grid()[:3]

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from contextlib import nullcontext
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from collections.abc import Sequence
 
 import numpy as np
@@ -27,6 +28,7 @@ import pinocchio as pin
 
 from cart import model as cart_model
 from cart.params import CartParams
+from cart.trajectories import CartTrajectory
 from wholebody.contacts.allocation import AllocationResult, WrenchAllocator
 from wholebody.contacts.support import CartLoad
 from wholebody.errors import WholeBodyError
@@ -154,6 +156,8 @@ class PushController:
         self.base_plans = [self._base_plan(mm, float(scheduler.y[a])) for mm, a in zip(self.robots, edges[:-1])]
         #: per robot: its QP's own (posture weight, posture), restored outside a plan's windows
         self._own_terms: dict[int, tuple[float, np.ndarray | None]] = {}
+        #: the clock's settings and their copy with the momentum horizon (`_look_ahead_settings`)
+        self._ahead: tuple[TimeScaling, TimeScaling] | None = None
 
     def _base_plan(self, mm: MobileManipulator, contact_y: float) -> BasePlan | None:
         """Return robot `mm`'s base plan over the desired motion (None: not asked for, several hands, not holonomic),
@@ -173,7 +177,7 @@ class PushController:
         if len(m.robots) != len(self.robots):
             raise WholeBodyError(f"measurement has {len(m.robots)} robots, the controller {len(self.robots)}")
         for mm, r in zip(self.robots, m.robots):
-            mm.x = np.r_[r.base_pose, r.q_arm]
+            mm.x = np.concatenate((r.base_pose, r.q_arm))
         gamma_meas = self._measured_gamma(m)
         if self._t_prev is not None:  # the wrench of the last period and the pose at its end (eq. 8-20)
             self.estimator.step(gamma_meas, m.t - self._t_prev, m.z)
@@ -308,9 +312,10 @@ class PushController:
             return settings
         if settings.momentum_horizon <= 0:
             return None
-        ahead = replace(settings, horizon=settings.momentum_horizon)
-        hs = np.linspace(0.0, ahead.horizon, ahead.horizon_samples)
-        speed = max(float(np.hypot(*self.trajectory.sample(s + float(h))[1][:2])) for h in hs)
+        if self._ahead is None or self._ahead[0] is not settings:
+            self._ahead = (settings, replace(settings, horizon=settings.momentum_horizon))
+        ahead = self._ahead[1]
+        speed = max(path_speed(self.trajectory, s + h) for h in horizon_times(ahead.horizon, ahead.horizon_samples))
         force = self.config.n_arms * self.config.arm_limits.max_force
         if needs_look_ahead(float(params.m), speed, force, settings):
             return ahead
@@ -323,8 +328,9 @@ class PushController:
         when the path is at rest at s); inf when the path does not move."""
         assert self.clock is not None
         settings = self.clock.settings if settings is None else settings
-        hs = np.linspace(0.0, settings.horizon, settings.horizon_samples)
-        speed = max(float(np.hypot(*self.trajectory.sample(s + float(h))[1][:2])) for h in hs)
+        speed = max(
+            path_speed(self.trajectory, s + h) for h in horizon_times(settings.horizon, settings.horizon_samples)
+        )
         accel = self._accel_bound(params)
         if speed <= 1e-9 or not math.isfinite(accel):
             return float("inf")
@@ -519,11 +525,26 @@ def bounded_demand(gamma: np.ndarray, hand_force: float) -> np.ndarray:
     (torque in N m at a 1 m arm), and zero when it is not finite: after a lost cart or a diverged estimate the cart
     controller (eq. 26) can ask 1e13 N, which the allocation's solvers cannot take; any demand past the bound
     saturates the allocation either way."""
-    if not np.all(np.isfinite(gamma)):
+    if not np.isfinite(gamma).all():
         return np.zeros_like(gamma)
     bound = DEMAND_BOUND_FACTOR * hand_force
     peak = float(np.abs(gamma).max())
     return gamma * (bound / peak) if peak > bound else gamma
+
+
+@lru_cache(maxsize=16)
+def horizon_times(horizon: float, samples: int) -> tuple[float, ...]:
+    """Return ``np.linspace(0, horizon, samples)`` as floats: the look-ahead's sample offsets (s)."""
+    return tuple(np.linspace(0.0, horizon, samples).tolist())
+
+
+def path_speed(trajectory: CartTrajectory, t: float) -> float:
+    """Return the trajectory's desired path speed (m/s) at t: its ``path_speed`` when it has one, else the norm of
+    its sampled planar velocity."""
+    speed = getattr(trajectory, "path_speed", None)
+    if speed is not None:
+        return float(speed(t))
+    return float(np.hypot(*trajectory.sample(t)[1][:2]))
 
 
 def _body_to_generalized(q: np.ndarray, gamma_b: np.ndarray) -> np.ndarray:
