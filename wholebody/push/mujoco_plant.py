@@ -311,6 +311,8 @@ class MujocoPlant:
         self._yaw_prev = list(self._base_yaw)
         self._hand_clean = [np.zeros(6) for _ in range(n_robots)]
         self._hand_sum = [np.zeros(6) for _ in range(n_robots)]
+        #: each hand's `_sensor_wrench` at the state of the last physics step of `step` (None: not read at this state)
+        self._clean: list[np.ndarray] | None = None
         self._base_int = [np.zeros(3) for _ in range(n_robots)]
 
     def _draw_joint_noise(self) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -455,7 +457,8 @@ class MujocoPlant:
 
     def robot_states(self) -> list[np.ndarray]:
         """Return the true robot states x = [base pose, arm joints]."""
-        return [np.r_[self._base_pose(i), self.scene.data.qpos[r.arm_qpos]] for i, r in enumerate(self.scene.robots)]
+        d = self.scene.data
+        return [np.concatenate((self._base_pose(i), d.qpos[r.arm_qpos])) for i, r in enumerate(self.scene.robots)]
 
     def cart_wrench(self, commands: Sequence[RobotCommand] | None = None) -> np.ndarray:
         """Return Gamma_MM (fx, fy in {s}, tau about the {b} origin) the hands applied over the last period (clean F/T).
@@ -526,7 +529,7 @@ class MujocoPlant:
         """Return the F/T sensor's reading of this physics step (with its noise) as the hand's wrench at the grasp."""
         n = self.noise
         noise = np.concatenate((self._rng_loop.normal(0.0, n.force, 3), self._rng_loop.normal(0.0, n.torque, 3)))
-        return self._hand_wrench_world(i, self._sensor_wrench(i) + noise)
+        return self._hand_wrench_world(i, self._clean_wrench(i) + noise)
 
     def _force_loops(self) -> dict[int, np.ndarray]:
         """Return each torque law's force loop wrench of this physics step (robot index -> wrench, world-aligned at
@@ -552,15 +555,21 @@ class MujocoPlant:
         d = self.scene.data
         return net_wrench_projector(np.array([d.site_xpos[self.scene.robots[i].hand_site] for i in robots]))
 
+    def _clean_wrench(self, i: int) -> np.ndarray:
+        """Return `_sensor_wrench` of hand i, read once per physics step (`step` keeps it until the state moves)."""
+        return self._sensor_wrench(i) if self._clean is None else self._clean[i]
+
     def _ft_reading(self, i: int, noisy: bool) -> np.ndarray:
-        w = self._sensor_wrench(i)
+        w = self._clean_wrench(i).copy()
         if noisy:
-            w = w + np.r_[self.rng.normal(0.0, self.noise.force, 3), self.rng.normal(0.0, self.noise.torque, 3)]
+            w = w + np.concatenate(
+                (self.rng.normal(0.0, self.noise.force, 3), self.rng.normal(0.0, self.noise.torque, 3))
+            )
         return w
 
     def _motion_capture(self) -> np.ndarray:
         q, qd = self.cart_state()
-        return np.r_[q, qd] + self.rng.normal(0.0, 1.0, 6) * self.noise.measurement_std()
+        return np.concatenate((q, qd)) + self.rng.normal(0.0, 1.0, 6) * self.noise.measurement_std()
 
     def measure(self) -> Measurement:
         """Return motion capture of the cart, each robot's base/joint states and F/T reading, at the current instant."""
@@ -630,6 +639,7 @@ class MujocoPlant:
         if len(commands) != len(self.scene.robots):
             raise MujocoPlantError(f"{len(commands)} commands for {len(self.scene.robots)} robots")
         wall0 = time.perf_counter()
+        self._clean = None
         self._apply_load_changes()
         m, d = self.scene.model, self.scene.data
         t_end = self.t + self.dt
@@ -658,10 +668,11 @@ class MujocoPlant:
                 if r.base == "planar":
                     d.ctrl[r.base_actuators] = self._planar_base_rates(i, r, c.base_twist)
             mujoco.mj_step(m, d)
+            self._clean = [self._sensor_wrench(i) for i in range(len(self._laws))]
             self._joint_samples()
             self._track_slip()
             for i, law in enumerate(self._laws):
-                self._hand_sum[i] += self._hand_wrench_world(i, self._sensor_wrench(i))
+                self._hand_sum[i] += self._hand_wrench_world(i, self._clean[i])
                 if isinstance(law, AdmittanceArmLaw):  # the F/T at the physics rate: the law takes its period mean
                     law.sample(self._ft_at_grasp(i))
         self.t = t_end

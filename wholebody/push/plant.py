@@ -50,7 +50,7 @@ class Measurement:
     @property
     def z(self) -> np.ndarray:
         """Return the cart measurement vector (x, y, theta, xdot, ydot, thetadot) of the EKF (paper eq. 18)."""
-        return np.r_[self.cart_pose, self.cart_velocity]
+        return np.concatenate((self.cart_pose, self.cart_velocity))
 
 
 @dataclass(frozen=True)
