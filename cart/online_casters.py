@@ -83,6 +83,9 @@ class CasterBank:
         self._count = 0
         self.half_turns = np.zeros(self.n_geo)
         self._alpha = np.zeros((self.n_geo, 2))
+        self._rates = np.zeros((3, self.n_geo, 2))  # work arrays of raw_columns
+        self._units = np.zeros((N_COLUMNS, self.n_geo, 2))
+        self._coef = np.zeros((2, N_COLUMNS, self.n_geo, 2))
         g = self.n_geo
         self.cross = np.zeros((g, 6, N_COLUMNS))
         self.info = np.zeros((g, N_COLUMNS, N_COLUMNS))
@@ -92,9 +95,10 @@ class CasterBank:
         self.active: int | None = None
         self.threshold = chi2_isf(ALPHA / self.n_geo, N_COLUMNS)
 
-    def _swivel(self, v: float, om: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """Step the swivel angles over one period at forward speed v and yaw rate om; return (alpha, rate) (G, 2)."""
-        px, py = v - om * self.ys, om * self.xs  # (G, 2)
+    def _swivel(self, v: float, om: float, dt: float) -> tuple[np.ndarray, ...]:
+        """Step the swivel angles over one period at forward speed v and yaw rate om; return (alpha, rate, sin
+        alpha, cos alpha, px, py) (G, 2), (px, py) the swivel axes' velocity in {b} (broadcast to (G, 2))."""
+        px, py = v - om * self.ys, om * self.xs  # (1, 2), (G, 1)
         psi = np.arctan2(py, px)
         if self._pq is None:  # the casters start trailing straight back: alpha = 0, b = -psi
             self._pq = np.stack([np.sin(-0.5 * psi), np.cos(-0.5 * psi)])
@@ -102,39 +106,41 @@ class CasterBank:
             h = 0.5 * (self._psi - om * dt - psi)
             c, s = np.cos(h), np.sin(h)
             p, q = self._pq
-            self._pq = np.stack([p * c + q * s, q * c - p * s])
+            p_new, q_new = p * c + q * s, q * c - p * s
+            self._pq[0], self._pq[1] = p_new, q_new
         self._pq[0] *= np.exp(-np.hypot(px, py) * dt / self.es)
         self._pq /= np.abs(self._pq).sum(axis=0)
         self._psi = psi
         alpha = 2.0 * np.arctan2(self._pq[0], self._pq[1]) + psi
-        step = np.angle(np.exp(1j * (alpha - self._alpha)))
-        self.half_turns += np.abs(step).sum(axis=1) / (2.0 * math.pi)
+        step = np.abs((alpha - self._alpha + math.pi) % (2.0 * math.pi) - math.pi)  # the angle moved, wrapped
+        self.half_turns += step.sum(axis=1) / (2.0 * math.pi)
         self._alpha = alpha
-        rate = (-px * np.sin(alpha) + py * np.cos(alpha)) / self.es - om
-        return alpha, rate
+        sa, ca = np.sin(alpha), np.cos(alpha)
+        rate = (-px * sa + py * ca) / self.es - om
+        return alpha, rate, sa, ca, px, py
 
     def raw_columns(self, v: float, om: float, dt: float) -> np.ndarray:
         """Return the unfiltered caster columns (G, 2 rows, 4) of :func:`cart.identify_casters.unit_rows`.
 
         The Coulomb-like columns are regularised by ``EPS_SHARE`` of the running RMS of the rate they act on.
         """
-        alpha, rate = self._swivel(v, om, dt)
-        wheel = rate + om
-        rolling = (v - om * self.ys) * np.cos(alpha) + om * self.xs * np.sin(alpha)
+        _, rate, sa, ca, px, py = self._swivel(v, om, dt)
+        rates = self._rates
+        rates[0], rates[1], rates[2] = rate, rate + om, px * ca + py * sa  # bearing, wheel, rolling
         self._count += 1
-        self._sq += np.stack([np.mean(x * x, axis=1) for x in (rate, wheel, rolling)])
+        self._sq += np.add.reduce(rates * rates, axis=2) / 2.0  # the mean over the two casters
         eps = EPS_SHARE * np.sqrt(self._sq / self._count) + 1e-12  # (3, G)
-        arm = (self.xs * np.cos(alpha) + self.ys * np.sin(alpha)) / self.es
-        side = np.sin(alpha) / self.es
-        out = np.empty((self.n_geo, 2, N_COLUMNS))
-        units = ((np.tanh(rate / eps[0][:, None]), 1.0), (rate, 1.0), (np.tanh(wheel / eps[1][:, None]), 0.0))
-        for k, (unit, own) in enumerate(units):
-            out[:, 0, k] = -np.sum(unit * side, axis=1)
-            out[:, 1, k] = -np.sum(unit * (own - arm), axis=1)
-        roll = np.tanh(rolling / eps[2][:, None])
-        out[:, 0, 3] = np.sum(roll * np.cos(alpha), axis=1)
-        out[:, 1, 3] = np.sum(roll * (self.xs * np.sin(alpha) - self.ys * np.cos(alpha)), axis=1)
-        return out
+        units, coef = self._units, self._coef
+        coulomb = np.tanh(rates / eps[:, :, None])
+        units[0], units[1], units[2], units[3] = coulomb[0], rate, coulomb[1], coulomb[2]
+        arm = (self.xs * ca + self.ys * sa) / self.es
+        side = sa / self.es
+        coef[0, :3] = -side  # the forward row: the bearing's, viscous and wheel's sideways force, rolling
+        coef[0, 3] = ca
+        coef[1, 0] = coef[1, 1] = arm - 1.0  # the yaw row
+        coef[1, 2] = arm
+        coef[1, 3] = self.xs * sa - self.ys * ca
+        return np.ascontiguousarray(np.sum(units[None] * coef, axis=3).transpose(2, 0, 1))
 
     def restart(self, raw: np.ndarray) -> np.ndarray:
         """Restart the filter at rest on the raw columns (G, 2, 4); return them."""
@@ -147,10 +153,9 @@ class CasterBank:
 
     def increments(self, Y: np.ndarray, y: np.ndarray, w: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, ...]:
         """Return one sample's (cross (G, 6, 4), info (G, 4, 4), dvec (G, 4)) for rows Y (2, 6), y (2,), weights w."""
-        yw = Y * w[:, None]
-        cross = np.einsum("ri,grk->gik", yw, cols)
         cw = cols * w[None, :, None]
-        return cross, np.einsum("grk,grl->gkl", cw, cols), np.einsum("grk,r->gk", cw, y)
+        cw_t = cw.transpose(0, 2, 1)
+        return Y.T @ cw, cw_t @ cols, cw_t @ y
 
     def add(self, inc: tuple[np.ndarray, ...]) -> None:
         """Add one sample's increments to the sums."""
@@ -198,15 +203,23 @@ class CasterBank:
         ``expected`` (2,): the residual variance the noise model explains (for the misfit without the columns).
         """
         lam_m = math.exp(-dt / MISFIT_TIME_S)
-        self._misfit = lam_m * self._misfit + np.r_[1.0, r * r / expected]
-        ridge = RIDGE_SHARE * np.einsum("gkk->gk", self.info) + 1e-12
-        rhs = self.dvec - np.einsum("gik,i->gk", self.cross, p)
-        c = np.linalg.solve(self.info + ridge[:, :, None] * np.eye(N_COLUMNS), rhs[:, :, None])[:, :, 0]
-        e = r[None, :] - np.einsum("grk,gk->gr", cols, c)
+        mf = self._misfit
+        mf *= lam_m
+        mf[0] += 1.0
+        mf[1:] += r * r / expected
+        c = np.linalg.solve(self._ridged(self.info), (self.dvec - p @ self.cross)[:, :, None])
+        e = r[None, :] - (cols @ c)[:, :, 0]
         lam = math.exp(-dt / COMPARE_TIME_S)
         self._ssr *= lam
         self._ssr[0] += float(w @ (r * r))
         self._ssr[1:] += (e * e) @ w
+
+    def _ridged(self, info: np.ndarray, mat: np.ndarray | None = None) -> np.ndarray:
+        """Return ``mat`` (default ``info``; (G, k, k)) plus the ridge of ``info``'s diagonal (``RIDGE_SHARE``)."""
+        diag = info.diagonal(axis1=1, axis2=2)
+        out = (info if mat is None else mat).copy()
+        out.reshape(out.shape[0], -1)[:, :: N_COLUMNS + 1] += RIDGE_SHARE * diag + 1e-12
+        return out
 
     def nominal_misfit(self) -> float:
         """Return the residual ratio (largest row, windowed) of the model without the columns (1 before data)."""
@@ -225,10 +238,9 @@ class CasterBank:
         if not (swung.any() and self.nominal_misfit() > fits):  # a model that fits needs no more columns
             self.active = None
             return None
-        rhs = self.dvec - np.einsum("gik,i->gk", self.cross, p)
-        schur = self.info - np.einsum("gik,ij,gjl->gkl", self.cross, cov, self.cross)
-        schur += (RIDGE_SHARE * np.einsum("gkk->gk", self.info) + 1e-12)[:, :, None] * np.eye(N_COLUMNS)
-        score = np.einsum("gk,gk->g", rhs, np.linalg.solve(schur, rhs[:, :, None])[:, :, 0])
+        rhs = (self.dvec - p @ self.cross)[:, :, None]
+        schur = self.info - self.cross.transpose(0, 2, 1) @ (cov @ self.cross)
+        score = (rhs.transpose(0, 2, 1) @ np.linalg.solve(self._ridged(self.info, schur), rhs))[:, 0, 0]
         ok = swung & (score > self.threshold * max(misfit, 1.0) ** 2)
         ok &= self._ssr[0] - self._ssr[1:] > self.threshold  # predicts better, by more than chance allows
         if not ok.any():
