@@ -23,6 +23,7 @@ from statistics import NormalDist
 import numpy as np
 
 from cart.ekf import chi2_isf
+from cart.online_regression import solve_small
 
 N_INERTIAL = 4
 
@@ -50,6 +51,18 @@ class RingBuffer:
             return arr[:n]
         i = self.count % self.size
         return np.concatenate([arr[i:], arr[:i]])
+
+    @property
+    def length(self) -> int:
+        """Return the number of stored samples."""
+        return min(self.count, self.size)
+
+    def at(self, key: str, j: int) -> np.ndarray:
+        """Return the row ``j`` (0: the oldest stored) of ``key`` (as :meth:`read` ``[j]``, without the copy)."""
+        if not 0 <= j < self.length:
+            raise IndexError(f"row {j} of a buffer holding {self.length}")
+        start = self.count % self.size if self.count > self.size else 0
+        return self.data[key][(start + j) % self.size]
 
     def clear(self) -> None:
         """Forget every sample."""
@@ -105,10 +118,10 @@ class ChangeDetector:
         if self._filled < self.window_s:
             return False
         cov = (self._a2 + self._a @ p_cov @ self._a) * max(misfit, 1.0) ** 2
-        cov += np.diag(1e-12 * np.diag(cov) + 1e-300)
+        cov.flat[:: N_INERTIAL + 1] += 1e-12 * np.diag(cov) + 1e-300
         try:
-            self.statistic = float(self._s @ np.linalg.solve(cov, self._s))
-            self.delta = np.linalg.solve(self._a + ridge, self._s)
+            self.statistic = float(self._s @ solve_small(cov, self._s))
+            self.delta = solve_small(self._a + ridge, self._s)
         except np.linalg.LinAlgError:
             return False
         return self.statistic > self.threshold and abs(float(self.delta[0])) >= self.min_change * abs(mass)

@@ -25,10 +25,10 @@ from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import eigh, expm, solve_discrete_lyapunov
+from scipy.linalg import expm, get_lapack_funcs, solve_discrete_lyapunov
 
 from cart.errors import CartError, NumericalError
 from cart.online_casters import Nuisance
@@ -47,6 +47,42 @@ SIGNAL_MARGIN = 9.0
 EXCITATION_MARGIN = 1.0
 #: Largest share of a diagonal entry of the normal matrix that the noise correction removes.
 COMPENSATION_SHARE = 0.98
+
+# LAPACK's symmetric-definite generalized eigensolver (the driver scipy.linalg.eigh(a, b) calls) and the Cholesky
+# solve: called directly, without scipy's per-call checks (6 x 6 per step)
+_SYGVD, _POTRF, _POTRS, _GESV = get_lapack_funcs(("sygvd", "potrf", "potrs", "gesv"), (np.zeros((1, 1)),))
+_EYE6 = np.eye(6)
+_DIAG6 = np.arange(6) * 7  # the diagonal of a flattened 6 x 6
+
+
+def solve_small(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Return ``np.linalg.solve(a, b)`` for one small system (LAPACK's gesv, the routine numpy calls, without
+    numpy's per-call wrapping); raises ``np.linalg.LinAlgError`` when ``a`` is singular."""
+    x, info = _GESV(a, b)[2:]
+    if info != 0:
+        raise np.linalg.LinAlgError("Singular matrix")
+    return x
+
+
+def cholesky_small(a: np.ndarray) -> np.ndarray:
+    """Return ``np.linalg.cholesky(a)`` (lower; LAPACK's potrf, the routine numpy calls, without its per-call
+    wrapping); raises ``np.linalg.LinAlgError`` when ``a`` is not positive definite."""
+    chol, info = _POTRF(a, lower=1, clean=1)
+    if info != 0:
+        raise np.linalg.LinAlgError("Matrix is not positive definite")
+    return chol
+
+
+def _generalized_eigh(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return (w, v) of ``a v = b v w`` (a, b symmetric, b definite; lower triangles), as ``scipy.linalg.eigh(a, b)``.
+
+    Raises ValueError on a non-finite entry and ``np.linalg.LinAlgError`` when LAPACK fails (b not definite)."""
+    if not math.isfinite(float(a.sum()) + float(b.sum())):
+        raise ValueError("array must not contain infs or NaNs")
+    w, v, info = _SYGVD(a, b, itype=1, jobz="V", uplo="L")
+    if info != 0:
+        raise np.linalg.LinAlgError(f"the generalized eigenproblem failed (LAPACK sygvd info {info})")
+    return w, v
 
 
 class OnlineEstimatorError(CartError):
@@ -91,7 +127,7 @@ class StateVariableFilter:
     def step(self, u: np.ndarray, dt: float) -> np.ndarray:
         """Advance over dt with the input u held; return the states (3, channels)."""
         ad, bd = self.discretize(dt)
-        self.state = ad @ self.state + np.outer(bd, u)
+        self.state = ad @ self.state + bd[:, None] * u[None, :]
         return self.state
 
     def noise_gains(self, dt: float) -> tuple[float, float]:
@@ -107,6 +143,7 @@ class PhysicalPrior:
 
     center: np.ndarray
     std: np.ndarray
+    _inv_std: np.ndarray = field(init=False, repr=False, compare=False)  # the identity's rows over the stds
 
     def __post_init__(self) -> None:
         c, s = np.asarray(self.center, float), np.asarray(self.std, float)
@@ -116,15 +153,18 @@ class PhysicalPrior:
             raise OnlineEstimatorError(f"the prior needs a positive mass and positive stds, got {c}, {s}")
         object.__setattr__(self, "center", c)
         object.__setattr__(self, "std", s)
+        object.__setattr__(self, "_inv_std", np.eye(6) / s[:, None])
 
     def residual(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return (r, dr/dp): the prior's whitened residual at p = [m, a, b, J, c_v, c_w] and its Jacobian."""
         m = max(float(p[0]), MIN_MASS_SHARE * float(self.center[0]))  # linearized at a positive mass
-        phys = np.array([m, p[1] / m, p[2] / m, p[3] / m, p[4], p[5]])
-        jac = np.eye(6)
-        jac[1, 0], jac[2, 0], jac[3, 0] = -p[1] / m**2, -p[2] / m**2, -p[3] / m**2
-        jac[1, 1] = jac[2, 2] = jac[3, 3] = 1.0 / m
-        return (phys - self.center) / self.std, jac / self.std[:, None]
+        a, b, j, cv, cw = p[1:].tolist()
+        phys = np.array([m, a / m, b / m, j / m, cv, cw])
+        s1, s2, s3 = self.std[1:4].tolist()
+        jac = self._inv_std.copy()  # the identity's rows over the stds
+        jac[1, 0], jac[2, 0], jac[3, 0] = -a / m**2 / s1, -b / m**2 / s2, -j / m**2 / s3
+        jac[1, 1], jac[2, 2], jac[3, 3] = 1.0 / m / s1, 1.0 / m / s2, 1.0 / m / s3
+        return (phys - self.center) / self.std, jac
 
     def p(self) -> np.ndarray:
         """Return the prior's center as p = [m, m dx, m dy, m rho, c_v, c_w]."""
@@ -165,6 +205,8 @@ class RecursiveRegression:
         the residual ratio kappa, whose data carry kappa^2 less information than the noise model says).
         """
         d_mat, d_vec = (self.D, self.d) if self.nuisance is None else self.nuisance.eliminate(self.D, self.d)
+        if self.data_weight == 1.0:
+            return d_mat.copy(), d_vec.copy()
         return d_mat * self.data_weight, d_vec * self.data_weight
 
     def add(self, info: np.ndarray, dvec: np.ndarray, noise: np.ndarray, lam: float) -> None:
@@ -185,21 +227,21 @@ class RecursiveRegression:
             dd, dv = self.excited_part(sd, sv, jr)
             h = dd + jr.T @ jr
             try:
-                chol = np.linalg.cholesky(h)
+                chol = cholesky_small(h)
                 self.compensated = True
             except np.linalg.LinAlgError:  # the noise correction overshoots on little data: drop it
                 dd, dv = self.excited_part(d_mat, d_vec, jr)
                 h = dd + jr.T @ jr
                 h += np.diag(1e-12 * np.diag(h))
-                chol = np.linalg.cholesky(h)
+                chol = cholesky_small(h)
                 self.compensated = False
             g = h @ self.p - (dv + jr.T @ (jr @ self.p - r))
-            step = np.linalg.solve(chol.T, np.linalg.solve(chol, g))
-            if not np.all(np.isfinite(step)):
+            step = _POTRS(chol, g, lower=1)[0]
+            if not math.isfinite(float(step.sum())):
                 raise NumericalError("the online regression diverged (non-finite step)")
             self.p = self.p - step
             self.H = h
-            if float(np.abs(step[0])) <= 1e-9 * abs(float(self.p[0])):
+            if abs(float(step[0])) <= 1e-9 * abs(float(self.p[0])):
                 break
         return self.p
 
@@ -233,9 +275,10 @@ class RecursiveRegression:
         it is dropped from both D and d (the prior then holds it). The others keep D - C (bias-compensated).
         """
         scale = np.maximum(np.diag(d_mat), 1e-300)
-        c_reg = self.C * self.data_weight + np.diag(1e-6 * scale + 1e-300)
+        c_reg = self.C * self.data_weight
+        c_reg.flat[_DIAG6] += 1e-6 * scale + 1e-300
         try:
-            lam, v = eigh(d_mat, c_reg)
+            lam, v = _generalized_eigh(d_mat, c_reg)
         except np.linalg.LinAlgError:
             return d_mat - self.compensation(d_mat), d_vec
         keep = lam > 1.0 + SIGNAL_MARGIN
@@ -258,7 +301,7 @@ class RecursiveRegression:
 
     def covariance(self) -> np.ndarray:
         """Return the posterior covariance of p (the inverse of the last information matrix H)."""
-        return np.linalg.inv(self.H)
+        return solve_small(self.H, _EYE6)
 
     def prior_covariance(self) -> np.ndarray:
         """Return the covariance of p under the prior alone, linearized at the current estimate."""
@@ -296,7 +339,7 @@ class ResidualWindow:
         self.elapsed += dt if math.isfinite(dt) else 0.0
         self.yy = lam * self.yy + y * y / e
         self.yY = lam * self.yY + rows * (y / e)[:, None]
-        self.YY = lam * self.YY + np.einsum("ri,rj->rij", rows, rows) / e[:, None, None]
+        self.YY = lam * self.YY + rows[:, :, None] * rows[:, None, :] / e[:, None, None]
 
     def ratio2(self, p: np.ndarray, info: np.ndarray | None = None) -> float:
         """Return the squared residual ratio over the window (largest row; 1 before any sample).
@@ -308,9 +351,10 @@ class ResidualWindow:
         if self.weight <= 0.0:
             return 1.0
         if info is not None:
-            a = info + self.YY.sum(0)
-            p = np.linalg.solve(a + np.diag(1e-12 * np.diag(a) + 1e-300), info @ p + self.yY.sum(0))
-        power = self.yy - 2.0 * self.yY @ p + np.einsum("i,rij,j->r", p, self.YY, p)
+            a = info + self.YY[0] + self.YY[1]
+            a.flat[_DIAG6] += 1e-12 * np.diag(a) + 1e-300
+            p = solve_small(a, info @ p + self.yY[0] + self.yY[1])
+        power = self.yy - 2.0 * self.yY @ p + (self.YY @ p) @ p
         return float(np.max(power)) / self.weight
 
 
