@@ -199,7 +199,7 @@ def _vector(value: npt.ArrayLike, n: int, what: str) -> np.ndarray:
         raise OnlineEstimatorError(f"{what} must be {n} numbers, got {value!r}") from None
     if arr.shape != (n,):
         raise OnlineEstimatorError(f"{what} must have {n} entries, got shape {np.shape(value)}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise OnlineEstimatorError(f"{what} must be finite, got {arr.tolist()}")
     return arr
 
@@ -210,11 +210,11 @@ def _wrap(a: float) -> float:
 
 def _physical_jacobian(p: np.ndarray) -> np.ndarray:
     """Return d(m, dx, dy, I, c_v, c_w) / d(m, a, b, J, c_v, c_w) at p (the linearized phi -> physical map)."""
-    m, a, b, _ = p[:4]
+    m, a, b, _ = p[:4].tolist()
     jac = np.eye(6)
-    jac[1, :2] = (-a / m**2, 1.0 / m)
-    jac[2, [0, 2]] = (-b / m**2, 1.0 / m)
-    jac[3, :4] = ((a * a + b * b) / m**2, -2.0 * a / m, -2.0 * b / m, 1.0)
+    jac[1, 0], jac[1, 1] = -a / m**2, 1.0 / m
+    jac[2, 0], jac[2, 2] = -b / m**2, 1.0 / m
+    jac[3, 0], jac[3, 1], jac[3, 2] = (a * a + b * b) / m**2, -2.0 * a / m, -2.0 * b / m
     return jac
 
 
@@ -277,6 +277,7 @@ class OnlineLSEstimator:
         self._noise = [0.0, 0.0, 0.0]  # EW weight sum, EW sums of d3^2 / 20 (force, torque)
         self._raw: list[tuple[float, float]] = []
         self._cov = self.regression.covariance()
+        self._std_memo: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (cov, p, std) of _physical_std
         self._params = params0
         self._misfit = [0.0, 0.0, 0.0]  # EW weight, EW sums of normalized squared residuals (rows)
         self._local = ResidualWindow(options.misfit_weight_s or 2.0 * options.change_window_s)
@@ -335,8 +336,17 @@ class OnlineLSEstimator:
         }
 
     def _physical_std(self, cov: np.ndarray) -> np.ndarray:
-        jac = _physical_jacobian(self.regression.p)
-        return np.sqrt(np.maximum(np.diag(jac @ cov @ jac.T), 0.0))
+        """Return the physical parameters' std (:func:`_physical_jacobian`) of the covariance ``cov`` of p at the
+        regression's estimate (read-only; kept until ``cov`` or the estimate is replaced: the step, the controller's
+        :meth:`params_std` and the next step's impulse test read the same one)."""
+        p, last = self.regression.p, self._std_memo
+        if last is not None and last[0] is cov and last[1] is p:
+            return last[2]
+        jac = _physical_jacobian(p)
+        std = np.sqrt(np.maximum(np.diag(jac @ cov @ jac.T), 0.0))
+        std.flags.writeable = False
+        self._std_memo = (cov, p, std)
+        return std
 
     def unexcited(self) -> tuple[str, ...]:
         """Return the parameters the motion has not excited: posterior std above ``excited_ratio`` of the prior's.
@@ -665,10 +675,11 @@ class OnlineLSEstimator:
         p = reg.p
         r = y - Y @ p
         deflate = self._sample_deflation()
-        extra = self._caster_sample(Y, y, w, r, raw, dt, expected, deflate) if raw is not None else {}
+        pred = expected + np.einsum("ij,jk,ik->i", Y, self._cov, Y)  # residual variance: noise and the estimate's
+        extra = self._caster_sample(Y, y, w, r, raw, dt, pred, deflate) if raw is not None else {}
         share = extra.pop("fit", np.zeros(2))
         r = r - share
-        self._check_misfit(Y, r, expected, dt)
+        self._check_misfit(r, pred, dt)
         known = self._noise_known(dt)  # the residual window is relative to the noise model: only once it is known
         if known:
             self._local.add(Y, y - share, expected, dt)
@@ -764,7 +775,7 @@ class OnlineLSEstimator:
         r: np.ndarray,
         raw: np.ndarray,
         dt: float,
-        expected: np.ndarray,
+        pred: np.ndarray,
         deflate: float = 1.0,
     ) -> dict[str, np.ndarray]:
         """Filter the caster columns, compare the models on this sample (prequential), add it to the sums.
@@ -775,7 +786,6 @@ class OnlineLSEstimator:
         bank, reg = self.casters, self.regression
         assert bank is not None
         cols = bank.filtered(raw, dt)
-        pred = expected + np.einsum("ij,jk,ik->i", Y, self._cov, Y)
         bank.compare(r, w, cols, reg.p, dt, pred)
         out = {}
         if reg.nuisance is not None and bank.active is not None:
@@ -795,8 +805,8 @@ class OnlineLSEstimator:
         """
         _, jr = self.regression.prior.residual(self.regression.p)
         ridge = (jr.T @ jr)[:4, :4]
-        k = self._ring().read("k")
-        kappa = float(k[max(len(k) - 1 - int(self.options.change_window_s / dt), 0)])
+        buf = self._ring()
+        kappa = float(buf.at("k", max(buf.length - 1 - int(self.options.change_window_s / dt), 0)))
         p = float(self.regression.p[0])
         return self.detector.update(dt, s, info, self._cov[:4, :4], ridge, p, kappa)
 
@@ -1069,9 +1079,8 @@ class OnlineLSEstimator:
         elif not on:
             self._active.discard(kind)
 
-    def _check_misfit(self, Y: np.ndarray, r: np.ndarray, expected: np.ndarray, dt: float) -> None:
-        """Windowed innovation test: residual power over what noise and the estimate's std explain, per row."""
-        pred = expected + np.einsum("ij,jk,ik->i", Y, self._cov, Y)
+    def _check_misfit(self, r: np.ndarray, pred: np.ndarray, dt: float) -> None:
+        """Windowed innovation test: residual power over ``pred`` (what noise and the estimate's std explain), per row."""
         lam = math.exp(-dt / (2.0 * self.options.change_window_s))
         mf = self._misfit
         mf[0] = lam * mf[0] + 1.0
