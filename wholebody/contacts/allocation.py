@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING
 
@@ -285,7 +286,7 @@ def _torque_rows(
     right-hand side below 0 (the bias alone breaks the limit) is held at 0 so that w = 0 stays feasible.
     """
     rows: list[np.ndarray] = []
-    rhs: list[float] = []
+    rhs: list[np.ndarray] = []
     labels: list[str] = []
     over: list[str] = []
     for i, c in enumerate(constraints):
@@ -296,20 +297,26 @@ def _torque_rows(
         lim = np.asarray(c.limit, dtype=float)
         if J.ndim != 2 or J.shape[0] != 6 or g.shape != (J.shape[1],) or lim.shape != (J.shape[1],):
             raise WholeBodyError(f"arm{i} torque constraint: jacobian must be 6 x n with n biases and limits")
-        if np.any(lim <= 0) or not (np.isfinite(J).all() and np.isfinite(g).all()):
+        if (lim <= 0).any() or not (np.isfinite(J).all() and np.isfinite(g).all()):
             raise WholeBodyError(f"arm{i} torque limits must be positive and the Jacobian and bias finite")
         names = c.joints if len(c.joints) == J.shape[1] else tuple(f"joint {j}" for j in range(J.shape[1]))
         cap = (1.0 - margin) * lim
-        for j in range(J.shape[1]):
-            if abs(g[j]) > cap[j]:
-                over.append(f"arm{i} {names[j]}")
-            for sgn in (1.0, -1.0):
-                row = np.zeros(6 * n)
-                row[6 * i : 6 * i + 6] = sgn * J[:, j]
-                rows.append(row)
-                rhs.append(max(cap[j] - sgn * g[j], 0.0))
-                labels.append(f"arm{i} {names[j]} torque limit ({lim[j]:g} N m)")
-    return np.array(rows).reshape(-1, 6 * n), np.array(rhs), labels, over
+        over += [f"arm{i} {names[j]}" for j in np.flatnonzero(np.abs(g) > cap)]
+        block = np.zeros((2 * J.shape[1], 6 * n))  # per joint j: the row of +J_j, then of -J_j
+        block[0::2, 6 * i : 6 * i + 6] = J.T
+        block[1::2, 6 * i : 6 * i + 6] = -J.T
+        rows.append(block)
+        rhs.append(np.maximum(np.column_stack((cap - g, cap + g)).reshape(-1), 0.0))
+        labels += _torque_labels(i, tuple(names), tuple(lim.tolist()))
+    if not rows:
+        return np.zeros((0, 6 * n)), np.zeros(0), labels, over
+    return np.vstack(rows), np.concatenate(rhs), labels, over
+
+
+@lru_cache(maxsize=64)
+def _torque_labels(i: int, names: tuple[str, ...], limits: tuple[float, ...]) -> list[str]:
+    """Return the two rows' labels of each joint of arm i (`_torque_rows`); the caller copies them."""
+    return [f"arm{i} {name} torque limit ({lim:g} N m)" for name, lim in zip(names, limits) for _ in (1.0, -1.0)]
 
 
 def _inequalities(
@@ -740,7 +747,7 @@ class WrenchAllocator:
             sol = qpsolvers.solve_problem(
                 problem, solver=solver, **(self._solver_kwargs() if solver == self.solver else {})
             )
-            if sol.found and sol.x is not None and np.all(np.isfinite(sol.x)):
+            if sol.found and sol.x is not None and np.isfinite(sol.x).all():
                 break
         else:
             raise InfeasibleWrenchError(

@@ -137,7 +137,7 @@ class WheelVelocityLimit(Limit):
 
     def enforce(self, u: np.ndarray, s: StepState) -> None:
         if self._twist:
-            ratio = np.max(np.abs(self._W.dot(u[self._n_arm :])) / self.limit)
+            ratio = (np.abs(self._W.dot(u[self._n_arm :])) / self.limit).max()
             if ratio > 1.0:
                 u[self._n_arm :] /= ratio
 
@@ -252,4 +252,4 @@ class JointTorqueLimit(Limit):
             J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
             bias = bias + J[:, rows].T @ w
         lim = self.limit[self.bounded]
-        return np.vstack([Ma, -Ma]), np.r_[lim - bias, lim + bias]
+        return np.vstack([Ma, -Ma]), np.concatenate((lim - bias, lim + bias))

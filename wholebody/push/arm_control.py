@@ -347,9 +347,9 @@ def fit_in_limits(A: np.ndarray, x: np.ndarray, base: np.ndarray, limit: np.ndar
     held); where a uniform scale ``s x`` (`torque_budget`) drops all of ``x`` as soon as one joint has no room, the
     fit keeps the axes the other joints can still give. Solver failure: the uniform scale.
     """
-    if np.all(np.abs(base + A @ x) <= limit):
+    if (np.abs(base + A @ x) <= limit).all():
         return x
-    if np.any(np.abs(base) > limit):
+    if (np.abs(base) > limit).any():
         return None
     D = A / limit[:, None]
     H = D.T @ D
@@ -576,7 +576,7 @@ class TorqueArmLaw:
         tau = task_fit + Jt @ u_fit
         held = np.clip(tau + posture, -L, L)
         trimmed = w_fit is not self._w_d or u_fit is not u
-        self._record(task, held, trimmed, bool(np.any(held != tau + posture)))
+        self._record(task, held, trimmed, bool((held != tau + posture).any()))
         return held
 
     def _feedforward(self, g: TorqueArmGains, bias: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -608,9 +608,9 @@ class TorqueArmLaw:
         """
         ratio = np.abs(tau) / self.limit
         self.peak_joint_ratio = np.maximum(self.peak_joint_ratio, ratio)
-        self.peak_ratio = max(self.peak_ratio, float(np.max(ratio)))
-        self.peak_task_ratio = max(self.peak_task_ratio, float(np.max(np.abs(task) / self.limit)))
-        self.saturated_now = bool(np.any(ratio > 1.0))
+        self.peak_ratio = max(self.peak_ratio, float(ratio.max()))
+        self.peak_task_ratio = max(self.peak_task_ratio, float((np.abs(task) / self.limit).max()))
+        self.saturated_now = bool((ratio > 1.0).any())
         self._saturated = trimmed or self.saturated_now
         self.saturated_steps += int(self.saturated_now)
         self.scaled_steps += int(trimmed or posture_held)
@@ -719,7 +719,7 @@ class TorqueArmLaw:
         if g.ft_noise is None:
             return wrench_estimator(J, self.limit if g.weighted_estimate else None), np.zeros((6, 6))
         scale = self.limit if g.weighted_estimate else np.full(self.limit.size, float(np.mean(self.limit)))
-        sigma_ft = np.r_[np.full(3, g.ft_noise[0]), np.full(3, g.ft_noise[1])]
+        sigma_ft = np.repeat(np.array(g.ft_noise[:2], dtype=float), 3)
         return fused_estimator(J, self._joint_noise_factor() * g.joint_torque_noise * scale, sigma_ft)
 
     def _joint_noise_factor(self) -> float:

@@ -479,8 +479,8 @@ class BasePlan:
         c, s = math.cos(q[2]), math.sin(q[2])
         R = np.array([[c, -s], [s, c]])
         Ro = R @ o[:2]
-        rates = np.r_[qd[:2] + qd[2] * np.array([-Ro[1], Ro[0]]) + R @ od[:2], qd[2] + od[2]]
-        return np.r_[q[:2] + Ro, q[2] + o[2]], rates
+        rates = np.concatenate((qd[:2] + qd[2] * np.array([-Ro[1], Ro[0]]) + R @ od[:2], [qd[2] + od[2]]))
+        return np.concatenate((q[:2] + Ro, [q[2] + o[2]])), rates
 
     def posture(self, t: float) -> np.ndarray | None:
         """Return the arm posture of the plan at time t (None outside its windows)."""
