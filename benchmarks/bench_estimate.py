@@ -14,7 +14,8 @@ Never asserts a time.
 length; 20 minutes within 3 s), the CPU and wall time of :func:`cart.estimate_report.estimate_log` in
 process (what `cartpush estimate` runs; medians of ``--repeats``, after one untimed call that pays the lazy
 imports) and of the whole process ``cartpush estimate LOG --json`` (reading the log and start-up included:
-CPU = user + system, wall, peak resident memory; one run each). The logs are simulated first (about a
+CPU = user + system and wall, medians of ``--repeats`` runs, and the peak resident memory), each process run
+followed by the reference, a pure-Python loop of 10^7 additions (its median CPU time: the machine's speed). The logs are simulated first (about a
 minute for 20 minutes of log) and cached in ``--cache DIR``. ``--tiled``: also the 20-minute log of
 ``benchmarks/malformed_suite.py`` (a 40 s, 100 Hz push repeated on a 200 Hz clock, jumps every 40 s).
 OpenBLAS runs on one thread (``OPENBLAS_NUM_THREADS=1`` unless set), as `cartpush estimate` runs it.
@@ -55,8 +56,17 @@ def _time(fn) -> float:
     return time.perf_counter() - t0
 
 
-def _process(path: str) -> dict:
-    """Return the CPU (user + system) and wall seconds and peak resident MB of `cartpush estimate PATH --json`."""
+def _reference_loop() -> float:
+    """Return the CPU seconds of a pure-Python loop of 10^7 additions: the machine's speed beside the timings."""
+    c0 = time.process_time()
+    total = 0
+    for i in range(10_000_000):
+        total += i
+    return time.process_time() - c0
+
+
+def _process_once(path: str) -> tuple[float, float, float, float | None]:
+    """Return (CPU = user + system s, wall s, peak resident MB, mass) of one `cartpush estimate PATH --json`."""
     exe = os.path.join(os.path.dirname(sys.executable), "cartpush")
     t0 = time.perf_counter()
     proc = subprocess.Popen([exe, "estimate", path, "--json"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
@@ -64,10 +74,27 @@ def _process(path: str) -> dict:
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     mass = json.loads(out)["mass"] if status == 0 else None
+    return usage.ru_utime + usage.ru_stime, wall, usage.ru_maxrss / 1024.0, mass
+
+
+def _process(path: str, runs: int = 1) -> dict:
+    """Return the whole process `cartpush estimate PATH --json` over ``runs`` runs, each followed by the reference
+    loop (:func:`_reference_loop`): CPU (user + system) and wall medians and every run, peak resident MB (the
+    largest), the mass, and the reference loop's median CPU seconds."""
+    cpu, wall, peak, ref, mass = [], [], [], [], None
+    for _ in range(max(runs, 1)):
+        c, w, mb, mass = _process_once(path)
+        cpu.append(c)
+        wall.append(w)
+        peak.append(mb)
+        ref.append(_reference_loop())
     return {
-        "process_cpu_s": usage.ru_utime + usage.ru_stime,
-        "process_wall_s": wall,
-        "process_peak_mb": usage.ru_maxrss / 1024.0,
+        "process_cpu_s": statistics.median(cpu),
+        "process_wall_s": statistics.median(wall),
+        "process_cpu_runs": cpu,
+        "process_wall_runs": wall,
+        "process_peak_mb": max(peak),
+        "reference_loop_s": statistics.median(ref),
         "mass": mass,
     }
 
@@ -112,20 +139,22 @@ def _lengths(minutes: list[float], cache: str, repeats: int, tiled: bool, seed: 
             cpu.append(time.process_time() - c0)
             wall.append(time.perf_counter() - w0)
         row = {"log": name, "samples": len(log), "cpu_s": statistics.median(cpu), "wall_s": statistics.median(wall)}
-        rows.append({**row, **_process(path)})
+        rows.append({**row, **_process(path, repeats)})
     return rows
 
 
 def _print_lengths(rows: list[dict], repeats: int) -> None:
     """Print the table of :func:`_lengths`."""
     print(
-        f"estimate_log in process (medians of {repeats}) and `cartpush estimate LOG --json` (one run); load {os.getloadavg()[0]:.1f}"
+        f"estimate_log in process and `cartpush estimate LOG --json` (medians of {repeats}; each process run "
+        f"followed by a pure-Python loop of 10^7 additions, the reference); load {os.getloadavg()[0]:.1f}"
     )
-    print("  log            samples   CPU s  wall s | process CPU s  wall s  peak MB  mass kg")
+    print("  log            samples   CPU s  wall s | process CPU s  wall s  peak MB  mass kg | reference s")
     for r in rows:
+        mass = r["mass"] if r["mass"] is None else round(r["mass"], 3)
         print(
             f"  {r['log']:13s} {r['samples']:8d} {r['cpu_s']:7.2f} {r['wall_s']:7.2f} | {r['process_cpu_s']:13.2f} "
-            f"{r['process_wall_s']:7.2f} {r['process_peak_mb']:8.0f}  {r['mass'] if r['mass'] is None else round(r['mass'], 3)}"
+            f"{r['process_wall_s']:7.2f} {r['process_peak_mb']:8.0f}  {mass} | {r['reference_loop_s']:11.2f}"
         )
 
 
