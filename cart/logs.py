@@ -14,6 +14,7 @@ glitches) is read, with plain-language notes in ``CartLog.warnings``
 
 from __future__ import annotations
 
+import codecs
 import gzip
 import math
 import os
@@ -152,21 +153,31 @@ def estimate_velocities(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
     return local_polyfit(t, q, half_window, degree)[1]
 
 
-def _read_lines(path: str) -> list[str]:
-    """Return the file's lines (a .gz file decompressed in one call; utf-8-sig: a byte-order mark that Excel and
-    some Windows tools write is not part of the header)."""
+def _read_lines(path: str) -> tuple[list[str], str, bytes]:
+    """Return the file's (lines, text, UTF-8 bytes of the text): a .gz file decompressed in one call; utf-8-sig:
+    a byte-order mark that Excel and some Windows tools write is not part of the header (nor of the bytes)."""
     try:
         with open(path, "rb") as fh:
             data = fh.read()
         if path.endswith(".gz"):
             data = gzip.decompress(data)
-        return data.decode("utf-8-sig").splitlines()
+        text = data.decode("utf-8-sig")
     except (OSError, EOFError, zlib.error) as exc:  # gzip's BadGzipFile is an OSError; corrupt data a zlib.error
         if isinstance(exc, (FileNotFoundError, IsADirectoryError, PermissionError)):
             raise
         raise LogFormatError(f"{path}: cannot read the file: {exc}") from None
     except UnicodeDecodeError as exc:
         raise LogFormatError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    return text.splitlines(), text, data[3:] if data.startswith(codecs.BOM_UTF8) else data
+
+
+def _tail_bytes(text: str, data: bytes, lines: list[str], first: int) -> memoryview:
+    """Return the bytes of ``text`` (UTF-8 ``data``) from its line ``first`` (an index of ``lines``, its
+    ``splitlines``) on, without a copy: each line ends with ``\\r\\n`` or one character (``str.splitlines``)."""
+    pos = 0
+    for line in lines[:first]:
+        pos += len(line) + (2 if text.startswith("\r\n", pos + len(line)) else 1)
+    return memoryview(data)[len(text[: min(pos, len(text))].encode()) :]
 
 
 def _metadata(lines: list[str]) -> tuple[dict[str, str], int]:
@@ -260,28 +271,48 @@ def _epoch_hint(name: str, value: float) -> str:
     return ""
 
 
-def _parse_rows_fast(body: list[str], header: list[str], wanted: list[str]) -> np.ndarray | None:
-    """Return the values (rows, len(wanted)) in one numpy conversion, or None when any line needs the checked parser.
+def _parse_rows_fast(
+    blob: bytes | memoryview, body: list[str], header: list[str], wanted: list[str]
+) -> np.ndarray | None:
+    """Return the values (rows, len(wanted)) of the data lines ``body`` (``blob``: their UTF-8 bytes) in one
+    pyarrow CSV conversion, or None when any line needs the checked parser :func:`_parse_rows`.
 
-    Valid when every line has all fields, every field is a number (numpy's C reader parses text as
-    ``float`` does, and refuses a line whose number of fields differs) and the used columns are within
-    ``MAX_ABS_VALUE``; otherwise :func:`_parse_rows` names the problem.
+    Valid when every line has all fields and every used field is a float64 by pyarrow's parser (correctly
+    rounded, as ``float``; no nulls, no quoting, no inference: text ``float`` refuses, "nan" or "inf" fail
+    here or at the range check) and the used columns are within ``MAX_ABS_VALUE``. pyarrow ends lines at
+    ``\\n`` / ``\\r`` only: a line ``str.splitlines`` also ends elsewhere gives fewer rows than ``body``.
     """
-    if not body or not all(body):  # the C reader skips an empty line: its file line would be lost
+    if not body or not all(body):  # pyarrow skips or refuses an empty line: its file line would be lost
         return None
+    import pyarrow as pa  # type: ignore[import-untyped]
+    import pyarrow.csv as pa_csv  # type: ignore[import-untyped]
+
+    names = [f"c{k}" for k in range(len(header))]
+    used = [names[header.index(c)] for c in wanted]
     try:
-        table = np.loadtxt(body, delimiter=",", comments=None, dtype=float, ndmin=2, quotechar=None)
-    except ValueError:
+        table = pa_csv.read_csv(
+            pa.BufferReader(blob),
+            read_options=pa_csv.ReadOptions(column_names=names, use_threads=False),
+            parse_options=pa_csv.ParseOptions(quote_char=False, escape_char=False, ignore_empty_lines=False),
+            convert_options=pa_csv.ConvertOptions(
+                column_types={n: pa.float64() for n in names},
+                include_columns=used,
+                null_values=[],
+                strings_can_be_null=False,
+                quoted_strings_can_be_null=False,
+            ),
+        )
+    except (pa.ArrowException, ValueError):
         return None
-    if table.shape != (len(body), len(header)):  # a line of blanks only is skipped too
+    if table.num_rows != len(body) or any(table.column(n).null_count for n in used):
         return None
-    rows = table[:, [header.index(c) for c in wanted]]
+    rows = np.column_stack([table.column(n).to_numpy() for n in used]).astype(float, copy=False)
     return rows if np.all(np.abs(rows) <= MAX_ABS_VALUE) else None
 
 
 def _parse_rows(path: str, body: list[str], header: list[str], wanted: list[str], line_of: np.ndarray) -> np.ndarray:
     """Return the values (rows, len(wanted)) of the data lines; ``line_of``: the file line of each."""
-    fast = _parse_rows_fast(body, header, wanted)
+    fast = _parse_rows_fast("\n".join(body).encode(), body, header, wanted)
     if fast is not None:
         return fast
     col = {c: header.index(c) for c in wanted}
@@ -383,19 +414,21 @@ def _data_lines(lines: list[str], first: int) -> tuple[list[str], np.ndarray, in
 def read_log(path: str | os.PathLike) -> CartLog:
     """Return the CartLog of a docs/log_format.md file (.csv or .csv.gz); raise LogFormatError on bad input."""
     path = os.fspath(path)
-    lines = _read_lines(path)
+    lines, text, data = _read_lines(path)
     metadata, i = _metadata(lines)
     if i >= len(lines):
         raise LogFormatError(f"{path}: the file is empty (no header line)")
     header_line = i + 1
+    blob = _tail_bytes(text, data, lines, i + 1)
     if '"' in lines[i]:  # CSV quoting ("t","x",... or "0.1","2.0",...): the quotes are not part of the values
         lines = lines[:i] + [line.replace('"', "") for line in lines[i:]]
+        blob = memoryview(bytes(blob).replace(b'"', b""))
     header, wanted = _header_columns(path, lines[i], header_line)
     units = header_units(lines[i])
     if units:
         metadata["units (header)"] = units
     body, line_of, comments = lines[i + 1 :], np.arange(i + 2, len(lines) + 1), 0
-    rows = _parse_rows_fast(body, header, wanted)  # a plain table: no blank or comment line parses this way
+    rows = _parse_rows_fast(blob, body, header, wanted)  # a plain table: no blank or comment line parses this way
     if rows is None:
         body, line_of, comments = _data_lines(lines, i + 1)
         rows = _parse_rows(path, body, header, wanted, line_of)
