@@ -16,7 +16,8 @@ Two runs per case (robot, trajectory):
 Prints one table; never asserts a time (the real-time factor depends on the machine and its load). The closed
 loop's times cover what a user's ``cartpush push --plant mujoco`` runs after its imports: ``build_controller``
 (the base plan's SLSQP included), the plant's settling and ``run_loop``; the modules these import on first use (the
-base plan's, the online estimator's) are imported with this script, before any timer starts. ``real_time_factor_loop`` is the
+base plan's, the online estimator's) are imported with this script, before any timer starts. OpenBLAS runs on one
+thread (``OPENBLAS_NUM_THREADS=1`` unless set), as `cartpush push` runs it. ``real_time_factor_loop`` is the
 simulated duration over their wall time, ``real_time_factor_cpu`` over their process CPU time (which other
 processes' load changes less), ``real_time_factor_loop_cpu`` over the CPU time of the loop's controller and plant
 steps alone, ``real_time_factor_plant`` the plant's own (wall, its steps alone). The CPU time
@@ -39,7 +40,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # read when numpy loads: as `cartpush push` sets it
 
 import numpy as np
 

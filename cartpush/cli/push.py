@@ -280,6 +280,11 @@ def _arm_limits(torque_arm: float | None) -> ArmLimits:
 
 def run(args: argparse.Namespace) -> int:
     """Run the loop; print the metrics (table or JSON) and write the requested files."""
+    from cartpush.cli.estimate import _one_blas_thread
+
+    _one_blas_thread()  # before numpy loads: the base plan's SLSQP and the loop's small matrices gain nothing from
+    # a second thread, which spins waiting for a core (build_controller of Traj. 2 on the loaded 2-core machine:
+    # 7.0 s CPU with the default threads, 2.8 s with one)
     config = config_from_args(args)
     if args.out is not None:
         options.writable_dir(args.out)
