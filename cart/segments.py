@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from cart._kernels_identify import median, median_columns
 from cart.logs import CartLog
 
 if TYPE_CHECKING:
@@ -308,7 +309,7 @@ def best_split(
     total = _split_residuals(x, y, scale, idx, kernels, exchange, shared)
     if kernels is not None:  # within the plain split's stretch, widened by the filter's reach
         lo, hi = _near(_split_residuals(x, y, scale, idx, kernels, exchange, shared, filtered=False), tol)
-        reach_t = kernels.half * float(np.median(np.diff(t)))
+        reach_t = kernels.half * float(median(np.diff(t)))
         total = np.where((t[idx] >= t[idx[lo]] - reach_t) & (t[idx] <= t[idx[hi]] + reach_t), total, np.inf)
     lo, hi = _near(total, tol)
     return float(0.5 * (t[idx[lo]] + t[idx[hi]])), float(t[idx[lo]]), float(t[idx[hi]])
@@ -715,7 +716,7 @@ def robust_weights(s: _Search) -> np.ndarray:
     n = max(1, int(round(ROBUST_WINDOW_S / s.row_dt)))
     box = np.ones(2 * n + 1) / (2 * n + 1)
     local = np.stack([np.convolve(r2[:, j], box)[n : n + len(r2)] for j in range(2)], axis=1)  # centred windows
-    typical = np.median(local, axis=0)
+    typical = median_columns(local)
     return np.minimum(1.0, ROBUST_MISFIT * np.sqrt(typical[None, :] / np.maximum(local, 1e-300)))
 
 

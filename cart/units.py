@@ -28,6 +28,7 @@ import re
 
 import numpy as np
 
+from cart._kernels_identify import median
 from cart.errors import CartError
 from cart.streams import Streams
 
@@ -51,7 +52,7 @@ class UnitsError(CartError):
 
 def _windows(t: np.ndarray, span: float) -> int:
     """Return the number of samples in about ``span`` seconds (at least 1)."""
-    med = float(np.median(np.diff(t)))
+    med = float(median(np.diff(t)))
     return max(1, int(math.ceil(span / med))) if med > 0 else 1
 
 
@@ -59,7 +60,7 @@ def _travel_vs_heading(t: np.ndarray, q: np.ndarray, w: int) -> float:
     """Return the share of moving, turning windows where the heading turns ~57x the direction of travel."""
     d = q[w:] - q[:-w]
     dist = np.hypot(d[:, 0], d[:, 1])
-    moving = dist > 10.0 * np.median(np.abs(np.diff(q[:, :2], axis=0))) + 1e-12
+    moving = dist > 10.0 * median(np.abs(np.diff(q[:, :2], axis=0))) + 1e-12
     psi = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
     dpsi = psi[w:] - psi[:-w]
     dth = q[2 * w :, 2] - q[w:-w, 2]  # heading change over the same stretch (pose instants w..2w)
@@ -77,12 +78,12 @@ def _heading_fit(t: np.ndarray, q: np.ndarray, w: int) -> tuple[float, float]:
     """
     d = q[w:, :2] - q[:-w, :2]
     dist = np.hypot(d[:, 0], d[:, 1])
-    moving = dist > 10.0 * np.median(np.abs(np.diff(q[:, :2], axis=0))) + 1e-12
+    moving = dist > 10.0 * median(np.abs(np.diff(q[:, :2], axis=0))) + 1e-12
     if moving.sum() < 10:
         return 0.0, 1.0
     psi = np.arctan2(d[moving, 1], d[moving, 0])
     th = 0.5 * (q[w:, 2] + q[:-w, 2])[moving]
-    return float(np.median(np.abs(np.sin(psi - th)))), float(np.median(np.abs(np.sin(psi - np.radians(th)))))
+    return float(median(np.abs(np.sin(psi - th)))), float(median(np.abs(np.sin(psi - np.radians(th)))))
 
 
 def _time_unit(period: float) -> tuple[str, float]:
@@ -123,7 +124,7 @@ def check_units(streams: Streams, source: str = "<memory>") -> None:
     if len(t) < 5:
         return
     _constant_wrench_column(streams, source)
-    period = float(np.median(np.diff(t)))
+    period = float(median(np.diff(t)))
     if period > MAX_POSE_PERIOD:
         unit, factor = _time_unit(period)
         raise UnitsError(
