@@ -241,24 +241,28 @@ def hand_inertia_torque(
     return t + K @ np.asarray(a_base, dtype=float)
 
 
-def null_space_projector_T(J: np.ndarray, M: np.ndarray) -> np.ndarray:
-    """Return N^T = I - J^T Jbar^T, the dynamically consistent null-space projector of joint torques."""
-    Minv = np.linalg.inv(M)
+def null_space_projector_T(J: np.ndarray, M: np.ndarray, Minv: np.ndarray | None = None) -> np.ndarray:
+    """Return N^T = I - J^T Jbar^T, the dynamically consistent null-space projector of joint torques (`Minv`:
+    ``M^-1`` when the caller has it)."""
+    Minv = np.linalg.inv(M) if Minv is None else Minv
     lam = np.linalg.inv(J @ Minv @ J.T + 1e-9 * np.eye(J.shape[0]))
     Jbar = Minv @ J.T @ lam
     return np.eye(M.shape[0]) - J.T @ Jbar.T
 
 
-def implicit_impedance(NT: np.ndarray, M: np.ndarray, damping: float, dt: float) -> np.ndarray:
+def implicit_impedance(
+    NT: np.ndarray, M: np.ndarray, damping: float, dt: float, Minv: np.ndarray | None = None
+) -> np.ndarray:
     """Return ``A = (I + dt N^T D M^-1)^-1 N^T``: the joint impedance ``tau = A (K (q_plan - q) + D (v_plan - v))``
     with its damping on the velocity at the end of the physics step, ``v + dt M^-1 tau`` (semi-implicit; ``D = d I``).
 
     ``tau = N^T (K e + D (v_plan - v - dt M^-1 tau))`` solved for ``tau``: on a motion of inertia ``I`` the explicit
     damping's step response ``1 - D dt / I`` turns unstable below ``I = D dt / 2``; here it is ``1 / (1 + D dt / I)``,
     stable for any inertia, and where ``D dt`` is small against the inertia (the posture's usual motions) the law is
-    the explicit one. ``A`` keeps ``tau`` in the range of ``N^T`` (the hand's null space)."""
+    the explicit one. ``A`` keeps ``tau`` in the range of ``N^T`` (the hand's null space). `Minv`: ``M^-1`` when the
+    caller has it."""
     n = M.shape[0]
-    return np.linalg.solve(np.eye(n) + dt * damping * NT @ np.linalg.inv(M), NT)
+    return np.linalg.solve(np.eye(n) + dt * damping * NT @ (np.linalg.inv(M) if Minv is None else Minv), NT)
 
 
 def wrench_estimator(J: np.ndarray, effort_limit: np.ndarray | None = None) -> np.ndarray:
@@ -370,6 +374,16 @@ def _joint_damping(joint_damping: np.ndarray | None, n: int) -> np.ndarray:
     return D
 
 
+def _within(tau: np.ndarray, limit: np.ndarray) -> bool:
+    """Return ``(|tau| <= limit).all()`` (the test of `fit_in_limits`; as a list: a numpy reduction costs 1 us)."""
+    return False not in (np.abs(tau) <= limit).tolist()
+
+
+def _clip(tau: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """Return ``np.clip(tau, -limit, limit)`` (its arithmetic without its per-call wrapping)."""
+    return np.minimum(np.maximum(tau, -limit), limit)
+
+
 class TorqueArmLaw:
     """The torque law of one arm (see the module docstring); `begin` once per period, `torque` each physics step."""
 
@@ -416,6 +430,8 @@ class TorqueArmLaw:
         self._bias0: np.ndarray | None = None
         #: the command's plan term (arm_torque - J^T w - b_0), low-passed over the periods (mode "smoothed")
         self._plan: np.ndarray | None = None
+        #: `_plan_ff` of the period (the plan part of the feed-forward: fixed from the period's first step on)
+        self._plan_period = np.zeros(self.limit.size)
         self._Jw = np.zeros(self.limit.size)
         self._arm_torque = np.zeros(self.limit.size)
         self._period = 0.01
@@ -475,12 +491,13 @@ class TorqueArmLaw:
         self._Jw = J.T @ np.asarray(hand_wrench, dtype=float)
         self._period = dt
         self._v = v_new
-        NT = null_space_projector_T(J, M)
+        Minv = np.linalg.inv(M)
+        NT = null_space_projector_T(J, M, Minv)
         self._task_proj = np.eye(M.shape[0]) - NT
         self._NT = NT if self.gains.null_space else np.eye(M.shape[0])
         self._NT_imp = self._NT
         if self.gains.implicit_damping:
-            self._NT_imp = implicit_impedance(self._NT, M, self.gains.damping, self._dt)
+            self._NT_imp = implicit_impedance(self._NT, M, self.gains.damping, self._dt, Minv)
         self._J = J
         self._Jt_pinv, self._E_ft = self._estimator(J)
         self._Jr = J[3:]
@@ -534,7 +551,7 @@ class TorqueArmLaw:
             tau = task + self._J.T @ u + posture
             self._record(task, tau, False, False)
         if self.saturated_now:
-            tau = np.clip(tau, -self.limit, self.limit)
+            tau = _clip(tau, self.limit)
         self._tau_cmd = tau
         return tau
 
@@ -569,14 +586,21 @@ class TorqueArmLaw:
         """
         L, Jt = self.limit, self._J.T
         base = task - self._Jw  # the task part besides J^T w: the bias forces (and the plan's, modes "command"...)
-        w_fit = fit_in_limits(Jt, self._w_d, base, L)
-        task_fit = np.clip(task, -L, L) if w_fit is None else base + Jt @ w_fit
-        u_fit = fit_in_limits(Jt, u, task_fit, L)
-        u_fit = np.zeros(6) if u_fit is None else u_fit
-        tau = task_fit + Jt @ u_fit
-        held = np.clip(tau + posture, -L, L)
+        w_fit: np.ndarray | None = self._w_d
+        task_fit = base + Jt @ self._w_d  # fit_in_limits' own test, kept for the common case where it fits
+        if not _within(task_fit, L):
+            w_fit = fit_in_limits(Jt, self._w_d, base, L)
+            task_fit = _clip(task, L) if w_fit is None else base + Jt @ w_fit
+        u_fit: np.ndarray | None = u
+        tau = task_fit + Jt @ u
+        if not _within(tau, L):
+            u_fit = fit_in_limits(Jt, u, task_fit, L)
+            u_fit = np.zeros(6) if u_fit is None else u_fit
+            tau = task_fit + Jt @ u_fit
+        wanted = tau + posture
+        held = _clip(wanted, L)
         trimmed = w_fit is not self._w_d or u_fit is not u
-        self._record(task, held, trimmed, bool((held != tau + posture).any()))
+        self._record(task, held, trimmed, True in (held != wanted).tolist())
         return held
 
     def _feedforward(self, g: TorqueArmGains, bias: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -588,7 +612,8 @@ class TorqueArmLaw:
             if self._bias0 is None:  # the period's first step: the bias forces inside the command's torque
                 self._bias0 = np.asarray(bias, dtype=float).copy()
                 self._plan = self._plan_term(g, self._bias0)
-            return self._Jw + bias, self._plan_ff(g, bias)
+                self._plan_period = self._plan_ff(g, bias)  # fixed over the period (b_0, N^T and the plan are)
+            return self._Jw + bias, self._plan_period
         zero = np.zeros(self.limit.size)
         return (self._ff, zero) if g.feedforward == "command" else (self._ff + bias, zero)
 
@@ -608,9 +633,10 @@ class TorqueArmLaw:
         """
         ratio = np.abs(tau) / self.limit
         self.peak_joint_ratio = np.maximum(self.peak_joint_ratio, ratio)
-        self.peak_ratio = max(self.peak_ratio, float(ratio.max()))
-        self.peak_task_ratio = max(self.peak_task_ratio, float((np.abs(task) / self.limit).max()))
-        self.saturated_now = bool((ratio > 1.0).any())
+        largest = max(ratio.tolist())  # the reductions of a few joints as Python floats (a numpy one costs 1 us)
+        self.peak_ratio = max(self.peak_ratio, largest)
+        self.peak_task_ratio = max(self.peak_task_ratio, max((np.abs(task) / self.limit).tolist()))
+        self.saturated_now = largest > 1.0
         self._saturated = trimmed or self.saturated_now
         self.saturated_steps += int(self.saturated_now)
         self.scaled_steps += int(trimmed or posture_held)

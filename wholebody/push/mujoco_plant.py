@@ -71,6 +71,7 @@ TUNED_ADMITTANCE: frozenset[str] = frozenset()
 GRAVITY_VECTOR = np.array([0.0, 0.0, -mujoco_cart.GRAVITY])
 #: the constraint types whose forces are the joints' own (dof friction, joint limits), as ints: a numpy array
 #: compared with MuJoCo's enum objects compares element by element in Python (about 1 ms per physics step)
+_SITE = mujoco.mjtObj.mjOBJ_SITE
 _JOINT_INTERNAL = (int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF), int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT))
 
 
@@ -78,12 +79,6 @@ def arm_mode_of(mm) -> str:
     """Return how a robot's arm is driven: its profile's ``arm_control`` if it has one, else `ARM_MODES` by name."""
     mode = getattr(mm.profile, "arm_control", None)
     return str(mode) if mode else ARM_MODES.get(mm.wb.robot.name, ARM_VELOCITY)
-
-
-def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Return the cross product of two 3-vectors (`np.cross` without its axis handling: the sensing calls it at
-    every physics step)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
 class MujocoPlantError(WholeBodyError):
@@ -314,6 +309,10 @@ class MujocoPlant:
         #: each hand's `_sensor_wrench` at the state of the last physics step of `step` (None: not read at this state)
         self._clean: list[np.ndarray] | None = None
         self._base_int = [np.zeros(3) for _ in range(n_robots)]
+        #: the force rows of the robots' stacked wrenches (`_split_error`)
+        self._force_rows = np.array([6 * i + k for i in range(n_robots) for k in range(3)])
+        #: the F/T noise's standard deviations per axis (force, torque)
+        self._ft_std = np.repeat([self.noise.force, self.noise.torque], 3).astype(float)
 
     def _draw_joint_noise(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """Return each robot's joint torque sensing noise: (white std per step, offset drawn once), N m per joint."""
@@ -497,38 +496,55 @@ class MujocoPlant:
     def _sensor_wrench(self, i: int) -> np.ndarray:
         """Return the hand's wrench on the cart in the F/T frame, about its origin (tool load removed), no noise."""
         r, d = self.scene.robots[i], self.scene.data
-        f = d.sensordata[r.force_adr : r.force_adr + 3]
-        n = d.sensordata[r.torque_adr : r.torque_adr + 3]
+        f0, f1, f2 = d.sensordata[r.force_adr : r.force_adr + 3].tolist()
+        n0, n1, n2 = d.sensordata[r.torque_adr : r.torque_adr + 3].tolist()
         R = d.site_xmat[r.ft_site].reshape(3, 3)
         g_s = R.T @ (r.tool_mass * self._tool_proper_acceleration(i))  # the tool's load in the sensor frame
+        gx, gy, gz = g_s.tolist()
+        cx, cy, cz = r.tool_com.tolist()
         # MuJoCo senses what the child subtree applies to its parent: the hand's push on the cart, minus the
         # tool's load (F_sensor = w_hand - m (g - a): its weight and its inertia), and likewise for the torque
-        return np.concatenate((f + g_s, n + _cross3(r.tool_com, g_s)))
+        # (3-vectors as Python floats: the same arithmetic as numpy's, without its per-call cost)
+        return np.array(
+            [f0 + gx, f1 + gy, f2 + gz, n0 + (cy * gz - cz * gy), n1 + (cz * gx - cx * gz), n2 + (cx * gy - cy * gx)]
+        )
 
     def _tool_proper_acceleration(self, i: int) -> np.ndarray:
         """Return g - a of the tool's centre of mass (world, m/s^2): gravity less its acceleration (the tool rides on
         the handle, so a is the handle's; read from MuJoCo's body accelerations of this step)."""
         r, m, d = self.scene.robots[i], self.scene.model, self.scene.data
         acc, vel = self._site_acc, self._site_vel
-        mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_SITE, r.ft_site, acc, 0)
-        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, r.ft_site, vel, 0)
-        rho = d.site_xmat[r.ft_site].reshape(3, 3) @ r.tool_com
-        w = vel[:3]
-        # MuJoCo's accelerations carry -g (an accelerometer's reading): acc[3:] = a_site - g
-        return -(acc[3:] + _cross3(acc[:3], rho) + _cross3(w, _cross3(w, rho)))
+        mujoco.mj_objectAcceleration(m, d, _SITE, r.ft_site, acc, 0)
+        mujoco.mj_objectVelocity(m, d, _SITE, r.ft_site, vel, 0)
+        rx, ry, rz = (d.site_xmat[r.ft_site].reshape(3, 3) @ r.tool_com).tolist()
+        ax, ay, az, lx, ly, lz = acc.tolist()
+        wx, wy, wz = vel[:3].tolist()
+        vx, vy, vz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx  # w x rho
+        # MuJoCo's accelerations carry -g (an accelerometer's reading): acc[3:] = a_site - g;
+        # g - a = -(acc[3:] + alpha x rho + w x (w x rho))
+        return -np.array(
+            [
+                lx + (ay * rz - az * ry) + (wy * vz - wz * vy),
+                ly + (az * rx - ax * rz) + (wz * vx - wx * vz),
+                lz + (ax * ry - ay * rx) + (wx * vy - wy * vx),
+            ]
+        )
 
     def _hand_wrench_world(self, i: int, w_s: np.ndarray) -> np.ndarray:
         """Return a sensor-frame wrench as world-aligned [f, n] at the grasp (the hand's site)."""
         r, d = self.scene.robots[i], self.scene.data
         R = d.site_xmat[r.ft_site].reshape(3, 3)
         f, n = R @ w_s[:3], R @ w_s[3:]
-        o, p = d.site_xpos[r.ft_site], d.site_xpos[r.hand_site]
-        return np.concatenate((f, n + _cross3(o - p, f)))
+        ox, oy, oz = d.site_xpos[r.ft_site].tolist()
+        px, py, pz = d.site_xpos[r.hand_site].tolist()
+        rx, ry, rz = ox - px, oy - py, oz - pz
+        fx, fy, fz = f.tolist()
+        n0, n1, n2 = n.tolist()
+        return np.array([fx, fy, fz, n0 + (ry * fz - rz * fy), n1 + (rz * fx - rx * fz), n2 + (rx * fy - ry * fx)])
 
     def _ft_at_grasp(self, i: int) -> np.ndarray:
         """Return the F/T sensor's reading of this physics step (with its noise) as the hand's wrench at the grasp."""
-        n = self.noise
-        noise = np.concatenate((self._rng_loop.normal(0.0, n.force, 3), self._rng_loop.normal(0.0, n.torque, 3)))
+        noise = self._rng_loop.standard_normal(6) * self._ft_std  # the draws of normal(0, force, 3), normal(0, torque, 3)
         return self._hand_wrench_world(i, self._clean_wrench(i) + noise)
 
     def _force_loops(self) -> dict[int, np.ndarray]:
@@ -748,18 +764,33 @@ class MujocoPlant:
             return
         # d.qM, qfrc_*, efc_* are the step's state (mj_step integrates after them)
         mujoco.mj_mulM(m, d, self._mdv, d.qacc)
-        efc_type = d.efc_type
-        internal = (efc_type == _JOINT_INTERNAL[0]) | (efc_type == _JOINT_INTERNAL[1])
         self._joint_frc[:] = 0.0
-        if internal.any():
-            mujoco.mj_mulJacTVec(m, d, self._joint_frc, np.where(internal, d.efc_force, 0.0))
+        internal = self._internal_forces()
+        if internal is not None:
+            mujoco.mj_mulJacTVec(m, d, self._joint_frc, internal)
         for i, (r, law) in laws:
             a = r.arm_dof
             joint = d.qfrc_actuator[a] + d.qfrc_passive[a] + self._joint_frc[a]
             white, offset = self._joint_noise[i]
-            sensed = joint - offset - white * self._rng_joint.normal(0.0, 1.0, white.size)
+            sensed = joint - offset - white * self._rng_joint.standard_normal(white.size)  # normal(0, 1)'s draws
             mount = d.xmat[self._mount_body[i]]  # the link the arm is mounted on
             law.joint_torque_sample(self._mdv[a] + d.qfrc_bias[a] - sensed, mount, sensed)
+
+    def _internal_forces(self) -> np.ndarray | None:
+        """Return the constraint forces of the joints' own constraints (dof friction, joint limits), the other rows
+        zero (None: no such row). MuJoCo orders the rows equality, friction, limit, contact: without tendons the
+        friction and limit rows are the dof frictions and the joint limits."""
+        d = self.scene.data
+        if self.scene.model.ntendon == 0:
+            start, stop = d.ne, d.ne + d.nf + d.nl
+            if start == stop:
+                return None
+            forces = np.zeros(d.nefc)
+            forces[start:stop] = d.efc_force[start:stop]
+            return forces
+        efc_type = d.efc_type
+        internal = (efc_type == _JOINT_INTERNAL[0]) | (efc_type == _JOINT_INTERNAL[1])
+        return np.where(internal, d.efc_force, 0.0) if internal.any() else None
 
     def _planar_base_rates(self, i: int, r: RobotIndex, twist: np.ndarray) -> np.ndarray:
         """Return the planar base's servo setpoints (world rates): the commanded body twist + the PI loop's integral."""
@@ -832,8 +863,8 @@ class MujocoPlant:
         ``wrench_error_rms_n``; with one hand all of it is net)."""
         robots = range(len(self.scene.robots))
         e = np.concatenate([self._hand_clean[i] - np.asarray(commands[i].hand_wrench, dtype=float) for i in robots])
-        net = self._net_projector(robots) @ e
-        forces = np.r_[[6 * i + k for i in robots for k in range(3)]]
+        net = self._net_projector(robots) @ e if len(robots) > 1 else e  # one hand's projector is the identity
+        forces = self._force_rows
         self._stats.err_net_sq += float(net[forces] @ net[forces])
         internal = (e - net)[forces]
         self._stats.err_internal_sq += float(internal @ internal)
