@@ -295,6 +295,8 @@ class MujocoPlant:
         m = self.scene.model
         #: per robot: the body its arm is mounted on (the parent of its first arm joint's body)
         self._mount_body = [int(m.body_parentid[m.dof_bodyid[r.arm_dof[0]]]) for r in self.scene.robots]
+        #: per robot (by prefix): the index tuples of the joint inertia's arm-arm and arm-base blocks
+        self._blocks = {r.prefix: (np.ix_(r.arm_dof, r.arm_dof), np.ix_(r.arm_dof, r.base_dof)) for r in self.scene.robots}
         self._target_prev: list[np.ndarray | None] = [None] * n_robots
         self._rne = np.zeros(nv)
         self._mdv = np.zeros(nv)
@@ -619,7 +621,7 @@ class MujocoPlant:
         """Return the hand's world-aligned Jacobian (6, n_arm) at the hand site and the arm's joint inertia (of
         `full`, `_site_jacobian_inertia`'s, when given)."""
         J, M = self._site_jacobian_inertia(r) if full is None else full
-        return J[:, r.arm_dof], M[np.ix_(r.arm_dof, r.arm_dof)]
+        return J[:, r.arm_dof], M[self._blocks[r.prefix][0]]
 
     def _hand_inertia(
         self, r: RobotIndex, c: RobotCommand, full: tuple[np.ndarray, np.ndarray] | None = None
@@ -635,8 +637,9 @@ class MujocoPlant:
         mujoco.mj_jacDot(m, d, dotp, dotr, d.site_xpos[r.hand_site], int(m.site_bodyid[r.hand_site]))
         J, M = self._site_jacobian_inertia(r) if full is None else full
         a, b = r.arm_dof, r.base_dof
+        aa, ab = self._blocks[r.prefix]
         jdot_qdot = np.concatenate((dotp @ d.qvel, dotr @ d.qvel))
-        t, K = hand_inertia_terms(M[np.ix_(a, a)], M[np.ix_(a, b)], J[:, a], J[:, b], jdot_qdot, c.hand_acceleration)
+        t, K = hand_inertia_terms(M[aa], M[ab], J[:, a], J[:, b], jdot_qdot, c.hand_acceleration)
         return t, K, self._base_qacc(r, c.base_acceleration)
 
     def _base_qacc(self, r: RobotIndex, planar: np.ndarray | None) -> np.ndarray:
@@ -797,11 +800,12 @@ class MujocoPlant:
         d, sv = self.scene.data, self.config.servos
         yaw = float(d.qpos[r.base_qpos[2]])
         cy, sy = math.cos(yaw), math.sin(yaw)
-        rates = np.array([cy * twist[0] - sy * twist[1], sy * twist[0] + cy * twist[1], twist[2]])
+        vx, vy, wz = twist.tolist() if isinstance(twist, np.ndarray) else twist
+        rates = np.array([cy * vx - sy * vy, sy * vx + cy * vy, wz])
         if sv.base_integral > 0.0:
             lim = sv.base_integral_limit
             e = self._base_int[i] + self.config.physics_dt * (rates - d.qvel[r.base_dof])
-            self._base_int[i] = np.clip(e, -lim, lim)
+            self._base_int[i] = np.minimum(np.maximum(e, -lim), lim)  # np.clip's arithmetic
             rates = rates + sv.base_integral * self._base_int[i]
         return rates
 
