@@ -430,8 +430,7 @@ class TorqueArmLaw:
         self._bias0: np.ndarray | None = None
         #: the command's plan term (arm_torque - J^T w - b_0), low-passed over the periods (mode "smoothed")
         self._plan: np.ndarray | None = None
-        #: `_plan_ff` of the period (the plan part of the feed-forward: fixed from the period's first step on)
-        self._plan_period = np.zeros(self.limit.size)
+        self._plan_period = np.zeros(self.limit.size)  # `_plan_ff` of the period (fixed from its first step on)
         self._Jw = np.zeros(self.limit.size)
         self._arm_torque = np.zeros(self.limit.size)
         self._period = 0.01

@@ -296,7 +296,9 @@ class MujocoPlant:
         #: per robot: the body its arm is mounted on (the parent of its first arm joint's body)
         self._mount_body = [int(m.body_parentid[m.dof_bodyid[r.arm_dof[0]]]) for r in self.scene.robots]
         #: per robot (by prefix): the index tuples of the joint inertia's arm-arm and arm-base blocks
-        self._blocks = {r.prefix: (np.ix_(r.arm_dof, r.arm_dof), np.ix_(r.arm_dof, r.base_dof)) for r in self.scene.robots}
+        self._blocks = {
+            r.prefix: (np.ix_(r.arm_dof, r.arm_dof), np.ix_(r.arm_dof, r.base_dof)) for r in self.scene.robots
+        }
         self._target_prev: list[np.ndarray | None] = [None] * n_robots
         self._rne = np.zeros(nv)
         self._mdv = np.zeros(nv)
@@ -546,7 +548,8 @@ class MujocoPlant:
 
     def _ft_at_grasp(self, i: int) -> np.ndarray:
         """Return the F/T sensor's reading of this physics step (with its noise) as the hand's wrench at the grasp."""
-        noise = self._rng_loop.standard_normal(6) * self._ft_std  # the draws of normal(0, force, 3), normal(0, torque, 3)
+        # the draws of normal(0, force, 3) then normal(0, torque, 3)
+        noise = self._rng_loop.standard_normal(6) * self._ft_std
         return self._hand_wrench_world(i, self._clean_wrench(i) + noise)
 
     def _force_loops(self) -> dict[int, np.ndarray]:
