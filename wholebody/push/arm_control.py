@@ -392,9 +392,9 @@ def _within(tau: np.ndarray, limit: np.ndarray) -> bool:
     return False not in (np.abs(tau) <= limit).tolist()
 
 
-def _clip(tau: np.ndarray, limit: np.ndarray) -> np.ndarray:
-    """Return ``np.clip(tau, -limit, limit)`` (its arithmetic without its per-call wrapping)."""
-    return np.minimum(np.maximum(tau, -limit), limit)
+def _clip(tau: np.ndarray, limit: np.ndarray, neg_limit: np.ndarray | None = None) -> np.ndarray:
+    """Return ``np.clip(tau, -limit, limit)`` (its arithmetic without its per-call wrapping; `neg_limit`: ``-limit``)."""
+    return np.minimum(np.maximum(tau, -limit if neg_limit is None else neg_limit), limit)
 
 
 class TorqueArmLaw:
@@ -409,8 +409,7 @@ class TorqueArmLaw:
     ) -> None:
         """`joint_damping`: the joints' viscous damping ``D`` (N m s/rad per joint) of the robot's model (its URDF's
         ``<dynamics damping>``; None: none), the law's model of the joints' passive torque ``-D v``."""
-        self.limit = np.asarray(effort_limit, dtype=float)
-        self.joint_damping = _joint_damping(joint_damping, self.limit.size)
+        self._set_limits(effort_limit, joint_damping)
         #: the joints' modelled passive torque ``-D v`` at the last step's velocity (`torque`)
         self._passive = np.zeros(self.limit.size)
         #: ``J^T Jbar^T``: the hand-space part of a joint torque (`begin`)
@@ -436,7 +435,7 @@ class TorqueArmLaw:
         self._tau_cmd: np.ndarray | None = None
         self._tau_friction = np.zeros(self.limit.size)
         self._n_motor = 0
-        self._Jt_pinv = np.zeros((6, self.limit.size))
+        self._Jt_pinv = self._neg_Jt_pinv = np.zeros((6, self.limit.size))
         self._E_ft = np.zeros((6, 6))
         self._gain = np.r_[np.full(3, gains.force_feedback), np.full(3, gains.moment_feedback)]
         self._ff = np.zeros(self.limit.size)
@@ -460,6 +459,12 @@ class TorqueArmLaw:
         self._started = False
         #: the arm's inertial torque under the hand's predicted acceleration (`begin`): (t, K, planned base acceleration)
         self._inertial_terms: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def _set_limits(self, effort_limit: np.ndarray, joint_damping: np.ndarray | None) -> None:
+        """Take the effort limits and the joints' damping (`_joint_damping`), and their negatives (used every step)."""
+        self.limit = np.asarray(effort_limit, dtype=float)
+        self.joint_damping = _joint_damping(joint_damping, self.limit.size)
+        self._neg_damping, self._neg_limit = -self.joint_damping, -self.limit
 
     def _reset_records(self) -> None:
         """Start the records of the law's request against the limits, before any clip: the peak over all joints, per
@@ -511,7 +516,7 @@ class TorqueArmLaw:
         if self.gains.implicit_damping:
             self._NT_imp = implicit_impedance(self._NT, M, self.gains.damping, self._dt, Minv)
         self._J = J
-        self._Jt_pinv, self._E_ft = self._estimator(J)
+        self._set_estimator(J)
         self._Jr = J[3:]
         self._Jt = J[:3]
         self._t_end = t_end
@@ -550,7 +555,7 @@ class TorqueArmLaw:
             loop_wrench = self.force_loop(self.force_error(wrench_measured))
         task, plan = self._feedforward(g, bias)
         task = task + self._inertial_torque(base_acceleration)
-        self._passive = -self.joint_damping * v
+        self._passive = self._neg_damping * v
         if grasped and g.passive_feedforward:
             task = task - self._task_proj @ self._passive
         q_plan = self._q_end - self._v * (self._t_end - t)
@@ -610,7 +615,7 @@ class TorqueArmLaw:
             u_fit = np.zeros(6) if u_fit is None else u_fit
             tau = task_fit + Jt @ u_fit
         wanted = tau + posture
-        held = _clip(wanted, L)
+        held = _clip(wanted, L, self._neg_limit)
         trimmed = w_fit is not self._w_d or u_fit is not u
         self._record(task, held, trimmed, True in (held != wanted).tolist())
         return held
@@ -690,7 +695,7 @@ class TorqueArmLaw:
         self._tau_ext = tau_ext
         if mount is not None:
             self._mount = np.asarray(mount, dtype=float).reshape(3, 3)
-        self._w_joint = -self._Jt_pinv @ self._tau_ext
+        self._w_joint = self._neg_Jt_pinv @ self._tau_ext
 
     def hold(self, J: np.ndarray, tau: np.ndarray, v: np.ndarray) -> None:
         """Take one physics step of the arm holding the handle still before the push (the plant's settling): the
@@ -698,7 +703,7 @@ class TorqueArmLaw:
         samples (`joint_torque_sample`, then `tare`) then start the sensors' slow parts (`_motor_side`,
         `_measured_wrench`) as a real arm zeroes its sensors before a task, instead of the push's first samples."""
         self._J = J
-        self._Jt_pinv, self._E_ft = self._estimator(J)
+        self._set_estimator(J)
         self._tau_cmd = np.asarray(tau, dtype=float).copy()
         self._passive = -self.joint_damping * np.asarray(v, dtype=float)
 
@@ -750,6 +755,12 @@ class TorqueArmLaw:
         `TorqueArmGains.ft_noise`)."""
         assert self._w_joint is not None
         return self._w_joint + self._E_ft @ ft
+
+    def _set_estimator(self, J: np.ndarray) -> None:
+        """Take the joint-side estimate's matrices at the hand Jacobian `J` (`_estimator`), and ``-E`` for the
+        per-step ``w_j = -E tau_ext``."""
+        self._Jt_pinv, self._E_ft = self._estimator(J)
+        self._neg_Jt_pinv = -self._Jt_pinv
 
     def _estimator(self, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return the joint-side estimate's matrices (E, F): ``w_j = -E tau_ext + F w_FT`` (`TorqueArmGains.ft_noise`)."""
