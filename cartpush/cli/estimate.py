@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 import os
+import threading
 from typing import TYPE_CHECKING, Any
 
 from cartpush.cli.import_bag import add_topic_options, topic_options
@@ -170,6 +172,36 @@ def _one_blas_thread() -> None:
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
+#: The modules the estimate imports after reading the log, in the order it needs them (``python -X importtime``).
+COMPUTE_MODULES = (
+    "pyarrow",
+    "pyarrow.csv",
+    "scipy.linalg.lapack",
+    "cart.estimate_report",
+    "cart.identify",
+    "cart.segments",
+    "numpy.random",
+    "cart.ekf",
+)
+
+
+def _import_modules(names: tuple[str, ...]) -> None:
+    """Import ``names``; a module that fails is left to the import that needs it (which raises the error)."""
+    for name in names:
+        try:
+            importlib.import_module(name)
+        except Exception:  # noqa: BLE001, S112 - the caller's own import reports it
+            return
+
+
+def _import_in_background(names: tuple[str, ...] = COMPUTE_MODULES) -> threading.Thread:
+    """Start importing ``names`` on a second thread and return it: the import (about 0.3 s, holding the GIL)
+    overlaps the log's reading, whose decompression and CSV parsing release the GIL (zlib, pyarrow)."""
+    thread = threading.Thread(target=_import_modules, args=(names,), name="cartpush-imports", daemon=True)
+    thread.start()
+    return thread
+
+
 def _load(args: argparse.Namespace) -> CartLog:
     """Return the log of ``args.log``: a CSV (.csv, .csv.gz) given without topic options is read directly (the ROS
     importer's imports cost start-up time), anything else through :func:`cartpush.ros.load_any`."""
@@ -188,10 +220,15 @@ def _load(args: argparse.Namespace) -> CartLog:
 def run(args: argparse.Namespace) -> int:
     """Estimate the parameters of the log and print them; return 0."""
     _one_blas_thread()
+    import cart.logs  # noqa: F401 - imported here, before the import thread starts: one thread imports each module
     from cart.jsonout import dumps_strict, to_strict
 
     check_args(args)
-    log = _load(args)
+    importer = _import_in_background()
+    try:
+        log = _load(args)
+    finally:
+        importer.join()  # a bad log's error waits for the imports: no thread is left importing at exit
     out = to_strict(result_for(log, args))
     if args.json:
         print(dumps_strict(out))
