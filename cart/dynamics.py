@@ -116,9 +116,14 @@ def regressor(v: np.ndarray, omega: np.ndarray, vdot: np.ndarray, omegadot: np.n
     """Return Y (..., 2, 6) with Y p = [F_u, tau] for p = [m, m dx, m dy, J, c_v, c_w] (constraint w = 0)."""
     v, omega, vdot, omegadot = (np.asarray(u, dtype=float) for u in (v, omega, vdot, omegadot))
     z = np.zeros(np.broadcast(v, omega, vdot, omegadot).shape)
-    row1 = np.stack([vdot + z, -omega * omega + z, -omegadot + z, z, v + z, z], axis=-1)
-    row2 = np.stack([z, omega * v + z, -vdot + z, omegadot + z, z, omega + z], axis=-1)
-    return np.stack([row1, row2], axis=-2)
+    y = np.zeros(z.shape + (2, 6))  # written in place: one pass over the rows, no stacked copies
+    entries = {
+        (0, 0): vdot, (0, 1): -omega * omega, (0, 2): -omegadot, (0, 4): v,
+        (1, 1): omega * v, (1, 2): -vdot, (1, 3): omegadot, (1, 5): omega,
+    }  # fmt: skip
+    for (row, col), value in entries.items():
+        np.add(value, z, out=y[..., row, col])  # + z: broadcast to the rows' shape
+    return y
 
 
 def wrench_input_matrix(theta: float, m: float, b: float, j: float) -> np.ndarray:
