@@ -9,7 +9,9 @@
 - :func:`sosfiltfilt`: ``scipy.signal.sosfiltfilt(sos, x, axis=0, padlen=...)`` (odd extension, initial
   states from the steady state of a step, forward and backward passes). Each section's recursion is a
   banded lower-triangular system (the transposed-direct-form-II states enter its first two right-hand
-  sides) solved for all columns at once by LAPACK's ``dtbtrs`` (:func:`_section_filter`);
+  sides) solved for all columns at once by LAPACK's ``dtbtrs`` (:func:`_section_filter`), called through
+  ctypes so that it releases the GIL: from ``THREADED_VALUES`` values on, half of the columns are filtered
+  on a second thread (each column alone, the same numbers);
 - :func:`student_t_quantile`: ``scipy.stats.t.ppf`` for an integer number of degrees of freedom
   (closed-form CDF, Abramowitz & Stegun 26.7.3-4, solved by bisection).
 

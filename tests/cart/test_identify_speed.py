@@ -30,7 +30,7 @@ def test_butterworth_sections_match_scipy(wn):
 
 
 @pytest.mark.parametrize("wn", [3e-3, 0.05, 0.4])
-@pytest.mark.parametrize("shape", [(6001, 3), (6001,), (40, 2), (4,)])
+@pytest.mark.parametrize("shape", [(6001, 3), (12001, 3), (6001,), (40, 2), (4,)])
 def test_zero_phase_filter_matches_scipy(wn, shape):
     rng = np.random.default_rng(1)
     x = np.cumsum(rng.standard_normal(shape), axis=0) + 5.0
@@ -162,6 +162,35 @@ def test_columns_filtered_together_equal_each_filtered_alone():
     together = kernels.sosfiltfilt(sos, np.column_stack(cols), 15)
     for k, col in enumerate(cols):
         assert np.array_equal(together[:, k], kernels.sosfiltfilt(sos, col, 15))
+
+
+def test_banded_solve_is_scipys_dtbtrs_bit_for_bit():
+    """The ctypes call of LAPACK's dtbtrs (which releases the GIL) gives the f2py wrapper's numbers; a zero on the
+    diagonal is an error, not a result."""
+    from scipy.linalg.lapack import dtbtrs
+
+    rng = np.random.default_rng(5)
+    n = 2001
+    band = np.asfortranarray(np.vstack([1.0 + 0.1 * rng.random(n), -1.9 + 0.01 * rng.random(n), 0.9 * np.ones(n)]))
+    rhs = np.asfortranarray(rng.standard_normal((n, 5)))
+    ref, info = dtbtrs(band, rhs, uplo="L")
+    assert info == 0
+    assert np.array_equal(kernels._solve_lower_band(band, rhs.copy(order="F")), ref)
+    band[0, 7] = 0.0
+    with pytest.raises(np.linalg.LinAlgError, match="info 8"):
+        kernels._solve_lower_band(band, rhs.copy(order="F"))
+
+
+def test_threaded_filter_equals_one_thread_bit_for_bit(monkeypatch):
+    """Above ``THREADED_VALUES`` half of the columns are filtered on a second thread: the same numbers as one pass."""
+    rng = np.random.default_rng(6)
+    sos = signal.butter(4, 0.03, output="sos")
+    x = np.cumsum(rng.standard_normal((9001, 5)), axis=0)
+    threaded = kernels.sosfiltfilt(sos, x, 15)
+    monkeypatch.setattr(kernels, "THREADED_VALUES", x.size + 1)
+    one = kernels.sosfiltfilt(sos, x, 15)
+    assert threaded.flags.c_contiguous and one.flags.c_contiguous
+    assert np.array_equal(threaded, one)
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 8, 1001, 20000, 20001])
