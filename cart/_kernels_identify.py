@@ -73,12 +73,11 @@ def _lapack_dtbtrs() -> Callable[..., None]:
     from scipy.linalg import cython_lapack
 
     capsule = cython_lapack.__pyx_capi__["dtbtrs"]
-    api = ctypes.pythonapi
-    api.PyCapsule_GetName.restype = ctypes.c_char_p
-    api.PyCapsule_GetName.argtypes = [ctypes.py_object]
-    api.PyCapsule_GetPointer.restype = ctypes.c_void_p
-    api.PyCapsule_GetPointer.argtypes = [ctypes.py_object, ctypes.c_char_p]
-    address = api.PyCapsule_GetPointer(capsule, api.PyCapsule_GetName(capsule))
+    get_name = ctypes.PYFUNCTYPE(ctypes.c_char_p, ctypes.py_object)(("PyCapsule_GetName", ctypes.pythonapi))
+    get_pointer = ctypes.PYFUNCTYPE(ctypes.c_void_p, ctypes.py_object, ctypes.c_char_p)(
+        ("PyCapsule_GetPointer", ctypes.pythonapi)
+    )  # own prototypes: ctypes.pythonapi's shared ones are left as they are
+    address = get_pointer(capsule, get_name(capsule))
     int_p = ctypes.POINTER(ctypes.c_int)
     char_p, double_p = ctypes.c_char_p, ctypes.c_void_p
     signature = ctypes.CFUNCTYPE(
@@ -158,6 +157,7 @@ def _filtfilt_two_threads(sos: np.ndarray, flat: np.ndarray, padlen: int) -> np.
     column's numbers are computed alone, in the same operations: the same result as one pass)."""
     half = flat.shape[1] // 2
     result: list[np.ndarray | BaseException] = []
+    _lapack_dtbtrs()  # looked up once, here, before the second thread needs it
 
     def second() -> None:
         try:
