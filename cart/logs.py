@@ -284,8 +284,8 @@ def _parse_rows_fast(
     """
     if not body or not all(body):  # pyarrow skips or refuses an empty line: its file line would be lost
         return None
-    import pyarrow as pa  # type: ignore[import-untyped]
-    import pyarrow.csv as pa_csv  # type: ignore[import-untyped]
+    import pyarrow as pa
+    import pyarrow.csv as pa_csv
 
     names = [f"c{k}" for k in range(len(header))]
     used = [names[header.index(c)] for c in wanted]

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import coal  # type: ignore[import-untyped]
+import coal
 import mujoco
 import numpy as np
 import pinocchio as pin
