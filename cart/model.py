@@ -148,8 +148,11 @@ def constraint_force(
 
     exact=True solves Lambda qdd + Lambdadot qd = 0; exact=False Lambda qdd = 0 (paper eq. 5-7).
     """
-    mm = mass_matrix(q, params)
-    rhs = _free_rhs(q, qd, gamma, params, sigma, extra_force)
+    return _multiplier(q, qd, mass_matrix(q, params), _free_rhs(q, qd, gamma, params, sigma, extra_force), exact)
+
+
+def _multiplier(q: np.ndarray, qd: np.ndarray, mm: np.ndarray, rhs: np.ndarray, exact: bool) -> float:
+    """Return `constraint_force`'s lambda from the mass matrix M(q) and the free right-hand side (`_free_rhs`)."""
     lam = constraint_matrix(q)
     minv_rhs = np.linalg.solve(mm, rhs)
     minv_lt = np.linalg.solve(mm, lam.T)
@@ -177,7 +180,7 @@ def forward_dynamics(
     rhs = _free_rhs(q, qd, gamma, params, sigma, extra_force)
     if not exact:
         return np.linalg.solve(mm, projection(q, params) @ rhs)  # paper eq. (7): M qdd = P (gamma - C qd - N)
-    lam = constraint_force(q, qd, gamma, params, sigma, exact=True, extra_force=extra_force)
+    lam = _multiplier(q, qd, mm, rhs, True)  # constraint_force's, from the same M and right-hand side
     return np.linalg.solve(mm, rhs - constraint_matrix(q)[0] * lam)
 
 

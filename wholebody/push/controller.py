@@ -48,7 +48,7 @@ from wholebody.push.reference_clock import (
     path_braking,
 )
 from wholebody.push.slip_hold import SlipHold, lateral_demand
-from wholebody.push.tip_support import cart_load
+from wholebody.push.tip_support import cart_load, finite_or_zero
 
 
 #: allocations per period with the tip-over bound when the allocation saturates (`PushController._allocate`)
@@ -359,7 +359,9 @@ class PushController:
         self.allocator.set_points([handle_point(v, self.geometry) for v in ys])
         if self.config.torque_margin is not None:  # |J^T w + g| <= tau_max at each arm's current configuration
             self.allocator.set_torque_limits(
-                [c for mm in self.robots for c in mm.torque_constraints(q)], margin=self.config.torque_margin
+                [c for mm in self.robots for c in mm.torque_constraints(q)],
+                margin=self.config.torque_margin,
+                stack=self.support is None,  # else set_tip_bound below takes them in
             )
         gamma_b = cart_model.generalized_to_body(q, gamma)
         if self.support is None:
@@ -392,7 +394,7 @@ class PushController:
             pts = np.asarray(self.support.points, dtype=float)
             half = 0.5 * (pts.max(axis=0) - pts.min(axis=0))
             cap = TIP_MARGIN_SHARE / factor
-            com = np.minimum(np.nan_to_num(np.asarray(std["com"], dtype=float), nan=0.0), cap * half)
+            com = np.minimum(finite_or_zero(np.asarray(std["com"], dtype=float)), cap * half)
             std = dict(std, mass=min(float(std["mass"]), cap * float(params.m)), com=[float(v) for v in com])
         return cart_load(q, qd, gamma, params, std, factor)
 
@@ -513,6 +515,8 @@ class PushController:
 def hand_rows(rows: Sequence[np.ndarray]) -> np.ndarray:
     """Return per-hand joint vectors as the rows of one array, zero-padded where the arms' joint counts differ."""
     width = max(len(r) for r in rows)
+    if all(len(r) == width for r in rows):
+        return np.array([np.asarray(r, dtype=float) for r in rows])
     return np.array([np.pad(np.asarray(r, dtype=float), (0, width - len(r))) for r in rows])
 
 
