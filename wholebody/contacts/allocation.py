@@ -377,6 +377,7 @@ class WrenchAllocator:
                 raise WholeBodyError("jacobians must be one (6 x n_joints) array per contact")
         self._build(torque_limits)
         self._direct = ProxQPSolver(PROXQP_EPS_ABS) if solver == "proxqp" and direct else None
+        self._points: np.ndarray = np.full((n, 3), np.nan)  # none yet: `set_points` builds the matrices
         self.set_points([c.point_b for c in specs])
 
     # ------------------------------------------------------------------ build
@@ -524,7 +525,7 @@ class WrenchAllocator:
             raise WholeBodyError(f"{len(points_b)} points given for {len(self._names)} contacts (3 numbers each)")
         if not np.isfinite(pts).all():
             raise WholeBodyError(f"contact points must be finite, got {points_b!r}")
-        if hasattr(self, "_kkt_cache") and np.array_equal(pts, self._points):  # the same matrices as before
+        if np.array_equal(pts, self._points):  # the same matrices as before
             self._kkt_cache = {(): self._kkt_cache[()]}
         else:
             self._points = pts
