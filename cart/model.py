@@ -29,6 +29,7 @@ import numpy as np
 
 from cart import dynamics
 from cart.params import CartParams
+from cart.small_linalg import solve_small
 
 ParamsLike = CartParams | np.ndarray
 
@@ -154,8 +155,8 @@ def constraint_force(
 def _multiplier(q: np.ndarray, qd: np.ndarray, mm: np.ndarray, rhs: np.ndarray, exact: bool) -> float:
     """Return `constraint_force`'s lambda from the mass matrix M(q) and the free right-hand side (`_free_rhs`)."""
     lam = constraint_matrix(q)
-    minv_rhs = np.linalg.solve(mm, rhs)
-    minv_lt = np.linalg.solve(mm, lam.T)
+    minv_rhs = solve_small(mm, rhs)  # np.linalg.solve's LAPACK gesv: the same numbers
+    minv_lt = solve_small(mm, lam.T)
     drift = (constraint_matrix_dot(q, qd) @ qd).item() if exact else 0.0
     return ((lam @ minv_rhs).item() + drift) / (lam @ minv_lt).item()
 
@@ -181,7 +182,7 @@ def forward_dynamics(
     if not exact:
         return np.linalg.solve(mm, projection(q, params) @ rhs)  # paper eq. (7): M qdd = P (gamma - C qd - N)
     lam = _multiplier(q, qd, mm, rhs, True)  # constraint_force's, from the same M and right-hand side
-    return np.linalg.solve(mm, rhs - constraint_matrix(q)[0] * lam)
+    return solve_small(mm, rhs - constraint_matrix(q)[0] * lam)
 
 
 def forward_dynamics_fast(
