@@ -154,6 +154,8 @@ class PushController:
         #: per robot: its base plan (`wholebody.push.base_plan`) when `PushConfig.base_plan` is set, else None
         edges = np.cumsum([0] + [mm.n_hands for mm in self.robots])
         self.base_plans = [self._base_plan(mm, float(scheduler.y[a])) for mm, a in zip(self.robots, edges[:-1])]
+        #: per robot: its hands' rows of the allocation (`_by_robot`): a slice for several hands, an index for one
+        self._cuts = [slice(a, b) if b - a > 1 else a for a, b in zip(edges[:-1].tolist(), edges[1:].tolist())]
         #: per robot: its QP's own (posture weight, posture), restored outside a plan's windows
         self._own_terms: dict[int, tuple[float, np.ndarray | None]] = {}
         #: the clock's settings and their copy with the momentum horizon (`_look_ahead_settings`)
@@ -315,7 +317,7 @@ class PushController:
         if self._ahead is None or self._ahead[0] is not settings:
             self._ahead = (settings, replace(settings, horizon=settings.momentum_horizon))
         ahead = self._ahead[1]
-        speed = max(path_speed(self.trajectory, s + h) for h in horizon_times(ahead.horizon, ahead.horizon_samples))
+        speed = max_path_speed(self.trajectory, s, horizon_times(ahead.horizon, ahead.horizon_samples))
         force = self.config.n_arms * self.config.arm_limits.max_force
         if needs_look_ahead(float(params.m), speed, force, settings):
             return ahead
@@ -328,9 +330,7 @@ class PushController:
         when the path is at rest at s); inf when the path does not move."""
         assert self.clock is not None
         settings = self.clock.settings if settings is None else settings
-        speed = max(
-            path_speed(self.trajectory, s + h) for h in horizon_times(settings.horizon, settings.horizon_samples)
-        )
+        speed = max_path_speed(self.trajectory, s, horizon_times(settings.horizon, settings.horizon_samples))
         accel = self._accel_bound(params)
         if speed <= 1e-9 or not math.isfinite(accel):
             return float("inf")
@@ -455,8 +455,7 @@ class PushController:
     ) -> tuple[list, list, list]:
         """Return the contacts, their rates and the hand wrenches per robot: a robot with one hand gets its
         own (y, ydot, wrench), one with several (one base, `MobileManipulator.n_hands` arms) arrays of them."""
-        edges = np.cumsum([0] + [mm.n_hands for mm in self.robots])
-        cut = [slice(a, b) if b - a > 1 else a for a, b in zip(edges[:-1], edges[1:])]
+        cut = self._cuts
         return [ys[c] for c in cut], [ydots[c] for c in cut], [np.asarray(wrenches)[c] for c in cut]
 
     def _robot_command(
@@ -549,6 +548,14 @@ def path_speed(trajectory: CartTrajectory, t: float) -> float:
     if speed is not None:
         return float(speed(t))
     return float(np.hypot(*trajectory.sample(t)[1][:2]))
+
+
+def max_path_speed(trajectory: CartTrajectory, s: float, offsets: Sequence[float]) -> float:
+    """Return the largest `path_speed` of the trajectory at the times s + each of `offsets` (s)."""
+    speed = getattr(trajectory, "path_speed", None)
+    if speed is None:
+        return max(path_speed(trajectory, s + h) for h in offsets)
+    return max([float(speed(s + h)) for h in offsets])
 
 
 def _body_to_generalized(q: np.ndarray, gamma_b: np.ndarray) -> np.ndarray:
