@@ -23,7 +23,7 @@ from statistics import NormalDist
 import numpy as np
 
 from cart.ekf import chi2_isf
-from cart.online_regression import solve_small
+from cart.small_linalg import solve_small
 
 N_INERTIAL = 4
 

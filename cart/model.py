@@ -29,6 +29,7 @@ import numpy as np
 
 from cart import dynamics
 from cart.params import CartParams
+from cart.small_linalg import solve_small
 
 ParamsLike = CartParams | np.ndarray
 
@@ -148,11 +149,14 @@ def constraint_force(
 
     exact=True solves Lambda qdd + Lambdadot qd = 0; exact=False Lambda qdd = 0 (paper eq. 5-7).
     """
-    mm = mass_matrix(q, params)
-    rhs = _free_rhs(q, qd, gamma, params, sigma, extra_force)
+    return _multiplier(q, qd, mass_matrix(q, params), _free_rhs(q, qd, gamma, params, sigma, extra_force), exact)
+
+
+def _multiplier(q: np.ndarray, qd: np.ndarray, mm: np.ndarray, rhs: np.ndarray, exact: bool) -> float:
+    """Return `constraint_force`'s lambda from the mass matrix M(q) and the free right-hand side (`_free_rhs`)."""
     lam = constraint_matrix(q)
-    minv_rhs = np.linalg.solve(mm, rhs)
-    minv_lt = np.linalg.solve(mm, lam.T)
+    minv_rhs = solve_small(mm, rhs)  # np.linalg.solve's LAPACK gesv: the same numbers
+    minv_lt = solve_small(mm, lam.T)
     drift = (constraint_matrix_dot(q, qd) @ qd).item() if exact else 0.0
     return ((lam @ minv_rhs).item() + drift) / (lam @ minv_lt).item()
 
@@ -177,8 +181,8 @@ def forward_dynamics(
     rhs = _free_rhs(q, qd, gamma, params, sigma, extra_force)
     if not exact:
         return np.linalg.solve(mm, projection(q, params) @ rhs)  # paper eq. (7): M qdd = P (gamma - C qd - N)
-    lam = constraint_force(q, qd, gamma, params, sigma, exact=True, extra_force=extra_force)
-    return np.linalg.solve(mm, rhs - constraint_matrix(q)[0] * lam)
+    lam = _multiplier(q, qd, mm, rhs, True)  # constraint_force's, from the same M and right-hand side
+    return solve_small(mm, rhs - constraint_matrix(q)[0] * lam)
 
 
 def forward_dynamics_fast(

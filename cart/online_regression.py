@@ -32,6 +32,7 @@ from scipy.linalg import expm, get_lapack_funcs, solve_discrete_lyapunov
 
 from cart.errors import CartError, NumericalError
 from cart.online_casters import Nuisance
+from cart.small_linalg import solve_small
 
 #: Names of the physical prior variables of :class:`PhysicalPrior`.
 PRIOR_NAMES = ("m", "dx", "dy", "rho", "c_v", "c_w")
@@ -50,18 +51,9 @@ COMPENSATION_SHARE = 0.98
 
 # LAPACK's symmetric-definite generalized eigensolver (the driver scipy.linalg.eigh(a, b) calls) and the Cholesky
 # solve: called directly, without scipy's per-call checks (6 x 6 per step)
-_SYGVD, _POTRF, _POTRS, _GESV = get_lapack_funcs(("sygvd", "potrf", "potrs", "gesv"), (np.zeros((1, 1)),))
+_SYGVD, _POTRF, _POTRS = get_lapack_funcs(("sygvd", "potrf", "potrs"), (np.zeros((1, 1)),))
 _EYE6 = np.eye(6)
 _DIAG6 = np.arange(6) * 7  # the diagonal of a flattened 6 x 6
-
-
-def solve_small(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Return ``np.linalg.solve(a, b)`` for one small system (LAPACK's gesv, the routine numpy calls, without
-    numpy's per-call wrapping); raises ``np.linalg.LinAlgError`` when ``a`` is singular."""
-    x, info = _GESV(a, b)[2:]
-    if info != 0:
-        raise np.linalg.LinAlgError("Singular matrix")
-    return x
 
 
 def cholesky_small(a: np.ndarray) -> np.ndarray:

@@ -45,7 +45,7 @@ import scipy.sparse as sp
 from robots.profiles import GRIP_FORCE_RANGE as GRIP_FORCE_RANGE  # the grasp's range (N), the 2F-85's
 from wholebody.contacts.handle import ContactSpec, grasp_matrices
 from wholebody.contacts.kernels import equality_optimum_effort
-from wholebody.contacts.support import CartLoad, SupportPolygon, tip_rows
+from wholebody.contacts.support import CartLoad, SupportPolygon, tip_geometry, tip_rhs
 from wholebody.errors import InfeasibleWrenchError, WholeBodyError
 from wholebody.qp import ProxQPSolver
 
@@ -377,6 +377,7 @@ class WrenchAllocator:
                 raise WholeBodyError("jacobians must be one (6 x n_joints) array per contact")
         self._build(torque_limits)
         self._direct = ProxQPSolver(PROXQP_EPS_ABS) if solver == "proxqp" and direct else None
+        self._points: np.ndarray = np.full((n, 3), np.nan)  # none yet: `set_points` builds the matrices
         self.set_points([c.point_b for c in specs])
 
     # ------------------------------------------------------------------ build
@@ -407,6 +408,8 @@ class WrenchAllocator:
         self.bias_over_limit: tuple[str, ...] = ()
         self._torque_part: tuple[np.ndarray, np.ndarray, list[str]] | None = None
         self._tip_part: tuple[np.ndarray, np.ndarray, list[str]] | None = None
+        #: `set_tip_bound`'s load-free part: (support, contact points' bytes, rows over x, labels, hands inside)
+        self._tip_geometry: tuple[SupportPolygon, bytes, np.ndarray, list[str], np.ndarray] | None = None
         self._set_inequalities(*self._static)
         col = {int(k): j for j, k in enumerate(self.free)}  # stacked-wrench index -> free-variable index
         self._fx_cols = np.array([col[6 * i] for i in range(n)])
@@ -438,7 +441,9 @@ class WrenchAllocator:
         self.q = -2.0 * self._W_change @ w[self.free]
         self._x0 = -self._Pinv @ self.q
 
-    def set_torque_limits(self, constraints: Sequence[TorqueConstraint | None], margin: float = 0.0) -> None:
+    def set_torque_limits(
+        self, constraints: Sequence[TorqueConstraint | None], margin: float = 0.0, stack: bool = True
+    ) -> None:
         """Bound each arm's joint torques at its current configuration: |J_i^T w_i + g_i| <= (1 - margin) tau_max.
 
         One `TorqueConstraint` per contact (None: that arm's joints unbounded); call it every control step
@@ -446,7 +451,8 @@ class WrenchAllocator:
         The rows replace those of the previous call; ``margin`` (0..1) keeps room for the dynamic terms the
         bias leaves out. A joint whose bias alone exceeds its limit is listed in `bias_over_limit` (its row
         then allows no wrench that adds to the excess). An unachievable wrench's `AllocationResult.binding`
-        names the joint limit that binds (``"arm0 arm_5_joint torque limit (3 N m)"``).
+        names the joint limit that binds (``"arm0 arm_5_joint torque limit (3 N m)"``). ``stack=False`` leaves the
+        QP's rows as they were until the next `set_tip_bound` (which the caller then must make) takes these.
         """
         n = len(self._names)
         if len(constraints) != n:
@@ -457,7 +463,8 @@ class WrenchAllocator:
         self.torque_constraints = tuple(constraints)
         self.bias_over_limit = tuple(over)
         self._torque_part = (rows @ self.E, rhs, labels)
-        self._stack_inequalities()
+        if stack:
+            self._stack_inequalities()
 
     def set_tip_bound(self, support: SupportPolygon | None, load: CartLoad | None = None) -> None:
         """Keep every support contact of the cart loaded (`wholebody.contacts.support.tip_rows`), or drop the bound.
@@ -470,8 +477,12 @@ class WrenchAllocator:
         if support is None or load is None:
             self._tip_part = None
         else:
-            rows, rhs, labels = tip_rows(support, load, self._points)
-            self._tip_part = (rows @ self.E, rhs, labels)
+            key = self._points.tobytes()
+            if self._tip_geometry is None or self._tip_geometry[0] is not support or self._tip_geometry[1] != key:
+                rows, labels, inside = tip_geometry(support, self._points)  # the same at the same points
+                self._tip_geometry = (support, key, rows @ self.E, labels, inside)
+            rows_e, labels, inside = self._tip_geometry[2:]
+            self._tip_part = (rows_e, tip_rhs(support, load, inside), labels)
         self._stack_inequalities()
 
     @contextmanager
@@ -487,13 +498,11 @@ class WrenchAllocator:
     def _stack_inequalities(self) -> None:
         """Take the static limit rows, the joint-torque rows and the tip-over rows as the QP's inequalities."""
         parts = [p for p in (self._static, self._torque_part, self._tip_part) if p is not None]
-        self._set_inequalities(
-            np.vstack([p[0] for p in parts]),
-            np.concatenate([p[1] for p in parts]),
-            [lab for p in parts for lab in p[2]],
-        )
+        labels = [lab for p in parts for lab in p[2]]
+        same_rows = labels == self.labels  # the same limits with new values: the last active set stays a guess
+        self._set_inequalities(np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts]), labels)
         self._kkt_cache = {(): self._kkt_cache[()]} if hasattr(self, "_kkt_cache") else {}
-        self._active = ()
+        self._active = self._active if same_rows else ()
         self._mats = None
         if self._direct is not None:  # new inequalities: the next solve starts cold on them
             self._direct.reset()
@@ -516,11 +525,15 @@ class WrenchAllocator:
             raise WholeBodyError(f"{len(points_b)} points given for {len(self._names)} contacts (3 numbers each)")
         if not np.isfinite(pts).all():
             raise WholeBodyError(f"contact points must be finite, got {points_b!r}")
-        self._points = pts
-        G, A = self._equality_batch(pts[None])
-        self.G_full, self.A = G[0], A[0]
-        Pinv_At = self._Pinv @ self.A.T  # closed-form optimum of the equality-only problem: x = K b
-        self._kkt_cache = {(): (Pinv_At @ np.linalg.inv(self.A @ Pinv_At), np.zeros((0, len(self.rows))), np.zeros(0))}
+        if np.array_equal(pts, self._points):  # the same matrices as before
+            self._kkt_cache = {(): self._kkt_cache[()]}
+        else:
+            self._points = pts
+            G, A = self._equality_batch(pts[None])
+            self.G_full, self.A = G[0], A[0]
+            Pinv_At = self._Pinv @ self.A.T  # closed-form optimum of the equality-only problem: x = K b
+            K = Pinv_At @ np.linalg.inv(self.A @ Pinv_At)
+            self._kkt_cache = {(): (K, np.zeros((0, len(self.rows))), np.zeros(0))}
         self._A_new = True  # the direct QP takes the new equality matrix at its next solve
         self._mats = None  # qpsolvers' matrices, built when first needed
 

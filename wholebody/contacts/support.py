@@ -139,13 +139,17 @@ def tip_rows(
     One row per edge (module docstring): hand moments about the edge <= what gravity holds less what the
     inertia tips, with the load's margins on the edges every hand is inside of (`holding_moment`); the last row keeps the hands from lifting the cart (sum fz <= m g).
     A right-hand side below 0 (the cart tips with no hand on it) is held at 0 so that w = 0 stays allowed.
+    The rows and labels depend on the support and the hands' points only (`tip_geometry`), the right-hand sides
+    on the load (`tip_rhs`).
     """
+    rows, labels, inside = tip_geometry(support, points_b)
+    return rows, tip_rhs(support, load, inside), labels
+
+
+def tip_geometry(support: SupportPolygon, points_b: npt.ArrayLike) -> tuple[np.ndarray, list[str], np.ndarray]:
+    """Return `tip_rows`' rows and labels, and per edge whether every hand is inside it (`hands_inside`)."""
     pts = np.asarray(points_b, dtype=float).reshape(-1, 3)
-    p1, e, n, shift = support.edges()
-    m_low = max(load.mass - load.std_factor * load.mass_std, 0.0)
-    hold = holding_moment(support, load, hands_inside(support, pts))
-    a_in = np.asarray(load.acceleration, dtype=float) @ n.T  # toward the inside: the d'Alembert -m a points out
-    tipping = load.mass * support.com_height * np.maximum(a_in, 0.0)
+    p1, e, _, _ = support.edges()
     rows = np.zeros((len(e) + 1, 6 * len(pts)))
     for i, p in enumerate(pts):
         rx, ry, rz = p[0] - p1[:, 0], p[1] - p1[:, 1], p[2] - support.floor_z
@@ -155,12 +159,22 @@ def tip_rows(
         rows[:-1, 6 * i + 2] = e[:, 0] * ry - e[:, 1] * rx
         rows[:-1, 6 * i + 3 : 6 * i + 5] = e
         rows[-1, 6 * i + 2] = 1.0
-    rhs = np.append(np.maximum(hold - tipping, 0.0), m_low * GRAVITY)
     labels = [
         f"cart tip-over bound (edge from {np.round(p1[k], 3).tolist()} along {np.round(e[k], 3).tolist()})"
         for k in range(len(e))
     ]
-    return rows, rhs, labels + ["cart tip-over bound (hands lift the cart)"]
+    return rows, labels + ["cart tip-over bound (hands lift the cart)"], hands_inside(support, pts)
+
+
+def tip_rhs(support: SupportPolygon, load: CartLoad, inside: np.ndarray) -> np.ndarray:
+    """Return `tip_rows`' right-hand sides under `load`, with `inside` of `tip_geometry`: per edge the holding
+    moment less the inertia's tipping moment (at least 0), then the lifting bound m g."""
+    _, _, n, _ = support.edges()
+    m_low = max(load.mass - load.std_factor * load.mass_std, 0.0)
+    hold = holding_moment(support, load, inside)
+    a_in = np.asarray(load.acceleration, dtype=float) @ n.T  # toward the inside: the d'Alembert -m a points out
+    tipping = load.mass * support.com_height * np.maximum(a_in, 0.0)
+    return np.append(np.maximum(hold - tipping, 0.0), m_low * GRAVITY)
 
 
 def hands_inside(support: SupportPolygon, points_b: npt.ArrayLike) -> np.ndarray:

@@ -217,6 +217,8 @@ class JointTorqueLimit(Limit):
         self._lb, self._ub = np.full(wb.n_u, -np.inf), np.full(wb.n_u, np.inf)
         #: (frame id, wrench [f, n] world-aligned at the frame) of every hand for the coming step
         self.wrenches: list[tuple[int, np.ndarray]] = []
+        #: indices of the mass matrix's strict lower triangle
+        self._lower = np.tril_indices(wb.model.nv, -1)
 
     def box(self, s: StepState) -> tuple[np.ndarray, np.ndarray]:
         """Return each arm joint's speed toward its position limits (shrunk by `margin`) from which it still stops
@@ -241,8 +243,9 @@ class JointTorqueLimit(Limit):
         S = wb.input_map
         u_prev = np.zeros(wb.n_u) if s.u_prev is None else s.u_prev
         v_prev = S @ u_prev
-        M = pin.crba(model, data, q)
-        M = np.triu(M) + np.triu(M, 1).T
+        M = pin.crba(model, data, q).copy()  # its upper triangle: mirrored below
+        low = self._lower
+        M[low] = M.T[low]
         rows = wb.arm_idx_v[self.bounded]
         # velocity terms to first order about the last input: h(v) ~ h(v_prev) + dh/dv (v - v_prev)
         pin.computeRNEADerivatives(model, data, q, v_prev, np.zeros(model.nv))

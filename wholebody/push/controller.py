@@ -48,7 +48,7 @@ from wholebody.push.reference_clock import (
     path_braking,
 )
 from wholebody.push.slip_hold import SlipHold, lateral_demand
-from wholebody.push.tip_support import cart_load
+from wholebody.push.tip_support import cart_load, finite_or_zero
 
 
 #: allocations per period with the tip-over bound when the allocation saturates (`PushController._allocate`)
@@ -154,6 +154,8 @@ class PushController:
         #: per robot: its base plan (`wholebody.push.base_plan`) when `PushConfig.base_plan` is set, else None
         edges = np.cumsum([0] + [mm.n_hands for mm in self.robots])
         self.base_plans = [self._base_plan(mm, float(scheduler.y[a])) for mm, a in zip(self.robots, edges[:-1])]
+        #: per robot: its hands' rows of the allocation (`_by_robot`): a slice for several hands, an index for one
+        self._cuts = [slice(a, b) if b - a > 1 else a for a, b in zip(edges[:-1].tolist(), edges[1:].tolist())]
         #: per robot: its QP's own (posture weight, posture), restored outside a plan's windows
         self._own_terms: dict[int, tuple[float, np.ndarray | None]] = {}
         #: the clock's settings and their copy with the momentum horizon (`_look_ahead_settings`)
@@ -315,7 +317,7 @@ class PushController:
         if self._ahead is None or self._ahead[0] is not settings:
             self._ahead = (settings, replace(settings, horizon=settings.momentum_horizon))
         ahead = self._ahead[1]
-        speed = max(path_speed(self.trajectory, s + h) for h in horizon_times(ahead.horizon, ahead.horizon_samples))
+        speed = max_path_speed(self.trajectory, s, horizon_times(ahead.horizon, ahead.horizon_samples))
         force = self.config.n_arms * self.config.arm_limits.max_force
         if needs_look_ahead(float(params.m), speed, force, settings):
             return ahead
@@ -328,9 +330,7 @@ class PushController:
         when the path is at rest at s); inf when the path does not move."""
         assert self.clock is not None
         settings = self.clock.settings if settings is None else settings
-        speed = max(
-            path_speed(self.trajectory, s + h) for h in horizon_times(settings.horizon, settings.horizon_samples)
-        )
+        speed = max_path_speed(self.trajectory, s, horizon_times(settings.horizon, settings.horizon_samples))
         accel = self._accel_bound(params)
         if speed <= 1e-9 or not math.isfinite(accel):
             return float("inf")
@@ -359,7 +359,9 @@ class PushController:
         self.allocator.set_points([handle_point(v, self.geometry) for v in ys])
         if self.config.torque_margin is not None:  # |J^T w + g| <= tau_max at each arm's current configuration
             self.allocator.set_torque_limits(
-                [c for mm in self.robots for c in mm.torque_constraints(q)], margin=self.config.torque_margin
+                [c for mm in self.robots for c in mm.torque_constraints(q)],
+                margin=self.config.torque_margin,
+                stack=self.support is None,  # else set_tip_bound below takes them in
             )
         gamma_b = cart_model.generalized_to_body(q, gamma)
         if self.support is None:
@@ -392,7 +394,7 @@ class PushController:
             pts = np.asarray(self.support.points, dtype=float)
             half = 0.5 * (pts.max(axis=0) - pts.min(axis=0))
             cap = TIP_MARGIN_SHARE / factor
-            com = np.minimum(np.nan_to_num(np.asarray(std["com"], dtype=float), nan=0.0), cap * half)
+            com = np.minimum(finite_or_zero(np.asarray(std["com"], dtype=float)), cap * half)
             std = dict(std, mass=min(float(std["mass"]), cap * float(params.m)), com=[float(v) for v in com])
         return cart_load(q, qd, gamma, params, std, factor)
 
@@ -453,8 +455,7 @@ class PushController:
     ) -> tuple[list, list, list]:
         """Return the contacts, their rates and the hand wrenches per robot: a robot with one hand gets its
         own (y, ydot, wrench), one with several (one base, `MobileManipulator.n_hands` arms) arrays of them."""
-        edges = np.cumsum([0] + [mm.n_hands for mm in self.robots])
-        cut = [slice(a, b) if b - a > 1 else a for a, b in zip(edges[:-1], edges[1:])]
+        cut = self._cuts
         return [ys[c] for c in cut], [ydots[c] for c in cut], [np.asarray(wrenches)[c] for c in cut]
 
     def _robot_command(
@@ -513,6 +514,8 @@ class PushController:
 def hand_rows(rows: Sequence[np.ndarray]) -> np.ndarray:
     """Return per-hand joint vectors as the rows of one array, zero-padded where the arms' joint counts differ."""
     width = max(len(r) for r in rows)
+    if all(len(r) == width for r in rows):
+        return np.array([np.asarray(r, dtype=float) for r in rows])
     return np.array([np.pad(np.asarray(r, dtype=float), (0, width - len(r))) for r in rows])
 
 
@@ -545,6 +548,14 @@ def path_speed(trajectory: CartTrajectory, t: float) -> float:
     if speed is not None:
         return float(speed(t))
     return float(np.hypot(*trajectory.sample(t)[1][:2]))
+
+
+def max_path_speed(trajectory: CartTrajectory, s: float, offsets: Sequence[float]) -> float:
+    """Return the largest `path_speed` of the trajectory at the times s + each of `offsets` (s)."""
+    speed = getattr(trajectory, "path_speed", None)
+    if speed is None:
+        return max(path_speed(trajectory, s + h) for h in offsets)
+    return max([float(speed(s + h)) for h in offsets])
 
 
 def _body_to_generalized(q: np.ndarray, gamma_b: np.ndarray) -> np.ndarray:

@@ -59,7 +59,7 @@ def cart_load(
     rc = R @ np.array([params.dx, params.dy])
     a = qdd[:2] + qdd[2] * np.array([-rc[1], rc[0]]) - qd[2] ** 2 * rc
     a_b = R.T @ a
-    sd = np.zeros(3) if std is None else np.nan_to_num(np.array([std["mass"], *std["com"]], dtype=float), nan=0.0)
+    sd = np.zeros(3) if std is None else finite_or_zero(np.array([std["mass"], *std["com"]], dtype=float))
     return CartLoad(
         float(params.m),
         (float(params.dx), float(params.dy)),
@@ -68,6 +68,11 @@ def cart_load(
         (float(sd[1]), float(sd[2])),
         std_factor,
     )
+
+
+def finite_or_zero(values: np.ndarray) -> np.ndarray:
+    """Return ``np.nan_to_num(values, nan=0.0)``: `values` itself when all are finite (the usual case, cheaper)."""
+    return values if np.isfinite(values).all() else np.nan_to_num(values, nan=0.0)
 
 
 def cart_file_support(path: str | os.PathLike, geometry: CartGeometry) -> SupportPolygon | None:
