@@ -60,7 +60,7 @@ from dataclasses import dataclass
 import daqp
 import numpy as np
 
-from cart.online_regression import solve_small
+from cart.small_linalg import solve_small
 
 
 def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
