@@ -255,8 +255,13 @@ def _chunk_accelerations(
     """Return (vdot, omegadot on the valid samples of the chunks, acceleration noise gain) at one filter."""
     vds, ods = [], []
     size = chunks[0][1] - chunks[0][0]  # the chunks have one length: one pass filters them all, the noise once
-    both = _filtfilt(sos, np.column_stack([grid.q[i0:i1] for i0, i1 in chunks] + [e[:size]]))
-    ef = both[:, -1]
+    poses = [grid.q[i0:i1] for i0, i1 in chunks]
+    if len(e) >= size:
+        both = _filtfilt(sos, np.column_stack(poses + [e[:size]]))
+        ef = both[:, -1]
+    else:  # one stretch longer than the unit noise (20000 < n <= CUTOFF_SAMPLES): the noise filtered on its own
+        both = _filtfilt(sos, np.column_stack(poses))
+        ef = _filtfilt(sos, e)
     for c, (i0, i1) in enumerate(chunks):
         _, _, _, vd, od = _pose_kinematics(both[:, 3 * c : 3 * c + 3], grid.dt)
         valid = grid.valid[i0:i1]

@@ -90,3 +90,32 @@ def test_estimate_grows_at_most_linearly_with_the_log(monkeypatch):
         assert n_short[name] > 0
         assert n_long[name] <= ratio * n_short[name], (name, n_short[name], n_long[name])
     assert t_long <= 1.25 * ratio * t_short, (t_short, t_long)
+
+
+@pytest.mark.parametrize("n", [identify_module.CUTOFF_SAMPLES - 1000, identify_module.CUTOFF_SAMPLES + 2000])
+def test_cutoff_accelerations_on_grids_longer_than_the_unit_noise(n):
+    """A grid between the unit noise's 20000 samples and `CUTOFF_SAMPLES` (one stretch longer than the noise: a 55 s
+    log at 400 Hz) and a chunked longer one give the accelerations and the noise gain of filtering each stretch and
+    the noise on their own (`_pose_kinematics`, `_noise_gains`), the independent computation."""
+    rng = np.random.default_rng(4)
+    t = np.arange(n) * 0.0025
+    q = np.column_stack([0.3 * np.sin(0.2 * t), 0.1 * np.cos(0.3 * t), 0.2 * np.sin(0.1 * t)])
+    q += rng.normal(0.0, 1e-3, q.shape)
+    grid = identify_module._Grid(t, q, np.zeros((n, 3)), np.ones(n, dtype=bool), 0.0025, 0)
+    sos = identify_module.butter_lowpass_sos(4, 0.02)
+    chunks = identify_module._cutoff_chunks(n)
+    e = identify_module._unit_noise(max(i1 - i0 for i0, i1 in chunks))
+    vd, od, gain = identify_module._chunk_accelerations(grid, sos, e, chunks)
+    size = chunks[0][1] - chunks[0][0]
+    vds, ods = [], []
+    for i0, i1 in chunks:
+        _, _, _, v1, o1 = identify_module._pose_kinematics(identify_module._filtfilt(sos, q[i0:i1]), grid.dt)
+        keep = np.ones(i1 - i0, dtype=bool)
+        if len(chunks) > 1:
+            k = (i1 - i0) // 10
+            keep[:k] = keep[-k:] = False
+        vds.append(v1[keep])
+        ods.append(o1[keep])
+    np.testing.assert_allclose(vd, np.concatenate(vds), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(od, np.concatenate(ods), rtol=1e-9, atol=1e-12)
+    assert gain == pytest.approx(identify_module._noise_gains(min(size, 20000), grid.dt, sos)[0], rel=1e-9)
