@@ -219,12 +219,19 @@ class MomentumTest:
         while self._rows[0][0] < t - 2.0 * self.side_s - 1e-9:
             del self._rows[0]
 
-    def arm(self, t: float, mass: float = math.inf, dy: float = 0.0, misfit: float = 1.0) -> None:
+    def arm(
+        self, t: float, mass: float = math.inf, dy: float = 0.0, misfit: float = 1.0, force_std: float | None = None
+    ) -> None:
         """Mark an impulse at ``t`` (the first sample after the jump): :meth:`check` tests it ``side_s`` later.
 
         ``mass`` (kg) and ``dy`` (m): the estimate before it (``mass`` inf: the measured impulse is not used);
         ``misfit``: the model's residual ratio (at least 1): the measured force explains the motion that many
-        times worse than its sensor noise says, and the force's std is scaled by it."""
+        times worse than its sensor noise says, and the force's std is scaled by it; ``force_std`` (N): the
+        force's per-period std now (measured online by the estimator; None: the one given at construction)."""
+        if force_std is not None:
+            if not (math.isfinite(force_std) and force_std >= 0.0):
+                raise ValueError(f"MomentumTest.arm needs force_std >= 0, got {force_std}")
+            self.force_std = float(force_std)
         self._armed = (float(t), float(mass), float(dy), max(float(misfit), 1.0))
 
     def check(self, t: float) -> tuple[float, float, float] | None:

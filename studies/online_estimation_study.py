@@ -404,7 +404,7 @@ def mujoco_load_run(seed: int, kind: str, **options) -> dict:
     from studies.testbeds import mujoco_loads as ml
 
     case, load = ml.random_load_case(seed)
-    log, truth = ml.simulate_with_load(case, replace(load, kind=kind))
+    log, truth = ml.simulated(seed, case, replace(load, kind=kind))
     b = truth["before"]
     guess = CartParams(0.8 * b["m"], b["dx"], 0.0, 0.8 * b["I_about_com"], 1.0, 1.0)
     pos, vel = case.position_noise, case.velocity_noise

@@ -59,3 +59,30 @@ def test_without_the_momentum_test_the_regression_is_slower(dropped_in_log) -> N
     _, masses = _replay(dropped_in_log, momentum_changes=False)
     m_at = masses[np.searchsorted(masses[:, 0], 12.2), 1]
     assert abs(m_at / 30.0 - 1.0) > 0.1
+
+
+def _turning_in_place(t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """A slow push and pull while a yaw torque turns the cart to and fro: small forward speeds, F/T spikes."""
+    f = 1.5 * math.sin(2.0 * math.pi * t / 8.0)
+    return np.array([f * math.cos(q[2]), f * math.sin(q[2]), 6.0 * math.sin(2.0 * math.pi * t / 10.0)])
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_speed_ratios_std_covers_its_scatter_with_an_exact_speed_and_a_noisy_wrench(seed: int) -> None:
+    """No load changes; the motion capture's velocity exact (as a simulator's log), the F/T noise 3 N measured
+    online (no ``wrench_std`` given). Every impulse the test arms gives a ratio within 3 of its stds of 1: the
+    force's noise integrated over the test's sides is in the std (without it the std was 5x too small, and a
+    spike at a slow speed read as a load put in: MuJoCo test bed seeds 504 and 602's change-free logs)."""
+    truth, guess = CartParams(15.0, 0.3, 0.1, 1.6, 4.0), CartParams(12.0, 0.3, 0.0, 1.3, 1.0)
+    noise = MeasurementNoise(position=0.0005, theta=0.002)
+    log = simulate(truth, _turning_in_place, 30.0, noise=noise, rng=np.random.default_rng(seed), substeps=2).measured
+    rng = np.random.default_rng(100 + seed)
+    g = log.gamma + rng.standard_normal(log.gamma.shape) * np.array([3.0, 3.0, 0.3])
+    est = make_online_estimator(np.r_[log.q[0], log.qd[0]], guess, noise.measurement_std())
+    z = np.hstack([log.q, log.qd])
+    for k in range(1, len(log.t)):
+        est.step(g[k - 1], log.t[k] - log.t[k - 1], z[k])
+    assert est.momentum is not None and len(est.momentum.tested) >= 3
+    scores = [abs(ratio - 1.0) / std for _, ratio, std in est.momentum.tested]
+    assert max(scores) < 3.0, est.momentum.tested
+    assert not est.events
