@@ -107,16 +107,18 @@ def _barrier_derivatives(x: np.ndarray, lo3: float) -> tuple[np.ndarray, np.ndar
     n = len(x)
     grad, hess = np.zeros(n), np.zeros((n, n))
     s_m, s_1, s_2, q = _slacks(x, lo3)
-    grad[0], grad[4], grad[5] = -(1.0 / s_m), -(1.0 / s_1), -(1.0 / s_2)
-    hess[0, 0], hess[4, 4], hess[5, 5] = 1.0 / (s_m * s_m), 1.0 / (s_1 * s_1), 1.0 / (s_2 * s_2)
     m, a, b, j = x[:4].tolist()
-    dq = np.array([j - lo3, -2.0 * a, -2.0 * b, m])
-    grad[:4] -= dq / q
-    hess[:4, :4] += (dq[:, None] * dq[None, :]) / (q * q)
-    hess[0, 3] -= 1.0 / q
-    hess[3, 0] -= 1.0 / q
-    hess[1, 1] += 2.0 / q
-    hess[2, 2] += 2.0 / q
+    dq = (j - lo3, -2.0 * a, -2.0 * b, m)
+    qq = q * q
+    outer = [[0.0 + dq[i] * dq[k] / qq for k in range(4)] for i in range(4)]  # as added to zeros
+    outer[0][0] += 1.0 / (s_m * s_m)
+    outer[0][3] -= 1.0 / q
+    outer[3][0] -= 1.0 / q
+    outer[1][1] += 2.0 / q
+    outer[2][2] += 2.0 / q
+    hess[:4, :4] = outer
+    hess[4, 4], hess[5, 5] = 1.0 / (s_1 * s_1), 1.0 / (s_2 * s_2)
+    grad[:6] = (-(1.0 / s_m) - dq[0] / q, 0.0 - dq[1] / q, 0.0 - dq[2] / q, 0.0 - dq[3] / q, -(1.0 / s_1), -(1.0 / s_2))
     return grad, hess
 
 
@@ -129,17 +131,33 @@ def _newton_step(
 ) -> tuple[np.ndarray, float]:
     """Return the Newton step of t ||c - r x||^2 + barrier at x and its Newton decrement.
 
-    ``fixed``: (r^T r, the ridge 1e-13 I), the same at every step of one problem.
+    ``fixed``: (2 t r^T r, the ridge 1e-13 I), the same at every step of one centring.
     """
-    rtr, ridge = fixed
+    from cart.small_linalg import solve_small  # lazy: scipy.linalg costs start-up; np.linalg.solve's numbers
+
+    t_rtr, ridge = fixed
     g_b, h_b = _barrier_derivatives(x, lo3)
     grad = -2.0 * t * (r.T @ (c - r @ x)) + g_b
-    hess = 2.0 * t * rtr + h_b
+    hess = t_rtr + h_b
     diag = hess.diagonal()
     scale = 1.0 / np.sqrt(np.where(diag > 0.0, diag, 1.0))
     # the equilibrated system, a tiny ridge for columns without weight (an effect's column that is all zero)
-    step = -scale * np.linalg.solve(hess * (scale[:, None] * scale[None, :]) + ridge, grad * scale)
+    step = -scale * solve_small(hess * (scale[:, None] * scale[None, :]) + ridge, grad * scale)
     return step, math.sqrt(max(-float(grad @ step), 0.0))
+
+
+def _damped(phi, x: np.ndarray, step: np.ndarray, lam: float, phi0: float) -> tuple[float, float | None]:
+    """Return the step size that backtracking on the barrier function ``phi`` accepts, and phi there (None: not reached).
+
+    Halve from 1 while phi does not decrease by 0.25 size lam^2 from ``phi0`` = phi(x) (down to 1e-12).
+    """
+    size = 1.0
+    while size > 1e-12:
+        val = phi(x + size * step)
+        if not val > phi0 - 0.25 * size * lam * lam:
+            return size, val
+        size *= 0.5
+    return size, None
 
 
 def _centre(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -> np.ndarray:
@@ -150,21 +168,22 @@ def _centre(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -
         return t * float(e @ e) + _barrier_value(u, lo3)
 
     lam_prev = math.inf
-    fixed = (r.T @ r, 1e-13 * np.eye(len(x)))
+    fixed = (2.0 * t * (r.T @ r), 1e-13 * np.eye(len(x)))
+    phi_x = None  # phi at x, when the backtracking has evaluated it there
     for _ in range(_MAX_NEWTON):
         step, lam = _newton_step(r, c, x, t, lo3, fixed)
-        size = 1.0
+        size, phi_new = 1.0, None
         if lam >= 0.25:  # damped phase: backtrack on the barrier function
-            phi0 = phi(x)
-            while size > 1e-12 and phi(x + size * step) > phi0 - 0.25 * size * lam * lam:
-                size *= 0.5
+            size, phi_new = _damped(phi, x, step, lam, phi(x) if phi_x is None else phi_x)
         x_new = x + size * step
-        while size > 1e-12 and _barrier_value(x_new, lo3) == math.inf:
-            size *= 0.5
-            x_new = x + size * step
-        if _barrier_value(x_new, lo3) == math.inf:
-            break
-        x = x_new
+        if phi_new is None or not math.isfinite(phi_new):  # a finite phi is inside the bounds
+            phi_new = None
+            while size > 1e-12 and _barrier_value(x_new, lo3) == math.inf:
+                size *= 0.5
+                x_new = x + size * step
+            if _barrier_value(x_new, lo3) == math.inf:
+                break
+        x, phi_x = x_new, phi_new
         # converged, or stalled at the rounding level of t ||c - r x||^2
         if lam < 1e-5 or (lam < 1e-2 and lam > 0.5 * lam_prev):
             break
