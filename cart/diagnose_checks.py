@@ -96,7 +96,8 @@ def _barrier_value(x: np.ndarray, lo3: float) -> float:
     barrier -log(m (J - lo3) - (m dx)^2 - (m dy)^2) is self-concordant (parameter 2); each of
     m >= MASS_MIN, sigma >= 0, sigma_yaw >= 0 adds -log(slack) (parameter 1).
     """
-    s_m, s_1, s_2, q = _slacks(x, lo3)
+    m, a, b, j, s_1, s_2 = x[:6].tolist()  # the slacks of :func:`_slacks`, inline (the line searches' hot path)
+    s_m, q = m - MASS_MIN, m * (j - lo3) - a * a - b * b
     if s_m <= 0.0 or s_1 <= 0.0 or s_2 <= 0.0 or q <= 0.0:
         return math.inf
     return -(math.log(s_m) + math.log(s_1) + math.log(s_2) + math.log(q))
@@ -139,10 +140,9 @@ def _newton_step(
     g_b, h_b = _barrier_derivatives(x, lo3)
     grad = -2.0 * t * (r.T @ (c - r @ x)) + g_b
     hess = t_rtr + h_b
-    diag = hess.diagonal()
-    scale = 1.0 / np.sqrt(np.where(diag > 0.0, diag, 1.0))
+    scale = np.array([1.0 / math.sqrt(d) if d > 0.0 else 1.0 for d in hess.diagonal().tolist()])
     # the equilibrated system, a tiny ridge for columns without weight (an effect's column that is all zero)
-    step = -scale * solve_small(hess * (scale[:, None] * scale[None, :]) + ridge, grad * scale)
+    step = -scale * solve_small(hess * np.multiply.outer(scale, scale) + ridge, grad * scale)
     return step, math.sqrt(max(-float(grad @ step), 0.0))
 
 
@@ -160,8 +160,36 @@ def _damped(phi, x: np.ndarray, step: np.ndarray, lam: float, phi0: float) -> tu
     return size, None
 
 
+def _stops(lam: float, lam_prev: float) -> bool:
+    """Return True when a centring ends after a step of Newton decrement ``lam``: converged, or stalled at the
+    rounding level of t ||c - r x||^2 (the decrement no longer halves)."""
+    return lam < 1e-5 or (lam < 1e-2 and lam > 0.5 * lam_prev)
+
+
+def _periodic_end(xs: list[np.ndarray], lams: list[float], m: int) -> np.ndarray:
+    """Return the x a centring ends at once its iterate repeats: x after step i (the last of ``xs``) equals x after
+    step m (``xs[m]``; 0: the start).
+
+    Each Newton step is a function of x alone, so from there the iterates and their decrements repeat with period
+    p = i - m; the steps left (to a stop by :func:`_stops` or to _MAX_NEWTON) are counted on the kept ones.
+    """
+    i = len(xs) - 1
+    p = i - m
+    lam_prev = lams[i]
+    for j in range(i + 1, _MAX_NEWTON + 1):
+        lam = lams[m + 1 + (j - m - 1) % p]  # the decrement of step j: that of x after step j - 1
+        if _stops(lam, lam_prev):
+            return xs[m + (j - m) % p]
+        lam_prev = lam
+    return xs[m + (_MAX_NEWTON - m) % p] if i < _MAX_NEWTON else xs[i]
+
+
 def _centre(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -> np.ndarray:
-    """Return the minimiser of t ||c - r x||^2 + barrier (Newton, backtracking while far, from a feasible x)."""
+    """Return the minimiser of t ||c - r x||^2 + barrier (Newton, backtracking while far, from a feasible x).
+
+    At the rounding level the iterate may come back to a point it held before (often x + step == x): the
+    centring then ends where those repeating steps would end it (:func:`_periodic_end`), without taking them.
+    """
 
     def phi(u: np.ndarray) -> float:
         e = c - r @ u
@@ -170,7 +198,8 @@ def _centre(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -
     lam_prev = math.inf
     fixed = (2.0 * t * (r.T @ r), 1e-13 * np.eye(len(x)))
     phi_x = None  # phi at x, when the backtracking has evaluated it there
-    for _ in range(_MAX_NEWTON):
+    xs, lams, seen = [x], [math.nan], {x.tobytes(): 0}  # x after each step (0: the start), their decrements
+    for i in range(1, _MAX_NEWTON + 1):
         step, lam = _newton_step(r, c, x, t, lo3, fixed)
         size, phi_new = 1.0, None
         if lam >= 0.25:  # damped phase: backtrack on the barrier function
@@ -184,10 +213,14 @@ def _centre(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -
             if _barrier_value(x_new, lo3) == math.inf:
                 break
         x, phi_x = x_new, phi_new
-        # converged, or stalled at the rounding level of t ||c - r x||^2
-        if lam < 1e-5 or (lam < 1e-2 and lam > 0.5 * lam_prev):
+        if _stops(lam, lam_prev):
             break
         lam_prev = lam
+        xs.append(x)
+        lams.append(lam)
+        m = seen.setdefault(x.tobytes(), i)
+        if m != i:
+            return _periodic_end(xs, lams, m)
     return x
 
 

@@ -696,25 +696,39 @@ class SwivelCasterModel(CasterSwivel):
             out[..., 1, k] = -np.sum(unit * lever, axis=-1)
         return out
 
-    def _units(self, sig: Signals, trail: float, swing: int, combos: np.ndarray | None = None) -> np.ndarray:
-        """Return the unit rows (L, combos, 2 rows, 3 params) of the mode combinations (all: None) on one swing.
+    def _combo_units(self, sig: Signals, trail: float, swing: int) -> np.ndarray:
+        """Return the unit rows of every mode combination on one swing, combination-major (combos, L * 2 * 3).
 
-        Those of every combination are kept (they depend on the motion only; a bounded cache,
-        :data:`UNIT_CACHE_BYTES`); a subset is taken from them (each combination's rows are its own).
+        Kept (they depend on the motion only; a bounded cache, :data:`UNIT_CACHE_BYTES`).
         """
         key = ("motion", "caster_units", self.axle_x, trail, swing)
-        u = sig.extras.get(key)
-        if u is None:
+        cu = sig.extras.get(key)
+        if cu is None:
             lanes, i, j = self._lanes(sig, trail)
             alpha, rate = lanes.swing_alpha[(i, j)][swing], lanes.swing_rates(i, j, swing)
             c1, c2 = self.COMBO_LANES
             al = np.stack([alpha[:, 0, c1], alpha[:, 1, c2]], axis=-1)  # (L, combos, 2 casters)
             ra = np.stack([rate[:, 0, c1], rate[:, 1, c2]], axis=-1)
-            u = self._unit_rows(al, ra, trail)
-            cache_bounded(sig, "caster_units", key, u, UNIT_CACHE_BYTES)
-        if combos is None or np.array_equal(combos, np.arange(u.shape[1])):
-            return u
-        return u[:, combos]
+            cu = self._unit_rows(al, ra, trail).transpose(1, 0, 2, 3).reshape(len(c1), -1)
+            cache_bounded(sig, "caster_units", key, cu, UNIT_CACHE_BYTES)
+        return cu
+
+    def _units(self, sig: Signals, trail: float, swing: int, combos: np.ndarray | None = None) -> np.ndarray:
+        """Return the unit rows (L, combos, 2 rows, 3 params) of the mode combinations (all: None) on one swing."""
+        cu = self._combo_units(sig, trail, swing)
+        cu = cu if combos is None else cu[combos]
+        return np.ascontiguousarray(cu.reshape(len(cu), -1, 2, 3).transpose(1, 0, 2, 3))
+
+    def _mixture(self, sig: Signals, trail: float, swing: int, wts: np.ndarray) -> np.ndarray:
+        """Return the unit rows (L, 2 rows, 3 params) of one swing as the mixture ``wts`` of its mode combinations.
+
+        The product ``np.tensordot(wts, units, axes=(0, 1))`` forms (the same numbers), on the kept
+        combination-major rows; combinations of weight 0 left out.
+        """
+        used = np.flatnonzero(wts > 0.0)
+        cu = self._combo_units(sig, trail, swing)
+        cu = cu if len(used) == len(cu) else cu[used]
+        return np.dot(wts[used].reshape(1, -1), cu).reshape(-1, 2, 3)
 
     def _choice(self, sig: Signals, trail: float) -> dict[tuple[int, int], np.ndarray]:
         """Return the current weights of the mode combinations per swing ({(i0, i1): (combos,)}; empty: natural)."""
@@ -832,11 +846,18 @@ class SwivelCasterModel(CasterSwivel):
         return out
 
     def _natural_part(self, sig: Signals, trail: float, s0: int, s1: int) -> np.ndarray:
-        """Return the columns (s1 - s0, 3, 3) of the natural lane on samples [s0, s1) (those of :meth:`columns`)."""
-        lanes, i, j = self._lanes(sig, trail)
-        g = np.zeros((s1 - s0, 3, 3))
-        g[:, :2, :] = self._unit_rows(lanes.alpha0[s0:s1, i, j], lanes.natural_rate(i, j, s0, s1), trail)
-        return g
+        """Return the columns (s1 - s0, 3, 3) of the natural lane on samples [s0, s1) (those of :meth:`columns`), a copy.
+
+        Kept (the motion's; a bounded cache, :data:`UNIT_CACHE_BYTES`).
+        """
+        key = ("motion", "caster_natural_part", self.axle_x, trail, s0, s1)
+        g = sig.extras.get(key)
+        if g is None:
+            lanes, i, j = self._lanes(sig, trail)
+            g = np.zeros((s1 - s0, 3, 3))
+            g[:, :2, :] = self._unit_rows(lanes.alpha0[s0:s1, i, j], lanes.natural_rate(i, j, s0, s1), trail)
+            cache_bounded(sig, "caster_units", key, g, UNIT_CACHE_BYTES)
+        return g.copy()
 
     def window_columns(self, sig, nl, phi, base, edges):
         """Return the window integrals of :meth:`columns`: the natural lane's, the windows a chosen swing touches redone.
@@ -858,8 +879,7 @@ class SwivelCasterModel(CasterSwivel):
                 lo, hi = max(i0, s0), min(i1, s1)
                 if lo < hi:
                     if k not in mixes:
-                        used = np.flatnonzero(wts > 0.0)  # the combinations the swing's mixture holds
-                        mixes[k] = np.tensordot(wts[used], self._units(sig, trail, k, used), axes=(0, 1))
+                        mixes[k] = self._mixture(sig, trail, k, wts)
                     g[lo - s0 : hi - s0, :2, :] = mixes[k][lo - i0 : hi - i0]
             out[ka : kb + 1] = window_integrals(sig.t[s0:s1], g, np.asarray(edges[ka : kb + 2]) - s0)
         return out
@@ -874,9 +894,7 @@ class SwivelCasterModel(CasterSwivel):
             for st in sig.extras.get(("caster_swing_stats", self.axle_x, trail), []):
                 wts = choice.get(st[0])
                 if wts is not None:
-                    used = np.flatnonzero(wts > 0.0)  # the combinations the swing's mixture holds
-                    u = self._units(sig, trail, st[1], used)
-                    rows[st[0][0] : st[0][1]] = np.tensordot(wts[used], u, axes=(0, 1))  # (L, rows, params)
+                    rows[st[0][0] : st[0][1]] = self._mixture(sig, trail, st[1], wts)  # (L, rows, params)
         return rows
 
     def _hold_capacity(self, sig: Signals, trail: float) -> np.ndarray:
