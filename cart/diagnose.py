@@ -386,7 +386,8 @@ def _bounded_fit(sig0: Signals, rows: tuple[np.ndarray, ...], noise: tuple[float
     key = ("bounded_fit", h.digest())
     packed = sig0.extras.get(key)
     if packed is None:
-        x, var_e, cov, m2ll = constrained_fit(*rows, noise[0], noise[1], sol[0], sol[1])
+        d, y, lv, lw = rows
+        x, var_e, cov, m2ll = constrained_fit(d, y, lv, lw, noise[0], noise[1], sol[0], sol[1])
         packed = np.concatenate([x, var_e, cov.ravel(), [m2ll]])
         cache_bounded(sig0, "bounded_fit", key, packed, BOUNDED_FIT_CACHE_BYTES)
     n_p, n_r = len(sol[0]), len(sol[1])
