@@ -107,8 +107,8 @@ def _barrier_derivatives(x: np.ndarray, lo3: float) -> tuple[np.ndarray, np.ndar
     """Return the gradient and Hessian of :func:`_barrier_value` at a feasible x."""
     n = len(x)
     grad, hess = np.zeros(n), np.zeros((n, n))
-    s_m, s_1, s_2, q = _slacks(x, lo3)
-    m, a, b, j = x[:4].tolist()
+    m, a, b, j, s_1, s_2 = x[:6].tolist()  # the slacks of :func:`_slacks`, inline
+    s_m, q = m - MASS_MIN, m * (j - lo3) - a * a - b * b
     dq = (j - lo3, -2.0 * a, -2.0 * b, m)
     qq = q * q
     outer = [[0.0 + dq[i] * dq[k] / qq for k in range(4)] for i in range(4)]  # as added to zeros
@@ -128,17 +128,23 @@ _NU = 5.0
 
 
 def _newton_step(
-    r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float, fixed: tuple[np.ndarray, np.ndarray]
+    r: np.ndarray,
+    c: np.ndarray,
+    x: np.ndarray,
+    t: float,
+    lo3: float,
+    fixed: tuple[np.ndarray, np.ndarray],
+    e: np.ndarray | None = None,
 ) -> tuple[np.ndarray, float]:
     """Return the Newton step of t ||c - r x||^2 + barrier at x and its Newton decrement.
 
-    ``fixed``: (2 t r^T r, the ridge 1e-13 I), the same at every step of one centring.
+    ``fixed``: (2 t r^T r, the ridge 1e-13 I), the same at every step of one centring; ``e``: c - r x when known.
     """
     from cart.small_linalg import solve_small  # lazy: scipy.linalg costs start-up; np.linalg.solve's numbers
 
     t_rtr, ridge = fixed
     g_b, h_b = _barrier_derivatives(x, lo3)
-    grad = -2.0 * t * (r.T @ (c - r @ x)) + g_b
+    grad = -2.0 * t * (r.T @ (c - r @ x if e is None else e)) + g_b
     hess = t_rtr + h_b
     scale = np.array([1.0 / math.sqrt(d) if d > 0.0 else 1.0 for d in hess.diagonal().tolist()])
     # the equilibrated system, a tiny ridge for columns without weight (an effect's column that is all zero)
@@ -146,15 +152,16 @@ def _newton_step(
     return step, math.sqrt(max(-float(grad @ step), 0.0))
 
 
-def _damped(phi, x: np.ndarray, step: np.ndarray, lam: float, phi0: float) -> tuple[float, float | None]:
-    """Return the step size that backtracking on the barrier function ``phi`` accepts, and phi there (None: not reached).
+def _damped(phi, x: np.ndarray, step: np.ndarray, lam: float, phi0: float) -> tuple[float, tuple | None]:
+    """Return the step size that backtracking on the barrier function ``phi`` accepts, and ``phi`` there (None: not
+    reached; ``phi`` returns its value and the residual).
 
     Halve from 1 while phi does not decrease by 0.25 size lam^2 from ``phi0`` = phi(x) (down to 1e-12).
     """
     size = 1.0
     while size > 1e-12:
         val = phi(x + size * step)
-        if not val > phi0 - 0.25 * size * lam * lam:
+        if not val[0] > phi0 - 0.25 * size * lam * lam:
             return size, val
         size *= 0.5
     return size, None
@@ -191,21 +198,21 @@ def _centre(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -
     centring then ends where those repeating steps would end it (:func:`_periodic_end`), without taking them.
     """
 
-    def phi(u: np.ndarray) -> float:
+    def phi(u: np.ndarray) -> tuple[float, np.ndarray]:
         e = c - r @ u
-        return t * float(e @ e) + _barrier_value(u, lo3)
+        return t * float(e @ e) + _barrier_value(u, lo3), e
 
     lam_prev = math.inf
     fixed = (2.0 * t * (r.T @ r), 1e-13 * np.eye(len(x)))
-    phi_x = None  # phi at x, when the backtracking has evaluated it there
+    phi_x = None  # phi and the residual at x, when the backtracking has evaluated them there
     xs, lams, seen = [x], [math.nan], {x.tobytes(): 0}  # x after each step (0: the start), their decrements
     for i in range(1, _MAX_NEWTON + 1):
-        step, lam = _newton_step(r, c, x, t, lo3, fixed)
+        step, lam = _newton_step(r, c, x, t, lo3, fixed, phi_x[1] if phi_x is not None else None)
         size, phi_new = 1.0, None
         if lam >= 0.25:  # damped phase: backtrack on the barrier function
-            size, phi_new = _damped(phi, x, step, lam, phi(x) if phi_x is None else phi_x)
+            size, phi_new = _damped(phi, x, step, lam, (phi(x) if phi_x is None else phi_x)[0])
         x_new = x + size * step
-        if phi_new is None or not math.isfinite(phi_new):  # a finite phi is inside the bounds
+        if phi_new is None or not math.isfinite(phi_new[0]):  # a finite phi is inside the bounds
             phi_new = None
             while size > 1e-12 and _barrier_value(x_new, lo3) == math.inf:
                 size *= 0.5
