@@ -1291,7 +1291,12 @@ def _frame_fits(sig: Signals, edges: np.ndarray, final: Fit | None) -> _FrameFit
     Every fit carries a constant force in {s} (a floor slope) and a constant wrench in {b} (a bias), so
     that neither reading wins by absorbing one of those.
     """
-    keep = {k: v for k, v in sig.extras.items() if k in (KEEP_KEY, "noise_dv")}
+    # the window mask, the pose noise and what depends on the motion alone (both readings share the motion)
+    keep = {
+        k: v
+        for k, v in sig.extras.items()
+        if k in (KEEP_KEY, "noise_dv") or (isinstance(k, tuple) and len(k) > 0 and k[0] == "motion")
+    }
     as_logged, alt = replace(sig, extras=dict(keep)), _cart_frame_signals(sig, keep)
     named = list(final.effects) if final is not None else []
     base: list[tuple[Effect, tuple[float, ...]]] = [(e, ()) for e in (FloorSlope(), WrenchBias())]
