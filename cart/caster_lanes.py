@@ -44,10 +44,14 @@ class CasterLanes:
     trails: tuple[float, ...]
     half_track: float
 
-    def natural_rate(self, i: int, j: int) -> np.ndarray:
-        """Return the swivel rates (N, 2 casters) of the natural lane of axle i, trail j (single precision)."""
+    def natural_rate(self, i: int, j: int, lo: int = 0, hi: int | None = None) -> np.ndarray:
+        """Return the swivel rates (N, 2 casters) of the natural lane of axle i, trail j (single precision).
+
+        ``lo``, ``hi``: those of samples [lo, hi) only (the same values).
+        """
         ys = np.array([self.half_track, -self.half_track])
-        return _rates(self.alpha0[:, i, j], self.v[:, None], self.om[:, None], self.axles[i], ys, self.trails[j])
+        v, om = self.v[lo:hi, None], self.om[lo:hi, None]
+        return _rates(self.alpha0[lo:hi, i, j], v, om, self.axles[i], ys, self.trails[j])
 
     def swing_rates(self, i: int, j: int, k: int) -> np.ndarray:
         """Return the swivel rates (L, 2 casters, modes) of every lane on swing k of axle i, trail j."""

@@ -29,6 +29,7 @@ d. Report: gap before/after (same replay metric), named effects with
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field, replace
 from collections.abc import Sequence
@@ -368,6 +369,32 @@ def _advance(st: _FitState, solution: tuple, it: int, freeze: int) -> None:
     st.finished = bool(done or (it == 0 and not st.iterate) or it + 1 >= st.n_iter)
 
 
+#: bytes of bounded fits kept per log (:func:`_bounded_fit`, oldest dropped first)
+BOUNDED_FIT_CACHE_BYTES = 8 * 2**20
+
+
+def _bounded_fit(sig0: Signals, rows: tuple[np.ndarray, ...], noise: tuple[float, float], sol: tuple) -> tuple:
+    """Return :func:`cart.diagnose_checks.constrained_fit` of the window ``rows`` (d, y, lv, lw) from ``sol``.
+
+    The result is a function of its inputs alone, and the same rows recur (a grid point refitted, the same
+    candidate on the same fit): it is kept in ``sig0.extras`` under a digest of every input (a bounded cache).
+    """
+    h = hashlib.blake2b(digest_size=20)
+    for a in (*rows, np.asarray(sol[0], float), np.asarray(sol[1], float), np.asarray(noise, float)):
+        h.update(repr(a.shape).encode())
+        h.update(np.ascontiguousarray(a).tobytes())
+    key = ("bounded_fit", h.digest())
+    packed = sig0.extras.get(key)
+    if packed is None:
+        d, y, lv, lw = rows
+        x, var_e, cov, m2ll = constrained_fit(d, y, lv, lw, noise[0], noise[1], sol[0], sol[1])
+        packed = np.concatenate([x, var_e, cov.ravel(), [m2ll]])
+        cache_bounded(sig0, "bounded_fit", key, packed, BOUNDED_FIT_CACHE_BYTES)
+    n_p, n_r = len(sol[0]), len(sol[1])
+    x, var_e = packed[:n_p].copy(), packed[n_p : n_p + n_r].copy()
+    return x, var_e, packed[n_p + n_r : -1].reshape(n_p, n_p).copy(), float(packed[-1])
+
+
 def fit_models(
     sig0: Signals,
     edges: np.ndarray,
@@ -403,8 +430,7 @@ def fit_models(
         for st, sol, rows in zip(active, sols, designs):
             st.bounded = bounded and not (cart_is_physical(sol[0]) and np.all(sol[0][4:N_NOMINAL] >= 0.0))
             if st.bounded:
-                d, y, lv, lw = rows
-                sol = constrained_fit(d, y, lv, lw, s2v, s2w, sol[0], sol[1])
+                sol = _bounded_fit(sig0, rows, (s2v, s2w), sol)
             _advance(st, sol, it, freeze)
     out = []
     for st in states:
@@ -1265,7 +1291,12 @@ def _frame_fits(sig: Signals, edges: np.ndarray, final: Fit | None) -> _FrameFit
     Every fit carries a constant force in {s} (a floor slope) and a constant wrench in {b} (a bias), so
     that neither reading wins by absorbing one of those.
     """
-    keep = {k: v for k, v in sig.extras.items() if k in (KEEP_KEY, "noise_dv")}
+    # the window mask, the pose noise and what depends on the motion alone (both readings share the motion)
+    keep = {
+        k: v
+        for k, v in sig.extras.items()
+        if k in (KEEP_KEY, "noise_dv") or (isinstance(k, tuple) and len(k) > 0 and k[0] == "motion")
+    }
     as_logged, alt = replace(sig, extras=dict(keep)), _cart_frame_signals(sig, keep)
     named = list(final.effects) if final is not None else []
     base: list[tuple[Effect, tuple[float, ...]]] = [(e, ()) for e in (FloorSlope(), WrenchBias())]

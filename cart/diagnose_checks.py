@@ -96,7 +96,8 @@ def _barrier_value(x: np.ndarray, lo3: float) -> float:
     barrier -log(m (J - lo3) - (m dx)^2 - (m dy)^2) is self-concordant (parameter 2); each of
     m >= MASS_MIN, sigma >= 0, sigma_yaw >= 0 adds -log(slack) (parameter 1).
     """
-    s_m, s_1, s_2, q = _slacks(x, lo3)
+    m, a, b, j, s_1, s_2 = x[:6].tolist()  # the slacks of :func:`_slacks`, inline (the line searches' hot path)
+    s_m, q = m - MASS_MIN, m * (j - lo3) - a * a - b * b
     if s_m <= 0.0 or s_1 <= 0.0 or s_2 <= 0.0 or q <= 0.0:
         return math.inf
     return -(math.log(s_m) + math.log(s_1) + math.log(s_2) + math.log(q))
@@ -106,17 +107,19 @@ def _barrier_derivatives(x: np.ndarray, lo3: float) -> tuple[np.ndarray, np.ndar
     """Return the gradient and Hessian of :func:`_barrier_value` at a feasible x."""
     n = len(x)
     grad, hess = np.zeros(n), np.zeros((n, n))
-    s_m, s_1, s_2, q = _slacks(x, lo3)
-    grad[0], grad[4], grad[5] = -(1.0 / s_m), -(1.0 / s_1), -(1.0 / s_2)
-    hess[0, 0], hess[4, 4], hess[5, 5] = 1.0 / (s_m * s_m), 1.0 / (s_1 * s_1), 1.0 / (s_2 * s_2)
-    m, a, b, j = x[:4].tolist()
-    dq = np.array([j - lo3, -2.0 * a, -2.0 * b, m])
-    grad[:4] -= dq / q
-    hess[:4, :4] += (dq[:, None] * dq[None, :]) / (q * q)
-    hess[0, 3] -= 1.0 / q
-    hess[3, 0] -= 1.0 / q
-    hess[1, 1] += 2.0 / q
-    hess[2, 2] += 2.0 / q
+    m, a, b, j, s_1, s_2 = x[:6].tolist()  # the slacks of :func:`_slacks`, inline
+    s_m, q = m - MASS_MIN, m * (j - lo3) - a * a - b * b
+    dq = (j - lo3, -2.0 * a, -2.0 * b, m)
+    qq = q * q
+    outer = [[0.0 + dq[i] * dq[k] / qq for k in range(4)] for i in range(4)]  # as added to zeros
+    outer[0][0] += 1.0 / (s_m * s_m)
+    outer[0][3] -= 1.0 / q
+    outer[3][0] -= 1.0 / q
+    outer[1][1] += 2.0 / q
+    outer[2][2] += 2.0 / q
+    hess[:4, :4] = outer
+    hess[4, 4], hess[5, 5] = 1.0 / (s_1 * s_1), 1.0 / (s_2 * s_2)
+    grad[:6] = (-(1.0 / s_m) - dq[0] / q, 0.0 - dq[1] / q, 0.0 - dq[2] / q, 0.0 - dq[3] / q, -(1.0 / s_1), -(1.0 / s_2))
     return grad, hess
 
 
@@ -125,50 +128,106 @@ _NU = 5.0
 
 
 def _newton_step(
-    r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float, fixed: tuple[np.ndarray, np.ndarray]
+    r: np.ndarray,
+    c: np.ndarray,
+    x: np.ndarray,
+    t: float,
+    lo3: float,
+    fixed: tuple[np.ndarray, np.ndarray],
+    e: np.ndarray | None = None,
 ) -> tuple[np.ndarray, float]:
     """Return the Newton step of t ||c - r x||^2 + barrier at x and its Newton decrement.
 
-    ``fixed``: (r^T r, the ridge 1e-13 I), the same at every step of one problem.
+    ``fixed``: (2 t r^T r, the ridge 1e-13 I), the same at every step of one centring; ``e``: c - r x when known.
     """
-    rtr, ridge = fixed
+    from cart.small_linalg import solve_small  # lazy: scipy.linalg costs start-up; np.linalg.solve's numbers
+
+    t_rtr, ridge = fixed
     g_b, h_b = _barrier_derivatives(x, lo3)
-    grad = -2.0 * t * (r.T @ (c - r @ x)) + g_b
-    hess = 2.0 * t * rtr + h_b
-    diag = hess.diagonal()
-    scale = 1.0 / np.sqrt(np.where(diag > 0.0, diag, 1.0))
+    grad = -2.0 * t * (r.T @ (c - r @ x if e is None else e)) + g_b
+    hess = t_rtr + h_b
+    scale = np.array([1.0 / math.sqrt(d) if d > 0.0 else 1.0 for d in hess.diagonal().tolist()])
     # the equilibrated system, a tiny ridge for columns without weight (an effect's column that is all zero)
-    step = -scale * np.linalg.solve(hess * (scale[:, None] * scale[None, :]) + ridge, grad * scale)
+    step = -scale * solve_small(hess * np.multiply.outer(scale, scale) + ridge, grad * scale)
     return step, math.sqrt(max(-float(grad @ step), 0.0))
 
 
-def _centre(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -> np.ndarray:
-    """Return the minimiser of t ||c - r x||^2 + barrier (Newton, backtracking while far, from a feasible x)."""
+def _damped(phi, x: np.ndarray, step: np.ndarray, lam: float, phi0: float) -> tuple[float, tuple | None]:
+    """Return the step size that backtracking on the barrier function ``phi`` accepts, and ``phi`` there (None: not
+    reached; ``phi`` returns its value and the residual).
 
-    def phi(u: np.ndarray) -> float:
+    Halve from 1 while phi does not decrease by 0.25 size lam^2 from ``phi0`` = phi(x) (down to 1e-12).
+    """
+    size = 1.0
+    while size > 1e-12:
+        val = phi(x + size * step)
+        if not val[0] > phi0 - 0.25 * size * lam * lam:
+            return size, val
+        size *= 0.5
+    return size, None
+
+
+def _stops(lam: float, lam_prev: float) -> bool:
+    """Return True when a centring ends after a step of Newton decrement ``lam``: converged, or stalled at the
+    rounding level of t ||c - r x||^2 (the decrement no longer halves)."""
+    return lam < 1e-5 or (lam < 1e-2 and lam > 0.5 * lam_prev)
+
+
+def _periodic_end(xs: list[np.ndarray], lams: list[float], m: int) -> np.ndarray:
+    """Return the x a centring ends at once its iterate repeats: x after step i (the last of ``xs``) equals x after
+    step m (``xs[m]``; 0: the start).
+
+    Each Newton step is a function of x alone, so from there the iterates and their decrements repeat with period
+    p = i - m; the steps left (to a stop by :func:`_stops` or to _MAX_NEWTON) are counted on the kept ones.
+    """
+    i = len(xs) - 1
+    p = i - m
+    lam_prev = lams[i]
+    for j in range(i + 1, _MAX_NEWTON + 1):
+        lam = lams[m + 1 + (j - m - 1) % p]  # the decrement of step j: that of x after step j - 1
+        if _stops(lam, lam_prev):
+            return xs[m + (j - m) % p]
+        lam_prev = lam
+    return xs[m + (_MAX_NEWTON - m) % p] if i < _MAX_NEWTON else xs[i]
+
+
+def _centre(r: np.ndarray, c: np.ndarray, x: np.ndarray, t: float, lo3: float) -> np.ndarray:
+    """Return the minimiser of t ||c - r x||^2 + barrier (Newton, backtracking while far, from a feasible x).
+
+    At the rounding level the iterate may come back to a point it held before (often x + step == x): the
+    centring then ends where those repeating steps would end it (:func:`_periodic_end`), without taking them.
+    """
+
+    def phi(u: np.ndarray) -> tuple[float, np.ndarray]:
         e = c - r @ u
-        return t * float(e @ e) + _barrier_value(u, lo3)
+        return t * float(e @ e) + _barrier_value(u, lo3), e
 
     lam_prev = math.inf
-    fixed = (r.T @ r, 1e-13 * np.eye(len(x)))
-    for _ in range(_MAX_NEWTON):
-        step, lam = _newton_step(r, c, x, t, lo3, fixed)
-        size = 1.0
+    fixed = (2.0 * t * (r.T @ r), 1e-13 * np.eye(len(x)))
+    phi_x = None  # phi and the residual at x, when the backtracking has evaluated them there
+    xs, lams, seen = [x], [math.nan], {x.tobytes(): 0}  # x after each step (0: the start), their decrements
+    for i in range(1, _MAX_NEWTON + 1):
+        step, lam = _newton_step(r, c, x, t, lo3, fixed, phi_x[1] if phi_x is not None else None)
+        size, phi_new = 1.0, None
         if lam >= 0.25:  # damped phase: backtrack on the barrier function
-            phi0 = phi(x)
-            while size > 1e-12 and phi(x + size * step) > phi0 - 0.25 * size * lam * lam:
-                size *= 0.5
+            size, phi_new = _damped(phi, x, step, lam, (phi(x) if phi_x is None else phi_x)[0])
         x_new = x + size * step
-        while size > 1e-12 and _barrier_value(x_new, lo3) == math.inf:
-            size *= 0.5
-            x_new = x + size * step
-        if _barrier_value(x_new, lo3) == math.inf:
-            break
-        x = x_new
-        # converged, or stalled at the rounding level of t ||c - r x||^2
-        if lam < 1e-5 or (lam < 1e-2 and lam > 0.5 * lam_prev):
+        if phi_new is None or not math.isfinite(phi_new[0]):  # a finite phi is inside the bounds
+            phi_new = None
+            while size > 1e-12 and _barrier_value(x_new, lo3) == math.inf:
+                size *= 0.5
+                x_new = x + size * step
+            if _barrier_value(x_new, lo3) == math.inf:
+                break
+        x, phi_x = x_new, phi_new
+        if _stops(lam, lam_prev):
             break
         lam_prev = lam
+        xs.append(x)
+        lams.append(lam)
+        m = seen.setdefault(x.tobytes(), i)
+        if m != i:
+            return _periodic_end(xs, lams, m)
     return x
 
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from cart.caster_lanes import CasterLanes, caster_lanes
 from cart.dynamics import regressor
-from cart.log_signals import Signals, derivative_gain, local_poly, window_integrals
+from cart.log_signals import Signals, cache_bounded, derivative_gain, local_poly, window_integrals
 from cart.noise_model import fit_ar1
 
 #: Nominal parameters x = [m, m dx, m dy, J, sigma, sigma_yaw] (two viscous coefficients).
@@ -138,12 +138,21 @@ def mean_noise_std(sig: Signals, r: np.ndarray, half_window: float) -> float:
     return float(sig.extras[key])
 
 
-def local_mean(t: np.ndarray, y: np.ndarray, half_window: float) -> np.ndarray:
-    """Return the mean of y (N, ...) over the samples within +-``half_window`` s of each sample (irregular times)."""
+def local_bounds(t: np.ndarray, half_window: float) -> tuple[np.ndarray, np.ndarray]:
+    """Return (lo, hi): the samples [lo, hi) within +-``half_window`` s of each sample (irregular times)."""
+    return np.searchsorted(t, t - half_window, side="left"), np.searchsorted(t, t + half_window, side="right")
+
+
+def local_mean(
+    t: np.ndarray, y: np.ndarray, half_window: float, bounds: tuple[np.ndarray, np.ndarray] | None = None
+) -> np.ndarray:
+    """Return the mean of y (N, ...) over the samples within +-``half_window`` s of each sample (irregular times).
+
+    ``bounds``: :func:`local_bounds` of ``t`` and ``half_window`` when the caller keeps them.
+    """
     y = np.asarray(y, float)
     cum = np.concatenate([np.zeros((1,) + y.shape[1:]), np.cumsum(y, axis=0)], axis=0)
-    lo = np.searchsorted(t, t - half_window, side="left")
-    hi = np.searchsorted(t, t + half_window, side="right")
+    lo, hi = bounds if bounds is not None else local_bounds(t, half_window)
     cnt = np.maximum(hi - lo, 1).reshape((-1,) + (1,) * (y.ndim - 1))
     return (cum[hi] - cum[lo]) / cnt
 
@@ -162,7 +171,11 @@ def held_forces(sig: Signals, phi: np.ndarray, base: np.ndarray) -> tuple[np.nda
     friction is not credited with the noise of a cart at rest.
     """
     r = forward_residual(sig, phi, base)
-    return r, local_mean(sig.t, r, HOLD_SMOOTH), HOLD_NOISE_Z * mean_noise_std(sig, r, HOLD_SMOOTH)
+    key = ("motion", "local_bounds", HOLD_SMOOTH)
+    bounds = sig.extras.get(key)
+    if bounds is None:
+        bounds = sig.extras[key] = local_bounds(sig.t, HOLD_SMOOTH)
+    return r, local_mean(sig.t, r, HOLD_SMOOTH, bounds), HOLD_NOISE_Z * mean_noise_std(sig, r, HOLD_SMOOTH)
 
 
 def hold_column(
@@ -524,6 +537,22 @@ SWING_MODES: tuple[tuple[int, float], ...] = ((0, 1e-5),) + tuple(
 )
 
 
+#: bytes of caster swing unit rows kept (:meth:`SwivelCasterModel._units`, oldest dropped first)
+UNIT_CACHE_BYTES = 64 * 2**20
+
+
+def touched_windows(edges: np.ndarray, ranges: Sequence[tuple[int, int]]) -> list[tuple[int, int]]:
+    """Return the runs [ka, kb] of consecutive windows whose samples [e_k, e_k+1] meet a sample range [i0, i1)."""
+    e = np.asarray(edges)
+    hit = np.zeros(max(len(e) - 1, 0), bool)
+    for i0, i1 in ranges:
+        ka = int(np.searchsorted(e[1:], i0, side="left"))  # first window that ends at or after i0
+        kb = int(np.searchsorted(e[:-1], i1 - 1, side="right")) - 1  # last window that starts at or before i1 - 1
+        hit[ka : kb + 1] = True
+    on = np.flatnonzero(np.diff(np.concatenate([[0], hit.astype(np.int8), [0]])))
+    return [(int(a), int(b) - 1) for a, b in zip(on[::2], on[1::2])]
+
+
 #: stacked swing terms of a caster model: (swing ranges, Q, P, R, c0, b, S, n_ind), see `_swing_arrays`
 _SwingArrays = tuple[
     tuple[tuple[int, int], ...], np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray
@@ -667,16 +696,39 @@ class SwivelCasterModel(CasterSwivel):
             out[..., 1, k] = -np.sum(unit * lever, axis=-1)
         return out
 
+    def _combo_units(self, sig: Signals, trail: float, swing: int) -> np.ndarray:
+        """Return the unit rows of every mode combination on one swing, combination-major (combos, L * 2 * 3).
+
+        Kept (they depend on the motion only; a bounded cache, :data:`UNIT_CACHE_BYTES`).
+        """
+        key = ("motion", "caster_units", self.axle_x, trail, swing)
+        cu = sig.extras.get(key)
+        if cu is None:
+            lanes, i, j = self._lanes(sig, trail)
+            alpha, rate = lanes.swing_alpha[(i, j)][swing], lanes.swing_rates(i, j, swing)
+            c1, c2 = self.COMBO_LANES
+            al = np.stack([alpha[:, 0, c1], alpha[:, 1, c2]], axis=-1)  # (L, combos, 2 casters)
+            ra = np.stack([rate[:, 0, c1], rate[:, 1, c2]], axis=-1)
+            cu = self._unit_rows(al, ra, trail).transpose(1, 0, 2, 3).reshape(len(c1), -1)
+            cache_bounded(sig, "caster_units", key, cu, UNIT_CACHE_BYTES)
+        return cu
+
     def _units(self, sig: Signals, trail: float, swing: int, combos: np.ndarray | None = None) -> np.ndarray:
         """Return the unit rows (L, combos, 2 rows, 3 params) of the mode combinations (all: None) on one swing."""
-        lanes, i, j = self._lanes(sig, trail)
-        alpha, rate = lanes.swing_alpha[(i, j)][swing], lanes.swing_rates(i, j, swing)
-        c1, c2 = self.COMBO_LANES
-        if combos is not None:
-            c1, c2 = c1[combos], c2[combos]
-        al = np.stack([alpha[:, 0, c1], alpha[:, 1, c2]], axis=-1)  # (L, combos, 2 casters)
-        ra = np.stack([rate[:, 0, c1], rate[:, 1, c2]], axis=-1)
-        return self._unit_rows(al, ra, trail)
+        cu = self._combo_units(sig, trail, swing)
+        cu = cu if combos is None else cu[combos]
+        return np.ascontiguousarray(cu.reshape(len(cu), -1, 2, 3).transpose(1, 0, 2, 3))
+
+    def _mixture(self, sig: Signals, trail: float, swing: int, wts: np.ndarray) -> np.ndarray:
+        """Return the unit rows (L, 2 rows, 3 params) of one swing as the mixture ``wts`` of its mode combinations.
+
+        The product ``np.tensordot(wts, units, axes=(0, 1))`` forms (the same numbers), on the kept
+        combination-major rows; combinations of weight 0 left out.
+        """
+        used = np.flatnonzero(wts > 0.0)
+        cu = self._combo_units(sig, trail, swing)
+        cu = cu if len(used) == len(cu) else cu[used]
+        return np.dot(wts[used].reshape(1, -1), cu).reshape(-1, 2, 3)
 
     def _choice(self, sig: Signals, trail: float) -> dict[tuple[int, int], np.ndarray]:
         """Return the current weights of the mode combinations per swing ({(i0, i1): (combos,)}; empty: natural)."""
@@ -782,6 +834,56 @@ class SwivelCasterModel(CasterSwivel):
             return None
         return key + (tuple((k, tuple(np.round(w, 4))) for k, w in sorted(choice.items())),)
 
+    def _natural_windows(self, sig: Signals, trail: float, edges: np.ndarray) -> np.ndarray:
+        """Return the window integrals (windows, 3, 3) of the natural lane's columns (every swing natural), kept."""
+        key = ("motion", "caster_natural_windows", self.axle_x, trail, np.asarray(edges).tobytes())
+        out = sig.extras.get(key)
+        if out is None:
+            lanes, i, j = self._lanes(sig, trail)
+            g = np.zeros((sig.n, 3, 3))
+            g[:, :2, :] = self._unit_rows(lanes.alpha0[:, i, j], lanes.natural_rate(i, j), trail)
+            out = sig.extras[key] = window_integrals(sig.t, g, edges)
+        return out
+
+    def _natural_part(self, sig: Signals, trail: float, s0: int, s1: int) -> np.ndarray:
+        """Return the columns (s1 - s0, 3, 3) of the natural lane on samples [s0, s1) (those of :meth:`columns`), a copy.
+
+        Kept (the motion's; a bounded cache, :data:`UNIT_CACHE_BYTES`).
+        """
+        key = ("motion", "caster_natural_part", self.axle_x, trail, s0, s1)
+        g = sig.extras.get(key)
+        if g is None:
+            lanes, i, j = self._lanes(sig, trail)
+            g = np.zeros((s1 - s0, 3, 3))
+            g[:, :2, :] = self._unit_rows(lanes.alpha0[s0:s1, i, j], lanes.natural_rate(i, j, s0, s1), trail)
+            cache_bounded(sig, "caster_units", key, g, UNIT_CACHE_BYTES)
+        return g.copy()
+
+    def window_columns(self, sig, nl, phi, base, edges):
+        """Return the window integrals of :meth:`columns`: the natural lane's, the windows a chosen swing touches redone.
+
+        A window's trapezoid integral holds its own samples only: the windows clear of the swings are those of
+        the natural lane's columns (:meth:`_natural_windows`, integrated once per lane); the others are
+        integrated from the columns of :meth:`columns` on their samples.
+        """
+        trail = float(nl[0])
+        out = self._natural_windows(sig, trail, edges).copy()
+        choice = self._choice(sig, trail)
+        stats = sig.extras.get(("caster_swing_stats", self.axle_x, trail), []) if choice else []
+        swings = [(st[0], st[1], choice[st[0]]) for st in stats if st[0] in choice]
+        mixes: dict[int, np.ndarray] = {}
+        for ka, kb in touched_windows(edges, [sw[0] for sw in swings]):
+            s0, s1 = int(edges[ka]), int(edges[kb + 1]) + 1
+            g = self._natural_part(sig, trail, s0, s1)
+            for (i0, i1), k, wts in swings:
+                lo, hi = max(i0, s0), min(i1, s1)
+                if lo < hi:
+                    if k not in mixes:
+                        mixes[k] = self._mixture(sig, trail, k, wts)
+                    g[lo - s0 : hi - s0, :2, :] = mixes[k][lo - i0 : hi - i0]
+            out[ka : kb + 1] = window_integrals(sig.t[s0:s1], g, np.asarray(edges[ka : kb + 2]) - s0)
+        return out
+
     def _rows(self, sig: Signals, trail: float) -> np.ndarray:
         """Return the unit rows (N, 2, 3): natural swings, each chosen swing as its weighted mixture of combos."""
         lanes, i, j = self._lanes(sig, trail)
@@ -792,9 +894,7 @@ class SwivelCasterModel(CasterSwivel):
             for st in sig.extras.get(("caster_swing_stats", self.axle_x, trail), []):
                 wts = choice.get(st[0])
                 if wts is not None:
-                    used = np.flatnonzero(wts > 0.0)  # the combinations the swing's mixture holds
-                    u = self._units(sig, trail, st[1], used)
-                    rows[st[0][0] : st[0][1]] = np.tensordot(wts[used], u, axes=(0, 1))  # (L, rows, params)
+                    rows[st[0][0] : st[0][1]] = self._mixture(sig, trail, st[1], wts)  # (L, rows, params)
         return rows
 
     def _hold_capacity(self, sig: Signals, trail: float) -> np.ndarray:

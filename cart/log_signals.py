@@ -267,11 +267,12 @@ def cache_bounded(sig: Signals, group: str, key: tuple, value: np.ndarray, budge
     order = sig.extras.setdefault(("bounded", group), [])
     sig.extras[key] = value
     order.append((key, value.nbytes))
-    total = sum(b for _, b in order)
+    total = sig.extras.get(("bounded_bytes", group), 0) + value.nbytes  # the bytes of ``order``, kept
     while total > budget and len(order) > 1:
         old, nb = order.pop(0)
         sig.extras.pop(old, None)
         total -= nb
+    sig.extras[("bounded_bytes", group)] = total
 
 
 def window_integrals(t: np.ndarray, y: np.ndarray, edges: np.ndarray) -> np.ndarray:

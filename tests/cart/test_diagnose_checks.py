@@ -79,3 +79,36 @@ def test_a_physical_unconstrained_minimiser_is_returned_as_it_is():
     c = q.T @ b
     x = bounded_least_squares(r, c, np.r_[1.0, 0.0, 0.0, 0.1, 0.0, 0.0, 0.0], GYRATION_MIN**2 * 12.0)
     assert np.allclose(x, np.linalg.lstsq(a, b, rcond=None)[0], rtol=1e-9, atol=1e-9)
+
+
+def test_a_centring_whose_iterate_repeats_ends_where_the_repeated_steps_end_it():
+    # _centre stops taking Newton steps once x comes back to an earlier iterate (each step is a function of x
+    # alone); _periodic_end must return the x the full loop of steps would end at. Independent: the loop run
+    # to its end on maps of a few states with decrements around the stop rule's thresholds.
+    import math
+
+    from cart.diagnose_checks import _MAX_NEWTON, _periodic_end, _stops
+
+    rng = np.random.default_rng(0)
+    checked = 0
+    for _ in range(400):
+        n = int(rng.integers(1, 12))
+        nxt = rng.integers(0, n, n)
+        lam_of = rng.choice([1e-6, 4e-3, 6e-3, 9e-3, 1.2e-2, 0.3], n)
+        x, lam_prev, early = int(rng.integers(0, n)), math.inf, None
+        xs, lams, seen = [np.array([float(x)])], [math.nan], {x: 0}
+        for i in range(1, _MAX_NEWTON + 1):
+            lam, x = float(lam_of[x]), int(nxt[x])
+            if _stops(lam, lam_prev):
+                break
+            lam_prev = lam
+            if early is None:
+                xs.append(np.array([float(x)]))
+                lams.append(lam)
+                m = seen.setdefault(x, i)
+                if m != i:
+                    early = _periodic_end(xs, lams, m)
+        if early is not None:
+            assert float(early[0]) == x
+            checked += 1
+    assert checked > 100

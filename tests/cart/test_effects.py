@@ -330,3 +330,41 @@ def test_a_payload_steps_window_integrals_equal_those_of_the_stepped_columns():
         assert np.array_equal(stepped_window_integrals(sig, a_s, edges, float(tc)), want)
         assert np.array_equal(PayloadChange().window_columns(sig, (float(tc),), None, a_s, edges), want)
     assert stepped_window_integrals(sig, a_s.copy(), edges, 5.0) is None  # rows carrying another force
+
+
+def test_swivel_caster_window_columns_equal_the_integrals_of_the_per_sample_columns():
+    # SwivelCasterModel.window_columns takes the windows clear of a chosen swing from the natural lane's integrals
+    # and integrates the others again; a swing's rows are its mode mixture on kept combination-major rows: the
+    # same numbers as the per-sample columns integrated, and as the mixture computed from the lanes directly
+    import cart.effects as fx
+    from cart.log_signals import window_integrals
+    from studies.testbeds.hidden_effects import random_case
+
+    log = random_case("caster_swivel", np.random.default_rng(3), duration=30.0, caster_form="swivel").measured
+    sig = signals_from_log(log)
+    edges = window_edges(sig.t, 0.3, sig.breaks)
+    a_s = fx.nominal_columns(sig)
+    model = fx.SwivelCasterModel(0.8)
+    phi = np.array([30.0, 6.0, 0.0, 12.0])
+    chosen = 0
+    for e in model.TRAILS[::4]:
+        for theta in (None, np.array([1.0, 0.5, 0.1]), np.array([0.2, 2.0, -0.1])):
+            model.offset(sig, (e,), phi, a_s, theta)  # None: the natural swings; else the swing modes weighed
+            cols = model.columns(sig, (e,), None, a_s)
+            got = model.window_columns(sig, (e,), None, a_s, edges)
+            assert np.array_equal(got, window_integrals(sig.t, cols, edges))
+            lanes, i, j = model._lanes(sig, e)
+            choice = model._choice(sig, e)
+            for k, rng_k in enumerate(lanes.swings[(i, j)]):
+                if rng_k not in choice:
+                    continue
+                w = choice[rng_k]
+                used = np.flatnonzero(w > 0.0)
+                alpha, rate = lanes.swing_alpha[(i, j)][k], lanes.swing_rates(i, j, k)
+                c1, c2 = model.COMBO_LANES[0][used], model.COMBO_LANES[1][used]
+                al = np.stack([alpha[:, 0, c1], alpha[:, 1, c2]], axis=-1)
+                ra = np.stack([rate[:, 0, c1], rate[:, 1, c2]], axis=-1)
+                want = np.tensordot(w[used], model._unit_rows(al, ra, e), axes=(0, 1))
+                assert np.array_equal(cols[rng_k[0] : rng_k[1], :2], want)
+                chosen += 1
+    assert chosen >= 8
