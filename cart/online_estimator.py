@@ -870,6 +870,10 @@ class OnlineLSEstimator:
             new.nuisance = self.casters.nuisance()
         if self._changes:
             self._changes[-1].mass_end = m_before
+        if self.window is not None:
+            split = self.window.recent_split(float(self.regression.p[0]) - m_before, t_change)
+            if split is not None:  # the window's split, on up to window_s of data, dates the change
+                t_change, t_range = split.t_change, split.t_range
         self._changes.append(_Change(t_change, self.t, m_before, self.detector.statistic, t_range=t_range))
         if self.window is not None:
             before = self._params.with_mass(m_before) if m_before > 0.0 else self._params

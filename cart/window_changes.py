@@ -108,6 +108,7 @@ class WindowChangeDetector:
         self._before = float(t0)  # start of the window the last change was found in
         self._refining = False  # whether the last change's onset is searched again
         self._sighted: WindowChange | None = None  # a change the last check found, not yet found again
+        self._seen: tuple[WindowChange, int] | None = None  # the last split any check found, and that check's number
 
     def add_change(self, change: WindowChange, guard_s: float, dated: bool = False) -> int:
         """Register a change found by another test (the online GLR); return its index in :attr:`changes`.
@@ -159,6 +160,7 @@ class WindowChangeDetector:
             self._refine(end)
             return None
         change = _change(segs[0], segs[1], end)
+        self._seen = (change, self.checks)
         sighted, self._sighted = self._sighted, change
         if sighted is None or not _same_change(sighted, change):
             return None  # seen once: kept only when the next check, with more data after it, finds it again
@@ -167,6 +169,20 @@ class WindowChangeDetector:
         self.changes.append(change)
         self._refining = True
         return change
+
+    def recent_split(self, mass_change: float, before: float, checks: int = 2) -> WindowChange | None:
+        """Return the split one of the last ``checks`` checks found after the last change (confirmed or not),
+        when its mass moves the way ``mass_change`` (kg) does and its onset lies before ``before`` (s); else None.
+
+        Another test's detection (the GLR's, on its 4 s buffer) takes this onset: the window's split is dated
+        on up to ``window_s`` of data, the GLR's onset cannot lie before its buffer.
+        """
+        if self._seen is None or self.checks - self._seen[1] >= checks:
+            return None
+        seen = self._seen[0]
+        moves = (seen.after.m - seen.before.m) * mass_change > 0.0
+        after_last = not self.changes or seen.t_change > self.changes[-1].t_change
+        return seen if moves and after_last and seen.t_change < before else None
 
     def _refine(self, end: float) -> None:
         """Search the last change's onset again, for ``window_s / 2`` s after it was found, on the window it was

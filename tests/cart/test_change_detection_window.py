@@ -133,3 +133,38 @@ def test_a_window_change_is_reported_only_when_the_next_check_finds_it_again(mon
         if change is not None:
             got.append(round(change.t_change, 6))
     assert got == reported
+
+
+def test_a_split_seen_once_dates_another_tests_change_for_two_checks(monkeypatch):
+    """A split one check found (not yet confirmed) is offered to another test's detection (the GLR's, whose onset
+    cannot lie before its 4 s buffer) for the next two checks: only when the mass moves the same way and the
+    split lies before that test's onset."""
+    import cart.identify
+    import cart.segments
+
+    fits = iter([None, 14.0, None, None])
+    fake = type("Fit", (), {"cutoff_hz": 2.0, "params": TRUTH})()
+
+    def segments(log, streams, res):
+        tc = next(fits)
+        if tc is None:
+            return [_seg(0.0, 20.0)], []
+        return [_seg(0.0, 20.0), _seg(tc, 12.0, (tc - 0.2, tc + 0.2))], []
+
+    monkeypatch.setattr(cart.identify, "identify", lambda log: fake)
+    monkeypatch.setattr(cart.segments, "find_segments", segments)
+    det = WindowChangeDetector(0.0, np.zeros(6), every_s=2.0, window_s=30.0)
+    offered = {}
+    for k in range(1, 1801):  # checks at 10, 12 (the split), 14 and 16 s
+        det.add(0.01 * k, np.zeros(3), np.zeros(6))
+        det.check()
+        if k in (1250, 1450, 1650):
+            t = round(0.01 * k, 2)
+            lighter = det.recent_split(-5.0, before=15.0)
+            offered[t] = (
+                None if lighter is None else lighter.t_change,
+                det.recent_split(+5.0, before=15.0),  # the split's mass falls: not this change
+                det.recent_split(-5.0, before=13.0),  # the split lies after the other test's onset
+            )
+    assert offered == {12.5: (14.0, None, None), 14.5: (14.0, None, None), 16.5: (None, None, None)}
+    assert det.changes == []  # seen once: not reported by the window itself
