@@ -102,15 +102,9 @@ def _seg(t0, m, t0_range=None):
     return {"t0": t0, "t0_range": t0_range, "params": TRUTH.with_mass(m), "std": {"mass": 0.1}}
 
 
-@pytest.mark.parametrize(
-    "found, reported",
-    [
-        ([None, 14.0, None, None], []),  # seen at one check only: a fluke of one window
-        ([None, 14.0, 14.6, None], [14.6]),  # found again 2 s later: the change, dated by the second check
-        ([None, 14.0, 17.5, None], []),  # two different splits: neither confirmed
-    ],
-)
-def test_a_window_change_is_reported_only_when_the_next_check_finds_it_again(monkeypatch, found, reported):
+def _scripted_search(monkeypatch, found):
+    """Return a window detector whose checks' segment searches find, in turn, the splits ``found`` (None: no
+    split; t: 20 kg before and 12 kg after a split at t s)."""
     import cart.identify
     import cart.segments
 
@@ -125,7 +119,19 @@ def test_a_window_change_is_reported_only_when_the_next_check_finds_it_again(mon
 
     monkeypatch.setattr(cart.identify, "identify", lambda log: fake)
     monkeypatch.setattr(cart.segments, "find_segments", segments)
-    det = WindowChangeDetector(0.0, np.zeros(6), every_s=2.0, window_s=30.0)
+    return WindowChangeDetector(0.0, np.zeros(6), every_s=2.0, window_s=30.0)
+
+
+@pytest.mark.parametrize(
+    "found, reported",
+    [
+        ([None, 14.0, None, None], []),  # seen at one check only: a fluke of one window
+        ([None, 14.0, 14.6, None], [14.6]),  # found again 2 s later: the change, dated by the second check
+        ([None, 14.0, 17.5, None], []),  # two different splits: neither confirmed
+    ],
+)
+def test_a_window_change_is_reported_only_when_the_next_check_finds_it_again(monkeypatch, found, reported):
+    det = _scripted_search(monkeypatch, found)
     got = []
     for k in range(1, 1801):  # 18 s: checks at 10, 12, 14 and 16 s
         det.add(0.01 * k, np.zeros(3), np.zeros(6))
@@ -139,21 +145,7 @@ def test_a_split_seen_once_dates_another_tests_change_for_two_checks(monkeypatch
     """A split one check found (not yet confirmed) is offered to another test's detection (the GLR's, whose onset
     cannot lie before its 4 s buffer) for the next two checks: only when the mass moves the same way and the
     split lies before that test's onset."""
-    import cart.identify
-    import cart.segments
-
-    fits = iter([None, 14.0, None, None])
-    fake = type("Fit", (), {"cutoff_hz": 2.0, "params": TRUTH})()
-
-    def segments(log, streams, res):
-        tc = next(fits)
-        if tc is None:
-            return [_seg(0.0, 20.0)], []
-        return [_seg(0.0, 20.0), _seg(tc, 12.0, (tc - 0.2, tc + 0.2))], []
-
-    monkeypatch.setattr(cart.identify, "identify", lambda log: fake)
-    monkeypatch.setattr(cart.segments, "find_segments", segments)
-    det = WindowChangeDetector(0.0, np.zeros(6), every_s=2.0, window_s=30.0)
+    det = _scripted_search(monkeypatch, [None, 14.0, None, None])
     offered = {}
     for k in range(1, 1801):  # checks at 10, 12 (the split), 14 and 16 s
         det.add(0.01 * k, np.zeros(3), np.zeros(6))
