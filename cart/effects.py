@@ -418,6 +418,10 @@ class CoulombFriction(Effect):
     #: key of the current force estimate in ``sig.extras`` (set by :meth:`offset`, read by :meth:`columns`)
     REF_KEY = ("coulomb_force_ref",)
 
+    def column_key(self, sig, nl):
+        """Return None: the columns at rest depend on phi and on the current force estimate (no caching)."""
+        return None
+
     def columns(self, sig, nl, phi, base):
         """Return G: tanh(v/v0) in the forward row while moving, sign(r) at a hold at its limit; tanh(omega/w0) in yaw."""
         v0, w0 = speed_scales(sig)

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from cart.diagnose import Fit, _damping_ok
+from cart.diagnose import N_NOMINAL, Fit, _damping_ok, _design, _start_fit
 from cart.effects import CoulombFriction, nominal_columns
-from cart.log_signals import signals_from_log
+from cart.log_signals import signals_from_log, window_edges
 from cart.logs import CartLog
 
 
@@ -40,6 +40,19 @@ def test_coulomb_friction_does_not_hold_the_noise_of_a_cart_at_rest():
     share = 0.0 if held is None else float(np.mean(held[:, 0] != 0.0))
     assert share < 0.1  # a 0.5 N noise is no hold (within 2 stds of its local mean)
     assert np.mean(cf.columns(sig, (), phi, base)[:, 0, 0] != 0.0) < 0.1
+
+
+def test_the_fit_builds_coulomb_frictions_hold_from_each_new_force_estimate():
+    # a 6 N push at rest is held by F = 10 N (column 0) and at the limit of F = 5 N (column 1 there): a fit that
+    # kept its first iterate's columns would judge every later estimate of F by the first one's holds
+    sig, _, phi = _cart_at_rest(6.0)
+    edges = window_edges(sig.t, 2.0 * sig.half_window, sig.breaks)
+    st = _start_fit(sig, edges, [(CoulombFriction(), ())], phi, [np.array([10.0, 0.0])], 12)
+    held = _design(st, edges)[0][1:-1, 0, N_NOMINAL]
+    st.thetas_prev = [np.array([5.0, 0.0])]
+    at_limit = _design(st, edges)[0][1:-1, 0, N_NOMINAL]
+    np.testing.assert_allclose(held, 0.0, atol=1e-9)
+    np.testing.assert_allclose(at_limit, np.diff(sig.t[edges])[1:-1], rtol=1e-6)  # 1 over each inner window
 
 
 def _fit_with(sigma: float, std: float) -> Fit:
