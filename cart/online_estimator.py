@@ -829,9 +829,11 @@ class OnlineLSEstimator:
             ]
         )
 
-    def _onset(self) -> tuple[int, float, tuple[float, float]]:
-        """Return the GLR's onset of the change just detected: its buffer index, time and the stretch of onsets the
-        data cannot tell from it (:meth:`ChangeDetector.onset_range`, scaled by the residual ratio at the onset).
+    def _onset(self) -> tuple[int, float, tuple[float, float], bool]:
+        """Return the GLR's onset of the change just detected: its buffer index, time, the stretch of onsets the
+        data cannot tell from it (:meth:`ChangeDetector.onset_range`, scaled by the residual ratio at the onset)
+        and whether that stretch is censored: it reaches the start of a full buffer, so the data before the buffer
+        might fit as well (a change made during a cruise longer than ``buffer_s``).
 
         A velocity jump near or after the onset (at most twice the settling time before it) dates it: the load came
         with the jump, to the period."""
@@ -841,13 +843,13 @@ class OnlineLSEstimator:
         idx, lo, hi = self.detector.onset_range(g, float(k[int(np.argmax(g))]))
         t_change = float(t[idx])
         if self.impulses and self.impulses[-1] >= t_change - 2.0 * self._settle_s():
-            return idx, self.impulses[-1], (self.impulses[-1], self.impulses[-1])
-        return idx, t_change, (float(t[lo]), float(t[hi]))
+            return idx, self.impulses[-1], (self.impulses[-1], self.impulses[-1]), False
+        return idx, t_change, (float(t[lo]), float(t[hi])), lo == 0 and buf.count > buf.size
 
     def _reset_for_change(self) -> None:
         """Restart mass / CoM / inertia from the prior widths and the samples after the onset; keep the damping."""
         buf = self._ring()
-        idx, t_change, t_range = self._onset()
+        idx, t_change, t_range, censored = self._onset()
         m_before = float(buf.read("m")[idx])
         p, prm = self.regression.p, self._params
         center = np.array([prm.m, prm.dx, prm.dy, prm.inertia_b / prm.m, max(p[4], 0.0), max(p[5], 0.0)])
@@ -878,9 +880,10 @@ class OnlineLSEstimator:
         if self.window is not None:
             before = self._params.with_mass(m_before) if m_before > 0.0 else self._params
             seen = WindowChange(t_change, t_range, self.t, before, self._params, {})
-            # the GLR onset is kept as found (the window's search of it moves it further from the truth on
-            # rigid_sim seed 0 and MuJoCo seed 103); only the window restarts after it
-            self._changes[-1].window_index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated=True)
+            # an onset inside the buffer is kept as found (the window's search of it moves it further from the
+            # truth on rigid_sim seed 0 and MuJoCo seed 103); a censored one is searched again on the window
+            index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated=not censored)
+            self._changes[-1].window_index = index
         buf.clear()
 
     def _restart_from_window(self, change: WindowChange) -> None:

@@ -160,3 +160,36 @@ def test_a_split_seen_once_dates_another_tests_change_for_two_checks(monkeypatch
             )
     assert offered == {12.5: (14.0, None, None), 14.5: (14.0, None, None), 16.5: (None, None, None)}
     assert det.changes == []  # seen once: not reported by the window itself
+
+
+def _cruise_ctrl(t, q, qd):
+    """Excite until 12 s, hold 0.4 m/s straight ahead (forward-speed and yaw-rate feedback) until 26 s, then
+    excite again."""
+    if t < 12.0 or t >= 26.0:
+        return _ctrl(t, q, qd)
+    c, s = math.cos(q[2]), math.sin(q[2])
+    v = c * qd[0] + s * qd[1]
+    f = TRUTH.sigma * v + 40.0 * (0.4 - v)
+    return np.array([f * c, f * s, -8.0 * qd[2]])
+
+
+def test_a_change_in_a_cruise_longer_than_the_buffer_is_dated_by_the_window_not_at_the_buffers_start():
+    """8 kg lifted out at 18 s, in a cruise from 12 to 26 s: nothing shows it until the acceleration at 26 s, so
+    the GLR's most likely onsets run back to the start of its 4 s buffer (censored); the window search dates it
+    on its longer window, and the onsets reported cover the truth."""
+    sim = simulate(
+        TRUTH,
+        _cruise_ctrl,
+        36.0,
+        noise=MOCAP,
+        rng=np.random.default_rng(5),
+        changes=[ParameterChange(18.0, TRUTH.with_mass(12.0), conserve_momentum=False)],
+        substeps=2,
+    )
+    est = _replay(sim.measured)
+    assert len(est.events) == 1
+    ev = est.events[0]
+    assert ev.method == "glr" and ev.t_detected > 26.0
+    assert ev.t_earliest < ev.t_detected - est.options.buffer_s  # not clipped at the buffer's start
+    assert ev.t_earliest <= 18.0 <= ev.t_latest
+    assert abs(ev.mass_after - 12.0) < 0.05 * 12.0
