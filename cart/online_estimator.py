@@ -358,18 +358,20 @@ class OnlineLSEstimator:
         prior = self._physical_std(self.regression.prior_covariance())
         return tuple(n for n, a, b in zip(PHYSICAL_NAMES, post, prior) if a > self.options.excited_ratio * b)
 
-    def _misfit_scale(self) -> float:
+    def _misfit_scale(self, row: int | None = None) -> float:
         """Return the factor (at least 1) by which the stds are scaled up: the model's current residual ratio.
 
         The residual test's ratio (:meth:`_check_misfit`), also before it is reported: the a-priori residual
         power over what the noise and the estimate's std explain, exponentially weighted over 2
-        ``change_window_s`` and the larger of the two rows (force, yaw torque). It forgets: a misfit at the start
-        no longer scales the stds a few windows later.
+        ``change_window_s`` and the larger of the two rows (force, yaw torque), or of ``row`` alone (0: the
+        forward force, which is all the momentum test uses). It forgets: a misfit at the start no longer scales
+        the stds a few windows later.
         """
         mf = self._misfit
         if mf[0] <= 0.0:
             return 1.0
-        return max(1.0, math.sqrt(max(mf[1], mf[2]) / mf[0]))
+        power = max(mf[1], mf[2]) if row is None else mf[1 + row]
+        return max(1.0, math.sqrt(power / mf[0]))
 
     @property
     def events(self) -> tuple[LoadChange, ...]:
@@ -475,7 +477,7 @@ class OnlineLSEstimator:
         """Mark the impulse for the momentum test, with the mass before it and its std (scaled by the misfit)."""
         if self.momentum is not None:
             force_std = math.sqrt(self._wrench_var()[0])
-            self.momentum.arm(self.t, self._params.m, self._params.dy, self._misfit_scale(), force_std)
+            self.momentum.arm(self.t, self._params.m, self._params.dy, self._misfit_scale(row=0), force_std)
             std = float(self._physical_std(self._cov)[0]) * self._misfit_scale()
             self._momentum_before = (self._params, std)
 

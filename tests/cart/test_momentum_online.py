@@ -86,3 +86,26 @@ def test_the_speed_ratios_std_covers_its_scatter_with_an_exact_speed_and_a_noisy
     scores = [abs(ratio - 1.0) / std for _, ratio, std in est.momentum.tested]
     assert max(scores) < 3.0, est.momentum.tested
     assert not est.events
+
+
+def test_only_the_force_rows_misfit_scales_the_momentum_tests_noise(dropped_in_log) -> None:
+    """The momentum test integrates the forward force only, so only that row's residual ratio scales its noise.
+    Just before the drop the residual test is set to a yaw-torque row misfitting 20 times its noise and a force
+    row 2 times (as a cart whose casters swing round); the drop is still found at its impulse, the speed's ratio
+    within 3 % of 30 / 20 and its std below a tenth of the jump (scaled by the larger row, the std is 10 times
+    larger)."""
+    log = dropped_in_log
+    rng = np.random.default_rng(1)
+    est = make_online_estimator(log.q[0], GUESS, MOCAP.measurement_std())
+    g = log.gamma + rng.standard_normal(log.gamma.shape) * np.array([3.0, 3.0, 0.3])
+    z = np.hstack([log.q, log.qd])
+    for k in range(1, len(log.t)):
+        if abs(log.t[k] - 11.9) < 1e-9:
+            w = est._misfit[0]
+            est._misfit[1:] = [4.0 * w, 400.0 * w]  # residual ratios 2 (force) and 20 (yaw torque)
+            assert est._misfit_scale() == pytest.approx(20.0)
+        est.step(g[k - 1], log.t[k] - log.t[k - 1], z[k])
+    assert [e.method for e in est.events] == ["momentum"]
+    assert est.events[0].t_change == pytest.approx(12.0, abs=0.015)
+    t_imp, ratio, std = est.momentum.tested[-1]
+    assert t_imp == pytest.approx(12.0, abs=0.015) and abs(ratio / 1.5 - 1.0) < 0.03 and std < 0.05
