@@ -63,7 +63,8 @@ class OnlineOptions:
     initial guess (damping std at least ``damping_min_std``); ``footprint`` (|dx|, |dy| limits, m);
     ``forgetting_s``: time constant of the data's exponential forgetting (inf: none);
     change detection: ``detect_changes``, ``change_window_s``, ``change_alpha`` (false-alarm
-    probability of one test), ``min_change`` (relative mass change), ``buffer_s`` (onset search);
+    probability of one test), ``min_change`` (relative mass change), ``buffer_s`` (onset search; an onset whose
+    stretch reaches the start of the full buffer is censored and searched again by the window search);
     after a change the prior is re-centered on the estimate before it, with ``change_mass_rel_std``
     (relative), ``change_com_std`` (m, at least the CoM's std before the change) and
     ``change_rho_rel_std`` (relative, J / m): a load changes the mass more than the CoM and the
