@@ -883,8 +883,7 @@ class OnlineLSEstimator:
         if self.window is not None:
             before = self._params.with_mass(m_before) if m_before > 0.0 else self._params
             seen = WindowChange(t_change, t_range, self.t, before, self._params, {})
-            # an onset inside the buffer is kept as found (the window's search of it moves it further from the
-            # truth on rigid_sim seed 0 and MuJoCo seed 103); a censored one is searched again on the window
+            # an onset inside the buffer is kept as found; a censored one is searched again on the window
             index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated=not censored)
             self._changes[-1].window_index = index
         buf.clear()
