@@ -91,6 +91,8 @@ class OnlineOptions:
     ``window_changes``: every ``window_every_s`` s the offline segment search on the last ``window_s`` s of the
     loop's own log since the last change (:class:`cart.window_changes.WindowChangeDetector`); a change it finds
     restarts the parameters from the fit after it;
+    ``second_look``: a GLR change is judged again by the window search's first fit of the data after it precise
+    enough to see ``min_change`` (:meth:`OnlineLSEstimator._second_look`; needs ``window_changes``);
     ``excitation_margin``: the identifiability gate of the regression from the initial guess (prior units; 0: off,
     :data:`cart.online_regression.EXCITATION_MARGIN` the suggested value;
     :meth:`cart.online_regression.RecursiveRegression.excited_part`);
@@ -138,6 +140,7 @@ class OnlineOptions:
     window_changes: bool = True
     window_every_s: float = 2.0
     window_s: float = 30.0
+    second_look: bool = True
     excitation_margin: float = 0.0
     misfit_weights: bool = True
     misfit_weight_s: float | None = None
@@ -190,6 +193,7 @@ class _Change:
     method: str = "glr"
     window_index: int | None = None  # the change's index in the window search's list (its onset is refined)
     t_range: tuple[float, float] | None = None  # the onsets the data cannot tell apart (earliest, latest)
+    before: tuple[float, float, float] | None = None  # GLR: the fit before the onset (mass, std, residual ratio)
 
 
 def _vector(value: npt.ArrayLike, n: int, what: str) -> np.ndarray:
@@ -449,6 +453,8 @@ class OnlineLSEstimator:
             change = self.window.check()
             if change is not None:
                 self._restart_from_window(change)
+            if self.options.second_look:
+                self._second_look()
             for c in self._changes:
                 if c.window_index is not None:
                     found = self.window.changes[c.window_index]
@@ -863,7 +869,8 @@ class OnlineLSEstimator:
         full, new, after, local = self._fit_after(idx, PhysicalPrior(center, std))
         self.detector.restart()
         own = math.sqrt(local[0].ratio2(full.p))  # the samples after the onset against their own fit
-        if not self._confirmed(full, self._fit_before(idx), (float(buf.read("k")[idx]), own)):
+        before, k_old = self._fit_before(idx), float(buf.read("k")[idx])
+        if not self._confirmed(full, before, (k_old, own)):
             self.regression.solve(1)
             self._cov = self.regression.covariance()
             return
@@ -879,7 +886,9 @@ class OnlineLSEstimator:
             split = self.window.recent_split(float(self.regression.p[0]) - m_before, t_change)
             if split is not None:  # the window's split, on up to window_s of data, dates the change
                 t_change, t_range = split.t_change, split.t_range
-        self._changes.append(_Change(t_change, self.t, m_before, self.detector.statistic, t_range=t_range))
+        self._changes.append(
+            _Change(t_change, self.t, m_before, self.detector.statistic, t_range=t_range, before=(*before, k_old))
+        )
         if self.window is not None:
             before = self._params.with_mass(m_before) if m_before > 0.0 else self._params
             seen = WindowChange(t_change, t_range, self.t, before, self._params, {})
@@ -887,6 +896,50 @@ class OnlineLSEstimator:
             index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated=not censored)
             self._changes[-1].window_index = index
         buf.clear()
+
+    def _second_look(self) -> None:
+        """Judge the last GLR change again with the window search's fit of the data after it; withdraw it when the
+        two sides no longer differ.
+
+        The GLR confirms a change on the few seconds after its onset (:meth:`_confirmed`); a stretch the model
+        misfits (casters swivelling round as the cart starts from rest) can fit a mass far off on so few samples.
+        The window's fit (:attr:`cart.window_changes.WindowChangeDetector.fit`: the offline estimate on at least
+        ``MIN_SEGMENT_S`` of the data after the onset, its std covering the misfit it sees) judges it once, at
+        its first fit whose mass std is below ``min_change`` of the mass before: the change stands when that mass
+        and the mass fitted before the onset differ by ``min_change`` of the latter and by ``confirm_sigma`` times
+        the std of their difference (the side before's std scaled up by its residual ratio at the onset, as in
+        :meth:`_confirmed`). Otherwise it is withdrawn (flagged ``change_withdrawn``) and the estimate goes on
+        from the samples after the onset, as after any change.
+        """
+        fit = self.window.fit if self.window is not None else None
+        if fit is None or not self._changes:
+            return
+        c = self._changes[-1]
+        if c.before is None:
+            return
+        m_old, std_old, k_old = c.before
+        m_new, std_new = float(fit.params.m), float(fit.std["mass"])
+        limit = self.options.min_change * abs(m_old)
+        if not std_new < limit:
+            return
+        c.before = None  # judged
+        diff = abs(m_new - m_old)
+        std = math.hypot(std_new, std_old * max(k_old, 1.0))
+        if diff >= limit and diff >= self.options.confirm_sigma * std:
+            return
+        self._changes.pop()
+        if self._changes:
+            self._changes[-1].mass_end = None
+        if c.window_index is not None and c.window_index == len(self.window.changes) - 1:
+            self.window.changes.pop()
+        self._flags.append(
+            RunoffFlag(
+                self.t,
+                "change_withdrawn",
+                f"GLR change at {c.t_change:.2f} s: mass {m_old:.4g} kg before, {m_new:.4g} kg fitted on "
+                f"{self.t - c.t_change:.1f} s after it, difference's std {std:.2g} kg",
+            )
+        )
 
     def _restart_from_window(self, change: WindowChange) -> None:
         """Restart the parameters from the window search's fit after ``change`` (its estimate and std as the prior).

@@ -191,3 +191,24 @@ def test_a_stretch_that_misfits_more_is_down_weighted():
     level = means[LEVEL]
     assert level[0] <= 0.5 * level[1] and level[1] >= 0.75
     assert means[None][1] < 0.5
+
+
+def test_a_glr_change_the_longer_fit_after_it_does_not_see_is_withdrawn(misfit_log, monkeypatch):
+    """The first GLR detection accepted as the misfit's residuals make the test fire (the rest judged as usual): a
+    change is reported without the second look; with it, the window search's fit of the data after the onset does
+    not differ from the fit before it, so it is withdrawn (flagged ``change_withdrawn``)."""
+    _glr_without_misfit(monkeypatch)
+    confirmed = OnlineLSEstimator._confirmed
+
+    def first_accepted(self, new, before, misfit):
+        first = not getattr(self, "_accepted", False)
+        self._accepted = True
+        return True if first else confirmed(self, new, before, misfit)
+
+    monkeypatch.setattr(OnlineLSEstimator, "_confirmed", first_accepted)
+    q0, std = misfit_log.q[0], MOCAP.measurement_std()
+    est = _run(misfit_log, make_online_estimator(q0, GUESS, std, second_look=False), 1, 3.0, 0.3)
+    assert len(est.events) == 1
+    est = _run(misfit_log, make_online_estimator(q0, GUESS, std), 1, 3.0, 0.3)
+    assert est.events == ()
+    assert "change_withdrawn" in [f.kind for f in est.flags]
