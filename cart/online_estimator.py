@@ -869,8 +869,8 @@ class OnlineLSEstimator:
         full, new, after, local = self._fit_after(idx, PhysicalPrior(center, std))
         self.detector.restart()
         own = math.sqrt(local[0].ratio2(full.p))  # the samples after the onset against their own fit
-        before, k_old = self._fit_before(idx), float(buf.read("k")[idx])
-        if not self._confirmed(full, before, (k_old, own)):
+        fit_before, k_old = self._fit_before(idx), float(buf.read("k")[idx])
+        if not self._confirmed(full, fit_before, (k_old, own)):
             self.regression.solve(1)
             self._cov = self.regression.covariance()
             return
@@ -887,7 +887,7 @@ class OnlineLSEstimator:
             if split is not None:  # the window's split, on up to window_s of data, dates the change
                 t_change, t_range = split.t_change, split.t_range
         self._changes.append(
-            _Change(t_change, self.t, m_before, self.detector.statistic, t_range=t_range, before=(*before, k_old))
+            _Change(t_change, self.t, m_before, self.detector.statistic, t_range=t_range, before=(*fit_before, k_old))
         )
         if self.window is not None:
             before = self._params.with_mass(m_before) if m_before > 0.0 else self._params
@@ -911,8 +911,9 @@ class OnlineLSEstimator:
         :meth:`_confirmed`). Otherwise it is withdrawn (flagged ``change_withdrawn``) and the estimate goes on
         from the samples after the onset, as after any change.
         """
-        fit = self.window.fit if self.window is not None else None
-        if fit is None or not self._changes:
+        window = self.window
+        fit = window.fit if window is not None else None
+        if window is None or fit is None or not self._changes:
             return
         c = self._changes[-1]
         if c.before is None:
@@ -930,8 +931,8 @@ class OnlineLSEstimator:
         self._changes.pop()
         if self._changes:
             self._changes[-1].mass_end = None
-        if c.window_index is not None and c.window_index == len(self.window.changes) - 1:
-            self.window.changes.pop()
+        if c.window_index is not None and c.window_index == len(window.changes) - 1:
+            window.changes.pop()
         self._flags.append(
             RunoffFlag(
                 self.t,
