@@ -16,7 +16,8 @@ cart): mass, CoM in {b}, yaw inertia about the CoM, and the forward effective ma
 inertia (``m_effective_forward_incl_wheel_spin``: the mass the forward motion feels).
 
 Run: ``python -m studies.testbeds.mujoco_loads N SEED0`` evaluates ``cartpush estimate``'s segments on N
-load-change logs and on the same N carts without a change (the load kept where it starts). With
+load-change logs and on the same N carts without a change (the load kept where it starts); ``--dating SEED ...``
+sums how many of those seeds' changes the motion allows to be dated within 1 s (:func:`dating_share`). With
 ``MUJOCO_LOADS_CACHE=DIR`` set, each simulation is kept in ``DIR/SEED_KIND.pkl`` (the log, the truth and the
 load) and read back from there on a later run (the simulations, not the evaluation, are most of the time).
 """
@@ -320,7 +321,48 @@ def evaluate(n: int, seed0: int) -> dict[str, Any]:
     }
 
 
+def dating_information(seed: int) -> dict[str, Any]:
+    """Return what the motion of seed's load-change log (:func:`random_load_case`'s kind) allows in dating its change.
+
+    The stretch around the true change that the motion cannot date (:func:`cart.segments.information_stretch`:
+    noise-free, the evidence the motion gives with the truth known) on the offline regression of the whole log,
+    and ``p_date`` = min(1, 2 / width): the chance that an estimator dating the change anywhere in the stretch
+    lands within 1 s (the criterion of issue 27), before any noise.
+    """
+    from cart import segments
+    from cart.identify import identify
+
+    case, load = random_load_case(seed)
+    log, truth = simulated(seed, case, load)
+    tc = float(truth["t_change"])
+    s = segments._search_rows(identify(log))
+    lo, hi = segments.information_stretch(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, tc, s.shared)
+    width = hi - lo
+    return {
+        "seed": seed,
+        "kind": load.kind,
+        "t_change": tc,
+        "stretch": (lo - tc, hi - tc),
+        "width": width,
+        "p_date": min(1.0, WIDE_STRETCH_S / width) if width > 0.0 else 1.0,
+    }
+
+
+def dating_share(seeds: list[int]) -> dict[str, Any]:
+    """Return the sum and mean of :func:`dating_information`'s ``p_date`` over ``seeds`` (printing each row)."""
+    rows = []
+    for seed in seeds:
+        rows.append(dating_information(seed))
+        print(json.dumps(rows[-1]), flush=True)
+    p = np.array([r["p_date"] for r in rows])
+    wide = [r["seed"] for r in rows if r["width"] > WIDE_STRETCH_S]
+    return {"logs": len(rows), "expected_dated": float(p.sum()), "share": float(p.mean()), "wider_than_2s": wide}
+
+
 if __name__ == "__main__":  # pragma: no cover
     import sys
 
-    print(json.dumps(evaluate(int(sys.argv[1]), int(sys.argv[2])), indent=1))
+    if sys.argv[1] == "--dating":  # python -m studies.testbeds.mujoco_loads --dating SEED [SEED ...]
+        print(json.dumps(dating_share([int(a) for a in sys.argv[2:]]), indent=1))
+    else:
+        print(json.dumps(evaluate(int(sys.argv[1]), int(sys.argv[2])), indent=1))

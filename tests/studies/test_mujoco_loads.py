@@ -74,3 +74,14 @@ def test_estimate_splits_a_mujoco_log_at_the_load_and_not_the_same_cart_without(
     assert abs(segs[1]["mass"] / truth["after"]["m_effective_forward_incl_wheel_spin"] - 1) < 0.025
     log0, _ = ml.simulate_with_load(case, replace(load, kind="none_in"))
     assert len(estimate_log(log0).segments) == 1
+
+
+def test_a_lift_out_before_an_acceleration_cannot_be_dated_closer_than_its_cruise():
+    """Seed 103: 31 kg lifted out at 33.39 s, late in a straight cruise at 0.59 m/s, just before the cart
+    brakes: the motion cannot date it within the cruise, so the stretch holds the change, reaches back into the
+    cruise and ends at the braking, and an estimator dating it anywhere there is within 1 s with probability
+    2 / width."""
+    row = ml.dating_information(103)
+    lo, hi = row["stretch"]
+    assert row["kind"] == "out" and lo < -5.0 and 0.0 <= hi < 0.5
+    assert abs(row["p_date"] - 2.0 / (hi - lo)) < 1e-12 and row["p_date"] < 0.3
