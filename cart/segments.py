@@ -342,6 +342,13 @@ def information_stretch(
     return float(t[idx[lo]]), float(t[idx[hi]])
 
 
+def information_stretch_of(res: Identification, t_change: float) -> tuple[float, float]:
+    """Return :func:`information_stretch` at ``t_change`` on the split search's rows of ``res`` (the whole log's
+    :func:`cart.identify.identify`): where the motion cannot date a change at ``t_change``."""
+    s = _search_rows(res)
+    return information_stretch(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, t_change, s.shared)
+
+
 def confidence_drop(level: float = CONFIDENCE_LEVEL) -> float:
     """Return the rise of the split residual, in independent residuals, that bounds the change time's confidence set.
 

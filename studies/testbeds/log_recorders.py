@@ -329,8 +329,7 @@ def after_mass_row(seed: int) -> dict[str, Any]:
     guard, t0, t1 = 1.0 / res.cutoff_hz, float(log.t[0]), float(log.t[-1])
     after = identify(segments.slice_log(log, tc + guard, t1))
     before = identify(segments.slice_log(log, t0, tc - guard))
-    s = segments._search_rows(res)
-    lo, hi = segments.information_stretch(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, tc, s.shared)
+    lo, hi = segments.information_stretch_of(res, tc)
     pct = lambda m, truth_m: 100.0 * (m / truth_m - 1.0)  # noqa: E731
     return {
         "seed": seed,

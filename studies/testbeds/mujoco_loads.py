@@ -335,8 +335,7 @@ def dating_information(seed: int) -> dict[str, Any]:
     case, load = random_load_case(seed)
     log, truth = simulated(seed, case, load)
     tc = float(truth["t_change"])
-    s = segments._search_rows(identify(log))
-    lo, hi = segments.information_stretch(s.t, s.x, s.y, s.scale, s.min_len, s.tol, s.kernels, tc, s.shared)
+    lo, hi = segments.information_stretch_of(identify(log), tc)
     width = hi - lo
     return {
         "seed": seed,
