@@ -353,15 +353,11 @@ def judge_change(events: list[dict], t_change: float | None, mass_after: float) 
     )
 
 
-def rigid_load_run(seed: int, change: bool = True, **options) -> dict:
-    """Return what the online estimator reports over one log of ``studies.testbeds.log_recorders
-    --load-changes``' draw (rigid_sim, 40-60 s, the mass and yaw inertia times 0.6, 0.7, 1.4 or 1.6 at 35-65 %
-    of the log, load at the CoM, velocities carried on; ``change`` False: the same cart without it), with the
-    velocity columns (the loop has them) and no time jitter; judged by :func:`judge_change`.
-
-    Guess: 80 % of the mass and of the yaw inertia, the true dx, dy = 0, damping 1 (as :func:`mujoco_load_run`).
-    """
-    from cart.params import CartParams
+def rigid_load_case(seed: int, change: bool = True):
+    """Return the log recorders' load draw for ``seed`` (``studies.testbeds.log_recorders --load-changes``'
+    rigid_sim, 40-60 s, the mass and yaw inertia times 0.6, 0.7, 1.4 or 1.6 at 35-65 % of the log, load at the
+    CoM, velocities carried on; ``change`` False: the same cart without it) with the velocity columns (the loop
+    has them) and no time jitter: (case, change time, mass factor)."""
     from studies.testbeds import rigid_sim
 
     rng = np.random.default_rng(seed)
@@ -369,7 +365,19 @@ def rigid_load_run(seed: int, change: bool = True, **options) -> dict:
     tc = float(rng.uniform(0.35, 0.65) * dur)
     fac = float(rng.choice([0.6, 0.7, 1.4, 1.6]))
     load = {"load_time": tc, "load_factor": fac} if change else {}
-    case = rigid_sim.random_case(seed, duration=dur, vel_std=0.005, jitter=0.0, **load)
+    return rigid_sim.random_case(seed, duration=dur, vel_std=0.005, jitter=0.0, **load), tc, fac
+
+
+def rigid_load_run(seed: int, change: bool = True, **options) -> dict:
+    """Return what the online estimator reports over :func:`rigid_load_case`'s log, judged by
+    :func:`judge_change`.
+
+    Guess: 80 % of the mass and of the yaw inertia, the true dx, dy = 0, damping 1 (as :func:`mujoco_load_run`).
+    """
+    from cart.params import CartParams
+    from studies.testbeds import rigid_sim
+
+    case, tc, fac = rigid_load_case(seed, change)
     log, _ = rigid_sim.simulate(case)
     cart = case.cart
     guess = CartParams(0.8 * cart.m, cart.dx, 0.0, 0.8 * cart.I, 1.0, 1.0)
@@ -386,6 +394,26 @@ def rigid_load_run(seed: int, change: bool = True, **options) -> dict:
         "ok": judge_change(events, tc if change else None, m_after),
         "final_mass": est.params().m,
     }
+
+
+def rigid_dating(seed: int) -> dict:
+    """Return what :func:`rigid_load_case`'s change log lets any estimator date and weigh
+    (:mod:`studies.testbeds.dating`: the undatable stretch, ``p_date``, the after-side's mass std and ``p_mass``)."""
+    from studies.testbeds import dating, rigid_sim
+
+    case, tc, fac = rigid_load_case(seed)
+    log, _ = rigid_sim.simulate(case)
+    m_after = case.cart.m * fac
+    std = dating.after_std_pct(log, tc, m_after)
+    return {"seed": seed, **dating.stretch_row(log, tc), "after_std_pct": std, "p_mass": dating.p_mass(std)}
+
+
+def rigid_dating_part(seeds: tuple[int, ...] = tuple(range(7000, 7020))) -> dict:
+    """Return :func:`studies.testbeds.dating.share` of :func:`rigid_dating` over ``seeds`` with the rows."""
+    from studies.testbeds import dating
+
+    rows = [rigid_dating(seed) for seed in seeds]
+    return {"rows": rows, **dating.share(rows)}
 
 
 def rigid_loads_part(seeds: tuple[int, ...] = tuple(range(7000, 7010)), **options) -> list[dict]:
@@ -559,6 +587,21 @@ def _print_mujoco_com(rows: list[dict]) -> None:
             )
 
 
+def _print_dating(part: dict | None) -> None:
+    if part is None:
+        return
+    for r in part["rows"]:
+        lo, hi = r["stretch"]
+        print(
+            f"rigid dating seed {r['seed']}: stretch [{lo:+.2f}, {hi:+.2f}] s, p_date {r['p_date']:.2f}, "
+            f"after-mass std {r['after_std_pct']:.1f} %, p_mass {r['p_mass']:.2f}"
+        )
+    print(
+        f"rigid dating: {part['expected_dated']:.1f} of {part['logs']} datable within 1 s, "
+        f"{part['expected_dated_and_weighed']:.1f} also weighed within 5 %; wider than 2 s: {part['wider_than_2s']}"
+    )
+
+
 def _print_replay(rows: list[dict], prefix: str, head: Callable[[dict], str]) -> None:
     """Print a replay part's rows (`head(row)` names the log; ``{tc}`` in it is the change time) and its tally."""
     for row in rows:
@@ -580,7 +623,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--part",
-        choices=("push", "table1", "loads", "push_loads", "mujoco", "mujoco_com", "mujoco_loads", "rigid_loads", "all"),
+        choices=(
+            "push",
+            "table1",
+            "loads",
+            "push_loads",
+            "mujoco",
+            "mujoco_com",
+            "mujoco_loads",
+            "rigid_loads",
+            "rigid_dating",
+            "all",
+        ),
         default="all",
     )
     parser.add_argument("--seeds", type=int, nargs="+", help="seeds of mujoco_loads / rigid_loads (default: theirs)")
@@ -603,9 +657,12 @@ def main() -> None:
         out["mujoco_loads"] = mujoco_loads_part(*([tuple(args.seeds)] if args.seeds else []))
     if args.part == "rigid_loads":
         out["rigid_loads"] = rigid_loads_part(*([tuple(args.seeds)] if args.seeds else []))
+    if args.part == "rigid_dating":
+        out["rigid_dating"] = rigid_dating_part(*([tuple(args.seeds)] if args.seeds else []))
     if args.json:
         print(json.dumps(out, default=float))
         return
+    _print_dating(out.get("rigid_dating"))
     _print_mujoco_com(out.get("mujoco_com", []))
     for row in out.get("mujoco", []):
         print(

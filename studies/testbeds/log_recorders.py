@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from cart.logs import CartLog
-from studies.testbeds import rigid_sim
+from studies.testbeds import dating, rigid_sim
 
 
 @dataclass(frozen=True)
@@ -364,9 +364,8 @@ def after_mass_study(n: int, seed0: int) -> dict[str, float]:
         rows.append(r)
     err, std = np.array([r["at_truth"] for r in rows]), np.array([r["std"] for r in rows])
     err0, std0 = np.array([r["before_at_truth"] for r in rows]), np.array([r["before_std"] for r in rows])
-    width = np.array([r["stretch"][1] - r["stretch"][0] for r in rows])
-    p_date = np.minimum(1.0, 2.0 / np.maximum(width, 1e-9))
-    p_mass = np.array([math.erf(5.0 / (sd * math.sqrt(2.0))) for sd in std])
+    p_date = np.array([dating.p_date(r["stretch"][1] - r["stretch"][0]) for r in rows])
+    p_mass = np.array([dating.p_mass(sd) for sd in std])
     rep = np.array([r["reported"] for r in rows if r["found"]])
     return {
         "logs": n,

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from cart.logs import CartLog
+from studies.testbeds import dating
 from studies.testbeds import mujoco_cart as mc
 
 try:  # optional dependency, as in mujoco_cart
@@ -235,12 +236,8 @@ def _row(seed: int, kind: str, t_change: float | None, truth: dict[str, Any], se
     }
 
 
-#: A ``t0_range`` wider than this (s) cannot date a change within 1 s (its middle is up to half of it off).
-WIDE_STRETCH_S = 2.0
-
-
 def in_wide_stretch(segs: list[dict[str, Any]], t_change: float, m_after: float) -> bool:
-    """Return whether ``estimate`` reports the change in a stretch wider than ``WIDE_STRETCH_S`` holding ``t_change``.
+    """Return whether ``estimate`` reports the change in a stretch wider than ``dating.WIDE_STRETCH_S`` holding ``t_change``.
 
     The motion there (a cruise, a standstill) does not excite the mass, so the log cannot date the change
     more closely; counted apart when the time is more than 1 s off but the stretch holds it and the after-mass
@@ -249,7 +246,7 @@ def in_wide_stretch(segs: list[dict[str, Any]], t_change: float, m_after: float)
     if len(segs) < 2 or segs[-1]["t0_range"] is None or segs[-1]["mass"] is None:
         return False
     lo, hi = segs[-1]["t0_range"]
-    return bool(hi - lo > WIDE_STRETCH_S and lo <= t_change <= hi and abs(segs[-1]["mass"] / m_after - 1) < 0.05)
+    return bool(hi - lo > dating.WIDE_STRETCH_S and lo <= t_change <= hi and abs(segs[-1]["mass"] / m_after - 1) < 0.05)
 
 
 def estimated_segments(log: CartLog) -> list[dict[str, Any]]:
@@ -322,40 +319,20 @@ def evaluate(n: int, seed0: int) -> dict[str, Any]:
 
 
 def dating_information(seed: int) -> dict[str, Any]:
-    """Return what the motion of seed's load-change log (:func:`random_load_case`'s kind) allows in dating its change.
-
-    The stretch around the true change that the motion cannot date (:func:`cart.segments.information_stretch`:
-    noise-free, the evidence the motion gives with the truth known) on the offline regression of the whole log,
-    and ``p_date`` = min(1, 2 / width): the chance that an estimator dating the change anywhere in the stretch
-    lands within 1 s (the criterion of issue 27), before any noise.
-    """
-    from cart import segments
-    from cart.identify import identify
-
+    """Return what the motion of seed's load-change log (:func:`random_load_case`'s kind) allows in dating its change
+    (:func:`studies.testbeds.dating.stretch_row`: the undatable stretch around the true change and ``p_date``)."""
     case, load = random_load_case(seed)
     log, truth = simulated(seed, case, load)
-    tc = float(truth["t_change"])
-    lo, hi = segments.information_stretch_of(identify(log), tc)
-    width = hi - lo
-    return {
-        "seed": seed,
-        "kind": load.kind,
-        "t_change": tc,
-        "stretch": (lo - tc, hi - tc),
-        "width": width,
-        "p_date": min(1.0, WIDE_STRETCH_S / width) if width > 0.0 else 1.0,
-    }
+    return {"seed": seed, "kind": load.kind, **dating.stretch_row(log, float(truth["t_change"]))}
 
 
 def dating_share(seeds: list[int]) -> dict[str, Any]:
-    """Return the sum and mean of :func:`dating_information`'s ``p_date`` over ``seeds`` (printing each row)."""
+    """Return :func:`studies.testbeds.dating.share` of :func:`dating_information` over ``seeds`` (printing each row)."""
     rows = []
     for seed in seeds:
         rows.append(dating_information(seed))
         print(json.dumps(rows[-1]), flush=True)
-    p = np.array([r["p_date"] for r in rows])
-    wide = [r["seed"] for r in rows if r["width"] > WIDE_STRETCH_S]
-    return {"logs": len(rows), "expected_dated": float(p.sum()), "share": float(p.mean()), "wider_than_2s": wide}
+    return dating.share(rows)
 
 
 if __name__ == "__main__":  # pragma: no cover
