@@ -1,8 +1,11 @@
 """A profile checked against its URDF's Pinocchio model, and what the URDF tells about the wheels.
 
 Every problem is a `ProfileError` naming the profile key and the fix: an unknown joint or frame, a
-wheel that is not a continuous joint, an arm joint that is not a 1-DoF joint, a locked value outside
-its joint's limits, a wheel radius the URDF does not give.
+wheel that is not a continuous joint, an arm joint that is not a 1-DoF joint (or moves too little to be one,
+or has no effort or speed), arm joints that do not carry the gripper from base to tip, an F/T frame off the
+arm's chain, a differential base's wheels listed right first or with axles not across the base, a locked
+value outside its joint's limits, a joint of several degrees of freedom inside the URDF, a wheel radius the
+URDF does not give.
 """
 
 from __future__ import annotations
@@ -92,6 +95,114 @@ def check_profile(prof: RobotProfile, model: pin.Model) -> None:
                 raise ProfileError(src, f"locked.{name}", f"{value:g} is outside the joint's limits [{lo:g}, {hi:g}]")
     for role, frame in prof.frames:
         _frame(prof, model, f"frames.{role}", frame)
+    _check_single_dof(prof, model)
+    for i in range(len(prof.arms)):
+        _check_arm_chain(prof, model, i)
+    if prof.base == "differential" and len(prof.wheel_joints) == 2:
+        _check_differential_wheels(prof, model)
+
+
+#: The least range (rad or m) of an arm joint: the grasp IK keeps 0.02 off each limit, and a shorter range is
+#: a gripper's finger or a joint that cannot move the hand.
+MIN_ARM_RANGE = 0.1
+#: The largest angle (deg) between a differential base's wheel axle and the line across the base (its y axis).
+MAX_AXLE_TILT_DEG = 20.0
+
+
+def _check_single_dof(prof: RobotProfile, model: pin.Model) -> None:
+    """Raise `ProfileError` for a joint of several degrees of freedom inside the URDF (planar, floating): the
+    base's motion is the profile's ``base``, on the planar root that `robots.load` adds."""
+    for j in range(2, model.njoints):
+        if model.joints[j].nv > 1:
+            raise ProfileError(
+                prof.source or prof.name,
+                "urdf",
+                f"joint {model.names[j]!r} is a {model.joints[j].shortname()} joint ({model.joints[j].nv} DoF); "
+                "make it fixed: the base's motion comes from the profile's base key",
+            )
+
+
+def _check_arm_chain(prof: RobotProfile, model: pin.Model, i: int) -> None:
+    """Raise `ProfileError` when arm ``i``'s joints do not move its gripper frame in order from base to tip, when
+    one moves too little or has no effort or speed limit, or when its F/T frame is not beyond every arm joint
+    (nor with an arm joint between it and the hand)."""
+    src, arm = prof.source or prof.name, prof.arms[i]
+    hand_chain = list(model.supports[model.frames[model.getFrameId(arm.gripper_frame)].parentJoint])
+    last = -1
+    for k, name in enumerate(arm.joints):
+        jid, key = model.getJointId(name), f"arms[{i}].joints[{k}]"
+        if jid not in hand_chain:
+            raise ProfileError(
+                src,
+                key,
+                f"{name!r} does not move the gripper frame {arm.gripper_frame!r}; list the joints on the "
+                "chain from the base to the hand (or check gripper_frame)",
+            )
+        if hand_chain.index(jid) < last:
+            raise ProfileError(src, key, f"{name!r} is listed after a joint it carries; list the joints base to tip")
+        last = hand_chain.index(jid)
+        j = model.joints[jid]
+        lo, hi = float(model.lowerPositionLimit[j.idx_q]), float(model.upperPositionLimit[j.idx_q])
+        if not hi - lo > MIN_ARM_RANGE:
+            raise ProfileError(
+                src,
+                key,
+                f"{name!r} moves only {hi - lo:.3g} (limits [{lo:g}, {hi:g}]); an arm joint needs a range "
+                f"over {MIN_ARM_RANGE:g}: a gripper finger? hold it in [locked]",
+            )
+        effort, speed = float(model.effortLimit[j.idx_v]), float(model.velocityLimit[j.idx_v])
+        if not (effort > 0.0 and speed > 0.0):
+            raise ProfileError(
+                src,
+                key,
+                f"{name!r} has effort {effort:g} and velocity {speed:g} in the URDF; give its <limit> a "
+                "positive effort and velocity",
+            )
+    if arm.ft_frame is not None:
+        ft_chain = list(model.supports[model.frames[model.getFrameId(arm.ft_frame)].parentJoint])
+        ids = [model.getJointId(n) for n in arm.joints]
+        between = [model.names[j] for j in ids if (j in ft_chain) != (j in hand_chain)]
+        outside = [model.names[j] for j in ids if j not in ft_chain]
+        if between or outside:
+            raise ProfileError(
+                src,
+                f"arms[{i}].ft_frame",
+                f"{arm.ft_frame!r} is not carried by the arm's joint "
+                f"{(outside or between)[0]!r}: the F/T frame must be beyond every arm joint, on the hand's link "
+                "or next to it (the wrist's sensor link)",
+            )
+
+
+def _check_differential_wheels(prof: RobotProfile, model: pin.Model) -> None:
+    """Raise `ProfileError` when a differential base's wheels are listed right first (the left wheel is at +y of
+    the root) or a wheel's axle is not across the base (along its y axis, within ``MAX_AXLE_TILT_DEG``)."""
+    src = prof.source or prof.name
+    data = model.createData()
+    q = reference_configuration(prof, model)
+    pin.computeJointJacobians(model, data, q)
+    root = data.oMi[1]
+    ys = []
+    for k, w in enumerate(prof.wheel_joints):
+        jid = model.getJointId(w)
+        col = pin.getJointJacobian(model, data, jid, pin.LOCAL_WORLD_ALIGNED)[3:, model.joints[jid].idx_v]
+        axis = root.rotation.T @ col
+        tilt = math.degrees(math.acos(min(1.0, abs(float(axis[1])) / max(float(np.linalg.norm(axis)), 1e-12))))
+        if tilt > MAX_AXLE_TILT_DEG:
+            raise ProfileError(
+                src,
+                f"wheel_joints[{k}]",
+                f"{w!r} turns about ({axis[0]:.2f}, {axis[1]:.2f}, {axis[2]:.2f}) in the "
+                f"root link's frame, {tilt:.0f} deg off its y axis; a differential base's wheel axles run across "
+                "the base (check the joint's <axis> and the base link's x forward, z up)",
+            )
+        ys.append(float((root.inverse() * data.oMi[jid]).translation[1]))
+    if not ys[0] > ys[1]:
+        raise ProfileError(
+            src,
+            "wheel_joints",
+            f"{prof.wheel_joints[0]!r} is at y = {ys[0]:.3g} m and {prof.wheel_joints[1]!r} at "
+            f"y = {ys[1]:.3g} m of the root link; list the left wheel (+y) first",
+        )
 
 
 def _check_arms_apart(prof: RobotProfile, model: pin.Model) -> None:
@@ -153,6 +264,34 @@ def wheel_geometry(prof: RobotProfile, model: pin.Model) -> WheelGeometry:
             raise ProfileError(src, "wheel_separation", "the URDF's two wheels coincide; give it (m)")
     positions = prof.wheel_positions or tuple((float(c[0]), float(c[1])) for c in centres)
     return WheelGeometry(float(radius), separation, positions)
+
+
+def check_wheel_radius(prof: RobotProfile, model: pin.Model, collision: pin.GeometryModel) -> None:
+    """Raise `ProfileError` when a wheel's collision cylinder (or sphere) and its axle's height above the root
+    link disagree by more than 10 % and the profile gives no ``wheel_radius``: the root link is then not on the
+    floor, and the planner (which takes the axle's height) and the MuJoCo plant (which rolls the cylinder)
+    would drive the wheels at different speeds."""
+    if prof.wheel_radius is not None or not prof.wheel_joints:
+        return
+    data = model.createData()
+    pin.forwardKinematics(model, data, reference_configuration(prof, model))
+    root = data.oMi[1]
+    for w in prof.wheel_joints:
+        jid = model.getJointId(w)
+        height = float((root.inverse() * data.oMi[jid]).translation[2])
+        for obj in collision.geometryObjects:
+            r = getattr(obj.geometry, "radius", None)
+            kind = type(obj.geometry).__name__
+            if obj.parentJoint != jid or kind not in ("Cylinder", "Sphere") or r is None:
+                continue
+            if abs(height - float(r)) > 0.1 * float(r):
+                raise ProfileError(
+                    prof.source or prof.name,
+                    "wheel_radius",
+                    f"wheel {w!r}: its collision {kind.lower()} has radius {float(r):.4g} m but its axle is {height:.4g} m above the "
+                    f"root link: put the URDF's root link on the floor, or give wheel_radius = {float(r):.4g}",
+                )
+            break
 
 
 def package_search_dirs(prof_dirs: tuple[Path, ...], urdf: Path) -> list[str]:

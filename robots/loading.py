@@ -16,7 +16,7 @@ from collections.abc import Iterator
 import pinocchio as pin
 
 from robots import registry
-from robots.checks import check_profile, package_search_dirs, resolve_package_uri
+from robots.checks import check_profile, check_wheel_radius, package_search_dirs, resolve_package_uri
 from robots.errors import ProfileError, RobotError, UnknownRobotError
 from robots.profiles import RobotProfile
 
@@ -242,6 +242,7 @@ def load(robot: str | Path | RobotProfile, urdf_text: str | None = None) -> Load
     else:
         path, model, visual, collision = _build_text(prof.name, urdf_text, root, prof)
     check_profile(prof, model)
+    check_wheel_radius(prof, model, collision)
     roles = prof.frame_roles
     roles.setdefault("base", _root_link(model))
     return LoadedRobot(

@@ -163,6 +163,22 @@ def test_locked_joints_hold_their_value(tmp_path):
             "arms[0].grip_force",
             "number",
         ),
+        (
+            {"wheel_joints": '["wheel_right_joint", "wheel_left_joint"]'},
+            "wheel_joints",
+            "list the left wheel (+y) first",
+        ),
+        ({"arm": 'joints = ["arm_joint2", "arm_joint1"]\ngripper_frame = "ee"\n'}, "arms[0].joints[1]", "base to tip"),
+        (
+            {"arm": 'joints = ["arm_joint1"]\ngripper_frame = "wheel_left"\n'},
+            "arms[0].joints[0]",
+            "does not move the gripper frame 'wheel_left'",
+        ),
+        (
+            {"arm": 'joints = ["arm_joint1", "arm_joint2"]\ngripper_frame = "ee"\nft_frame = "arm_link1"\n'},
+            "arms[0].ft_frame",
+            "not carried by the arm's joint 'arm_joint2'",
+        ),
     ],
 )
 def test_a_bad_profile_is_one_line_naming_the_key(wmra_dir, over, key, fix):
@@ -172,6 +188,52 @@ def test_a_bad_profile_is_one_line_naming_the_key(wmra_dir, over, key, fix):
     msg = str(err.value)
     assert err.value.key == key and f": {key}: " in msg and fix in msg and "\n" not in msg
     assert isinstance(err.value, RobotError)
+
+
+@pytest.mark.parametrize(
+    "old, new, key, fix",
+    [
+        (  # the left wheel's axle along z of the base: a wheel lying flat
+            '<origin xyz="0 0.25 0" rpy="-1.570796326795 0 0"/>',
+            '<origin xyz="0 0.25 0" rpy="0 0 0"/>',
+            "wheel_joints[0]",
+            "90 deg off its y axis",
+        ),
+        (
+            'upper="2.96705972839" effort="60" velocity="0.9"/>',
+            'upper="2.96705972839" effort="0" velocity="0.9"/>',
+            "arms[0].joints[0]",
+            "positive effort",
+        ),
+        (  # a finger's range
+            'lower="-2.96705972839" upper="2.96705972839" effort="60" velocity="0.9"',
+            'lower="0" upper="0.04" effort="60" velocity="0.9"',
+            "arms[0].joints[0]",
+            "moves only 0.04",
+        ),
+        (  # the root link 0.3 m under the floor: axles 0.47 m above it, the wheels' cylinders 0.17 m
+            '<origin xyz="0 0 0.17" rpy="0 0 0"/>\n  </joint>\n  <link name="wheel_left">',
+            '<origin xyz="0 0 0.47" rpy="0 0 0"/>\n  </joint>\n  <link name="wheel_left">',
+            "wheel_radius",
+            "give wheel_radius = 0.17",
+        ),
+        (  # a planar joint inside the URDF (the base's motion belongs to the profile's base key)
+            '<joint name="base_joint" type="fixed">',
+            '<joint name="base_joint" type="planar">',
+            "urdf",
+            "make it fixed",
+        ),
+    ],
+)
+def test_a_urdf_the_profile_cannot_drive_is_one_line_naming_the_key(wmra_dir, old, new, key, fix):
+    text = WMRA.read_text()
+    assert old in text  # its first occurrence: the left wheel, arm_joint1, the base
+    (wmra_dir / "wmra.urdf").write_text(text.replace(old, new, 1))
+    path = write_profile(wmra_dir, wmra_text(arm='joints = ["arm_joint1", "arm_joint2"]\ngripper_frame = "ee"\n'))
+    with pytest.raises(ProfileError) as err:
+        robots.load(path)
+    msg = str(err.value)
+    assert err.value.key == key and fix in msg and "\n" not in msg, msg
 
 
 def test_missing_meshes_name_package_dirs(tmp_path):

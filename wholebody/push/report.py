@@ -828,6 +828,8 @@ def run_demo(
 LATERAL_SLIP_M_S = 0.05
 #: the online estimator's residual ratio above which the nominal cart model misfits the data
 MISFIT_RATIO = 2.0
+#: distance (m) of a hand from its handle point above which a run says the hand left the handle
+HAND_OFF_HANDLE_M = 0.02
 
 
 def cart_lateral_speed(result: PushResult) -> np.ndarray:
@@ -846,7 +848,8 @@ def what_happened(result: PushResult) -> list[str]:
     """
     m, rep = result.metrics, result.plant_report or {}
     t_end = m.tracking_lost_at_s if m.tracking_lost_at_s is not None else math.inf
-    lines = [_outcome(result)] + _saturation(m.saturation or {}, t_end) + _slowed(result, t_end)
+    lines = [_outcome(result)] + _hand_off_handle(result, t_end) + _saturation(m.saturation or {}, t_end)
+    lines += _slowed(result, t_end)
     if m.arm_torque_limit_ratio > 1.0:
         lines.append(f"arm torque at {m.arm_torque_limit_ratio:.2f} x its limit (commanded)")
     if rep.get("arm_torque_saturated_steps"):
@@ -981,6 +984,30 @@ def _lateral_slip(result: PushResult, t_end: float) -> str:
         f"slip: the cart slid sideways{when} at up to {lat[k]:.2f} m/s (t = {result.t[k]:.2f} s), faster than "
         f"{LATERAL_SLIP_M_S:g} m/s for {slid:.2f} s in all (its model assumes no lateral slip)"
     )
+
+
+def _hand_off_handle(result: PushResult, t_end: float) -> list[str]:
+    """Return, per hand that was more than `HAND_OFF_HANDLE_M` from its handle point before `t_end`, for how
+    long, from when and how far at most: the cart then moved while the hand did not hold it where it should
+    (an arm near a singular pose or out of reach), so the push as run is not one a real grip would make."""
+    err = np.asarray(result.grasp_error, dtype=float)
+    if err.ndim == 1:
+        err = err[:, None]
+    inside = result.t < t_end
+    out = []
+    for i in range(err.shape[1]):
+        e = err[inside, i]
+        off = e > HAND_OFF_HANDLE_M
+        if not off.any():
+            continue
+        k, t = int(np.argmax(e)), result.t[inside]
+        hand = f"hand {i + 1} was" if err.shape[1] > 1 else "the hand was"
+        out.append(
+            f"HAND OFF THE HANDLE: {hand} more than {1e3 * HAND_OFF_HANDLE_M:g} mm from its handle point for "
+            f"{float(np.sum(off)) * result.config.dt:.2f} s from t = {float(t[np.argmax(off)]):.2f} s, at most "
+            f"{1e3 * float(e[k]):.0f} mm (t = {float(t[k]):.2f} s): the arm could not follow the handle there"
+        )
+    return out
 
 
 def _outcome(result: PushResult) -> str:
