@@ -40,6 +40,10 @@ BASE_Y_WEIGHT = 0.5
 BASE_X_WEIGHT = 0.3
 #: How many of the best placements of a fixed base are ranked by the handle length they reach.
 REACH_CANDIDATES = 4
+#: Base places (m behind the handle, in {b}) tried one by one when the free search finds no posture: its pull
+#: to the closest place can end where the arm is stretched (below `REACH_MIN_SIGMA`) while a place farther back
+#: holds the handle with room to move.
+FALLBACK_BASE_X = (-0.6, -0.75, -0.9, -1.05, -1.2)
 
 
 @dataclass(frozen=True)
@@ -201,6 +205,26 @@ def _placement(wb: WholeBody, prof: RobotProfile, pitch: float, roll: float, axi
     return best
 
 
+def _why(wb: WholeBody) -> str:
+    """Return why no posture was found, as far as the arm's geometry tells: the handle out of the arm's reach
+    (its straight-line length from the first arm joint) at any base place, or else what to give the search."""
+    from wholebody.push.robot import cart_se3, handle_point
+
+    model, data = wb.model, wb.model.createData()
+    pin.forwardKinematics(model, data, wb.to_pinocchio_q(np.r_[np.zeros(3), 0.5 * (wb.arm_lower + wb.arm_upper)]))
+    pin.updateFramePlacements(model, data)
+    ids = [model.getJointId(n) for n in wb.arm_joints]
+    chain = [data.oMi[j].translation for j in ids] + [data.oMf[wb.ee_frame_id].translation]
+    length = float(sum(np.linalg.norm(b - a) for a, b in zip(chain[:-1], chain[1:])))
+    shoulder, handle = float(chain[0][2]), float((cart_se3(np.zeros(3)) * handle_point(0.0))[2])
+    if abs(handle - shoulder) > length:
+        return (
+            f"the handle is {handle:.2f} m high and the arm's first joint {shoulder:.2f} m, farther than the arm's "
+            f"length ({length:.2f} m, first joint to gripper frame): mount the arm higher or push a lower handle"
+        )
+    return "give [push] base_x and the arm's push_seed in its profile"
+
+
 def solve_push_placement(prof: RobotProfile, wbs: Sequence[WholeBody]) -> RobotProfile:
     """Return `prof` with its grasp, base placement and arm push postures found by IK (see the module docstring).
 
@@ -210,11 +234,13 @@ def solve_push_placement(prof: RobotProfile, wbs: Sequence[WholeBody]) -> RobotP
     wb = wbs[0]
     axis = prof.arms[0].tool_axis or "z"
     found = [p for p in (_placement(wb, prof, pitch, roll, axis) for pitch, roll in _candidates(prof)) if p]
+    for bx in FALLBACK_BASE_X if prof.push_base_x is None else ():
+        if found:
+            break
+        at = replace(prof, push_base_x=bx)
+        found = [p for p in (_placement(wb, at, pitch, roll, axis) for pitch, roll in _candidates(at)) if p]
     if not found:
-        raise WholeBodyError(
-            f"robot {prof.name!r}: no arm posture reaches the cart handle from behind it; "
-            "give [push] base_x and the arm's push_seed in its profile"
-        )
+        raise WholeBodyError(f"robot {prof.name!r}: no arm posture reaches the cart handle from behind it; {_why(wb)}")
     if prof.base != "holonomic":  # a base at a fixed place: rank the best few by the handle length they reach
         found = sorted(found, key=lambda p: p.score)[-REACH_CANDIDATES:]
         found = [replace(p, reach=_reach_length(wb, prof, p)) for p in found]

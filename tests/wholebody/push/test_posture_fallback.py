@@ -1,0 +1,56 @@
+"""The push posture search (wholebody.push.posture): a base place farther back when the free search finds
+none, and a reason when no place can do."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import robots
+from wholebody.errors import WholeBodyError
+from wholebody.motion.kinematics import wholebody_for
+from wholebody.push import posture
+from wholebody.push.robot import filled_profile
+
+
+@pytest.fixture(scope="module")
+def wmra():
+    loaded = robots.load("wmra")
+    prof = replace(filled_profile(loaded), push_base_x=None, push_base_y=None)
+    return prof, [wholebody_for(loaded, base_input=prof.base_input, arm=0)]
+
+
+def test_when_the_free_search_finds_nothing_a_base_place_farther_back_is_tried(wmra, monkeypatch):
+    prof, wbs = wmra
+    found = posture._placement
+
+    def only_far_back(wb, p, pitch, roll, axis):  # stands for an arm stretched at every place nearer than 0.9 m
+        if p.push_base_x is None or p.push_base_x > -0.9:
+            return None
+        return found(wb, p, pitch, roll, axis)
+
+    monkeypatch.setattr(posture, "_placement", only_far_back)
+    out = posture.solve_push_placement(prof, wbs)
+    assert out.push_base_x == -0.9  # the first fallback place that holds the handle
+    monkeypatch.setattr(posture, "_placement", lambda *a: None)
+    with pytest.raises(WholeBodyError, match="give \\[push\\] base_x"):
+        posture.solve_push_placement(prof, wbs)
+
+
+def test_a_handle_beyond_the_arms_length_is_named(wmra, monkeypatch):
+    prof, wbs = wmra
+    wb = wbs[0]
+    data = wb.model.createData()
+    q = wb.to_pinocchio_q(np.r_[np.zeros(3), 0.5 * (wb.arm_lower + wb.arm_upper)])
+    pin.forwardKinematics(wb.model, data, q)
+    shoulder = float(data.oMi[wb.model.getJointId(wb.arm_joints[0])].translation[2])
+    from wholebody.push import robot as push_robot
+
+    monkeypatch.setattr(push_robot, "handle_point", lambda y, geometry=None: np.array([-0.15, y, shoulder + 3.0]))
+    monkeypatch.setattr(posture, "_placement", lambda *a: None)
+    with pytest.raises(WholeBodyError, match="farther than the arm's length") as err:
+        posture.solve_push_placement(prof, wbs)
+    assert "mount the arm higher" in str(err.value)
