@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         write_csv(result, args.out)
     m = result.metrics()
-    warnings = _band_warnings(m, args.band)
+    warnings = _band_warnings(m, args.band) + _singular_warnings(m)
     m["warnings"] = warnings
     for w in warnings:
         print(f"cartpush track: warning: {w}", file=sys.stderr)
@@ -172,6 +172,22 @@ def _band_warnings(m: dict, band: float | None) -> list[str]:
                 f"followed within this band"
             )
     return warnings
+
+
+#: Share of the steps near a singular arm pose above which a run warns that the arm hardly took part.
+SINGULAR_SHARE = 0.1
+
+
+def _singular_warnings(m: dict) -> list[str]:
+    """Return the warning when the arm was near a singular pose in more than `SINGULAR_SHARE` of the steps (the
+    base then did most of the motion; a profile robot starts from its arm's push_seed, else mid-range)."""
+    steps, singular = int(m["steps"]), int(m["singular_steps"])
+    if steps == 0 or singular <= SINGULAR_SHARE * steps:
+        return []
+    return [
+        f"the arm was near a singular pose in {singular} of {steps} steps, so the base did most of the motion; "
+        "for a profile robot, give the arm a bent start posture (push_seed in its [[arms]] table)"
+    ]
 
 
 #: A ratio this close to 1 means the limit was reached (the QP keeps rates and the band within their bounds).

@@ -63,3 +63,23 @@ def test_plan_contacts_says_why_it_takes_no_robot(capsys):
     assert main(["plan-contacts", "--wrench", "40", "0", "-2", "--robot", "my_robot.toml"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--max-force" in err and "cartpush push --robot my_robot.toml" in err
+
+
+def test_a_run_near_a_singular_pose_warns():
+    from cartpush.cli.track import SINGULAR_SHARE, _singular_warnings
+
+    assert _singular_warnings({"steps": 6000, "singular_steps": 0}) == []
+    assert _singular_warnings({"steps": 6000, "singular_steps": int(SINGULAR_SHARE * 6000)}) == []
+    (w,) = _singular_warnings({"steps": 6000, "singular_steps": 6000})
+    assert "6000 of 6000 steps" in w and "push_seed" in w
+
+
+def test_track_warns_when_a_stretched_start_leaves_the_motion_to_the_base(tmp_path, capsys):
+    """The WMRA's arm started stretched (every joint at 0: the shoulder, elbow and wrist in line): the hand
+    follows the path with the base alone, and the output says so instead of an empty warning list."""
+    text = DIFFERENTIAL.replace('gripper_frame = "ee"', 'gripper_frame = "ee"\npush_seed = [0, 0, 0, 0, 0, 0, 0]')
+    path = _profile(tmp_path, text, "wmra.urdf", "arm_joint")
+    assert main(["track", "line", "--robot", path, "--duration", "2", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["singular_steps"] > 0.5 * out["steps"]
+    assert len(out["warnings"]) == 1 and "near a singular pose" in out["warnings"][0]
