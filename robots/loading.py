@@ -182,13 +182,27 @@ def _build(path: Path, root: pin.JointModel, label: str | None = None, prof: Rob
         if "could not be found" in text or "package://" in text:
             mesh = re.search(r"(package://\S+|\S+\.(?:stl|dae|obj|STL|DAE|OBJ))", text)
             where = mesh.group(1) if mesh else text
+            package = _package_dir(where, dirs)
+            fix = (
+                f"its package is at {package}, which has no such file: check the file name in the URDF"
+                if package is not None
+                else "add the folder that holds its package to package_dirs"
+            )
             raise ProfileError(
                 (prof.source or prof.name) if prof is not None else path,
-                "package_dirs",
-                f"mesh {where} not found; add the folder that holds its package to package_dirs",
+                "package_dirs" if package is None else "urdf",
+                f"mesh {where} not found; {fix}",
             ) from None
         raise RobotError(_parser_message(exc, messages, path, label)) from None
     return model, visual, collision
+
+
+def _package_dir(uri: str, dirs: list[str]) -> Path | None:
+    """Return the folder of a ``package://pkg/...`` URI's package under one of `dirs`, or None."""
+    if not uri.startswith("package://"):
+        return None
+    package = uri[len("package://") :].split("/", 1)[0]
+    return next((Path(d) / package for d in dirs if package and (Path(d) / package).is_dir()), None)
 
 
 def _root_link(model: pin.Model) -> str:

@@ -253,6 +253,13 @@ def test_missing_meshes_name_package_dirs(tmp_path):
         robots.load(ok)
     except RobotError as err:  # found now: whatever the mesh reader says, the mesh is not reported missing
         assert "package_dirs" not in str(err)
+    typo = tmp_path / "typo.urdf"
+    typo.write_text(urdf.read_text().replace("base.stl", "bsae.stl"))
+    bad = write_profile(tmp_path, 'name = "one"\nurdf = "typo.urdf"\npackage_dirs = ["pkgs"]\n', "typo.toml")
+    with pytest.raises(
+        ProfileError, match=r": urdf: mesh .*bsae.stl not found; its package is at .*check the file name"
+    ):
+        robots.load(bad)
 
 
 def test_not_toml_and_missing_file(tmp_path):

@@ -192,9 +192,37 @@ def _compile_urdf(urdf_text: str, robot: str) -> mujoco.MjModel:
     try:
         return _urdf_spec(urdf_text).compile()
     except ValueError as exc:  # MuJoCo's compiler error
-        raise SceneCompositionError(
-            f"robot {robot!r}: its URDF does not compile in MuJoCo: {str(exc).splitlines()[0]}"
-        ) from None
+        first = str(exc).splitlines()[0]
+        massless = massless_moving_links(urdf_text) if "mjMINVAL" in first else []
+        hint = (
+            f" (links on a moving joint without mass: {', '.join(massless)}; give each an <inertial>)"
+            if massless
+            else ""
+        )
+        raise SceneCompositionError(f"robot {robot!r}: its URDF does not compile in MuJoCo: {first}{hint}") from None
+
+
+def massless_moving_links(urdf_text: str) -> list[str]:
+    """Return the URDF's links that a non-fixed joint moves and that have no ``<inertial>`` or a mass <= 0
+    (MuJoCo refuses a moving body without mass; Pinocchio takes it as massless)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(urdf_text)
+    moving = {
+        j.find("child").get("link")
+        for j in root.iter("joint")
+        if j.get("type") != "fixed" and j.find("child") is not None
+    }
+    out = []
+    for link in root.iter("link"):
+        mass = link.find("inertial/mass")
+        try:
+            value = float(mass.get("value", "0")) if mass is not None else 0.0
+        except ValueError:
+            value = 0.0
+        if link.get("name") in moving and not value > 0.0:
+            out.append(str(link.get("name")))
+    return out
 
 
 def _ancestors(model: mujoco.MjModel, body: int) -> list[int]:

@@ -321,3 +321,22 @@ def test_every_example_robot_data_urdf_compiles_in_mujoco():
         except ValueError as exc:
             failed[f.name] = str(exc).splitlines()[0]
     assert not failed
+
+
+def test_a_moving_link_without_mass_is_named_when_mujoco_refuses_it(tmp_path):
+    """The WMRA's left wheel (a continuous joint) without <inertial>: MuJoCo refuses a moving body without mass;
+    the error names the link and the fix. Without the wheel's mass the URDF is fine for Pinocchio."""
+    import re
+
+    from wholebody.push.mujoco_scene import SceneCompositionError, _compile_urdf, massless_moving_links
+
+    text = (robots.DATA_DIR / "wmra.urdf").read_text()
+    wheel = re.search(r'(<link name="wheel_left">\s*)<inertial>.*?</inertial>', text, re.S)
+    assert wheel is not None
+    bare = text[: wheel.start()] + wheel.group(1) + text[wheel.end() :]
+    assert massless_moving_links(text) == [] and massless_moving_links(bare) == ["wheel_left"]
+    (tmp_path / "wmra.urdf").write_text(text)
+    (tmp_path / "bare.urdf").write_text(bare)
+    _compile_urdf(mujoco_urdf(tmp_path / "wmra.urdf").text, "wmra")
+    with pytest.raises(SceneCompositionError, match=r"without mass: wheel_left; give each an <inertial>"):
+        _compile_urdf(mujoco_urdf(tmp_path / "bare.urdf").text, "wmra")
