@@ -245,6 +245,11 @@ def solve_push_placement(prof: RobotProfile, wbs: Sequence[WholeBody]) -> RobotP
         found = sorted(found, key=lambda p: p.score)[-REACH_CANDIDATES:]
         found = [replace(p, reach=_reach_length(wb, prof, p)) for p in found]
     best = max(found, key=lambda p: p.score)
+    if best.gravity_ratio > 1.0:
+        raise WholeBodyError(
+            f"robot {prof.name!r}: its arm's own weight needs {best.gravity_ratio:.2f} x a joint's effort limit at "
+            "the best push posture found; the arm cannot hold itself there (check the URDF's <limit effort>)"
+        )
     arms = list(prof.arms)
     arms[0] = replace(arms[0], push_seed=tuple(float(v) for v in best.arm))
     fixed_base = prof.base != "holonomic"

@@ -54,3 +54,16 @@ def test_a_handle_beyond_the_arms_length_is_named(wmra, monkeypatch):
     with pytest.raises(WholeBodyError, match="farther than the arm's length") as err:
         posture.solve_push_placement(prof, wbs)
     assert "mount the arm higher" in str(err.value)
+
+
+def test_an_arm_too_weak_to_hold_itself_at_the_push_posture_is_refused(wmra, monkeypatch):
+    prof, wbs = wmra
+    found = posture._placement
+
+    def weak(wb, p, pitch, roll, axis):  # stands for an arm whose efforts are a third of its weight's torque
+        got = found(wb, p, pitch, roll, axis)
+        return None if got is None else replace(got, gravity_ratio=3.24)
+
+    monkeypatch.setattr(posture, "_placement", weak)
+    with pytest.raises(WholeBodyError, match=r"own weight needs 3.24 x a joint's effort limit"):
+        posture.solve_push_placement(prof, wbs)
