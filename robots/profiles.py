@@ -335,6 +335,24 @@ def _push(r: _Reader, data: Mapping) -> dict:
     )
 
 
+def _top_keys_in_tables(r: _Reader, data: Mapping) -> None:
+    """Raise `ProfileError` for a required top-level key written below a table header (TOML then puts it in that
+    table: ``name = ...`` after ``[locked]`` is a locked joint called name)."""
+    for key in ("name", "urdf"):
+        if key in data:
+            continue
+        tables = [("locked", data.get("locked")), ("frames", data.get("frames")), ("push", data.get("push"))]
+        arms = data.get("arms")
+        tables += [(f"arms[{i}]", t) for i, t in enumerate(arms)] if isinstance(arms, list) else []
+        for where, table in tables:
+            if isinstance(table, Mapping) and key in table:
+                raise r.fail(
+                    key,
+                    f"missing at the top level, found in [{where}]: a key written below a table header belongs "
+                    "to that table; move it above the first table",
+                )
+
+
 def parse_profile(data: Mapping, base_dir: Path, source: object = "<profile>") -> RobotProfile:
     """Return the profile of a parsed TOML document; relative paths are taken from `base_dir`.
 
@@ -343,6 +361,7 @@ def parse_profile(data: Mapping, base_dir: Path, source: object = "<profile>") -
     """
     r = _Reader(source)
     r.only(data, _TOP_KEYS)
+    _top_keys_in_tables(r, data)
     name = r.string(data, "name")
     urdf_text = r.string(data, "urdf")
     base, wheels = _base(r, data)

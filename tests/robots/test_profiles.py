@@ -20,7 +20,7 @@ WMRA = robots.DATA_DIR / "wmra.urdf"
 WMRA_ARM = [f"arm_joint{i}" for i in range(1, 8)]
 
 
-def wmra_text(arm: str | None = None, **over: str) -> str:
+def wmra_text(arm: str | None = None, **over: str | None) -> str:
     """Return a minimal WMRA profile (URDF next to it: 'wmra.urdf'): top-level keys replaced by `over`, the
     [[arms]] table's body by `arm`."""
     keys = {
@@ -30,6 +30,7 @@ def wmra_text(arm: str | None = None, **over: str) -> str:
         "wheel_joints": '["wheel_left_joint", "wheel_right_joint"]',
     }
     keys.update(over)
+    keys = {k: v for k, v in keys.items() if v is not None}  # None: the key left out
     joints = ", ".join(f'"{j}"' for j in WMRA_ARM)
     body = arm if arm is not None else f'joints = [{joints}]\ngripper_frame = "ee"\n'
     return "".join(f"{k} = {v}\n" for k, v in keys.items()) + "[[arms]]\n" + body
@@ -167,6 +168,11 @@ def test_locked_joints_hold_their_value(tmp_path):
             {"wheel_joints": '["wheel_right_joint", "wheel_left_joint"]'},
             "wheel_joints",
             "list the left wheel (+y) first",
+        ),
+        (  # `name` written below [locked]: TOML puts it in that table
+            {"name": None, "arm": 'joints = ["arm_joint1"]\ngripper_frame = "ee"\n\n[locked]\nname = "wmra_copy"\n'},
+            "name",
+            "found in [locked]",
         ),
         ({"arm": 'joints = ["arm_joint2", "arm_joint1"]\ngripper_frame = "ee"\n'}, "arms[0].joints[1]", "base to tip"),
         (

@@ -208,11 +208,8 @@ def massless_moving_links(urdf_text: str) -> list[str]:
     import xml.etree.ElementTree as ET
 
     root = ET.fromstring(urdf_text)
-    moving = {
-        j.find("child").get("link")
-        for j in root.iter("joint")
-        if j.get("type") != "fixed" and j.find("child") is not None
-    }
+    children = [(j.get("type"), j.find("child")) for j in root.iter("joint")]
+    moving = {c.get("link") for kind, c in children if kind != "fixed" and c is not None}
     out = []
     for link in root.iter("link"):
         mass = link.find("inertial/mass")
