@@ -222,6 +222,11 @@ def _why(wb: WholeBody) -> str:
             f"the handle is {handle:.2f} m high and the arm's first joint {shoulder:.2f} m, farther than the arm's "
             f"length ({length:.2f} m, first joint to gripper frame): mount the arm higher or push a lower handle"
         )
+    if wb.n_arm < 6:
+        return (
+            f"an arm of {wb.n_arm} joints holds the handle only in a few orientations: give [push] grasp_pitch and "
+            "grasp_roll (and base_x, the arm's push_seed) in its profile"
+        )
     return "give [push] base_x and the arm's push_seed in its profile"
 
 

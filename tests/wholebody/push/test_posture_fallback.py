@@ -67,3 +67,21 @@ def test_an_arm_too_weak_to_hold_itself_at_the_push_posture_is_refused(wmra, mon
     monkeypatch.setattr(posture, "_placement", weak)
     with pytest.raises(WholeBodyError, match=r"own weight needs 3.24 x a joint's effort limit"):
         posture.solve_push_placement(prof, wbs)
+
+
+def test_an_arm_of_fewer_than_six_joints_is_told_to_give_its_grasp(tmp_path, monkeypatch):
+    import shutil
+
+    shutil.copy(robots.DATA_DIR / "wmra.urdf", tmp_path / "wmra.urdf")
+    joints = ", ".join(f'"arm_joint{i}"' for i in range(1, 6))
+    (tmp_path / "five.toml").write_text(
+        'name = "wmra_five"\nurdf = "wmra.urdf"\nbase = "differential"\n'
+        'wheel_joints = ["wheel_left_joint", "wheel_right_joint"]\n'
+        f'[[arms]]\njoints = [{joints}]\ngripper_frame = "ee"\n[locked]\narm_joint6 = 0.0\narm_joint7 = 0.0\n'
+    )
+    loaded = robots.load(tmp_path / "five.toml")
+    prof = filled_profile(loaded)
+    wbs = [wholebody_for(loaded, base_input=prof.base_input, arm=0)]
+    monkeypatch.setattr(posture, "_placement", lambda *a: None)
+    with pytest.raises(WholeBodyError, match="an arm of 5 joints holds the handle only in a few orientations"):
+        posture.solve_push_placement(prof, wbs)
