@@ -116,12 +116,18 @@ def _project_cart(cart: mujoco_cart.MujocoCart, label: str) -> CartSource:
 
 
 def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
+    """Return MuJoCo's message: its first line, and the line naming the element or the XML error's place."""
+    text = [line.strip() for line in str(exc).strip().splitlines() if line.strip()]
+    if not text:
+        return type(exc).__name__
+    where = [line for line in text[1:] if line.startswith(("Element", "XML_ERROR", "Error=XML"))]
+    return "; ".join(text[:1] + where[:1])
 
 
 def _read(path: Path) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
-    """Return (spec, compiled model) of a file, or raise CartFileError with MuJoCo's first line."""
+    """Return (spec, compiled model) of a file, or raise CartFileError with MuJoCo's message."""
+    if path.is_dir():
+        raise CartFileError(f"cart file {path}: is a directory; give the MJCF file")
     if not path.is_file():
         raise CartFileError(f"cart file {path}: no such file")
     try:
@@ -136,7 +142,9 @@ def _check_cart_body(path: Path, model: mujoco.MjModel) -> int:
     """Return the id of body ``cart``; it must exist and carry exactly one free joint."""
     bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, mujoco_cart.CART_BODY)
     if bid < 0:
-        raise CartFileError(f"cart file {path}: no body named 'cart'")
+        urdf = "<robot" in path.read_text(encoding="utf-8", errors="replace")[:4096]
+        hint = " (it is a URDF; a cart file is MJCF: <mujoco> with a body 'cart' on a free joint)" if urdf else ""
+        raise CartFileError(f"cart file {path}: no body named 'cart'{hint}")
     joints = range(int(model.body_jntadr[bid]), int(model.body_jntadr[bid] + model.body_jntnum[bid]))
     if not any(int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE) for j in joints):
         raise CartFileError(f"cart file {path}: body 'cart' has no free joint")
@@ -243,13 +251,89 @@ def rear_handles(handles: tuple[HandleSite, ...]) -> tuple[HandleSite, ...]:
     return (max(across, key=lambda h: abs(float(h.end_b[1] - h.start_b[1]))),) if across else rear
 
 
+#: the largest angle (deg) between {b}'s axes and the world's at the start (x forward, z up, the trajectories' heading)
+START_TILT_DEG = 1.0
+#: the largest gap (m) between the cart's lowest collision geom and the floor at the start
+FLOOR_GAP_M = 0.01
+#: the largest distance (m) along x between {b} and the axle of the cart's fixed wheels
+AXLE_OFFSET_M = 0.03
+
+
+def _check_start_pose(path: Path, model: mujoco.MjModel, cart: int) -> None:
+    """Raise unless {b} starts level and heading along the world's x (the trajectories start heading +x) with the
+    cart's lowest collision geom on the floor (a cart sunk into it is thrown up, one above it falls)."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    R = data.xmat[cart].reshape(3, 3)
+    yaw = math.degrees(math.atan2(float(R[1, 0]), float(R[0, 0])))
+    tilt = math.degrees(math.acos(min(1.0, float(R[2, 2]))))
+    if abs(yaw) > START_TILT_DEG or tilt > START_TILT_DEG:
+        raise CartFileError(
+            f"cart file {path}: body 'cart' starts turned {yaw:.0f} deg about z and tilted {tilt:.0f} deg; its frame "
+            "{b} must start with x forward (the push's direction) and z up: turn its child bodies instead"
+        )
+    low = math.inf
+    for b in mujoco_cart.subtree_bodies(model, cart):
+        for g in range(int(model.body_geomadr[b]), int(model.body_geomadr[b] + model.body_geomnum[b])):
+            if not (int(model.geom_contype[g]) or int(model.geom_conaffinity[g])):
+                continue
+            centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
+            signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
+            corners = data.geom_xpos[g] + (centre + signs * half) @ data.geom_xmat[g].reshape(3, 3).T
+            low = min(low, float(corners[:, 2].min()))
+    gap = low - _floor_z(model)
+    if math.isfinite(gap) and abs(gap) > FLOOR_GAP_M:
+        where = "below" if gap < 0 else "above"
+        raise CartFileError(
+            f"cart file {path}: the cart's lowest collision geom is {abs(gap):.3f} m {where} the floor; set body "
+            f"'cart' pos z to {float(data.xpos[cart][2]) - gap:.4g} so its wheels stand on it"
+        )
+
+
+def _check_axle(path: Path, model: mujoco.MjModel, cart: int) -> None:
+    """Raise when the cart has fixed wheels (on hinges across the cart, no swivel between them and ``cart``) whose
+    axle is not under {b}: the cart model's no-slip point is {b} (eq. 1), and an axle elsewhere makes the pushes
+    read as sideways slip."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    R, p = data.xmat[cart].reshape(3, 3), data.xpos[cart]
+    xs = []
+    for b in mujoco_cart.subtree_bodies(model, cart):
+        if b == cart or _moving_link(model, int(model.body_parentid[b]), cart) is not None:
+            continue  # on a swivel (or deeper): a caster
+        for j in range(int(model.body_jntadr[b]), int(model.body_jntadr[b] + model.body_jntnum[b])):
+            axis_b = R.T @ data.xaxis[j]
+            if int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE) and abs(float(axis_b[1])) > math.cos(0.1):
+                xs.append(float((R.T @ (data.xanchor[j] - p))[0]))
+    if xs and abs(float(np.mean(xs))) > AXLE_OFFSET_M:
+        x = float(np.mean(xs))
+        raise CartFileError(
+            f"cart file {path}: the fixed wheels' axle is {x:+.3f} m along x from body 'cart''s origin; {{b}} must "
+            "be on that axle (the cart model's no-slip point): move the body's origin there and its children by "
+            f"{-x:+.3f} m"
+        )
+
+
+def _check_handles_behind(path: Path, handles: tuple[HandleSite, ...]) -> None:
+    """Raise when every handle site is ahead of {b}: the robot pushes from behind, along {b}'s +x."""
+    xs = [min(float(h.start_b[0]), float(h.end_b[0])) for h in handles]
+    if min(xs) > 0.0:
+        raise CartFileError(
+            f"cart file {path}: every handle is ahead of {{b}} (x >= {min(xs):.3f} m); the robot pushes from "
+            "behind along {b}'s +x: turn the cart's children so x points away from the handle"
+        )
+
+
 def load_cart_file(path: str | os.PathLike) -> CartSource:
     """Return the `CartSource` of an MJCF cart file, or raise `CartFileError` naming what breaks the contract."""
     p = Path(path)
     _, model = _read(p)
     cart = _check_cart_body(p, model)
     handles = _handle_sites(p, model, cart)
+    _check_handles_behind(p, handles)
+    _check_start_pose(p, model, cart)
     _check_wheels(p, model, cart)
+    _check_axle(p, model, cart)
     z = float(model.body_pos[cart][2])  # compiled: a <frame> around the body counts
     if not math.isfinite(z):
         raise CartFileError(f"cart file {p}: body 'cart' has no finite pos")

@@ -77,11 +77,11 @@ def _write(tmp_path, xml: str) -> Path:
 
 
 def test_a_frame_around_the_cart_counts_in_its_height(tmp_path):
-    body = BODY.format(z=0.05, inside='<site name="handle" pos="-0.2 0 0.9"/>')
+    body = BODY.format(z=-0.05, inside='<site name="handle" pos="-0.2 0 0.9"/>')
     src = load_cart_file(
         _write(tmp_path, f'<mujoco><worldbody><frame pos="0 0 0.1">{body}</frame></worldbody></mujoco>')
     )
-    assert src.z == pytest.approx(0.15)
+    assert src.z == pytest.approx(0.05)
 
 
 def test_handles_on_a_body_fixed_to_the_cart_and_bars_by_axis_in_degrees(tmp_path):
@@ -91,7 +91,7 @@ def test_handles_on_a_body_fixed_to_the_cart_and_bars_by_axis_in_degrees(tmp_pat
         '<site name="handle_grip" pos="0.1 0 0.05"/></body>'
         '<site name="handle_tube" type="cylinder" size="0.015 0.2" pos="-0.3 0 0.9" zaxis="0 1 0"/>'
     )
-    xml = f'<mujoco><compiler angle="degree"/><worldbody>{BODY.format(z=0.1, inside=inside)}</worldbody></mujoco>'
+    xml = f'<mujoco><compiler angle="degree"/><worldbody>{BODY.format(z=0.05, inside=inside)}</worldbody></mujoco>'
     handles = {h.name: h for h in load_cart_file(_write(tmp_path, xml)).handles}
     bar, grip, tube = handles["handle_bar"], handles["handle_grip"], handles["handle_tube"]
     # the capsule's axis: body yaw 90 deg, site roll 90 deg: the site's z axis is the cart's x axis

@@ -12,7 +12,7 @@ from wholebody.push.config import TRUE_CART
 from wholebody.push.mujoco_plant import MujocoPlant
 
 GOOD_BODY = """
-    <body name="cart" pos="0 0 0.1">
+    <body name="cart" pos="0 0 0.05">
       <freejoint/>
       <geom type="box" size="0.4 0.25 0.05" mass="12"/>
       {sites}
@@ -22,7 +22,7 @@ BAR = '<site name="handle" type="capsule" size="0.015" fromto="-0.15 -0.25 0.9 -
 #: a wheel on a hinge along y, its cylinder turned by `turn`: 90 degrees about x rolls on the hinge, 1.5708 (radians
 #: meant, degrees read: MuJoCo's default unit) leaves it a puck under the axle
 PUCK = (
-    '<body name="wl" pos="0 0.3 0"><joint name="axle_l" type="hinge" axis="0 1 0"/>'
+    '<body name="wl" pos="0 0.3 0.05"><joint name="axle_l" type="hinge" axis="0 1 0"/>'
     '<geom type="cylinder" size="0.1 0.02" {turn}/></body>'
 )
 
@@ -61,8 +61,26 @@ def _write(tmp_path, body: str, floor: bool = True) -> str:
             GOOD_BODY.format(sites=BAR + PUCK.format(turn='euler="1.5708 0 0"')),
             "wheel 'wl' stands on a cylinder turned 88 degrees from the axis of its hinge 'axle_l', so it slides",
         ),
+        (
+            GOOD_BODY.replace('pos="0 0 0.05"', 'pos="0 0 0.05" euler="0 0 90"').format(sites=BAR),
+            "body 'cart' starts turned 90 deg about z",
+        ),
+        (GOOD_BODY.replace('pos="0 0 0.05"', 'pos="0 0 0"').format(sites=BAR), "0.050 m below the floor"),
+        (GOOD_BODY.replace('pos="0 0 0.05"', 'pos="0 0 0.6"').format(sites=BAR), "0.550 m above the floor"),
+        (GOOD_BODY.format(sites=BAR.replace("-0.15", "1.05")), "every handle is ahead of \\{b\\}"),
+        (  # a fixed axle 0.4 m behind the body's origin: {b} is not the no-slip point
+            GOOD_BODY.format(
+                sites=BAR + PUCK.format(turn='euler="90 0 0"').replace('pos="0 0.3 0.05"', 'pos="-0.4 0.3 0.05"')
+            ),
+            "the fixed wheels' axle is -0.400 m along x",
+        ),
     ],
     ids=[
+        "cart_turned",
+        "cart_sunk",
+        "cart_floating",
+        "handle_ahead",
+        "axle_off_b",
         "no_cart_body",
         "no_free_joint",
         "no_handle_site",
@@ -84,9 +102,14 @@ def test_a_wheel_turned_onto_its_hinge_is_a_wheel(tmp_path):
     assert load_cart_file(_write(tmp_path, GOOD_BODY.format(sites=BAR + PUCK.format(turn='euler="90 0 0"')))).handles
 
 
-def test_missing_file(tmp_path):
+def test_missing_file_a_directory_and_a_urdf(tmp_path):
     with pytest.raises(CartFileError, match="no such file"):
         load_cart_file(tmp_path / "none.xml")
+    with pytest.raises(CartFileError, match="is a directory; give the MJCF file"):
+        load_cart_file(tmp_path)
+    urdf = Path(__file__).resolve().parents[3] / "robots" / "shopping_cart.urdf"
+    with pytest.raises(CartFileError, match="it is a URDF; a cart file is MJCF"):
+        load_cart_file(urdf)
 
 
 def test_handles_in_b(tmp_path):
@@ -99,7 +122,7 @@ def test_handles_in_b(tmp_path):
     )
     assert src.distance_to_handle([-0.15, 0.1, 0.9])[0] == pytest.approx(0.0, abs=1e-9)  # anywhere on the bar
     assert src.distance_to_handle([0.2, 0.3, 0.6]) == pytest.approx((0.1, "handle_side"))
-    assert src.z == pytest.approx(0.1)
+    assert src.z == pytest.approx(0.05)
 
 
 def test_a_conforming_file_without_floor_is_pushed_and_reports_its_truth(tmp_path):
