@@ -828,6 +828,8 @@ def run_demo(
 LATERAL_SLIP_M_S = 0.05
 #: the online estimator's residual ratio above which the nominal cart model misfits the data
 MISFIT_RATIO = 2.0
+#: share of the trajectory's time the slowed reference must reach for the verdict to read plain "tracked"
+SLOWED_VERDICT = 0.9
 #: distance (m) of a hand from its handle point above which a run says the hand left the handle
 HAND_OFF_HANDLE_M = 0.02
 
@@ -1013,6 +1015,12 @@ def _hand_off_handle(result: PushResult, t_end: float) -> list[str]:
 def _outcome(result: PushResult) -> str:
     """Return 'tracked: ...' or 'LOST the cart at t = ...' (with the tracking RMS up to then)."""
     m, t_lost = result.metrics, result.metrics.tracking_lost_at_s
+    s = result.reference_time
+    if t_lost is None and s is not None and s[-1] < SLOWED_VERDICT * result.t[-1]:
+        return (
+            f"tracked the slowed reference: {m.tracking_rms_mm:.1f} mm RMS, {m.tracking_max_mm:.1f} mm max, but the "
+            f"cart reached only the trajectory's t = {s[-1]:.1f} s of {result.t[-1]:.1f} s"
+        )
     if t_lost is None:
         return f"tracked: {m.tracking_rms_mm:.1f} mm RMS, {m.tracking_max_mm:.1f} mm max"
     err = np.hypot(*(result.q_true[:, :2] - result.q_desired[:, :2]).T)[result.t < t_lost]
@@ -1032,6 +1040,9 @@ def _fit(result: PushResult) -> str:
     flags = [f["t"] for f in est.get("runoff_flags") or () if f.get("kind") == "misfit"]
     flagged = f", flagged {len(flags)} time(s) from t = {min(flags):.2f} s" if flags else ""
     worst = max(ratios)
+    com = [n for n in est.get("unexcited") or () if n in ("dx", "dy")]
+    if com:
+        mass += f"; CoM {' and '.join(com)} not identified by these pushes (kept near the initial guess)"
     if worst > MISFIT_RATIO:
         return f"misfit: the cart model does not explain the pushes (final residual ratio {worst:.1f} > {MISFIT_RATIO:g}{flagged}); {mass}"
     return f"the cart model fits the pushes (final residual ratio {worst:.2f}{flagged}); {mass}"

@@ -1,0 +1,60 @@
+"""What a push run says of itself (wholebody.push.report.what_happened): a hand off the handle, a slowed reference that
+reached only part of the trajectory, a CoM the pushes did not identify."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+
+from wholebody.push.report import HAND_OFF_HANDLE_M, _hand_off_handle
+
+
+def _result(err: np.ndarray, dt: float = 0.01) -> SimpleNamespace:
+    return SimpleNamespace(t=dt * np.arange(err.shape[0]), grasp_error=err, config=SimpleNamespace(dt=dt))
+
+
+def test_a_hand_off_the_handle_is_reported_with_when_how_long_and_how_far():
+    err = np.full((1000, 2), 0.001)
+    err[400:520, 1] = 0.16 * np.sin(np.linspace(0.0, math.pi, 120))  # hand 2 swings 160 mm off from 4 s
+    lines = _hand_off_handle(_result(err), math.inf)
+    assert len(lines) == 1 and lines[0].startswith("HAND OFF THE HANDLE: hand 2")
+    off = int(np.sum(err[:, 1] > HAND_OFF_HANDLE_M))
+    assert f"for {0.01 * off:.2f} s" in lines[0] and "at most 160 mm" in lines[0]
+    assert f"from t = {0.01 * int(np.argmax(err[:, 1] > HAND_OFF_HANDLE_M)):.2f} s" in lines[0]
+
+
+def test_a_hand_on_the_handle_or_off_only_after_the_loss_says_nothing():
+    err = np.full((1000, 1), 0.001)
+    assert _hand_off_handle(_result(err), math.inf) == []
+    err[800:, 0] = 0.3  # after the cart was lost at 7 s: a failed push, not an arm that could not follow
+    assert _hand_off_handle(_result(err), 7.0) == []
+    assert "the hand was" in _hand_off_handle(_result(err), math.inf)[0]
+
+
+def test_a_run_that_reached_a_fraction_of_the_trajectory_does_not_read_plainly_tracked():
+    from wholebody.push.report import _outcome
+
+    t = 0.01 * np.arange(3001)
+    metrics = SimpleNamespace(tracking_lost_at_s=None, tracking_rms_mm=42.6, tracking_max_mm=76.8)
+    slowed = SimpleNamespace(t=t, metrics=metrics, reference_time=0.32 * t)  # at 32 % of the speed throughout
+    assert _outcome(slowed).startswith("tracked the slowed reference: 42.6 mm RMS")
+    assert "reached only the trajectory's t = 9.6 s of 30.0 s" in _outcome(slowed)
+    nearly = SimpleNamespace(t=t, metrics=metrics, reference_time=np.minimum(t, 28.0))  # 2 s behind: 93 %
+    assert _outcome(nearly) == "tracked: 42.6 mm RMS, 76.8 mm max"
+
+
+def test_the_fit_sentence_says_when_the_pushes_leave_the_com_unidentified():
+    from wholebody.push.report import _fit
+
+    def result(unexcited):
+        return SimpleNamespace(
+            estimator_report={"residual_ratio": [0.9], "unexcited": unexcited},
+            truth=lambda: np.array([[150.0, 0.97, 0.05, 30.0, 1.0]]),
+            metrics=SimpleNamespace(mass_final_kg=148.0),
+            config=SimpleNamespace(estimation=True),
+        )
+
+    assert "not identified" not in _fit(result([]))
+    assert "CoM dx not identified by these pushes" in _fit(result(["dx", "inertia"]))
