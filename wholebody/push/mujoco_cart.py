@@ -553,25 +553,49 @@ def planar_pose(data: mujoco.MjData, body: int) -> tuple[float, float, float]:
     return float(data.xpos[body][0]), float(data.xpos[body][1]), yaw_of(data.xquat[body])
 
 
+def welded_loads(model: mujoco.MjModel, data: mujoco.MjData, root: int, exclude: Sequence[int] = ()) -> list[int]:
+    """Return the bodies an active weld equality attaches to the subtree of ``root``: the whole tree (from its body
+    under the world) of each body welded to it, unless that tree is ``root``'s or its top body is in ``exclude``
+    (the robots, whose hands are welded to the handle). A load strapped on by a weld rides with the cart."""
+    sub = set(subtree_bodies(model, root))
+    out: list[int] = []
+    for e in range(model.neq):
+        if int(model.eq_type[e]) != int(mujoco.mjtEq.mjEQ_WELD) or not data.eq_active[e]:
+            continue
+        if int(model.eq_objtype[e]) != int(mujoco.mjtObj.mjOBJ_BODY):
+            continue
+        a, b = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+        other = b if a in sub else a if b in sub else 0
+        if other == 0:
+            continue
+        top = int(model.body_rootid[other])
+        if top in sub or top in exclude or top == 0:
+            continue
+        out += [int(x) for x in subtree_bodies(model, top) if int(x) not in out]
+    return out
+
+
 def truth_from_state(
     model: mujoco.MjModel,
     data: mujoco.MjData,
     body: str = CART_BODY,
     wheels: dict[str, tuple[float, float]] | None = None,
+    extra: Sequence[int] = (),
 ) -> dict[str, float]:
     """Return the cart's rigid-body truth at the current state (``data`` after ``mj_forward``).
 
     Keys: ``m`` (kg, ``body_subtreemass`` of the cart body), ``dx``, ``dy`` (m, ``subtree_com`` in {b}),
     ``I_about_com`` (kg m^2, yaw inertia of the composite body about the vertical axis through the CoM)
     and ``m_effective_forward_incl_wheel_spin`` (kg, ``m + sum J_spin / r^2`` over ``wheels``; default:
-    the four wheels of :func:`mjcf`).
+    the four wheels of :func:`mjcf`). ``extra``: bodies counted with the cart (:func:`welded_loads`).
     """
     bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
-    mass, com, inertia = composite_inertia(model, data, bid)
+    mass, com, inertia = composite_inertia(model, data, bid, extra)
     sub_mass = float(model.body_subtreemass[bid])
     sub_com = np.asarray(data.subtree_com[bid], dtype=float)
-    if abs(sub_mass - mass) > 1e-9 * mass or np.max(np.abs(sub_com - com)) > 1e-9:
+    if not len(extra) and (abs(sub_mass - mass) > 1e-9 * mass or np.max(np.abs(sub_com - com)) > 1e-9):
         raise RuntimeError("composite mass/CoM disagree with MuJoCo's subtree mass/CoM")
+    sub_mass, sub_com = mass, com
     th = yaw_of(data.xquat[bid])
     rel = sub_com[:2] - data.xpos[bid][:2]
     c, s = math.cos(th), math.sin(th)

@@ -437,7 +437,9 @@ class MujocoPlant:
 
     def _read_inertial(self) -> CartInertial:
         m, d = self.scene.model, self.scene.data
-        info = mujoco_cart.truth_from_state(m, d, mujoco_cart.CART_BODY, self.cart_source.wheels(m, d))
+        robots = [r.root_body for r in self.scene.robots]
+        loads = mujoco_cart.welded_loads(m, d, self.scene.cart_body, exclude=robots)
+        info = mujoco_cart.truth_from_state(m, d, mujoco_cart.CART_BODY, self.cart_source.wheels(m, d), loads)
         return CartInertial(
             info["m"], (info["dx"], info["dy"]), info["I_about_com"], info["m_effective_forward_incl_wheel_spin"]
         )

@@ -168,3 +168,29 @@ def test_a_bed_with_a_bar_at_each_end_is_held_at_the_head(tmp_path):
     setup = build_controller(config)
     plant = MujocoPlant(setup.controller.robots, setup.q0, path)
     assert plant.cart_inertial().mass > 240.0
+
+
+def test_a_load_welded_to_the_cart_counts_in_its_truth_and_a_welded_hand_does_not():
+    """A 60 kg crate on its own free joint strapped on by a weld rides with the cart: the truth is the composite;
+    a robot's hand welded to the handle (its tree excluded) is not part of it."""
+    import mujoco
+
+    crate = '<body name="crate" pos="0.2 -0.1 0.25"><freejoint/><geom type="box" size="0.2 0.2 0.15" mass="60"/></body>'
+    hand = '<body name="hand" pos="-0.15 0 0.9"><freejoint/><geom size="0.03" mass="2"/></body>'
+    xml = (
+        f"<mujoco><worldbody>{GOOD_BODY.format(sites=BAR)}{crate}{hand}</worldbody><equality>"
+        '<weld body1="crate" body2="cart"/><weld body1="hand" body2="cart"/></equality></mujoco>'
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    cart, hand_id = (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in ("cart", "hand"))
+    loads = mujoco_cart.welded_loads(model, data, cart, exclude=[hand_id])
+    assert [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in loads] == ["crate"]
+    truth = mujoco_cart.truth_from_state(model, data, wheels={}, extra=loads)
+    assert truth["m"] == pytest.approx(72.0)
+    assert (truth["dx"], truth["dy"]) == pytest.approx((60 * 0.2 / 72, 60 * -0.1 / 72))
+    alone = mujoco_cart.truth_from_state(model, data, wheels={})
+    assert alone["m"] == pytest.approx(12.0) and alone["dx"] == pytest.approx(0.0, abs=1e-12)
+    data.eq_active[0] = 0  # the strap released: the crate no longer rides with the cart
+    assert mujoco_cart.welded_loads(model, data, cart, exclude=[hand_id]) == []
