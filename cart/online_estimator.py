@@ -1107,7 +1107,9 @@ class OnlineLSEstimator:
         then misfits its own samples too (a step of the parameters is what a load change is; what they cannot
         express stays in the residuals). A change is confirmed when the samples after the onset excite the mass
         (posterior / prior std at most ``excited_ratio``), their estimate is plausible (:meth:`_implausible`: a
-        misfit may fit a negative mass) and the two masses differ by ``min_change`` of the mass before; when
+        misfit may fit a negative mass), the samples before it excite the mass as well (else the mass before is
+        the initial guess, and the estimate converging from it is not a change) and the two masses differ by
+        ``min_change`` of the mass before; when
         either side misfits (its ratio above ``misfit_ratio``: the GLR's chi-square does not hold), also by
         ``confirm_sigma`` times the std of their difference scaled up by the larger ratio (the misfit the stds
         do not contain: the model's, which the side that shows it measures). Otherwise the detection is flagged
@@ -1117,9 +1119,12 @@ class OnlineLSEstimator:
         k_old, k_new = (max(k, 1.0) for k in misfit)
         std_new = float(self._physical_std(new.covariance())[0])
         excited = std_new <= self.options.excited_ratio * new.prior.std[0]
+        # the side before must be weighed by its own samples too: a start whose first second does not excite the
+        # mass keeps the initial guess, and the data converging from it is not a load change
+        before_excited = std_old <= self.options.excited_ratio * float(self.regression.prior.std[0])
         diff = abs(m_new - m_old)
         bad = self._implausible(new.p)
-        ok = excited and diff >= self.options.min_change * abs(m_old) and not bad
+        ok = excited and before_excited and diff >= self.options.min_change * abs(m_old) and not bad
         kappa = max(k_old, k_new)
         std = math.hypot(std_new, std_old) * kappa
         if kappa > self.options.misfit_ratio:
@@ -1132,6 +1137,7 @@ class OnlineLSEstimator:
                     f"GLR {self.detector.statistic:.1f}: mass {m_old:.4g} kg before, {m_new:.4g} kg after, "
                     f"difference's std {std:.2g} kg"
                     + ("" if excited else " (not excited)")
+                    + ("" if before_excited else " (the side before not excited)")
                     + "".join(f" ({v})" for v in bad.values()),
                 )
             )
