@@ -217,9 +217,14 @@ def solve_grasp_ik(
     lo, hi = wb.arm_lower + 0.02, wb.arm_upper - 0.02
     sol = least_squares(residual, np.clip(seed, lo, hi), bounds=(lo, hi), xtol=1e-12, ftol=1e-12)
     if np.linalg.norm(sol.fun) > 1e-5:
+        x[3:] = sol.x
+        gap = float(np.linalg.norm(wb.ee_placement(x).translation - target.translation))
+        h = target.translation
         raise WholeBodyError(
-            f"the arm cannot reach the handle from base pose {np.round(base_pose, 3)} "
-            f"(residual {np.linalg.norm(sol.fun):.3g})"
+            f"the arm cannot reach the handle from base pose {np.round(base_pose, 3)}: the handle point is at "
+            f"({h[0]:.2f}, {h[1]:.2f}, {h[2]:.2f}) m and the closest grasp leaves the hand {1e3 * gap:.0f} mm from it "
+            f"(pose residual {np.linalg.norm(sol.fun):.3g}); a handle this high or low, or this far, is out of the "
+            "arm's reach from where the base stands"
         )
     return sol.x
 

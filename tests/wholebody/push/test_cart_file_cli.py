@@ -3,12 +3,14 @@ command with one line naming what is missing, exit 2, before any physics runs.""
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from cartpush.cli import main
 
 BODY = """
-    <body name="cart" pos="0 0 0.1">
+    <body name="cart" pos="0 0 0.05">
       <freejoint/>
       <geom type="box" size="0.4 0.25 0.05" mass="12"/>
       {sites}
@@ -49,3 +51,20 @@ def test_each_break_of_the_contract_stops_the_push_with_one_line(tmp_path, capsy
     lines = captured.err.strip().splitlines()
     assert code == 2 and captured.out == ""
     assert len(lines) == 1 and message in lines[0] and str(path) in lines[0], lines
+
+
+def test_a_handle_out_of_the_arms_reach_says_where_it_is(tmp_path, capsys):
+    """A bar 2 m high: the default robot's arm cannot hold it; the one line says where the handle point is and how
+    far the closest grasp leaves the hand."""
+    path = tmp_path / "high.xml"
+    high = BAR.replace(" 0.9 ", " 2.0 ").replace(' 0.9"', ' 2.0"')
+    path.write_text(
+        f'<mujoco><worldbody><geom name="ground" type="plane" size="0 0 1"/>{BODY.format(sites=high)}</worldbody></mujoco>'
+    )
+    code = main(["push", "--plant", "mujoco", "--cart-model", str(path), "--duration", "8", "--json"])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, lines
+    assert (
+        re.search(r"the handle point is at \(-0.15, -?0.\d+, 2.0\d\) m", lines[0])
+        and "out of the arm's reach" in lines[0]
+    )
