@@ -164,10 +164,9 @@ def _moving_link(model: mujoco.MjModel, body: int, cart: int) -> str | None:
     return None
 
 
-def _handle_sites(path: Path, model: mujoco.MjModel, cart: int) -> tuple[HandleSite, ...]:
-    """Return the handle sites of body ``cart`` (or of a body fixed to it) in {b}; raise on others or other shapes."""
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)  # at qpos0: a site's pose in {b} through any fixed child bodies
+def _handle_sites(path: Path, model: mujoco.MjModel, data: mujoco.MjData, cart: int) -> tuple[HandleSite, ...]:
+    """Return the handle sites of body ``cart`` (or of a body fixed to it) in {b}; raise on others or other shapes.
+    ``data``: after `mj_kinematics` at qpos0 (a site's pose in {b} through any fixed child bodies)."""
     R_cart, p_cart = data.xmat[cart].reshape(3, 3), data.xpos[cart]
     handles = []
     for s in range(model.nsite):
@@ -200,13 +199,11 @@ WHEEL_AXIS_TOL = 0.1
 FLOOR_TOUCH_M = 5e-3
 
 
-def _check_wheels(path: Path, model: mujoco.MjModel, cart: int) -> None:
+def _check_wheels(path: Path, model: mujoco.MjModel, data: mujoco.MjData, cart: int) -> None:
     """Raise when a cylinder on a horizontal hinge of the cart's subtree reaches the floor by its radius (a wheel,
     as `mujoco_cart.rolling_wheels` reads it) but its axis is not along the hinge: the cart stands on its rim or
     face and slides instead of rolling (a wheel turned by an ``euler`` meant in radians, read in degrees, MuJoCo's
     default unit)."""
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
     floor = _floor_z(model)
     for b in mujoco_cart.subtree_bodies(model, cart):
         hinges = [
@@ -259,11 +256,9 @@ FLOOR_GAP_M = 0.01
 AXLE_OFFSET_M = 0.03
 
 
-def _check_start_pose(path: Path, model: mujoco.MjModel, cart: int) -> None:
+def _check_start_pose(path: Path, model: mujoco.MjModel, data: mujoco.MjData, cart: int) -> None:
     """Raise unless {b} starts level and heading along the world's x (the trajectories start heading +x) with the
     cart's lowest collision geom on the floor (a cart sunk into it is thrown up, one above it falls)."""
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
     R = data.xmat[cart].reshape(3, 3)
     yaw = math.degrees(math.atan2(float(R[1, 0]), float(R[0, 0])))
     tilt = math.degrees(math.acos(min(1.0, float(R[2, 2]))))
@@ -277,10 +272,7 @@ def _check_start_pose(path: Path, model: mujoco.MjModel, cart: int) -> None:
         for g in range(int(model.body_geomadr[b]), int(model.body_geomadr[b] + model.body_geomnum[b])):
             if not (int(model.geom_contype[g]) or int(model.geom_conaffinity[g])):
                 continue
-            centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
-            signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
-            corners = data.geom_xpos[g] + (centre + signs * half) @ data.geom_xmat[g].reshape(3, 3).T
-            low = min(low, float(corners[:, 2].min()))
+            low = min(low, mujoco_cart.geom_lowest_z(model, data, g))
     gap = low - _floor_z(model)
     if math.isfinite(gap) and abs(gap) > FLOOR_GAP_M:
         where = "below" if gap < 0 else "above"
@@ -290,12 +282,10 @@ def _check_start_pose(path: Path, model: mujoco.MjModel, cart: int) -> None:
         )
 
 
-def _check_axle(path: Path, model: mujoco.MjModel, cart: int) -> None:
+def _check_axle(path: Path, model: mujoco.MjModel, data: mujoco.MjData, cart: int) -> None:
     """Raise when the cart has fixed wheels (on hinges across the cart, no swivel between them and ``cart``) whose
     axle is not under {b}: the cart model's no-slip point is {b} (eq. 1), and an axle elsewhere makes the pushes
     read as sideways slip."""
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
     R, p = data.xmat[cart].reshape(3, 3), data.xpos[cart]
     xs = []
     for b in mujoco_cart.subtree_bodies(model, cart):
@@ -329,11 +319,13 @@ def load_cart_file(path: str | os.PathLike) -> CartSource:
     p = Path(path)
     _, model = _read(p)
     cart = _check_cart_body(p, model)
-    handles = _handle_sites(p, model, cart)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)  # the file's own pose of every body (qpos0), read by the checks below
+    handles = _handle_sites(p, model, data, cart)
     _check_handles_behind(p, handles)
-    _check_start_pose(p, model, cart)
-    _check_wheels(p, model, cart)
-    _check_axle(p, model, cart)
+    _check_start_pose(p, model, data, cart)
+    _check_wheels(p, model, data, cart)
+    _check_axle(p, model, data, cart)
     z = float(model.body_pos[cart][2])  # compiled: a <frame> around the body counts
     if not math.isfinite(z):
         raise CartFileError(f"cart file {p}: body 'cart' has no finite pos")

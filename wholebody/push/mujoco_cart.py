@@ -424,6 +424,14 @@ def settle(
 # --------------------------------------------------------------------------- truth
 
 
+def geom_lowest_z(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
+    """Return the world height of the lowest corner of geom `g`'s bounding box."""
+    centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
+    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
+    corners = data.geom_xpos[g] + (centre + signs * half) @ data.geom_xmat[g].reshape(3, 3).T
+    return float(corners[:, 2].min())
+
+
 def subtree_bodies(model: mujoco.MjModel, root: int) -> np.ndarray:
     """Return the ids of the bodies in the subtree of body ``root`` (itself included)."""
     ids = [root]

@@ -34,6 +34,7 @@ import mujoco
 import numpy as np
 
 from wholebody.errors import WholeBodyError
+from wholebody.push.mujoco_cart import geom_lowest_z
 from wholebody.push.mujoco_urdf import MujocoUrdf, mujoco_urdf
 
 
@@ -314,14 +315,6 @@ def _subtree_bodies(model: mujoco.MjModel, joints: Sequence[int]) -> set[int]:
     return {b for b in range(model.nbody) if tops & set(_ancestors(model, b))}
 
 
-def _lowest_z(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
-    """Return the world height of the lowest corner of geom `g`'s bounding box."""
-    centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
-    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
-    corners = data.geom_xpos[g] + (centre + signs * half) @ data.geom_xmat[g].reshape(3, 3).T
-    return float(corners[:, 2].min())
-
-
 def _driven_wheels(model: mujoco.MjModel, data: mujoco.MjData, wheel_joints: Sequence[int]) -> list[Support]:
     """Return the driven wheels: a tyre of the wheel's cylinder radius, else of the axle's height above the root."""
     out = []
@@ -390,7 +383,7 @@ def floor_contacts(
     for g in range(model.ngeom):
         if int(model.geom_bodyid[g]) in skip:
             continue
-        bottom = _lowest_z(model, data, g)
+        bottom = geom_lowest_z(model, data, g)
         if abs(bottom - floor) <= FLOOR_TOLERANCE:
             supports.append(_support(model, data, g, bottom))
             geoms.append(g)
