@@ -1013,7 +1013,8 @@ def _hand_off_handle(result: PushResult, t_end: float) -> list[str]:
 
 
 def _outcome(result: PushResult) -> str:
-    """Return 'tracked: ...' or 'LOST the cart at t = ...' (with the tracking RMS up to then)."""
+    """Return 'tracked: ...', 'tracked the slowed reference: ...' (it reached less than `SLOWED_VERDICT` of the
+    trajectory's time) or 'LOST the cart at t = ...' (with the tracking RMS up to then)."""
     m, t_lost = result.metrics, result.metrics.tracking_lost_at_s
     s = result.reference_time
     if t_lost is None and s is not None and s[-1] < SLOWED_VERDICT * result.t[-1]:
