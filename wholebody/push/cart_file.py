@@ -283,18 +283,23 @@ def _check_start_pose(path: Path, model: mujoco.MjModel, data: mujoco.MjData, ca
 
 
 def _check_axle(path: Path, model: mujoco.MjModel, data: mujoco.MjData, cart: int) -> None:
-    """Raise when the cart has fixed wheels (on hinges across the cart, no swivel between them and ``cart``) whose
+    """Raise when the cart has fixed wheels (on hinges across the cart, no swivel between them and ``cart``, a geom
+    on the floor) whose
     axle is not under {b}: the cart model's no-slip point is {b} (eq. 1), and an axle elsewhere makes the pushes
     read as sideways slip."""
     R, p = data.xmat[cart].reshape(3, 3), data.xpos[cart]
+    floor = _floor_z(model)
     xs = []
     for b in mujoco_cart.subtree_bodies(model, cart):
         if b == cart or _moving_link(model, int(model.body_parentid[b]), cart) is not None:
             continue  # on a swivel (or deeper): a caster
         for j in range(int(model.body_jntadr[b]), int(model.body_jntadr[b] + model.body_jntnum[b])):
             axis_b = R.T @ data.xaxis[j]
+            geoms = range(int(model.body_geomadr[b]), int(model.body_geomadr[b] + model.body_geomnum[b]))
+            on_floor = any(mujoco_cart.geom_lowest_z(model, data, g) - floor <= FLOOR_TOUCH_M for g in geoms)
             if int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_HINGE) and abs(float(axis_b[1])) > math.cos(0.1):
-                xs.append(float((R.T @ (data.xanchor[j] - p))[0]))
+                if on_floor:  # a wheel; a backrest's or an anti-tip roller's hinge is not an axle
+                    xs.append(float((R.T @ (data.xanchor[j] - p))[0]))
     if xs and abs(float(np.mean(xs))) > AXLE_OFFSET_M:
         x = float(np.mean(xs))
         raise CartFileError(

@@ -194,3 +194,12 @@ def test_a_load_welded_to_the_cart_counts_in_its_truth_and_a_welded_hand_does_no
     assert alone["m"] == pytest.approx(12.0) and alone["dx"] == pytest.approx(0.0, abs=1e-12)
     data.eq_active[0] = 0  # the strap released: the crate no longer rides with the cart
     assert mujoco_cart.welded_loads(model, data, cart, exclude=[hand_id]) == []
+
+
+def test_a_hinge_across_the_cart_off_the_floor_is_not_an_axle(tmp_path):
+    """A bed's backrest hinged about y 0.65 m ahead of {b}, 0.4 m up: not a wheel, so not the no-slip axle."""
+    backrest = (
+        '<body name="backrest" pos="0.65 0 0.45"><joint name="tilt" type="hinge" axis="0 1 0"/>'
+        '<geom type="box" size="0.3 0.25 0.02" mass="5"/></body>'
+    )
+    assert load_cart_file(_write(tmp_path, GOOD_BODY.format(sites=BAR + backrest))).handles
