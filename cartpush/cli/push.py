@@ -177,6 +177,8 @@ def config_from_args(args: argparse.Namespace):
     if args.cart_model is not None:
         if args.plant != "mujoco":
             raise WholeBodyError("--cart-model needs --plant mujoco")
+        if args.cart_model.is_dir():
+            raise WholeBodyError(f"--cart-model {args.cart_model}: is a directory; give the MJCF file")
         if not args.cart_model.is_file():
             raise WholeBodyError(f"--cart-model {args.cart_model}: no such file")
     if args.contact not in ("fixed", "optimal"):

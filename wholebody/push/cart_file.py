@@ -91,14 +91,34 @@ class CartSource:
         return mujoco_cart.rolling_wheels(model, data, bid, floor_z=_floor_z(model))
 
 
-def _floor_z(model: mujoco.MjModel) -> float:
-    """Return the height of the scene's lowest plane geom attached to the world (0 without one)."""
-    zs = [
-        float(model.geom_pos[g][2])
+def _floor_planes(model: mujoco.MjModel) -> list[int]:
+    """Return the plane geoms attached to the world, lowest first."""
+    planes = [
+        g
         for g in range(model.ngeom)
         if int(model.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_PLANE) and model.geom_bodyid[g] == 0
     ]
-    return min(zs) if zs else 0.0
+    return sorted(planes, key=lambda g: float(model.geom_pos[g][2]))
+
+
+def _floor_z(model: mujoco.MjModel) -> float:
+    """Return the height of the scene's lowest plane geom attached to the world (0 without one)."""
+    planes = _floor_planes(model)
+    return float(model.geom_pos[planes[0]][2]) if planes else 0.0
+
+
+def _floor_bits(model: mujoco.MjModel) -> tuple[int, int]:
+    """Return (contype, conaffinity) of the floor: the lowest world plane's, or (1, 1), the plane the scene adds
+    when the file has none (`mujoco_scene`)."""
+    planes = _floor_planes(model)
+    if not planes:
+        return 1, 1
+    return int(model.geom_contype[planes[0]]), int(model.geom_conaffinity[planes[0]])
+
+
+def _collides_with_floor(model: mujoco.MjModel, g: int, floor: tuple[int, int]) -> bool:
+    """Return whether geom `g` and a floor of (contype, conaffinity) `floor` make contacts (MuJoCo's bit test)."""
+    return bool(int(model.geom_contype[g]) & floor[1]) or bool(floor[0] & int(model.geom_conaffinity[g]))
 
 
 def _project_cart(cart: mujoco_cart.MujocoCart, label: str) -> CartSource:
@@ -134,6 +154,11 @@ def _read(path: Path) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
         spec = mujoco.MjSpec.from_file(str(path))
         model = spec.compile()
     except (ValueError, RuntimeError) as exc:
+        if "could not find decoder" in str(exc):  # MuJoCo reads a model by its file's extension
+            raise CartFileError(
+                f"cart file {path}: MuJoCo reads {path.suffix or 'a file without extension'!r} as no model format; a "
+                "cart file is MJCF XML ending in .xml"
+            ) from None
         raise CartFileError(f"cart file {path}: not a valid MuJoCo model: {_first_line(exc)}") from None
     return spec, model
 
@@ -267,19 +292,44 @@ def _check_start_pose(path: Path, model: mujoco.MjModel, data: mujoco.MjData, ca
             f"cart file {path}: body 'cart' starts turned {yaw:.0f} deg about z and tilted {tilt:.0f} deg; its frame "
             "{b} must start with x forward (the push's direction) and z up: turn its child bodies instead"
         )
-    low = math.inf
+    floor, bits = _floor_z(model), _floor_bits(model)
+    low, loose = math.inf, []  # the lowest geom that stands on the floor; the geoms on it that pass through
     for b in mujoco_cart.subtree_bodies(model, cart):
         for g in range(int(model.body_geomadr[b]), int(model.body_geomadr[b] + model.body_geomnum[b])):
-            if not (int(model.geom_contype[g]) or int(model.geom_conaffinity[g])):
-                continue
-            low = min(low, mujoco_cart.geom_lowest_z(model, data, g))
-    gap = low - _floor_z(model)
-    if math.isfinite(gap) and abs(gap) > FLOOR_GAP_M:
+            z = mujoco_cart.geom_lowest_z(model, data, g)
+            if _collides_with_floor(model, g, bits):
+                low = min(low, z)
+            elif z - floor <= FLOOR_GAP_M:
+                loose.append(g)
+    if bits == (0, 0):
+        raise CartFileError(
+            f"cart file {path}: the floor plane {_geom_label(model, _floor_planes(model)[0])} collides with nothing "
+            "(contype and conaffinity 0: from a <default>?), so the cart falls through: give it contype=\"1\" "
+            'conaffinity="1"'
+        )
+    if (loose and not low - floor <= FLOOR_GAP_M) or not math.isfinite(low):
+        names = ", ".join(_geom_label(model, g) for g in loose[:4]) or "none"
+        raise CartFileError(
+            f"cart file {path}: no geom of the cart on the floor collides with it (on it: {names}; MuJoCo makes a "
+            "contact when one geom's contype shares a bit with the other's conaffinity, and the floor's are "
+            f"{bits[0]}/{bits[1]}), so the cart falls through: give the wheels contype and conaffinity 1"
+        )
+    gap = low - floor
+    if abs(gap) > FLOOR_GAP_M:
         where = "below" if gap < 0 else "above"
         raise CartFileError(
             f"cart file {path}: the cart's lowest collision geom is {abs(gap):.3f} m {where} the floor; set body "
             f"'cart' pos z to {float(data.xpos[cart][2]) - gap:.4g} so its wheels stand on it"
         )
+
+
+def _geom_label(model: mujoco.MjModel, g: int) -> str:
+    """Return a geom's name, or 'a <type> of body <name>' for an unnamed one."""
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
+    if name:
+        return repr(name)
+    kind = mujoco.mjtGeom(int(model.geom_type[g])).name.removeprefix("mjGEOM_").lower()
+    return f"a {kind} of body {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.geom_bodyid[g]))!r}"
 
 
 def _check_axle(path: Path, model: mujoco.MjModel, data: mujoco.MjData, cart: int) -> None:

@@ -72,6 +72,9 @@ GRAVITY_VECTOR = np.array([0.0, 0.0, -mujoco_cart.GRAVITY])
 #: the constraint types whose forces are the joints' own (dof friction, joint limits), as ints: a numpy array
 #: compared with MuJoCo's enum objects compares element by element in Python (about 1 ms per physics step)
 _SITE = mujoco.mjtObj.mjOBJ_SITE
+#: after the settle the cart stands: {b} within this height (m) of where it started and this tilt (deg) of level
+STANDING_DROP_M = 0.05
+STANDING_TILT_DEG = 10.0
 _JOINT_INTERNAL = (int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF), int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT))
 
 
@@ -332,6 +335,7 @@ class MujocoPlant:
     def _start(self) -> None:
         """Settle the scene, read the cart's inertial truth and take the first F/T and motion-capture readings."""
         self._settle()
+        self._check_standing()
         self._inertial = self._read_inertial()
         self.t = 0.0
         self.scene.data.time = 0.0
@@ -411,6 +415,20 @@ class MujocoPlant:
                     law.tare(self._ft_at_grasp(i))
         self._rng_loop, self._rng_joint = push_rngs
         mujoco.mj_forward(m, d)
+
+    def _check_standing(self) -> None:
+        """Raise unless the cart still stands after the settle: {b} at its height and level (a floor or wheels that
+        do not collide, contacts disabled or excluded, let it fall through or tip before the push)."""
+        d, b = self.scene.data, self.scene.cart_body
+        drop = float(self.cart_source.z - d.xpos[b][2])
+        tilt = math.degrees(math.acos(min(1.0, float(d.xmat[b][8]))))
+        if abs(drop) > STANDING_DROP_M or tilt > STANDING_TILT_DEG:
+            raise MujocoPlantError(
+                f"cart {self.cart_source.label}: it does not stand on the floor after the "
+                f"{self.config.settle_time:g} s settle ({{b}} {abs(drop):.2f} m {'below' if drop > 0 else 'above'} "
+                f"its start, tilted {tilt:.0f} deg): check that its wheels and the floor collide (contype/"
+                "conaffinity, <contact><exclude>, <option><flag contact>) and that it rests on its wheels"
+            )
 
     def _fused_loops(self) -> list[tuple[int, tuple[RobotIndex, TorqueArmLaw]]]:
         """Return (index, (robot, law)) of each torque law whose force loop fuses the joint torques with the F/T

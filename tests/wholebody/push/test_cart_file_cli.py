@@ -68,3 +68,21 @@ def test_a_handle_out_of_the_arms_reach_says_where_it_is(tmp_path, capsys):
         re.search(r"the handle point is at \(-0.15, -?0.\d+, 2.0\d\) m", lines[0])
         and "out of the arm's reach" in lines[0]
     )
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda tmp: tmp, "is a directory; give the MJCF file"),
+        (lambda tmp: tmp / "none.xml", "no such file"),
+        (lambda tmp: tmp / "cart.txt", "MuJoCo reads '.txt' as no model format; a cart file is MJCF XML ending in .xml"),
+    ],
+    ids=["directory", "missing", "txt"],
+)
+def test_a_path_that_is_not_a_cart_file_is_one_line(tmp_path, capsys, make, message):
+    (tmp_path / "cart.txt").write_text(
+        f'<mujoco><worldbody><geom name="ground" type="plane" size="0 0 1"/>{BODY.format(sites=BAR)}</worldbody></mujoco>'
+    )
+    code = main(["push", "--plant", "mujoco", "--cart-model", str(make(tmp_path)), "--duration", "8", "--json"])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and message in lines[0], lines

@@ -9,7 +9,7 @@ import pytest
 from wholebody.push import PushConfig, build_controller, mujoco_cart
 from wholebody.push.cart_file import CartFileError, load_cart_file
 from wholebody.push.config import TRUE_CART
-from wholebody.push.mujoco_plant import MujocoPlant
+from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantError
 
 GOOD_BODY = """
     <body name="cart" pos="0 0 0.05">
@@ -95,6 +95,49 @@ def test_each_break_of_the_contract_gets_its_message(tmp_path, body, message):
     with pytest.raises(CartFileError, match=message) as info:
         load_cart_file(_write(tmp_path, body))
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "body, floor, message",
+    [
+        (  # the box on the floor collides with nothing: a <default> that makes every geom visual
+            GOOD_BODY.replace('mass="12"', 'mass="12" contype="0" conaffinity="0"').format(sites=BAR),
+            '<geom name="ground" type="plane" size="0 0 1"/>',
+            "no geom of the cart on the floor collides with it \\(on it: a box of body 'cart'",
+        ),
+        (  # bits that never meet: the box's contype 2 against the floor's conaffinity 1, and the other way
+            GOOD_BODY.replace('mass="12"', 'mass="12" contype="2" conaffinity="2"').format(sites=BAR),
+            '<geom name="ground" type="plane" size="0 0 1"/>',
+            "the floor's are 1/1\\), so the cart falls through",
+        ),
+        (
+            GOOD_BODY.format(sites=BAR),
+            '<geom name="ground" type="plane" size="0 0 1" contype="0" conaffinity="0"/>',
+            "the floor plane 'ground' collides with nothing",
+        ),
+    ],
+    ids=["cart_geoms_visual", "bits_never_meet", "floor_visual"],
+)
+def test_a_cart_that_would_fall_through_the_floor_is_refused(tmp_path, body, floor, message):
+    path = tmp_path / "cart.xml"
+    path.write_text(f"<mujoco><worldbody>{floor}{body}</worldbody></mujoco>")
+    with pytest.raises(CartFileError, match=message) as info:
+        load_cart_file(path)
+    assert "\n" not in str(info.value)
+
+
+def test_a_cart_whose_floor_contacts_are_excluded_is_refused_after_the_settle(tmp_path):
+    """Geometry passes (the box collides by its bits) but an <exclude> drops its contacts: it falls in the settle."""
+    xml = mujoco_cart.mjcf(mujoco_cart.shopping_cart(TRUE_CART))
+    bodies = [b for b in mujoco_cart.WHEEL_BODIES] + ["cart"]
+    exclude = "".join(f'<exclude body1="world" body2="{b}"/>' for b in bodies)
+    xml = xml.replace("</mujoco>", f"<contact>{exclude}</contact></mujoco>")
+    path = tmp_path / "cart.xml"
+    path.write_text(xml)
+    assert load_cart_file(path).handles
+    setup = build_controller(PushConfig(contact="fixed", duration=1.0))
+    with pytest.raises(MujocoPlantError, match="it does not stand on the floor after the .* settle"):
+        MujocoPlant(setup.controller.robots, setup.q0, path)
 
 
 def test_a_wheel_turned_onto_its_hinge_is_a_wheel(tmp_path):
