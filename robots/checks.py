@@ -68,6 +68,14 @@ def check_profile(prof: RobotProfile, model: pin.Model) -> None:
                 f"wheel_joints[{k}]",
                 f"{w!r} is not a continuous joint (it is {j.shortname()}); list the wheels' joints",
             )
+        speed = float(model.velocityLimit[j.idx_v])
+        if prof.base_twist_limit is None and not (math.isfinite(speed) and speed > 0.0):
+            raise ProfileError(
+                src,
+                f"wheel_joints[{k}]",
+                f"{w!r} has no speed limit in the URDF (velocity {speed:g}; the base's speed limits come from its "
+                "wheels'): give its <limit velocity> in rad/s, or the profile's [push] base_twist_limit",
+            )
         used.add(w)
     for i, arm in enumerate(prof.arms):
         for k, name in enumerate(arm.joints):

@@ -146,6 +146,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--duration", type=float, default=30.0, help="trajectory duration in s (default 30)")
     p.add_argument("--initial-mass", type=float, default=16.0, help="initial mass estimate in kg (default 16)")
+    p.add_argument(
+        "--initial-com",
+        default="0.3,0",
+        metavar="DX,DY",
+        help="initial CoM estimate in m in the cart frame {b} (default 0.3,0: the shopping cart's guess; for a cart\n"
+        "file, somewhere between its wheels)",
+    )
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--json", action="store_true", help="print JSON only")
     p.add_argument("--html", type=Path, default=None, help="write a Meshcat animation of the run to this file")
@@ -189,6 +196,7 @@ def config_from_args(args: argparse.Namespace):
         raise WholeBodyError(f"--arms must be 1 or 2, got {args.arms}")
     options.duration(args.duration, minimum=8.0, why="ramp up, cruise, stop", rate=1000.0)
     options.finite("--initial-mass", args.initial_mass, positive=True, maximum=1e4, why="kg")
+    initial_com = parse_initial_com(args.initial_com)
     options.seed(args.seed)
     for v in args.contact_y or ():
         options.finite("--contact-y", v)
@@ -209,6 +217,7 @@ def config_from_args(args: argparse.Namespace):
         contact=args.contact,
         duration=args.duration,
         initial_mass=args.initial_mass,
+        initial_com=initial_com,
         seed=args.seed,
         robot=args.robot,
         plant=args.plant,
@@ -234,6 +243,25 @@ def _time_scaling(look_ahead: float, plant: str) -> TimeScaling | Literal["auto"
     if plant != "mujoco":
         raise OptionError("--look-ahead needs --plant mujoco (the kinematic plant's reference never slows)")
     return TimeScaling(horizon=look_ahead)
+
+
+#: the largest |dx|, |dy| (m) of ``--initial-com``: a CoM guess farther out is not on any cart
+INITIAL_COM_MAX_M = 5.0
+
+
+def parse_initial_com(text: str) -> tuple[float, float]:
+    """Return (dx, dy) m of ``--initial-com DX,DY``; raise OptionError naming the option otherwise."""
+    parts = str(text).split(",")
+    try:
+        values = [float(v) for v in parts]
+    except ValueError:
+        values = []
+    if len(values) != 2 or not all(math.isfinite(v) and abs(v) <= INITIAL_COM_MAX_M for v in values):
+        raise OptionError(
+            f"--initial-com takes DX,DY in m in the cart frame {{b}}, each within +-{INITIAL_COM_MAX_M:g} (e.g. "
+            f"0.3,0), got {text!r}"
+        )
+    return values[0], values[1]
 
 
 def parse_load_change(text: str) -> LoadChange:

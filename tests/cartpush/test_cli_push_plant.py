@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from cartpush.cli import main
 
 
@@ -45,3 +47,17 @@ def test_look_ahead_reaches_the_reference_clock_and_bad_horizons_are_refused(cap
         assert main(["push", *argv, "--duration", "8"]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "--look-ahead" in err[0]
+
+
+def test_initial_com_reaches_the_estimate_and_bad_values_are_refused(capsys):
+    """With estimation off the CoM error is the guess's: 0.15 m by default (0.3, 0 for 0.3, 0.15), 0 when the
+    guess is the truth."""
+    args = ["push", "--trajectory", "1", "--duration", "8", "--no-estimation", "--json"]
+    assert main(args) == 0
+    assert json.loads(capsys.readouterr().out)["com_error_final_m"] == pytest.approx(0.15, abs=1e-9)
+    assert main([*args, "--initial-com", "0.3,0.15"]) == 0
+    assert json.loads(capsys.readouterr().out)["com_error_final_m"] == pytest.approx(0.0, abs=1e-9)
+    for bad in ("0.3", "0.3,x", "0.3,0,1", "nan,0", "9,0"):
+        assert main(["push", "--initial-com", bad]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--initial-com takes DX,DY" in err[0], err

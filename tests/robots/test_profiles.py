@@ -223,6 +223,12 @@ def test_a_bad_profile_is_one_line_naming_the_key(wmra_dir, over, key, fix):
             "wheel_radius",
             "give wheel_radius = 0.17",
         ),
+        (  # the left wheel without a speed limit: Pinocchio reads it as unlimited, so would the base's twist
+            '<limit effort="60" velocity="8.8"/>',
+            "",
+            "wheel_joints[0]",
+            "give its <limit velocity> in rad/s, or the profile's [push] base_twist_limit",
+        ),
         (  # a planar joint inside the URDF (the base's motion belongs to the profile's base key)
             '<joint name="base_joint" type="fixed">',
             '<joint name="base_joint" type="planar">',

@@ -18,6 +18,7 @@ from wholebody.contacts.allocation import ArmLimits, GraspModel
 from wholebody.contacts.support import SupportPolygon
 from wholebody.errors import WholeBodyError
 from wholebody.push.base_settings import BasePlanSettings
+from wholebody.push.file_version import file_version
 from wholebody.push.geometry import DEFAULT_GEOMETRY, CartGeometry
 from wholebody.push.load_change import LoadChange, check_changes
 from wholebody.push.reference_clock import TimeScaling
@@ -173,6 +174,8 @@ class PushConfig:
             raise WholeBodyError(f"contact must be 'fixed' or 'optimal', got {self.contact!r}")
         if not (self.dt > 0 and self.duration > 0 and self.initial_mass > 0):
             raise WholeBodyError("dt, duration and initial_mass must be positive")
+        if len(self.initial_com) != 2 or not np.all(np.isfinite(np.asarray(self.initial_com, dtype=float))):
+            raise WholeBodyError(f"initial_com must be (dx, dy) in m, finite, got {self.initial_com!r}")
         from robots.profiles import profile
 
         prof = profile(self.robot)  # raises naming the known robots
@@ -226,6 +229,12 @@ class PushConfig:
         if self.n_arms == 1:
             ys = ys[:1]
         geo = self.cart_geometry()
+        if self.n_arms == 2 and geo.grips is not None and len(set(geo.grips)) < 2:
+            where = "the cart file's" if self.cart_model is not None else "the geometry's"
+            raise WholeBodyError(
+                f"{where} handle is one grip point (y = {geo.grips[0]:g} m): two arms need two grips or a bar across "
+                "the cart (docs/mujoco.md); push with one arm (n_arms=1, --arms 1)"
+            )
         if geo is not DEFAULT_GEOMETRY:  # a cart of its own: the nearest places its handle offers
             ys = np.array([geo.nearest(v) for v in ys])
             if ys.size == 2 and abs(ys[1] - ys[0]) < 0.2:  # two hands need room: the outermost places
@@ -292,9 +301,14 @@ class PushConfig:
 LOST_TRACKING_M = 0.25
 
 
-@lru_cache(maxsize=8)
 def _file_geometry(path: str) -> CartGeometry:
-    """Return the geometry of a cart file, read once per path."""
+    """Return the geometry of a cart file, read once per version of the file (an edited file is read again)."""
+    return _geometry_of(path, file_version(path))
+
+
+@lru_cache(maxsize=8)
+def _geometry_of(path: str, version: tuple[int, int] | None) -> CartGeometry:
+    """Return the geometry of a cart file (`version`: its modification time and size, the cache's key)."""
     from wholebody.push.geometry import geometry_from_cart_file
 
     return geometry_from_cart_file(path)

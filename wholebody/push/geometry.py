@@ -22,18 +22,26 @@ class CartGeometry:
     """The handle in {b} (a bar along y_b), the height of {b} above the floor, and the point grips if any.
 
     ``grips``: the lateral coordinates y (m) of point grips (a wheelchair's two push handles); None when a
-    hand may hold anywhere along the bar.
+    hand may hold anywhere along the bar. ``grip_points``: each grip's point in {b} (x, y, z), when the grips are
+    not all on the handle's line (handles at different heights or depths); None: on the line.
     """
 
     handle: HandleSegment = field(default_factory=HandleSegment.default)
     frame_height: float = CART_WHEEL_RADIUS
     grips: tuple[float, ...] | None = None
+    grip_points: tuple[tuple[float, float, float], ...] | None = None
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.frame_height):
             raise WholeBodyError(f"cart frame height must be finite, got {self.frame_height}")
         if self.grips is not None and (len(self.grips) == 0 or not np.all(np.isfinite(self.grips))):
             raise WholeBodyError("point grips need at least one finite lateral coordinate")
+        if self.grip_points is not None:
+            pts = np.asarray(self.grip_points, dtype=float)
+            if self.grips is None or pts.shape != (len(self.grips), 3) or not np.all(np.isfinite(pts)):
+                raise WholeBodyError("grip_points need one finite (x, y, z) per grip")
+            if not np.allclose(pts[:, 1], self.grips):
+                raise WholeBodyError("grip_points' y must be the grips' lateral coordinates, in the same order")
 
     @property
     def y_range(self) -> tuple[float, float]:
@@ -42,7 +50,10 @@ class CartGeometry:
         return float(min(ys)), float(max(ys))
 
     def point(self, y: float) -> np.ndarray:
-        """Return the handle point with lateral coordinate y, in {b} (along the bar's line)."""
+        """Return the handle point with lateral coordinate y, in {b} (along the bar's line; a grip's own point when
+        ``grip_points`` are given: the grip nearest y)."""
+        if self.grip_points is not None:
+            return np.array(min(self.grip_points, key=lambda p: abs(p[1] - y)), dtype=float)
         a, b = np.asarray(self.handle.start_b), np.asarray(self.handle.end_b)
         d = b - a
         if abs(d[1]) < 1e-12:  # a point grip's degenerate bar: the point itself
@@ -72,8 +83,8 @@ def geometry_from_cart_file(path: str | os.PathLike) -> CartGeometry:
     """Return the geometry of an MJCF cart file: its `handle*` sites (docs/mujoco.md) and the height of {b}.
 
     The sites a robot pushing from behind holds (`cart_file.rear_handles`): a bar across the cart is held
-    anywhere along it; other sites (points, bars along x or z) are point grips at their y, on the line
-    through their mean x and z. Raises `wholebody.push.cart_file.CartFileError` for a broken file.
+    anywhere along it; other sites (points, bars along x or z) are point grips, each held at its own point (a bar's
+    middle); the handle line runs through their mean x and z. Raises `wholebody.push.cart_file.CartFileError` for a broken file.
     """
     from wholebody.push.cart_file import load_cart_file, rear_handles
 
@@ -88,4 +99,6 @@ def geometry_from_cart_file(path: str | os.PathLike) -> CartGeometry:
     lo, hi = min(ys), max(ys)
     if hi - lo < 1e-3:
         lo, hi = lo - 1e-3, hi + 1e-3
-    return CartGeometry(HandleSegment((x, lo, z), (x, hi, z)), float(source.z), ys)
+    on_line = np.allclose(pts[:, 0], x, atol=1e-6) and np.allclose(pts[:, 2], z, atol=1e-6)
+    own = None if on_line else tuple((float(p[0]), float(p[1]), float(p[2])) for p in pts)
+    return CartGeometry(HandleSegment((x, lo, z), (x, hi, z)), float(source.z), ys, own)

@@ -692,7 +692,8 @@ class CartJointRecord:
     def record(self, t: float, data: mujoco.MjData) -> None:
         """Append the joints' positions at time ``t`` (s) from ``data.qpos``."""
         self.t.append(float(t))
-        self.q.append(np.concatenate([data.qpos[a : a + JOINT_NQ[k]] for a, k in zip(self.addresses, self.kinds)]))
+        parts = [data.qpos[a : a + JOINT_NQ[k]] for a, k in zip(self.addresses, self.kinds)]
+        self.q.append(np.concatenate(parts) if parts else np.zeros(0))  # a cart without joints of its own: none
 
     def series(self) -> tuple[np.ndarray, np.ndarray]:
         """Return (t (N,), q (N, n_q)) of the samples so far."""

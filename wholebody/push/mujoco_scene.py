@@ -35,6 +35,7 @@ import numpy as np
 
 from wholebody.errors import WholeBodyError
 from wholebody.push.mujoco_cart import geom_lowest_z
+from wholebody.push.file_version import file_version
 from wholebody.push.mujoco_urdf import MujocoUrdf, mujoco_urdf
 
 
@@ -399,6 +400,7 @@ def _robot_urdf(
     wheels: tuple[str, ...],
     base: str,
     robot: str,
+    version: tuple[int, int] | None,
 ) -> RobotUrdf:
     movable = arm + wheels
     if base != "differential":
@@ -429,7 +431,7 @@ def _robot_urdf(
 
 
 def robot_urdf(setup: RobotSetup) -> RobotUrdf:
-    """Return the robot as MuJoCo takes it (cached per URDF, folders, locked values, joints and base).
+    """Return the robot as MuJoCo takes it (cached per URDF and its version, folders, locked values, joints and base).
 
     Every movable joint but the arm's, the wheels' and those that carry a floor contact (a caster's swivel
     and wheel) is fixed at its locked value. A differential base rolls on its driven wheels and on every
@@ -443,6 +445,7 @@ def robot_urdf(setup: RobotSetup) -> RobotUrdf:
         tuple(setup.wheel_joints),
         setup.base,
         setup.name,
+        file_version(setup.urdf),
     )
 
 

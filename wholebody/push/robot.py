@@ -17,6 +17,7 @@ from robots.checks import wheel_geometry
 from robots.profiles import RobotProfile
 from cart.simulate import MeasurementNoise
 from wholebody.contacts.handle import contact_grid
+from wholebody.push.file_version import file_version
 from wholebody.push.geometry import DEFAULT_GEOMETRY, CartGeometry
 from wholebody.errors import WholeBodyError
 from wholebody.motion.control import ControllerConfig, ResolvedRateController, StepResult
@@ -319,16 +320,18 @@ def push_profile(robot: robots.LoadedRobot | RobotProfile | str, arm: int = 0) -
 
 
 class _LoadedKey:
-    """Carries a loaded robot into the cache without making it part of the key."""
+    """Carries a loaded robot into the cache; of it only its URDF file's version is part of the key (an edited
+    URDF is read again)."""
 
     def __init__(self, robot: robots.LoadedRobot) -> None:
         self.robot = robot
+        self.version = file_version(robot.urdf)
 
     def __hash__(self) -> int:
-        return 0
+        return hash(self.version)
 
     def __eq__(self, other: object) -> bool:
-        return isinstance(other, _LoadedKey)
+        return isinstance(other, _LoadedKey) and other.version == self.version
 
 
 @lru_cache(maxsize=32)

@@ -54,10 +54,18 @@ class ContactScheduler:
                 rm = self._maps[bad]
                 i = rm.index(float(self.y[bad]))
                 ok = rm.y[rm.reachable]
-                span = f"[{ok.min():.3f}, {ok.max():.3f}] m" if ok.size else "nowhere"
+                if not ok.size:  # out of reach along the whole handle: say where it is
+                    geo = config.cart_geometry()
+                    p = handle_point(float(self.y[bad]), geo)
+                    raise InfeasibleWrenchError(
+                        f"robot {config.robot!r} reaches the handle nowhere along it: its point at y = "
+                        f"{self.y[bad]:.3f} m is at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m in the cart frame, "
+                        f"{p[2] + geo.frame_height:.2f} m above the floor: out of the arm's reach from any base place",
+                        binding="reach",
+                    )
                 raise InfeasibleWrenchError(
                     f"robot {config.robot!r} cannot hold the handle at y = {self.y[bad]:.3f} m with margin "
-                    f"({rm.reason[i] or 'outside the reachable span'}); it reaches {span}",
+                    f"({rm.reason[i] or 'outside the reachable span'}); it reaches [{ok.min():.3f}, {ok.max():.3f}] m",
                     binding="reach",
                 )
             self.y = np.array(

@@ -42,7 +42,8 @@ def shopping_cart_support(geometry: CartGeometry) -> SupportPolygon:
 
 def com_bound(geometry: CartGeometry) -> float:
     """Return the bound of the CoM's height above the floor: the handle's height (a pushed cart's mass sits below it)."""
-    return float(max(geometry.handle.start_b[2], geometry.handle.end_b[2]) + geometry.frame_height)
+    zs = [geometry.handle.start_b[2], geometry.handle.end_b[2], *(p[2] for p in geometry.grip_points or ())]
+    return float(max(zs) + geometry.frame_height)
 
 
 def cart_load(

@@ -86,3 +86,16 @@ def test_a_path_that_is_not_a_cart_file_is_one_line(tmp_path, capsys, make, mess
     code = main(["push", "--plant", "mujoco", "--cart-model", str(make(tmp_path)), "--duration", "8", "--json"])
     lines = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(lines) == 1 and message in lines[0], lines
+
+
+def test_a_handle_out_of_the_wmra_reach_says_how_high_it_is(tmp_path, capsys):
+    """The WMRA's reach map finds no place along a 2 m high bar: the line says where the bar is."""
+    path = tmp_path / "high.xml"
+    high = BAR.replace(" 0.9 ", " 2.0 ").replace(' 0.9"', ' 2.0"')
+    path.write_text(
+        f'<mujoco><worldbody><geom name="ground" type="plane" size="0 0 1"/>{BODY.format(sites=high)}</worldbody></mujoco>'
+    )
+    code = main(["push", "--robot", "wmra", "--plant", "mujoco", "--cart-model", str(path), "--duration", "8"])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, lines
+    assert "reaches the handle nowhere along it" in lines[0] and "2.05 m above the floor" in lines[0], lines

@@ -9,6 +9,7 @@ import pytest
 from wholebody.push import PushConfig, build_controller, mujoco_cart
 from wholebody.push.cart_file import CartFileError, load_cart_file
 from wholebody.push.config import TRUE_CART
+from wholebody.errors import WholeBodyError
 from wholebody.push.mujoco_plant import MujocoPlant, MujocoPlantError
 
 GOOD_BODY = """
@@ -246,3 +247,32 @@ def test_a_hinge_across_the_cart_off_the_floor_is_not_an_axle(tmp_path):
         '<geom type="box" size="0.3 0.25 0.02" mass="5"/></body>'
     )
     assert load_cart_file(_write(tmp_path, GOOD_BODY.format(sites=BAR + backrest))).handles
+
+
+def test_grips_at_different_heights_are_each_held_at_their_own_point(tmp_path):
+    """Two push grips 0.1 m apart in height and 0.08 m in depth: each hand takes its own grip, the plant's grasp
+    check (hand within `handle_tolerance` of a site) holds for both, and one grip with two arms is refused."""
+    from wholebody.push.geometry import geometry_from_cart_file
+
+    grips = '<site name="handle_l" pos="-0.2 0.25 0.85"/><site name="handle_r" pos="-0.28 -0.25 0.95"/>'
+    path = _write(tmp_path, GOOD_BODY.format(sites=grips))
+    geo = geometry_from_cart_file(path)
+    assert geo.point(0.25) == pytest.approx([-0.2, 0.25, 0.85])
+    assert geo.point(-0.25) == pytest.approx([-0.28, -0.25, 0.95])
+    for arms in (1, 2):
+        config = PushConfig(contact="fixed", duration=1.0, plant="mujoco", cart_model=path, n_arms=arms)
+        setup = build_controller(config)
+        plant = MujocoPlant(setup.controller.robots, setup.q0, path)  # raises when a hand is off its grip
+        assert plant.cart_inertial().mass == pytest.approx(12.0)
+    one = _write(tmp_path, GOOD_BODY.format(sites='<site name="handle" pos="-0.2 0 0.85"/>'))
+    with pytest.raises(WholeBodyError, match="is one grip point .*: two arms need two grips or a bar across the cart"):
+        PushConfig(contact="fixed", duration=1.0, plant="mujoco", cart_model=one, n_arms=2).contact_y0()
+
+
+def test_an_edited_cart_file_is_read_again(tmp_path):
+    """A notebook edits the file between two runs: the second run's geometry is the edited file's."""
+    path = _write(tmp_path, GOOD_BODY.format(sites=BAR))
+    config = PushConfig(contact="fixed", duration=1.0, plant="mujoco", cart_model=path)
+    assert config.cart_geometry().handle.start_b[2] == pytest.approx(0.9)
+    _write(tmp_path, GOOD_BODY.format(sites=BAR.replace(" 0.9", " 0.95")))
+    assert config.cart_geometry().handle.start_b[2] == pytest.approx(0.95)
