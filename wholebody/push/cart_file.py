@@ -304,7 +304,7 @@ def _check_start_pose(path: Path, model: mujoco.MjModel, data: mujoco.MjData, ca
     if bits == (0, 0):
         raise CartFileError(
             f"cart file {path}: the floor plane {_geom_label(model, _floor_planes(model)[0])} collides with nothing "
-            "(contype and conaffinity 0: from a <default>?), so the cart falls through: give it contype=\"1\" "
+            '(contype and conaffinity 0: from a <default>?), so the cart falls through: give it contype="1" '
             'conaffinity="1"'
         )
     if (loose and not low - floor <= FLOOR_GAP_M) or not math.isfinite(low):

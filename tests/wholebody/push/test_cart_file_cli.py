@@ -75,7 +75,10 @@ def test_a_handle_out_of_the_arms_reach_says_where_it_is(tmp_path, capsys):
     [
         (lambda tmp: tmp, "is a directory; give the MJCF file"),
         (lambda tmp: tmp / "none.xml", "no such file"),
-        (lambda tmp: tmp / "cart.txt", "MuJoCo reads '.txt' as no model format; a cart file is MJCF XML ending in .xml"),
+        (
+            lambda tmp: tmp / "cart.txt",
+            "MuJoCo reads '.txt' as no model format; a cart file is MJCF XML ending in .xml",
+        ),
     ],
     ids=["directory", "missing", "txt"],
 )
