@@ -103,7 +103,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         nargs="+",
         default=None,
         metavar="Y",
-        help="fixed contact point(s) y on the handle in m, within [-0.25, 0.25]",
+        help="fixed contact point(s) y on the handle in m, within its span ([-0.25, 0.25] on the shopping cart)",
     )
     _auto_on_off(
         p,
@@ -203,8 +203,11 @@ def config_from_args(args: argparse.Namespace):
     fixed_contact_y: tuple[float, ...] | None = None
     if args.contact_y is not None:
         ys = tuple(args.contact_y)
-        if len(ys) != args.arms or any(abs(v) > 0.25 for v in ys):
-            raise WholeBodyError(f"--contact-y needs {args.arms} value(s) within [-0.25, 0.25] m, got {list(ys)}")
+        lo, hi = _handle_span(args.cart_model)
+        if len(ys) != args.arms or any(not lo - 1e-9 <= v <= hi + 1e-9 for v in ys):
+            raise WholeBodyError(
+                f"--contact-y needs {args.arms} value(s) within the handle's [{lo:g}, {hi:g}] m, got {list(ys)}"
+            )
         if len(ys) == 2 and abs(ys[1] - ys[0]) < 0.2:
             raise WholeBodyError("two contact points must be at least 0.2 m apart")
         fixed_contact_y = ys
@@ -230,6 +233,13 @@ def config_from_args(args: argparse.Namespace):
         load_changes=tuple(parse_load_change(v) for v in args.load_change or ()),
         time_scaling=_time_scaling(args.look_ahead, args.plant),
     )
+
+
+def _handle_span(cart_model: Path | None) -> tuple[float, float]:
+    """Return the lateral span (m) of the handle a hand may hold: the cart file's, else the shopping cart's."""
+    from wholebody.push.geometry import DEFAULT_GEOMETRY, geometry_from_cart_file
+
+    return (DEFAULT_GEOMETRY if cart_model is None else geometry_from_cart_file(cart_model)).y_range
 
 
 def _time_scaling(look_ahead: float, plant: str) -> TimeScaling | Literal["auto"]:

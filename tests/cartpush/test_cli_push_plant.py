@@ -61,3 +61,24 @@ def test_initial_com_reaches_the_estimate_and_bad_values_are_refused(capsys):
         assert main(["push", "--initial-com", bad]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "--initial-com takes DX,DY" in err[0], err
+
+
+def test_contact_y_is_checked_against_the_cart_files_handle(tmp_path, capsys):
+    """A bar from y = 0.05 to 0.45: 0.3 is on it (the shopping cart's [-0.25, 0.25] is not the rule), 0.5 is not."""
+    import argparse
+
+    from cartpush.cli import push
+
+    bar = '<site name="handle" type="capsule" size="0.015" fromto="-0.15 0.05 0.9 -0.15 0.45 0.9"/>'
+    path = tmp_path / "offset.xml"
+    path.write_text(
+        '<mujoco><worldbody><geom name="ground" type="plane" size="0 0 1"/><body name="cart" pos="0 0 0.05">'
+        f'<freejoint/><geom type="box" size="0.4 0.25 0.05" mass="12"/>{bar}</body></worldbody></mujoco>'
+    )
+    parser = argparse.ArgumentParser()
+    push.register(parser.add_subparsers())
+    args = ["push", "--plant", "mujoco", "--cart-model", str(path), "--contact-y"]
+    assert push.config_from_args(parser.parse_args([*args, "0.3"])).fixed_contact_y == (0.3,)
+    assert main([*args, "0.5"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "within the handle's [0.05, 0.45] m, got [0.5]" in err[0], err
