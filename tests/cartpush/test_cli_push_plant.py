@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -82,3 +83,18 @@ def test_contact_y_is_checked_against_the_cart_files_handle(tmp_path, capsys):
     assert main([*args, "0.5"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "within the handle's [0.05, 0.45] m, got [0.5]" in err[0], err
+
+
+def test_a_default_contact_out_of_reach_names_the_span_and_the_option(tmp_path, capsys):
+    """The WMRA's default contact (y = 0.1 m) on a 0.3 m bar 0.6 m high: the line gives the reachable span and says
+    how to choose a point in it."""
+    bar = '<site name="handle" type="capsule" size="0.015" fromto="-0.1 -0.15 0.6 -0.1 0.15 0.6"/>'
+    path = tmp_path / "child.xml"
+    path.write_text(
+        '<mujoco><worldbody><geom name="ground" type="plane" size="0 0 1"/><body name="cart" pos="0 0 0.05">'
+        f'<freejoint/><geom type="box" size="0.3 0.18 0.05" mass="6"/>{bar}</body></worldbody></mujoco>'
+    )
+    code = main(["push", "--robot", "wmra", "--plant", "mujoco", "--cart-model", str(path), "--duration", "8"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert re.search(r"it reaches \[-?0\.\d+, -?0\.\d+\] m: give a contact point there \(--contact-y", err[0]), err

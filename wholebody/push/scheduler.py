@@ -65,7 +65,8 @@ class ContactScheduler:
                     )
                 raise InfeasibleWrenchError(
                     f"robot {config.robot!r} cannot hold the handle at y = {self.y[bad]:.3f} m with margin "
-                    f"({rm.reason[i] or 'outside the reachable span'}); it reaches [{ok.min():.3f}, {ok.max():.3f}] m",
+                    f"({rm.reason[i] or 'outside the reachable span'}); it reaches [{ok.min():.3f}, {ok.max():.3f}] m: "
+                    "give a contact point there (--contact-y, PushConfig.fixed_contact_y)",
                     binding="reach",
                 )
             self.y = np.array(
