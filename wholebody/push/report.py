@@ -863,7 +863,28 @@ def what_happened(result: PushResult) -> list[str]:
         lines.append(f"base wheel slip at most {rep['base_wheel_slip_max_m_s']:.3f} m/s")
     lines += load_change_lines(result)
     lines.append(_fit(result))
+    lines += _far_guess(result)
     return lines
+
+
+#: an estimate this many times the initial guess (or below its inverse) was far from the guess: say so
+FAR_GUESS_RATIO = 3.0
+
+
+def _far_guess(result: PushResult) -> list[str]:
+    """Return a sentence when the final mass estimate is `FAR_GUESS_RATIO` or more from the initial guess: the prior
+    (50 % of the guess) then holds the estimate back for long; a guess near the cart's mass helps."""
+    cfg, m = result.config, result.metrics.mass_final_kg
+    if not cfg.estimation or not (m > 0 and math.isfinite(m)):
+        return []
+    ratio = m / cfg.initial_mass
+    if 1.0 / FAR_GUESS_RATIO < ratio < FAR_GUESS_RATIO:
+        return []
+    return [
+        f"the mass estimate ended {ratio:.1f} x the initial guess ({m:.1f} kg for {cfg.initial_mass:g} kg): a guess "
+        "that far off holds the estimate back; give one near the cart's mass (--initial-mass, and --initial-com "
+        "for its centre of mass)"
+    ]
 
 
 def match_load_changes(result: PushResult) -> list[dict]:

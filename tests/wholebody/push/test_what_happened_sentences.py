@@ -58,3 +58,20 @@ def test_the_fit_sentence_says_when_the_pushes_leave_the_com_unidentified():
 
     assert "not identified" not in _fit(result([]))
     assert "CoM dx not identified by these pushes" in _fit(result(["dx", "inertia"]))
+
+
+def test_an_estimate_far_from_the_initial_guess_names_the_options():
+    """A 300 kg pallet from the 16 kg default guess: the sentence says how far and which options give a guess; an
+    estimate within 3 x of the guess, or estimation off, says nothing."""
+    from wholebody.push.report import _far_guess
+
+    def run(mass: float, estimation: bool = True) -> SimpleNamespace:
+        return SimpleNamespace(
+            config=SimpleNamespace(estimation=estimation, initial_mass=16.0),
+            metrics=SimpleNamespace(mass_final_kg=mass),
+        )
+
+    (line,) = _far_guess(run(196.6))
+    assert "12.3 x the initial guess (196.6 kg for 16 kg)" in line and "--initial-mass" in line
+    assert "0.2 x" in _far_guess(run(3.0))[0]
+    assert _far_guess(run(40.0)) == [] and _far_guess(run(196.6, estimation=False)) == []
