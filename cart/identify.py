@@ -1014,6 +1014,7 @@ def identify(
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings, (grid.dt * step, fc))
     cart_frame = _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
     origin = None if fits else _torque_origin_reading(grid, sos, (full, step), noise, (lv, sv, so))
+    cov = _with_turn_attenuation(cov, p, _turn_noise_share(full.om, lv.theta, len(grid.t), grid.dt, sos))
     p, cov, note = _physical(p, cov)
     warnings += note
     (params, inertia), std = _physical_params(log, p, cov), _physical_std(p, cov)
@@ -1105,6 +1106,38 @@ def _filtered_regression(
     sv, so = lv.pos * acc_gain, lv.theta * acc_gain
     noise = np.array([[sv * sv, 0.0, so * so, 0.0, 0.0, 0.0], [0.0, 0.0, sv * sv, so * so, 0.0, 0.0]])
     return sos, reg, lag, (sv, so), noise
+
+
+def _turn_noise_share(om: np.ndarray, th_std: float, n: int, dt: float, sos: np.ndarray) -> float:
+    """Return the share of the filtered yaw rate's power that the heading's white noise alone makes (0-1).
+
+    The CoM's forward coordinate enters the regression only through the yaw rate (``m dx`` multiplies
+    ``-omega^2`` and ``omega v``, paper eq. 4); a yaw rate made of heading noise is an error in the variables
+    that pulls ``m dx`` towards 0 by about this share, which the regression's std does not see (a cart pushed
+    straight: dx read as 0 +- a few cm).
+    """
+    ef = _filtfilt(sos, _unit_noise(n))
+    m = len(ef)
+    core = slice(m // 10, m - m // 10) if m > 50 else slice(None)
+    noise_var = (th_std * float(np.std(np.gradient(ef, dt)[core]))) ** 2
+    return float(min(1.0, noise_var / max(float(np.var(om)), 1e-300)))
+
+
+def _with_turn_attenuation(cov: np.ndarray, p: np.ndarray, share: float) -> np.ndarray:
+    """Return ``cov`` with the variance of ``m dx`` raised by the attenuation bias the yaw rate's noise allows.
+
+    The bias is at most ``share`` times ``m dx``, and ``|dx|`` at most the body's half-size: a uniform bar's,
+    ``sqrt(3)`` radii of gyration from the largest yaw inertia the fit allows (``J`` plus 2 std), at most 1 m
+    (`cart.estimate_report.MAX_HALF_SIZE`, the largest cart). With a yaw rate of noise alone (``share`` 1) the
+    std of dx covers the whole body, and the report says dx is not identified.
+    """
+    m, j = float(p[0]), float(p[3])
+    if not (m > 0 and share > 0):
+        return cov
+    half = min(1.0, math.sqrt(3.0 * max(j + 2.0 * math.sqrt(max(float(cov[3, 3]), 0.0)), 0.0) / m))
+    cov = cov.copy()
+    cov[1, 1] += (share * m * half) ** 2
+    return cov
 
 
 def _fit_or_raise(

@@ -26,6 +26,7 @@ import numpy as np
 
 from cart._kernels_identify import median
 from cart.errors import LogFormatError
+from cart.heading import unwrap_heading
 
 REQUIRED_COLUMNS = ("t", "x", "y", "theta", "fx", "fy", "tau")
 VELOCITY_COLUMNS = ("vx", "vy", "omega")
@@ -380,7 +381,7 @@ def _log_from_columns(
     line_of = row_lines[kept]  # the file line of each kept row
     t = data["t"]
     _check_time_order(path, t, line_of)
-    q = np.column_stack([data["x"], data["y"], np.unwrap(data["theta"])])
+    q = np.column_stack([data["x"], data["y"], unwrap_heading(t, data["theta"])])
     gamma = np.column_stack([data["fx"], data["fy"], data["tau"]])
     qd = None
     present = [c for c in VELOCITY_COLUMNS if c in data]
