@@ -8,7 +8,8 @@ The contract (also in docs/mujoco.md):
 2. sites on ``cart`` named ``handle`` or ``handle_*`` mark where hands may hold: a point site
    (type sphere, the default) is a grip point; a capsule site (declared with ``fromto``) is a bar that
    may be held anywhere along its axis; at least one such site;
-3. the file may contain a floor (a plane in the worldbody); if none, the plant adds one at z = 0;
+3. the file may contain a floor (the lowest plane in the worldbody whose normal points up,
+   `mujoco_cart.floor_plane`); if none, the plant adds one at z = 0 (a cart on a box floor: its top at z = 0);
 4. everything else is the file's own (wheels, joints, friction, options); the controller never reads
    the cart's inertial parameters from it (the run reports them as the truth).
 
@@ -91,29 +92,19 @@ class CartSource:
         return mujoco_cart.rolling_wheels(model, data, bid, floor_z=_floor_z(model))
 
 
-def _floor_planes(model: mujoco.MjModel) -> list[int]:
-    """Return the plane geoms attached to the world, lowest first."""
-    planes = [
-        g
-        for g in range(model.ngeom)
-        if int(model.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_PLANE) and model.geom_bodyid[g] == 0
-    ]
-    return sorted(planes, key=lambda g: float(model.geom_pos[g][2]))
-
-
 def _floor_z(model: mujoco.MjModel) -> float:
-    """Return the height of the scene's lowest plane geom attached to the world (0 without one)."""
-    planes = _floor_planes(model)
-    return float(model.geom_pos[planes[0]][2]) if planes else 0.0
+    """Return the height of the floor (`mujoco_cart.floor_plane`; 0 without one: the plane the scene adds)."""
+    floor = mujoco_cart.floor_plane(model)
+    return float(model.geom_pos[floor][2]) if floor is not None else 0.0
 
 
 def _floor_bits(model: mujoco.MjModel) -> tuple[int, int]:
-    """Return (contype, conaffinity) of the floor: the lowest world plane's, or (1, 1), the plane the scene adds
+    """Return (contype, conaffinity) of the floor (`mujoco_cart.floor_plane`), or (1, 1), the plane the scene adds
     when the file has none (`mujoco_scene`)."""
-    planes = _floor_planes(model)
-    if not planes:
+    floor = mujoco_cart.floor_plane(model)
+    if floor is None:
         return 1, 1
-    return int(model.geom_contype[planes[0]]), int(model.geom_conaffinity[planes[0]])
+    return int(model.geom_contype[floor]), int(model.geom_conaffinity[floor])
 
 
 def _collides_with_floor(model: mujoco.MjModel, g: int, floor: tuple[int, int]) -> bool:
@@ -224,11 +215,19 @@ WHEEL_AXIS_TOL = 0.1
 FLOOR_TOUCH_M = 5e-3
 
 
-def _check_wheels(path: Path, model: mujoco.MjModel, data: mujoco.MjData, cart: int) -> None:
+def _angle_hint(degree: bool) -> str:
+    """Return the likely unit mistake behind a turned wheel: radians read as degrees (MuJoCo's default unit) or,
+    in a file with ``<compiler angle="radian"/>``, degrees read as radians."""
+    if degree:
+        return 'an euler meant in radians? MuJoCo reads degrees unless <compiler angle="radian"/>'
+    return 'an euler meant in degrees? this file\'s <compiler angle="radian"/> makes MuJoCo read radians'
+
+
+def _check_wheels(path: Path, model: mujoco.MjModel, data: mujoco.MjData, cart: int, degree: bool = True) -> None:
     """Raise when a cylinder on a horizontal hinge of the cart's subtree reaches the floor by its radius (a wheel,
     as `mujoco_cart.rolling_wheels` reads it) but its axis is not along the hinge: the cart stands on its rim or
-    face and slides instead of rolling (a wheel turned by an ``euler`` meant in radians, read in degrees, MuJoCo's
-    default unit)."""
+    face and slides instead of rolling (a wheel turned by an ``euler`` in the wrong unit: `degree` tells the file's,
+    ``MjSpec.compiler.degree``)."""
     floor = _floor_z(model)
     for b in mujoco_cart.subtree_bodies(model, cart):
         hinges = [
@@ -249,8 +248,8 @@ def _check_wheels(path: Path, model: mujoco.MjModel, data: mujoco.MjData, cart: 
                     joint = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j)
                     raise CartFileError(
                         f"cart file {path}: wheel {body!r} stands on a cylinder turned {angle:.0f} degrees from the axis "
-                        f"of its hinge {joint!r}, so it slides instead of rolling (an euler meant in radians? MuJoCo "
-                        'reads degrees unless <compiler angle="radian"/>; or give the cylinder\'s zaxis)'
+                        f"of its hinge {joint!r}, so it slides instead of rolling ({_angle_hint(degree)}; or give the "
+                        "cylinder's zaxis)"
                     )
 
 
@@ -301,9 +300,10 @@ def _check_start_pose(path: Path, model: mujoco.MjModel, data: mujoco.MjData, ca
                 low = min(low, z)
             elif z - floor <= FLOOR_GAP_M:
                 loose.append(g)
-    if bits == (0, 0):
+    plane = mujoco_cart.floor_plane(model)
+    if bits == (0, 0) and plane is not None:
         raise CartFileError(
-            f"cart file {path}: the floor plane {_geom_label(model, _floor_planes(model)[0])} collides with nothing "
+            f"cart file {path}: the floor plane {_geom_label(model, plane)} collides with nothing "
             '(contype and conaffinity 0: from a <default>?), so the cart falls through: give it contype="1" '
             'conaffinity="1"'
         )
@@ -314,6 +314,8 @@ def _check_start_pose(path: Path, model: mujoco.MjModel, data: mujoco.MjData, ca
             "contact when one geom's contype shares a bit with the other's conaffinity, and the floor's are "
             f"{bits[0]}/{bits[1]}), so the cart falls through: give the wheels contype and conaffinity 1"
         )
+    if plane is None:
+        _check_floor_is_a_plane(path, model, data, cart, low)
     gap = low - floor
     if abs(gap) > FLOOR_GAP_M:
         where = "below" if gap < 0 else "above"
@@ -321,6 +323,26 @@ def _check_start_pose(path: Path, model: mujoco.MjModel, data: mujoco.MjData, ca
             f"cart file {path}: the cart's lowest collision geom is {abs(gap):.3f} m {where} the floor; set body "
             f"'cart' pos z to {float(data.xpos[cart][2]) - gap:.4g} so its wheels stand on it"
         )
+
+
+def _check_floor_is_a_plane(path: Path, model: mujoco.MjModel, data: mujoco.MjData, cart: int, low: float) -> None:
+    """Raise when a file without an up-facing floor plane stands the cart (its lowest collision geom at `low`) on
+    the top of another world geom (a box floor), or sinks it into one under {b}, whose top is not at z = 0: the
+    plane the scene adds at z = 0, which the robots stand on, would not be that floor."""
+    xy = data.xpos[cart][:2]
+    for g in range(model.ngeom):
+        if int(model.geom_bodyid[g]) != 0 or int(model.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_PLANE):
+            continue
+        corners = mujoco_cart.geom_corners(model, data, g)
+        bottom, top = float(corners[:, 2].min()), float(corners[:, 2].max())
+        under = bool(np.all(corners[:, :2].min(axis=0) <= xy) and np.all(xy <= corners[:, :2].max(axis=0)))
+        on_top, sunk = abs(low - top) <= FLOOR_GAP_M, under and bottom - FLOOR_GAP_M <= low < top - FLOOR_GAP_M
+        if (on_top or sunk) and abs(top) > FLOOR_GAP_M:
+            raise CartFileError(
+                f"cart file {path}: the cart stands {'on' if on_top else 'sunk in'} {_geom_label(model, g)}, whose top "
+                f'is at z = {top:.4g} m, but the robots stand on a plane: give a <geom type="plane"> at z = {top:.4g} '
+                "(or put that top at z = 0)"
+            )
 
 
 def _geom_label(model: mujoco.MjModel, g: int) -> str:
@@ -372,14 +394,14 @@ def _check_handles_behind(path: Path, handles: tuple[HandleSite, ...]) -> None:
 def load_cart_file(path: str | os.PathLike) -> CartSource:
     """Return the `CartSource` of an MJCF cart file, or raise `CartFileError` naming what breaks the contract."""
     p = Path(path)
-    _, model = _read(p)
+    spec, model = _read(p)
     cart = _check_cart_body(p, model)
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)  # the file's own pose of every body (qpos0), read by the checks below
     handles = _handle_sites(p, model, data, cart)
     _check_handles_behind(p, handles)
     _check_start_pose(p, model, data, cart)
-    _check_wheels(p, model, data, cart)
+    _check_wheels(p, model, data, cart, bool(spec.compiler.degree))
     _check_axle(p, model, data, cart)
     z = float(model.body_pos[cart][2])  # compiled: a <frame> around the body counts
     if not math.isfinite(z):

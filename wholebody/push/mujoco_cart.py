@@ -424,12 +424,36 @@ def settle(
 # --------------------------------------------------------------------------- truth
 
 
-def geom_lowest_z(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
-    """Return the world height of the lowest corner of geom `g`'s bounding box."""
+def geom_corners(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> np.ndarray:
+    """Return the world positions (8, 3) of the corners of geom `g`'s bounding box."""
     centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
     signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
-    corners = data.geom_xpos[g] + (centre + signs * half) @ data.geom_xmat[g].reshape(3, 3).T
-    return float(corners[:, 2].min())
+    return data.geom_xpos[g] + (centre + signs * half) @ data.geom_xmat[g].reshape(3, 3).T
+
+
+def geom_lowest_z(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> float:
+    """Return the world height of the lowest corner of geom `g`'s bounding box."""
+    return float(geom_corners(model, data, g)[:, 2].min())
+
+
+#: a world plane whose normal is within this angle (deg) of +z faces up (a wall's normal is horizontal)
+FLOOR_NORMAL_TOL_DEG = 1.0
+
+
+def floor_plane(model: mujoco.MjModel) -> int | None:
+    """Return the floor of a compiled model: the lowest plane geom of the world body whose normal points up (+z
+    within `FLOOR_NORMAL_TOL_DEG`), None without one. The one rule of the cart-file checks (`cart_file`) and of the
+    scene (`mujoco_scene`); a world geom's ``geom_pos``/``geom_quat`` are in the world frame."""
+    cos_tol = math.cos(math.radians(FLOOR_NORMAL_TOL_DEG))
+    planes = []
+    for g in range(model.ngeom):
+        if int(model.geom_bodyid[g]) != 0 or int(model.geom_type[g]) != int(mujoco.mjtGeom.mjGEOM_PLANE):
+            continue
+        _, x, y, _ = (float(v) for v in model.geom_quat[g])
+        normal_z = 1.0 - 2.0 * (x * x + y * y)  # the z entry of the plane's z axis (unit quaternion)
+        if normal_z >= cos_tol:
+            planes.append(g)
+    return min(planes, key=lambda g: float(model.geom_pos[g][2])) if planes else None
 
 
 def subtree_bodies(model: mujoco.MjModel, root: int) -> np.ndarray:

@@ -2,11 +2,13 @@
 
 The cart comes as a spec whose root holds a body ``cart`` with a free joint (:mod:`.mujoco_cart` or a
 cart file checked by :mod:`.cart_file`); it is the scene's root, so its options, defaults and floor
-stay its own (a plane floor at z = 0 is added when it has none). Each robot is its URDF as
-`wholebody.push.mujoco_urdf` rewrites it for MuJoCo (meshes resolved, those MuJoCo cannot read replaced
-by boxes with their links' inertia and reported, the profile's locked joints fixed), imported with
-``fusestatic`` off (MuJoCo would otherwise fuse every fixed link into the world: the Ridgeback + iiwa
-would weigh 36 kg instead of 226.9), attached under the prefix ``r<i>/`` with:
+stay its own (a plane floor at z = 0 is added when it has none: `mujoco_cart.floor_plane`); the scene sizes
+its own memory, and the names it adds (robot prefixes, grasp sites and welds, the floor) avoid the file's.
+Each robot is its URDF as `wholebody.push.mujoco_urdf` rewrites it for MuJoCo (meshes resolved, those
+MuJoCo cannot read replaced by boxes with their links' inertia and reported, the profile's locked joints
+fixed), imported with ``fusestatic`` off (MuJoCo would otherwise fuse every fixed link into the world: the
+Ridgeback + iiwa would weigh 36 kg instead of 226.9), attached under the prefix ``r<i>/`` (``r<i>_1/`` when the
+cart file uses that one) with:
 
 - the base: an omnidirectional base gets a planar joint set (slide x, slide y, hinge z) under velocity
   servos (its mecanum rollers are not simulated); a differential base gets a free joint, sphere tyres
@@ -34,7 +36,7 @@ import mujoco
 import numpy as np
 
 from wholebody.errors import WholeBodyError
-from wholebody.push.mujoco_cart import geom_lowest_z
+from wholebody.push.mujoco_cart import floor_plane, geom_lowest_z
 from wholebody.push.file_version import file_version
 from wholebody.push.mujoco_urdf import MujocoUrdf, mujoco_urdf
 
@@ -474,13 +476,70 @@ def _disable_collisions(spec: mujoco.MjSpec) -> None:
             g.conaffinity = 0
 
 
-def _floor_bits(scene: mujoco.MjSpec) -> tuple[int, int, int]:
-    """Return (contype, conaffinity, priority) of the scene's floor plane; add one at z = 0 if there is none."""
-    for g in scene.worldbody.geoms:
-        if g.type == mujoco.mjtGeom.mjGEOM_PLANE:
-            return int(g.contype), int(g.conaffinity), int(g.priority)
-    scene.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], contype=1, conaffinity=1)
-    return 1, 1, 0
+def _taken_names(model: mujoco.MjModel) -> set[str]:
+    """Return every name of a compiled model (bodies, geoms, sites, joints, equalities, assets, ...): the names the
+    scene's own must not repeat."""
+    return {name for name in bytes(model.names).decode("utf-8", "replace").split("\0") if name}
+
+
+def _free_name(base: str, taken: set[str], prefix: bool = False) -> str:
+    """Return the first of `base`, `base_1`, `base_2`, ... that is not in `taken` (with `prefix`: that no name in
+    `taken` starts with, followed by ``/``: a robot's prefix); add it to `taken`."""
+    k = 0
+    while True:
+        name = base if k == 0 else f"{base}_{k}"
+        clash = any(t.startswith(name + "/") for t in taken) if prefix else name in taken
+        if not clash:
+            taken.add(name + "/" if prefix else name)
+            return name
+        k += 1
+
+
+def _free_bit(cart: mujoco.MjModel, skip: int | None) -> int:
+    """Return a collision bit (``1 << k``) no geom of the cart spec compiled alone uses but geom `skip` (its floor):
+    the robots' supports and the floor share it, so they touch each other and nothing of the cart."""
+    used = 0
+    for g in range(cart.ngeom):
+        if g != skip:
+            used |= int(cart.geom_contype[g]) | int(cart.geom_conaffinity[g])
+    free = [k for k in range(30, 0, -1) if not used >> k & 1]
+    return 1 << free[0] if free else 0
+
+
+def _spec_floor(scene: mujoco.MjSpec, cart: mujoco.MjModel, g: int) -> mujoco.MjsGeom | None:
+    """Return the spec's geom of the cart model's floor plane `g` (by name; an unnamed one by its place among the
+    world's geoms, which come first in the model), or None when it cannot be told."""
+    name = mujoco.mj_id2name(cart, mujoco.mjtObj.mjOBJ_GEOM, g)
+    if name:
+        return scene.geom(name)
+    world = list(scene.worldbody.geoms)
+    return world[g] if g < len(world) and world[g].type == mujoco.mjtGeom.mjGEOM_PLANE else None
+
+
+def _floor_bits(scene: mujoco.MjSpec, cart: mujoco.MjModel, taken: set[str]) -> tuple[int, int, int]:
+    """Return (contype, conaffinity, priority) the robots' supports collide with the floor by (`_add_supports`).
+
+    The floor is `mujoco_cart.floor_plane` of `cart` (the cart spec compiled alone); without one a plane at z = 0
+    is added under a name not in `taken`. The supports' contype is a bit no cart geom uses (`_free_bit`), added to
+    the floor's conaffinity, and their conaffinity is 0: a robot's tyres and casters roll on the floor and pass
+    through the cart and each other, whatever bits the file gives (with a file whose every geom collides, two
+    WMRAs side by side pushed each other's casters apart and lost the cart)."""
+    g = floor_plane(cart)
+    bit = _free_bit(cart, g)
+    if g is None:
+        scene.worldbody.add_geom(
+            name=_free_name("floor", taken),
+            type=mujoco.mjtGeom.mjGEOM_PLANE,
+            size=[0, 0, 1],
+            contype=1,
+            conaffinity=1 | bit,
+        )
+        return (0, bit, 0) if bit else (1, 1, 0)
+    floor = _spec_floor(scene, cart, g)
+    if floor is None or not bit:
+        return int(cart.geom_contype[g]), int(cart.geom_conaffinity[g]), int(cart.geom_priority[g])
+    floor.conaffinity = int(floor.conaffinity) | bit
+    return 0, bit, int(cart.geom_priority[g])
 
 
 def _warn(setup: RobotSetup, prepared: RobotUrdf) -> None:
@@ -499,9 +558,13 @@ def _warn(setup: RobotSetup, prepared: RobotUrdf) -> None:
         warnings.warn(note, MujocoSceneWarning, stacklevel=3)
 
 
-def _prepare_robot(scene: mujoco.MjSpec, setup: RobotSetup, i: int, floor: tuple[int, int, int]) -> dict:
-    """Attach robot `i` to the scene (joints, tyres, sensor site, hand site); return the names to index later."""
-    prefix = f"r{i}/"
+def _prepare_robot(
+    scene: mujoco.MjSpec, setup: RobotSetup, i: int, floor: tuple[int, int, int], taken: set[str]
+) -> dict:
+    """Attach robot `i` to the scene (joints, tyres, sensor site, hand site) under a prefix (``r<i>/``) and pick
+    its grasp's name (``grasp<i>``), each clear of the names in `taken`; return the names to index later."""
+    prefix = _free_name(f"r{i}", taken, prefix=True) + "/"
+    grasp = _free_name(f"grasp{i}", taken)
     prepared = robot_urdf(setup)
     _warn(setup, prepared)
     spec = _urdf_spec(prepared.urdf.text)
@@ -529,6 +592,7 @@ def _prepare_robot(scene: mujoco.MjSpec, setup: RobotSetup, i: int, floor: tuple
     scene.attach(spec, prefix=prefix, frame=frame)
     return {
         "prefix": prefix,
+        "grasp": grasp,
         "base": prepared.base,
         "tool": (tool_mass, tool_com),
         "meshes": tuple(str(m) for m in prepared.urdf.replaced_meshes),
@@ -540,21 +604,21 @@ def _add_robot_elements(
     scene: mujoco.MjSpec,
     setup: RobotSetup,
     names: dict,
-    i: int,
     compliance: GraspCompliance,
     gains: ServoGains,
     robot_inertia: tuple[float, float],
 ) -> None:
-    """Add the grasp weld, the servos/motors and the F/T sensors of robot `i` (after attaching it)."""
-    p = names["prefix"]
+    """Add the grasp weld, the servos/motors and the F/T sensors of a robot (after attaching it; `names` from
+    `_prepare_robot`)."""
+    p, grasp = names["prefix"], names["grasp"]
     T = setup.T_b_hand
-    scene.body("cart").add_site(name=f"grasp{i}", pos=T[:3, 3], quat=quat_from_matrix(T[:3, :3]), size=[0.012, 0, 0])
+    scene.body("cart").add_site(name=grasp, pos=T[:3, 3], quat=quat_from_matrix(T[:3, :3]), size=[0.012, 0, 0])
     scene.add_equality(
-        name=f"grasp{i}",
+        name=grasp,
         type=mujoco.mjtEq.mjEQ_WELD,
         objtype=mujoco.mjtObj.mjOBJ_SITE,
         name1=f"{p}hand",
-        name2=f"grasp{i}",
+        name2=grasp,
         solref=list(compliance.solref),
         solimp=list(compliance.solimp) + [0.5, 2.0],
         data=[0.0] * 10 + [compliance.torquescale, 0.0],
@@ -620,21 +684,40 @@ def compose(
     scene = cart_spec
     scene.compiler.fusestatic = False
     scene.option.timestep = physics_dt
-    floor = _floor_bits(scene)
-    names = [_prepare_robot(scene, s, i, floor) for i, s in enumerate(setups)]
-    for i, (s, n) in enumerate(zip(setups, names)):
-        _add_robot_elements(scene, s, n, i, compliance, gains, robot_inertia(robot_urdf(s).urdf.text, s.name))
-    try:
-        model = scene.compile()
-    except ValueError as exc:  # MuJoCo's compiler error
-        raise SceneCompositionError(f"the MuJoCo scene does not compile: {str(exc).splitlines()[0]}") from None
+    alone = _compile(scene)  # the cart alone: its floor, its names and the memory it asks for
+    taken = _taken_names(alone)
+    floor = _floor_bits(scene, alone, taken)
+    names = [_prepare_robot(scene, s, i, floor, taken) for i, s in enumerate(setups)]
+    for s, n in zip(setups, names):
+        _add_robot_elements(scene, s, n, compliance, gains, robot_inertia(robot_urdf(s).urdf.text, s.name))
+    model = _compile_sized(scene, int(alone.narena))
     data = mujoco.MjData(model)
     cart = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "cart")
     cart_jnt = int(model.body_jntadr[cart])
     out = Scene(model, data, cart, int(model.jnt_qposadr[cart_jnt]), int(model.jnt_dofadr[cart_jnt]), [])
-    out.robots = [_index(model, s, n, i) for i, (s, n) in enumerate(zip(setups, names))]
+    out.robots = [_index(model, s, n) for s, n in zip(setups, names)]
     set_state(out, cart_pose, cart_z, [s.x for s in setups])
     return out
+
+
+def _compile(scene: mujoco.MjSpec) -> mujoco.MjModel:
+    """Return the compiled scene, or raise SceneCompositionError with MuJoCo's message."""
+    try:
+        return scene.compile()
+    except ValueError as exc:  # MuJoCo's compiler error
+        raise SceneCompositionError(f"the MuJoCo scene does not compile: {str(exc).splitlines()[0]}") from None
+
+
+def _compile_sized(scene: mujoco.MjSpec, cart_arena: int) -> mujoco.MjModel:
+    """Return the compiled scene with its own memory: MuJoCo's size for the whole scene (the cart file's
+    ``<size memory>`` sized the cart alone, too small for the robots), or the cart's `cart_arena` (bytes) when
+    that is larger."""
+    scene.memory, scene.nstack = -1, -1
+    model = _compile(scene)
+    if cart_arena > int(model.narena):
+        scene.memory = cart_arena
+        model = _compile(scene)
+    return model
 
 
 def _jid(model: mujoco.MjModel, name: str) -> int:
@@ -648,7 +731,8 @@ def _aid(model: mujoco.MjModel, name: str) -> int:
     return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
 
 
-def _index(model: mujoco.MjModel, s: RobotSetup, names: dict, i: int) -> RobotIndex:
+def _index(model: mujoco.MjModel, s: RobotSetup, names: dict) -> RobotIndex:
+    """Return the addresses of robot `s` in the compiled scene (`names` from `_prepare_robot`)."""
     p = names["prefix"]
     arm_j = [_jid(model, p + n) for n in s.arm_joints]
     wheel_j = [_jid(model, p + n) for n in s.wheel_joints]
@@ -697,9 +781,9 @@ def _index(model: mujoco.MjModel, s: RobotSetup, names: dict, i: int) -> RobotIn
         root_body=int(model.body_rootid[_body_id(model, p + s.ee_link, s.name)]),
         ee_body=_body_id(model, p + s.ee_link, s.name),
         hand_site=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{p}hand"),
-        handle_site=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"grasp{i}"),
+        handle_site=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, names["grasp"]),
         ft_site=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{p}ft"),
-        weld=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, f"grasp{i}"),
+        weld=mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, names["grasp"]),
         force_adr=int(model.sensor_adr[sensor_f]),
         torque_adr=int(model.sensor_adr[sensor_t]),
         tool_mass=names["tool"][0],

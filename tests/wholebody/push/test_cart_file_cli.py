@@ -102,3 +102,18 @@ def test_a_handle_out_of_the_wmra_reach_says_how_high_it_is(tmp_path, capsys):
     lines = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(lines) == 1, lines
     assert "reaches the handle nowhere along it" in lines[0] and "2.05 m above the floor" in lines[0], lines
+
+
+def test_a_cart_on_a_raised_box_floor_stops_the_push_with_one_line(tmp_path, capsys):
+    """A box floor with its top at z = 0.1 and no plane: the robots stand on a plane, so the command says to give one
+    at that height (it said to raise the cart to 0.1 m, which then failed after the settle)."""
+    path = tmp_path / "box_floor.xml"
+    box = '<geom name="floor" type="box" pos="0 0 0.05" size="20 20 0.05"/>'
+    path.write_text(
+        f"<mujoco><worldbody>{box}{BODY.replace('0 0 0.05', '0 0 0.15').format(sites=BAR)}</worldbody></mujoco>"
+    )
+    code = main(["push", "--plant", "mujoco", "--cart-model", str(path), "--duration", "8", "--json"])
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert code == 2 and captured.out == "" and len(lines) == 1, lines
+    assert str(path) in lines[0] and 'give a <geom type="plane"> at z = 0.1 ' in lines[0], lines
