@@ -784,8 +784,13 @@ class _Named:
     slot: int = -1
 
 
-def _checked_signals(log: CartLog, horizon: float | None, window: float | None) -> tuple[Signals, float, np.ndarray]:
-    """Return (signals, replay horizon, window edges) of ``log``; raise DiagnoseError when it cannot be diagnosed."""
+def _checked_signals(
+    log: CartLog, horizon: float | None, window: float | None, wrench_holes: Sequence[tuple[float, float]] = ()
+) -> tuple[Signals, float, np.ndarray]:
+    """Return (signals, replay horizon, window edges) of ``log``; raise DiagnoseError when it cannot be diagnosed.
+
+    The windows that reach a pose hole or one of ``wrench_holes`` (:func:`clear_of`) are left out of the fits.
+    """
     if not np.any(log.gamma):
         raise DiagnoseError(f"{log.source}: the wrench is zero throughout; nothing to diagnose")
     sig = signals_from_log(log)
@@ -806,7 +811,8 @@ def _checked_signals(log: CartLog, horizon: float | None, window: float | None) 
             "convert it to seconds"
         )
     edges = window_edges(sig.t, window if window is not None else 2.0 * sig.half_window, sig.breaks)
-    sig.extras[KEEP_KEY] = window_keep(edges, sig.breaks) & clear_of_holes(sig, edges)
+    keep = window_keep(edges, sig.breaks) & clear_of_holes(sig, edges)
+    sig.extras[KEEP_KEY] = keep & clear_of(sig, edges, np.asarray(wrench_holes, float))
     sig.extras["noise_dv"] = velocity_change_noise(sig, edges)
     n_win = int(np.sum(sig.extras[KEEP_KEY]))
     if n_win < 11:
@@ -833,12 +839,24 @@ def clear_of_holes(sig: Signals, edges: np.ndarray) -> np.ndarray:
     Read as data, those windows' rows made a mass step: a held-pose table with three dropouts named a
     9 kg ``payload_change`` (``tests/cart/test_redteam_diagnose.py``).
     """
+    holes = np.flatnonzero(np.diff(sig.t) > float(sig.half_window))
+    return clear_of(sig, edges, np.column_stack([sig.t[holes], sig.t[holes + 1]]))
+
+
+def clear_of(sig: Signals, edges: np.ndarray, spans: np.ndarray) -> np.ndarray:
+    """Return the mask of the windows that hold no sample within the fits' half-window of any of ``spans``.
+
+    ``spans``: (k, 2) intervals (t0, t1) of ``sig``'s time: pose holes (:func:`clear_of_holes`) or the
+    stretches where the wrench was filled, not measured (``Prepared.wrench_holes``: a clipped axis or a stuck
+    sensor whose samples the streams excluded; the fill across a clipped peak reads the clip level, and
+    read as data the windows there made a ``payload_change``).
+    """
     hw = float(sig.half_window)
-    holes = np.flatnonzero(np.diff(sig.t) > hw)
     keep = np.ones(max(len(edges) - 1, 0), bool)
-    if len(holes) == 0 or len(keep) == 0:
+    spans = np.asarray(spans, float).reshape(-1, 2)
+    if len(spans) == 0 or len(keep) == 0:
         return keep
-    lo, hi = sig.t[holes] - hw, sig.t[holes + 1] + hw  # the samples whose fits reach the hole
+    lo, hi = spans[:, 0] - hw, spans[:, 1] + hw  # the samples whose fits reach the span
     t0, t1 = sig.t[edges[:-1]], sig.t[edges[1:]]
     first = np.searchsorted(t1, lo, side="right")  # first window that ends after lo
     last = np.searchsorted(t0, hi, side="left")  # first window that starts at or after hi
@@ -1706,6 +1724,24 @@ def _search(
     return p_named[-1].trial.fit, p_named, p_reasons, p_reps, first_scores, p_verdicts
 
 
+def _replay_mask(
+    rep0: Replay, horizon: float, wrench_holes: Sequence[tuple[float, float]]
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Return (flagged starts, the starts the gaps are measured over: None for all) of the nominal replay ``rep0``.
+
+    A replay whose horizon reaches one of ``wrench_holes`` is driven by a filled wrench (across a clipped peak,
+    the clip level): its error is the fill's, not the cart's, and it is neither flagged nor counted in the gaps.
+    """
+    spans = np.asarray(wrench_holes, float).reshape(-1, 2)
+    spans = spans[np.argsort(spans[:, 0])]
+    reach = np.r_[-np.inf, np.maximum.accumulate(spans[:, 1])]  # latest end among the spans that begin by then
+    clear = reach[np.searchsorted(spans[:, 0], rep0.starts + horizon, side="right")] < rep0.starts
+    flagged = flag_starts(rep0) & clear
+    if np.any(flagged):
+        return flagged, flagged
+    return flagged, None if np.all(clear) else clear
+
+
 def diagnose(
     log: CartLog,
     candidates: Sequence[Effect] | None = None,
@@ -1723,12 +1759,11 @@ def diagnose(
     The log is first prepared (:func:`cart.diagnose_prep.prepare_log`: sensor streams, size, time origin).
     """
     prep = prepare_log(log)
-    sig, horizon, edges = _checked_signals(prep.log, horizon, window)
+    sig, horizon, edges = _checked_signals(prep.log, horizon, window, prep.wrench_holes)
     cands = list(candidates) if candidates is not None else registered_effects()
     nominal, warnings = _nominal_fit(sig, edges, log.source)
     rep0 = replay(sig, nominal.x, horizon=horizon)
-    flagged = flag_starts(rep0)
-    mask = flagged if np.any(flagged) else None
+    flagged, mask = _replay_mask(rep0, horizon, prep.wrench_holes)
     slip_ratio = lateral_slip_ratio(sig, sig.extras["base"][2][:, 2], edges, sig.extras.get(KEEP_KEY))
     current, named, reasons, reps, first_scores, verdicts = _search(
         sig, edges, nominal, cands, (threshold, horizon, max_effects), (mask, rep0, slip_ratio)

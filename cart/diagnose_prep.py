@@ -7,7 +7,10 @@
    samples, dropout repeats, glitches, a stuck force sensor. The diagnosis runs on the pose
    samples, with the wrench averaged over the interval around each (half-way to the neighbours;
    interpolated where that interval holds no wrench sample). A held pose read as motion stops and
-   jumps at the motion-capture rate: the nominal fit of such a table is not a cart.
+   jumps at the motion-capture rate: the nominal fit of such a table is not a cart. The wrench samples
+   the streams exclude (a clipped axis, a stuck sensor) leave holes in the wrench stream whose fill is no
+   measurement (across a clipped peak it reads the clip level): ``wrench_holes`` lists them, and the
+   diagnosis leaves the windows that reach them out of its fits, as ``estimate`` leaves them out.
 2. **Working rate.** A log of more than ``MAX_SAMPLES`` samples is averaged over blocks of
    consecutive samples (never below ``MIN_RATE`` Hz), so the per-sample work (smoothing, caster
    kinematics, effect columns) is bounded; what grows with the log's duration is the number of
@@ -22,10 +25,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cart.logs import CartLog
+
+if TYPE_CHECKING:
+    from cart.streams import Streams
 
 #: Above this many samples the diagnosis averages blocks of consecutive samples.
 MAX_SAMPLES = 60000
@@ -37,12 +44,14 @@ MIN_POSES = 20
 
 @dataclass(frozen=True)
 class Prepared:
-    """A log ready for diagnosis: ``log`` (time origin 0), ``time_offset`` (s), ``block`` size, ``notes``."""
+    """A log ready for diagnosis: ``log`` (time origin 0), ``time_offset`` (s), ``block`` size, ``notes``,
+    ``wrench_holes``: (t0, t1) intervals (in ``log``'s time) where the wrench was filled, not measured."""
 
     log: CartLog
     time_offset: float
     block: int
     notes: tuple[str, ...]
+    wrench_holes: tuple[tuple[float, float], ...] = ()
 
 
 def _split(log: CartLog):
@@ -71,8 +80,33 @@ def wrench_at_pose_times(tp: np.ndarray, tw: np.ndarray, gw: np.ndarray) -> np.n
     return out
 
 
-def _merge_streams(log: CartLog, notes: list[str]) -> CartLog:
-    """Return ``log`` on its pose stream's samples with the wrench stream averaged onto them (unchanged if clean)."""
+def wrench_holes(log: CartLog, st: Streams) -> tuple[tuple[float, float], ...]:
+    """Return the (t0, t1) intervals of the wrench stream that hold samples the streams excluded, in ``log``'s time.
+
+    ``st``: the :class:`cart.streams.Streams` of ``log``. Excluded are the rows of a clipped channel (that
+    channel at its clip value, ``st.saturated``) and a stuck sensor's (``st.stuck``); each hole runs from the
+    last kept wrench sample before them to the first after (the stretch the merged wrench fills).
+    """
+    from cart.streams import WRENCH_CHANNELS
+
+    t, g, tw = np.asarray(log.t, float), np.asarray(log.gamma, float), st.wrench.t
+    out = np.zeros(len(t), dtype=bool)
+    for name, value, _ in st.saturated:
+        out |= g[:, WRENCH_CHANNELS.index(name)] == value
+    for t0, t1 in st.stuck:
+        out |= (t > t0) & (t <= t1)
+    te = t[out]
+    if len(te) == 0 or len(tw) == 0:
+        return ()
+    i = np.searchsorted(tw, te)
+    lo = np.where(i > 0, tw[np.maximum(i - 1, 0)], te)
+    hi = np.where(i < len(tw), tw[np.minimum(i, len(tw) - 1)], te)
+    return tuple((float(a), float(b)) for a, b in np.unique(np.column_stack([lo, hi]), axis=0))
+
+
+def _merge_streams(log: CartLog, notes: list[str], holes: list[tuple[float, float]]) -> CartLog:
+    """Return ``log`` on its pose stream's samples with the wrench stream averaged onto them (unchanged if clean);
+    append the wrench's holes (:func:`wrench_holes`) to ``holes``."""
     st = _split(log)
     if st is None:
         return log
@@ -91,6 +125,7 @@ def _merge_streams(log: CartLog, notes: list[str]) -> CartLog:
     if clean or len(st.pose.t) < MIN_POSES:  # a cart that never moves repeats one pose: nothing to separate
         return log
     notes.extend(st.warnings())
+    holes.extend(wrench_holes(log, st))
     if not st.multi_rate and len(st.pose.t) < len(log.t) - len(st.glitches):
         notes.append(
             f"{len(log.t) - len(st.pose.t) - len(st.glitches)} rows repeat a pose while the cart moved "
@@ -131,7 +166,8 @@ def _block_average(log: CartLog, notes: list[str]) -> tuple[CartLog, int]:
 def prepare_log(log: CartLog) -> Prepared:
     """Return ``log`` ready for diagnosis: streams merged on the pose samples, bounded size, time origin 0."""
     notes: list[str] = []
-    merged = _merge_streams(log, notes)
+    holes: list[tuple[float, float]] = []
+    merged = _merge_streams(log, notes, holes)
     small, block = _block_average(merged, notes)
     t0 = float(small.t[0])
     shifted = CartLog(
@@ -142,4 +178,10 @@ def prepare_log(log: CartLog) -> Prepared:
         metadata=dict(small.metadata),
         source=small.source,
     )
-    return Prepared(log=shifted, time_offset=t0, block=block, notes=tuple(notes))
+    return Prepared(
+        log=shifted,
+        time_offset=t0,
+        block=block,
+        notes=tuple(notes),
+        wrench_holes=tuple((a - t0, b - t0) for a, b in holes),
+    )

@@ -41,6 +41,8 @@ NIS_MISFIT = 18.0
 EKF_BIAS_Z = 3.0
 #: Mass or inertia whose std exceeds this share of the value (its ± larger than itself): not identified.
 MAX_RELATIVE_STD = 1.0
+#: Mass whose std exceeds this share of the value: known only roughly, and a warning says so (:func:`weak_mass_note`).
+WEAK_MASS_STD = 0.05
 #: Half-size (m) of the largest cart (a hospital bed) when the log cannot give the body's size.
 MAX_HALF_SIZE = 1.0
 #: Samples beyond which the EKF check runs on CHECK_CHUNKS evenly spaced stretches of this total length.
@@ -315,7 +317,7 @@ def _run_ls(log: CartLog, streams: Streams) -> EstimateReport:
         std=std,
         nis_mean=nis,
         model_fits=fits,
-        warnings=tuple(warnings + _unknown_notes(unknown)),
+        warnings=_final_notes(warnings, params, std, unknown, fits),
         not_identified=unknown,
         fields=fields,
         streams=streams,
@@ -361,6 +363,42 @@ def _caster_json(casters) -> dict[str, Any] | None:
 def _unknown_notes(unknown: dict[str, str]) -> list[str]:
     """Return the warnings naming the parameters not identified (the CoM's coordinates each, not twice)."""
     return [f"{name} not identified: {why}" for name, why in unknown.items() if name != "com"]
+
+
+def weak_mass_note(params: CartParams, std: Mapping[str, Any], unknown: Mapping[str, str], fits: bool) -> list[str]:
+    """Return a warning when the mass's std is above ``WEAK_MASS_STD`` of the mass (and the mass is identified).
+
+    The std is honest (a light cart under heavy F/T noise: 4.01 +- 0.83 kg for 5.23), but a reader of the
+    number alone takes it for a few per cent: the warning gives the relative std and its cause. When the model
+    fits (``fits``) that is the forward acceleration the log holds against the force noise (the mass's
+    information is their ratio squared); otherwise the std also carries the misfit the other warnings name.
+    """
+    if "mass" in unknown or not (params.m > 0 and std["mass"] > WEAK_MASS_STD * params.m):
+        return []
+    why = (
+        "little forward acceleration for the F/T noise; push with more speed changes, for longer, or with a less "
+        "noisy sensor for a closer mass"
+        if fits
+        else "the std carries the model's misfit (see the other warnings) besides the F/T noise"
+    )
+    share = 100.0 * std["mass"] / params.m
+    return [
+        f"the mass is known only to +-{share:.0f} % from this log ({params.m:.4g} +- {std['mass']:.2g} kg, 1 std): {why}"
+    ]
+
+
+#: The fit's own note on a mass whose std is above half of it (`cart.identify`), which :func:`weak_mass_note` supersedes.
+_WEAKLY_EXCITED_MASS = "mass weakly excited"
+
+
+def _final_notes(
+    warnings: list[str], params: CartParams, std: Mapping[str, Any], unknown: dict[str, str], fits: bool
+) -> tuple[str, ...]:
+    """Return the report's warnings: ``warnings``, the parameters not identified, and the mass's precision
+    (:func:`weak_mass_note`, which then replaces the fit's "mass weakly excited": one note on one std)."""
+    weak = weak_mass_note(params, std, unknown, fits)
+    kept = [w for w in warnings if not (weak and w.startswith(_WEAKLY_EXCITED_MASS))]
+    return tuple(kept + _unknown_notes(unknown) + weak)
 
 
 def _segment_json(seg: dict[str, Any]) -> dict[str, Any]:
@@ -447,7 +485,7 @@ def _run_ekf(log: CartLog, streams: Streams, guess: CartParams) -> EstimateRepor
         std=est.std,
         nis_mean=est.mean_nis,
         model_fits=fits,
-        warnings=tuple(warnings + _unknown_notes(unknown)),
+        warnings=_final_notes(warnings, p, est.std, unknown, fits),
         not_identified=unknown,
         fields={
             "velocities_estimated": est.velocities_estimated,

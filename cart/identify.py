@@ -1014,8 +1014,7 @@ def identify(
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings, (grid.dt * step, fc))
     cart_frame = _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
     origin = None if fits else _torque_origin_reading(grid, sos, (full, step), noise, (lv, sv, so))
-    cov = _with_turn_attenuation(cov, p, _turn_noise_share(full.om, lv.theta, len(grid.t), grid.dt, sos))
-    p, cov, note = _physical(p, cov)
+    p, cov, note = _physical(p, _with_turn_attenuation(cov, p, _turn_noise_share(full.om, lv.theta, grid, sos)))
     warnings += note
     (params, inertia), std = _physical_params(log, p, cov), _physical_std(p, cov)
     warnings += _excitation_warnings(p, std, inertia if inertia > 0 else params.I)
@@ -1108,7 +1107,7 @@ def _filtered_regression(
     return sos, reg, lag, (sv, so), noise
 
 
-def _turn_noise_share(om: np.ndarray, th_std: float, n: int, dt: float, sos: np.ndarray) -> float:
+def _turn_noise_share(om: np.ndarray, th_std: float, grid: _Grid, sos: np.ndarray) -> float:
     """Return the share of the filtered yaw rate's power that the heading's white noise alone makes (0-1).
 
     The CoM's forward coordinate enters the regression only through the yaw rate (``m dx`` multiplies
@@ -1116,10 +1115,10 @@ def _turn_noise_share(om: np.ndarray, th_std: float, n: int, dt: float, sos: np.
     that pulls ``m dx`` towards 0 by about this share, which the regression's std does not see (a cart pushed
     straight: dx read as 0 +- a few cm).
     """
-    ef = _filtfilt(sos, _unit_noise(n))
+    ef = _filtfilt(sos, _unit_noise(len(grid.t)))
     m = len(ef)
     core = slice(m // 10, m - m // 10) if m > 50 else slice(None)
-    noise_var = (th_std * float(np.std(np.gradient(ef, dt)[core]))) ** 2
+    noise_var = (th_std * float(np.std(np.gradient(ef, grid.dt)[core]))) ** 2
     return float(min(1.0, noise_var / max(float(np.var(om)), 1e-300)))
 
 

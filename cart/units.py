@@ -14,6 +14,9 @@ kinematics of the pose stream, whatever the cart:
   log's metadata or header declares is checked (:func:`check_declared_units`);
 - heading in degrees: the heading turns about 57 times faster than the direction of travel (a cart
   rolls along its heading: paper eq. 3), or its typical yaw rate is beyond ``MAX_TYPICAL_YAW_RATE``;
+- torque in N mm: the torque about {b}'s origin is at most the force times the distance from {b} to where
+  it is applied (a handle or an end effector on the cart); a torque whose scale needs a lever arm beyond
+  ``MAX_LEVER_ARM`` (:func:`_torque_scale`) is in N mm;
 - a wrench in the cart frame {b} instead of the world frame {s} (:func:`check_wrench_frame`): on a log
   the model does not fit, read in {b} and rotated by theta the forward row's residual variance drops below
   ``FRAME_VARIANCE_SHARE`` of its value as written.
@@ -38,6 +41,11 @@ MAX_TYPICAL_SPEED = 8.0  # m/s, 90th percentile: no pushed cart moves that fast 
 MAX_TYPICAL_YAW_RATE = 12.0  # rad/s, 90th percentile
 #: Share of moving, turning windows whose heading rate / travel-direction rate is near 180 / pi.
 DEGREE_SHARE = 0.6
+#: m: the torque's lever arm beyond which tau is not in N m: ten times the half-size of the largest cart
+#: (a hospital bed's 1 m, `cart.estimate_report.MAX_HALF_SIZE`); N mm make a 1 cm arm read 10 m.
+MAX_LEVER_ARM = 10.0
+#: Percentile of |tau| and |F| compared by :func:`_torque_scale` (robust to glitches and brief couples).
+LEVER_PERCENTILE = 95.0
 
 
 #: Share of the forward residual variance below which the wrench read in {b} fits so much better that it is in {b}.
@@ -117,13 +125,46 @@ def _constant_wrench_column(streams: Streams, source: str) -> None:
             )
 
 
+def lever_arm(wrench: np.ndarray) -> float:
+    """Return the lever arm (m) the wrench's scale implies: the ``LEVER_PERCENTILE`` of |tau| over that of |F|.
+
+    ``wrench``: (n, 3) rows (fx, fy, tau). A push applied at r from {b}'s origin makes tau = r x F, so
+    |tau| <= |r| |F| on every sample and the ratio of the two percentiles is at most |r| (order statistics
+    keep the inequality); a high percentile, not the maximum, so that a glitch or a brief couple (two hands
+    turning the cart with little net force) does not set it. Infinite when the force is zero throughout.
+    """
+    force = float(np.percentile(np.hypot(wrench[:, 0], wrench[:, 1]), LEVER_PERCENTILE))
+    torque = float(np.percentile(np.abs(wrench[:, 2]), LEVER_PERCENTILE))
+    return torque / force if force > 0.0 else (math.inf if torque > 0.0 else 0.0)
+
+
+def _torque_scale(streams: Streams, source: str) -> None:
+    """Raise :class:`UnitsError` when tau needs a lever arm beyond ``MAX_LEVER_ARM`` (:func:`lever_arm`).
+
+    The torque about {b}'s origin is the force's moment about it: the force is applied at the cart's handle
+    or an end effector, within a cart's size of {b} (a metre or two); a lever arm of tens of metres is not a
+    cart: tau is in N mm (x1000), and read as it is the yaw inertia comes out 1000 times too large with the
+    model fitting as well. A log whose force is zero throughout has no arm to compare (nothing is refused).
+    """
+    g = streams.wrench.values
+    if len(g) < 5:
+        return
+    arm = lever_arm(g)
+    if math.isfinite(arm) and arm > MAX_LEVER_ARM:
+        raise UnitsError(
+            f"{source}: |tau| is {arm:.4g} m times |F| ({LEVER_PERCENTILE:g}th percentiles), a lever arm no cart "
+            f"has (at most {MAX_LEVER_ARM:g} m): tau looks like N mm (x1000); divide tau by 1000 (LOG_FORMAT: N m)"
+        )
+
+
 def check_units(streams: Streams, source: str = "<memory>") -> None:
     """Raise :class:`UnitsError` when the pose stream's kinematics say time, positions or heading are not SI,
-    or a wrench column was not recorded (:func:`_constant_wrench_column`)."""
+    a wrench column was not recorded (:func:`_constant_wrench_column`) or tau is in N mm (:func:`_torque_scale`)."""
     t, q = streams.pose.t, streams.pose.values
     if len(t) < 5:
         return
     _constant_wrench_column(streams, source)
+    _torque_scale(streams, source)
     period = float(median(np.diff(t)))
     if period > MAX_POSE_PERIOD:
         unit, factor = _time_unit(period)

@@ -731,6 +731,15 @@ def _aid(model: mujoco.MjModel, name: str) -> int:
     return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
 
 
+def _tyre_radius(model: mujoco.MjModel, wheel_bodies: np.ndarray) -> float:
+    """Return the radius of the first driven wheel's tyre sphere (0 without wheels or tyre)."""
+    if not len(wheel_bodies):
+        return 0.0
+    name = f"{mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(wheel_bodies[0]))}_tyre"
+    tyre = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+    return float(model.geom_size[tyre][0]) if tyre >= 0 else 0.0
+
+
 def _index(model: mujoco.MjModel, s: RobotSetup, names: dict) -> RobotIndex:
     """Return the addresses of robot `s` in the compiled scene (`names` from `_prepare_robot`)."""
     p = names["prefix"]
@@ -752,14 +761,7 @@ def _index(model: mujoco.MjModel, s: RobotSetup, names: dict) -> RobotIndex:
     sensor_f = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, f"{p}ft_force")
     sensor_t = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, f"{p}ft_torque")
     wheel_bodies = np.array([model.jnt_bodyid[j] for j in wheel_j], dtype=int)
-    radius = 0.0
-    if wheel_j:
-        tyre = mujoco.mj_name2id(
-            model,
-            mujoco.mjtObj.mjOBJ_GEOM,
-            f"{mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(wheel_bodies[0]))}_tyre",
-        )
-        radius = float(model.geom_size[tyre][0]) if tyre >= 0 else 0.0
+    radius = _tyre_radius(model, wheel_bodies)
     limit = np.array([model.jnt_actfrcrange[j][1] if model.jnt_actfrclimited[j] else np.inf for j in arm_j])
     return RobotIndex(
         prefix=p,
