@@ -29,10 +29,10 @@ def unwrap_heading(t: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """Return the heading unwrapped (``np.unwrap``), each excursion of a big step (`BIG_STEP`) that returns to the
     heading before it within `GLITCH_S` made to return there (not 2 pi or pi off)."""
     theta = np.asarray(theta, dtype=float)
+    out = np.unwrap(theta)
     if len(theta) < 3:
-        return np.unwrap(theta)
-    d = _wrap(np.diff(theta))
-    big = np.flatnonzero(np.abs(d) > BIG_STEP)
+        return out
+    big = np.flatnonzero(np.abs(_wrap(np.diff(theta))) > BIG_STEP)
     k = 0
     while k < len(big):
         i = int(big[k])  # the excursion leaves after sample i
@@ -42,6 +42,8 @@ def unwrap_heading(t: np.ndarray, theta: np.ndarray) -> np.ndarray:
             k += 1
             continue
         j = i + 2 + int(back[0])  # the first sample back near the heading before
-        d[j - 1] += float(_wrap(theta[j] - theta[i])) - float(d[i:j].sum())
+        turns = round((out[j] - out[i] - float(_wrap(theta[j] - theta[i]))) / (2.0 * math.pi))
+        if turns:
+            out[j:] -= 2.0 * math.pi * turns
         k = int(np.searchsorted(big, j - 1, side="right"))
-    return np.concatenate([[theta[0]], theta[0] + np.cumsum(d)])
+    return out
