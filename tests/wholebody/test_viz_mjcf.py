@@ -263,3 +263,24 @@ def test_a_mujoco_run_draws_the_robots_recorded_casters_and_wheels_over_its_stat
     others = np.ones(q.shape[1], bool)
     others[[caster, caster + 1, wheel, wheel + 1]] = False
     np.testing.assert_array_equal(q[:, others], rest[:, others])
+
+
+def test_handle_sites_are_drawn_orange_and_big_enough_to_see(tmp_path):
+    """A wheelchair's two 5 mm grip points hid inside its 12 mm posts in the site's default grey: each handle site
+    is drawn in `HANDLE_RGBA` at least `HANDLE_MIN_RADIUS` across, where the file puts it."""
+    from wholebody.viz.mjcf import HANDLE_MIN_RADIUS, HANDLE_RGBA
+
+    path = tmp_path / "grips.xml"
+    path.write_text(
+        '<mujoco><worldbody><geom type="plane" size="0 0 1"/><body name="cart" pos="0 0 0.02"><freejoint/>'
+        '<geom type="box" size="0.3 0.2 0.02" mass="5"/>'
+        '<site name="handle_l" pos="-0.2 0.22 0.8" size="0.005"/><site name="handle_r" pos="-0.2 -0.22 0.8" size="0.005"/>'
+        "</body></worldbody></mujoco>"
+    )
+    cart = cart_file_robot(path)
+    grips = {g.name: g for g in cart.robot.visual_model.geometryObjects if g.name.startswith("handle")}
+    assert sorted(grips) == ["handle_l", "handle_r"]
+    for name, y in (("handle_l", 0.22), ("handle_r", -0.22)):
+        g = grips[name]
+        assert np.allclose(g.meshColor, HANDLE_RGBA) and g.geometry.radius >= HANDLE_MIN_RADIUS
+        assert g.placement.translation[:2] == pytest.approx([-0.2, y], abs=1e-9)

@@ -618,16 +618,23 @@ MEASURED_ARROW_RAISE = 0.06
 def _hand_arrows(result: PushResult, idx: np.ndarray) -> tuple[dict, dict]:
     """Return the page's force arrows (name -> (world origins, forces)) and their kinds.
 
-    The kinematic plant applies the allocated wrench: one arrow, the hand's force. A MuJoCo run's one hand:
+    The kinematic plant applies the allocated wrench: one arrow per hand, its force; a MuJoCo run with several
+    hands: each hand's allocated force. A MuJoCo run's one hand:
     the horizontal force the allocation asked for (green) and the one its F/T sensor measured (blue)."""
     from wholebody.push.robot import cart_se3, handle_point
 
     geometry = result.config.cart_geometry()
     poses = [cart_se3(result.q_true[i], geometry) for i in idx]
-    origins = np.array([T.act(handle_point(result.contact_y[i, 0], geometry)) for T, i in zip(poses, idx)])
-    forces = np.array([T.rotation @ result.wrenches[i, 0, :3] for T, i in zip(poses, idx)])
-    if not _is_physics(result) or result.wrenches.shape[1] != 1:
-        return {"hand": (origins, forces)}, {"hand": "allocated" if _is_physics(result) else "applied"}
+
+    def hand(k: int) -> tuple[np.ndarray, np.ndarray]:
+        origins = np.array([T.act(handle_point(result.contact_y[i, k], geometry)) for T, i in zip(poses, idx)])
+        return origins, np.array([T.rotation @ result.wrenches[i, k, :3] for T, i in zip(poses, idx)])
+
+    origins, forces = hand(0)
+    if not _is_physics(result) or result.wrenches.shape[1] != 1:  # each hand's force (several: allocated only)
+        kind = "allocated" if _is_physics(result) else "applied"
+        names = ["hand"] + [f"hand{k + 1}" for k in range(1, result.wrenches.shape[1])]
+        return {n: hand(k) for k, n in enumerate(names)}, dict.fromkeys(names, kind)
     th = result.q_true[idx, 2]
     measured = produced_cart_wrench(result)[idx]
     c, s = np.cos(th), np.sin(th)
@@ -656,7 +663,7 @@ def _physics_readouts(scene: Scene, result: PushResult, idx: np.ndarray) -> None
 
 
 def build_scene(result: PushResult, fps: int = 10) -> Scene:
-    """Return a Meshcat scene animating the run: robot 1, the cart, the hand force, the true and estimated CoM.
+    """Return a Meshcat scene animating the run: the robot(s), the cart, the hand forces, the true and estimated CoM.
 
     The page plays when opened (pause button and legend bottom left; ``#t=<s>``
     opens it paused at a time), starts on the robot holding the cart, and its
@@ -674,11 +681,17 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     from wholebody.viz.push_cart import robot_joints, run_cart
 
     name = result.config.robot  # the robot that ran (Ridgeback + iiwa or WMRA); to_pinocchio_q ignores base_input
-    wb = wholebody_for(robots.load(name), arm=list(result.robot_arms))  # its state holds these arms' joints
+    loaded = robots.load(name)
+    wb = wholebody_for(loaded, arm=list(result.robot_arms))  # its state holds these arms' joints
     step = max(1, int(round(1.0 / (fps * result.config.dt))))
     idx = np.arange(0, len(result.t), step)
-    rest = np.array([wb.to_pinocchio_q(x)[4:] for x in result.robot_x[:, 0]])
-    qj = robot_joints(result, wb.robot.model, rest, idx)  # as the MuJoCo plant recorded them, else the trail model
+    drawn = _drawn_robots(result, loaded)  # one per robot: side by side, or one base holding every hand
+    qj = {
+        n: robot_joints(
+            result, wb.robot.model, np.array([wb.to_pinocchio_q(x)[4:] for x in result.robot_x[:, k]]), idx, k
+        )
+        for k, n in enumerate(drawn)
+    }  # as the MuJoCo plant recorded them, else the trail model
     poses = [cart_se3(result.q_true[i]) for i in idx]
     z = COM_MARKER_Z - CART_WHEEL_RADIUS  # markers at COM_MARKER_Z above the floor, as Scene.show_com draws them
     p = result.config.true_params
@@ -689,7 +702,7 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     x0, x1 = result.q_true[:, 0].min() - 2, result.q_true[:, 0].max() + 2
     y0, y1 = result.q_true[:, 1].min() - 2, result.q_true[:, 1].max() + 2
     cart = run_cart(result, idx)
-    scene = Scene([name, cart.robot], floor=(x0, x1, y0, y1))
+    scene = Scene([*drawn.values(), cart.robot], floor=(x0, x1, y0, y1))
     scene.show_com((p.dx, p.dy), (phi[0, 1] / phi[0, 0], phi[0, 2] / phi[0, 0]))
     scene.show_trace("desired", result.q_desired[:, :2], label="cyan line: the cart's desired path")
     _physics_readouts(scene, result, idx)
@@ -697,8 +710,8 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     arrows, kinds = _hand_arrows(result, idx)
     scene.animate(
         result.t[idx],
-        {name: result.robot_x[idx, 0, :3], cart.name: result.q_true[idx]},
-        q_joints={name: qj, cart.name: cart.joints},
+        {**{n: result.robot_x[idx, k, :3] for k, n in enumerate(drawn)}, cart.name: result.q_true[idx]},
+        q_joints={**qj, cart.name: cart.joints},
         wrenches=arrows,
         kind=kinds,
         markers={"com/com_true": com_true, "com/com_est": com_est},
@@ -713,6 +726,19 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
         )
     scene.frame_robots(margin=0.6)  # the first frame: the robot holding the cart; the camera then follows them
     return scene
+
+
+def _drawn_robots(result: PushResult, loaded) -> dict:
+    """Return the page's robots, name -> what `wholebody.viz.Scene` loads: the run's robot, and for robots side by
+    side (one per hand: `wholebody.push.robot.arms_per_robot`) a copy per further hand named ``<name>_<k>``."""
+    from dataclasses import replace
+
+    from wholebody.push.robot import arms_per_robot
+
+    name, hands = result.config.robot, int(result.robot_x.shape[1])
+    if arms_per_robot(loaded.profile, hands) > 1:  # one base holds every hand
+        return {name: name}
+    return {name: name, **{f"{name}_{k + 1}": replace(loaded, name=f"{name}_{k + 1}") for k in range(1, hands)}}
 
 
 def _estimate_readouts(scene, result: PushResult, idx: np.ndarray) -> None:

@@ -156,9 +156,11 @@ class _Builder:
         for s in range(mj.nsite):
             site = mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_SITE, s) or ""
             if int(mj.site_bodyid[s]) == b and (site == "handle" or site.startswith("handle_")):
-                shape = _shape(int(mj.site_type[s]), mj.site_size[s], np.zeros(6))
+                size = np.array(mj.site_size[s], dtype=float)
+                size[0] = max(size[0], HANDLE_MIN_RADIUS)  # a 5 mm point hid inside the posts around it
+                shape = _shape(int(mj.site_type[s]), size, np.zeros(6))
                 if shape is not None:
-                    self._add(site, joint, frame, M, s, shape, np.asarray(mj.site_rgba[s], dtype=float), "site")
+                    self._add(site, joint, frame, M, s, shape, np.array(HANDLE_RGBA), "site")
 
     def _add(self, name: str, joint: int, frame: int, M: pin.SE3, i: int, shape: tuple, rgba: np.ndarray, of: str):
         """Add one geometry object: geom or site `i` of the body whose frame is at M on `joint`."""
@@ -214,8 +216,12 @@ def cart_file_robot(path: str | Path, name: str = "cart") -> MjcfCart:
     return cart_robot(load_cart_file(path).spec().compile(), name=name, source=path)
 
 
+#: handle sites are drawn in this colour (the file's site colour, grey by default, read as one more post) and at
+#: least this radius (m)
+HANDLE_RGBA = (1.0, 0.55, 0.0, 1.0)
+HANDLE_MIN_RADIUS = 0.02
 #: the legend line of a cart file's scene on its handle sites
-HANDLE_LEGEND = "bars and points named handle*: the file's handle sites, where hands may hold"
+HANDLE_LEGEND = "orange bars and points: the file's handle sites (named handle*), where hands may hold"
 
 
 def cart_file_scene(path: str | Path, serve: bool = False) -> Any:

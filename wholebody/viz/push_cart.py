@@ -114,31 +114,34 @@ def run_cart(result: Any, idx: np.ndarray, name: str = "cart") -> RunCart:
     return RunCart("shopping_cart", "shopping_cart", joints, "recorded")
 
 
-def robot_joints(result: Any, model: pin.Model, rest: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """Return robot 1's joint configurations (len(idx), nq - 4) for the page from `rest` (N, nq - 4: its state over
-    the run): the joints the MuJoCo plant recorded (`recorded_robot_joints`), else its casters swivelled by the trail
-    model over its base's true motion (`wholebody.push.report.swivel_casters`: the kinematic plant has no casters)."""
+def robot_joints(result: Any, model: pin.Model, rest: np.ndarray, idx: np.ndarray, robot: int = 0) -> np.ndarray:
+    """Return robot `robot`'s joint configurations (len(idx), nq - 4) for the page from `rest` (N, nq - 4: its state
+    over the run): the joints the MuJoCo plant recorded (`recorded_robot_joints`), else its casters swivelled by the
+    trail model over its base's true motion (`wholebody.push.report.swivel_casters`: the kinematic plant has no
+    casters)."""
     from wholebody.push.report import swivel_casters
 
-    recorded = recorded_robot_joints(result, model, np.asarray(rest, dtype=float)[idx], idx)
+    recorded = recorded_robot_joints(result, model, np.asarray(rest, dtype=float)[idx], idx, robot)
     if recorded is not None:
         return recorded
-    base = np.asarray(result.robot_x, dtype=float)[:, 0, :3]
+    base = np.asarray(result.robot_x, dtype=float)[:, robot, :3]
     dt = float(result.config.dt)
     unwrapped = np.column_stack([base[:, :2], np.unwrap(base[:, 2])])
     velocities = np.gradient(unwrapped, dt, axis=0) if len(base) > 1 else np.zeros_like(base)
     return swivel_casters(model, rest, base, velocities, dt)[idx]
 
 
-def recorded_robot_joints(result: Any, model: pin.Model, rest: np.ndarray, idx: np.ndarray) -> np.ndarray | None:
-    """Return robot 1's joint configurations at samples `idx` with every joint the MuJoCo plant recorded of it
+def recorded_robot_joints(
+    result: Any, model: pin.Model, rest: np.ndarray, idx: np.ndarray, robot: int = 0
+) -> np.ndarray | None:
+    """Return robot `robot`'s joint configurations at samples `idx` with every joint the MuJoCo plant recorded of it
     (the plant report's ``robot_joints``: casters, wheels, arm; matched by name without the scene's ``r0/``
     prefix) over `rest` (its configurations at `idx` from its state); None when the run recorded none (the page
     then swivels its casters by the trail model, `wholebody.push.report.swivel_casters`)."""
     records = (result.plant_report or {}).get("robot_joints") or []
-    if not records or len(records[0].t) == 0:
+    if len(records) <= robot or len(records[robot].t) == 0:
         return None
-    record = records[0]
+    record = records[robot]
     t_record, q_record = record.series()
     rows = q_record[recorded_rows(t_record, result.t[idx])]
     name_map = {name: name.split("/", 1)[-1] for name in record.names}
