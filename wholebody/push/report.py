@@ -678,7 +678,7 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     from wholebody.motion.kinematics import wholebody_for
     from wholebody.push.robot import cart_se3
     from wholebody.viz import COM_MARKER_Z, Scene
-    from wholebody.viz.push_cart import robot_joints, run_cart
+    from wholebody.viz.push_cart import run_cart
 
     name = result.config.robot  # the robot that ran (Ridgeback + iiwa or WMRA); to_pinocchio_q ignores base_input
     loaded = robots.load(name)
@@ -686,12 +686,7 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
     step = max(1, int(round(1.0 / (fps * result.config.dt))))
     idx = np.arange(0, len(result.t), step)
     drawn = _drawn_robots(result, loaded)  # one per robot: side by side, or one base holding every hand
-    qj = {
-        n: robot_joints(
-            result, wb.robot.model, np.array([wb.to_pinocchio_q(x)[4:] for x in result.robot_x[:, k]]), idx, k
-        )
-        for k, n in enumerate(drawn)
-    }  # as the MuJoCo plant recorded them, else the trail model
+    qj = {n: _robot_frames(result, wb, k, idx) for k, n in enumerate(drawn)}
     poses = [cart_se3(result.q_true[i]) for i in idx]
     z = COM_MARKER_Z - CART_WHEEL_RADIUS  # markers at COM_MARKER_Z above the floor, as Scene.show_com draws them
     p = result.config.true_params
@@ -726,6 +721,15 @@ def build_scene(result: PushResult, fps: int = 10) -> Scene:
         )
     scene.frame_robots(margin=0.6)  # the first frame: the robot holding the cart; the camera then follows them
     return scene
+
+
+def _robot_frames(result: PushResult, wb, k: int, idx: np.ndarray) -> np.ndarray:
+    """Return robot `k`'s joint configurations at samples `idx` for the page: as the MuJoCo plant recorded them,
+    else its casters turned by the trail model (`wholebody.viz.push_cart.robot_joints`)."""
+    from wholebody.viz.push_cart import robot_joints
+
+    rest = np.array([wb.to_pinocchio_q(x)[4:] for x in result.robot_x[:, k]])
+    return robot_joints(result, wb.robot.model, rest, idx, k)
 
 
 def _drawn_robots(result: PushResult, loaded) -> dict:
