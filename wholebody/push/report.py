@@ -423,7 +423,7 @@ def _wrench_figure(result: PushResult, label: str) -> Figure:
         ax.plot(result.t, produced[:, j], "-", color="C0", lw=0.8, label=source)
         _mark_loss(ax, result, label=j == 0)
         ax.set_ylabel(name, fontsize=8), ax.grid(alpha=0.3)
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=7)
+    _figure_legend(fig, axes[0], 7)
     before = result.t < (result.metrics.tracking_lost_at_s or math.inf)
     err = np.linalg.norm((produced - allocated)[before, :2], axis=1)
     force = np.linalg.norm(allocated[before, :2], axis=1)
@@ -502,7 +502,7 @@ def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
         pad = max(0.1 * (hi - lo), 1.0)
         ax.set_ylim(lo - pad, hi + pad)
         ax.set_ylabel(name), ax.grid(alpha=0.3)
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=6)
+    _figure_legend(fig, axes[0], 6)
     fig.suptitle(
         "the estimate (band: its 1-sigma; the CoM's is the norm over x and y) against the truth (dashed);\n"
         "vertical lines: load changes found (dashed: when detected; dotted: made); x: run-off flagged (estimate held)",
@@ -1098,6 +1098,21 @@ def _fit(result: PushResult) -> str:
     if worst > MISFIT_RATIO:
         return f"misfit: the cart model does not explain the pushes (final residual ratio {worst:.1f} > {MISFIT_RATIO:g}{flagged}); {mass}"
     return f"the cart model fits the pushes (final residual ratio {worst:.2f}{flagged}); {mass}"
+
+
+#: legend entries longer than this (characters) get a column of their own, wrapped at twice it
+LEGEND_COLUMN_CHARS = 48
+
+
+def _figure_legend(fig, ax, fontsize: int) -> None:
+    """Put `ax`'s legend under the figure: two columns of short entries, else one of entries wrapped to fit (a run
+    label with a load change or a profile path ran off both sides of the figure)."""
+    import textwrap
+
+    handles, labels = ax.get_legend_handles_labels()
+    wide = any(len(t) > LEGEND_COLUMN_CHARS for t in labels)
+    labels = [textwrap.fill(t, 2 * LEGEND_COLUMN_CHARS) for t in labels] if wide else labels
+    fig.legend(handles, labels, loc="outside lower center", ncols=1 if wide else 2, fontsize=fontsize)
 
 
 def _print_demo(runs: dict[str, PushResult], table: str, out_dir: Path, seconds: float, html: bool) -> None:
