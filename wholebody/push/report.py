@@ -8,6 +8,7 @@ comparison table, and a report directory (figures, ``scene.html``, ``push_log.cs
 from __future__ import annotations
 
 import math
+import textwrap
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -338,7 +339,10 @@ def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
     axes[2].set_ylim(0.0, max(5.0, 130.0 * max(m.com_error_max_after_5s_m for m in metrics)))
     labels = ("tracking error [mm]", "mass error |m_hat - m| [kg]", "CoM error [cm]", "hand force |f| [N]")
     for a, lab in zip(axes, labels):
-        a.set_ylabel(lab), a.grid(alpha=0.3), a.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        a.set_ylabel(lab), a.grid(alpha=0.3)
+        handles, names = a.get_legend_handles_labels()  # wrapped: a long run label took most of the width
+        names = [textwrap.fill(t, LEGEND_COLUMN_CHARS // 2) for t in names]
+        a.legend(handles, names, fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.suptitle(
         "errors over time (start transient clipped); dotted: the estimate's 1-sigma; vertical lines: load changes found\nshaded: the 1-sigma grew for >= 1 s "
         "(no new information from the pushes: the estimate is held, not updated; it may still be right)",
@@ -489,7 +493,7 @@ def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
                     lw=0,
                     label=f"+-1-sigma, {label}",
                 )
-            ax.plot(r.t, truth, color=c, ls=(0, (6, 3)), lw=1.0, alpha=0.8, label=f"truth, {label}")
+            ax.plot(r.t, truth, color=c, ls="-", lw=3.0, alpha=0.3, label=f"truth, {label}")  # pale, thick: no dash
             for k, change in enumerate(r.load_changes_true):
                 tag = f"load put in / taken out (truth), {label}" if j == 0 and k == 0 else None
                 ax.axvline(change["t_applied"], color=c, ls=":", lw=1.0, label=tag)
@@ -504,7 +508,7 @@ def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
         ax.set_ylabel(name), ax.grid(alpha=0.3)
     _figure_legend(fig, axes[0], 6)
     fig.suptitle(
-        "the estimate (band: its 1-sigma; the CoM's is the norm over x and y) against the truth (dashed);\n"
+        "the estimate (band: its 1-sigma; the CoM's is the norm over x and y) against the truth (thick pale line);\n"
         "vertical lines: load changes found (dashed: when detected; dotted: made); x: run-off flagged (estimate held)",
         fontsize=8,
     )
@@ -1107,8 +1111,6 @@ LEGEND_COLUMN_CHARS = 48
 def _figure_legend(fig, ax, fontsize: int) -> None:
     """Put `ax`'s legend under the figure: two columns of short entries, else one of entries wrapped to fit (a run
     label with a load change or a profile path ran off both sides of the figure)."""
-    import textwrap
-
     handles, labels = ax.get_legend_handles_labels()
     wide = any(len(t) > LEGEND_COLUMN_CHARS for t in labels)
     labels = [textwrap.fill(t, 2 * LEGEND_COLUMN_CHARS) for t in labels] if wide else labels
