@@ -226,17 +226,19 @@ def _unit_noise(n: int, seed: int = 0) -> np.ndarray:
     return np.random.default_rng(seed).standard_normal(min(n, 20000))
 
 
-def _gains_of(ef: np.ndarray, dt: float) -> tuple[float, float]:
-    """Return (acceleration std, output std) of filtered unit noise ``ef``, away from its ends."""
+def _gains_of(ef: np.ndarray, dt: float) -> tuple[float, float, float]:
+    """Return (acceleration std, output std, rate std) of filtered unit noise ``ef``, away from its ends."""
     m = len(ef)
-    acc = np.gradient(np.gradient(ef, dt), dt)
+    rate = np.gradient(ef, dt)
+    acc = np.gradient(rate, dt)
     k = m // 10
     core = slice(k, m - k) if m > 50 else slice(None)
-    return float(np.std(acc[core])), float(np.std(ef[core]))
+    return float(np.std(acc[core])), float(np.std(ef[core])), float(np.std(rate[core]))
 
 
-def _noise_gains(n: int, dt: float, sos: np.ndarray, seed: int = 0) -> tuple[float, float]:
-    """Return (acceleration std per unit pose noise, filtered-output std per unit input noise) of the pipeline."""
+def _noise_gains(n: int, dt: float, sos: np.ndarray, seed: int = 0) -> tuple[float, float, float]:
+    """Return (acceleration std per unit pose noise, filtered-output std per unit input noise, rate std per unit
+    pose noise) of the pipeline."""
     return _gains_of(_filtfilt(sos, _unit_noise(n, seed)), dt)
 
 
@@ -271,7 +273,7 @@ def _chunk_accelerations(
             valid[:k] = valid[-k:] = False
         vds.append(vd[valid])
         ods.append(od[valid])
-    acc_gain, _ = _gains_of(ef, grid.dt)
+    acc_gain = _gains_of(ef, grid.dt)[0]
     return np.concatenate(vds), np.concatenate(ods), acc_gain
 
 
@@ -997,7 +999,7 @@ def identify(
     grid = _uniform_grid(log, streams)
     lv = _noise_levels(log, streams)
     fc, warnings = _choose_cutoff(grid, lv.pos, lv.theta, attenuation)
-    sos, reg, lag, (sv, so), noise = _filtered_regression(log, grid, fc, lv)
+    sos, reg, lag, (sv, so, sw), noise = _filtered_regression(log, grid, fc, lv)
     full, step = reg, _decimation(len(reg.y), 1.0 / grid.dt, fc)
     reg, lag = _every(reg, step), int(math.ceil(lag / step))
     _check_independent_rows(log, reg, lag, (fc, grid.dt))
@@ -1014,7 +1016,7 @@ def identify(
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings, (grid.dt * step, fc))
     cart_frame = _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
     origin = None if fits else _torque_origin_reading(grid, sos, (full, step), noise, (lv, sv, so))
-    p, cov, note = _physical(p, _with_turn_attenuation(cov, p, _turn_noise_share(full.om, lv.theta, grid, sos)))
+    p, cov, note = _physical(p, _with_turn_attenuation(cov, p, _turn_noise_share(full.om, sw)))
     warnings += note
     (params, inertia), std = _physical_params(log, p, cov), _physical_std(p, cov)
     warnings += _excitation_warnings(p, std, inertia if inertia > 0 else params.I)
@@ -1091,35 +1093,33 @@ def _cart_frame_reading(
 
 def _filtered_regression(
     log: CartLog, grid: _Grid, fc: float, lv: _Noise
-) -> tuple[np.ndarray, _Regression, int, tuple[float, float], np.ndarray]:
-    """Return (sos, regression, lag, (sv, so), noise): the low-passed regression at cut-off ``fc`` and its noise.
+) -> tuple[np.ndarray, _Regression, int, tuple[float, float, float], np.ndarray]:
+    """Return (sos, regression, lag, (sv, so, sw), noise): the low-passed regression at cut-off ``fc`` and its noise.
 
-    ``sv``, ``so``: the acceleration noise of the regressor; ``noise``: the white parts of the regressor
+    ``sv``, ``so``: the acceleration noise of the regressor; ``sw``: the yaw rate's noise (the heading's white
+    noise through the filter and the derivative); ``noise``: the white parts of the regressor
     entries (vdot in (row 1, m) and (row 2, m dy), omegadot in (1, m dy), (2, J)).
     """
     fs = 1.0 / grid.dt
     sos = butter_lowpass_sos(4, fc / (fs / 2.0))
     reg = _regression(log, grid, fc, sos)
     lag = int(math.ceil(2.0 * fs / fc))
-    acc_gain, _ = _noise_gains(len(grid.t), grid.dt, sos)
+    acc_gain, _, rate_gain = _noise_gains(len(grid.t), grid.dt, sos)
     sv, so = lv.pos * acc_gain, lv.theta * acc_gain
     noise = np.array([[sv * sv, 0.0, so * so, 0.0, 0.0, 0.0], [0.0, 0.0, sv * sv, so * so, 0.0, 0.0]])
-    return sos, reg, lag, (sv, so), noise
+    return sos, reg, lag, (sv, so, lv.theta * rate_gain), noise
 
 
-def _turn_noise_share(om: np.ndarray, th_std: float, grid: _Grid, sos: np.ndarray) -> float:
-    """Return the share of the filtered yaw rate's power that the heading's white noise alone makes (0-1).
+def _turn_noise_share(om: np.ndarray, rate_noise: float) -> float:
+    """Return the share of the filtered yaw rate's power that the heading's white noise alone makes (0-1);
+    ``rate_noise``: that noise's std on the yaw rate (`_filtered_regression`).
 
     The CoM's forward coordinate enters the regression only through the yaw rate (``m dx`` multiplies
     ``-omega^2`` and ``omega v``, paper eq. 4); a yaw rate made of heading noise is an error in the variables
     that pulls ``m dx`` towards 0 by about this share, which the regression's std does not see (a cart pushed
     straight: dx read as 0 +- a few cm).
     """
-    ef = _filtfilt(sos, _unit_noise(len(grid.t)))
-    m = len(ef)
-    core = slice(m // 10, m - m // 10) if m > 50 else slice(None)
-    noise_var = (th_std * float(np.std(np.gradient(ef, grid.dt)[core]))) ** 2
-    return float(min(1.0, noise_var / max(float(np.var(om)), 1e-300)))
+    return float(min(1.0, rate_noise**2 / max(float(np.var(om)), 1e-300)))
 
 
 def _with_turn_attenuation(cov: np.ndarray, p: np.ndarray, share: float) -> np.ndarray:

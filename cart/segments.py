@@ -472,7 +472,7 @@ def regressor_noise(res: Identification) -> np.ndarray:
     data = res.fit_data
     assert data is not None
     sos = butter_lowpass_sos(4, res.cutoff_hz * 2.0 * res.grid_dt)
-    acc_gain, _ = _noise_gains(len(data["t"]) * data["step"], res.grid_dt, sos)
+    acc_gain = _noise_gains(len(data["t"]) * data["step"], res.grid_dt, sos)[0]
     sv, so = res.noise["position"] * acc_gain, res.noise["theta"] * acc_gain
     return np.array([[sv * sv, 0.0, so * so, 0.0, 0.0, 0.0], [0.0, 0.0, sv * sv, so * so, 0.0, 0.0]])
 
