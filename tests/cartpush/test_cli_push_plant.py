@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import re
 
+import numpy as np
+
 import pytest
 
 from cartpush.cli import main
@@ -85,16 +87,39 @@ def test_contact_y_is_checked_against_the_cart_files_handle(tmp_path, capsys):
     assert len(err) == 1 and "within the handle's [0.05, 0.45] m, got [0.5]" in err[0], err
 
 
-def test_a_default_contact_out_of_reach_names_the_span_and_the_option(tmp_path, capsys):
-    """The WMRA's default contact (y = 0.1 m) on a 0.3 m bar 0.6 m high: the line gives the reachable span and says
-    how to choose a point in it."""
+def test_a_default_contact_out_of_reach_moves_and_a_given_one_names_the_span(tmp_path, capsys):
+    """The WMRA's default contact (y = 0.1 m) on a 0.3 m bar 0.6 m high is out of reach: the run holds the nearest
+    point the arm holds, stands behind it as for a point the user gives, and says so; the default point given by the
+    user is refused with the reachable span."""
     bar = '<site name="handle" type="capsule" size="0.015" fromto="-0.1 -0.15 0.6 -0.1 0.15 0.6"/>'
     path = tmp_path / "child.xml"
     path.write_text(
         '<mujoco><worldbody><geom name="ground" type="plane" size="0 0 1"/><body name="cart" pos="0 0 0.05">'
         f'<freejoint/><geom type="box" size="0.3 0.18 0.05" mass="6"/>{bar}</body></worldbody></mujoco>'
     )
-    code = main(["push", "--robot", "wmra", "--plant", "mujoco", "--cart-model", str(path), "--duration", "8"])
+    args = ["push", "--robot", "wmra", "--plant", "mujoco", "--cart-model", str(path), "--duration", "8"]
+    assert main([*args, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    note = [s for s in out["what_happened"] if s.startswith("contact:")]
+    held = re.search(
+        r"default contact y = 0\.100 m is out of its arm's reach on this handle; held at y = (-?0\.\d+)", note[0]
+    )
+    assert held and float(held.group(1)) < 0.1, note
+    # set up as if the user had given that point: the robot stands behind it (the same start, to the bit; this
+    # box slides on the floor and is lost in both runs, which MuJoCo does not repeat to the bit)
+    from dataclasses import replace
+
+    from wholebody.push.config import PushConfig
+    from wholebody.push.loop import run_push
+
+    cfg = PushConfig(robot="wmra", plant="mujoco", contact="fixed", cart_model=str(path), duration=8.0)
+    moved = run_push(cfg)
+    assert moved.config.fixed_contact_y == pytest.approx((float(held.group(1)),), abs=5e-4)
+    assert moved.setup_notes == tuple(note)
+    given = run_push(replace(cfg, fixed_contact_y=moved.config.fixed_contact_y))
+    assert given.setup_notes == () and np.array_equal(given.robot_x[0], moved.robot_x[0])
+    assert np.array_equal(given.q_true[:100], moved.q_true[:100])
+    code = main([*args, "--contact-y", "0.1"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1, err
     assert re.search(r"it reaches \[-?0\.\d+, -?0\.\d+\] m: give a contact point there \(--contact-y", err[0]), err

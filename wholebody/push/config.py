@@ -423,6 +423,8 @@ class PushResult:
     #: the load changes the plant made (`PushConfig.load_changes`), each with the time it took effect and the
     #: truth's mass before and after (on the MuJoCo plant the effective mass): JSON-ready dicts
     load_changes_true: tuple[dict, ...] = ()
+    #: what the set-up changed in the configuration (`wholebody.push.loop.held_default_contact`): sentences
+    setup_notes: tuple[str, ...] = ()
 
     def truth(self) -> np.ndarray:
         """Return (N, 5) m, dx, dy, I, sigma of the truth at each t_k (`params_true`, or the constant truth)."""

@@ -187,6 +187,10 @@ class PushSetup:
     robot_x0: list[np.ndarray]
     q0: np.ndarray
     qd0: np.ndarray
+    #: the configuration the controller was built for (a default contact out of reach moved, see `held_default_contact`)
+    config: PushConfig | None = None
+    #: sentences on what the set-up changed, for `wholebody.push.report.what_happened`
+    notes: tuple[str, ...] = ()
 
 
 def build_controller(
@@ -204,15 +208,37 @@ def build_controller(
     if controller is None:
         controller = make_controller(config.controller, traj if clock is None else ScaledReference(traj, clock))
     q, qd, _ = traj.sample(0.0)
-    estimator = estimator if estimator is not None else make_estimator(config, q)
     robot = robots.load(config.robot)  # once per run: the reach map and the robots share it
     reach = make_reach_map(config, robot)
     scheduler = ContactScheduler(config, traj, reach)
+    config, notes = held_default_contact(config, scheduler.y)
+    if notes:  # the robots stand behind the contact they hold, as for a point the user gives
+        scheduler = ContactScheduler(config, traj, reach)
+    estimator = estimator if estimator is not None else make_estimator(config, q)
     seeds = None if reach is None or isinstance(reach, tuple) else [reach.postures[reach.index(scheduler.y[0])]]
     mms = make_robots(config, q, scheduler.y, seeds, robot)
     x0 = [mm.x.copy() for mm in mms]
     ctrl = PushController(config, controller, estimator, scheduler, mms, clock)
-    return PushSetup(ctrl, x0, q.copy(), qd.copy())
+    return PushSetup(ctrl, x0, q.copy(), qd.copy(), config, notes)
+
+
+def held_default_contact(config: PushConfig, held: np.ndarray) -> tuple[PushConfig, tuple[str, ...]]:
+    """Return ``config`` holding the contacts ``held`` when its default fixed contact is out of the arm's reach.
+
+    A robot's default contact (``fixed_contact_y`` not given) may lie off a cart file's handle or out of reach
+    on it; `ContactScheduler` then holds the nearest point the arm holds with margin, and the run is set up as
+    if the user had given that point (the robots stand behind it). A point the user gives is never moved.
+    """
+    default = config.contact_y0()
+    if config.contact != "fixed" or config.fixed_contact_y is not None or np.allclose(held, default, atol=1e-9):
+        return config, ()
+    was = ", ".join(f"{v:.3f}" for v in default)
+    now = ", ".join(f"{v:.3f}" for v in held)
+    note = (
+        f"contact: the robot's default contact y = {was} m is out of its arm's reach on this handle; held at y = "
+        f"{now} m, the nearest point it holds with margin (choose one with --contact-y, PushConfig.fixed_contact_y)"
+    )
+    return replace(config, fixed_contact_y=tuple(float(v) for v in held)), (note,)
 
 
 def record(
@@ -265,10 +291,14 @@ def run_push(
     ``progress``: show a progress bar on stderr (the CLI passes True only on a terminal without --json).
     """
     setup = build_controller(config, controller, estimator)
+    config = setup.config or config
     plant = make_plant(config, setup)
     result = run_loop(config, setup.controller, plant, progress, progress_label)
     return replace(
-        result, plant_report=plant_report(plant), estimator_report=estimator_report(setup.controller.estimator)
+        result,
+        plant_report=plant_report(plant),
+        estimator_report=estimator_report(setup.controller.estimator),
+        setup_notes=setup.notes,
     )
 
 

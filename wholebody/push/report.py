@@ -884,7 +884,8 @@ def what_happened(result: PushResult) -> list[str]:
     """
     m, rep = result.metrics, result.plant_report or {}
     t_end = m.tracking_lost_at_s if m.tracking_lost_at_s is not None else math.inf
-    lines = [_outcome(result)] + _hand_off_handle(result, t_end) + _saturation(m.saturation or {}, t_end)
+    lines = [_outcome(result), *result.setup_notes] + _hand_off_handle(result, t_end)
+    lines += _saturation(m.saturation or {}, t_end)
     lines += _slowed(result, t_end)
     if m.arm_torque_limit_ratio > 1.0:
         lines.append(f"arm torque at {m.arm_torque_limit_ratio:.2f} x its limit (commanded)")

@@ -49,26 +49,8 @@ class ContactScheduler:
         self.y = config.contact_y0().copy()
         self._maps = [] if reach is None else list(reach) if isinstance(reach, Sequence) else [reach] * len(self.y)
         if reach is not None and not (config.contact == "fixed" and side_by_side(reach, self.y)):
-            if config.contact == "fixed" and not all(r.is_reachable(v) for r, v in zip(self._maps, self.y)):
-                bad = next(k for k, (r, v) in enumerate(zip(self._maps, self.y)) if not r.is_reachable(v))
-                rm = self._maps[bad]
-                i = rm.index(float(self.y[bad]))
-                ok = rm.y[rm.reachable]
-                if not ok.size:  # out of reach along the whole handle: say where it is
-                    geo = config.cart_geometry()
-                    p = handle_point(float(self.y[bad]), geo)
-                    raise InfeasibleWrenchError(
-                        f"robot {config.robot!r} reaches the handle nowhere along it: its point at y = "
-                        f"{self.y[bad]:.3f} m is at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m in the cart frame, "
-                        f"{p[2] + geo.frame_height:.2f} m above the floor: out of the arm's reach from any base place",
-                        binding="reach",
-                    )
-                raise InfeasibleWrenchError(
-                    f"robot {config.robot!r} cannot hold the handle at y = {self.y[bad]:.3f} m with margin "
-                    f"({rm.reason[i] or 'outside the reachable span'}); it reaches [{ok.min():.3f}, {ok.max():.3f}] m: "
-                    "give a contact point there (--contact-y, PushConfig.fixed_contact_y)",
-                    binding="reach",
-                )
+            if config.contact == "fixed":
+                self._check_fixed_reach()
             self.y = np.array(
                 [
                     r.nearest_reachable(float(v)) if not r.is_reachable(v) else float(v)
@@ -95,6 +77,37 @@ class ContactScheduler:
             self.candidates = [c for c in self.candidates if all(r.is_reachable(v) for r, v in zip(self._maps, c))]
         self.y_lo = min(float(c.min()) for c in self.candidates) if self.candidates else float(grid[0])
         self.y_hi = max(float(c.max()) for c in self.candidates) if self.candidates else float(grid[-1])
+
+    def _check_fixed_reach(self) -> None:
+        """Raise when a fixed contact is out of the arm's reach: anywhere on the handle, or a point the user gave.
+
+        A default point (``fixed_contact_y`` not given) out of reach moves to the nearest point held with margin
+        (the caller does it; `wholebody.push.report.what_happened` says so); a point the user gave is kept or refused.
+        """
+        config = self.config
+        bad = [k for k, (r, v) in enumerate(zip(self._maps, self.y)) if not r.is_reachable(v)]
+        if not bad:
+            return
+        k = bad[0]
+        rm = self._maps[k]
+        ok = rm.y[rm.reachable]
+        if not ok.size:  # out of reach along the whole handle: say where it is
+            geo = config.cart_geometry()
+            p = handle_point(float(self.y[k]), geo)
+            raise InfeasibleWrenchError(
+                f"robot {config.robot!r} reaches the handle nowhere along it: its point at y = "
+                f"{self.y[k]:.3f} m is at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m in the cart frame, "
+                f"{p[2] + geo.frame_height:.2f} m above the floor: out of the arm's reach from any base place",
+                binding="reach",
+            )
+        if config.fixed_contact_y is not None:
+            i = rm.index(float(self.y[k]))
+            raise InfeasibleWrenchError(
+                f"robot {config.robot!r} cannot hold the handle at y = {self.y[k]:.3f} m with margin "
+                f"({rm.reason[i] or 'outside the reachable span'}); it reaches [{ok.min():.3f}, {ok.max():.3f}] m: "
+                "give a contact point there (--contact-y, PushConfig.fixed_contact_y)",
+                binding="reach",
+            )
 
     def _planned_wrenches(self, t: float, params: CartParams) -> list[np.ndarray]:
         """Return the feed-forward body wrenches (fx_b, 0, tau_b) along the next replan_horizon seconds."""
