@@ -80,17 +80,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--plant",
-        default="kinematic",
+        default=None,
         choices=("kinematic", "mujoco"),
         help="what answers the controller: kinematic (ideal servos, the exact cart model; default) or mujoco "
-        "(robots and cart in the MuJoCo physics engine; the grips are welds, so the contact is fixed)",
+        "(robots and cart in the MuJoCo physics engine; the grips are welds, so the contact is fixed; the default "
+        "with --cart-model)",
     )
     p.add_argument(
         "--cart-model",
         type=Path,
         default=None,
         metavar="FILE.xml",
-        help="with --plant mujoco: push this MJCF cart (the contract is in docs/mujoco.md) instead of the shopping cart",
+        help="push this MJCF cart (the contract is in docs/mujoco.md) instead of the shopping cart, on the MuJoCo "
+        "plant",
     )
     p.add_argument(
         "--contact",
@@ -179,11 +181,13 @@ def config_from_args(args: argparse.Namespace):
             f"--robot must be a robot with an arm on a wheeled base ({', '.join(mobile_manipulators())} or a "
             f"profile file), got {args.robot!r}"
         )
+    if args.plant is None:  # a cart file is a MuJoCo model: pushing it means the MuJoCo plant
+        args.plant = "mujoco" if args.cart_model is not None else "kinematic"
     if args.contact is None:
         args.contact = "fixed" if args.plant == "mujoco" else "optimal"
     if args.cart_model is not None:
         if args.plant != "mujoco":
-            raise WholeBodyError("--cart-model needs --plant mujoco")
+            raise WholeBodyError("--cart-model needs the MuJoCo plant (leave --plant out, or --plant mujoco)")
         if args.cart_model.is_dir():
             raise WholeBodyError(f"--cart-model {args.cart_model}: is a directory; give the MJCF file")
         if not args.cart_model.is_file():

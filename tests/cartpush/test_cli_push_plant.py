@@ -30,14 +30,27 @@ def test_kinematic_is_the_default_plant(capsys):
     assert json.loads(capsys.readouterr().out)["plant"] == "kinematic"
 
 
-def test_a_cart_model_without_the_mujoco_plant_or_not_a_model_is_refused(capsys, tmp_path):
-    assert main(["push", "--cart-model", str(tmp_path / "c.xml")]) == 2
-    assert "--plant mujoco" in capsys.readouterr().err
+def test_a_cart_model_on_the_kinematic_plant_or_not_a_model_is_refused(capsys, tmp_path):
+    assert main(["push", "--plant", "kinematic", "--cart-model", str(tmp_path / "c.xml")]) == 2
+    assert "--cart-model needs the MuJoCo plant" in capsys.readouterr().err
     bad = tmp_path / "c.xml"
     bad.write_text("<mujoco><worldbody/></mujoco>")
     assert main(["push", "--plant", "mujoco", "--cart-model", str(bad)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cart" in err[0]
+
+
+def test_a_cart_model_alone_means_the_mujoco_plant():
+    import argparse
+
+    from cartpush.cli import push
+
+    parser = argparse.ArgumentParser()
+    push.register(parser.add_subparsers())
+    args = ["push", "--cart-model", "examples/carts/wheelchair.xml"]
+    cfg = push.config_from_args(parser.parse_args(args))
+    assert (cfg.plant, cfg.contact, cfg.cart_model) == ("mujoco", "fixed", "examples/carts/wheelchair.xml")
+    assert push.config_from_args(parser.parse_args(["push"])).plant == "kinematic"
 
 
 def test_look_ahead_reaches_the_reference_clock_and_bad_horizons_are_refused(capsys):
