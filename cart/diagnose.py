@@ -910,9 +910,14 @@ def _best_replaying_variant(trials: Sequence[_Trial], threshold: float, horizon:
 
 #: a named effect must close at least this share of the gap the nominal model (or the named effects) leave
 MIN_SHRINK = 0.1
-#: A wrench_bias (floor_slope force) smaller than this share of the RMS applied forward force and torque is a
-#: sensor's offset.
+#: A wrench_bias (floor_slope force) smaller than this share of the RMS applied forward force and torque, and
+#: within the tare limits below, is a sensor's offset.
 OFFSET_SHARE = 0.2
+#: The largest forward force (N) and yaw torque (N m) an F/T sensor keeps after taring (a few tenths of a newton,
+#: fitted up to about twice that under coloured noise): a constant beyond either is a bias of the set-up whatever
+#: its share of the push.
+TARE_FORCE = 1.5
+TARE_TORQUE = 0.4
 
 
 @dataclass(frozen=True)
@@ -1003,16 +1008,18 @@ def _sensor_offset(trial: _Trial, push: tuple[float, float], slot: int = -1) -> 
 
     An F/T sensor carries an offset after taring (a few tenths of a newton); effect-free logs have one, and a
     long log makes it significant. A bias is named when its forward force or its torque reaches
-    ``OFFSET_SHARE`` of the RMS forward force or torque applied over the log (``push``: N, N m).
+    ``OFFSET_SHARE`` of the RMS forward force or torque applied over the log (``push``: N, N m), or exceeds
+    what a tared sensor keeps (``TARE_FORCE``, ``TARE_TORQUE``): a 5 N bias is one on a 50 N push too.
     ``slot``: which effect of ``trial.fit`` the bias is.
     """
     fx, tau = (float(v) for v in trial.fit.thetas[slot][:2])
     share = max(abs(fx) / max(push[0], 1e-12), abs(tau) / max(push[1], 1e-12))
-    if share >= OFFSET_SHARE:
+    if share >= OFFSET_SHARE or abs(fx) > TARE_FORCE or abs(tau) > TARE_TORQUE:
         return ""
     return (
         f"its size (fx {fx:.3g} N, tau {tau:.3g} N m) is {share:.2f} of the push (RMS {push[0]:.3g} N, "
-        f"{push[1]:.3g} N m), below {OFFSET_SHARE:g}: an F/T sensor's offset after taring, not a bias of the set-up"
+        f"{push[1]:.3g} N m), below {OFFSET_SHARE:g}, and within a tared F/T sensor's offset ({TARE_FORCE:g} N, "
+        f"{TARE_TORQUE:g} N m): an offset after taring, not a bias of the set-up"
     )
 
 
@@ -1022,17 +1029,18 @@ def _slope_offset(trial: _Trial, push: tuple[float, float], slot: int = -1) -> s
     A slope's force m g sin(alpha) is a constant force in {s}: the F/T sensor's offset after taring, written
     in {s}, is one too, and where the heading turns little it is also the constant {b} force of a wrench_bias.
     A slope is named when its force reaches ``OFFSET_SHARE`` of the RMS forward force applied over the log
-    (``push``: N, N m), as a bias must. ``slot``: which effect of ``trial.fit`` the slope is.
+    (``push``: N, N m) or exceeds ``TARE_FORCE``, as a bias must. ``slot``: which effect of ``trial.fit`` the
+    slope is.
     """
     gx, gy = (float(v) for v in trial.fit.thetas[slot][:2])
     force = abs(float(trial.fit.x[0])) * math.hypot(gx, gy)
     share = force / max(push[0], 1e-12)
-    if share >= OFFSET_SHARE:
+    if share >= OFFSET_SHARE or force > TARE_FORCE:
         return ""
     return (
         f"its force (m g sin(alpha) = {force:.3g} N) is {share:.2f} of the push (RMS {push[0]:.3g} N), below "
-        f"{OFFSET_SHARE:g}: the size of an F/T sensor's offset after taring, which is a constant force too, "
-        "not a slope of the floor"
+        f"{OFFSET_SHARE:g}, and within a tared F/T sensor's offset ({TARE_FORCE:g} N), which is a constant force "
+        "too: not a slope of the floor"
     )
 
 

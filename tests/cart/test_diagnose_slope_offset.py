@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cart.diagnose import OFFSET_SHARE, _slope_offset, diagnose
+from cart.diagnose import OFFSET_SHARE, TARE_FORCE, _slope_offset, diagnose
 from studies.testbeds.hidden_effects import multirate_log
 
 GRAVITY = 9.81
@@ -46,11 +46,14 @@ def test_a_slope_is_judged_by_its_force_against_the_push():
     assert "sensor's offset" in _slope_offset(small, push)  # type: ignore[arg-type]
     # a 1 degree slope under the same cart: 35.9 * 9.81 * sin(1 deg) = 6.1 N, 0.67 of the push
     assert _slope_offset(_slope_trial(35.9, 1.0), push) == ""  # type: ignore[arg-type]
-    # the bound sits at OFFSET_SHARE of the push, whatever the direction of the slope
-    at = math.degrees(math.asin(OFFSET_SHARE * push[0] / (35.9 * GRAVITY)))
-    for direction in (0.0, 1.3, -2.5):
-        assert "sensor's offset" in _slope_offset(_slope_trial(35.9, 0.97 * at, direction), push)  # type: ignore[arg-type]
-        assert _slope_offset(_slope_trial(35.9, 1.03 * at, direction), push) == ""  # type: ignore[arg-type]
+    # the bound sits at OFFSET_SHARE of the push or at a tared sensor's offset, the smaller, whatever the
+    # direction of the slope
+    for rms in (push[0], 4.0, 40.0):
+        at = math.degrees(math.asin(min(OFFSET_SHARE * rms, TARE_FORCE) / (35.9 * GRAVITY)))
+        for direction in (0.0, 1.3, -2.5):
+            below = _slope_offset(_slope_trial(35.9, 0.97 * at, direction), (rms, push[1]))  # type: ignore[arg-type]
+            assert "sensor's offset" in below
+            assert _slope_offset(_slope_trial(35.9, 1.03 * at, direction), (rms, push[1])) == ""  # type: ignore[arg-type]
 
 
 def test_an_effect_free_held_pose_log_with_an_ft_offset_names_no_slope():
