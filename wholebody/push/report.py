@@ -290,20 +290,39 @@ def _shade(ax, spans: Sequence[Sequence[float]], colour: str, label: str) -> Non
         ax.axvspan(a, b, color=colour, alpha=0.12, lw=0, label=label if j == 0 else None)
 
 
-def _load_change_lines(axes, r: PushResult, colour: str, label: str) -> list[dict]:
-    """Draw each detected load change on every axis (solid: its onset, dashed: its detection); return the run-off
-    flags of the run's estimator report."""
+#: Colour of the load changes the estimator found (a figure's vertical lines): in no run's palette (C0-C9), so
+#: a found change never reads as a run's estimate or error line; a triangle at its top in the run's colour says whose.
+LOAD_CHANGE_FOUND_COLOUR = "k"
+
+
+def _load_change_lines(axes, r: PushResult, colour: str, label: str, slot: int = 0) -> list[dict]:
+    """Draw each detected load change on every axis (`LOAD_CHANGE_FOUND_COLOUR`; solid: its onset, with a
+    triangle of the run's `colour` near the top, lower for each later run `slot` so runs that found the same
+    change all show; dashed: its detection); return the run-off flags of the run's estimator report."""
     report = r.estimator_report or {}
+    top = 1.0 - 0.07 * (slot % 8)
     for j, c in enumerate(report.get("load_changes", [])):
         for ax in axes:
-            ax.axvline(c["t_change"], color=colour, lw=1.2, label=f"load change found, {label}" if j == 0 else None)
-            ax.axvline(c["t_detected"], color=colour, lw=0.8, ls="--")
+            ax.plot(
+                [c["t_change"]] * 3,
+                [0.0, top, 1.0],
+                "-v",
+                color=LOAD_CHANGE_FOUND_COLOUR,
+                mfc=colour,
+                ms=6,
+                lw=1.2,
+                markevery=[1],
+                transform=ax.get_xaxis_transform(),  # x in data, y from the bottom (0) to the top (1) of the axes
+                clip_on=False,
+                label=f"load change found, {label}" if j == 0 else None,
+            )
+            ax.axvline(c["t_detected"], color=LOAD_CHANGE_FOUND_COLOUR, lw=0.8, ls="--")
     return list(report.get("runoff_flags", []))
 
 
-def _estimator_events(axes, r: PushResult, colour: str, label: str) -> None:
+def _estimator_events(axes, r: PushResult, colour: str, label: str, slot: int = 0) -> None:
     """Mark the load changes the estimator detected (solid: the change, dashed: its detection) and its run-off flags."""
-    flags = _load_change_lines(axes, r, colour, label)
+    flags = _load_change_lines(axes, r, colour, label, slot)
     for j, f in enumerate(flags):
         axes[0].plot(
             f["t"], 0.0, "x", color="r", ms=5, label=f"run-off flagged (estimate held), {label}" if j == 0 else None
@@ -331,7 +350,7 @@ def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
             _shade(
                 axes[2], r.metrics.com_unobservable_s, c, f"CoM unobservable (1-sigma grows, estimate held), {label}"
             )
-            _estimator_events(axes[1:3], r, c, label)
+            _estimator_events(axes[1:3], r, c, label, slot=i)
     for a, band, unit in ((axes[1], 1.0, "1 kg"), (axes[2], 1.0, "1 cm")):
         a.axhspan(0.0, band, color="g", alpha=0.12, lw=0, label=f"within {unit}")
     metrics = [r.metrics for r in runs.values()]  # y range: the errors after 5 s (the start transient is clipped)
@@ -344,7 +363,9 @@ def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
         names = [textwrap.fill(t, LEGEND_COLUMN_CHARS // 2) for t in names]
         a.legend(handles, names, fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.suptitle(
-        "errors over time (start transient clipped); dotted: the estimate's 1-sigma; vertical lines: load changes found\nshaded: the 1-sigma grew for >= 1 s "
+        "errors over time (start transient clipped); dotted: the estimate's 1-sigma\n"
+        "black vertical lines: load changes found (triangle: the run's colour; dashed: when detected)\n"
+        "shaded: the 1-sigma grew for >= 1 s "
         "(no new information from the pushes: the estimate is held, not updated; it may still be right)",
         fontsize=8,
     )
@@ -452,9 +473,9 @@ def _estimate_series(result: PushResult) -> tuple[np.ndarray, np.ndarray]:
     return est, std
 
 
-def _estimate_events(axes, result: PushResult, est: np.ndarray, colour: str, label: str) -> None:
+def _estimate_events(axes, result: PushResult, est: np.ndarray, colour: str, label: str, slot: int = 0) -> None:
     """Mark the detected load changes (solid: onset, dashed: detection) and the run-off flags (x on the estimate)."""
-    flags = _load_change_lines(axes, result, colour, label)
+    flags = _load_change_lines(axes, result, colour, label, slot)
     kinds = ", ".join(sorted({f["kind"] for f in flags}))
     for j, f in enumerate(flags):
         k = min(int(np.searchsorted(result.t, f["t"])), len(result.t) - 1)
@@ -501,7 +522,7 @@ def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
             seen = np.r_[est[before, j], truth]
             lows[j], highs[j] = min(lows[j], np.nanmin(seen)), max(highs[j], np.nanmax(seen))
         if r.config.estimation:
-            _estimate_events(axes, r, est, c, label)
+            _estimate_events(axes, r, est, c, label, slot=i)
     for ax, lo, hi, name in zip(axes, lows, highs, ("mass [kg]", "CoM x in {b} [cm]", "CoM y in {b} [cm]")):
         pad = max(0.1 * (hi - lo), 1.0)
         ax.set_ylim(lo - pad, hi + pad)
@@ -509,7 +530,8 @@ def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
     _figure_legend(fig, axes[0], 6)
     fig.suptitle(
         "the estimate (band: its 1-sigma; the CoM's is the norm over x and y) against the truth (thick pale line);\n"
-        "vertical lines: load changes found (dashed: when detected; dotted: made); x: run-off flagged (estimate held)",
+        "black vertical lines: load changes found (triangle: the run's colour; dashed: when detected);\n"
+        "dotted: load changes made (truth); x: run-off flagged (estimate held)",
         fontsize=8,
     )
     axes[-1].set_xlabel("t [s]")

@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -29,6 +30,12 @@ HEADLESS_FLAGS = (
 )
 
 
+#: Flags that make Chromium write the page's console messages to its stderr (`console_messages`).
+CONSOLE_FLAGS = ("--enable-logging=stderr", "--v=0")
+#: A console line of Chromium's log: ``[...:INFO:CONSOLE:12] "message", source: URL (12)`` (older: ``CONSOLE(12)``).
+_CONSOLE_LINE = re.compile(r':CONSOLE(?::\d+|\(\d+\))?\] "(.*)", source: ')
+
+
 #: Executable names tried, in order.
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome")
 
@@ -47,15 +54,19 @@ def screenshot(
     budget_ms: int = 4000,
     profile: Path | None = None,
     timeout: float = 120.0,
+    console: bool = False,
 ) -> subprocess.CompletedProcess:
     """Render the local page `html` (URL fragment `fragment`) to `png` at `size` pixels after `budget_ms` of virtual time.
 
-    A fresh browser profile is used unless `profile` is given. Raises `SceneError` when no screenshot was written.
+    A fresh browser profile is used unless `profile` is given. With `console` the page's console messages go
+    to the returned process's stderr (`console_messages` reads them). Raises `SceneError` when no screenshot
+    was written.
     """
     with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as tmp:  # a profile Chromium may still write
         cmd = [
             browser,
             *HEADLESS_FLAGS,
+            *(CONSOLE_FLAGS if console else ()),
             f"--user-data-dir={profile if profile is not None else tmp}",
             f"--window-size={size[0]},{size[1]}",
             f"--virtual-time-budget={budget_ms}",
@@ -66,6 +77,11 @@ def screenshot(
     if not Path(png).is_file():
         raise SceneError(f"chromium wrote no screenshot (exit {proc.returncode}): {proc.stderr[-2000:]}")
     return proc
+
+
+def console_messages(stderr: str) -> list[str]:
+    """Return the page's console messages (text only) from the stderr of Chromium run with `CONSOLE_FLAGS`."""
+    return [m.group(1) for m in map(_CONSOLE_LINE.search, stderr.splitlines()) if m]
 
 
 def dump_dom(browser: str, html: Path, fragment: str = "", budget_ms: int = 4000, timeout: float = 120.0) -> str:

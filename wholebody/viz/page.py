@@ -23,6 +23,8 @@ from typing import TYPE_CHECKING
 import meshcat
 import numpy as np
 
+from wholebody.viz.lowering import replay_js
+
 if TYPE_CHECKING:
     from wholebody.viz.scene import Camera
 
@@ -425,12 +427,10 @@ def static_html(
     An `animated` page gets `animation_js` (plays on open unless `autoplay` is
     False, pause button, ``#t=<s>`` seeks, camera following the nodes `follow`)
     and the overlay shows the player, the `readouts` and the `legend`; its `charts` (bottom right) plot
-    estimates over time with a cursor at the page's time.
+    estimates over time with a cursor at the page's time. Each distinct mesh file (any value of 1 KiB or
+    more) is written once however many commands carry it (`wholebody.viz.lowering.replay_js`).
     """
     js = _VIEWER_JS.read_text(encoding="utf-8")
-    calls = "".join(
-        f'viewer.handle_command_bytearray(b64("{base64.b64encode(c).decode("ascii")}"));\n' for c in commands
-    )
     hide = "" if controls else ".dg.main, .dg.ac {display: none !important;}"
     script = animation_js(follow or (), autoplay, readouts, charts) if animated else ""
     return f"""<!DOCTYPE html>
@@ -446,10 +446,8 @@ def static_html(
 {js}
 </script>
 <script>
-function b64(s) {{ const b = atob(s); const a = new Uint8Array(b.length);
-  for (let i = 0; i < b.length; i++) a[i] = b.charCodeAt(i); return a; }}
 var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
-{calls}{camera_js(camera) if camera is not None else ""}{script}
+{replay_js(commands)}{camera_js(camera) if camera is not None else ""}{script}
 </script>
 </body>
 </html>

@@ -38,6 +38,7 @@ import robots
 from robots.shopping_cart import CART_HANDLE_X, CART_HANDLE_Z_B, CART_WHEEL_RADIUS
 from wholebody.errors import SceneError
 from wholebody.motion.bases import planar_pose_matrix
+from wholebody.viz.lowering import Lowered, lower_command
 from wholebody.viz.page import MARKS, Chart, LegendEntry, Readout, compressed_iframe, nice_scale, static_html
 
 #: Colours (0xRRGGBB) of the overlays.
@@ -146,8 +147,11 @@ class _RecordingWindow:
         self.live = live
 
     def send(self, command: Any) -> None:
-        """Record a Meshcat command (same tree semantics as meshcat's zmq server) and forward it."""
-        data = command.lower()
+        """Record a Meshcat command (same tree semantics as meshcat's zmq server) and forward it.
+
+        The command is lowered once, meshes in the viewer's current form (`lowering.lower_command`).
+        """
+        data = lower_command(command.lower())
         path = [p for p in data["path"].split("/") if p]
         packed = umsgpack.packb(data)
         kind = data["type"]
@@ -167,7 +171,7 @@ class _RecordingWindow:
             else:
                 self.tree, self.animation = SceneTree(), None
         if self.live is not None:
-            self.live.send(command)
+            self.live.send(Lowered(data))
 
     def commands(self) -> list[bytes]:
         """Return the recorded scene as msgpack commands, animation last."""
