@@ -1046,8 +1046,37 @@ def _slowed(result: PushResult, t_end: float) -> list[str]:
     return [
         f"saturation: reference slowed{when} to {100 * rate[k]:.0f} % of the desired speed (t = {result.t[k]:.2f} s), "
         f"slower for {inside.size * result.config.dt:.2f} s in all; it {ends} {result.t[last] - s[last]:.2f} s behind "
-        "the desired timing (the tracking error is against the slowed reference)"
+        "the desired timing (the tracking error is against the slowed reference)" + _slowed_in_turns(result, inside)
     ]
+
+
+#: a reference turning faster than this (rad per second of reference time) is in a turn
+TURN_RATE = 0.05
+
+
+def _slowed_in_turns(result: PushResult, slowed: np.ndarray) -> str:
+    """Return a clause when the slowing came in the turns while a grip's yaw torque bound: the turns are why.
+
+    ``slowed``: the periods the reference ran below the desired speed. The clause is given when at least 70 %
+    of them are where the desired motion turns (`TURN_RATE`) and a grip torque limit about the vertical
+    (``tau_z``) bound during the run: turning the cart takes more yaw torque than the grips twist (a large
+    yaw inertia, casters swinging round, wheels that scrub in a turn).
+    """
+    sat = result.metrics.saturation or {}
+    tau_z = [v["total_s"] for k, v in sat.items() if "grip torque limit (tau_z)" in k]
+    s = result.reference_time
+    if not tau_z or s is None or slowed.size < 2:
+        return ""
+    traj = result.config.make_trajectory()
+    yaw_rate = np.array([abs(traj.sample(float(v))[1][2]) for v in s[slowed]])
+    share = float(np.mean(yaw_rate > TURN_RATE))
+    if share < 0.7:
+        return ""
+    return (
+        f"; {100 * share:.0f} % of the slowing came in the turns, where the grips' yaw torque bound "
+        f"(tau_z, {max(tau_z):.2f} s): turning this cart takes more yaw torque than the grips twist (a large yaw "
+        "inertia, casters swinging round, or wheels that scrub in a turn: fixed axles front and rear, a solid axle)"
+    )
 
 
 def _lateral_slip(result: PushResult, t_end: float) -> str:

@@ -327,3 +327,22 @@ def test_the_controller_looks_ahead_for_a_heavy_cart_only():
     clock.settings = settings
     controller._look_ahead(5.0, heavy)
     assert clock.checked_at == 5.0  # it checked
+
+
+def test_a_reference_slowed_in_the_turns_while_the_grip_twists_at_its_limit_says_the_turns_are_why():
+    from wholebody.push.report import what_happened
+
+    result = run_push(PushConfig(trajectory=2, duration=1.0))
+    n = len(result.t)
+    rate = np.ones(n)
+    rate[n // 4 : n // 2] = 0.3
+    sat = {"arm0 grip torque limit (tau_z)": {"first_s": 0.2, "total_s": 0.4}}
+    bound = replace(result.metrics, saturation=sat)
+
+    def slowed_line(s0: float, metrics) -> str:  # the reference time runs from s0 (Traj. 2 turns from 7.2 s)
+        r = replace(result, reference_rate=rate, reference_time=s0 + result.t, metrics=metrics)
+        return next(line for line in what_happened(r) if line.startswith("saturation: reference slowed"))
+
+    assert "100 % of the slowing came in the turns, where the grips' yaw torque bound" in slowed_line(8.0, bound)
+    assert "turns" not in slowed_line(2.0, bound)  # slowed on the straight before the first turn
+    assert "turns" not in slowed_line(8.0, result.metrics)  # in a turn, but no grip twisted at its limit
