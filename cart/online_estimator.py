@@ -52,6 +52,11 @@ from cart.window_changes import WindowChange, WindowChangeDetector
 PHYSICAL_NAMES = ("mass", "dx", "dy", "inertia", "sigma", "sigma_yaw")
 
 
+#: A first GLR detection whose mass lies this many initial prior stds from the guess, with nothing before it to
+#: weigh the cart, says the guess was wrong (:meth:`OnlineLSEstimator._guess_far`).
+GUESS_FAR_SIGMA = 4.0
+
+
 @dataclass(frozen=True)
 class OnlineOptions:
     """Settings of :class:`OnlineLSEstimator` (defaults: the push loop's sensors and the paper's carts).
@@ -870,16 +875,15 @@ class OnlineLSEstimator:
         self.detector.restart()
         own = math.sqrt(local[0].ratio2(full.p))  # the samples after the onset against their own fit
         fit_before, k_old = self._fit_before(idx), float(buf.read("k")[idx])
+        if self._guess_far(full, fit_before, max(k_old, own, 1.0)):
+            self._restart_from(new, local, after)
+            buf.clear()
+            return
         if not self._confirmed(full, fit_before, (k_old, own)):
             self.regression.solve(1)
             self._cov = self.regression.covariance()
             return
-        self.regression = new
-        self._cov = new.covariance()
-        self._local, self._level = local  # the residuals of the samples after the onset, their level
-        if after is not None and self.casters is not None:
-            self.casters.cross, self.casters.info, self.casters.dvec = after
-            new.nuisance = self.casters.nuisance()
+        self._restart_from(new, local, after)
         if self._changes:
             self._changes[-1].mass_end = m_before
         if self.window is not None:
@@ -1095,6 +1099,47 @@ class OnlineLSEstimator:
             )
         before.solve(iterations=5)
         return float(before.p[0]), float(self._physical_std(before.covariance())[0])
+
+    def _restart_from(self, new: RecursiveRegression, local: tuple, after: tuple | None) -> None:
+        """Go on from ``new``: the regression of the samples after an onset on its re-centred prior (a load change,
+        or an initial guess the pushes contradict), with their residuals and caster sums."""
+        self.regression = new
+        self._cov = new.covariance()
+        self._local, self._level = local  # the residuals of the samples after the onset, their level
+        if after is not None and self.casters is not None:
+            self.casters.cross, self.casters.info, self.casters.dvec = after
+            new.nuisance = self.casters.nuisance()
+
+    def _guess_far(self, new: RecursiveRegression, before: tuple[float, float], kappa: float) -> bool:
+        """Return whether a GLR detection says the initial guess was wrong (flagged ``guess_far``), not the load.
+
+        Before any change, when the samples before the onset do not excite the mass (their mass is the initial
+        guess), those after it do, their fit is plausible and its mass lies more than ``GUESS_FAR_SIGMA`` of the
+        initial prior's stds from the guess and ``confirm_sigma`` of its own std (scaled by the residual ratio
+        ``kappa``) from it: the data contradict the prior (a 300 kg pallet pushed from a 16 kg guess). The
+        estimate then restarts from the samples after the onset on the re-centred prior, as after a load change
+        (the samples before it held no mass information), and no load change is reported.
+        """
+        if self._changes or any(f.kind == "guess_far" for f in self._flags):
+            return False
+        m0, s0 = float(self._prior0.center[0]), float(self._prior0.std[0])
+        m_new = float(new.p[0])
+        std_new = float(self._physical_std(new.covariance())[0])
+        ratio = self.options.excited_ratio
+        if before[1] <= ratio * s0 or std_new > ratio * float(new.prior.std[0]) or self._implausible(new.p):
+            return False
+        far = abs(m_new - m0)
+        if far <= GUESS_FAR_SIGMA * s0 or far <= self.options.confirm_sigma * kappa * std_new:
+            return False
+        self._flags.append(
+            RunoffFlag(
+                self.t,
+                "guess_far",
+                f"the pushes weigh the cart {m_new:.4g} +- {std_new:.2g} kg, {far / s0:.1f} prior stds from the initial "
+                f"guess {m0:.4g} kg: the estimate restarts from them (not a load change)",
+            )
+        )
+        return True
 
     def _confirmed(self, new: RecursiveRegression, before: tuple[float, float], misfit: tuple[float, float]) -> bool:
         """Return whether the two sides of the onset confirm a load change: their masses differ.

@@ -208,3 +208,30 @@ def test_table1_test11_with_the_load_dropped_in_is_within_1kg_for_24s():
     assert loop.ekf.impulses == [pytest.approx(10.0, abs=0.015)]
     assert run.events[0]["t_change"] == pytest.approx(10.0, abs=0.015)
     assert estimation_error_metrics(run)["time_mass_within_1kg_s"] >= 24.0
+
+
+def test_a_guess_the_pushes_contradict_restarts_the_estimate_without_a_load_change():
+    """A 300 kg cart from the 16 kg guess, standing for 1 s before the pushes: the first GLR detection has no
+    mass information before its onset, and its mass lies 35 prior stds from the guess -- the guess was wrong, not
+    the load. The estimate restarts from the pushes (flag ``guess_far``; it was 113 kg at 3 s, held back by
+    the prior), and no load change is reported."""
+    from cart.online_estimator import GUESS_FAR_SIGMA
+
+    heavy = CartParams(300.0, 0.3, 0.05, 40.0, 20.0)
+
+    def ctrl(t, q, qd):
+        f = 0.0 if t < 1.0 else 150.0 * math.sin(0.8 * (t - 1.0)) + 60.0 * math.sin(2.1 * t) + 20.0
+        return np.array([f * math.cos(q[2]), f * math.sin(q[2]), 10.0 * math.sin(1.1 * t)])
+
+    log = simulate(heavy, ctrl, 3.0, noise=MOCAP, rng=np.random.default_rng(4), substeps=2).measured
+    est = _run(log, make_online_estimator(log.q[0], GUESS, MOCAP.measurement_std()), 4, 3.0, 0.3)
+    far = [f for f in est.flags if f.kind == "guess_far"]
+    assert len(far) == 1 and est.events == (), est.flags
+    pushes = float(far[0].detail.split("weigh the cart ")[1].split(" ")[0])  # the mass the pushes give, far out
+    assert abs(pushes - GUESS.m) > GUESS_FAR_SIGMA * 0.5 * GUESS.m and abs(pushes - 300.0) < 30.0
+    assert abs(est.params().m - 300.0) < 15.0
+
+
+def test_a_guess_near_the_cart_never_restarts(turning_log):
+    est = _run(turning_log, make_online_estimator(turning_log.q[0], GUESS, MOCAP.measurement_std()), 1, 3.0, 0.3)
+    assert not [f for f in est.flags if f.kind == "guess_far"]
