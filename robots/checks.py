@@ -51,9 +51,50 @@ def _frame(prof: RobotProfile, model: pin.Model, key: str, name: str) -> None:
         )
 
 
+#: The kinds of Pinocchio frame a profile's frame name may be, in the order a name shared by several is read:
+#: a link (URDF links and joints may share a name: Unitree Z1's ``gripperStator``, SO-100's ``gripper``),
+#: then a frame of its own, then a fixed or a movable joint.
+FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT)
+
+
+def frame_id(model: pin.Model, name: str) -> int:
+    """Return the id of the frame ``name`` (`FRAME_PREFERENCE`: the link of that name first).
+
+    ``model.getFrameId(name)`` raises "Several frames match the filter" when a link and a joint share the name.
+    Raises KeyError when no frame has the name.
+    """
+    for kind in FRAME_PREFERENCE:
+        if model.existFrame(name, kind):
+            return int(model.getFrameId(name, kind))
+    if model.existFrame(name):
+        return int(next(i for i, f in enumerate(model.frames) if f.name == name))
+    raise KeyError(f"no frame {name!r}")
+
+
 def is_continuous(joint: pin.JointModel) -> bool:
     """Return True for an unbounded revolute (URDF ``continuous``) joint: nq 2 (cos, sin), nv 1."""
     return joint.nq == 2 and joint.nv == 1
+
+
+def _arm_joint(prof: RobotProfile, model: pin.Model, key: str, name: str) -> None:
+    """Raise `ProfileError` unless ``name`` is a revolute or prismatic joint of one degree of freedom with limits."""
+    src = prof.source or prof.name
+    j = _joint(prof, model, key, name)
+    if is_continuous(j):
+        raise ProfileError(
+            src,
+            key,
+            f"{name!r} is a continuous (unbounded) joint; arm joints need position limits: in the URDF make it "
+            'type="revolute" with <limit lower="-6.2832" upper="6.2832" .../> (two turns either way), '
+            "keeping its effort and velocity",
+        )
+    if j.nv != 1:
+        raise ProfileError(
+            src,
+            key,
+            f"{name!r} is a joint of {j.nv} degrees of freedom ({j.shortname()}); arm joints must be revolute or "
+            "prismatic (one each) with limits",
+        )
 
 
 def check_profile(prof: RobotProfile, model: pin.Model) -> None:
@@ -79,13 +120,7 @@ def check_profile(prof: RobotProfile, model: pin.Model) -> None:
         used.add(w)
     for i, arm in enumerate(prof.arms):
         for k, name in enumerate(arm.joints):
-            j = _joint(prof, model, f"arms[{i}].joints[{k}]", name)
-            if j.nv != 1 or is_continuous(j):
-                raise ProfileError(
-                    src,
-                    f"arms[{i}].joints[{k}]",
-                    f"{name!r} is a {j.shortname()} joint; arm joints must be revolute or prismatic with limits",
-                )
+            _arm_joint(prof, model, f"arms[{i}].joints[{k}]", name)
             if name in used:
                 raise ProfileError(src, f"arms[{i}].joints[{k}]", f"{name!r} is used twice (arms and wheels)")
             used.add(name)
@@ -135,7 +170,7 @@ def _check_arm_chain(prof: RobotProfile, model: pin.Model, i: int) -> None:
     one moves too little or has no effort or speed limit, or when its F/T frame is not beyond every arm joint
     (nor with an arm joint between it and the hand)."""
     src, arm = prof.source or prof.name, prof.arms[i]
-    hand_chain = list(model.supports[model.frames[model.getFrameId(arm.gripper_frame)].parentJoint])
+    hand_chain = list(model.supports[model.frames[frame_id(model, arm.gripper_frame)].parentJoint])
     last = -1
     for k, name in enumerate(arm.joints):
         jid, key = model.getJointId(name), f"arms[{i}].joints[{k}]"
@@ -167,7 +202,7 @@ def _check_arm_chain(prof: RobotProfile, model: pin.Model, i: int) -> None:
                 "positive effort and velocity",
             )
     if arm.ft_frame is not None:
-        ft_chain = list(model.supports[model.frames[model.getFrameId(arm.ft_frame)].parentJoint])
+        ft_chain = list(model.supports[model.frames[frame_id(model, arm.ft_frame)].parentJoint])
         ids = [model.getJointId(n) for n in arm.joints]
         between = [model.names[j] for j in ids if (j in ft_chain) != (j in hand_chain)]
         outside = [model.names[j] for j in ids if j not in ft_chain]
@@ -216,7 +251,7 @@ def _check_differential_wheels(prof: RobotProfile, model: pin.Model) -> None:
 def _check_arms_apart(prof: RobotProfile, model: pin.Model) -> None:
     """Raise `ProfileError` when one arm's joint carries another arm's gripper frame (a joint two arms share)."""
     for i, arm in enumerate(prof.arms):
-        carried = set(model.supports[model.frames[model.getFrameId(arm.gripper_frame)].parentJoint])
+        carried = set(model.supports[model.frames[frame_id(model, arm.gripper_frame)].parentJoint])
         for k, other in enumerate(prof.arms):
             shared = [n for n in other.joints if k != i and model.getJointId(n) in carried]
             if shared:
@@ -264,7 +299,12 @@ def wheel_geometry(prof: RobotProfile, model: pin.Model) -> WheelGeometry:
     if radius is None:
         radius = float(centres[0][2]) if centres else 0.0
         if not radius > 1e-6:
-            raise ProfileError(src, "wheel_radius", "the URDF's wheel axles are not above its root link; give it (m)")
+            raise ProfileError(
+                src,
+                "wheel_radius",
+                "the URDF's wheel axles are not above its root link: the robot stands with its root link on the floor; "
+                "put it there (a new root link with a fixed joint to the old one at the wheel radius above it)",
+            )
     separation = prof.wheel_separation
     if prof.base == "differential" and separation is None:
         separation = float(np.linalg.norm(centres[0] - centres[1]))
@@ -279,7 +319,7 @@ def check_wheel_radius(prof: RobotProfile, model: pin.Model, collision: pin.Geom
     link disagree by more than 10 % and the profile gives no ``wheel_radius``: the root link is then not on the
     floor, and the planner (which takes the axle's height) and the MuJoCo plant (which rolls the cylinder)
     would drive the wheels at different speeds."""
-    if prof.wheel_radius is not None or not prof.wheel_joints:
+    if not prof.wheel_joints:
         return
     data = model.createData()
     pin.forwardKinematics(model, data, reference_configuration(prof, model))
@@ -287,6 +327,9 @@ def check_wheel_radius(prof: RobotProfile, model: pin.Model, collision: pin.Geom
     for w in prof.wheel_joints:
         jid = model.getJointId(w)
         height = float((root.inverse() * data.oMi[jid]).translation[2])
+        if prof.wheel_radius is not None:
+            _check_root_on_floor(prof, model, w, height)
+            continue
         for obj in collision.geometryObjects:
             r = getattr(obj.geometry, "radius", None)
             kind = type(obj.geometry).__name__
@@ -297,9 +340,30 @@ def check_wheel_radius(prof: RobotProfile, model: pin.Model, collision: pin.Geom
                     prof.source or prof.name,
                     "wheel_radius",
                     f"wheel {w!r}: its collision {kind.lower()} has radius {float(r):.4g} m but its axle is {height:.4g} m above the "
-                    f"root link: put the URDF's root link on the floor, or give wheel_radius = {float(r):.4g}",
+                    f"root link: put the URDF's root link on the floor (a new root link with a fixed joint to the old "
+                    f'one at xyz="0 0 {float(r) - height:.4g}"), or give the wheel\'s collision {kind.lower()} its radius',
                 )
             break
+
+
+def _check_root_on_floor(prof: RobotProfile, model: pin.Model, wheel: str, height: float) -> None:
+    """Raise `ProfileError` when a wheel's axle is not ``wheel_radius`` (10 %) above the URDF's root link.
+
+    The robot stands with its root link on the floor: an axle at another height means a root link above or
+    below the floor, and every height of the model (the arm's shoulder, its reach to the handle) off by the
+    difference."""
+    r = float(prof.wheel_radius or 0.0)
+    if abs(height - r) <= 0.1 * r:
+        return
+    root = next((f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == 1), "root")
+    raise ProfileError(
+        prof.source or prof.name,
+        "wheel_radius",
+        f"wheel {wheel!r}: its axle is {height:.4g} m above the URDF's root link but wheel_radius is {r:.4g} m: the "
+        f"robot stands with its root link on the floor, so it would be modelled {r - height:+.3g} m off its height; "
+        f'put the root link on the floor (a new root link with a fixed joint to {root!r} at xyz="0 0 '
+        f'{r - height:.4g}"), or correct wheel_radius',
+    )
 
 
 def package_search_dirs(prof_dirs: tuple[Path, ...], urdf: Path) -> list[str]:

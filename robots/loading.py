@@ -16,7 +16,7 @@ from collections.abc import Iterator
 import pinocchio as pin
 
 from robots import registry
-from robots.checks import check_profile, check_wheel_radius, package_search_dirs, resolve_package_uri
+from robots.checks import check_profile, check_wheel_radius, frame_id, package_search_dirs, resolve_package_uri
 from robots.errors import ProfileError, RobotError, UnknownRobotError
 from robots.profiles import RobotProfile
 
@@ -78,7 +78,7 @@ class LoadedRobot:
         name = self.frames.get(role_or_name, role_or_name)
         if not self.model.existFrame(name):
             raise UnknownRobotError(f"robot {self.name!r} has no frame {role_or_name!r}; roles: {sorted(self.frames)}")
-        return self.model.getFrameId(name)
+        return frame_id(self.model, name)
 
 
 def available() -> tuple[str, ...]:

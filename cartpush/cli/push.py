@@ -172,14 +172,14 @@ def config_from_args(args: argparse.Namespace):
 
     try:
         prof = profile(args.robot)  # a registered name or a profile file
-        if prof.is_mobile_manipulator:
-            robots.load(prof)  # the profile checked against its URDF: one line naming the key (exit 2)
+        robots.load(prof)  # the profile checked against its URDF: one line naming the key (exit 2)
     except RobotError as err:
         raise WholeBodyError(f"--robot: {err}") from None
     if not prof.is_mobile_manipulator:
+        why = "it has no arm ([[arms]])" if not prof.arms else 'its base is "none" (give base and wheel_joints)'
         raise WholeBodyError(
             f"--robot must be a robot with an arm on a wheeled base ({', '.join(mobile_manipulators())} or a "
-            f"profile file), got {args.robot!r}"
+            f"profile file): {args.robot!r} is not, {why}"
         )
     if args.plant is None:  # a cart file is a MuJoCo model: pushing it means the MuJoCo plant
         args.plant = "mujoco" if args.cart_model is not None else "kinematic"

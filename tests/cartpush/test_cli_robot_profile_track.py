@@ -83,3 +83,14 @@ def test_track_warns_when_a_stretched_start_leaves_the_motion_to_the_base(tmp_pa
     out = json.loads(capsys.readouterr().out)
     assert out["singular_steps"] > 0.5 * out["steps"]
     assert len(out["warnings"]) == 1 and "near a singular pose" in out["warnings"][0]
+
+
+def test_push_says_why_a_profile_is_no_mobile_manipulator(tmp_path, capsys):
+    assert main(["push", "--robot", "shopping_cart", "--duration", "8"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "'shopping_cart' is not, it has no arm ([[arms]])" in err
+    armed = DIFFERENTIAL.replace('base = "differential"\nwheel_joints = ["wheel_left_joint", "wheel_right_joint"]', "")
+    assert "base" not in armed  # an arm without a base (base "none", the default without wheels)
+    assert main(["push", "--robot", _profile(tmp_path, armed, "wmra.urdf", "arm_joint"), "--duration", "8"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and 'its base is "none" (give base and wheel_joints)' in err, err

@@ -221,7 +221,7 @@ def test_a_bad_profile_is_one_line_naming_the_key(wmra_dir, over, key, fix):
             '<origin xyz="0 0 0.17" rpy="0 0 0"/>\n  </joint>\n  <link name="wheel_left">',
             '<origin xyz="0 0 0.47" rpy="0 0 0"/>\n  </joint>\n  <link name="wheel_left">',
             "wheel_radius",
-            "give wheel_radius = 0.17",
+            'a new root link with a fixed joint to the old one at xyz="0 0 -0.3"',
         ),
         (  # the left wheel without a speed limit: Pinocchio reads it as unlimited, so would the base's twist
             '<limit effort="60" velocity="8.8"/>',
@@ -246,6 +246,51 @@ def test_a_urdf_the_profile_cannot_drive_is_one_line_naming_the_key(wmra_dir, ol
         robots.load(path)
     msg = str(err.value)
     assert err.value.key == key and fix in msg and "\n" not in msg, msg
+
+
+@pytest.mark.parametrize("radius, fix", [("0.17", "fixed joint to 'base_footprint' at xyz=\"0 0 -0.3\""), ("0.47", "")])
+def test_a_given_wheel_radius_must_stand_the_root_link_on_the_floor(wmra_dir, radius, fix):
+    """The root link 0.3 m under the floor (axles 0.47 m above it) with wheel_radius = 0.17 given: the robot would be
+    modelled 0.3 m too high; a radius that is the axle's height stands the root on the floor."""
+    text = WMRA.read_text()
+    old = '<origin xyz="0 0 0.17" rpy="0 0 0"/>\n  </joint>\n  <link name="wheel_left">'
+    new = old.replace("0.17", "0.47")
+    text = text.replace(old, new, 1)
+    (wmra_dir / "wmra.urdf").write_text(text)
+    arm = 'joints = ["arm_joint1", "arm_joint2"]\ngripper_frame = "ee"\n'
+    path = write_profile(wmra_dir, wmra_text(arm=arm, wheel_radius=radius))
+    if not fix:
+        assert robots.load(path).profile.wheel_radius == 0.47
+        return
+    with pytest.raises(ProfileError) as err:
+        robots.load(path)
+    assert err.value.key == "wheel_radius" and fix in str(err.value), str(err.value)
+
+
+def test_a_continuous_arm_joint_names_the_urdf_fix(wmra_dir):
+    text = WMRA.read_text()
+    start = text.index('<joint name="arm_joint1" type="revolute">')
+    (wmra_dir / "wmra.urdf").write_text(text[:start] + text[start:].replace('type="revolute"', 'type="continuous"', 1))
+    path = write_profile(wmra_dir, wmra_text(arm='joints = ["arm_joint1", "arm_joint2"]\ngripper_frame = "ee"\n'))
+    with pytest.raises(ProfileError) as err:
+        robots.load(path)
+    assert err.value.key == "arms[0].joints[0]" and 'make it type="revolute" with <limit lower=' in str(err.value)
+
+
+def test_a_frame_named_like_a_joint_is_the_link(wmra_dir):
+    """A URDF link and joint sharing a name (Unitree Z1's gripperStator, SO-100's gripper): the link's frame."""
+    from robots.checks import frame_id
+
+    text = (
+        WMRA.read_text().replace('<link name="ee">', '<link name="ee_joint">').replace('link="ee"', 'link="ee_joint"')
+    )
+    (wmra_dir / "wmra.urdf").write_text(text)
+    arm = 'joints = ["arm_joint1", "arm_joint2"]\ngripper_frame = "ee_joint"\n'
+    loaded = robots.load(write_profile(wmra_dir, wmra_text(arm=arm)))
+    fid = frame_id(loaded.model, "ee_joint")
+    assert loaded.model.frames[fid].type == pin.FrameType.BODY and loaded.frame_id("ee_joint") == fid
+    with pytest.raises(ValueError, match="Several frames"):  # what the profile checks called and crashed on
+        loaded.model.getFrameId("ee_joint")
 
 
 def test_missing_meshes_name_package_dirs(tmp_path):

@@ -19,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 import robots
+from robots.checks import frame_id
 
 from cart.control import make_controller
 from cart.ekf import CartEKF, EKFConfig
@@ -96,8 +97,8 @@ def sensor_origins(config: PushConfig) -> np.ndarray:
     geo = config.cart_geometry()
     out = []
     for y, (arm, R) in zip(ys, grasps):
-        grip = data.oMf[model.getFrameId(prof.arms[arm].gripper_frame)]
-        offset = grip.actInv(data.oMf[model.getFrameId(prof.arms[arm].sensor_frame)]).translation
+        grip = data.oMf[frame_id(model, prof.arms[arm].gripper_frame)]
+        offset = grip.actInv(data.oMf[frame_id(model, prof.arms[arm].sensor_frame)]).translation
         out.append((geo.point(float(y)) + R @ offset)[:2])
     return np.array(out)
 

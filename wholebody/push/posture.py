@@ -205,6 +205,11 @@ def _placement(wb: WholeBody, prof: RobotProfile, pitch: float, roll: float, axi
     return best
 
 
+#: A handle whose height above (or below) the arm's first joint takes more than this share of the stretched arm is
+#: at the edge of its reach (`_why`).
+REACH_SHARE = 0.8
+
+
 def _why(wb: WholeBody) -> str:
     """Return why no posture was found, as far as the arm's geometry tells: the handle out of the arm's reach
     (its straight-line length from the first arm joint) at any base place, or else what to give the search."""
@@ -221,6 +226,14 @@ def _why(wb: WholeBody) -> str:
         return (
             f"the handle is {handle:.2f} m high and the arm's first joint {shoulder:.2f} m, farther than the arm's "
             f"length ({length:.2f} m, first joint to gripper frame): mount the arm higher or push a lower handle"
+        )
+    rise = abs(handle - shoulder)
+    if rise > REACH_SHARE * length:  # the height takes most of the arm: little is left to reach past the base
+        return (
+            f"the handle is {handle:.2f} m high and the arm's first joint {shoulder:.2f} m: {rise:.2f} m of the arm's "
+            f"{length:.2f} m (first joint to gripper frame, stretched) go to the height, leaving at most "
+            f"{math.sqrt(max(length**2 - rise**2, 0.0)):.2f} m to reach forward past the base and bend the wrist onto "
+            "the bar: mount the arm higher or push a lower handle"
         )
     if wb.n_arm < 6:
         return (

@@ -913,6 +913,7 @@ def what_happened(result: PushResult) -> list[str]:
         lines.append(f"arm torque at {m.arm_torque_limit_ratio:.2f} x its limit (commanded)")
     if rep.get("arm_torque_saturated_steps"):
         lines.append(f"arm torques clipped at their limits in {rep['arm_torque_saturated_steps']} physics steps")
+    lines += _wheels_at_limit(result, t_end)
     lines.append(_lateral_slip(result, t_end))
     if rep.get("grasp_slip_max_m") is not None:
         lines.append(f"grip slip at most {1e3 * rep['grasp_slip_max_m']:.2f} mm")
@@ -1077,6 +1078,32 @@ def _slowed_in_turns(result: PushResult, slowed: np.ndarray) -> str:
         f"(tau_z, {max(tau_z):.2f} s): turning this cart takes more yaw torque than the grips twist (a large yaw "
         "inertia, casters swinging round, or wheels that scrub in a turn: fixed axles front and rear, a solid axle)"
     )
+
+
+#: The base's wheels at this share of their speed limit or more run as fast as they go.
+WHEEL_AT_LIMIT = 0.999
+#: Time (s) at the wheel speed limit worth a sentence.
+WHEEL_LIMIT_TIME = 0.5
+
+
+def _wheels_at_limit(result: PushResult, t_end: float) -> list[str]:
+    """Return a sentence when a base's wheels ran at their speed limit for `WHEEL_LIMIT_TIME` or more before `t_end`.
+
+    The whole-body QP keeps the wheels within their limits: at the limit the base goes no faster and the arm
+    takes up the rest of the hand's motion (a weak arm then runs into its torque limits on a physics plant).
+    """
+    if result.wheel_rates is None or result.wheel_velocity_limit is None:
+        return []
+    ratio = np.abs(result.wheel_rates) / np.asarray(result.wheel_velocity_limit)
+    at = (ratio.reshape(len(result.t), -1).max(axis=1) >= WHEEL_AT_LIMIT) & (result.t < t_end)
+    total = float(at.sum()) * result.config.dt
+    if total < WHEEL_LIMIT_TIME:
+        return []
+    first = float(result.t[np.argmax(at)])
+    return [
+        f"base: the wheels ran at their speed limit for {total:.2f} s from t = {first:.2f} s (the base as fast as it "
+        "goes; the arm took up the rest of the hand's motion)"
+    ]
 
 
 def _lateral_slip(result: PushResult, t_end: float) -> str:

@@ -56,6 +56,30 @@ def test_a_handle_beyond_the_arms_length_is_named(wmra, monkeypatch):
     assert "mount the arm higher" in str(err.value)
 
 
+@pytest.mark.parametrize("share, said", [(0.9, "go to the height, leaving at most"), (0.5, "give [push] base_x")])
+def test_a_handle_at_the_edge_of_the_arms_reach_is_named(wmra, monkeypatch, share, said):
+    """The height takes 90 % of the stretched arm (Unitree Z1 on a small base: 0.72 of 0.79 m): the reason is the
+    reach, not the search's settings; at half the arm it is the settings."""
+    prof, wbs = wmra
+    wb = wbs[0]
+    data = wb.model.createData()
+    pin.forwardKinematics(wb.model, data, wb.to_pinocchio_q(np.r_[np.zeros(3), 0.5 * (wb.arm_lower + wb.arm_upper)]))
+    pin.updateFramePlacements(wb.model, data)
+    chain = [data.oMi[wb.model.getJointId(n)].translation for n in wb.arm_joints]
+    chain.append(data.oMf[wb.ee_frame_id].translation)
+    length = float(sum(np.linalg.norm(b - a) for a, b in zip(chain[:-1], chain[1:])))
+    assert share * length > posture.REACH_SHARE * length or share < posture.REACH_SHARE
+    from wholebody.push import robot as push_robot
+
+    top = float(chain[0][2]) + share * length
+    monkeypatch.setattr(push_robot, "handle_point", lambda y, geometry=None: np.array([-0.15, y, top]))
+    monkeypatch.setattr(push_robot, "cart_se3", lambda q: pin.SE3.Identity())
+    monkeypatch.setattr(posture, "_placement", lambda *a: None)
+    with pytest.raises(WholeBodyError) as err:
+        posture.solve_push_placement(prof, wbs)
+    assert said in str(err.value), str(err.value)
+
+
 def test_an_arm_too_weak_to_hold_itself_at_the_push_posture_is_refused(wmra, monkeypatch):
     prof, wbs = wmra
     found = posture._placement

@@ -75,3 +75,19 @@ def test_an_estimate_far_from_the_initial_guess_names_the_options():
     assert "12.3 x the initial guess (196.6 kg for 16 kg)" in line and "--initial-mass" in line
     assert "0.2 x" in _far_guess(run(3.0))[0]
     assert _far_guess(run(40.0)) == [] and _far_guess(run(196.6, estimation=False)) == []
+
+
+def test_wheels_at_their_speed_limit_are_reported_with_when_and_how_long():
+    from wholebody.push.report import WHEEL_LIMIT_TIME, _wheels_at_limit
+
+    limit = np.array([10.0, 10.0])
+    rates = np.full((1000, 1, 2), 4.0)
+    rates[300:420, 0, 1] = -10.0  # the right wheel at its limit (backwards) for 1.2 s from 3 s
+    run = SimpleNamespace(
+        t=0.01 * np.arange(1000), wheel_rates=rates, wheel_velocity_limit=limit, config=_result(rates).config
+    )
+    line = _wheels_at_limit(run, math.inf)
+    assert len(line) == 1 and "at their speed limit for 1.20 s from t = 3.00 s" in line[0], line
+    assert _wheels_at_limit(run, 3.5) and "for 0.50 s" in _wheels_at_limit(run, 3.5)[0]  # before a loss at 3.5 s
+    rates[300 + int(100 * WHEEL_LIMIT_TIME) - 1 : 420, 0, 1] = 9.9  # under WHEEL_LIMIT_TIME at the limit: nothing
+    assert _wheels_at_limit(run, math.inf) == []
