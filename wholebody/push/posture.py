@@ -210,11 +210,27 @@ def _placement(wb: WholeBody, prof: RobotProfile, pitch: float, roll: float, axi
 REACH_SHARE = 0.8
 
 
-def _why(wb: WholeBody) -> str:
-    """Return why no posture was found, as far as the arm's geometry tells: the handle out of the arm's reach
-    (its straight-line length from the first arm joint) at any base place, or else what to give the search."""
+def _held_in_the_hand(wb: WholeBody, locked: Sequence[str]) -> list[str]:
+    """Return the movable joints between the arm's last joint and its gripper frame that neither the arm nor
+    ``locked`` names: held at 0 unlisted, as a wrist joint left out of the arm's list is."""
+    model = wb.model
+    chain = list(model.supports[model.frames[wb.ee_frame_id].parentJoint])
+    last = max(chain.index(model.getJointId(n)) for n in wb.arm_joints)
+    return [model.names[j] for j in chain[last + 1 :] if model.joints[j].nv > 0 and model.names[j] not in locked]
+
+
+def _why(wb: WholeBody, locked: Sequence[str] = ()) -> str:
+    """Return why no posture was found, as far as the arm's geometry tells: a joint left out of the arm between it
+    and the gripper, the handle out of the arm's reach (its straight-line length from the first arm joint) at any
+    base place, or else what to give the search."""
     from wholebody.push.robot import cart_se3, handle_point
 
+    held = _held_in_the_hand(wb, locked)
+    if held:
+        return (
+            f"the joint(s) {', '.join(map(repr, held))} between the arm's last joint and its gripper frame are neither "
+            "in the arm's joints nor in [locked] (held at 0): list them in the arm's joints, base to tip"
+        )
     model, data = wb.model, wb.model.createData()
     pin.forwardKinematics(model, data, wb.to_pinocchio_q(np.r_[np.zeros(3), 0.5 * (wb.arm_lower + wb.arm_upper)]))
     pin.updateFramePlacements(model, data)
@@ -258,7 +274,10 @@ def solve_push_placement(prof: RobotProfile, wbs: Sequence[WholeBody]) -> RobotP
         at = replace(prof, push_base_x=bx)
         found = [p for p in (_placement(wb, at, pitch, roll, axis) for pitch, roll in _candidates(at)) if p]
     if not found:
-        raise WholeBodyError(f"robot {prof.name!r}: no arm posture reaches the cart handle from behind it; {_why(wb)}")
+        locked = [name for name, _ in prof.locked]
+        raise WholeBodyError(
+            f"robot {prof.name!r}: no arm posture reaches the cart handle from behind it; {_why(wb, locked)}"
+        )
     if prof.base != "holonomic":  # a base at a fixed place: rank the best few by the handle length they reach
         found = sorted(found, key=lambda p: p.score)[-REACH_CANDIDATES:]
         found = [replace(p, reach=_reach_length(wb, prof, p)) for p in found]

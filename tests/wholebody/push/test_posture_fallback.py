@@ -109,3 +109,22 @@ def test_an_arm_of_fewer_than_six_joints_is_told_to_give_its_grasp(tmp_path, mon
     monkeypatch.setattr(posture, "_placement", lambda *a: None)
     with pytest.raises(WholeBodyError, match="an arm of 5 joints holds the handle only in a few orientations"):
         posture.solve_push_placement(prof, wbs)
+
+
+def test_a_wrist_joint_left_out_of_the_arm_is_named(tmp_path, monkeypatch):
+    """The WMRA's arm listed without its last joint (arm_joint7, between arm_joint6 and the gripper frame): the
+    search fails, and the reason is the joint held at 0, not the search's settings; locked, it is not named."""
+    import shutil
+
+    from tests.robots.profile_files import write_profile
+    from tests.robots.test_profiles import WMRA, wmra_text
+
+    shutil.copy(WMRA, tmp_path / "wmra.urdf")
+    six = ", ".join(f'"arm_joint{i}"' for i in range(1, 7))
+    loaded = robots.load(write_profile(tmp_path, wmra_text(arm=f'joints = [{six}]\ngripper_frame = "ee"\n')))
+    prof = filled_profile(loaded)
+    wbs = [wholebody_for(loaded, base_input=prof.base_input, arm=0)]
+    monkeypatch.setattr(posture, "_placement", lambda *a: None)
+    with pytest.raises(WholeBodyError, match="'arm_joint7' between the arm's last joint and its gripper frame"):
+        posture.solve_push_placement(prof, wbs)
+    assert posture._held_in_the_hand(wbs[0], ["arm_joint7"]) == []
