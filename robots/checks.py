@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import os
 import sysconfig
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -364,6 +365,41 @@ def _check_root_on_floor(prof: RobotProfile, model: pin.Model, wheel: str, heigh
         f'put the root link on the floor (a new root link with a fixed joint to {root!r} at xyz="0 0 '
         f'{r - height:.4g}"), or correct wheel_radius',
     )
+
+
+#: A link without mass whose collision primitives enclose this much volume (m^3) or more is a body left out.
+MASSLESS_BODY_VOLUME = 0.005
+
+
+def _primitive_volume(geometry: ET.Element) -> float:
+    """Return the volume (m^3) of a URDF ``<geometry>``'s box, cylinder or sphere (0 for a mesh or nothing)."""
+    try:
+        if (box := geometry.find("box")) is not None:
+            return float(np.prod([float(v) for v in str(box.get("size", "0 0 0")).split()]))
+        if (cyl := geometry.find("cylinder")) is not None:
+            return math.pi * float(cyl.get("radius", 0)) ** 2 * float(cyl.get("length", 0))
+        if (sph := geometry.find("sphere")) is not None:
+            return 4.0 / 3.0 * math.pi * float(sph.get("radius", 0)) ** 3
+    except ValueError:
+        return 0.0
+    return 0.0
+
+
+def massless_bodies(urdf_text: str, min_volume: float = MASSLESS_BODY_VOLUME) -> list[tuple[str, float]]:
+    """Return the URDF's links without a positive ``<inertial>`` mass whose collision boxes, cylinders and spheres
+    enclose ``min_volume`` or more, with that volume: a chassis or a cover whose mass was left out (the model,
+    kinematic and MuJoCo, then weighs without it; a sensor frame or a mesh-only link is not counted)."""
+    out = []
+    for link in ET.fromstring(urdf_text).iter("link"):
+        mass = link.find("inertial/mass")
+        try:
+            value = float(mass.get("value", "0")) if mass is not None else 0.0
+        except ValueError:
+            value = 0.0
+        volume = sum(_primitive_volume(g) for g in link.findall("collision/geometry"))
+        if not value > 0.0 and volume >= min_volume:
+            out.append((str(link.get("name")), volume))
+    return out
 
 
 def package_search_dirs(prof_dirs: tuple[Path, ...], urdf: Path) -> list[str]:

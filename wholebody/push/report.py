@@ -922,7 +922,33 @@ def what_happened(result: PushResult) -> list[str]:
     lines += load_change_lines(result)
     lines.append(_fit(result))
     lines += _far_guess(result)
+    lines += _massless_bodies(result)
     return lines
+
+
+#: base wheel slip (m/s) on the MuJoCo plant above which the robot's grip on the floor is worth questioning
+WHEEL_SLIP_M_S = 0.1
+
+
+def _massless_bodies(result: PushResult) -> list[str]:
+    """Return a sentence when a MuJoCo run was lost or its base's wheels slipped (`WHEEL_SLIP_M_S`) and the robot's
+    URDF has bodies without mass (`robots.checks.massless_bodies`: a chassis whose ``<inertial>`` was left out
+    makes the robot lighter in the model, its wheels grip less and it tips sooner)."""
+    rep = result.plant_report or {}
+    slip = rep.get("base_wheel_slip_max_m_s") or 0.0
+    if rep.get("plant") != "mujoco" or (result.metrics.tracking_lost_at_s is None and slip <= WHEEL_SLIP_M_S):
+        return []
+    import robots
+    from robots.checks import massless_bodies
+
+    bodies = massless_bodies(robots.urdf_path(result.config.robot).read_text())
+    if not bodies:
+        return []
+    names = ", ".join(f"{n!r} ({1e3 * v:.0f} L of collision geometry)" for n, v in bodies)
+    return [
+        f"robot model: {names} without mass in the URDF (no <inertial>): the robot is lighter in the model than it is, "
+        "its wheels grip less and it tips sooner; give them their mass"
+    ]
 
 
 #: an estimate this many times the initial guess (or below its inverse) was far from the guess: say so

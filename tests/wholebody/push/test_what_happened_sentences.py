@@ -91,3 +91,32 @@ def test_wheels_at_their_speed_limit_are_reported_with_when_and_how_long():
     assert _wheels_at_limit(run, 3.5) and "for 0.50 s" in _wheels_at_limit(run, 3.5)[0]  # before a loss at 3.5 s
     rates[300 + int(100 * WHEEL_LIMIT_TIME) - 1 : 420, 0, 1] = 9.9  # under WHEEL_LIMIT_TIME at the limit: nothing
     assert _wheels_at_limit(run, math.inf) == []
+
+
+def test_a_lost_mujoco_run_names_robot_bodies_left_without_mass(tmp_path):
+    """The WMRA's chassis without its <inertial> (100 kg): a lost run or slipping wheels on the MuJoCo plant name it;
+    a run that went well, or the shipped URDF, say nothing."""
+    import re
+
+    import robots
+    from robots.checks import massless_bodies
+    from tests.robots.profile_files import write_profile
+    from tests.robots.test_profiles import WMRA, wmra_text
+    from wholebody.push.report import _massless_bodies
+
+    text = re.sub(r'(<link name="base_link">)\s*<inertial>.*?</inertial>', r"\1", WMRA.read_text(), count=1, flags=re.S)
+    (tmp_path / "wmra.urdf").write_text(text)
+    path = write_profile(tmp_path, wmra_text())
+    assert massless_bodies(WMRA.read_text()) == [] and [n for n, _ in massless_bodies(text)] == ["base_link"]
+
+    def run(lost, slip, plant="mujoco"):
+        return SimpleNamespace(
+            plant_report={"plant": plant, "base_wheel_slip_max_m_s": slip},
+            metrics=SimpleNamespace(tracking_lost_at_s=lost),
+            config=SimpleNamespace(robot=str(path)),
+        )
+
+    said = _massless_bodies(run(2.7, 0.02))
+    assert len(said) == 1 and "'base_link'" in said[0] and "give them their mass" in said[0]
+    assert _massless_bodies(run(None, 0.5)) == said
+    assert _massless_bodies(run(None, 0.02)) == [] and _massless_bodies(run(2.7, None, "kinematic")) == []
