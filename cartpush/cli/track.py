@@ -180,7 +180,8 @@ SINGULAR_SHARE = 0.1
 
 def _singular_warnings(m: dict) -> list[str]:
     """Return the warning when the arm was near a singular pose in more than `SINGULAR_SHARE` of the steps (the
-    base then did most of the motion; a profile robot starts from its arm's push_seed, else mid-range)."""
+    base then did most of the motion; a profile robot starts from its arm's push_seed, else mid-range or, where
+    that is singular, the best-conditioned of a few bent postures: `wholebody.motion.experiments.initial_state`)."""
     steps, singular = int(m["steps"]), int(m["singular_steps"])
     if steps == 0 or singular <= SINGULAR_SHARE * steps:
         return []

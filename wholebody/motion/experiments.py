@@ -45,8 +45,34 @@ def initial_state(wb: WholeBody) -> np.ndarray:
         return np.r_[0.0, 0.0, 0.0, np.radians(IIWA_INITIAL_ARM_DEG)]
     prof = wb.robot.profile
     seed = prof.push_arm_seed if prof is not None else None
-    arm = np.asarray(seed, dtype=float) if seed is not None else 0.5 * (wb.arm_lower + wb.arm_upper)
+    arm = np.asarray(seed, dtype=float) if seed is not None else _unfolded_mid_range(wb)
     return np.r_[0.0, 0.0, 0.0, arm]
+
+
+#: the mid-range start is kept when the combined Jacobian's smallest singular value is at least this there
+START_SIGMA_MIN = 0.05
+
+
+def _sigma_min(wb: WholeBody, arm: np.ndarray) -> float:
+    return float(np.linalg.svd(wb.combined_jacobian(np.r_[0.0, 0.0, 0.0, arm]), compute_uv=False)[-1])
+
+
+def _unfolded_mid_range(wb: WholeBody) -> np.ndarray:
+    """Return the middle of each arm joint's range, or, where that posture is (near) singular, the best-conditioned
+    of a few bent ones: +-2 pi limits put the middle at 0, a stretched arm for UR-type arms (singular on every
+    step of a run from it). Candidates: the middle moved 0.6 rad per joint in alternating signs (both ways), then
+    16 postures drawn (seed 0) within the middle half of each range; the largest smallest singular value of the
+    combined Jacobian wins."""
+    lo, hi = np.asarray(wb.arm_lower, dtype=float), np.asarray(wb.arm_upper, dtype=float)
+    mid = 0.5 * (lo + hi)
+    if _sigma_min(wb, mid) >= START_SIGMA_MIN:
+        return mid
+    signs = np.where(np.arange(len(mid)) % 2 == 0, 1.0, -1.0)
+    inner_lo, inner_hi = lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo)
+    rng = np.random.default_rng(0)
+    candidates = [np.clip(mid + s * 0.6 * signs, inner_lo, inner_hi) for s in (1.0, -1.0)]
+    candidates += [rng.uniform(inner_lo, inner_hi) for _ in range(16)]
+    return max([mid, *candidates], key=lambda arm: _sigma_min(wb, arm))
 
 
 def path_function(path: str) -> Callable[[float], tuple[np.ndarray, np.ndarray]]:

@@ -66,3 +66,27 @@ def test_ridgeback_band_sine_tracks_and_holds_band():
     assert res.max_position_error_m < 5e-3
     free = run_tracking("ridgeback_iiwa", "sine", duration=30.0)
     assert np.linalg.norm(free.x[:, :2] - free.band_center, axis=1).max() > 0.7
+
+
+def test_a_profile_robot_whose_mid_range_is_near_singular_starts_bent():
+    """TIAGo++ (no push_seed): the middle of its arm's ranges leaves the combined Jacobian's smallest singular value
+    at 0.024; the start is the best-conditioned of the bent candidates, within the limits, and tracks the sine
+    without a singular step. A robot whose middle is well conditioned (the WMRA as a profile) keeps it."""
+    import numpy as np
+
+    import robots
+    from wholebody.motion import experiments as ex
+    from wholebody.motion.kinematics import wholebody_for
+
+    loaded = robots.load("robots/examples/tiago_dual.toml")
+    wb = wholebody_for(loaded, loaded.profile.base_input)
+    mid = 0.5 * (wb.arm_lower + wb.arm_upper)
+    start = ex.initial_state(wb)[3:]
+    assert ex._sigma_min(wb, mid) < ex.START_SIGMA_MIN <= ex._sigma_min(wb, start)
+    assert np.all(start > wb.arm_lower) and np.all(start < wb.arm_upper)
+    res = ex.run_tracking("robots/examples/tiago_dual.toml", "sine", duration=3.0, wb=wb)
+    assert res.singular_steps == 0 and res.rms_position_error_m < 1e-3
+    wmra = robots.load("wmra")
+    wb2 = wholebody_for(wmra, "wheels")
+    mid2 = 0.5 * (wb2.arm_lower + wb2.arm_upper)
+    assert ex._sigma_min(wb2, mid2) >= ex.START_SIGMA_MIN and np.array_equal(ex._unfolded_mid_range(wb2), mid2)

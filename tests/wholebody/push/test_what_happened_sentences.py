@@ -98,7 +98,6 @@ def test_a_lost_mujoco_run_names_robot_bodies_left_without_mass(tmp_path):
     a run that went well, or the shipped URDF, say nothing."""
     import re
 
-    import robots
     from robots.checks import massless_bodies
     from tests.robots.profile_files import write_profile
     from tests.robots.test_profiles import WMRA, wmra_text
