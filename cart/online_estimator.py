@@ -296,6 +296,7 @@ class OnlineLSEstimator:
         self._changes: list[_Change] = []
         self._flags: list[RunoffFlag] = []
         self._active: set[str] = set()
+        self._ended: dict[str, float] = {}  # when each kind's last episode ended
         self._buffer: RingBuffer | None = None
         self.nis = float("nan")
         self._impulse_nis = chi2_isf(options.impulse_alpha, 2)
@@ -1190,12 +1191,17 @@ class OnlineLSEstimator:
 
     # -- plausibility -----------------------------------------------------------------------
     def _flag(self, kind: str, on: bool, detail: str) -> None:
-        """Record the start of an episode of ``kind`` (once until it ends)."""
+        """Record the start of an episode of ``kind`` (once until it ends).
+
+        An episode that starts again within ``change_window_s`` of the end of the last one of its kind continues
+        it (a plausibility test flickering at its bound flagged the wheelchair's Traj. 2 400 times)."""
         if on and kind not in self._active:
-            self._flags.append(RunoffFlag(self.t, kind, detail))
+            if self.t - self._ended.get(kind, -math.inf) > self.options.change_window_s:
+                self._flags.append(RunoffFlag(self.t, kind, detail))
             self._active.add(kind)
-        elif not on:
+        elif not on and kind in self._active:
             self._active.discard(kind)
+            self._ended[kind] = self.t
 
     def _check_misfit(self, r: np.ndarray, pred: np.ndarray, dt: float) -> None:
         """Windowed innovation test: residual power over ``pred`` (what noise and the estimate's std explain), per row."""

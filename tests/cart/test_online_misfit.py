@@ -212,3 +212,18 @@ def test_a_glr_change_the_longer_fit_after_it_does_not_see_is_withdrawn(misfit_l
     est = _run(misfit_log, make_online_estimator(q0, GUESS, std), 1, 3.0, 0.3)
     assert est.events == ()
     assert "change_withdrawn" in [f.kind for f in est.flags]
+
+
+def test_a_flag_flickering_at_its_bound_is_one_episode():
+    """A plausibility test at its bound turns on and off period after period (the wheelchair's MuJoCo Traj. 2: 400
+    nonpositive_inertia flags): an episode that starts again within change_window_s of the last one's end continues
+    it; one that starts later is a new one."""
+    est = make_online_estimator(np.zeros(3), GUESS, MOCAP.measurement_std())
+    window = est.options.change_window_s
+    for k in range(200):  # on and off every 10 ms for 2 s
+        est.t = 0.01 * k
+        est._flag("nonpositive_inertia", k % 2 == 0, "inertia about the CoM -0.3 kg m^2")
+    assert [f.t for f in est.flags] == [0.0]
+    est.t = 1.99 + 1.5 * window  # on again well after the window
+    est._flag("nonpositive_inertia", True, "again")
+    assert [f.detail for f in est.flags][-1] == "again" and len(est.flags) == 2
