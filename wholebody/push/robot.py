@@ -267,17 +267,18 @@ def tool_axis(wb: WholeBody) -> str:
     """Return the gripper frame's axis pointing from the wrist to the fingertips, read off the URDF.
 
     The last arm joint's origin, seen from the gripper frame at the reference configuration, lies behind
-    the tool: the tool axis is minus its largest component ("z" when the two coincide).
+    the tool: the tool axis is minus its largest component. A gripper frame at that origin (Unitree Z1's
+    ``link06``) is read against the joint before it, and so on ("z" when every arm joint's origin coincides).
     """
     q = wb.to_pinocchio_q(np.r_[0.0, 0.0, 0.0, np.clip(np.zeros(wb.n_arm), wb.arm_lower, wb.arm_upper)])
     pin.forwardKinematics(wb.model, wb.data, q)
     pin.updateFramePlacements(wb.model, wb.data)
-    last = wb.model.getJointId(wb.arm_joints[-1])
-    p = wb.data.oMf[wb.ee_frame_id].actInv(wb.data.oMi[last].translation)
-    k = int(np.argmax(np.abs(p)))
-    if abs(p[k]) < 1e-6:
-        return "z"
-    return ("-" if p[k] > 0 else "") + "xyz"[k]
+    for name in reversed(wb.arm_joints):
+        p = wb.data.oMf[wb.ee_frame_id].actInv(wb.data.oMi[wb.model.getJointId(name)].translation)
+        k = int(np.argmax(np.abs(p)))
+        if abs(p[k]) >= 1e-6:
+            return ("-" if p[k] > 0 else "") + "xyz"[k]
+    return "z"
 
 
 def base_twist_limit(wb: WholeBody) -> tuple[float, float, float]:

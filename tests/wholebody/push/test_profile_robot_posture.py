@@ -109,3 +109,22 @@ def test_two_robots_from_one_profile_hold_their_own_contacts(tiago):
         assert np.linalg.norm(mm.wb.ee_placement(mm.x).translation - target.translation) < 1e-6
     # the bases stand clear of each other: TIAGo's round base (its mesh 0.50 m wide) plus 0.1 m of clearance
     assert mms[1].x[1] - mms[0].x[1] == pytest.approx(0.4995 + 0.1, abs=1e-3)
+
+
+def test_a_gripper_frame_at_the_last_joints_origin_reads_its_axis_against_the_joint_before(tmp_path):
+    """The WMRA's ee sits at arm_joint7's origin; turned -90 deg about y its x axis points from the wrist to the
+    fingertips: read against arm_joint6 the tool axis is "x" (it was "z", the fallback, for any such frame)."""
+    from tests.robots.profile_files import write_profile
+    from tests.robots.test_profiles import WMRA, wmra_text
+    from wholebody.motion.kinematics import wholebody_for
+    from wholebody.push.robot import tool_axis
+
+    text = WMRA.read_text()
+    old = '<child link="ee"/>\n    <origin xyz="0 0 0" rpy="0 0 0"/>'
+    assert old in text
+    for rpy, axis in (("0 -1.570796326795 0", "x"), ("0 0 0", "z")):
+        (tmp_path / "wmra.urdf").write_text(
+            text.replace(old, f'<child link="ee"/>\n    <origin xyz="0 0 0" rpy="{rpy}"/>')
+        )
+        loaded = robots.load(write_profile(tmp_path, wmra_text()))
+        assert tool_axis(wholebody_for(loaded, loaded.profile.base_input, arm=0)) == axis
