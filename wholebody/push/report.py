@@ -923,6 +923,7 @@ def what_happened(result: PushResult) -> list[str]:
     lines.append(_fit(result))
     lines += _far_guess(result)
     lines += _massless_bodies(result)
+    lines += _massless_arm_bodies(result)
     return lines
 
 
@@ -948,6 +949,27 @@ def _massless_bodies(result: PushResult) -> list[str]:
     return [
         f"robot model: {names} without mass in the URDF (no <inertial>): the robot is lighter in the model than it is, "
         "its wheels grip less and it tips sooner; give them their mass"
+    ]
+
+
+def _massless_arm_bodies(result: PushResult) -> list[str]:
+    """Return a sentence when an arm joint moves a body without mass in the robot's model (its link and the links
+    fixed to it have no ``<inertial>``): the arm's torques then leave that weight out. The MuJoCo plant refuses such
+    a robot before it runs; the kinematic plant runs it, and this says what its torques miss."""
+    import robots
+
+    loaded = robots.load(result.config.robot)
+    model, prof = loaded.model, loaded.profile
+    if prof is None:
+        return []
+    names = [n for arm in prof.arms for n in arm.joints]
+    bare = [n for n in names if model.existJointName(n) and model.inertias[model.getJointId(n)].mass <= 0.0]
+    if not bare:
+        return []
+    return [
+        f"robot model: the arm joint(s) {', '.join(map(repr, bare))} move bodies without mass in the URDF (no "
+        "<inertial> on their links): the arm's torques and torque ratios leave that weight out; give the links "
+        "their mass"
     ]
 
 

@@ -119,3 +119,23 @@ def test_a_lost_mujoco_run_names_robot_bodies_left_without_mass(tmp_path):
     assert len(said) == 1 and "'base_link'" in said[0] and "give them their mass" in said[0]
     assert _massless_bodies(run(None, 0.5)) == said
     assert _massless_bodies(run(None, 0.02)) == [] and _massless_bodies(run(2.7, None, "kinematic")) == []
+
+
+def test_an_arm_body_without_mass_is_named(tmp_path):
+    """The WMRA's arm_link3 without its <inertial>: the arm's torques leave its weight out (the kinematic plant runs
+    it; MuJoCo refuses it); the shipped robots say nothing."""
+    import re
+
+    from tests.robots.profile_files import write_profile
+    from tests.robots.test_profiles import WMRA, wmra_text
+    from wholebody.push.report import _massless_arm_bodies
+
+    text = re.sub(r'(<link name="arm_link3">)\s*<inertial>.*?</inertial>', r"\1", WMRA.read_text(), count=1, flags=re.S)
+    assert text != WMRA.read_text()
+    (tmp_path / "wmra.urdf").write_text(text)
+    said = _massless_arm_bodies(
+        SimpleNamespace(config=SimpleNamespace(robot=str(write_profile(tmp_path, wmra_text()))))
+    )
+    assert len(said) == 1 and "'arm_joint3'" in said[0] and "leave that weight out" in said[0], said
+    for robot in ("wmra", "ridgeback_iiwa", "robots/examples/tiago_dual.toml"):
+        assert _massless_arm_bodies(SimpleNamespace(config=SimpleNamespace(robot=robot))) == []
