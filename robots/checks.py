@@ -14,6 +14,7 @@ import math
 import os
 import sysconfig
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -400,6 +401,33 @@ def massless_bodies(urdf_text: str, min_volume: float = MASSLESS_BODY_VOLUME) ->
         if not value > 0.0 and volume >= min_volume:
             out.append((str(link.get("name")), volume))
     return out
+
+
+def massless_moved_bodies(urdf_text: str, joints: Sequence[str]) -> list[str]:
+    """Return the ``joints`` whose child link, with the links fixed to it, has no positive ``<inertial>`` mass
+    (the body the joint moves is massless in Pinocchio's model: its weight is out of every torque)."""
+    root = ET.fromstring(urdf_text)
+    mass: dict[str, float] = {}
+    for link in root.iter("link"):
+        m = link.find("inertial/mass")
+        try:
+            mass[str(link.get("name"))] = float(m.get("value", "0")) if m is not None else 0.0
+        except ValueError:
+            mass[str(link.get("name"))] = 0.0
+    fixed: dict[str, list[str]] = {}
+    child_of: dict[str, str] = {}
+    for j in root.iter("joint"):
+        parent, child = j.find("parent"), j.find("child")
+        if parent is None or child is None:
+            continue
+        child_of[str(j.get("name"))] = str(child.get("link"))
+        if j.get("type") == "fixed":
+            fixed.setdefault(str(parent.get("link")), []).append(str(child.get("link")))
+
+    def body_mass(link: str) -> float:
+        return mass.get(link, 0.0) + sum(body_mass(c) for c in fixed.get(link, ()))
+
+    return [n for n in joints if n in child_of and not body_mass(child_of[n]) > 0.0]
 
 
 def package_search_dirs(prof_dirs: tuple[Path, ...], urdf: Path) -> list[str]:

@@ -957,13 +957,11 @@ def _massless_arm_bodies(result: PushResult) -> list[str]:
     fixed to it have no ``<inertial>``): the arm's torques then leave that weight out. The MuJoCo plant refuses such
     a robot before it runs; the kinematic plant runs it, and this says what its torques miss."""
     import robots
+    from robots.checks import massless_moved_bodies
 
-    loaded = robots.load(result.config.robot)
-    model, prof = loaded.model, loaded.profile
-    if prof is None:
-        return []
-    names = [n for arm in prof.arms for n in arm.joints]
-    bare = [n for n in names if model.existJointName(n) and model.inertias[model.getJointId(n)].mass <= 0.0]
+    prof = robots.profile(result.config.robot)
+    joints = [n for arm in prof.arms for n in arm.joints]
+    bare = massless_moved_bodies(robots.urdf_path(result.config.robot).read_text(), joints)
     if not bare:
         return []
     return [
