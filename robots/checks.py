@@ -386,11 +386,19 @@ def _primitive_volume(geometry: ET.Element) -> float:
     return 0.0
 
 
-def massless_bodies(urdf_text: str, min_volume: float = MASSLESS_BODY_VOLUME) -> list[tuple[str, float]]:
+#: ... and the massless links together hold at least this share of the robot's collision primitives' volume
+MASSLESS_BODY_SHARE = 0.33
+
+
+def massless_bodies(
+    urdf_text: str, min_volume: float = MASSLESS_BODY_VOLUME, min_share: float = MASSLESS_BODY_SHARE
+) -> list[tuple[str, float]]:
     """Return the URDF's links without a positive ``<inertial>`` mass whose collision boxes, cylinders and spheres
-    enclose ``min_volume`` or more, with that volume: a chassis or a cover whose mass was left out (the model,
-    kinematic and MuJoCo, then weighs without it; a sensor frame or a mesh-only link is not counted)."""
-    out = []
+    enclose ``min_volume`` or more, with that volume, when together they are ``min_share`` or more of the volume of
+    every link's collision primitives: a chassis whose mass was left out (the model, kinematic and MuJoCo, then
+    weighs without most of the robot; a sensor frame, a mesh-only link or a pedestal whose mass another link
+    carries is not counted)."""
+    out, total = [], 0.0
     for link in ET.fromstring(urdf_text).iter("link"):
         mass = link.find("inertial/mass")
         try:
@@ -398,9 +406,10 @@ def massless_bodies(urdf_text: str, min_volume: float = MASSLESS_BODY_VOLUME) ->
         except ValueError:
             value = 0.0
         volume = sum(_primitive_volume(g) for g in link.findall("collision/geometry"))
+        total += volume
         if not value > 0.0 and volume >= min_volume:
             out.append((str(link.get("name")), volume))
-    return out
+    return out if sum(v for _, v in out) >= min_share * total else []
 
 
 def massless_moved_bodies(urdf_text: str, joints: Sequence[str]) -> list[str]:

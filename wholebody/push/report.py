@@ -984,6 +984,14 @@ def _far_guess(result: PushResult) -> list[str]:
     ratio = m / cfg.initial_mass
     if 1.0 / FAR_GUESS_RATIO < ratio < FAR_GUESS_RATIO:
         return []
+    flags = (result.estimator_report or {}).get("runoff_flags") or ()
+    restart = next((f for f in flags if f.get("kind") == "guess_far"), None)
+    if restart is not None:
+        return [
+            f"the pushes contradicted the initial guess ({cfg.initial_mass:g} kg): the estimate restarted from them at "
+            f"t = {restart['t']:.2f} s and ended at {m:.1f} kg; a guess near the cart's mass (--initial-mass, and "
+            "--initial-com for its centre of mass) saves the first seconds"
+        ]
     return [
         f"the mass estimate ended {ratio:.1f} x the initial guess ({m:.1f} kg for {cfg.initial_mass:g} kg): a guess "
         "that far off holds the estimate back; give one near the cart's mass (--initial-mass, and --initial-com "

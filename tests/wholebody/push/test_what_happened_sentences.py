@@ -65,16 +65,20 @@ def test_an_estimate_far_from_the_initial_guess_names_the_options():
     estimate within 3 x of the guess, or estimation off, says nothing."""
     from wholebody.push.report import _far_guess
 
-    def run(mass: float, estimation: bool = True) -> SimpleNamespace:
+    def run(mass: float, estimation: bool = True, flags=()) -> SimpleNamespace:
         return SimpleNamespace(
             config=SimpleNamespace(estimation=estimation, initial_mass=16.0),
             metrics=SimpleNamespace(mass_final_kg=mass),
+            estimator_report={"runoff_flags": list(flags)},
         )
 
     (line,) = _far_guess(run(196.6))
     assert "12.3 x the initial guess (196.6 kg for 16 kg)" in line and "--initial-mass" in line
     assert "0.2 x" in _far_guess(run(3.0))[0]
     assert _far_guess(run(40.0)) == [] and _far_guess(run(196.6, estimation=False)) == []
+    # the estimate restarted from the pushes (flag guess_far): it is not held back, and the sentence says so
+    (line,) = _far_guess(run(180.7, flags=[{"t": 1.91, "kind": "guess_far", "detail": ""}]))
+    assert "restarted from them at t = 1.91 s and ended at 180.7 kg" in line and "holds the estimate back" not in line
 
 
 def test_wheels_at_their_speed_limit_are_reported_with_when_and_how_long():
@@ -98,6 +102,7 @@ def test_a_lost_mujoco_run_names_robot_bodies_left_without_mass(tmp_path):
     a run that went well, or the shipped URDF, say nothing."""
     import re
 
+    import robots
     from robots.checks import massless_bodies
     from tests.robots.profile_files import write_profile
     from tests.robots.test_profiles import WMRA, wmra_text
@@ -107,6 +112,11 @@ def test_a_lost_mujoco_run_names_robot_bodies_left_without_mass(tmp_path):
     (tmp_path / "wmra.urdf").write_text(text)
     path = write_profile(tmp_path, wmra_text())
     assert massless_bodies(WMRA.read_text()) == [] and [n for n, _ in massless_bodies(text)] == ["base_link"]
+    # the Ridgeback's pedestal (40 L, its mass carried by no link) is a fifth of the robot's bulk: not named
+    ridgeback = robots.urdf_path("ridgeback_iiwa").read_text()
+    assert massless_bodies(ridgeback) == [] and [n for n, _ in massless_bodies(ridgeback, min_share=0.0)] == [
+        "arm_mount_link"
+    ]
 
     def run(lost, slip, plant="mujoco"):
         return SimpleNamespace(
