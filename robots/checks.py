@@ -372,6 +372,15 @@ def _check_root_on_floor(prof: RobotProfile, model: pin.Model, wheel: str, heigh
 MASSLESS_BODY_VOLUME = 0.005
 
 
+def link_mass(link: ET.Element) -> float:
+    """Return a URDF ``<link>``'s ``<inertial><mass value>`` (0 without one or when it is not a number)."""
+    mass = link.find("inertial/mass")
+    try:
+        return float(mass.get("value", "0")) if mass is not None else 0.0
+    except ValueError:
+        return 0.0
+
+
 def _primitive_volume(geometry: ET.Element) -> float:
     """Return the volume (m^3) of a URDF ``<geometry>``'s box, cylinder or sphere (0 for a mesh or nothing)."""
     try:
@@ -400,14 +409,9 @@ def massless_bodies(
     carries is not counted)."""
     out, total = [], 0.0
     for link in ET.fromstring(urdf_text).iter("link"):
-        mass = link.find("inertial/mass")
-        try:
-            value = float(mass.get("value", "0")) if mass is not None else 0.0
-        except ValueError:
-            value = 0.0
         volume = sum(_primitive_volume(g) for g in link.findall("collision/geometry"))
         total += volume
-        if not value > 0.0 and volume >= min_volume:
+        if not link_mass(link) > 0.0 and volume >= min_volume:
             out.append((str(link.get("name")), volume))
     return out if sum(v for _, v in out) >= min_share * total else []
 
@@ -416,13 +420,7 @@ def massless_moved_bodies(urdf_text: str, joints: Sequence[str]) -> list[str]:
     """Return the ``joints`` whose child link, with the links fixed to it, has no positive ``<inertial>`` mass
     (the body the joint moves is massless in Pinocchio's model: its weight is out of every torque)."""
     root = ET.fromstring(urdf_text)
-    mass: dict[str, float] = {}
-    for link in root.iter("link"):
-        m = link.find("inertial/mass")
-        try:
-            mass[str(link.get("name"))] = float(m.get("value", "0")) if m is not None else 0.0
-        except ValueError:
-            mass[str(link.get("name"))] = 0.0
+    mass = {str(link.get("name")): link_mass(link) for link in root.iter("link")}
     fixed: dict[str, list[str]] = {}
     child_of: dict[str, str] = {}
     for j in root.iter("joint"):

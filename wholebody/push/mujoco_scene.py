@@ -35,6 +35,7 @@ from functools import lru_cache
 import mujoco
 import numpy as np
 
+from robots.checks import link_mass
 from wholebody.errors import WholeBodyError
 from wholebody.push.mujoco_cart import floor_plane, geom_lowest_z
 from wholebody.push.file_version import file_version
@@ -214,16 +215,9 @@ def massless_moving_links(urdf_text: str) -> list[str]:
     root = ET.fromstring(urdf_text)
     children = [(j.get("type"), j.find("child")) for j in root.iter("joint")]
     moving = {c.get("link") for kind, c in children if kind != "fixed" and c is not None}
-    out = []
-    for link in root.iter("link"):
-        mass = link.find("inertial/mass")
-        try:
-            value = float(mass.get("value", "0")) if mass is not None else 0.0
-        except ValueError:
-            value = 0.0
-        if link.get("name") in moving and not value > 0.0:
-            out.append(str(link.get("name")))
-    return out
+    return [
+        str(link.get("name")) for link in root.iter("link") if link.get("name") in moving and not link_mass(link) > 0.0
+    ]
 
 
 def _ancestors(model: mujoco.MjModel, body: int) -> list[int]:
