@@ -884,6 +884,8 @@ def run_demo(
 LATERAL_SLIP_M_S = 0.05
 #: the online estimator's residual ratio above which the nominal cart model misfits the data
 MISFIT_RATIO = 2.0
+#: a final CoM estimate farther than this (m) from the truth, and farther than the initial guess, is called out
+COM_RUNOFF_M = 0.05
 #: share of the trajectory's time the slowed reference must reach for the verdict to read plain "tracked"
 SLOWED_VERDICT = 0.9
 #: distance (m) of a hand from its handle point above which a run says the hand left the handle
@@ -1219,10 +1221,21 @@ def _outcome(result: PushResult) -> str:
     )
 
 
+def _com_ran_off(result: PushResult) -> str:
+    """Return a clause when the final CoM estimate is farther from the truth than the initial guess (and than
+    ``COM_RUNOFF_M``): whichever estimator ran, its CoM did worse than not estimating it."""
+    cfg, err = result.config, result.metrics.com_error_final_m
+    truth = result.truth()[-1]
+    guess = float(np.hypot(cfg.initial_com[0] - truth[1], cfg.initial_com[1] - truth[2]))
+    if not cfg.estimation or not err > max(guess, COM_RUNOFF_M):
+        return ""
+    return f"; CoM estimate {100 * err:.0f} cm from the truth, farther than the initial guess ({100 * guess:.0f} cm)"
+
+
 def _fit(result: PushResult) -> str:
     """Return whether the estimator's cart model fitted the data (residual ratio, misfit flags) and its mass."""
     est, truth = result.estimator_report or {}, result.truth()[-1]
-    mass = f"mass estimate {result.metrics.mass_final_kg:.1f} kg (truth {truth[0]:.1f} kg)"
+    mass = f"mass estimate {result.metrics.mass_final_kg:.1f} kg (truth {truth[0]:.1f} kg)" + _com_ran_off(result)
     ratios = [r for r in est.get("residual_ratio") or () if r is not None]
     if not result.config.estimation or not ratios:
         return mass

@@ -52,12 +52,34 @@ def test_the_fit_sentence_says_when_the_pushes_leave_the_com_unidentified():
         return SimpleNamespace(
             estimator_report={"residual_ratio": [0.9], "unexcited": unexcited},
             truth=lambda: np.array([[150.0, 0.97, 0.05, 30.0, 1.0]]),
-            metrics=SimpleNamespace(mass_final_kg=148.0),
-            config=SimpleNamespace(estimation=True),
+            metrics=SimpleNamespace(mass_final_kg=148.0, com_error_final_m=0.02),
+            config=SimpleNamespace(estimation=True, initial_com=(0.3, 0.0)),
         )
 
     assert "not identified" not in _fit(result([]))
     assert "CoM dx not identified by these pushes" in _fit(result(["dx", "inertia"]))
+
+
+def test_a_com_estimate_worse_than_the_initial_guess_is_called_out():
+    """The paper's EKF in MuJoCo ends its CoM 1.5 m from the truth with no flag of its own: the fit sentence says
+    so for any estimator; an estimate nearer than the guess (or within COM_RUNOFF_M), or estimation off, says
+    nothing."""
+    from wholebody.push.report import COM_RUNOFF_M, _fit
+
+    def result(err: float, estimation: bool = True, guess=(0.3, 0.0)):
+        return SimpleNamespace(
+            estimator_report={},
+            truth=lambda: np.array([[20.7, 0.45, 0.0, 3.0, 1.0]]),  # the guess 15 cm from the truth
+            metrics=SimpleNamespace(mass_final_kg=22.8, com_error_final_m=err),
+            config=SimpleNamespace(estimation=estimation, initial_com=guess),
+        )
+
+    line = _fit(result(1.544))
+    assert "CoM estimate 154 cm from the truth, farther than the initial guess (15 cm)" in line, line
+    assert "CoM estimate" not in _fit(result(0.14)) and "CoM estimate" not in _fit(result(1.544, estimation=False))
+    near = (0.45, 0.5 * COM_RUNOFF_M)  # a guess nearly right: an estimate within COM_RUNOFF_M is not called out
+    assert "CoM estimate" not in _fit(result(0.9 * COM_RUNOFF_M, guess=near))
+    assert "CoM estimate" in _fit(result(1.1 * COM_RUNOFF_M, guess=near))
 
 
 def test_an_estimate_far_from_the_initial_guess_names_the_options():
