@@ -189,6 +189,18 @@ class RunoffFlag:
 
 
 @dataclass
+class _SumsBefore:
+    """The regression's state on the samples before a GLR change's onset: what withdrawing the change restores
+    (:meth:`OnlineLSEstimator._second_look`)."""
+
+    prior: PhysicalPrior
+    excitation_margin: float
+    normal: tuple[np.ndarray, np.ndarray, np.ndarray]  # D, d, C of the samples before the onset
+    casters: tuple[np.ndarray, ...] | None = None  # the caster bank's sums of those samples
+    carried: tuple[np.ndarray, ...] | None = None  # the casters' prior the restart added (CasterBank.carried)
+
+
+@dataclass
 class _Change:
     t_change: float
     t_detected: float
@@ -199,6 +211,7 @@ class _Change:
     window_index: int | None = None  # the change's index in the window search's list (its onset is refined)
     t_range: tuple[float, float] | None = None  # the onsets the data cannot tell apart (earliest, latest)
     before: tuple[float, float, float] | None = None  # GLR: the fit before the onset (mass, std, residual ratio)
+    sums_before: _SumsBefore | None = None  # GLR: the regression before the onset, restored if withdrawn
 
 
 def _vector(value: npt.ArrayLike, n: int, what: str) -> np.ndarray:
@@ -875,7 +888,8 @@ class OnlineLSEstimator:
         full, new, after, local = self._fit_after(idx, PhysicalPrior(center, std))
         self.detector.restart()
         own = math.sqrt(local[0].ratio2(full.p))  # the samples after the onset against their own fit
-        fit_before, k_old = self._fit_before(idx), float(buf.read("k")[idx])
+        sums_before = self._sums_before(idx)
+        fit_before, k_old = self._fit_before(sums_before), float(buf.read("k")[idx])
         if self._guess_far(full, fit_before, max(k_old, own, 1.0)):
             self._restart_from(new, local, after)
             buf.clear()
@@ -892,7 +906,15 @@ class OnlineLSEstimator:
             if split is not None:  # the window's split, on up to window_s of data, dates the change
                 t_change, t_range = split.t_change, split.t_range
         self._changes.append(
-            _Change(t_change, self.t, m_before, self.detector.statistic, t_range=t_range, before=(*fit_before, k_old))
+            _Change(
+                t_change,
+                self.t,
+                m_before,
+                self.detector.statistic,
+                t_range=t_range,
+                before=(*fit_before, k_old),
+                sums_before=sums_before,
+            )
         )
         if self.window is not None:
             before = self._params.with_mass(m_before) if m_before > 0.0 else self._params
@@ -913,8 +935,8 @@ class OnlineLSEstimator:
         its first fit whose mass std is below ``min_change`` of the mass before: the change stands when that mass
         and the mass fitted before the onset differ by ``min_change`` of the latter and by ``confirm_sigma`` times
         the std of their difference (the side before's std scaled up by its residual ratio at the onset, as in
-        :meth:`_confirmed`). Otherwise it is withdrawn (flagged ``change_withdrawn``) and the estimate goes on
-        from the samples after the onset, as after any change.
+        :meth:`_confirmed`). Otherwise it is withdrawn (flagged ``change_withdrawn``) and the restart undone: the
+        estimate goes on from all the samples, before the onset and since (:meth:`_undo_restart`).
         """
         window = self.window
         fit = window.fit if window is not None else None
@@ -934,6 +956,8 @@ class OnlineLSEstimator:
         if diff >= limit and diff >= self.options.confirm_sigma * std:
             return
         self._changes.pop()
+        if c.sums_before is not None:
+            self._undo_restart(c.sums_before)
         if self._changes:
             self._changes[-1].mass_end = None
         if c.window_index is not None and c.window_index == len(window.changes) - 1:
@@ -1085,21 +1109,50 @@ class OnlineLSEstimator:
                 window.add(rows[k], y[k], e[k], float(t[k] - t[k - 1]) if k else math.inf)
         return window
 
-    def _fit_before(self, idx: int) -> tuple[float, float]:
-        """Return (mass, std) fitted on the samples before the onset ``idx`` alone (the regression's own prior)."""
+    def _sums_before(self, idx: int) -> _SumsBefore:
+        """Return the regression's sums on the samples before the onset ``idx`` (the buffered samples from ``idx``
+        taken out at the weight they entered with), with the casters' sums and the caster prior a restart at
+        ``idx`` carries over (:meth:`CasterBank.carried`, as :meth:`_fit_after` adds it)."""
         reg = self.regression
-        before = RecursiveRegression(reg.prior, reg.noise_subspace)
-        before.D = reg.D - self._weighted_sum("D", idx)
-        before.d = reg.d - self._weighted_sum("d", idx)
-        before.C = reg.C - self._weighted_sum("C", idx)
-        after = tuple(self._weighted_sum(k, idx) for k in ("xc", "xi", "xd")) if self.casters is not None else None
-        if after is not None and self.casters is not None and self.casters.active is not None:
-            g, bank = self.casters.active, self.casters
-            before.nuisance = Nuisance(
-                bank.cross[g] - after[0][g], bank.info[g] - after[1][g], bank.dvec[g] - after[2][g]
+        normal = tuple(getattr(reg, k) - self._weighted_sum(k, idx) for k in ("D", "d", "C"))
+        sums = _SumsBefore(reg.prior, reg.excitation_margin, normal)
+        if self.casters is not None:
+            bank = self.casters
+            sums.casters = tuple(
+                b - self._weighted_sum(k, idx) for b, k in zip((bank.cross, bank.info, bank.dvec), ("xc", "xi", "xd"))
             )
+            _, jr = reg.prior.residual(reg.p)
+            zero = tuple(np.zeros_like(a) for a in sums.casters)
+            sums.carried = bank.carried(zero, normal[0] + jr.T @ jr, reg.p, sums.casters)
+        return sums
+
+    def _fit_before(self, sums: _SumsBefore) -> tuple[float, float]:
+        """Return (mass, std) fitted on the samples before an onset alone (``sums``, under the regression's prior)."""
+        before = RecursiveRegression(sums.prior, self.regression.noise_subspace)
+        before.D, before.d, before.C = sums.normal
+        if sums.casters is not None and self.casters is not None and self.casters.active is not None:
+            g = self.casters.active
+            before.nuisance = Nuisance(sums.casters[0][g], sums.casters[1][g], sums.casters[2][g])
         before.solve(iterations=5)
         return float(before.p[0]), float(self._physical_std(before.covariance())[0])
+
+    def _undo_restart(self, sums: _SumsBefore) -> None:
+        """Go on as if a withdrawn change had never restarted the estimate: the samples before its onset
+        (``sums``, on their prior) and the regression's samples since (those after the onset, reweighted by
+        their misfit, and all later ones) in one regression; the casters' sums alike, less the prior the restart
+        carried over."""
+        reg = self.regression
+        merged = RecursiveRegression(sums.prior, reg.noise_subspace, sums.excitation_margin)
+        merged.D, merged.d, merged.C = (a + b for a, b in zip(sums.normal, (reg.D, reg.d, reg.C)))
+        if self.casters is not None and sums.casters is not None and sums.carried is not None:
+            bank = self.casters
+            bank.cross, bank.info, bank.dvec = (
+                b + now - c for b, now, c in zip(sums.casters, (bank.cross, bank.info, bank.dvec), sums.carried)
+            )
+            merged.nuisance = bank.nuisance()
+        merged.solve(iterations=5)
+        self.regression, self._cov = merged, merged.covariance()
+        self._update_params()
 
     def _restart_from(self, new: RecursiveRegression, local: tuple, after: tuple | None) -> None:
         """Go on from ``new``: the regression of the samples after an onset on its re-centred prior (a load change,
