@@ -17,6 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from cart.errors import CartError
 from cart.logs import CartLog, write_log
 from wholebody.push.config import LOST_TRACKING_M, PushConfig, PushResult
 from wholebody.push.load_change import LoadChange
@@ -1018,12 +1019,15 @@ def match_load_changes(result: PushResult) -> list[dict]:
     onset ``t_change_est`` and ``t_detected`` (s), ``time_error_s`` (onset minus the true time), ``mass_after_est_kg``
     and its error (kg, % of the true mass after; the truth's mass: on the MuJoCo plant the effective mass); found or
     not, ``mass_settled_kg`` and ``mass_settled_error_pct``: the loop's estimate just before the next change (or at
-    the run's end) against the mass after."""
+    the run's end) against the mass after; not found, ``mass_alone_before_kg``, ``mass_alone_after_kg`` and their
+    ``_std_kg``: what the pushes from the change before it (or the start) to it, and from it to the next one (or
+    the end), weigh on their own (:func:`weighed_alone`; None when they say nothing): was it there to see."""
     reported = sorted((result.estimator_report or {}).get("load_changes") or (), key=lambda c: c["t_detected"])
     true = list(result.load_changes_true)
     ends = [c["t_applied"] for c in true[1:]] + [math.inf]
+    starts = [0.0] + [c["t_applied"] for c in true[:-1]]
     out = []
-    for c, end in zip(true, ends):
+    for c, start, end in zip(true, starts, ends):
         t0 = c["t_applied"]
         hit = next((e for e in reported if t0 <= e["t_detected"] < end and e["t_change"] >= t0 - 1.0), None)
         settled = float(result.phi_hat[int(np.searchsorted(result.t, end - 1e-9)) - 1, 0])
@@ -1033,6 +1037,10 @@ def match_load_changes(result: PushResult) -> list[dict]:
             "mass_settled_kg": settled,
             "mass_settled_error_pct": 100.0 * (settled - c["mass_after_kg"]) / c["mass_after_kg"],
         }
+        if hit is None:  # what the pushes on each side weigh on their own: could the change have been seen?
+            for side, (a, b) in (("before", (start, t0)), ("after", (t0, min(end, float(result.t[-1]))))):
+                alone = weighed_alone(result, a, b)
+                row[f"mass_alone_{side}_kg"], row[f"mass_alone_{side}_std_kg"] = alone or (None, None)
         if hit is not None:
             err = hit["mass_after"] - c["mass_after_kg"]
             row.update(
@@ -1047,6 +1055,41 @@ def match_load_changes(result: PushResult) -> list[dict]:
     return out
 
 
+#: a change is there to see when it is at least this many stds of the difference of the masses the pushes on its two
+#: sides weigh on their own
+CHANGE_SEEN_SIGMA = 3.0
+
+
+def weighed_alone(result: PushResult, t0: float, t1: float) -> tuple[float, float] | None:
+    """Return (mass, std) in kg that the run's pushes from ``t0`` to ``t1`` give on their own (the offline
+    least squares, :func:`cart.identify.identify`, on that stretch of :func:`push_log`); None when they say
+    nothing of the mass (too short, no motion above the noise)."""
+    from cart.identify import identify
+    from cart.segments import slice_log
+
+    try:
+        res = identify(slice_log(push_log(result), t0, t1))
+    except CartError:
+        return None
+    return float(res.params.m), float(res.std["mass"])
+
+
+def _information_after(row: dict) -> str:
+    """Return why a load change may have gone unseen: what the pushes on each side weigh on their own
+    (``mass_alone_before_kg``, ``mass_alone_after_kg`` and their stds, :func:`match_load_changes`) against the
+    change's size."""
+    size = abs(row["mass_kg"])
+    values = [row.get(f"mass_alone_{side}{k}") for side in ("before", "after") for k in ("_kg", "_std_kg")]
+    known = [float(v) for v in values if v is not None]
+    if len(known) < 4:
+        return "the pushes on one side of it say nothing of the mass (too short, or no motion above the noise)"
+    m_b, s_b, m_a, s_a = known
+    std = math.hypot(s_a, s_b)
+    weighed = f"the pushes before and after it weigh the cart {m_b:.1f} +- {s_b:.1f} and {m_a:.1f} +- {s_a:.1f} kg on their own"
+    verdict = "too little motion to tell it" if size < CHANGE_SEEN_SIGMA * std else "there to see"
+    return f"{weighed}: a {size:g} kg change is {size / std:.1f} std of their difference, {verdict}"
+
+
 def load_change_lines(result: PushResult) -> list[str]:
     """Return one sentence per load change the plant made (found or not: when, the mass after) and one naming the
     changes the estimator reported where none was made (none without load changes and reports)."""
@@ -1059,7 +1102,7 @@ def load_change_lines(result: PushResult) -> list[str]:
         )
         settled = f"the estimate {r['mass_settled_kg']:.1f} kg ({r['mass_settled_error_pct']:+.1f} %) before the next change or the end"
         if not r["found"]:
-            lines.append(f"{what}: NOT found by the estimator; {settled}")
+            lines.append(f"{what}: NOT found by the estimator; {settled}; {_information_after(r)}")
             continue
         lines.append(
             f"{what}: found, dated {r['t_change_est']:.2f} s ({r['time_error_s']:+.2f} s), detected "

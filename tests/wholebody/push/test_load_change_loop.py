@@ -134,6 +134,13 @@ def test_what_happened_says_whether_each_change_was_found(loaded_run):
     assert "found, dated 5.02 s (+0.02 s)" in lines[0] and "where none was made: t = 2.00" in lines[1]
     missed = load_change_lines(replace(loaded_run, estimator_report={**report, "load_changes": [early]}))
     assert "NOT found" in missed[0]
+    # a change not found says what the pushes on each side weigh on their own: before it (5 s from the start) the
+    # truth within 3 std; after it, 5 s of cruise whose filtered rows hold about 1 s, nothing, and the line says so
+    (row,) = match_load_changes(replace(loaded_run, estimator_report={**report, "load_changes": [early]}))
+    m, std = row["mass_alone_before_kg"], row["mass_alone_before_std_kg"]
+    assert abs(m - 20.0) <= 3.0 * std and std < 10.0, (m, std)
+    assert row["mass_alone_after_kg"] is None and row["mass_alone_after_std_kg"] is None
+    assert "the pushes on one side of it say nothing of the mass" in missed[0], missed[0]
     assert describe(loaded_run.config).endswith("load +10 kg at 5 s")
     assert push_log(loaded_run).metadata["load_changes"] == "t=5 mass=+10 -> m=30"
 

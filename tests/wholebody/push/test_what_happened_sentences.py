@@ -174,3 +174,26 @@ def test_an_arm_body_without_mass_is_named(tmp_path):
     assert len(said) == 1 and "'arm_joint3'" in said[0] and "leave that weight out" in said[0], said
     for robot in ("wmra", "ridgeback_iiwa", "robots/examples/tiago_dual.toml"):
         assert _massless_arm_bodies(SimpleNamespace(config=SimpleNamespace(robot=robot))) == []
+
+
+def test_a_load_change_not_found_says_whether_the_pushes_could_show_it():
+    """The masses the pushes on each side weigh on their own against the change's size: under CHANGE_SEEN_SIGMA
+    stds of their difference the motion could not tell it (the MuJoCo Traj. 2 with 5 kg lifted out at 15 s: 20.6
+    +- 5.2 and 18.1 +- 1.6 kg, 0.9 std); above, the change was there to see."""
+    from wholebody.push.report import CHANGE_SEEN_SIGMA, _information_after
+
+    def row(before, after, mass=-5.0):
+        return {
+            "mass_kg": mass,
+            "mass_alone_before_kg": before[0],
+            "mass_alone_before_std_kg": before[1],
+            "mass_alone_after_kg": after[0],
+            "mass_alone_after_std_kg": after[1],
+        }
+
+    line = _information_after(row((20.6, 5.2), (18.1, 1.6)))
+    assert "20.6 +- 5.2 and 18.1 +- 1.6 kg" in line and "a 5 kg change is 0.9 std" in line
+    assert "too little motion to tell it" in line
+    std = 5.0 / (CHANGE_SEEN_SIGMA + 0.1)  # each side's std: the change just above the threshold
+    assert _information_after(row((20.6, std / math.sqrt(2)), (15.9, std / math.sqrt(2)))).endswith("there to see")
+    assert "say nothing of the mass" in _information_after(row((20.6, 5.2), (None, None)))
