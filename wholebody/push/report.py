@@ -1026,6 +1026,7 @@ def match_load_changes(result: PushResult) -> list[dict]:
     true = list(result.load_changes_true)
     ends = [c["t_applied"] for c in true[1:]] + [math.inf]
     starts = [0.0] + [c["t_applied"] for c in true[:-1]]
+    log: CartLog | None = None  # the run's log, built for the first change not found
     out = []
     for c, start, end in zip(true, starts, ends):
         t0 = c["t_applied"]
@@ -1038,8 +1039,9 @@ def match_load_changes(result: PushResult) -> list[dict]:
             "mass_settled_error_pct": 100.0 * (settled - c["mass_after_kg"]) / c["mass_after_kg"],
         }
         if hit is None:  # what the pushes on each side weigh on their own: could the change have been seen?
+            log = log if log is not None else push_log(result)
             for side, (a, b) in (("before", (start, t0)), ("after", (t0, min(end, float(result.t[-1]))))):
-                alone = weighed_alone(result, a, b)
+                alone = weighed_alone(log, a, b)
                 row[f"mass_alone_{side}_kg"], row[f"mass_alone_{side}_std_kg"] = alone or (None, None)
         if hit is not None:
             err = hit["mass_after"] - c["mass_after_kg"]
@@ -1060,15 +1062,15 @@ def match_load_changes(result: PushResult) -> list[dict]:
 CHANGE_SEEN_SIGMA = 3.0
 
 
-def weighed_alone(result: PushResult, t0: float, t1: float) -> tuple[float, float] | None:
-    """Return (mass, std) in kg that the run's pushes from ``t0`` to ``t1`` give on their own (the offline
-    least squares, :func:`cart.identify.identify`, on that stretch of :func:`push_log`); None when they say
+def weighed_alone(log: CartLog, t0: float, t1: float) -> tuple[float, float] | None:
+    """Return (mass, std) in kg that a run's pushes from ``t0`` to ``t1`` give on their own (the offline least
+    squares, :func:`cart.identify.identify`, on that stretch of the run's :func:`push_log`); None when they say
     nothing of the mass (too short, no motion above the noise)."""
     from cart.identify import identify
     from cart.segments import slice_log
 
     try:
-        res = identify(slice_log(push_log(result), t0, t1))
+        res = identify(slice_log(log, t0, t1))
     except CartError:
         return None
     return float(res.params.m), float(res.std["mass"])
