@@ -369,13 +369,14 @@ def run(args: argparse.Namespace) -> int:
             out.update(result.plant_report)
         out["estimator"] = config.estimator if config.estimation else "none"
         out.update(result.estimator_report or {})
-        if config.load_changes:
-            out["load_changes_true"] = match_load_changes(result)
+        matched = match_load_changes(result) if config.load_changes else None
+        if matched is not None:
+            out["load_changes_true"] = matched
         out["cart_lateral_slip_max_m_s"] = float(abs(cart_lateral_speed(result)).max())
         out["base_lateral_speed_measured_max_m_s"] = float(abs(base_lateral_speed(result)).max())
         if result.metrics.tracking_lost_at_s is not None:
             out["before_loss"] = before_loss(result)
-        out["what_happened"] = what_happened(result)
+        out["what_happened"] = what_happened(result, matched)
         out["files"] = [str(p) for p in written]
         print(dumps_strict(out))
         return 0

@@ -899,13 +899,15 @@ def cart_lateral_speed(result: PushResult) -> np.ndarray:
     return -np.sin(th) * result.qd_true[:, 0] + np.cos(th) * result.qd_true[:, 1]
 
 
-def what_happened(result: PushResult) -> list[str]:
+def what_happened(result: PushResult, load_changes: list[dict] | None = None) -> list[str]:
     """Return plain sentences on how the run went: tracked or lost, saturation, torque limits, slip, model fit.
 
     The first sentence is the outcome; the others say what the arms could not do (the allocation's binding
     limits, torques at their limits), whether the cart slid sideways (the no-slip model broken), how far the
     grips slipped (MuJoCo), and whether the estimator's model fitted the data. When the cart was lost, the
     binding limits and the slip are those before the loss (what led to it); what came after is a failed push.
+    ``load_changes``: :func:`match_load_changes` of ``result`` when the caller has it (it weighs each change not
+    found on its own, which takes a second a change).
     """
     m, rep = result.metrics, result.plant_report or {}
     t_end = m.tracking_lost_at_s if m.tracking_lost_at_s is not None else math.inf
@@ -922,7 +924,7 @@ def what_happened(result: PushResult) -> list[str]:
         lines.append(f"grip slip at most {1e3 * rep['grasp_slip_max_m']:.2f} mm")
     if rep.get("base_wheel_slip_max_m_s") is not None:
         lines.append(f"base wheel slip at most {rep['base_wheel_slip_max_m_s']:.3f} m/s")
-    lines += load_change_lines(result)
+    lines += load_change_lines(result, load_changes)
     lines.append(_fit(result))
     lines += _far_guess(result)
     lines += _massless_bodies(result)
@@ -1092,10 +1094,11 @@ def _information_after(row: dict) -> str:
     return f"{weighed}: a {size:g} kg change is {size / std:.1f} std of their difference, {verdict}"
 
 
-def load_change_lines(result: PushResult) -> list[str]:
+def load_change_lines(result: PushResult, rows: list[dict] | None = None) -> list[str]:
     """Return one sentence per load change the plant made (found or not: when, the mass after) and one naming the
-    changes the estimator reported where none was made (none without load changes and reports)."""
-    rows = match_load_changes(result)
+    changes the estimator reported where none was made (none without load changes and reports). ``rows``:
+    :func:`match_load_changes` of ``result``, computed here when not given."""
+    rows = match_load_changes(result) if rows is None else rows
     lines = []
     for r in rows:
         what = (

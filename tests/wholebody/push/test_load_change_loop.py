@@ -141,6 +141,11 @@ def test_what_happened_says_whether_each_change_was_found(loaded_run):
     assert abs(m - 20.0) <= 3.0 * std and std < 10.0, (m, std)
     assert row["mass_alone_after_kg"] is None and row["mass_alone_after_std_kg"] is None
     assert "the pushes on one side of it say nothing of the mass" in missed[0], missed[0]
+    # the rows a caller already matched are used as given, not matched (weighed) again
+    given = [{**row, "mass_alone_after_kg": 31.0, "mass_alone_after_std_kg": 1.0}]
+    again = load_change_lines(replace(loaded_run, estimator_report={**report, "load_changes": [early]}), given)
+    assert again[1:] == missed[1:] and "NOT found" in again[0]
+    assert f"{m:.1f} +- {std:.1f} and 31.0 +- 1.0 kg on their own" in again[0], again[0]
     assert describe(loaded_run.config).endswith("load +10 kg at 5 s")
     assert push_log(loaded_run).metadata["load_changes"] == "t=5 mass=+10 -> m=30"
 
