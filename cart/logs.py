@@ -19,6 +19,7 @@ import gzip
 import math
 import os
 import re
+import stat
 import zlib
 from dataclasses import dataclass, field
 
@@ -154,13 +155,43 @@ def estimate_velocities(t: np.ndarray, q: np.ndarray, half_window: float = 0.05,
     return local_polyfit(t, q, half_window, degree)[1]
 
 
+#: The first two bytes of every gzip file (RFC 1952): such a file is decompressed whatever its name.
+GZIP_MAGIC = b"\x1f\x8b"
+
+
+def file_kind(path: os.PathLike | str) -> str | None:
+    """Return what the existing ``path`` is when it is no regular file ("a FIFO (named pipe)", "a character
+    device", ...), else None (a regular file, a directory, or nothing there yet). Links are followed."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    kinds = (
+        (stat.S_ISFIFO, "a FIFO (named pipe)"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+    )
+    return next((name for test, name in kinds if test(mode)), None)
+
+
+def _check_regular_file(path: str) -> None:
+    """Raise LogFormatError when ``path`` exists but is no regular file or directory: reading a FIFO waits for
+    a writer forever, a device (``/dev/zero``) never ends. Missing files and directories fail at ``open``."""
+    kind = file_kind(path)
+    if kind is not None:
+        raise LogFormatError(f"{path}: is {kind}, not a log file; save the log to a regular file and give that")
+
+
 def _read_lines(path: str) -> tuple[list[str], str, bytes]:
-    """Return the file's (lines, text, UTF-8 bytes of the text): a .gz file decompressed in one call; utf-8-sig:
-    a byte-order mark that Excel and some Windows tools write is not part of the header (nor of the bytes)."""
+    """Return the file's (lines, text, UTF-8 bytes of the text): a gzip file (.gz, or any name starting with
+    the gzip magic bytes) decompressed in one call; utf-8-sig: a byte-order mark that Excel and some Windows
+    tools write is not part of the header (nor of the bytes). Only a regular file is read."""
+    _check_regular_file(path)
     try:
         with open(path, "rb") as fh:
             data = fh.read()
-        if path.endswith(".gz"):
+        if path.endswith(".gz") or data.startswith(GZIP_MAGIC):
             data = gzip.decompress(data)
         text = data.decode("utf-8-sig")
     except (OSError, EOFError, zlib.error) as exc:  # gzip's BadGzipFile is an OSError; corrupt data a zlib.error

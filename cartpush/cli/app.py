@@ -6,15 +6,17 @@ the estimators) live inside ``run``. `main` imports only the module of the
 command being run: ``cartpush --help`` lists the commands from `COMMANDS`
 without importing any of them.
 
-Errors: a project error (:class:`cart.errors.CartpushError`) or a missing /
-unreadable file becomes one line on stderr, ``cartpush CMD: error: ...``, and
-exit code 2; any other exception is a bug: one line naming it and exit code 1
-(``--debug`` re-raises it with the traceback).
+Errors: a project error (:class:`cart.errors.CartpushError`), a missing /
+unreadable file or any other OSError of the run (a full disk, a read-only file
+system, an I/O error: what to do is said) becomes one line on stderr,
+``cartpush CMD: error: ...``, and exit code 2; any other exception is a bug: one
+line naming it and exit code 1 (``--debug`` re-raises it with the traceback).
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import os
 import sys
@@ -202,15 +204,78 @@ def _closed_stdout() -> int:
     return CLOSED_STDOUT
 
 
+#: errno -> (what happened, what to do) for an OSError while a command runs: one line, exit code 2.
+_OS_ERROR_HINTS = {
+    errno.ENOSPC: ("no space left on the device", "free space or write elsewhere"),
+    errno.EDQUOT: ("disk quota exceeded", "free space or write elsewhere"),
+    errno.EFBIG: ("file too large for the file system", "write elsewhere"),
+    errno.EROFS: ("read-only file system", "write elsewhere"),
+    errno.EIO: ("input/output error", "check the disk or device, or use another file"),
+    errno.EMFILE: ("too many open files", "raise the limit (ulimit -n)"),
+    errno.ENFILE: ("too many open files in the system", "close other programs and retry"),
+    errno.ENOMEM: ("out of memory", "reduce the duration or the log size"),
+}
+
+#: Options that name a file or directory a command writes (named in an OSError that names no file).
+_OUTPUT_OPTIONS = (("html", "--html"), ("out", "--out"), ("output", "-o"))
+
+
+def _os_error_line(exc: OSError, args: argparse.Namespace) -> str:
+    """Return the one-line message of an OSError raised while a command ran (a full disk, a read-only file
+    system, an I/O error, ...): what happened, the file (or the command's outputs when it names none), what to do."""
+    if exc.errno is None:
+        return _one_line(exc) or type(exc).__name__
+    what, todo = _OS_ERROR_HINTS.get(exc.errno, (exc.strerror or type(exc).__name__, ""))
+    if exc.filename is not None:
+        where = str(exc.filename)
+    else:
+        outputs = [f"{flag} {getattr(args, name)}" for name, flag in _OUTPUT_OPTIONS if getattr(args, name, None)]
+        where = f"writing {', '.join(outputs)}" if outputs and todo else ""
+    if not todo:
+        return _one_line(f"{what}: {where}" if where else what)
+    return _one_line(f"{what} ({where}): {todo}" if where else f"{what}: {todo}")
+
+
+def _user_error_line(exc: Exception, args: argparse.Namespace) -> str:
+    """Return the one-line message of bad input: a project error, a missing / unreadable file, any OSError
+    (one that names no file is blamed on the standard output when that cannot be flushed either)."""
+    if isinstance(exc, OSError) and (exc.filename is not None or not isinstance(exc, USER_ERRORS)):
+        if _stdout_failed() and exc.filename is None:
+            exc.filename = "the standard output"
+        return _os_error_line(exc, args)
+    return _one_line(exc)
+
+
+def _stdout_failed() -> bool:
+    """Flush stdout; when it cannot be written (stdout on a full disk) drop what it holds, so that the
+    interpreter's final flush does not fail again, and return True."""
+    try:
+        sys.stdout.flush()
+    except OSError:
+        _closed_stdout()
+        return True
+    return False
+
+
 def _run(args: argparse.Namespace) -> int:
     """Run the selected command and flush its output (a closed pipe raises here, not at exit)."""
     code = int(args.func(args) or 0)
-    sys.stdout.flush()
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        raise
+    except OSError as exc:  # stdout redirected to a full disk: say so
+        exc.filename = exc.filename or "the standard output"
+        raise
     return code
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; return the process exit code (0 ok, 2 bad input, 1 internal error, 141 stdout closed)."""
+    """Run the CLI; return the process exit code (0 ok, 2 bad input, 1 internal error, 141 stdout closed).
+
+    Bad input is a project error, a missing / unreadable file or any OSError of the run (a full disk, a
+    read-only file system, an I/O error): one line naming the file and what to do, exit code 2.
+    """
     argv, debug = preprocess_argv(sys.argv[1:] if argv is None else list(argv))
     command = _selected_command(argv)
     parser = build_parser(command)
@@ -224,8 +289,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _run(args)
         except BrokenPipeError:
             return _closed_stdout()
-        except USER_ERRORS as exc:
-            print(f"cartpush {name}: error: {_one_line(exc)}", file=sys.stderr)
+        except (*USER_ERRORS, OSError) as exc:
+            print(f"cartpush {name}: error: {_user_error_line(exc, args)}", file=sys.stderr)
             return 2
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -233,11 +298,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             code = _run(args)
         except BrokenPipeError:
             return _closed_stdout()
-        except USER_ERRORS as exc:
-            msg = str(exc)
-            if isinstance(exc, OSError) and exc.filename is not None:
-                msg = f"{exc.strerror or exc.__class__.__name__}: {exc.filename}"
-            print(f"cartpush {name}: error: {_one_line(msg)}", file=sys.stderr)
+        except (*USER_ERRORS, OSError) as exc:
+            print(f"cartpush {name}: error: {_user_error_line(exc, args)}", file=sys.stderr)
             return 2
         except KeyboardInterrupt:
             print(f"cartpush {name}: interrupted", file=sys.stderr)

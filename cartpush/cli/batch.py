@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import os
 import shlex
+from typing import NoReturn
 
 DESCRIPTION = """\
 Run `estimate` or `diagnose` over many logs and write one JSON line per log to RESULTS.jsonl
@@ -98,6 +99,61 @@ def _term_is_interrupt() -> None:
         signal.signal(signal.SIGTERM, _raise_interrupt)
 
 
+def _check_job_args(command: str, argv: tuple[str, ...]) -> None:
+    """Raise BatchError naming the bad argument when ``argv`` are no options of ``cartpush COMMAND``.
+
+    The job's own check (`CommandJob.check`) would let the command's parser print its error line before
+    its own; this parses first with a parser that raises instead, so the error is one line.
+    """
+    import importlib
+
+    from cartpush.batch import BatchError
+    from cartpush.batch.engine import COMMAND_JOBS
+    from cartpush.cli.app import CliParser
+
+    class RaisingParser(CliParser):
+        def error(self, message: str) -> NoReturn:
+            raise BatchError(
+                f"--job-args {' '.join(argv)!r}: {' '.join(message.split())} (see `cartpush {command} --help`)"
+            )
+
+    if command not in COMMAND_JOBS or any(a in ("-h", "--help") for a in argv):
+        return  # CommandJob.check says so in one line
+    parser = RaisingParser(prog=f"cartpush {command}")
+    importlib.import_module(f"cartpush.cli.{COMMAND_JOBS[command]}").register(parser.add_subparsers(dest="command"))
+    parser.parse_args([command, "LOG", *argv])
+
+
+def check_results_file(out: str, paths: list[str]) -> None:
+    """Raise BatchError when ``--out`` cannot take the results: `check_output`'s refusals (an input log, a
+    device, a directory, unwritable), or an existing, non-empty file whose first line is no JSON object
+    (a cart log, say: results are appended, so it would be corrupted). A results file of an earlier batch
+    (JSON Lines) is fine: the rerun resumes it."""
+    import json
+
+    from cartpush.batch import BatchError, check_output
+
+    check_output(out, paths)
+    if not os.path.isfile(out):
+        return
+    with open(out, "rb") as fh:
+        first = b""
+        while not first.strip():
+            first = fh.readline(1 << 20)
+            if not first:
+                return  # empty, or blank lines only
+    text = first.strip().decode("utf-8", errors="replace")
+    try:
+        is_object = isinstance(json.loads(text), dict)
+    except ValueError:  # a line cut by an interrupted run (or longer than 1 MiB) is still a results line
+        is_object = text.startswith('{"')
+    if not is_object:
+        raise BatchError(
+            f"--out {out}: exists and is not a JSON Lines results file (its first line is not a JSON object: "
+            f"{text[:40]!r}); results are appended to it: give a new .jsonl file or the --out of an earlier batch"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the batch; print the summary; return 0, or ``FAILED_EXIT`` when any log failed (its error line is kept)."""
     from cart.jsonout import dumps_strict
@@ -115,9 +171,11 @@ def run(args: argparse.Namespace) -> int:
         job_argv = tuple(shlex.split(args.job_args))
     except ValueError as exc:
         raise BatchError(f"--job-args: {exc}") from None
+    _check_job_args(args.job, job_argv)
     job = CommandJob(args.job, job_argv)
     job.check()
     paths = expand_inputs(args.inputs)
+    check_results_file(args.out, paths)
     _term_is_interrupt()
     summary = run_batch(job, paths, args.out, workers=args.workers, ray_address=args.ray)
     summary = {"job": args.job, **summary}
@@ -168,6 +226,7 @@ def _run_push(args: argparse.Namespace) -> int:
     if not 8.0 <= args.duration <= 600.0:
         raise BatchError(f"--duration must be in [8, 600] s, got {args.duration}")
     runs = campaign(args.robots, args.masses, args.trajectories, args.arms, args.plant, args.duration)
+    check_results_file(args.out, [])
     _term_is_interrupt()
     summary = run_campaign(runs, args.out, workers=args.workers, ray_address=args.ray)
     if args.json:

@@ -109,10 +109,27 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+def _check_not_the_bag(bag: str, output: str) -> None:
+    """Raise OptionError when the log to write (-o) is the bag itself or a file inside a ROS 2 bag folder."""
+    import os
+
+    from cartpush.errors import OptionError
+
+    try:
+        same = os.path.samefile(bag, output)
+    except OSError:  # one of them does not exist (yet)
+        same = os.path.realpath(bag) == os.path.realpath(output)
+    inside = os.path.isdir(bag) and os.path.realpath(output).startswith(os.path.realpath(bag) + os.sep)
+    if same or inside:
+        where = "is the bag being imported" if same else "is inside the bag folder being imported"
+        raise OptionError(f"-o {output}: {where}; writing it would destroy the bag, give a new .csv file")
+
+
 def run(args: argparse.Namespace) -> int:
     """List the bag, or convert it and write the log; print a report (or JSON); return 0."""
     from cartpush.cli import options
 
+    options.input_file(args.bag, "BAG")
     if not args.list:
         if not args.output:
             raise options.OptionError("give the log to write (-o LOG.csv), or --list to see what the bag holds")
@@ -126,6 +143,7 @@ def run(args: argparse.Namespace) -> int:
             raise options.OptionError("give the wrench: --wrench-topic TOPIC (see `cartpush import BAG --list`)")
         kwargs = topic_options(args)
         options.writable_file(args.output, "-o")
+        _check_not_the_bag(args.bag, args.output)
     from cart.jsonout import dumps_strict
     from cartpush.ros import import_bag, list_bag
 

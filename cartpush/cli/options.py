@@ -94,11 +94,35 @@ def writable_dir(path: os.PathLike | str, option: str = "--out", create: bool = 
     return p
 
 
+def input_file(path: os.PathLike | str, name: str = "LOG") -> None:
+    """Raise OptionError when the input ``path`` is a FIFO, device or socket: reading it would wait for a
+    writer forever (a FIFO) or never end (``/dev/zero``). A missing file fails later, where it is opened."""
+    from cart.logs import file_kind
+
+    kind = file_kind(path)
+    if kind is not None:
+        raise OptionError(f"{name} {os.fspath(path)}: is {kind}, not a file; save the data to a file and give that")
+
+
+def output_file(path: os.PathLike | str, option: str = "--out") -> None:
+    """Raise OptionError when the output ``path`` is a device, FIFO or socket, or lies under /dev or /proc
+    (``/dev/full``, ``/dev/null``, ``/dev/stdout``): the same rule as ``cartpush batch --out``."""
+    from cart.logs import file_kind
+    from cartpush.batch.engine import _device_path
+
+    kind = file_kind(path)
+    if kind is not None or _device_path(os.fspath(path)):
+        what = kind or "a device (a path under /dev or /proc)"
+        raise OptionError(f"{option} {os.fspath(path)}: is {what}, not a file; give the name of a file to write")
+
+
 def writable_file(path: os.PathLike | str, option: str = "--out", create: bool = True) -> Path:
-    """Return ``path`` after checking it names a writable file in a writable directory (`writable_dir`)."""
+    """Return ``path`` after checking it names a writable file in a writable directory (`writable_dir`),
+    not a device (`output_file`)."""
     p = Path(path)
     if str(path) == "" or p.is_dir():
         raise OptionError(f"{option}: {str(p)!r} is a directory, expected a file name")
+    output_file(p, option)
     if p.exists() and not os.access(p, os.W_OK):
         raise OptionError(f"{option}: {str(p)!r} is not writable")
     writable_dir(p.parent if str(p.parent) else Path("."), option, create=create)
