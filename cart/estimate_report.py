@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from cart.errors import CartError, LogFormatError, ParameterError
+from cart.errors import CartError, NumericalError, ParameterError
 from cart.logs import CartLog, read_log
 from cart.noise_model import SpectralNoise, lag_correlation
 from cart.params import CartParams
@@ -48,6 +48,16 @@ MAX_HALF_SIZE = 1.0
 #: Samples beyond which the EKF check runs on CHECK_CHUNKS evenly spaced stretches of this total length.
 CHECK_SAMPLES = 8_000
 CHECK_CHUNKS = 4
+#: Largest --mass-guess (kg) and |--com-guess| coordinate (m): `cartpush push`'s bounds on its own guesses.
+MAX_MASS_GUESS = 1e4
+MAX_COM_GUESS = 5.0
+#: Largest --sigma-guess (N s/m, N m s/rad): a hundred times a loaded hospital bed's rolling resistance.
+MAX_SIGMA_GUESS = 1e4
+#: An EKF answer beyond these has diverged (:func:`ekf_divergence`): a mass above this multiple of its guess,
+#: a CoM farther than this (m) from {b}'s origin, an inertia above this (kg m^2).
+DIVERGED_MASS_RATIO = 100.0
+DIVERGED_COM = 10.0
+DIVERGED_INERTIA = 1e6
 
 
 @dataclass(frozen=True)
@@ -441,19 +451,43 @@ def _ekf_bias(est_params: CartParams, est_std: Mapping[str, Any], ls) -> tuple[d
     return diffs, notes
 
 
+def ekf_divergence(p: CartParams, guess: CartParams) -> str:
+    """Return why the EKF's answer ``p`` from ``guess`` is no answer ("" when it is one): a value not finite, a
+    mass above ``DIVERGED_MASS_RATIO`` times the guess or above ``MAX_MASS_GUESS``, a CoM beyond ``DIVERGED_COM`` m
+    of {b}'s origin (no cart is that large) or an inertia above ``DIVERGED_INERTIA`` kg m^2."""
+    values = {"mass": p.m, "dx": p.dx, "dy": p.dy, "inertia": p.I, "sigma": p.sigma, "sigma_yaw": p.sigma_yaw}
+    bad = [name for name, v in values.items() if not math.isfinite(v)]
+    if bad:
+        return f"{', '.join(bad)} not finite"
+    if p.m > DIVERGED_MASS_RATIO * guess.m:
+        return f"mass {p.m:.4g} kg, more than {DIVERGED_MASS_RATIO:g} times the guess"
+    if p.m > MAX_MASS_GUESS:
+        return f"mass {p.m:.4g} kg, above the {MAX_MASS_GUESS:g} kg of the heaviest cart a guess may have"
+    if math.hypot(p.dx, p.dy) > DIVERGED_COM:
+        return f"CoM ({p.dx:.4g}, {p.dy:.4g}) m, farther than {DIVERGED_COM:g} m from the cart's origin"
+    if p.I > DIVERGED_INERTIA:
+        return f"inertia {p.I:.4g} kg m^2, above {DIVERGED_INERTIA:g}"
+    return ""
+
+
 def _run_ekf(log: CartLog, streams: Streams, guess: CartParams) -> EstimateReport:
     """Return the EKF report, its verdict checked against the least-squares estimate."""
     from cart.ekf import estimate_from_log
-    from cart.identify import IdentifiabilityError, identify
+    from cart.identify import IdentifiabilityError, check_estimable, identify
 
+    check_estimable(log, streams)  # the least-squares fit's checks: a log that says nothing is refused
     ekf_log = check_log(log, streams)
     try:
         est = estimate_from_log(ekf_log, guess, estimate_sigma=True)
-    except (FloatingPointError, TypeError) as exc:
-        raise LogFormatError(f"{log.source}: the EKF diverged on this log ({exc})") from None
+    except (ArithmeticError, TypeError) as exc:
+        raise NumericalError(f"{log.source}: the EKF diverged on this log ({exc}); use --method ls") from None
     p = est.params
-    if not all(math.isfinite(v) for v in (p.m, p.dx, p.dy, p.I, p.sigma, p.sigma_yaw)):
-        raise LogFormatError(f"{log.source}: the EKF diverged on this log (non-finite estimate)")
+    why = ekf_divergence(p, guess)
+    if why:
+        raise NumericalError(
+            f"{log.source}: the EKF diverged from the guesses (mass {guess.m:g} kg, CoM ({guess.dx:g}, {guess.dy:g}) "
+            f"m): {why}; use the default method (--method ls), or closer --mass-guess / --com-guess"
+        )
     fits = bool(math.isfinite(est.mean_nis) and est.mean_nis < NIS_MISFIT)
     warnings = log_notes(log, streams) + stream_notes(streams)
     if not fits:
@@ -497,6 +531,26 @@ def _run_ekf(log: CartLog, streams: Streams, guess: CartParams) -> EstimateRepor
     )
 
 
+def check_guesses(mass_guess: float, com_guess: tuple[float, float], sigma_guess: float) -> None:
+    """Raise a CartError naming the option when an EKF guess is not a number a cart can have.
+
+    Bounds: mass in (0, ``MAX_MASS_GUESS``] kg, each CoM coordinate within +-``MAX_COM_GUESS`` m (as
+    `cartpush push` bounds its guesses), viscous coefficients in [0, ``MAX_SIGMA_GUESS``].
+    """
+    if not (math.isfinite(mass_guess) and 0.0 < mass_guess <= MAX_MASS_GUESS):
+        raise CartError(f"--mass-guess must be a positive number of kg at most {MAX_MASS_GUESS:g}, got {mass_guess}")
+    if not all(math.isfinite(v) and abs(v) <= MAX_COM_GUESS for v in com_guess):
+        raise CartError(
+            f"--com-guess must be two numbers of metres in the cart frame {{b}}, each within +-{MAX_COM_GUESS:g}, "
+            f"got {tuple(com_guess)}"
+        )
+    if not (math.isfinite(sigma_guess) and 0.0 <= sigma_guess <= MAX_SIGMA_GUESS):
+        raise CartError(
+            f"--sigma-guess must be a number of N s/m from 0 to {MAX_SIGMA_GUESS:g} (carts: about 1-100), "
+            f"got {sigma_guess}"
+        )
+
+
 def estimate_log(
     log: CartLog | str | os.PathLike,
     method: str = "ls",
@@ -513,12 +567,7 @@ def estimate_log(
     """
     if method not in ("ls", "ekf"):
         raise CartError(f"method must be 'ls' or 'ekf', got {method!r}")
-    if not (math.isfinite(mass_guess) and mass_guess > 0):
-        raise CartError(f"--mass-guess must be a positive number of kg, got {mass_guess}")
-    if not all(math.isfinite(v) for v in com_guess):
-        raise CartError(f"--com-guess must be two finite numbers of metres, got {com_guess}")
-    if not (math.isfinite(sigma_guess) and sigma_guess >= 0):
-        raise CartError(f"--sigma-guess must be a non-negative number, got {sigma_guess}")
+    check_guesses(mass_guess, com_guess, sigma_guess)
     if not isinstance(log, CartLog):
         log = read_log(log)
     check_declared_units(log.metadata, log.source)

@@ -59,6 +59,10 @@ from cart.streams import Streams, box_average, split_streams
 #: Largest share of the filtered acceleration's power that differentiated pose noise may have (the
 #: attenuation bias of the inertial parameters is about this share).
 ATTENUATION = 0.005
+#: RMS force (N) and torque (N m) below which a logged wrench says nothing (:func:`check_estimable`): far below the
+#: noise of any F/T sensor (millinewtons at best); a wrench of subnormal numbers also breaks LAPACK's scaling.
+NEGLIGIBLE_FORCE = 1e-6
+NEGLIGIBLE_TORQUE = 1e-6
 #: A model "fits" when the residual RMS is at most this many times what the wrench noise explains.
 FIT_RATIO = 1.6
 #: Significance of the Coulomb-resistance check (Wald test, two dof).
@@ -492,7 +496,7 @@ class _Noise:
 
 
 def _noise_levels(log: CartLog, streams: Streams) -> _Noise:
-    """Return the log's noise levels (floored, scale-free); raise IdentifiabilityError when it cannot say anything.
+    """Return the log's noise levels (floored, scale-free) of a log :func:`check_estimable` passed.
 
     Pose noise: white, measured on the pose stream at its own instants; wrench: the white level here,
     replaced by the residual's coloured-noise model (:mod:`cart.noise_model`) after the fit.
@@ -503,10 +507,6 @@ def _noise_levels(log: CartLog, streams: Streams) -> _Noise:
     f_std = max(white_noise_std(g[:, 0]), white_noise_std(g[:, 1]))
     tau_std = white_noise_std(g[:, 2])
     span = float(np.max(np.ptp(q[:, :2], axis=0)))
-    stands = pose_stands(q, max(pos_std, 1e-12))
-    if stands or not np.any(np.abs(log.gamma) > 0):
-        what = "the cart does not move beyond the pose noise" if stands else "the wrench is zero throughout"
-        raise IdentifiabilityError(f"{log.source}: nothing can be estimated: {what}")
     # floors: a noise-free log still has rounding; keep the choice scale-free
     return _Noise(pos=max(pos_std, 1e-9 * span), theta=max(th_std, 1e-9), force=f_std, torque=tau_std, span=span)
 
@@ -995,7 +995,7 @@ def identify(
     a segment of it): its geometry is used without a new search or test (:mod:`cart.identify_casters`).
     Raises :class:`IdentifiabilityError` when the log cannot say anything (too short, no motion above the noise).
     """
-    streams = _checked_streams(log, streams)
+    streams = check_estimable(log, streams)
     grid = _uniform_grid(log, streams)
     lv = _noise_levels(log, streams)
     fc, warnings = _choose_cutoff(grid, lv.pos, lv.theta, attenuation)
@@ -1015,7 +1015,7 @@ def identify(
     ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings, (grid.dt * step, fc))
     cart_frame = _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
-    origin = None if fits else _torque_origin_reading(grid, sos, (full, step), noise, (lv, sv, so))
+    origin = None if fits else _torque_origin_reading(grid, sos, (full, step), noise, float(expected[1]))
     p, cov, note = _physical(p, _with_turn_attenuation(cov, p, _turn_noise_share(full.om, sw)))
     warnings += note
     (params, inertia), std = _physical_params(log, p, cov), _physical_std(p, cov)
@@ -1045,16 +1045,18 @@ def identify(
 
 
 def _torque_origin_reading(
-    grid: _Grid, sos: np.ndarray, full_step: tuple[_Regression, int], noise: np.ndarray, lv_acc: tuple
+    grid: _Grid, sos: np.ndarray, full_step: tuple[_Regression, int], noise: np.ndarray, explained: float
 ) -> float:
-    """Return the yaw residual ratio of the regression ``full`` with the torque read as taken about the world origin.
+    """Return the yaw residual RMS of the regression ``full`` with the torque read as taken about the world origin,
+    in units of ``explained``, what the noise explains of the yaw row as logged (:func:`_residual_ratio`).
 
     LOG_FORMAT's torque is about {b}'s origin; one taken about the world origin holds the moment of the
     force at the cart's position, x fy - y fx, which grows with the distance travelled. Read that way the
-    torque row's y is tau - (x fy - y fx); the rest is :func:`_cart_frame_reading`'s fit.
+    torque row's y is tau - (x fy - y fx); the rest is :func:`_cart_frame_reading`'s fit. Both readings are
+    measured against the logged reading's noise: the moved torque carries the force's noise times the distance
+    (and its floor grows with the moment), so its own noise level would hide the residual the moment adds.
     """
     full, step = full_step
-    _, sv, so = lv_acc
     q, g = grid.q, grid.gamma
     tau_b = g[:, 2] - (q[:, 0] * g[:, 1] - q[:, 1] * g[:, 0])
     y_raw, y = full.y_raw.copy(), full.y.copy()
@@ -1063,9 +1065,8 @@ def _torque_origin_reading(
     alt = replace(full, y=y, y_raw=y_raw)
     reg = _every(alt, step)
     p, _, _ = _wls(reg.x, reg.y, np.pad(noise, ((0, 0), (0, reg.x.shape[-1] - noise.shape[1]))))
-    _, _, out_std = _wrench_noise(alt, p, grid.dt, sos)
-    ratio, _ = _residual_ratio(out_std, sv, so, p, reg.y - _predict(reg.x, p), reg.y)
-    return float(ratio[1])
+    r = reg.y[:, 1] - _predict(reg.x, p)[:, 1]
+    return float(np.sqrt(np.mean(r**2)) / max(explained, 1e-300))
 
 
 def _cart_frame_reading(
@@ -1181,18 +1182,53 @@ def _check_independent_rows(log: CartLog, reg: _Regression, lag: int, fc_dt: tup
         )
 
 
-def _checked_streams(log: CartLog, streams: Streams | None) -> Streams:
-    """Return the log's pose and wrench streams; raise `IdentifiabilityError` when either is too short."""
+def _rms(values: np.ndarray) -> float:
+    """Return the RMS of ``values``, scaled by the largest magnitude (no underflow of subnormal values' squares)."""
+    a = np.abs(np.asarray(values, float))
+    top = float(np.max(a)) if a.size else 0.0
+    if not (top > 0.0 and math.isfinite(top)):
+        return top
+    return top * float(np.sqrt(np.mean((a / top) ** 2)))
+
+
+def _silent_wrench(log: CartLog) -> str:
+    """Return why the logged wrench says nothing ("" when it says something): zero throughout, or an RMS force
+    and torque below ``NEGLIGIBLE_FORCE`` / ``NEGLIGIBLE_TORQUE`` (below any F/T sensor's noise)."""
+    g = log.gamma
+    if not np.any(g):  # else read as a wrench stream of missing (zero) samples, "too few"
+        return "the wrench is zero throughout"
+    force, torque = _rms(np.hypot(g[:, 0], g[:, 1])), _rms(g[:, 2])
+    if force < NEGLIGIBLE_FORCE and torque < NEGLIGIBLE_TORQUE:
+        return (
+            f"the wrench is numerically zero throughout (RMS force {force:.3g} N, torque {torque:.3g} N m: far below "
+            "any F/T sensor's noise); fx, fy and tau must hold the wrench on the cart in N and N m"
+        )
+    return ""
+
+
+def check_estimable(log: CartLog, streams: Streams | None = None) -> Streams:
+    """Return the log's pose and wrench streams; raise `IdentifiabilityError` when the log says nothing.
+
+    The checks every estimate runs before any fit (least squares, :func:`identify`; the EKF,
+    :mod:`cart.estimate_report`): too few samples in the table or either stream, a wrench zero or negligible
+    throughout (:func:`_silent_wrench`), a cart that does not move beyond the pose noise (:func:`pose_stands`).
+    """
     if len(log) < 12:
         raise IdentifiabilityError(
             f"{log.source}: {len(log)} samples are too few to estimate anything (need a push of many samples)"
         )
-    if not np.any(log.gamma):  # else read as a wrench stream of missing (zero) samples, "too few"
-        raise IdentifiabilityError(f"{log.source}: nothing can be estimated: the wrench is zero throughout")
+    why = _silent_wrench(log)
+    if why:
+        raise IdentifiabilityError(f"{log.source}: nothing can be estimated: {why}")
     streams = split_streams(log) if streams is None else streams
     if len(streams.pose.t) < 12 or len(streams.wrench.t) < 12:
         raise IdentifiabilityError(
             f"{log.source}: {len(streams.pose.t)} pose and {len(streams.wrench.t)} wrench samples are too few"
+        )
+    q = streams.pose.values
+    if pose_stands(q, max(white_noise_std(q[:, 0]), white_noise_std(q[:, 1]), 1e-12)):
+        raise IdentifiabilityError(
+            f"{log.source}: nothing can be estimated: the cart does not move beyond the pose noise"
         )
     return streams
 

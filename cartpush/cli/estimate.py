@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import ctypes
 import importlib
-import math
 import os
 import threading
 from typing import TYPE_CHECKING, Any
@@ -25,7 +24,9 @@ project's cart log format (CSV or .csv.gz; velocity columns optional).
   noisy logged wrench is the regression's output, so wrench noise does not bias
   the estimate; noise levels, filter band and uncertainty come from the log itself.
 --method ekf: the paper's augmented-state EKF (eq. 8-20) with a multi-start; the
-  wrench is its input, so wrench noise biases the mass upwards.
+  wrench is its input, so wrench noise biases the mass upwards. It runs the same
+  log checks as ls; a run that diverges (a CoM beyond 10 m, an inertia above
+  1e6 kg m^2, a mass 100 times the guess or above 10000 kg) is refused (exit 2).
 
 The output says whether the model fits the log (`model_fits`, `nis_mean`: the
 EKF's mean normalized innovation with these parameters, ~6 when it fits) and
@@ -62,7 +63,11 @@ def register(subparsers) -> None:
         help="ls: whole-log least squares (default); ekf: the paper's EKF",
     )
     parser.add_argument(
-        "--mass-guess", type=float, default=20.0, metavar="KG", help="EKF only: initial mass (default 20)"
+        "--mass-guess",
+        type=float,
+        default=20.0,
+        metavar="KG",
+        help="EKF only: initial mass, at most 10000 (default 20)",
     )
     parser.add_argument(
         "--com-guess",
@@ -70,14 +75,14 @@ def register(subparsers) -> None:
         nargs=2,
         default=(0.0, 0.0),
         metavar=("DX", "DY"),
-        help="EKF only: initial CoM in the cart frame {b} (default 0 0)",
+        help="EKF only: initial CoM in the cart frame {b}, each within +-5 m (default 0 0)",
     )
     parser.add_argument(
         "--sigma-guess",
         type=float,
         default=1.0,
         metavar="NS_PER_M",
-        help="EKF only: initial viscous coefficients (default 1)",
+        help="EKF only: initial viscous coefficients, 0 to 10000 (default 1)",
     )
     parser.add_argument("--json", action="store_true", help="print only JSON")
     add_topic_options(parser)
@@ -85,15 +90,11 @@ def register(subparsers) -> None:
 
 
 def check_args(args: argparse.Namespace) -> None:
-    """Raise a CartpushError for options the command cannot use (before reading any log)."""
-    from cart.errors import CartError
+    """Raise a CartpushError for options the command cannot use (before reading any log): the EKF's guesses
+    out of their bounds (:func:`cart.estimate_report.check_guesses`)."""
+    from cart.estimate_report import check_guesses
 
-    if not (math.isfinite(args.mass_guess) and args.mass_guess > 0):
-        raise CartError(f"--mass-guess must be a positive number of kg, got {args.mass_guess}")
-    if not all(math.isfinite(v) for v in args.com_guess):
-        raise CartError(f"--com-guess must be two finite numbers of metres, got {args.com_guess}")
-    if not (math.isfinite(args.sigma_guess) and args.sigma_guess >= 0):
-        raise CartError(f"--sigma-guess must be a non-negative number, got {args.sigma_guess}")
+    check_guesses(args.mass_guess, tuple(args.com_guess), args.sigma_guess)
 
 
 def report_for(log, args: argparse.Namespace):
