@@ -96,10 +96,10 @@ def run(args: argparse.Namespace) -> int:
 
     options.duration(args.duration, minimum=8.0, why="Traj. 2 needs it", rate=1000.0)
     from cartpush.cli.push import parse_load_change
-    from wholebody.push.load_change import check_changes
+    from wholebody.push.config import check_load_changes
 
     loads = tuple(parse_load_change(v) for v in args.load_change or ())
-    check_changes(None, loads, args.duration)
+    check_load_changes(loads, args.duration)  # times, places on the cart, masses: before any work
     if not args.robots_only:
         options.writable_dir(args.out)
     rows = robot_summary()
@@ -112,12 +112,22 @@ def run(args: argparse.Namespace) -> int:
         if args.json:
             print(dumps_strict({"robots": rows}))
         return 0
+    import sys
+
     from wholebody.progress import show_progress
+    from wholebody.push.cart_file import mujoco_warnings, warnings_summary
     from wholebody.push.report import run_demo
 
-    demo = run_demo(
-        args.out, duration=args.duration, verbose=not args.json, progress=show_progress(args.json), load_changes=loads
-    )
+    with mujoco_warnings() as warned:  # not MuJoCo's line per warning on stderr, nor its MUJOCO_LOG.TXT in the cwd
+        demo = run_demo(
+            args.out,
+            duration=args.duration,
+            verbose=not args.json,
+            progress=show_progress(args.json),
+            load_changes=loads,
+        )
+    if warned:
+        print(f"cartpush demo: warning: {warnings_summary(warned)}", file=sys.stderr)
     if not args.json:
         print("what to open:\n" + "\n".join(report_listing(demo.out_dir)))
     if args.json:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
@@ -199,7 +200,7 @@ def config_from_args(args: argparse.Namespace):
     if args.arms not in (1, 2):
         raise WholeBodyError(f"--arms must be 1 or 2, got {args.arms}")
     options.duration(args.duration, minimum=8.0, why="ramp up, cruise, stop", rate=1000.0)
-    options.finite("--initial-mass", args.initial_mass, positive=True, maximum=1e4, why="kg")
+    _check_initial_mass(args.initial_mass)
     initial_com = parse_initial_com(args.initial_com)
     options.seed(args.seed)
     for v in args.contact_y or ():
@@ -237,6 +238,15 @@ def config_from_args(args: argparse.Namespace):
         load_changes=tuple(parse_load_change(v) for v in args.load_change or ()),
         time_scaling=_time_scaling(args.look_ahead, args.plant),
     )
+
+
+def _check_initial_mass(mass: float) -> None:
+    """Raise OptionError naming ``--initial-mass`` unless it is within the carts a push handles (kg)."""
+    from wholebody.push.config import CART_MASS_RANGE_KG
+
+    lo, hi = CART_MASS_RANGE_KG
+    if not (math.isfinite(mass) and lo <= mass <= hi):
+        raise OptionError(f"--initial-mass takes the initial mass estimate in kg within [{lo:g}, {hi:g}], got {mass:g}")
 
 
 def _handle_span(cart_model: Path | None) -> tuple[float, float]:
@@ -335,49 +345,20 @@ def run(args: argparse.Namespace) -> int:
     if args.html is not None:
         options.writable_file(args.html, "--html")
     from cart.jsonout import dumps_strict
-    from wholebody.push import run_push
     from wholebody.progress import show_progress
-    from wholebody.push.report import (
-        base_lateral_speed,
-        before_loss,
-        cart_lateral_speed,
-        describe,
-        match_load_changes,
-        push_log,
-        save_figures,
-        save_scene,
-        what_happened,
-    )
+    from wholebody.push import run_push
+    from wholebody.push.cart_file import mujoco_warnings, warnings_summary
+    from wholebody.push.report import what_happened
 
-    result = run_push(config, progress=show_progress(args.json))
-    written = []
-    if args.out is not None:
-        from cart.logs import write_log
-
-        args.out.mkdir(parents=True, exist_ok=True)
-        written += save_figures({describe(config): result}, args.out)
-        write_log(args.out / "push_log.csv", push_log(result))
-        written.append(args.out / "push_log.csv")
-    if args.html is not None:
-        args.html.parent.mkdir(parents=True, exist_ok=True)
-        written.append(save_scene(result, args.html))
-    metrics = result.metrics.as_dict()
+    with mujoco_warnings() as warned:  # not MuJoCo's line per warning on stderr, nor its MUJOCO_LOG.TXT in the cwd
+        result = run_push(config, progress=show_progress(args.json))
+    if warned:
+        print(f"cartpush push: warning: {warnings_summary(warned)}", file=sys.stderr)
+    written = _write_files(args, result)
     if args.json:
-        out = {k: metrics[k] for k in JSON_FIELDS}
-        out.update({k: v for k, v in metrics.items() if k not in out})
-        if result.plant_report is not None:
-            out.update(result.plant_report)
-        out["estimator"] = config.estimator if config.estimation else "none"
-        out.update(result.estimator_report or {})
-        matched = match_load_changes(result) if config.load_changes else None
-        if matched is not None:
-            out["load_changes_true"] = matched
-        out["cart_lateral_slip_max_m_s"] = float(abs(cart_lateral_speed(result)).max())
-        out["base_lateral_speed_measured_max_m_s"] = float(abs(base_lateral_speed(result)).max())
-        if result.metrics.tracking_lost_at_s is not None:
-            out["before_loss"] = before_loss(result)
-        out["what_happened"] = what_happened(result, matched)
-        out["files"] = [str(p) for p in written]
+        out = json_report(result, written)
+        if warned:
+            out["mujoco_warnings"] = {"count": len(warned), "summary": warnings_summary(warned)}
         print(dumps_strict(out))
         return 0
     print_summary(result)
@@ -391,10 +372,51 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _write_files(args: argparse.Namespace, result) -> list[Path]:
+    """Write the figures and the log (``--out``) and the page (``--html``); return the files written."""
+    from wholebody.push.report import describe, push_log, save_figures, save_scene
+
+    written: list[Path] = []
+    if args.out is not None:
+        from cart.logs import write_log
+
+        args.out.mkdir(parents=True, exist_ok=True)
+        written += save_figures({describe(result.config): result}, args.out)
+        write_log(args.out / "push_log.csv", push_log(result))
+        written.append(args.out / "push_log.csv")
+    if args.html is not None:
+        args.html.parent.mkdir(parents=True, exist_ok=True)
+        written.append(save_scene(result, args.html))
+    return written
+
+
+def json_report(result, written: list[Path]) -> dict:
+    """Return the run's ``--json`` fields: the metrics (`JSON_FIELDS` first), the plant's and the estimator's
+    reports, the load changes found, the slips, what happened and the files written."""
+    from wholebody.push.report import base_lateral_speed, before_loss, cart_lateral_speed, match_load_changes
+    from wholebody.push.report import what_happened
+
+    config, metrics = result.config, result.metrics.as_dict()
+    out = {k: metrics[k] for k in JSON_FIELDS}
+    out.update({k: v for k, v in metrics.items() if k not in out})
+    if result.plant_report is not None:
+        out.update(result.plant_report)
+    out["estimator"] = config.estimator if config.estimation else "none"
+    out.update(result.estimator_report or {})
+    matched = match_load_changes(result) if config.load_changes else None
+    if matched is not None:
+        out["load_changes_true"] = matched
+    out["cart_lateral_slip_max_m_s"] = float(abs(cart_lateral_speed(result)).max())
+    out["base_lateral_speed_measured_max_m_s"] = float(abs(base_lateral_speed(result)).max())
+    if result.metrics.tracking_lost_at_s is not None:
+        out["before_loss"] = before_loss(result)
+    out["what_happened"] = what_happened(result, matched)
+    out["files"] = [str(p) for p in written]
+    return out
+
+
 def print_summary(result) -> None:
     """Print the run's table, what the unobservable stretches meant, and the limit verdicts (over-limit: stderr too)."""
-    import sys
-
     from wholebody.push.report import comparison_table, describe, physics_note, torque_verdict, unobservable_note
 
     config, metrics = result.config, result.metrics.as_dict()

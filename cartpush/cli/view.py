@@ -93,9 +93,13 @@ def build_scene(args: argparse.Namespace, serve: bool):
             return pushing_scene(serve=serve)
         return robot_scene(args.robot, serve=serve)
     if args.cart_model is not None:
+        from wholebody.push.cart_file import mujoco_warnings
         from wholebody.viz.mjcf import cart_file_scene
 
-        return cart_file_scene(args.cart_model, serve=serve)
+        # `cart_file_scene` reads the file with `cart_file.load_cart_file`, the checks of `push --cart-model` (a
+        # fault: one line, exit 2), and MuJoCo's warnings are kept off stderr and out of a MUJOCO_LOG.TXT
+        with mujoco_warnings():
+            return cart_file_scene(args.cart_model, serve=serve)
     from cartpush.ros import load_any
 
     log = load_any(args.log, **topic_options(args))

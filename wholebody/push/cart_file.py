@@ -11,7 +11,9 @@ The contract (also in docs/mujoco.md):
 3. the file may contain a floor (the lowest plane in the worldbody whose normal points up,
    `mujoco_cart.floor_plane`); if none, the plant adds one at z = 0 (a cart on a box floor: its top at z = 0);
 4. everything else is the file's own (wheels, joints, friction, options); the controller never reads
-   the cart's inertial parameters from it (the run reports them as the truth).
+   the cart's inertial parameters from it (the run reports them as the truth);
+5. every mass, inertia and density is a finite number >= 0 (MuJoCo itself drops a negative ``<inertial mass>``
+   silently), and the cart weighs what a push handles (`config.CART_MASS_RANGE_KG`, each of its bodies too).
 
 A file that breaks the contract raises :class:`CartFileError` with one line naming what is missing.
 :func:`cart_source` also wraps the project's own carts (`CartParams` -> the shopping cart,
@@ -22,9 +24,10 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -74,6 +77,10 @@ class CartSource:
     handles: tuple[HandleSite, ...]
     #: {wheel body: (spin inertia, rolling radius)} of a compiled scene at rest (None: found by shape)
     named_wheels: tuple[str, ...] | None = None
+    #: the cart's plan extent in {b} (`plan_extent`): (x min, x max, y min, y max) m; None: not known
+    extent: tuple[float, float, float, float] | None = None
+    #: the cart's mass (kg, every body of its subtree); None: not known
+    mass: float | None = None
 
     def spec(self) -> mujoco.MjSpec:
         """Return a new spec of the cart (the scene is composed onto it)."""
@@ -117,13 +124,62 @@ def _project_cart(cart: mujoco_cart.MujocoCart, label: str) -> CartSource:
     hx, hy, hz, w = -cart.handle_distance, cart.handle_y, cart.handle_height, cart.handle_width / 2
     handle = HandleSite(cart.handle_site, np.array([hx, hy - w, hz]), np.array([hx, hy + w, hz]))
     xml = mujoco_cart.mjcf(cart)
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, mujoco_cart.CART_BODY)
     return CartSource(
         label=label,
         make_spec=lambda: mujoco.MjSpec.from_string(xml),
         z=cart.wheel_radius,
         handles=(handle,),
         named_wheels=mujoco_cart.WHEEL_BODIES,
+        extent=plan_extent(model, data, bid),
+        mass=float(model.body_subtreemass[bid]),
     )
+
+
+def plan_extent(model: mujoco.MjModel, data: mujoco.MjData, cart: int) -> tuple[float, float, float, float]:
+    """Return (x min, x max, y min, y max) m in {b} of the bounding boxes of every geom of the cart's subtree (after
+    `mj_kinematics`): where on the cart a load can be put."""
+    R, p = data.xmat[cart].reshape(3, 3), data.xpos[cart]
+    pts = [
+        mujoco_cart.geom_corners(model, data, int(g))
+        for b in mujoco_cart.subtree_bodies(model, cart)
+        for g in range(int(model.body_geomadr[b]), int(model.body_geomadr[b] + model.body_geomnum[b]))
+    ]
+    if not pts:
+        return (0.0, 0.0, 0.0, 0.0)
+    xy = ((np.concatenate(pts) - p) @ R)[:, :2]
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    return float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])
+
+
+@contextmanager
+def mujoco_warnings() -> Iterator[list[str]]:
+    """Collect MuJoCo's warnings into the yielded list while the block runs, instead of its default handler's line
+    on stderr and in MUJOCO_LOG.TXT of the working directory (an unstable step warns at every step). An enclosing
+    block's collector gets them too; the previous handler is put back after."""
+    previous = mujoco.get_mju_user_warning()
+    got: list[str] = []
+
+    def collect(message: str) -> None:
+        got.append(str(message).strip())
+        if callable(previous):
+            previous(message)
+
+    mujoco.set_mju_user_warning(collect)
+    try:
+        yield got
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
+def warnings_summary(warnings: list[str]) -> str:
+    """Return one line saying how often MuJoCo warned and its distinct warnings (the step's time left out)."""
+    kinds = list(dict.fromkeys(w.split(" Time = ")[0] for w in warnings))
+    more = f" (and {len(kinds) - 3} more kinds)" if len(kinds) > 3 else ""
+    return f"MuJoCo warned {len(warnings)} time(s): {'; '.join(kinds[:3])}{more}"
 
 
 def _first_line(exc: BaseException) -> str:
@@ -135,15 +191,17 @@ def _first_line(exc: BaseException) -> str:
     return "; ".join(text[:1] + where[:1])
 
 
-def _read(path: Path) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
-    """Return (spec, compiled model) of a file, or raise CartFileError with MuJoCo's message."""
+def _read(path: Path) -> tuple[mujoco.MjSpec, mujoco.MjModel, list[str]]:
+    """Return (spec, compiled model, MuJoCo's warnings while reading) of a file, or raise CartFileError with MuJoCo's
+    message."""
     if path.is_dir():
         raise CartFileError(f"cart file {path}: is a directory; give the MJCF file")
     if not path.is_file():
         raise CartFileError(f"cart file {path}: no such file")
     try:
-        spec = mujoco.MjSpec.from_file(str(path))
-        model = spec.compile()
+        with mujoco_warnings() as warned:
+            spec = mujoco.MjSpec.from_file(str(path))
+            model = spec.compile()
     except (ValueError, RuntimeError) as exc:
         if "could not find decoder" in str(exc):  # MuJoCo reads a model by its file's extension
             raise CartFileError(
@@ -151,7 +209,60 @@ def _read(path: Path) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
                 "cart file is MJCF XML ending in .xml"
             ) from None
         raise CartFileError(f"cart file {path}: not a valid MuJoCo model: {_first_line(exc)}") from None
-    return spec, model
+    return spec, model, warned
+
+
+def _bad_number(values: object, negative_ok: bool = False) -> bool:
+    """Return whether any of `values` is not finite or (unless `negative_ok`) negative."""
+    a = np.atleast_1d(np.asarray(values, dtype=float))
+    return bool(not np.all(np.isfinite(a)) or (not negative_ok and np.any(a < 0.0)))
+
+
+def _check_inertials(path: Path, spec: mujoco.MjSpec, model: mujoco.MjModel) -> None:
+    """Raise naming the body when a mass, inertia, density or centre of mass of the file is negative or not finite:
+    MuJoCo drops a negative ``<inertial mass>`` silently (the body then weighs nothing) and reads NaN or inf as a
+    number (the simulation then blows up)."""
+    for body in spec.bodies:
+        name = body.name or "an unnamed body"
+        if body.explicitinertial and (_bad_number(body.mass) or _bad_number(body.inertia)):
+            raise CartFileError(
+                f"cart file {path}: body {name!r} has an <inertial> of mass {body.mass:g} kg and diagonal inertia "
+                f"({', '.join(f'{v:g}' for v in body.inertia)}) kg m^2; masses and inertias must be finite numbers >= 0"
+            )
+        for geom in body.geoms:
+            mass_bad = not math.isnan(geom.mass) and _bad_number(geom.mass)  # NaN: not given (from the density)
+            if mass_bad or _bad_number(geom.density):
+                what = f"mass {geom.mass:g}" if mass_bad else f"density {geom.density:g}"
+                raise CartFileError(
+                    f"cart file {path}: a geom of body {name!r} has {what}; masses and densities must be finite "
+                    "numbers >= 0 (kg, kg/m^3)"
+                )
+    for b in range(1, model.nbody):
+        fields = (model.body_mass[b], model.body_inertia[b], model.body_ipos[b], model.body_pos[b])
+        if any(_bad_number(v, negative_ok=True) for v in fields):
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or f"#{b}"
+            raise CartFileError(
+                f"cart file {path}: body {name!r} has a mass, inertia or position that is not a finite number "
+                f"(mass {float(model.body_mass[b]):g} kg): give numbers, not nan or inf"
+            )
+
+
+def _check_cart_mass(path: Path, model: mujoco.MjModel, cart: int) -> float:
+    """Return the cart's mass (kg, its subtree); raise unless it and each of its bodies are within the masses a push
+    handles (`config.CART_MASS_RANGE_KG`: a cart of tons sinks into its soft contacts and tips)."""
+    from wholebody.push.config import CART_MASS_RANGE_KG
+
+    lo, hi = CART_MASS_RANGE_KG
+    bodies = mujoco_cart.subtree_bodies(model, cart)
+    heaviest = max(bodies, key=lambda b: float(model.body_mass[b]))
+    total = float(model.body_subtreemass[cart])
+    if float(model.body_mass[heaviest]) > hi or not lo <= total <= hi:
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(heaviest)) or f"#{heaviest}"
+        raise CartFileError(
+            f"cart file {path}: the cart weighs {total:g} kg (its heaviest body {name!r}: "
+            f"{float(model.body_mass[heaviest]):g} kg); a push handles carts of {lo:g} to {hi:g} kg"
+        )
+    return total
 
 
 def _check_cart_body(path: Path, model: mujoco.MjModel) -> int:
@@ -394,8 +505,12 @@ def _check_handles_behind(path: Path, handles: tuple[HandleSite, ...]) -> None:
 def load_cart_file(path: str | os.PathLike) -> CartSource:
     """Return the `CartSource` of an MJCF cart file, or raise `CartFileError` naming what breaks the contract."""
     p = Path(path)
-    spec, model = _read(p)
+    spec, model, warned = _read(p)
+    _check_inertials(p, spec, model)
+    if any("NaN" in w for w in warned):
+        raise CartFileError(f"cart file {p}: MuJoCo found a NaN in it (an attribute written nan); give numbers")
     cart = _check_cart_body(p, model)
+    mass = _check_cart_mass(p, model, cart)
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)  # the file's own pose of every body (qpos0), read by the checks below
     handles = _handle_sites(p, model, data, cart)
@@ -406,7 +521,14 @@ def load_cart_file(path: str | os.PathLike) -> CartSource:
     z = float(model.body_pos[cart][2])  # compiled: a <frame> around the body counts
     if not math.isfinite(z):
         raise CartFileError(f"cart file {p}: body 'cart' has no finite pos")
-    return CartSource(label=str(p), make_spec=lambda: mujoco.MjSpec.from_file(str(p)), z=z, handles=handles)
+    return CartSource(
+        label=str(p),
+        make_spec=lambda: mujoco.MjSpec.from_file(str(p)),
+        z=z,
+        handles=handles,
+        extent=plan_extent(model, data, cart),
+        mass=mass,
+    )
 
 
 def cart_source(cart: CartParams | mujoco_cart.MujocoCart | str | os.PathLike) -> CartSource:

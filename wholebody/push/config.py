@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
-from typing import Literal, Protocol
+from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -22,6 +22,9 @@ from wholebody.push.file_version import file_version
 from wholebody.push.geometry import DEFAULT_GEOMETRY, CartGeometry
 from wholebody.push.load_change import LoadChange, check_changes
 from wholebody.push.reference_clock import TimeScaling
+
+if TYPE_CHECKING:
+    from wholebody.push.cart_file import CartSource
 
 #: How the contact points are chosen: held at `fixed_contact_y`, or re-planned from the estimate.
 ContactMode = Literal["fixed", "optimal"]
@@ -196,8 +199,8 @@ class PushConfig:
             raise WholeBodyError("fixed_contact_y needs one value per arm")
         if not all(isinstance(c, LoadChange) for c in self.load_changes):
             raise WholeBodyError("load_changes must be a tuple of LoadChange")
-        # a cart file's masses are the plant's to check (`MujocoPlant`); the times are checked here
-        check_changes(self.true_params if self.cart_model is None else None, self.load_changes, self.duration)
+        # what a cart file's loads take out is the plant's to check (`MujocoPlant`); times, places, masses here
+        check_load_changes(self.load_changes, self.duration, self.true_params, self.cart_model)
 
     def hand_limits(self, arms: Sequence[int] | None = None) -> tuple[ArmLimits, ...]:
         """Return each hand's limits: `arm_limits` with the grip force of the hand's arm when its robot profile gives
@@ -295,6 +298,72 @@ class PushConfig:
     def trajectory_label(self) -> str:
         """Return a short name of the trajectory ("Traj. 2", or the object's class name)."""
         return f"Traj. {self.trajectory}" if isinstance(self.trajectory, int) else type(self.trajectory).__name__
+
+
+#: the lightest and the heaviest cart a push handles (kg; loads put in included; ``--initial-mass``'s range): a
+#: cart file's checks (`cart_file`) and the load changes' (`check_load_changes`)
+CART_MASS_RANGE_KG = (0.1, 1e4)
+
+
+def check_load_changes(
+    changes: Sequence[LoadChange],
+    duration: float,
+    true_params: CartParams = TRUE_CART,
+    cart_model: str | None = None,
+) -> None:
+    """Raise WholeBodyError when a load change falls outside (0, duration), is put in or taken out at a place off the
+    cart (outside its plan extent: `cart_file.plan_extent` of the cart file, or of the shopping cart the kinematic
+    and MuJoCo plants push), makes the cart heavier than `CART_MASS_RANGE_KG`, or takes out more than the cart
+    `true_params` holds (a cart file's: the plant checks it)."""
+    check_changes(None, changes, duration)
+    if not changes:
+        return
+    label, mass, extent = _cart_bounds(cart_model)
+    if cart_model is None:
+        mass = true_params.m
+    x0, x1, y0, y1 = extent
+    for c in changes:
+        if c.xy is not None and not (x0 <= c.xy[0] <= x1 and y0 <= c.xy[1] <= y1):
+            verb = f"puts {c.mass:g} kg in" if c.mass > 0 else f"takes {-c.mass:g} kg out"
+            raise WholeBodyError(
+                f"the load change at t = {c.t:g} s {verb} at ({c.xy[0]:g}, {c.xy[1]:g}) m in {{b}}, off the cart: "
+                f"{label} spans x in [{x0:.3f}, {x1:.3f}] m and y in [{y0:.3f}, {y1:.3f}] m"
+            )
+    hi = CART_MASS_RANGE_KG[1]
+    total = mass
+    for c in sorted(changes, key=lambda c: c.t):
+        total += c.mass
+        if total > hi:
+            raise WholeBodyError(
+                f"the load change at t = {c.t:g} s puts {c.mass:g} kg in, making the {mass:g} kg cart {total:g} kg "
+                f"with the loads before it; a push handles carts of at most {hi:g} kg"
+            )
+    check_changes(true_params if cart_model is None else None, changes, duration)
+
+
+def _cart_bounds(cart_model: str | None) -> tuple[str, float, tuple[float, float, float, float]]:
+    """Return (a label, mass kg, plan extent in {b}) of the cart a push pushes: the cart file's, or the shopping
+    cart's (the kinematic plant's cart has its dimensions, `robots.shopping_cart`)."""
+    source = _shopping_cart_source() if cart_model is None else _file_source(cart_model, file_version(cart_model))
+    if source.extent is None or source.mass is None:
+        raise WholeBodyError(f"cart {source.label}: its extent and mass are not known")
+    return ("the shopping cart" if cart_model is None else f"cart {cart_model}"), source.mass, source.extent
+
+
+@lru_cache(maxsize=1)
+def _shopping_cart_source() -> CartSource:
+    """Return the `CartSource` of the shopping cart (its geometry does not depend on its inertial parameters)."""
+    from wholebody.push.cart_file import cart_source
+
+    return cart_source(TRUE_CART)
+
+
+@lru_cache(maxsize=8)
+def _file_source(path: str, version: tuple[int, int] | None) -> CartSource:
+    """Return the `CartSource` of a cart file (`version`: its modification time and size, the cache's key)."""
+    from wholebody.push.cart_file import load_cart_file
+
+    return load_cart_file(path)
 
 
 #: a cart this far (m) from its desired place is lost: the run reports when (`PushMetrics.tracking_lost_at_s`)
