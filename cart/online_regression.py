@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,6 +43,12 @@ DT_REL_TOL = 1e-6
 MIN_MASS_SHARE = 0.05
 #: A direction of the regression is used when its data power is above (1 + this) times the regressor-noise power (10 dB).
 SIGNAL_MARGIN = 9.0
+#: A direction used (above ``SIGNAL_MARGIN``) for ``SIGNAL_HOLD_SOLVES`` solves in a row is established: it stays used
+#: while its data power is above (1 + this) times the noise power (a long creep adds noise power and no signal, so
+#: the ratio of a direction the pushes excited falls with time).
+SIGNAL_HOLD = 4.0
+#: Solves (samples) in a row a direction must pass ``SIGNAL_MARGIN`` to be established (2 s at 100 Hz).
+SIGNAL_HOLD_SOLVES = 200
 #: The identifiability gate's margin for an estimate from the initial guess (``excitation_margin`` of
 #: :class:`RecursiveRegression`): a direction of the data is used only beyond the prior's information in it, by this
 #: many prior units (soft threshold, :meth:`RecursiveRegression.excited_part`).
@@ -188,6 +195,8 @@ class RecursiveRegression:
         self.nuisance: Nuisance | None = None
         self.data_weight = 1.0
         self.excitation = np.zeros(6)
+        self.established = 0  # directions held down to SIGNAL_HOLD (:meth:`signal_part`)
+        self._streak: deque[int] = deque(maxlen=SIGNAL_HOLD_SOLVES)  # directions above SIGNAL_MARGIN at the last solves
         self.solve(iterations=3)
 
     def normal(self) -> tuple[np.ndarray, np.ndarray]:
@@ -273,12 +282,26 @@ class RecursiveRegression:
             lam, v = _generalized_eigh(d_mat, c_reg)
         except np.linalg.LinAlgError:
             return d_mat - self.compensation(d_mat), d_vec
-        keep = lam > 1.0 + SIGNAL_MARGIN
+        n_keep = self._kept_count(lam)
+        keep = np.arange(lam.size) >= lam.size - n_keep  # lam ascending: the n_keep strongest
         cv = c_reg @ v[:, keep]
         dd = (cv * (lam[keep] - 1.0)) @ cv.T
         dv = cv @ (v[:, keep].T @ d_vec)
         self.kept_directions = int(keep.sum())
         return dd, dv
+
+    def _kept_count(self, lam: np.ndarray) -> int:
+        """Return how many of the strongest directions (generalized eigenvalues ``lam``) to use: those above
+        ``1 + SIGNAL_MARGIN``, and the established ones while above ``1 + SIGNAL_HOLD``. A count of directions
+        above the margin at each of the last ``SIGNAL_HOLD_SOLVES`` solves is established (a noise-driven
+        direction that passes the margin on the first few samples is not)."""
+        n_new = int(np.sum(lam > 1.0 + SIGNAL_MARGIN))
+        n_keep = max(n_new, min(self.established, int(np.sum(lam > 1.0 + SIGNAL_HOLD))))
+        self.established = min(self.established, n_keep)
+        self._streak.append(n_new)
+        if len(self._streak) == SIGNAL_HOLD_SOLVES:
+            self.established = max(self.established, min(self._streak))
+        return n_keep
 
     def compensation(self, d_mat: np.ndarray | None = None) -> np.ndarray:
         """Return the noise correction removed from D: C scaled so that at most COMPENSATION_SHARE of each diagonal goes.

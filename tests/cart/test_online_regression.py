@@ -112,3 +112,48 @@ def test_the_misfit_level_is_a_quantile_floored_at_one():
     assert level.level2() == 1.0
     with pytest.raises(OnlineEstimatorError):
         MisfitLevel(1.5)
+
+
+def _samples(reg: RecursiveRegression, n: int, signal: float, noise: float = 0.01) -> RecursiveRegression:
+    """Add and solve n samples holding ``signal`` of the mass column's power and ``noise`` of regressor-noise power
+    on every column (in expectation: the noise enters D and C alike, only the signal enters d)."""
+    e0 = np.eye(6)[0]
+    for _ in range(n):
+        reg.add(signal * np.outer(e0, e0) + noise * np.eye(6), signal * DATA[0] * e0, noise * np.eye(6), 1.0)
+        reg.solve(1)
+    return reg
+
+
+def _creep_to(reg: RecursiveRegression, ratio: float, noise: float = 0.01) -> RecursiveRegression:
+    """Add noise-only samples until the mass direction's data power is ``ratio`` times its noise power."""
+    signal = reg.D[0, 0] - reg.C[0, 0]
+    return _samples(reg, int(signal / (noise * (ratio - 1.0)) - reg.C[0, 0] / noise), 0.0, noise)
+
+
+def test_a_long_creep_keeps_the_mass_the_pushes_measured():
+    """Pushes measure the mass for SIGNAL_HOLD_SOLVES samples (its direction's power 100 x the noise's), then a
+    creep adds noise power and no signal: the established direction stays used (the mass the data's) while its
+    power is above 1 + SIGNAL_HOLD times the noise's, though a regression that never used it would not take it up
+    there (1 + SIGNAL_MARGIN); below, it is dropped and the mass is the prior's."""
+    reg = _samples(RecursiveRegression(PRIOR), reg_mod.SIGNAL_HOLD_SOLVES + 50, 1.0)
+    assert reg.kept_directions == 1 and reg.established == 1 and reg.p[0] == pytest.approx(DATA[0], rel=1e-3)
+    _creep_to(reg, 1.0 + 0.5 * (reg_mod.SIGNAL_HOLD + reg_mod.SIGNAL_MARGIN))  # between the two thresholds
+    assert reg.kept_directions == 1 and reg.p[0] == pytest.approx(DATA[0], rel=1e-3)
+    fresh = RecursiveRegression(PRIOR)
+    fresh.D, fresh.d, fresh.C = reg.D.copy(), reg.d.copy(), reg.C.copy()
+    fresh.solve(iterations=10)
+    assert fresh.kept_directions == 0 and fresh.p[0] == pytest.approx(PRIOR.center[0], rel=1e-3)
+    _creep_to(reg, 1.0 + 0.5 * reg_mod.SIGNAL_HOLD)  # below the hold
+    reg.solve(iterations=10)
+    assert reg.kept_directions == 0 and reg.established == 0 and reg.p[0] == pytest.approx(PRIOR.center[0], rel=1e-3)
+
+
+def test_a_direction_above_the_margin_for_a_few_samples_is_not_held():
+    """A direction above the margin for fewer than SIGNAL_HOLD_SOLVES samples in a row (a standing start's noise can
+    pass it on the first samples, then the noise power grows fast): not established, it is dropped as soon as its
+    power falls under the margin."""
+    reg = _samples(RecursiveRegression(PRIOR), reg_mod.SIGNAL_HOLD_SOLVES // 2, 2.0)
+    assert reg.kept_directions == 1 and reg.established == 0
+    _creep_to(reg, 1.0 + 0.5 * (reg_mod.SIGNAL_HOLD + reg_mod.SIGNAL_MARGIN), noise=1.0)  # in a few samples
+    assert reg.kept_directions == 0 and reg.established == 0
+    assert reg.p[0] == pytest.approx(PRIOR.center[0], rel=1e-3)
