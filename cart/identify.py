@@ -47,7 +47,7 @@ import numpy as np
 from cart import identify_casters as casters_model
 from cart._kernels_identify import butter_lowpass_sos, median, sosfiltfilt, student_t_quantile
 from cart.dynamics import regressor
-from cart.errors import CartError
+from cart.errors import CartError, LogFormatError
 from cart.log_signals import filter_support_keep
 from cart.logs import CartLog
 from cart.noise_model import SpectralNoise, fit_spectrum, sos_power_gain
@@ -167,6 +167,30 @@ def _mark_gaps(valid: np.ndarray, tg: np.ndarray, t: np.ndarray, limit: float) -
     return int(len(big))
 
 
+#: A uniform grid over the log's span with more than this many points per pose sample, and more than
+#: ``GRID_POINTS_MAX`` points, holds mostly gaps: the log joins separate recordings (or its time column jumps),
+#: and the grid's memory would grow with the gap, not the data (a 1e5 s jump in a 20 s log took 5 GB).
+GRID_POINTS_PER_SAMPLE = 20.0
+#: ... the grid of a 20-minute log at 200 Hz (about 0.35 GB of working memory): a shorter grid is always built
+GRID_POINTS_MAX = 240_000
+
+
+def _check_grid_span(source: str, t_pose: np.ndarray, n_grid: int, dt: float) -> None:
+    """Raise LogFormatError when the grid of ``n_grid`` points at ``dt`` is ``GRID_POINTS_PER_SAMPLE`` times longer
+    than the pose samples ``t_pose`` and longer than ``GRID_POINTS_MAX``: name the longest gap and say to split
+    the log there."""
+    if n_grid <= max(GRID_POINTS_PER_SAMPLE * len(t_pose), GRID_POINTS_MAX):
+        return
+    i = int(np.argmax(np.diff(t_pose)))
+    gap = float(t_pose[i + 1] - t_pose[i])
+    raise LogFormatError(
+        f"{source}: the log spans {n_grid * dt:.4g} s but holds {len(t_pose)} pose samples at {1.0 / dt:.4g} Hz: "
+        f"its time stamps jump by {gap:.4g} s between t = {t_pose[i]:.6g} and {t_pose[i + 1]:.6g} s; it joins "
+        "separate recordings or its time column jumps: split the log at the jump (or fix the time stamps) and "
+        "estimate each part"
+    )
+
+
 def _uniform_grid(log: CartLog, streams: Streams | None = None, gap_factor: float = 5.0) -> _Grid:
     """Return the log resampled on a uniform grid; grid points inside gaps > gap_factor periods are invalid.
 
@@ -185,6 +209,7 @@ def _uniform_grid(log: CartLog, streams: Streams | None = None, gap_factor: floa
             f"{log.source}: the pose and the wrench overlap for {max(t1 - t0, 0.0):.3g} s only: nothing to estimate"
         )
     n = int(math.floor((t1 - t0) / dt + 1e-9)) + 1
+    _check_grid_span(log.source, st.pose.t, n, dt)
     tg = t0 + dt * np.arange(n)
     q = np.column_stack([np.interp(tg, st.pose.t, st.pose.values[:, i]) for i in range(3)])
     if st.wrench.period < dt / 1.5:
