@@ -104,10 +104,14 @@ def _time_unit(period: float) -> tuple[str, float]:
 
 #: Heading range (rad) over which a pushed cart's world-frame wrench cannot keep a column exactly constant.
 MIN_TURN_FOR_CONSTANT = 0.5
+#: A wrench column whose spread is at most this share of the wrench's largest value is numerically constant (a
+#: torque of 1e-300 N m beside forces of newtons: no sensor's reading, and LAPACK's scaling fails on it).
+NUMERICALLY_CONSTANT = 1e-12
 
 
 def _constant_wrench_column(streams: Streams, source: str) -> None:
-    """Raise :class:`UnitsError` when a wrench column is exactly constant over the log while the cart turns.
+    """Raise :class:`UnitsError` when a wrench column is constant (to ``NUMERICALLY_CONSTANT`` of the wrench) over the
+    log while the cart turns.
 
     A sensor's reading is never exactly constant (noise); a world-frame force that keeps one component
     constant while the heading turns by ``MIN_TURN_FOR_CONSTANT`` or more is not a push: the column was not
@@ -116,10 +120,20 @@ def _constant_wrench_column(streams: Streams, source: str) -> None:
     g = streams.wrench.values
     if len(g) < 5 or float(np.ptp(streams.pose.values[:, 2])) < MIN_TURN_FOR_CONSTANT:
         return
+    scale = float(np.max(np.abs(g)))
     for k, name in enumerate(("fx", "fy", "tau")):
-        if float(np.ptp(g[:, k])) == 0.0:
+        spread = float(np.ptp(g[:, k]))
+        if spread <= NUMERICALLY_CONSTANT * scale:
+            what = (
+                f"is {float(g[0, k]):g} on every row"
+                if spread == 0.0
+                else (
+                    f"stays within {spread:.3g} of {float(g[0, k]):.3g} (numerically constant against the wrench's "
+                    f"{scale:.3g})"
+                )
+            )
             raise UnitsError(
-                f"{source}: column {name} is {float(g[0, k]):g} on every row while the cart turns by "
+                f"{source}: column {name} {what} while the cart turns by "
                 f"{float(np.ptp(streams.pose.values[:, 2])):.3g} rad: it was not recorded (a sensor with fewer "
                 "axes?); LOG_FORMAT needs fx, fy (world frame) and tau measured"
             )

@@ -73,6 +73,20 @@ def test_a_wrench_column_that_was_not_recorded_is_refused():
     check_units(split_streams(straight))  # a cart that does not turn may push along one axis only
 
 
+def test_a_numerically_constant_column_is_refused_before_the_fit():
+    """tau scaled by 1e-300 beside forces of newtons: LAPACK's scaling failed (exit 1, its complaint on stdout)."""
+    log, _ = rigid_sim.simulate(rigid_sim.random_case(19, duration=40.0, rate_hz=100.0))
+    g = log.gamma.copy()
+    g[:, 2] *= 1e-300
+    with pytest.raises(UnitsError, match=r"column tau stays within .* \(numerically constant against the wrench"):
+        estimate_log(replace(log, gamma=g))
+    g[:, 2] = log.gamma[:, 2] * 1e-9  # small, but it varies with the push: not this refusal
+    from cart.streams import split_streams
+    from cart.units import check_units
+
+    check_units(split_streams(replace(log, gamma=g)))
+
+
 def test_the_cart_frame_reading_is_a_refit_not_a_second_identify(monkeypatch):
     """The {b} reading refits the same regression: `estimate` runs `identify` once on a log the model misfits."""
     import cart.identify as identify_module
