@@ -91,3 +91,13 @@ def test_push_refuses_a_negative_mass_instead_of_dropping_it(tmp_path, capfd):
     code = main(["push", "--duration", "8", "--json", "--cart-model", str(path)])
     err = capfd.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "body 'occupant'" in err[0] and "mass -13 kg" in err[0]
+
+
+def test_a_heavy_cart_that_does_not_stand_is_said_to_sink_or_tip_not_to_miss_the_floor(tmp_path, capfd):
+    """5 t in the wheelchair (within the push's bound): the settle check named the floor's collision flags."""
+    path = _variant(tmp_path, OCCUPANT, 'mass="5000" diaginertia="4.2 4.0 2.2"')
+    code = main(["push", "--duration", "8", "--json", "--cart-model", str(path)])
+    err = capfd.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert "does not stand on the floor" in err[0] and "kg it sinks or tips on its wheels' soft contacts" in err[0]
+    assert "contype" not in err[0]

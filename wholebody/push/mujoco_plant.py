@@ -74,6 +74,8 @@ GRAVITY_VECTOR = np.array([0.0, 0.0, -mujoco_cart.GRAVITY])
 _SITE = mujoco.mjtObj.mjOBJ_SITE
 #: after the settle the cart stands: {b} within this height (m) of where it started and this tilt (deg) of level
 STANDING_DROP_M = 0.05
+#: a cart heavier than this (kg) that does not stand after the settle is said to sink or tip on its soft contacts
+HEAVY_CART_KG = 1000.0
 STANDING_TILT_DEG = 10.0
 _JOINT_INTERNAL = (int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF), int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT))
 
@@ -423,11 +425,19 @@ class MujocoPlant:
         drop = float(self.cart_source.z - d.xpos[b][2])
         tilt = math.degrees(math.acos(min(1.0, float(d.xmat[b][8]))))
         if abs(drop) > STANDING_DROP_M or tilt > STANDING_TILT_DEG:
+            mass = self.cart_source.mass
+            heavy = mass is not None and mass > HEAVY_CART_KG
             raise MujocoPlantError(
                 f"cart {self.cart_source.label}: it does not stand on the floor after the "
                 f"{self.config.settle_time:g} s settle ({{b}} {abs(drop):.2f} m {'below' if drop > 0 else 'above'} "
-                f"its start, tilted {tilt:.0f} deg): check that its wheels and the floor collide (contype/"
-                "conaffinity, <contact><exclude>, <option><flag contact>) and that it rests on its wheels"
+                f"its start, tilted {tilt:.0f} deg): "
+                + (
+                    f"at {mass:.4g} kg it sinks or tips on its wheels' soft contacts; check its masses (kg), or stiffen the "
+                    "wheels' contacts (solref) for a load that heavy"
+                    if heavy
+                    else "check that its wheels and the floor collide (contype/conaffinity, <contact><exclude>, "
+                    "<option><flag contact>) and that it rests on its wheels"
+                )
             )
 
     def _fused_loops(self) -> list[tuple[int, tuple[RobotIndex, TorqueArmLaw]]]:
