@@ -397,6 +397,21 @@ def weak_mass_note(params: CartParams, std: Mapping[str, Any], unknown: Mapping[
     ]
 
 
+#: A mass below this (kg) is lighter than anything a robot pushes as a cart: the wrench may be in kN
+LIGHT_MASS_KG = 0.1
+
+
+def light_mass_note(params: CartParams, unknown: Mapping[str, str]) -> list[str]:
+    """Return a warning when the identified mass is below ``LIGHT_MASS_KG``: a wrench logged in kN scales the mass
+    by 1e-3 and fits as well, so the log alone cannot refuse it; the reader is told what to check."""
+    if "mass" in unknown or not 0.0 < params.m < LIGHT_MASS_KG:
+        return []
+    return [
+        f"the mass is {1e3 * params.m:.3g} g, lighter than a cart: if the wrench is in kN and kN m, convert it "
+        "to N and N m as LOG_FORMAT requires (the mass scales with the force's unit)"
+    ]
+
+
 #: The fit's own note on a mass whose std is above half of it (`cart.identify`), which :func:`weak_mass_note` supersedes.
 _WEAKLY_EXCITED_MASS = "mass weakly excited"
 
@@ -405,10 +420,11 @@ def _final_notes(
     warnings: list[str], params: CartParams, std: Mapping[str, Any], unknown: dict[str, str], fits: bool
 ) -> tuple[str, ...]:
     """Return the report's warnings: ``warnings``, the parameters not identified, and the mass's precision
-    (:func:`weak_mass_note`, which then replaces the fit's "mass weakly excited": one note on one std)."""
+    (:func:`weak_mass_note`, which then replaces the fit's "mass weakly excited": one note on one std), and a
+    mass lighter than a cart (:func:`light_mass_note`)."""
     weak = weak_mass_note(params, std, unknown, fits)
     kept = [w for w in warnings if not (weak and w.startswith(_WEAKLY_EXCITED_MASS))]
-    return tuple(kept + _unknown_notes(unknown) + weak)
+    return tuple(kept + _unknown_notes(unknown) + weak + light_mass_note(params, unknown))
 
 
 def _segment_json(seg: dict[str, Any]) -> dict[str, Any]:
