@@ -111,9 +111,17 @@ def build_parser(command: str | None = "*") -> argparse.ArgumentParser:
     return parser
 
 
+#: characters of a value that starts with a minus sign and a digit: numbers and the ``T:+M@X,Y`` of ``--load-change``
+_VALUE_CHARS = frozenset("0123456789.eE+-:,@")
+
+
 def _looks_negative_number(token: str) -> bool:
+    """Return True for a negative number (``-1e3``, ``-inf``) or a value made of numbers that starts with a minus
+    sign and a digit (``--load-change -1:+5``): no option of the CLI starts that way."""
     if len(token) < 2 or token[0] != "-" or token[1] == "-":
         return False
+    if (token[1].isdigit() or token[1] == ".") and set(token) <= _VALUE_CHARS:
+        return True
     try:
         float(token)
     except ValueError:

@@ -157,6 +157,14 @@ def test_negative_wrench_in_e_notation_is_a_value(capsys):
     assert out["gamma_achieved"][0] == pytest.approx(-100.0, abs=1e-3)
 
 
+def test_a_negative_load_change_time_is_a_value_refused_by_its_own_check(capsys):
+    """``--load-change -1:+5`` read as an option gave argparse's "expected one argument"."""
+    assert preprocess_argv(["push", "--load-change", "-1:+5"])[0][2] == " -1:+5"
+    assert preprocess_argv(["push", "-h"])[0][1] == "-h"
+    assert main(["push", "--duration", "8", "--load-change", "-1:+5"]) == 2
+    assert "a load change needs a nonzero mass at t >= 0, got 5 kg at -1 s" in _one_error_line(capsys, "push")
+
+
 def test_unwritable_out_fails_before_the_computation(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
