@@ -154,6 +154,25 @@ def check_results_file(out: str, paths: list[str]) -> None:
         )
 
 
+#: the push campaign's options and their defaults: given to `batch estimate` or `batch diagnose`, they are refused
+_PUSH_ONLY = (("robots", None), ("masses", None), ("trajectories", [2]), ("plant", "kinematic"), ("arms", 1))
+
+
+def _no_push_options(args: argparse.Namespace) -> None:
+    """Raise BatchError when a `batch push` option is given to `batch estimate` or `batch diagnose` (it would be
+    ignored)."""
+    from cartpush.batch import BatchError
+
+    given = [f"--{name}" for name, default in _PUSH_ONLY if getattr(args, name, default) != default]
+    if args.duration != 30.0:
+        given.append("--duration")
+    if given:
+        raise BatchError(
+            f"{', '.join(given)}: {'options' if len(given) > 1 else 'an option'} of batch push only; batch "
+            f"{args.job} runs `cartpush {args.job}` on its INPUT logs (its options go in --job-args)"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the batch; print the summary; return 0, or ``FAILED_EXIT`` when any log failed (its error line is kept)."""
     from cart.jsonout import dumps_strict
@@ -165,6 +184,7 @@ def run(args: argparse.Namespace) -> int:
         raise BatchError(f"--workers {args.workers}: more than 4x this machine's {os.cpu_count()} CPUs")
     if args.job == "push":
         return _run_push(args)
+    _no_push_options(args)
     if not args.inputs:
         raise BatchError(f"batch {args.job} needs at least one INPUT (log files, directories or glob patterns)")
     try:

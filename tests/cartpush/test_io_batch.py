@@ -84,3 +84,14 @@ def test_a_bad_job_argument_is_one_line_naming_it(log, tmp_path, capsys, job_arg
     assert main(["batch", "estimate", log, "--out", str(out), f"--job-args={job_args}"]) == 2
     assert fragment in _one_error_line(capsys, "batch")
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "named"),
+    [(["--masses", "20"], "--masses: an option"), (["--plant", "mujoco", "--duration", "10"], "--plant, --duration")],
+)
+def test_a_push_option_given_to_batch_estimate_is_refused_not_ignored(log, tmp_path, capsys, extra, named):
+    out = tmp_path / "r.jsonl"
+    assert main(["batch", "estimate", log, "--out", str(out), *extra]) == 2
+    line = _one_error_line(capsys, "batch")
+    assert named in line and "of batch push only" in line and not out.exists()
