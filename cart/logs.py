@@ -184,14 +184,14 @@ def _check_regular_file(path: str) -> None:
 
 
 def _read_lines(path: str) -> tuple[list[str], str, bytes]:
-    """Return the file's (lines, text, UTF-8 bytes of the text): a gzip file (.gz, or any name starting with
-    the gzip magic bytes) decompressed in one call; utf-8-sig: a byte-order mark that Excel and some Windows
+    """Return the file's (lines, text, UTF-8 bytes of the text): a gzip file (known by its magic bytes, whatever
+    its name: a plain-text log named .gz is read as it is) decompressed in one call; utf-8-sig: a byte-order mark that Excel and some Windows
     tools write is not part of the header (nor of the bytes). Only a regular file is read."""
     _check_regular_file(path)
     try:
         with open(path, "rb") as fh:
             data = fh.read()
-        if path.endswith(".gz") or data.startswith(GZIP_MAGIC):
+        if data.startswith(GZIP_MAGIC):
             data = gzip.decompress(data)
         text = data.decode("utf-8-sig")
     except (OSError, EOFError, zlib.error) as exc:  # gzip's BadGzipFile is an OSError; corrupt data a zlib.error
@@ -199,7 +199,8 @@ def _read_lines(path: str) -> tuple[list[str], str, bytes]:
             raise
         raise LogFormatError(f"{path}: cannot read the file: {exc}") from None
     except UnicodeDecodeError as exc:
-        raise LogFormatError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+        gz = " (named .gz, but not gzip-compressed either)" if path.endswith(".gz") else ""
+        raise LogFormatError(f"{path}: not UTF-8 text{gz} ({exc.reason} at byte {exc.start})") from None
     return text.splitlines(), text, data[3:] if data.startswith(codecs.BOM_UTF8) else data
 
 

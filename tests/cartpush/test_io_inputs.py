@@ -89,6 +89,18 @@ def test_a_gzip_log_named_csv_is_read_as_gzip(tmp_path, capsys):
     capsys.readouterr()
 
 
+def test_a_plain_log_named_gz_is_read_as_text_and_binary_named_gz_says_so(tmp_path):
+    plain = _log(tmp_path / "run.csv")
+    named = tmp_path / "plain_named.csv.gz"
+    named.write_bytes(Path(plain).read_bytes())
+    a, b = read_log(plain), read_log(named)
+    assert np.array_equal(a.t, b.t) and np.array_equal(a.gamma, b.gamma)
+    garbage = tmp_path / "garbage.csv.gz"
+    garbage.write_bytes(b"\xff\xfe\x00binary")
+    with pytest.raises(LogFormatError, match=r"named \.gz, but not gzip-compressed either"):
+        read_log(garbage)
+
+
 def test_import_onto_the_bag_itself_is_refused_and_the_bag_untouched(tmp_path, capsys):
     bag = tmp_path / "run.bag"
     shutil.copyfile(BAG, bag)
