@@ -74,6 +74,11 @@ def validate(args: argparse.Namespace) -> None:
         if not 1 <= args.scenario <= 11:
             raise options.OptionError(f"--scenario must be a Table I test between 1 and 11, got {args.scenario}")
         options.duration(args.duration, rate=100.0)
+    elif args.duration != 30.0:
+        raise options.OptionError(
+            f"--duration {args.duration:g}: the simulated seconds of --scenario; a log is shown whole or from --start "
+            "to --end"
+        )
     if args.html:
         options.writable_file(args.html, "--html", create=False)
 

@@ -141,6 +141,10 @@ def _tiny_log(path):
         (["plan-contacts", "--wrench", "nan", "0", "0"], "--wrench"),
         (["view", "--scenario", "3", "--duration", "inf", "--html", "OUT/x.html"], "--duration"),
         (["view", "--scenario", "12", "--html", "OUT/x.html"], "--scenario"),
+        (
+            ["view", "LOG", "--duration", "-1", "--html", "OUT/x.html"],
+            "--duration -1: the simulated seconds of --scenario",
+        ),
     ],
 )
 def test_bad_options_exit_2_before_work(argv, fragment, tmp_path, capsys):
