@@ -6,20 +6,11 @@ import json
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
 from cart.errors import CartpushError
-from cart.logs import CartLog, write_log
 from cartpush.cli import main, preprocess_argv
-
-
-def _one_error_line(capsys, command: str) -> str:
-    err = capsys.readouterr().err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith(f"cartpush {command}: error:"), err
-    return lines[0]
+from tests.cartpush.cli_helpers import one_error_line, tiny_log
 
 
 def _strict(text: str):
@@ -70,7 +61,7 @@ def test_internal_error_is_one_line_exit_1_and_debug_reraises(monkeypatch, capsy
         main(["--debug", "plan-contacts", "--wrench", "1", "0", "0"])
     capsys.readouterr()
     assert main(["--debug", "track", "line", "--rate", "nan"]) == 2  # bad input stays one line with --debug
-    _one_error_line(capsys, "track")
+    one_error_line(capsys, "track")
 
 
 def test_no_command_is_one_line(capsys):
@@ -81,9 +72,9 @@ def test_no_command_is_one_line(capsys):
 
 def test_missing_file_and_directory_are_user_errors(tmp_path, capsys):
     assert main(["estimate", str(tmp_path / "nope.csv")]) == 2
-    _one_error_line(capsys, "estimate")
+    one_error_line(capsys, "estimate")
     assert main(["diagnose", str(tmp_path)]) == 2
-    _one_error_line(capsys, "diagnose")
+    one_error_line(capsys, "diagnose")
 
 
 def test_argparse_errors_are_one_line(capsys):
@@ -110,14 +101,6 @@ def test_help_imports_no_command_module():
 
 
 # -- option validation ----------------------------------------------------------------------------
-def _tiny_log(path):
-    t = np.arange(0.0, 3.0, 0.01)
-    q = np.column_stack([0.2 * t**2, 0 * t, 0.05 * t])
-    g = np.column_stack([10 + 5 * np.sin(3 * t), 0 * t, np.sin(2 * t)])
-    write_log(path, CartLog(t=t, q=q, gamma=g))
-    return str(path)
-
-
 @pytest.mark.parametrize(
     "argv, fragment",
     [
@@ -148,10 +131,10 @@ def _tiny_log(path):
     ],
 )
 def test_bad_options_exit_2_before_work(argv, fragment, tmp_path, capsys):
-    log = _tiny_log(tmp_path / "log.csv")
+    log = tiny_log(tmp_path / "log.csv")
     argv = [a.replace("LOG", log).replace("OUT", str(tmp_path)) for a in argv]
     assert main(argv) == 2
-    assert fragment in _one_error_line(capsys, argv[0])
+    assert fragment in one_error_line(capsys, argv[0])
 
 
 def test_negative_wrench_in_e_notation_is_a_value(capsys):
@@ -166,21 +149,21 @@ def test_a_negative_load_change_time_is_a_value_refused_by_its_own_check(capsys)
     assert preprocess_argv(["push", "--load-change", "-1:+5"])[0][2] == " -1:+5"
     assert preprocess_argv(["push", "-h"])[0][1] == "-h"
     assert main(["push", "--duration", "8", "--load-change", "-1:+5"]) == 2
-    assert "a load change needs a nonzero mass at t >= 0, got 5 kg at -1 s" in _one_error_line(capsys, "push")
+    assert "a load change needs a nonzero mass at t >= 0, got 5 kg at -1 s" in one_error_line(capsys, "push")
 
 
 def test_unwritable_out_fails_before_the_computation(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    log = _tiny_log(tmp_path / "log.csv")
+    log = tiny_log(tmp_path / "log.csv")
     assert main(["diagnose", log, "--out", str(blocker / "plots")]) == 2
-    assert "--out" in _one_error_line(capsys, "diagnose")
+    assert "--out" in one_error_line(capsys, "diagnose")
     assert main(["reproduce", "--tests", "1", "--out", str(blocker)]) == 2
-    _one_error_line(capsys, "reproduce")
+    one_error_line(capsys, "reproduce")
     assert main(["track", "line", "--duration", "1", "--out", str(blocker / "a.csv")]) == 2
-    _one_error_line(capsys, "track")
+    one_error_line(capsys, "track")
     assert main(["view", "--robot", "wmra", "--html", str(blocker / "a.html")]) == 2
-    _one_error_line(capsys, "view")
+    one_error_line(capsys, "view")
     # a directory that does not exist yet is created
     assert main(["track", "line", "--duration", "0.5", "--out", str(tmp_path / "new" / "run.csv"), "--json"]) == 0
     assert (tmp_path / "new" / "run.csv").is_file()

@@ -6,31 +6,17 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from cart.logs import CartLog, write_log
 from cartpush.batch import BatchError
 from cartpush.cli import main
 from cartpush.cli.batch import check_results_file
-
-
-def _one_error_line(capsys, command: str) -> str:
-    err = capsys.readouterr().err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith(f"cartpush {command}: error:"), err
-    return lines[0]
+from tests.cartpush.cli_helpers import one_error_line, tiny_log
 
 
 @pytest.fixture
 def log(tmp_path) -> str:
-    t = np.arange(0.0, 3.0, 0.01)
-    q = np.column_stack([0.2 * t**2, 0 * t, 0.05 * t])
-    g = np.column_stack([10 + 5 * np.sin(3 * t), 0 * t, np.sin(2 * t)])
-    path = tmp_path / "run.csv"
-    write_log(path, CartLog(t=t, q=q, gamma=g))
-    return str(path)
+    return tiny_log(tmp_path / "run.csv")
 
 
 def test_an_existing_cart_log_as_out_is_refused_and_untouched(log, tmp_path, capsys):
@@ -38,7 +24,7 @@ def test_an_existing_cart_log_as_out_is_refused_and_untouched(log, tmp_path, cap
     other.write_bytes(Path(log).read_bytes())
     before = other.read_bytes()
     assert main(["batch", "estimate", log, "--out", str(other)]) == 2
-    line = _one_error_line(capsys, "batch")
+    line = one_error_line(capsys, "batch")
     assert "is not a JSON Lines results file (its first line is not a JSON object" in line
     assert other.read_bytes() == before
 
@@ -82,7 +68,7 @@ def test_check_results_file_looks_at_the_first_line(tmp_path, first, ok):
 def test_a_bad_job_argument_is_one_line_naming_it(log, tmp_path, capsys, job_args, fragment):
     out = tmp_path / "results.jsonl"
     assert main(["batch", "estimate", log, "--out", str(out), f"--job-args={job_args}"]) == 2
-    assert fragment in _one_error_line(capsys, "batch")
+    assert fragment in one_error_line(capsys, "batch")
     assert not out.exists()
 
 
@@ -93,5 +79,5 @@ def test_a_bad_job_argument_is_one_line_naming_it(log, tmp_path, capsys, job_arg
 def test_a_push_option_given_to_batch_estimate_is_refused_not_ignored(log, tmp_path, capsys, extra, named):
     out = tmp_path / "r.jsonl"
     assert main(["batch", "estimate", log, "--out", str(out), *extra]) == 2
-    line = _one_error_line(capsys, "batch")
+    line = one_error_line(capsys, "batch")
     assert named in line and "of batch push only" in line and not out.exists()

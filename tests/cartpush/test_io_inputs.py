@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from cart.errors import LogFormatError
-from cart.logs import CartLog, read_log, write_log
+from cart.logs import read_log
 from cartpush.cli import main
+from tests.cartpush.cli_helpers import one_error_line, tiny_log
 
 BAG = Path(__file__).resolve().parents[2] / "cartpush" / "ros" / "data" / "sample_push.bag"
 BAG_TOPICS = ["--pose-topic", "/mocap/cart", "--wrench-topic", "/ft_sensor/wrench"]
@@ -38,29 +39,13 @@ def alarm():
     signal.signal(signal.SIGALRM, previous)
 
 
-def _one_error_line(capsys, command: str) -> str:
-    err = capsys.readouterr().err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith(f"cartpush {command}: error:"), err
-    return lines[0]
-
-
-def _log(path: Path) -> str:
-    t = np.arange(0.0, 3.0, 0.01)
-    q = np.column_stack([0.2 * t**2, 0 * t, 0.05 * t])
-    g = np.column_stack([10 + 5 * np.sin(3 * t), 0 * t, np.sin(2 * t)])
-    write_log(path, CartLog(t=t, q=q, gamma=g))
-    return str(path)
-
-
 def test_a_fifo_as_the_log_is_refused_at_once(tmp_path, capsys, alarm):
     fifo = tmp_path / "run.csv"
     os.mkfifo(fifo)
     with pytest.raises(LogFormatError, match="FIFO"):
         read_log(fifo)
     assert main(["estimate", str(fifo)]) == 2
-    line = _one_error_line(capsys, "estimate")
+    line = one_error_line(capsys, "estimate")
     assert f"{fifo}: is a FIFO (named pipe), not a log file; save the log to a regular file" in line
 
 
@@ -69,18 +54,18 @@ def test_a_device_as_the_log_is_refused(device, capsys):
     if not os.path.exists(device):
         pytest.skip(f"{device} does not exist here")
     assert main(["estimate", device]) == 2
-    assert f"{device}: is a character device, not a log file" in _one_error_line(capsys, "estimate")
+    assert f"{device}: is a character device, not a log file" in one_error_line(capsys, "estimate")
 
 
 def test_a_fifo_as_the_bag_is_refused_at_once(tmp_path, capsys, alarm):
     fifo = tmp_path / "run.bag"
     os.mkfifo(fifo)
     assert main(["import", str(fifo), "--list"]) == 2
-    assert f"BAG {fifo}: is a FIFO (named pipe)" in _one_error_line(capsys, "import")
+    assert f"BAG {fifo}: is a FIFO (named pipe)" in one_error_line(capsys, "import")
 
 
 def test_a_gzip_log_named_csv_is_read_as_gzip(tmp_path, capsys):
-    plain = _log(tmp_path / "run.csv")
+    plain = tiny_log(tmp_path / "run.csv")
     named = tmp_path / "gz_named.csv"
     named.write_bytes(gzip.compress(Path(plain).read_bytes()))
     a, b = read_log(plain), read_log(named)
@@ -90,7 +75,7 @@ def test_a_gzip_log_named_csv_is_read_as_gzip(tmp_path, capsys):
 
 
 def test_a_plain_log_named_gz_is_read_as_text_and_binary_named_gz_says_so(tmp_path):
-    plain = _log(tmp_path / "run.csv")
+    plain = tiny_log(tmp_path / "run.csv")
     named = tmp_path / "plain_named.csv.gz"
     named.write_bytes(Path(plain).read_bytes())
     a, b = read_log(plain), read_log(named)
@@ -109,7 +94,7 @@ def test_import_onto_the_bag_itself_is_refused_and_the_bag_untouched(tmp_path, c
     os.symlink(bag, link)  # the same file under another name
     for out in (bag, link, tmp_path / ".." / tmp_path.name / "run.bag"):
         assert main(["import", str(bag), "-o", str(out), *BAG_TOPICS]) == 2
-        assert "is the bag being imported" in _one_error_line(capsys, "import")
+        assert "is the bag being imported" in one_error_line(capsys, "import")
     assert bag.read_bytes() == before
 
 
@@ -118,4 +103,4 @@ def test_import_into_a_ros2_bag_folder_is_refused(tmp_path, capsys):
     folder.mkdir()
     (folder / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
     assert main(["import", str(folder), "-o", str(folder / "metadata.yaml"), *BAG_TOPICS]) == 2
-    assert "inside the bag folder" in _one_error_line(capsys, "import")
+    assert "inside the bag folder" in one_error_line(capsys, "import")

@@ -9,31 +9,14 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from cart.logs import CartLog, write_log
 from cartpush.cli import main, options
 from cartpush.errors import OptionError
+from tests.cartpush.cli_helpers import one_error_line, tiny_log
 
 BAG = Path(__file__).resolve().parents[2] / "cartpush" / "ros" / "data" / "sample_push.bag"
 BAG_TOPICS = ["--pose-topic", "/mocap/cart", "--wrench-topic", "/ft_sensor/wrench"]
-
-
-def _one_error_line(capsys, command: str) -> str:
-    err = capsys.readouterr().err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith(f"cartpush {command}: error:"), err
-    return lines[0]
-
-
-def _log(path: Path) -> str:
-    t = np.arange(0.0, 3.0, 0.01)
-    q = np.column_stack([0.2 * t**2, 0 * t, 0.05 * t])
-    g = np.column_stack([10 + 5 * np.sin(3 * t), 0 * t, np.sin(2 * t)])
-    write_log(path, CartLog(t=t, q=q, gamma=g))
-    return str(path)
 
 
 @pytest.mark.parametrize(
@@ -51,7 +34,7 @@ def test_a_device_as_output_file_is_refused_before_the_run(argv, option, capsys)
     if not os.path.exists(device):
         pytest.skip(f"{device} does not exist here")
     assert main(argv) == 2
-    line = _one_error_line(capsys, argv[0])
+    line = one_error_line(capsys, argv[0])
     assert f"{option} {device}: is a character device" in line
     assert "give the name of a file" in line
 
@@ -84,12 +67,12 @@ def test_an_oserror_while_running_is_one_line_exit_2(monkeypatch, capsys, tmp_pa
 
     monkeypatch.setattr(mod, "run", fail)
     assert main(["track", "line", "--out", str(tmp_path / "run.csv")]) == 2
-    line = _one_error_line(capsys, "track")
+    line = one_error_line(capsys, "track")
     for fragment in fragments:
         assert fragment in line, line
     monkeypatch.setattr(mod, "run", fail)
     assert main(["--debug", "track", "line"]) == 2  # bad environment, not a bug: no traceback either
-    _one_error_line(capsys, "track")
+    one_error_line(capsys, "track")
 
 
 def test_broken_pipe_and_memory_error_keep_their_codes(monkeypatch, capsys):
@@ -103,7 +86,7 @@ def test_broken_pipe_and_memory_error_keep_their_codes(monkeypatch, capsys):
 
     monkeypatch.setattr(mod, "run", memory)
     assert main(["track", "line"]) == 2
-    assert "out of memory (reduce the duration or the log size)" in _one_error_line(capsys, "track")
+    assert "out of memory (reduce the duration or the log size)" in one_error_line(capsys, "track")
     monkeypatch.setattr(mod, "run", pipe)
     monkeypatch.setattr("cartpush.cli.app._closed_stdout", lambda: 141)  # keep pytest's stdout
     assert main(["track", "line"]) == 141
@@ -111,7 +94,7 @@ def test_broken_pipe_and_memory_error_keep_their_codes(monkeypatch, capsys):
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
 def test_stdout_on_a_full_disk_is_one_line_exit_2(tmp_path):
-    log = _log(tmp_path / "run.csv")
+    log = tiny_log(tmp_path / "run.csv")
     with open("/dev/full", "w") as full:
         proc = subprocess.run(
             [sys.executable, "-m", "cartpush.cli", "estimate", log, "--json"],
