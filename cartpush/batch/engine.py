@@ -124,7 +124,7 @@ class OutputPathError(BatchError):
 DEVICE_DIRS = ("/dev", "/proc")
 
 
-def _device_path(out: str) -> bool:
+def device_path(out: str) -> bool:
     """Return True when ``out``, as written or once its links are followed, lies under a device directory.
 
     ``/dev/stdout`` follows to whatever the shell redirected it to (a terminal, a pipe, even a regular
@@ -145,7 +145,7 @@ def check_output(out: str | os.PathLike, paths: Sequence[str]) -> None:
     out = os.fspath(out)
     if os.path.isdir(out):
         raise OutputPathError(f"--out {out}: is a directory, give a .jsonl file")
-    if _device_path(out):
+    if device_path(out):
         raise OutputPathError(f"--out {out}: is a device (a path under /dev or /proc); give a .jsonl file")
     if os.path.exists(out):
         st = os.stat(out)

@@ -108,10 +108,10 @@ def output_file(path: os.PathLike | str, option: str = "--out") -> None:
     """Raise OptionError when the output ``path`` is a device, FIFO or socket, or lies under /dev or /proc
     (``/dev/full``, ``/dev/null``, ``/dev/stdout``): the same rule as ``cartpush batch --out``."""
     from cart.logs import file_kind
-    from cartpush.batch.engine import _device_path
+    from cartpush.batch.engine import device_path
 
     kind = file_kind(path)
-    if kind is not None or _device_path(os.fspath(path)):
+    if kind is not None or device_path(os.fspath(path)):
         what = kind or "a device (a path under /dev or /proc)"
         raise OptionError(f"{option} {os.fspath(path)}: is {what}, not a file; give the name of a file to write")
 
