@@ -36,7 +36,7 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from cart.logs import CartLog, plausibility_warnings, read_log
+from cart.logs import CartLog, file_kind, plausibility_warnings, read_log
 from cartpush.ros.errors import BagImportError, TransformLookupError
 from cartpush.ros.tf_tree import EdgeInfo, TransformBuffer, normalize_frame, quaternion_to_matrix
 
@@ -214,6 +214,9 @@ def _storage_of(path: Path) -> str:
         if not (path / "metadata.yaml").is_file():
             raise BagImportError(f"{path}: a folder, but not a ROS 2 bag (it has no metadata.yaml)")
         return "ROS 2 bag (MCAP)" if any(path.glob("*.mcap")) else "ROS 2 bag (sqlite3)"
+    kind = file_kind(path)
+    if kind is not None:  # a FIFO would wait for a writer forever, a device never end
+        raise BagImportError(f"{path}: is {kind}, not a bag file; save the recording to a file and give that")
     suffix = path.suffix.lower()
     if suffix == ".bag":
         return "ROS 1 bag"

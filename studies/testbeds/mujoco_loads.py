@@ -19,7 +19,7 @@ Run: ``python -m studies.testbeds.mujoco_loads N SEED0`` evaluates ``cartpush es
 load-change logs and on the same N carts without a change (the load kept where it starts); ``--dating SEED ...``
 sums how many of those seeds' changes the motion allows to be dated within 1 s (:func:`dating_share`). With
 ``MUJOCO_LOADS_CACHE=DIR`` set, each simulation is kept in ``DIR/SEED_KIND.pkl`` (the log, the truth and the
-load) and read back from there on a later run (the simulations, not the evaluation, are most of the time).
+load's fields) and read back from there on a later run (the simulations, not the evaluation, are most of the time).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import json
 import math
 import os
 import pickle
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -213,7 +213,7 @@ def simulated(seed: int, case: mc.MujocoCase, load: LoadChange) -> tuple[CartLog
     if path is not None:
         os.makedirs(os.path.dirname(path), exist_ok=True)
         with open(path + ".tmp", "wb") as f:
-            pickle.dump((log, truth, load), f)
+            pickle.dump((log, truth, asdict(load)), f)  # a dict: a module run would pickle __main__.LoadChange
         os.replace(path + ".tmp", path)
     return log, truth
 

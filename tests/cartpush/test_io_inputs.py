@@ -64,6 +64,13 @@ def test_a_fifo_as_the_bag_is_refused_at_once(tmp_path, capsys, alarm):
     assert f"BAG {fifo}: is a FIFO (named pipe)" in one_error_line(capsys, "import")
 
 
+def test_a_fifo_named_bag_given_to_estimate_is_refused_at_once(tmp_path, capsys, alarm):
+    fifo = tmp_path / "run.bag"
+    os.mkfifo(fifo)
+    assert main(["estimate", str(fifo)]) == 2
+    assert f"{fifo}: is a FIFO (named pipe), not a bag file" in one_error_line(capsys, "estimate")
+
+
 def test_a_gzip_log_named_csv_is_read_as_gzip(tmp_path, capsys):
     plain = tiny_log(tmp_path / "run.csv")
     named = tmp_path / "gz_named.csv"
