@@ -320,8 +320,18 @@ def _push(r: _Reader, data: Mapping) -> dict:
     r.only(push, _PUSH_KEYS, "push.")
     out = {k: r.number(push, k, "push.") for k in ("grasp_pitch", "grasp_roll", "base_x", "base_y", "contact_y")}
     lim = r.numbers(push, "base_twist_limit", 3, "push.")
-    if lim is not None and any(v < 0 for v in lim):
-        raise r.fail("push.base_twist_limit", f"must be 3 non-negative numbers (vx, vy, wz), got {list(lim)}")
+    if lim is not None and (any(v < 0 for v in lim) or lim[0] <= 0 or lim[2] <= 0):
+        raise r.fail(
+            "push.base_twist_limit",
+            f"must be 3 non-negative numbers (vx, vy, wz) with vx and wz above 0 (the base must drive and turn to "
+            f"push), got {list(lim)}",
+        )
+    if out["base_x"] is not None and out["base_x"] >= 0.0:
+        raise r.fail(
+            "push.base_x",
+            f"{out['base_x']:g} m puts the base at or ahead of the handle (inside the cart's footprint); the base "
+            "stands behind the handle: give a negative value (e.g. -0.7)",
+        )
     return dict(
         grasp_pitch=out["grasp_pitch"],
         grasp_roll=out["grasp_roll"],

@@ -185,6 +185,21 @@ def test_locked_joints_hold_their_value(tmp_path):
             "arms[0].ft_frame",
             "not carried by the arm's joint 'arm_joint2'",
         ),
+        (
+            {"arm": 'joints = ["arm_joint1"]\ngripper_frame = "ee"\n\n[push]\nbase_twist_limit = [0, 0, 0]\n'},
+            "push.base_twist_limit",
+            "vx and wz above 0",
+        ),
+        (
+            {"arm": 'joints = ["arm_joint1"]\ngripper_frame = "ee"\n\n[push]\nbase_twist_limit = [1.0, 0, 0]\n'},
+            "push.base_twist_limit",
+            "vx and wz above 0",
+        ),
+        (
+            {"arm": 'joints = ["arm_joint1"]\ngripper_frame = "ee"\n\n[push]\nbase_x = 0.5\n'},
+            "push.base_x",
+            "give a negative value",
+        ),
     ],
 )
 def test_a_bad_profile_is_one_line_naming_the_key(wmra_dir, over, key, fix):

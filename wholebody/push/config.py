@@ -232,6 +232,8 @@ class PushConfig:
         if self.n_arms == 1:
             ys = ys[:1]
         geo = self.cart_geometry()
+        if geo is DEFAULT_GEOMETRY:
+            _check_on_handle(ys, geo, "fixed_contact_y" if self.fixed_contact_y is not None else "[push] contact_y")
         if self.n_arms == 2 and geo.grips is not None and len(set(geo.grips)) < 2:
             where = "the cart file's" if self.cart_model is not None else "the geometry's"
             raise WholeBodyError(
@@ -339,6 +341,17 @@ def check_load_changes(
                 f"with the loads before it; a push handles carts of at most {hi:g} kg"
             )
     check_changes(true_params if cart_model is None else None, changes, duration)
+
+
+def _check_on_handle(ys: np.ndarray, geo: CartGeometry, source: str) -> None:
+    """Raise WholeBodyError when a fixed contact y lies off the handle's span (`CartGeometry.y_range`)."""
+    lo, hi = geo.y_range
+    off = [float(y) for y in ys if not lo - 1e-9 <= y <= hi + 1e-9]
+    if off:
+        raise WholeBodyError(
+            f"{source}: contact y = {off[0]:g} m is off the cart's handle, which spans y in [{lo:g}, {hi:g}] m "
+            "in the cart frame {b}; give a contact point on it"
+        )
 
 
 def _cart_bounds(cart_model: str | None) -> tuple[str, float, tuple[float, float, float, float]]:

@@ -691,7 +691,24 @@ def compose(
     out = Scene(model, data, cart, int(model.jnt_qposadr[cart_jnt]), int(model.jnt_dofadr[cart_jnt]), [])
     out.robots = [_index(model, s, n) for s, n in zip(setups, names)]
     set_state(out, cart_pose, cart_z, [s.x for s in setups])
+    _orient_wheel_servos(out)
     return out
+
+
+def _orient_wheel_servos(scene: Scene) -> None:
+    """Give each driven wheel's servo the sign of its joint axis along the base's y (left) axis as its gear.
+
+    The push commands forward-positive wheel rates (a positive rate rolls the base forward); a URDF may turn a
+    wheel about -y (mirrored wheel frames are common), and its servo would then drive that wheel backwards.
+    """
+    m, d = scene.model, scene.data
+    for r in scene.robots:
+        if not r.wheel_actuators.size:
+            continue
+        base_y = d.xmat[r.root_body].reshape(3, 3)[:, 1]
+        for act in r.wheel_actuators:
+            axis = d.xaxis[int(m.actuator_trnid[act, 0])]
+            m.actuator_gear[act, 0] = 1.0 if float(axis @ base_y) >= 0.0 else -1.0
 
 
 def _compile(scene: mujoco.MjSpec) -> mujoco.MjModel:

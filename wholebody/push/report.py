@@ -1261,13 +1261,20 @@ def _hand_off_handle(result: PushResult, t_end: float) -> list[str]:
 
 def _outcome(result: PushResult) -> str:
     """Return 'tracked: ...', 'tracked the slowed reference: ...' (it reached less than `SLOWED_VERDICT` of the
-    trajectory's time) or 'LOST the cart at t = ...' (with the tracking RMS up to then)."""
+    trajectory's time), 'cart on its path but NOT HELD there: ...' (a hand was off its handle point: the kinematic
+    plant moves the cart by the planned wrench wherever the hand is) or 'LOST the cart at t = ...' (with the
+    tracking RMS up to then)."""
     m, t_lost = result.metrics, result.metrics.tracking_lost_at_s
     s = result.reference_time
     if t_lost is None and s is not None and s[-1] < SLOWED_VERDICT * result.t[-1]:
         return (
             f"tracked the slowed reference: {m.tracking_rms_mm:.1f} mm RMS, {m.tracking_max_mm:.1f} mm max, but the "
             f"cart reached only the trajectory's t = {s[-1]:.1f} s of {result.t[-1]:.1f} s"
+        )
+    if t_lost is None and _hand_off_handle(result, math.inf):
+        return (
+            f"cart on its path but NOT HELD there: {m.tracking_rms_mm:.1f} mm RMS, {m.tracking_max_mm:.1f} mm max "
+            "with a hand off its handle point (below): a real grip would not have pushed it so"
         )
     if t_lost is None:
         return f"tracked: {m.tracking_rms_mm:.1f} mm RMS, {m.tracking_max_mm:.1f} mm max"

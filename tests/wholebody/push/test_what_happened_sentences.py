@@ -41,8 +41,20 @@ def test_a_run_that_reached_a_fraction_of_the_trajectory_does_not_read_plainly_t
     slowed = SimpleNamespace(t=t, metrics=metrics, reference_time=0.32 * t)  # at 32 % of the speed throughout
     assert _outcome(slowed).startswith("tracked the slowed reference: 42.6 mm RMS")
     assert "reached only the trajectory's t = 9.6 s of 30.0 s" in _outcome(slowed)
-    nearly = SimpleNamespace(t=t, metrics=metrics, reference_time=np.minimum(t, 28.0))  # 2 s behind: 93 %
+    held = dict(grasp_error=np.full((t.size, 1), 0.001), config=SimpleNamespace(dt=0.01))
+    nearly = SimpleNamespace(t=t, metrics=metrics, reference_time=np.minimum(t, 28.0), **held)  # 2 s behind: 93 %
     assert _outcome(nearly) == "tracked: 42.6 mm RMS, 76.8 mm max"
+
+
+def test_a_cart_on_its_path_with_the_hand_off_the_handle_does_not_read_tracked():
+    from wholebody.push.report import _outcome
+
+    t = 0.01 * np.arange(3001)
+    err = np.full((t.size, 1), 0.001)
+    err[1800:2600, 0] = 0.358  # the kinematic plant: the cart follows the planned wrench, the arm lags behind
+    metrics = SimpleNamespace(tracking_lost_at_s=None, tracking_rms_mm=1.6, tracking_max_mm=6.3)
+    run = SimpleNamespace(t=t, metrics=metrics, reference_time=t, grasp_error=err, config=SimpleNamespace(dt=0.01))
+    assert _outcome(run).startswith("cart on its path but NOT HELD there: 1.6 mm RMS, 6.3 mm max")
 
 
 def test_the_fit_sentence_says_when_the_pushes_leave_the_com_unidentified():
