@@ -12,7 +12,9 @@ from wholebody.push import PushConfig
 @pytest.mark.parametrize("ys", [(3.0,), (-0.4,), (0.0, 0.6)])
 def test_a_fixed_contact_off_the_handle_names_the_span(ys):
     cfg = PushConfig(contact="fixed", fixed_contact_y=ys, n_arms=len(ys))
-    with pytest.raises(WholeBodyError, match=r"fixed_contact_y: contact y = .* off the cart's handle, which spans y in \[-0.25, 0.25\]"):
+    with pytest.raises(
+        WholeBodyError, match=r"fixed_contact_y: contact y = .* off the cart's handle, which spans y in \[-0.25, 0.25\]"
+    ):
         cfg.contact_y0()
 
 
