@@ -87,7 +87,7 @@ def _arm_joint(prof: RobotProfile, model: pin.Model, key: str, name: str) -> Non
             src,
             key,
             f"{name!r} is a continuous (unbounded) joint; arm joints need position limits: in the URDF make it "
-            'type="revolute" with <limit lower="-6.2832" upper="6.2832" .../> (two turns either way), '
+            'type="revolute" with <limit lower="-6.2832" upper="6.2832" .../> (one turn either way), '
             "keeping its effort and velocity",
         )
     if j.nv != 1:
@@ -329,14 +329,15 @@ def check_wheel_radius(prof: RobotProfile, model: pin.Model, collision: pin.Geom
     for w in prof.wheel_joints:
         jid = model.getJointId(w)
         height = float((root.inverse() * data.oMi[jid]).translation[2])
+        tyres = [
+            (float(obj.geometry.radius), type(obj.geometry).__name__)
+            for obj in collision.geometryObjects
+            if obj.parentJoint == jid and type(obj.geometry).__name__ in ("Cylinder", "Sphere")
+        ]
         if prof.wheel_radius is not None:
-            _check_root_on_floor(prof, model, w, height)
+            _check_root_on_floor(prof, model, w, height, tyres[0][0] if tyres else None)
             continue
-        for obj in collision.geometryObjects:
-            r = getattr(obj.geometry, "radius", None)
-            kind = type(obj.geometry).__name__
-            if obj.parentJoint != jid or kind not in ("Cylinder", "Sphere") or r is None:
-                continue
+        for r, kind in tyres[:1]:
             if abs(height - float(r)) > 0.1 * float(r):
                 raise ProfileError(
                     prof.source or prof.name,
@@ -345,18 +346,26 @@ def check_wheel_radius(prof: RobotProfile, model: pin.Model, collision: pin.Geom
                     f"root link: put the URDF's root link on the floor (a new root link with a fixed joint to the old "
                     f'one at xyz="0 0 {float(r) - height:.4g}"), or give the wheel\'s collision {kind.lower()} its radius',
                 )
-            break
 
 
-def _check_root_on_floor(prof: RobotProfile, model: pin.Model, wheel: str, height: float) -> None:
+def _check_root_on_floor(prof: RobotProfile, model: pin.Model, wheel: str, height: float, tyre: float | None) -> None:
     """Raise `ProfileError` when a wheel's axle is not ``wheel_radius`` (10 %) above the URDF's root link.
 
     The robot stands with its root link on the floor: an axle at another height means a root link above or
     below the floor, and every height of the model (the arm's shoulder, its reach to the handle) off by the
-    difference."""
+    difference. When the wheel's collision cylinder or sphere (radius ``tyre``) agrees with the axle's height,
+    the root link is on the floor and ``wheel_radius`` is what is wrong."""
     r = float(prof.wheel_radius or 0.0)
     if abs(height - r) <= 0.1 * r:
         return
+    if tyre is not None and abs(height - tyre) <= 0.1 * tyre:
+        raise ProfileError(
+            prof.source or prof.name,
+            "wheel_radius",
+            f"wheel {wheel!r}: wheel_radius is {r:.4g} m but the wheel's collision shape has radius {tyre:.4g} m and "
+            f"its axle is {height:.4g} m above the URDF's root link, which stands on the floor: correct wheel_radius "
+            f"to {tyre:.4g} (or leave it out: it is read off the URDF)",
+        )
     root = next((f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == 1), "root")
     raise ProfileError(
         prof.source or prof.name,

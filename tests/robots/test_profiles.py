@@ -282,6 +282,17 @@ def test_a_given_wheel_radius_must_stand_the_root_link_on_the_floor(wmra_dir, ra
     assert err.value.key == "wheel_radius" and fix in str(err.value), str(err.value)
 
 
+def test_a_wrong_wheel_radius_with_the_root_on_the_floor_names_the_radius_not_a_new_root(wmra_dir):
+    """The WMRA's tyres (0.17 m collision cylinders) agree with their axles' height: the root link stands on the
+    floor, so a wheel_radius of 0.3 is the profile's mistake, not the URDF's."""
+    arm = 'joints = ["arm_joint1", "arm_joint2"]\ngripper_frame = "ee"\n'
+    path = write_profile(wmra_dir, wmra_text(arm=arm, wheel_radius="0.3"))
+    with pytest.raises(ProfileError) as err:
+        robots.load(path)
+    msg = str(err.value)
+    assert err.value.key == "wheel_radius" and "correct wheel_radius to 0.17" in msg and "new root link" not in msg
+
+
 def test_a_continuous_arm_joint_names_the_urdf_fix(wmra_dir):
     text = WMRA.read_text()
     start = text.index('<joint name="arm_joint1" type="revolute">')

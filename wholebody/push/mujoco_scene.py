@@ -541,9 +541,10 @@ def _warn(setup: RobotSetup, prepared: RobotUrdf) -> None:
     replaced = prepared.urdf.replaced_meshes
     if replaced:
         reasons = sorted({m.reason for m in replaced})
-        files = ", ".join(f"{m.link} ({m.mesh.rsplit('/', 1)[-1]})" for m in replaced)
+        named = dict.fromkeys(f"{m.link} ({m.mesh.rsplit('/', 1)[-1]})" for m in replaced)  # a link's visual and
+        files = ", ".join(named)  # collision shapes often name the same file: once each
         warnings.warn(
-            f"robot {setup.name!r}: {len(replaced)} meshes MuJoCo cannot read ({'; '.join(reasons)}) replaced by "
+            f"robot {setup.name!r}: {len(named)} meshes MuJoCo cannot read ({'; '.join(reasons)}) replaced by "
             f"boxes with their links' inertia (the URDF's mass and inertia are kept; robot geoms do not collide): {files}",
             MujocoSceneWarning,
             stacklevel=3,

@@ -919,6 +919,7 @@ def what_happened(result: PushResult, load_changes: list[dict] | None = None) ->
     if rep.get("arm_torque_saturated_steps"):
         lines.append(f"arm torques clipped at their limits in {rep['arm_torque_saturated_steps']} physics steps")
     lines += _wheels_at_limit(result, t_end)
+    lines += _wheel_traction(result, t_end)
     lines.append(_lateral_slip(result, t_end))
     if rep.get("grasp_slip_max_m") is not None:
         lines.append(f"grip slip at most {1e3 * rep['grasp_slip_max_m']:.2f} mm")
@@ -1216,6 +1217,61 @@ def _wheels_at_limit(result: PushResult, t_end: float) -> list[str]:
     return [
         f"base: the wheels ran at their speed limit for {total:.2f} s from t = {first:.2f} s (the base as fast as it "
         "goes; the arm took up the rest of the hand's motion)"
+    ]
+
+
+#: window (s) over which the base's forward force is averaged before it is compared with the wheels' traction
+WHEEL_FORCE_WINDOW = 0.2
+
+
+def _base_forward_force(result: PushResult, mass: float) -> np.ndarray:
+    """Return (N, n_robots) the forward force (N) each base needs: its robot's mass times the base's forward
+    acceleration plus its hands' push on the cart (their reaction; the hands' forces in the cart's axes, the base
+    behind the cart), averaged over `WHEEL_FORCE_WINDOW`."""
+    twist = np.asarray(result.base_twist, dtype=float)
+    dt = result.config.dt
+    accel = np.gradient(twist[:, :, 0], dt, axis=0)
+    hands = np.asarray(result.wrenches, dtype=float)[:, :, 0]
+    per = max(1, hands.shape[1] // twist.shape[1])
+    push = hands.reshape(len(result.t), twist.shape[1], per).sum(axis=2)
+    n = max(1, int(round(WHEEL_FORCE_WINDOW / dt)))
+    kernel = np.ones(n) / n
+    force = mass * accel + push
+    return np.stack([np.convolve(f, kernel, mode="same") for f in force.T], axis=1)
+
+
+def _wheel_traction(result: PushResult, t_end: float) -> list[str]:
+    """Return a sentence when a base needed more forward force than its driven wheels' URDF effort limits give at
+    their rims (the sum of the limits over the wheel radius) before `t_end`.
+
+    The kinematic plant moves the base as commanded whatever its wheels' torques; the MuJoCo plant clips them at
+    their limits, and the base then lags the hand (the cart lost, the wheels slipping). Either way a robot with
+    such wheels cannot make this push. Nothing is said when a wheel's effort limit is not given (0 or infinite).
+    """
+    if result.base_twist is None or not len(result.t):
+        return []
+    import pinocchio as pin
+
+    import robots
+    from wholebody.motion.kinematics import wholebody_for
+
+    loaded = robots.load(result.config.robot)
+    wb = wholebody_for(loaded, arm=list(result.robot_arms))
+    effort = np.asarray(wb.model.effortLimit[wb.wheel_idx_v], dtype=float)
+    if not effort.size or not np.all(np.isfinite(effort)) or np.any(effort <= 0.0):
+        return []
+    radius = float(wb.base.wheel_radius)
+    capacity = float(effort.sum()) / radius
+    mass = float(pin.computeTotalMass(wb.model))
+    need = np.abs(_base_forward_force(result, mass))[result.t < t_end]
+    if not need.size or float(need.max()) <= capacity:
+        return []
+    k = np.unravel_index(int(np.argmax(need)), need.shape)
+    return [
+        f"base: the push needed up to {float(need[k]):.0f} N of forward force at the wheels (t = "
+        f"{float(result.t[k[0]]):.2f} s; the robot's {mass:.0f} kg accelerated and the hands' push), but their effort "
+        f"limits ({', '.join(f'{e:g}' for e in effort)} N m on {radius:.3g} m wheels) give at most {capacity:.0f} N: "
+        "wheels that weak cannot make this push (raise the URDF's wheel <limit effort>, or push a lighter cart slower)"
     ]
 
 

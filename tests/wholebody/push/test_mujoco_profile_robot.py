@@ -61,6 +61,9 @@ def test_tiago_composes_with_its_meshes_replaced_its_mass_and_its_torso_kept(tia
     # the COLLADA collision meshes are replaced, said in a warning and on the robot's index
     assert r.replaced_meshes and all(".dae" in s and "box" in s for s in r.replaced_meshes)
     assert len(caught) == 1 and "arm_1_collision.dae" in str(caught[0].message)
+    listed = str(caught[0].message).split("collide): ")[1].split(", ")
+    assert len(listed) == len(set(listed))  # a link's visual and collision shapes naming one file: listed once
+    assert f"{len(listed)} meshes MuJoCo cannot read" in str(caught[0].message)
     # the URDF's mass, as Pinocchio sums it
     bodies = [b for b in range(m.nbody) if mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b).startswith("r0/")]
     assert m.body_mass[bodies].sum() == pytest.approx(pin.computeTotalMass(loaded.model), rel=1e-6)

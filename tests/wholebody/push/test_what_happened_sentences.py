@@ -209,3 +209,43 @@ def test_a_load_change_not_found_says_whether_the_pushes_could_show_it():
     std = 5.0 / (CHANGE_SEEN_SIGMA + 0.1)  # each side's std: the change just above the threshold
     assert _information_after(row((20.6, std / math.sqrt(2)), (15.9, std / math.sqrt(2)))).endswith("there to see")
     assert "say nothing of the mass" in _information_after(row((20.6, 5.2), (None, None)))
+
+
+def _wmra_with_wheel_effort(folder, effort: str) -> str:
+    from pathlib import Path
+
+    robots_dir = Path(__file__).resolve().parents[3] / "robots"
+    text = (
+        (robots_dir / "wmra.urdf")
+        .read_text()
+        .replace('<limit effort="60" velocity="8.8"/>', f'<limit effort="{effort}" velocity="8.8"/>')
+    )
+    (folder / "wmra_wheels.urdf").write_text(text)
+    prof = (robots_dir / "wmra.toml").read_text()
+    prof = prof.replace('name = "wmra"', 'name = "wmra_wheels"').replace(
+        'urdf = "wmra.urdf"', f'urdf = "{folder / "wmra_wheels.urdf"}"'
+    )
+    (folder / "wmra_wheels.toml").write_text(prof)
+    return str(folder / "wmra_wheels.toml")
+
+
+def _push_run(robot: str, accel: float, push: float) -> SimpleNamespace:
+    """A run whose one base accelerates at `accel` m/s^2 for 1 s while its hand pushes the cart with `push` N."""
+    t = 0.01 * np.arange(300)
+    twist = np.zeros((t.size, 1, 3))
+    twist[:, 0, 0] = accel * np.clip(t - 1.0, 0.0, 1.0)
+    wrenches = np.zeros((t.size, 1, 6))
+    wrenches[:, 0, 0] = np.where(t >= 1.0, push, 0.0)
+    cfg = SimpleNamespace(dt=0.01, robot=robot)
+    return SimpleNamespace(t=t, base_twist=twist, wrenches=wrenches, config=cfg, robot_arms=(0,))
+
+
+def test_wheels_too_weak_for_the_push_are_named_with_the_force_needed(tmp_path):
+    from wholebody.push.report import _wheel_traction
+
+    weak = _wmra_with_wheel_effort(tmp_path, "0.5")  # 2 x 0.5 N m on 0.17 m wheels: 5.9 N at the rims
+    lines = _wheel_traction(_push_run(weak, accel=0.5, push=30.0), math.inf)
+    assert len(lines) == 1 and "give at most 6 N" in lines[0]
+    assert "needed up to 91 N" in lines[0]  # 121.1 kg x 0.5 m/s^2 + 30 N
+    assert _wheel_traction(_push_run("wmra", accel=0.5, push=30.0), math.inf) == []  # 2 x 60 N m: 706 N
+    assert _wheel_traction(_push_run(weak, accel=0.5, push=30.0), 0.5) == []  # the need came after the loss
