@@ -84,6 +84,24 @@ def _generalized_eigh(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndar
     return w, v
 
 
+#: A direction is one of the established ones (:meth:`RecursiveRegression._kept_count`) when its functional's share in
+#: their span (the cosine of the angle to it, in the units of `_units`) is at least this.
+HOLD_ALIGNMENT = 0.9
+
+
+def _units(cv: np.ndarray) -> np.ndarray:
+    """Return the columns of ``cv`` (data functionals C v) scaled to unit length, rows by their columns' RMS (the
+    parameters' units made comparable)."""
+    rows = np.sqrt(np.mean(cv**2, axis=1)) + 1e-300
+    u = cv / rows[:, None]
+    return u / (np.linalg.norm(u, axis=0) + 1e-300)
+
+
+def _aligned(u: np.ndarray, basis: np.ndarray | None) -> bool:
+    """Return whether the unit vector ``u`` lies within ``HOLD_ALIGNMENT`` of the span of ``basis``."""
+    return basis is not None and float(np.linalg.norm(basis.T @ u)) >= HOLD_ALIGNMENT
+
+
 class OnlineEstimatorError(CartError):
     """Bad input to the online estimator (shape, non-finite value, non-positive time step, option)."""
 
@@ -197,6 +215,7 @@ class RecursiveRegression:
         self.excitation = np.zeros(6)
         self.established = 0  # directions held down to SIGNAL_HOLD (:meth:`signal_part`)
         self._streak: deque[int] = deque(maxlen=SIGNAL_HOLD_SOLVES)  # directions above SIGNAL_MARGIN at the last solves
+        self._basis: np.ndarray | None = None  # the established directions' functionals (`_units`), orthonormal
         self.solve(iterations=3)
 
     def normal(self) -> tuple[np.ndarray, np.ndarray]:
@@ -282,7 +301,7 @@ class RecursiveRegression:
             lam, v = _generalized_eigh(d_mat, c_reg)
         except np.linalg.LinAlgError:
             return d_mat - self.compensation(d_mat), d_vec
-        n_keep = self._kept_count(lam)
+        n_keep = self._kept_count(lam, c_reg @ v)
         keep = np.arange(lam.size) >= lam.size - n_keep  # lam ascending: the n_keep strongest
         cv = c_reg @ v[:, keep]
         dd = (cv * (lam[keep] - 1.0)) @ cv.T
@@ -290,17 +309,25 @@ class RecursiveRegression:
         self.kept_directions = int(keep.sum())
         return dd, dv
 
-    def _kept_count(self, lam: np.ndarray) -> int:
-        """Return how many of the strongest directions (generalized eigenvalues ``lam``) to use: those above
-        ``1 + SIGNAL_MARGIN``, and the established ones while above ``1 + SIGNAL_HOLD``. A count of directions
-        above the margin at each of the last ``SIGNAL_HOLD_SOLVES`` solves is established (a noise-driven
-        direction that passes the margin on the first few samples is not)."""
+    def _kept_count(self, lam: np.ndarray, cv: np.ndarray) -> int:
+        """Return how many of the strongest directions (generalized eigenvalues ``lam``, ascending; ``cv`` = C V,
+        the data functionals they measure) to use: those above ``1 + SIGNAL_MARGIN``, and the established ones
+        while above ``1 + SIGNAL_HOLD``. The directions above the margin at each of the last
+        ``SIGNAL_HOLD_SOLVES`` solves are established (a noise-driven direction that passes the margin on the
+        first few samples is not); a direction is held only while it is one of them (``HOLD_ALIGNMENT``): the
+        strongest directions' order changes as the motion does, and a weaker one that took an established one's
+        rank carries no more signal than any other below the margin."""
         n_new = int(np.sum(lam > 1.0 + SIGNAL_MARGIN))
-        n_keep = max(n_new, min(self.established, int(np.sum(lam > 1.0 + SIGNAL_HOLD))))
+        units = _units(cv)
+        n_keep = n_new
+        n_hold = min(self.established, int(np.sum(lam > 1.0 + SIGNAL_HOLD)))
+        while n_keep < n_hold and _aligned(units[:, lam.size - 1 - n_keep], self._basis):
+            n_keep += 1
         self.established = min(self.established, n_keep)
         self._streak.append(n_new)
-        if len(self._streak) == SIGNAL_HOLD_SOLVES:
-            self.established = max(self.established, min(self._streak))
+        if len(self._streak) == SIGNAL_HOLD_SOLVES and min(self._streak) >= self.established:
+            self.established = min(self._streak)
+            self._basis = np.linalg.qr(units[:, lam.size - self.established :])[0] if self.established else None
         return n_keep
 
     def compensation(self, d_mat: np.ndarray | None = None) -> np.ndarray:
