@@ -184,6 +184,9 @@ class _Stats:
     arm_scaled: int = 0
     joint_peak_ratio: dict = field(default_factory=dict)
     per_robot_err: list = field(default_factory=list)
+    #: the cart body's largest tilt (deg) from upright, and when it first passed `STANDING_TILT_DEG` (None: never)
+    cart_tilt_max_deg: float = 0.0
+    cart_tipped_at_s: float | None = None
 
 
 def _robot_setup(mm, T_b_hand: np.ndarray, arm_mode: str) -> RobotSetup:
@@ -939,10 +942,20 @@ class MujocoPlant:
                 ratio = np.max(np.abs(joint) / r.effort_limit)
                 st.arm_force_peak_ratio = max(st.arm_force_peak_ratio, float(ratio))
         self._split_error(commands)
+        self._cart_tilt()
         st.n += 1
         self._z = self._motion_capture()
         for record in [self.cart_joints, *self.robot_joints]:
             record.record(self.t, d)
+
+    def _cart_tilt(self) -> None:
+        """Record the cart body's tilt from upright, and when it first passed `STANDING_TILT_DEG` (it tips over:
+        the planar cart model no longer holds)."""
+        st = self._stats
+        tilt = math.degrees(math.acos(min(1.0, float(self.scene.data.xmat[self.scene.cart_body][8]))))
+        st.cart_tilt_max_deg = max(st.cart_tilt_max_deg, tilt)
+        if st.cart_tipped_at_s is None and tilt > STANDING_TILT_DEG:
+            st.cart_tipped_at_s = float(self.t)
 
     def _wheel_slip(self, r: RobotIndex) -> float:
         """Return the largest horizontal slip speed (m/s) of the robot's driven wheels' contact points."""
@@ -973,6 +986,9 @@ class MujocoPlant:
             "wrench_error_internal_rms_n": math.sqrt(st.err_internal_sq / n),
             "hand_force_rms_n": math.sqrt(st.force_sq / n),
             "grasp_slip_max_m": st.slip_max,
+            "cart_tilt_max_deg": st.cart_tilt_max_deg,
+            "cart_tipped_at_s": st.cart_tipped_at_s,
+            "cart_tilt_limit_deg": STANDING_TILT_DEG,
             "base_wheel_slip_max_m_s": st.wheel_slip_max if differential else None,
             "plant_arm_torque_limit_ratio": st.arm_force_peak_ratio,
             "arm_torque_saturated_steps": int(st.arm_saturated),

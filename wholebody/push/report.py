@@ -911,7 +911,7 @@ def what_happened(result: PushResult, load_changes: list[dict] | None = None) ->
     """
     m, rep = result.metrics, result.plant_report or {}
     t_end = m.tracking_lost_at_s if m.tracking_lost_at_s is not None else math.inf
-    lines = [_outcome(result), *result.setup_notes] + _hand_off_handle(result, t_end)
+    lines = [_outcome(result), *result.setup_notes] + _tipped(rep) + _hand_off_handle(result, t_end)
     lines += _saturation(m.saturation or {}, t_end)
     lines += _slowed(result, t_end)
     if m.arm_torque_limit_ratio > 1.0:
@@ -1289,6 +1289,18 @@ def _lateral_slip(result: PushResult, t_end: float) -> str:
         f"slip: the cart slid sideways{when} at up to {lat[k]:.2f} m/s (t = {result.t[k]:.2f} s), faster than "
         f"{LATERAL_SLIP_M_S:g} m/s for {slid:.2f} s in all (its model assumes no lateral slip)"
     )
+
+
+def _tipped(rep: dict) -> list[str]:
+    """Return a sentence when the MuJoCo plant's cart tipped (its body tilted past the standing check's limit)."""
+    t = rep.get("cart_tipped_at_s")
+    if t is None:
+        return []
+    return [
+        f"the cart TIPPED: its body tilted past {rep.get('cart_tilt_limit_deg', 10.0):g} deg at t = {t:.2f} s ({rep.get('cart_tilt_max_deg', 0.0):.0f} deg "
+        "at most); the planar cart model no longer holds (a cart that stands on its own wheels only while held, or "
+        "one pushed harder than its wheelbase holds, cannot be pushed this way)"
+    ]
 
 
 def _hand_off_handle(result: PushResult, t_end: float) -> list[str]:

@@ -169,6 +169,7 @@ def test_closed_loop_run_reports_its_diagnostics(setup):
     assert rep["wrench_error_net_rms_n"] == pytest.approx(rep["wrench_error_rms_n"], rel=1e-9)
     assert 0.0 < rep["grasp_slip_max_m"] < 5e-3
     assert rep["plant_arm_torque_limit_ratio"] < 1.0
+    assert 0.0 <= rep["cart_tilt_max_deg"] < 2.0 and rep["cart_tipped_at_s"] is None  # the cart stays upright
     assert res.metrics.tracking_max_mm < 20.0
     # the cart moved along the trajectory's start (Traj. 2 accelerates from rest after 1 s)
     q, qd = plant.cart_state()

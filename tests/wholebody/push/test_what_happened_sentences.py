@@ -249,3 +249,12 @@ def test_wheels_too_weak_for_the_push_are_named_with_the_force_needed(tmp_path):
     assert "needed up to 91 N" in lines[0]  # 121.1 kg x 0.5 m/s^2 + 30 N
     assert _wheel_traction(_push_run("wmra", accel=0.5, push=30.0), math.inf) == []  # 2 x 60 N m: 706 N
     assert _wheel_traction(_push_run(weak, accel=0.5, push=30.0), 0.5) == []  # the need came after the loss
+
+
+def test_a_cart_that_tipped_says_so_with_when_and_how_far():
+    from wholebody.push.report import _tipped
+
+    assert _tipped({"cart_tipped_at_s": None, "cart_tilt_max_deg": 1.2}) == []
+    assert _tipped({}) == []  # the kinematic plant: no tilt
+    line = _tipped({"cart_tipped_at_s": 0.09, "cart_tilt_max_deg": 117.3, "cart_tilt_limit_deg": 10.0})
+    assert len(line) == 1 and line[0].startswith("the cart TIPPED: its body tilted past 10 deg at t = 0.09 s (117 deg")
