@@ -292,6 +292,31 @@ class MujocoPlant:
         self.inertial_log: list[tuple[float, CartInertial]] = [(0.0, self._inertial)]
         i0 = self._inertial
         check_changes(CartParams(i0.mass, *i0.com_b, i0.inertia), self._pending, math.inf)
+        self._check_cart_body_holds()
+
+    def _check_cart_body_holds(self) -> None:
+        """Raise `MujocoPlantError` before the run when a load change takes out more than the cart body holds, or
+        leaves it no rigid inertia: the changes are applied to the ``cart`` body alone (bodies welded to it keep
+        their mass). The changes are tried in turn on the body's inertial, which is then restored."""
+        m, cart = self.scene.model, self.scene.cart_body
+        saved = [np.array(a[cart], copy=True) for a in (m.body_mass, m.body_ipos, m.body_iquat, m.body_inertia)]
+        try:
+            for change in self._pending:
+                x, y = change.xy if change.xy is not None else m.body_ipos[cart][:2]
+                held = float(m.body_mass[cart])
+                try:
+                    mujoco_cart.add_point_mass(m, cart, change.mass, (x, y, float(m.body_ipos[cart][2])))
+                except mujoco_cart.CartModelError:
+                    raise MujocoPlantError(
+                        f"the load change at t = {change.t:g} s takes out {-change.mass:g} kg at ({x:.3f}, {y:.3f}) m, "
+                        f"but the MuJoCo cart's body 'cart' holds {held:.3g} kg of the cart's "
+                        f"{self._inertial.mass:.3g} kg (loads are put in and taken out of the body 'cart'; bodies "
+                        "welded or attached to it keep their mass): take out less, or nearer its centre of mass "
+                        f"({float(m.body_ipos[cart][0]):.3f}, {float(m.body_ipos[cart][1]):.3f}) m"
+                    ) from None
+        finally:
+            for a, v in zip((m.body_mass, m.body_ipos, m.body_iquat, m.body_inertia), saved):
+                a[cart] = v
 
     def _init_buffers(self, n_robots: int, theta0: float) -> None:
         """Allocate the per-step work arrays and the run's statistics (after the scene and the setups exist)."""

@@ -196,6 +196,28 @@ def test_the_mujoco_plant_changes_its_cart_and_keeps_the_momentum_of_a_load_put_
     assert rigid1.com_b[0] == pytest.approx((rigid0.mass * rigid0.com_b[0] + 10.0 * 0.5) / rigid1.mass, abs=1e-3)
 
 
+def test_the_mujoco_plant_refuses_a_removal_beyond_the_cart_body_before_the_run():
+    """Loads come out of the cart file's body 'cart' alone (its wheels and welded bodies keep their mass): a removal
+    the cart as a whole could give but that body cannot is refused when the plant is made, not when it is due (a
+    change at 29 s failed after the run's first 29 s), with the body's mass and the cart's."""
+    from wholebody.push.loop import build_controller
+    from wholebody.push.mujoco_plant import MujocoPlantError
+    from wholebody.push.plants import make_plant
+
+    config = PushConfig(trajectory=1, plant="mujoco", contact="fixed", load_changes=(LoadChange(29.0, -19.0),))
+    controller = build_controller(config)
+    with pytest.raises(MujocoPlantError, match=r"t = 29 s takes out 19 kg .* body 'cart' holds .* of the cart's 20 kg"):
+        make_plant(config, controller)
+    ok = PushConfig(trajectory=1, plant="mujoco", contact="fixed", load_changes=(LoadChange(29.0, -2.0),))
+    plant = make_plant(ok, build_controller(ok))
+    cart = plant.scene.cart_body
+    assert plant.scene.model.body_mass[cart] == pytest.approx(plant.inertial_log[0][1].mass, abs=20.0)
+    before = float(plant.scene.model.body_mass[cart])
+    assert plant._pending and before > 2.0  # the trial left the body as it was
+    plant._check_cart_body_holds()
+    assert float(plant.scene.model.body_mass[cart]) == before
+
+
 @pytest.mark.parametrize("bad", ["12", "12:+0", "x:+10", "12:+10@0.4", "40:+10", "12:-25", "12:+10@1,2,3"])
 def test_a_bad_load_change_is_one_line_and_exit_2(bad, capsys):
     from cartpush.cli import main
