@@ -195,7 +195,8 @@ def push_log(result: PushResult) -> CartLog:
     """Return the run's measured log (LOG_FORMAT): motion-capture pose/velocity, F/T wrench, contact of arm 0."""
     c = result.config
     p = c.true_params
-    contact = np.column_stack([np.full(len(result.t), -0.15), result.contact_y[:, 0]])
+    geo = c.cart_geometry()  # the handle point of arm 0's contact y, in {b} (a cart file's own handle)
+    contact = np.array([geo.point(float(y))[:2] for y in result.contact_y[:, 0]])
     meta = {
         "source": "wholebody.push",
         "trajectory": str(c.trajectory),
