@@ -456,6 +456,44 @@ def _check_floor_is_a_plane(path: Path, model: mujoco.MjModel, data: mujoco.MjDa
             )
 
 
+def _check_floor_height(path: Path, model: mujoco.MjModel) -> None:
+    """Raise when the file's floor plane (`mujoco_cart.floor_plane`) is not at z = 0: the robots stand at z = 0."""
+    z = _floor_z(model)
+    if abs(z) > FLOOR_GAP_M:
+        plane = mujoco_cart.floor_plane(model)
+        raise CartFileError(
+            f"cart file {path}: the floor plane {_geom_label(model, int(plane))} is at z = {z:.4g} m, but the robots "
+            f"stand on z = 0: put the floor at z = 0 and lower the cart's bodies by {z:.4g} m"
+        )
+
+
+def _check_not_tied_to_world(path: Path, model: mujoco.MjModel, cart: int) -> None:
+    """Raise when an active equality constraint ties a body of the cart to the world or to a body fixed in it (a
+    parking brake's weld): the cart could not be pushed."""
+
+    def subtree(b: int) -> bool:
+        while b > 0 and b != cart:
+            b = int(model.body_parentid[b])
+        return b == cart
+
+    body_types = (int(mujoco.mjtEq.mjEQ_WELD), int(mujoco.mjtEq.mjEQ_CONNECT))
+    for e in range(model.neq):
+        if int(model.eq_type[e]) not in body_types or not bool(model.eq_active0[e]):
+            continue
+        if int(model.eq_objtype[e]) not in (int(mujoco.mjtObj.mjOBJ_BODY), int(mujoco.mjtObj.mjOBJ_SITE)):
+            continue
+        ends = [int(model.eq_obj1id[e]), int(model.eq_obj2id[e])]
+        if int(model.eq_objtype[e]) == int(mujoco.mjtObj.mjOBJ_SITE):
+            ends = [int(model.site_bodyid[i]) for i in ends]
+        fixed = [int(model.body_weldid[b]) == 0 for b in ends]
+        if any(subtree(b) for b in ends) and any(fixed):
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or f"number {e}"
+            raise CartFileError(
+                f"cart file {path}: the equality {name!r} ties the cart to the world (a brake or a mount), so it cannot "
+                'be pushed; remove it or make it inactive (active="false")'
+            )
+
+
 def _geom_label(model: mujoco.MjModel, g: int) -> str:
     """Return a geom's name, or 'a <type> of body <name>' for an unnamed one."""
     name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
@@ -515,6 +553,8 @@ def load_cart_file(path: str | os.PathLike) -> CartSource:
     mujoco.mj_kinematics(model, data)  # the file's own pose of every body (qpos0), read by the checks below
     handles = _handle_sites(p, model, data, cart)
     _check_handles_behind(p, handles)
+    _check_floor_height(p, model)
+    _check_not_tied_to_world(p, model, cart)
     _check_start_pose(p, model, data, cart)
     _check_wheels(p, model, data, cart, bool(spec.compiler.degree))
     _check_axle(p, model, data, cart)

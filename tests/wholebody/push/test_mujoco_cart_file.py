@@ -77,11 +77,6 @@ def _write(tmp_path, body: str, floor: bool = True) -> str:
         ),
     ],
     ids=[
-        "cart_turned",
-        "cart_sunk",
-        "cart_floating",
-        "handle_ahead",
-        "axle_off_b",
         "no_cart_body",
         "no_free_joint",
         "no_handle_site",
@@ -90,12 +85,42 @@ def _write(tmp_path, body: str, floor: bool = True) -> str:
         "handle_elsewhere",
         "bad_mjcf",
         "wheel_turned_in_degrees",
+        "cart_turned",
+        "cart_sunk",
+        "cart_floating",
+        "handle_ahead",
+        "axle_off_b",
     ],
 )
 def test_each_break_of_the_contract_gets_its_message(tmp_path, body, message):
     with pytest.raises(CartFileError, match=message) as info:
         load_cart_file(_write(tmp_path, body))
     assert "\n" not in str(info.value)
+
+
+def test_a_floor_plane_off_z_0_is_refused_the_robots_stand_at_0(tmp_path):
+    raised = GOOD_BODY.replace('pos="0 0 0.05"', 'pos="0 0 0.35"').format(sites=BAR)
+    path = tmp_path / "cart.xml"
+    path.write_text(
+        f'<mujoco><worldbody><geom name="ground" type="plane" size="0 0 1" pos="0 0 0.3"/>{raised}</worldbody></mujoco>'
+    )
+    with pytest.raises(CartFileError, match="the floor plane 'ground' is at z = 0.3 m, but the robots stand on z = 0"):
+        load_cart_file(str(path))
+
+
+@pytest.mark.parametrize("active, refused", [("true", True), ("false", False)])
+def test_a_cart_welded_to_the_world_is_refused(tmp_path, active, refused):
+    body = GOOD_BODY.format(sites=BAR)
+    path = tmp_path / "cart.xml"
+    path.write_text(
+        f'<mujoco><worldbody><geom name="ground" type="plane" size="0 0 1"/>{body}</worldbody>'
+        f'<equality><weld name="parking_brake" body1="cart" active="{active}"/></equality></mujoco>'
+    )
+    if refused:
+        with pytest.raises(CartFileError, match="the equality 'parking_brake' ties the cart to the world"):
+            load_cart_file(str(path))
+    else:
+        assert load_cart_file(str(path)).mass is not None
 
 
 @pytest.mark.parametrize(
