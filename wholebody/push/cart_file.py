@@ -461,8 +461,9 @@ def _check_floor_height(path: Path, model: mujoco.MjModel) -> None:
     z = _floor_z(model)
     if abs(z) > FLOOR_GAP_M:
         plane = mujoco_cart.floor_plane(model)
+        label = _geom_label(model, plane) if plane is not None else "of the file"
         raise CartFileError(
-            f"cart file {path}: the floor plane {_geom_label(model, int(plane))} is at z = {z:.4g} m, but the robots "
+            f"cart file {path}: the floor plane {label} is at z = {z:.4g} m, but the robots "
             f"stand on z = 0: put the floor at z = 0 and lower the cart's bodies by {z:.4g} m"
         )
 
