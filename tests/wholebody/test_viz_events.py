@@ -36,3 +36,15 @@ def test_no_readouts_without_events():
         add_estimator_events(sc, {"load_changes": [], "runoff_flags": []}, np.arange(3.0))
         add_estimator_events(sc, None, np.arange(3.0))
         assert sc._readouts == []
+
+
+def test_a_run_page_shows_each_change_with_the_mass_known_at_its_detection():
+    """The report's last change carries the estimate at the report's time (the run's end): a page showing it from
+    the detection on showed a future value (25.6 kg at 12.3 s for an estimate of 30.6 kg then)."""
+    report = {"load_changes": [{"t_change": 10.0, "t_detected": 10.2, "mass_before": 20.0, "mass_after": 25.6}]}
+    t = np.arange(0.0, 20.0, 0.1)
+    with Scene(["shopping_cart"]) as sc:
+        add_estimator_events(sc, report, t, masses=[30.5])
+        mass = sc._readouts[0].as_json()
+    assert mass["label"] == "load change detected (mass at detection)"
+    assert mass["v"][int(round(10.2 * 10))] == 30.5 and 25.6 not in mass["v"]

@@ -789,7 +789,9 @@ def _estimate_readouts(scene, result: PushResult, idx: np.ndarray) -> None:
         scene.add_readout("  ... its 1-sigma", "kg", t, result.param_std[idx, 0], digits=2)
     com_error = 100 * np.hypot(phi[:, 1] / phi[:, 0] - p[:, 1], phi[:, 2] / phi[:, 0] - p[:, 2])
     scene.add_readout("CoM error", "cm", t, com_error)
-    add_estimator_events(scene, result.estimator_report, t)
+    changes = (result.estimator_report or {}).get("load_changes") or []
+    at = [min(int(np.searchsorted(result.t, c["t_detected"])), len(result.t) - 1) for c in changes]
+    add_estimator_events(scene, result.estimator_report, t, [float(result.phi_hat[k, 0]) for k in at])
     estimate_charts(scene, result)
 
 
@@ -1021,7 +1023,8 @@ def match_load_changes(result: PushResult) -> list[dict]:
     A true change is found by the first change the estimator reported (``load_changes`` of its report) detected after
     it and before the next true change (or the run's end), dated from 1 s before it on: ``found``, the estimator's
     onset ``t_change_est`` and ``t_detected`` (s), ``time_error_s`` (onset minus the true time), ``mass_after_est_kg``
-    and its error (kg, % of the true mass after; the truth's mass: on the MuJoCo plant the effective mass); found or
+    (the estimator's mass after it; for its last reported change followed by a true change it did not find, the
+    loop's estimate just before that change: the estimator's own is its estimate at the run's end) and its error (kg, % of the true mass after; the truth's mass: on the MuJoCo plant the effective mass); found or
     not, ``mass_settled_kg`` and ``mass_settled_error_pct``: the loop's estimate just before the next change (or at
     the run's end) against the mass after; not found, ``mass_alone_before_kg``, ``mass_alone_after_kg`` and their
     ``_std_kg``: what the pushes from the change before it (or the start) to it, and from it to the next one (or
@@ -1048,12 +1051,16 @@ def match_load_changes(result: PushResult) -> list[dict]:
                 alone = weighed_alone(log, a, b)
                 row[f"mass_alone_{side}_kg"], row[f"mass_alone_{side}_std_kg"] = alone or (None, None)
         if hit is not None:
-            err = hit["mass_after"] - c["mass_after_kg"]
+            # the estimator's last change weighs it with its estimate at the run's end: after a later change it did
+            # not find, the loop's estimate before that change is what the pushes after this one weighed
+            last = hit is reported[-1] and math.isfinite(end)
+            weighed = settled if last else hit["mass_after"]
+            err = weighed - c["mass_after_kg"]
             row.update(
                 t_change_est=hit["t_change"],
                 t_detected=hit["t_detected"],
                 time_error_s=hit["t_change"] - t0,
-                mass_after_est_kg=hit["mass_after"],
+                mass_after_est_kg=weighed,
                 mass_after_error_kg=err,
                 mass_after_error_pct=100.0 * err / c["mass_after_kg"],
             )

@@ -1017,18 +1017,26 @@ class Scene:
         return path
 
 
-def add_estimator_events(scene: Scene, report: Mapping[str, Any] | None, t: Any) -> None:
+def add_estimator_events(
+    scene: Scene, report: Mapping[str, Any] | None, t: Any, masses: Sequence[float] | None = None
+) -> None:
     """Add read-outs of what an online estimator reported (`cart.online_estimator.OnlineLSEstimator.report`).
 
     The detected load changes (``load detected at t: new mass``, from each change's detection time) and the
     run-off episodes flagged so far (a count, from each flag's time); nothing for an estimator that reports none.
+    ``masses``: the mass to show per change (a run's estimate at each detection, known then); None: the report's
+    ``mass_after`` (for the last change the estimator's estimate at the report's time, which a page would show
+    before it was known).
     """
     report = report or {}
     changes = list(report.get("load_changes") or [])
     flags = list(report.get("runoff_flags") or [])
     if changes:
         times = [c["t_detected"] for c in changes]
-        scene.add_event_readout("load change detected (new mass)", "kg", t, times, [c["mass_after"] for c in changes])
+        label, values = ("load change detected (new mass)", [c["mass_after"] for c in changes])
+        if masses is not None:
+            label, values = "load change detected (mass at detection)", list(masses)
+        scene.add_event_readout(label, "kg", t, times, values)
         scene.add_event_readout("  ... its onset", "s", t, times, [c["t_change"] for c in changes], digits=2)
     if flags:
         kinds = sorted({f["kind"] for f in flags})

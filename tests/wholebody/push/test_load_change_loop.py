@@ -147,6 +147,21 @@ def test_what_happened_says_whether_each_change_was_found(loaded_run):
     assert again[1:] == missed[1:] and "NOT found" in again[0]
     assert f"{m:.1f} +- {std:.1f} and 31.0 +- 1.0 kg on their own" in again[0], again[0]
     assert describe(loaded_run.config).endswith("load +10 kg at 5 s")
+
+
+def test_a_change_followed_by_one_not_found_is_weighed_before_that_one(loaded_run):
+    """The estimator weighs its last change with its estimate at the run's end; when a true change it did not find
+    came after, that end is the later cart's mass: the change is weighed with the loop's estimate before it."""
+    found = {"t_change": 5.02, "t_detected": 5.3, "mass_before": 20.1, "mass_after": 99.0, "statistic": 30.0}
+    first = loaded_run.load_changes_true[0]
+    second = {**first, "t_applied": 8.0, "mass_kg": -5.0, "mass_after_kg": 25.0}
+    run = replace(loaded_run, load_changes_true=(first, second), estimator_report={"load_changes": [found]})
+    row, missed = match_load_changes(run)
+    before_second = loaded_run.phi_hat[int(np.searchsorted(loaded_run.t, 8.0 - 1e-9)) - 1, 0]
+    assert row["found"] and row["mass_after_est_kg"] == before_second != 99.0
+    assert not missed["found"]
+    alone = replace(loaded_run, estimator_report={"load_changes": [found]})
+    assert match_load_changes(alone)[0]["mass_after_est_kg"] == 99.0  # the last true change: the estimator's own
     assert push_log(loaded_run).metadata["load_changes"] == "t=5 mass=+10 -> m=30"
 
 
