@@ -915,6 +915,7 @@ def what_happened(result: PushResult, load_changes: list[dict] | None = None) ->
     m, rep = result.metrics, result.plant_report or {}
     t_end = m.tracking_lost_at_s if m.tracking_lost_at_s is not None else math.inf
     lines = [_outcome(result), *result.setup_notes] + _tipped(rep) + _hand_off_handle(result, t_end)
+    lines += _bases_overlap(result, t_end)
     lines += _saturation(m.saturation or {}, t_end)
     lines += _slowed(result, t_end)
     if m.arm_torque_limit_ratio > 1.0:
@@ -1297,6 +1298,62 @@ def _lateral_slip(result: PushResult, t_end: float) -> str:
         f"slip: the cart slid sideways{when} at up to {lat[k]:.2f} m/s (t = {result.t[k]:.2f} s), faster than "
         f"{LATERAL_SLIP_M_S:g} m/s for {slid:.2f} s in all (its model assumes no lateral slip)"
     )
+
+
+#: samples of a run between two checks of whether robots' bases overlap (`_bases_overlap`)
+OVERLAP_STRIDE = 5
+
+
+def _box_corners(pose: np.ndarray, box: tuple[float, float, float, float]) -> np.ndarray:
+    """Return the (4, 2) world corners of a base footprint `box` (base frame) at planar `pose` (x, y, yaw)."""
+    x0, x1, y0, y1 = box
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    local = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+    return local @ np.array([[c, s], [-s, c]]) + pose[:2]
+
+
+def _overlap_depth(a: np.ndarray, b: np.ndarray) -> float:
+    """Return how deep (m) two convex polygons (corners in order) overlap: the least overlap of their projections
+    on the edges' normals (separating-axis test); 0 when they are apart."""
+    depth = math.inf
+    for poly in (a, b):
+        for k in range(len(poly)):
+            edge = poly[(k + 1) % len(poly)] - poly[k]
+            n = np.array([-edge[1], edge[0]]) / (math.hypot(*edge) or 1.0)
+            pa, pb = a @ n, b @ n
+            depth = min(depth, min(pa.max(), pb.max()) - max(pa.min(), pb.min()))
+            if depth <= 0.0:
+                return 0.0
+    return float(depth)
+
+
+def _bases_overlap(result: PushResult, t_end: float) -> list[str]:
+    """Return a sentence when two robots' bases (their footprints, `robot.base_footprint_box`) overlapped before
+    `t_end`: each base is planned behind its own contact, nothing keeps two bases apart, and neither plant makes
+    robots collide, so the push as run is not one two real robots could make."""
+    twist = result.base_twist
+    x = np.asarray(result.robot_x, dtype=float)
+    if twist is None or np.shape(twist)[1] < 2 or x.shape[1] != np.shape(twist)[1]:
+        return []
+    import robots
+    from wholebody.push.robot import base_footprint_box
+
+    box = base_footprint_box(robots.load(result.config.robot))
+    if box is None:
+        return []
+    idx = np.arange(0, len(result.t), OVERLAP_STRIDE)
+    idx = idx[result.t[idx] < t_end]
+    depth = np.array([_overlap_depth(_box_corners(x[k, 0, :3], box), _box_corners(x[k, 1, :3], box)) for k in idx])
+    if not np.any(depth > 0.0):
+        return []
+    over = idx[depth > 0.0]
+    k = int(idx[int(np.argmax(depth))])
+    return [
+        f"ROBOTS OVERLAP: the two robots' bases overlapped for {len(over) * OVERLAP_STRIDE * result.config.dt:.2f} s "
+        f"from t = {float(result.t[over[0]]):.2f} s, by up to {100 * float(depth.max()):.0f} cm (t = "
+        f"{float(result.t[k]):.2f} s): each base follows its own contact and nothing keeps them apart; two real "
+        "robots could not push so (one robot with --arms 1, or contacts farther apart)"
+    ]
 
 
 def _tipped(rep: dict) -> list[str]:

@@ -718,18 +718,28 @@ def make_robots(
     return out
 
 
-def base_footprint_width(loaded: robots.LoadedRobot) -> float:
-    """Return the width (m, along the base's y) of the collision geometry fixed to the base's planar joint (each
-    geometry's local bounding box, meshes and cylinders included: TIAGo's base is a mesh; 0: none)."""
-    ys = []
+def base_footprint_box(loaded: robots.LoadedRobot) -> tuple[float, float, float, float] | None:
+    """Return (x_min, x_max, y_min, y_max) in m, in the base frame, of the collision geometry fixed to the base's
+    planar joint (each geometry's local bounding box, meshes and cylinders included: TIAGo's base is a mesh; the
+    wheels, on their own joints, are not in it); None: no such geometry."""
+    pts = []
     for g in loaded.collision_model.geometryObjects:
         if g.parentJoint != 1:
             continue
         g.geometry.computeLocalAABB()
         lo, hi = np.asarray(g.geometry.aabb_local.min_), np.asarray(g.geometry.aabb_local.max_)
         corners = np.array(list(itertools.product(*zip(lo, hi))))
-        ys.extend((corners @ g.placement.rotation.T + g.placement.translation)[:, 1])
-    return float(max(ys) - min(ys)) if ys else 0.0
+        pts.append((corners @ g.placement.rotation.T + g.placement.translation)[:, :2])
+    if not pts:
+        return None
+    xy = np.vstack(pts)
+    return float(xy[:, 0].min()), float(xy[:, 0].max()), float(xy[:, 1].min()), float(xy[:, 1].max())
+
+
+def base_footprint_width(loaded: robots.LoadedRobot) -> float:
+    """Return the width (m, along the base's y) of `base_footprint_box` (0: no collision geometry on the base)."""
+    box = base_footprint_box(loaded)
+    return 0.0 if box is None else box[3] - box[2]
 
 
 def side_by_side_spread(loaded: robots.LoadedRobot, contact_y: Sequence[float] | np.ndarray) -> float:

@@ -7,6 +7,7 @@ import math
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from wholebody.push.report import HAND_OFF_HANDLE_M, _hand_off_handle
 
@@ -258,3 +259,28 @@ def test_a_cart_that_tipped_says_so_with_when_and_how_far():
     assert _tipped({}) == []  # the kinematic plant: no tilt
     line = _tipped({"cart_tipped_at_s": 0.09, "cart_tilt_max_deg": 117.3, "cart_tilt_limit_deg": 10.0})
     assert len(line) == 1 and line[0].startswith("the cart TIPPED: its body tilted past 10 deg at t = 0.09 s (117 deg")
+
+
+def _two_bases(gap: np.ndarray, yaw: float = 0.0) -> SimpleNamespace:
+    """Two Ridgebacks side by side, their centres `gap` (N,) m apart along y, the second turned by `yaw`."""
+    n = gap.size
+    x = np.zeros((n, 2, 10))
+    x[:, 1, 1] = gap
+    x[:, 1, 2] = yaw
+    cfg = SimpleNamespace(dt=0.01, robot="ridgeback_iiwa")
+    return SimpleNamespace(t=0.01 * np.arange(n), robot_x=x, base_twist=np.zeros((n, 2, 3)), config=cfg)
+
+
+def test_two_bases_that_overlap_are_named_with_when_and_how_deep():
+    from wholebody.push.report import _bases_overlap, _overlap_depth
+
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    assert _overlap_depth(square, square + [0.7, 0.0]) == pytest.approx(0.3)
+    assert _overlap_depth(square, square + [1.2, 0.0]) == 0.0
+    apart = _two_bases(np.full(300, 0.893))  # the Ridgebacks are 0.793 m wide: 10 cm between them
+    assert _bases_overlap(apart, math.inf) == []
+    gap = np.full(300, 0.893)
+    gap[100:200] = 0.493  # 30 cm into each other for a second
+    (line,) = _bases_overlap(_two_bases(gap), math.inf)
+    assert line.startswith("ROBOTS OVERLAP") and "for 1.00 s from t = 1.00 s, by up to 30 cm" in line
+    assert _bases_overlap(_two_bases(gap), 0.5) == []  # after the loss: a failed push, not a plan
