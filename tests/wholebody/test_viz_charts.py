@@ -120,7 +120,13 @@ def test_a_push_page_charts_mass_and_com_against_the_truth_with_the_events():
         mass, com_x, com_y = scene._charts
     assert mass.truth is not None and np.all(mass.truth == 20.7) and np.allclose(mass.std, 0.4)
     np.testing.assert_allclose(com_x.estimate, 30.0) and np.testing.assert_allclose(com_y.truth, 15.0)
-    np.testing.assert_allclose(com_y.std, 2.0)  # the CoM's 1-sigma (norm over x and y), in cm
+    np.testing.assert_allclose(com_y.std, 2.0)  # a result with only the CoM's norm: that 1-sigma on both, in cm
+    per_axis = _run()
+    per_axis.param_std = np.column_stack([np.full_like(per_axis.t, c) for c in (0.4, 0.05, 0.048, 0.014)])
+    with Scene(["shopping_cart"]) as scene:
+        estimate_charts(scene, per_axis)
+        _, com_x, com_y = scene._charts
+    np.testing.assert_allclose(com_x.std, 4.8) and np.testing.assert_allclose(com_y.std, 1.4)  # each axis its own
     assert mass.until == 8.0 and mass.settle == 5.0
     with Scene(["shopping_cart"]) as scene:
         estimate_charts(scene, _run(estimation=False))

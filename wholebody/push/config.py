@@ -484,8 +484,8 @@ class PushResult:
     base_twist: np.ndarray | None = None  # (N, n_arms, 3) base body twist (vx, vy, wz)
     wheel_rates: np.ndarray | None = None  # (N, n_arms, n_wheels) rad/s
     wheel_velocity_limit: np.ndarray | None = None  # (n_wheels,) rad/s
-    #: (N, 2) the EKF's 1-sigma of the mass (kg) and of the CoM (m, norm over dx, dy) at t_k; NaN when the
-    #: estimator gives no covariance
+    #: (N, 4) the estimator's 1-sigma of the mass (kg), of the CoM (m, norm over dx, dy), of dx and of dy (m) at t_k;
+    #: NaN when the estimator gives no covariance
     param_std: np.ndarray | None = None
     #: the plant's own diagnostics (`wholebody.push.plants.plant_report`): "plant", and for MuJoCo the cart's
     #: true and effective mass, wrench error, grasp and wheel slip, real-time factor

@@ -100,12 +100,14 @@ class ControlDecision:
 
 
 def param_std(estimator: ParameterEstimator) -> np.ndarray:
-    """Return the estimator's 1-sigma of (mass [kg], CoM [m]); NaN when it gives no covariance."""
+    """Return the estimator's 1-sigma of (mass [kg], CoM [m, the norm over x and y], CoM x [m], CoM y [m]); NaN when
+    it gives no covariance."""
     std = getattr(estimator, "params_std", None)
     if std is None:
-        return np.full(2, np.nan)
+        return np.full(4, np.nan)
     s = std()
-    return np.array([s["mass"], float(np.hypot(*s["com"]))])
+    cx, cy = (float(v) for v in s["com"])
+    return np.array([s["mass"], float(np.hypot(cx, cy)), cx, cy])
 
 
 class PushController:

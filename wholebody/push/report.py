@@ -471,7 +471,9 @@ def _estimate_series(result: PushResult) -> tuple[np.ndarray, np.ndarray]:
     est = np.column_stack([phi[:, 0], 100 * phi[:, 1] / m, 100 * phi[:, 2] / m])
     std = np.full_like(est, np.nan)
     if result.param_std is not None:
-        std = np.column_stack([result.param_std[:, 0], 100 * result.param_std[:, 1], 100 * result.param_std[:, 1]])
+        ps = result.param_std
+        xy = ps[:, 2:4] if ps.shape[1] >= 4 else np.column_stack([ps[:, 1], ps[:, 1]])  # per axis, else the norm
+        std = np.column_stack([ps[:, 0], 100 * xy[:, 0], 100 * xy[:, 1]])
     return est, std
 
 

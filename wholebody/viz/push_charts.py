@@ -2,7 +2,7 @@
 
 `estimate_charts` adds to a `Scene` one chart per parameter (`Scene.add_chart`, bottom right of the page): the
 estimate the controller used at each period (``PushResult.phi_hat``), its +-1-sigma band (``param_std``: the mass's,
-and for the CoM the norm over x and y), the truth it is judged against (``config.true_params``: on the MuJoCo plant
+and each CoM axis its own), the truth it is judged against (``config.true_params``: on the MuJoCo plant
 the cart's effective mass and its CoM read from the engine, `wholebody.push.plants.plant_truth`), the load changes
 the estimator found (onset and detection), its run-off flags, and when the cart was lost. A cursor follows the
 page's time.
@@ -45,11 +45,29 @@ def estimate_charts(scene: Scene, result: Any) -> None:
     until = math.inf if lost is None else float(lost)
     series = (
         (f"mass, {name}", "kg", phi[:, 0], None if std is None else std[:, 0], p[:, 0]),
-        (f"CoM x in {{b}}, {name}", "cm", 100 * phi[:, 1] / m, None if std is None else 100 * std[:, 1], 100 * p[:, 1]),
-        (f"CoM y in {{b}}, {name}", "cm", 100 * phi[:, 2] / m, None if std is None else 100 * std[:, 1], 100 * p[:, 2]),
+        (
+            f"CoM x in {{b}}, {name}",
+            "cm",
+            100 * phi[:, 1] / m,
+            None if std is None else 100 * _axis(std, 0),
+            100 * p[:, 1],
+        ),
+        (
+            f"CoM y in {{b}}, {name}",
+            "cm",
+            100 * phi[:, 2] / m,
+            None if std is None else 100 * _axis(std, 1),
+            100 * p[:, 2],
+        ),
     )
     for title, unit, estimate, band, truth in series:
         scene.add_chart(title, unit, t, estimate, band, truth, marks, settle=SETTLE_S, until=until)
+
+
+def _axis(std: np.ndarray, axis: int) -> np.ndarray:
+    """Return the CoM's 1-sigma along x (0) or y (1) from `PushResult.param_std` (m); the norm over both for a
+    result that records only it (two columns)."""
+    return std[:, 2 + axis] if std.shape[1] >= 4 else std[:, 1]
 
 
 def _truth(result: Any) -> np.ndarray:

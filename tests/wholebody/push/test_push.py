@@ -286,7 +286,8 @@ def test_run_records_the_ekf_std_and_flags_the_straight_cruise(runs):
     """On the straight Traj. 1 the cruise (constant speed, no turn) carries no information on the mass (EKF)."""
     _, off = runs
     on = run_push(PushConfig(estimation=True, estimator="ekf", contact="fixed", fixed_contact_y=(0.0,), **SHORT))
-    assert on.param_std.shape == (len(on.t), 2) and np.all(on.param_std > 0)
+    assert on.param_std.shape == (len(on.t), 4) and np.all(on.param_std > 0)
+    np.testing.assert_allclose(on.param_std[:, 1], np.hypot(on.param_std[:, 2], on.param_std[:, 3]))
     m = on.metrics
     cruise = [(a, b) for a, b in m.mass_unobservable_s if b - a > 2.0]
     assert cruise, m.mass_unobservable_s
