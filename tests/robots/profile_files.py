@@ -64,3 +64,15 @@ def tiago_profile(folder: Path, arm: list[str] | None = None, extra: str = "") -
     joints = "[" + ", ".join(f'"{j}"' for j in arm) + "]"
     lock = "" if "torso_lift_joint" in arm else TORSO_LOCK
     return write_profile(folder, TIAGO.format(arm=joints) + lock + extra, "tiago.toml")
+
+
+def wmra_variant(folder: Path, name: str, urdf_text: str) -> str:
+    """Write the WMRA's profile renamed `name`, pointing at `urdf_text` written beside it; return the profile's path
+    (a variant of the shipped robot: its URDF edited, its tuned [push] settings kept)."""
+    robots_dir = Path(__file__).resolve().parents[2] / "robots"
+    urdf = folder / f"{name}.urdf"
+    urdf.write_text(urdf_text)
+    prof = (robots_dir / "wmra.toml").read_text()
+    prof = prof.replace('name = "wmra"', f'name = "{name}"').replace('urdf = "wmra.urdf"', f'urdf = "{urdf}"')
+    (folder / f"{name}.toml").write_text(prof)
+    return str(folder / f"{name}.toml")

@@ -10,6 +10,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from tests.robots.profile_files import wmra_variant
 from wholebody.push import PushConfig, build_controller
 from wholebody.push.mujoco_plant import MujocoPlant
 
@@ -25,13 +26,7 @@ def _mirrored_wmra(folder: Path) -> str:
     joint = text[start:end]
     assert '<axis xyz="0 0 1"/>' in joint
     text = text[:start] + joint.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 -1"/>') + text[end:]
-    (folder / "wmra_mirrored.urdf").write_text(text)
-    profile = (ROBOTS / "wmra.toml").read_text()
-    profile = profile.replace('name = "wmra"', 'name = "wmra_mirrored"').replace(
-        'urdf = "wmra.urdf"', f'urdf = "{folder / "wmra_mirrored.urdf"}"'
-    )
-    (folder / "wmra_mirrored.toml").write_text(profile)
-    return str(folder / "wmra_mirrored.toml")
+    return wmra_variant(folder, "wmra_mirrored", text)
 
 
 def _drive_both_wheels(robot: str, rate: float = 3.0, seconds: float = 1.0) -> tuple[np.ndarray, float]:

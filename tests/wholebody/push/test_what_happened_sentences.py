@@ -215,19 +215,11 @@ def test_a_load_change_not_found_says_whether_the_pushes_could_show_it():
 def _wmra_with_wheel_effort(folder, effort: str) -> str:
     from pathlib import Path
 
-    robots_dir = Path(__file__).resolve().parents[3] / "robots"
-    text = (
-        (robots_dir / "wmra.urdf")
-        .read_text()
-        .replace('<limit effort="60" velocity="8.8"/>', f'<limit effort="{effort}" velocity="8.8"/>')
-    )
-    (folder / "wmra_wheels.urdf").write_text(text)
-    prof = (robots_dir / "wmra.toml").read_text()
-    prof = prof.replace('name = "wmra"', 'name = "wmra_wheels"').replace(
-        'urdf = "wmra.urdf"', f'urdf = "{folder / "wmra_wheels.urdf"}"'
-    )
-    (folder / "wmra_wheels.toml").write_text(prof)
-    return str(folder / "wmra_wheels.toml")
+    from tests.robots.profile_files import wmra_variant
+
+    text = (Path(__file__).resolve().parents[3] / "robots" / "wmra.urdf").read_text()
+    limit = '<limit effort="60" velocity="8.8"/>'
+    return wmra_variant(folder, "wmra_wheels", text.replace(limit, f'<limit effort="{effort}" velocity="8.8"/>'))
 
 
 def _push_run(robot: str, accel: float, push: float) -> SimpleNamespace:
