@@ -451,7 +451,7 @@ class MujocoPlant:
         do not collide, contacts disabled or excluded, let it fall through or tip before the push)."""
         d, b = self.scene.data, self.scene.cart_body
         drop = float(self.cart_source.z - d.xpos[b][2])
-        tilt = math.degrees(math.acos(min(1.0, float(d.xmat[b][8]))))
+        tilt = self._cart_tilt_deg()
         if abs(drop) > STANDING_DROP_M or tilt > STANDING_TILT_DEG:
             mass = self.cart_source.mass
             heavy = mass is not None and mass > HEAVY_CART_KG
@@ -973,11 +973,15 @@ class MujocoPlant:
         for record in [self.cart_joints, *self.robot_joints]:
             record.record(self.t, d)
 
+    def _cart_tilt_deg(self) -> float:
+        """Return the cart body's tilt from upright (deg): the angle of its z axis from the world's."""
+        return math.degrees(math.acos(min(1.0, float(self.scene.data.xmat[self.scene.cart_body][8]))))
+
     def _cart_tilt(self) -> None:
         """Record the cart body's tilt from upright, and when it first passed `STANDING_TILT_DEG` (it tips over:
         the planar cart model no longer holds)."""
         st = self._stats
-        tilt = math.degrees(math.acos(min(1.0, float(self.scene.data.xmat[self.scene.cart_body][8]))))
+        tilt = self._cart_tilt_deg()
         st.cart_tilt_max_deg = max(st.cart_tilt_max_deg, tilt)
         if st.cart_tipped_at_s is None and tilt > STANDING_TILT_DEG:
             st.cart_tipped_at_s = float(self.t)

@@ -1027,9 +1027,10 @@ def match_load_changes(result: PushResult) -> list[dict]:
     it and before the next true change (or the run's end), dated from 1 s before it on: ``found``, the estimator's
     onset ``t_change_est`` and ``t_detected`` (s), ``time_error_s`` (onset minus the true time), ``mass_after_est_kg``
     (the estimator's mass after it; for its last reported change followed by a true change it did not find, the
-    loop's estimate just before that change: the estimator's own is its estimate at the run's end) and its error (kg, % of the true mass after; the truth's mass: on the MuJoCo plant the effective mass); found or
-    not, ``mass_settled_kg`` and ``mass_settled_error_pct``: the loop's estimate just before the next change (or at
-    the run's end) against the mass after; not found, ``mass_alone_before_kg``, ``mass_alone_after_kg`` and their
+    loop's estimate just before that change: the estimator's own is its estimate at the run's end) and its error
+    (kg, % of the true mass after; the truth's mass: on the MuJoCo plant the effective mass); found or not,
+    ``mass_settled_kg`` and ``mass_settled_error_pct``: the loop's estimate just before the next change (or at the
+    run's end) against the mass after; not found, ``mass_alone_before_kg``, ``mass_alone_after_kg`` and their
     ``_std_kg``: what the pushes from the change before it (or the start) to it, and from it to the next one (or
     the end), weigh on their own (:func:`weighed_alone`; None when they say nothing): was it there to see."""
     reported = sorted((result.estimator_report or {}).get("load_changes") or (), key=lambda c: c["t_detected"])
@@ -1364,8 +1365,8 @@ def _tipped(rep: dict) -> list[str]:
     if t is None:
         return []
     return [
-        f"the cart TIPPED: its body tilted past {rep.get('cart_tilt_limit_deg', 10.0):g} deg at t = {t:.2f} s ({rep.get('cart_tilt_max_deg', 0.0):.0f} deg "
-        "at most); the planar cart model no longer holds (a cart that stands on its own wheels only while held, or "
+        f"the cart TIPPED: its body tilted past {rep.get('cart_tilt_limit_deg', 10.0):g} deg at t = {t:.2f} s "
+        f"({rep.get('cart_tilt_max_deg', 0.0):.0f} deg at most); the planar cart model no longer holds (a cart that stands on its own wheels only while held, or "
         "one pushed harder than its wheelbase holds, cannot be pushed this way)"
     ]
 
