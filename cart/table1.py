@@ -13,7 +13,7 @@ import math
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -447,14 +447,59 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _run_job(job: tuple[Table1Test, bool, ControllerName, float, float, int, bool, str]) -> TestRun:
-    """Run one (test, estimate, ..., estimator) job of :func:`run_table1` (a worker process's task)."""
+@dataclass(frozen=True)
+class RunFailure:
+    """A run of a test that stopped with an error: which run, and the error's type and message."""
+
+    run: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class FailedTest:
+    """A test whose run with the paper's EKF, or without estimation, stopped with an error: no metrics."""
+
+    test: int
+    reason: str
+
+    def as_json(self) -> dict:
+        """Return the JSON object of `cartpush reproduce --json` for this test: its number and why it failed."""
+        return {"test": self.test, "failed": self.reason}
+
+
+def _run_name(estimate: bool, estimator: str) -> str:
+    return "no estimation" if not estimate else ("the paper's EKF" if estimator == "ekf" else "online estimator")
+
+
+def _run_job(job: tuple[Table1Test, bool, ControllerName, float, float, int, bool, str]) -> TestRun | RunFailure:
+    """Run one (test, estimate, ..., estimator) job of :func:`run_table1` (a worker process's task).
+
+    A run that stops with a numerical error (a diverging estimate, a singular matrix) is returned as a
+    :class:`RunFailure`, so that the other tests are still reported.
+    """
     test, estimate, controller, duration, dt, seed, change_detection, estimator = job
     detect = change_detection and estimate and estimator == "ekf"
-    return run_test(test, estimate, controller, duration, dt, seed, change_detection=detect, estimator=estimator)
+    try:
+        return run_test(test, estimate, controller, duration, dt, seed, change_detection=detect, estimator=estimator)
+    except (ArithmeticError, ValueError) as exc:  # CartError and numpy's LinAlgError are ValueErrors
+        return RunFailure(_run_name(estimate, estimator), f"{type(exc).__name__}: {exc}")
 
 
-def _run_jobs(jobs: Sequence[tuple], workers: int) -> Iterator[tuple[int, TestRun]]:
+def _test_result(test: Table1Test, runs: Sequence[TestRun | RunFailure]) -> TestResult | FailedTest:
+    """Return a test's result from its runs (EKF, no estimation[, online]); a failed online run is its row's reason."""
+    failed = [r for r in runs[:2] if isinstance(r, RunFailure)]
+    if failed:
+        return FailedTest(test.test, "; ".join(f"{f.run} run failed: {f.reason}" for f in failed))
+    run, run0 = runs[0], runs[1]
+    assert isinstance(run, TestRun) and isinstance(run0, TestRun)
+    online = runs[2] if len(runs) > 2 else None
+    if isinstance(online, RunFailure):
+        result = table1_result(test, run, run0)
+        return replace(result, online={"failed": f"{online.run} run failed: {online.reason}"})
+    return table1_result(test, run, run0, online)
+
+
+def _run_jobs(jobs: Sequence[tuple], workers: int) -> Iterator[tuple[int, TestRun | RunFailure]]:
     """Yield (job index, run) as the runs finish: in this process (workers 1) or on forked worker processes."""
     if workers <= 1 or len(jobs) <= 1:
         for i, job in enumerate(jobs):
@@ -480,13 +525,14 @@ def run_table1(
     change_detection: bool = False,
     workers: int | None = None,
     online: bool = True,
-) -> list[TestResult]:
+) -> list[TestResult | FailedTest]:
     """Return the TestResult of every test, in the order of ``tests``.
 
     The runs of every test (with and without estimation, and with the online estimator when ``online``) are
     independent jobs, run on ``workers`` processes (None: :func:`default_workers`; 1: in this process); every
     run has its own seeded noise, so the results do not depend on ``workers``. ``progress(test)`` is called
-    as each test's runs are done.
+    as each test's runs are done. A test whose EKF or no-estimation run fails is a :class:`FailedTest`; a failed
+    online run is reported in the test's ``online`` row (``{"failed": reason}``).
     """
     kinds = [(True, "ekf"), (False, "ekf")] + ([(True, "online")] if online else [])
     jobs = [
@@ -501,7 +547,4 @@ def run_table1(
         first = i - i % per
         if progress is not None and all(first + j in runs for j in range(per)):
             progress(jobs[first][0].test)
-    return [
-        table1_result(test, runs[per * k], runs[per * k + 1], runs[per * k + 2] if online else None)
-        for k, test in enumerate(tests)
-    ]
+    return [_test_result(test, [runs[per * k + j] for j in range(per)]) for k, test in enumerate(tests)]

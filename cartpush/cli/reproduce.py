@@ -111,9 +111,13 @@ def _select(spec: str | None):
 
 def _value(result, key: str):
     data = result.as_json()
+    if "failed" in data:  # a FailedTest: its number, and "failed" in every metric's column
+        return data["test"] if key == "test" else "failed"
     if key == "com_error_final_cm":  # human output: the CoM in cm (the JSON keeps com_error_final_m)
         return 100.0 * data["com_error_final_m"]
     if key.startswith("online."):  # the online estimator's row, beside the paper's EKF
+        if "failed" in data.get("online", {}):
+            return "failed"
         value = data.get("online", {}).get(key.split(".", 1)[1])
         if key.endswith("load_changes"):
             return " ".join(f"{c['t_change']:.1f}->{c['mass_after']:.1f}" for c in value or []) or "-"
@@ -124,7 +128,7 @@ def _value(result, key: str):
 def _fmt(value, fmt: str = "{:.4f}") -> str:
     if value is None:
         return "never"
-    return fmt.format(value)
+    return value if isinstance(value, str) else fmt.format(value)
 
 
 def table_header() -> list[str]:
@@ -144,10 +148,26 @@ def describe_lines(results: list) -> list[str]:
     return [f"test {r.test}: {describe_test(TESTS[r.test - 1])}" for r in results]
 
 
+def failure_lines(results: list) -> list[str]:
+    """Return one line per failed test, or failed online run: which test, which run and the error."""
+    lines = []
+    for r in results:
+        data = r.as_json()
+        reason = data.get("failed") or data.get("online", {}).get("failed")
+        if reason:
+            lines.append(f"test {r.test}: {reason}")
+    return lines
+
+
+def _completed(results: list) -> list:
+    """Return the results that have metrics (not :class:`cart.table1.FailedTest`)."""
+    return [r for r in results if "failed" not in r.as_json()]
+
+
 def unobservable_notes(results: list, after: float = 5.0, tol_kg: float = 1.0) -> list[str]:
     """Return a note per test whose mass estimate was off by more than tol_kg for a stretch after `after` s."""
     notes = []
-    for r in results:
+    for r in _completed(results):
         run = r.run
         late = run.t >= after
         off = late & (abs(run.params_hat[:, 0] - run.params_true[:, 0]) > tol_kg)
@@ -164,9 +184,7 @@ def unobservable_notes(results: list, after: float = 5.0, tol_kg: float = 1.0) -
 
 
 def _write_outputs(out: str, results: list) -> None:
-    from matplotlib import colormaps
-    from matplotlib.figure import Figure
-
+    """Write table.csv, table.md and Fig. 4-6 to ``out``."""
     os.makedirs(out, exist_ok=True)
     header = table_header()
     rows = table_rows(results)
@@ -180,6 +198,17 @@ def _write_outputs(out: str, results: list) -> None:
         notes = unobservable_notes(results)
         if notes:
             fh.write("\n" + "".join(f"- note: {line}\n" for line in notes))
+        failures = failure_lines(results)
+        if failures:
+            fh.write("\n" + "".join(f"- FAILED: {line}\n" for line in failures))
+    _write_figures(out, _completed(results))
+
+
+def _write_figures(out: str, results: list) -> None:
+    """Write Fig. 4-6 (tracking errors, mass estimates) of the completed tests to ``out``."""
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
+
     colours = colormaps["tab20"](range(20))  # tab20's 20 distinct colours (RGBA): no repeats for the 11 tests
     fig = Figure(figsize=(13, 4.5), layout="constrained")
     axes = fig.subplots(1, 2, sharey=True)
@@ -220,7 +249,7 @@ def _write_outputs(out: str, results: list) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the selected tests and print a table (or JSON); return 0."""
+    """Run the selected tests and print a table (or JSON); return 0, or 3 (the batch's FAILED_EXIT) when a run failed."""
     options.duration(args.duration, minimum=MIN_DURATION, rate=100.0, why="the Table I metrics are taken after t = 5 s")
     options.seed(args.seed)
     if args.workers is not None and args.workers < 1:
@@ -260,7 +289,7 @@ def run(args: argparse.Namespace) -> int:
         _write_outputs(args.out, results)
     if args.json:
         print(dumps_strict([r.as_json() for r in results]))
-        return 0
+        return _exit_code(results)
     header = table_header()
     rows = table_rows(results)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
@@ -276,4 +305,21 @@ def run(args: argparse.Namespace) -> int:
         f"controller {args.controller}, {len(tests)} tests x 3 runs (EKF, no estimation, online) on {workers} process"
         f"{'es' if workers > 1 else ''} in {wall:.1f} s" + (f"; figures and table in {args.out}" if args.out else "")
     )
-    return 0
+    for line in failure_lines(results):
+        print("FAILED: " + line)
+    return _exit_code(results)
+
+
+def _exit_code(results: list) -> int:
+    """Return 0, or the batch's ``FAILED_EXIT`` after one line on stderr when a test or online run failed."""
+    from cartpush.cli.batch import FAILED_EXIT
+
+    failures = failure_lines(results)
+    if not failures:
+        return 0
+    print(
+        f"reproduce: {len(failures)} of {len(results)} tests had a failed run ({failures[0]}); the others are "
+        f"reported; exit code {FAILED_EXIT}",
+        file=sys.stderr,
+    )
+    return FAILED_EXIT

@@ -71,6 +71,36 @@ def test_reproduce_table_headers_match_table_md_and_flag_unobservable_stretches(
     assert capsys.readouterr().err == ""
 
 
+def test_a_failed_run_is_reported_beside_the_tests_that_completed(tmp_path, capsys, monkeypatch):
+    from cart.errors import NumericalError
+
+    real = table1.run_test
+
+    def failing(test, estimate=True, *args, estimator="ekf", **kwargs):
+        if (test.test, estimate, estimator) in {(2, True, "online"), (3, True, "ekf")}:
+            raise NumericalError("z must be finite, got [nan]")
+        return real(test, estimate, *args, estimator=estimator, **kwargs)
+
+    monkeypatch.setattr(table1, "run_test", failing)
+    argv = ["reproduce", "--tests", "1,2,3", "--duration", "6", "--workers", "1", "--out", str(tmp_path)]
+    assert main([*argv, "--json"]) == 3
+    cap = capsys.readouterr()
+    rows = json.loads(cap.out)
+    assert [r["test"] for r in rows] == [1, 2, 3]
+    assert "failed" not in rows[0] and "failed" not in rows[0]["online"]
+    assert rows[1]["online"] == {"failed": "online estimator run failed: NumericalError: z must be finite, got [nan]"}
+    assert rows[1]["mass_error_final_kg"] < 5.0  # the paper's EKF row of test 2 is kept
+    assert rows[2] == {"test": 3, "failed": "the paper's EKF run failed: NumericalError: z must be finite, got [nan]"}
+    assert len(cap.err.strip().splitlines()) == 1 and "2 of 3 tests had a failed run" in cap.err
+    md = (tmp_path / "table.md").read_text()
+    assert "- FAILED: test 3: the paper's EKF run failed" in md and "- FAILED: test 2: online estimator" in md
+    assert (tmp_path / "fig4_tracking_error.png").stat().st_size > 0
+    assert main(argv) == 3
+    out = capsys.readouterr().out.splitlines()
+    row3 = next(line.split() for line in out if line.split()[:1] == ["3"])
+    assert set(row3[1:]) == {"failed"}
+
+
 def test_reproduce_rejects_zero_workers(capsys):
     assert main(["reproduce", "--workers", "0", "--tests", "1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
