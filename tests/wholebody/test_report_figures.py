@@ -1,8 +1,8 @@
 """The run figures `cartpush push --out` and `cartpush demo` write (`wholebody.push.report.push_figures`).
 
 A spike (the start transient, the cart running off after a loss) does not set a panel's y range, and what the range
-clips is named on the panel; a lost cart's loss is a labelled line on every time chart; the legend of
-`tracking_estimation.png` sits under the panels.
+clips is named on the panel; a lost cart's loss is a labelled line on every time chart and a cross on the path; the
+legend of `tracking_estimation.png` sits under the panels; every robot's base is on `path.png`.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from matplotlib.colors import to_rgba
 
 from wholebody.push import PushConfig, run_push
 from wholebody.push.figure_axes import Trace, clipped_note, robust_range, robust_ylim
-from wholebody.push.report import push_figures
+from wholebody.push.report import _distinct_bases, push_figures
 
 T_LOST = 5.0
 TIME_CHARTS = ("tracking_estimation", "estimate", "hand_wrenches", "arm_torques")
@@ -99,6 +99,15 @@ def test_the_loss_is_a_labelled_line_on_every_time_chart(lost, kept, name):
         assert _loss_marks(ax) == ([], [])
 
 
+def test_the_path_marks_where_the_cart_was_lost(lost, kept):
+    ax = push_figures({"lost": lost})["path"].axes[0]
+    (cross,) = [ln for ln in ax.get_lines() if ln.get_label() == f"cart lost at {T_LOST:.2f} s, lost"]
+    k = int(np.searchsorted(lost.t, T_LOST))
+    np.testing.assert_allclose([cross.get_xdata()[0], cross.get_ydata()[0]], lost.q_true[k, :2])
+    assert f"cart lost at {T_LOST:.2f} s, lost" in [x.get_text() for x in ax.get_legend().get_texts()]
+    assert not any("lost" in ln.get_label() for ln in push_figures({"kept": kept})["path"].axes[0].get_lines())
+
+
 def test_the_tracking_estimation_legend_is_under_the_panels_not_beside_them(kept):
     fig = push_figures({"first": kept, "second": kept})["tracking_estimation"]
     assert all(ax.get_legend() is None for ax in fig.axes) and len(fig.legends) == 1
@@ -109,3 +118,16 @@ def test_the_tracking_estimation_legend_is_under_the_panels_not_beside_them(kept
         assert ax.get_position().width > 0.8, "a legend beside the panels squeezes them"
     legend = fig.legends[0].get_window_extent().transformed(fig.transFigure.inverted())
     assert legend.y1 <= min(ax.get_position().y0 for ax in fig.axes)
+
+
+def test_every_robots_base_is_on_the_path_figure():
+    two = run_push(PushConfig(trajectory=1, duration=4.0, contact="fixed", n_arms=2))
+    ax = push_figures({"two": two})["path"].axes[0]
+    bases = [ln for ln in ax.get_lines() if "base" in ln.get_label()]
+    assert [ln.get_label() for ln in bases] == ["robot 1 base, two", "robot 2 base, two"]
+    for k, ln in enumerate(bases):
+        np.testing.assert_allclose(ln.get_ydata(), two.robot_x[:, k, 1])
+    assert bases[0].get_linestyle() != bases[1].get_linestyle()
+    assert len(ax.get_legend().get_texts()) == 1 + 1 + 2
+    one_base = np.repeat(two.robot_x[:, :1], 2, axis=1)  # one base holding both hands: drawn once
+    assert _distinct_bases(one_base) == [0] and _distinct_bases(two.robot_x) == [0, 1]

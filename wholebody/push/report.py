@@ -226,8 +226,9 @@ def push_log(result: PushResult) -> CartLog:
 def push_figures(runs: dict[str, PushResult]) -> dict[str, Figure]:
     """Return the figures comparing the runs, name -> matplotlib Figure (no backend is selected or touched).
 
-    ``path``: the cart's path of each run and the base of robot 1 (dotted, same
-    colour), the first run drawn on top; ``tracking_estimation``: tracking error (mm), mass and CoM (cm) errors
+    ``path``: the cart's path of each run and the base of each of its robots (same
+    colour, a line style per robot), the first run drawn on top, where a cart was lost
+    marked; ``tracking_estimation``: tracking error (mm), mass and CoM (cm) errors
     over time with the estimate's 1-sigma, the 1 kg / 1 cm bands and the stretches
     where the 1-sigma grew (no new information), hand force, one legend under the
     panels; ``estimate``: the estimated mass and CoM with their 1-sigma band
@@ -256,6 +257,40 @@ def _style(i: int) -> tuple[str, str]:
     return f"C{i % 10}", "-" if i == 0 else "--"
 
 
+#: line style of robot k's base on the path figure (robot 1 dotted, robot 2 dash-dotted, ...)
+BASE_STYLES = (":", "-.", (0, (1, 3)), (0, (6, 2, 1, 2, 1, 2)))
+
+
+def _distinct_bases(robot_x: np.ndarray) -> list[int]:
+    """Return the robots (indices into ``robot_x``'s second axis) whose base drove its own path: one base holding
+    several hands is listed once."""
+    kept: list[int] = []
+    for k in range(robot_x.shape[1]):
+        if not any(np.allclose(robot_x[:, k, :2], robot_x[:, j, :2], atol=1e-6) for j in kept):
+            kept.append(k)
+    return kept
+
+
+def _run_paths(ax, i: int, label: str, r: PushResult) -> list:
+    """Draw run i's cart path, each robot's base path (same colour, `BASE_STYLES`) and where the cart was lost;
+    return the drawn lines in legend order."""
+    c, ls = _style(i)
+    lw, z = (1.2, 4) if i == 0 else (2.4, 3)
+    lines = ax.plot(r.q_true[:, 0], r.q_true[:, 1], ls, color=c, lw=lw, zorder=z, label=f"cart, {label}")
+    for k in _distinct_bases(r.robot_x):
+        style = BASE_STYLES[k % len(BASE_STYLES)]
+        x, y = r.robot_x[:, k, 0], r.robot_x[:, k, 1]
+        lines += ax.plot(x, y, ls=style, color=c, lw=lw, zorder=z, label=f"robot {k + 1} base, {label}")
+    t_lost = r.metrics.tracking_lost_at_s
+    if t_lost is not None:
+        x, y = r.q_true[min(int(np.searchsorted(r.t, t_lost)), len(r.t) - 1), :2]
+        lines += ax.plot(x, y, "X", color="r", mec="k", ms=10, zorder=6, label=f"cart lost at {t_lost:.2f} s, {label}")
+        ax.annotate(
+            f"cart lost {t_lost:.2f} s", (x, y), xytext=(6, 6), textcoords="offset points", color="r", fontsize=7
+        )
+    return lines
+
+
 def _path_figure(runs: dict[str, PushResult]) -> Figure:
     """Return the cart and base paths; the first run is drawn last (on top), thinner, so none hides another."""
     from matplotlib.figure import Figure
@@ -263,16 +298,10 @@ def _path_figure(runs: dict[str, PushResult]) -> Figure:
     first = next(iter(runs.values()))
     fig = Figure(figsize=(7, 5.5), layout="constrained")
     ax = fig.subplots()
-    ax.plot(first.q_desired[:, 0], first.q_desired[:, 1], "k-", lw=4, alpha=0.2, label="desired cart path")
-    for i, (label, r) in reversed(list(enumerate(runs.items()))):
-        c, ls = _style(i)
-        lw, z = (1.2, 4) if i == 0 else (2.4, 3)
-        ax.plot(r.q_true[:, 0], r.q_true[:, 1], ls, color=c, lw=lw, zorder=z, label=f"cart, {label}")
-        ax.plot(r.robot_x[:, 0, 0], r.robot_x[:, 0, 1], ":", color=c, lw=lw, zorder=z, label=f"robot 1 base, {label}")
-    handles, labels = ax.get_legend_handles_labels()
-    pairs = (len(labels) - 1) // 2  # (cart, base) per run, last run first: list the first run first
-    order = [0] + [k for j in reversed(range(pairs)) for k in (1 + 2 * j, 2 + 2 * j)]
-    ax.legend([handles[k] for k in order], [labels[k] for k in order], fontsize=7, loc="best")
+    handles = ax.plot(first.q_desired[:, 0], first.q_desired[:, 1], "k-", lw=4, alpha=0.2, label="desired cart path")
+    drawn = {i: _run_paths(ax, i, label, r) for i, (label, r) in reversed(list(enumerate(runs.items())))}
+    handles += [line for i in sorted(drawn) for line in drawn[i]]  # the first run listed first
+    ax.legend(handles=handles, fontsize=7, loc="best")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal", adjustable="datalim")
