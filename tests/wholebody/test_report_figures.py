@@ -2,7 +2,8 @@
 
 A spike (the start transient, the cart running off after a loss) does not set a panel's y range, and what the range
 clips is named on the panel; a lost cart's loss is a labelled line on every time chart and a cross on the path; the
-legend of `tracking_estimation.png` sits under the panels; every robot's base is on `path.png`.
+legend of `tracking_estimation.png` sits under the panels; every robot's base is on `path.png`; the PNGs are written
+at `FIGURE_DPI`.
 """
 
 from __future__ import annotations
@@ -13,10 +14,11 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_rgba
+from PIL import Image
 
 from wholebody.push import PushConfig, run_push
-from wholebody.push.figure_axes import Trace, clipped_note, robust_range, robust_ylim
-from wholebody.push.report import _distinct_bases, push_figures
+from wholebody.push.figure_axes import FIGURE_DPI, Trace, clipped_note, robust_range, robust_ylim
+from wholebody.push.report import _distinct_bases, push_figures, save_figure_dict
 
 T_LOST = 5.0
 TIME_CHARTS = ("tracking_estimation", "estimate", "hand_wrenches", "arm_torques")
@@ -131,3 +133,15 @@ def test_every_robots_base_is_on_the_path_figure():
     assert len(ax.get_legend().get_texts()) == 1 + 1 + 2
     one_base = np.repeat(two.robot_x[:, :1], 2, axis=1)  # one base holding both hands: drawn once
     assert _distinct_bases(one_base) == [0] and _distinct_bases(two.robot_x) == [0, 1]
+
+
+def test_figures_are_written_at_the_figure_dpi(tmp_path):
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(4.0, 3.0))
+    fig.subplots().plot([0, 1], [0, 1])
+    (path,) = save_figure_dict({"f": fig}, tmp_path)
+    with Image.open(path) as png:
+        assert png.size == (4 * FIGURE_DPI, 3 * FIGURE_DPI)
+        assert png.info["dpi"] == pytest.approx((FIGURE_DPI, FIGURE_DPI), abs=0.5)
+    assert FIGURE_DPI >= 150

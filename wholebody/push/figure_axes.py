@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+#: resolution of the saved PNG figures, dots per inch
+FIGURE_DPI = 150
 #: the y range spans these percentiles of the samples that set it ...
 RANGE_PERCENTILES = (1.0, 99.0)
 #: ... widened on each side by this share of their spread, never beyond the samples' own extremes

@@ -20,7 +20,7 @@ import numpy as np
 from cart.errors import CartError
 from cart.logs import CartLog, write_log
 from wholebody.push.config import LOST_TRACKING_M, PushConfig, PushResult
-from wholebody.push.figure_axes import Trace, mark_time, robust_ylim
+from wholebody.push.figure_axes import FIGURE_DPI, Trace, mark_time, robust_ylim
 from wholebody.push.load_change import LoadChange
 from wholebody.push.loop import run_push
 
@@ -634,19 +634,21 @@ def _torque_figure(runs: dict[str, PushResult]) -> Figure:
 
 
 def save_figure_dict(figs: dict[str, Figure], out_dir: Path, prefix: str = "") -> list[Path]:
-    """Write each figure of ``figs`` as ``<prefix><name>.png`` in ``out_dir`` (created); return the paths."""
+    """Write each figure of ``figs`` as ``<prefix><name>.png`` at `FIGURE_DPI` in ``out_dir`` (created); return the
+    paths."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, fig in figs.items():
         path = out_dir / f"{prefix}{name}.png"
-        fig.savefig(path, dpi=90)
+        fig.savefig(path, dpi=FIGURE_DPI)
         paths.append(path)
     return paths
 
 
 def save_figures(runs: dict[str, PushResult], out_dir: Path) -> list[Path]:
-    """Write the `push_figures` as PNG (path.png, tracking_estimation.png, arm_torques.png); return the paths."""
+    """Write the `push_figures` as PNG at `FIGURE_DPI` (path.png, tracking_estimation.png, estimate.png,
+    hand_wrenches.png, arm_torques.png); return the paths."""
     return save_figure_dict(push_figures(runs), out_dir)
 
 
