@@ -19,7 +19,7 @@ FIGURE_DPI = 150
 #: the y range spans these percentiles of the samples that set it ...
 RANGE_PERCENTILES = (1.0, 99.0)
 #: ... widened on each side by this share of their spread, never beyond the samples' own extremes
-RANGE_WIDEN = 0.5
+RANGE_WIDEN = 1.0
 #: the range's margin, as a share of its span
 RANGE_PAD = 0.05
 
