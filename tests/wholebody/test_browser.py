@@ -336,6 +336,34 @@ def test_pause_button_and_space_bar_stop_and_resume_the_page(cli_pages):
         assert "pause" in page.evaluate(BUTTON)
 
 
+OVERLAY = (
+    "(function () { const r = document.getElementById('cartpush-overlay').getBoundingClientRect();"
+    " const c = document.getElementById('cartpush-charts-panel');"
+    " return {w: r.width, h: r.height, legend: document.getElementById('cartpush-legend').open, charts: c.open}; })()"
+)
+
+
+def test_the_overlay_leaves_the_scene_free_in_a_1024_x_768_window(cli_pages):
+    """In a 1024 x 768 window the push page's overlay is the player and the read-outs in a strip of the bottom-left
+    corner: its legend opens folded (a click opens it); in a large window it opens open. The charts fold too."""
+    from wholebody.viz.browser import DevToolsPage
+    from wholebody.viz.page import LEGEND_FOLD_SHARE
+
+    with DevToolsPage(chromium(), cli_pages["push"], size=(WIDTH, HEIGHT)) as page:
+        _wait_for(page, f"{CLOCK} > 0.1")
+        box = page.evaluate(OVERLAY)
+        assert box["legend"] is False and box["charts"] is True
+        assert box["h"] <= LEGEND_FOLD_SHARE * HEIGHT and box["w"] <= 0.45 * WIDTH, box
+        assert box["w"] * box["h"] < 0.08 * WIDTH * HEIGHT, f"the overlay covers {box} of a {WIDTH} x {HEIGHT} window"
+        page.click("cartpush-legend-toggle")
+        page.click("cartpush-charts-toggle")
+        box = page.evaluate(OVERLAY)
+        assert box["legend"] is True and box["charts"] is False
+    with DevToolsPage(chromium(), cli_pages["push"], size=(1920, 1200)) as page:
+        _wait_for(page, f"{CLOCK} > 0.1")
+        assert page.evaluate(OVERLAY)["legend"] is True
+
+
 def test_notebook_iframe_inflates_and_renders_the_scene(tmp_path):
     """`Scene.iframe()` (gzipped page in srcdoc, as notebooks show it) renders the robot and the cart in a browser."""
     with pushing_scene(CART_POSE) as scene:

@@ -152,7 +152,7 @@ def test_the_cursor_follows_the_page_time_in_a_browser(tmp_path):
         png = tmp_path / f"t{when}.png"
         screenshot(CHROMIUM, page, png, size=(1024, 640), fragment=f"#t={when}", budget_ms=3000)
         rgb = np.asarray(Image.open(png).convert("RGB"), dtype=int)
-        rgb = rgb[:, rgb.shape[1] - CHART_WIDTH - 20 :]  # the charts sit bottom right
+        rgb = rgb[:, rgb.shape[1] - CHART_WIDTH - 20 : -8]  # the charts sit bottom right, 8 px from the edge
         plot_rows = (rgb.min(axis=2) >= 245).sum(axis=1) > 100  # the plot's white background
         dark = (rgb[plot_rows].max(axis=2) < 170).sum(axis=0)  # the cursor's pixels per column
         xs.append(int(np.argmax(dark)))

@@ -20,6 +20,7 @@ import numpy as np
 from cart.errors import CartError
 from cart.logs import CartLog, write_log
 from wholebody.push.config import LOST_TRACKING_M, PushConfig, PushResult
+from wholebody.push.figure_axes import FIGURE_DPI, Trace, mark_time, robust_ylim
 from wholebody.push.load_change import LoadChange
 from wholebody.push.loop import run_push
 
@@ -225,17 +226,20 @@ def push_log(result: PushResult) -> CartLog:
 def push_figures(runs: dict[str, PushResult]) -> dict[str, Figure]:
     """Return the figures comparing the runs, name -> matplotlib Figure (no backend is selected or touched).
 
-    ``path``: the cart's path of each run and the base of robot 1 (dotted, same
-    colour), the first run drawn on top; ``tracking_estimation``: tracking error
-    (mm), mass and CoM (cm) errors over time with the estimate's 1-sigma, the 1 kg /
-    1 cm bands and the stretches where the 1-sigma grew (no new information),
-    hand force; ``estimate``: the estimated mass and CoM with their 1-sigma band
+    ``path``: the cart's path of each run and the base of each of its robots (same
+    colour, a line style per robot), the first run drawn on top, where a cart was lost
+    marked; ``tracking_estimation``: tracking error (mm), mass and CoM (cm) errors
+    over time with the estimate's 1-sigma, the 1 kg / 1 cm bands and the stretches
+    where the 1-sigma grew (no new information), hand force, one legend under the
+    panels; ``estimate``: the estimated mass and CoM with their 1-sigma band
     against the plant's truth, the detected load changes and run-off flags marked
     (`_estimate_figure`); ``hand_wrenches``: the cart wrench the hands were
     allocated against the one they produced (the first MuJoCo run's, else the
     first run's; `_wrench_figure`); ``arm_torques``: each joint's torque as a share
     of its limit, the limits at +-100 %, legend outside the axes. A lost cart's
-    loss time is marked on the time plots.
+    loss time is a labelled red line on every time plot. The y ranges of the time
+    plots come from the data before any loss (`figure_axes.robust_ylim`): a spike
+    they clip is named on its panel.
     """
     physics = [label for label, r in runs.items() if _is_physics(r)]
     shown = physics[0] if physics else next(iter(runs))
@@ -253,6 +257,40 @@ def _style(i: int) -> tuple[str, str]:
     return f"C{i % 10}", "-" if i == 0 else "--"
 
 
+#: line style of robot k's base on the path figure (robot 1 dotted, robot 2 dash-dotted, ...)
+BASE_STYLES = (":", "-.", (0, (1, 3)), (0, (6, 2, 1, 2, 1, 2)))
+
+
+def _distinct_bases(robot_x: np.ndarray) -> list[int]:
+    """Return the robots (indices into ``robot_x``'s second axis) whose base drove its own path: one base holding
+    several hands is listed once."""
+    kept: list[int] = []
+    for k in range(robot_x.shape[1]):
+        if not any(np.allclose(robot_x[:, k, :2], robot_x[:, j, :2], atol=1e-6) for j in kept):
+            kept.append(k)
+    return kept
+
+
+def _run_paths(ax, i: int, label: str, r: PushResult) -> list:
+    """Draw run i's cart path, each robot's base path (same colour, `BASE_STYLES`) and where the cart was lost;
+    return the drawn lines in legend order."""
+    c, ls = _style(i)
+    lw, z = (1.2, 4) if i == 0 else (2.4, 3)
+    lines = ax.plot(r.q_true[:, 0], r.q_true[:, 1], ls, color=c, lw=lw, zorder=z, label=f"cart, {label}")
+    for k in _distinct_bases(r.robot_x):
+        style = BASE_STYLES[k % len(BASE_STYLES)]
+        x, y = r.robot_x[:, k, 0], r.robot_x[:, k, 1]
+        lines += ax.plot(x, y, ls=style, color=c, lw=lw, zorder=z, label=f"robot {k + 1} base, {label}")
+    t_lost = r.metrics.tracking_lost_at_s
+    if t_lost is not None:
+        x, y = r.q_true[min(int(np.searchsorted(r.t, t_lost)), len(r.t) - 1), :2]
+        lines += ax.plot(x, y, "X", color="r", mec="k", ms=10, zorder=6, label=f"cart lost at {t_lost:.2f} s, {label}")
+        ax.annotate(
+            f"cart lost {t_lost:.2f} s", (x, y), xytext=(6, 6), textcoords="offset points", color="r", fontsize=7
+        )
+    return lines
+
+
 def _path_figure(runs: dict[str, PushResult]) -> Figure:
     """Return the cart and base paths; the first run is drawn last (on top), thinner, so none hides another."""
     from matplotlib.figure import Figure
@@ -260,16 +298,10 @@ def _path_figure(runs: dict[str, PushResult]) -> Figure:
     first = next(iter(runs.values()))
     fig = Figure(figsize=(7, 5.5), layout="constrained")
     ax = fig.subplots()
-    ax.plot(first.q_desired[:, 0], first.q_desired[:, 1], "k-", lw=4, alpha=0.2, label="desired cart path")
-    for i, (label, r) in reversed(list(enumerate(runs.items()))):
-        c, ls = _style(i)
-        lw, z = (1.2, 4) if i == 0 else (2.4, 3)
-        ax.plot(r.q_true[:, 0], r.q_true[:, 1], ls, color=c, lw=lw, zorder=z, label=f"cart, {label}")
-        ax.plot(r.robot_x[:, 0, 0], r.robot_x[:, 0, 1], ":", color=c, lw=lw, zorder=z, label=f"robot 1 base, {label}")
-    handles, labels = ax.get_legend_handles_labels()
-    pairs = (len(labels) - 1) // 2  # (cart, base) per run, last run first: list the first run first
-    order = [0] + [k for j in reversed(range(pairs)) for k in (1 + 2 * j, 2 + 2 * j)]
-    ax.legend([handles[k] for k in order], [labels[k] for k in order], fontsize=7, loc="best")
+    handles = ax.plot(first.q_desired[:, 0], first.q_desired[:, 1], "k-", lw=4, alpha=0.2, label="desired cart path")
+    drawn = {i: _run_paths(ax, i, label, r) for i, (label, r) in reversed(list(enumerate(runs.items())))}
+    handles += [line for i in sorted(drawn) for line in drawn[i]]  # the first run listed first
+    ax.legend(handles=handles, fontsize=7, loc="best")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal", adjustable="datalim")
@@ -331,41 +363,70 @@ def _estimator_events(axes, r: PushResult, colour: str, label: str, slot: int = 
         )
 
 
+#: the tracking_estimation panels: y label, unit of a clipping note, seconds from the start left out of the y range
+#: (the estimate's convergence; the metrics' "after 5 s"), and the least top of the range (the bands show)
+ESTIMATION_PANELS = (
+    ("tracking error [mm]", "mm", 0.0, 0.0),
+    ("mass error |m_hat - m| [kg]", "kg", 5.0, 3.0),
+    ("CoM error [cm]", "cm", 5.0, 5.0),
+    ("hand force |f| [N]", "N", 0.0, 0.0),
+)
+
+
+def _estimation_series(r: PushResult) -> tuple[np.ndarray, ...]:
+    """Return the run's tracking error [mm], mass error [kg], CoM error [cm] and hand force [N] over time."""
+    mass_error, com_error = _errors(r)
+    tracking = 1e3 * np.hypot(*(r.q_true[:, :2] - r.q_desired[:, :2]).T)
+    return tracking, mass_error, com_error, np.linalg.norm(r.wrenches[:, 0, :3], axis=1)
+
+
+def _before_loss_mask(r: PushResult) -> np.ndarray:
+    """Return which samples of the run come before the cart was lost (all of them when it was not)."""
+    return r.t < (r.metrics.tracking_lost_at_s or math.inf)
+
+
+def _estimation_run(axes, i: int, label: str, r: PushResult) -> None:
+    """Draw one run on the tracking_estimation panels: its errors and force, the estimate's 1-sigma, the
+    unobservable stretches, the estimator's events and the loss of the cart."""
+    c, ls = _style(i)
+    for ax, y in zip(axes, _estimation_series(r)):
+        ax.plot(r.t, y, ls, color=c, label=label)
+    if r.config.estimation:
+        _std_lines(axes[1:3], r, c, label)
+        _shade(axes[1], r.metrics.mass_unobservable_s, c, f"mass unobservable (estimate held), {label}")
+        _shade(axes[2], r.metrics.com_unobservable_s, c, f"CoM unobservable (estimate held), {label}")
+        _estimator_events(axes[1:3], r, c, label, slot=i)
+    for ax in axes:
+        _mark_loss(ax, r, label=True, slot=i)
+
+
+def _estimation_limits(axes, runs: dict[str, PushResult]) -> None:
+    """Set each panel's y range from the runs' samples after its settling time and before any loss
+    (`figure_axes.robust_ylim`: what it clips is named on the panel)."""
+    series = {label: _estimation_series(r) for label, r in runs.items()}
+    for k, (ax, (_, unit, settle, least)) in enumerate(zip(axes, ESTIMATION_PANELS)):
+        traces = [Trace(r.t, series[label][k], _before_loss_mask(r) & (r.t >= settle)) for label, r in runs.items()]
+        robust_ylim(ax, traces, unit, zero_bottom=True, at_least=least)
+
+
 def _estimation_figure(runs: dict[str, PushResult]) -> Figure:
-    """Return tracking error [mm], mass error [kg], CoM error [cm] and hand force over time."""
+    """Return tracking error [mm], mass error [kg], CoM error [cm] and hand force over time; one legend under the
+    panels (beside them it took a third of their width)."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(7.5, 10), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)
     for i, (label, r) in enumerate(runs.items()):
-        c, ls = _style(i)
-        mass_error, com_error = _errors(r)
-        axes[0].plot(r.t, 1e3 * np.hypot(*(r.q_true[:, :2] - r.q_desired[:, :2]).T), ls, color=c, label=label)
-        axes[1].plot(r.t, mass_error, ls, color=c, label=label)
-        axes[2].plot(r.t, com_error, ls, color=c, label=label)
-        axes[3].plot(r.t, np.linalg.norm(r.wrenches[:, 0, :3], axis=1), ls, color=c, label=label)
-        if r.config.estimation:
-            _std_lines(axes[1:3], r, c, label)
-            _shade(
-                axes[1], r.metrics.mass_unobservable_s, c, f"mass unobservable (1-sigma grows, estimate held), {label}"
-            )
-            _shade(
-                axes[2], r.metrics.com_unobservable_s, c, f"CoM unobservable (1-sigma grows, estimate held), {label}"
-            )
-            _estimator_events(axes[1:3], r, c, label, slot=i)
-    for a, band, unit in ((axes[1], 1.0, "1 kg"), (axes[2], 1.0, "1 cm")):
-        a.axhspan(0.0, band, color="g", alpha=0.12, lw=0, label=f"within {unit}")
-    metrics = [r.metrics for r in runs.values()]  # y range: the errors after 5 s (the start transient is clipped)
-    axes[1].set_ylim(0.0, max(3.0, 1.3 * max(m.mass_error_max_after_5s_kg for m in metrics)))
-    axes[2].set_ylim(0.0, max(5.0, 130.0 * max(m.com_error_max_after_5s_m for m in metrics)))
-    labels = ("tracking error [mm]", "mass error |m_hat - m| [kg]", "CoM error [cm]", "hand force |f| [N]")
-    for a, lab in zip(axes, labels):
-        a.set_ylabel(lab), a.grid(alpha=0.3)
-        handles, names = a.get_legend_handles_labels()  # wrapped: a long run label took most of the width
-        names = [textwrap.fill(t, LEGEND_COLUMN_CHARS // 2) for t in names]
-        a.legend(handles, names, fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        _estimation_run(axes, i, label, r)
+    for a, unit in ((axes[1], "1 kg"), (axes[2], "1 cm")):
+        a.axhspan(0.0, 1.0, color="g", alpha=0.12, lw=0, label=f"within {unit}")
+    _estimation_limits(axes, runs)
+    for a, (name, *_) in zip(axes, ESTIMATION_PANELS):
+        a.set_ylabel(name), a.grid(alpha=0.3)
+    _figure_legend(fig, axes, 6)
     fig.suptitle(
-        "errors over time (start transient clipped); dotted: the estimate's 1-sigma\n"
+        "errors over time (y ranges from the data after the start transient and before any loss: a clipped peak "
+        "is named on its panel)\ndotted: the estimate's 1-sigma; "
         "black vertical lines: load changes found (triangle: the run's colour; dashed: when detected)\n"
         "shaded: the 1-sigma grew for >= 1 s "
         "(no new information from the pushes: the estimate is held, not updated; it may still be right)",
@@ -380,14 +441,15 @@ def _is_physics(result: PushResult) -> bool:
     return (result.plant_report or {}).get("plant") == "mujoco"
 
 
-def _mark_loss(ax, result: PushResult, label: bool = True) -> None:
-    """Shade the time after the cart was lost (`PushMetrics.tracking_lost_at_s`): a failed push, not a result."""
+def _mark_loss(ax, result: PushResult, label: bool = True, slot: int = 0) -> None:
+    """Shade the time after the cart was lost (`PushMetrics.tracking_lost_at_s`): a failed push, not a result; a red
+    line at the loss says when (its label lower for each later run `slot`)."""
     t_lost = result.metrics.tracking_lost_at_s
     if t_lost is not None:
         ax.axvspan(
             t_lost, result.t[-1], color="r", alpha=0.08, lw=0, label="cart lost (a failed push)" if label else None
         )
-        ax.axvline(t_lost, color="r", lw=1.0)
+        mark_time(ax, t_lost, f"cart lost {t_lost:.2f} s", slot=slot)
 
 
 def _in_b(result: PushResult, gamma: np.ndarray) -> np.ndarray:
@@ -444,14 +506,16 @@ def _wrench_figure(result: PushResult, label: str) -> Figure:
     fig = Figure(figsize=(7.5, 7.5), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
     names = ("forward force f_x in {b} [N]", "lateral force f_y in {b} [N]", "yaw torque about {b} [N m]")
+    before = _before_loss_mask(result)
     for j, (ax, name) in enumerate(zip(axes, names)):
         ax.plot(result.t, desired[:, j], ":", color="k", lw=1.0, label="desired by the cart controller (eq. 26)")
         ax.plot(result.t, allocated[:, j], "-", color="C2", lw=1.6, label="allocated to the hands (eq. 25)")
         ax.plot(result.t, produced[:, j], "-", color="C0", lw=0.8, label=source)
         _mark_loss(ax, result, label=j == 0)
         ax.set_ylabel(name, fontsize=8), ax.grid(alpha=0.3)
-    _figure_legend(fig, axes[0], 7)
-    before = result.t < (result.metrics.tracking_lost_at_s or math.inf)
+        traces = [Trace(result.t, w[:, j], before) for w in (desired, allocated, produced)]
+        robust_ylim(ax, traces, "N m" if j == 2 else "N")
+    _figure_legend(fig, axes, 7)
     err = np.linalg.norm((produced - allocated)[before, :2], axis=1)
     force = np.linalg.norm(allocated[before, :2], axis=1)
     rms = lambda v: float(np.sqrt(np.mean(v**2))) if v.size else math.nan
@@ -522,7 +586,7 @@ def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
             for k, change in enumerate(r.load_changes_true):
                 tag = f"load put in / taken out (truth), {label}" if j == 0 and k == 0 else None
                 ax.axvline(change["t_applied"], color=c, ls=":", lw=1.0, label=tag)
-            _mark_loss(ax, r, label=j == 0 and i == 0)
+            _mark_loss(ax, r, label=j == 0 and i == 0, slot=i)
             seen = np.r_[est[before, j], truth]
             lows[j], highs[j] = min(lows[j], np.nanmin(seen)), max(highs[j], np.nanmax(seen))
         if r.config.estimation:
@@ -531,7 +595,7 @@ def _estimate_figure(runs: dict[str, PushResult]) -> Figure:
         pad = max(0.1 * (hi - lo), 1.0)
         ax.set_ylim(lo - pad, hi + pad)
         ax.set_ylabel(name), ax.grid(alpha=0.3)
-    _figure_legend(fig, axes[0], 6)
+    _figure_legend(fig, axes, 6)
     fig.suptitle(
         "the estimate (band: its 1-sigma; the CoM's is the norm over x and y) against the truth (thick pale line);\n"
         "black vertical lines: load changes found (triangle: the run's colour; dashed: when detected);\n"
@@ -562,6 +626,7 @@ def _torque_figure(runs: dict[str, PushResult]) -> Figure:
         peak = float(np.max(np.abs(ratio)))
         a.set_ylim(-max(110.0, 1.1 * peak), max(110.0, 1.1 * peak))
         a.set_title(f"{label}: peak {peak:.0f} % of a limit", fontsize=8)
+        _mark_loss(a, r)
         a.set_ylabel("tau / effortLimit [%]"), a.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("t [s]")
@@ -569,19 +634,21 @@ def _torque_figure(runs: dict[str, PushResult]) -> Figure:
 
 
 def save_figure_dict(figs: dict[str, Figure], out_dir: Path, prefix: str = "") -> list[Path]:
-    """Write each figure of ``figs`` as ``<prefix><name>.png`` in ``out_dir`` (created); return the paths."""
+    """Write each figure of ``figs`` as ``<prefix><name>.png`` at `FIGURE_DPI` in ``out_dir`` (created); return the
+    paths."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, fig in figs.items():
         path = out_dir / f"{prefix}{name}.png"
-        fig.savefig(path, dpi=90)
+        fig.savefig(path, dpi=FIGURE_DPI)
         paths.append(path)
     return paths
 
 
 def save_figures(runs: dict[str, PushResult], out_dir: Path) -> list[Path]:
-    """Write the `push_figures` as PNG (path.png, tracking_estimation.png, arm_torques.png); return the paths."""
+    """Write the `push_figures` as PNG at `FIGURE_DPI` (path.png, tracking_estimation.png, estimate.png,
+    hand_wrenches.png, arm_torques.png); return the paths."""
     return save_figure_dict(push_figures(runs), out_dir)
 
 
@@ -1454,13 +1521,17 @@ def _fit(result: PushResult) -> str:
 LEGEND_COLUMN_CHARS = 48
 
 
-def _figure_legend(fig, ax, fontsize: int) -> None:
-    """Put `ax`'s legend under the figure: two columns of short entries, else one of entries wrapped to fit (a run
-    label with a load change or a profile path ran off both sides of the figure)."""
-    handles, labels = ax.get_legend_handles_labels()
+def _figure_legend(fig, axes, fontsize: int) -> None:
+    """Put the `axes`' legend entries (each label once) under the figure: two columns of short entries, else one of
+    entries wrapped to fit (a run label with a load change or a profile path ran off both sides of the figure)."""
+    entries: dict[str, object] = {}
+    for ax in axes:
+        for handle, text in zip(*ax.get_legend_handles_labels()):
+            entries.setdefault(text, handle)
+    labels = list(entries)
     wide = any(len(t) > LEGEND_COLUMN_CHARS for t in labels)
     labels = [textwrap.fill(t, 2 * LEGEND_COLUMN_CHARS) for t in labels] if wide else labels
-    fig.legend(handles, labels, loc="outside lower center", ncols=1 if wide else 2, fontsize=fontsize)
+    fig.legend(list(entries.values()), labels, loc="outside lower center", ncols=1 if wide else 2, fontsize=fontsize)
 
 
 def _print_demo(runs: dict[str, PushResult], table: str, out_dir: Path, seconds: float, html: bool) -> None:

@@ -4,7 +4,7 @@
 An animated page **plays when opened** and loops; its overlay (bottom left) has
 a pause/play button (the space bar toggles it too), the animation time, live
 read-outs (e.g. the hand force in N) and the legend saying what each colour and
-arrow means. ``#t=<s>`` in the URL opens the page paused at that time,
+arrow means (folded when the window is too small for it). ``#t=<s>`` in the URL opens the page paused at that time,
 ``#pause`` opens it paused at the start, ``#t=<s>&play`` plays from there.
 """
 
@@ -207,7 +207,8 @@ def chart_svg(chart: Chart, index: int) -> str:
 
 
 def charts_html(charts: Sequence[Chart]) -> str:
-    """Return the charts' panel (bottom right): each chart, then one key to the lines and marks they use."""
+    """Return the charts' panel (bottom right): each chart, then one key to the lines and marks they use; a click on
+    its "charts" line folds it away to free the view."""
     if not charts:
         return ""
     kinds = sorted({kind for c in charts for _, kind in c.marks}, key=list(MARKS).index)
@@ -217,7 +218,10 @@ def charts_html(charts: Sequence[Chart]) -> str:
         f'<span style="color: {CHART_TRUTH}">- - truth</span>',
     ] + [f'<span style="color: {MARKS[k][0]}">| {MARKS[k][2]}</span>' for k in kinds]
     body = "".join(f"<div>{chart_svg(c, i)}</div>" for i, c in enumerate(charts))
-    return f'<div id="cartpush-charts">{body}<div class="cp-key">{" &nbsp;".join(key)}</div></div>'
+    return (
+        '<div id="cartpush-charts"><details id="cartpush-charts-panel" open><summary id="cartpush-charts-toggle">'
+        f'charts</summary>{body}<div class="cp-key">{" &nbsp;".join(key)}</div></details></div>'
+    )
 
 
 def camera_js(camera: Camera) -> str:
@@ -370,7 +374,8 @@ _SWATCH = {
 def overlay_html(legend: Sequence[LegendEntry], animated: bool, readouts: Sequence[Readout] = ()) -> str:
     """Return the overlay (bottom left): player and read-outs of an animated page, then the legend; '' when empty.
 
-    The legend is a ``<details>`` block (open; a click on its "legend" line folds it away to free the view).
+    The legend is a ``<details>`` block (open; a click on its "legend" line folds it away to free the view); the
+    page folds it when it opens in a window too small for it (`FOLD_LEGEND_JS`).
     """
     rows = []
     if animated:
@@ -397,13 +402,26 @@ def overlay_html(legend: Sequence[LegendEntry], animated: bool, readouts: Sequen
     return '<div id="cartpush-overlay">' + "".join(rows) + "</div>"
 
 
+#: the overlay's open legend may take at most this share of the window's height: taller, the page opens it folded
+#: (a 1024 x 768 window: the player, the read-outs and the legend line stay, the scene above them is free)
+LEGEND_FOLD_SHARE = 0.25
+
+#: folds the legend when the overlay with it open is taller than `LEGEND_FOLD_SHARE` of the window (run on load,
+#: after the read-outs are filled)
+FOLD_LEGEND_JS = """(function () {
+  const box = document.getElementById("cartpush-overlay"), legend = document.getElementById("cartpush-legend");
+  if (box && legend && box.getBoundingClientRect().height > __SHARE__ * window.innerHeight) legend.open = false;
+})();
+""".replace("__SHARE__", str(LEGEND_FOLD_SHARE))
+
 _OVERLAY_CSS = (
-    "#cartpush-overlay {position: absolute; left: 8px; bottom: 8px; max-width: 520px; padding: 6px 9px;"
-    " font: 12px/1.45 'DejaVu Sans', sans-serif; color: #111; background: rgba(255, 255, 255, 0.85);"
+    "#cartpush-overlay {position: absolute; left: 8px; bottom: 8px; max-width: min(520px, 42vw); padding: 5px 8px;"
+    " max-height: calc(100vh - 16px); overflow-y: auto; box-sizing: border-box;"
+    " font: 11px/1.35 'DejaVu Sans', sans-serif; color: #111; background: rgba(255, 255, 255, 0.85);"
     " border-radius: 4px; z-index: 10;}"
     " .cp-swatch {display: inline-block; vertical-align: middle;}"
-    " #cartpush-legend summary {cursor: pointer; color: #555;}"
-    " #cartpush-play {font: 12px 'DejaVu Sans', sans-serif; min-width: 70px; margin-right: 6px;}"
+    " #cartpush-legend summary, #cartpush-charts summary {cursor: pointer; color: #555;}"
+    " #cartpush-play {font: 11px 'DejaVu Sans', sans-serif; min-width: 64px; margin-right: 6px;}"
     " #cartpush-charts {position: absolute; right: 8px; bottom: 8px; padding: 4px 6px;"
     " font: 11px/1.4 'DejaVu Sans', sans-serif; background: rgba(255, 255, 255, 0.85); border-radius: 4px; z-index: 10;}"
     " #cartpush-charts svg {font-family: 'DejaVu Sans', sans-serif; display: block;}"
@@ -426,7 +444,8 @@ def static_html(
 
     An `animated` page gets `animation_js` (plays on open unless `autoplay` is
     False, pause button, ``#t=<s>`` seeks, camera following the nodes `follow`)
-    and the overlay shows the player, the `readouts` and the `legend`; its `charts` (bottom right) plot
+    and the overlay shows the player, the `readouts` and the `legend` (folded when the window is too small for it,
+    `LEGEND_FOLD_SHARE`); its `charts` (bottom right) plot
     estimates over time with a cursor at the page's time. Each distinct mesh file (any value of 1 KiB or
     more) is written once however many commands carry it (`wholebody.viz.lowering.replay_js`).
     """
@@ -447,7 +466,7 @@ def static_html(
 </script>
 <script>
 var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
-{replay_js(commands)}{camera_js(camera) if camera is not None else ""}{script}
+{replay_js(commands)}{camera_js(camera) if camera is not None else ""}{script}{FOLD_LEGEND_JS}
 </script>
 </body>
 </html>
