@@ -69,6 +69,7 @@ from cart.diagnose_checks import (
     unexplained_slip,
 )
 from cart.diagnose_prep import prepare_log
+from cart.coloured_evidence import NOISE_KEY, evidence_inflation, fit_wrench_noise
 from cart.diagnose_replay import Replay, flag_starts, merge_windows, replay
 from cart.diagnose_report import (  # noqa: F401  (re-exported: the report is part of this module's API)
     PARAMETER_UNITS,
@@ -866,12 +867,38 @@ def clear_of(sig: Signals, edges: np.ndarray, spans: np.ndarray) -> np.ndarray:
     return keep & (np.cumsum(hit)[:-1] == 0)
 
 
+def _residual_rows(fit: Fit) -> np.ndarray:
+    """Return the fit's residual (N, 3) along the log: forward force, yaw torque, lateral speed of {b}."""
+    sig = fit.signals()
+    extra, dphi = _replay_terms(fit)
+    a_s = sig.extras["base"][0]
+    pred = a_s @ fit.x
+    if dphi is not None:
+        pred += np.einsum("nrk,nk->nr", a_s[:, :, :4], dphi)
+    meas = measured_rows(sig)
+    return np.column_stack([meas[:, 0] + extra[:, 0], meas[:, 1] + extra[:, 1], meas[:, 2] - extra[:, 2]]) - pred
+
+
+def _coloured_gain(sig: Signals, edges: np.ndarray, current: Fit, fit: Fit, base_rows: np.ndarray) -> float:
+    """Return -2 Delta log L of ``fit`` over ``current``, divided by the inflation coloured F/T noise gives it.
+
+    :func:`cart.coloured_evidence.evidence_inflation` of the change the fit makes to the residual rows
+    (``base_rows``: ``current``'s); 1 on a log whose wrench noise is white.
+    """
+    gain = current.m2ll - fit.m2ll
+    if not gain > 0.0 or fit.sig is None or not np.all(np.isfinite(fit.x)):
+        return gain
+    change = base_rows - _residual_rows(fit)
+    return gain / evidence_inflation(sig, edges, change, current.rss)
+
+
 def _rank_candidates(
     sig: Signals, edges: np.ndarray, current: Fit, cands: Sequence[Effect], named: Sequence[str]
 ) -> list[_Ranked]:
     """Return every candidate not yet named with its variants ranked by Delta BIC, best candidate first."""
     n_obs = 3 * _n_windows(sig, len(edges) - 1)
     results = []
+    base_rows = _residual_rows(current)
     for e in cands:
         if e.name in named:
             continue
@@ -879,7 +906,8 @@ def _rank_candidates(
         for ev in e.variants():  # nested parameterisations of one effect: ranked by their best Delta BIC
             fit, nl_std = _fit_candidate(sig, edges, current, ev)
             for f in [fit] + fit.alternatives:
-                tried.append(_Trial((current.m2ll - f.m2ll) - ev.n_params * math.log(n_obs), ev, f, nl_std))
+                gain = _coloured_gain(sig, edges, current, f, base_rows)
+                tried.append(_Trial(gain - ev.n_params * math.log(n_obs), ev, f, nl_std))
         tried.sort(key=lambda r: -r.dbic if np.isfinite(r.dbic) else np.inf)
         results.append(_Ranked(tried))
     results.sort(key=lambda r: -r.best.dbic)
@@ -1243,7 +1271,9 @@ def _frame_mixture(
     The fit's std assumes independent window residuals; a model that misses something leaves residuals
     correlated from window to window (lag-1 correlation rho > 0), and the std is inflated by
     sqrt((1 + rho) / (1 - rho)) (the AR(1) variance factor), so a misfit that happens to lean on the
-    column is not read as a frame.
+    column is not read as a frame; or, when larger, by the square root of the column's inflation under
+    the log's measured F/T noise spectrum (:func:`cart.coloured_evidence.evidence_inflation`: flicker noise
+    is correlated far beyond one window).
     """
     eff = list(effects) + [(_FrameMix(as_logged.f_fwd - alt.f_fwd), ())]
     fit = fit_model(replace(as_logged, extras=dict(as_logged.extras)), edges, eff)
@@ -1254,7 +1284,10 @@ def _frame_mixture(
     r = (y - d @ x)[:, 0]
     rho = float(np.sum(r[1:] * r[:-1]) / max(float(np.sum(r * r)), 1e-300)) if len(r) > 2 else 0.0
     rho = min(rho, 0.95)
-    inflate = math.sqrt(max(1.0, (1.0 + rho) / (1.0 - rho)))
+    column = np.zeros((as_logged.n, 3))
+    column[:, 0] = as_logged.f_fwd - alt.f_fwd
+    coloured = evidence_inflation(as_logged, edges, column, fit.rss)
+    inflate = math.sqrt(max(1.0, (1.0 + rho) / (1.0 - rho), coloured))
     return _FrameMixTest(float(fit.thetas[-1][0]), inflate * math.sqrt(max(float(fit.cov[-1, -1]), 0.0)), rho)
 
 
@@ -1770,6 +1803,7 @@ def diagnose(
     sig, horizon, edges = _checked_signals(prep.log, horizon, window, prep.wrench_holes)
     cands = list(candidates) if candidates is not None else registered_effects()
     nominal, warnings = _nominal_fit(sig, edges, log.source)
+    sig.extras[NOISE_KEY] = fit_wrench_noise(sig)
     rep0 = replay(sig, nominal.x, horizon=horizon)
     flagged, mask = _replay_mask(rep0, horizon, prep.wrench_holes)
     slip_ratio = lateral_slip_ratio(sig, sig.extras["base"][2][:, 2], edges, sig.extras.get(KEEP_KEY))

@@ -149,7 +149,9 @@ def periodogram(r: np.ndarray, dt: float, seg: int) -> tuple[np.ndarray, np.ndar
     return np.fft.rfftfreq(seg, dt), p
 
 
-def fit_spectrum(r: np.ndarray, dt: float, band: tuple[float, float], f_min: float) -> SpectralNoise:
+def fit_spectrum(
+    r: np.ndarray, dt: float, band: tuple[float, float], f_min: float, with_ar1: bool = True
+) -> SpectralNoise:
     """Return the :class:`SpectralNoise` fitted to the periodogram of ``r`` (period ``dt``) over ``band`` (Hz).
 
     The band lies above the regression's cut-off, where the model's residual is the sensor's noise (the
@@ -159,7 +161,9 @@ def fit_spectrum(r: np.ndarray, dt: float, band: tuple[float, float], f_min: flo
     the least weighted log-spectral error is kept; the PSD is the larger of it and the AR(1) model's
     (:func:`fit_ar1`), or the AR(1) model's alone unless the power law's error is ``FLICKER_CHI2`` below both
     the white fit's (alpha 0) and the AR(1) model's.
-    Below the band the power law is extrapolated down to ``f_min``.
+    Below the band the power law is extrapolated down to ``f_min``. ``with_ar1=False``: the power law alone
+    (white when the flicker component does not pass ``FLICKER_CHI2``), for an ``r`` whose slow part is not
+    noise (a raw wrench, which carries the cart's own dynamics below the band).
     """
     f_max = 0.5 / dt
     lo, hi = max(band[0], 2.0 * f_min), min(band[1], f_max)
@@ -173,11 +177,11 @@ def fit_spectrum(r: np.ndarray, dt: float, band: tuple[float, float], f_min: flo
     pb = np.array([np.mean(p[idx == i]) for i in used])
     # log of a mean of K chi-square(2) / 2 values has a variance of about 1 / K (half-overlapping segments)
     kb = np.array([np.sum(idx == i) for i in used]) * max(len(r) // seg, 1)
-    ar1 = fit_ar1(r, dt)
+    ar1 = fit_ar1(r, dt) if with_ar1 else None
     only_ar1 = SpectralNoise(0.0, 0.0, 0.0, lo, f_min, f_max, ar1)
     if len(fb) < 4 or not np.all(pb > 0):
         return only_ar1
-    best, err_white = (math.inf, 0.0, 0.0, 0.0), math.inf
+    best, err_white, white_level = (math.inf, 0.0, 0.0, 0.0), math.inf, float(np.mean(pb))
     for alpha in ALPHAS:
         g = (fb / lo) ** (-alpha)
         basis = np.column_stack([np.ones_like(fb), g]) / pb[:, None]
@@ -186,9 +190,14 @@ def fit_spectrum(r: np.ndarray, dt: float, band: tuple[float, float], f_min: flo
             coef = np.array([float(np.mean(pb)), 0.0]) if coef[1] < 0 else np.array([0.0, float(np.mean(pb / g))])
         model = coef[0] + coef[1] * g
         err = float(np.sum(kb * np.log(np.maximum(model, 1e-300) / pb) ** 2))
-        err_white = min(err_white, err) if alpha == 0.0 else err_white
+        if alpha == 0.0:
+            err_white, white_level = err, float(coef[0] + coef[1])
         if err < best[0] - 1e-12:
             best = (err, float(coef[0]), float(coef[1]), float(alpha))
+    if not with_ar1:
+        if err_white <= best[0] + FLICKER_CHI2 or best[2] <= 0:
+            return SpectralNoise(white_level, 0.0, 0.0, lo, f_min, f_max)
+        return SpectralNoise(best[1], best[2], best[3], lo, f_min, f_max)
     err_ar1 = float(np.sum(kb * np.log(only_ar1.psd(fb) / pb) ** 2))
     if min(err_ar1, err_white) <= best[0] + FLICKER_CHI2 or best[2] <= 0:
         return only_ar1  # the AR(1) model describes the band about as well: no flicker component
