@@ -983,7 +983,8 @@ def what_happened(result: PushResult, load_changes: list[dict] | None = None) ->
     """
     m, rep = result.metrics, result.plant_report or {}
     t_end = m.tracking_lost_at_s if m.tracking_lost_at_s is not None else math.inf
-    lines = [_outcome(result), *result.setup_notes] + _tipped(rep) + _hand_off_handle(result, t_end)
+    lines = [_outcome(result), *_lost_to_guess(result), *result.setup_notes] + _tipped(rep)
+    lines += _hand_off_handle(result, t_end)
     lines += _bases_overlap(result, t_end)
     lines += _saturation(m.saturation or {}, t_end)
     lines += _slowed(result, t_end)
@@ -1084,6 +1085,29 @@ def _far_guess(result: PushResult) -> list[str]:
         f"the mass estimate ended {ratio:.1f} x the initial guess ({m:.1f} kg for {cfg.initial_mass:g} kg): a guess "
         "that far off holds the estimate back; give one near the cart's mass (--initial-mass, and --initial-com "
         "for its centre of mass)"
+    ]
+
+
+def _lost_to_guess(result: PushResult) -> list[str]:
+    """Return a sentence when the cart was lost while the controller's mass (its estimate, or the frozen guess) was
+    `FAR_GUESS_RATIO` or more from the cart's: the feedforward pushed a cart of another mass, and the loss came
+    before the estimate could correct it (a guess in the wrong unit, or a bed taken for a shopping cart)."""
+    t_lost = result.metrics.tracking_lost_at_s
+    if t_lost is None or not len(result.t):
+        return []
+    k = min(int(np.searchsorted(result.t, t_lost)), len(result.t) - 1)
+    used, true = float(result.phi_hat[k, 0]), float(result.truth()[k, 0])
+    if not (used > 0 and true > 0) or 1.0 / FAR_GUESS_RATIO < true / used < FAR_GUESS_RATIO:
+        return []
+    source = (
+        f"its estimate, from the initial guess of {result.config.initial_mass:g} kg"
+        if result.config.estimation
+        else "the initial guess, frozen"
+    )
+    late = "the loss came before the estimate caught up" if result.config.estimation else "nothing corrected it"
+    return [
+        f"at the loss the controller took the cart for {used:.1f} kg ({source}); it weighs {true:.1f} kg "
+        f"({true / used:.2g} x): {late}; give a guess near the cart's mass (--initial-mass, in kg)"
     ]
 
 

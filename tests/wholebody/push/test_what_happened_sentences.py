@@ -119,6 +119,29 @@ def test_an_estimate_far_from_the_initial_guess_names_the_options():
     assert "on the cart's mass (120.4 kg for 120.3 kg)" in line and "holds the estimate back" not in line
 
 
+def test_a_loss_while_the_controller_took_the_cart_for_far_lighter_names_the_guess():
+    """The hospital bed at 495 kg lost at 2.22 s from the 16 kg default guess: the sentence names both masses; a
+    loss with the mass near the cart's, or no loss, says nothing."""
+    from wholebody.push.report import _lost_to_guess
+
+    def run(lost, m_hat: float, estimation: bool = True) -> SimpleNamespace:
+        t = 0.01 * np.arange(800)
+        m = np.where(t < 3.1, m_hat, 527.0)  # the estimate restarts from the pushes after the loss
+        return SimpleNamespace(
+            t=t,
+            phi_hat=np.column_stack([m, 0.3 * m, 0.0 * m, m]),
+            truth=lambda: np.tile([495.2, 0.8, 0.0, 80.0, 1.0], (t.size, 1)),
+            metrics=SimpleNamespace(tracking_lost_at_s=lost),
+            config=SimpleNamespace(estimation=estimation, initial_mass=16.0),
+        )
+
+    (line,) = _lost_to_guess(run(2.22, 16.0))
+    assert "took the cart for 16.0 kg (its estimate, from the initial guess of 16 kg)" in line
+    assert "it weighs 495.2 kg (31 x)" in line and "--initial-mass" in line
+    assert "the initial guess, frozen" in _lost_to_guess(run(2.22, 16.0, estimation=False))[0]
+    assert _lost_to_guess(run(None, 16.0)) == [] and _lost_to_guess(run(2.22, 480.0)) == []
+
+
 def test_wheels_at_their_speed_limit_are_reported_with_when_and_how_long():
     from wholebody.push.report import WHEEL_LIMIT_TIME, _wheels_at_limit
 
