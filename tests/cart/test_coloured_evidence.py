@@ -11,16 +11,6 @@ from cart.log_signals import signals_from_log, window_edges
 from cart.noise_model import SpectralNoise
 
 
-def _pink(n: int, dt: float, rng: np.random.Generator) -> np.ndarray:
-    """Return unit-std 1 / f noise (white noise shaped by 1 / sqrt(f) in the frequency domain)."""
-    f = np.fft.rfftfreq(n, dt)
-    spec = np.fft.rfft(rng.standard_normal(n))
-    spec[1:] /= np.sqrt(f[1:])
-    spec[0] = 0.0
-    e = np.fft.irfft(spec, n)
-    return e / np.std(e)
-
-
 def test_the_score_variance_of_window_weights_matches_a_simulation():
     dt, n, length = 0.005, 6000, 60  # 30 s, 0.3 s windows
     t = np.arange(n) * dt
@@ -42,6 +32,7 @@ def test_the_score_variance_of_window_weights_matches_a_simulation():
 
 def _log_with_noise(kind: str, seed: int = 3):
     from studies.testbeds import rigid_sim
+    from studies.testbeds.coloured_noise import coloured
 
     case = rigid_sim.random_case(seed, duration=40.0)
     case = replace(case, rate_hz=200.0, jitter=0.0, force_std=0.0, torque_std=0.0, vel_std=None)
@@ -51,7 +42,7 @@ def _log_with_noise(kind: str, seed: int = 3):
     if kind == "white":
         noise = rng.standard_normal((len(log.t), 3))
     else:
-        noise = np.column_stack([_pink(len(log.t), dt, rng) for _ in range(3)])
+        noise = np.column_stack([coloured("pink", len(log.t), dt, rng) for _ in range(3)])
     return replace(log, gamma=log.gamma + noise * [2.0, 2.0, 0.2], qd=None)
 
 
