@@ -498,10 +498,14 @@ def _check_against_ls(log: CartLog, p: CartParams, guess: CartParams, ls: Any) -
     ratio = p.m / m_ls
     if 1.0 / DIVERGED_LS_RATIO < ratio < DIVERGED_LS_RATIO:
         return
-    raise NumericalError(
-        f"{log.source}: the EKF diverged from the guesses (mass {guess.m:g} kg, CoM ({guess.dx:g}, {guess.dy:g}) m): "
-        f"its mass {p.m:.4g} kg is {ratio:.3g} x the least-squares {m_ls:.4g} +- {sd:.2g} kg; use the default method "
-        "(--method ls), or closer --mass-guess / --com-guess"
+    raise _diverged(log, guess, f"its mass {p.m:.4g} kg is {ratio:.3g} x the least-squares {m_ls:.4g} +- {sd:.2g} kg")
+
+
+def _diverged(log: CartLog, guess: CartParams, why: str) -> NumericalError:
+    """Return the error of an EKF run that diverged from ``guess``: ``why``, and the options that help."""
+    return NumericalError(
+        f"{log.source}: the EKF diverged from the guesses (mass {guess.m:g} kg, CoM ({guess.dx:g}, {guess.dy:g}) "
+        f"m): {why}; use the default method (--method ls), or closer --mass-guess / --com-guess"
     )
 
 
@@ -519,10 +523,7 @@ def _run_ekf(log: CartLog, streams: Streams, guess: CartParams) -> EstimateRepor
     p = est.params
     why = ekf_divergence(p, guess)
     if why:
-        raise NumericalError(
-            f"{log.source}: the EKF diverged from the guesses (mass {guess.m:g} kg, CoM ({guess.dx:g}, {guess.dy:g}) "
-            f"m): {why}; use the default method (--method ls), or closer --mass-guess / --com-guess"
-        )
+        raise _diverged(log, guess, why)
     fits = bool(math.isfinite(est.mean_nis) and est.mean_nis < NIS_MISFIT)
     warnings = log_notes(log, streams) + stream_notes(streams)
     if not fits:
