@@ -375,3 +375,28 @@ def test_change_weight_bad_input_and_minimum_effort_only_calls():
         alloc.closed_form_batch(np.array([_contacts(2)]), np.array([[10.0, 0.0, 0.0]]))
     with pytest.raises(WholeBodyError, match="change = 0"):
         alloc.closed_form_effort(np.array(_contacts(2)), np.array([10.0, 0.0, 0.0]))
+
+
+def test_a_saturated_allocation_does_not_carry_the_solvers_last_bits(monkeypatch):
+    """ProxQP's last bits depend on the heap; the closest allocation is the exact KKT point on its active set, so
+    two solver answers 1e-13 apart give the same wrenches to the bit (a saturated closed loop amplifies them)."""
+    import qpsolvers
+
+    from wholebody.contacts import allocation as allocation_module
+
+    solve_problem = qpsolvers.solve_problem
+    rng = np.random.default_rng(0)
+
+    def jittered(problem, **kwargs):
+        sol = solve_problem(problem, **kwargs)
+        if sol.x is not None and problem.A is None:  # the closest-wrench QP (no equality rows)
+            sol.x = sol.x * (1.0 + 1e-13 * rng.standard_normal(sol.x.shape))
+        return sol
+
+    monkeypatch.setattr(allocation_module.qpsolvers, "solve_problem", jittered)
+    alloc = WrenchAllocator(_contacts(2), ArmLimits(max_force=60.0, max_torque=8.0))
+    first, second = (alloc.solve([250.0, 40.0, 30.0], raise_on_infeasible=False) for _ in range(2))
+    assert first.residual > 1.0  # saturated: the closest-wrench QP answered
+    assert first.wrenches_ee.tobytes() == second.wrenches_ee.tobytes()
+    lim = alloc.Gin @ np.concatenate([w for w in first.wrenches_ee])[alloc.free] - alloc.hin
+    assert lim.max() <= 1e-9 * max(1.0, float(np.abs(alloc.hin).max()))

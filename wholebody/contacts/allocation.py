@@ -697,6 +697,29 @@ class WrenchAllocator:
             return sol
         return x
 
+    def _polish_relaxed(self, x: np.ndarray, P: np.ndarray | sp.csc_matrix, q: np.ndarray) -> np.ndarray:
+        """Return the exact KKT point of the closest-wrench QP (min x'Px/2 + q'x, Gin x <= hin) on the active set of
+        its solution x, or x itself when that point is not the optimum (a limit broken or a negative multiplier).
+
+        Besides the accuracy, this makes the answer a function of the QP alone: ProxQP's last bits depend on the
+        process's heap (the same problem solved 40 times after other allocations gives two answers 7e-15 apart),
+        and a saturated closed loop amplifies that into runs that cannot be repeated.
+        """
+        active = np.flatnonzero(self.Gin @ x >= self._h_active)
+        P = P.toarray() if sp.issparse(P) else np.asarray(P)
+        n, m = len(x), len(active)
+        K = np.zeros((n + m, n + m))
+        K[:n, :n], K[:n, n:], K[n:, :n] = P, self.Gin[active].T, self.Gin[active]
+        try:
+            sol = np.linalg.solve(K, np.concatenate([-q, self.hin[active]]))
+        except np.linalg.LinAlgError:  # dependent active rows
+            return x
+        p, lam = sol[:n], sol[n:]
+        scale = max(1.0, float(np.abs(lam).max(initial=0.0)))
+        if np.isfinite(sol).all() and (self.Gin @ p <= self._h_polish).all() and (lam >= -1e-9 * scale).all():
+            return p
+        return x
+
     def _result(self, x: np.ndarray, gamma: np.ndarray, solver: str) -> AllocationResult:
         w_full = self.E @ x
         achieved = self.G_full @ w_full
@@ -768,7 +791,7 @@ class WrenchAllocator:
                 f"{gamma[1]:.4g}, {gamma[2]:.4g}); check the arm limits and the contact points",
                 binding="solver",
             )
-        x = sol.x
+        x = self._polish_relaxed(sol.x, problem.P, problem.q)
         res = self._result(x, gamma, self.solver)
         if res.residual <= tol:
             return res  # the first solve only stalled
