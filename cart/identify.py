@@ -141,9 +141,9 @@ class Identification:
     grid_dt: float = float("nan")
     fit_data: FitData | None = field(default=None, repr=False)
     casters: casters_model.Casters | None = None
-    #: (forward residual ratio, mass) of the same regression with the wrench
+    #: (forward residual ratio, mass, forward ratio above the slow band) of the same regression with the wrench
     #: (fx, fy) read in the cart frame {b} (:func:`_cart_frame_reading`)
-    cart_frame: tuple[float, float] | None = None
+    cart_frame: tuple[float, float, float] | None = None
     #: yaw residual ratio of the same regression with the torque moved from the world origin to {b}'s origin
     #: (:func:`_torque_origin_reading`); None when the model fits (only a misfit is checked)
     torque_origin: float | None = None
@@ -800,6 +800,18 @@ def _residual_ratio(
     return rms / expected, expected
 
 
+def _fast_ratio(reg: _Regression, p: np.ndarray, expected: np.ndarray, rows_fc: tuple[float, float]) -> np.ndarray:
+    """Return the residual's RMS per row above SLOW_SHARE of the cut-off, over what the noise explains
+    (``expected``); ``rows_fc``: the rows' period (s) and the cut-off (Hz). The slow part is removed by FFT
+    (zero-padded to twice the length)."""
+    dt_rows, fc = rows_fc
+    r = reg.y - _predict(reg.x, p)
+    m = 2 * len(r)
+    keep = (np.fft.rfftfreq(m, dt_rows) > SLOW_SHARE * fc).astype(float)
+    fast = np.fft.irfft(np.fft.rfft(r, n=m, axis=0) * keep[:, None], n=m, axis=0)[: len(r)]
+    return np.sqrt(np.mean(fast**2, axis=0)) / expected
+
+
 def _slow_excess(
     reg: _Regression,
     p: np.ndarray,
@@ -814,15 +826,10 @@ def _slow_excess(
     Slow sensor noise (an offset's random walk, noise decorrelating over seconds) leaves its excess at the
     lowest frequencies; the cart's misfits (a time delay, a wrong model) leave theirs across the band of the
     dynamics. A Coulomb-like resistance is slow too (its caller tests it first: its Wald statistic separates it).
-    ``rows_fc``: the rows' period (s) and the cut-off (Hz); the part is removed by FFT (zero-padded to twice
-    the length).
+    ``rows_fc``: the rows' period (s) and the cut-off (Hz) (:func:`_fast_ratio`).
     """
-    dt_rows, fc = rows_fc
-    r = reg.y - _predict(reg.x, p)
-    m = 2 * len(r)
-    keep = (np.fft.rfftfreq(m, dt_rows) > SLOW_SHARE * fc).astype(float)
-    fast = np.fft.irfft(np.fft.rfft(r, n=m, axis=0) * keep[:, None], n=m, axis=0)[: len(r)]
-    above = np.sqrt(np.mean(fast**2, axis=0)) / expected
+    _, fc = rows_fc
+    above = _fast_ratio(reg, p, expected, rows_fc)
     if not np.all(above <= FIT_RATIO):
         return False
     warnings.append(
@@ -1039,7 +1046,7 @@ def identify(
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
     cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings, (grid.dt * step, fc))
-    cart_frame = _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so))
+    cart_frame = _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so), fc)
     origin = None if fits else _torque_origin_reading(grid, sos, (full, step), noise, float(expected[1]))
     p, cov, note = _physical(p, _with_turn_attenuation(cov, p, _turn_noise_share(full.om, sw)))
     warnings += note
@@ -1095,9 +1102,10 @@ def _torque_origin_reading(
 
 
 def _cart_frame_reading(
-    grid: _Grid, sos: np.ndarray, full_step: tuple[_Regression, int], noise: np.ndarray, lv_acc: tuple
-) -> tuple[float, float]:
-    """Return (forward residual ratio, mass) of the regression ``full`` with the wrench read in the cart frame {b}.
+    grid: _Grid, sos: np.ndarray, full_step: tuple[_Regression, int], noise: np.ndarray, lv_acc: tuple, fc: float
+) -> tuple[float, float, float]:
+    """Return (forward residual ratio, mass, forward ratio above the slow band) of the regression ``full`` with the
+    wrench read in the cart frame {b}; the last as :func:`_fast_ratio` at cut-off ``fc``.
 
     The regressor comes from the pose and is the same in both readings; read in {b}, the forward force
     is fx itself. The rows' y is filtered and fitted as in :func:`_wls` (every ``step``-th row), the wrench
@@ -1113,8 +1121,9 @@ def _cart_frame_reading(
     reg = _every(alt, step)
     p, _, _ = _wls(reg.x, reg.y, np.pad(noise, ((0, 0), (0, reg.x.shape[-1] - noise.shape[1]))))
     _, _, out_std = _wrench_noise(alt, p, grid.dt, sos)
-    ratio, _ = _residual_ratio(out_std, sv, so, p, reg.y - _predict(reg.x, p), reg.y)
-    return float(ratio[0]), float(p[0])
+    ratio, expected = _residual_ratio(out_std, sv, so, p, reg.y - _predict(reg.x, p), reg.y)
+    fast = _fast_ratio(reg, p, expected, (grid.dt * step, fc))
+    return float(ratio[0]), float(p[0]), float(fast[0])
 
 
 def _filtered_regression(

@@ -103,3 +103,17 @@ def test_the_cart_frame_reading_is_a_refit_not_a_second_identify(monkeypatch):
     with pytest.raises(UnitsError, match=r"cart frame \{b\}"):
         estimate_log(_in_cart_frame(log))
     assert len(calls) == 1
+
+
+def test_a_cart_frame_wrench_under_slow_noise_is_refused_and_the_same_log_in_the_world_frame_is_not():
+    """Slow AR(1) F/T noise (2 s correlation): the {b}-frame misfit was read as slow sensor noise, so the frame
+    check (which skipped a fitting model) let an outside tester's cart through with exit 0 (10.4 +- 9.9 kg for
+    38.8). The {b} reading must fit as slow noise does, with a fourfold drop of the forward residual variance."""
+    from studies.testbeds import coloured_noise
+
+    run, truth, case = coloured_noise._clean(5102)
+    log = coloured_noise._table(run, case, "ar1_slow", False, np.random.default_rng(5), 2.0)
+    ok = estimate_log(log)
+    assert abs(ok.params.m / truth["m"] - 1) < 0.05
+    with pytest.raises(UnitsError, match=r"cart frame \{b\}"):
+        estimate_log(_in_cart_frame(log))
