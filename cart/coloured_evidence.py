@@ -48,6 +48,8 @@ def fit_wrench_noise(sig: Signals) -> WrenchNoise | None:
     if band[1] < 2.0 * band[0]:
         return None
     raw = np.column_stack([sig.f_fwd, sig.tau])
+    if sig.wrench_measured is not None:  # a fill (a stuck sensor's stretch) has no noise: its samples are left out
+        raw = raw[sig.wrench_measured]
     return WrenchNoise(*(fit_spectrum(raw[:, k], dt, band, f_min, with_ar1=False) for k in range(2)))
 
 

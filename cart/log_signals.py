@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -147,6 +148,8 @@ class Signals:
     extras: dict = field(default_factory=dict, compare=False)
     #: first sample index of every contiguous segment after the first (a logging gap before it)
     breaks: tuple[int, ...] = ()
+    #: the samples whose wrench was measured (False: filled across a stuck sensor or a clipped axis); None: all
+    wrench_measured: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -172,8 +175,15 @@ class Signals:
         )
 
 
-def signals_from_log(log: CartLog, half_window: float | None = None) -> Signals:
-    """Return the smoothed body-frame :class:`Signals` of ``log`` (pose differentiated by local quadratics)."""
+def signals_from_log(
+    log: CartLog, half_window: float | None = None, filled: Sequence[tuple[float, float]] = ()
+) -> Signals:
+    """Return the smoothed body-frame :class:`Signals` of ``log`` (pose differentiated by local quadratics).
+
+    ``filled``: (t0, t1) spans of the log's time where the wrench is a fill, not a measurement (a stuck sensor's
+    stretch, a clipped axis); their samples are left out of the wrench's noise levels (a linear fill has none: a
+    stuck 10 s of a 60 s log lowered the force's noise std and flagged windows 10 s away).
+    """
     t = np.asarray(log.t, float)
     if len(t) < 20:
         raise LogFormatError(f"{log.source}: {len(t)} samples are too few to diagnose (need at least 20)")
@@ -206,6 +216,9 @@ def signals_from_log(log: CartLog, half_window: float | None = None) -> Signals:
     gs, _, _, glev = local_poly(t, g, max(0.06, 3.0 * med_dt), degree=3, breaks=breaks)
     gcorr = np.sqrt(np.clip(1.0 - glev, 0.05, 1.0))
     gres = (g - gs) / gcorr[:, None]
+    measured = _measured(t, filled)
+    if measured is not None:
+        gres = gres[measured]
     sigma_force = robust_std(np.concatenate([gres[:, 0], gres[:, 1]]))
     sigma_torque = robust_std(gres[:, 2])
     return Signals(
@@ -230,7 +243,21 @@ def signals_from_log(log: CartLog, half_window: float | None = None) -> Signals:
         gain_value=g0,
         half_window=hw,
         breaks=breaks,
+        wrench_measured=measured,
     )
+
+
+def _measured(t: np.ndarray, filled: Sequence[tuple[float, float]]) -> np.ndarray | None:
+    """Return the mask of the samples outside every ``filled`` span (None when there is none, or none is hit)."""
+    spans = np.asarray(filled, float).reshape(-1, 2)
+    if len(spans) == 0:
+        return None
+    inside = np.zeros(len(t), bool)
+    for a, b in spans:
+        inside |= (t >= a) & (t <= b)
+    if not inside.any() or inside.all():
+        return None
+    return ~inside
 
 
 def window_edges(t: np.ndarray, length: float, breaks: tuple[int, ...] | None = None) -> np.ndarray:
