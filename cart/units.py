@@ -261,11 +261,13 @@ def check_declared_units(metadata: dict[str, str], source: str = "<memory>") -> 
         for word in words:
             if word in NON_SI_UNITS:
                 quantity, columns, factor = NON_SI_UNITS[word]
+                header = key == "units (header)"  # `cart.logs.read_log`: units in the header's column names
+                where = f"the header row's units ({value})" if header else f"the metadata line '# {key}: {value}'"
                 raise UnitsError(
-                    f"{source}: the metadata line '# {key}: {value}' declares {quantity} in {word}; LOG_FORMAT "
+                    f"{source}: {where} declare{'' if header else 's'} {quantity} in {word}; LOG_FORMAT "
                     f"needs SI units and radians: multiply {columns} by {factor:.8g}"
                     + (" (and tau into N m)" if quantity in ("force", "length") else "")
-                    + " and remove or correct that line"
+                    + (" and name the columns without units" if header else " and remove or correct that line")
                 )
 
 

@@ -164,9 +164,19 @@ def check_output(out: str | os.PathLike, paths: Sequence[str]) -> None:
         return
     parent = os.path.dirname(os.path.abspath(out))
     if not os.path.isdir(parent):
-        raise OutputPathError(f"--out {out}: the directory {parent} does not exist")
+        raise OutputPathError(f"--out {out}: {_missing_directory(parent)}")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise OutputPathError(f"--out {out}: cannot create a file in {parent} (not writable)")
+
+
+def _missing_directory(parent: str) -> str:
+    """Return why ``parent`` (the --out file's directory) cannot hold it: missing, or a file on its path."""
+    up = parent
+    while up and not os.path.exists(up):
+        up = os.path.dirname(up)
+    if up and not os.path.isdir(up):
+        return f"{up} is a file, not a directory"
+    return f"the directory {parent} does not exist"
 
 
 def _open_results(out: str | os.PathLike):
@@ -176,7 +186,7 @@ def _open_results(out: str | os.PathLike):
         raise BatchError(f"--out {out}: is a directory, give a .jsonl file")
     parent = os.path.dirname(os.path.abspath(out))
     if not os.path.isdir(parent):
-        raise BatchError(f"--out {out}: the directory {parent} does not exist")
+        raise BatchError(f"--out {out}: {_missing_directory(parent)}")
     try:
         needs_newline = False
         if os.path.getsize(out) if os.path.exists(out) else 0:

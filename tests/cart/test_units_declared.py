@@ -97,3 +97,10 @@ def test_a_flipped_wrench_sign_is_refused_by_estimate_and_diagnose():
         estimate_log(flipped)
     with pytest.raises(CartError, match="sign looks flipped"):
         diagnose(flipped)
+
+
+def test_units_in_the_header_row_are_named_as_the_header_not_as_a_metadata_line():
+    """The refusal quoted a "# units (header): ..." line the file does not hold (an outside tester's log whose
+    header reads ``x [mm]``)."""
+    with pytest.raises(UnitsError, match=r"the header row's units \(x: mm\) declare length in mm.*name the columns"):
+        check_declared_units({"units (header)": "x: mm"}, "log.csv")

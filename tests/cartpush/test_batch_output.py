@@ -86,3 +86,11 @@ def test_cli_refuses_with_one_line_and_exit_2(log_file, capsys):
     assert code == 2
     assert len(err) == 1 and "one of the input logs" in err[0]
     assert log_file.read_bytes() == before
+
+
+def test_out_under_a_regular_file_names_the_file(log_file, tmp_path):
+    """An outside tester's --out a_file/x.jsonl was told the directory does not exist."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    with pytest.raises(OutputPathError, match="a_file is a file, not a directory"):
+        check_output(blocker / "sub" / "x.jsonl", [str(log_file)])
