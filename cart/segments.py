@@ -612,6 +612,7 @@ def _summary(res, t0: float, t1: float, t0_range: tuple[float, float] | None = N
         "std": res.std,
         "model_fits": res.model_fits,
         "residual_ratio": res.residual_ratio,
+        "warnings": tuple(res.warnings),
     }
 
 

@@ -124,6 +124,11 @@ def fit_verdict(out: dict[str, Any], nis_text: str) -> str:
         why = f"residual wrench {ratio[0]:.1f}x (force) and {ratio[1]:.1f}x (torque) what the sensor noise explains"
     if out["model_fits"]:
         return f"model fits yes: {why}"
+    from cart.estimate_report import NIS_MISFIT
+
+    nis = out.get("nis_mean")
+    if None in ratio and isinstance(nis, (int, float)) and nis <= NIS_MISFIT:  # the EKF: refused on another count
+        return f"model fits NO: {why} is within the noise, but the least-squares check is not (see the warnings)"
     return f"model fits NO: {why} (above the noise: an effect the model lacks; run `cartpush diagnose`)"
 
 

@@ -46,6 +46,11 @@ def test_a_log_split_in_segments_that_each_fit_fits():
     assert len(rep.segments) == 2 and all(s["model_fits"] for s in rep.segments)
     assert rep.model_fits
     assert not any(w.startswith("the model does not fit") for w in rep.warnings)
+    # the fit's warnings and residual are the last segment's (its parameters are shown), not the whole log's
+    # (an outside tester: "read as slow sensor noise" beside a last segment that fitted at 0.65x)
+    assert not any("slow sensor noise" in w and not w.startswith("last segment") for w in rep.warnings)
+    assert rep.fields["residual_ratio"] == list(rep.segments[-1]["residual_ratio"])
+    assert rep.fields["whole_log_residual_ratio"][0] > rep.fields["residual_ratio"][0]
 
 
 def test_a_change_while_cruising_is_dated_with_the_stretch_that_cannot_tell():
@@ -133,3 +138,13 @@ def test_a_miss_is_counted_apart_only_when_a_wide_reported_stretch_holds_the_cha
     assert not in_wide_stretch(segs, 24.6, 42.0)  # after-mass 7 % off
     assert not in_wide_stretch([first, {**segs[1], "t0_range": [22.0, 23.5]}], 23.0, 45.0)  # 1.5 s: datable
     assert not in_wide_stretch([first], 24.6, 45.0)  # no change reported
+
+
+def test_the_ekf_on_a_load_change_log_says_it_averages_two_carts():
+    """`--method ekf` reports no segments; on an outside tester's 68 -> 51 kg log it gave 54.5 kg, the model said
+    to fit and no warning. The least-squares check splits the log and says so."""
+    log, tc, _ = _load_case(3000)
+    rep = estimate_log(log, method="ekf")
+    assert not rep.model_fits
+    note = next(w for w in rep.warnings if w.startswith("the load changes at"))
+    assert "--method ls" in note and abs(float(note.split("t = ")[1].split(" s")[0]) - tc) < 1.0
