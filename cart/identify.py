@@ -565,6 +565,55 @@ def _regression(log: CartLog, grid: _Grid, fc: float, sos: np.ndarray) -> _Regre
     return _Regression(x=x, y=y, v=v[keep], om=om[keep], keep=keep, y_raw=y_raw[keep], vo_grid=(v, om))
 
 
+def _rolling_resistance_fit(
+    reg: _Regression, noise_lag: tuple[np.ndarray, int], p: np.ndarray, cov: np.ndarray, noise_terms: tuple
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, float]] | None:
+    """Return (p, cov, residual ratio, explained RMS, Coulomb dict) of the fit with Coulomb-like forward and yaw
+    resistances (:func:`_with_coulomb_columns`) when they are significant (:func:`_coulomb_check`) and with them
+    the model fits (every row within FIT_RATIO); None otherwise (the nominal fit stands, their shift counted as
+    model uncertainty by :func:`_model_uncertainty`).
+
+    A cart's casters and wheels resist rolling with a force that does not grow with the speed: a viscous-only
+    model misfits it and would report a log of a plain cart as not fitting, its std 25 times the error (an outside
+    tester's change-free carts with 0.09-0.12 N/kg of rolling resistance: 57.76 +- 7.8 kg for 57.46). The
+    parameters are the extended fit's; each std is the nominal (generalised) fit's widened by the extended fit's
+    variance inflation (the Coulomb columns' collinearity with the others). ``noise_terms``: (out_std, sv, so) of
+    :func:`_residual_ratio`.
+    """
+    noise, lag = noise_lag
+    coulomb, shift = _coulomb_check(reg, noise, lag, p)
+    if shift is None:
+        return None
+    eps = _coulomb_eps(reg)
+    try:
+        pc, covc, _, rc = _fit(_with_coulomb_columns(reg.x, reg.v, reg.om, eps), reg.y, noise, lag)
+        _, cov_plain, _, _ = _fit(reg.x, reg.y, noise, lag)
+    except np.linalg.LinAlgError:
+        return None
+    out_std, sv, so = noise_terms
+    ratio, expected = _residual_ratio(out_std, sv, so, pc, rc, reg.y)
+    if not np.all(ratio <= FIT_RATIO):
+        return None
+    n = len(p)
+    inflation = np.maximum(np.diag(covc)[:n] / np.maximum(np.diag(cov_plain), 1e-300), 1.0)
+    scale = np.sqrt(inflation)
+    return pc[:n], cov * np.outer(scale, scale), ratio, expected, coulomb
+
+
+def _rolling_note(coulomb: dict[str, float]) -> str:
+    """Return the warning that a Coulomb-like resistance is part of the fitted model."""
+    return (
+        f"a Coulomb-like resistance ({coulomb['force']:.3g} N forward, {coulomb['torque']:.3g} N m yaw: rolling "
+        "resistance, bearing friction) is fitted beside the viscous model, and with it the model fits; the "
+        "parameters and their std are that fit's (`cartpush diagnose` names the effect)"
+    )
+
+
+def _coulomb_eps(reg: _Regression) -> tuple[float, float]:
+    """Return the speeds (forward, yaw) below which the Coulomb-like columns' tanh turns linear."""
+    return 0.05 * float(np.std(reg.v)) + 1e-12, 0.05 * float(np.std(reg.om)) + 1e-12
+
+
 def _coulomb_check(
     reg: _Regression, noise: np.ndarray, lag: int, p: np.ndarray
 ) -> tuple[dict[str, float], np.ndarray | None]:
@@ -572,7 +621,7 @@ def _coulomb_check(
 
     The shift is the change of the six parameters the extra columns cause (model uncertainty).
     """
-    eps = (0.05 * float(np.std(reg.v)) + 1e-12, 0.05 * float(np.std(reg.om)) + 1e-12)
+    eps = _coulomb_eps(reg)
     try:
         pc, covc, _, _ = _fit(_with_coulomb_columns(reg.x, reg.v, reg.om, eps), reg.y, noise, lag)
     except np.linalg.LinAlgError:
@@ -1055,7 +1104,15 @@ def identify(
     p, cov, scale, r = _generalised_fit(reg, (f_noise, t_noise), (noise, lag), (sos, grid.dt, step), (p, cov, scale, r))
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
     ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
-    cov, coulomb, fits = _model_uncertainty(reg, noise, lag, p, cov, ratio, expected, warnings, (grid.dt * step, fc))
+    rolling = _rolling_resistance_fit(reg, (noise, lag), p, cov, (out_std, sv, so))
+    if rolling is not None:  # a rolling (Coulomb-like) resistance the viscous model lacks, and with it the model fits
+        p, cov, ratio, expected, coulomb = rolling
+        fits = True
+        warnings.append(_rolling_note(coulomb))
+    else:
+        cov, coulomb, fits = _model_uncertainty(
+            reg, noise, lag, p, cov, ratio, expected, warnings, (grid.dt * step, fc)
+        )
     cart_frame = _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so), fc)
     origin = None if fits else _torque_origin_reading(grid, sos, (full, step), noise, float(expected[1]))
     p, cov, note = _physical(p, _with_turn_attenuation(cov, p, _turn_noise_share(full.om, sw)))
