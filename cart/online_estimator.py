@@ -169,10 +169,13 @@ class LoadChange:
     method: str = "glr"
     t_earliest: float | None = None
     t_latest: float | None = None
+    #: the onset may lie before ``t_earliest``: the test that found the change kept too little data to bound it,
+    #: and the window search did not date it (a lift-out during a cruise longer than the GLR's buffer)
+    censored: bool = False
 
     def as_dict(self) -> dict:
         """Return the change as a JSON-ready dict."""
-        return {k: v if isinstance(v, str) or v is None else float(v) for k, v in self.__dict__.items()}
+        return {k: v if isinstance(v, (str, bool)) or v is None else float(v) for k, v in self.__dict__.items()}
 
 
 @dataclass(frozen=True)
@@ -210,6 +213,7 @@ class _Change:
     method: str = "glr"
     window_index: int | None = None  # the change's index in the window search's list (its onset is refined)
     t_range: tuple[float, float] | None = None  # the onsets the data cannot tell apart (earliest, latest)
+    censored: bool = False  # the onset may lie before t_range (`LoadChange.censored`)
     before: tuple[float, float, float] | None = None  # GLR: the fit before the onset (mass, std, residual ratio)
     sums_before: _SumsBefore | None = None  # GLR: the regression before the onset, restored if withdrawn
 
@@ -414,7 +418,9 @@ class OnlineLSEstimator:
         for c in self._changes:
             after = c.mass_end if c.mass_end is not None else now
             lo, hi = c.t_range if c.t_range is not None else (None, None)
-            out.append(LoadChange(c.t_change, c.t_detected, c.mass_before, after, c.statistic, c.method, lo, hi))
+            out.append(
+                LoadChange(c.t_change, c.t_detected, c.mass_before, after, c.statistic, c.method, lo, hi, c.censored)
+            )
         return tuple(out)
 
     @property
@@ -478,6 +484,7 @@ class OnlineLSEstimator:
                 if c.window_index is not None:
                     found = self.window.changes[c.window_index]
                     c.t_change, c.t_range = found.t_change, found.t_range
+                    c.censored = c.censored and not found.refined
         jump = self.momentum.check(self.t) if self.momentum is not None else None
         if jump is not None:
             self._restart_from_momentum(*jump)
@@ -904,7 +911,7 @@ class OnlineLSEstimator:
         if self.window is not None:
             split = self.window.recent_split(float(self.regression.p[0]) - m_before, t_change)
             if split is not None:  # the window's split, on up to window_s of data, dates the change
-                t_change, t_range = split.t_change, split.t_range
+                t_change, t_range, censored = split.t_change, split.t_range, False
         self._changes.append(
             _Change(
                 t_change,
@@ -912,6 +919,7 @@ class OnlineLSEstimator:
                 m_before,
                 self.detector.statistic,
                 t_range=t_range,
+                censored=censored,
                 before=(*fit_before, k_old),
                 sums_before=sums_before,
             )
@@ -920,7 +928,7 @@ class OnlineLSEstimator:
             before = self._params.with_mass(m_before) if m_before > 0.0 else self._params
             seen = WindowChange(t_change, t_range, self.t, before, self._params, {})
             # an onset inside the buffer is kept as found; a censored one is searched again on the window
-            index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated=not censored)
+            index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated=not censored, censored=censored)
             self._changes[-1].window_index = index
         buf.clear()
 

@@ -41,6 +41,8 @@ class WindowChange:
     before: CartParams
     after: CartParams
     after_std: dict
+    #: the onset was searched again on the window (:meth:`WindowChangeDetector._refine`) and replaced
+    refined: bool = False
 
 
 class LogWindow:
@@ -110,15 +112,17 @@ class WindowChangeDetector:
         self._sighted: WindowChange | None = None  # a change the last check found, not yet found again
         self._seen: tuple[WindowChange, int] | None = None  # the last split any check found, and that check's number
 
-    def add_change(self, change: WindowChange, guard_s: float, dated: bool = False) -> int:
+    def add_change(self, change: WindowChange, guard_s: float, dated: bool = False, censored: bool = False) -> int:
         """Register a change found by another test (the online GLR); return its index in :attr:`changes`.
 
         The window restarts ``guard_s`` after its onset, and unless ``dated`` (an onset known to the period: a
         velocity jump) the onset is searched again like the window's own (:meth:`_refine`), on a window from
-        ``window_s / 2`` before it.
+        ``window_s / 2`` before it; from the last change (the window's start) when ``censored``: the test that found
+        it kept too little data to bound its onset (a lift-out during a long cruise shows at the next braking,
+        seconds later).
         """
         self._refining, self._sighted = not dated, None
-        self._before = max(self.start, change.t_change - 0.5 * self.window_s)
+        self._before = self.start if censored else max(self.start, change.t_change - 0.5 * self.window_s)
         self.start = max(self.start, change.t_change + guard_s)
         self.fit = None
         self.changes.append(change)
@@ -209,7 +213,7 @@ class WindowChangeDetector:
             return
         k = min(range(1, len(segs)), key=lambda i: abs(segs[i]["t0"] - last.t_change))
         new = _change(segs[k - 1], segs[k], last.t_detected)
-        self.changes[-1] = replace(new, after=last.after, after_std=last.after_std)
+        self.changes[-1] = replace(new, after=last.after, after_std=last.after_std, refined=True)
         self.start = new.t_change + 1.0 / res.cutoff_hz
 
 

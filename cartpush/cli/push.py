@@ -445,12 +445,23 @@ def print_summary(result) -> None:
     )
 
 
+def _onset_text(change: dict) -> str:
+    """Return the onsets the data cannot tell from the reported one (``t_earliest``, ``t_latest``), or that the
+    onset may lie earlier than the data kept show (``censored``)."""
+    lo, hi = change.get("t_earliest"), change.get("t_latest")
+    if change.get("censored"):
+        return f" or earlier (onsets to {hi:.2f} s fit alike; the data kept do not reach back far enough to bound it)"
+    if lo is None or hi is None or hi - lo < 0.05:
+        return ""
+    return f" (onsets {lo:.2f}-{hi:.2f} s fit alike)"
+
+
 def estimator_note(report: dict) -> str:
     """Return what the online estimator found: load changes (when, the new mass), run-off, unexcited parameters."""
     if not report:
         return "estimator: the cart paper's EKF (no load-change or run-off monitor)"
     lines = [
-        f"load change at t = {c['t_change']:.2f} s (detected {c['t_detected']:.2f} s): mass "
+        f"load change at t = {c['t_change']:.2f} s{_onset_text(c)} (detected {c['t_detected']:.2f} s): mass "
         f"{c['mass_before']:.2f} -> {c['mass_after']:.2f} kg"
         for c in report.get("load_changes", [])
     ] or ["no load change detected"]

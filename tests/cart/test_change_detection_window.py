@@ -193,3 +193,26 @@ def test_a_change_in_a_cruise_longer_than_the_buffer_is_dated_by_the_window_not_
     assert ev.t_earliest < ev.t_detected - est.options.buffer_s  # not clipped at the buffer's start
     assert ev.t_earliest <= 18.0 <= ev.t_latest
     assert abs(ev.mass_after - 12.0) < 0.05 * 12.0
+
+
+def test_a_change_early_in_a_long_cruise_is_searched_from_the_last_change_and_its_onsets_cover_it():
+    """8 kg lifted out at 13 s, a second into a cruise that lasts to 26 s: the GLR finds it at the acceleration
+    after 26 s with its onsets clipped at its buffer's start (censored). Searched again from 15 s before that
+    onset, the window's side before the change is too short to split; searched from the last change (here the
+    run's start), the onsets reported cover the truth and the change is no longer censored. (An outside tester's
+    `push --trajectory 1 --load-change 12:-10` reported onsets 23.39-26.93 s, nothing saying they were clipped.)"""
+    sim = simulate(
+        TRUTH,
+        _cruise_ctrl,
+        40.0,
+        noise=MOCAP,
+        rng=np.random.default_rng(5),
+        changes=[ParameterChange(13.0, TRUTH.with_mass(12.0), conserve_momentum=False)],
+        substeps=2,
+    )
+    est = _replay(sim.measured)
+    assert len(est.events) == 1
+    ev = est.events[0]
+    assert ev.t_detected > 26.0
+    assert ev.t_earliest <= 13.0 <= ev.t_latest and not ev.censored
+    assert ev.as_dict()["censored"] is False

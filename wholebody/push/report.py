@@ -1116,7 +1116,9 @@ def match_load_changes(result: PushResult) -> list[dict]:
 
     A true change is found by the first change the estimator reported (``load_changes`` of its report) detected after
     it and before the next true change (or the run's end), dated from 1 s before it on: ``found``, the estimator's
-    onset ``t_change_est`` and ``t_detected`` (s), ``time_error_s`` (onset minus the true time), ``mass_after_est_kg``
+    onset ``t_change_est`` (``t_change_censored``: the onset may lie earlier,
+    `cart.online_estimator.LoadChange.censored`) and ``t_detected`` (s), ``time_error_s`` (onset minus the true
+    time), ``mass_after_est_kg``
     (the estimator's mass after it; for its last reported change followed by a true change it did not find, the
     loop's estimate just before that change: the estimator's own is its estimate at the run's end) and its error
     (kg, % of the true mass after; the truth's mass: on the MuJoCo plant the effective mass); found or not,
@@ -1153,6 +1155,7 @@ def match_load_changes(result: PushResult) -> list[dict]:
             err = weighed - c["mass_after_kg"]
             row.update(
                 t_change_est=hit["t_change"],
+                t_change_censored=bool(hit.get("censored", False)),
                 t_detected=hit["t_detected"],
                 time_error_s=hit["t_change"] - t0,
                 mass_after_est_kg=weighed,
@@ -1213,8 +1216,11 @@ def load_change_lines(result: PushResult, rows: list[dict] | None = None) -> lis
         if not r["found"]:
             lines.append(f"{what}: NOT found by the estimator; {settled}; {_information_after(r)}")
             continue
+        dated = f"{r['t_change_est']:.2f} s" + (
+            " or earlier (the data the estimator kept do not bound it)" if r.get("t_change_censored") else ""
+        )
         lines.append(
-            f"{what}: found, dated {r['t_change_est']:.2f} s ({r['time_error_s']:+.2f} s), detected "
+            f"{what}: found, dated {dated} ({r['time_error_s']:+.2f} s), detected "
             f"{r['t_detected']:.2f} s, weighed {r['mass_after_est_kg']:.1f} kg ({r['mass_after_error_kg']:+.1f} kg, "
             f"{r['mass_after_error_pct']:+.1f} %); {settled}"
         )
