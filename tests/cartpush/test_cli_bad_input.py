@@ -149,7 +149,7 @@ def test_a_negative_load_change_time_is_a_value_refused_by_its_own_check(capsys)
     assert preprocess_argv(["push", "--load-change", "-1:+5"])[0][2] == " -1:+5"
     assert preprocess_argv(["push", "-h"])[0][1] == "-h"
     assert main(["push", "--duration", "8", "--load-change", "-1:+5"]) == 2
-    assert "a load change needs a nonzero mass at t >= 0, got 5 kg at -1 s" in one_error_line(capsys, "push")
+    assert "a load change's time must be t >= 0 s, got -1 s (for +5 kg)" in one_error_line(capsys, "push")
 
 
 def test_unwritable_out_fails_before_the_computation(tmp_path, capsys):

@@ -36,8 +36,12 @@ class LoadChange:
         values = [self.t, self.mass, *(self.xy or ())]
         if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
             raise WholeBodyError(f"a load change needs finite numbers, got {self}")
-        if self.mass == 0.0 or self.t < 0.0:
-            raise WholeBodyError(f"a load change needs a nonzero mass at t >= 0, got {self.mass:g} kg at {self.t:g} s")
+        if self.t < 0.0:
+            raise WholeBodyError(f"a load change's time must be t >= 0 s, got {self.t:g} s (for {self.mass:+g} kg)")
+        if self.mass == 0.0:
+            raise WholeBodyError(
+                f"a load change needs a nonzero mass (kg put in, or taken out if negative), got 0 at {self.t:g} s"
+            )
         if self.xy is not None and len(self.xy) != 2:
             raise WholeBodyError(f"a load change's place is (x, y) in {{b}}, got {self.xy}")
 
