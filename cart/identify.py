@@ -893,7 +893,8 @@ def _slow_excess(
     warnings.append(
         f"the residual wrench is {ratio[0]:.1f}x (force) and {ratio[1]:.1f}x (torque) what the sensor noise "
         f"explains, {above[0]:.1f}x and {above[1]:.1f}x above {SLOW_SHARE * fc:.2g} Hz: read as slow sensor noise "
-        "(an offset's drift; no Coulomb-like resistance is significant); the std covers it"
+        "(an offset's drift; no Coulomb-like resistance is significant); the std covers it. A slow misfit can also "
+        "be a time offset between the wrench and the pose or a load change: `cartpush diagnose` tests those"
     )
     return True
 
