@@ -358,15 +358,29 @@ def _pose_stream(log: CartLog) -> tuple[Stream, int, bool]:
     return Stream(t[rows], q[rows], rows), int((~keep).sum()), False
 
 
-def _median_at(y: np.ndarray, idx: np.ndarray, half: int = 3) -> np.ndarray:
-    """Return the median of y (n, k) over the 2 half + 1 samples around each index (edges reflected)."""
-    pad = np.pad(y, ((half, half), (0, 0)), mode="reflect")
+def _median_at(y: np.ndarray, idx: np.ndarray, half: int = 3, odd: tuple[bool, bool] = (False, False)) -> np.ndarray:
+    """Return the median of y (n, k) over the 2 half + 1 samples around each index.
+
+    The edges are reflected (y_k before the start); ``odd`` (start, end): reflected about the edge sample instead
+    (2 y_0 - y_k), for a piece that ends at a dropout: the pose moved on across it, and an even reflection puts a
+    moving cart's edge sample two steps from its median (the first sample after a dropout read as a glitch).
+    """
+    n = len(y)
+    k = min(half, n - 1)
+    head, tail = y[np.arange(k, 0, -1)], y[np.arange(n - 2, n - 2 - k, -1)]
+    if odd[0]:
+        head = 2.0 * y[0] - head
+    if odd[1]:
+        tail = 2.0 * y[-1] - tail
+    pad = np.concatenate([head[:half], y, tail[:half]])
+    pad = np.pad(pad, ((half - len(head[:half]), half - len(tail[:half])), (0, 0)), mode="edge")
     win = pad[idx[:, None] + np.arange(2 * half + 1)[None, :]]  # (m, window, k)
     return np.median(win, axis=1)
 
 
-def _glitches(stream: Stream) -> np.ndarray:
-    """Return booleans marking pose samples far beyond the noise and the motion from their running median.
+def _glitches(stream: Stream, odd: tuple[bool, bool] = (False, False)) -> np.ndarray:
+    """Return booleans marking pose samples far beyond the noise and the motion from their running median
+    (``odd``: the piece starts / ends at a dropout, :func:`_median_at`).
 
     The residual scale comes from at most ~20000 evenly spaced samples; the residual itself is computed
     only where the second difference stands out (every glitch does), so the cost is linear and small.
@@ -376,7 +390,7 @@ def _glitches(stream: Stream) -> np.ndarray:
     if n < 15:
         return np.zeros(n, dtype=bool)
     sample = np.arange(0, n, max(1, n // 20000))
-    scale = 1.4826 * median_columns(np.abs(v[sample] - _median_at(v, sample))) + 1e-12
+    scale = 1.4826 * median_columns(np.abs(v[sample] - _median_at(v, sample, odd=odd))) + 1e-12
     d2 = np.abs(v[2:] - 2.0 * v[1:-1] + v[:-2])
     s2 = 1.4826 * median_columns(d2) + 1e-12
     hot = np.flatnonzero(np.any(d2 > 3.0 * s2, axis=1)) + 1
@@ -384,11 +398,21 @@ def _glitches(stream: Stream) -> np.ndarray:
     bad = np.zeros(n, dtype=bool)
     if len(cand) == 0:
         return bad
-    r = np.abs(v[cand] - _median_at(v, cand))
+    r = np.abs(v[cand] - _median_at(v, cand, odd=odd))
     step = median_columns(np.abs(np.diff(v, axis=0))) + 1e-12
     span = np.ptp(v, axis=0)
     bad[cand] = np.any((r > GLITCH_SCALE * scale) & (r > 5.0 * step) & (r > 1e-3 * span), axis=1)
     return bad
+
+
+def _time_gaps(t: np.ndarray, factor: float = 5.0) -> np.ndarray:
+    """Return the samples after which the time steps by more than ``factor`` median periods (a dropout): the
+    glitch test's running median must not reach across one (the cart moved meanwhile: an outside tester's last
+    sample before a 10 s dropout read as a glitch)."""
+    if len(t) < 3:
+        return np.zeros(0, dtype=int)
+    dt = np.diff(t)
+    return np.flatnonzero(dt > factor * median(dt))
 
 
 def _glitches_in_pieces(stream: Stream, cuts: np.ndarray) -> np.ndarray:
@@ -396,11 +420,15 @@ def _glitches_in_pieces(stream: Stream, cuts: np.ndarray) -> np.ndarray:
 
     A jump stays (:func:`_jump_steps`), so the samples on either side of it are no glitch: a running
     median across it lags the motion on one side (a pose moving against the jump's direction leaves its
-    last samples several steps from the median), so each piece is tested on its own.
+    last samples several steps from the median), so each piece is tested on its own. So is each piece between
+    dropouts (:func:`_time_gaps`), its edges there reflected oddly (the cart moved on across the gap).
     """
-    bounds = np.r_[0, np.asarray(cuts, dtype=int) + 1, len(stream.t)]
+    gaps = set(_time_gaps(stream.t).tolist())
+    cuts = np.union1d(np.asarray(cuts, dtype=int), list(gaps)).astype(int)
+    bounds = np.r_[0, cuts + 1, len(stream.t)]
     parts = [
-        _glitches(Stream(stream.t[a:b], stream.values[a:b], stream.rows[a:b])) for a, b in zip(bounds[:-1], bounds[1:])
+        _glitches(Stream(stream.t[a:b], stream.values[a:b], stream.rows[a:b]), ((a - 1) in gaps, (b - 1) in gaps))
+        for a, b in zip(bounds[:-1], bounds[1:])
     ]
     return np.concatenate(parts) if parts else np.zeros(0, dtype=bool)
 
