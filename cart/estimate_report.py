@@ -534,7 +534,7 @@ def _diverged(log: CartLog, guess: CartParams, why: str) -> NumericalError:
 def _run_ekf(log: CartLog, streams: Streams, guess: CartParams) -> EstimateReport:
     """Return the EKF report, its verdict checked against the least-squares estimate."""
     from cart.ekf import estimate_from_log
-    from cart.identify import IdentifiabilityError, check_estimable, identify
+    from cart.identify import check_estimable
 
     check_estimable(log, streams)  # the least-squares fit's checks: a log that says nothing is refused
     ekf_log = check_log(log, streams)
@@ -553,27 +553,8 @@ def _run_ekf(log: CartLog, streams: Streams, guess: CartParams) -> EstimateRepor
             f"the EKF's innovations do not fit (mean NIS {est.mean_nis:.1f}, ~6 expected): "
             "the std understates the error; run `cartpush diagnose`"
         )
-    diffs: dict[str, float] = {}
-    try:
-        ls = identify(log, streams=streams)
-        _check_against_ls(log, p, guess, ls)
-        diffs, notes = _ekf_bias(p, est.std, ls)
-    except (IdentifiabilityError, np.linalg.LinAlgError) as exc:
-        notes = [f"the EKF's answer could not be checked against least squares ({exc})"]
-        fits = False
-    if notes and diffs:
-        fits = False
-    change = _load_change_note(log, streams, ls) if diffs else None
-    if change:
-        fits = False
-        notes.append(change)
-    elif diffs and not ls.model_fits:
-        fits = False
-        notes.append(
-            "the least-squares fit of the same model says the model does not fit this log "
-            f"(residual {ls.residual_ratio[0]:.1f}x / {ls.residual_ratio[1]:.1f}x the noise): the EKF's std "
-            "does not cover that misfit"
-        )
+    diffs, notes = _least_squares_check(log, streams, est, guess)
+    fits = fits and not notes
     warnings += notes
     unknown = not_identified(p, est.std)
     return EstimateReport(
@@ -592,6 +573,33 @@ def _run_ekf(log: CartLog, streams: Streams, guess: CartParams) -> EstimateRepor
         },
         streams=streams,
     )
+
+
+def _least_squares_check(
+    log: CartLog, streams: Streams, est: Any, guess: CartParams
+) -> tuple[dict[str, float], list[str]]:
+    """Return (EKF - LS differences, warnings) of the EKF estimate ``est`` checked against the least-squares fit:
+    a divergence (raised), a bias beyond the combined std, a load change the EKF averages, a misfit the EKF's std
+    does not cover. Any warning makes the EKF's verdict false."""
+    from cart.identify import IdentifiabilityError, identify
+
+    p = est.params
+    try:
+        ls = identify(log, streams=streams)
+        _check_against_ls(log, p, guess, ls)
+        diffs, notes = _ekf_bias(p, est.std, ls)
+    except (IdentifiabilityError, np.linalg.LinAlgError) as exc:
+        return {}, [f"the EKF's answer could not be checked against least squares ({exc})"]
+    change = _load_change_note(log, streams, ls) if diffs else None
+    if change:
+        notes.append(change)
+    elif diffs and not ls.model_fits:
+        notes.append(
+            "the least-squares fit of the same model says the model does not fit this log "
+            f"(residual {ls.residual_ratio[0]:.1f}x / {ls.residual_ratio[1]:.1f}x the noise): the EKF's std "
+            "does not cover that misfit"
+        )
+    return diffs, notes
 
 
 def _load_change_note(log: CartLog, streams: Streams, ls: Any) -> str | None:

@@ -565,6 +565,28 @@ def _regression(log: CartLog, grid: _Grid, fc: float, sos: np.ndarray) -> _Regre
     return _Regression(x=x, y=y, v=v[keep], om=om[keep], keep=keep, y_raw=y_raw[keep], vo_grid=(v, om))
 
 
+def _verdict(
+    reg: _Regression,
+    noise_lag: tuple[np.ndarray, int],
+    fit: tuple[np.ndarray, np.ndarray, np.ndarray],
+    noise_terms: tuple,
+    warnings: list[str],
+    rows_fc: tuple[float, float],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, float], bool]:
+    """Return (p, cov, residual ratio, explained RMS, Coulomb dict, model fits) of the fit ``fit`` (p, cov,
+    residuals): the fit with a rolling resistance when that explains its misfit (:func:`_rolling_resistance_fit`),
+    else the fit with its model uncertainty (:func:`_model_uncertainty`); appends the warnings."""
+    p, cov, r = fit
+    out_std, sv, so = noise_terms
+    ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
+    rolling = _rolling_resistance_fit(reg, noise_lag, p, cov, noise_terms)
+    if rolling is not None:  # a rolling (Coulomb-like) resistance the viscous model lacks, and with it the model fits
+        warnings.append(_rolling_note(rolling[4]))
+        return (*rolling, True)
+    cov, coulomb, fits = _model_uncertainty(reg, *noise_lag, p, cov, ratio, expected, warnings, rows_fc)
+    return p, cov, ratio, expected, coulomb, fits
+
+
 def _rolling_resistance_fit(
     reg: _Regression, noise_lag: tuple[np.ndarray, int], p: np.ndarray, cov: np.ndarray, noise_terms: tuple
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, float]] | None:
@@ -806,6 +828,16 @@ def _generalised_fit(
     wreg = replace(reg, x=xw, y=yw)
     cov = _with_spectral_cov(wreg, (p, cov, scale, rw), scaled, tuple(psds), sos_dt)
     return p, cov, scale, reg.y - _predict(reg.x, p)
+
+
+def _physical_fit(
+    p: np.ndarray, cov: np.ndarray, turn_share: float, warnings: list[str]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return (p, cov) made physical (:func:`_physical`) after the yaw-rate noise's attenuation of dx is added to
+    the covariance (:func:`_with_turn_attenuation`, ``turn_share``); append the projection's note."""
+    p, cov, note = _physical(p, _with_turn_attenuation(cov, p, turn_share))
+    warnings += note
+    return p, cov
 
 
 def _physical(p: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
@@ -1104,20 +1136,12 @@ def identify(
     f_noise, t_noise, out_std = _wrench_noise(full, p, grid.dt, sos)
     p, cov, scale, r = _generalised_fit(reg, (f_noise, t_noise), (noise, lag), (sos, grid.dt, step), (p, cov, scale, r))
     lv = _Noise(pos=lv.pos, theta=lv.theta, force=f_noise.sigma, torque=t_noise.sigma, span=lv.span)
-    ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
-    rolling = _rolling_resistance_fit(reg, (noise, lag), p, cov, (out_std, sv, so))
-    if rolling is not None:  # a rolling (Coulomb-like) resistance the viscous model lacks, and with it the model fits
-        p, cov, ratio, expected, coulomb = rolling
-        fits = True
-        warnings.append(_rolling_note(coulomb))
-    else:
-        cov, coulomb, fits = _model_uncertainty(
-            reg, noise, lag, p, cov, ratio, expected, warnings, (grid.dt * step, fc)
-        )
+    p, cov, ratio, expected, coulomb, fits = _verdict(
+        reg, (noise, lag), (p, cov, r), (out_std, sv, so), warnings, (grid.dt * step, fc)
+    )
     cart_frame = _cart_frame_reading(grid, sos, (full, step), noise, (lv, sv, so), fc)
     origin = None if fits else _torque_origin_reading(grid, sos, (full, step), noise, float(expected[1]))
-    p, cov, note = _physical(p, _with_turn_attenuation(cov, p, _turn_noise_share(full.om, sw)))
-    warnings += note
+    p, cov = _physical_fit(p, cov, _turn_noise_share(full.om, sw), warnings)
     (params, inertia), std = _physical_params(log, p, cov), _physical_std(p, cov)
     warnings += _excitation_warnings(p, std, inertia if inertia > 0 else params.I)
     return Identification(

@@ -178,12 +178,8 @@ class Signals:
 def signals_from_log(
     log: CartLog, half_window: float | None = None, filled: Sequence[tuple[float, float]] = ()
 ) -> Signals:
-    """Return the smoothed body-frame :class:`Signals` of ``log`` (pose differentiated by local quadratics).
-
-    ``filled``: (t0, t1) spans of the log's time where the wrench is a fill, not a measurement (a stuck sensor's
-    stretch, a clipped axis); their samples are left out of the wrench's noise levels (a linear fill has none: a
-    stuck 10 s of a 60 s log lowered the force's noise std and flagged windows 10 s away).
-    """
+    """Return the smoothed body-frame :class:`Signals` of ``log`` (pose differentiated by local quadratics);
+    ``filled``: spans (t0, t1) whose wrench is a fill, left out of its noise levels (:func:`_measured`)."""
     t = np.asarray(log.t, float)
     if len(t) < 20:
         raise LogFormatError(f"{log.source}: {len(t)} samples are too few to diagnose (need at least 20)")
@@ -213,14 +209,8 @@ def signals_from_log(
     w = -s * xd + c * yd
     vdot = c * d2[:, 0] + s * d2[:, 1] + om * w
     g = np.asarray(log.gamma, float)
-    gs, _, _, glev = local_poly(t, g, max(0.06, 3.0 * med_dt), degree=3, breaks=breaks)
-    gcorr = np.sqrt(np.clip(1.0 - glev, 0.05, 1.0))
-    gres = (g - gs) / gcorr[:, None]
     measured = _measured(t, filled)
-    if measured is not None:
-        gres = gres[measured]
-    sigma_force = robust_std(np.concatenate([gres[:, 0], gres[:, 1]]))
-    sigma_torque = robust_std(gres[:, 2])
+    sigma_force, sigma_torque = _wrench_noise_levels(t, g, max(0.06, 3.0 * med_dt), breaks, measured)
     return Signals(
         t=t,
         q_raw=q,
@@ -247,8 +237,25 @@ def signals_from_log(
     )
 
 
+def _wrench_noise_levels(
+    t: np.ndarray, g: np.ndarray, half_window: float, breaks: tuple[int, ...], measured: np.ndarray | None
+) -> tuple[float, float]:
+    """Return the robust noise stds of the force (fx, fy pooled) and the torque: the residuals of a local cubic
+    fit, unbiased by the leverage, over the ``measured`` samples (None: all)."""
+    gs, _, _, glev = local_poly(t, g, half_window, degree=3, breaks=breaks)
+    gcorr = np.sqrt(np.clip(1.0 - glev, 0.05, 1.0))
+    gres = (g - gs) / gcorr[:, None]
+    if measured is not None:
+        gres = gres[measured]
+    return robust_std(np.concatenate([gres[:, 0], gres[:, 1]])), robust_std(gres[:, 2])
+
+
 def _measured(t: np.ndarray, filled: Sequence[tuple[float, float]]) -> np.ndarray | None:
-    """Return the mask of the samples outside every ``filled`` span (None when there is none, or none is hit)."""
+    """Return the mask of the samples outside every ``filled`` span (None when there is none, or none is hit).
+
+    A fill (a stuck sensor's stretch, a clipped axis) has no noise: kept in, a stuck 10 s of a 60 s log lowered
+    the force's noise std and flagged windows 10 s away.
+    """
     spans = np.asarray(filled, float).reshape(-1, 2)
     if len(spans) == 0:
         return None

@@ -706,7 +706,7 @@ class WrenchAllocator:
         and a saturated closed loop amplifies that into runs that cannot be repeated.
         """
         active = np.flatnonzero(self.Gin @ x >= self._h_active)
-        P = P.toarray() if sp.issparse(P) else np.asarray(P)
+        P = sp.csc_matrix(P).toarray()  # dense or sparse alike (a few variables)
         n, m = len(x), len(active)
         K = np.zeros((n + m, n + m))
         K[:n, :n], K[:n, n:], K[n:, :n] = P, self.Gin[active].T, self.Gin[active]
