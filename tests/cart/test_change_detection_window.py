@@ -173,22 +173,27 @@ def _cruise_ctrl(t, q, qd):
     return np.array([f * c, f * s, -8.0 * qd[2]])
 
 
-def test_a_change_in_a_cruise_longer_than_the_buffer_is_dated_by_the_window_not_at_the_buffers_start():
-    """8 kg lifted out at 18 s, in a cruise from 12 to 26 s: nothing shows it until the acceleration at 26 s, so
-    the GLR's most likely onsets run back to the start of its 4 s buffer (censored); the window search dates it
-    on its longer window, and the onsets reported cover the truth."""
+def _cruise_lift_out(t_change: float, duration: float):
+    """Return (estimator, its one event) of the cruise run (`_cruise_ctrl`) with 8 kg lifted out at ``t_change``."""
     sim = simulate(
         TRUTH,
         _cruise_ctrl,
-        36.0,
+        duration,
         noise=MOCAP,
         rng=np.random.default_rng(5),
-        changes=[ParameterChange(18.0, TRUTH.with_mass(12.0), conserve_momentum=False)],
+        changes=[ParameterChange(t_change, TRUTH.with_mass(12.0), conserve_momentum=False)],
         substeps=2,
     )
     est = _replay(sim.measured)
     assert len(est.events) == 1
-    ev = est.events[0]
+    return est, est.events[0]
+
+
+def test_a_change_in_a_cruise_longer_than_the_buffer_is_dated_by_the_window_not_at_the_buffers_start():
+    """8 kg lifted out at 18 s, in a cruise from 12 to 26 s: nothing shows it until the acceleration at 26 s, so
+    the GLR's most likely onsets run back to the start of its 4 s buffer (censored); the window search dates it
+    on its longer window, and the onsets reported cover the truth."""
+    est, ev = _cruise_lift_out(18.0, 36.0)
     assert ev.method == "glr" and ev.t_detected > 26.0
     assert ev.t_earliest < ev.t_detected - est.options.buffer_s  # not clipped at the buffer's start
     assert ev.t_earliest <= 18.0 <= ev.t_latest
@@ -201,18 +206,7 @@ def test_a_change_early_in_a_long_cruise_is_searched_from_the_last_change_and_it
     onset, the window's side before the change is too short to split; searched from the last change (here the
     run's start), the onsets reported cover the truth and the change is no longer censored. (An outside tester's
     `push --trajectory 1 --load-change 12:-10` reported onsets 23.39-26.93 s, nothing saying they were clipped.)"""
-    sim = simulate(
-        TRUTH,
-        _cruise_ctrl,
-        40.0,
-        noise=MOCAP,
-        rng=np.random.default_rng(5),
-        changes=[ParameterChange(13.0, TRUTH.with_mass(12.0), conserve_momentum=False)],
-        substeps=2,
-    )
-    est = _replay(sim.measured)
-    assert len(est.events) == 1
-    ev = est.events[0]
+    _, ev = _cruise_lift_out(13.0, 40.0)
     assert ev.t_detected > 26.0
     assert ev.t_earliest <= 13.0 <= ev.t_latest and not ev.censored
     assert ev.as_dict()["censored"] is False
