@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from collections.abc import Callable
-from typing import TypedDict
+from typing import NamedTuple, TypedDict
 
 import numpy as np
 
@@ -579,21 +579,26 @@ def _verdict(
     p, cov, r = fit
     out_std, sv, so = noise_terms
     ratio, expected = _residual_ratio(out_std, sv, so, p, r, reg.y)
-    rolling = _rolling_resistance_fit(reg, noise_lag, p, cov, noise_terms)
+    check = _coulomb_check(reg, *noise_lag, p)
+    rolling = _rolling_resistance_fit(reg, noise_lag, (p, cov), noise_terms, check)
     if rolling is not None:  # a rolling (Coulomb-like) resistance the viscous model lacks, and with it the model fits
-        warnings.append(_rolling_note(rolling[4]))
-        return (*rolling, True)
-    cov, coulomb, fits = _model_uncertainty(reg, *noise_lag, p, cov, ratio, expected, warnings, rows_fc)
-    return p, cov, ratio, expected, coulomb, fits
+        warnings.append(_rolling_note(check.coulomb))
+        return (*rolling, check.coulomb, True)
+    cov, fits = _model_uncertainty(reg, p, cov, (ratio, expected), warnings, rows_fc, check)
+    return p, cov, ratio, expected, check.coulomb, fits
 
 
 def _rolling_resistance_fit(
-    reg: _Regression, noise_lag: tuple[np.ndarray, int], p: np.ndarray, cov: np.ndarray, noise_terms: tuple
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, float]] | None:
-    """Return (p, cov, residual ratio, explained RMS, Coulomb dict) of the fit with Coulomb-like forward and yaw
-    resistances (:func:`_with_coulomb_columns`) when they are significant (:func:`_coulomb_check`) and with them
-    the model fits (every row within FIT_RATIO); None otherwise (the nominal fit stands, their shift counted as
-    model uncertainty by :func:`_model_uncertainty`).
+    reg: _Regression,
+    noise_lag: tuple[np.ndarray, int],
+    fit: tuple[np.ndarray, np.ndarray],
+    noise_terms: tuple,
+    check: CoulombCheck,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """Return (p, cov, residual ratio, explained RMS) of the fit with Coulomb-like forward and yaw resistances
+    (``check.extended``, :func:`_coulomb_check`) when they are significant and with them the model fits (every
+    row within FIT_RATIO); None otherwise (the nominal ``fit`` (p, cov) stands, their shift counted as model
+    uncertainty by :func:`_model_uncertainty`).
 
     A cart's casters and wheels resist rolling with a force that does not grow with the speed: a viscous-only
     model misfits it and would report a log of a plain cart as not fitting, its std 25 times the error (an outside
@@ -602,24 +607,21 @@ def _rolling_resistance_fit(
     variance inflation (the Coulomb columns' collinearity with the others). ``noise_terms``: (out_std, sv, so) of
     :func:`_residual_ratio`.
     """
-    noise, lag = noise_lag
-    coulomb, shift = _coulomb_check(reg, noise, lag, p)
-    if shift is None:
+    if check.shift is None or check.extended is None:
         return None
-    eps = _coulomb_eps(reg)
-    try:
-        pc, covc, _, rc = _fit(_with_coulomb_columns(reg.x, reg.v, reg.om, eps), reg.y, noise, lag)
-        _, cov_plain, _, _ = _fit(reg.x, reg.y, noise, lag)
-    except np.linalg.LinAlgError:
-        return None
+    (p, cov), (pc, covc, rc) = fit, check.extended
     out_std, sv, so = noise_terms
     ratio, expected = _residual_ratio(out_std, sv, so, pc, rc, reg.y)
     if not np.all(ratio <= FIT_RATIO):
         return None
+    try:
+        _, cov_plain, _, _ = _fit(reg.x, reg.y, *noise_lag)
+    except np.linalg.LinAlgError:
+        return None
     n = len(p)
     inflation = np.maximum(np.diag(covc)[:n] / np.maximum(np.diag(cov_plain), 1e-300), 1.0)
     scale = np.sqrt(inflation)
-    return pc[:n], cov * np.outer(scale, scale), ratio, expected, coulomb
+    return pc[:n], cov * np.outer(scale, scale), ratio, expected
 
 
 def _rolling_note(coulomb: dict[str, float]) -> str:
@@ -636,22 +638,28 @@ def _coulomb_eps(reg: _Regression) -> tuple[float, float]:
     return 0.05 * float(np.std(reg.v)) + 1e-12, 0.05 * float(np.std(reg.om)) + 1e-12
 
 
-def _coulomb_check(
-    reg: _Regression, noise: np.ndarray, lag: int, p: np.ndarray
-) -> tuple[dict[str, float], np.ndarray | None]:
-    """Return the Coulomb-like resistance of the extended fit (force, torque, Wald) and, when significant, its shift.
-
-    The shift is the change of the six parameters the extra columns cause (model uncertainty).
-    """
+def _coulomb_check(reg: _Regression, noise: np.ndarray, lag: int, p: np.ndarray) -> CoulombCheck:
+    """Return the Coulomb-like resistance of the extended fit (force, torque, Wald), its shift when significant
+    (the change of the six parameters the extra columns cause: model uncertainty) and that fit (p, cov, residuals;
+    None when it is singular)."""
     eps = _coulomb_eps(reg)
     try:
-        pc, covc, _, _ = _fit(_with_coulomb_columns(reg.x, reg.v, reg.om, eps), reg.y, noise, lag)
+        pc, covc, _, rc = _fit(_with_coulomb_columns(reg.x, reg.v, reg.om, eps), reg.y, noise, lag)
+        ext: tuple[np.ndarray, np.ndarray, np.ndarray] | None = (pc, covc, rc)
     except np.linalg.LinAlgError:
-        pc, covc = np.r_[p, 0.0, 0.0], np.full((len(p) + 2, len(p) + 2), np.nan)
+        pc, covc, ext = np.r_[p, 0.0, 0.0], np.full((len(p) + 2, len(p) + 2), np.nan), None
     cc = covc[-2:, -2:]
     wald = float(pc[-2:] @ np.linalg.pinv(cc) @ pc[-2:]) if np.all(np.isfinite(cc)) else 0.0
     coulomb = {"force": float(pc[-2]), "torque": float(pc[-1]), "wald": wald}
-    return coulomb, (pc[:-2] - p if wald > -2.0 * math.log(COULOMB_ALPHA) else None)
+    return CoulombCheck(coulomb, pc[:-2] - p if wald > -2.0 * math.log(COULOMB_ALPHA) else None, ext)
+
+
+class CoulombCheck(NamedTuple):
+    """The Coulomb-like resistance test (:func:`_coulomb_check`)."""
+
+    coulomb: dict[str, float]
+    shift: np.ndarray | None
+    extended: tuple[np.ndarray, np.ndarray, np.ndarray] | None
 
 
 def _misfit_scale(
@@ -933,23 +941,22 @@ def _slow_excess(
 
 def _model_uncertainty(
     reg: _Regression,
-    noise: np.ndarray,
-    lag: int,
     p: np.ndarray,
     cov: np.ndarray,
-    ratio: np.ndarray,
-    expected: np.ndarray,
+    ratio_expected: tuple[np.ndarray, np.ndarray],
     warnings: list[str],
     rows_fc: tuple[float, float],
-) -> tuple[np.ndarray, dict[str, float], bool]:
-    """Return (covariance with the model uncertainty added, Coulomb-like resistance, model fits); append warnings.
+    check: CoulombCheck,
+) -> tuple[np.ndarray, bool]:
+    """Return (covariance with the model uncertainty added, model fits); append warnings.
 
-    A significant Coulomb-like resistance (rolling resistance, dry friction: a nuisance term) adds the
-    shift it causes; a misfit adds the unexplained share of the wrench (:func:`_misfit_scale`), also when
-    the excess is slow sensor noise (:func:`_slow_excess`: the model fits). ``rows_fc``: the rows' period
-    and the cut-off (Hz).
+    A significant Coulomb-like resistance (``check``, :func:`_coulomb_check`: rolling resistance, dry friction,
+    a nuisance term) adds the shift it causes; a misfit adds the unexplained share of the wrench
+    (:func:`_misfit_scale`), also when the excess is slow sensor noise (:func:`_slow_excess`: the model fits).
+    ``ratio_expected``: :func:`_residual_ratio`'s; ``rows_fc``: the rows' period and the cut-off (Hz).
     """
-    coulomb, shift = _coulomb_check(reg, noise, lag, p)
+    ratio, expected = ratio_expected
+    coulomb, shift = check.coulomb, check.shift
     if shift is not None:
         cov = cov + np.diag(shift**2)
         warnings.append(
@@ -967,7 +974,7 @@ def _model_uncertainty(
             "(torque) what the sensor noise explains; the std covers the misfit seen along the log "
             "(jackknife); run `cartpush diagnose`"
         )
-    return cov, coulomb, fits
+    return cov, fits
 
 
 def _caster_geometry(
