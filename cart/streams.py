@@ -44,6 +44,8 @@ MIN_HELD_SHARE = 0.01
 STUCK_SECONDS = 0.25
 #: Gaps in a stream longer than this many of its median periods are dropouts.
 DROPOUT_PERIODS = 2.5
+#: The glitch test's pieces end at gaps longer than this many median periods (`_glitches_in_pieces`).
+GLITCH_GAP_PERIODS = 5.0
 #: A pose sample this many robust residual scales from its running median is a glitch.
 GLITCH_SCALE = 12.0
 #: A row whose slope changes by less than this share of the typical change lies on its neighbours' line.
@@ -405,14 +407,12 @@ def _glitches(stream: Stream, odd: tuple[bool, bool] = (False, False)) -> np.nda
     return bad
 
 
-def _time_gaps(t: np.ndarray, factor: float = 5.0) -> np.ndarray:
-    """Return the samples after which the time steps by more than ``factor`` median periods (a dropout): the
-    glitch test's running median must not reach across one (the cart moved meanwhile: an outside tester's last
-    sample before a 10 s dropout read as a glitch)."""
+def _gap_steps(t: np.ndarray, periods: float = DROPOUT_PERIODS) -> np.ndarray:
+    """Return the samples after which the time steps by more than ``periods`` median periods (a dropout)."""
     if len(t) < 3:
         return np.zeros(0, dtype=int)
-    dt = np.diff(t)
-    return np.flatnonzero(dt > factor * median(dt))
+    steps = np.diff(t)
+    return np.flatnonzero(steps > periods * median(steps))
 
 
 def _glitches_in_pieces(stream: Stream, cuts: np.ndarray) -> np.ndarray:
@@ -421,9 +421,10 @@ def _glitches_in_pieces(stream: Stream, cuts: np.ndarray) -> np.ndarray:
     A jump stays (:func:`_jump_steps`), so the samples on either side of it are no glitch: a running
     median across it lags the motion on one side (a pose moving against the jump's direction leaves its
     last samples several steps from the median), so each piece is tested on its own. So is each piece between
-    dropouts (:func:`_time_gaps`), its edges there reflected oddly (the cart moved on across the gap).
+    dropouts longer than ``GLITCH_GAP_PERIODS`` (:func:`_gap_steps`), its edges there reflected oddly (the cart
+    moved on across the gap: a lone sample inside an outside tester's 10 s dropout read as a glitch).
     """
-    gaps = set(_time_gaps(stream.t).tolist())
+    gaps = set(_gap_steps(stream.t, GLITCH_GAP_PERIODS).tolist())
     cuts = np.union1d(np.asarray(cuts, dtype=int), list(gaps)).astype(int)
     bounds = np.r_[0, cuts + 1, len(stream.t)]
     parts = [
@@ -509,11 +510,7 @@ def saturated_channels(v: np.ndarray, names: tuple[str, ...]) -> list[tuple[str,
 
 def _dropouts(stream: Stream) -> tuple[tuple[float, float], ...]:
     """Return the intervals between consecutive samples longer than ``DROPOUT_PERIODS`` median periods."""
-    if len(stream.t) < 3:
-        return ()
-    steps = np.diff(stream.t)
-    big = np.flatnonzero(steps > DROPOUT_PERIODS * median(steps))
-    return tuple((float(stream.t[i]), float(stream.t[i + 1])) for i in big)
+    return tuple((float(stream.t[i]), float(stream.t[i + 1])) for i in _gap_steps(stream.t))
 
 
 def _isolated_zeros(g: np.ndarray) -> np.ndarray:
