@@ -928,7 +928,7 @@ class OnlineLSEstimator:
             before = self._params.with_mass(m_before) if m_before > 0.0 else self._params
             seen = WindowChange(t_change, t_range, self.t, before, self._params, {})
             # an onset inside the buffer is kept as found; a censored one is searched again on the window
-            index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated=not censored, censored=censored)
+            index = self.window.add_change(seen, 1.0 / self.options.cutoff_hz, dated=not censored)
             self._changes[-1].window_index = index
         buf.clear()
 

@@ -112,17 +112,16 @@ class WindowChangeDetector:
         self._sighted: WindowChange | None = None  # a change the last check found, not yet found again
         self._seen: tuple[WindowChange, int] | None = None  # the last split any check found, and that check's number
 
-    def add_change(self, change: WindowChange, guard_s: float, dated: bool = False, censored: bool = False) -> int:
+    def add_change(self, change: WindowChange, guard_s: float, dated: bool = False) -> int:
         """Register a change found by another test (the online GLR); return its index in :attr:`changes`.
 
         The window restarts ``guard_s`` after its onset, and unless ``dated`` (an onset known to the period: a
-        velocity jump) the onset is searched again like the window's own (:meth:`_refine`), on a window from
-        ``window_s / 2`` before it; from the last change (the window's start) when ``censored``: the test that found
-        it kept too little data to bound its onset (a lift-out during a long cruise shows at the next braking,
-        seconds later).
+        velocity jump, or a GLR onset inside its buffer) the onset is searched again like the window's own
+        (:meth:`_refine`), on the window from the last change (its start): the test that found it kept too little
+        data to bound its onset (a lift-out during a long cruise shows at the next braking, seconds later).
         """
         self._refining, self._sighted = not dated, None
-        self._before = self.start if censored else max(self.start, change.t_change - 0.5 * self.window_s)
+        self._before = self.start
         self.start = max(self.start, change.t_change + guard_s)
         self.fit = None
         self.changes.append(change)
